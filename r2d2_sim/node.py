@@ -1,0 +1,498 @@
+"""The ``r2d2_sim`` ROS 2 node: translation between ROS and the simulated world.
+
+The node owns a :class:`~r2d2_sim.world.SimWorld` and advances it only when
+asked (:meth:`SimNode.advance`); it has no timers of its own. ``main()`` paces
+it against the wall clock in the main thread while an executor serves topics
+and services in another, and tests can drive it step by step in-process.
+"""
+
+from fractions import Fraction
+import json
+import math
+import signal
+import sys
+import threading
+import time
+from typing import List, Optional, Sequence
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from std_srvs.srv import SetBool, Trigger
+
+from r2d2_sim.config import ConfigError, PARAMETERS, parse_config, SimConfig
+from r2d2_sim.drive import (
+    DiffDriveGeometry, DiffDriveOdometry, DriveConfigError, limit_twist,
+    twist_to_wheel_velocities, yaw_to_quaternion)
+from r2d2_sim.pacing import DeadlinePacer
+from r2d2_sim.world import SimWorld, WorldError
+
+NODE_NAME = 'r2d2_sim'
+# Warnings about rejected commands repeat at most this often per kind of problem.
+WARNING_PERIOD_S = 5.0
+# Follow the robot with the GUI camera this many times per simulated second.
+GUI_CAMERA_RATE_HZ = 30.0
+
+
+class StartupError(RuntimeError):
+    """The node cannot start with the given parameters or files."""
+
+
+def _describe_twist_problem(msg: Twist) -> Optional[str]:
+    """Name what is wrong with a Twist (None if it is usable)."""
+    values = (msg.linear.x, msg.linear.y, msg.linear.z,
+              msg.angular.x, msg.angular.y, msg.angular.z)
+    if any(math.isnan(v) for v in values):
+        return 'NaN'
+    if any(math.isinf(v) for v in values):
+        return 'infinite value'
+    return None
+
+
+class SimNode(Node):
+    """Simulates R2D2 in PyBullet and exposes it through standard ROS interfaces.
+
+    Publishes ``joint_states``, ``odom`` (wheel odometry), ``ground_truth``,
+    ``/clock`` and the latched ``robot_description``; subscribes ``cmd_vel``;
+    serves ``~/get_joint_info``, ``~/pause``, ``~/step`` and ``~/reset``.
+    Raises :class:`StartupError` when its parameters or URDF are unusable.
+    """
+
+    def __init__(self, **node_kwargs) -> None:
+        super().__init__(NODE_NAME, **node_kwargs)
+        self._lock = threading.RLock()
+        self._warned_at = {}
+        self.world: Optional[SimWorld] = None
+        try:
+            self.config = self._declare_parameters()
+            self._build_world()
+        except (ConfigError, WorldError, DriveConfigError) as exc:
+            if self.world is not None:
+                self.world.close()
+            raise StartupError(str(exc)) from exc
+        self._build_interfaces()
+        self._paused = self.config.start_paused
+        self._publish_state()
+        self._publish_description()
+
+    # -- set-up ---------------------------------------------------------------
+
+    def _declare_parameters(self) -> SimConfig:
+        values = {}
+        for spec in PARAMETERS:
+            descriptor = ParameterDescriptor(
+                description=spec.description, read_only=True, dynamic_typing=True)
+            values[spec.name] = self.declare_parameter(
+                spec.name, spec.default, descriptor).value
+        return parse_config(values)
+
+    def _build_world(self) -> None:
+        config = self.config
+        self.time_step_s = 1.0 / config.physics_rate_hz
+        self.world = SimWorld(config.urdf or None, gui=config.gui,
+                              time_step_s=self.time_step_s,
+                              initial_pose=config.initial_pose)
+        self.robot_description = open(self.world.urdf_path, encoding='utf-8').read()
+        self._movable = self.world.movable_joints()
+        self._movable_indices = [j.index for j in self._movable]
+        self._setup_wheels()
+        rate = Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
+        self._step_ns_num, self._step_ns_den = 10**9 * rate.denominator, rate.numerator
+        self._steps_per_publish = (Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
+                                   / Fraction(config.publish_rate_hz).limit_denominator(1_000_000))
+        self._publish_count = 0
+        self._next_publish_step = self._publish_step(1)
+        self._timeout_steps = math.ceil(config.cmd_vel_timeout_s * config.physics_rate_hz)
+        self._camera_every = max(1, round(config.physics_rate_hz / GUI_CAMERA_RATE_HZ))
+
+    def _setup_wheels(self) -> None:
+        config, world = self.config, self.world
+        names = config.left_wheel_names + config.right_wheel_names
+        missing = [n for n in names if n not in world.joints]
+        if names and len(missing) == len(names) and config.wheel_names_are_default:
+            self.get_logger().warning(
+                f'{world.urdf_path} has none of the default wheel joints: cmd_vel is ignored')
+            names = ()
+        elif missing:
+            raise ConfigError(
+                f'wheel joint(s) {", ".join(missing)} not in the URDF; it has: '
+                f'{", ".join(world.joints)}')
+        self.has_wheels = bool(names)
+        self._command = (0.0, 0.0)
+        self._pending_command = None
+        self._command_step = 0
+        self._wheel_targets = (0.0, 0.0)
+        if not self.has_wheels:
+            self.geometry = None
+            self.odometry = None
+            return
+        wheels = [world.joint(n) for n in names]
+        for wheel in wheels:
+            if wheel.type_name != 'revolute':
+                raise ConfigError(f'wheel joint {wheel.name} is {wheel.type_name}, '
+                                  'not a revolute/continuous joint')
+        self._left = [world.joint(n).index for n in config.left_wheel_names]
+        self._right = [world.joint(n).index for n in config.right_wheel_names]
+        self._wheel_indices = self._left + self._right
+        world.set_wheel_lateral_friction(self._wheel_indices, config.wheel_lateral_friction_ratio)
+        radius = config.wheel_radius_m or world.wheel_radius_m(self._left[0])
+        separation = config.wheel_separation_m or self._derive_separation()
+        max_velocity = config.max_wheel_velocity_rad_s or min(w.max_velocity for w in wheels)
+        max_force = config.max_wheel_force_n_m or min(w.max_force for w in wheels)
+        if not max_velocity > 0.0:
+            raise ConfigError('the URDF gives the wheels no velocity limit: set max_wheel_velocity')
+        if not max_force > 0.0:
+            raise ConfigError('the URDF gives the wheels no effort limit: set max_wheel_force')
+        self.wheel_separation_m = separation
+        self.max_wheel_force_n_m = max_force
+        self.geometry = DiffDriveGeometry(
+            wheel_radius_m=radius,
+            wheel_separation_m=separation * config.wheel_separation_multiplier,
+            max_wheel_velocity_rad_s=max_velocity)
+        x, y, yaw = config.initial_pose
+        self.odometry = DiffDriveOdometry(self.geometry, x, y, yaw)
+        self._wheel_forces = [max_force] * len(self._wheel_indices)
+        self._apply_wheel_targets(0.0, 0.0)
+        self._odometry_step = 0
+        self._update_odometry()
+
+    def _derive_separation(self) -> float:
+        """Track width: distance along base y between the left and right wheel centres."""
+        positions = self.world.link_positions_in_base(self._left + self._right)
+        left_y = [p[1] for p in positions[:len(self._left)]]
+        right_y = [p[1] for p in positions[len(self._left):]]
+        separation = sum(left_y) / len(left_y) - sum(right_y) / len(right_y)
+        if separation <= 0.0:
+            raise ConfigError(
+                f'left wheels are not to the left of the right wheels (track {separation:.3f} m '
+                'along base y): check left_wheel_names/right_wheel_names')
+        return separation
+
+    def _build_interfaces(self) -> None:
+        state_qos = QoSProfile(depth=10)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                             reliability=ReliabilityPolicy.RELIABLE)
+        self._joint_pub = self.create_publisher(JointState, 'joint_states', state_qos)
+        self._odom_pub = self.create_publisher(Odometry, 'odom', state_qos)
+        self._truth_pub = self.create_publisher(Odometry, 'ground_truth', state_qos)
+        self._clock_pub = self.create_publisher(Clock, '/clock', state_qos)
+        self._description_pub = self.create_publisher(String, 'robot_description', latched)
+        self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, 10)
+        self.create_service(Trigger, '~/get_joint_info', self._on_get_joint_info)
+        self.create_service(SetBool, '~/pause', self._on_pause)
+        self.create_service(Trigger, '~/step', self._on_step)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+
+        config = self.config
+        self._joint_msg = JointState()
+        self._joint_msg.name = [j.name for j in self._movable]
+        self._odom_msg = Odometry()
+        self._odom_msg.header.frame_id = config.odom_frame_id
+        self._odom_msg.child_frame_id = config.base_frame_id
+        for i, variance in enumerate(config.pose_covariance_diagonal):
+            self._odom_msg.pose.covariance[7 * i] = variance
+        for i, variance in enumerate(config.twist_covariance_diagonal):
+            self._odom_msg.twist.covariance[7 * i] = variance
+        self._truth_msg = Odometry()
+        self._truth_msg.header.frame_id = config.world_frame_id
+        self._truth_msg.child_frame_id = config.base_frame_id
+        self._clock_msg = Clock()
+
+    # -- time -----------------------------------------------------------------
+
+    @property
+    def step_count(self) -> int:
+        """Return the number of physics steps taken since start."""
+        return self.world.step_count
+
+    @property
+    def sim_time_ns(self) -> int:
+        """Return simulated time in integer nanoseconds (exact, no drift)."""
+        return self.world.step_count * self._step_ns_num // self._step_ns_den
+
+    def _publish_step(self, count: int) -> int:
+        return math.ceil(count * self._steps_per_publish)
+
+    def steps_to_next_publish(self) -> int:
+        """Return the number of physics steps until the next state publication."""
+        return self._next_publish_step - self.world.step_count
+
+    @property
+    def paused(self) -> bool:
+        """Return True while physics is stopped."""
+        return self._paused
+
+    # -- stepping -------------------------------------------------------------
+
+    def advance(self, steps: int = 1) -> None:
+        """Step the physics ``steps`` times, applying commands and publishing on schedule.
+
+        This is the in-process API for tests: it ignores pause and pacing, so a
+        test can advance simulated time deterministically between its own spins.
+        """
+        with self._lock:
+            world = self.world
+            for _ in range(steps):
+                if self.has_wheels:
+                    self._update_command()
+                world.step(1)
+                if world.step_count >= self._next_publish_step:
+                    self._publish_count += 1
+                    self._next_publish_step = self._publish_step(self._publish_count + 1)
+                    self._check_sanity()
+                    self._publish_state()
+                if world.gui and world.step_count % self._camera_every == 0:
+                    world.follow_camera()
+
+    def advance_to_next_publish(self) -> int:
+        """Advance one control period: to and including the next publication."""
+        steps = self.steps_to_next_publish()
+        self.advance(steps)
+        return steps
+
+    def _update_command(self) -> None:
+        pending = self._pending_command
+        step = self.world.step_count
+        if pending is not None:
+            self._pending_command = None
+            self._command = pending
+            self._command_step = step
+            self._apply_wheel_targets(*twist_to_wheel_velocities(self.geometry, *pending))
+        elif (self._timeout_steps and self._wheel_targets != (0.0, 0.0)
+              and step - self._command_step >= self._timeout_steps):
+            self._command = (0.0, 0.0)
+            self._apply_wheel_targets(0.0, 0.0)
+
+    def _apply_wheel_targets(self, left: float, right: float) -> None:
+        self._wheel_targets = (left, right)
+        velocities = [left] * len(self._left) + [right] * len(self._right)
+        self.world.set_joint_velocities(self._wheel_indices, velocities, self._wheel_forces)
+
+    def _check_sanity(self) -> None:
+        problem = self.world.state_is_sane()
+        if problem is not None:
+            self.get_logger().error(f'physics blew up ({problem}): resetting the robot')
+            self._reset_locked()
+
+    # -- publishing -----------------------------------------------------------
+
+    def _update_odometry(self) -> None:
+        step = self.world.step_count
+        states = self.world.joint_states(self._wheel_indices)
+        n_left = len(self._left)
+        left = sum(states.positions[:n_left]) / n_left
+        right = sum(states.positions[n_left:]) / (len(states.positions) - n_left)
+        dt = (step - self._odometry_step) * self.time_step_s
+        self.odometry.update_from_positions(left, right, dt)
+        self._odometry_step = step
+
+    def _publish_state(self) -> None:
+        ns = self.sim_time_ns
+        sec, nanosec = divmod(ns, 10**9)
+        self._clock_msg.clock.sec = sec
+        self._clock_msg.clock.nanosec = nanosec
+        self._clock_pub.publish(self._clock_msg)
+
+        states = self.world.joint_states(self._movable_indices)
+        msg = self._joint_msg
+        msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+        msg.position = states.positions
+        msg.velocity = states.velocities
+        msg.effort = states.efforts
+        self._joint_pub.publish(msg)
+
+        base = self.world.base_state()
+        truth = self._truth_msg
+        truth.header.stamp.sec, truth.header.stamp.nanosec = sec, nanosec
+        pose = truth.pose.pose
+        pose.position.x, pose.position.y, pose.position.z = base.position
+        (pose.orientation.x, pose.orientation.y, pose.orientation.z,
+         pose.orientation.w) = base.orientation
+        twist = truth.twist.twist
+        twist.linear.x, twist.linear.y, twist.linear.z = base.linear_velocity
+        twist.angular.x, twist.angular.y, twist.angular.z = base.angular_velocity
+        self._truth_pub.publish(truth)
+
+        if self.has_wheels:
+            self._update_odometry()
+            odom = self._odom_msg
+            odometry = self.odometry
+            odom.header.stamp.sec, odom.header.stamp.nanosec = sec, nanosec
+            pose = odom.pose.pose
+            pose.position.x, pose.position.y = odometry.x_m, odometry.y_m
+            (pose.orientation.x, pose.orientation.y, pose.orientation.z,
+             pose.orientation.w) = yaw_to_quaternion(odometry.yaw_rad)
+            odom.twist.twist.linear.x = odometry.linear_m_s
+            odom.twist.twist.angular.z = odometry.angular_rad_s
+            self._odom_pub.publish(odom)
+
+    def _publish_description(self) -> None:
+        self._description_pub.publish(String(data=self.robot_description))
+
+    # -- callbacks ------------------------------------------------------------
+
+    def _warn(self, kind: str, text: str) -> None:
+        """Log a warning at most once per WARNING_PERIOD_S for each kind of problem."""
+        now = time.monotonic()
+        last, suppressed = self._warned_at.get(kind, (None, 0))
+        if last is not None and now - last < WARNING_PERIOD_S:
+            self._warned_at[kind] = (last, suppressed + 1)
+            return
+        extra = f' ({suppressed} more since the last warning)' if suppressed else ''
+        self.get_logger().warning(text + extra)
+        self._warned_at[kind] = (now, 0)
+
+    def _on_cmd_vel(self, msg: Twist) -> None:
+        problem = _describe_twist_problem(msg)
+        if problem is not None:
+            self._warn(f'cmd_vel {problem}',
+                       f'rejected cmd_vel with {problem}; keeping the last valid command')
+            return
+        if not self.has_wheels:
+            return
+        # Picked up by the physics loop at its next step (a single assignment,
+        # so no lock is needed against the stepping thread).
+        self._pending_command = limit_twist(self.geometry, msg.linear.x, msg.angular.z)
+
+    def _on_get_joint_info(self, request, response):
+        with self._lock:
+            info = self.world.joint_info()
+        response.success = True
+        response.message = json.dumps({'robot': self.world.base_link_name,
+                                       'urdf': self.world.urdf_path,
+                                       'joints': info})
+        return response
+
+    def _on_pause(self, request, response):
+        with self._lock:
+            self._paused = bool(request.data)
+        response.success = True
+        response.message = 'paused' if self._paused else 'running'
+        return response
+
+    def _on_step(self, request, response):
+        with self._lock:
+            if not self._paused:
+                response.success = False
+                response.message = 'the simulation is running: pause it (~/pause true) to step'
+                return response
+            steps = self.advance_to_next_publish()
+        response.success = True
+        response.message = (f'advanced {steps} physics step(s) to t={self.sim_time_ns / 1e9:.6f} s')
+        return response
+
+    def _on_reset(self, request, response):
+        with self._lock:
+            self._reset_locked()
+            stamp = self.sim_time_ns / 1e9
+        response.success = True
+        response.message = f'reset at t={stamp:.6f} s'
+        return response
+
+    def _reset_locked(self) -> None:
+        self.world.reset()
+        if self.has_wheels:
+            self._pending_command = None
+            self._command = (0.0, 0.0)
+            self._apply_wheel_targets(0.0, 0.0)
+            self.odometry.reset(*self.config.initial_pose)
+            self._odometry_step = self.world.step_count
+            self._update_odometry()
+        self._publish_state()
+
+    def destroy_node(self) -> None:
+        """Disconnect the physics client, then destroy the ROS node."""
+        if self.world is not None:
+            with self._lock:
+                self.world.close()
+        super().destroy_node()
+
+
+def run_paced(node: SimNode, stop: threading.Event) -> None:
+    """Step ``node`` against the wall clock until ``stop`` is set.
+
+    Real time (``real_time_factor`` > 0): one physics step per absolute
+    deadline. As fast as possible: whole control periods back to back.
+    """
+    config = node.config
+    rate = config.physics_rate_hz * config.real_time_factor
+    pacer = DeadlinePacer(1.0 / rate) if rate > 0.0 else None
+    while not stop.is_set():
+        if node.paused:
+            stop.wait(0.005)
+            if pacer is not None:
+                pacer.reanchor()
+            continue
+        if pacer is None:
+            node.advance_to_next_publish()
+        else:
+            node.advance(1)
+            pacer.wait()
+
+
+def _install_stop_handlers(stop: threading.Event) -> None:
+    def handler(signum, frame):
+        stop.set()
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+def main(args: Optional[Sequence[str]] = None) -> int:
+    """Run the simulator node until SIGINT or SIGTERM (entry point ``sim_node``)."""
+    stop = threading.Event()
+    _install_stop_handlers(stop)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # rclpy reports bad --ros-args as assorted errors
+        print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+        return 2
+    node = None
+    executor = SingleThreadedExecutor()
+    spinner = None
+    try:
+        node = SimNode()
+        executor.add_node(node)
+        spinner = threading.Thread(target=_spin, args=(executor, stop), daemon=True)
+        spinner.start()
+        node.get_logger().info(
+            f'simulating {node.world.urdf_path} at {node.config.physics_rate_hz:g} Hz, '
+            f'real time factor {node.config.real_time_factor:g}'
+            + (', paused' if node.paused else ''))
+        run_paced(node, stop)
+        return 0
+    except StartupError as exc:
+        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
+        return 2
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        if spinner is not None:
+            spinner.join(timeout=1.0)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _spin(executor, stop: threading.Event) -> None:
+    try:
+        executor.spin()
+    except ExternalShutdownException:
+        pass
+    finally:
+        stop.set()
+
+
+def entry_point(argv: Optional[List[str]] = None) -> None:
+    """Console-script wrapper: exit with main()'s status."""
+    sys.exit(main(argv if argv is not None else sys.argv))
+
+
+if __name__ == '__main__':
+    entry_point()
