@@ -15,10 +15,10 @@ class ConfigError(ValueError):
 
 
 # Measured on the package's own R2D2 (four wheels skid-steering, lateral
-# friction ratio 0.2): it turns at 95 % of an ideal differential drive's yaw
-# rate at every wheel speed from 1 to 10 rad/s, so commands and odometry use
-# an effective track of 1.05 x the geometric 0.44 m.
-DEFAULT_WHEEL_SEPARATION_MULTIPLIER = 1.05
+# friction ratio 0.35): it turns at 90-95 % of an ideal differential drive's
+# yaw rate for wheel speeds of 1 to 10 rad/s; an effective track of 1.1 x the
+# geometric 0.44 m makes a 0.5 rad/s command turn at 0.5 rad/s.
+DEFAULT_WHEEL_SEPARATION_MULTIPLIER = 1.1
 
 
 class ParameterSpec(NamedTuple):
@@ -48,7 +48,7 @@ PARAMETERS: List[ParameterSpec] = [
                   'Distance between left and right wheels in metres; 0 derives it from the URDF.'),
     ParameterSpec('wheel_separation_multiplier', DEFAULT_WHEEL_SEPARATION_MULTIPLIER,
                   'Effective/nominal track ratio used by commands and odometry (skid steering).'),
-    ParameterSpec('wheel_lateral_friction_ratio', 0.2,
+    ParameterSpec('wheel_lateral_friction_ratio', 0.35,
                   'Wheel grip along the axle relative to rolling grip, in (0, 1] (skid steering).'),
     ParameterSpec('left_wheel_names', ['left_front_wheel_joint', 'left_back_wheel_joint'],
                   'Joints driven as the left side.'),

@@ -70,6 +70,8 @@ class SimNode(Node):
         super().__init__(NODE_NAME, **node_kwargs)
         self._lock = threading.RLock()
         self._warned_at = {}
+        self.commands_received = 0
+        self.commands_rejected = 0
         self.world: Optional[SimWorld] = None
         try:
             self.config = self._declare_parameters()
@@ -351,8 +353,10 @@ class SimNode(Node):
         self._warned_at[kind] = (now, 0)
 
     def _on_cmd_vel(self, msg: Twist) -> None:
+        self.commands_received += 1
         problem = _describe_twist_problem(msg)
         if problem is not None:
+            self.commands_rejected += 1
             self._warn(f'cmd_vel {problem}',
                        f'rejected cmd_vel with {problem}; keeping the last valid command')
             return

@@ -1,0 +1,170 @@
+"""``drive``: publish one Twist on ``cmd_vel`` for a while, then stop the robot.
+
+For users without the ``ros2`` CLI (``ros2 topic pub``)::
+
+    drive --linear 0.3 --angular 0.0 --duration 2.0 [--rate 20] [--topic cmd_vel]
+
+The command is re-sent at ``--rate`` Hz because the simulator brakes the wheels
+after 0.5 s without one. The duration runs on the node's clock, so
+``--ros-args -p use_sim_time:=true`` makes it simulated seconds.
+"""
+
+import argparse
+import math
+import sys
+from typing import List, Optional, Sequence
+
+from geometry_msgs.msg import Twist
+import rclpy
+from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.utilities import remove_ros_args
+
+from r2d2_sim.probe import spin_until
+
+NODE_NAME = 'drive'
+# Wall-clock seconds to wait for the simulator's cmd_vel subscription (and, with
+# use_sim_time, for its first /clock message).
+DISCOVERY_TIMEOUT_S = 5.0
+# Wall-clock seconds to wait for the final zero Twist to be acknowledged.
+ACK_TIMEOUT_S = 1.0
+# Exit status after Ctrl-C, as a shell reports a process ended by SIGINT.
+EXIT_INTERRUPTED = 130
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'must be a finite number, got {text!r}')
+    return value
+
+
+def _non_negative(text: str) -> float:
+    value = _finite(text)
+    if value < 0.0:
+        raise argparse.ArgumentTypeError(f'must be >= 0, got {text!r}')
+    return value
+
+
+def _positive(text: str) -> float:
+    value = _finite(text)
+    if value <= 0.0:
+        raise argparse.ArgumentTypeError(f'must be > 0, got {text!r}')
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command-line parser (ROS arguments are removed before it runs)."""
+    parser = argparse.ArgumentParser(
+        prog=NODE_NAME,
+        description='Publish a Twist on cmd_vel at a fixed rate for a duration, then a zero '
+                    'Twist. Add --ros-args -p use_sim_time:=true to time it in simulated '
+                    'seconds.')
+    parser.add_argument('--linear', type=_finite, default=0.0, metavar='M_S',
+                        help='forward speed, linear.x in m/s (default 0)')
+    parser.add_argument('--angular', type=_finite, default=0.0, metavar='RAD_S',
+                        help='counter-clockwise yaw rate, angular.z in rad/s (default 0)')
+    parser.add_argument('--duration', type=_non_negative, default=1.0, metavar='S',
+                        help='how long to drive, in seconds of the node clock (default 1)')
+    parser.add_argument('--rate', type=_positive, default=20.0, metavar='HZ',
+                        help='publishing rate; keep it >= 2 Hz, the simulator brakes after '
+                             '0.5 s without a command (default 20)')
+    parser.add_argument('--topic', default='cmd_vel', help='topic name (default cmd_vel)')
+    return parser
+
+
+class DriveCommand(Node):
+    """Publishes one Twist at a fixed rate for a duration on its clock, then a zero Twist."""
+
+    def __init__(self, linear_m_s: float, angular_rad_s: float, duration_s: float,
+                 rate_hz: float, topic: str = 'cmd_vel') -> None:
+        super().__init__(NODE_NAME)
+        self._twist = Twist()
+        self._twist.linear.x = linear_m_s
+        self._twist.angular.z = angular_rad_s
+        self._duration = Duration(nanoseconds=round(duration_s * 1e9))
+        self._period_s = 1.0 / rate_hz
+        self._publisher = self.create_publisher(Twist, topic, 10)
+        self._start = None
+        self._timer = None
+        self.done = False
+
+    def wait_for_subscriber(self, executor, timeout_s: float) -> bool:
+        """Spin until something subscribes to the topic; False at the deadline."""
+        return spin_until(executor, lambda: self._publisher.get_subscription_count() > 0,
+                          timeout_s)
+
+    def wait_for_clock(self, executor, timeout_s: float) -> bool:
+        """Spin until the clock runs (with use_sim_time it reads 0 until /clock arrives)."""
+        return spin_until(executor, lambda: self.get_clock().now().nanoseconds > 0, timeout_s)
+
+    def start(self) -> None:
+        """Publish the command now and from then on at the rate, on the node's clock."""
+        self._start = self.get_clock().now()
+        self._publisher.publish(self._twist)
+        self._timer = self.create_timer(self._period_s, self._on_timer)
+
+    def _on_timer(self) -> None:
+        if self.done:
+            return
+        if self.get_clock().now() - self._start >= self._duration:
+            self.stop()
+        else:
+            self._publisher.publish(self._twist)
+
+    def stop(self) -> None:
+        """Publish one zero Twist and wait briefly for it to be delivered."""
+        self.done = True
+        if self._timer is not None:
+            self._timer.cancel()
+        self._publisher.publish(Twist())
+        self._publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+
+    @property
+    def topic(self) -> str:
+        """Return the fully resolved topic name."""
+        return self._publisher.topic_name
+
+
+def main(args: Optional[Sequence[str]] = None) -> int:
+    """Drive, then stop; return the exit status (1 if nobody subscribes to the topic)."""
+    argv = list(sys.argv if args is None else args)
+    options = build_parser().parse_args(remove_ros_args(argv)[1:])
+    rclpy.init(args=argv)
+    node = None
+    try:
+        node = DriveCommand(options.linear, options.angular, options.duration,
+                            options.rate, options.topic)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        if not node.wait_for_subscriber(executor, DISCOVERY_TIMEOUT_S):
+            print(f'{NODE_NAME}: error: nothing subscribed to {node.topic} within '
+                  f'{DISCOVERY_TIMEOUT_S:g} s: is the simulator running (same '
+                  'ROS_DOMAIN_ID)?', file=sys.stderr)
+            return 1
+        if not node.wait_for_clock(executor, DISCOVERY_TIMEOUT_S):
+            print(f'{NODE_NAME}: error: no /clock within {DISCOVERY_TIMEOUT_S:g} s '
+                  '(use_sim_time is true)', file=sys.stderr)
+            return 1
+        node.start()
+        while not node.done:
+            executor.spin_once(timeout_sec=0.1)
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        if node is not None and not node.done and node.context.ok():
+            node.stop()
+        return EXIT_INTERRUPTED
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def entry_point(argv: Optional[List[str]] = None) -> None:
+    """Console-script wrapper: exit with main()'s status."""
+    sys.exit(main(argv))
+
+
+if __name__ == '__main__':
+    entry_point()

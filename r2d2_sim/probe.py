@@ -1,0 +1,41 @@
+"""Small helpers for nodes that watch the simulator from outside: poses and deadline waits.
+
+Shared by the ``demo`` and ``drive`` executables and by the cross-process tests.
+"""
+
+import time
+from typing import Callable, NamedTuple, Optional
+
+from nav_msgs.msg import Odometry
+
+from r2d2_sim.drive import quaternion_to_yaw
+
+
+class Pose2D(NamedTuple):
+    """A planar pose with the time stamp of the message it came from."""
+
+    stamp_s: float
+    x_m: float
+    y_m: float
+    yaw_rad: float
+
+
+def pose_from_odometry(msg: Odometry) -> Pose2D:
+    """Extract the planar pose and stamp of an Odometry message."""
+    pose = msg.pose.pose
+    q = pose.orientation
+    stamp = msg.header.stamp
+    return Pose2D(stamp.sec + stamp.nanosec * 1e-9, pose.position.x, pose.position.y,
+                  quaternion_to_yaw(q.x, q.y, q.z, q.w))
+
+
+def spin_until(executor, condition: Callable[[], bool], timeout_s: float,
+               abort: Optional[Callable[[], bool]] = None) -> bool:
+    """Spin ``executor`` until ``condition()`` holds; False at the deadline or on ``abort()``."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        remaining = deadline - time.monotonic()
+        if remaining <= 0.0 or (abort is not None and abort()):
+            return False
+        executor.spin_once(timeout_sec=min(remaining, 0.05))
+    return True

@@ -1,0 +1,315 @@
+"""The node in-process: a probe node in the same context drives it and listens.
+
+The simulator is advanced explicitly with ``SimNode.advance`` (the in-process
+API), so every test controls simulated time exactly and runs faster than real
+time; an executor thread delivers messages between the two nodes.
+"""
+
+import json
+import math
+
+from conftest import wait_for
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+import pytest
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from std_srvs.srv import SetBool, Trigger
+
+from r2d2_sim.drive import quaternion_to_yaw
+from r2d2_sim.node import SimNode, StartupError
+
+RATE_HZ = 240
+WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
+          'right_front_wheel_joint', 'right_back_wheel_joint']
+
+
+class Probe:
+    """A test-side node: publishes cmd_vel, records everything the simulator says."""
+
+    def __init__(self, ros, sim):
+        from rclpy.qos import DurabilityPolicy, QoSProfile
+        self.sim = sim
+        self.node = ros.node('probe')
+        self.messages = {'joint_states': [], 'odom': [], 'ground_truth': [], 'clock': [],
+                         'robot_description': []}
+        node = self.node
+        node.create_subscription(JointState, 'joint_states',
+                                 self.messages['joint_states'].append, 100)
+        node.create_subscription(Odometry, 'odom', self.messages['odom'].append, 100)
+        node.create_subscription(Odometry, 'ground_truth',
+                                 self.messages['ground_truth'].append, 100)
+        node.create_subscription(Clock, '/clock', self.messages['clock'].append, 100)
+        node.create_subscription(
+            String, 'robot_description', self.messages['robot_description'].append,
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.cmd_pub = node.create_publisher(Twist, 'cmd_vel', 10)
+        assert wait_for(lambda: self.cmd_pub.get_subscription_count() > 0), 'no cmd_vel link'
+
+    def send(self, linear=0.0, angular=0.0, **fields):
+        """Publish a Twist and wait until the simulator's callback has seen it."""
+        msg = Twist()
+        msg.linear.x, msg.angular.z = float(linear), float(angular)
+        for name, value in fields.items():
+            part, axis = name.split('_')
+            setattr(getattr(msg, part), axis, value)
+        before = self.sim.commands_received
+        self.cmd_pub.publish(msg)
+        assert wait_for(lambda: self.sim.commands_received > before), 'cmd_vel not received'
+
+    def drive(self, linear, angular, seconds, resend_hz=20):
+        """Command a twist for ``seconds`` of simulated time, re-sent at ``resend_hz``."""
+        chunk = RATE_HZ // resend_hz
+        for _ in range(round(seconds * resend_hz)):
+            self.send(linear, angular)
+            self.sim.advance(chunk)
+
+    def advance_and_collect(self, steps, chunk=8):
+        """Advance in chunks small enough that no published message is dropped."""
+        topics = ('clock', 'joint_states', 'odom', 'ground_truth')
+        for done in range(0, steps, chunk):
+            expected = {t: len(self.messages[t]) + min(chunk, steps - done) for t in topics}
+            self.sim.advance(min(chunk, steps - done))
+            for topic in topics:
+                self.wait_count(topic, expected[topic])
+
+    def wait_count(self, topic, count):
+        """Wait until ``count`` messages of ``topic`` have arrived."""
+        assert wait_for(lambda: len(self.messages[topic]) >= count), \
+            f'{topic}: {len(self.messages[topic])} < {count}'
+
+    def call(self, srv_type, name, request, timeout_s=10.0):
+        """Call a service of the simulator and return the response."""
+        client = self.node.create_client(srv_type, name)
+        assert client.wait_for_service(timeout_sec=timeout_s), f'{name} unavailable'
+        future = client.call_async(request)
+        assert wait_for(future.done, timeout_s), f'{name} did not answer'
+        return future.result()
+
+
+def make_sim(ros, **params):
+    """Build the simulator in the harness's context with parameter overrides."""
+    overrides = [Parameter(k, value=v) for k, v in params.items()]
+    return ros.add(SimNode(context=ros.context, parameter_overrides=overrides))
+
+
+@pytest.fixture
+def sim(ros):
+    """Provide the default simulator."""
+    return make_sim(ros)
+
+
+@pytest.fixture
+def probe(ros, sim):
+    """Provide a probe node linked to the simulator."""
+    return Probe(ros, sim)
+
+
+def truth_pose(msg):
+    """Return (x, y, yaw) of an Odometry message."""
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    return p.x, p.y, quaternion_to_yaw(q.x, q.y, q.z, q.w)
+
+
+def stamp_s(msg):
+    """Return a header stamp in seconds."""
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def latest_truth(sim):
+    """Return the simulator's true (x, y, yaw) now."""
+    base = sim.world.base_state()
+    return base.position[0], base.position[1], quaternion_to_yaw(*base.orientation)
+
+
+def test_joint_states_lists_every_movable_joint(sim, probe):
+    """joint_states names the 8 non-fixed joints with finite values."""
+    sim.advance(10)
+    probe.wait_count('joint_states', 5)
+    msg = probe.messages['joint_states'][-1]
+    assert sorted(msg.name) == sorted(WHEELS + [
+        'gripper_extension', 'left_gripper_joint', 'right_gripper_joint', 'head_swivel'])
+    assert len(msg.position) == len(msg.velocity) == len(msg.effort) == len(msg.name)
+    assert all(math.isfinite(v) for v in list(msg.position) + list(msg.velocity))
+
+
+def test_clock_and_stamps_are_simulation_time(sim, probe):
+    """/clock advances exactly 1/240 s per step and every stamp uses it."""
+    probe.advance_and_collect(RATE_HZ)
+    clocks = [m.clock.sec + m.clock.nanosec * 1e-9 for m in probe.messages['clock']]
+    assert clocks[-1] == 1.0  # 240 steps of 1/240 s, exactly: integer nanoseconds
+    assert len(clocks) == RATE_HZ
+    assert clocks[0] == pytest.approx(1 / RATE_HZ, abs=1e-9)
+    assert all(b - a == pytest.approx(1 / RATE_HZ, abs=1e-9) for a, b in zip(clocks, clocks[1:]))
+    for topic in ('joint_states', 'odom', 'ground_truth'):
+        assert stamp_s(probe.messages[topic][-1]) == 1.0, topic
+    odom, truth = probe.messages['odom'][-1], probe.messages['ground_truth'][-1]
+    assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_link')
+    assert (truth.header.frame_id, truth.child_frame_id) == ('world', 'base_link')
+    assert odom.pose.covariance[0] > 0.0 and odom.twist.covariance[35] > 0.0
+
+
+def test_robot_description_is_latched(sim, probe):
+    """A late subscriber still receives the URDF text."""
+    probe.wait_count('robot_description', 1)
+    assert '<robot' in probe.messages['robot_description'][0].data
+
+
+def test_forward_speed_tracks_command(sim, probe):
+    """0.3 m/s commanded: ground truth speed within 5 % after the first 0.5 s."""
+    probe.drive(0.3, 0.0, 0.5)
+    x0, y0, _ = latest_truth(sim)
+    probe.drive(0.3, 0.0, 2.0)
+    x1, y1, yaw1 = latest_truth(sim)
+    speed = math.hypot(x1 - x0, y1 - y0) / 2.0
+    assert speed == pytest.approx(0.3, rel=0.05)
+    assert x1 - x0 > 0.5  # forward is +x (REP-103)
+    probe.wait_count('ground_truth', 10)
+    twist = probe.messages['ground_truth'][-1].twist.twist
+    assert twist.linear.x == pytest.approx(0.3, rel=0.05)  # twist in base_link
+
+
+def test_yaw_rate_tracks_command(sim, probe):
+    """0.5 rad/s commanded: ground truth yaw rate within 10 % after the first 0.5 s."""
+    probe.drive(0.0, 0.5, 0.5)
+    _, _, yaw0 = latest_truth(sim)
+    probe.drive(0.0, 0.5, 2.0)
+    _, _, yaw1 = latest_truth(sim)
+    rate = math.remainder(yaw1 - yaw0, 2 * math.pi) / 2.0
+    assert rate == pytest.approx(0.5, rel=0.10)
+
+
+def _odom_error(sim):
+    o = sim.odometry
+    x, y, yaw = latest_truth(sim)
+    return math.hypot(o.x_m - x, o.y_m - y), abs(math.remainder(o.yaw_rad - yaw, 2 * math.pi))
+
+
+def test_odometry_matches_truth_straight(sim, probe):
+    """After 2 s straight the odometry is within 5 % of distance and 5 degrees."""
+    probe.drive(0.3, 0.0, 2.0)
+    distance = sim.odometry.distance_m
+    position_error, heading_error = _odom_error(sim)
+    assert distance > 0.5
+    assert position_error < 0.05 * distance
+    assert heading_error < math.radians(5)
+
+
+def test_odometry_matches_truth_after_quarter_turn(sim, probe):
+    """After a 90 degree arc (0.3 m/s, 0.5 rad/s for pi s) odometry agrees with truth."""
+    probe.drive(0.3, 0.5, math.pi)
+    _, _, yaw = latest_truth(sim)
+    assert math.degrees(yaw) == pytest.approx(90, abs=9)
+    position_error, heading_error = _odom_error(sim)
+    assert position_error < 0.05 * sim.odometry.distance_m
+    assert heading_error < math.radians(5)
+
+
+def test_timeout_brakes_the_wheels(sim, probe):
+    """No cmd_vel for 0.5 s of simulated time: wheel targets go to zero, robot stops."""
+    probe.drive(0.3, 0.0, 0.5)
+    sim.advance(RATE_HZ // 2 - 12)  # just under the timeout since the last command
+    assert sim._wheel_targets != (0.0, 0.0)
+    sim.advance(RATE_HZ)
+    assert sim._wheel_targets == (0.0, 0.0)
+    x0 = latest_truth(sim)[0]
+    sim.advance(RATE_HZ)
+    assert abs(latest_truth(sim)[0] - x0) < 0.01
+    states = sim.world.joint_states([sim.world.joint(n).index for n in WHEELS])
+    assert max(abs(v) for v in states.velocities) < 0.5
+
+
+def test_timeout_zero_disables_braking(ros):
+    """cmd_vel_timeout 0 keeps the last command forever."""
+    sim = make_sim(ros, cmd_vel_timeout=0.0)
+    probe = Probe(ros, sim)
+    probe.send(0.3)
+    sim.advance(3 * RATE_HZ)
+    assert sim.world.base_state().linear_velocity[0] == pytest.approx(0.3, rel=0.05)
+
+
+@pytest.mark.parametrize('bad', [
+    {'linear_x': math.nan}, {'angular_z': math.inf}, {'linear_y': -math.inf},
+    {'angular_x': math.nan}])
+def test_non_finite_command_is_rejected_and_last_valid_kept(sim, probe, bad):
+    """A NaN or infinite field is refused; the robot keeps its last valid command."""
+    probe.send(0.3)
+    sim.advance(1)
+    targets = sim._wheel_targets
+    probe.send(**bad)
+    sim.advance(24)
+    assert sim.commands_rejected == 1
+    assert sim._wheel_targets == targets
+    assert all(math.isfinite(v) for v in sim._wheel_targets)
+    assert sim.world.state_is_sane() is None
+
+
+def test_huge_command_is_clamped_preserving_curvature(sim, probe):
+    """1e308 on both axes gives wheels at the limit, turning, all finite."""
+    probe.send(1e308, 1e308)
+    sim.advance(1)
+    left, right = sim._wheel_targets
+    limit = sim.geometry.max_wheel_velocity_rad_s
+    assert max(abs(left), abs(right)) == pytest.approx(limit)
+    assert right > left  # positive yaw: the right wheel runs faster
+
+
+def test_get_joint_info_service(sim, probe):
+    """~/get_joint_info returns the 17 attributes of every joint and its link as JSON."""
+    response = probe.call(Trigger, '/r2d2_sim/get_joint_info', Trigger.Request())
+    assert response.success
+    info = json.loads(response.message)
+    joints = info['joints']
+    assert len(joints) == 15
+    keys = {'index', 'name', 'type', 'type_code', 'q_index', 'u_index', 'flags', 'damping',
+            'friction', 'lower_limit', 'upper_limit', 'max_force', 'max_velocity',
+            'link_name', 'axis', 'parent_frame_position', 'parent_frame_orientation',
+            'parent_index'}
+    for joint in joints:
+        assert keys <= set(joint)
+        assert set(joint['link']) == {'name', 'mass', 'lateral_friction', 'world_position',
+                                      'world_orientation'}
+    by_name = {j['name']: j for j in joints}
+    wheel = by_name['left_front_wheel_joint']
+    assert wheel['type'] == 'revolute' and math.hypot(*wheel['axis']) == pytest.approx(1.0)
+    assert wheel['link']['world_position'][1] > 0.1  # left is +y
+    assert by_name['gripper_extension']['type'] == 'prismatic'
+    assert by_name['base_to_right_leg']['type'] == 'fixed'
+    assert [j['index'] for j in joints] == list(range(15))
+    assert sum(j['link']['mass'] for j in joints) > 5.0
+
+
+@pytest.mark.parametrize('params, fragment', [
+    ({'physics_rate': -1.0}, 'physics_rate'),
+    ({'publish_rate': 1000.0}, 'publish_rate'),
+    ({'left_wheel_names': ['nope_joint']}, 'nope_joint'),
+    ({'right_wheel_names': ['head_swivel_missing']}, 'not in the URDF'),
+    ({'left_wheel_names': ['gripper_extension']}, 'prismatic'),
+    ({'urdf': '/no/such/file.urdf'}, 'not found'),
+    ({'initial_pose': [0.0, 0.0]}, 'initial_pose'),
+])
+def test_bad_parameters_refuse_to_start(ros, params, fragment):
+    """Invalid parameters raise StartupError naming the problem."""
+    with pytest.raises(StartupError, match=fragment):
+        make_sim(ros, **params)
+
+
+def test_integer_values_are_accepted_for_real_parameters(ros):
+    """physics_rate:=240 (an integer on the command line) is as good as 240.0."""
+    sim = make_sim(ros, physics_rate=120, publish_rate=60)
+    assert sim.config.physics_rate_hz == 120.0
+    assert sim.steps_to_next_publish() == 2
+
+
+def test_publish_rate_divides_physics(ros):
+    """publish_rate 50 at 240 Hz publishes 50 times per simulated second."""
+    sim = make_sim(ros, publish_rate=50.0)
+    probe = Probe(ros, sim)
+    for _ in range(RATE_HZ // 8):
+        sim.advance(8)
+        probe.wait_count('joint_states', sum(1 for m in probe.messages['joint_states']))
+    probe.wait_count('joint_states', 50)
+    stamps = [stamp_s(m) for m in probe.messages['joint_states'] if stamp_s(m) > 0.0]
+    assert len(stamps) == 50 and stamps[-1] == 1.0
