@@ -1,4 +1,5 @@
-"""r2d2_sim: a ROS 2 node that runs a PyBullet simulation of R2D2.
+"""
+r2d2_sim: a ROS 2 node that runs a PyBullet simulation of R2D2.
 
 The package is split so that each layer can be tested alone:
 ``drive`` (differential-drive math, no ROS, no PyBullet), ``world``

@@ -1,4 +1,5 @@
-"""The node's parameters: names, defaults, descriptions and validation.
+"""
+The node's parameters: names, defaults, descriptions and validation.
 
 No ROS here: :func:`parse_config` turns a plain ``{name: value}`` mapping into a
 validated :class:`SimConfig` or raises :class:`ConfigError` with one readable
@@ -49,7 +50,7 @@ PARAMETERS: List[ParameterSpec] = [
     ParameterSpec('wheel_separation_multiplier', DEFAULT_WHEEL_SEPARATION_MULTIPLIER,
                   'Effective/nominal track ratio used by commands and odometry (skid steering).'),
     ParameterSpec('wheel_lateral_friction_ratio', 0.35,
-                  'Wheel grip along the axle relative to rolling grip, in (0, 1] (skid steering).'),
+                  'Wheel grip along the axle relative to rolling grip, in (0, 1].'),
     ParameterSpec('left_wheel_names', ['left_front_wheel_joint', 'left_back_wheel_joint'],
                   'Joints driven as the left side.'),
     ParameterSpec('right_wheel_names', ['right_front_wheel_joint', 'right_back_wheel_joint'],
@@ -184,7 +185,8 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
                           'or both be empty')
     both = set(left) & set(right)
     if both:
-        raise ConfigError(f'joint(s) {", ".join(sorted(both))} listed as both left and right wheels')
+        raise ConfigError(
+            f'joint(s) {", ".join(sorted(both))} listed as both left and right wheels')
     covariance = {}
     for name in ('pose_covariance_diagonal', 'twist_covariance_diagonal'):
         covariance[name] = _numbers(name, raw[name], 6)

@@ -1,4 +1,5 @@
-"""The ``r2d2_sim`` ROS 2 node: translation between ROS and the simulated world.
+"""
+The ``r2d2_sim`` ROS 2 node: translation between ROS and the simulated world.
 
 The node owns a :class:`~r2d2_sim.world.SimWorld` and advances it only when
 asked (:meth:`SimNode.advance`); it has no timers of its own. ``main()`` paces
@@ -58,7 +59,8 @@ def _describe_twist_problem(msg: Twist) -> Optional[str]:
 
 
 class SimNode(Node):
-    """Simulates R2D2 in PyBullet and exposes it through standard ROS interfaces.
+    """
+    Simulates R2D2 in PyBullet and exposes it through standard ROS interfaces.
 
     Publishes ``joint_states``, ``odom`` (wheel odometry), ``ground_truth``,
     ``/clock`` and the latched ``robot_description``; subscribes ``cmd_vel``;
@@ -150,7 +152,8 @@ class SimNode(Node):
         max_velocity = config.max_wheel_velocity_rad_s or min(w.max_velocity for w in wheels)
         max_force = config.max_wheel_force_n_m or min(w.max_force for w in wheels)
         if not max_velocity > 0.0:
-            raise ConfigError('the URDF gives the wheels no velocity limit: set max_wheel_velocity')
+            raise ConfigError(
+                'the URDF gives the wheels no velocity limit: set max_wheel_velocity')
         if not max_force > 0.0:
             raise ConfigError('the URDF gives the wheels no effort limit: set max_wheel_force')
         self.wheel_separation_m = separation
@@ -235,7 +238,8 @@ class SimNode(Node):
     # -- stepping -------------------------------------------------------------
 
     def advance(self, steps: int = 1) -> None:
-        """Step the physics ``steps`` times, applying commands and publishing on schedule.
+        """
+        Step the physics ``steps`` times, applying commands and publishing on schedule.
 
         This is the in-process API for tests: it ignores pause and pacing, so a
         test can advance simulated time deterministically between its own spins.
@@ -390,7 +394,7 @@ class SimNode(Node):
                 return response
             steps = self.advance_to_next_publish()
         response.success = True
-        response.message = (f'advanced {steps} physics step(s) to t={self.sim_time_ns / 1e9:.6f} s')
+        response.message = f'advanced {steps} physics step(s) to t={self.sim_time_ns / 1e9:.6f} s'
         return response
 
     def _on_reset(self, request, response):
@@ -421,7 +425,8 @@ class SimNode(Node):
 
 
 def run_paced(node: SimNode, stop: threading.Event) -> None:
-    """Step ``node`` against the wall clock until ``stop`` is set.
+    """
+    Step ``node`` against the wall clock until ``stop`` is set.
 
     Real time (``real_time_factor`` > 0): one physics step per absolute
     deadline. As fast as possible: whole control periods back to back.

@@ -1,4 +1,5 @@
-"""Wall-clock pacing with absolute deadlines.
+"""
+Wall-clock pacing with absolute deadlines.
 
 Sleeping a fixed period after each step (``time.sleep(1/240)``) adds the step's
 own cost to every period and drifts (measured: 221 Hz instead of 240). Here the
@@ -10,7 +11,8 @@ from typing import Callable
 
 
 class DeadlinePacer:
-    """Wait for absolute deadlines spaced ``period_s`` apart.
+    """
+    Wait for absolute deadlines spaced ``period_s`` apart.
 
     If the loop falls more than ``max_lag_s`` behind (a debugger stop, a
     suspended process), the schedule is re-anchored instead of replaying the

@@ -1,4 +1,5 @@
-"""The PyBullet world: one robot on a plane, stepped at a fixed time step.
+"""
+The PyBullet world: one robot on a plane, stepped at a fixed time step.
 
 No ROS here. The world owns its own physics client (never the module-global
 ``pybullet`` state), so several worlds can live in one process and tests can
@@ -106,7 +107,8 @@ class JointStates:
 
 
 def default_urdf_path() -> str:
-    """Return the package's own R2D2 description.
+    """
+    Return the package's own R2D2 description.
 
     The copy beside the sources wins (a source checkout or an editable pip
     install); otherwise the one installed under ``share/r2d2_sim`` by colcon
@@ -142,7 +144,8 @@ def _rotate_transposed(matrix: Sequence[float], v: Sequence[float]) -> Vec3:
 
 
 class SimWorld:
-    """A PyBullet world holding one robot, stepped at a fixed time step.
+    """
+    A PyBullet world holding one robot, stepped at a fixed time step.
 
     The robot is spawned at ``initial_pose`` (x, y, yaw) with its lowest point
     just above the ground, and that state is saved so :meth:`reset` can restore
@@ -246,7 +249,8 @@ class SimWorld:
             targetVelocities=list(velocities), forces=list(max_forces))
 
     def set_wheel_lateral_friction(self, indices: Sequence[int], ratio: float) -> None:
-        """Give wheels less grip along their axle than along their rolling direction.
+        """
+        Give wheels less grip along their axle than along their rolling direction.
 
         ``ratio`` scales friction along the wheel cylinder's axis (its shape z).
         Four fixed wheels can only turn by skidding sideways; with equal grip in
@@ -268,7 +272,8 @@ class SimWorld:
                            efforts=[s[3] for s in states])
 
     def base_state(self) -> BaseState:
-        """Return the true pose of the base link frame and its twist in that frame.
+        """
+        Return the true pose of the base link frame and its twist in that frame.
 
         PyBullet reports the base's centre of mass; this converts to the URDF
         link frame and expresses both velocities in it, as ROS odometry does.
@@ -314,7 +319,8 @@ class SimWorld:
             'collision shape (set wheel_radius)')
 
     def joint_info(self) -> List[dict]:
-        """Describe every joint (its 17 attributes) and its child link.
+        """
+        Describe every joint (its 17 attributes) and its child link.
 
         Link entries follow the tutorial's link analysis: mass and lateral
         friction from ``getDynamicsInfo`` and the link frame's world pose.
@@ -367,7 +373,8 @@ class SimWorld:
         return None
 
     def reset(self) -> None:
-        """Restore the state saved at spawn: initial pose, zero velocities.
+        """
+        Restore the state saved at spawn: initial pose, zero velocities.
 
         The step counter keeps counting: simulated time never goes backwards.
         """

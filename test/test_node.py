@@ -1,4 +1,5 @@
-"""The node in-process: a probe node in the same context drives it and listens.
+"""
+The node in-process: a probe node in the same context drives it and listens.
 
 The simulator is advanced explicitly with ``SimNode.advance`` (the in-process
 API), so every test controls simulated time exactly and runs faster than real

@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# One entry point for a fresh machine: ./run.sh demo | test | bench | sim [ROS args...]
+# Each command creates .venv (if needed), installs requirements.txt into it,
+# keeps ROS discovery on this host, then runs.
+set -euo pipefail
+cd "$(dirname "$0")"
+
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+export PYTHONUNBUFFERED=1
+VENV=.venv
+PY="$VENV/bin/python"
+
+setup() {
+  if [ ! -x "$PY" ]; then
+    python3 -m venv "$VENV"
+  fi
+  if [ ! -f "$VENV/.installed" ] || [ requirements.txt -nt "$VENV/.installed" ]; then
+    "$PY" -m pip install --quiet --disable-pip-version-check -r requirements.txt
+    touch "$VENV/.installed"
+  fi
+  export PATH="$PWD/$VENV/bin:$PATH"
+  export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
+}
+
+need_xvfb() {
+  # The GUI test opens PyBullet's window on a virtual display.
+  if ! command -v Xvfb >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+      apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq xvfb >/dev/null
+    else
+      echo "run.sh: Xvfb is missing; install Debian's xvfb package for the GUI test" >&2
+    fi
+  fi
+}
+
+cmd="${1:-demo}"
+shift || true
+case "$cmd" in
+  demo)  setup; exec "$PY" -m r2d2_sim.demo "$@" ;;
+  sim)   setup; exec "$PY" -m r2d2_sim.node "$@" ;;
+  test)  setup; need_xvfb; exec "$PY" -m pytest -q -p no:cacheprovider test "$@" ;;
+  bench) setup; exec "$PY" bench/run.py "$@" ;;
+  *) echo "usage: ./run.sh demo|test|bench|sim [args...]" >&2; exit 2 ;;
+esac

@@ -1,0 +1,81 @@
+"""The real sim_node executable in its own process, driven from this test process."""
+
+import signal
+
+from conftest import next_domain_id, start_sim_process, stop_process
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+import pytest
+from sensor_msgs.msg import JointState
+
+
+@pytest.fixture
+def domain():
+    """Provide a fresh ROS domain id."""
+    return next_domain_id()
+
+
+def _probe(ros_domain):
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=ros_domain)
+    node = rclpy.create_node('cli_probe', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    return ctx, node, executor
+
+
+def _spin_until(executor, condition, timeout_s):
+    import time
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.01)
+    return condition()
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_sim_node_process_drives_and_stops_cleanly(domain, sig):
+    """Start sim_node, drive it with cmd_vel from here, stop it: exit code 0, no traceback."""
+    import rclpy
+    process = start_sim_process(domain)
+    ctx, node, executor = _probe(domain)
+    try:
+        joints, truth = [], []
+        node.create_subscription(JointState, 'joint_states', joints.append, 10)
+        node.create_subscription(Odometry, 'ground_truth', truth.append, 10)
+        pub = node.create_publisher(Twist, 'cmd_vel', 10)
+        assert _spin_until(executor, lambda: joints and truth, 20.0), 'no state from sim_node'
+        assert 'left_front_wheel_joint' in joints[-1].name
+        x0 = truth[-1].pose.pose.position.x
+        cmd = Twist()
+        cmd.linear.x = 0.3
+
+        def moved():
+            pub.publish(cmd)
+            return truth[-1].pose.pose.position.x - x0 > 0.1
+        assert _spin_until(executor, moved, 10.0), 'robot did not move'
+    finally:
+        code, out, err = stop_process(process, sig)
+        node.destroy_node()
+        executor.shutdown()
+        rclpy.try_shutdown(context=ctx)
+    assert code == 0, err
+    assert 'Traceback' not in err + out
+
+
+@pytest.mark.parametrize('args, fragment', [
+    (['-p', 'physics_rate:=-5.0'], 'physics_rate'),
+    (['-p', 'urdf:=/nonexistent/robot.urdf'], 'not found'),
+    (['-p', 'left_wheel_names:=[nope]'], 'nope'),
+])
+def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
+    """A wrong parameter stops start-up with one readable line and exit code 2."""
+    process = start_sim_process(domain, *args)
+    out, err = process.communicate(timeout=30.0)
+    code = process.returncode
+    assert code == 2
+    assert 'Traceback' not in err
+    lines = [line for line in err.splitlines() if 'error' in line]
+    assert len(lines) == 1 and fragment in lines[0], err

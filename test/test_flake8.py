@@ -1,0 +1,12 @@
+"""Code style as the ROS template checks it (ament_flake8)."""
+
+import pytest
+from ament_flake8.main import main_with_errors
+
+
+@pytest.mark.flake8
+@pytest.mark.linter
+def test_flake8():
+    """The package, tests and benchmarks pass ament_flake8."""
+    rc, errors = main_with_errors(argv=[])
+    assert rc == 0, 'Found %d code style errors / warnings:\n' % len(errors) + '\n'.join(errors)

@@ -1,0 +1,73 @@
+"""Absolute-deadline pacing, checked against a fake clock."""
+
+import pytest
+
+from r2d2_sim.pacing import DeadlinePacer
+
+
+class FakeTime:
+    """A clock that only moves when the code under test sleeps or work is simulated."""
+
+    def __init__(self):
+        self.now = 100.0
+        self.sleeps = []
+
+    def clock(self):
+        return self.now
+
+    def sleep(self, seconds):
+        self.sleeps.append(seconds)
+        self.now += seconds
+
+
+def test_deadlines_do_not_accumulate_work_time():
+    """With 1 ms of work per 4 ms tick, each sleep is 3 ms and tick n ends at n * 4 ms."""
+    t = FakeTime()
+    pacer = DeadlinePacer(0.004, clock=t.clock, sleep=t.sleep)
+    start = t.now
+    for _ in range(1000):
+        t.now += 0.001  # the step's own cost
+        pacer.wait()
+    assert t.sleeps[0] == pytest.approx(0.003)
+    assert t.now - start == pytest.approx(1000 * 0.004)  # no drift, unlike sleep(period)
+
+
+def test_late_tick_is_caught_up_without_sleeping():
+    """A tick that overran by less than max_lag is made up by the next ticks."""
+    t = FakeTime()
+    pacer = DeadlinePacer(0.004, clock=t.clock, sleep=t.sleep)
+    start = t.now
+    t.now += 0.010  # one slow step: 2.5 periods
+    pacer.wait()
+    pacer.wait()
+    pacer.wait()
+    assert len(t.sleeps) == 1  # the first two waits were already late
+    assert t.now - start == pytest.approx(3 * 0.004)
+
+
+def test_long_stall_reanchors_instead_of_bursting():
+    """After a stall beyond max_lag the schedule restarts from now."""
+    t = FakeTime()
+    pacer = DeadlinePacer(0.004, max_lag_s=0.1, clock=t.clock, sleep=t.sleep)
+    t.now += 5.0
+    pacer.wait()
+    assert pacer.overruns == 1
+    before = t.now
+    pacer.wait()
+    assert t.now - before == pytest.approx(0.004)
+
+
+def test_reanchor_after_pause():
+    """reanchor() schedules the next tick one period from now."""
+    t = FakeTime()
+    pacer = DeadlinePacer(0.004, clock=t.clock, sleep=t.sleep)
+    t.now += 0.05
+    pacer.reanchor()
+    pacer.wait()
+    assert t.sleeps == [pytest.approx(0.004)]
+
+
+def test_period_must_be_positive():
+    """A zero period is refused."""
+    with pytest.raises(ValueError):
+        DeadlinePacer(0.0)

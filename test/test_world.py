@@ -1,0 +1,152 @@
+"""The PyBullet world headless: joints by name, frames, drive sign, time, joint info."""
+
+import math
+
+import pybullet
+import pytest
+
+from r2d2_sim.drive import quaternion_to_yaw
+from r2d2_sim.world import JointRecord, SimWorld, WorldError
+
+WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
+          'right_front_wheel_joint', 'right_back_wheel_joint']
+
+
+@pytest.fixture
+def world():
+    """Provide a fresh world with the package's R2D2, closed afterwards."""
+    with SimWorld() as w:
+        yield w
+
+
+def test_joints_are_looked_up_by_name(world):
+    """All 15 joints are known by name; unknown names list the known ones."""
+    assert len(world.joints) == 15
+    wheel = world.joint('left_front_wheel_joint')
+    assert isinstance(wheel, JointRecord)
+    assert wheel.type_name == 'revolute' and wheel.movable
+    assert world.joint('base_to_left_leg').type_name == 'fixed'
+    assert world.joint('gripper_extension').type_name == 'prismatic'
+    with pytest.raises(WorldError, match='head_swivel'):
+        world.joint('no_such_joint')
+
+
+def test_joint_info_has_17_attributes_per_joint(world):
+    """Each joint record carries the 17 getJointInfo attributes plus its link."""
+    info = world.joint_info()
+    assert len(info) == 15
+    for entry in info:
+        assert len([k for k in entry if k not in ('link', 'type_code')]) == 17
+        raw = world.client.getJointInfo(world.robot_id, entry['index'])
+        assert entry['name'] == raw[1].decode() and entry['link_name'] == raw[12].decode()
+        assert entry['type_code'] == raw[2] and entry['max_force'] == raw[10]
+        assert entry['link']['mass'] > 0.0
+
+
+def test_240_steps_are_one_second(world):
+    """The fixed time step is 1/240 s: 240 steps advance simulated time by 1 s."""
+    world.step(240)
+    assert world.step_count == 240
+    assert world.sim_time_s == pytest.approx(1.0)
+    assert world.client.getPhysicsEngineParameters()['fixedTimeStep'] == pytest.approx(1 / 240)
+
+
+def test_robot_rests_on_its_wheels_level(world):
+    """After settling the base is level and about 0.47 m up (wheels on the plane)."""
+    world.step(240)
+    base = world.base_state()
+    roll, pitch, _ = world.client.getEulerFromQuaternion(base.orientation)
+    assert abs(roll) < math.radians(1) and abs(pitch) < math.radians(1)
+    assert base.position[2] == pytest.approx(0.47, abs=0.01)
+
+
+def test_positive_wheel_velocity_drives_along_plus_x(world):
+    """REP-103: all wheels at +5 rad/s move the base forward along +x."""
+    indices = [world.joint(n).index for n in WHEELS]
+    world.step(60)
+    world.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+    world.step(480)
+    base = world.base_state()
+    assert base.position[0] > 0.25
+    assert abs(base.position[1]) < 0.05 * base.position[0]
+    assert base.linear_velocity[0] == pytest.approx(5.0 * 0.035, rel=0.05)  # body frame
+
+
+def test_left_faster_than_right_turns_clockwise(world):
+    """Left wheels forward, right wheels backward: yaw decreases (turning right)."""
+    left = [world.joint(n).index for n in WHEELS[:2]]
+    right = [world.joint(n).index for n in WHEELS[2:]]
+    world.set_joint_velocities(left + right, [5.0, 5.0, -5.0, -5.0], [20.0] * 4)
+    world.step(240)
+    assert quaternion_to_yaw(*world.base_state().orientation) < -0.2
+
+
+def test_base_twist_is_in_the_body_frame():
+    """Spawned at yaw 90 degrees, driving forward shows as +x body velocity."""
+    with SimWorld(initial_pose=(1.0, 2.0, math.pi / 2)) as world:
+        indices = [world.joint(n).index for n in WHEELS]
+        world.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+        world.step(240)
+        base = world.base_state()
+        assert base.position[1] > 2.1  # world +y
+        assert base.linear_velocity[0] > 0.1 and abs(base.linear_velocity[1]) < 0.02
+
+
+def test_reset_restores_spawn_state_and_keeps_time(world):
+    """reset() puts the robot back exactly; the step counter keeps counting."""
+    start = world.base_state()
+    indices = [world.joint(n).index for n in WHEELS]
+    world.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+    world.step(240)
+    assert world.base_state().position[0] > start.position[0] + 0.1
+    world.reset()
+    assert world.base_state() == start
+    assert world.step_count == 240
+
+
+def test_two_worlds_are_independent():
+    """Each world has its own client: stepping one leaves the other untouched."""
+    with SimWorld() as a, SimWorld() as b:
+        assert a.client._client != b.client._client
+        indices = [a.joint(n).index for n in WHEELS]
+        a.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+        a.step(240)
+        b.step(240)
+        assert a.base_state().position[0] > 0.1
+        assert abs(b.base_state().position[0]) < 0.01
+
+
+def test_close_disconnects(world):
+    """close() disconnects the physics client and is idempotent."""
+    assert world.connected
+    world.close()
+    world.close()
+    assert not world.connected
+
+
+def test_sanity_check_detects_non_finite_and_far_states(world):
+    """state_is_sane names the problem when the base is flung away."""
+    assert world.state_is_sane() is None
+    world.client.resetBasePositionAndOrientation(world.robot_id, (1e5, 0, 0), (0, 0, 0, 1))
+    assert 'left the world' in world.state_is_sane()
+
+
+def test_missing_urdf_is_a_world_error():
+    """An unknown file gives a WorldError naming it."""
+    with pytest.raises(WorldError, match='not found'):
+        SimWorld('/no/such/robot.urdf')
+
+
+def test_malformed_urdf_is_a_world_error(tmp_path):
+    """A file PyBullet refuses gives a WorldError, not a crash."""
+    bad = tmp_path / 'bad.urdf'
+    bad.write_text('<robot name="x"><link name="a"></robot')
+    with pytest.raises(WorldError, match='cannot load'):
+        SimWorld(str(bad))
+
+
+def test_wheel_radius_from_collision_shape(world):
+    """The wheel radius is read from the wheel's cylinder: 0.035 m."""
+    assert world.wheel_radius_m(world.joint('left_front_wheel_joint').index) == \
+        pytest.approx(0.035)
+    assert pybullet.GEOM_CYLINDER != pybullet.GEOM_MESH
