@@ -383,7 +383,11 @@ class SimNode(Node):
         with self._lock:
             self._paused = bool(request.data)
         response.success = True
-        response.message = 'paused' if self._paused else 'running'
+        # The count lets a client that steps cross-process confirm that its
+        # cmd_vel arrived before it asks for the next step.
+        response.message = (f'{"paused" if self._paused else "running"} at '
+                             f't={self.sim_time_ns / 1e9:.6f} s; cmd_vel received: '
+                             f'{self.commands_received}')
         return response
 
     def _on_step(self, request, response):

@@ -9,103 +9,15 @@ time; an executor thread delivers messages between the two nodes.
 import json
 import math
 
-from conftest import wait_for
-from geometry_msgs.msg import Twist
-from nav_msgs.msg import Odometry
+from conftest import latest_truth, make_sim, Probe, RATE_HZ
 import pytest
-from rclpy.parameter import Parameter
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
-from std_msgs.msg import String
-from std_srvs.srv import SetBool, Trigger
+from std_srvs.srv import Trigger
 
 from r2d2_sim.drive import quaternion_to_yaw
-from r2d2_sim.node import SimNode, StartupError
+from r2d2_sim.node import StartupError
 
-RATE_HZ = 240
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
           'right_front_wheel_joint', 'right_back_wheel_joint']
-
-
-class Probe:
-    """A test-side node: publishes cmd_vel, records everything the simulator says."""
-
-    def __init__(self, ros, sim):
-        from rclpy.qos import DurabilityPolicy, QoSProfile
-        self.sim = sim
-        self.node = ros.node('probe')
-        self.messages = {'joint_states': [], 'odom': [], 'ground_truth': [], 'clock': [],
-                         'robot_description': []}
-        node = self.node
-        node.create_subscription(JointState, 'joint_states',
-                                 self.messages['joint_states'].append, 100)
-        node.create_subscription(Odometry, 'odom', self.messages['odom'].append, 100)
-        node.create_subscription(Odometry, 'ground_truth',
-                                 self.messages['ground_truth'].append, 100)
-        node.create_subscription(Clock, '/clock', self.messages['clock'].append, 100)
-        node.create_subscription(
-            String, 'robot_description', self.messages['robot_description'].append,
-            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        self.cmd_pub = node.create_publisher(Twist, 'cmd_vel', 10)
-        assert wait_for(lambda: self.cmd_pub.get_subscription_count() > 0), 'no cmd_vel link'
-
-    def send(self, linear=0.0, angular=0.0, **fields):
-        """Publish a Twist and wait until the simulator's callback has seen it."""
-        msg = Twist()
-        msg.linear.x, msg.angular.z = float(linear), float(angular)
-        for name, value in fields.items():
-            part, axis = name.split('_')
-            setattr(getattr(msg, part), axis, value)
-        before = self.sim.commands_received
-        self.cmd_pub.publish(msg)
-        assert wait_for(lambda: self.sim.commands_received > before), 'cmd_vel not received'
-
-    def drive(self, linear, angular, seconds, resend_hz=20):
-        """Command a twist for ``seconds`` of simulated time, re-sent at ``resend_hz``."""
-        chunk = RATE_HZ // resend_hz
-        for _ in range(round(seconds * resend_hz)):
-            self.send(linear, angular)
-            self.sim.advance(chunk)
-
-    def advance_and_collect(self, steps, chunk=8):
-        """Advance in chunks small enough that no published message is dropped."""
-        topics = ('clock', 'joint_states', 'odom', 'ground_truth')
-        for done in range(0, steps, chunk):
-            expected = {t: len(self.messages[t]) + min(chunk, steps - done) for t in topics}
-            self.sim.advance(min(chunk, steps - done))
-            for topic in topics:
-                self.wait_count(topic, expected[topic])
-
-    def wait_count(self, topic, count):
-        """Wait until ``count`` messages of ``topic`` have arrived."""
-        assert wait_for(lambda: len(self.messages[topic]) >= count), \
-            f'{topic}: {len(self.messages[topic])} < {count}'
-
-    def call(self, srv_type, name, request, timeout_s=10.0):
-        """Call a service of the simulator and return the response."""
-        client = self.node.create_client(srv_type, name)
-        assert client.wait_for_service(timeout_sec=timeout_s), f'{name} unavailable'
-        future = client.call_async(request)
-        assert wait_for(future.done, timeout_s), f'{name} did not answer'
-        return future.result()
-
-
-def make_sim(ros, **params):
-    """Build the simulator in the harness's context with parameter overrides."""
-    overrides = [Parameter(k, value=v) for k, v in params.items()]
-    return ros.add(SimNode(context=ros.context, parameter_overrides=overrides))
-
-
-@pytest.fixture
-def sim(ros):
-    """Provide the default simulator."""
-    return make_sim(ros)
-
-
-@pytest.fixture
-def probe(ros, sim):
-    """Provide a probe node linked to the simulator."""
-    return Probe(ros, sim)
 
 
 def truth_pose(msg):
@@ -117,12 +29,6 @@ def truth_pose(msg):
 def stamp_s(msg):
     """Return a header stamp in seconds."""
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-
-
-def latest_truth(sim):
-    """Return the simulator's true (x, y, yaw) now."""
-    base = sim.world.base_state()
-    return base.position[0], base.position[1], quaternion_to_yaw(*base.orientation)
 
 
 def test_joint_states_lists_every_movable_joint(sim, probe):

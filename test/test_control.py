@@ -1,0 +1,234 @@
+"""Simulation control: ~/pause, ~/step, ~/reset, start_paused, and bit-for-bit determinism."""
+
+import math
+import re
+import threading
+
+from conftest import (latest_truth, make_sim, next_domain_id, Probe, start_sim_process,
+                      stop_process, wait_for)
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+import pytest
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_srvs.srv import SetBool, Trigger
+
+from r2d2_sim.node import run_paced
+
+# (step, linear, angular) commands of the determinism schedule; NaN is refused.
+SCHEDULE = [(0, 0.3, 0.0), (40, 0.2, 0.5), (90, 0.0, -0.6), (130, math.nan, 0.0),
+            (150, -0.2, 0.3)]
+SCHEDULE_STEPS = 200
+
+
+def pause(probe, value):
+    """Call ~/pause and return the response."""
+    request = SetBool.Request()
+    request.data = value
+    return probe.call(SetBool, '/r2d2_sim/pause', request)
+
+
+def trigger(probe, name):
+    """Call a Trigger service of the simulator."""
+    return probe.call(Trigger, f'/r2d2_sim/{name}', Trigger.Request())
+
+
+def test_pause_is_idempotent_and_reports_state(sim, probe):
+    """pause true twice stays paused; false resumes; each reply names the new state."""
+    first = pause(probe, True)
+    second = pause(probe, True)
+    assert first.success and second.success
+    assert first.message.startswith('paused') and second.message.startswith('paused')
+    assert sim.paused
+    resumed = pause(probe, False)
+    assert resumed.message.startswith('running') and not sim.paused
+
+
+def test_step_fails_while_running(sim, probe):
+    """~/step refuses while physics runs, with a message saying how to pause."""
+    response = trigger(probe, 'step')
+    assert not response.success
+    assert 'pause' in response.message
+    assert sim.step_count == 0
+
+
+def test_step_advances_one_publish_period(ros):
+    """While paused, ~/step advances exactly one control period and publishes its state."""
+    sim = make_sim(ros, publish_rate=60.0, start_paused=True)
+    probe = Probe(ros, sim)
+    assert sim.paused
+    response = trigger(probe, 'step')
+    assert response.success
+    assert sim.step_count == 4  # 240 Hz / 60 Hz
+    probe.wait_count('clock', 1)
+    clock = probe.messages['clock'][-1].clock
+    assert (clock.sec, clock.nanosec) == (0, 16666666)  # 4 / 240 s, floored to ns
+    trigger(probe, 'step')
+    assert sim.step_count == 8
+
+
+def test_paused_node_does_not_advance_in_the_paced_loop(ros):
+    """run_paced leaves a paused simulation alone; unpausing lets it run."""
+    sim = make_sim(ros, start_paused=True, real_time_factor=0.0)
+    stop = threading.Event()
+    runner = threading.Thread(target=run_paced, args=(sim, stop), daemon=True)
+    runner.start()
+    try:
+        assert not wait_for(lambda: sim.step_count > 0, 0.3)
+        sim._paused = False
+        assert wait_for(lambda: sim.step_count > 100, 10.0)
+    finally:
+        stop.set()
+        runner.join(5.0)
+    assert not runner.is_alive()
+
+
+def test_timeout_does_not_fire_while_paused(ros):
+    """Wall time spent paused is not simulated time: the command survives a pause."""
+    sim = make_sim(ros, start_paused=True)
+    probe = Probe(ros, sim)
+    probe.send(0.3)
+    trigger(probe, 'step')
+    targets = sim._wheel_targets
+    assert targets != (0.0, 0.0)
+    assert not wait_for(lambda: sim._wheel_targets != targets, 0.7)  # > 0.5 s wall time
+    sim.advance(60)
+    assert sim._wheel_targets == targets  # 61 steps < 120 steps of timeout
+
+
+@pytest.mark.parametrize('paused', [False, True])
+def test_reset_restores_robot_keeps_clock(ros, paused):
+    """~/reset puts the robot back and clears odometry and command; the clock moves on."""
+    sim = make_sim(ros, start_paused=paused)
+    probe = Probe(ros, sim)
+    probe.drive(0.3, 0.3, 1.0)
+    before_x = latest_truth(sim)[0]
+    assert before_x > 0.1
+    step_before = sim.step_count
+    response = trigger(probe, 'reset')
+    assert response.success
+    stamp = float(re.search(r't=([0-9.]+)', response.message).group(1))
+    assert stamp == pytest.approx(step_before / 240, abs=1e-6)
+    x, y, yaw = latest_truth(sim)
+    assert abs(x) < 1e-6 and abs(y) < 1e-6 and abs(yaw) < 1e-6
+    assert sim.odometry.x_m == 0.0 and sim.odometry.yaw_rad == 0.0
+    assert sim._wheel_targets == (0.0, 0.0)
+    states = sim.world.joint_states([j.index for j in sim.world.movable_joints()])
+    assert max(abs(p) for p in states.positions) < 1e-9
+    assert max(abs(v) for v in states.velocities) < 1e-9
+    sim.advance(10)
+    assert sim.step_count == step_before + 10
+    clocks = [m.clock.sec * 10**9 + m.clock.nanosec for m in probe.messages['clock']]
+    wait_for(lambda: len(probe.messages['clock']) > len(clocks))
+    clocks = [m.clock.sec * 10**9 + m.clock.nanosec for m in probe.messages['clock']]
+    assert all(b >= a for a, b in zip(clocks, clocks[1:]))  # never backwards
+
+
+def _run_schedule_in_process(ros):
+    """Drive SCHEDULE through the in-process API; return per-step joint and truth states."""
+    sim = make_sim(ros)
+    probe = Probe(ros, sim)
+    commands = {step: (v, w) for step, v, w in SCHEDULE}
+    record = []
+    for step in range(SCHEDULE_STEPS):
+        if step in commands:
+            probe.send(*commands[step])
+        sim.advance(1)
+        record.append(_snapshot(sim))
+    return record
+
+
+def _snapshot(sim):
+    joints = sim.world.joint_states([j.index for j in sim.world.movable_joints()])
+    base = sim.world.base_state()
+    return (tuple(joints.positions), tuple(joints.velocities), base.position,
+            base.orientation, base.linear_velocity, base.angular_velocity)
+
+
+def test_in_process_runs_are_bit_identical():
+    """The same command schedule at the same steps gives identical states, twice."""
+    from conftest import RosHarness
+    runs = []
+    for _ in range(2):
+        harness = RosHarness()
+        try:
+            runs.append(_run_schedule_in_process(harness))
+        finally:
+            harness.close()
+    assert runs[0] == runs[1]
+    assert runs[0][-1][2] != runs[0][0][2]  # and the robot did move
+
+
+@pytest.mark.parametrize('real_time_factor', ['1.0', '10.0', '0.0'])
+def test_cross_process_stepping_matches_in_process(ros, real_time_factor):
+    """~/step across processes reproduces the in-process run bit for bit, at any speed."""
+    expected = _run_schedule_in_process(ros)
+    domain = next_domain_id()
+    process = start_sim_process(domain, '-p', 'start_paused:=true',
+                                '-p', f'real_time_factor:={real_time_factor}')
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node('step_client', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    joints, truth, clocks = [], [], []
+    node.create_subscription(JointState, 'joint_states', joints.append, 1000)
+    node.create_subscription(Odometry, 'ground_truth', truth.append, 1000)
+    node.create_subscription(Clock, '/clock', clocks.append, 1000)
+    pub = node.create_publisher(Twist, 'cmd_vel', 10)
+    step_client = node.create_client(Trigger, '/r2d2_sim/step')
+    pause_client = node.create_client(SetBool, '/r2d2_sim/pause')
+
+    def call(client, request):
+        future = client.call_async(request)
+        assert wait_for(future.done, 10.0)
+        return future.result()
+
+    def received_count():
+        request = SetBool.Request()
+        request.data = True
+        message = call(pause_client, request).message
+        return int(message.rsplit(':', 1)[1])
+
+    try:
+        assert step_client.wait_for_service(timeout_sec=20.0), 'sim_node did not start'
+        assert wait_for(lambda: pub.get_subscription_count() > 0, 10.0)
+        commands = {step: (v, w) for step, v, w in SCHEDULE}
+        sent = 0
+        for step in range(SCHEDULE_STEPS):
+            if step in commands:
+                msg = Twist()
+                msg.linear.x, msg.angular.z = commands[step]
+                pub.publish(msg)
+                sent += 1
+                assert wait_for(lambda: received_count() >= sent, 10.0)
+            assert call(step_client, Trigger.Request()).success
+            assert wait_for(lambda: len(joints) >= step + 1 and len(truth) >= step + 1, 10.0)
+    finally:
+        code, out, err = stop_process(process)
+        executor.shutdown()
+        spinner.join(5.0)
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    assert code == 0, err
+    got = [(tuple(j.position), tuple(j.velocity)) for j in joints[-SCHEDULE_STEPS:]]
+    assert got == [(e[0], e[1]) for e in expected]
+    got_truth = [((t.pose.pose.position.x, t.pose.pose.position.y, t.pose.pose.position.z),
+                  (t.twist.twist.linear.x, t.twist.twist.linear.y, t.twist.twist.linear.z))
+                 for t in truth[-SCHEDULE_STEPS:]]
+    assert got_truth == [(e[2], e[4]) for e in expected]
+    assert clocks[-1].clock.sec * 10**9 + clocks[-1].clock.nanosec == \
+        SCHEDULE_STEPS * 10**9 // 240
+
+
+def test_start_paused_parameter_holds_time(ros):
+    """start_paused: no step is taken until asked."""
+    sim = make_sim(ros, start_paused=True)
+    assert sim.paused and sim.step_count == 0
+    assert Parameter is not None

@@ -1,0 +1,321 @@
+"""Tests for the ``demo`` and ``drive`` executables: pure helpers, then real processes."""
+
+import itertools
+import math
+import os
+from pathlib import Path
+import re
+import select
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from r2d2_sim.demo import (
+    command_at, format_progress, manoeuvre_duration_s, MANOEUVRE, phase_at, Simulator,
+    write_trajectory_plot)
+from r2d2_sim.probe import Pose2D
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
+TURN_END_S = 1.0 + math.pi / 2.0
+FORWARD_END_S = TURN_END_S + 3.0
+PROGRESS = re.compile(
+    r'^t=\s*(?P<t>[-+\d.]+) s\s+odom x=(?P<ox>\S+) y=(?P<oy>\S+) yaw=\s*(?P<oyaw>\S+) deg'
+    r' \| truth x=(?P<tx>\S+) y=(?P<ty>\S+) yaw=\s*(?P<tyaw>\S+) deg$')
+# Tests that start ROS processes take turns through this process's block of four
+# domain ids in 100..231, so concurrent test runs and consecutive tests do not meet.
+_DOMAIN_BLOCK = 100 + (os.getpid() % 33) * 4
+_DOMAIN_TURNS = itertools.count()
+
+
+@pytest.fixture
+def domain_id():
+    """Return a ROS domain id that neither the previous tests nor other runs use."""
+    return _DOMAIN_BLOCK + next(_DOMAIN_TURNS) % 4
+
+
+def ros_env(domain_id):
+    """Return an environment for a child ROS process on a private, host-only domain."""
+    env = dict(os.environ)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env['ROS_DOMAIN_ID'] = str(domain_id)
+    env['PYTHONPATH'] = os.pathsep.join(p for p in (str(REPO_ROOT), env.get('PYTHONPATH')) if p)
+    env['PYTHONUNBUFFERED'] = '1'
+    return env
+
+
+def stop_process(process, timeout_s=5.0):
+    """SIGINT a child, then kill it if it does not exit in time."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+def simulators_in_domain(domain_id):
+    """Return the pids of r2d2_sim.node processes running with this ROS_DOMAIN_ID."""
+    pids = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / 'cmdline').read_bytes().split(b'\0')
+            environ = (entry / 'environ').read_bytes().split(b'\0')
+        except OSError:  # gone, or not ours
+            continue
+        if b'r2d2_sim.node' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
+            pids.append(int(entry.name))
+    return pids
+
+
+def wait_until(condition, timeout_s, poll_s=0.05):
+    """Poll ``condition`` until it is true or the deadline passes; return its last value."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = condition()
+        if value or time.monotonic() >= deadline:
+            return value
+        time.sleep(poll_s)
+
+
+def demo_command(output_dir, domain_id, real_time_factor):
+    return [sys.executable, '-m', 'r2d2_sim.demo', '--real-time-factor', str(real_time_factor),
+            '--output-dir', str(output_dir), '--domain-id', str(domain_id)]
+
+
+# --------------------------------------------------------------------------- pure helpers
+
+
+@pytest.mark.parametrize('t_s, expected', [
+    (-0.5, (0.0, 0.0)),              # before the start
+    (0.0, (0.0, 0.0)),               # settling
+    (0.99, (0.0, 0.0)),
+    (1.0, (0.0, 1.0)),               # turn starts exactly at 1 s
+    (TURN_END_S - 0.01, (0.0, 1.0)),
+    (TURN_END_S + 0.01, (0.3, 0.0)),  # then straight ahead
+    (FORWARD_END_S - 0.01, (0.3, 0.0)),
+    (FORWARD_END_S + 0.01, (0.0, 0.0)),  # stopped
+    (100.0, (0.0, 0.0)),             # after the end
+])
+def test_command_at_returns_the_phase_command(t_s, expected):
+    assert command_at(t_s) == pytest.approx(expected)
+
+
+def test_manoeuvre_turns_90_degrees_then_drives_0_9_m():
+    # Integrals of the open-loop schedule: 1 rad/s for pi/2 s, then 0.3 m/s for 3 s.
+    turned_rad = sum(p.angular_rad_s * p.duration_s for p in MANOEUVRE)
+    driven_m = sum(p.linear_m_s * p.duration_s for p in MANOEUVRE)
+    assert turned_rad == pytest.approx(math.pi / 2.0)
+    assert driven_m == pytest.approx(0.9)
+    assert manoeuvre_duration_s() == pytest.approx(FORWARD_END_S + 1.0)
+    assert [phase_at(t).name for t in (0.5, 2.0, 3.0, 6.0)] == [
+        'settle', 'turn', 'forward', 'stop']
+
+
+def test_format_progress_shows_both_poses_in_degrees():
+    line = format_progress(3.0, Pose2D(0.0, 0.412, -0.01, math.radians(88.1)),
+                           Pose2D(0.0, 0.405, -0.012, math.radians(87.0)))
+    assert line == ('t=  3.0 s  odom x=+0.412 y=-0.010 yaw= +88.1 deg | '
+                    'truth x=+0.405 y=-0.012 yaw= +87.0 deg')
+    assert PROGRESS.match(line)
+
+
+def test_trajectory_plot_is_a_real_png(tmp_path):
+    truth = [(0.01 * math.sin(i / 10.0), 0.01 * i) for i in range(100)]
+    odom = [(0.0, 0.0101 * i) for i in range(100)]
+    path = write_trajectory_plot(tmp_path / 'plot.png', odom, truth)
+    assert path == tmp_path / 'plot.png'
+    data = path.read_bytes()
+    assert data[:8] == PNG_SIGNATURE
+    assert len(data) > 10_000
+
+
+def test_trajectory_plot_copes_with_a_missing_trajectory(tmp_path):
+    path = write_trajectory_plot(tmp_path / 'plot.png', [], [(0.0, 0.0), (0.1, 0.2)])
+    assert path.read_bytes()[:8] == PNG_SIGNATURE
+
+
+def test_simulator_failure_message_names_status_and_output_tail():
+    simulator = Simulator([sys.executable, '-c',
+                           'import sys; print("r2d2_sim: error: bad parameter", file=sys.stderr);'
+                           ' sys.exit(2)'])
+    simulator.start()
+    try:
+        assert wait_until(simulator.exited, 10.0)
+        message = simulator.failure_message('no topics')
+    finally:
+        simulator.stop()
+    assert message.startswith('no topics (the simulator exited with status 2):')
+    assert 'simulator: r2d2_sim: error: bad parameter' in message
+
+
+def test_simulator_stop_kills_a_process_that_ignores_sigint():
+    ready = 'import signal, sys, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
+    simulator = Simulator([sys.executable, '-c', ready + 'print("ready", flush=True); '
+                           'time.sleep(60)'])
+    simulator.start()
+    try:
+        # Wait until SIGINT is ignored, or stop() would succeed for the wrong reason.
+        assert wait_until(lambda: simulator.log_tail() == ['ready'], 10.0)
+        started = time.monotonic()
+        status = simulator.stop(timeout_s=0.5)
+        assert status == -signal.SIGKILL
+        assert time.monotonic() - started < 5.0
+    finally:
+        if simulator.process.poll() is None:
+            simulator.process.kill()
+            simulator.process.wait()
+
+
+# --------------------------------------------------------------------------- demo, end to end
+
+
+def test_demo_turns_then_drives_and_writes_a_plot(tmp_path, domain_id):
+    started = time.monotonic()
+    result = subprocess.run(demo_command(tmp_path, domain_id, 0), env=ros_env(domain_id),
+                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
+    wall_s = time.monotonic() - started
+    report = f'exit {result.returncode}\nstdout:\n{result.stdout}\nstderr:\n{result.stderr}'
+    assert result.returncode == 0, report
+    progress = [m for m in map(PROGRESS.match, result.stdout.splitlines()) if m]
+    assert len(progress) >= 4, report
+    final = progress[-1]
+    assert float(final['t']) >= manoeuvre_duration_s() - 0.05, report
+    assert 60.0 < float(final['tyaw']) < 120.0, report
+    # After a +90 degree turn, forward is world +y.
+    assert float(final['ty']) > 0.5, report
+    assert abs(float(final['tx'])) < 0.3, report
+    # Odometry agrees with the truth to within the skid-steering error.
+    assert float(final['oy']) == pytest.approx(float(final['ty']), abs=0.2), report
+    plot = tmp_path / 'trajectory.png'
+    assert f'trajectory plot: {plot}' in result.stdout, report
+    assert plot.read_bytes()[:8] == PNG_SIGNATURE
+    assert simulators_in_domain(domain_id) == [], 'the demo left its simulator running'
+    print(f'demo at real_time_factor 0 took {wall_s:.1f} s of wall time')
+
+
+def test_demo_stops_itself_and_the_simulator_on_sigint(tmp_path, domain_id):
+    demo = subprocess.Popen(demo_command(tmp_path, domain_id, 1), env=ros_env(domain_id),
+                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    output = b''
+    try:
+        # Wait for the manoeuvre to be under way: the line for t = 1 s.
+        deadline = time.monotonic() + 30.0
+        while b't=  1.0 s' not in output and time.monotonic() < deadline:
+            readable, _, _ = select.select([demo.stdout], [], [], 0.1)
+            if readable:
+                chunk = os.read(demo.stdout.fileno(), 4096)
+                if not chunk:
+                    break
+                output += chunk
+        assert b't=  1.0 s' in output, output.decode() + demo.stderr.read1().decode()
+        assert simulators_in_domain(domain_id), 'no simulator found while the demo runs'
+        demo.send_signal(signal.SIGINT)
+        stdout, stderr = demo.communicate(timeout=15)
+    finally:
+        if demo.poll() is None:
+            demo.kill()
+            demo.communicate()
+    assert demo.returncode == 130, stderr.decode()
+    assert b'interrupted' in stderr
+    assert b'Traceback' not in stderr, stderr.decode()
+    assert wait_until(lambda: simulators_in_domain(domain_id) == [], 5.0)
+
+
+# --------------------------------------------------------------------------- drive
+
+
+@pytest.mark.parametrize('args, complaint', [
+    (['--duration', '-1'], 'argument --duration: must be >= 0'),
+    (['--linear', 'nan'], 'argument --linear: must be a finite number'),
+    (['--rate', '0'], 'argument --rate: must be > 0'),
+])
+def test_drive_rejects_bad_arguments_with_a_usage_error(args, complaint):
+    result = subprocess.run([sys.executable, '-m', 'r2d2_sim.drive_cmd'] + args,
+                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=30)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert lines[0].startswith('usage: drive')
+    assert lines[-1].startswith('drive: error: ' + complaint)
+
+
+def test_drive_without_a_subscriber_fails_with_one_line(domain_id):
+    result = subprocess.run([sys.executable, '-m', 'r2d2_sim.drive_cmd', '--linear', '0.3'],
+                            env=ros_env(domain_id), cwd=REPO_ROOT, capture_output=True,
+                            text=True, timeout=30)
+    assert result.returncode == 1
+    assert result.stderr.strip().splitlines() == [
+        'drive: error: nothing subscribed to /cmd_vel within 5 s: is the simulator running '
+        '(same ROS_DOMAIN_ID)?']
+
+
+@pytest.fixture
+def simulator_process(domain_id):
+    """Run the simulator at real time in this test's domain."""
+    process = subprocess.Popen(
+        [sys.executable, '-m', 'r2d2_sim.node', '--ros-args', '-p', 'real_time_factor:=1.0'],
+        env=ros_env(domain_id), cwd=REPO_ROOT, stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        yield process
+    finally:
+        stop_process(process)
+        process.stderr.close()
+
+
+@pytest.fixture
+def ros_probe(domain_id):
+    """Yield (node, executor) on a private rclpy context in this test's domain."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node = executor = None
+    try:
+        node = rclpy.create_node('drive_test_probe', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        yield node, executor
+    finally:
+        if executor is not None:
+            executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_drive_moves_the_simulated_robot_forward(simulator_process, ros_probe, domain_id):
+    from nav_msgs.msg import Odometry
+
+    from r2d2_sim.probe import pose_from_odometry, spin_until
+
+    node, executor = ros_probe
+    poses = []
+    node.create_subscription(Odometry, 'ground_truth',
+                             lambda msg: poses.append(pose_from_odometry(msg)), 10)
+    if not spin_until(executor, lambda: poses, 20.0):
+        stop_process(simulator_process)
+        pytest.fail('no ground_truth from the simulator: '
+                    + simulator_process.stderr.read().decode())
+    start_x_m = poses[-1].x_m
+    drive = subprocess.Popen(
+        [sys.executable, '-m', 'r2d2_sim.drive_cmd', '--linear', '0.3', '--duration', '1.0'],
+        env=ros_env(domain_id), cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        moved = spin_until(executor, lambda: poses[-1].x_m - start_x_m > 0.15, 20.0)
+        # Moving is not enough: drive must also finish on its own.
+        spin_until(executor, lambda: drive.poll() is not None, 10.0)
+    finally:
+        stop_process(drive)
+        stdout, stderr = drive.communicate()
+    assert drive.returncode == 0, stderr.decode()
+    assert moved, f'x moved only {poses[-1].x_m - start_x_m:.3f} m'
