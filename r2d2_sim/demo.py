@@ -1,4 +1,5 @@
-"""``demo``: start the simulator, replay the tutorial's manoeuvre, plot the trajectory.
+"""
+``demo``: start the simulator, replay the tutorial's manoeuvre, plot the trajectory.
 
 Runs ``python -m r2d2_sim.node`` as a child process and, in this process, a
 driver node that sends ``cmd_vel``: settle, turn about 90 degrees in place,
@@ -24,9 +25,8 @@ from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.utilities import remove_ros_args
 
-from r2d2_sim.probe import Pose2D, pose_from_odometry, spin_until
+from r2d2_sim.probe import non_ros_args, Pose2D, pose_from_odometry, spin_until
 
 NODE_NAME = 'r2d2_demo'
 # Wall-clock seconds to wait for the simulator's topics after starting it.
@@ -96,7 +96,8 @@ def format_progress(t_s: float, odom: Pose2D, truth: Pose2D) -> str:
 
 def write_trajectory_plot(path, odom_xy: Sequence[Tuple[float, float]],
                           truth_xy: Sequence[Tuple[float, float]]) -> Path:
-    """Plot odometry against ground truth in the x-y plane as a PNG; return its path.
+    """
+    Plot odometry against ground truth in the x-y plane as a PNG; return its path.
 
     Uses matplotlib's Agg canvas directly (no pyplot), so it needs no display
     and leaves matplotlib's global backend alone.
@@ -203,7 +204,8 @@ class Simulator:
 
 
 class ManoeuvreDriver(Node):
-    """Sends the manoeuvre on ``cmd_vel``, timed by the stamps of ``ground_truth``.
+    """
+    Sends the manoeuvre on ``cmd_vel``, timed by the stamps of ``ground_truth``.
 
     Records both trajectories from :meth:`begin` on and prints a progress line
     every simulated second; ``done`` turns True after the last phase.
@@ -295,14 +297,20 @@ class ManoeuvreDriver(Node):
 
 
 def _domain_id(text: str) -> int:
-    value = int(text)
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be an integer, got {text!r}') from None
     if not 0 <= value <= 232:
         raise argparse.ArgumentTypeError(f'must be in 0..232, got {text!r}')
     return value
 
 
 def _real_time_factor(text: str) -> float:
-    value = float(text)
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
     if not (math.isfinite(value) and value >= 0.0):
         raise argparse.ArgumentTypeError(f'must be a finite number >= 0, got {text!r}')
     return value
@@ -347,16 +355,29 @@ def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path
             _error(simulator.failure_message(
                 f'no ground_truth for {STALL_TIMEOUT_S:g} s: the simulator seems stuck'))
             return 1
-    plot = write_trajectory_plot(output_dir / PLOT_NAME, node.odom_xy, node.truth_xy)
+    plot = write_trajectory_plot(output_dir.absolute() / PLOT_NAME, node.odom_xy, node.truth_xy)
     print(f'simulated {node.elapsed_s:.1f} s in {time.monotonic() - started_s:.1f} s of wall time')
     print(f'trajectory plot: {plot}', flush=True)
     return 0
 
 
+def _child_env() -> dict:
+    """Return this process's environment, able to import the same r2d2_sim."""
+    env = dict(os.environ)
+    package_root = Path(__file__).resolve().parent.parent
+    on_path = {Path(p).resolve() for p in sys.path if p}
+    # Only when this copy is not found anyway: a whole site-packages early on
+    # PYTHONPATH could shadow the standard library.
+    if package_root not in on_path:
+        env['PYTHONPATH'] = os.pathsep.join(
+            p for p in (str(package_root), env.get('PYTHONPATH')) if p)
+    return env
+
+
 def main(args: Optional[Sequence[str]] = None) -> int:
     """Run the demo; return 0 on success, 1 if the simulator fails, 130 on Ctrl-C."""
     argv = list(sys.argv if args is None else args)
-    options = build_parser().parse_args(remove_ros_args(argv)[1:])
+    options = build_parser().parse_args(non_ros_args(argv, 'demo'))
     output_dir = Path(options.output_dir)
     try:
         output_dir.mkdir(parents=True, exist_ok=True)
@@ -367,15 +388,14 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     if options.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(options.domain_id)
-    env = dict(os.environ)
-    # The child must import the same r2d2_sim as this process, wherever we run from.
-    package_root = str(Path(__file__).resolve().parent.parent)
-    env['PYTHONPATH'] = os.pathsep.join(
-        p for p in (package_root, env.get('PYTHONPATH')) if p)
-    simulator = Simulator.for_real_time_factor(options.real_time_factor, env)
-    node = None
     try:
         rclpy.init(args=argv)
+    except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
+        _error(f'cannot initialise ROS: {exc}')
+        return 2
+    simulator = Simulator.for_real_time_factor(options.real_time_factor, _child_env())
+    node = None
+    try:
         simulator.start()
         node = ManoeuvreDriver()
         executor = SingleThreadedExecutor()

@@ -1,4 +1,5 @@
-"""``drive``: publish one Twist on ``cmd_vel`` for a while, then stop the robot.
+"""
+``drive``: publish one Twist on ``cmd_vel`` for a while, then stop the robot.
 
 For users without the ``ros2`` CLI (``ros2 topic pub``)::
 
@@ -19,9 +20,8 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.utilities import remove_ros_args
 
-from r2d2_sim.probe import spin_until
+from r2d2_sim.probe import non_ros_args, spin_until
 
 NODE_NAME = 'drive'
 # Wall-clock seconds to wait for the simulator's cmd_vel subscription (and, with
@@ -32,7 +32,10 @@ EXIT_INTERRUPTED = 130
 
 
 def _finite(text: str) -> float:
-    value = float(text)
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f'must be a finite number, got {text!r}')
     return value
@@ -112,7 +115,8 @@ class DriveCommand(Node):
             self._publisher.publish(self._twist)
 
     def stop(self) -> None:
-        """Publish one zero Twist.
+        """
+        Publish one zero Twist.
 
         Fast DDS publishes synchronously, so the sample has left when publish()
         returns; waiting for its acknowledgement would take up to a heartbeat
@@ -132,8 +136,12 @@ class DriveCommand(Node):
 def main(args: Optional[Sequence[str]] = None) -> int:
     """Drive, then stop; return the exit status (1 if nobody subscribes to the topic)."""
     argv = list(sys.argv if args is None else args)
-    options = build_parser().parse_args(remove_ros_args(argv)[1:])
-    rclpy.init(args=argv)
+    options = build_parser().parse_args(non_ros_args(argv, NODE_NAME))
+    try:
+        rclpy.init(args=argv)
+    except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
+        print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+        return 2
     node = None
     try:
         node = DriveCommand(options.linear, options.angular, options.duration,

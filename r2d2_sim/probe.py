@@ -1,12 +1,15 @@
-"""Small helpers for nodes that watch the simulator from outside: poses and deadline waits.
+"""
+Small helpers for nodes that watch the simulator from outside: poses and deadline waits.
 
 Shared by the ``demo`` and ``drive`` executables and by the cross-process tests.
 """
 
+import sys
 import time
-from typing import Callable, NamedTuple, Optional
+from typing import Callable, List, NamedTuple, Optional, Sequence
 
 from nav_msgs.msg import Odometry
+from rclpy.utilities import remove_ros_args
 
 from r2d2_sim.drive import quaternion_to_yaw
 
@@ -39,3 +42,17 @@ def spin_until(executor, condition: Callable[[], bool], timeout_s: float,
             return False
         executor.spin_once(timeout_sec=min(remaining, 0.05))
     return True
+
+
+def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
+    """
+    Return the arguments after the program name that are not for ROS.
+
+    Malformed ``--ros-args`` end the program like an argparse error: one line
+    on stderr and exit status 2.
+    """
+    try:
+        return remove_ros_args(list(argv))[1:]
+    except Exception as exc:  # rcl's parse errors come as assorted exception types
+        print(f'{prog}: error: bad ROS arguments: {exc}', file=sys.stderr)
+        raise SystemExit(2)

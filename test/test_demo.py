@@ -11,6 +11,7 @@ import subprocess
 import sys
 import time
 
+from conftest import ros_env, start_sim_process, stop_process, wait_for
 import pytest
 
 from r2d2_sim.demo import (
@@ -26,8 +27,9 @@ PROGRESS = re.compile(
     r'^t=\s*(?P<t>[-+\d.]+) s\s+odom x=(?P<ox>\S+) y=(?P<oy>\S+) yaw=\s*(?P<oyaw>\S+) deg'
     r' \| truth x=(?P<tx>\S+) y=(?P<ty>\S+) yaw=\s*(?P<tyaw>\S+) deg$')
 # Tests that start ROS processes take turns through this process's block of four
-# domain ids in 100..231, so concurrent test runs and consecutive tests do not meet.
-_DOMAIN_BLOCK = 100 + (os.getpid() % 33) * 4
+# domain ids in 101..232, apart from conftest's 1..100, so concurrent test runs and
+# consecutive tests do not meet.
+_DOMAIN_BLOCK = 101 + (os.getpid() % 33) * 4
 _DOMAIN_TURNS = itertools.count()
 
 
@@ -35,27 +37,6 @@ _DOMAIN_TURNS = itertools.count()
 def domain_id():
     """Return a ROS domain id that neither the previous tests nor other runs use."""
     return _DOMAIN_BLOCK + next(_DOMAIN_TURNS) % 4
-
-
-def ros_env(domain_id):
-    """Return an environment for a child ROS process on a private, host-only domain."""
-    env = dict(os.environ)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    env['ROS_DOMAIN_ID'] = str(domain_id)
-    env['PYTHONPATH'] = os.pathsep.join(p for p in (str(REPO_ROOT), env.get('PYTHONPATH')) if p)
-    env['PYTHONUNBUFFERED'] = '1'
-    return env
-
-
-def stop_process(process, timeout_s=5.0):
-    """SIGINT a child, then kill it if it does not exit in time."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-        try:
-            process.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
 
 
 def simulators_in_domain(domain_id):
@@ -72,16 +53,6 @@ def simulators_in_domain(domain_id):
         if b'r2d2_sim.node' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
             pids.append(int(entry.name))
     return pids
-
-
-def wait_until(condition, timeout_s, poll_s=0.05):
-    """Poll ``condition`` until it is true or the deadline passes; return its last value."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = condition()
-        if value or time.monotonic() >= deadline:
-            return value
-        time.sleep(poll_s)
 
 
 def demo_command(output_dir, domain_id, real_time_factor):
@@ -147,7 +118,7 @@ def test_simulator_failure_message_names_status_and_output_tail():
                            ' sys.exit(2)'])
     simulator.start()
     try:
-        assert wait_until(simulator.exited, 10.0)
+        assert wait_for(simulator.exited, 10.0)
         message = simulator.failure_message('no topics')
     finally:
         simulator.stop()
@@ -162,7 +133,7 @@ def test_simulator_stop_kills_a_process_that_ignores_sigint():
     simulator.start()
     try:
         # Wait until SIGINT is ignored, or stop() would succeed for the wrong reason.
-        assert wait_until(lambda: simulator.log_tail() == ['ready'], 10.0)
+        assert wait_for(lambda: simulator.log_tail() == ['ready'], 10.0, interval_s=0.05)
         started = time.monotonic()
         status = simulator.stop(timeout_s=0.5)
         assert status == -signal.SIGKILL
@@ -225,7 +196,7 @@ def test_demo_stops_itself_and_the_simulator_on_sigint(tmp_path, domain_id):
     assert demo.returncode == 130, stderr.decode()
     assert b'interrupted' in stderr
     assert b'Traceback' not in stderr, stderr.decode()
-    assert wait_until(lambda: simulators_in_domain(domain_id) == [], 5.0)
+    assert wait_for(lambda: simulators_in_domain(domain_id) == [], 5.0, interval_s=0.05)
 
 
 # --------------------------------------------------------------------------- drive
@@ -245,6 +216,15 @@ def test_drive_rejects_bad_arguments_with_a_usage_error(args, complaint):
     assert lines[-1].startswith('drive: error: ' + complaint)
 
 
+@pytest.mark.parametrize('module', ['r2d2_sim.drive_cmd', 'r2d2_sim.demo'])
+def test_malformed_ros_args_are_a_one_line_error(module):
+    result = subprocess.run([sys.executable, '-m', module, '--ros-args', '-p'],
+                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=30)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and 'error: bad ROS arguments' in lines[0], result.stderr
+
+
 def test_drive_without_a_subscriber_fails_with_one_line(domain_id):
     result = subprocess.run([sys.executable, '-m', 'r2d2_sim.drive_cmd', '--linear', '0.3'],
                             env=ros_env(domain_id), cwd=REPO_ROOT, capture_output=True,
@@ -258,15 +238,11 @@ def test_drive_without_a_subscriber_fails_with_one_line(domain_id):
 @pytest.fixture
 def simulator_process(domain_id):
     """Run the simulator at real time in this test's domain."""
-    process = subprocess.Popen(
-        [sys.executable, '-m', 'r2d2_sim.node', '--ros-args', '-p', 'real_time_factor:=1.0'],
-        env=ros_env(domain_id), cwd=REPO_ROOT, stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    process = start_sim_process(domain_id, '-p', 'real_time_factor:=1.0')
     try:
         yield process
     finally:
         stop_process(process)
-        process.stderr.close()
 
 
 @pytest.fixture
@@ -303,19 +279,18 @@ def test_drive_moves_the_simulated_robot_forward(simulator_process, ros_probe, d
     node.create_subscription(Odometry, 'ground_truth',
                              lambda msg: poses.append(pose_from_odometry(msg)), 10)
     if not spin_until(executor, lambda: poses, 20.0):
-        stop_process(simulator_process)
         pytest.fail('no ground_truth from the simulator: '
-                    + simulator_process.stderr.read().decode())
+                    + stop_process(simulator_process)[2])
     start_x_m = poses[-1].x_m
     drive = subprocess.Popen(
         [sys.executable, '-m', 'r2d2_sim.drive_cmd', '--linear', '0.3', '--duration', '1.0'],
-        env=ros_env(domain_id), cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        env=ros_env(domain_id), cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True)
     try:
         moved = spin_until(executor, lambda: poses[-1].x_m - start_x_m > 0.15, 20.0)
         # Moving is not enough: drive must also finish on its own.
         spin_until(executor, lambda: drive.poll() is not None, 10.0)
     finally:
-        stop_process(drive)
-        stdout, stderr = drive.communicate()
-    assert drive.returncode == 0, stderr.decode()
+        status, _, stderr = stop_process(drive)
+    assert status == 0, stderr
     assert moved, f'x moved only {poses[-1].x_m - start_x_m:.3f} m'
