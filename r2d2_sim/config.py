@@ -8,7 +8,7 @@ line, so a bad parameter is a clear start-up error rather than a traceback.
 
 from dataclasses import dataclass
 import math
-from typing import Any, Dict, List, Mapping, NamedTuple, Tuple
+from typing import Any, Dict, List, Mapping, NamedTuple, Sequence, Tuple
 
 
 class ConfigError(ValueError):
@@ -32,7 +32,18 @@ class ParameterSpec(NamedTuple):
 
 PARAMETERS: List[ParameterSpec] = [
     ParameterSpec('urdf', '',
-                  'Robot description file; empty means the package\'s own urdf/r2d2.urdf.'),
+                  'Robot description: a file path, a package://pkg/path URI or a name in '
+                  'pybullet_data (r2d2.urdf); empty means the package\'s own urdf/r2d2.urdf.'),
+    ParameterSpec('robot_description', '',
+                  'URDF XML text (as robot_state_publisher takes it); overrides urdf.'),
+    ParameterSpec('base_forward_axis', 'x',
+                  'Axis of the URDF base frame the robot drives along: x, y, -x or -y.'),
+    ParameterSpec('wheel_velocity_sign', 1,
+                  '1, or -1 when a negative wheel velocity drives the robot forward.'),
+    ParameterSpec('gravity', [0.0, 0.0, -9.8], 'Gravity [x, y, z] in m/s^2.'),
+    ParameterSpec('ground_plane', True, 'Load pybullet_data\'s plane.urdf as the ground.'),
+    ParameterSpec('extra_models', [],
+                  'Other bodies, each "description x y z" (description resolved like urdf).'),
     ParameterSpec('gui', False, 'Open the PyBullet window (needs a display).'),
     ParameterSpec('physics_rate', 240.0, 'Physics steps per simulated second (Hz).'),
     ParameterSpec('real_time_factor', 1.0,
@@ -68,7 +79,15 @@ PARAMETERS: List[ParameterSpec] = [
                   'Diagonal of the odom pose covariance (x, y, z, roll, pitch, yaw).'),
     ParameterSpec('twist_covariance_diagonal', [0.001, 1.0e6, 1.0e6, 1.0e6, 1.0e6, 0.01],
                   'Diagonal of the odom twist covariance (vx, vy, vz, wx, wy, wz).'),
+    ParameterSpec('camera_rate', 0.0,
+                  'Head camera images per simulated second (Hz); 0 turns the camera off.'),
+    ParameterSpec('camera_width', 320, 'Head camera image width in pixels.'),
+    ParameterSpec('camera_height', 240, 'Head camera image height in pixels.'),
+    ParameterSpec('camera_fov', 60.0, 'Head camera vertical field of view in degrees.'),
 ]
+
+# Yaw from the URDF base frame to the REP-103 body frame for each forward axis.
+FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.pi / 2}
 
 
 @dataclass(frozen=True)
@@ -76,6 +95,12 @@ class SimConfig:
     """Validated simulator settings, in SI units."""
 
     urdf: str
+    robot_description: str
+    base_forward_axis: str
+    wheel_velocity_sign: int
+    gravity_m_s2: Tuple[float, float, float]
+    ground_plane: bool
+    extra_models: Tuple[Tuple[str, Tuple[float, float, float]], ...]
     gui: bool
     physics_rate_hz: float
     real_time_factor: float
@@ -96,6 +121,15 @@ class SimConfig:
     initial_pose: Tuple[float, float, float]
     pose_covariance_diagonal: Tuple[float, ...]
     twist_covariance_diagonal: Tuple[float, ...]
+    camera_rate_hz: float
+    camera_width_px: int
+    camera_height_px: int
+    camera_fov_deg: float
+
+    @property
+    def body_yaw_offset_rad(self) -> float:
+        """Return the yaw from the URDF base frame to the REP-103 body frame."""
+        return FORWARD_AXIS_YAW_RAD[self.base_forward_axis]
 
     @property
     def wheel_names_are_default(self) -> bool:
@@ -158,6 +192,43 @@ def _strings(name: str, value: Any) -> Tuple[str, ...]:
     return names
 
 
+def _integer(name: str, value: Any, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value):
+        raise ConfigError(f'parameter {name} must be an integer, got {value!r}')
+    if not low <= value <= high:
+        raise ConfigError(f'parameter {name} must be in [{low}, {high}], got {value}')
+    return int(value)
+
+
+def _choice(name: str, value: Any, choices: Sequence[Any]) -> Any:
+    if isinstance(value, bool) or value not in choices:
+        # ROS parameter files read a bare y, n, yes, on... as booleans.
+        hint = ' (quote the value in YAML files)' if isinstance(value, bool) else ''
+        raise ConfigError(f'parameter {name} must be one of '
+                          f'{", ".join(str(c) for c in choices)}; got {value!r}{hint}')
+    return value
+
+
+def _extra_models(value: Any) -> Tuple[Tuple[str, Tuple[float, float, float]], ...]:
+    if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+        raise ConfigError(f'parameter extra_models must be a list of strings, got {value!r}')
+    models = []
+    for entry in value:
+        parts = entry.rsplit(None, 3)
+        try:
+            if len(parts) != 4:
+                raise ValueError
+            position = tuple(float(p) for p in parts[1:])
+        except ValueError:
+            raise ConfigError(f'parameter extra_models: entry {entry!r} is not '
+                              '"description x y z"') from None
+        if not all(math.isfinite(p) for p in position):
+            raise ConfigError(f'parameter extra_models: entry {entry!r} has a non-finite '
+                              'position')
+        models.append((parts[0], position))
+    return tuple(models)
+
+
 def _numbers(name: str, value: Any, length: int) -> Tuple[float, ...]:
     if isinstance(value, (str, bytes)) or not hasattr(value, '__len__') or len(value) != length:
         raise ConfigError(f'parameter {name} must be a list of {length} numbers, got {value!r}')
@@ -192,8 +263,25 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
         covariance[name] = _numbers(name, raw[name], 6)
         if min(covariance[name]) < 0.0:
             raise ConfigError(f'parameter {name} must not contain negative variances')
+    camera_rate = _non_negative('camera_rate', raw['camera_rate'])
+    if camera_rate > physics_rate:
+        raise ConfigError(
+            f'parameter camera_rate ({camera_rate} Hz) cannot exceed physics_rate '
+            f'({physics_rate} Hz)')
+    camera_fov = _positive('camera_fov', raw['camera_fov'])
+    if camera_fov >= 180.0:
+        raise ConfigError(f'parameter camera_fov must be below 180 degrees, got {camera_fov}')
     return SimConfig(
         urdf=_string('urdf', raw['urdf'], allow_empty=True),
+        robot_description=_string('robot_description', raw['robot_description'],
+                                  allow_empty=True),
+        base_forward_axis=_choice('base_forward_axis', raw['base_forward_axis'],
+                                  list(FORWARD_AXIS_YAW_RAD)),
+        wheel_velocity_sign=int(_choice('wheel_velocity_sign', raw['wheel_velocity_sign'],
+                                        [1, -1])),
+        gravity_m_s2=_numbers('gravity', raw['gravity'], 3),
+        ground_plane=_boolean('ground_plane', raw['ground_plane']),
+        extra_models=_extra_models(raw['extra_models']),
         gui=_boolean('gui', raw['gui']),
         physics_rate_hz=physics_rate,
         real_time_factor=_non_negative('real_time_factor', raw['real_time_factor']),
@@ -216,4 +304,8 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
         initial_pose=_numbers('initial_pose', raw['initial_pose'], 3),
         pose_covariance_diagonal=covariance['pose_covariance_diagonal'],
         twist_covariance_diagonal=covariance['twist_covariance_diagonal'],
+        camera_rate_hz=camera_rate,
+        camera_width_px=_integer('camera_width', raw['camera_width'], 1, 4096),
+        camera_height_px=_integer('camera_height', raw['camera_height'], 1, 4096),
+        camera_fov_deg=camera_fov,
     )

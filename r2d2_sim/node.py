@@ -34,7 +34,7 @@ from r2d2_sim.drive import (
     DiffDriveGeometry, DiffDriveOdometry, DriveConfigError, limit_twist,
     twist_to_wheel_velocities, yaw_to_quaternion)
 from r2d2_sim.pacing import DeadlinePacer
-from r2d2_sim.world import SimWorld, WorldError
+from r2d2_sim.world import ExtraModel, SimWorld, WorldError
 
 NODE_NAME = 'r2d2_sim'
 # Warnings about rejected commands repeat at most this often per kind of problem.
@@ -101,10 +101,17 @@ class SimNode(Node):
     def _build_world(self) -> None:
         config = self.config
         self.time_step_s = 1.0 / config.physics_rate_hz
-        self.world = SimWorld(config.urdf or None, gui=config.gui,
-                              time_step_s=self.time_step_s,
-                              initial_pose=config.initial_pose)
-        self.robot_description = open(self.world.urdf_path, encoding='utf-8').read()
+        self.world = SimWorld(
+            config.urdf or None, robot_description=config.robot_description,
+            gui=config.gui, time_step_s=self.time_step_s,
+            gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane,
+            initial_pose=config.initial_pose,
+            body_yaw_offset_rad=config.body_yaw_offset_rad,
+            extra_models=[ExtraModel(name, position)
+                          for name, position in config.extra_models])
+        self.robot_description = self.world.robot_description
+        self.description_source = ('the robot_description parameter'
+                                   if config.robot_description else self.world.urdf_path)
         self._movable = self.world.movable_joints()
         self._movable_indices = [j.index for j in self._movable]
         self._setup_wheels()
@@ -123,7 +130,8 @@ class SimNode(Node):
         missing = [n for n in names if n not in world.joints]
         if names and len(missing) == len(names) and config.wheel_names_are_default:
             self.get_logger().warning(
-                f'{world.urdf_path} has none of the default wheel joints: cmd_vel is ignored')
+                f'{self.description_source} has none of the default wheel joints: '
+                'cmd_vel is ignored')
             names = ()
         elif missing:
             raise ConfigError(
@@ -279,7 +287,8 @@ class SimNode(Node):
 
     def _apply_wheel_targets(self, left: float, right: float) -> None:
         self._wheel_targets = (left, right)
-        velocities = [left] * len(self._left) + [right] * len(self._right)
+        sign = self.config.wheel_velocity_sign
+        velocities = [sign * left] * len(self._left) + [sign * right] * len(self._right)
         self.world.set_joint_velocities(self._wheel_indices, velocities, self._wheel_forces)
 
     def _check_sanity(self) -> None:
@@ -294,8 +303,9 @@ class SimNode(Node):
         step = self.world.step_count
         states = self.world.joint_states(self._wheel_indices)
         n_left = len(self._left)
-        left = sum(states.positions[:n_left]) / n_left
-        right = sum(states.positions[n_left:]) / (len(states.positions) - n_left)
+        sign = self.config.wheel_velocity_sign
+        left = sign * sum(states.positions[:n_left]) / n_left
+        right = sign * sum(states.positions[n_left:]) / (len(states.positions) - n_left)
         dt = (step - self._odometry_step) * self.time_step_s
         self.odometry.update_from_positions(left, right, dt)
         self._odometry_step = step
@@ -375,7 +385,7 @@ class SimNode(Node):
             info = self.world.joint_info()
         response.success = True
         response.message = json.dumps({'robot': self.world.base_link_name,
-                                       'urdf': self.world.urdf_path,
+                                       'urdf': self.description_source,
                                        'joints': info})
         return response
 
@@ -385,9 +395,9 @@ class SimNode(Node):
         response.success = True
         # The count lets a client that steps cross-process confirm that its
         # cmd_vel arrived before it asks for the next step.
-        response.message = (f'{"paused" if self._paused else "running"} at '
-                             f't={self.sim_time_ns / 1e9:.6f} s; cmd_vel received: '
-                             f'{self.commands_received}')
+        state = 'paused' if self._paused else 'running'
+        response.message = (f'{state} at t={self.sim_time_ns / 1e9:.6f} s; '
+                            f'cmd_vel received: {self.commands_received}')
         return response
 
     def _on_step(self, request, response):
@@ -476,7 +486,7 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         spinner = threading.Thread(target=_spin, args=(executor, stop), daemon=True)
         spinner.start()
         node.get_logger().info(
-            f'simulating {node.world.urdf_path} at {node.config.physics_rate_hz:g} Hz, '
+            f'simulating {node.description_source} at {node.config.physics_rate_hz:g} Hz, '
             f'real time factor {node.config.real_time_factor:g}'
             + (', paused' if node.paused else ''))
         run_paced(node, stop)

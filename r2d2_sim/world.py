@@ -16,6 +16,10 @@ import pybullet
 import pybullet_data
 from pybullet_utils.bullet_client import BulletClient
 
+from r2d2_sim.urdf_source import (
+    check_urdf_xml, DescriptionError, DescriptionFile, read_description,
+    resolve_description_path)
+
 Vec3 = Tuple[float, float, float]
 Quat = Tuple[float, float, float, float]
 
@@ -36,6 +40,14 @@ SPAWN_CLEARANCE_M = 0.001
 
 class WorldError(RuntimeError):
     """A robot description or world setting that cannot be simulated."""
+
+
+@dataclass(frozen=True)
+class ExtraModel:
+    """Another body in the world: a description reference and its spawn position."""
+
+    description: str
+    position: Vec3
 
 
 @dataclass(frozen=True)
@@ -150,27 +162,59 @@ class SimWorld:
     The robot is spawned at ``initial_pose`` (x, y, yaw) with its lowest point
     just above the ground, and that state is saved so :meth:`reset` can restore
     it exactly (positions, velocities and contact caches).
+
+    ``body_yaw_offset_rad`` is the yaw from the URDF base frame to the robot's
+    REP-103 body frame (x forward, y left): +pi/2 for a robot that drives
+    along its base +y. Base states and ``initial_pose`` use the body frame.
     """
 
     def __init__(self, urdf_path: Optional[str] = None, *, gui: bool = False,
                  time_step_s: float = 1.0 / 240.0,
                  gravity_m_s2: Vec3 = (0.0, 0.0, -9.8),
                  ground_plane: bool = True,
-                 initial_pose: Tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+                 initial_pose: Tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 robot_description: str = '',
+                 body_yaw_offset_rad: float = 0.0,
+                 extra_models: Sequence[ExtraModel] = ()) -> None:
         if not (math.isfinite(time_step_s) and time_step_s > 0.0):
             raise WorldError(f'time step must be a positive number of seconds, got {time_step_s}')
-        self.urdf_path = urdf_path or default_urdf_path()
-        if not os.path.isfile(self.urdf_path):
-            raise WorldError(f'URDF file not found: {self.urdf_path}')
         self.time_step_s = time_step_s
         self.gui = gui
+        self.body_yaw_offset_rad = body_yaw_offset_rad
+        self._description_file: Optional[DescriptionFile] = None
+        self._client = None
+        try:
+            if robot_description:
+                self._description_file = DescriptionFile(robot_description)
+                self.urdf_path = self._description_file.path
+                self.robot_description = robot_description
+            else:
+                self.urdf_path = (resolve_description_path(urdf_path) if urdf_path
+                                  else default_urdf_path())
+                self.robot_description = read_description(self.urdf_path)
+                check_urdf_xml(self.robot_description, self.urdf_path)
+            extra_paths = [resolve_description_path(m.description) for m in extra_models]
+        except DescriptionError as exc:
+            self.close()
+            raise WorldError(str(exc)) from None
         self._client = BulletClient(
             connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         try:
             self._setup(gravity_m_s2, ground_plane, initial_pose)
+            self.extra_model_ids = [self._load(path, m.position)
+                                    for path, m in zip(extra_paths, extra_models)]
+            self._initial_state = self._client.saveState()
         except Exception:
             self.close()
             raise
+
+    def _load(self, path: str, position: Vec3, orientation: Quat = (0.0, 0.0, 0.0, 1.0),
+              flags: int = 0) -> int:
+        try:
+            return self._client.loadURDF(path, basePosition=position,
+                                         baseOrientation=orientation, flags=flags)
+        except self._client.error as exc:
+            raise WorldError(f'PyBullet cannot load {path}: {exc}') from None
 
     def _setup(self, gravity: Vec3, ground_plane: bool,
                initial_pose: Tuple[float, float, float]) -> None:
@@ -187,15 +231,13 @@ class SimWorld:
             client.configureDebugVisualizer(client.COV_ENABLE_GUI, 0)
         self.plane_id = client.loadURDF('plane.urdf') if ground_plane else None
         x, y, yaw = initial_pose
-        orientation = client.getQuaternionFromEuler((0.0, 0.0, yaw))
-        try:
-            self.robot_id = client.loadURDF(
-                self.urdf_path, basePosition=(x, y, 0.0), baseOrientation=orientation,
-                # True cylinders roll smoothly; the default turns them into
-                # faceted convex hulls that make wheels bump along.
-                flags=client.URDF_USE_INERTIA_FROM_FILE | client.URDF_USE_IMPLICIT_CYLINDER)
-        except client.error as exc:
-            raise WorldError(f'PyBullet cannot load {self.urdf_path}: {exc}') from exc
+        orientation = client.getQuaternionFromEuler(
+            (0.0, 0.0, yaw - self.body_yaw_offset_rad))
+        # True cylinders roll smoothly; the default turns them into faceted
+        # convex hulls that make wheels bump along.
+        self.robot_id = self._load(
+            self.urdf_path, (x, y, 0.0), orientation,
+            flags=client.URDF_USE_INERTIA_FROM_FILE | client.URDF_USE_IMPLICIT_CYLINDER)
         lowest_z = min(self._client.getAABB(self.robot_id, link)[0][2]
                        for link in range(-1, client.getNumJoints(self.robot_id)))
         position, _ = client.getBasePositionAndOrientation(self.robot_id)
@@ -208,8 +250,9 @@ class SimWorld:
             self.joints[record.name] = record
         dynamics = client.getDynamicsInfo(self.robot_id, -1)
         self._base_inertial_inverse = client.invertTransform(dynamics[3], dynamics[4])
+        self._body_offset_orientation = client.getQuaternionFromEuler(
+            (0.0, 0.0, self.body_yaw_offset_rad))
         self.base_link_name = client.getBodyInfo(self.robot_id)[0].decode('utf-8')
-        self._initial_state = client.saveState()
         self.step_count = 0
 
     @property
@@ -266,6 +309,8 @@ class SimWorld:
 
     def joint_states(self, indices: Sequence[int]) -> JointStates:
         """Read the joints' positions, velocities and applied motor efforts in one query."""
+        if not indices:
+            return JointStates(positions=[], velocities=[], efforts=[])
         states = self._client.getJointStates(self.robot_id, indices)
         return JointStates(positions=[s[0] for s in states],
                            velocities=[s[1] for s in states],
@@ -273,15 +318,20 @@ class SimWorld:
 
     def base_state(self) -> BaseState:
         """
-        Return the true pose of the base link frame and its twist in that frame.
+        Return the true pose of the body frame and its twist in that frame.
 
         PyBullet reports the base's centre of mass; this converts to the URDF
-        link frame and expresses both velocities in it, as ROS odometry does.
+        base link frame turned by ``body_yaw_offset_rad`` (the REP-103 body
+        frame) and expresses both velocities in it, as ROS odometry does.
         """
         client = self._client
         com_position, com_orientation = client.getBasePositionAndOrientation(self.robot_id)
         position, orientation = client.multiplyTransforms(
             com_position, com_orientation, *self._base_inertial_inverse)
+        if self.body_yaw_offset_rad:
+            orientation = client.multiplyTransforms(
+                (0.0, 0.0, 0.0), orientation, (0.0, 0.0, 0.0),
+                self._body_offset_orientation)[1]
         linear, angular = client.getBaseVelocity(self.robot_id)
         # Velocity of the link origin: v_com + w x (p_origin - p_com).
         r = (position[0] - com_position[0], position[1] - com_position[1],
@@ -295,7 +345,7 @@ class SimWorld:
                          angular_velocity=_rotate_transposed(rotation, angular))
 
     def link_positions_in_base(self, link_indices: Sequence[int]) -> List[Vec3]:
-        """Return the link frames' origins expressed in the base link frame."""
+        """Return the link frames' origins expressed in the body frame."""
         client = self._client
         base = self.base_state()
         rotation = client.getMatrixFromQuaternion(base.orientation)
@@ -390,7 +440,7 @@ class SimWorld:
         self._client.resetDebugVisualizerCamera(distance_m, yaw - 90.0, -30.0, position)
 
     def close(self) -> None:
-        """Disconnect the physics client; safe to call twice."""
+        """Disconnect the physics client and delete temporary files; safe to call twice."""
         client = getattr(self, '_client', None)
         if client is not None:
             try:
@@ -398,6 +448,9 @@ class SimWorld:
             except pybullet.error:
                 pass
             self._client = None
+        description_file = getattr(self, '_description_file', None)
+        if description_file is not None:
+            description_file.close()
 
     @property
     def connected(self) -> bool:

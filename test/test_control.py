@@ -35,7 +35,7 @@ def trigger(probe, name):
 
 
 def test_pause_is_idempotent_and_reports_state(sim, probe):
-    """pause true twice stays paused; false resumes; each reply names the new state."""
+    """Pausing twice stays paused; false resumes; each reply names the new state."""
     first = pause(probe, True)
     second = pause(probe, True)
     assert first.success and second.success

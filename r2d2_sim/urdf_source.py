@@ -1,0 +1,102 @@
+"""
+Where robot and object descriptions come from: files, ROS packages, pybullet_data, XML text.
+
+No ROS messaging here, only the ament index for ``package://`` URIs. Every
+failure is a :class:`~r2d2_sim.world.WorldError`-compatible one-line message.
+"""
+
+import os
+import tempfile
+from typing import Optional
+import xml.etree.ElementTree as ElementTree
+
+import pybullet_data
+
+PACKAGE_SCHEME = 'package://'
+
+
+class DescriptionError(RuntimeError):
+    """A robot or model description that cannot be found, read or parsed."""
+
+
+def resolve_description_path(spec: str) -> str:
+    """
+    Turn a description reference into an absolute file path.
+
+    Accepted, in this order: ``package://pkg/relative/path`` (an installed
+    ROS package's share directory), an existing file path, and a bare name
+    found in pybullet_data (``r2d2.urdf``, ``cube.urdf``).
+    """
+    if spec.startswith(PACKAGE_SCHEME):
+        return _resolve_package_uri(spec)
+    if os.path.isfile(spec):
+        return os.path.abspath(spec)
+    if not os.path.isabs(spec):
+        candidate = os.path.join(pybullet_data.getDataPath(), spec)
+        if os.path.isfile(candidate):
+            return candidate
+    raise DescriptionError(f'URDF file not found: {spec} (not a file, nor in pybullet_data)')
+
+
+def _resolve_package_uri(uri: str) -> str:
+    package, _, relative = uri[len(PACKAGE_SCHEME):].partition('/')
+    if not package or not relative:
+        raise DescriptionError(f'malformed package URI {uri!r}: expected package://pkg/path')
+    from ament_index_python.packages import (
+        get_package_share_directory, PackageNotFoundError)
+    try:
+        share = get_package_share_directory(package)
+    except (PackageNotFoundError, OSError):  # OSError: AMENT_PREFIX_PATH unset
+        raise DescriptionError(
+            f'cannot resolve {uri}: package {package!r} is not in the ament index '
+            '(AMENT_PREFIX_PATH)') from None
+    path = os.path.join(share, relative)
+    if not os.path.isfile(path):
+        raise DescriptionError(f'URDF file not found: {path} (from {uri})')
+    return path
+
+
+def read_description(path: str) -> str:
+    """Return the text of a description file, with a one-line error if unreadable."""
+    try:
+        with open(path, encoding='utf-8') as handle:
+            return handle.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise DescriptionError(f'cannot read {path}: {reason}') from None
+
+
+def check_urdf_xml(text: str, source: str) -> None:
+    """Raise DescriptionError unless ``text`` is well-formed XML with a <robot> root."""
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise DescriptionError(f'cannot load {source}: not well-formed XML ({exc})') from None
+    if root.tag != 'robot':
+        raise DescriptionError(
+            f'cannot load {source}: the root element is <{root.tag}>, not <robot>')
+
+
+class DescriptionFile:
+    """
+    A URDF given as text, written to a temporary file PyBullet can load.
+
+    The file lives in its own temporary directory until :meth:`close`.
+    """
+
+    def __init__(self, text: str) -> None:
+        check_urdf_xml(text, 'robot_description')
+        self._directory: Optional[str] = tempfile.mkdtemp(prefix='r2d2_sim_')
+        self.path = os.path.join(self._directory, 'robot_description.urdf')
+        with open(self.path, 'w', encoding='utf-8') as handle:
+            handle.write(text)
+
+    def close(self) -> None:
+        """Delete the file and its directory; safe to call twice."""
+        if self._directory is not None:
+            try:
+                os.remove(self.path)
+                os.rmdir(self._directory)
+            except OSError:
+                pass
+            self._directory = None
