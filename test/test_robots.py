@@ -234,3 +234,65 @@ def test_classic_params_file_cross_process():
         rclpy.try_shutdown(context=ctx)
     assert code == 0, err
     assert 'Traceback' not in err + out
+
+
+@pytest.mark.parametrize('value, fragment', [
+    (['cube.urdf 0 0'], 'is not "description x y z"'),
+    (['cube.urdf 0 zero 1'], 'is not "description x y z"'),
+    (['cube.urdf 0 0 inf'], 'non-finite'),
+    ('cube.urdf 0 0 1', 'list of strings'),
+])
+def test_bad_extra_models_are_one_line(value, fragment):
+    """Each malformed extra_models entry is one ConfigError line quoting it."""
+    from r2d2_sim.config import ConfigError, parse_config
+    with pytest.raises(ConfigError, match=fragment) as info:
+        parse_config({'extra_models': value})
+    assert '\n' not in str(info.value)
+
+
+def test_unknown_extra_model_refuses_to_start(ros):
+    """An extra model that resolves nowhere names itself."""
+    with pytest.raises(StartupError, match='no_such_box.urdf'):
+        make_sim(ros, extra_models=['no_such_box.urdf 1 0 0.5'])
+
+
+def test_world_settings_reach_the_node(ros):
+    """gravity, ground_plane and extra_models (names with spaces kept) configure the world."""
+    sim = make_sim(ros, gravity=[0.0, 0.0, 0.0], ground_plane=False,
+                   extra_models=['cube_small.urdf 0.6 0 1.0', 'cube.urdf -2 0 0.5'])
+    world = sim.world
+    assert world.plane_id is None and len(world.extra_model_ids) == 2
+    sim.advance(120)
+    position = world.client.getBasePositionAndOrientation(world.extra_model_ids[0])[0]
+    assert position == pytest.approx((0.6, 0.0, 1.0), abs=1e-6)  # weightless: it floats
+
+
+def test_extra_cube_falls_onto_the_plane():
+    """A 5 cm cube dropped from 0.5 m comes to rest on the ground (centre at 2.5 cm)."""
+    from r2d2_sim.world import ExtraModel
+    with SimWorld(extra_models=[ExtraModel('cube_small.urdf', (0.6, 0.0, 0.5))]) as world:
+        cube = world.extra_model_ids[0]
+        world.step(240)
+        position = world.client.getBasePositionAndOrientation(cube)[0]
+        assert position[2] == pytest.approx(0.025, abs=0.003)
+        assert position[0] == pytest.approx(0.6, abs=0.01)
+        world.reset()  # the saved state includes the extra models
+        position = world.client.getBasePositionAndOrientation(cube)[0]
+        assert position[2] == pytest.approx(0.5)
+
+
+def test_driving_into_a_cube_collides(ros):
+    """Driving at pybullet_data's 1 m, 1 kg cube: contact, and the cube is shoved along +x."""
+    sim = make_sim(ros, extra_models=['cube.urdf 1.0 0 0.5'])
+    probe = Probe(ros, sim)
+    cube = sim.world.extra_model_ids[0]
+    client = sim.world.client
+    probe.drive(0.3, 0.0, 2.0)
+    touching = client.getContactPoints(sim.world.robot_id, cube)
+    x0 = client.getBasePositionAndOrientation(cube)[0][0]
+    probe.drive(0.3, 0.0, 2.0)
+    x1 = client.getBasePositionAndOrientation(cube)[0][0]
+    robot_x = latest_truth(sim)[0]
+    assert touching
+    assert x1 - x0 > 0.2
+    assert robot_x < x1 - 0.5  # the robot stayed outside the cube
