@@ -443,11 +443,16 @@ def run_paced(node: SimNode, stop: threading.Event) -> None:
     Step ``node`` against the wall clock until ``stop`` is set.
 
     Real time (``real_time_factor`` > 0): one physics step per absolute
-    deadline. As fast as possible: whole control periods back to back.
+    deadline, or with a GUI one batch of steps per frame. As fast as
+    possible: whole control periods back to back.
     """
     config = node.config
     rate = config.physics_rate_hz * config.real_time_factor
-    pacer = DeadlinePacer(1.0 / rate) if rate > 0.0 else None
+    # With a window, PyBullet renders whenever the client is idle and makes the
+    # next call wait for that frame (measured under Xvfb: 6 s for 240 paced
+    # steps). Stepping in batches, one per GUI frame, keeps real time.
+    batch = max(1, round(config.physics_rate_hz / GUI_CAMERA_RATE_HZ)) if config.gui else 1
+    pacer = DeadlinePacer(batch / rate) if rate > 0.0 else None
     while not stop.is_set():
         if node.paused:
             stop.wait(0.005)
@@ -457,7 +462,7 @@ def run_paced(node: SimNode, stop: threading.Event) -> None:
         if pacer is None:
             node.advance_to_next_publish()
         else:
-            node.advance(1)
+            node.advance(batch)
             pacer.wait()
 
 
