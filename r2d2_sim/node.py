@@ -25,10 +25,11 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
+from r2d2_sim import camera
 from r2d2_sim.config import ConfigError, PARAMETERS, parse_config, SimConfig
 from r2d2_sim.drive import (
     DiffDriveGeometry, DiffDriveOdometry, DriveConfigError, limit_twist,
@@ -41,6 +42,13 @@ NODE_NAME = 'r2d2_sim'
 WARNING_PERIOD_S = 5.0
 # Follow the robot with the GUI camera this many times per simulated second.
 GUI_CAMERA_RATE_HZ = 30.0
+# The head camera: its link, image frame, clipping planes, and the gap between
+# the link's bounding box and the lens (so the head itself is not in view).
+HEAD_CAMERA_LINK = 'head'
+HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
+HEAD_CAMERA_NEAR_M = 0.01
+HEAD_CAMERA_FAR_M = 100.0
+HEAD_CAMERA_CLEARANCE_M = 0.01
 
 
 class StartupError(RuntimeError):
@@ -63,7 +71,8 @@ class SimNode(Node):
     Simulates R2D2 in PyBullet and exposes it through standard ROS interfaces.
 
     Publishes ``joint_states``, ``odom`` (wheel odometry), ``ground_truth``,
-    ``/clock`` and the latched ``robot_description``; subscribes ``cmd_vel``;
+    ``/clock``, the latched ``robot_description`` and, with ``camera_rate``,
+    ``camera/image_raw`` and ``camera/camera_info``; subscribes ``cmd_vel``;
     serves ``~/get_joint_info``, ``~/pause``, ``~/step`` and ``~/reset``.
     Raises :class:`StartupError` when its parameters or URDF are unusable.
     """
@@ -123,6 +132,29 @@ class SimNode(Node):
         self._next_publish_step = self._publish_step(1)
         self._timeout_steps = math.ceil(config.cmd_vel_timeout_s * config.physics_rate_hz)
         self._camera_every = max(1, round(config.physics_rate_hz / GUI_CAMERA_RATE_HZ))
+        self._setup_head_camera()
+
+    def _setup_head_camera(self) -> None:
+        config = self.config
+        self.head_camera_enabled = config.camera_rate_hz > 0.0
+        if not self.head_camera_enabled:
+            return
+        try:
+            self._head_link = self.world.link_index(HEAD_CAMERA_LINK)
+        except WorldError as exc:
+            raise ConfigError(f'camera_rate > 0 needs a link named {HEAD_CAMERA_LINK!r}: '
+                              f'{exc}') from None
+        self._head_lens_offset_m = (self.world.link_half_extent_m(self._head_link)
+                                    + HEAD_CAMERA_CLEARANCE_M)
+        width, height, fov = (config.camera_width_px, config.camera_height_px,
+                              config.camera_fov_deg)
+        self.head_camera_intrinsics = camera.intrinsics(width, height, fov)
+        self._head_projection = camera.projection_matrix(
+            width, height, fov, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
+        self._steps_per_image = (Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
+                                 / Fraction(config.camera_rate_hz).limit_denominator(1_000_000))
+        self._image_count = 0
+        self._next_image_step = math.ceil(self._steps_per_image)
 
     def _setup_wheels(self) -> None:
         config, world = self.config, self.world
@@ -218,6 +250,25 @@ class SimNode(Node):
         self._truth_msg.header.frame_id = config.world_frame_id
         self._truth_msg.child_frame_id = config.base_frame_id
         self._clock_msg = Clock()
+        if self.head_camera_enabled:
+            self._build_camera_interfaces()
+
+    def _build_camera_interfaces(self) -> None:
+        camera_qos = QoSProfile(depth=2)
+        self._image_pub = self.create_publisher(Image, 'camera/image_raw', camera_qos)
+        self._camera_info_pub = self.create_publisher(CameraInfo, 'camera/camera_info',
+                                                      camera_qos)
+        k = self.head_camera_intrinsics
+        self._image_msg = Image(height=k.height_px, width=k.width_px, encoding='rgb8',
+                                is_bigendian=0, step=3 * k.width_px)
+        self._image_msg.header.frame_id = HEAD_CAMERA_FRAME_ID
+        info = CameraInfo(height=k.height_px, width=k.width_px, distortion_model='plumb_bob')
+        info.header.frame_id = HEAD_CAMERA_FRAME_ID
+        info.d = [0.0] * 5
+        info.k = k.k
+        info.r = camera.IDENTITY_3X3
+        info.p = k.p
+        self._camera_info_msg = info
 
     # -- time -----------------------------------------------------------------
 
@@ -263,6 +314,11 @@ class SimNode(Node):
                     self._next_publish_step = self._publish_step(self._publish_count + 1)
                     self._check_sanity()
                     self._publish_state()
+                if self.head_camera_enabled and world.step_count >= self._next_image_step:
+                    self._image_count += 1
+                    self._next_image_step = math.ceil(
+                        (self._image_count + 1) * self._steps_per_image)
+                    self._publish_head_camera()
                 if world.gui and world.step_count % self._camera_every == 0:
                     world.follow_camera()
 
@@ -349,6 +405,27 @@ class SimNode(Node):
             odom.twist.twist.linear.x = odometry.linear_m_s
             odom.twist.twist.angular.z = odometry.angular_rad_s
             self._odom_pub.publish(odom)
+
+    def render_head_camera(self) -> bytes:
+        """Render the head camera now: rgb8 rows, top first, looking along the head's forward."""
+        world = self.world
+        position, orientation = world.link_pose(self._head_link)
+        forward, up = camera.link_camera_axes(orientation, world.body_yaw_offset_rad)
+        offset = self._head_lens_offset_m
+        eye = [position[i] + offset * forward[i] for i in range(3)]
+        k = self.head_camera_intrinsics
+        return world.render_rgb(k.width_px, k.height_px, camera.view_matrix(eye, forward, up),
+                                self._head_projection)
+
+    def _publish_head_camera(self) -> None:
+        sec, nanosec = divmod(self.sim_time_ns, 10**9)
+        image = self._image_msg
+        image.header.stamp.sec, image.header.stamp.nanosec = sec, nanosec
+        image.data = self.render_head_camera()
+        self._image_pub.publish(image)
+        info = self._camera_info_msg
+        info.header.stamp.sec, info.header.stamp.nanosec = sec, nanosec
+        self._camera_info_pub.publish(info)
 
     def _publish_description(self) -> None:
         self._description_pub.publish(String(data=self.robot_description))

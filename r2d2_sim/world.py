@@ -12,6 +12,7 @@ import math
 import os
 from typing import Dict, List, Optional, Sequence, Tuple
 
+import numpy
 import pybullet
 import pybullet_data
 from pybullet_utils.bullet_client import BulletClient
@@ -355,6 +356,46 @@ class SimWorld:
             offset = tuple(world[i] - base.position[i] for i in range(3))
             result.append(_rotate_transposed(rotation, offset))
         return result
+
+    def link_index(self, link_name: str) -> int:
+        """Return the index of the link named ``link_name`` (-1 for the base)."""
+        if link_name == self.base_link_name:
+            return -1
+        for joint in self.joints.values():
+            if joint.link_name == link_name:
+                return joint.index
+        names = [self.base_link_name] + [j.link_name for j in self.joints.values()]
+        raise WorldError(f'no link named {link_name!r}; the robot has: {", ".join(names)}')
+
+    def link_pose(self, link_index: int) -> Tuple[Vec3, Quat]:
+        """Return the world position and orientation of a link frame (-1: base link)."""
+        if link_index < 0:
+            com_position, com_orientation = self._client.getBasePositionAndOrientation(
+                self.robot_id)
+            return self._client.multiplyTransforms(
+                com_position, com_orientation, *self._base_inertial_inverse)
+        state = self._client.getLinkState(self.robot_id, link_index,
+                                          computeForwardKinematics=True)
+        return tuple(state[4]), tuple(state[5])
+
+    def link_half_extent_m(self, link_index: int) -> float:
+        """Return half the largest horizontal size of a link's bounding box."""
+        low, high = self._client.getAABB(self.robot_id, link_index)
+        return max(high[0] - low[0], high[1] - low[1]) / 2.0
+
+    def render_rgb(self, width_px: int, height_px: int, view: Sequence[float],
+                   projection: Sequence[float]) -> bytes:
+        """
+        Render an image with the CPU renderer and return it as rgb8 rows, top row first.
+
+        ER_TINY_RENDERER works without a display (DIRECT mode) and gives the
+        same pixels in GUI mode, so tests and headless runs see what users see.
+        """
+        _, _, rgba, _, _ = self._client.getCameraImage(
+            width_px, height_px, viewMatrix=list(view), projectionMatrix=list(projection),
+            renderer=pybullet.ER_TINY_RENDERER, flags=pybullet.ER_NO_SEGMENTATION_MASK)
+        return numpy.asarray(rgba, dtype=numpy.uint8).reshape(
+            height_px, width_px, 4)[:, :, :3].tobytes()
 
     def wheel_radius_m(self, joint_index: int) -> float:
         """Return the radius of a wheel from its collision shape (cylinder or sphere)."""

@@ -1,0 +1,169 @@
+"""
+The head camera: pure pinhole math first, then images from the node.
+
+The math is checked against PyBullet's own matrix helpers and against the
+intrinsics a ROS CameraInfo publishes, so the image and its CameraInfo agree.
+"""
+
+import math
+
+from conftest import make_sim, RATE_HZ, wait_for
+import numpy
+import pybullet
+import pytest
+from sensor_msgs.msg import CameraInfo, Image
+
+from r2d2_sim import camera
+from r2d2_sim.config import ConfigError, parse_config
+from r2d2_sim.node import StartupError
+from test_robots import classic_params
+
+
+def test_intrinsics_of_a_60_degree_320x240_camera():
+    """Focal length fy = 120 / tan(30 deg) = 207.85 px; fx = fy; principal point centred."""
+    k = camera.intrinsics(320, 240, 60.0)
+    assert k.fy == pytest.approx(120.0 / math.tan(math.radians(30.0)))
+    assert k.fy == pytest.approx(207.846, abs=1e-3)
+    assert (k.fx, k.cx, k.cy) == (k.fy, 160.0, 120.0)
+    assert k.k == [k.fx, 0.0, 160.0, 0.0, k.fy, 120.0, 0.0, 0.0, 1.0]
+    assert k.p == [k.fx, 0.0, 160.0, 0.0, 0.0, k.fy, 120.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+
+
+@pytest.mark.parametrize('fov', [0.0, 180.0, -10.0])
+def test_impossible_field_of_view_is_refused(fov):
+    """A field of view outside (0, 180) degrees is a ValueError."""
+    with pytest.raises(ValueError, match='field of view'):
+        camera.intrinsics(320, 240, fov)
+
+
+def test_projection_matrix_matches_pybullet():
+    """Same numbers as pybullet.computeProjectionMatrixFOV."""
+    ours = camera.projection_matrix(320, 240, 60.0, 0.01, 100.0)
+    theirs = pybullet.computeProjectionMatrixFOV(60.0, 320 / 240, 0.01, 100.0)
+    assert ours == pytest.approx(list(theirs), rel=1e-6)
+
+
+@pytest.mark.parametrize('eye, forward, up', [
+    ((0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    ((0.5, -2.0, 0.3), (0.3, 0.8, -0.2), (0.0, 0.0, 1.0)),
+    ((1.0, 2.0, 3.0), (0.0, -1.0, 0.0), (0.2, 0.0, 1.0)),
+])
+def test_view_matrix_matches_pybullet(eye, forward, up):
+    """Same numbers as pybullet.computeViewMatrix(eye, eye + forward, up)."""
+    target = [e + f for e, f in zip(eye, forward)]
+    theirs = pybullet.computeViewMatrix(eye, target, up)
+    assert camera.view_matrix(eye, forward, up) == pytest.approx(list(theirs), abs=1e-6)
+
+
+def test_projection_and_intrinsics_put_a_point_on_the_same_pixel():
+    """A point 2 m ahead, 0.3 m left, 0.2 m up lands where K says (u right, v down)."""
+    width, height, fov = 320, 240, 60.0
+    k = camera.intrinsics(width, height, fov)
+    view = numpy.array(camera.view_matrix((0.0, 0.0, 0.0), (1.0, 0.0, 0.0),
+                                          (0.0, 0.0, 1.0))).reshape(4, 4).T
+    projection = numpy.array(camera.projection_matrix(width, height, fov, 0.01, 100.0)
+                             ).reshape(4, 4).T
+    clip = projection @ view @ numpy.array([2.0, 0.3, 0.2, 1.0])
+    ndc = clip[:3] / clip[3]
+    u_gl, v_gl = (ndc[0] + 1.0) * width / 2.0, (1.0 - ndc[1]) * height / 2.0
+    # Optical frame: z forward, x right, y down -> (-0.3, -0.2, 2.0).
+    u_k, v_k = k.fx * -0.3 / 2.0 + k.cx, k.fy * -0.2 / 2.0 + k.cy
+    assert (u_gl, v_gl) == pytest.approx((u_k, v_k), abs=1e-6)
+
+
+def test_camera_axes_follow_the_link_and_the_yaw_offset():
+    """A link yawed 90 degrees looks along world +y; with offset +90 along -x."""
+    q = (0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))
+    forward, up = camera.link_camera_axes(q, 0.0)
+    assert forward == pytest.approx((0.0, 1.0, 0.0), abs=1e-12)
+    assert up == pytest.approx((0.0, 0.0, 1.0), abs=1e-12)
+    forward, _ = camera.link_camera_axes(q, math.pi / 2)
+    assert forward == pytest.approx((-1.0, 0.0, 0.0), abs=1e-12)
+
+
+@pytest.mark.parametrize('name, value, fragment', [
+    ('camera_rate', 480.0, 'cannot exceed'),
+    ('camera_rate', -1.0, '>= 0'),
+    ('camera_width', 0, 'camera_width'),
+    ('camera_height', 1.5, 'integer'),
+    ('camera_fov', 180.0, 'below 180'),
+])
+def test_bad_camera_parameters(name, value, fragment):
+    """Camera parameters are validated up front, one line each."""
+    with pytest.raises(ConfigError, match=fragment):
+        parse_config({name: value})
+
+
+def test_camera_needs_a_head(ros):
+    """camera_rate on a robot without a 'head' link refuses to start, naming it."""
+    with pytest.raises(StartupError, match="link named 'head'"):
+        make_sim(ros, urdf='cube.urdf', camera_rate=10.0)
+
+
+def test_camera_is_off_by_default(sim):
+    """No camera topics unless camera_rate is set."""
+    assert not sim.head_camera_enabled
+    topics = [name for name, _ in sim.get_topic_names_and_types()]
+    assert not any(name.startswith('/camera') for name in topics)
+
+
+def _image_array(msg_or_bytes, width, height):
+    data = msg_or_bytes.data if hasattr(msg_or_bytes, 'data') else msg_or_bytes
+    return numpy.frombuffer(bytes(data), dtype=numpy.uint8).reshape(height, width, 3)
+
+
+def test_images_and_camera_info_at_camera_rate(ros):
+    """10 Hz for 1 simulated second: 10 rgb8 images stamped 0.1 s apart, matching info."""
+    sim = make_sim(ros, camera_rate=10.0, camera_width=160, camera_height=120, camera_fov=50.0)
+    node = ros.node('camera_probe')
+    images, infos = [], []
+    node.create_subscription(Image, 'camera/image_raw', images.append, 20)
+    node.create_subscription(CameraInfo, 'camera/camera_info', infos.append, 20)
+    assert wait_for(lambda: sim.count_subscribers('camera/image_raw') > 0)
+    for _ in range(RATE_HZ // 24):
+        sim.advance(24)
+        count = sim.step_count // 24
+        assert wait_for(lambda: len(images) >= count and len(infos) >= count), 'no image'
+    assert len(images) == len(infos) == 10
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in images]
+    assert stamps == pytest.approx([0.1 * (i + 1) for i in range(10)], abs=1e-9)
+    image, info = images[-1], infos[-1]
+    assert (image.width, image.height, image.encoding, image.step) == (160, 120, 'rgb8', 480)
+    assert len(image.data) == 160 * 120 * 3
+    assert image.header.frame_id == info.header.frame_id == 'head_camera_optical'
+    assert info.header.stamp == image.header.stamp
+    fy = 60.0 / math.tan(math.radians(25.0))
+    assert list(info.k) == pytest.approx([fy, 0, 80, 0, fy, 60, 0, 0, 1])
+    assert list(info.p) == pytest.approx([fy, 0, 80, 0, 0, fy, 60, 0, 0, 0, 1, 0])
+    assert list(info.r) == [1, 0, 0, 0, 1, 0, 0, 0, 1]
+    assert info.distortion_model == 'plumb_bob' and list(info.d) == [0.0] * 5
+    pixels = _image_array(image, 160, 120).astype(int)
+    # Sky above, the checkered ground plane below.
+    assert numpy.abs(pixels[:10].mean(axis=(0, 1)) - pixels[-10:].mean(axis=(0, 1))).max() > 20
+
+
+def test_turning_the_head_turns_the_camera(ros):
+    """head_swivel a quarter turn: the cube ahead leaves the centre of the image."""
+    sim = make_sim(ros, camera_rate=5.0, camera_width=80, camera_height=60,
+                   extra_models=['cube.urdf 3 0 0.5'])
+    ahead = _image_array(sim.render_head_camera(), 80, 60).astype(int)
+    swivel = sim.world.joint('head_swivel').index
+    sim.world.client.resetJointState(sim.world.robot_id, swivel, math.pi / 2)
+    turned = _image_array(sim.render_head_camera(), 80, 60).astype(int)
+    centre = (slice(25, 35), slice(35, 45))
+    assert numpy.abs(ahead[centre] - turned[centre]).mean() > 20
+    assert numpy.abs(ahead - turned).mean() > 5
+
+
+@pytest.mark.parametrize('robot', ['ours', 'classic'])
+def test_camera_looks_rep103_forward(ros, robot):
+    """A cube 3 m ahead along world +x fills the image centre for both robots."""
+    params = classic_params() if robot == 'classic' else {}
+    sim = make_sim(ros, camera_rate=5.0, camera_width=80, camera_height=60,
+                   extra_models=['cube.urdf 3 0 0.5'], **params)
+    with_cube = _image_array(sim.render_head_camera(), 80, 60).astype(int)
+    cube = sim.world.extra_model_ids[0]
+    sim.world.client.resetBasePositionAndOrientation(cube, (-20.0, 0.0, 0.5), (0, 0, 0, 1))
+    without = _image_array(sim.render_head_camera(), 80, 60).astype(int)
+    centre = (slice(25, 35), slice(35, 45))
+    assert numpy.abs(with_cube[centre] - without[centre]).mean() > 20
