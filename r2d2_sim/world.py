@@ -1,5 +1,5 @@
 """
-The PyBullet world: one robot on a plane, stepped at a fixed time step.
+The PyBullet world: one robot (and any extra bodies) on a plane, at a fixed time step.
 
 No ROS here. The world owns its own physics client (never the module-global
 ``pybullet`` state), so several worlds can live in one process and tests can

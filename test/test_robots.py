@@ -296,3 +296,45 @@ def test_driving_into_a_cube_collides(ros):
     assert touching
     assert x1 - x0 > 0.2
     assert robot_x < x1 - 0.5  # the robot stayed outside the cube
+
+
+@pytest.mark.parametrize('args, fragment', [
+    (['-p', 'robot_description:=<robot name="x"><link name="a"></robot'], 'not well-formed'),
+    (['-p', 'urdf:=package://no_such_package/urdf/robot.urdf'], 'no_such_package'),
+    (['-p', 'extra_models:=["cube.urdf 0 0"]'], 'extra_models'),
+])
+def test_bad_description_is_one_line_and_exit_2(args, fragment):
+    """The executable refuses bad descriptions with one error line and exit code 2."""
+    process = start_sim_process(next_domain_id(), *args)
+    out, err = process.communicate(timeout=30.0)
+    assert process.returncode == 2, err
+    assert 'Traceback' not in err
+    lines = [line for line in err.splitlines() if 'error' in line]
+    assert len(lines) == 1 and fragment in lines[0], err
+
+
+def test_robot_without_wheels_warns_once_at_start_up():
+    """urdf:=cube.urdf runs, warns once that cmd_vel is ignored, and stops cleanly."""
+    import rclpy
+    from nav_msgs.msg import Odometry
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    domain = next_domain_id()
+    process = start_sim_process(domain, '-p', 'urdf:=cube.urdf')
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain)
+    node = rclpy.create_node('cube_probe', context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    try:
+        truth = []
+        node.create_subscription(Odometry, 'ground_truth', truth.append, 10)
+        assert wait_for(lambda: executor.spin_once(timeout_sec=0.01) or len(truth) > 5,
+                        20.0, interval_s=0.0), 'no ground_truth from the cube'
+    finally:
+        code, out, err = stop_process(process)
+        node.destroy_node()
+        executor.shutdown()
+        rclpy.try_shutdown(context=ctx)
+    assert code == 0, err
+    assert (out + err).count('none of the default wheel joints') == 1, out + err
