@@ -407,7 +407,7 @@ class SimNode(Node):
             self._odom_pub.publish(odom)
 
     def render_head_camera(self) -> bytes:
-        """Render the head camera now: rgb8 rows, top first, looking along the head's forward."""
+        """Render the head camera now (camera_rate > 0): rgb8 rows, top row first."""
         world = self.world
         position, orientation = world.link_pose(self._head_link)
         forward, up = camera.link_camera_axes(orientation, world.body_yaw_offset_rad)
