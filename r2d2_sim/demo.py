@@ -25,6 +25,7 @@ from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from sensor_msgs.msg import Image
 
 from r2d2_sim.probe import non_ros_args, Pose2D, pose_from_odometry, spin_until
 
@@ -41,6 +42,9 @@ COMMAND_RATE_HZ = 20.0
 LOG_TAIL_LINES = 10
 EXIT_INTERRUPTED = 130
 PLOT_NAME = 'trajectory.png'
+SNAPSHOT_NAME = 'head_camera.png'
+# A few head-camera images per simulated second are plenty for the final snapshot.
+CAMERA_RATE_HZ = 2.0
 
 
 class Phase(NamedTuple):
@@ -131,6 +135,22 @@ def write_trajectory_plot(path, odom_xy: Sequence[Tuple[float, float]],
     return path
 
 
+def write_camera_snapshot(path, image: Image) -> Path:
+    """Write an rgb8 sensor_msgs/Image as a PNG and return its path."""
+    import matplotlib
+    matplotlib.use('Agg')
+    from matplotlib import pyplot
+    import numpy
+    if image.encoding != 'rgb8':
+        raise ValueError(f'expected an rgb8 image, got {image.encoding!r}')
+    rows = numpy.frombuffer(bytes(image.data), dtype=numpy.uint8)
+    pixels = rows.reshape(image.height, image.step)[:, :image.width * 3]
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pyplot.imsave(path, pixels.reshape(image.height, image.width, 3))
+    return path
+
+
 def _ros_double(value: float) -> str:
     """Format a float so a ROS parameter override parses it as a double."""
     text = repr(float(value))
@@ -152,7 +172,8 @@ class Simulator:
     def for_real_time_factor(cls, real_time_factor: float, env: dict) -> 'Simulator':
         """Build the command for ``python -m r2d2_sim.node`` at the given speed."""
         return cls([sys.executable, '-m', 'r2d2_sim.node', '--ros-args',
-                    '-p', f'real_time_factor:={_ros_double(real_time_factor)}'], env)
+                    '-p', f'real_time_factor:={_ros_double(real_time_factor)}',
+                    '-p', f'camera_rate:={_ros_double(CAMERA_RATE_HZ)}'], env)
 
     def start(self) -> None:
         """Start the process; stdout and stderr go to a temporary file."""
@@ -219,6 +240,8 @@ class ManoeuvreDriver(Node):
         self._cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10)
         self.create_subscription(Odometry, 'odom', self._on_odom, 10)
         self.create_subscription(Odometry, 'ground_truth', self._on_truth, 10)
+        self.create_subscription(Image, 'camera/image_raw', self._on_image, 2)
+        self.image: Optional[Image] = None
         self.odom: Optional[Pose2D] = None
         self.truth: Optional[Pose2D] = None
         self.odom_xy: List[Tuple[float, float]] = []
@@ -247,6 +270,9 @@ class ManoeuvreDriver(Node):
         if self._start_s is None or self.truth is None:
             return 0.0
         return self.truth.stamp_s - self._start_s
+
+    def _on_image(self, msg: Image) -> None:
+        self.image = msg
 
     def _on_odom(self, msg: Odometry) -> None:
         self.odom = pose_from_odometry(msg)
@@ -358,6 +384,11 @@ def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path
     plot = write_trajectory_plot(output_dir.absolute() / PLOT_NAME, node.odom_xy, node.truth_xy)
     print(f'simulated {node.elapsed_s:.1f} s in {time.monotonic() - started_s:.1f} s of wall time')
     print(f'trajectory plot: {plot}', flush=True)
+    if node.image is not None:
+        snapshot = write_camera_snapshot(output_dir.absolute() / SNAPSHOT_NAME, node.image)
+        print(f'head camera snapshot: {snapshot}', flush=True)
+    else:
+        print('head camera snapshot: none received', flush=True)
     return 0
 
 

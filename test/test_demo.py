@@ -167,6 +167,9 @@ def test_demo_turns_then_drives_and_writes_a_plot(tmp_path, domain_id):
     plot = tmp_path / 'trajectory.png'
     assert f'trajectory plot: {plot}' in result.stdout, report
     assert plot.read_bytes()[:8] == PNG_SIGNATURE
+    snapshot = tmp_path / 'head_camera.png'
+    assert f'head camera snapshot: {snapshot}' in result.stdout, report
+    _assert_camera_picture(snapshot)
     assert simulators_in_domain(domain_id) == [], 'the demo left its simulator running'
     print(f'demo at real_time_factor 0 took {wall_s:.1f} s of wall time')
 
@@ -294,3 +297,26 @@ def test_drive_moves_the_simulated_robot_forward(simulator_process, ros_probe, d
         status, _, stderr = stop_process(drive)
     assert status == 0, stderr
     assert moved, f'x moved only {poses[-1].x_m - start_x_m:.3f} m'
+
+
+def _assert_camera_picture(path):
+    """Check a head-camera PNG shows more than one colour (ground below, sky above)."""
+    from matplotlib import pyplot
+    pixels = pyplot.imread(path)
+    assert pixels.shape[:2] == (240, 320)
+    top, bottom = pixels[:40].mean(axis=(0, 1)), pixels[-40:].mean(axis=(0, 1))
+    assert abs(top - bottom).sum() > 0.05
+
+
+def test_camera_snapshot_writer_round_trips(tmp_path):
+    """An rgb8 Image with a padded row stride becomes a PNG of the right size and colours."""
+    from matplotlib import pyplot
+    from sensor_msgs.msg import Image
+    from r2d2_sim.demo import write_camera_snapshot
+    image = Image(height=2, width=3, encoding='rgb8', step=11)
+    image.data = bytes([255, 0, 0] * 3 + [0, 0]) + bytes([0, 0, 255] * 3 + [0, 0])
+    path = write_camera_snapshot(tmp_path / 'snap.png', image)
+    pixels = pyplot.imread(path)
+    assert pixels.shape[:2] == (2, 3)
+    assert tuple(pixels[0, 0, :3]) == (1.0, 0.0, 0.0)
+    assert tuple(pixels[1, 2, :3]) == (0.0, 0.0, 1.0)
