@@ -126,8 +126,11 @@ class SimNode(Node):
         self._setup_wheels()
         rate = Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
         self._step_ns_num, self._step_ns_den = 10**9 * rate.denominator, rate.numerator
-        self._steps_per_publish = (Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
-                                   / Fraction(config.publish_rate_hz).limit_denominator(1_000_000))
+        steps_per_publish = (Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
+                             / Fraction(config.publish_rate_hz).limit_denominator(1_000_000))
+        # Kept as integers: Fraction arithmetic costs ~7 us per publication.
+        self._publish_num = steps_per_publish.numerator
+        self._publish_den = steps_per_publish.denominator
         self._publish_count = 0
         self._next_publish_step = self._publish_step(1)
         self._timeout_steps = math.ceil(config.cmd_vel_timeout_s * config.physics_rate_hz)
@@ -283,7 +286,7 @@ class SimNode(Node):
         return self.world.step_count * self._step_ns_num // self._step_ns_den
 
     def _publish_step(self, count: int) -> int:
-        return math.ceil(count * self._steps_per_publish)
+        return -(-count * self._publish_num // self._publish_den)
 
     def steps_to_next_publish(self) -> int:
         """Return the number of physics steps until the next state publication."""
@@ -312,8 +315,7 @@ class SimNode(Node):
                 if world.step_count >= self._next_publish_step:
                     self._publish_count += 1
                     self._next_publish_step = self._publish_step(self._publish_count + 1)
-                    self._check_sanity()
-                    self._publish_state()
+                    self._publish_state(self._checked_base_state())
                 if self.head_camera_enabled and world.step_count >= self._next_image_step:
                     self._image_count += 1
                     self._next_image_step = math.ceil(
@@ -347,11 +349,15 @@ class SimNode(Node):
         velocities = [sign * left] * len(self._left) + [sign * right] * len(self._right)
         self.world.set_joint_velocities(self._wheel_indices, velocities, self._wheel_forces)
 
-    def _check_sanity(self) -> None:
-        problem = self.world.state_is_sane()
+    def _checked_base_state(self):
+        """Read the base state once per publication; reset the robot if it is absurd."""
+        base = self.world.base_state()
+        problem = self.world.state_is_sane(base)
         if problem is not None:
             self.get_logger().error(f'physics blew up ({problem}): resetting the robot')
-            self._reset_locked()
+            self._reset_locked(publish=False)
+            base = self.world.base_state()
+        return base
 
     # -- publishing -----------------------------------------------------------
 
@@ -366,7 +372,7 @@ class SimNode(Node):
         self.odometry.update_from_positions(left, right, dt)
         self._odometry_step = step
 
-    def _publish_state(self) -> None:
+    def _publish_state(self, base=None) -> None:
         ns = self.sim_time_ns
         sec, nanosec = divmod(ns, 10**9)
         self._clock_msg.clock.sec = sec
@@ -381,7 +387,8 @@ class SimNode(Node):
         msg.effort = states.efforts
         self._joint_pub.publish(msg)
 
-        base = self.world.base_state()
+        if base is None:
+            base = self.world.base_state()
         truth = self._truth_msg
         truth.header.stamp.sec, truth.header.stamp.nanosec = sec, nanosec
         pose = truth.pose.pose
@@ -496,7 +503,7 @@ class SimNode(Node):
         response.message = f'reset at t={stamp:.6f} s'
         return response
 
-    def _reset_locked(self) -> None:
+    def _reset_locked(self, publish: bool = True) -> None:
         self.world.reset()
         if self.has_wheels:
             self._pending_command = None
@@ -505,7 +512,8 @@ class SimNode(Node):
             self.odometry.reset(*self.config.initial_pose)
             self._odometry_step = self.world.step_count
             self._update_odometry()
-        self._publish_state()
+        if publish:
+            self._publish_state()
 
     def destroy_node(self) -> None:
         """Disconnect the physics client, then destroy the ROS node."""
