@@ -216,3 +216,29 @@ def latest_truth(sim):
     """Return the simulator's true (x, y, yaw) now."""
     base = sim.world.base_state()
     return base.position[0], base.position[1], quaternion_to_yaw(*base.orientation)
+
+
+class RemoteProbe:
+    """A probe node in its own context on ``domain_id``, for talking to a sim subprocess."""
+
+    def __init__(self, domain_id, name='remote_probe'):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def spin_until(self, condition, timeout_s):
+        """Spin until ``condition()`` holds or the deadline passes; return its last value."""
+        return wait_for(lambda: self.executor.spin_once(timeout_sec=0.01) or condition(),
+                        timeout_s, interval_s=0.0)
+
+    def close(self):
+        """Destroy the node and shut its context down."""
+        import rclpy
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

@@ -2,7 +2,7 @@
 
 import signal
 
-from conftest import next_domain_id, start_sim_process, stop_process
+from conftest import next_domain_id, RemoteProbe, start_sim_process, stop_process
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
@@ -15,38 +15,18 @@ def domain():
     return next_domain_id()
 
 
-def _probe(ros_domain):
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=ros_domain)
-    node = rclpy.create_node('cli_probe', context=ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    return ctx, node, executor
-
-
-def _spin_until(executor, condition, timeout_s):
-    import time
-    deadline = time.monotonic() + timeout_s
-    while not condition() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.01)
-    return condition()
-
-
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_sim_node_process_drives_and_stops_cleanly(domain, sig):
     """Start sim_node, drive it with cmd_vel from here, stop it: exit code 0, no traceback."""
-    import rclpy
     process = start_sim_process(domain)
-    ctx, node, executor = _probe(domain)
+    probe = RemoteProbe(domain, 'cli_probe')
+    node, spin_until = probe.node, probe.spin_until
     try:
         joints, truth = [], []
         node.create_subscription(JointState, 'joint_states', joints.append, 10)
         node.create_subscription(Odometry, 'ground_truth', truth.append, 10)
         pub = node.create_publisher(Twist, 'cmd_vel', 10)
-        assert _spin_until(executor, lambda: joints and truth, 20.0), 'no state from sim_node'
+        assert spin_until(lambda: joints and truth, 20.0), 'no state from sim_node'
         assert 'left_front_wheel_joint' in joints[-1].name
         x0 = truth[-1].pose.pose.position.x
         cmd = Twist()
@@ -55,12 +35,10 @@ def test_sim_node_process_drives_and_stops_cleanly(domain, sig):
         def moved():
             pub.publish(cmd)
             return truth[-1].pose.pose.position.x - x0 > 0.1
-        assert _spin_until(executor, moved, 10.0), 'robot did not move'
+        assert spin_until(moved, 10.0), 'robot did not move'
     finally:
         code, out, err = stop_process(process, sig)
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown(context=ctx)
+        probe.close()
     assert code == 0, err
     assert 'Traceback' not in err + out
 

@@ -11,8 +11,8 @@ import math
 import os
 
 from conftest import (
-    latest_truth, make_sim, next_domain_id, Probe, REPO, start_sim_process, stop_process,
-    wait_for)
+    latest_truth, make_sim, next_domain_id, Probe, RemoteProbe, REPO, start_sim_process,
+    stop_process)
 import pybullet_data
 import pytest
 from std_srvs.srv import Trigger
@@ -197,26 +197,16 @@ def test_classic_drives_like_ours(ros):
 
 def test_classic_params_file_cross_process():
     """The real executable with --params-file urdf/classic_r2d2.yaml drives +x on cmd_vel."""
-    import rclpy
     from geometry_msgs.msg import Twist
     from nav_msgs.msg import Odometry
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     domain = next_domain_id()
     process = start_sim_process(domain, '--params-file', CLASSIC_YAML)
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node('classic_probe', context=ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
+    probe = RemoteProbe(domain, 'classic_probe')
     try:
         truth = []
-        node.create_subscription(Odometry, 'ground_truth', truth.append, 10)
-        pub = node.create_publisher(Twist, 'cmd_vel', 10)
-
-        def spin_until(condition, timeout_s):
-            return wait_for(lambda: executor.spin_once(timeout_sec=0.01) or condition(),
-                            timeout_s, interval_s=0.0)
+        probe.node.create_subscription(Odometry, 'ground_truth', truth.append, 10)
+        pub = probe.node.create_publisher(Twist, 'cmd_vel', 10)
+        spin_until = probe.spin_until
         assert spin_until(lambda: truth, 20.0), 'no ground_truth from sim_node'
         start = truth[-1].pose.pose.position
         cmd = Twist()
@@ -229,9 +219,7 @@ def test_classic_params_file_cross_process():
         assert abs(truth[-1].pose.pose.position.y - start.y) < 0.05
     finally:
         code, out, err = stop_process(process)
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown(context=ctx)
+        probe.close()
     assert code == 0, err
     assert 'Traceback' not in err + out
 
@@ -315,26 +303,16 @@ def test_bad_description_is_one_line_and_exit_2(args, fragment):
 
 def test_robot_without_wheels_warns_once_at_start_up():
     """urdf:=cube.urdf runs, warns once that cmd_vel is ignored, and stops cleanly."""
-    import rclpy
     from nav_msgs.msg import Odometry
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     domain = next_domain_id()
     process = start_sim_process(domain, '-p', 'urdf:=cube.urdf')
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node('cube_probe', context=ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
+    probe = RemoteProbe(domain, 'cube_probe')
     try:
         truth = []
-        node.create_subscription(Odometry, 'ground_truth', truth.append, 10)
-        assert wait_for(lambda: executor.spin_once(timeout_sec=0.01) or len(truth) > 5,
-                        20.0, interval_s=0.0), 'no ground_truth from the cube'
+        probe.node.create_subscription(Odometry, 'ground_truth', truth.append, 10)
+        assert probe.spin_until(lambda: len(truth) > 5, 20.0), 'no ground_truth from the cube'
     finally:
         code, out, err = stop_process(process)
-        node.destroy_node()
-        executor.shutdown()
-        rclpy.try_shutdown(context=ctx)
+        probe.close()
     assert code == 0, err
     assert (out + err).count('none of the default wheel joints') == 1, out + err
