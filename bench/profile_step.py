@@ -11,9 +11,11 @@ Run from the repository root::
    exclusive microseconds per step), no profiler attached.
 2. The cProfile top list (tottime and cumtime per step; cProfile inflates
    Python-heavy functions, so read it for ranking, the breakdown for sizes).
-3. Prototypes of the recommended edits, applied to in-process nodes by
+3. Prototypes of edits not (yet) made, applied to in-process nodes by
    monkeypatching (nothing in r2d2_sim/ is changed), each timed against an
-   unpatched node in interleaved rounds: the expected gain per edit.
+   unpatched node in interleaved rounds: the expected gain per edit. The
+   earlier prototypes (bound PyBullet calls, integer publish schedule, one
+   base-state and one joint-state read per publication) are now in the node.
 
 Writes everything to ``bench/profile.json``.
 """
@@ -76,15 +78,14 @@ def instrument(node, timers):
     world = node.world
     for label, owner, name in (
             ('SimNode.advance (whole step loop)', node, 'advance'),
-            ('SimWorld.step (physics + client getattr)', world, 'step'),
+            ('SimWorld.step (physics)', world, 'step'),
             ('SimNode._update_command', node, '_update_command'),
-            ('SimNode._publish_step (Fraction schedule)', node, '_publish_step'),
-            ('SimNode._check_sanity', node, '_check_sanity'),
-            ('SimWorld.state_is_sane (excl. base_state)', world, 'state_is_sane'),
+            ('SimNode._checked_base_state (excl. queries)', node, '_checked_base_state'),
+            ('SimWorld.state_is_sane', world, 'state_is_sane'),
             ('SimNode._publish_state (message filling)', node, '_publish_state'),
             ('SimWorld.joint_states (getJointStates + dataclass)', world, 'joint_states'),
             ('SimWorld.base_state (4 queries + dataclass)', world, 'base_state'),
-            ('SimNode._update_odometry (excl. queries)', node, '_update_odometry'),
+            ('SimNode._update_odometry', node, '_update_odometry'),
             ('DiffDriveOdometry.update_from_positions', node.odometry, 'update_from_positions')):
         setattr(owner, name, timers.wrap(label, getattr(owner, name)))
     for label, publisher in (('publish /clock', node._clock_pub),
@@ -152,103 +153,13 @@ def cprofile_top(context, steps, top):
 
 # -- 3. prototypes of the recommended edits ------------------------------------------------
 
-class CachingClient:
-    """
-    Prototype of caching the client's bound functions: look each up once, then reuse.
-
-    BulletClient.__getattr__ runs inspect.isbuiltin and builds a new
-    functools.partial on every attribute access.
-    """
-
-    def __init__(self, client):
-        self._wrapped = client
-
-    def __getattr__(self, name):
-        value = getattr(self._wrapped, name)
-        if name != 'disconnect':
-            setattr(self, name, value)
-        return value
-
-
-def patch_cached_client(node):
-    """Edit A: SimWorld resolves the pybullet functions it calls per step once."""
-    node.world._client = CachingClient(node.world._client)
-
-
-def patch_integer_schedule(node):
-    """Edit B: integer ceil(count * num / den) instead of Fraction arithmetic per step."""
-    ratio = node._steps_per_publish
-    num, den = ratio.numerator, ratio.denominator
-    node._publish_step = lambda count: -(-count * num // den)
-
-
-def patch_one_base_state(node):
-    """Edit C: one base_state per publication, shared by the sanity check and ground_truth."""
-    world = node.world
-    original = world.base_state
-    memo = {'step': -1, 'state': None}
-
-    def base_state():
-        if memo['step'] != world.step_count:
-            memo['step'], memo['state'] = world.step_count, original()
-        return memo['state']
-    world.base_state = base_state
-
-
-def patch_joint_query(node):
-    """Edit D: one getJointStates per publication (wheels sliced from it), tuples, no dataclass."""
-    world = node.world
-    get_joint_states = functools.partial(_pybullet().getJointStates,
-                                         physicsClientId=world.client._client)
-    robot = world.robot_id
-    movable = list(node._movable_indices)
-    position_of = {index: i for i, index in enumerate(movable)}
-    memo = {'step': -1, 'all': None}
-
-    def joint_states(indices):
-        if memo['step'] != world.step_count:
-            positions, velocities, _, efforts = zip(*get_joint_states(robot, movable))
-            memo['step'], memo['all'] = world.step_count, (positions, velocities, efforts)
-        positions, velocities, efforts = memo['all']
-        if indices is node._movable_indices:
-            return _States(positions, velocities, efforts)
-        picks = [position_of[i] for i in indices]
-        return _States([positions[i] for i in picks], [velocities[i] for i in picks],
-                       [efforts[i] for i in picks])
-    world.joint_states = joint_states
-
-
-class _States:
-    """A plain (slotted) joint-state record, as the prototype of edit D returns."""
-
-    __slots__ = ('positions', 'velocities', 'efforts')
-
-    def __init__(self, positions, velocities, efforts):
-        self.positions, self.velocities, self.efforts = positions, velocities, efforts
-
-
 def patch_no_ground_truth(node):
-    """Edit E: skip the ground_truth publication (e.g. while it has no subscriber)."""
+    """Skip the ground_truth publication (e.g. while it has no subscriber)."""
     node._truth_pub.publish = lambda msg: None
 
 
-def _pybullet():
-    """Import pybullet lazily (after the ROS environment is set)."""
-    import pybullet
-    return pybullet
-
-
 PATCHES = (
-    ('A cached pybullet functions (no BulletClient.__getattr__ per call)',
-     (patch_cached_client,)),
-    ('B integer publish schedule (no Fraction per step)', (patch_integer_schedule,)),
-    ('C one base_state per publication', (patch_one_base_state,)),
-    ('D one getJointStates per publication, tuples', (patch_joint_query,)),
-    ('A+B+C+D together', (patch_cached_client, patch_integer_schedule, patch_one_base_state,
-                          patch_joint_query)),
-    ('E ground_truth not published', (patch_no_ground_truth,)),
-    ('A+B+C+D+E together', (patch_cached_client, patch_integer_schedule, patch_one_base_state,
-                            patch_joint_query, patch_no_ground_truth)),
+    ('ground_truth not published', (patch_no_ground_truth,)),
 )
 
 

@@ -162,6 +162,15 @@ def _non_negative(name: str, value: Any) -> float:
     return value
 
 
+def _event_rate(name: str, value: Any, physics_rate: float) -> float:
+    """Validate a rate of something done between physics steps: 0 <= rate <= physics."""
+    value = _non_negative(name, value)
+    if value > physics_rate:
+        raise ConfigError(
+            f'parameter {name} ({value} Hz) cannot exceed physics_rate ({physics_rate} Hz)')
+    return value
+
+
 def _ratio(name: str, value: Any) -> float:
     value = _positive(name, value)
     if value > 1.0:
@@ -244,11 +253,7 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
     raw.update(values)
 
     physics_rate = _positive('physics_rate', raw['physics_rate'])
-    publish_rate = _non_negative('publish_rate', raw['publish_rate'])
-    if publish_rate > physics_rate:
-        raise ConfigError(
-            f'parameter publish_rate ({publish_rate} Hz) cannot exceed physics_rate '
-            f'({physics_rate} Hz)')
+    publish_rate = _event_rate('publish_rate', raw['publish_rate'], physics_rate)
     left = _strings('left_wheel_names', raw['left_wheel_names'])
     right = _strings('right_wheel_names', raw['right_wheel_names'])
     if bool(left) != bool(right):
@@ -263,11 +268,7 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
         covariance[name] = _numbers(name, raw[name], 6)
         if min(covariance[name]) < 0.0:
             raise ConfigError(f'parameter {name} must not contain negative variances')
-    camera_rate = _non_negative('camera_rate', raw['camera_rate'])
-    if camera_rate > physics_rate:
-        raise ConfigError(
-            f'parameter camera_rate ({camera_rate} Hz) cannot exceed physics_rate '
-            f'({physics_rate} Hz)')
+    camera_rate = _event_rate('camera_rate', raw['camera_rate'], physics_rate)
     camera_fov = _positive('camera_fov', raw['camera_fov'])
     if camera_fov >= 180.0:
         raise ConfigError(f'parameter camera_fov must be below 180 degrees, got {camera_fov}')

@@ -7,7 +7,6 @@ it against the wall clock in the main thread while an executor serves topics
 and services in another, and tests can drive it step by step in-process.
 """
 
-from fractions import Fraction
 import json
 import math
 import signal
@@ -34,7 +33,7 @@ from r2d2_sim.config import ConfigError, PARAMETERS, parse_config, SimConfig
 from r2d2_sim.drive import (
     DiffDriveGeometry, DiffDriveOdometry, DriveConfigError, limit_twist,
     twist_to_wheel_velocities, yaw_to_quaternion)
-from r2d2_sim.pacing import DeadlinePacer
+from r2d2_sim.pacing import DeadlinePacer, exact_rate, StepSchedule
 from r2d2_sim.world import ExtraModel, SimWorld, WorldError
 
 NODE_NAME = 'r2d2_sim'
@@ -124,17 +123,11 @@ class SimNode(Node):
         self._movable = self.world.movable_joints()
         self._movable_indices = [j.index for j in self._movable]
         self._setup_wheels()
-        rate = Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
+        rate = exact_rate(config.physics_rate_hz)
         self._step_ns_num, self._step_ns_den = 10**9 * rate.denominator, rate.numerator
-        steps_per_publish = (Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
-                             / Fraction(config.publish_rate_hz).limit_denominator(1_000_000))
-        # Kept as integers: Fraction arithmetic costs ~7 us per publication.
-        self._publish_num = steps_per_publish.numerator
-        self._publish_den = steps_per_publish.denominator
-        self._publish_count = 0
-        self._next_publish_step = self._publish_step(1)
+        self._publish_schedule = StepSchedule(config.physics_rate_hz, config.publish_rate_hz)
         self._timeout_steps = math.ceil(config.cmd_vel_timeout_s * config.physics_rate_hz)
-        self._camera_every = max(1, round(config.physics_rate_hz / GUI_CAMERA_RATE_HZ))
+        self.steps_per_gui_frame = gui_frame_steps(config)
         self._setup_head_camera()
 
     def _setup_head_camera(self) -> None:
@@ -154,10 +147,7 @@ class SimNode(Node):
         self.head_camera_intrinsics = camera.intrinsics(width, height, fov)
         self._head_projection = camera.projection_matrix(
             width, height, fov, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
-        self._steps_per_image = (Fraction(config.physics_rate_hz).limit_denominator(1_000_000)
-                                 / Fraction(config.camera_rate_hz).limit_denominator(1_000_000))
-        self._image_count = 0
-        self._next_image_step = math.ceil(self._steps_per_image)
+        self._image_schedule = StepSchedule(config.physics_rate_hz, config.camera_rate_hz)
 
     def _setup_wheels(self) -> None:
         config, world = self.config, self.world
@@ -173,7 +163,6 @@ class SimNode(Node):
                 f'wheel joint(s) {", ".join(missing)} not in the URDF; it has: '
                 f'{", ".join(world.joints)}')
         self.has_wheels = bool(names)
-        self._command = (0.0, 0.0)
         self._pending_command = None
         self._command_step = 0
         self._wheel_targets = (0.0, 0.0)
@@ -189,6 +178,9 @@ class SimNode(Node):
         self._left = [world.joint(n).index for n in config.left_wheel_names]
         self._right = [world.joint(n).index for n in config.right_wheel_names]
         self._wheel_indices = self._left + self._right
+        # Where the wheels sit in the joint_states readout, which odometry reuses.
+        movable_slot = {index: slot for slot, index in enumerate(self._movable_indices)}
+        self._wheel_slots = [movable_slot[index] for index in self._wheel_indices]
         world.set_wheel_lateral_friction(self._wheel_indices, config.wheel_lateral_friction_ratio)
         radius = config.wheel_radius_m or world.wheel_radius_m(self._left[0])
         separation = config.wheel_separation_m or self._derive_separation()
@@ -199,8 +191,6 @@ class SimNode(Node):
                 'the URDF gives the wheels no velocity limit: set max_wheel_velocity')
         if not max_force > 0.0:
             raise ConfigError('the URDF gives the wheels no effort limit: set max_wheel_force')
-        self.wheel_separation_m = separation
-        self.max_wheel_force_n_m = max_force
         self.geometry = DiffDriveGeometry(
             wheel_radius_m=radius,
             wheel_separation_m=separation * config.wheel_separation_multiplier,
@@ -210,7 +200,7 @@ class SimNode(Node):
         self._wheel_forces = [max_force] * len(self._wheel_indices)
         self._apply_wheel_targets(0.0, 0.0)
         self._odometry_step = 0
-        self._update_odometry()
+        self._update_odometry(self._read_wheel_positions())
 
     def _derive_separation(self) -> float:
         """Track width: distance along base y between the left and right wheel centres."""
@@ -285,12 +275,9 @@ class SimNode(Node):
         """Return simulated time in integer nanoseconds (exact, no drift)."""
         return self.world.step_count * self._step_ns_num // self._step_ns_den
 
-    def _publish_step(self, count: int) -> int:
-        return -(-count * self._publish_num // self._publish_den)
-
     def steps_to_next_publish(self) -> int:
         """Return the number of physics steps until the next state publication."""
-        return self._next_publish_step - self.world.step_count
+        return self._publish_schedule.next_step - self.world.step_count
 
     @property
     def paused(self) -> bool:
@@ -312,16 +299,12 @@ class SimNode(Node):
                 if self.has_wheels:
                     self._update_command()
                 world.step(1)
-                if world.step_count >= self._next_publish_step:
-                    self._publish_count += 1
-                    self._next_publish_step = self._publish_step(self._publish_count + 1)
+                step = world.step_count
+                if self._publish_schedule.due(step):
                     self._publish_state(self._checked_base_state())
-                if self.head_camera_enabled and world.step_count >= self._next_image_step:
-                    self._image_count += 1
-                    self._next_image_step = math.ceil(
-                        (self._image_count + 1) * self._steps_per_image)
+                if self.head_camera_enabled and self._image_schedule.due(step):
                     self._publish_head_camera()
-                if world.gui and world.step_count % self._camera_every == 0:
+                if world.gui and step % self.steps_per_gui_frame == 0:
                     world.follow_camera()
 
     def advance_to_next_publish(self) -> int:
@@ -335,12 +318,10 @@ class SimNode(Node):
         step = self.world.step_count
         if pending is not None:
             self._pending_command = None
-            self._command = pending
             self._command_step = step
             self._apply_wheel_targets(*twist_to_wheel_velocities(self.geometry, *pending))
         elif (self._timeout_steps and self._wheel_targets != (0.0, 0.0)
               and step - self._command_step >= self._timeout_steps):
-            self._command = (0.0, 0.0)
             self._apply_wheel_targets(0.0, 0.0)
 
     def _apply_wheel_targets(self, left: float, right: float) -> None:
@@ -361,13 +342,17 @@ class SimNode(Node):
 
     # -- publishing -----------------------------------------------------------
 
-    def _update_odometry(self) -> None:
+    def _read_wheel_positions(self) -> List[float]:
+        """Query the wheel encoders (left wheels, then right) outside a publication."""
+        return list(self.world.joint_states(self._wheel_indices).positions)
+
+    def _update_odometry(self, wheel_positions: Sequence[float]) -> None:
+        """Integrate odometry from wheel angles ordered as ``_wheel_indices``."""
         step = self.world.step_count
-        states = self.world.joint_states(self._wheel_indices)
         n_left = len(self._left)
         sign = self.config.wheel_velocity_sign
-        left = sign * sum(states.positions[:n_left]) / n_left
-        right = sign * sum(states.positions[n_left:]) / (len(states.positions) - n_left)
+        left = sign * sum(wheel_positions[:n_left]) / n_left
+        right = sign * sum(wheel_positions[n_left:]) / (len(wheel_positions) - n_left)
         dt = (step - self._odometry_step) * self.time_step_s
         self.odometry.update_from_positions(left, right, dt)
         self._odometry_step = step
@@ -401,7 +386,8 @@ class SimNode(Node):
         self._truth_pub.publish(truth)
 
         if self.has_wheels:
-            self._update_odometry()
+            positions = states.positions
+            self._update_odometry([positions[slot] for slot in self._wheel_slots])
             odom = self._odom_msg
             odometry = self.odometry
             odom.header.stamp.sec, odom.header.stamp.nanosec = sec, nanosec
@@ -507,11 +493,10 @@ class SimNode(Node):
         self.world.reset()
         if self.has_wheels:
             self._pending_command = None
-            self._command = (0.0, 0.0)
             self._apply_wheel_targets(0.0, 0.0)
             self.odometry.reset(*self.config.initial_pose)
             self._odometry_step = self.world.step_count
-            self._update_odometry()
+            self._update_odometry(self._read_wheel_positions())
         if publish:
             self._publish_state()
 
@@ -521,6 +506,11 @@ class SimNode(Node):
             with self._lock:
                 self.world.close()
         super().destroy_node()
+
+
+def gui_frame_steps(config: SimConfig) -> int:
+    """Return the physics steps per GUI frame (camera follow, paced batches)."""
+    return max(1, round(config.physics_rate_hz / GUI_CAMERA_RATE_HZ))
 
 
 def run_paced(node: SimNode, stop: threading.Event) -> None:
@@ -536,7 +526,7 @@ def run_paced(node: SimNode, stop: threading.Event) -> None:
     # With a window, PyBullet renders whenever the client is idle and makes the
     # next call wait for that frame (measured under Xvfb: 6 s for 240 paced
     # steps). Stepping in batches, one per GUI frame, keeps real time.
-    batch = max(1, round(config.physics_rate_hz / GUI_CAMERA_RATE_HZ)) if config.gui else 1
+    batch = node.steps_per_gui_frame if config.gui else 1
     pacer = DeadlinePacer(batch / rate) if rate > 0.0 else None
     while not stop.is_set():
         if node.paused:

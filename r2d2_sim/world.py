@@ -492,10 +492,9 @@ class SimWorld:
         """Point the GUI camera at the robot (no-op without a window)."""
         if not self.gui:
             return
-        position = self.base_state().position
-        yaw = math.degrees(self._client.getEulerFromQuaternion(
-            self.base_state().orientation)[2])
-        self._client.resetDebugVisualizerCamera(distance_m, yaw - 90.0, -30.0, position)
+        base = self.base_state()
+        yaw = math.degrees(self._client.getEulerFromQuaternion(base.orientation)[2])
+        self._client.resetDebugVisualizerCamera(distance_m, yaw - 90.0, -30.0, base.position)
 
     def close(self) -> None:
         """Disconnect the physics client and delete temporary files; safe to call twice."""

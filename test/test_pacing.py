@@ -2,7 +2,7 @@
 
 import pytest
 
-from r2d2_sim.pacing import DeadlinePacer
+from r2d2_sim.pacing import DeadlinePacer, StepSchedule
 
 
 class FakeTime:
@@ -71,3 +71,26 @@ def test_period_must_be_positive():
     """A zero period is refused."""
     with pytest.raises(ValueError):
         DeadlinePacer(0.0)
+
+
+def test_step_schedule_divisor_rate():
+    """60 Hz at 240 Hz: due every 4th step, at 4, 8, 12."""
+    schedule = StepSchedule(240.0, 60.0)
+    due = [step for step in range(1, 13) if schedule.due(step)]
+    assert due == [4, 8, 12]
+
+
+def test_step_schedule_non_divisor_rate_has_no_drift():
+    """50 Hz at 240 Hz: the n-th event at ceil(4.8 n); exactly 50 in 240 steps."""
+    schedule = StepSchedule(240.0, 50.0)
+    due = [step for step in range(1, 241) if schedule.due(step)]
+    assert due[:5] == [5, 10, 15, 20, 24]  # ceil(4.8), ceil(9.6), ceil(14.4), ...
+    assert len(due) == 50 and due[-1] == 240
+
+
+def test_step_schedule_fires_once_when_a_step_is_seen_late():
+    """Checking only at step 9 after missing 4 and 8 fires once, then resumes at 12."""
+    schedule = StepSchedule(240.0, 60.0)
+    assert schedule.due(9)
+    assert schedule.next_step == 8  # the second event is still owed
+    assert schedule.due(10) and schedule.next_step == 12
