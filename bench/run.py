@@ -159,21 +159,12 @@ def background_load(seconds=1.0):
     return meter.stop()
 
 
-def ros_env(domain_id):
-    """Return the environment of a ROS subprocess on ``domain_id``, on this host only."""
-    env = dict(os.environ)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    env['ROS_DOMAIN_ID'] = str(domain_id)
-    env['PYTHONPATH'] = REPO + os.pathsep + env.get('PYTHONPATH', '')
-    env['PYTHONUNBUFFERED'] = '1'
-    return env
-
-
 def start_process(args, domain_id, log_path):
     """Start ``args`` on ``domain_id`` with stdout and stderr going to ``log_path``."""
+    from r2d2_sim.probe import ros_child_env
     log = open(log_path, 'w', encoding='utf-8')
     try:
-        return subprocess.Popen(args, env=ros_env(domain_id), cwd=REPO,
+        return subprocess.Popen(args, env=ros_child_env(domain_id), cwd=REPO,
                                 stdout=log, stderr=subprocess.STDOUT)
     finally:
         log.close()
@@ -601,31 +592,44 @@ def measure_latency(work, domain_id, duration_s, period_s, speed):
     }
 
 
+class ArrivalSubscriber:
+    """A joint_states subscriber in a context of its own that records arrival times."""
+
+    def __init__(self, domain_id, name):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from sensor_msgs.msg import JointState
+        self.context = Context()
+        init_ros(domain_id, self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.received = []
+        self.node.create_subscription(
+            JointState, 'joint_states',
+            lambda msg: self.received.append(time.perf_counter()), 10)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def close(self):
+        """Stop the executor, destroy the node, shut the context down."""
+        import rclpy
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
 def startup_once(work, domain_id, tag, subscriber=None):
     """
     Seconds from Popen of the simulator to the first joint_states received.
 
-    ``subscriber`` is an (executor, received list) pair kept across runs; by
-    default a fresh context and subscriber are made just before the Popen.
+    ``subscriber`` is an :class:`ArrivalSubscriber` kept across runs; by
+    default a fresh one is made just before the Popen.
     """
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from sensor_msgs.msg import JointState
-
-    context = node = None
-    if subscriber is None:
-        context = Context()
-        init_ros(domain_id, context)
-        node = rclpy.create_node('bench_startup', context=context)
-        received = []
-        node.create_subscription(JointState, 'joint_states',
-                                 lambda msg: received.append(time.perf_counter()), 10)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-    else:
-        executor, received = subscriber
-        received.clear()
+    own = subscriber is None
+    if own:
+        subscriber = ArrivalSubscriber(domain_id, 'bench_startup')
+    executor, received = subscriber.executor, subscriber.received
+    received.clear()
     log = os.path.join(work, f'sim_startup_{tag}.log')
     sim = None
     try:
@@ -640,10 +644,8 @@ def startup_once(work, domain_id, tag, subscriber=None):
     finally:
         if sim is not None:
             stop_process(sim)
-        if context is not None:
-            executor.shutdown(timeout_sec=1.0)
-            node.destroy_node()
-            rclpy.try_shutdown(context=context)
+        if own:
+            subscriber.close()
 
 
 def measure_startup(work, domain_id, runs, restarts):
@@ -653,24 +655,13 @@ def measure_startup(work, domain_id, runs, restarts):
     A restart stops and starts the simulator again while one subscriber stays
     up throughout, as a running rviz or controller would.
     """
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from sensor_msgs.msg import JointState
-
     times = [startup_once(work, domain_id, f'fresh{i}') for i in range(runs)]
-    context = Context()
-    init_ros(domain_id, context)
-    node = rclpy.create_node('bench_startup_kept', context=context)
-    received = []
-    node.create_subscription(JointState, 'joint_states',
-                             lambda msg: received.append(time.perf_counter()), 10)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
+    subscriber = ArrivalSubscriber(domain_id, 'bench_startup_kept')
+    executor = subscriber.executor
     restart_times = []
     try:
         for i in range(restarts + 1):
-            elapsed = startup_once(work, domain_id, f'kept{i}', (executor, received))
+            elapsed = startup_once(work, domain_id, f'kept{i}', subscriber)
             if i:  # the first start is not a restart
                 restart_times.append(elapsed)
             # Drop messages still queued from this run before the next one starts.
@@ -678,9 +669,7 @@ def measure_startup(work, domain_id, runs, restarts):
             while time.monotonic() < drain_until:
                 executor.spin_once(timeout_sec=0.05)
     finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
+        subscriber.close()
     return {'runs_s': times, 'median_s': statistics.median(times),
             'restarts_s': restart_times}
 

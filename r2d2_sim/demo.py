@@ -27,7 +27,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
-from r2d2_sim.probe import non_ros_args, Pose2D, pose_from_odometry, spin_until
+from r2d2_sim.probe import (
+    non_ros_args, Pose2D, pose_from_odometry, ros_child_env, spin_until)
 
 NODE_NAME = 'r2d2_demo'
 # Wall-clock seconds to wait for the simulator's topics after starting it.
@@ -392,19 +393,6 @@ def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path
     return 0
 
 
-def _child_env() -> dict:
-    """Return this process's environment, able to import the same r2d2_sim."""
-    env = dict(os.environ)
-    package_root = Path(__file__).resolve().parent.parent
-    on_path = {Path(p).resolve() for p in sys.path if p}
-    # Only when this copy is not found anyway: a whole site-packages early on
-    # PYTHONPATH could shadow the standard library.
-    if package_root not in on_path:
-        env['PYTHONPATH'] = os.pathsep.join(
-            p for p in (str(package_root), env.get('PYTHONPATH')) if p)
-    return env
-
-
 def main(args: Optional[Sequence[str]] = None) -> int:
     """Run the demo; return 0 on success, 1 if the simulator fails, 130 on Ctrl-C."""
     argv = list(sys.argv if args is None else args)
@@ -424,7 +412,7 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
         _error(f'cannot initialise ROS: {exc}')
         return 2
-    simulator = Simulator.for_real_time_factor(options.real_time_factor, _child_env())
+    simulator = Simulator.for_real_time_factor(options.real_time_factor, ros_child_env())
     node = None
     try:
         simulator.start()

@@ -1,9 +1,12 @@
 """
 Small helpers for nodes that watch the simulator from outside: poses and deadline waits.
 
-Shared by the ``demo`` and ``drive`` executables and by the cross-process tests.
+Shared by the ``demo`` and ``drive`` executables, the cross-process tests and
+the benchmarks.
 """
 
+import os
+from pathlib import Path
 import sys
 import time
 from typing import Callable, List, NamedTuple, Optional, Sequence
@@ -56,3 +59,26 @@ def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
     except Exception as exc:  # rcl's parse errors come as assorted exception types
         print(f'{prog}: error: bad ROS arguments: {exc}', file=sys.stderr)
         raise SystemExit(2)
+
+
+def ros_child_env(domain_id: Optional[int] = None) -> dict:
+    """
+    Return this process's environment for a child ROS process that runs r2d2_sim.
+
+    The child imports the same r2d2_sim as this process, keeps discovery on this
+    host unless the caller chose otherwise, joins ``domain_id`` when given, and
+    writes its output unbuffered (it is usually read through a pipe or a file).
+    """
+    env = dict(os.environ)
+    env.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    if domain_id is not None:
+        env['ROS_DOMAIN_ID'] = str(domain_id)
+    env['PYTHONUNBUFFERED'] = '1'
+    package_root = Path(__file__).resolve().parent.parent
+    on_path = {Path(p).resolve() for p in sys.path if p}
+    # Only when this copy is not found anyway: a whole site-packages early on
+    # PYTHONPATH could shadow the standard library.
+    if package_root not in on_path:
+        env['PYTHONPATH'] = os.pathsep.join(
+            p for p in (str(package_root), env.get('PYTHONPATH')) if p)
+    return env

@@ -18,6 +18,7 @@ from std_msgs.msg import String
 
 from r2d2_sim.drive import quaternion_to_yaw
 from r2d2_sim.node import SimNode
+from r2d2_sim.probe import ros_child_env as ros_env
 
 # Discovery must stay on this host; set before any rclpy.init.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -96,16 +97,6 @@ def ros():
         yield harness
     finally:
         harness.close()
-
-
-def ros_env(domain_id):
-    """Return an environment for a ROS subprocess on ``domain_id``, on this host."""
-    env = dict(os.environ)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    env['ROS_DOMAIN_ID'] = str(domain_id)
-    env['PYTHONPATH'] = REPO + os.pathsep + env.get('PYTHONPATH', '')
-    env['PYTHONUNBUFFERED'] = '1'
-    return env
 
 
 def start_sim_process(domain_id, *ros_args, command=None):

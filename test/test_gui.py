@@ -27,15 +27,16 @@ rclpy.init(context=ctx, domain_id=int(sys.argv[1]))
 node = SimNode(context=ctx, parameter_overrides=[
     Parameter('gui', value=True), Parameter('initial_pose', value=[0.5, 0.3, 0.0])])
 stop = threading.Event()
+advance = node.advance
 
 
-def watch():
-    while node.step_count < STEPS:
-        time.sleep(0.005)
-    stop.set()
+def advance_then_stop(steps=1):
+    advance(steps)
+    if node.step_count >= STEPS:
+        stop.set()
 
 
-threading.Thread(target=watch, daemon=True).start()
+node.advance = advance_then_stop
 start = time.monotonic()
 run_paced(node, stop)
 elapsed = time.monotonic() - start
