@@ -143,13 +143,6 @@ def default_urdf_path() -> str:
     return os.path.join(share, 'urdf', 'r2d2.urdf')
 
 
-def _rotate(matrix: Sequence[float], v: Sequence[float]) -> Vec3:
-    """Multiply a row-major 3x3 matrix by a vector."""
-    return (matrix[0] * v[0] + matrix[1] * v[1] + matrix[2] * v[2],
-            matrix[3] * v[0] + matrix[4] * v[1] + matrix[5] * v[2],
-            matrix[6] * v[0] + matrix[7] * v[1] + matrix[8] * v[2])
-
-
 def _rotate_transposed(matrix: Sequence[float], v: Sequence[float]) -> Vec3:
     """Multiply the transpose of a row-major 3x3 matrix by a vector."""
     return (matrix[0] * v[0] + matrix[3] * v[1] + matrix[6] * v[2],

@@ -18,7 +18,7 @@ from std_msgs.msg import String
 
 from r2d2_sim.drive import quaternion_to_yaw
 from r2d2_sim.node import SimNode
-from r2d2_sim.probe import ros_child_env as ros_env
+from r2d2_sim.probe import ros_child_env as ros_env, spin_until
 
 # Discovery must stay on this host; set before any rclpy.init.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -223,9 +223,8 @@ class RemoteProbe:
         self.executor.add_node(self.node)
 
     def spin_until(self, condition, timeout_s):
-        """Spin until ``condition()`` holds or the deadline passes; return its last value."""
-        return wait_for(lambda: self.executor.spin_once(timeout_sec=0.01) or condition(),
-                        timeout_s, interval_s=0.0)
+        """Spin until ``condition()`` holds (True) or the deadline passes (False)."""
+        return spin_until(self.executor, condition, timeout_s)
 
     def close(self):
         """Destroy the node and shut its context down."""
