@@ -28,7 +28,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import Image
 
 from r2d2_sim.probe import (
-    non_ros_args, Pose2D, pose_from_odometry, ros_child_env, spin_until)
+    non_negative_number, non_ros_args, Pose2D, pose_from_odometry, ros_child_env, spin_until)
 
 NODE_NAME = 'r2d2_demo'
 # Wall-clock seconds to wait for the simulator's topics after starting it.
@@ -333,16 +333,6 @@ def _domain_id(text: str) -> int:
     return value
 
 
-def _real_time_factor(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
-    if not (math.isfinite(value) and value >= 0.0):
-        raise argparse.ArgumentTypeError(f'must be a finite number >= 0, got {text!r}')
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Return the command-line parser (ROS arguments are removed before it runs)."""
     parser = argparse.ArgumentParser(
@@ -351,7 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
                     'plot wheel odometry against ground truth.')
     parser.add_argument('--output-dir', default='demo_output', metavar='DIR',
                         help='where to write the trajectory plot (default ./demo_output)')
-    parser.add_argument('--real-time-factor', type=_real_time_factor, default=1.0,
+    parser.add_argument('--real-time-factor', type=non_negative_number, default=1.0,
                         metavar='X', help='simulated seconds per wall second; 0 runs as '
                                           'fast as possible (default 1)')
     parser.add_argument('--domain-id', type=_domain_id, default=None, metavar='N',

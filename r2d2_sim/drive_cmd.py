@@ -11,7 +11,6 @@ after 0.5 s without one. The duration runs on the node's clock, so
 """
 
 import argparse
-import math
 import sys
 from typing import List, Optional, Sequence
 
@@ -21,7 +20,8 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-from r2d2_sim.probe import non_ros_args, spin_until
+from r2d2_sim.probe import (
+    finite_number, non_negative_number, non_ros_args, positive_number, spin_until)
 
 NODE_NAME = 'drive'
 # Wall-clock seconds to wait for the simulator's cmd_vel subscription (and, with
@@ -31,30 +31,6 @@ DISCOVERY_TIMEOUT_S = 5.0
 EXIT_INTERRUPTED = 130
 
 
-def _finite(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f'must be a finite number, got {text!r}')
-    return value
-
-
-def _non_negative(text: str) -> float:
-    value = _finite(text)
-    if value < 0.0:
-        raise argparse.ArgumentTypeError(f'must be >= 0, got {text!r}')
-    return value
-
-
-def _positive(text: str) -> float:
-    value = _finite(text)
-    if value <= 0.0:
-        raise argparse.ArgumentTypeError(f'must be > 0, got {text!r}')
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Return the command-line parser (ROS arguments are removed before it runs)."""
     parser = argparse.ArgumentParser(
@@ -62,13 +38,13 @@ def build_parser() -> argparse.ArgumentParser:
         description='Publish a Twist on cmd_vel at a fixed rate for a duration, then a zero '
                     'Twist. Add --ros-args -p use_sim_time:=true to time it in simulated '
                     'seconds.')
-    parser.add_argument('--linear', type=_finite, default=0.0, metavar='M_S',
+    parser.add_argument('--linear', type=finite_number, default=0.0, metavar='M_S',
                         help='forward speed, linear.x in m/s (default 0)')
-    parser.add_argument('--angular', type=_finite, default=0.0, metavar='RAD_S',
+    parser.add_argument('--angular', type=finite_number, default=0.0, metavar='RAD_S',
                         help='counter-clockwise yaw rate, angular.z in rad/s (default 0)')
-    parser.add_argument('--duration', type=_non_negative, default=1.0, metavar='S',
+    parser.add_argument('--duration', type=non_negative_number, default=1.0, metavar='S',
                         help='how long to drive, in seconds of the node clock (default 1)')
-    parser.add_argument('--rate', type=_positive, default=20.0, metavar='HZ',
+    parser.add_argument('--rate', type=positive_number, default=20.0, metavar='HZ',
                         help='publishing rate; keep it >= 2 Hz, the simulator brakes after '
                              '0.5 s without a command (default 20)')
     parser.add_argument('--topic', default='cmd_vel', help='topic name (default cmd_vel)')

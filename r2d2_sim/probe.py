@@ -1,10 +1,12 @@
 """
-Small helpers for nodes that watch the simulator from outside: poses and deadline waits.
+Helpers for processes that talk to the simulator from outside: poses, waits, CLI.
 
 Shared by the ``demo`` and ``drive`` executables, the cross-process tests and
 the benchmarks.
 """
 
+import argparse
+import math
 import os
 from pathlib import Path
 import sys
@@ -45,6 +47,33 @@ def spin_until(executor, condition: Callable[[], bool], timeout_s: float,
             return False
         executor.spin_once(timeout_sec=min(remaining, 0.05))
     return True
+
+
+def finite_number(text: str) -> float:
+    """Parse a command-line number that must be finite (an argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'must be a finite number, got {text!r}')
+    return value
+
+
+def non_negative_number(text: str) -> float:
+    """Parse a finite command-line number >= 0 (an argparse type)."""
+    value = finite_number(text)
+    if value < 0.0:
+        raise argparse.ArgumentTypeError(f'must be >= 0, got {text!r}')
+    return value
+
+
+def positive_number(text: str) -> float:
+    """Parse a finite command-line number > 0 (an argparse type)."""
+    value = finite_number(text)
+    if value <= 0.0:
+        raise argparse.ArgumentTypeError(f'must be > 0, got {text!r}')
+    return value
 
 
 def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
