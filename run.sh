@@ -37,7 +37,7 @@ cmd="${1:-demo}"
 shift || true
 case "$cmd" in
   demo)  setup; exec "$PY" -m r2d2_sim.demo "$@" ;;
-  sim)   setup; exec "$PY" -m r2d2_sim.node "$@" ;;
+  sim)   setup; exec "$PY" -m r2d2_sim "$@" ;;
   test)  setup; need_xvfb; exec "$PY" -m pytest -q -p no:cacheprovider test "$@" ;;
   bench) setup; exec "$PY" bench/run.py "$@" ;;
   *) echo "usage: ./run.sh demo|test|bench|sim [args...]" >&2; exit 2 ;;

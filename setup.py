@@ -24,7 +24,7 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'sim_node = r2d2_sim.node:entry_point',
+            'sim_node = r2d2_sim.launcher:sim_node',
             'demo = r2d2_sim.demo:entry_point',
             'drive = r2d2_sim.drive_cmd:entry_point',
         ],

@@ -171,8 +171,8 @@ def start_process(args, domain_id, log_path):
 
 
 def start_sim(domain_id, log_path, **params):
-    """Start ``python -m r2d2_sim.node`` with ``params`` as ROS parameters."""
-    args = [sys.executable, '-m', 'r2d2_sim.node', '--ros-args']
+    """Start ``python -m r2d2_sim`` with ``params`` as ROS parameters."""
+    args = [sys.executable, '-m', 'r2d2_sim', '--ros-args']
     for name, value in params.items():
         args += ['-p', f'{name}:={value}']
     return start_process(args, domain_id, log_path)

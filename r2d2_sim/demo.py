@@ -1,7 +1,7 @@
 """
 ``demo``: start the simulator, replay the tutorial's manoeuvre, plot the trajectory.
 
-Runs ``python -m r2d2_sim.node`` as a child process and, in this process, a
+Runs ``python -m r2d2_sim`` as a child process and, in this process, a
 driver node that sends ``cmd_vel``: settle, turn about 90 degrees in place,
 drive forward, stop. Everything is timed in simulated seconds, read from the
 stamps of ``ground_truth`` (published after every physics step), so the result
@@ -171,8 +171,8 @@ class Simulator:
 
     @classmethod
     def for_real_time_factor(cls, real_time_factor: float, env: dict) -> 'Simulator':
-        """Build the command for ``python -m r2d2_sim.node`` at the given speed."""
-        return cls([sys.executable, '-m', 'r2d2_sim.node', '--ros-args',
+        """Build the command for ``python -m r2d2_sim`` at the given speed."""
+        return cls([sys.executable, '-m', 'r2d2_sim', '--ros-args',
                     '-p', f'real_time_factor:={_ros_double(real_time_factor)}',
                     '-p', f'camera_rate:={_ros_double(CAMERA_RATE_HZ)}'], env)
 

@@ -9,7 +9,6 @@ and services in another, and tests can drive it step by step in-process.
 
 import json
 import math
-import signal
 import sys
 import threading
 import time
@@ -33,6 +32,7 @@ from r2d2_sim.config import ConfigError, PARAMETERS, parse_config, SimConfig
 from r2d2_sim.drive import (
     DiffDriveGeometry, DiffDriveOdometry, DriveConfigError, limit_twist,
     twist_to_wheel_velocities, yaw_to_quaternion)
+from r2d2_sim.launcher import sim_node, stop_on_signals
 from r2d2_sim.pacing import DeadlinePacer, exact_rate, StepSchedule
 from r2d2_sim.world import ExtraModel, SimWorld, WorldError
 
@@ -541,22 +541,24 @@ def run_paced(node: SimNode, stop: threading.Event) -> None:
             pacer.wait()
 
 
-def _install_stop_handlers(stop: threading.Event) -> None:
-    def handler(signum, frame):
-        stop.set()
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
+def main(args: Optional[Sequence[str]] = None,
+         stop: Optional[threading.Event] = None) -> int:
+    """
+    Run the simulator node until SIGINT or SIGTERM, or until ``stop`` is set.
 
-
-def main(args: Optional[Sequence[str]] = None) -> int:
-    """Run the simulator node until SIGINT or SIGTERM (entry point ``sim_node``)."""
-    stop = threading.Event()
-    _install_stop_handlers(stop)
+    Returns the exit status: 0 after a stop request, 2 when the node cannot
+    start. ``stop`` defaults to a new event set by SIGINT and SIGTERM.
+    """
+    if stop is None:
+        stop = stop_on_signals()
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rclpy reports bad --ros-args as assorted errors
         print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
         return 2
+    if stop.is_set():  # stopped while rclpy and PyBullet were still loading
+        rclpy.try_shutdown()
+        return 0
     node = None
     executor = SingleThreadedExecutor()
     spinner = None
@@ -592,10 +594,5 @@ def _spin(executor, stop: threading.Event) -> None:
         stop.set()
 
 
-def entry_point(argv: Optional[List[str]] = None) -> None:
-    """Console-script wrapper: exit with main()'s status."""
-    sys.exit(main(argv if argv is not None else sys.argv))
-
-
 if __name__ == '__main__':
-    entry_point()
+    sim_node()

@@ -101,7 +101,7 @@ def ros():
 
 def start_sim_process(domain_id, *ros_args, command=None):
     """Start the simulator executable in its own process on ``domain_id``."""
-    command = command or [sys.executable, '-m', 'r2d2_sim.node']
+    command = command or [sys.executable, '-m', 'r2d2_sim']
     args = list(command) + (['--ros-args', *ros_args] if ros_args else [])
     return subprocess.Popen(args, env=ros_env(domain_id), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)

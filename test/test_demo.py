@@ -40,7 +40,7 @@ def domain_id():
 
 
 def simulators_in_domain(domain_id):
-    """Return the pids of r2d2_sim.node processes running with this ROS_DOMAIN_ID."""
+    """Return the pids of ``python -m r2d2_sim`` processes running with this ROS_DOMAIN_ID."""
     pids = []
     for entry in Path('/proc').iterdir():
         if not entry.name.isdigit():
@@ -50,7 +50,7 @@ def simulators_in_domain(domain_id):
             environ = (entry / 'environ').read_bytes().split(b'\0')
         except OSError:  # gone, or not ours
             continue
-        if b'r2d2_sim.node' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
+        if b'r2d2_sim' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
             pids.append(int(entry.name))
     return pids
 
