@@ -21,6 +21,14 @@ class ConfigError(ValueError):
 # geometric 0.44 m makes a 0.5 rad/s command turn at 0.5 rad/s.
 DEFAULT_WHEEL_SEPARATION_MULTIPLIER = 1.1
 
+# Measured on the package's R2D2 (tall, 0.44 m track): a step to full speed
+# (1.75 m/s, the wheels' 50 rad/s) tips it over at 3 m/s^2 and above, but not at
+# 2; spinning in place it stays upright up to about 3 rad/s (7 degrees of
+# wobble) and falls over at 5. The defaults keep any command on its wheels.
+DEFAULT_MAX_LINEAR_ACCELERATION_M_S2 = 1.0
+DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2 = 2.0
+DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S = 3.0
+
 
 class ParameterSpec(NamedTuple):
     """One ROS parameter: its name, default value and description."""
@@ -70,6 +78,14 @@ PARAMETERS: List[ParameterSpec] = [
                   'Wheel speed limit in rad/s; 0 takes the URDF joint velocity limit.'),
     ParameterSpec('max_wheel_force', 0.0,
                   'Wheel motor torque limit in N m; 0 takes the URDF joint effort limit.'),
+    ParameterSpec('max_linear_velocity', 0.0,
+                  'Forward speed limit in m/s; 0 leaves only the wheel speed limit.'),
+    ParameterSpec('max_angular_velocity', DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S,
+                  'Turn rate limit in rad/s; 0 leaves only the wheel speed limit.'),
+    ParameterSpec('max_linear_acceleration', DEFAULT_MAX_LINEAR_ACCELERATION_M_S2,
+                  'Forward acceleration and braking limit in m/s^2; 0 means none.'),
+    ParameterSpec('max_angular_acceleration', DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2,
+                  'Turn rate acceleration limit in rad/s^2; 0 means none.'),
     ParameterSpec('odom_frame_id', 'odom', 'Frame of the wheel odometry.'),
     ParameterSpec('base_frame_id', 'base_link', 'Child frame of both odometry topics.'),
     ParameterSpec('world_frame_id', 'world', 'Frame of the ground_truth odometry.'),
@@ -85,6 +101,12 @@ PARAMETERS: List[ParameterSpec] = [
     ParameterSpec('camera_height', 240, 'Head camera image height in pixels.'),
     ParameterSpec('camera_fov', 60.0, 'Head camera vertical field of view in degrees.'),
 ]
+
+# Physics steps outside this range are too coarse to be stable or too fine to
+# be useful; gravity beyond this flings any robot apart.
+MIN_PHYSICS_RATE_HZ = 10.0
+MAX_PHYSICS_RATE_HZ = 10000.0
+MAX_GRAVITY_M_S2 = 1000.0
 
 # Yaw from the URDF base frame to the REP-103 body frame for each forward axis.
 FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.pi / 2}
@@ -115,6 +137,10 @@ class SimConfig:
     right_wheel_names: Tuple[str, ...]
     max_wheel_velocity_rad_s: float
     max_wheel_force_n_m: float
+    max_linear_velocity_m_s: float
+    max_angular_velocity_rad_s: float
+    max_linear_acceleration_m_s2: float
+    max_angular_acceleration_rad_s2: float
     odom_frame_id: str
     base_frame_id: str
     world_frame_id: str
@@ -162,6 +188,11 @@ def _non_negative(name: str, value: Any) -> float:
     return value
 
 
+def _limit(name: str, raw: Mapping[str, Any]) -> float:
+    """Read a limit where 0 means none: math.inf."""
+    return _non_negative(name, raw[name]) or math.inf
+
+
 def _event_rate(name: str, value: Any, physics_rate: float) -> float:
     """Validate a rate of something done between physics steps: 0 <= rate <= physics."""
     value = _non_negative(name, value)
@@ -192,8 +223,13 @@ def _string(name: str, value: Any, allow_empty: bool = False) -> str:
     return value
 
 
+def _is_string_list(value: Any) -> bool:
+    return (isinstance(value, (list, tuple))
+            and all(isinstance(v, str) for v in value))
+
+
 def _strings(name: str, value: Any) -> Tuple[str, ...]:
-    if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+    if not _is_string_list(value):
         raise ConfigError(f'parameter {name} must be a list of joint names, got {value!r}')
     names = tuple(value)
     if len(set(names)) != len(names):
@@ -202,7 +238,8 @@ def _strings(name: str, value: Any) -> Tuple[str, ...]:
 
 
 def _integer(name: str, value: Any, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value):
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or (isinstance(value, float) and not value.is_integer())):
         raise ConfigError(f'parameter {name} must be an integer, got {value!r}')
     if not low <= value <= high:
         raise ConfigError(f'parameter {name} must be in [{low}, {high}], got {value}')
@@ -219,7 +256,7 @@ def _choice(name: str, value: Any, choices: Sequence[Any]) -> Any:
 
 
 def _extra_models(value: Any) -> Tuple[Tuple[str, Tuple[float, float, float]], ...]:
-    if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+    if not _is_string_list(value):
         raise ConfigError(f'parameter extra_models must be a list of strings, got {value!r}')
     models = []
     for entry in value:
@@ -251,8 +288,19 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
         raise ConfigError(f'unknown parameter(s): {", ".join(sorted(unknown))}')
     raw: Dict[str, Any] = {spec.name: spec.default for spec in PARAMETERS}
     raw.update(values)
+    for spec in PARAMETERS:
+        # ROS cannot tell the type of an empty list (-p names:=[]): it arrives as None.
+        if raw[spec.name] is None and isinstance(spec.default, list):
+            raw[spec.name] = []
 
     physics_rate = _positive('physics_rate', raw['physics_rate'])
+    if not MIN_PHYSICS_RATE_HZ <= physics_rate <= MAX_PHYSICS_RATE_HZ:
+        raise ConfigError(f'parameter physics_rate must be in [{MIN_PHYSICS_RATE_HZ:g}, '
+                          f'{MAX_PHYSICS_RATE_HZ:g}] Hz, got {physics_rate}')
+    gravity = _numbers('gravity', raw['gravity'], 3)
+    if max(map(abs, gravity)) > MAX_GRAVITY_M_S2:
+        raise ConfigError(f'parameter gravity must be within +-{MAX_GRAVITY_M_S2:g} m/s^2 '
+                          f'on each axis, got {list(gravity)}')
     publish_rate = _event_rate('publish_rate', raw['publish_rate'], physics_rate)
     left = _strings('left_wheel_names', raw['left_wheel_names'])
     right = _strings('right_wheel_names', raw['right_wheel_names'])
@@ -280,7 +328,7 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
                                   list(FORWARD_AXIS_YAW_RAD)),
         wheel_velocity_sign=int(_choice('wheel_velocity_sign', raw['wheel_velocity_sign'],
                                         [1, -1])),
-        gravity_m_s2=_numbers('gravity', raw['gravity'], 3),
+        gravity_m_s2=gravity,
         ground_plane=_boolean('ground_plane', raw['ground_plane']),
         extra_models=_extra_models(raw['extra_models']),
         gui=_boolean('gui', raw['gui']),
@@ -299,6 +347,10 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
         right_wheel_names=right,
         max_wheel_velocity_rad_s=_non_negative('max_wheel_velocity', raw['max_wheel_velocity']),
         max_wheel_force_n_m=_non_negative('max_wheel_force', raw['max_wheel_force']),
+        max_linear_velocity_m_s=_limit('max_linear_velocity', raw),
+        max_angular_velocity_rad_s=_limit('max_angular_velocity', raw),
+        max_linear_acceleration_m_s2=_limit('max_linear_acceleration', raw),
+        max_angular_acceleration_rad_s2=_limit('max_angular_acceleration', raw),
         odom_frame_id=_string('odom_frame_id', raw['odom_frame_id']),
         base_frame_id=_string('base_frame_id', raw['base_frame_id']),
         world_frame_id=_string('world_frame_id', raw['world_frame_id']),

@@ -44,6 +44,11 @@ def test_every_parameter_has_a_description():
     ('pose_covariance_diagonal', [-1.0] * 6, 'negative'),
     ('odom_frame_id', '', 'empty'),
     ('no_such_parameter', 1, 'unknown'),
+    ('left_wheel_names', 5, 'list of joint names'),
+    ('extra_models', 3, 'list of strings'),
+    ('physics_rate', None, 'number'),
+    ('right_wheel_names', None, 'both be empty'),
+    ('gravity', None, '3 numbers'),
 ])
 def test_bad_values_raise_one_line(name, value, fragment):
     """Each invalid value raises ConfigError naming the parameter or the problem."""
@@ -63,3 +68,21 @@ def test_booleans_are_not_numbers():
     """Refuse a boolean where a rate is expected."""
     with pytest.raises(ConfigError):
         parse_config({'physics_rate': True})
+
+
+def test_empty_lists_from_the_command_line_mean_empty():
+    """ROS hands ``-p names:=[]`` over as None (no type); list parameters read it as []."""
+    config = parse_config({'left_wheel_names': None, 'right_wheel_names': None,
+                           'extra_models': None})
+    assert config.left_wheel_names == () and config.extra_models == ()
+
+
+@pytest.mark.parametrize('spec', PARAMETERS, ids=lambda spec: spec.name)
+def test_any_value_of_any_type_is_accepted_or_one_config_error(spec):
+    """No value of a wrong type gets past validation as a crash: ConfigError or a config."""
+    for value in (None, True, 0, -1, 0.0, -1.0, math.nan, math.inf, 1e308, '', 'x',
+                  [], [''], ['x'], [1.0], [True], [math.nan] * 3, [1.0] * 6, [1, 2, 3]):
+        try:
+            parse_config({spec.name: value})
+        except ConfigError as exc:
+            assert '\n' not in str(exc) and spec.name.split('_')[0] in str(exc), exc
