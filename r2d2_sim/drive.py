@@ -26,6 +26,9 @@ import math
 __all__ = [
     'DriveConfigError',
     'DiffDriveGeometry',
+    'TwistLimits',
+    'limit_twist',
+    'ramp_twist',
     'twist_to_wheel_velocities',
     'wheel_velocities_to_twist',
     'yaw_to_quaternion',
@@ -113,14 +116,40 @@ def twist_to_wheel_velocities(geometry: DiffDriveGeometry, linear_x_m_s: float,
     return left_rad_s, right_rad_s
 
 
-def limit_twist(geometry: DiffDriveGeometry, linear_x_m_s: float,
-                angular_z_rad_s: float) -> tuple[float, float]:
+@dataclass(frozen=True)
+class TwistLimits:
     """
-    Scale a twist down so that no wheel exceeds the limit, keeping its curvature.
+    Body speed and acceleration limits, as diff_drive_controller's speed limiter.
 
-    The faster wheel turns at (|v| + |w| * s / 2) / r.  The twist is first
-    normalised by its largest component, so even 1e308 cannot overflow into
-    inf * 0 = NaN.  Non-finite inputs raise ValueError.
+    Each must be > 0; ``math.inf`` (the default) means no limit.
+    """
+
+    max_linear_m_s: float = math.inf
+    max_angular_rad_s: float = math.inf
+    max_linear_acceleration_m_s2: float = math.inf
+    max_angular_acceleration_rad_s2: float = math.inf
+
+    def __post_init__(self) -> None:
+        """Refuse limits that are not > 0 (NaN included)."""
+        for name in ('max_linear_m_s', 'max_angular_rad_s', 'max_linear_acceleration_m_s2',
+                     'max_angular_acceleration_rad_s2'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+                raise DriveConfigError(f'{name} must be a number > 0 (inf: none), got {value!r}')
+
+
+NO_LIMITS = TwistLimits()
+
+
+def limit_twist(geometry: DiffDriveGeometry, linear_x_m_s: float, angular_z_rad_s: float,
+                limits: TwistLimits = NO_LIMITS) -> tuple[float, float]:
+    """
+    Scale a twist down to the wheel and body speed limits, keeping its curvature.
+
+    The faster wheel turns at (|v| + |w| * s / 2) / r; |v| and |w| are also held
+    to ``limits``. The twist is first normalised by its largest component, so
+    even 1e308 cannot overflow into inf * 0 = NaN.  Non-finite inputs raise
+    ValueError.
     """
     _require_finite(linear_x_m_s=linear_x_m_s, angular_z_rad_s=angular_z_rad_s)
     magnitude = max(abs(linear_x_m_s), abs(angular_z_rad_s))
@@ -130,8 +159,37 @@ def limit_twist(geometry: DiffDriveGeometry, linear_x_m_s: float,
     unit_w = angular_z_rad_s / magnitude
     unit_wheel_m_s = abs(unit_v) + abs(unit_w) * geometry.wheel_separation_m / 2.0
     allowed = geometry.max_wheel_velocity_rad_s * geometry.wheel_radius_m / unit_wheel_m_s
+    if unit_v:
+        allowed = min(allowed, limits.max_linear_m_s / abs(unit_v))
+    if unit_w:
+        allowed = min(allowed, limits.max_angular_rad_s / abs(unit_w))
     scale = min(magnitude, allowed)
     return unit_v * scale, unit_w * scale
+
+
+def ramp_twist(current: tuple[float, float], target: tuple[float, float],
+               limits: TwistLimits, dt_s: float) -> tuple[float, float]:
+    """
+    Move ``current`` (v, w) towards ``target`` within the acceleration limits over ``dt_s``.
+
+    Both axes move by the same fraction of the way, so a ramp from or to rest
+    keeps the commanded curvature: the robot starts an arc on the arc. (Limiting
+    each axis on its own, as diff_drive_controller does, starts an arc with
+    a turn on the spot, where a skid-steered robot slips most.) The target is
+    reached exactly, and at once with infinite limits.
+    """
+    delta_v = target[0] - current[0]
+    delta_w = target[1] - current[1]
+    fraction = 1.0
+    max_dv = limits.max_linear_acceleration_m_s2 * dt_s
+    max_dw = limits.max_angular_acceleration_rad_s2 * dt_s
+    if abs(delta_v) > max_dv:
+        fraction = max_dv / abs(delta_v)
+    if abs(delta_w) > max_dw:
+        fraction = min(fraction, max_dw / abs(delta_w))
+    if fraction == 1.0:
+        return target
+    return current[0] + fraction * delta_v, current[1] + fraction * delta_w
 
 
 def wheel_velocities_to_twist(geometry: DiffDriveGeometry, left_rad_s: float,

@@ -7,6 +7,7 @@ it against the wall clock in the main thread while an executor serves topics
 and services in another, and tests can drive it step by step in-process.
 """
 
+import difflib
 import json
 import math
 import sys
@@ -19,6 +20,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.clock import Clock as RclpyClock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -30,8 +32,8 @@ from std_srvs.srv import SetBool, Trigger
 from r2d2_sim import camera
 from r2d2_sim.config import ConfigError, PARAMETERS, parse_config, SimConfig
 from r2d2_sim.drive import (
-    DiffDriveGeometry, DiffDriveOdometry, DriveConfigError, limit_twist,
-    twist_to_wheel_velocities, yaw_to_quaternion)
+    DiffDriveGeometry, DiffDriveOdometry, DriveConfigError, limit_twist, ramp_twist,
+    twist_to_wheel_velocities, TwistLimits, yaw_to_quaternion)
 from r2d2_sim.launcher import sim_node, stop_on_signals
 from r2d2_sim.pacing import DeadlinePacer, exact_rate, StepSchedule
 from r2d2_sim.world import ExtraModel, SimWorld, WorldError
@@ -39,6 +41,11 @@ from r2d2_sim.world import ExtraModel, SimWorld, WorldError
 NODE_NAME = 'r2d2_sim'
 # Warnings about rejected commands repeat at most this often per kind of problem.
 WARNING_PERIOD_S = 5.0
+# How often (wall-clock seconds) to look for cmd_vel publishers of a wrong type.
+GRAPH_CHECK_PERIOD_S = 1.0
+CMD_VEL_TYPE = 'geometry_msgs/msg/Twist'
+# The executor thread checks for a stop request at least this often (s).
+SPIN_POLL_S = 0.1
 # Follow the robot with the GUI camera this many times per simulated second.
 GUI_CAMERA_RATE_HZ = 30.0
 # The head camera: its link, image frame, clipping planes, and the gap between
@@ -82,6 +89,7 @@ class SimNode(Node):
         self._warned_at = {}
         self.commands_received = 0
         self.commands_rejected = 0
+        self.blow_ups = 0
         self.world: Optional[SimWorld] = None
         try:
             self.config = self._declare_parameters()
@@ -104,7 +112,20 @@ class SimNode(Node):
                 description=spec.description, read_only=True, dynamic_typing=True)
             values[spec.name] = self.declare_parameter(
                 spec.name, spec.default, descriptor).value
+        self._warn_unknown_overrides()
         return parse_config(values)
+
+    def _warn_unknown_overrides(self) -> None:
+        """Name parameters given on the command line or in a file that nothing reads."""
+        # ROS ignores overrides nobody declares, so a typo would run on the default.
+        overrides = getattr(self, '_parameter_overrides', {})
+        known = list(self._parameters)
+        for name in sorted(set(overrides) - set(known)):
+            if name.startswith('qos_overrides.'):
+                continue
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f' (did you mean {close[0]}?)' if close else ''
+            self.get_logger().warning(f'ignoring unknown parameter {name}{hint}')
 
     def _build_world(self) -> None:
         config = self.config
@@ -117,6 +138,9 @@ class SimNode(Node):
             body_yaw_offset_rad=config.body_yaw_offset_rad,
             extra_models=[ExtraModel(name, position)
                           for name, position in config.extra_models])
+        problem = self.world.state_problem()
+        if problem is not None:
+            raise ConfigError(f'the robot cannot start there: {problem}')
         self.robot_description = self.world.robot_description
         self.description_source = ('the robot_description parameter'
                                    if config.robot_description else self.world.urdf_path)
@@ -126,7 +150,9 @@ class SimNode(Node):
         rate = exact_rate(config.physics_rate_hz)
         self._step_ns_num, self._step_ns_den = 10**9 * rate.denominator, rate.numerator
         self._publish_schedule = StepSchedule(config.physics_rate_hz, config.publish_rate_hz)
-        self._timeout_steps = math.ceil(config.cmd_vel_timeout_s * config.physics_rate_hz)
+        timeout_steps = config.cmd_vel_timeout_s * config.physics_rate_hz
+        # A timeout beyond any run (1e308 s) is as good as none: 0 disables it.
+        self._timeout_steps = math.ceil(timeout_steps) if timeout_steps < 2.0**62 else 0
         self.steps_per_gui_frame = gui_frame_steps(config)
         self._setup_head_camera()
 
@@ -162,9 +188,18 @@ class SimNode(Node):
             raise ConfigError(
                 f'wheel joint(s) {", ".join(missing)} not in the URDF; it has: '
                 f'{", ".join(world.joints)}')
+        elif not names:
+            wheels = [j.name for j in world.joints.values()
+                      if j.type_name == 'revolute' and 'wheel' in j.name.lower()]
+            if wheels:
+                raise ConfigError(
+                    'left_wheel_names and right_wheel_names are empty, but the robot drives '
+                    f'on wheel joints {", ".join(wheels)}: list them as left and right wheels')
         self.has_wheels = bool(names)
         self._pending_command = None
         self._command_step = 0
+        self.target_twist = (0.0, 0.0)
+        self.ramped_twist = (0.0, 0.0)
         self._wheel_targets = (0.0, 0.0)
         if not self.has_wheels:
             self.geometry = None
@@ -195,6 +230,11 @@ class SimNode(Node):
             wheel_radius_m=radius,
             wheel_separation_m=separation * config.wheel_separation_multiplier,
             max_wheel_velocity_rad_s=max_velocity)
+        self.limits = TwistLimits(
+            max_linear_m_s=config.max_linear_velocity_m_s,
+            max_angular_rad_s=config.max_angular_velocity_rad_s,
+            max_linear_acceleration_m_s2=config.max_linear_acceleration_m_s2,
+            max_angular_acceleration_rad_s2=config.max_angular_acceleration_rad_s2)
         x, y, yaw = config.initial_pose
         self.odometry = DiffDriveOdometry(self.geometry, x, y, yaw)
         self._wheel_forces = [max_force] * len(self._wheel_indices)
@@ -224,6 +264,10 @@ class SimNode(Node):
         self._clock_pub = self.create_publisher(Clock, '/clock', state_qos)
         self._description_pub = self.create_publisher(String, 'robot_description', latched)
         self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, 10)
+        # The middleware never delivers a publisher of another type (say
+        # TwistStamped) on cmd_vel; look at the graph now and then to say so.
+        self.create_timer(GRAPH_CHECK_PERIOD_S, self._check_cmd_vel_publishers,
+                          clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
         self.create_service(Trigger, '~/get_joint_info', self._on_get_joint_info)
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.create_service(Trigger, '~/step', self._on_step)
@@ -301,7 +345,11 @@ class SimNode(Node):
                 world.step(1)
                 step = world.step_count
                 if self._publish_schedule.due(step):
-                    self._publish_state(self._checked_base_state())
+                    self._publish_state(*self._checked_state())
+                else:
+                    problem = world.state_problem()
+                    if problem is not None:
+                        self._recover(problem)
                 if self.head_camera_enabled and self._image_schedule.due(step):
                     self._publish_head_camera()
                 if world.gui and step % self.steps_per_gui_frame == 0:
@@ -314,15 +362,21 @@ class SimNode(Node):
         return steps
 
     def _update_command(self) -> None:
+        """Take a new command (or the timeout's stop) and ramp the wheels towards it."""
         pending = self._pending_command
         step = self.world.step_count
         if pending is not None:
             self._pending_command = None
             self._command_step = step
-            self._apply_wheel_targets(*twist_to_wheel_velocities(self.geometry, *pending))
-        elif (self._timeout_steps and self._wheel_targets != (0.0, 0.0)
+            self.target_twist = pending
+        elif (self._timeout_steps and self.target_twist != (0.0, 0.0)
               and step - self._command_step >= self._timeout_steps):
-            self._apply_wheel_targets(0.0, 0.0)
+            self.target_twist = (0.0, 0.0)
+        if self.ramped_twist != self.target_twist:
+            self.ramped_twist = ramp_twist(self.ramped_twist, self.target_twist, self.limits,
+                                           self.time_step_s)
+            self._apply_wheel_targets(
+                *twist_to_wheel_velocities(self.geometry, *self.ramped_twist))
 
     def _apply_wheel_targets(self, left: float, right: float) -> None:
         self._wheel_targets = (left, right)
@@ -330,15 +384,27 @@ class SimNode(Node):
         velocities = [sign * left] * len(self._left) + [sign * right] * len(self._right)
         self.world.set_joint_velocities(self._wheel_indices, velocities, self._wheel_forces)
 
-    def _checked_base_state(self):
-        """Read the base state once per publication; reset the robot if it is absurd."""
-        base = self.world.base_state()
-        problem = self.world.state_is_sane(base)
+    def _checked_state(self):
+        """Read the joints and the base for a publication; reset the robot if they are absurd."""
+        world = self.world
+        states = world.joint_states(self._movable_indices)
+        base = world.base_state()
+        problem = (world.joint_problem(self._movable_indices, states)
+                   or world.state_problem(base))
         if problem is not None:
-            self.get_logger().error(f'physics blew up ({problem}): resetting the robot')
-            self._reset_locked(publish=False)
-            base = self.world.base_state()
-        return base
+            self._recover(problem)
+            states = world.joint_states(self._movable_indices)
+            base = world.base_state()
+        return states, base
+
+    def _recover(self, problem: str) -> None:
+        """Reset the robot to its initial pose after the physics produced an absurd state."""
+        self.blow_ups += 1
+        self._log_throttled(
+            'blow-up', self.get_logger().error,
+            f'physics blew up at t={self.sim_time_ns / 1e9:.6f} s ({problem}): '
+            'resetting the robot to its initial pose')
+        self._reset_locked(publish=False)
 
     # -- publishing -----------------------------------------------------------
 
@@ -357,14 +423,15 @@ class SimNode(Node):
         self.odometry.update_from_positions(left, right, dt)
         self._odometry_step = step
 
-    def _publish_state(self, base=None) -> None:
+    def _publish_state(self, states=None, base=None) -> None:
         ns = self.sim_time_ns
         sec, nanosec = divmod(ns, 10**9)
         self._clock_msg.clock.sec = sec
         self._clock_msg.clock.nanosec = nanosec
         self._clock_pub.publish(self._clock_msg)
 
-        states = self.world.joint_states(self._movable_indices)
+        if states is None:
+            states = self.world.joint_states(self._movable_indices)
         msg = self._joint_msg
         msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
         msg.position = states.positions
@@ -425,16 +492,19 @@ class SimNode(Node):
 
     # -- callbacks ------------------------------------------------------------
 
-    def _warn(self, kind: str, text: str) -> None:
-        """Log a warning at most once per WARNING_PERIOD_S for each kind of problem."""
+    def _log_throttled(self, kind: str, log, text: str) -> None:
+        """Log ``text`` with ``log`` at most once per WARNING_PERIOD_S for each kind."""
         now = time.monotonic()
         last, suppressed = self._warned_at.get(kind, (None, 0))
         if last is not None and now - last < WARNING_PERIOD_S:
             self._warned_at[kind] = (last, suppressed + 1)
             return
-        extra = f' ({suppressed} more since the last warning)' if suppressed else ''
-        self.get_logger().warning(text + extra)
+        extra = f' ({suppressed} more since the last one)' if suppressed else ''
+        log(text + extra)
         self._warned_at[kind] = (now, 0)
+
+    def _warn(self, kind: str, text: str) -> None:
+        self._log_throttled(kind, self.get_logger().warning, text)
 
     def _on_cmd_vel(self, msg: Twist) -> None:
         self.commands_received += 1
@@ -445,10 +515,34 @@ class SimNode(Node):
                        f'rejected cmd_vel with {problem}; keeping the last valid command')
             return
         if not self.has_wheels:
+            self._warn('cmd_vel no wheels',
+                       'cmd_vel ignored: the robot has no wheels configured')
             return
+        ignored = [name for name, value in (
+            ('linear.y', msg.linear.y), ('linear.z', msg.linear.z),
+            ('angular.x', msg.angular.x), ('angular.y', msg.angular.y)) if value != 0.0]
+        if ignored:
+            self._warn('cmd_vel ignored axes',
+                       f'cmd_vel {", ".join(ignored)} ignored: a differential drive follows '
+                       'linear.x and angular.z only')
+        linear, angular = msg.linear.x, msg.angular.z
+        limited = limit_twist(self.geometry, linear, angular, self.limits)
+        if max(map(abs, limited)) < max(abs(linear), abs(angular)) * (1.0 - 1e-9):
+            self._warn('cmd_vel clamped',
+                       f'cmd_vel (linear.x {linear:.4g}, angular.z {angular:.4g}) exceeds '
+                       f'the speed limits: scaled to ({limited[0]:.4g}, {limited[1]:.4g})')
         # Picked up by the physics loop at its next step (a single assignment,
         # so no lock is needed against the stepping thread).
-        self._pending_command = limit_twist(self.geometry, msg.linear.x, msg.angular.z)
+        self._pending_command = limited
+
+    def _check_cmd_vel_publishers(self) -> None:
+        topic = self.resolve_topic_name('cmd_vel')
+        for info in self.get_publishers_info_by_topic('cmd_vel'):
+            if info.topic_type != CMD_VEL_TYPE:
+                publisher = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+                self._warn(f'cmd_vel type {info.topic_type}',
+                           f'{publisher} publishes {info.topic_type} on {topic}, which ROS '
+                           f'does not deliver: this node takes {CMD_VEL_TYPE}')
 
     def _on_get_joint_info(self, request, response):
         with self._lock:
@@ -493,6 +587,7 @@ class SimNode(Node):
         self.world.reset()
         if self.has_wheels:
             self._pending_command = None
+            self.target_twist = self.ramped_twist = (0.0, 0.0)
             self._apply_wheel_targets(0.0, 0.0)
             self.odometry.reset(*self.config.initial_pose)
             self._odometry_step = self.world.step_count
@@ -577,17 +672,23 @@ def main(args: Optional[Sequence[str]] = None,
         print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
         return 2
     finally:
-        executor.shutdown(timeout_sec=1.0)
+        stop.set()
         if spinner is not None:
             spinner.join(timeout=1.0)
+        # Only now, with no thread spinning: shutting an executor down under a
+        # spinning thread races in rclpy 7.1 (a callback handler made during
+        # shutdown fails with AttributeError on the destroyed guard condition).
+        executor.shutdown(timeout_sec=1.0)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
 
 
 def _spin(executor, stop: threading.Event) -> None:
+    """Serve callbacks until ``stop`` is set (checked at least every SPIN_POLL_S)."""
     try:
-        executor.spin()
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=SPIN_POLL_S)
     except ExternalShutdownException:
         pass
     finally:

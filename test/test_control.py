@@ -90,11 +90,11 @@ def test_timeout_does_not_fire_while_paused(ros):
     probe = Probe(ros, sim)
     probe.send(0.3)
     trigger(probe, 'step')
-    targets = sim._wheel_targets
-    assert targets != (0.0, 0.0)
-    assert not wait_for(lambda: sim._wheel_targets != targets, 0.7)  # > 0.5 s wall time
+    command = sim.target_twist
+    assert command != (0.0, 0.0)
+    assert not wait_for(lambda: sim.target_twist != command, 0.7)  # > 0.5 s wall time
     sim.advance(60)
-    assert sim._wheel_targets == targets  # 61 steps < 120 steps of timeout
+    assert sim.target_twist == command  # 61 steps < 120 steps of timeout
 
 
 @pytest.mark.parametrize('paused', [False, True])

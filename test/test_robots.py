@@ -84,7 +84,7 @@ def test_a_robot_without_joints_is_simulated():
         assert world.joint_states([]).positions == []
         assert world.joint_info() == []
         world.step(24)
-        assert world.state_is_sane() is None
+        assert world.state_problem() is None
         assert world.base_state().position[2] == pytest.approx(0.5, abs=0.01)
 
 

@@ -125,10 +125,10 @@ def test_close_disconnects(world):
 
 
 def test_sanity_check_detects_non_finite_and_far_states(world):
-    """state_is_sane names the problem when the base is flung away."""
-    assert world.state_is_sane() is None
+    """state_problem names the problem when the base is flung away."""
+    assert world.state_problem() is None
     world.client.resetBasePositionAndOrientation(world.robot_id, (1e5, 0, 0), (0, 0, 0, 1))
-    assert 'left the world' in world.state_is_sane()
+    assert 'left the world' in world.state_problem()
 
 
 def test_missing_urdf_is_a_world_error():
