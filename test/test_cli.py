@@ -44,9 +44,24 @@ def test_sim_node_process_drives_and_stops_cleanly(domain, sig):
 
 
 @pytest.mark.parametrize('args, fragment', [
-    (['-p', 'physics_rate:=-5.0'], 'physics_rate'),
+    (['-p', 'physics_rate:=-5.0'], 'physics_rate must be > 0'),
+    (['-p', 'physics_rate:=0.0'], 'physics_rate must be > 0'),
+    (['-p', 'publish_rate:=-1.0'], 'publish_rate must be >= 0'),
+    (['-p', 'publish_rate:=480.0'], 'cannot exceed physics_rate'),
+    (['-p', 'camera_rate:=1000.0'], 'cannot exceed physics_rate'),
+    (['-p', 'real_time_factor:=-1.0'], 'real_time_factor must be >= 0'),
+    (['-p', 'cmd_vel_timeout:=fast'], 'cmd_vel_timeout must be a number'),
+    (['-p', 'max_linear_acceleration:=-1.0'], 'max_linear_acceleration must be >= 0'),
     (['-p', 'urdf:=/nonexistent/robot.urdf'], 'not found'),
-    (['-p', 'left_wheel_names:=[nope]'], 'nope'),
+    (['-p', 'urdf:=/etc/hostname'], 'not well-formed XML'),
+    (['-p', 'left_wheel_names:=[nope]'], 'wheel joint(s) nope not in the URDF'),
+    (['-p', 'right_wheel_names:=[base_to_right_leg]'], 'base_to_right_leg is fixed'),
+    (['-p', 'left_wheel_names:=[gripper_extension]'], 'gripper_extension is prismatic'),
+    (['-p', 'left_wheel_names:=[]', '-p', 'right_wheel_names:=[]'],
+     'list them as left and right wheels'),
+    (['-p', 'right_wheel_names:=[]'], 'both be empty'),
+    (['-p', 'initial_pose:=[1.0e5, 0.0, 0.0]'], 'base left the world'),
+    (['-p', 'gravity:=[0.0]'], 'gravity must be a list of 3 numbers'),
 ])
 def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     """A wrong parameter stops start-up with one readable line and exit code 2."""
