@@ -361,6 +361,22 @@ class SimNode(Node):
         self.advance(steps)
         return steps
 
+    def advance_if_running(self, steps: Optional[int] = None) -> bool:
+        """
+        Advance ``steps`` (default: one control period) unless paused; return whether it did.
+
+        The check and the steps hold the lock that ``~/pause`` takes, so once a
+        pause is answered no further step runs and the reply's time is final.
+        """
+        with self._lock:
+            if self._paused:
+                return False
+            if steps is None:
+                self.advance_to_next_publish()
+            else:
+                self.advance(steps)
+            return True
+
     def _update_command(self) -> None:
         """Take a new command (or the timeout's stop) and ramp the wheels towards it."""
         pending = self._pending_command
@@ -554,13 +570,14 @@ class SimNode(Node):
         return response
 
     def _on_pause(self, request, response):
-        with self._lock:
+        with self._lock:  # no step runs between the change and the reply's time
             self._paused = bool(request.data)
+            stamp = self.sim_time_ns / 1e9
         response.success = True
         # The count lets a client that steps cross-process confirm that its
         # cmd_vel arrived before it asks for the next step.
         state = 'paused' if self._paused else 'running'
-        response.message = (f'{state} at t={self.sim_time_ns / 1e9:.6f} s; '
+        response.message = (f'{state} at t={stamp:.6f} s; '
                             f'cmd_vel received: {self.commands_received}')
         return response
 
@@ -624,15 +641,11 @@ def run_paced(node: SimNode, stop: threading.Event) -> None:
     batch = node.steps_per_gui_frame if config.gui else 1
     pacer = DeadlinePacer(batch / rate) if rate > 0.0 else None
     while not stop.is_set():
-        if node.paused:
+        if not node.advance_if_running(None if pacer is None else batch):
             stop.wait(0.005)
             if pacer is not None:
                 pacer.reanchor()
-            continue
-        if pacer is None:
-            node.advance_to_next_publish()
-        else:
-            node.advance(batch)
+        elif pacer is not None:
             pacer.wait()
 
 

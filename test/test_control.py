@@ -97,6 +97,28 @@ def test_timeout_does_not_fire_while_paused(ros):
     assert sim.target_twist == command  # 61 steps < 120 steps of timeout
 
 
+def test_pause_reply_time_is_where_physics_stopped(ros):
+    """Pausing a node that runs flat out: no step follows the reply, whose time is final."""
+    sim = make_sim(ros, real_time_factor=0.0)
+    probe = Probe(ros, sim)
+    stop = threading.Event()
+    runner = threading.Thread(target=run_paced, args=(sim, stop), daemon=True)
+    runner.start()
+    try:
+        for _ in range(10):
+            assert wait_for(lambda: sim.step_count > 0, 10.0)
+            reply = pause(probe, True)
+            stamp = float(re.search(r't=([0-9.]+)', reply.message).group(1))
+            steps = sim.step_count
+            assert stamp == pytest.approx(steps / 240, abs=1e-6)
+            assert not wait_for(lambda: sim.step_count != steps, 0.05)
+            pause(probe, False)
+    finally:
+        stop.set()
+        runner.join(5.0)
+    assert not runner.is_alive()
+
+
 @pytest.mark.parametrize('paused', [False, True])
 def test_reset_restores_robot_keeps_clock(ros, paused):
     """~/reset puts the robot back and clears odometry and command; the clock moves on."""
