@@ -233,14 +233,9 @@ def write_json(path, data):
 
 
 def stop_flag():
-    """Return an Event set by SIGINT or SIGTERM."""
-    stop = threading.Event()
-
-    def handler(signum, frame):
-        stop.set()
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
-    return stop
+    """Return an Event set by SIGINT or SIGTERM (the node's own handlers)."""
+    from r2d2_sim.launcher import stop_on_signals
+    return stop_on_signals()
 
 
 def init_ros(domain_id, context=None):
