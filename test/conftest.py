@@ -2,6 +2,7 @@
 
 import itertools
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
@@ -117,6 +118,22 @@ def stop_process(process, sig=signal.SIGINT, timeout_s=10.0):
         process.kill()
         out, err = process.communicate()
     return process.returncode, out, err
+
+
+def simulators_in_domain(domain_id):
+    """Return the pids of ``python -m r2d2_sim`` processes running with this ROS_DOMAIN_ID."""
+    pids = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / 'cmdline').read_bytes().split(b'\0')
+            environ = (entry / 'environ').read_bytes().split(b'\0')
+        except OSError:  # gone, or not ours
+            continue
+        if b'r2d2_sim' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
+            pids.append(int(entry.name))
+    return pids
 
 
 RATE_HZ = 240

@@ -11,7 +11,8 @@ import subprocess
 import sys
 import time
 
-from conftest import ros_env, start_sim_process, stop_process, wait_for
+from conftest import (
+    ros_env, simulators_in_domain, start_sim_process, stop_process, wait_for)
 import pytest
 
 from r2d2_sim.demo import (
@@ -37,22 +38,6 @@ _DOMAIN_TURNS = itertools.count()
 def domain_id():
     """Return a ROS domain id that neither the previous tests nor other runs use."""
     return _DOMAIN_BLOCK + next(_DOMAIN_TURNS) % 4
-
-
-def simulators_in_domain(domain_id):
-    """Return the pids of ``python -m r2d2_sim`` processes running with this ROS_DOMAIN_ID."""
-    pids = []
-    for entry in Path('/proc').iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            cmdline = (entry / 'cmdline').read_bytes().split(b'\0')
-            environ = (entry / 'environ').read_bytes().split(b'\0')
-        except OSError:  # gone, or not ours
-            continue
-        if b'r2d2_sim' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
-            pids.append(int(entry.name))
-    return pids
 
 
 def demo_command(output_dir, domain_id, real_time_factor):
