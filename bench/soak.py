@@ -322,9 +322,9 @@ def check_pause_and_steps(driver, steps=5):
     """
     Pause the node, compare the reported time with /clock, then take single steps.
 
-    The first pause reply may race a step already under way, so a second
-    pause request (the node is paused by then) gives the settled time. Each
-    step request must advance exactly one step, and /clock must follow it.
+    The first pause reply must name the step physics stopped at (no step may
+    follow it); a second pause request (the node is paused by then) must agree.
+    Each step request must advance exactly one step, and /clock must follow it.
     """
     result = {'first_reply': driver.pause(True)}
     last_ns = driver.wait_clock_quiet()
@@ -511,6 +511,9 @@ def build_checks(results):
          '0 steps', status(pause.get('reported_minus_clock_steps') == 0
                            and pause.get('reported_off_grid_us') == 0
                            and pause.get('matches_clock_text'))),
+        ('first pause reply vs last /clock',
+         f'{pause.get("first_reply_minus_clock_steps")} steps', '0 steps',
+         status(pause.get('first_reply_minus_clock_steps') == 0)),
         ('single steps while paused',
          ', '.join(str(s.get('advanced')) for s in pause.get('steps', [])) + ' step(s)',
          '1 each, /clock follows', status(pause.get('steps_ok'))),
@@ -544,8 +547,6 @@ def print_summary(results, checks, header):
         ('received /clock, joint_states, odom', ', '.join(
             f'{results[t]["received"]:,}' for t in ('clock', 'joint_states', 'odom'))
          + f' of {round(results["sim_s_measured"] * RATE):,} steps each'),
-        ('first pause reply vs the step it stopped at',
-         f'{results["pause"].get("first_reply_minus_clock_steps")} step(s)'),
         ('odom at the end', '({x_m:.2f}, {y_m:.2f}) m, yaw {yaw_rad:.2f} rad'.format(
             **results['odom_final_pose']) + f'; path {results["odom_path_m"]:.1f} m'
          if results['odom_final_pose'] else 'none'),
