@@ -560,7 +560,10 @@ def measure_latency(work, domain_id, duration_s, period_s, speed):
     sim_log = os.path.join(work, 'sim_latency.log')
     sim = probe = None
     try:
-        sim = start_sim(domain_id, sim_log, real_time_factor=1.0)
+        # Without the acceleration ramp: this measures the bridge, not how long the
+        # wheels take to reverse at 1 m/s^2 (2 x 0.2 m/s / 1 m/s^2 = 0.4 s by design).
+        sim = start_sim(domain_id, sim_log, real_time_factor=1.0,
+                        max_linear_acceleration=0.0, max_angular_acceleration=0.0)
         probe = start_role('latency', domain_id, log, '--out', out, '--duration', duration_s,
                            '--period', period_s, '--speed', speed, '--node-pid', sim.pid)
         if not wait_process(probe, duration_s + 45.0):
