@@ -139,6 +139,23 @@ def simulators_in_domain(domain_id):
 RATE_HZ = 240
 
 
+def drive_forward_until(spin_until, publisher, truth, distance_m, timeout_s, speed_m_s=0.3):
+    """
+    Publish a forward cmd_vel while spinning until ground truth x grows by ``distance_m``.
+
+    ``truth`` is the list a ground_truth subscription appends to; returns
+    ``spin_until``'s verdict (False when the deadline passed first).
+    """
+    x0 = truth[-1].pose.pose.position.x
+    command = Twist()
+    command.linear.x = speed_m_s
+
+    def moved():
+        publisher.publish(command)
+        return truth[-1].pose.pose.position.x - x0 > distance_m
+    return spin_until(moved, timeout_s)
+
+
 class Probe:
     """A test-side node: publishes cmd_vel, records everything the simulator says."""
 

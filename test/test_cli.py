@@ -2,7 +2,8 @@
 
 import signal
 
-from conftest import next_domain_id, RemoteProbe, start_sim_process, stop_process
+from conftest import (
+    drive_forward_until, next_domain_id, RemoteProbe, start_sim_process, stop_process)
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
@@ -28,14 +29,7 @@ def test_sim_node_process_drives_and_stops_cleanly(domain, sig):
         pub = node.create_publisher(Twist, 'cmd_vel', 10)
         assert spin_until(lambda: joints and truth, 20.0), 'no state from sim_node'
         assert 'left_front_wheel_joint' in joints[-1].name
-        x0 = truth[-1].pose.pose.position.x
-        cmd = Twist()
-        cmd.linear.x = 0.3
-
-        def moved():
-            pub.publish(cmd)
-            return truth[-1].pose.pose.position.x - x0 > 0.1
-        assert spin_until(moved, 10.0), 'robot did not move'
+        assert drive_forward_until(spin_until, pub, truth, 0.1, 10.0), 'robot did not move'
     finally:
         code, out, err = stop_process(process, sig)
         probe.close()

@@ -18,8 +18,8 @@ import threading
 import time
 
 from conftest import (
-    next_domain_id, RemoteProbe, ros_env, simulators_in_domain, start_sim_process,
-    stop_process, wait_for)
+    drive_forward_until, next_domain_id, RemoteProbe, ros_env, simulators_in_domain,
+    start_sim_process, stop_process, wait_for)
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
@@ -588,14 +588,8 @@ def test_sigkill_of_subscriber_and_client_does_not_disturb_the_node(tmp_path):
         killed, cpu = clock.mark(), CpuWatch(process.pid)
         killed_at = time.time()  # the clock log's time base
         problems = [joint_info_problem(call(probe, client)) for _ in range(20)]
-        x0 = truth[-1].pose.pose.position.x
-        forward = Twist()
-        forward.linear.x = 0.3
-
-        def moved():
-            cmd_pub.publish(forward)
-            return truth[-1].pose.pose.position.x - x0 > 0.05
-        assert probe.spin_until(moved, 5.0), 'cmd_vel not obeyed after the kills'
+        assert drive_forward_until(probe.spin_until, cmd_pub, truth, 0.05, 5.0), \
+            'cmd_vel not obeyed after the kills'
         # Measure for 3 s after the kills (the dead peers' DDS endpoints linger), and
         # on until /clock flows again if it has stopped.
         assert probe.spin_until(lambda: time.time() - killed_at > 3.0
@@ -660,8 +654,6 @@ def test_two_simulators_in_one_domain_are_isolated_by_namespace():
                 'cmd_vel subscribers': cmd_pubs[ns].get_subscription_count(),
             }
         results['/clock publishers'] = node.count_publishers('/clock')
-        forward = Twist()
-        forward.linear.x = 0.3
 
         def position(ns):
             pose = truth[ns][-1].pose.pose.position
@@ -672,12 +664,8 @@ def test_two_simulators_in_one_domain_are_isolated_by_namespace():
                 lambda: all(abs(truth[ns][-1].twist.twist.linear.x) < 0.005 for ns in names),
                 5.0), 'robots not at rest'
             still = position(bystander)
-            x0 = position(mover)[0]
-
-            def moved():
-                cmd_pubs[mover].publish(forward)
-                return position(mover)[0] - x0 > 0.1
-            assert probe.spin_until(moved, 5.0), f'/{mover} did not move'
+            assert drive_forward_until(probe.spin_until, cmd_pubs[mover], truth[mover], 0.1,
+                                       5.0), f'/{mover} did not move'
             drift = max(abs(p - q) for p, q in zip(position(bystander), still))
             results[f'/{bystander} drift while /{mover} drove'] = drift
     finally:

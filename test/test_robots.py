@@ -11,8 +11,8 @@ import math
 import os
 
 from conftest import (
-    latest_truth, make_sim, next_domain_id, Probe, RemoteProbe, REPO, start_sim_process,
-    stop_process)
+    drive_forward_until, latest_truth, make_sim, next_domain_id, Probe, RemoteProbe, REPO,
+    start_sim_process, stop_process)
 import pybullet_data
 import pytest
 from std_srvs.srv import Trigger
@@ -209,13 +209,8 @@ def test_classic_params_file_cross_process():
         spin_until = probe.spin_until
         assert spin_until(lambda: truth, 20.0), 'no ground_truth from sim_node'
         start = truth[-1].pose.pose.position
-        cmd = Twist()
-        cmd.linear.x = 0.3
-
-        def moved():
-            pub.publish(cmd)
-            return truth[-1].pose.pose.position.x - start.x > 0.15
-        assert spin_until(moved, 15.0), 'classic did not move forward'
+        assert drive_forward_until(spin_until, pub, truth, 0.15, 15.0), \
+            'classic did not move forward'
         assert abs(truth[-1].pose.pose.position.y - start.y) < 0.05
     finally:
         code, out, err = stop_process(process)
