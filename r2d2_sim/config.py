@@ -188,9 +188,9 @@ def _non_negative(name: str, value: Any) -> float:
     return value
 
 
-def _limit(name: str, raw: Mapping[str, Any]) -> float:
+def _limit(name: str, value: Any) -> float:
     """Read a limit where 0 means none: math.inf."""
-    return _non_negative(name, raw[name]) or math.inf
+    return _non_negative(name, value) or math.inf
 
 
 def _event_rate(name: str, value: Any, physics_rate: float) -> float:
@@ -347,10 +347,12 @@ def parse_config(values: Mapping[str, Any]) -> SimConfig:
         right_wheel_names=right,
         max_wheel_velocity_rad_s=_non_negative('max_wheel_velocity', raw['max_wheel_velocity']),
         max_wheel_force_n_m=_non_negative('max_wheel_force', raw['max_wheel_force']),
-        max_linear_velocity_m_s=_limit('max_linear_velocity', raw),
-        max_angular_velocity_rad_s=_limit('max_angular_velocity', raw),
-        max_linear_acceleration_m_s2=_limit('max_linear_acceleration', raw),
-        max_angular_acceleration_rad_s2=_limit('max_angular_acceleration', raw),
+        max_linear_velocity_m_s=_limit('max_linear_velocity', raw['max_linear_velocity']),
+        max_angular_velocity_rad_s=_limit('max_angular_velocity', raw['max_angular_velocity']),
+        max_linear_acceleration_m_s2=_limit('max_linear_acceleration',
+                                            raw['max_linear_acceleration']),
+        max_angular_acceleration_rad_s2=_limit('max_angular_acceleration',
+                                               raw['max_angular_acceleration']),
         odom_frame_id=_string('odom_frame_id', raw['odom_frame_id']),
         base_frame_id=_string('base_frame_id', raw['base_frame_id']),
         world_frame_id=_string('world_frame_id', raw['world_frame_id']),
