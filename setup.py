@@ -28,5 +28,6 @@ setup(
             'demo = r2d2_sim.demo:entry_point',
             'drive = r2d2_sim.drive_cmd:entry_point',
         ],
+        'pytest11': ['r2d2_sim = r2d2_sim.pytest_plugin'],
     },
 )

@@ -37,7 +37,8 @@ if REPO not in sys.path:
     sys.path.insert(0, REPO)
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
-from run import SilencedStdout  # noqa: E402  (bench/ is on sys.path when run as a script)
+from r2d2_sim.stdio import silenced_stdout  # noqa: E402 (after the sys.path set-up)
+
 
 PROFILE_PATH = os.path.join(BENCH_DIR, 'profile.json')
 
@@ -211,7 +212,7 @@ def prototypes(context, rounds, steps):
 def make_node(context, name):
     """Build an every-step SimNode at rtf 0 in ``context`` under ``/profile_<name>``."""
     from rclpy.parameter import Parameter
-    with SilencedStdout():
+    with silenced_stdout():
         from r2d2_sim.node import SimNode
         return SimNode(context=context, namespace=f'/profile_{name}', parameter_overrides=[
             Parameter('real_time_factor', value=0.0)])

@@ -15,7 +15,6 @@ The same file also holds the roles of the helper processes it starts
 """
 
 import argparse
-import ctypes
 import datetime
 import json
 import math
@@ -34,6 +33,8 @@ if REPO not in sys.path:
     sys.path.insert(0, REPO)
 # Discovery must stay on this host; set before rclpy is imported anywhere.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+
+from r2d2_sim.stdio import silenced_stdout  # noqa: E402 (after the sys.path set-up)
 
 PHYSICS_RATE_HZ = 240.0
 PHYSICS_PERIOD_MS = 1000.0 / PHYSICS_RATE_HZ
@@ -95,33 +96,6 @@ def process_cpu_s(pid):
         fields = stat.read().rsplit(')', 1)[1].split()
     # fields[0] is field 3 (state); utime and stime are fields 14 and 15.
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-
-
-class SilencedStdout:
-    """
-    Redirect file descriptor 1 to /dev/null (PyBullet prints 'argv[0]=' on connect).
-
-    C stdio buffers are flushed on the way in and out, so what PyBullet printed
-    inside (its build-time banner on import, too) is dropped, not delayed.
-    """
-
-    @staticmethod
-    def _flush_c_stdio():
-        ctypes.CDLL(None).fflush(None)
-
-    def __enter__(self):
-        sys.stdout.flush()
-        self._flush_c_stdio()
-        self._saved = os.dup(1)
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, 1)
-        os.close(devnull)
-        return self
-
-    def __exit__(self, *exc):
-        self._flush_c_stdio()
-        os.dup2(self._saved, 1)
-        os.close(self._saved)
 
 
 def system_cpu_ticks():
@@ -306,7 +280,7 @@ def role_harness(args):
     sim_node.DeadlinePacer = RecordingPacer
     init_ros(args.domain)
     executor = SingleThreadedExecutor()
-    with SilencedStdout():
+    with silenced_stdout():
         node = sim_node.SimNode(parameter_overrides=[
             Parameter('real_time_factor', value=1.0),
             Parameter('publish_rate', value=args.publish_rate)])
@@ -749,7 +723,7 @@ def make_inprocess_node(context, name, urdf='', publish_rate=0.0):
     from rclpy.parameter import Parameter
     # Quieten the 'no default wheel joints' warning of the chain robots.
     set_logger_level(f'bench_{name}.r2d2_sim', LoggingSeverity.ERROR)
-    with SilencedStdout():
+    with silenced_stdout():
         from r2d2_sim.node import SimNode
         return SimNode(context=context, namespace=f'/bench_{name}', parameter_overrides=[
             Parameter('real_time_factor', value=0.0),

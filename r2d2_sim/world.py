@@ -10,16 +10,19 @@ build and tear down their own. Joints are looked up by name into
 from dataclasses import dataclass
 from functools import partial
 import math
-import os
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy
-import pybullet
-import pybullet_data
+
+from r2d2_sim.stdio import silenced_stdout
+
+with silenced_stdout():  # PyBullet prints its build time on import
+    import pybullet
+import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
 from pybullet_utils.bullet_client import BulletClient
 
-from r2d2_sim.urdf_source import (
-    check_urdf_xml, DescriptionError, DescriptionFile, read_description,
+from r2d2_sim.description import (
+    check_urdf_xml, default_urdf_path, DescriptionError, DescriptionFile, read_description,
     resolve_description_path)
 
 Vec3 = Tuple[float, float, float]
@@ -126,29 +129,6 @@ class JointStates:
     efforts: Sequence[float]
 
 
-def default_urdf_path() -> str:
-    """
-    Return the package's own R2D2 description.
-
-    The copy beside the sources wins (a source checkout or an editable pip
-    install); otherwise the one installed under ``share/r2d2_sim`` by colcon
-    or ``pip install .``, found through the ament index.
-    """
-    source_copy = os.path.join(os.path.dirname(os.path.dirname(
-        os.path.abspath(__file__))), 'urdf', 'r2d2.urdf')
-    if os.path.isfile(source_copy):
-        return source_copy
-    from ament_index_python.packages import (
-        get_package_share_directory, PackageNotFoundError)
-    try:
-        share = get_package_share_directory('r2d2_sim')
-    except PackageNotFoundError as exc:
-        raise WorldError(
-            'cannot find the package URDF: r2d2_sim is neither in a source tree '
-            'nor in the ament index (set AMENT_PREFIX_PATH)') from exc
-    return os.path.join(share, 'urdf', 'r2d2.urdf')
-
-
 def _format(values: Sequence[float]) -> str:
     return '(' + ', '.join(f'{v:.4g}' for v in values) + ')'
 
@@ -202,8 +182,9 @@ class SimWorld:
         except DescriptionError as exc:
             self.close()
             raise WorldError(str(exc)) from None
-        self._client = BulletClient(
-            connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        with silenced_stdout():  # 'argv[0]=' on every connect
+            self._client = BulletClient(
+                connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         try:
             self._setup(gravity_m_s2, ground_plane, initial_pose)
             self.extra_model_ids = [self._load(path, m.position)

@@ -18,9 +18,10 @@ import pytest
 from std_srvs.srv import Trigger
 import yaml
 
+from r2d2_sim.description import (
+    default_urdf_path, DescriptionError, resolve_description_path)
 from r2d2_sim.node import StartupError
-from r2d2_sim.urdf_source import DescriptionError, resolve_description_path
-from r2d2_sim.world import default_urdf_path, SimWorld, WorldError
+from r2d2_sim.world import SimWorld, WorldError
 
 CLASSIC_YAML = os.path.join(REPO, 'urdf', 'classic_r2d2.yaml')
 
@@ -227,7 +228,7 @@ def test_classic_params_file_cross_process():
 ])
 def test_bad_extra_models_are_one_line(value, fragment):
     """Each malformed extra_models entry is one ConfigError line quoting it."""
-    from r2d2_sim.config import ConfigError, parse_config
+    from r2d2_sim.parameters import ConfigError, parse_config
     with pytest.raises(ConfigError, match=fragment) as info:
         parse_config({'extra_models': value})
     assert '\n' not in str(info.value)

@@ -2,10 +2,11 @@
 Where robot and object descriptions come from: files, ROS packages, pybullet_data, XML text.
 
 No ROS messaging here, only the ament index for ``package://`` URIs. Every
-failure is a :class:`~r2d2_sim.world.WorldError`-compatible one-line message.
+failure is a :class:`DescriptionError` with a one-line message.
 """
 
 import os
+import sys
 import tempfile
 from typing import Optional
 import xml.etree.ElementTree as ElementTree
@@ -13,6 +14,9 @@ import xml.etree.ElementTree as ElementTree
 import pybullet_data
 
 PACKAGE_SCHEME = 'package://'
+PACKAGE_NAME = 'r2d2_sim'
+# The checkout this module sits in (urdf/ and package.xml beside r2d2_sim/), if any.
+SOURCE_TREE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 class DescriptionError(RuntimeError):
@@ -42,18 +46,54 @@ def _resolve_package_uri(uri: str) -> str:
     package, _, relative = uri[len(PACKAGE_SCHEME):].partition('/')
     if not package or not relative:
         raise DescriptionError(f'malformed package URI {uri!r}: expected package://pkg/path')
-    from ament_index_python.packages import (
-        get_package_share_directory, PackageNotFoundError)
-    try:
-        share = get_package_share_directory(package)
-    except (PackageNotFoundError, OSError):  # OSError: AMENT_PREFIX_PATH unset
-        raise DescriptionError(
-            f'cannot resolve {uri}: package {package!r} is not in the ament index '
-            '(AMENT_PREFIX_PATH)') from None
-    path = os.path.join(share, relative)
+    path = os.path.join(package_share_directory(package), relative)
     if not os.path.isfile(path):
         raise DescriptionError(f'URDF file not found: {path} (from {uri})')
     return path
+
+
+def package_share_directory(package: str) -> str:
+    """
+    Return the share directory of an installed ROS package, as ``package://`` means it.
+
+    Looked up, in this order: the ament index (colcon workspaces and ROS
+    installs, through ``AMENT_PREFIX_PATH``); ``<sys.prefix>/share/<package>``,
+    where ``pip install`` puts a package's data files and where nothing sets
+    ``AMENT_PREFIX_PATH``; and, for r2d2_sim itself, its source tree.
+    """
+    from ament_index_python.packages import (
+        get_package_share_directory, PackageNotFoundError)
+    try:
+        return get_package_share_directory(package)
+    except (PackageNotFoundError, OSError, ValueError):
+        pass  # OSError: AMENT_PREFIX_PATH is unset, as for every pip-only user
+    candidates = [os.path.join(sys.prefix, 'share', package)]
+    if package == PACKAGE_NAME:
+        candidates.append(SOURCE_TREE)
+    for candidate in candidates:
+        if os.path.isfile(os.path.join(candidate, 'package.xml')):
+            return candidate
+    raise DescriptionError(
+        f'cannot find package {package!r}: {package!r} is not in the ament index '
+        f'(AMENT_PREFIX_PATH) nor under {os.path.join(sys.prefix, "share")}')
+
+
+def default_urdf_path() -> str:
+    """
+    Return the package's own R2D2 description.
+
+    The copy beside the sources wins (a source checkout, or an editable pip
+    install, which installs no data files); otherwise the one installed under
+    ``share/r2d2_sim`` by colcon or ``pip install .``.
+    """
+    source_copy = os.path.join(SOURCE_TREE, 'urdf', 'r2d2.urdf')
+    if os.path.isfile(source_copy):
+        return source_copy
+    try:
+        share = package_share_directory(PACKAGE_NAME)
+    except DescriptionError as exc:
+        raise DescriptionError(f'cannot find the package URDF: {exc}') from None
+    return os.path.join(share, 'urdf', 'r2d2.urdf')
 
 
 def read_description(path: str) -> str:

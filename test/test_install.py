@@ -1,0 +1,153 @@
+"""
+Every way a user installs r2d2_sim, proved by taking it: here, a plain ``pip install .``.
+
+A fresh virtual environment gets the ROS wheels and PyBullet from PyPI (the
+pip cache makes that about 20 s), then the package, not editable, built from
+a copy of the sources. Everything then runs from another directory with no
+``PYTHONPATH`` and no ``AMENT_PREFIX_PATH``, as for a pip user without a ROS
+install. (./run.sh puts the source tree on ``PYTHONPATH``, which once hid that
+such an install could not find its own URDF.) The colcon layout is proved in
+test_colcon.py; the source tree by the rest of the suite.
+"""
+
+import json
+import os
+from pathlib import Path
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+
+from conftest import next_domain_id, REPO, RemoteProbe, stop_process
+import pytest
+from sensor_msgs.msg import JointState
+
+# What a pip user installs first (README "pip install"), at the pins of requirements.txt.
+USER_REQUIREMENTS = ['ros-jazzy-rclpy[fastrtps]==7.1.6', 'ros-jazzy-common-interfaces==5.3.6',
+                     'pybullet==3.2.7', 'numpy', 'matplotlib', 'pytest']
+PYBULLET_CHATTER = ('pybullet build time', 'argv[0]=')
+
+
+def _run(args, **kwargs):
+    result = subprocess.run(args, capture_output=True, text=True, **kwargs)
+    assert result.returncode == 0, f'{args} failed:\n{result.stdout[-3000:]}{result.stderr[-3000:]}'
+    return result
+
+
+@pytest.fixture(scope='module')
+def pip_venv(tmp_path_factory):
+    """A fresh venv with r2d2_sim pip-installed (not editable) from a copy of the sources."""
+    root = tmp_path_factory.mktemp('pip_user')
+    sources = root / 'src'
+    files = subprocess.run(['git', 'ls-files'], cwd=REPO, capture_output=True, text=True,
+                           check=True).stdout.split()
+    for name in files:
+        target = sources / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(Path(REPO) / name, target)
+    venv = root / 'venv'
+    _run([sys.executable, '-m', 'venv', str(venv)])
+    pip = [str(venv / 'bin' / 'python'), '-m', 'pip', 'install', '--quiet',
+           '--disable-pip-version-check']
+    _run(pip + USER_REQUIREMENTS)
+    _run(pip + [str(sources)], cwd=root)
+    shutil.rmtree(sources)  # nothing may come from the source tree
+    return venv
+
+
+def user_env(domain_id=None):
+    """The environment of a pip user: no PYTHONPATH, no AMENT_PREFIX_PATH, discovery local."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ('PYTHONPATH', 'AMENT_PREFIX_PATH', 'VIRTUAL_ENV')}
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    if domain_id is not None:
+        env['ROS_DOMAIN_ID'] = str(domain_id)
+    return env
+
+
+def test_in_process_simulator_finds_its_installed_urdf(pip_venv, tmp_path):
+    """SimNode() builds from share/r2d2_sim/urdf under the venv, and package:// resolves."""
+    script = textwrap.dedent('''
+        import json, sys
+        import rclpy
+        from rclpy.context import Context
+        from r2d2_sim.description import resolve_description_path
+        from r2d2_sim.node import SimNode
+        import r2d2_sim
+        context = Context()
+        rclpy.init(context=context, domain_id=%d)
+        sim = SimNode(context=context)
+        sim.advance(24)
+        print(json.dumps({
+            'package': r2d2_sim.__file__, 'urdf': sim.world.urdf_path, 'prefix': sys.prefix,
+            'package_uri': resolve_description_path('package://r2d2_sim/urdf/r2d2.urdf'),
+            'classic': resolve_description_path('package://r2d2_sim/urdf/classic_r2d2.yaml'),
+            'joints': len(sim.world.joints), 'step': sim.step_count}))
+        sim.destroy_node()
+        rclpy.shutdown(context=context)
+    ''' % next_domain_id())
+    result = _run([str(pip_venv / 'bin' / 'python'), '-c', script], cwd=tmp_path,
+                  env=user_env())
+    facts = json.loads(result.stdout.strip().splitlines()[-1])
+    share = os.path.join(facts['prefix'], 'share', 'r2d2_sim')
+    assert facts['package'].startswith(facts['prefix']) and 'site-packages' in facts['package']
+    assert facts['urdf'] == os.path.join(share, 'urdf', 'r2d2.urdf')
+    assert facts['package_uri'] == facts['urdf']
+    assert facts['classic'] == os.path.join(share, 'urdf', 'classic_r2d2.yaml')
+    assert facts['joints'] == 15 and facts['step'] == 24
+    for chatter in PYBULLET_CHATTER:
+        assert chatter not in result.stdout
+
+
+@pytest.mark.parametrize('command', [['bin/sim_node'], ['bin/python', '-m', 'r2d2_sim']])
+def test_pip_installed_simulator_starts_publishes_and_stops(pip_venv, tmp_path, command):
+    """sim_node and python -m r2d2_sim start from the venv, publish, and exit 0 on SIGINT."""
+    domain = next_domain_id()
+    args = [str(pip_venv / command[0])] + command[1:]
+    process = subprocess.Popen(args, cwd=tmp_path, env=user_env(domain), text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    probe = RemoteProbe(domain, 'pip_probe')
+    try:
+        joints = []
+        probe.node.create_subscription(JointState, 'joint_states', joints.append, 10)
+        started = probe.spin_until(lambda: joints or process.poll() is not None, 30.0)
+        assert started and joints, 'no joint_states from the pip-installed simulator'
+        assert len(joints[-1].name) == 8  # the non-fixed joints of the package's R2D2
+    finally:
+        code, out, err = stop_process(process, signal.SIGINT)
+        probe.close()
+    assert code == 0, err
+    assert 'Traceback' not in out + err
+    # A ROS node's output is its own log lines, not PyBullet's banner.
+    for chatter in PYBULLET_CHATTER:
+        assert chatter not in out, out
+
+
+def test_pip_installed_demo_runs(pip_venv, tmp_path):
+    """The demo executable drives the pip-installed simulator and writes its plot."""
+    result = subprocess.run(
+        [str(pip_venv / 'bin' / 'demo'), '--real-time-factor', '0', '--output-dir', 'out',
+         '--domain-id', str(next_domain_id())],
+        cwd=tmp_path, env=user_env(), capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert (tmp_path / 'out' / 'trajectory.png').stat().st_size > 1000
+
+
+def test_users_own_pytest_run_shows_no_ros_wheel_warnings(pip_venv, tmp_path):
+    """The installed pytest plugin filters the ROS wheels' lark DeprecationWarnings."""
+    (tmp_path / 'test_mine.py').write_text(textwrap.dedent('''
+        import rclpy
+        from rclpy.context import Context
+
+        def test_ros_starts():
+            context = Context()
+            rclpy.init(context=context, domain_id=%d)
+            rclpy.shutdown(context=context)
+    ''' % next_domain_id()))
+    result = subprocess.run([str(pip_venv / 'bin' / 'python'), '-m', 'pytest', '-q',
+                             'test_mine.py'], cwd=tmp_path, env=user_env(),
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert '1 passed' in result.stdout
+    assert 'DeprecationWarning' not in result.stdout and 'warning' not in result.stdout
