@@ -17,11 +17,12 @@ from typing import List, Optional, Sequence
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.clock import Clock as RclpyClock, ClockType
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
@@ -30,7 +31,9 @@ from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim import camera
-from r2d2_sim.config import ConfigError, PARAMETERS, parse_config, SimConfig
+from r2d2_sim.parameters import (
+    Bounds, ConfigError, Parameter as ParameterSpec, PARAMETERS, parse_config, SimConfig,
+    WHEEL_FORCE, WHEEL_RADIUS, WHEEL_SEPARATION, WHEEL_VELOCITY)
 from r2d2_sim.drive import (
     DiffDriveGeometry, DiffDriveOdometry, DriveConfigError, limit_twist, ramp_twist,
     twist_to_wheel_velocities, TwistLimits, yaw_to_quaternion)
@@ -39,6 +42,10 @@ from r2d2_sim.pacing import DeadlinePacer, exact_rate, StepSchedule
 from r2d2_sim.world import ExtraModel, SimWorld, WorldError
 
 NODE_NAME = 'r2d2_sim'
+ROS_TYPES = {'double': Parameter.Type.DOUBLE, 'integer': Parameter.Type.INTEGER,
+             'bool': Parameter.Type.BOOL, 'string': Parameter.Type.STRING,
+             'double_array': Parameter.Type.DOUBLE_ARRAY,
+             'string_array': Parameter.Type.STRING_ARRAY}
 # Warnings about rejected commands repeat at most this often per kind of problem.
 WARNING_PERIOD_S = 5.0
 # How often (wall-clock seconds) to look for cmd_vel publishers of a wrong type.
@@ -83,13 +90,14 @@ class SimNode(Node):
     Raises :class:`StartupError` when its parameters or URDF are unusable.
     """
 
-    def __init__(self, **node_kwargs) -> None:
-        super().__init__(NODE_NAME, **node_kwargs)
+    def __init__(self, node_name: str = NODE_NAME, **node_kwargs) -> None:
+        super().__init__(node_name, **node_kwargs)
         self._lock = threading.RLock()
         self._warned_at = {}
         self.commands_received = 0
         self.commands_rejected = 0
         self.blow_ups = 0
+        self._last_publish_step = 0
         self.world: Optional[SimWorld] = None
         try:
             self.config = self._declare_parameters()
@@ -106,14 +114,41 @@ class SimNode(Node):
     # -- set-up ---------------------------------------------------------------
 
     def _declare_parameters(self) -> SimConfig:
-        values = {}
+        """
+        Validate the overrides, then declare every parameter with its type and that value.
+
+        Validation comes first so a wrong value or type is one ConfigError line
+        (rclpy would raise its own exception for a type mismatch). The values
+        are declared converted to the table's type (an integer given for a
+        double becomes a double), so ``ros2 param describe`` shows the type.
+        """
+        overrides = getattr(self, '_parameter_overrides', {})
+        raw = {spec.name: overrides[spec.name].value if spec.name in overrides else spec.default
+               for spec in PARAMETERS}
+        config = parse_config(raw)
         for spec in PARAMETERS:
-            descriptor = ParameterDescriptor(
-                description=spec.description, read_only=True, dynamic_typing=True)
-            values[spec.name] = self.declare_parameter(
-                spec.name, spec.default, descriptor).value
+            self._declare_typed(spec, raw[spec.name])
         self._warn_unknown_overrides()
-        return parse_config(values)
+        return config
+
+    def _declare_typed(self, spec: ParameterSpec, value) -> None:
+        ros_type = ROS_TYPES[spec.ros_type]
+        descriptor = ParameterDescriptor(description=spec.description, read_only=True)
+        bounds = spec.bounds
+        if bounds is not None and bounds.zero is None and spec.ros_type == 'double':
+            descriptor.floating_point_range = [
+                FloatingPointRange(from_value=float(bounds.low), to_value=float(bounds.high))]
+        # The raw value passed validation: only its Python type may differ.
+        convert = {'double': float, 'integer': int,
+                   'double_array': lambda v: [float(x) for x in v],
+                   'string_array': lambda v: list(v or [])}.get(spec.ros_type)
+        if convert is not None:
+            value = convert(value)
+        if isinstance(value, list) and not value:
+            # rclpy types an empty list as a byte array: declare the type, with no value.
+            self.declare_parameter(spec.name, ros_type, descriptor, ignore_override=True)
+        else:
+            self.declare_parameter(spec.name, value, descriptor, ignore_override=True)
 
     def _warn_unknown_overrides(self) -> None:
         """Name parameters given on the command line or in a file that nothing reads."""
@@ -217,15 +252,21 @@ class SimNode(Node):
         movable_slot = {index: slot for slot, index in enumerate(self._movable_indices)}
         self._wheel_slots = [movable_slot[index] for index in self._wheel_indices]
         world.set_wheel_lateral_friction(self._wheel_indices, config.wheel_lateral_friction_ratio)
-        radius = config.wheel_radius_m or world.wheel_radius_m(self._left[0])
-        separation = config.wheel_separation_m or self._derive_separation()
-        max_velocity = config.max_wheel_velocity_rad_s or min(w.max_velocity for w in wheels)
-        max_force = config.max_wheel_force_n_m or min(w.max_force for w in wheels)
-        if not max_velocity > 0.0:
+        radius = config.wheel_radius_m or _from_urdf(
+            'wheel_radius', world.wheel_radius_m(self._left[0]), WHEEL_RADIUS)
+        separation = config.wheel_separation_m or _from_urdf(
+            'wheel_separation', self._derive_separation(), WHEEL_SEPARATION)
+        urdf_velocity = min(w.max_velocity for w in wheels)
+        urdf_force = min(w.max_force for w in wheels)
+        if not urdf_velocity > 0.0 and not config.max_wheel_velocity_rad_s:
             raise ConfigError(
                 'the URDF gives the wheels no velocity limit: set max_wheel_velocity')
-        if not max_force > 0.0:
+        if not urdf_force > 0.0 and not config.max_wheel_force_n_m:
             raise ConfigError('the URDF gives the wheels no effort limit: set max_wheel_force')
+        max_velocity = config.max_wheel_velocity_rad_s or _from_urdf(
+            'max_wheel_velocity', urdf_velocity, WHEEL_VELOCITY)
+        max_force = config.max_wheel_force_n_m or _from_urdf(
+            'max_wheel_force', urdf_force, WHEEL_FORCE)
         self.geometry = DiffDriveGeometry(
             wheel_radius_m=radius,
             wheel_separation_m=separation * config.wheel_separation_multiplier,
@@ -440,6 +481,7 @@ class SimNode(Node):
         self._odometry_step = step
 
     def _publish_state(self, states=None, base=None) -> None:
+        self._last_publish_step = self.world.step_count
         ns = self.sim_time_ns
         sec, nanosec = divmod(ns, 10**9)
         self._clock_msg.clock.sec = sec
@@ -569,35 +611,51 @@ class SimNode(Node):
                                        'joints': info})
         return response
 
+    def status(self, **facts) -> str:
+        """
+        Return the simulation's state as the JSON text the control services reply with.
+
+        Keys: ``paused``, ``step`` (physics steps since start), ``sim_time_ns``
+        and ``sim_time`` (s) of the last step, ``commands_received`` (cmd_vel
+        messages taken so far, so a client can confirm its command arrived),
+        plus the service's own ``facts`` (``steps`` advanced, an ``error``).
+        """
+        ns = self.sim_time_ns
+        state = {'paused': self._paused, 'step': self.world.step_count, 'sim_time_ns': ns,
+                 'sim_time': ns / 1e9, 'commands_received': self.commands_received}
+        state.update(facts)
+        return json.dumps(state)
+
     def _on_pause(self, request, response):
         with self._lock:  # no step runs between the change and the reply's time
+            if request.data and not self._paused:
+                # Stop where a client sees the state: finish the control period
+                # up to the step that publishes, so the reply's time is the last
+                # /clock and every ~/step after it is one whole period.
+                if self.world.step_count != self._last_publish_step:
+                    self.advance_to_next_publish()
             self._paused = bool(request.data)
-            stamp = self.sim_time_ns / 1e9
+            response.message = self.status()
         response.success = True
-        # The count lets a client that steps cross-process confirm that its
-        # cmd_vel arrived before it asks for the next step.
-        state = 'paused' if self._paused else 'running'
-        response.message = (f'{state} at t={stamp:.6f} s; '
-                            f'cmd_vel received: {self.commands_received}')
         return response
 
     def _on_step(self, request, response):
         with self._lock:
             if not self._paused:
                 response.success = False
-                response.message = 'the simulation is running: pause it (~/pause true) to step'
+                response.message = self.status(
+                    steps=0, error='the simulation is running: pause it (~/pause true) to step')
                 return response
             steps = self.advance_to_next_publish()
+            response.message = self.status(steps=steps)
         response.success = True
-        response.message = f'advanced {steps} physics step(s) to t={self.sim_time_ns / 1e9:.6f} s'
         return response
 
     def _on_reset(self, request, response):
         with self._lock:
             self._reset_locked()
-            stamp = self.sim_time_ns / 1e9
+            response.message = self.status()
         response.success = True
-        response.message = f'reset at t={stamp:.6f} s'
         return response
 
     def _reset_locked(self, publish: bool = True) -> None:
@@ -618,6 +676,15 @@ class SimNode(Node):
             with self._lock:
                 self.world.close()
         super().destroy_node()
+
+
+def _from_urdf(name: str, value: float, bounds: Bounds) -> float:
+    """Hold a value derived from the URDF to the bounds of the parameter that overrides it."""
+    try:
+        return bounds.check(name, value)
+    except ConfigError:
+        raise ConfigError(f'the URDF gives {name.replace("_", " ")} {value:g} {bounds.unit}, '
+                          f'outside [{bounds.low:g}, {bounds.high:g}]: set {name}') from None
 
 
 def gui_frame_steps(config: SimConfig) -> int:

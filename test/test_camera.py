@@ -14,7 +14,7 @@ import pytest
 from sensor_msgs.msg import CameraInfo, Image
 
 from r2d2_sim import camera
-from r2d2_sim.config import ConfigError, parse_config
+from r2d2_sim.parameters import ConfigError, parse_config
 from r2d2_sim.node import StartupError
 from test_robots import classic_params
 

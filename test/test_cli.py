@@ -56,6 +56,11 @@ def test_sim_node_process_drives_and_stops_cleanly(domain, sig):
     (['-p', 'right_wheel_names:=[]'], 'both be empty'),
     (['-p', 'initial_pose:=[1.0e5, 0.0, 0.0]'], 'base left the world'),
     (['-p', 'gravity:=[0.0]'], 'gravity must be a list of 3 numbers'),
+    (['-p', 'wheel_radius:=1.0e308'], 'wheel_radius must be in [0.001, 10] m'),
+    (['-p', 'wheel_radius:=1.0e-9'], 'wheel_radius must be in [0.001, 10] m'),
+    (['-p', 'max_wheel_force:=1.0e308'], 'max_wheel_force must be in'),
+    (['-p', 'wheel_separation:=1.0e6'], 'wheel_separation must be in'),
+    (['-p', 'real_time_factor:=1.0e308'], 'real_time_factor must be in [0, 1000]'),
 ])
 def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     """A wrong parameter stops start-up with one readable line and exit code 2."""

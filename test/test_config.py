@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from r2d2_sim.config import ConfigError, PARAMETERS, parse_config
+from r2d2_sim.parameters import ConfigError, PARAMETERS, parse_config
 
 
 def test_defaults_are_valid():
@@ -49,6 +49,15 @@ def test_every_parameter_has_a_description():
     ('physics_rate', None, 'number'),
     ('right_wheel_names', None, 'both be empty'),
     ('gravity', None, '3 numbers'),
+    ('wheel_radius', 1e308, 'must be in [0.001, 10] m (derive it from the URDF with 0)'),
+    ('wheel_radius', 1e-9, 'must be in [0.001, 10] m'),
+    ('wheel_separation', 1e308, 'must be in [0.001, 100] m'),
+    ('max_wheel_force', 1e308, 'must be in [0.001, 100000] N m'),
+    ('max_wheel_velocity', 1e-6, 'must be in [0.001, 10000] rad/s'),
+    ('max_linear_velocity', 1e308, 'must be in [0.001, 50] m/s'),
+    ('max_angular_acceleration', 1e9, 'must be in [0.001, 1000] rad/s^2'),
+    ('real_time_factor', 1e308, 'must be in [0, 1000]'),
+    ('wheel_separation_multiplier', 1e-3, 'must be in [0.1, 10]'),
 ])
 def test_bad_values_raise_one_line(name, value, fragment):
     """Each invalid value raises ConfigError naming the parameter or the problem."""
@@ -62,6 +71,22 @@ def test_bad_values_raise_one_line(name, value, fragment):
 def test_integers_are_accepted_as_numbers():
     """240 given as an integer is the same as 240.0."""
     assert parse_config({'physics_rate': 120, 'publish_rate': 60}).publish_rate_hz == 60.0
+
+
+@pytest.mark.parametrize('name', ['wheel_radius', 'wheel_separation', 'max_wheel_force',
+                                  'max_wheel_velocity', 'max_linear_velocity'])
+def test_zero_keeps_its_meaning_outside_the_bounds(name):
+    """0 still means "derive it" or "no limit", although it is below each range."""
+    parse_config({name: 0.0})
+
+
+def test_every_bounded_default_is_inside_its_bounds():
+    """The table's own defaults satisfy its bounds (or are the documented 0)."""
+    for spec in PARAMETERS:
+        if spec.bounds is not None:
+            for value in spec.default if isinstance(spec.default, list) else [spec.default]:
+                assert value == 0.0 and spec.bounds.zero or \
+                    spec.bounds.low <= value <= spec.bounds.high, spec.name
 
 
 def test_booleans_are_not_numbers():

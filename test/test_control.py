@@ -1,7 +1,8 @@
 """Simulation control: ~/pause, ~/step, ~/reset, start_paused, and bit-for-bit determinism."""
 
+from fractions import Fraction
+import json
 import math
-import re
 import threading
 
 from conftest import (latest_truth, make_sim, next_domain_id, Probe, start_sim_process,
@@ -39,17 +40,18 @@ def test_pause_is_idempotent_and_reports_state(sim, probe):
     first = pause(probe, True)
     second = pause(probe, True)
     assert first.success and second.success
-    assert first.message.startswith('paused') and second.message.startswith('paused')
+    assert json.loads(first.message)['paused'] and json.loads(second.message)['paused']
     assert sim.paused
     resumed = pause(probe, False)
-    assert resumed.message.startswith('running') and not sim.paused
+    assert json.loads(resumed.message)['paused'] is False and not sim.paused
 
 
 def test_step_fails_while_running(sim, probe):
     """~/step refuses while physics runs, with a message saying how to pause."""
     response = trigger(probe, 'step')
     assert not response.success
-    assert 'pause' in response.message
+    reply = json.loads(response.message)
+    assert 'pause' in reply['error'] and reply['steps'] == 0
     assert sim.step_count == 0
 
 
@@ -66,6 +68,41 @@ def test_step_advances_one_publish_period(ros):
     assert (clock.sec, clock.nanosec) == (0, 16666666)  # 4 / 240 s, floored to ns
     trigger(probe, 'step')
     assert sim.step_count == 8
+
+
+@pytest.mark.parametrize('publish_rate', [20.0, 50.0])
+def test_pause_lands_on_a_publication(ros, publish_rate):
+    """
+    Pausing between publications stops after the step that publishes, never before.
+
+    At publish_rate 20 (12 steps a period) a pause requested at step 125
+    (t = 0.5208 s, 5 steps after the last publication at 0.5 s) runs on to
+    step 132 (0.55 s) and publishes it: the reply's time is the last /clock,
+    and each ~/step then advances exactly one period. At 50 Hz the periods
+    are 4 or 5 steps (the first step after each 1/50 s).
+    """
+    # The n-th publication is at the first step at or after n / publish_rate s.
+    steps_per_publication = Fraction(240) / Fraction(publish_rate)
+    publications = [math.ceil(n * steps_per_publication) for n in range(1, 60)]
+    sim = make_sim(ros, publish_rate=publish_rate)
+    probe = Probe(ros, sim)
+    sim.advance(121)
+    facts = json.loads(pause(probe, True).message)
+    assert facts['paused']
+    assert facts['step'] == min(p for p in publications if p >= 121) == sim.step_count
+    assert wait_for(lambda: probe.messages['clock']
+                    and _ns(probe.messages['clock'][-1].clock) == facts['sim_time_ns'])
+    assert facts['sim_time_ns'] == facts['step'] * 10**9 // 240
+    for _ in range(3):
+        before = sim.step_count
+        step = json.loads(trigger(probe, 'step').message)
+        following = publications[publications.index(before) + 1]
+        assert step['steps'] == following - before == sim.step_count - before
+        assert wait_for(lambda: _ns(probe.messages['clock'][-1].clock) == step['sim_time_ns'])
+
+
+def _ns(stamp):
+    return stamp.sec * 10**9 + stamp.nanosec
 
 
 def test_paused_node_does_not_advance_in_the_paced_loop(ros):
@@ -108,9 +145,9 @@ def test_pause_reply_time_is_where_physics_stopped(ros):
         for _ in range(10):
             assert wait_for(lambda: sim.step_count > 0, 10.0)
             reply = pause(probe, True)
-            stamp = float(re.search(r't=([0-9.]+)', reply.message).group(1))
+            facts = json.loads(reply.message)
             steps = sim.step_count
-            assert stamp == pytest.approx(steps / 240, abs=1e-6)
+            assert facts['step'] == steps and facts['sim_time_ns'] == steps * 10**9 // 240
             assert not wait_for(lambda: sim.step_count != steps, 0.05)
             pause(probe, False)
     finally:
@@ -130,8 +167,9 @@ def test_reset_restores_robot_keeps_clock(ros, paused):
     step_before = sim.step_count
     response = trigger(probe, 'reset')
     assert response.success
-    stamp = float(re.search(r't=([0-9.]+)', response.message).group(1))
-    assert stamp == pytest.approx(step_before / 240, abs=1e-6)
+    facts = json.loads(response.message)
+    assert facts['step'] == step_before
+    assert facts['sim_time'] == pytest.approx(step_before / 240, abs=1e-9)
     x, y, yaw = latest_truth(sim)
     assert abs(x) < 1e-6 and abs(y) < 1e-6 and abs(yaw) < 1e-6
     assert sim.odometry.x_m == 0.0 and sim.odometry.yaw_rad == 0.0
@@ -215,8 +253,7 @@ def test_cross_process_stepping_matches_in_process(ros, real_time_factor):
     def received_count():
         request = SetBool.Request()
         request.data = True
-        message = call(pause_client, request).message
-        return int(message.rsplit(':', 1)[1])
+        return json.loads(call(pause_client, request).message)['commands_received']
 
     try:
         assert step_client.wait_for_service(timeout_sec=20.0), 'sim_node did not start'

@@ -273,9 +273,7 @@ def commands_received(probe, pause_client):
     assert pause_client.wait_for_service(timeout_sec=START_TIMEOUT_S), 'pause unavailable'
     future = pause_client.call_async(SetBool.Request(data=False))
     assert probe.spin_until(future.done, 5.0), 'pause did not answer'
-    message = future.result().message
-    assert 'cmd_vel received: ' in message, message
-    return int(message.rsplit('cmd_vel received: ', 1)[1])
+    return json.loads(future.result().message)['commands_received']
 
 
 def assert_clean_exit(code, out, err):
@@ -500,8 +498,8 @@ def _signal_while_paused(domain, probe, started, hammers):
     # An answer proves the node is up, spinning and (still) paused.
     future = pause.call_async(SetBool.Request(data=True))
     assert probe.spin_until(future.done, 5.0), 'pause did not answer'
-    assert future.result().message.startswith('paused at t=0.000000 s'), \
-        future.result().message
+    facts = json.loads(future.result().message)
+    assert facts['paused'] and facts['step'] == 0, facts
 
 
 def _signal_during_service_calls(domain, probe, started, hammers):

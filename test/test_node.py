@@ -9,12 +9,13 @@ time; an executor thread delivers messages between the two nodes.
 import json
 import math
 
-from conftest import latest_truth, make_sim, Probe, RATE_HZ
+from conftest import latest_truth, make_sim, Probe, RATE_HZ, wait_for
+from geometry_msgs.msg import Twist
 import pytest
 from std_srvs.srv import Trigger
 
 from r2d2_sim.drive import quaternion_to_yaw, twist_to_wheel_velocities
-from r2d2_sim.node import StartupError
+from r2d2_sim.node import SimNode, StartupError
 
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
           'right_front_wheel_joint', 'right_back_wheel_joint']
@@ -209,3 +210,22 @@ def test_publish_rate_divides_physics(ros):
     probe.wait_count('joint_states', 50)
     stamps = [stamp_s(m) for m in probe.messages['joint_states'] if stamp_s(m) > 0.0]
     assert len(stamps) == 50 and stamps[-1] == 1.0
+
+
+def test_two_named_simulators_share_one_process(ros):
+    """SimNode takes a node name and namespace: two robots in one context, no cross-talk."""
+    sims = {ns: ros.add(SimNode(f'sim_{ns}', namespace=f'/{ns}', context=ros.context))
+            for ns in ('a', 'b')}
+    assert sims['a'].get_fully_qualified_name() == '/a/sim_a'
+    assert sims['b'].get_fully_qualified_name() == '/b/sim_b'
+    node = ros.node('two_sims_probe')
+    pub = node.create_publisher(Twist, '/a/cmd_vel', 10)
+    received = sims['a'].commands_received
+    command = Twist()
+    command.linear.x = 0.3
+    pub.publish(command)
+    assert wait_for(lambda: sims['a'].commands_received > received), 'a got no cmd_vel'
+    for sim in sims.values():
+        sim.advance(240)
+    assert latest_truth(sims['a'])[0] > 0.1
+    assert abs(latest_truth(sims['b'])[0]) < 1e-3 and sims['b'].commands_received == 0

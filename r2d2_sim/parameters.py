@@ -1,0 +1,385 @@
+"""
+The node's parameters in one table: name, ROS type, default, unit, bounds, description.
+
+No ROS here. Everything else is derived from :data:`PARAMETERS`: the
+:class:`SimConfig` fields, the validation in :func:`parse_config` (one readable
+:class:`ConfigError` line per bad value, so a bad parameter is a clear start-up
+error rather than a traceback) and the node's typed ROS declarations.
+"""
+
+from dataclasses import make_dataclass
+import math
+from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
+
+
+class ConfigError(ValueError):
+    """A parameter value the simulator cannot run with."""
+
+
+# Measured on the package's own R2D2 (four wheels skid-steering, lateral
+# friction ratio 0.35): it turns at 90-95 % of an ideal differential drive's
+# yaw rate for wheel speeds of 1 to 10 rad/s; an effective track of 1.1 x the
+# geometric 0.44 m makes a 0.5 rad/s command turn at 0.5 rad/s.
+DEFAULT_WHEEL_SEPARATION_MULTIPLIER = 1.1
+
+# Measured on the package's R2D2 (tall, 0.44 m track): a step to full speed
+# (1.75 m/s, the wheels' 50 rad/s) tips it over at 3 m/s^2 and above, but not at
+# 2; spinning in place it stays upright up to about 3 rad/s (7 degrees of
+# wobble) and falls over at 5. The defaults keep any command on its wheels.
+DEFAULT_MAX_LINEAR_ACCELERATION_M_S2 = 1.0
+DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2 = 2.0
+DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S = 3.0
+
+# Yaw from the URDF base frame to the REP-103 body frame for each forward axis.
+FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.pi / 2}
+
+
+class Bounds(NamedTuple):
+    """
+    The plausible range of a number, with its unit for messages.
+
+    ``zero`` names what 0 means when 0 is allowed outside the range ("derive
+    it from the URDF", "no limit"); None when 0 is just a value to check.
+    """
+
+    low: float
+    high: float
+    unit: str = ''
+    zero: Optional[str] = None
+
+    def check(self, name: str, value: float) -> float:
+        """Return ``value`` if it is in range (or an allowed 0), else raise ConfigError."""
+        if value == 0.0 and self.zero is not None:
+            return value
+        if not self.low <= value <= self.high:
+            unit = f' {self.unit}' if self.unit else ''
+            zero = f' ({self.zero} with 0)' if self.zero else ''
+            raise ConfigError(f'parameter {name} must be in [{self.low:g}, {self.high:g}]'
+                              f'{unit}{zero}, got {value:g}')
+        return value
+
+
+# Physical quantities of a robot that drives on wheels; beyond these a value is
+# a typo (wheel_radius 1e308 once made odom report x = -5e284).
+WHEEL_RADIUS = Bounds(0.001, 10.0, 'm', 'derive it from the URDF')
+WHEEL_SEPARATION = Bounds(0.001, 100.0, 'm', 'derive it from the URDF')
+WHEEL_VELOCITY = Bounds(0.001, 10000.0, 'rad/s', 'take the URDF velocity limit')
+WHEEL_FORCE = Bounds(0.001, 100000.0, 'N m', 'take the URDF effort limit')
+
+
+# -- readers: raw parameter value -> validated value (one ConfigError line) ---
+
+def _number(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f'parameter {name} must be a number, got {value!r}')
+    value = float(value)
+    if not math.isfinite(value):
+        raise ConfigError(f'parameter {name} must be finite, got {value}')
+    return value
+
+
+def _positive(name: str, value: Any) -> float:
+    value = _number(name, value)
+    if value <= 0.0:
+        raise ConfigError(f'parameter {name} must be > 0, got {value}')
+    return value
+
+
+def _non_negative(name: str, value: Any) -> float:
+    value = _number(name, value)
+    if value < 0.0:
+        raise ConfigError(f'parameter {name} must be >= 0, got {value}')
+    return value
+
+
+def _limit(name: str, value: Any) -> float:
+    """Read a limit where 0 means none: math.inf."""
+    return _non_negative(name, value) or math.inf
+
+
+def _field_of_view(name: str, value: Any) -> float:
+    value = _positive(name, value)
+    if value >= 180.0:
+        raise ConfigError(f'parameter {name} must be below 180 degrees, got {value}')
+    return value
+
+
+def _ratio(name: str, value: Any) -> float:
+    value = _positive(name, value)
+    if value > 1.0:
+        raise ConfigError(f'parameter {name} must be in (0, 1], got {value}')
+    return value
+
+
+def _boolean(name: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise ConfigError(f'parameter {name} must be true or false, got {value!r}')
+    return value
+
+
+def _string(name: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise ConfigError(f'parameter {name} must be a string, got {value!r}')
+    return value
+
+
+def _frame(name: str, value: Any) -> str:
+    value = _string(name, value)
+    if not value.strip():
+        raise ConfigError(f'parameter {name} must not be empty')
+    return value
+
+
+def _is_string_list(value: Any) -> bool:
+    return (isinstance(value, (list, tuple))
+            and all(isinstance(v, str) for v in value))
+
+
+def _joint_names(name: str, value: Any) -> Tuple[str, ...]:
+    if not _is_string_list(value):
+        raise ConfigError(f'parameter {name} must be a list of joint names, got {value!r}')
+    names = tuple(value)
+    if len(set(names)) != len(names):
+        raise ConfigError(f'parameter {name} lists a joint twice: {list(names)}')
+    return names
+
+
+def _integer(name: str, value: Any) -> int:
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or (isinstance(value, float) and not value.is_integer())):
+        raise ConfigError(f'parameter {name} must be an integer, got {value!r}')
+    return int(value)
+
+
+def _choice(choices: Sequence[Any]) -> Callable[[str, Any], Any]:
+    def read(name: str, value: Any) -> Any:
+        if isinstance(value, bool) or value not in choices:
+            # ROS parameter files read a bare y, n, yes, on... as booleans.
+            hint = ' (quote the value in YAML files)' if isinstance(value, bool) else ''
+            raise ConfigError(f'parameter {name} must be one of '
+                              f'{", ".join(str(c) for c in choices)}; got {value!r}{hint}')
+        return value
+    return read
+
+
+def _numbers(length: int) -> Callable[[str, Any], Tuple[float, ...]]:
+    def read(name: str, value: Any) -> Tuple[float, ...]:
+        if (isinstance(value, (str, bytes)) or not hasattr(value, '__len__')
+                or len(value) != length):
+            raise ConfigError(
+                f'parameter {name} must be a list of {length} numbers, got {value!r}')
+        return tuple(_number(name, v) for v in value)
+    return read
+
+
+def _variances(name: str, value: Any) -> Tuple[float, ...]:
+    values = _numbers(6)(name, value)
+    if min(values) < 0.0:
+        raise ConfigError(f'parameter {name} must not contain negative variances')
+    return values
+
+
+def _extra_models(name: str, value: Any) -> Tuple[Tuple[str, Tuple[float, float, float]], ...]:
+    if not _is_string_list(value):
+        raise ConfigError(f'parameter {name} must be a list of strings, got {value!r}')
+    models = []
+    for entry in value:
+        parts = entry.rsplit(None, 3)
+        try:
+            if len(parts) != 4:
+                raise ValueError
+            position = tuple(float(p) for p in parts[1:])
+        except ValueError:
+            raise ConfigError(f'parameter {name}: entry {entry!r} is not '
+                              '"description x y z"') from None
+        if not all(math.isfinite(p) for p in position):
+            raise ConfigError(f'parameter {name}: entry {entry!r} has a non-finite position')
+        models.append((parts[0], position))
+    return tuple(models)
+
+
+# -- the table -----------------------------------------------------------------
+
+class Parameter(NamedTuple):
+    """
+    One ROS parameter and the :class:`SimConfig` field it becomes.
+
+    ``ros_type`` is the declared ROS type (double, integer, bool, string,
+    double_array, string_array); ``read`` validates and converts a raw value;
+    ``bounds`` then holds numbers (or each element of a number list) to a range.
+    """
+
+    name: str
+    ros_type: str
+    default: Any
+    description: str
+    field: str
+    read: Callable[[str, Any], Any]
+    bounds: Optional[Bounds] = None
+
+
+PARAMETERS: List[Parameter] = [
+    Parameter('urdf', 'string', '',
+              'Robot description: a file path, a package://pkg/path URI or a name in '
+              'pybullet_data (r2d2.urdf); empty means the package\'s own urdf/r2d2.urdf.',
+              'urdf', _string),
+    Parameter('robot_description', 'string', '',
+              'URDF XML text (as robot_state_publisher takes it); overrides urdf.',
+              'robot_description', _string),
+    Parameter('base_forward_axis', 'string', 'x',
+              'Axis of the URDF base frame the robot drives along: x, y, -x or -y.',
+              'base_forward_axis', _choice(list(FORWARD_AXIS_YAW_RAD))),
+    Parameter('wheel_velocity_sign', 'integer', 1,
+              '1, or -1 when a negative wheel velocity drives the robot forward.',
+              'wheel_velocity_sign', _choice([1, -1])),
+    Parameter('gravity', 'double_array', [0.0, 0.0, -9.8], 'Gravity [x, y, z] in m/s^2.',
+              'gravity_m_s2', _numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis')),
+    Parameter('ground_plane', 'bool', True, 'Load pybullet_data\'s plane.urdf as the ground.',
+              'ground_plane', _boolean),
+    Parameter('extra_models', 'string_array', [],
+              'Other bodies, each "description x y z" (description resolved like urdf).',
+              'extra_models', _extra_models),
+    Parameter('gui', 'bool', False, 'Open the PyBullet window (needs a display).',
+              'gui', _boolean),
+    Parameter('physics_rate', 'double', 240.0, 'Physics steps per simulated second (Hz).',
+              'physics_rate_hz', _positive, Bounds(10.0, 10000.0, 'Hz')),
+    Parameter('real_time_factor', 'double', 1.0,
+              'Simulated seconds per wall-clock second; 0 runs as fast as possible.',
+              'real_time_factor', _non_negative, Bounds(0.0, 1000.0)),
+    Parameter('publish_rate', 'double', 0.0,
+              'State publishing rate in simulated Hz; 0 publishes after every physics step.',
+              'publish_rate_hz', _non_negative),
+    Parameter('cmd_vel_timeout', 'double', 0.5,
+              'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
+              'cmd_vel_timeout_s', _non_negative),
+    Parameter('start_paused', 'bool', False,
+              'Start with physics stopped, waiting for ~/pause false or ~/step.',
+              'start_paused', _boolean),
+    Parameter('wheel_radius', 'double', 0.0,
+              'Wheel radius in metres; 0 derives it from the wheels\' collision shapes.',
+              'wheel_radius_m', _non_negative, WHEEL_RADIUS),
+    Parameter('wheel_separation', 'double', 0.0,
+              'Distance between left and right wheels in metres; 0 derives it from the URDF.',
+              'wheel_separation_m', _non_negative, WHEEL_SEPARATION),
+    Parameter('wheel_separation_multiplier', 'double', DEFAULT_WHEEL_SEPARATION_MULTIPLIER,
+              'Effective/nominal track ratio used by commands and odometry (skid steering).',
+              'wheel_separation_multiplier', _positive, Bounds(0.1, 10.0)),
+    Parameter('wheel_lateral_friction_ratio', 'double', 0.35,
+              'Wheel grip along the axle relative to rolling grip, in (0, 1].',
+              'wheel_lateral_friction_ratio', _ratio),
+    Parameter('left_wheel_names', 'string_array',
+              ['left_front_wheel_joint', 'left_back_wheel_joint'],
+              'Joints driven as the left side.', 'left_wheel_names', _joint_names),
+    Parameter('right_wheel_names', 'string_array',
+              ['right_front_wheel_joint', 'right_back_wheel_joint'],
+              'Joints driven as the right side.', 'right_wheel_names', _joint_names),
+    Parameter('max_wheel_velocity', 'double', 0.0,
+              'Wheel speed limit in rad/s; 0 takes the URDF joint velocity limit.',
+              'max_wheel_velocity_rad_s', _non_negative, WHEEL_VELOCITY),
+    Parameter('max_wheel_force', 'double', 0.0,
+              'Wheel motor torque limit in N m; 0 takes the URDF joint effort limit.',
+              'max_wheel_force_n_m', _non_negative, WHEEL_FORCE),
+    Parameter('max_linear_velocity', 'double', 0.0,
+              'Forward speed limit in m/s; 0 leaves only the wheel speed limit.',
+              'max_linear_velocity_m_s', _limit, Bounds(0.001, 50.0, 'm/s', 'no limit')),
+    Parameter('max_angular_velocity', 'double', DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S,
+              'Turn rate limit in rad/s; 0 leaves only the wheel speed limit.',
+              'max_angular_velocity_rad_s', _limit, Bounds(0.001, 50.0, 'rad/s', 'no limit')),
+    Parameter('max_linear_acceleration', 'double', DEFAULT_MAX_LINEAR_ACCELERATION_M_S2,
+              'Forward acceleration and braking limit in m/s^2; 0 means none.',
+              'max_linear_acceleration_m_s2', _limit,
+              Bounds(0.001, 1000.0, 'm/s^2', 'no limit')),
+    Parameter('max_angular_acceleration', 'double', DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2,
+              'Turn rate acceleration limit in rad/s^2; 0 means none.',
+              'max_angular_acceleration_rad_s2', _limit,
+              Bounds(0.001, 1000.0, 'rad/s^2', 'no limit')),
+    Parameter('odom_frame_id', 'string', 'odom', 'Frame of the wheel odometry.',
+              'odom_frame_id', _frame),
+    Parameter('base_frame_id', 'string', 'base_link', 'Child frame of both odometry topics.',
+              'base_frame_id', _frame),
+    Parameter('world_frame_id', 'string', 'world', 'Frame of the ground_truth odometry.',
+              'world_frame_id', _frame),
+    Parameter('initial_pose', 'double_array', [0.0, 0.0, 0.0],
+              'Spawn pose [x (m), y (m), yaw (rad)] in the world frame.',
+              'initial_pose', _numbers(3)),
+    Parameter('pose_covariance_diagonal', 'double_array',
+              [0.001, 0.001, 1.0e6, 1.0e6, 1.0e6, 0.01],
+              'Diagonal of the odom pose covariance (x, y, z, roll, pitch, yaw).',
+              'pose_covariance_diagonal', _variances),
+    Parameter('twist_covariance_diagonal', 'double_array',
+              [0.001, 1.0e6, 1.0e6, 1.0e6, 1.0e6, 0.01],
+              'Diagonal of the odom twist covariance (vx, vy, vz, wx, wy, wz).',
+              'twist_covariance_diagonal', _variances),
+    Parameter('camera_rate', 'double', 0.0,
+              'Head camera images per simulated second (Hz); 0 turns the camera off.',
+              'camera_rate_hz', _non_negative),
+    Parameter('camera_width', 'integer', 320, 'Head camera image width in pixels.',
+              'camera_width_px', _integer, Bounds(1, 4096, 'px')),
+    Parameter('camera_height', 'integer', 240, 'Head camera image height in pixels.',
+              'camera_height_px', _integer, Bounds(1, 4096, 'px')),
+    Parameter('camera_fov', 'double', 60.0, 'Head camera vertical field of view in degrees.',
+              'camera_fov_deg', _field_of_view),
+]
+
+PARAMETERS_BY_NAME: Dict[str, Parameter] = {p.name: p for p in PARAMETERS}
+
+# Python types of the SimConfig fields, by ROS type.
+_FIELD_TYPES = {'double': float, 'integer': int, 'bool': bool, 'string': str,
+                'double_array': Tuple[float, ...], 'string_array': Tuple[str, ...]}
+
+
+def _body_yaw_offset_rad(self) -> float:
+    """Return the yaw from the URDF base frame to the REP-103 body frame."""
+    return FORWARD_AXIS_YAW_RAD[self.base_forward_axis]
+
+
+def _wheel_names_are_default(self) -> bool:
+    """Return True when the wheel joint names were left at their defaults."""
+    return (list(self.left_wheel_names) == PARAMETERS_BY_NAME['left_wheel_names'].default
+            and list(self.right_wheel_names) == PARAMETERS_BY_NAME['right_wheel_names'].default)
+
+
+SimConfig = make_dataclass(
+    'SimConfig', [(p.field, _FIELD_TYPES[p.ros_type]) for p in PARAMETERS], frozen=True,
+    namespace={'__doc__': 'Validated simulator settings in SI units, one field per parameter.',
+               'body_yaw_offset_rad': property(_body_yaw_offset_rad),
+               'wheel_names_are_default': property(_wheel_names_are_default)})
+SimConfig.__module__ = __name__
+
+
+def _read(spec: Parameter, value: Any) -> Any:
+    # ROS cannot tell the type of an empty list (-p names:=[]): it arrives as None.
+    if value is None and spec.ros_type.endswith('_array'):
+        value = []
+    result = spec.read(spec.name, value)
+    if spec.bounds is not None:
+        values = result if isinstance(result, tuple) else (result,)
+        for v in values:
+            if math.isfinite(v):  # inf is how _limit says "none"
+                spec.bounds.check(spec.name, v)
+    return result
+
+
+def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
+    """Validate raw parameter values (defaults filled in) into a SimConfig."""
+    unknown = set(values) - set(PARAMETERS_BY_NAME)
+    if unknown:
+        raise ConfigError(f'unknown parameter(s): {", ".join(sorted(unknown))}')
+    fields = {}
+    for spec in PARAMETERS:
+        fields[spec.field] = _read(spec, values.get(spec.name, spec.default))
+    physics_rate = fields['physics_rate_hz']
+    for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz')):
+        if fields[field] > physics_rate:
+            raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
+                              f'physics_rate ({physics_rate} Hz)')
+    fields['publish_rate_hz'] = fields['publish_rate_hz'] or physics_rate
+    left, right = fields['left_wheel_names'], fields['right_wheel_names']
+    if bool(left) != bool(right):
+        raise ConfigError('left_wheel_names and right_wheel_names must both list wheels '
+                          'or both be empty')
+    both = set(left) & set(right)
+    if both:
+        raise ConfigError(
+            f'joint(s) {", ".join(sorted(both))} listed as both left and right wheels')
+    return SimConfig(**fields)
