@@ -24,9 +24,9 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'sim_node = r2d2_sim.launcher:sim_node',
-            'demo = r2d2_sim.demo:entry_point',
-            'drive = r2d2_sim.drive_cmd:entry_point',
+            'sim_node = r2d2_sim.sim_node:main',
+            'demo = r2d2_sim.demo:main',
+            'drive = r2d2_sim.drive_cmd:main',
         ],
         'pytest11': ['r2d2_sim = r2d2_sim.pytest_plugin'],
     },

@@ -135,7 +135,7 @@ def background_load(seconds=1.0):
 
 def start_process(args, domain_id, log_path):
     """Start ``args`` on ``domain_id`` with stdout and stderr going to ``log_path``."""
-    from r2d2_sim.probe import ros_child_env
+    from r2d2_sim.testing import ros_child_env
     log = open(log_path, 'w', encoding='utf-8')
     try:
         return subprocess.Popen(args, env=ros_child_env(domain_id), cwd=REPO,
@@ -208,7 +208,7 @@ def write_json(path, data):
 
 def stop_flag():
     """Return an Event set by SIGINT or SIGTERM (the node's own handlers)."""
-    from r2d2_sim.launcher import stop_on_signals
+    from r2d2_sim.sim_node import stop_on_signals
     return stop_on_signals()
 
 
@@ -264,7 +264,7 @@ def role_harness(args):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
     from r2d2_sim import node as sim_node
-    from r2d2_sim.pacing import DeadlinePacer
+    from r2d2_sim.timing import DeadlinePacer
 
     deadlines, starts, ends, physics = [], [], [], []
     perf_counter = time.perf_counter

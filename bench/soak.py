@@ -246,7 +246,7 @@ class Driver:
         self.joint_states.add(stamp_ns(msg.header.stamp))
 
     def _on_odom(self, msg):
-        from r2d2_sim.probe import pose_from_odometry
+        from r2d2_sim.testing import pose_from_odometry
         self.odom.add(stamp_ns(msg.header.stamp))
         pose = pose_from_odometry(msg)
         if self.odom_pose is not None:
@@ -552,7 +552,7 @@ def print_summary(results, checks, header):
 
 def main(argv=None):
     """Parse arguments, run the soak, print and write the results; 0 if every check passes."""
-    from r2d2_sim.probe import positive_number
+    from r2d2_sim.cli import positive_number
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     parser.add_argument('--sim-seconds', type=positive_number, default=3600.0,
                         help='simulated seconds to run (default 3600)')

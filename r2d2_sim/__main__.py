@@ -1,6 +1,8 @@
 """``python -m r2d2_sim [--ros-args ...]`` runs the simulator node, as ``sim_node`` does."""
 
-from r2d2_sim.launcher import sim_node
+import sys
+
+from r2d2_sim.sim_node import main
 
 if __name__ == '__main__':
-    sim_node()
+    sys.exit(main())

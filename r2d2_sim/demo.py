@@ -27,8 +27,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 
-from r2d2_sim.probe import (
-    non_negative_number, non_ros_args, Pose2D, pose_from_odometry, ros_child_env, spin_until)
+from r2d2_sim.cli import non_negative_number, non_ros_args
+from r2d2_sim.testing import Pose2D, pose_from_odometry, ros_child_env, spin_until
 
 NODE_NAME = 'r2d2_demo'
 # Wall-clock seconds to wait for the simulator's topics after starting it.
@@ -422,10 +422,5 @@ def main(args: Optional[Sequence[str]] = None) -> int:
             simulator.stop()
 
 
-def entry_point(argv: Optional[List[str]] = None) -> None:
-    """Console-script wrapper: exit with main()'s status."""
-    sys.exit(main(argv))
-
-
 if __name__ == '__main__':
-    entry_point()
+    sys.exit(main())

@@ -12,7 +12,7 @@ after 0.5 s without one. The duration runs on the node's clock, so
 
 import argparse
 import sys
-from typing import List, Optional, Sequence
+from typing import Optional, Sequence
 
 from geometry_msgs.msg import Twist
 import rclpy
@@ -20,8 +20,8 @@ from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-from r2d2_sim.probe import (
-    finite_number, non_negative_number, non_ros_args, positive_number, spin_until)
+from r2d2_sim.cli import finite_number, non_negative_number, non_ros_args, positive_number
+from r2d2_sim.testing import spin_until
 
 NODE_NAME = 'drive'
 # Wall-clock seconds to wait for the simulator's cmd_vel subscription (and, with
@@ -147,10 +147,5 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         rclpy.try_shutdown()
 
 
-def entry_point(argv: Optional[List[str]] = None) -> None:
-    """Console-script wrapper: exit with main()'s status."""
-    sys.exit(main(argv))
-
-
 if __name__ == '__main__':
-    entry_point()
+    sys.exit(main())

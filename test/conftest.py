@@ -17,9 +17,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
-from r2d2_sim.drive import quaternion_to_yaw
+from r2d2_sim.kinematics import quaternion_to_yaw
 from r2d2_sim.node import SimNode
-from r2d2_sim.probe import ros_child_env as ros_env, spin_until
+from r2d2_sim.testing import ros_child_env as ros_env, spin_until
 
 # Discovery must stay on this host; set before any rclpy.init.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

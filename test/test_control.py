@@ -15,7 +15,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from r2d2_sim.node import run_paced
+from r2d2_sim.sim_node import run_paced
 
 # (step, linear, angular) commands of the determinism schedule; NaN is refused.
 SCHEDULE = [(0, 0.3, 0.0), (40, 0.2, 0.5), (90, 0.0, -0.6), (130, math.nan, 0.0),
@@ -113,7 +113,7 @@ def test_paused_node_does_not_advance_in_the_paced_loop(ros):
     runner.start()
     try:
         assert not wait_for(lambda: sim.step_count > 0, 0.3)
-        sim._paused = False
+        sim._paused = False  # what ~/pause false does
         assert wait_for(lambda: sim.step_count > 100, 10.0)
     finally:
         stop.set()
@@ -127,11 +127,12 @@ def test_timeout_does_not_fire_while_paused(ros):
     probe = Probe(ros, sim)
     probe.send(0.3)
     trigger(probe, 'step')
-    command = sim.target_twist
+    controller = sim.simulation.controller
+    command = controller.target
     assert command != (0.0, 0.0)
-    assert not wait_for(lambda: sim.target_twist != command, 0.7)  # > 0.5 s wall time
+    assert not wait_for(lambda: controller.target != command, 0.7)  # > 0.5 s wall time
     sim.advance(60)
-    assert sim.target_twist == command  # 61 steps < 120 steps of timeout
+    assert controller.target == command  # 61 steps < 120 steps of timeout
 
 
 def test_pause_reply_time_is_where_physics_stopped(ros):
@@ -172,8 +173,9 @@ def test_reset_restores_robot_keeps_clock(ros, paused):
     assert facts['sim_time'] == pytest.approx(step_before / 240, abs=1e-9)
     x, y, yaw = latest_truth(sim)
     assert abs(x) < 1e-6 and abs(y) < 1e-6 and abs(yaw) < 1e-6
-    assert sim.odometry.x_m == 0.0 and sim.odometry.yaw_rad == 0.0
-    assert sim._wheel_targets == (0.0, 0.0)
+    controller = sim.simulation.controller
+    assert controller.odometry.x_m == 0.0 and controller.odometry.yaw_rad == 0.0
+    assert controller.wheel_targets == (0.0, 0.0)
     states = sim.world.joint_states([j.index for j in sim.world.movable_joints()])
     assert max(abs(p) for p in states.positions) < 1e-9
     assert max(abs(v) for v in states.velocities) < 1e-9

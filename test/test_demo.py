@@ -18,7 +18,7 @@ import pytest
 from r2d2_sim.demo import (
     command_at, format_progress, manoeuvre_duration_s, MANOEUVRE, phase_at, Simulator,
     write_trajectory_plot)
-from r2d2_sim.probe import Pose2D
+from r2d2_sim.testing import Pose2D
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
@@ -260,7 +260,7 @@ def ros_probe(domain_id):
 def test_drive_moves_the_simulated_robot_forward(simulator_process, ros_probe, domain_id):
     from nav_msgs.msg import Odometry
 
-    from r2d2_sim.probe import pose_from_odometry, spin_until
+    from r2d2_sim.testing import pose_from_odometry, spin_until
 
     node, executor = ros_probe
     poses = []

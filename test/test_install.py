@@ -31,13 +31,13 @@ PYBULLET_CHATTER = ('pybullet build time', 'argv[0]=')
 
 def _run(args, **kwargs):
     result = subprocess.run(args, capture_output=True, text=True, **kwargs)
-    assert result.returncode == 0, f'{args} failed:\n{result.stdout[-3000:]}{result.stderr[-3000:]}'
+    assert result.returncode == 0, f'{args}:\n{result.stdout[-3000:]}{result.stderr[-3000:]}'
     return result
 
 
 @pytest.fixture(scope='module')
 def pip_venv(tmp_path_factory):
-    """A fresh venv with r2d2_sim pip-installed (not editable) from a copy of the sources."""
+    """Provide a fresh venv with r2d2_sim pip-installed (not editable) from a source copy."""
     root = tmp_path_factory.mktemp('pip_user')
     sources = root / 'src'
     files = subprocess.run(['git', 'ls-files'], cwd=REPO, capture_output=True, text=True,
@@ -57,7 +57,7 @@ def pip_venv(tmp_path_factory):
 
 
 def user_env(domain_id=None):
-    """The environment of a pip user: no PYTHONPATH, no AMENT_PREFIX_PATH, discovery local."""
+    """Return a pip user's environment: no PYTHONPATH, no AMENT_PREFIX_PATH, local discovery."""
     env = {k: v for k, v in os.environ.items()
            if k not in ('PYTHONPATH', 'AMENT_PREFIX_PATH', 'VIRTUAL_ENV')}
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

@@ -14,7 +14,7 @@ from geometry_msgs.msg import Twist
 import pytest
 from std_srvs.srv import Trigger
 
-from r2d2_sim.drive import quaternion_to_yaw, twist_to_wheel_velocities
+from r2d2_sim.kinematics import quaternion_to_yaw, twist_to_wheel_velocities
 from r2d2_sim.node import SimNode, StartupError
 
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
@@ -90,7 +90,7 @@ def test_yaw_rate_tracks_command(sim, probe):
 
 
 def _odom_error(sim):
-    o = sim.odometry
+    o = sim.simulation.controller.odometry
     x, y, yaw = latest_truth(sim)
     return math.hypot(o.x_m - x, o.y_m - y), abs(math.remainder(o.yaw_rad - yaw, 2 * math.pi))
 
@@ -98,7 +98,7 @@ def _odom_error(sim):
 def test_odometry_matches_truth_straight(sim, probe):
     """After 2 s straight the odometry is within 5 % of distance and 5 degrees."""
     probe.drive(0.3, 0.0, 2.0)
-    distance = sim.odometry.distance_m
+    distance = sim.simulation.controller.odometry.distance_m
     position_error, heading_error = _odom_error(sim)
     assert distance > 0.5
     assert position_error < 0.05 * distance
@@ -116,7 +116,7 @@ def test_odometry_matches_truth_after_quarter_turn(sim, probe):
     _, _, yaw = latest_truth(sim)
     assert math.degrees(yaw) == pytest.approx(90, abs=9)
     position_error, heading_error = _odom_error(sim)
-    assert position_error < 0.10 * sim.odometry.distance_m
+    assert position_error < 0.10 * sim.simulation.controller.odometry.distance_m
     assert heading_error < math.radians(5)
 
 
@@ -124,9 +124,9 @@ def test_timeout_brakes_the_wheels(sim, probe):
     """No cmd_vel for 0.5 s of simulated time: wheel targets go to zero, robot stops."""
     probe.drive(0.3, 0.0, 0.5)
     sim.advance(RATE_HZ // 2 - 12)  # just under the timeout since the last command
-    assert sim._wheel_targets != (0.0, 0.0)
+    assert sim.simulation.controller.wheel_targets != (0.0, 0.0)
     sim.advance(RATE_HZ)
-    assert sim._wheel_targets == (0.0, 0.0)
+    assert sim.simulation.controller.wheel_targets == (0.0, 0.0)
     x0 = latest_truth(sim)[0]
     sim.advance(RATE_HZ)
     assert abs(latest_truth(sim)[0] - x0) < 0.01
@@ -147,8 +147,9 @@ def test_huge_command_is_clamped_preserving_curvature(sim, probe):
     """1e308 on both axes gives wheels at the limit, turning, all finite."""
     probe.send(1e308, 1e308)
     sim.advance(1)
-    left, right = twist_to_wheel_velocities(sim.geometry, *sim.target_twist)
-    limit = sim.geometry.max_wheel_velocity_rad_s
+    controller = sim.simulation.controller
+    left, right = twist_to_wheel_velocities(controller.geometry, *controller.target)
+    limit = controller.geometry.max_wheel_velocity_rad_s
     assert max(abs(left), abs(right)) == pytest.approx(limit)
     assert right > left  # positive yaw: the right wheel runs faster
 
@@ -213,7 +214,7 @@ def test_publish_rate_divides_physics(ros):
 
 
 def test_two_named_simulators_share_one_process(ros):
-    """SimNode takes a node name and namespace: two robots in one context, no cross-talk."""
+    """Name two SimNodes and give them namespaces: two robots in one context, no cross-talk."""
     sims = {ns: ros.add(SimNode(f'sim_{ns}', namespace=f'/{ns}', context=ros.context))
             for ns in ('a', 'b')}
     assert sims['a'].get_fully_qualified_name() == '/a/sim_a'

@@ -183,7 +183,7 @@ def test_classic_drives_like_ours(ros):
     assert abs(y1 - y0) < 0.02 and abs(yaw1 - yaw0) < math.radians(2)
     probe.wait_count('ground_truth', 10)
     assert probe.messages['ground_truth'][-1].twist.twist.linear.x == pytest.approx(0.3, rel=0.05)
-    odom = sim.odometry
+    odom = sim.simulation.controller.odometry
     assert math.hypot(odom.x_m - x1, odom.y_m - y1) < 0.05 * odom.distance_m
     assert abs(math.remainder(odom.yaw_rad - yaw1, 2 * math.pi)) < math.radians(3)
 

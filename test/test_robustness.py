@@ -14,7 +14,7 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-from r2d2_sim.drive import twist_to_wheel_velocities
+from r2d2_sim.kinematics import twist_to_wheel_velocities
 import r2d2_sim.node as node_module
 from r2d2_sim.node import StartupError
 
@@ -78,11 +78,11 @@ def test_garbage_command_is_refused_and_the_robot_stays_sane(sim, probe, fields)
     z0 = sim.world.base_state().position[2]
     probe.send(0.3, 0.2)
     sim.advance(24)
-    command = sim.target_twist
+    command = sim.simulation.controller.target
     probe.send(**fields)
     sim.advance(24)
     assert sim.commands_rejected == 1
-    assert sim.target_twist == command
+    assert sim.simulation.controller.target == command
     probe.advance_and_collect(RATE_HZ)
     assert upright_and_grounded(sim, z0) is None
     assert all_finite(probe.messages['ground_truth']) and all_finite(probe.messages['odom'])
@@ -95,8 +95,10 @@ def test_1e308_in_all_six_fields_is_clamped_not_refused(sim, probe, sign):
     probe.send(**dict.fromkeys(FIELDS, sign * 1e308))
     sim.advance(1)
     assert sim.commands_rejected == 0
-    left, right = twist_to_wheel_velocities(sim.geometry, *sim.target_twist)
-    assert max(abs(left), abs(right)) == pytest.approx(sim.geometry.max_wheel_velocity_rad_s)
+    controller = sim.simulation.controller
+    left, right = twist_to_wheel_velocities(controller.geometry, *controller.target)
+    assert max(abs(left), abs(right)) == pytest.approx(
+        controller.geometry.max_wheel_velocity_rad_s)
     for _ in range(10):  # keep it going for a second
         probe.send(**dict.fromkeys(FIELDS, sign * 1e308))
         sim.advance(RATE_HZ // 10)
@@ -110,9 +112,9 @@ def test_negative_zero_is_a_plain_stop(sim, probe, capfd):
     probe.send(**dict.fromkeys(FIELDS, -0.0))
     sim.advance(1)
     assert sim.commands_rejected == 0
-    assert sim.target_twist == (0.0, 0.0)
+    assert sim.simulation.controller.target == (0.0, 0.0)
     sim.advance(RATE_HZ // 2)  # braking from 0.3 m/s at 1 m/s^2 takes 0.3 s
-    assert sim._wheel_targets == (0.0, 0.0)
+    assert sim.simulation.controller.wheel_targets == (0.0, 0.0)
     assert log_lines(capfd, 'cmd_vel') == []
 
 
@@ -166,8 +168,9 @@ def test_blow_up_is_detected_within_one_step_and_the_robot_reset(ros, capfd, pub
     assert len(errors) == 1 and cause in errors[0] and 'resetting the robot' in errors[0]
     x, y, yaw = latest_truth(sim)
     assert abs(x) < 1e-3 and abs(y) < 1e-3 and abs(yaw) < 1e-3
-    assert sim.target_twist == sim._wheel_targets == (0.0, 0.0)  # the running command is dropped
-    assert (sim.odometry.x_m, sim.odometry.y_m) == (0.0, 0.0)
+    controller = sim.simulation.controller
+    assert controller.target == controller.wheel_targets == (0.0, 0.0)  # command dropped
+    assert (controller.odometry.x_m, controller.odometry.y_m) == (0.0, 0.0)
     truths = probe.messages['ground_truth']
     if publish_rate == 0.0:  # what was published at that very step is the reset robot
         stamp = divmod(sim.sim_time_ns, 10**9)
@@ -257,7 +260,7 @@ def test_a_timeout_of_1e308_seconds_never_brakes(ros):
     probe = Probe(ros, sim)
     probe.send(0.3)
     sim.advance(2 * RATE_HZ)
-    assert sim._wheel_targets != (0.0, 0.0)
+    assert sim.simulation.controller.wheel_targets != (0.0, 0.0)
 
 
 def test_an_unknown_parameter_is_named_with_a_suggestion(ros, capfd):

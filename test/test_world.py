@@ -5,7 +5,7 @@ import math
 import pybullet
 import pytest
 
-from r2d2_sim.drive import quaternion_to_yaw
+from r2d2_sim.kinematics import quaternion_to_yaw
 from r2d2_sim.world import JointRecord, SimWorld, WorldError
 
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',

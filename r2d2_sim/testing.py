@@ -1,22 +1,18 @@
 """
-Helpers for processes that talk to the simulator from outside: poses, waits, CLI.
+Helpers for code that talks to the simulator from outside: poses, deadline waits, processes.
 
-Shared by the ``demo`` and ``drive`` executables, the cross-process tests and
-the benchmarks.
+Used by the ``demo`` and ``drive`` executables, the tests and the benchmarks.
 """
 
-import argparse
-import math
 import os
 from pathlib import Path
 import sys
 import time
-from typing import Callable, List, NamedTuple, Optional, Sequence
+from typing import Callable, NamedTuple, Optional
 
 from nav_msgs.msg import Odometry
-from rclpy.utilities import remove_ros_args
 
-from r2d2_sim.drive import quaternion_to_yaw
+from r2d2_sim.kinematics import quaternion_to_yaw
 
 
 class Pose2D(NamedTuple):
@@ -47,47 +43,6 @@ def spin_until(executor, condition: Callable[[], bool], timeout_s: float,
             return False
         executor.spin_once(timeout_sec=min(remaining, 0.05))
     return True
-
-
-def finite_number(text: str) -> float:
-    """Parse a command-line number that must be finite (an argparse type)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f'must be a finite number, got {text!r}')
-    return value
-
-
-def non_negative_number(text: str) -> float:
-    """Parse a finite command-line number >= 0 (an argparse type)."""
-    value = finite_number(text)
-    if value < 0.0:
-        raise argparse.ArgumentTypeError(f'must be >= 0, got {text!r}')
-    return value
-
-
-def positive_number(text: str) -> float:
-    """Parse a finite command-line number > 0 (an argparse type)."""
-    value = finite_number(text)
-    if value <= 0.0:
-        raise argparse.ArgumentTypeError(f'must be > 0, got {text!r}')
-    return value
-
-
-def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
-    """
-    Return the arguments after the program name that are not for ROS.
-
-    Malformed ``--ros-args`` end the program like an argparse error: one line
-    on stderr and exit status 2.
-    """
-    try:
-        return remove_ros_args(list(argv))[1:]
-    except Exception as exc:  # rcl's parse errors come as assorted exception types
-        print(f'{prog}: error: bad ROS arguments: {exc}', file=sys.stderr)
-        raise SystemExit(2)
 
 
 def ros_child_env(domain_id: Optional[int] = None) -> dict:

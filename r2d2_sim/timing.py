@@ -78,3 +78,15 @@ class DeadlinePacer:
             self.overruns += 1
             self._next = self._clock()
         self._next += self.period_s
+
+
+class StepClock:
+    """Simulated time of a physics step in integer nanoseconds: exact, with no drift."""
+
+    def __init__(self, physics_rate_hz: float) -> None:
+        rate = exact_rate(physics_rate_hz)
+        self._num, self._den = 10**9 * rate.denominator, rate.numerator
+
+    def time_ns(self, step: int) -> int:
+        """Return the time after ``step`` steps, floored to the nanosecond (k * 10**9 // 240)."""
+        return step * self._num // self._den

@@ -1,0 +1,54 @@
+"""
+Command-line pieces shared by the ``demo`` and ``drive`` executables and the benchmarks.
+
+argparse number types that refuse NaN and infinity, and the split between a
+program's own arguments and ROS's (``--ros-args ...``).
+"""
+
+import argparse
+import math
+import sys
+from typing import List, Sequence
+
+from rclpy.utilities import remove_ros_args
+
+
+def finite_number(text: str) -> float:
+    """Parse a command-line number that must be finite (an argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'must be a finite number, got {text!r}')
+    return value
+
+
+def non_negative_number(text: str) -> float:
+    """Parse a finite command-line number >= 0 (an argparse type)."""
+    value = finite_number(text)
+    if value < 0.0:
+        raise argparse.ArgumentTypeError(f'must be >= 0, got {text!r}')
+    return value
+
+
+def positive_number(text: str) -> float:
+    """Parse a finite command-line number > 0 (an argparse type)."""
+    value = finite_number(text)
+    if value <= 0.0:
+        raise argparse.ArgumentTypeError(f'must be > 0, got {text!r}')
+    return value
+
+
+def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
+    """
+    Return the arguments after the program name that are not for ROS.
+
+    Malformed ``--ros-args`` end the program like an argparse error: one line
+    on stderr and exit status 2.
+    """
+    try:
+        return remove_ros_args(list(argv))[1:]
+    except Exception as exc:  # rcl's parse errors come as assorted exception types
+        print(f'{prog}: error: bad ROS arguments: {exc}', file=sys.stderr)
+        raise SystemExit(2)
