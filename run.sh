@@ -18,6 +18,8 @@ setup() {
     "$PY" -m pip install --quiet --disable-pip-version-check -r requirements.txt
     touch "$VENV/.installed"
   fi
+  # TFMessage for pip-only installs (tf2_msgs is not on PyPI): built once, then cached.
+  tools/build_tf2_msgs.sh "$VENV" || echo "run.sh: tf2_msgs unavailable, TF off" >&2
   export PATH="$PWD/$VENV/bin:$PATH"
   export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 }
