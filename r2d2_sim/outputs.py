@@ -5,8 +5,10 @@ State outputs (clock, joint states, odometry, ground truth) publish from the
 :class:`~r2d2_sim.simulation.Frame` that the simulation reads once per state
 publication. Sensor outputs (the head camera) have their own rate and their
 own :class:`~r2d2_sim.timing.StepSchedule`, and take what they measure from the
-simulation when they are due. Each keeps one message and changes only the
-fields that move.
+simulation when they are due. Each keeps its message serialized once
+(:class:`~r2d2_sim.serialization.MessageTemplate`), patches only the bytes that
+move and publishes the bytes: rclpy then skips the Python-to-C conversion and
+serialization (an Odometry: 11-21 us typed, 2-9 us as bytes, measured here).
 """
 
 from typing import Sequence
@@ -21,6 +23,7 @@ from r2d2_sim import camera
 from r2d2_sim.kinematics import yaw_to_quaternion
 from r2d2_sim.parameters import SimConfig
 from r2d2_sim.robot import HEAD_CAMERA_FRAME_ID, HeadCamera
+from r2d2_sim.serialization import MessageTemplate
 from r2d2_sim.simulation import Frame, Simulation
 from r2d2_sim.timing import StepSchedule
 from r2d2_sim.world import JointRecord
@@ -31,21 +34,18 @@ STATE_QOS = QoSProfile(depth=10)
 CAMERA_QOS = QoSProfile(depth=2)
 
 
-def _stamp(header, frame: Frame) -> None:
-    header.stamp.sec, header.stamp.nanosec = frame.stamp
-
-
 class ClockOutput:
     """``/clock``: the frame's simulated time."""
 
     def __init__(self, node: Node) -> None:
         self._publisher = node.create_publisher(Clock, '/clock', STATE_QOS)
-        self._msg = Clock()
+        self._template = MessageTemplate(Clock())
+        self._clock = self._template.stamp('clock')
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's time."""
-        self._msg.clock.sec, self._msg.clock.nanosec = frame.stamp
-        self._publisher.publish(self._msg)
+        self._clock.set(*frame.stamp)
+        self._publisher.publish(self._template.to_bytes())
 
 
 class JointStateOutput:
@@ -53,17 +53,32 @@ class JointStateOutput:
 
     def __init__(self, node: Node, joints: Sequence[JointRecord]) -> None:
         self._publisher = node.create_publisher(JointState, 'joint_states', STATE_QOS)
-        self._msg = JointState()
-        self._msg.name = [j.name for j in joints]
+        zeros = [0.0] * len(joints)
+        self._template = MessageTemplate(JointState(
+            name=[j.name for j in joints], position=zeros, velocity=zeros, effort=zeros))
+        self._stamp = self._template.stamp()
+        # A robot without movable joints publishes empty arrays: nothing to patch.
+        self._arrays = [self._template.field(name) for name in ('position', 'velocity', 'effort')
+                        ] if joints else []
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's joint readout."""
-        msg = self._msg
-        _stamp(msg.header, frame)
-        msg.position = frame.joints.positions
-        msg.velocity = frame.joints.velocities
-        msg.effort = frame.joints.efforts
-        self._publisher.publish(msg)
+        self._stamp.set(*frame.stamp)
+        joints = frame.joints
+        for slot, values in zip(self._arrays,
+                                (joints.positions, joints.velocities, joints.efforts)):
+            slot.set(values)
+        self._publisher.publish(self._template.to_bytes())
+
+
+class _OdometryTemplate:
+    """An Odometry message whose stamp, pose (7 numbers) and twist (6) are patched."""
+
+    def __init__(self, msg: Odometry) -> None:
+        self.template = MessageTemplate(msg)
+        self.stamp = self.template.stamp()
+        self.pose = self.template.field('pose.pose')    # x y z, qx qy qz qw
+        self.twist = self.template.field('twist.twist')  # vx vy vz, wx wy wz
 
 
 class GroundTruthOutput:
@@ -71,22 +86,18 @@ class GroundTruthOutput:
 
     def __init__(self, node: Node, config: SimConfig) -> None:
         self._publisher = node.create_publisher(Odometry, 'ground_truth', STATE_QOS)
-        self._msg = Odometry()
-        self._msg.header.frame_id = config.world_frame_id
-        self._msg.child_frame_id = config.base_frame_id
+        msg = Odometry()
+        msg.header.frame_id = config.world_frame_id
+        msg.child_frame_id = config.base_frame_id
+        self._msg = _OdometryTemplate(msg)
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's true base state."""
         msg, base = self._msg, frame.base
-        _stamp(msg.header, frame)
-        pose = msg.pose.pose
-        pose.position.x, pose.position.y, pose.position.z = base.position
-        (pose.orientation.x, pose.orientation.y, pose.orientation.z,
-         pose.orientation.w) = base.orientation
-        twist = msg.twist.twist
-        twist.linear.x, twist.linear.y, twist.linear.z = base.linear_velocity
-        twist.angular.x, twist.angular.y, twist.angular.z = base.angular_velocity
-        self._publisher.publish(msg)
+        msg.stamp.set(*frame.stamp)
+        msg.pose.set(base.position + base.orientation)
+        msg.twist.set(base.linear_velocity + base.angular_velocity)
+        self._publisher.publish(msg.template.to_bytes())
 
 
 class OdometryOutput:
@@ -94,25 +105,22 @@ class OdometryOutput:
 
     def __init__(self, node: Node, config: SimConfig) -> None:
         self._publisher = node.create_publisher(Odometry, 'odom', STATE_QOS)
-        msg = self._msg = Odometry()
+        msg = Odometry()
         msg.header.frame_id = config.odom_frame_id
         msg.child_frame_id = config.base_frame_id
         for i, variance in enumerate(config.pose_covariance_diagonal):
             msg.pose.covariance[7 * i] = variance
         for i, variance in enumerate(config.twist_covariance_diagonal):
             msg.twist.covariance[7 * i] = variance
+        self._msg = _OdometryTemplate(msg)
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's wheel odometry."""
         msg, odometry = self._msg, frame.odometry
-        _stamp(msg.header, frame)
-        pose = msg.pose.pose
-        pose.position.x, pose.position.y = odometry.x_m, odometry.y_m
-        (pose.orientation.x, pose.orientation.y, pose.orientation.z,
-         pose.orientation.w) = yaw_to_quaternion(odometry.yaw_rad)
-        msg.twist.twist.linear.x = odometry.linear_m_s
-        msg.twist.twist.angular.z = odometry.angular_rad_s
-        self._publisher.publish(msg)
+        msg.stamp.set(*frame.stamp)
+        msg.pose.set((odometry.x_m, odometry.y_m, 0.0) + yaw_to_quaternion(odometry.yaw_rad))
+        msg.twist.set((odometry.linear_m_s, 0.0, 0.0, 0.0, 0.0, odometry.angular_rad_s))
+        self._publisher.publish(msg.template.to_bytes())
 
 
 class HeadCameraOutput:
