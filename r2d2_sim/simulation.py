@@ -9,8 +9,7 @@ odometry) that every output of that step shares. Every step also checks that
 the physics has not blown up, and resets the robot if it has.
 """
 
-from dataclasses import dataclass
-from typing import Callable, List, Optional
+from typing import Callable, List, NamedTuple, Optional
 
 from r2d2_sim.drive_controller import CommandVerdict, DriveController, timeout_steps
 from r2d2_sim.kinematics import DiffDriveOdometry
@@ -23,8 +22,7 @@ from r2d2_sim.world import BaseState, ExtraModel, JointRecord, JointStates, SimW
 GUI_CAMERA_RATE_HZ = 30.0
 
 
-@dataclass(frozen=True)
-class Frame:
+class Frame(NamedTuple):
     """The robot after one physics step, read once for every output due at that step."""
 
     step: int

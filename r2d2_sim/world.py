@@ -10,7 +10,7 @@ build and tear down their own. Joints are looked up by name into
 from dataclasses import dataclass
 from functools import partial
 import math
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy
 
@@ -110,8 +110,7 @@ class JointRecord:
         return self.type_code in (pybullet.JOINT_REVOLUTE, pybullet.JOINT_PRISMATIC)
 
 
-@dataclass(frozen=True)
-class BaseState:
+class BaseState(NamedTuple):
     """Pose of the base link frame in the world and its twist in that frame."""
 
     position: Vec3
@@ -120,9 +119,8 @@ class BaseState:
     angular_velocity: Vec3
 
 
-@dataclass(frozen=True)
-class JointStates:
-    """Positions, velocities and applied efforts of a list of joints."""
+class JointStates(NamedTuple):
+    """Positions, velocities and applied efforts of a list of joints (read every step)."""
 
     positions: Sequence[float]
     velocities: Sequence[float]
@@ -236,8 +234,11 @@ class SimWorld:
             self.joints[record.name] = record
         dynamics = client.getDynamicsInfo(self.robot_id, -1)
         self._base_inertial_inverse = client.invertTransform(dynamics[3], dynamics[4])
-        self._body_offset_orientation = client.getQuaternionFromEuler(
-            (0.0, 0.0, self.body_yaw_offset_rad))
+        # Centre of mass -> body frame (the URDF base frame turned by the yaw
+        # offset), composed once: one multiplyTransforms per base_state.
+        self._com_to_body = client.multiplyTransforms(
+            *self._base_inertial_inverse, (0.0, 0.0, 0.0),
+            client.getQuaternionFromEuler((0.0, 0.0, self.body_yaw_offset_rad)))
         self.base_link_name = client.getBodyInfo(self.robot_id)[0].decode('utf-8')
         self.step_count = 0
         self._bind_hot_path()
@@ -314,7 +315,7 @@ class SimWorld:
         if not indices:
             return JointStates(positions=[], velocities=[], efforts=[])
         positions, velocities, _, efforts = zip(*self._get_joint_states(indices))
-        return JointStates(positions=positions, velocities=velocities, efforts=efforts)
+        return JointStates(positions, velocities, efforts)
 
     def base_state(self) -> BaseState:
         """
@@ -324,25 +325,20 @@ class SimWorld:
         base link frame turned by ``body_yaw_offset_rad`` (the REP-103 body
         frame) and expresses both velocities in it, as ROS odometry does.
         """
-        multiply_transforms = self._multiply_transforms
         com_position, com_orientation = self._get_base_pose()
-        position, orientation = multiply_transforms(
-            com_position, com_orientation, *self._base_inertial_inverse)
-        if self.body_yaw_offset_rad:
-            orientation = multiply_transforms(
-                (0.0, 0.0, 0.0), orientation, (0.0, 0.0, 0.0),
-                self._body_offset_orientation)[1]
+        position, orientation = self._multiply_transforms(
+            com_position, com_orientation, *self._com_to_body)
         linear, angular = self._get_base_velocity()
         # Velocity of the link origin: v_com + w x (p_origin - p_com).
-        r = (position[0] - com_position[0], position[1] - com_position[1],
-             position[2] - com_position[2])
-        linear = (linear[0] + angular[1] * r[2] - angular[2] * r[1],
-                  linear[1] + angular[2] * r[0] - angular[0] * r[2],
-                  linear[2] + angular[0] * r[1] - angular[1] * r[0])
+        rx, ry, rz = (position[0] - com_position[0], position[1] - com_position[1],
+                      position[2] - com_position[2])
+        wx, wy, wz = angular
+        linear = (linear[0] + wy * rz - wz * ry,
+                  linear[1] + wz * rx - wx * rz,
+                  linear[2] + wx * ry - wy * rx)
         rotation = self._matrix_from_quaternion(orientation)
-        return BaseState(position=position, orientation=orientation,
-                         linear_velocity=_rotate_transposed(rotation, linear),
-                         angular_velocity=_rotate_transposed(rotation, angular))
+        return BaseState(position, orientation, _rotate_transposed(rotation, linear),
+                         _rotate_transposed(rotation, angular))
 
     def link_positions_in_base(self, link_indices: Sequence[int]) -> List[Vec3]:
         """Return the link frames' origins expressed in the body frame."""
@@ -464,6 +460,14 @@ class SimWorld:
         else:
             position, orientation = base.position, base.orientation
             linear, angular = base.linear_velocity, base.angular_velocity
+        # The usual case in one expression (NaN and inf fail every comparison);
+        # a norm under a limit implies every axis under it. Else find out what.
+        (x, y, z), (vx, vy, vz), (wx, wy, wz) = position, linear, angular
+        if (x * x + y * y + z * z < MAX_DISTANCE_M ** 2
+                and vx * vx + vy * vy + vz * vz < MAX_LINEAR_SPEED_M_S ** 2
+                and wx * wx + wy * wy + wz * wz < MAX_ANGULAR_SPEED_RAD_S ** 2
+                and math.isfinite(sum(orientation))):
+            return None
         for label, values in (('position', position), ('orientation', orientation),
                               ('linear velocity', linear), ('angular velocity', angular)):
             if not all(map(math.isfinite, values)):
@@ -481,6 +485,8 @@ class SimWorld:
 
     def joint_problem(self, indices: Sequence[int], states: JointStates) -> Optional[str]:
         """Return None if the joint readout ``states`` of ``indices`` is finite, else which."""
+        if math.isfinite(sum(states.positions) + sum(states.velocities)):
+            return None  # a sum of finite values that overflowed is looked at below
         for values in (states.positions, states.velocities):
             if not all(map(math.isfinite, values)):
                 by_index = list(self.joints)  # joints are stored in index order
