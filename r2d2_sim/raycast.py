@@ -1,0 +1,71 @@
+"""
+Rays in a PyBullet world, with the robot left out of its own sensor's rays.
+
+No ROS here. ``rayTestBatch(..., collisionFilterMask=mask)`` reports an object
+only if (its collision filter group & mask) != 0. Bullet's default groups are
+1 for dynamic links and 2 for static bodies, whose masks are all bits and all
+but 2. :func:`exclude_from_rays` moves a body into group 4 with a full mask,
+and rays cast with :data:`RAY_MASK` (every bit but 4) pass through it: a laser
+inside the robot sees the world, not the robot. Its contacts are kept under
+either pair filter PyBullet offers (``collisionFilterMode``): the default
+(group A & mask B) or (group B & mask A), and the stricter "and", since
+4 & every other body's mask and their groups & -1 are all non-zero.
+"""
+
+from typing import Sequence
+
+import numpy
+from pybullet_utils.bullet_client import BulletClient
+
+from r2d2_sim.stdio import silenced_stdout
+
+with silenced_stdout():  # PyBullet prints its build time on import
+    import pybullet
+
+__all__ = ['RAY_EXCLUDED_GROUP', 'RAY_MASK', 'exclude_from_rays', 'cast_rays']
+
+RAY_EXCLUDED_GROUP = 4
+# All bits but 4, as the C int rayTestBatch takes (-5; ~4 in two's complement).
+RAY_MASK = -1 ^ RAY_EXCLUDED_GROUP
+MAX_BATCH_SIZE = pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE
+
+
+def exclude_from_rays(client: BulletClient, body_id: int) -> None:
+    """
+    Make every link of a body invisible to rays cast with RAY_MASK.
+
+    Its collisions are kept: the full mask lets it meet every group. Bullet
+    re-inserts the links into its broadphase, which can change the order in
+    which simultaneous contacts are solved, not whether they happen. Rays
+    still test its shapes (PyBullet drops masked hits after computing them):
+    R2D2 costs about 0.4 ms of a 1 ms 360-beam scan in room.urdf.
+    """
+    for link in range(-1, client.getNumJoints(body_id)):
+        client.setCollisionFilterGroupMask(body_id, link, RAY_EXCLUDED_GROUP, -1)
+
+
+def cast_rays(client: BulletClient, starts: Sequence[Sequence[float]],
+              ends: Sequence[Sequence[float]], mask: int = RAY_MASK, *,
+              batch_size: int = MAX_BATCH_SIZE) -> numpy.ndarray:
+    """
+    Cast rays from ``starts`` to ``ends`` (N x 3, world) and return the hit fractions.
+
+    A fraction f means the first hit is at start + f * (end - start); 1.0
+    means no hit. Batches of at most ``batch_size`` rays keep within PyBullet's
+    limit (MAX_RAY_INTERSECTION_BATCH_SIZE).
+    """
+    starts = numpy.asarray(starts, dtype=float)
+    ends = numpy.asarray(ends, dtype=float)
+    if starts.ndim != 2 or starts.shape[1] != 3 or starts.shape != ends.shape:
+        raise ValueError(f'starts and ends must both be N x 3, got shapes '
+                         f'{starts.shape} and {ends.shape}')
+    if not 1 <= batch_size <= MAX_BATCH_SIZE:
+        raise ValueError(f'batch_size must be in [1, {MAX_BATCH_SIZE}], got {batch_size}')
+    fractions = []
+    for first in range(0, len(starts), batch_size):
+        hits = client.rayTestBatch(starts[first:first + batch_size],
+                                   ends[first:first + batch_size],
+                                   collisionFilterMask=mask)
+        fractions.extend(fraction if object_id != -1 else 1.0
+                         for object_id, _, fraction, _, _ in hits)
+    return numpy.array(fractions, dtype=float)
