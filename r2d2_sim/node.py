@@ -14,7 +14,7 @@ import threading
 import time
 from typing import Callable, Dict, Optional, Tuple
 
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.clock import Clock as RclpyClock, ClockType
 from rclpy.node import Node
@@ -25,7 +25,9 @@ from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.kinematics import DriveConfigError
 from r2d2_sim.outputs import (
-    ClockOutput, GroundTruthOutput, HeadCameraOutput, JointStateOutput, OdometryOutput)
+    ClockOutput, GroundTruthOutput, HeadCameraOutput, ImuOutput, JointStateOutput,
+    link_transforms, OdometryOutput, publish_static_transforms, ScanOutput, static_transforms,
+    TfOutput)
 from r2d2_sim.parameters import (
     ConfigError, Parameter as ParameterSpec, PARAMETERS, parse_config, SimConfig)
 from r2d2_sim.simulation import Simulation
@@ -41,6 +43,7 @@ WARNING_PERIOD_S = 5.0
 # How often (wall-clock seconds) to look for cmd_vel publishers of a wrong type.
 GRAPH_CHECK_PERIOD_S = 1.0
 CMD_VEL_TYPE = 'geometry_msgs/msg/Twist'
+CMD_VEL_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 
 
 class StartupError(RuntimeError):
@@ -82,11 +85,19 @@ class SimNode(Node):
         self._sensor_outputs = []
         if simulation.camera is not None:
             self._sensor_outputs.append(HeadCameraOutput(self, self.config, simulation.camera))
+        if simulation.laser is not None:
+            self._sensor_outputs.append(ScanOutput(self, self.config, simulation.laser))
+        if simulation.imu is not None:
+            self._sensor_outputs.append(ImuOutput(self, self.config, simulation.imu))
+        self._start_tf()
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
         self.create_publisher(String, 'robot_description', latched).publish(
             String(data=simulation.world.robot_description))
-        self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, 10)
+        if self.config.enable_stamped_cmd_vel:
+            self.create_subscription(TwistStamped, 'cmd_vel', self._on_cmd_vel_stamped, 10)
+        else:
+            self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, 10)
         # The middleware never delivers a publisher of another type (say
         # TwistStamped) on cmd_vel; look at the graph now and then to say so.
         self.create_timer(GRAPH_CHECK_PERIOD_S, self._check_cmd_vel_publishers,
@@ -96,6 +107,28 @@ class SimNode(Node):
         self.create_service(Trigger, '~/step', self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self._publish_frame(simulation.frame())
+
+    def _start_tf(self) -> None:
+        """Publish /tf_static once and add the /tf output; without tf2_msgs, say so once."""
+        config, simulation = self.config, self.simulation
+        if not config.publish_tf:
+            return
+        try:
+            import tf2_msgs.msg  # noqa: F401  (not on PyPI: see tools/build_tf2_msgs.sh)
+        except ImportError:
+            self.get_logger().warning(
+                'tf2_msgs is not installed: /tf and /tf_static are off (a pip-only venv gets '
+                'it from tools/build_tf2_msgs.sh VENV); everything else works')
+            return
+        links = None
+        if config.publish_link_tf:
+            links = link_transforms(simulation)
+        self._tf_static_pub = publish_static_transforms(
+            self, static_transforms(config, simulation, links),
+            divmod(simulation.time_ns, 10**9))
+        tf = TfOutput(self, config, simulation, links)
+        if not tf.empty:
+            self._state_outputs.append(tf)
 
     # -- parameters -------------------------------------------------------------
 
@@ -267,6 +300,21 @@ class SimNode(Node):
     def _log_blow_up(self, text: str) -> None:
         self._log_throttled('blow-up', self.get_logger().error, text)
 
+    def _on_cmd_vel_stamped(self, msg: TwistStamped) -> None:
+        stamp = msg.header.stamp
+        stamp_ns = stamp.sec * 10**9 + stamp.nanosec
+        timeout_ns = round(self.config.cmd_vel_timeout_s * 1e9)
+        # A zero stamp means "now" (as Nav2's and teleop's unstamped senders fill it).
+        age_ns = self.sim_time_ns - stamp_ns
+        if stamp_ns and timeout_ns and age_ns > timeout_ns:
+            self.commands_received += 1
+            self.commands_rejected += 1
+            self._warn('cmd_vel stale', f'rejected cmd_vel stamped {stamp_ns / 1e9:.3f} s: '
+                       f'{age_ns / 1e9:.3f} s old at t={self.sim_time_ns / 1e9:.3f} s, more '
+                       f'than cmd_vel_timeout ({self.config.cmd_vel_timeout_s:g} s)')
+            return
+        self._on_cmd_vel(msg.twist)
+
     def _on_cmd_vel(self, msg: Twist) -> None:
         self.commands_received += 1
         linear, angular = msg.linear, msg.angular
@@ -293,12 +341,15 @@ class SimNode(Node):
 
     def _check_cmd_vel_publishers(self) -> None:
         topic = self.resolve_topic_name('cmd_vel')
+        expected = CMD_VEL_STAMPED_TYPE if self.config.enable_stamped_cmd_vel else CMD_VEL_TYPE
         for info in self.get_publishers_info_by_topic('cmd_vel'):
-            if info.topic_type != CMD_VEL_TYPE:
+            if info.topic_type != expected:
                 publisher = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
                 self._warn(f'cmd_vel type {info.topic_type}',
                            f'{publisher} publishes {info.topic_type} on {topic}, which ROS '
-                           f'does not deliver: this node takes {CMD_VEL_TYPE}')
+                           f'does not deliver: this node takes {expected}'
+                           + ('' if self.config.enable_stamped_cmd_vel else
+                              ' (set enable_stamped_cmd_vel for TwistStamped)'))
 
     def _on_get_joint_info(self, request, response):
         with self._lock:

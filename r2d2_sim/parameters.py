@@ -319,6 +319,63 @@ PARAMETERS: List[Parameter] = [
               'camera_height_px', _integer, Bounds(1, 4096, 'px')),
     Parameter('camera_fov', 'double', 60.0, 'Head camera vertical field of view in degrees.',
               'camera_fov_deg', _field_of_view),
+    Parameter('camera_depth', 'bool', False,
+              'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
+              'camera_depth', _boolean),
+    Parameter('world', 'string', '',
+              'A world to load around the robot at the origin, resolved like urdf '
+              '(package://r2d2_sim/urdf/room.urdf); empty for none.', 'world', _string),
+    Parameter('publish_tf', 'bool', True,
+              'Publish odom -> base_footprint on /tf and the static frames on /tf_static '
+              '(needs tf2_msgs).', 'publish_tf', _boolean),
+    Parameter('publish_link_tf', 'bool', False,
+              'Also publish the robot\'s link transforms (what robot_state_publisher would).',
+              'publish_link_tf', _boolean),
+    Parameter('publish_ground_truth_tf', 'bool', False,
+              'Also publish world -> odom so that world -> base follows the true pose.',
+              'publish_ground_truth_tf', _boolean),
+    Parameter('footprint_frame_id', 'string', 'base_footprint',
+              'The base\'s projection on the ground, parent of base_frame_id in TF.',
+              'footprint_frame_id', _frame),
+    Parameter('frame_prefix', 'string', '',
+              'Prefix for every frame the robot publishes (not world_frame_id), e.g. robot1/.',
+              'frame_prefix', _string),
+    Parameter('scan_rate', 'double', 10.0,
+              'Laser scans per simulated second (Hz) on scan; 0 turns the scanner off.',
+              'scan_rate_hz', _non_negative),
+    Parameter('scan_samples', 'integer', 360, 'Beams per scan.', 'scan_samples', _integer,
+              Bounds(1, 10000)),
+    Parameter('scan_angle_min', 'double', -math.pi, 'First beam angle in rad (0 = forward).',
+              'scan_angle_min_rad', _number, Bounds(-math.pi, math.pi, 'rad')),
+    Parameter('scan_angle_max', 'double', math.pi,
+              'Last beam angle in rad; a full circle has no duplicate last beam.',
+              'scan_angle_max_rad', _number, Bounds(-math.pi, math.pi, 'rad')),
+    Parameter('scan_range_min', 'double', 0.12, 'Closest range in m; nearer reads -inf.',
+              'scan_range_min_m', _non_negative, Bounds(0.0, 100.0, 'm')),
+    Parameter('scan_range_max', 'double', 12.0, 'Farthest range in m; no return reads +inf.',
+              'scan_range_max_m', _positive, Bounds(0.01, 1000.0, 'm')),
+    Parameter('scan_noise_std', 'double', 0.0,
+              'Gaussian range noise standard deviation in m; 0 = exact.',
+              'scan_noise_std_m', _non_negative, Bounds(0.0, 10.0, 'm')),
+    Parameter('imu_rate', 'double', 100.0,
+              'IMU messages per simulated second (Hz) on imu; 0 turns the IMU off.',
+              'imu_rate_hz', _non_negative),
+    Parameter('imu_orientation_noise_std', 'double', 0.0,
+              'IMU orientation noise standard deviation in rad; 0 = exact.',
+              'imu_orientation_noise_std_rad', _non_negative, Bounds(0.0, 1.0, 'rad')),
+    Parameter('imu_angular_velocity_noise_std', 'double', 0.0,
+              'IMU angular velocity noise standard deviation in rad/s; 0 = exact.',
+              'imu_angular_velocity_noise_std_rad_s', _non_negative,
+              Bounds(0.0, 10.0, 'rad/s')),
+    Parameter('imu_linear_acceleration_noise_std', 'double', 0.0,
+              'IMU acceleration noise standard deviation in m/s^2; 0 = exact.',
+              'imu_linear_acceleration_noise_std_m_s2', _non_negative,
+              Bounds(0.0, 100.0, 'm/s^2')),
+    Parameter('noise_seed', 'integer', 0, 'Seed of the scan and IMU noise (runs repeat).',
+              'noise_seed', _integer, Bounds(0, 2**31 - 1)),
+    Parameter('enable_stamped_cmd_vel', 'bool', False,
+              'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name).',
+              'enable_stamped_cmd_vel', _boolean),
 ]
 
 PARAMETERS_BY_NAME: Dict[str, Parameter] = {p.name: p for p in PARAMETERS}
@@ -333,6 +390,11 @@ def _body_yaw_offset_rad(self) -> float:
     return FORWARD_AXIS_YAW_RAD[self.base_forward_axis]
 
 
+def _prefixed_frame(self, name: str) -> str:
+    """Return a frame id of this robot with ``frame_prefix`` in front."""
+    return self.frame_prefix + name
+
+
 def _wheel_names_are_default(self) -> bool:
     """Return True when the wheel joint names were left at their defaults."""
     return (list(self.left_wheel_names) == PARAMETERS_BY_NAME['left_wheel_names'].default
@@ -343,6 +405,7 @@ SimConfig = make_dataclass(
     'SimConfig', [(p.field, _FIELD_TYPES[p.ros_type]) for p in PARAMETERS], frozen=True,
     namespace={'__doc__': 'Validated simulator settings in SI units, one field per parameter.',
                'body_yaw_offset_rad': property(_body_yaw_offset_rad),
+               'frame': _prefixed_frame,
                'wheel_names_are_default': property(_wheel_names_are_default)})
 SimConfig.__module__ = __name__
 
@@ -369,7 +432,8 @@ def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
     for spec in PARAMETERS:
         fields[spec.field] = _read(spec, values.get(spec.name, spec.default))
     physics_rate = fields['physics_rate_hz']
-    for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz')):
+    for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz'),
+                        ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz')):
         if fields[field] > physics_rate:
             raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
                               f'physics_rate ({physics_rate} Hz)')
@@ -382,4 +446,10 @@ def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
     if both:
         raise ConfigError(
             f'joint(s) {", ".join(sorted(both))} listed as both left and right wheels')
+    if not fields['scan_angle_min_rad'] < fields['scan_angle_max_rad']:
+        raise ConfigError('parameter scan_angle_min must be below scan_angle_max, got '
+                          f'{fields["scan_angle_min_rad"]} >= {fields["scan_angle_max_rad"]}')
+    if not fields['scan_range_min_m'] < fields['scan_range_max_m']:
+        raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
+                          f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')
     return SimConfig(**fields)

@@ -12,7 +12,7 @@ either pair filter PyBullet offers (``collisionFilterMode``): the default
 4 & every other body's mask and their groups & -1 are all non-zero.
 """
 
-from typing import Sequence
+from typing import Optional, Sequence
 
 import numpy
 from pybullet_utils.bullet_client import BulletClient
@@ -30,17 +30,20 @@ RAY_MASK = -1 ^ RAY_EXCLUDED_GROUP
 MAX_BATCH_SIZE = pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE
 
 
-def exclude_from_rays(client: BulletClient, body_id: int) -> None:
+def exclude_from_rays(client: BulletClient, body_id: int,
+                      links: Optional[Sequence[int]] = None) -> None:
     """
-    Make every link of a body invisible to rays cast with RAY_MASK.
+    Make links of a body (default: all, -1 being the base) invisible to rays cast with RAY_MASK.
 
-    Its collisions are kept: the full mask lets it meet every group. Bullet
+    Their collisions are kept: the full mask lets them meet every group. Bullet
     re-inserts the links into its broadphase, which can change the order in
-    which simultaneous contacts are solved, not whether they happen. Rays
-    still test its shapes (PyBullet drops masked hits after computing them):
-    R2D2 costs about 0.4 ms of a 1 ms 360-beam scan in room.urdf.
+    which simultaneous contacts are solved, not whether they happen: for
+    R2D2's wheels that changed arc slip from 8.8 to 10.4 %, so callers exclude
+    only the links a sensor's rays can meet. Rays still test the shapes
+    (PyBullet drops masked hits after computing them): R2D2 costs about
+    0.4 ms of a 1 ms 360-beam scan in room.urdf.
     """
-    for link in range(-1, client.getNumJoints(body_id)):
+    for link in range(-1, client.getNumJoints(body_id)) if links is None else links:
         client.setCollisionFilterGroupMask(body_id, link, RAY_EXCLUDED_GROUP, -1)
 
 

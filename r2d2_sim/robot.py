@@ -9,13 +9,22 @@ held to the parameter's bounds either way). Problems are one-line
 """
 
 from dataclasses import dataclass
+import math
 from typing import Callable, Optional, Tuple
+
+import numpy
 
 from r2d2_sim import camera
 from r2d2_sim.kinematics import DiffDriveGeometry, TwistLimits
 from r2d2_sim.parameters import (
     Bounds, ConfigError, SimConfig, WHEEL_FORCE, WHEEL_RADIUS, WHEEL_SEPARATION,
     WHEEL_VELOCITY)
+from r2d2_sim.raycast import cast_rays, exclude_from_rays
+from r2d2_sim.sensors import (
+    ImuModel, ImuReading, linearize_depth, ranges_from_hits, ray_endpoints, rotate_vector,
+    ScanGeometry, SensorConfigError)
+from r2d2_sim.transforms import (
+    apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, Transform)
 from r2d2_sim.world import SimWorld, WorldError
 
 # The head camera: its link, image frame, clipping planes, and the gap between
@@ -25,6 +34,12 @@ HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
 HEAD_CAMERA_NEAR_M = 0.01
 HEAD_CAMERA_FAR_M = 100.0
 HEAD_CAMERA_CLEARANCE_M = 0.01
+# The laser (frame base_scan) sits on the body's axis this high above the
+# ground: R2D2's body frame is 0.47 m up, and at 0.25 m the scan sees the
+# room's 0.4 m boxes and walls. The IMU (imu_link) is at the body frame.
+LASER_FRAME_ID = 'base_scan'
+LASER_HEIGHT_M = 0.25
+IMU_FRAME_ID = 'imu_link'
 
 
 @dataclass(frozen=True)
@@ -132,20 +147,104 @@ class HeadCamera:
             raise ConfigError(f'camera_rate > 0 needs a link named {HEAD_CAMERA_LINK!r}: '
                               f'{exc}') from None
         self._world = world
+        self.link_name = HEAD_CAMERA_LINK
         self._lens_offset_m = world.link_half_extent_m(self._link) + HEAD_CAMERA_CLEARANCE_M
+        # The optical frame (z forward, x right, y down) on the head link: the
+        # lens sits ahead of the head along the robot's forward axis.
+        yaw = world.body_yaw_offset_rad
+        self.optical_mount = Transform(
+            (self._lens_offset_m * math.cos(yaw), self._lens_offset_m * math.sin(yaw), 0.0),
+            quaternion_multiply(quaternion_from_rpy(0.0, 0.0, yaw),
+                                quaternion_from_rpy(-math.pi / 2, 0.0, -math.pi / 2)))
         width, height, fov = (config.camera_width_px, config.camera_height_px,
                               config.camera_fov_deg)
         self.intrinsics = camera.intrinsics(width, height, fov)
         self._projection = camera.projection_matrix(
             width, height, fov, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
 
-    def render_rgb(self) -> bytes:
-        """Render the camera's view now: rgb8 rows, top row first."""
+    def render(self, depth: bool = False) -> Tuple[bytes, Optional[numpy.ndarray]]:
+        """
+        Render the camera's view now: rgb8 rows (top row first), and depth if asked.
+
+        Depth is float32 metres along the optical axis (REP-118: +inf where
+        nothing is within the far plane), from the same render as the image.
+        """
         world = self._world
         position, orientation = world.link_pose(self._link)
         forward, up = camera.link_camera_axes(orientation, world.body_yaw_offset_rad)
         offset = self._lens_offset_m
         eye = [position[i] + offset * forward[i] for i in range(3)]
         k = self.intrinsics
-        return world.render_rgb(k.width_px, k.height_px, camera.view_matrix(eye, forward, up),
-                                self._projection)
+        rgb, depth_buffer = world.render(k.width_px, k.height_px,
+                                         camera.view_matrix(eye, forward, up), self._projection)
+        if not depth:
+            return rgb, None
+        return rgb, linearize_depth(depth_buffer, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
+
+    def render_rgb(self) -> bytes:
+        """Render the camera's view now: rgb8 rows, top row first."""
+        return self.render()[0]
+
+
+class LaserScanner:
+    """
+    A planar laser scanner on the body's axis, ``LASER_HEIGHT_M`` above the ground.
+
+    Rays start at the laser origin (REP-117 ranges are from there) and pass
+    through the robot's own links that cross the scan plane (R2D2's body and
+    legs), which are excluded from rays; links below or above it (wheels,
+    head) keep their broadphase entries, so the physics is the same with the
+    scanner on or off.
+    """
+
+    def __init__(self, world: SimWorld, config: SimConfig, footprint_height_m: float) -> None:
+        try:
+            self.geometry = ScanGeometry(config.scan_angle_min_rad, config.scan_angle_max_rad,
+                                         config.scan_samples, config.scan_range_min_m,
+                                         config.scan_range_max_m)
+        except SensorConfigError as exc:
+            raise ConfigError(f'laser scanner: {exc}') from None
+        self._world = world
+        self.mount = Transform((0.0, 0.0, LASER_HEIGHT_M - footprint_height_m), IDENTITY.rotation)
+        self._noise_std_m = config.scan_noise_std_m
+        self._rng = numpy.random.default_rng(config.noise_seed)
+        height_m = LASER_HEIGHT_M
+        client, robot = world.client, world.robot_id
+        crossing = [link for link in range(-1, client.getNumJoints(robot))
+                    if client.getAABB(robot, link)[0][2] <= height_m
+                    <= client.getAABB(robot, link)[1][2]]
+        exclude_from_rays(client, robot, crossing)
+
+    def scan(self) -> numpy.ndarray:
+        """Cast the beams from where the laser is now; return REP-117 ranges (float32)."""
+        world = self._world
+        base = world.base_state()
+        origin = apply(Transform(base.position, base.orientation), self.mount.translation)
+        starts, ends = ray_endpoints(self.geometry, origin, base.orientation)
+        return ranges_from_hits(cast_rays(world.client, starts, ends), self.geometry,
+                                self._noise_std_m, self._rng)
+
+
+class ImuSensor:
+    """An IMU at the body frame's origin, axes along the body's (REP-145 ``imu_link``)."""
+
+    def __init__(self, world: SimWorld, config: SimConfig) -> None:
+        self._world = world
+        # Its own stream of noise, so turning the scanner on does not change it.
+        self.model = ImuModel(
+            gravity_m_s2=config.gravity_m_s2,
+            orientation_std_rad=config.imu_orientation_noise_std_rad,
+            angular_velocity_std_rad_s=config.imu_angular_velocity_noise_std_rad_s,
+            linear_acceleration_std_m_s2=config.imu_linear_acceleration_noise_std_m_s2,
+            rng=numpy.random.default_rng([config.noise_seed, 1]))
+
+    def read(self, time_s: float) -> ImuReading:
+        """Return the reading for the body's true motion now (acceleration since the last)."""
+        base = self._world.base_state()
+        q = base.orientation
+        return self.model.update(time_s, q, rotate_vector(q, base.linear_velocity),
+                                 rotate_vector(q, base.angular_velocity))
+
+    def reset(self) -> None:
+        """Forget the last sample: a reset teleports the robot, which is no acceleration."""
+        self.model.reset()

@@ -14,7 +14,7 @@ from typing import Callable, List, NamedTuple, Optional
 from r2d2_sim.drive_controller import CommandVerdict, DriveController, timeout_steps
 from r2d2_sim.kinematics import DiffDriveOdometry
 from r2d2_sim.parameters import ConfigError, SimConfig
-from r2d2_sim.robot import find_drive_train, HeadCamera
+from r2d2_sim.robot import find_drive_train, HeadCamera, ImuSensor, LaserScanner
 from r2d2_sim.timing import StepClock, StepSchedule
 from r2d2_sim.world import BaseState, ExtraModel, JointRecord, JointStates, SimWorld
 
@@ -62,13 +62,16 @@ class Simulation:
         self.last_frame_step = 0
         self.controller: Optional[DriveController] = None
         self.camera: Optional[HeadCamera] = None
+        self.laser: Optional[LaserScanner] = None
+        self.imu: Optional[ImuSensor] = None
         self.world = SimWorld(
             config.urdf or None, robot_description=config.robot_description,
             gui=config.gui, time_step_s=self.time_step_s,
             gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane,
             initial_pose=config.initial_pose,
             body_yaw_offset_rad=config.body_yaw_offset_rad,
-            extra_models=[ExtraModel(name, position) for name, position in config.extra_models])
+            extra_models=[ExtraModel(name, position) for name, position in config.extra_models]
+            + ([ExtraModel(config.world, (0.0, 0.0, 0.0))] if config.world else []))
         try:
             self._build(warn)
         except Exception:
@@ -82,6 +85,9 @@ class Simulation:
             raise ConfigError(f'the robot cannot start there: {problem}')
         self.description_source = ('the robot_description parameter'
                                    if config.robot_description else world.urdf_path)
+        # base_footprint is the base's projection on the ground: the body frame
+        # sits this high above it when the robot stands at rest.
+        self.footprint_height_m = world.base_state().position[2]
         self.movable: List[JointRecord] = world.movable_joints()
         self.movable_indices = [j.index for j in self.movable]
         self.drive = find_drive_train(world, config, self.description_source, warn)
@@ -101,6 +107,10 @@ class Simulation:
             self._drive(self.controller.reset(0, self._wheel_positions()))
         if config.camera_rate_hz > 0.0:
             self.camera = HeadCamera(world, config)
+        if config.scan_rate_hz > 0.0:
+            self.laser = LaserScanner(world, config, self.footprint_height_m)
+        if config.imu_rate_hz > 0.0:
+            self.imu = ImuSensor(world, config)
 
     # -- time -------------------------------------------------------------------
 
@@ -172,6 +182,8 @@ class Simulation:
     def reset(self) -> None:
         """Put the robot back at its initial pose at rest, dropping the command and odometry."""
         self.world.reset()
+        if self.imu is not None:
+            self.imu.reset()
         if self.controller is not None:
             self._drive(self.controller.reset(self.world.step_count, self._wheel_positions()))
 

@@ -378,19 +378,20 @@ class SimWorld:
         low, high = self._client.getAABB(self.robot_id, link_index)
         return max(high[0] - low[0], high[1] - low[1]) / 2.0
 
-    def render_rgb(self, width_px: int, height_px: int, view: Sequence[float],
-                   projection: Sequence[float]) -> bytes:
+    def render(self, width_px: int, height_px: int, view: Sequence[float],
+               projection: Sequence[float]) -> Tuple[bytes, numpy.ndarray]:
         """
-        Render an image with the CPU renderer and return it as rgb8 rows, top row first.
+        Render with the CPU renderer: rgb8 rows (top row first) and the raw depth buffer.
 
         ER_TINY_RENDERER works without a display (DIRECT mode) and gives the
         same pixels in GUI mode, so tests and headless runs see what users see.
+        The depth buffer is OpenGL's non-linear d in [0, 1], shaped (height, width).
         """
-        _, _, rgba, _, _ = self._client.getCameraImage(
+        _, _, rgba, depth, _ = self._client.getCameraImage(
             width_px, height_px, viewMatrix=list(view), projectionMatrix=list(projection),
             renderer=pybullet.ER_TINY_RENDERER, flags=pybullet.ER_NO_SEGMENTATION_MASK)
-        return numpy.asarray(rgba, dtype=numpy.uint8).reshape(
-            height_px, width_px, 4)[:, :, :3].tobytes()
+        rgb = numpy.asarray(rgba, dtype=numpy.uint8).reshape(height_px, width_px, 4)[:, :, :3]
+        return rgb.tobytes(), numpy.asarray(depth, dtype=float).reshape(height_px, width_px)
 
     def wheel_radius_m(self, joint_index: int) -> float:
         """Return the radius of a wheel from its collision shape (cylinder or sphere)."""

@@ -1,0 +1,353 @@
+"""
+What ROS tools need from the node: TF, LaserScan, Imu, depth and TwistStamped, by their REPs.
+
+In-process: the simulator and a probe node share a context; the world is
+urdf/room.urdf, whose geometry is known (inner wall faces at x = +2, -3 and
+y = +-2.5 m; 0.4 m boxes centred at (1, 1.2), (-1.5, -1) and (0, -1.5)).
+"""
+
+import math
+import sys
+
+from conftest import make_sim, wait_for
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry
+import numpy
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.qos import qos_profile_sensor_data, QoSProfile, DurabilityPolicy
+from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan
+from tf2_msgs.msg import TFMessage
+
+from r2d2_sim.kinematics import quaternion_to_yaw
+from r2d2_sim.robot import LASER_HEIGHT_M
+
+ROOM = 'package://r2d2_sim/urdf/room.urdf'
+STATIC_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def stamp_ns(header):
+    """Return a header's stamp in integer nanoseconds."""
+    return header.stamp.sec * 10**9 + header.stamp.nanosec
+
+
+class Listener:
+    """A probe node recording topics by name."""
+
+    def __init__(self, ros, topics):
+        self.node = ros.node('listener')
+        self.messages = {}
+        for topic, (msg_type, qos) in topics.items():
+            self.messages[topic] = []
+            self.node.create_subscription(msg_type, topic, self.messages[topic].append, qos)
+
+    def wait(self, topic, count=1):
+        """Wait until ``count`` messages of ``topic`` arrived; return the last one."""
+        assert wait_for(lambda: len(self.messages[topic]) >= count), f'no {topic}'
+        return self.messages[topic][-1]
+
+
+def transforms(messages):
+    """Return {(parent, child): [TransformStamped, ...]} from TFMessages."""
+    result = {}
+    for msg in messages:
+        for t in msg.transforms:
+            result.setdefault((t.header.frame_id, t.child_frame_id), []).append(t)
+    return result
+
+
+# -- TF ------------------------------------------------------------------------------
+
+def test_tf_chains_odom_footprint_base_with_the_odom_stamp(ros):
+    """odom -> base_footprint on /tf carries odom's pose and stamp; the rest is static."""
+    sim = make_sim(ros)
+    listener = Listener(ros, {'/tf': (TFMessage, 100), 'odom': (Odometry, 100),
+                              '/tf_static': (TFMessage, STATIC_QOS)})
+    assert wait_for(lambda: listener.node.count_publishers('/tf') > 0)
+    for _ in range(6):
+        sim.advance(40)
+        listener.wait('odom', 1)
+    assert wait_for(lambda: len(listener.messages['/tf']) >= len(listener.messages['odom']))
+    odom_by_stamp = {stamp_ns(m.header): m for m in listener.messages['odom']}
+    chain = transforms(listener.messages['/tf'])[('odom', 'base_footprint')]
+    assert chain and all(stamp_ns(t.header) in odom_by_stamp for t in chain)
+    for t in chain:
+        pose = odom_by_stamp[stamp_ns(t.header)].pose.pose
+        assert (t.transform.translation.x, t.transform.translation.y) == (
+            pose.position.x, pose.position.y)
+        assert t.transform.translation.z == 0.0  # the footprint is on the ground
+        assert t.transform.rotation == pose.orientation
+    static = transforms([listener.wait('/tf_static')])
+    footprint = static[('base_footprint', 'base_link')][0].transform
+    assert footprint.translation.z == pytest.approx(0.47, abs=0.01)  # body frame height
+    scan = static[('base_link', 'base_scan')][0].transform.translation
+    assert footprint.translation.z + scan.z == pytest.approx(LASER_HEIGHT_M)
+    assert ('base_link', 'imu_link') in static
+
+
+def test_late_subscribers_get_the_static_transforms(ros):
+    """/tf_static is transient local: a subscriber that comes later still gets it."""
+    sim = make_sim(ros)
+    sim.advance(10)
+    listener = Listener(ros, {'/tf_static': (TFMessage, STATIC_QOS)})
+    assert ('base_footprint', 'base_link') in transforms([listener.wait('/tf_static')])
+
+
+def test_frame_prefix_and_link_transforms(ros):
+    """With a prefix every robot frame is prefixed; link TF covers moving and fixed joints."""
+    sim = make_sim(ros, frame_prefix='r2/', publish_link_tf=True, camera_rate=5.0)
+    listener = Listener(ros, {'/tf': (TFMessage, 100), '/tf_static': (TFMessage, STATIC_QOS)})
+    sim.world.client.resetJointState(sim.world.robot_id, sim.world.joint('head_swivel').index,
+                                     0.5)
+    sim.advance(1)
+    listener.wait('/tf')
+    dynamic = transforms(listener.messages['/tf'])
+    static = transforms([listener.wait('/tf_static')])
+    assert ('r2/odom', 'r2/base_footprint') in dynamic
+    assert ('r2/base_link', 'r2/head') in dynamic  # head_swivel moves
+    head = dynamic[('r2/base_link', 'r2/head')][-1].transform.rotation
+    assert 2 * math.atan2(head.z, head.w) == pytest.approx(0.5, abs=0.05)
+    assert ('r2/base_link', 'r2/right_leg') in static  # fixed joint, once
+    assert ('r2/head', 'r2/head_camera_optical') in static
+    for parent, child in list(dynamic) + list(static):
+        assert parent.startswith('r2/') and child.startswith('r2/')
+    # Every one of the 15 URDF joints appears exactly once.
+    joints = [pair for pair in list(dynamic) + list(static)
+              if pair[0] not in ('r2/odom', 'r2/base_footprint') and 'optical' not in pair[1]
+              and pair[1] not in ('r2/base_scan', 'r2/imu_link')]
+    assert len(joints) == len(set(joints)) == 15
+
+
+def test_ground_truth_tf_places_odom_so_that_the_chain_is_the_true_pose(ros):
+    """world -> odom -> base_footprint composes to the true planar pose."""
+    sim = make_sim(ros, publish_ground_truth_tf=True, cmd_vel_timeout=0.0)
+    listener = Listener(ros, {'/tf': (TFMessage, 1000), 'ground_truth': (Odometry, 1000)})
+    sim.simulation.command(0.3, 0.5)
+    sim.advance(480)
+    now = sim.sim_time_ns
+    assert wait_for(lambda: listener.messages['ground_truth'] and listener.messages['/tf']
+                    and stamp_ns(listener.messages['ground_truth'][-1].header) == now
+                    and stamp_ns(listener.messages['/tf'][-1].transforms[0].header) == now)
+    truth = listener.messages['ground_truth'][-1]
+    last = {(t.header.frame_id, t.child_frame_id): t.transform
+            for t in listener.messages['/tf'][-1].transforms}
+    world_odom, odom_base = last[('world', 'odom')], last[('odom', 'base_footprint')]
+    yaw_wo = quaternion_to_yaw(world_odom.rotation.x, world_odom.rotation.y,
+                               world_odom.rotation.z, world_odom.rotation.w)
+    yaw_ob = quaternion_to_yaw(odom_base.rotation.x, odom_base.rotation.y,
+                               odom_base.rotation.z, odom_base.rotation.w)
+    x = world_odom.translation.x + (math.cos(yaw_wo) * odom_base.translation.x
+                                    - math.sin(yaw_wo) * odom_base.translation.y)
+    y = world_odom.translation.y + (math.sin(yaw_wo) * odom_base.translation.x
+                                    + math.cos(yaw_wo) * odom_base.translation.y)
+    p, q = truth.pose.pose.position, truth.pose.pose.orientation
+    assert (x, y) == pytest.approx((p.x, p.y), abs=1e-9)
+    assert math.remainder(yaw_wo + yaw_ob - quaternion_to_yaw(q.x, q.y, q.z, q.w),
+                          2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+    assert math.hypot(world_odom.translation.x, world_odom.translation.y) > 0.001  # slip
+
+
+def test_without_tf2_msgs_tf_is_off_with_one_warning(ros, monkeypatch, capfd):
+    """A machine without tf2_msgs runs everything else and says once why /tf is missing."""
+    monkeypatch.setitem(sys.modules, 'tf2_msgs.msg', None)  # import raises ImportError
+    sim = make_sim(ros)
+    sim.advance(24)
+    assert not [o for o in sim._state_outputs if type(o).__name__ == 'TfOutput']
+    assert sim.count_publishers('/tf') == 0
+    warnings = [line for line in capfd.readouterr().err.splitlines() if 'tf2_msgs' in line]
+    assert len(warnings) == 1 and 'build_tf2_msgs' in warnings[0]
+
+
+# -- the laser scanner -----------------------------------------------------------------
+
+def test_scan_follows_rep_117_against_the_room(ros):
+    """360 beams over a full circle, +x wall at 2 m, box faces, stamped in sim time."""
+    sim = make_sim(ros, world=ROOM)
+    listener = Listener(ros, {'scan': (LaserScan, 10)})
+    sim.advance(24)  # 10 Hz: the first scan is due at step 24
+    scan = listener.wait('scan')
+    assert stamp_ns(scan.header) == 24 * 10**9 // 240 == sim.sim_time_ns
+    assert scan.header.frame_id == 'base_scan'
+    assert len(scan.ranges) == 360
+    assert scan.angle_increment == pytest.approx(2 * math.pi / 360)
+    # No duplicate beam: the last is one increment short of a full turn.
+    assert scan.angle_max == pytest.approx(scan.angle_min + 359 * scan.angle_increment)
+    assert scan.time_increment == 0.0 and scan.scan_time == pytest.approx(0.1)
+    assert len(scan.intensities) == 0
+    x = sim.world.base_state().position[0]
+
+    def beam(angle_rad):
+        return scan.ranges[round((angle_rad - scan.angle_min) / scan.angle_increment)]
+    assert beam(0.0) == pytest.approx(2.0 - x, abs=2e-3)           # wall ahead
+    assert beam(math.pi / 2) == pytest.approx(2.5, abs=2e-3)        # wall to the left
+    assert beam(-math.pi / 2) == pytest.approx(1.5 - 0.2, abs=2e-3)  # box face at y = -1.3
+    assert beam(-math.pi) == pytest.approx(3.0 + x, abs=2e-3)       # wall behind
+    assert all(scan.range_min <= r <= scan.range_max for r in scan.ranges)  # closed room
+
+
+def test_scan_reports_no_return_as_plus_inf_and_too_close_as_minus_inf(ros):
+    """REP-117: nothing within range_max is +inf; a hit below range_min is -inf."""
+    sim = make_sim(ros, world=ROOM, scan_range_min=2.2, scan_range_max=2.8)
+    listener = Listener(ros, {'scan': (LaserScan, 10)})
+    sim.advance(24)
+    ranges = numpy.array(listener.wait('scan').ranges)
+    assert ranges[180] == -math.inf  # the +x wall at 2 m is closer than 2.2 m
+    assert ranges[0] == math.inf     # the -x wall at 3 m is beyond 2.8 m
+    assert ranges[270] == pytest.approx(2.5, abs=2e-3)
+
+
+def test_scan_noise_is_seeded_and_zero_means_exact(ros):
+    """The same seed gives the same noisy scan; noise 0 gives the geometry."""
+    scans = []
+    for seed, noise in ((3, 0.01), (3, 0.01), (4, 0.01), (3, 0.0)):
+        sim = make_sim(ros, world=ROOM, scan_noise_std=noise, noise_seed=seed)
+        scans.append(numpy.array(sim.simulation.laser.scan()))
+        sim.destroy_node()
+        ros.nodes.remove(sim)
+    assert numpy.array_equal(scans[0], scans[1])
+    assert not numpy.array_equal(scans[0], scans[2])
+    error = scans[0] - scans[3]
+    assert 0.005 < numpy.std(error) < 0.015
+
+
+def test_the_scanner_leaves_the_physics_alone(ros):
+    """A drive with the scanner on and off ends at the same pose, to the bit."""
+    poses = []
+    for rate in (10.0, 0.0):
+        sim = make_sim(ros, scan_rate=rate, cmd_vel_timeout=0.0)
+        sim.simulation.command(0.3, 0.5)
+        sim.advance(600)
+        poses.append(sim.world.base_state())
+    assert poses[0] == poses[1]
+
+
+def test_sensor_topics_reach_default_and_sensor_data_subscribers(ros):
+    """Reliable publishers match both reliable and best-effort (sensor data) subscribers."""
+    sim = make_sim(ros)
+    listener = Listener(ros, {'scan': (LaserScan, qos_profile_sensor_data),
+                              'imu': (Imu, qos_profile_sensor_data),
+                              'odom': (Odometry, qos_profile_sensor_data)})
+    other = Listener(ros, {'scan': (LaserScan, 10), 'imu': (Imu, 10)})
+    sim.advance(48)
+    for topic in ('scan', 'imu', 'odom'):
+        listener.wait(topic)
+    other.wait('scan')
+    other.wait('imu')
+
+
+# -- the IMU ---------------------------------------------------------------------------
+
+def test_imu_at_rest_reads_gravity_up_and_world_orientation(ros):
+    """REP-145: +9.8 m/s^2 on z at rest, orientation in the world frame (not the start)."""
+    sim = make_sim(ros, initial_pose=[0.0, 0.0, 1.0], imu_rate=100.0)
+    listener = Listener(ros, {'imu': (Imu, 100)})
+    sim.advance(240)
+    imu = listener.wait('imu', 100)
+    assert imu.header.frame_id == 'imu_link'
+    assert stamp_ns(imu.header) <= sim.sim_time_ns
+    q = imu.orientation
+    assert quaternion_to_yaw(q.x, q.y, q.z, q.w) == pytest.approx(1.0, abs=0.01)
+    a = imu.linear_acceleration
+    assert (a.x, a.y, a.z) == pytest.approx((0.0, 0.0, 9.8), abs=0.05)
+    w = imu.angular_velocity
+    assert (w.x, w.y, w.z) == pytest.approx((0.0, 0.0, 0.0), abs=0.01)
+    assert list(imu.orientation_covariance) == [0.0] * 9  # exact, provided (not -1)
+
+
+def test_imu_measures_a_turn_in_its_own_frame_with_noise_covariance(ros):
+    """Turning at 0.5 rad/s reads +0.5 on the sensor's z; covariances are std^2."""
+    sim = make_sim(ros, cmd_vel_timeout=0.0, imu_angular_velocity_noise_std=0.01)
+    listener = Listener(ros, {'imu': (Imu, 1000)})
+    sim.simulation.command(0.0, 0.5)
+    sim.advance(480)
+    imu = listener.wait('imu')
+    assert imu.angular_velocity.z == pytest.approx(0.5, abs=0.08)
+    assert imu.angular_velocity_covariance[0] == pytest.approx(1e-4)
+    assert imu.angular_velocity_covariance[8] == pytest.approx(1e-4)
+
+
+# -- depth -----------------------------------------------------------------------------
+
+def test_depth_of_a_wall_at_a_known_distance(ros):
+    """The centre pixel of the head camera facing the +x wall reads its distance (REP-118)."""
+    sim = make_sim(ros, world=ROOM, camera_rate=10.0, camera_depth=True, camera_width=64,
+                   camera_height=48)
+    listener = Listener(ros, {'camera/depth/image_raw': (Image, 10),
+                              'camera/depth/camera_info': (CameraInfo, 10),
+                              'camera/image_raw': (Image, 10)})
+    sim.advance(24)
+    depth = listener.wait('camera/depth/image_raw')
+    info = listener.wait('camera/depth/camera_info')
+    rgb = listener.wait('camera/image_raw')
+    assert depth.encoding == '32FC1' and depth.step == 4 * 64
+    assert (depth.width, depth.height) == (info.width, info.height) == (64, 48)
+    assert (rgb.width, rgb.height) == (64, 48)
+    assert depth.header.frame_id == rgb.header.frame_id == info.header.frame_id
+    pixels = numpy.frombuffer(bytes(depth.data), dtype='<f4').reshape(48, 64)
+    camera = sim.simulation.camera
+    lens_x = sim.world.link_pose(sim.world.link_index('head'))[0][0] + camera._lens_offset_m
+    assert pixels[24, 32] == pytest.approx(2.0 - lens_x, abs=5e-3)
+    # Along the optical axis, not the ray: the whole row across the wall reads the same.
+    assert pixels[24, 8] == pytest.approx(pixels[24, 32], abs=5e-3)
+    assert info.k[0] == info.k[4] and (info.k[2], info.k[5]) == (32.0, 24.0)
+
+
+def test_depth_without_anything_in_view_is_plus_inf(ros):
+    """Sky (nothing within the far plane) reads +inf, as REP-118 says."""
+    sim = make_sim(ros, camera_rate=10.0, camera_depth=True, camera_width=32,
+                   camera_height=24, camera_fov=90.0)
+    _, depth = sim.simulation.camera.render(depth=True)
+    assert depth[0, 16] == math.inf  # the top row looks above the horizon
+    assert math.isfinite(depth[23, 16])  # the bottom row sees the ground
+
+
+# -- TwistStamped ----------------------------------------------------------------------
+
+def _stamped(sim, linear, stamp_ns_):
+    msg = TwistStamped()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns_, 10**9)
+    msg.twist.linear.x = linear
+    return msg
+
+
+def test_twist_stamped_drives_zero_stamp_is_now_and_stale_is_refused(ros, capfd):
+    """enable_stamped_cmd_vel: fresh and zero stamps drive; older than the timeout is refused."""
+    sim = make_sim(ros, enable_stamped_cmd_vel=True)
+    node = ros.node('stamped_sender')
+    pub = node.create_publisher(TwistStamped, 'cmd_vel', 10)
+    assert wait_for(lambda: pub.get_subscription_count() > 0)
+    sim.advance(480)  # t = 2 s
+    for stamp, accepted in ((sim.sim_time_ns, True), (0, True),
+                            (sim.sim_time_ns - 10**9, False)):
+        before, rejected = sim.commands_received, sim.commands_rejected
+        pub.publish(_stamped(sim, 0.3, stamp))
+        assert wait_for(lambda: sim.commands_received > before)
+        assert (sim.commands_rejected == rejected) == accepted
+    sim.advance(240)
+    assert sim.world.base_state().position[0] > 0.05
+    stale = [line for line in capfd.readouterr().err.splitlines() if 'rejected cmd_vel' in line]
+    assert len(stale) == 1 and 'cmd_vel_timeout' in stale[0]
+
+
+def test_a_twist_publisher_is_named_when_stamped_commands_are_expected(ros, capfd, monkeypatch):
+    """The wrong-type warning works the other way round too (a Twist sender, another context)."""
+    monkeypatch.setattr('r2d2_sim.node.GRAPH_CHECK_PERIOD_S', 0.05)
+    sim = make_sim(ros, enable_stamped_cmd_vel=True)
+    context = Context()
+    rclpy.init(context=context, domain_id=ros.domain_id)
+    other = rclpy.create_node('plain_twist_sender', context=context)
+    try:
+        other.create_publisher(Twist, 'cmd_vel', 10)
+        seen = []
+
+        def warned():
+            sim.advance(1)
+            seen.extend(line for line in capfd.readouterr().err.splitlines()
+                        if 'plain_twist_sender' in line)
+            return seen
+        assert wait_for(warned, 10.0)
+        assert 'this node takes geometry_msgs/msg/TwistStamped' in seen[0]
+    finally:
+        other.destroy_node()
+        rclpy.try_shutdown(context=context)
