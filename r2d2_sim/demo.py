@@ -25,7 +25,7 @@ from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import Image, LaserScan
 
 from r2d2_sim.cli import non_negative_number, non_ros_args
 from r2d2_sim.testing import Pose2D, pose_from_odometry, ros_child_env, spin_until
@@ -43,6 +43,8 @@ COMMAND_RATE_HZ = 20.0
 LOG_TAIL_LINES = 10
 EXIT_INTERRUPTED = 130
 PLOT_NAME = 'trajectory.png'
+# The world the demo drives in: walls and boxes for the laser scan in the plot.
+DEMO_WORLD = 'package://r2d2_sim/urdf/room.urdf'
 SNAPSHOT_NAME = 'head_camera.png'
 # A few head-camera images per simulated second are plenty for the final snapshot.
 CAMERA_RATE_HZ = 2.0
@@ -99,10 +101,32 @@ def format_progress(t_s: float, odom: Pose2D, truth: Pose2D) -> str:
     return f't={t_s:5.1f} s  odom {pose(odom)} | truth {pose(truth)}'
 
 
+def scan_points_xy(scan: LaserScan, pose: Pose2D,
+                   laser_offset_xy: Tuple[float, float] = (0.0, 0.0)) -> List[Tuple[float, float]]:
+    """
+    Return a scan's finite returns as world x-y points, seen from ``pose`` (the base's).
+
+    ``laser_offset_xy`` is the laser's position in the base frame. Readings
+    of +-inf (REP-117: no return, too close) have no point.
+    """
+    cos_yaw, sin_yaw = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    origin_x = pose.x_m + cos_yaw * laser_offset_xy[0] - sin_yaw * laser_offset_xy[1]
+    origin_y = pose.y_m + sin_yaw * laser_offset_xy[0] + cos_yaw * laser_offset_xy[1]
+    points = []
+    for i, r in enumerate(scan.ranges):
+        if math.isfinite(r):
+            angle = pose.yaw_rad + scan.angle_min + i * scan.angle_increment
+            points.append((origin_x + r * math.cos(angle), origin_y + r * math.sin(angle)))
+    return points
+
+
 def write_trajectory_plot(path, odom_xy: Sequence[Tuple[float, float]],
-                          truth_xy: Sequence[Tuple[float, float]]) -> Path:
+                          truth_xy: Sequence[Tuple[float, float]],
+                          scan_xy: Sequence[Tuple[float, float]] = ()) -> Path:
     """
     Plot odometry against ground truth in the x-y plane as a PNG; return its path.
+
+    ``scan_xy`` (the last laser scan, in the world frame) is drawn as dots.
 
     Uses matplotlib's Agg canvas directly (no pyplot), so it needs no display
     and leaves matplotlib's global backend alone.
@@ -114,6 +138,9 @@ def write_trajectory_plot(path, odom_xy: Sequence[Tuple[float, float]],
     figure = Figure(figsize=(6.4, 7.0), dpi=100, layout='constrained')
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
+    if scan_xy:
+        axes.plot([p[0] for p in scan_xy], [p[1] for p in scan_xy], '.', color='tab:green',
+                  markersize=3, label='last laser scan')
     for points, label, style, colour in ((truth_xy, 'ground truth (world)', '-', 'tab:blue'),
                                          (odom_xy, 'wheel odometry (odom)', '--', 'tab:orange')):
         if not points:
@@ -129,7 +156,7 @@ def write_trajectory_plot(path, odom_xy: Sequence[Tuple[float, float]],
     axes.set_aspect('equal', adjustable='datalim')
     axes.set_xlabel('x (m)')
     axes.set_ylabel('y (m)')
-    axes.set_title('R2D2 demo: wheel odometry vs ground truth')
+    axes.set_title('R2D2 demo in the room: wheel odometry vs ground truth')
     axes.grid(True, alpha=0.4)
     axes.legend(loc='upper center', bbox_to_anchor=(0.5, -0.1), ncols=2)
     figure.savefig(path, format='png')
@@ -173,6 +200,7 @@ class Simulator:
     def for_real_time_factor(cls, real_time_factor: float, env: dict) -> 'Simulator':
         """Build the command for ``python -m r2d2_sim`` at the given speed."""
         return cls([sys.executable, '-m', 'r2d2_sim', '--ros-args',
+                    '-p', f'world:={DEMO_WORLD}',
                     '-p', f'real_time_factor:={_ros_double(real_time_factor)}',
                     '-p', f'camera_rate:={_ros_double(CAMERA_RATE_HZ)}'], env)
 
@@ -242,7 +270,9 @@ class ManoeuvreDriver(Node):
         self.create_subscription(Odometry, 'odom', self._on_odom, 10)
         self.create_subscription(Odometry, 'ground_truth', self._on_truth, 10)
         self.create_subscription(Image, 'camera/image_raw', self._on_image, 2)
+        self.create_subscription(LaserScan, 'scan', self._on_scan, 2)
         self.image: Optional[Image] = None
+        self.scan_xy: List[Tuple[float, float]] = []
         self.odom: Optional[Pose2D] = None
         self.truth: Optional[Pose2D] = None
         self.odom_xy: List[Tuple[float, float]] = []
@@ -274,6 +304,12 @@ class ManoeuvreDriver(Node):
 
     def _on_image(self, msg: Image) -> None:
         self.image = msg
+
+    def _on_scan(self, msg: LaserScan) -> None:
+        # Scans come at 10 Hz, ground truth every step: the latest truth is the
+        # pose the scan was taken from, give or take a step.
+        if self.truth is not None:
+            self.scan_xy = scan_points_xy(msg, self.truth)
 
     def _on_odom(self, msg: Odometry) -> None:
         self.odom = pose_from_odometry(msg)
@@ -372,7 +408,8 @@ def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path
             _error(simulator.failure_message(
                 f'no ground_truth for {STALL_TIMEOUT_S:g} s: the simulator seems stuck'))
             return 1
-    plot = write_trajectory_plot(output_dir.absolute() / PLOT_NAME, node.odom_xy, node.truth_xy)
+    plot = write_trajectory_plot(output_dir.absolute() / PLOT_NAME, node.odom_xy, node.truth_xy,
+                                 node.scan_xy)
     print(f'simulated {node.elapsed_s:.1f} s in {time.monotonic() - started_s:.1f} s of wall time')
     print(f'trajectory plot: {plot}', flush=True)
     if node.image is not None:

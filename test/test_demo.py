@@ -305,3 +305,13 @@ def test_camera_snapshot_writer_round_trips(tmp_path):
     assert pixels.shape[:2] == (2, 3)
     assert tuple(pixels[0, 0, :3]) == (1.0, 0.0, 0.0)
     assert tuple(pixels[1, 2, :3]) == (0.0, 0.0, 1.0)
+
+
+def test_scan_points_are_placed_in_the_world_from_the_pose():
+    """A robot at (1, 2) facing +y sees a return 1 m ahead at (1, 3); infinities are skipped."""
+    from sensor_msgs.msg import LaserScan
+    from r2d2_sim.demo import scan_points_xy
+    scan = LaserScan(angle_min=-math.pi / 2, angle_increment=math.pi / 2,
+                     ranges=[2.0, 1.0, math.inf, -math.inf])
+    points = scan_points_xy(scan, Pose2D(0.0, 1.0, 2.0, math.pi / 2))
+    assert points == [pytest.approx((3.0, 2.0)), pytest.approx((1.0, 3.0))]
