@@ -151,3 +151,39 @@ def test_users_own_pytest_run_shows_no_ros_wheel_warnings(pip_venv, tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     assert '1 passed' in result.stdout
     assert 'DeprecationWarning' not in result.stdout and 'warning' not in result.stdout
+
+
+def test_tf_scan_and_imu_reach_another_process_after_the_documented_build(pip_venv, tmp_path):
+    """tools/build_tf2_msgs.sh VENV gives a pip-only venv /tf; sensors cross processes too."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from sensor_msgs.msg import Imu, LaserScan
+    from tf2_msgs.msg import TFMessage
+    _run(['bash', os.path.join(REPO, 'tools', 'build_tf2_msgs.sh'), str(pip_venv)],
+         env=user_env())
+    domain = next_domain_id()
+    process = subprocess.Popen(
+        [str(pip_venv / 'bin' / 'sim_node'), '--ros-args', '-p',
+         'world:=package://r2d2_sim/urdf/room.urdf'],
+        cwd=tmp_path, env=user_env(domain), text=True, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE)
+    probe = RemoteProbe(domain, 'tools_probe')
+    try:
+        got = {'tf': [], 'tf_static': [], 'scan': [], 'imu': []}
+        node = probe.node
+        node.create_subscription(TFMessage, '/tf', got['tf'].append, 100)
+        node.create_subscription(TFMessage, '/tf_static', got['tf_static'].append,
+                                 QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        node.create_subscription(LaserScan, 'scan', got['scan'].append, 10)
+        node.create_subscription(Imu, 'imu', got['imu'].append, 10)
+        assert probe.spin_until(lambda: all(got.values()) or process.poll() is not None, 30.0)
+        assert all(got.values()), {k: len(v) for k, v in got.items()}
+    finally:
+        code, out, err = stop_process(process, signal.SIGINT)
+        probe.close()
+    assert code == 0, err
+    assert 'tf2_msgs is not installed' not in err
+    pairs = {(t.header.frame_id, t.child_frame_id) for m in got['tf'] for t in m.transforms}
+    assert ('odom', 'base_footprint') in pairs
+    scan = got['scan'][-1]
+    assert len(scan.ranges) == 360 and scan.ranges[180] == pytest.approx(2.0, abs=0.01)
+    assert got['imu'][-1].linear_acceleration.z == pytest.approx(9.8, abs=0.3)
