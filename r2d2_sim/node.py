@@ -8,17 +8,14 @@ serves topics and services in another thread; tests drive it step by step.
 Everything here is ROS plumbing: parameters in, messages out, services.
 """
 
-import difflib
 import json
 import threading
 import time
 from typing import Callable, Dict, Optional, Tuple
 
 from geometry_msgs.msg import Twist, TwistStamped
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.clock import Clock as RclpyClock, ClockType
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
@@ -26,18 +23,13 @@ from std_srvs.srv import SetBool, Trigger
 from r2d2_sim.kinematics import DriveConfigError
 from r2d2_sim.outputs import (
     ClockOutput, GroundTruthOutput, HeadCameraOutput, ImuOutput, JointStateOutput,
-    link_transforms, OdometryOutput, publish_static_transforms, ScanOutput, static_transforms,
-    TfOutput)
-from r2d2_sim.parameters import (
-    ConfigError, Parameter as ParameterSpec, PARAMETERS, parse_config, SimConfig)
+    OdometryOutput, ScanOutput, start_tf)
+from r2d2_sim.parameters import ConfigError, SimConfig
+from r2d2_sim.ros_parameters import declare_parameters
 from r2d2_sim.simulation import Simulation
 from r2d2_sim.world import SimWorld, WorldError
 
 NODE_NAME = 'r2d2_sim'
-ROS_TYPES = {'double': Parameter.Type.DOUBLE, 'integer': Parameter.Type.INTEGER,
-             'bool': Parameter.Type.BOOL, 'string': Parameter.Type.STRING,
-             'double_array': Parameter.Type.DOUBLE_ARRAY,
-             'string_array': Parameter.Type.STRING_ARRAY}
 # Warnings about rejected commands repeat at most this often per kind of problem.
 WARNING_PERIOD_S = 5.0
 # How often (wall-clock seconds) to look for cmd_vel publishers of a wrong type.
@@ -71,7 +63,7 @@ class SimNode(Node):
         self.commands_rejected = 0
         self.simulation: Optional[Simulation] = None
         try:
-            self.config: SimConfig = self._declare_parameters()
+            self.config: SimConfig = declare_parameters(self)
             self.simulation = Simulation(self.config, warn=self.get_logger().warning,
                                          error=self._log_blow_up)
         except (ConfigError, WorldError, DriveConfigError) as exc:
@@ -89,7 +81,10 @@ class SimNode(Node):
             self._sensor_outputs.append(ScanOutput(self, self.config, simulation.laser))
         if simulation.imu is not None:
             self._sensor_outputs.append(ImuOutput(self, self.config, simulation.imu))
-        self._start_tf()
+        if self.config.publish_tf:
+            tf = start_tf(self, self.config, simulation)
+            if tf is not None:
+                self._state_outputs.append(tf)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
         self.create_publisher(String, 'robot_description', latched).publish(
@@ -107,83 +102,6 @@ class SimNode(Node):
         self.create_service(Trigger, '~/step', self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self._publish_frame(simulation.frame())
-
-    def _start_tf(self) -> None:
-        """Publish /tf_static once and add the /tf output; without tf2_msgs, say so once."""
-        config, simulation = self.config, self.simulation
-        if not config.publish_tf:
-            return
-        try:
-            import tf2_msgs.msg  # noqa: F401  (not on PyPI: see tools/build_tf2_msgs.sh)
-        except ImportError:
-            self.get_logger().warning(
-                'tf2_msgs is not installed: /tf and /tf_static are off (a pip-only venv gets '
-                'it from tools/build_tf2_msgs.sh VENV); everything else works')
-            return
-        links = None
-        if config.publish_link_tf:
-            links = link_transforms(simulation)
-        self._tf_static_pub = publish_static_transforms(
-            self, static_transforms(config, simulation, links),
-            divmod(simulation.time_ns, 10**9))
-        tf = TfOutput(self, config, simulation, links)
-        if not tf.empty:
-            self._state_outputs.append(tf)
-
-    # -- parameters -------------------------------------------------------------
-
-    def _declare_parameters(self) -> SimConfig:
-        """
-        Validate the overrides, then declare every parameter with its type and that value.
-
-        Validation comes first so a wrong value or type is one ConfigError line
-        (rclpy would raise its own exception for a type mismatch). The values
-        are declared converted to the table's type (an integer given for a
-        double becomes a double), so ``ros2 param describe`` shows the type.
-        """
-        overrides = getattr(self, '_parameter_overrides', {})
-        raw = {spec.name: overrides[spec.name].value if spec.name in overrides else spec.default
-               for spec in PARAMETERS}
-        config = parse_config(raw)
-        for spec in PARAMETERS:
-            self._declare_typed(spec, raw[spec.name])
-        self._warn_unknown_overrides()
-        return config
-
-    def _declare_typed(self, spec: ParameterSpec, value) -> None:
-        descriptor = ParameterDescriptor(description=spec.description, read_only=True)
-        bounds = spec.bounds
-        if bounds is not None and bounds.zero is None:
-            if spec.ros_type == 'double':
-                descriptor.floating_point_range = [FloatingPointRange(
-                    from_value=float(bounds.low), to_value=float(bounds.high))]
-            elif spec.ros_type == 'integer':
-                descriptor.integer_range = [IntegerRange(
-                    from_value=int(bounds.low), to_value=int(bounds.high))]
-        # The raw value passed validation: only its Python type may differ.
-        convert = {'double': float, 'integer': int,
-                   'double_array': lambda v: [float(x) for x in v],
-                   'string_array': lambda v: list(v or [])}.get(spec.ros_type)
-        if convert is not None:
-            value = convert(value)
-        if isinstance(value, list) and not value:
-            # rclpy types an empty list as a byte array: declare the type, with no value.
-            self.declare_parameter(spec.name, ROS_TYPES[spec.ros_type], descriptor,
-                                   ignore_override=True)
-        else:
-            self.declare_parameter(spec.name, value, descriptor, ignore_override=True)
-
-    def _warn_unknown_overrides(self) -> None:
-        """Name parameters given on the command line or in a file that nothing reads."""
-        # ROS ignores overrides nobody declares, so a typo would run on the default.
-        overrides = getattr(self, '_parameter_overrides', {})
-        known = list(self._parameters)
-        for name in sorted(set(overrides) - set(known)):
-            if name.startswith('qos_overrides.'):
-                continue
-            close = difflib.get_close_matches(name, known, n=1)
-            hint = f' (did you mean {close[0]}?)' if close else ''
-            self.get_logger().warning(f'ignoring unknown parameter {name}{hint}')
 
     # -- the simulation, as tests and main() see it -----------------------------
 

@@ -249,6 +249,27 @@ class TfOutput:
         self._publisher.publish(self._template.to_bytes())
 
 
+def start_tf(node: Node, config: SimConfig, simulation: Simulation) -> Optional[TfOutput]:
+    """
+    Publish /tf_static once and return the /tf output (None if it has nothing to publish).
+
+    tf2_msgs is in every ROS install but not on PyPI: without it, say so once
+    and return None; everything else works.
+    """
+    try:
+        import tf2_msgs.msg  # noqa: F401  (a pip-only venv: tools/build_tf2_msgs.sh)
+    except ImportError:
+        node.get_logger().warning(
+            'tf2_msgs is not installed: /tf and /tf_static are off (a pip-only venv gets '
+            'it from tools/build_tf2_msgs.sh VENV); everything else works')
+        return None
+    links = link_transforms(simulation) if config.publish_link_tf else None
+    publish_static_transforms(node, static_transforms(config, simulation, links),
+                              divmod(simulation.time_ns, 10**9))
+    tf = TfOutput(node, config, simulation, links)
+    return None if tf.empty else tf
+
+
 def link_transforms(simulation: Simulation) -> LinkTransforms:
     """
     Return the robot's link transforms from its URDF, moving joints as the joint readout has them.
@@ -302,6 +323,7 @@ def static_transforms(config: SimConfig, simulation: Simulation,
 def publish_static_transforms(node: Node, transforms: Sequence[Tuple[str, str, Transform]],
                               stamp: Tuple[int, int]):
     """Publish ``/tf_static`` once, transient local for late subscribers; return its publisher."""
+    # The publisher stays alive with the node (rclpy keeps it), so late joiners get it.
     from tf2_msgs.msg import TFMessage
     publisher = node.create_publisher(TFMessage, '/tf_static', TF_STATIC_QOS)
     msg = TFMessage(transforms=[_transform_stamped(p, c, t, stamp) for p, c, t in transforms])

@@ -1,0 +1,76 @@
+"""
+The node's parameters on the ROS side: typed declarations from the one table.
+
+:mod:`r2d2_sim.parameters` holds the table and the validation without ROS;
+this declares every entry on a node with its type, description and range, so
+``ros2 param describe`` shows them, and names overrides that nothing reads.
+"""
+
+import difflib
+from typing import Any
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from r2d2_sim.parameters import Parameter as ParameterSpec, PARAMETERS, parse_config, SimConfig
+
+ROS_TYPES = {'double': Parameter.Type.DOUBLE, 'integer': Parameter.Type.INTEGER,
+             'bool': Parameter.Type.BOOL, 'string': Parameter.Type.STRING,
+             'double_array': Parameter.Type.DOUBLE_ARRAY,
+             'string_array': Parameter.Type.STRING_ARRAY}
+
+
+def declare_parameters(node: Node) -> SimConfig:
+    """
+    Validate the node's overrides, then declare every parameter with its type and that value.
+
+    Validation comes first so a wrong value or type is one ConfigError line
+    (rclpy would raise its own exception for a type mismatch). The values
+    are declared converted to the table's type (an integer given for a
+    double becomes a double).
+    """
+    overrides = getattr(node, '_parameter_overrides', {})
+    raw = {spec.name: overrides[spec.name].value if spec.name in overrides else spec.default
+           for spec in PARAMETERS}
+    config = parse_config(raw)
+    for spec in PARAMETERS:
+        _declare_typed(node, spec, raw[spec.name])
+    _warn_unknown_overrides(node, overrides)
+    return config
+
+
+def _declare_typed(node: Node, spec: ParameterSpec, value: Any) -> None:
+    descriptor = ParameterDescriptor(description=spec.description, read_only=True)
+    bounds = spec.bounds
+    if bounds is not None and bounds.zero is None:
+        if spec.ros_type == 'double':
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(bounds.low), to_value=float(bounds.high))]
+        elif spec.ros_type == 'integer':
+            descriptor.integer_range = [IntegerRange(
+                from_value=int(bounds.low), to_value=int(bounds.high))]
+    # The raw value passed validation: only its Python type may differ.
+    convert = {'double': float, 'integer': int,
+               'double_array': lambda v: [float(x) for x in v],
+               'string_array': lambda v: list(v or [])}.get(spec.ros_type)
+    if convert is not None:
+        value = convert(value)
+    if isinstance(value, list) and not value:
+        # rclpy types an empty list as a byte array: declare the type, with no value.
+        node.declare_parameter(spec.name, ROS_TYPES[spec.ros_type], descriptor,
+                               ignore_override=True)
+    else:
+        node.declare_parameter(spec.name, value, descriptor, ignore_override=True)
+
+
+def _warn_unknown_overrides(node: Node, overrides) -> None:
+    """Name parameters given on the command line or in a file that nothing reads."""
+    # ROS ignores overrides nobody declares, so a typo would run on the default.
+    known = [spec.name for spec in PARAMETERS]
+    for name in sorted(overrides):
+        if node.has_parameter(name) or name.startswith('qos_overrides.'):
+            continue  # ours, or rclpy's own (use_sim_time)
+        close = difflib.get_close_matches(name, known, n=1)
+        hint = f' (did you mean {close[0]}?)' if close else ''
+        node.get_logger().warning(f'ignoring unknown parameter {name}{hint}')
