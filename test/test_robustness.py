@@ -268,3 +268,10 @@ def test_an_unknown_parameter_is_named_with_a_suggestion(ros, capfd):
     make_sim(ros, physic_rate=100.0)
     warnings = log_lines(capfd, 'ignoring unknown parameter')
     assert len(warnings) == 1 and 'physic_rate (did you mean physics_rate?)' in warnings[0]
+
+
+def test_rclpys_own_parameters_are_not_called_unknown(ros, capfd):
+    """use_sim_time belongs to every rclpy node: no warning, and it takes effect."""
+    sim = make_sim(ros, use_sim_time=True)
+    assert not log_lines(capfd, 'ignoring unknown parameter')
+    assert sim.get_parameter('use_sim_time').value is True
