@@ -96,7 +96,7 @@ class GroundTruthOutput:
         self._publisher = node.create_publisher(Odometry, 'ground_truth', STATE_QOS)
         msg = Odometry()
         msg.header.frame_id = config.world_frame_id
-        msg.child_frame_id = config.base_frame_id
+        msg.child_frame_id = config.frame(config.base_frame_id)
         self._msg = _OdometryTemplate(msg)
 
     def publish(self, frame: Frame) -> None:
@@ -114,8 +114,8 @@ class OdometryOutput:
     def __init__(self, node: Node, config: SimConfig) -> None:
         self._publisher = node.create_publisher(Odometry, 'odom', STATE_QOS)
         msg = Odometry()
-        msg.header.frame_id = config.odom_frame_id
-        msg.child_frame_id = config.base_frame_id
+        msg.header.frame_id = config.frame(config.odom_frame_id)
+        msg.child_frame_id = config.frame(config.base_frame_id)
         for i, variance in enumerate(config.pose_covariance_diagonal):
             msg.pose.covariance[7 * i] = variance
         for i, variance in enumerate(config.twist_covariance_diagonal):

@@ -97,7 +97,9 @@ def test_late_subscribers_get_the_static_transforms(ros):
 def test_frame_prefix_and_link_transforms(ros):
     """With a prefix every robot frame is prefixed; link TF covers moving and fixed joints."""
     sim = make_sim(ros, frame_prefix='r2/', publish_link_tf=True, camera_rate=5.0)
-    listener = Listener(ros, {'/tf': (TFMessage, 100), '/tf_static': (TFMessage, STATIC_QOS)})
+    listener = Listener(ros, {'/tf': (TFMessage, 100), '/tf_static': (TFMessage, STATIC_QOS),
+                              'odom': (Odometry, 10), 'ground_truth': (Odometry, 10),
+                              'scan': (LaserScan, 10), 'imu': (Imu, 10)})
     sim.world.client.resetJointState(sim.world.robot_id, sim.world.joint('head_swivel').index,
                                      0.5)
     sim.advance(1)
@@ -112,6 +114,12 @@ def test_frame_prefix_and_link_transforms(ros):
     assert ('r2/head', 'r2/head_camera_optical') in static
     for parent, child in list(dynamic) + list(static):
         assert parent.startswith('r2/') and child.startswith('r2/')
+    sim.advance(24)
+    odom, truth = listener.wait('odom'), listener.wait('ground_truth')
+    assert (odom.header.frame_id, odom.child_frame_id) == ('r2/odom', 'r2/base_link')
+    assert (truth.header.frame_id, truth.child_frame_id) == ('world', 'r2/base_link')
+    assert listener.wait('scan').header.frame_id == 'r2/base_scan'
+    assert listener.wait('imu').header.frame_id == 'r2/imu_link'
     # Every one of the 15 URDF joints appears exactly once.
     joints = [pair for pair in list(dynamic) + list(static)
               if pair[0] not in ('r2/odom', 'r2/base_footprint') and 'optical' not in pair[1]
