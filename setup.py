@@ -28,6 +28,6 @@ setup(
             'demo = r2d2_sim.demo:main',
             'drive = r2d2_sim.drive_cmd:main',
         ],
-        'pytest11': ['r2d2_sim = r2d2_sim.pytest_plugin'],
+        'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin'],
     },
 )

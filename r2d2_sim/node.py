@@ -49,7 +49,7 @@ class SimNode(Node):
     Publishes ``joint_states``, ``odom`` (wheel odometry), ``ground_truth``,
     ``/clock``, the latched ``robot_description`` and, with ``camera_rate``,
     ``camera/image_raw`` and ``camera/camera_info``; subscribes ``cmd_vel``;
-    serves ``~/get_joint_info``, ``~/pause``, ``~/step`` and ``~/reset``.
+    serves ``~/get_joint_info``, ``~/get_status``, ``~/pause``, ``~/step`` and ``~/reset``.
     Takes rclpy's Node keywords (``context``, ``namespace``,
     ``parameter_overrides``...). Raises :class:`StartupError` when its
     parameters or URDF are unusable.
@@ -101,13 +101,14 @@ class SimNode(Node):
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.create_service(Trigger, '~/step', self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(Trigger, '~/get_status', self._on_get_status)
         self._publish_frame(simulation.frame())
 
     # -- the simulation, as tests and main() see it -----------------------------
 
     @property
     def world(self) -> SimWorld:
-        """Return the PyBullet world (for tests and advanced use)."""
+        """Return the PyBullet world, for tests and advanced use."""
         return self.simulation.world
 
     @property
@@ -119,6 +120,12 @@ class SimNode(Node):
     def sim_time_ns(self) -> int:
         """Return simulated time in integer nanoseconds (exact, no drift)."""
         return self.simulation.time_ns
+
+    @property
+    def last_publication_ns(self) -> int:
+        """Return the simulated time (ns) of the latest state publication (its stamps)."""
+        simulation = self.simulation
+        return simulation.clock.time_ns(simulation.last_frame_step)
 
     @property
     def paused(self) -> bool:
@@ -300,6 +307,12 @@ class SimNode(Node):
                 return response
             steps = self.advance_to_next_publish()
             response.message = self.status(steps=steps)
+        response.success = True
+        return response
+
+    def _on_get_status(self, request, response):
+        with self._lock:
+            response.message = self.status()
         response.success = True
         return response
 

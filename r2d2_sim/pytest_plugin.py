@@ -1,11 +1,87 @@
 """
-pytest integration for testing code against the simulator (a ``pytest11`` plugin).
+pytest fixtures for testing code against the simulator (a ``pytest11`` plugin).
 
-Installed with the package, so it loads in every pytest run of the environment:
-it imports nothing heavy until a fixture is used.
+Installed with the package, so it loads in every pytest run of the environment;
+from a source tree, opt in with ``pytest_plugins = ['r2d2_sim.pytest_plugin']``.
+It imports nothing heavy until a fixture is used.
+
+- ``r2d2_sim``: a ready :class:`~r2d2_sim.testing.SimHarness` (the simulator
+  in the test's process, advanced only when told) with the parameters of
+  ``r2d2_sim_parameters``: the node's defaults but ``cmd_vel_timeout`` 0, so
+  a command holds until the next one. Override that fixture to change them.
+- ``r2d2_sim_factory``: ``r2d2_sim_factory(**parameters)`` builds more
+  harnesses, each on its own domain; all are closed after the test.
+- ``r2d2_sim_process``: ``r2d2_sim_process(**parameters)`` starts
+  ``sim_node`` in a process of its own (:class:`~r2d2_sim.testing.SimProcess`)
+  and returns once it is ready; all are stopped after the test.
+
+Each harness leases a ROS domain no other harness on the machine uses, so
+tests may run in parallel (``pytest -n auto``).
 """
+
+import pytest
 
 
 def pytest_configure(config) -> None:
     """Hide the ROS wheels' own DeprecationWarnings (lark imports sre_parse on Python 3.11+)."""
     config.addinivalue_line('filterwarnings', r'ignore::DeprecationWarning:lark(\..*)?')
+
+
+@pytest.fixture
+def r2d2_sim_parameters() -> dict:
+    """Return the simulator parameters of the ``r2d2_sim`` fixture (override to change them)."""
+    # A test that sends one command and advances expects it to hold; the
+    # node's default (brake 0.5 s after the last command) is for real teleop.
+    return {'cmd_vel_timeout': 0.0}
+
+
+@pytest.fixture
+def r2d2_sim_factory():
+    """Provide ``make(**parameters) -> SimHarness``; each harness made closes after the test."""
+    from r2d2_sim.testing import SimHarness
+    harnesses = []
+
+    def make(**parameters):
+        harness = SimHarness(**parameters)
+        harnesses.append(harness)
+        return harness
+    yield make
+    _close_all(harnesses, lambda harness: harness.close())
+
+
+@pytest.fixture
+def r2d2_sim(r2d2_sim_factory, r2d2_sim_parameters):
+    """Provide a ready in-process simulator harness (``SimHarness``) on a domain of its own."""
+    return r2d2_sim_factory(**r2d2_sim_parameters)
+
+
+@pytest.fixture
+def r2d2_sim_process():
+    """
+    Provide ``start(**parameters) -> SimProcess``: ``sim_node`` in its own process, ready.
+
+    Keywords are the simulator's parameters plus SimProcess's own
+    (``ros_args``, ``domain_id``, ``timeout_s``...). Every process started is
+    stopped after the test (SIGINT, then SIGKILL after a deadline).
+    """
+    from r2d2_sim.testing import SimProcess
+    processes = []
+
+    def start(**parameters):
+        process = SimProcess(**parameters)
+        processes.append(process)
+        return process
+    yield start
+    _close_all(processes, lambda process: process.stop())
+
+
+def _close_all(harnesses, close) -> None:
+    """Close every harness, newest first, even if one fails; then raise the first failure."""
+    errors = []
+    for harness in reversed(harnesses):
+        try:
+            close(harness)
+        except Exception as exc:
+            errors.append(exc)
+    if errors:
+        raise errors[0]

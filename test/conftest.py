@@ -1,123 +1,84 @@
-"""Shared fixtures: isolated ROS contexts and domains, deadline waits, subprocess helpers."""
+"""
+Fixtures for this project's own tests, on top of the public testing API.
 
-import itertools
+The harnesses, deadline waits, process helpers and ROS domain leases live in
+:mod:`r2d2_sim.testing` (and the user-facing fixtures in
+:mod:`r2d2_sim.pytest_plugin`); what is left here records every message for
+exact-count checks, or knows this repository's layout.
+"""
+
 import os
 from pathlib import Path
-import signal
 import subprocess
-import sys
-import threading
-import time
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
-from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
+from r2d2_sim import testing
 from r2d2_sim.kinematics import quaternion_to_yaw
 from r2d2_sim.node import SimNode
-from r2d2_sim.testing import ros_child_env as ros_env, spin_until
+# The user-facing fixtures, for this suite too (imported rather than named in
+# pytest_plugins: an installed r2d2_sim registers the plugin under another name).
+from r2d2_sim.pytest_plugin import (  # noqa: F401
+    r2d2_sim, r2d2_sim_factory, r2d2_sim_parameters, r2d2_sim_process)
+from r2d2_sim.testing import (  # noqa: F401 (re-exported for the test modules)
+    RemoteProbe, ros_child_env as ros_env, sim_node_command, stop_process, wait_for)
 
 # Discovery must stay on this host; set before any rclpy.init.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-# Domains 1..100 are safe with Fast DDS's port mapping; start from the pid so
-# concurrent pytest processes on one machine are unlikely to share one.
-_domains = itertools.count(os.getpid() % 100)
+RATE_HZ = 240
+# The README examples run in a subprocess (test_testing_api.py), as a user's
+# own test files would, not as part of this suite.
+collect_ignore = ['examples']
+
+_leases = []
 
 
 def next_domain_id() -> int:
-    """Return a ROS domain id not used by earlier tests of this process."""
-    return next(_domains) % 100 + 1
+    """Lease a ROS domain id that no other test on this machine uses, until this test ends."""
+    lease = testing.lease_domain()
+    _leases.append(lease)
+    return lease.domain_id
 
 
-def wait_for(condition, timeout_s=10.0, interval_s=0.002):
-    """Poll ``condition`` until it returns a truthy value or the deadline passes."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = condition()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            return value
-        time.sleep(interval_s)
+@pytest.fixture(autouse=True)
+def _release_domains():
+    """Release the domains a test leased through next_domain_id, after all its fixtures."""
+    yield
+    while _leases:
+        _leases.pop().release()
 
 
-class RosHarness:
-    """One rclpy context on its own domain, with an executor spinning in a thread."""
-
-    def __init__(self):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        self.domain_id = next_domain_id()
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=self.domain_id)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.nodes = []
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self):
-        from rclpy.executors import ExternalShutdownException
-        try:
-            self.executor.spin()
-        except ExternalShutdownException:
-            pass
-
-    def add(self, node):
-        """Register a node with the executor (and for teardown)."""
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
+class RosHarness(testing.RosHarness):
+    """The public harness, with the short names this suite uses for plain (wall-time) nodes."""
 
     def node(self, name):
         """Create a plain probe node in this context."""
-        from rclpy.node import Node
-        return self.add(Node(name, context=self.context))
+        return self.create_node(name, use_sim_time=False)
 
-    def close(self):
-        """Shut down the executor, destroy nodes, shut the context down."""
-        import rclpy
-        self.executor.shutdown(timeout_sec=2.0)
-        self._thread.join(timeout=2.0)
-        for node in reversed(self.nodes):
-            node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+    def add(self, node):
+        """Register a node with the executor (and for teardown)."""
+        return self.add_node(node, use_sim_time=False)
 
 
 @pytest.fixture
 def ros():
     """Provide an isolated ROS harness, torn down after the test."""
-    harness = RosHarness()
-    try:
+    with RosHarness() as harness:
         yield harness
-    finally:
-        harness.close()
 
 
 def start_sim_process(domain_id, *ros_args, command=None):
-    """Start the simulator executable in its own process on ``domain_id``."""
-    command = command or [sys.executable, '-m', 'r2d2_sim']
-    args = list(command) + (['--ros-args', *ros_args] if ros_args else [])
-    return subprocess.Popen(args, env=ros_env(domain_id), stdout=subprocess.PIPE,
+    """Start the simulator executable in its own process on ``domain_id``, output piped."""
+    return subprocess.Popen(sim_node_command(ros_args=ros_args, command=command),
+                            env=ros_env(domain_id), stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-
-
-def stop_process(process, sig=signal.SIGINT, timeout_s=10.0):
-    """Send ``sig``, wait for exit, kill as a last resort; return (code, stdout, stderr)."""
-    if process.poll() is None:
-        process.send_signal(sig)
-    try:
-        out, err = process.communicate(timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        out, err = process.communicate()
-    return process.returncode, out, err
 
 
 def simulators_in_domain(domain_id):
@@ -134,9 +95,6 @@ def simulators_in_domain(domain_id):
         if b'r2d2_sim' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
             pids.append(int(entry.name))
     return pids
-
-
-RATE_HZ = 240
 
 
 def drive_forward_until(spin_until, publisher, truth, distance_m, timeout_s, speed_m_s=0.3):
@@ -157,7 +115,7 @@ def drive_forward_until(spin_until, publisher, truth, distance_m, timeout_s, spe
 
 
 class Probe:
-    """A test-side node: publishes cmd_vel, records everything the simulator says."""
+    """A test-side node: publishes cmd_vel, records every message the simulator sends."""
 
     def __init__(self, ros, sim):
         from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -221,8 +179,8 @@ class Probe:
 
 def make_sim(ros, **params):
     """Build the simulator in the harness's context with parameter overrides."""
-    overrides = [Parameter(k, value=v) for k, v in params.items()]
-    return ros.add(SimNode(context=ros.context, parameter_overrides=overrides))
+    return ros.add(SimNode(context=ros.context,
+                           parameter_overrides=testing.parameter_overrides(params)))
 
 
 @pytest.fixture
@@ -241,28 +199,3 @@ def latest_truth(sim):
     """Return the simulator's true (x, y, yaw) now."""
     base = sim.world.base_state()
     return base.position[0], base.position[1], quaternion_to_yaw(*base.orientation)
-
-
-class RemoteProbe:
-    """A probe node in its own context on ``domain_id``, for talking to a sim subprocess."""
-
-    def __init__(self, domain_id, name='remote_probe'):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain_id)
-        self.node = rclpy.create_node(name, context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-
-    def spin_until(self, condition, timeout_s):
-        """Spin until ``condition()`` holds (True) or the deadline passes (False)."""
-        return spin_until(self.executor, condition, timeout_s)
-
-    def close(self):
-        """Destroy the node and shut its context down."""
-        import rclpy
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)

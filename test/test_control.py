@@ -5,9 +5,7 @@ import json
 import math
 import threading
 
-from conftest import (latest_truth, make_sim, next_domain_id, Probe, start_sim_process,
-                      stop_process, wait_for)
-from geometry_msgs.msg import Twist
+from conftest import latest_truth, make_sim, Probe, wait_for
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.parameter import Parameter
@@ -16,6 +14,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.sim_node import run_paced
+from r2d2_sim.testing import SimProcess
 
 # (step, linear, angular) commands of the determinism schedule; NaN is refused.
 SCHEDULE = [(0, 0.3, 0.0), (40, 0.2, 0.5), (90, 0.0, -0.6), (130, math.nan, 0.0),
@@ -226,57 +225,24 @@ def test_in_process_runs_are_bit_identical():
 def test_cross_process_stepping_matches_in_process(ros, real_time_factor):
     """~/step across processes reproduces the in-process run bit for bit, at any speed."""
     expected = _run_schedule_in_process(ros)
-    domain = next_domain_id()
-    process = start_sim_process(domain, '-p', 'start_paused:=true',
-                                '-p', f'real_time_factor:={real_time_factor}')
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain)
-    node = rclpy.create_node('step_client', context=ctx)
-    executor = SingleThreadedExecutor(context=ctx)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    sim = SimProcess(start_paused=True, ros_args=['-p', f'real_time_factor:={real_time_factor}'])
+    node = sim.probe.node
     joints, truth, clocks = [], [], []
-    node.create_subscription(JointState, 'joint_states', joints.append, 1000)
-    node.create_subscription(Odometry, 'ground_truth', truth.append, 1000)
-    node.create_subscription(Clock, '/clock', clocks.append, 1000)
-    pub = node.create_publisher(Twist, 'cmd_vel', 10)
-    step_client = node.create_client(Trigger, '/r2d2_sim/step')
-    pause_client = node.create_client(SetBool, '/r2d2_sim/pause')
-
-    def call(client, request):
-        future = client.call_async(request)
-        assert wait_for(future.done, 10.0)
-        return future.result()
-
-    def received_count():
-        request = SetBool.Request()
-        request.data = True
-        return json.loads(call(pause_client, request).message)['commands_received']
-
+    subscriptions = [node.create_subscription(JointState, 'joint_states', joints.append, 1000),
+                     node.create_subscription(Odometry, 'ground_truth', truth.append, 1000),
+                     node.create_subscription(Clock, '/clock', clocks.append, 1000)]
     try:
-        assert step_client.wait_for_service(timeout_sec=20.0), 'sim_node did not start'
-        assert wait_for(lambda: pub.get_subscription_count() > 0, 10.0)
+        assert sim.probe.spin_until(
+            lambda: all(s.get_publisher_count() > 0 for s in subscriptions), 10.0)
         commands = {step: (v, w) for step, v, w in SCHEDULE}
-        sent = 0
         for step in range(SCHEDULE_STEPS):
             if step in commands:
-                msg = Twist()
-                msg.linear.x, msg.angular.z = commands[step]
-                pub.publish(msg)
-                sent += 1
-                assert wait_for(lambda: received_count() >= sent, 10.0)
-            assert call(step_client, Trigger.Request()).success
-            assert wait_for(lambda: len(joints) >= step + 1 and len(truth) >= step + 1, 10.0)
+                sim.send_cmd_vel(*commands[step])  # returns once the node has counted it
+            assert sim.step()['steps'] == 1
+            assert sim.probe.spin_until(
+                lambda: len(joints) >= step + 1 and len(truth) >= step + 1, 10.0)
     finally:
-        code, out, err = stop_process(process)
-        executor.shutdown()
-        spinner.join(5.0)
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
+        code, out, err = sim.stop()
     assert code == 0, err
     got = [(tuple(j.position), tuple(j.velocity)) for j in joints[-SCHEDULE_STEPS:]]
     assert got == [(e[0], e[1]) for e in expected]

@@ -60,7 +60,7 @@ def transforms(messages):
 # -- TF ------------------------------------------------------------------------------
 
 def test_tf_chains_odom_footprint_base_with_the_odom_stamp(ros):
-    """odom -> base_footprint on /tf carries odom's pose and stamp; the rest is static."""
+    """Publish odom -> base_footprint on /tf with odom's pose and stamp; the rest is static."""
     sim = make_sim(ros)
     listener = Listener(ros, {'/tf': (TFMessage, 100), 'odom': (Odometry, 100),
                               '/tf_static': (TFMessage, STATIC_QOS)})
@@ -128,7 +128,7 @@ def test_frame_prefix_and_link_transforms(ros):
 
 
 def test_ground_truth_tf_places_odom_so_that_the_chain_is_the_true_pose(ros):
-    """world -> odom -> base_footprint composes to the true planar pose."""
+    """Compose world -> odom -> base_footprint into the true planar pose."""
     sim = make_sim(ros, publish_ground_truth_tf=True, cmd_vel_timeout=0.0)
     listener = Listener(ros, {'/tf': (TFMessage, 1000), 'ground_truth': (Odometry, 1000)})
     sim.simulation.command(0.3, 0.5)
