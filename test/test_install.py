@@ -187,3 +187,14 @@ def test_tf_scan_and_imu_reach_another_process_after_the_documented_build(pip_ve
     scan = got['scan'][-1]
     assert len(scan.ranges) == 360 and scan.ranges[180] == pytest.approx(2.0, abs=0.01)
     assert got['imu'][-1].linear_acceleration.z == pytest.approx(9.8, abs=0.3)
+
+
+def test_readme_examples_run_unchanged_in_the_pip_venv(pip_venv, tmp_path):
+    """The testing section's examples pass with nothing but pip install . and pytest."""
+    for example in (Path(REPO) / 'test' / 'examples').glob('test_*.py'):
+        shutil.copy(example, tmp_path / example.name)
+    result = subprocess.run([str(pip_venv / 'bin' / 'python'), '-m', 'pytest', '-q', '-p',
+                             'no:cacheprovider', '.'], cwd=tmp_path, env=user_env(),
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert '3 passed' in result.stdout
