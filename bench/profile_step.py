@@ -1,21 +1,25 @@
 #!/usr/bin/env python3
 """
-Where the node's every-step overhead goes: in-process SimNode.advance at rtf 0.
+Where a step's microseconds go: in-process SimNode.advance at rtf 0, part by part.
 
 Run from the repository root::
 
     .venv/bin/python bench/profile_step.py [--steps 3000] [--domain 95]
 
-1. A breakdown timed inside ``advance``: each bridge function of node.py and
-   world.py and each publisher is wrapped with a timer (inclusive and
-   exclusive microseconds per step), no profiler attached.
-2. The cProfile top list (tottime and cumtime per step; cProfile inflates
-   Python-heavy functions, so read it for ranking, the breakdown for sizes).
-3. Prototypes of edits not (yet) made, applied to in-process nodes by
-   monkeypatching (nothing in r2d2_sim/ is changed), each timed against an
-   unpatched node in interleaved rounds: the expected gain per edit. The
-   earlier prototypes (bound PyBullet calls, integer publish schedule, one
-   base-state and one joint-state read per publication) are now in the node.
+1. A breakdown timed inside ``advance``: the parts of a step (Simulation.step
+   and .frame, the physics, the readouts, the blow-up checks, the drive
+   controller's update and odometry, each output's publish with its patching
+   and its rclpy publish) are wrapped with timers, no profiler attached;
+   inclusive and exclusive microseconds per step. Run publishing every step
+   (a publication round per step), at ``publish_rate`` 10 (nearly every step
+   publishes nothing) and, when the node has sensor parameters, with the
+   default outputs. Sensor outputs are off otherwise, as in ``run.py``.
+2. The cProfile top list of the every-step node (cProfile inflates
+   Python-heavy functions: read it for ranking, the breakdown for sizes).
+
+An output's exclusive time is what its ``publish`` does besides the timed
+calls: the patching glue of a state output, the ray casting or the IMU model
+of a sensor output.
 
 Writes everything to ``bench/profile.json``.
 """
@@ -23,27 +27,20 @@ Writes everything to ``bench/profile.json``.
 import argparse
 import cProfile
 import functools
-import json
-import math
 import os
 import pstats
-import statistics
 import sys
 import time
 
-BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.dirname(BENCH_DIR)
-if REPO not in sys.path:
-    sys.path.insert(0, REPO)
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-
-from r2d2_sim.stdio import silenced_stdout  # noqa: E402 (after the sys.path set-up)
-
+from common import (
+    BENCH_DIR, init_ros, local_date, machine_info, make_sim_node, missing_parameters, outputs_off,
+    write_json)
 
 PROFILE_PATH = os.path.join(BENCH_DIR, 'profile.json')
+ADVANCE = 'SimNode.advance (the step loop)'
+PHYSICS = 'SimWorld.step (physics)'
+_INHERITED = object()  # an attribute found on the class, not on the wrapped object itself
 
-
-# -- 1. breakdown ----------------------------------------------------------------------
 
 class Timers:
     """Nested wall-clock timers: inclusive and exclusive time and calls per label."""
@@ -73,52 +70,77 @@ class Timers:
         return timed
 
 
-def instrument(node, timers):
-    """Wrap the bridge's functions on this node instance (and its world) with timers."""
-    import r2d2_sim.node as node_module
-    world = node.world
-    for label, owner, name in (
-            ('SimNode.advance (whole step loop)', node, 'advance'),
-            ('SimWorld.step (physics)', world, 'step'),
-            ('SimNode._update_command', node, '_update_command'),
-            ('SimNode._checked_state (excl. queries)', node, '_checked_state'),
-            ('SimWorld.state_problem', world, 'state_problem'),
-            ('SimNode._publish_state (message filling)', node, '_publish_state'),
-            ('SimWorld.joint_states (getJointStates + dataclass)', world, 'joint_states'),
-            ('SimWorld.base_state (4 queries + dataclass)', world, 'base_state'),
-            ('SimNode._update_odometry', node, '_update_odometry'),
-            ('DiffDriveOdometry.update_from_positions', node.odometry, 'update_from_positions')):
-        setattr(owner, name, timers.wrap(label, getattr(owner, name)))
-    for label, publisher in (('publish /clock', node._clock_pub),
-                             ('publish joint_states', node._joint_pub),
-                             ('publish ground_truth', node._truth_pub),
-                             ('publish odom', node._odom_pub)):
-        publisher.publish = timers.wrap(label, publisher.publish)
-    node_module.yaw_to_quaternion = timers.wrap('yaw_to_quaternion',
-                                                node_module.yaw_to_quaternion)
+def timer_overhead_us(calls=20000):
+    """Return the microseconds one timed call adds to its caller's exclusive time."""
+    timers = Timers()
+    child = timers.wrap('child', lambda: None)
+
+    def parent():
+        for _ in range(calls):
+            child()
+    plain = time.perf_counter()
+    for _ in range(calls):
+        (lambda: None)()
+    plain = time.perf_counter() - plain
+    timers.wrap('parent', parent)()
+    return 1e6 * (timers.exclusive['parent'] - plain) / calls
 
 
-def breakdown(context, steps):
-    """Time each bridge function inside advance(steps); return rows sorted by exclusive time."""
-    import r2d2_sim.node as node_module
-    original_yaw = node_module.yaw_to_quaternion
-    node = make_node(context, 'breakdown')
-    try:
-        node.advance(240)
-        timers = Timers()
-        instrument(node, timers)
-        node.advance(steps)
-        raw_us = per_step_us(node.world.client.stepSimulation, steps)
-    finally:
-        node_module.yaw_to_quaternion = original_yaw
-        node.destroy_node()
-    rows = [{'function': label, 'calls_per_step': timers.calls[label] / steps,
-             'inclusive_us': 1e6 * timers.inclusive[label] / steps,
-             'exclusive_us': 1e6 * timers.exclusive[label] / steps}
-            for label in timers.inclusive]
-    rows.sort(key=lambda row: -row['exclusive_us'])
-    return {'rows': rows, 'raw_step_us': raw_us,
-            'advance_us': 1e6 * timers.inclusive['SimNode.advance (whole step loop)'] / steps}
+class Patches:
+    """Attributes replaced by timed wrappers, put back by :meth:`restore`."""
+
+    def __init__(self, timers):
+        self.timers = timers
+        self.missing = []
+        self._saved = []
+
+    def wrap(self, label, owner, name):
+        """Time ``owner.name`` under ``label``; note it as missing if ``owner`` has none."""
+        function = getattr(owner, name, None)
+        if function is None:
+            self.missing.append(label)
+            return
+        self._saved.append((owner, name, owner.__dict__.get(name, _INHERITED)))
+        setattr(owner, name, self.timers.wrap(label, function))
+
+    def restore(self):
+        """Put every wrapped attribute back as it was."""
+        for owner, name, original in reversed(self._saved):
+            if original is _INHERITED:
+                delattr(owner, name)
+            else:
+                setattr(owner, name, original)
+        self._saved.clear()
+
+
+def instrument(node, patches):
+    """Wrap the parts of a step on this node, its simulation, world and controller."""
+    from r2d2_sim import outputs, serialization
+    simulation = node.simulation
+    world, controller = simulation.world, simulation.controller
+    patches.wrap(ADVANCE, node, 'advance')
+    patches.wrap('SimNode._publish_frame (loop over outputs)', node, '_publish_frame')
+    patches.wrap('Simulation.step (glue)', simulation, 'step')
+    patches.wrap('Simulation.frame (glue, Frame)', simulation, 'frame')
+    patches.wrap(PHYSICS, world, 'step')
+    patches.wrap('SimWorld.joint_states (read)', world, 'joint_states')
+    patches.wrap('SimWorld.base_state (read)', world, 'base_state')
+    patches.wrap('SimWorld.state_problem (blow-up check)', world, 'state_problem')
+    patches.wrap('SimWorld.joint_problem (blow-up check)', world, 'joint_problem')
+    if controller is not None:
+        patches.wrap('DriveController.update (command -> wheels)', controller, 'update')
+        patches.wrap('DriveController.update_odometry', controller, 'update_odometry')
+    # Every output class, whichever the node has: class attributes, so also
+    # outputs that hold a bound method would be timed.
+    for name, cls in sorted(vars(outputs).items()):
+        if (isinstance(cls, type) and cls.__module__ == outputs.__name__
+                and callable(cls.__dict__.get('publish'))):
+            patches.wrap(f'{name}.publish (outputs)', cls, 'publish')
+    patches.wrap('MessageTemplate.to_bytes', serialization.MessageTemplate, 'to_bytes')
+    patches.wrap('StampSlot.set', serialization.StampSlot, 'set')
+    patches.wrap('FieldSlot.set', serialization.FieldSlot, 'set')
+    for publisher in node.publishers:
+        patches.wrap(f'rclpy publish {publisher.topic_name}', publisher, 'publish')
 
 
 def per_step_us(step, steps):
@@ -129,11 +151,70 @@ def per_step_us(step, steps):
     return 1e6 * (time.thread_time() - begin) / steps
 
 
-# -- 2. cProfile ---------------------------------------------------------------------------
+def breakdown(context, name, params, steps):
+    """Time each part of a step inside advance(steps); return rows sorted by exclusive time."""
+    node = make_sim_node(context, f'/profile_{name}', dict(params, real_time_factor=0.0))
+    timers = Timers()
+    patches = Patches(timers)
+    try:
+        node.advance(240)
+        schedule = node.simulation.publish_schedule
+        rounds = schedule.count
+        instrument(node, patches)
+        node.advance(steps)
+        patches.restore()
+        rounds = schedule.count - rounds
+        raw_us = per_step_us(node.world.client.stepSimulation, steps)
+    finally:
+        patches.restore()
+        node.destroy_node()
+    rows = [{'function': label, 'calls_per_step': timers.calls[label] / steps,
+             'inclusive_us': 1e6 * timers.inclusive[label] / steps,
+             'exclusive_us': 1e6 * timers.exclusive[label] / steps}
+            for label in timers.inclusive]
+    rows.sort(key=lambda row: -row['exclusive_us'])
+    advance_us = 1e6 * timers.inclusive[ADVANCE] / steps
+    physics_us = 1e6 * timers.inclusive[PHYSICS] / steps
+    return {'params': params, 'rows': rows, 'missing': patches.missing,
+            'raw_step_us': raw_us, 'advance_us': advance_us, 'physics_us': physics_us,
+            'bridge_us': advance_us - physics_us, 'publication_rounds': rounds,
+            'round': publication_round(rows, rounds / steps)}
 
-def cprofile_top(context, steps, top):
+
+def publication_round(rows, rounds_per_step):
+    """
+    Sum an every-step breakdown into the microseconds of one publication round, by part.
+
+    Each output counts with its inclusive time (patching, to_bytes and rclpy
+    publish); ``of which`` splits those three out over all outputs. Empty
+    unless every step publishes (elsewhere a step's parts are not a round's).
+    """
+    if rounds_per_step != 1.0:
+        return {}
+    exclusive = {row['function']: row['exclusive_us'] for row in rows}
+    inclusive = {row['function']: row['inclusive_us'] for row in rows}
+
+    def total(table, predicate):
+        return sum(us for label, us in table.items() if predicate(label))
+    parts = {
+        'read joints and base': total(exclusive, lambda f: f.endswith('(read)')),
+        'blow-up checks': total(exclusive, lambda f: 'blow-up' in f),
+        'odometry': total(exclusive, lambda f: f.startswith('DriveController.update_odometry')),
+        'Frame and its glue': total(exclusive, lambda f: f.startswith('Simulation.frame')),
+        'loop over outputs': total(exclusive, lambda f: f.startswith('SimNode._publish_frame')),
+    }
+    parts.update((label.split('.')[0], us) for label, us in inclusive.items()
+                 if label.endswith('.publish (outputs)'))
+    parts['total'] = sum(parts.values())
+    parts['of which: rclpy publish'] = total(exclusive, lambda f: f.startswith('rclpy publish'))
+    parts['of which: MessageTemplate.to_bytes'] = exclusive.get('MessageTemplate.to_bytes', 0.0)
+    parts['of which: slot sets'] = total(exclusive, lambda f: f.endswith('Slot.set'))
+    return parts
+
+
+def cprofile_top(context, params, steps, top):
     """Run advance(steps) under cProfile; return the top functions by tottime, per step."""
-    node = make_node(context, 'cprofile')
+    node = make_sim_node(context, '/profile_cprofile', dict(params, real_time_factor=0.0))
     try:
         node.advance(240)
         profiler = cProfile.Profile()
@@ -142,8 +223,8 @@ def cprofile_top(context, steps, top):
         profiler.disable()
     finally:
         node.destroy_node()
-    stats = pstats.Stats(profiler).stats
     rows = []
+    stats = pstats.Stats(profiler).stats
     for (path, line, name), (_, calls, tottime, cumtime, _) in stats.items():
         where = f'{os.path.basename(path)}:{line}({name})' if line else name
         rows.append({'function': where, 'calls_per_step': calls / steps,
@@ -152,77 +233,26 @@ def cprofile_top(context, steps, top):
     return rows[:top]
 
 
-# -- 3. prototypes of the recommended edits ------------------------------------------------
-
-def patch_no_ground_truth(node):
-    """Skip the ground_truth publication (e.g. while it has no subscriber)."""
-    node._truth_pub.publish = lambda msg: None
-
-
-PATCHES = (
-    ('ground_truth not published', (patch_no_ground_truth,)),
-)
-
-
-def prototypes(context, rounds, steps):
-    """
-    Time the bridge of an unpatched node and of each patched one, interleaved; medians.
-
-    Physics cost differs a little from one world to the next, so each node's
-    bridge cost is its advance() time minus raw stepping of its own world,
-    both measured in the same round.
-    """
-    variants = [('unpatched node', ())] + list(PATCHES)
-    nodes = []
-    try:
-        for index, (label, patches) in enumerate(variants):
-            node = make_node(context, f'proto{index}')
-            for patch in patches:
-                patch(node)
-            nodes.append((label, node))
-        for _, node in nodes:
-            node.advance(240)
-        advance_us = {label: [] for label, _ in nodes}
-        raw_us = {label: [] for label, _ in nodes}
-        for _ in range(rounds):
-            for label, node in nodes:
-                begin = time.thread_time()
-                node.advance(steps)
-                middle = time.thread_time()
-                node.world.step(steps)
-                advance_us[label].append(1e6 * (middle - begin) / steps)
-                raw_us[label].append(1e6 * (time.thread_time() - middle) / steps)
-    finally:
-        for _, node in nodes:
-            node.destroy_node()
-    rows = []
-    for label, _ in nodes:
-        advance, raw = statistics.median(advance_us[label]), statistics.median(raw_us[label])
-        bridge = statistics.median(a - r for a, r in zip(advance_us[label], raw_us[label]))
-        rows.append({'variant': label, 'us_per_step': advance, 'raw_us_per_step': raw,
-                     'bridge_us': bridge, 'ratio_to_raw': raw / advance})
-    base = rows[0]['bridge_us']
-    for row in rows:
-        row['saved_us'] = base - row['bridge_us'] if row is not rows[0] else math.nan
-    return rows
-
-
-# -- driver --------------------------------------------------------------------------------
-
-def make_node(context, name):
-    """Build an every-step SimNode at rtf 0 in ``context`` under ``/profile_<name>``."""
-    from rclpy.parameter import Parameter
-    with silenced_stdout():
-        from r2d2_sim.node import SimNode
-        return SimNode(context=context, namespace=f'/profile_{name}', parameter_overrides=[
-            Parameter('real_time_factor', value=0.0)])
+def print_breakdown(title, part, overhead_us):
+    """Print one breakdown and its publication round."""
+    print(f'\n{title}: advance {part["advance_us"]:.1f} us/step = physics '
+          f'{part["physics_us"]:.1f} + bridge {part["bridge_us"]:.1f} (raw stepSimulation '
+          f'{part["raw_step_us"]:.1f} us by CPU time, untimed)')
+    print(f'   {"exclusive us":>12} {"inclusive us":>12} {"calls":>6}  function')
+    for row in part['rows']:
+        print(f'   {row["exclusive_us"]:12.2f} {row["inclusive_us"]:12.2f} '
+              f'{row["calls_per_step"]:6.2f}  {row["function"]}')
+    if part['missing']:
+        print('   not found (renamed?): ' + ', '.join(part['missing']))
+    if part['round']:
+        print(f'   one publication round, us (timed calls add ~{overhead_us:.2f} us each): '
+              + ', '.join(f'{kind} {us:.1f}' for kind, us in part['round'].items()))
 
 
 def main(argv=None):
-    """Run the breakdown, cProfile and the prototypes; print them and write profile.json."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    """Run the breakdowns and cProfile; print them and write profile.json."""
+    parser = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     parser.add_argument('--steps', type=int, default=3000, help='steps per measurement')
-    parser.add_argument('--rounds', type=int, default=15, help='interleaved prototype rounds')
     parser.add_argument('--domain', type=int, default=95, help='ROS domain id (default 95)')
     parser.add_argument('--top', type=int, default=20, help='cProfile rows to show')
     parser.add_argument('--output', default=PROFILE_PATH, help='where to write the JSON')
@@ -230,40 +260,33 @@ def main(argv=None):
 
     import rclpy
     from rclpy.context import Context
-    from rclpy.signals import SignalHandlerOptions
+    off = outputs_off()
+    configurations = [('every_step', 'publishing every step', dict(off, publish_rate=0.0)),
+                      ('publish_rate_10', 'publish_rate 10', dict(off, publish_rate=10.0))]
+    if len(missing_parameters(('scan_rate', 'imu_rate', 'publish_tf'))) < 3:
+        configurations.append(('default_outputs', 'default outputs', {}))
+    overhead_us = timer_overhead_us()
     context = Context()
-    rclpy.init(context=context, domain_id=args.domain,
-               signal_handler_options=SignalHandlerOptions.NO)
+    init_ros(args.domain, context)
     try:
-        parts = breakdown(context, args.steps)
-        top = cprofile_top(context, args.steps, args.top)
-        proto = prototypes(context, args.rounds, max(args.steps // 3, 240))
+        parts = {name: breakdown(context, name, params, args.steps)
+                 for name, _, params in configurations}
+        top = cprofile_top(context, configurations[0][2], args.steps, args.top)
     finally:
         rclpy.try_shutdown(context=context)
 
-    print(f'1. Breakdown inside SimNode.advance, every step, rtf 0 ({args.steps} steps, '
-          'wall time, timer wrappers add ~0.3 us per call to the caller\'s exclusive time)')
-    print(f'   advance: {parts["advance_us"]:.1f} us/step; raw stepSimulation '
-          f'{parts["raw_step_us"]:.1f} us/step')
-    print(f'   {"exclusive us":>12} {"inclusive us":>12} {"calls":>6}  function')
-    for row in parts['rows']:
-        print(f'   {row["exclusive_us"]:12.1f} {row["inclusive_us"]:12.1f} '
-              f'{row["calls_per_step"]:6.1f}  {row["function"]}')
-    print(f'\n2. cProfile top {args.top} by tottime (us per step)')
+    print(f'1. Breakdown inside SimNode.advance, rtf 0, {args.steps} steps, wall time; each '
+          f'timed call adds ~{overhead_us:.2f} us to its caller\'s exclusive time')
+    for name, title, _ in configurations:
+        print_breakdown(title, parts[name], overhead_us)
+    print(f'\n2. cProfile top {args.top} by tottime, publishing every step (us per step)')
     print(f'   {"tottime":>8} {"cumtime":>8} {"calls":>6}  function')
     for row in top:
         print(f'   {row["tottime_us"]:8.1f} {row["cumtime_us"]:8.1f} '
               f'{row["calls_per_step"]:6.1f}  {row["function"]}')
-    print(f'\n3. Prototyped edits (monkeypatched, CPU time, median of {args.rounds} '
-          'interleaved rounds)')
-    print(f'   {"node us":>8} {"raw us":>7} {"bridge":>7} {"saved":>7} {"ratio":>6}  variant')
-    for row in proto:
-        saved = '' if math.isnan(row['saved_us']) else f'{row["saved_us"]:7.1f}'
-        print(f'   {row["us_per_step"]:8.1f} {row["raw_us_per_step"]:7.1f} '
-              f'{row["bridge_us"]:7.1f} {saved:>7} {row["ratio_to_raw"]:6.3f}  {row["variant"]}')
-    with open(args.output, 'w', encoding='utf-8') as out:
-        json.dump({'steps': args.steps, 'breakdown': parts, 'cprofile_top': top,
-                   'prototypes': proto}, out, indent=1)
+    write_json(args.output, {'date': local_date(), 'machine': machine_info(),
+                             'steps': args.steps, 'timer_overhead_us': overhead_us,
+                             'breakdowns': parts, 'cprofile_top': top})
     print(f'\nwrote {args.output}')
     return 0
 

@@ -1,223 +1,84 @@
 #!/usr/bin/env python3
 """
-Benchmark of the r2d2_sim node: real-time fidelity, bridge overhead, latency, scaling, start-up.
+Benchmark of the r2d2_sim node: real-time fidelity, throughput, sensor costs, latency, start-up.
 
 Run from the repository root::
 
     .venv/bin/python bench/run.py [--quick] [--domain 90]
 
-Prints a table and writes it, with the raw numbers, the machine's CPU model,
-core count and the date, to ``bench/results.json``. Every ROS process runs with
+Prints a table (measurement / target / measured / pass-miss) and writes it,
+with the raw numbers, the machine's CPU model, core count and the date, to
+``bench/results.json``. Every ROS process runs with
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` on domains ``--domain`` .. +4.
-
-The same file also holds the roles of the helper processes it starts
-(``--role harness|subscriber|latency``); they are not meant to be run by hand.
+The helper processes are in ``roles.py``, the shared helpers in ``common.py``.
 """
 
 import argparse
-import datetime
+import functools
 import json
 import math
 import os
-import signal
+import re
 import statistics
-import subprocess
 import sys
 import tempfile
-import threading
 import time
+from typing import NamedTuple
 
-BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.dirname(BENCH_DIR)
-if REPO not in sys.path:
-    sys.path.insert(0, REPO)
-# Discovery must stay on this host; set before rclpy is imported anywhere.
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+from common import (
+    background_load, BENCH_DIR, existing_parameters, fit_line, init_ros, LoadMeter, local_date,
+    log_tail, machine_info, make_sim_node, missing_parameters, outputs_off, percentile,
+    PHYSICS_RATE_HZ, process_cpu_s, read_json, start_role, start_sim, status, stop_process,
+    wait_process, write_json)
 
-from r2d2_sim.stdio import silenced_stdout  # noqa: E402 (after the sys.path set-up)
-
-PHYSICS_RATE_HZ = 240.0
-PHYSICS_PERIOD_MS = 1000.0 / PHYSICS_RATE_HZ
-WHEEL_RADIUS_M = 0.035          # the package URDF's wheels (a command's wheel target is v / r)
-LEFT_WHEEL = 'left_front_wheel_joint'
 RESULTS_PATH = os.path.join(BENCH_DIR, 'results.json')
+PHYSICS_PERIOD_MS = 1000.0 / PHYSICS_RATE_HZ
 
 # Targets on a 2-core machine.
 TARGET_RATE_ERROR = 0.005       # achieved physics rate within 0.5 % of 240 Hz
 TARGET_JITTER_P99_MS = 0.3
-TARGET_CPU_SHARE = 0.10         # of one core
-TARGET_RATIO_EVERY = 0.80
+TARGET_CPU_SHARE = 0.08         # of one core, at real time, every step, subscriber attached
+TARGET_CPU_SHARE_50HZ = 0.10
+TARGET_RATIO_EVERY = 0.85       # in-process, publishing every step / raw
 TARGET_RATIO_50HZ = 0.95
+TARGET_RATIO_SUBPROCESS = 0.65  # subprocess at rtf 0 with a subscriber process / raw
+TARGET_BRIDGE_FIXED_US = 5.0
+TARGET_BRIDGE_PER_ROUND_US = 20.0
 TARGET_LATENCY_P99_MS = 7.0
 TARGET_STARTUP_S = 1.0
 
-PUBLISH_RATES_HZ = (240.0, 120.0, 60.0, 50.0, 30.0, 10.0)
+# Publication rounds per step 1 (publish_rate 0: every step) down to 1/24.
+PUBLISH_RATES_HZ = (0.0, 120.0, 60.0, 50.0, 30.0, 10.0)
 CHAIN_JOINTS = (10, 20, 40)
 
 
-# -- small helpers --------------------------------------------------------------
+class SensorCase(NamedTuple):
+    """One sensor output measured on its own: the parameter that turns it on, its message."""
 
-def percentile(values, q):
-    """Interpolate linearly the value below which q % (0..100) of ``values`` fall."""
-    ordered = sorted(values)
-    if not ordered:
-        return math.nan
-    position = (len(ordered) - 1) * q / 100.0
-    low = math.floor(position)
-    high = min(low + 1, len(ordered) - 1)
-    return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
+    name: str
+    parameter: str
+    value: object       # the parameter's value while measured
+    message: str        # the published type whose publications are counted
+    label: str
 
 
-def fit_line(xs, ys):
-    """Least-squares line through (xs, ys): return (intercept, slope)."""
-    n = len(xs)
-    mean_x, mean_y = sum(xs) / n, sum(ys) / n
-    sxx = sum((x - mean_x) ** 2 for x in xs)
-    sxy = sum((x - mean_x) * (y - mean_y) for x, y in zip(xs, ys))
-    slope = sxy / sxx if sxx else math.nan
-    return mean_y - slope * mean_x, slope
+# High rates make the per-message cost a large, well-resolved part of a step.
+SENSOR_CASES = (
+    SensorCase('scan', 'scan_rate', 60.0, 'LaserScan', 'per scan'),
+    SensorCase('imu', 'imu_rate', 240.0, 'Imu', 'per IMU message'),
+    SensorCase('tf', 'publish_tf', True, 'TFMessage', 'per TF message'),
+)
+SENSOR_PARAMETERS = ('scan_rate', 'imu_rate', 'publish_tf', 'camera_rate')
 
 
-def cpu_model():
-    """Return the CPU model name from /proc/cpuinfo."""
-    try:
-        with open('/proc/cpuinfo', encoding='utf-8') as cpuinfo:
-            for line in cpuinfo:
-                if line.startswith('model name'):
-                    return line.split(':', 1)[1].strip()
-    except OSError:
-        pass
-    return 'unknown'
+def rate_name(rate):
+    """Return the configuration name of a node at publish_rate ``rate`` (0: every step)."""
+    return 'node@every' if not rate else f'node@{rate:g}'
 
 
-def process_cpu_s(pid):
-    """Return user + system CPU seconds of process ``pid`` from /proc/<pid>/stat."""
-    with open(f'/proc/{pid}/stat', encoding='utf-8') as stat:
-        fields = stat.read().rsplit(')', 1)[1].split()
-    # fields[0] is field 3 (state); utime and stime are fields 14 and 15.
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-
-
-def system_cpu_ticks():
-    """Return (busy, steal, total) jiffies summed over all CPUs, from /proc/stat."""
-    with open('/proc/stat', encoding='utf-8') as stat:
-        values = [int(v) for v in stat.readline().split()[1:]]
-    idle = values[3] + values[4]           # idle + iowait
-    steal = values[7] if len(values) > 7 else 0
-    total = sum(values[:8])
-    return total - idle - steal, steal, total
-
-
-class LoadMeter:
-    """Measure how many cores were busy (and stolen) between start() and stop()."""
-
-    def start(self):
-        """Begin a measurement window."""
-        self._begin = system_cpu_ticks()
-        return self
-
-    def stop(self):
-        """End the window: return {'busy_cores', 'steal_cores'} averaged over it."""
-        busy1, steal1, total1 = system_cpu_ticks()
-        busy0, steal0, total0 = self._begin
-        cores = os.cpu_count() or 1
-        span = max(total1 - total0, 1)
-        return {'busy_cores': cores * (busy1 - busy0) / span,
-                'steal_cores': cores * (steal1 - steal0) / span}
-
-
-def background_load(seconds=1.0):
-    """Return the cores kept busy by other processes while this one sleeps."""
-    meter = LoadMeter().start()
-    time.sleep(seconds)
-    return meter.stop()
-
-
-def start_process(args, domain_id, log_path):
-    """Start ``args`` on ``domain_id`` with stdout and stderr going to ``log_path``."""
-    from r2d2_sim.testing import ros_child_env
-    log = open(log_path, 'w', encoding='utf-8')
-    try:
-        return subprocess.Popen(args, env=ros_child_env(domain_id), cwd=REPO,
-                                stdout=log, stderr=subprocess.STDOUT)
-    finally:
-        log.close()
-
-
-def start_sim(domain_id, log_path, **params):
-    """Start ``python -m r2d2_sim`` with ``params`` as ROS parameters."""
-    args = [sys.executable, '-m', 'r2d2_sim', '--ros-args']
-    for name, value in params.items():
-        args += ['-p', f'{name}:={value}']
-    return start_process(args, domain_id, log_path)
-
-
-def start_role(role, domain_id, log_path, *extra):
-    """Start this script in a helper role."""
-    args = [sys.executable, os.path.abspath(__file__), '--role', role,
-            '--domain', str(domain_id), *map(str, extra)]
-    return start_process(args, domain_id, log_path)
-
-
-def stop_process(process, timeout_s=5.0):
-    """SIGINT ``process``, wait for it, kill it as a last resort; return its exit code."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        return process.wait(timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        return process.wait()
-
-
-def wait_process(process, timeout_s):
-    """Wait up to ``timeout_s`` for ``process`` to exit by itself; True if it did."""
-    try:
-        process.wait(timeout=timeout_s)
-        return True
-    except subprocess.TimeoutExpired:
-        return False
-
-
-def log_tail(path, lines=15):
-    """Return the last lines of a log file (for error messages)."""
-    try:
-        with open(path, encoding='utf-8', errors='replace') as log:
-            return ''.join(log.readlines()[-lines:])
-    except OSError:
-        return ''
-
-
-def read_json(path, log_path, what):
-    """Load a helper's JSON output or raise with its log tail."""
-    try:
-        with open(path, encoding='utf-8') as result:
-            return json.load(result)
-    except (OSError, ValueError) as exc:
-        raise RuntimeError(f'{what} produced no result ({exc}); its log ends:\n'
-                           + log_tail(log_path)) from None
-
-
-def write_json(path, data):
-    """Write ``data`` as JSON to ``path`` atomically."""
-    tmp = path + '.tmp'
-    with open(tmp, 'w', encoding='utf-8') as out:
-        json.dump(data, out, indent=1)
-    os.replace(tmp, path)
-
-
-def stop_flag():
-    """Return an Event set by SIGINT or SIGTERM (the node's own handlers)."""
-    from r2d2_sim.sim_node import stop_on_signals
-    return stop_on_signals()
-
-
-def init_ros(domain_id, context=None):
-    """Initialise rclpy on ``domain_id`` without its signal handlers."""
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
-    rclpy.init(context=context, domain_id=domain_id,
-               signal_handler_options=SignalHandlerOptions.NO)
+def rounds_per_step(rate):
+    """Return the publication rounds per physics step at publish_rate ``rate``."""
+    return 1.0 if not rate else rate / PHYSICS_RATE_HZ
 
 
 def chain_urdf(joints):
@@ -248,230 +109,22 @@ def chain_urdf(joints):
     return '\n'.join(parts) + '\n'
 
 
-# -- helper process roles ----------------------------------------------------------
+# -- 1. real-time fidelity -------------------------------------------------------------
 
-def role_harness(args):
-    """
-    Run SimNode in this process as ``main()`` does, recording each step's wall time.
-
-    The executor spins in a thread; ``run_paced`` paces the node in the main
-    thread with a DeadlinePacer subclass that records every deadline, and the
-    node's ``advance`` is wrapped to record ``perf_counter`` before and after
-    each step. Waits for a subscriber on joint_states and odom first.
-    """
-    import resource
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-    from r2d2_sim import node as sim_node
-    from r2d2_sim.timing import DeadlinePacer
-
-    deadlines, starts, ends, physics = [], [], [], []
-    perf_counter = time.perf_counter
-
-    class RecordingPacer(DeadlinePacer):
-        """A DeadlinePacer that records the deadline each wait() aims at."""
-
-        def wait(self):
-            deadlines.append(self._next)
-            super().wait()
-
-    stop = stop_flag()
-    sim_node.DeadlinePacer = RecordingPacer
-    init_ros(args.domain)
-    executor = SingleThreadedExecutor()
-    with silenced_stdout():
-        node = sim_node.SimNode(parameter_overrides=[
-            Parameter('real_time_factor', value=1.0),
-            Parameter('publish_rate', value=args.publish_rate)])
-    executor.add_node(node)
-    spinner = threading.Thread(target=sim_node._spin, args=(executor, stop), daemon=True)
-    spinner.start()
-    try:
-        deadline = time.monotonic() + 30.0
-        while (node.count_subscribers('joint_states') < 1
-               or node.count_subscribers('odom') < 1):
-            if time.monotonic() > deadline or stop.is_set():
-                raise SystemExit('harness: no subscriber on joint_states and odom')
-            time.sleep(0.01)
-        time.sleep(0.2)  # let the matching settle on both sides
-        end_step = round(args.sim_seconds * PHYSICS_RATE_HZ)
-        original_advance = node.advance
-
-        def recording_advance(steps=1):
-            starts.append(perf_counter())
-            original_advance(steps)
-            ends.append(perf_counter())
-            if node.step_count >= end_step:
-                stop.set()
-        node.advance = recording_advance
-        world_step = node.world.step
-
-        def recording_step(steps=1):
-            begin = perf_counter()
-            world_step(steps)
-            physics.append(perf_counter() - begin)
-        node.world.step = recording_step
-        meter = LoadMeter().start()
-        usage0, wall0 = resource.getrusage(resource.RUSAGE_SELF), perf_counter()
-        sim_node.run_paced(node, stop)
-        usage1, wall1 = resource.getrusage(resource.RUSAGE_SELF), perf_counter()
-        load = meter.stop()
-        cpu = (usage1.ru_utime + usage1.ru_stime) - (usage0.ru_utime + usage0.ru_stime)
-        write_json(args.out, {
-            'steps': node.step_count, 'wall_s': wall1 - wall0, 'cpu_s': cpu,
-            'period_s': 1.0 / PHYSICS_RATE_HZ, 'deadlines': deadlines,
-            'starts': starts, 'ends': ends, 'physics': physics,
-            'involuntary_switches': usage1.ru_nivcsw - usage0.ru_nivcsw, 'load': load})
-    finally:
-        stop.set()
-        executor.shutdown(timeout_sec=1.0)
-        spinner.join(timeout=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
-
-
-def role_subscriber(args):
-    """Receive joint_states and odom until SIGINT; record each message's step and arrival."""
-    import resource
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from nav_msgs.msg import Odometry
-    from sensor_msgs.msg import JointState
-
-    stop = stop_flag()
-    init_ros(args.domain)
-    node = rclpy.create_node('bench_subscriber', namespace=args.namespace)
-    perf_counter = time.perf_counter
-    joint_steps, joint_arrivals, odom_steps = [], [], []
-
-    def step_of(stamp):
-        return round((stamp.sec * 10**9 + stamp.nanosec) * PHYSICS_RATE_HZ / 1e9)
-
-    first_cpu = []
-
-    def on_joint_states(msg):
-        joint_arrivals.append(perf_counter())
-        joint_steps.append(step_of(msg.header.stamp))
-        if not first_cpu:
-            usage = resource.getrusage(resource.RUSAGE_SELF)
-            first_cpu.append(usage.ru_utime + usage.ru_stime)
-
-    def on_odom(msg):
-        odom_steps.append(step_of(msg.header.stamp))
-
-    node.create_subscription(JointState, 'joint_states', on_joint_states, 10)
-    node.create_subscription(Odometry, 'odom', on_odom, 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    deadline = time.monotonic() + args.timeout
-    try:
-        while not stop.is_set() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        usage = resource.getrusage(resource.RUSAGE_SELF)
-        write_json(args.out, {'joint_steps': joint_steps, 'joint_arrivals': joint_arrivals,
-                              'odom_steps': odom_steps,
-                              'cpu_s': usage.ru_utime + usage.ru_stime
-                              - (first_cpu[0] if first_cpu else 0.0)})
-    finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
-
-
-def role_latency(args):
-    """
-    Publish alternating cmd_vel and time each until joint_states shows the wheel follow.
-
-    Every ``args.period`` s a new command of +/-``args.speed`` m/s is published;
-    its latency is the wall time from just before ``publish`` to the arrival of
-    the first joint_states whose left wheel velocity has the command's sign and
-    at least half its magnitude. Also reads the node's CPU time over the run.
-    """
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from geometry_msgs.msg import Twist
-    from sensor_msgs.msg import JointState
-
-    stop = stop_flag()
-    init_ros(args.domain)
-    node = rclpy.create_node('bench_latency')
-    publisher = node.create_publisher(Twist, 'cmd_vel', 10)
-    perf_counter = time.perf_counter
-    state = {'index': None, 'pending': None, 'target': 0.0, 'seen': 0}
-    latencies, steps, arrivals = [], [], []
-
-    def on_joint_states(msg):
-        now = perf_counter()
-        state['seen'] += 1
-        stamp = msg.header.stamp
-        steps.append(round((stamp.sec * 10**9 + stamp.nanosec) * PHYSICS_RATE_HZ / 1e9))
-        arrivals.append(now)
-        if state['index'] is None:
-            state['index'] = list(msg.name).index(LEFT_WHEEL)
-        if state['pending'] is None:
-            return
-        velocity = msg.velocity[state['index']]
-        target = state['target']
-        if velocity * target > 0.0 and abs(velocity) >= 0.5 * abs(target):
-            latencies.append(now - state['pending'])
-            state['pending'] = None
-
-    node.create_subscription(JointState, 'joint_states', on_joint_states, 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        deadline = time.monotonic() + 30.0
-        while publisher.get_subscription_count() < 1 or state['seen'] < 10:
-            if time.monotonic() > deadline or stop.is_set():
-                raise SystemExit('latency: the simulator never appeared')
-            executor.spin_once(timeout_sec=0.05)
-        cpu0, wall0 = process_cpu_s(args.node_pid), perf_counter()
-        steps.clear()
-        arrivals.clear()
-        missed, sign = 0, -1.0
-        next_publish = perf_counter()
-        end = next_publish + args.duration
-        while not stop.is_set():
-            now = perf_counter()
-            if now >= next_publish:
-                if now >= end:
-                    break
-                if state['pending'] is not None:
-                    missed += 1
-                sign = -sign
-                command = Twist()
-                command.linear.x = sign * args.speed
-                state['target'] = command.linear.x / WHEEL_RADIUS_M
-                state['pending'] = perf_counter()
-                publisher.publish(command)
-                next_publish += args.period
-            executor.spin_once(timeout_sec=max(0.0, min(next_publish - perf_counter(), 0.05)))
-        cpu1, wall1 = process_cpu_s(args.node_pid), perf_counter()
-        publisher.publish(Twist())
-        write_json(args.out, {'latencies_s': latencies, 'missed': missed,
-                              'node_cpu_share': (cpu1 - cpu0) / (wall1 - wall0),
-                              'steps': steps, 'arrivals': arrivals})
-    finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
-
-
-# -- measurements run by the bench ---------------------------------------------------
-
-def measure_fidelity(work, domain_id, sim_seconds, publish_rate):
+def measure_fidelity(work, domain_id, sim_seconds, publish_rate, params):
     """Real-time run: harness process (node) plus a subscriber process; return the summary."""
-    harness_out = os.path.join(work, f'harness_{publish_rate:g}.json')
-    subscriber_out = os.path.join(work, f'subscriber_{publish_rate:g}.json')
-    harness_log = os.path.join(work, f'harness_{publish_rate:g}.log')
-    subscriber_log = os.path.join(work, f'subscriber_{publish_rate:g}.log')
+    tag = f'{publish_rate:g}'
+    harness_out = os.path.join(work, f'harness_{tag}.json')
+    subscriber_out = os.path.join(work, f'subscriber_{tag}.json')
+    harness_log = os.path.join(work, f'harness_{tag}.log')
+    subscriber_log = os.path.join(work, f'subscriber_{tag}.log')
     subscriber = harness = None
     try:
         subscriber = start_role('subscriber', domain_id, subscriber_log,
                                 '--out', subscriber_out, '--timeout', sim_seconds + 60)
         harness = start_role('harness', domain_id, harness_log, '--out', harness_out,
-                             '--sim-seconds', sim_seconds, '--publish-rate', publish_rate)
+                             '--sim-seconds', sim_seconds,
+                             '--params', json.dumps(dict(params, publish_rate=publish_rate)))
         if not wait_process(harness, sim_seconds + 45.0):
             raise RuntimeError('the harness did not finish in time:\n' + log_tail(harness_log))
         time.sleep(0.2)  # let the last messages arrive
@@ -496,8 +149,9 @@ def measure_fidelity(work, domain_id, sim_seconds, publish_rate):
     delivery_ms = [(arrival - starts[step - 1]) * 1e3
                    for step, arrival in zip(received['joint_steps'], received['joint_arrivals'])
                    if 1 <= step <= len(ends)]
-    published = (node['steps'] if not publish_rate
-                 else int(node['steps'] * publish_rate / PHYSICS_RATE_HZ))
+    published = round(node['steps'] * rounds_per_step(publish_rate))
+    cpu_share = node['cpu_s'] / node['wall_s']
+    subscriber_share = received['cpu_s'] / node['wall_s']
     return {
         'publish_rate_hz': publish_rate,
         'sim_seconds': node['steps'] / PHYSICS_RATE_HZ,
@@ -511,23 +165,387 @@ def measure_fidelity(work, domain_id, sim_seconds, publish_rate):
         'late_over_1ms': sum(1 for v in lateness_ms if v > 1.0),
         'step_cost_p50_ms': percentile([(e - s) * 1e3 for s, e in zip(starts, ends)], 50),
         'physics_cost_p50_ms': percentile([v * 1e3 for v in node['physics']], 50),
-        'cpu_share': node['cpu_s'] / node['wall_s'],
+        'cpu_share': cpu_share,
         'involuntary_switches': node['involuntary_switches'],
-        'joint_states_received': sum(1 for s in received['joint_steps'] if s >= 1),
-        'odom_received': sum(1 for s in received['odom_steps'] if s >= 1),
+        'received': received['counts'],
         'published': published,
         'delivery_p50_ms': percentile(delivery_ms, 50),
         'delivery_p99_ms': percentile(delivery_ms, 99),
-        'subscriber_cpu_share': received['cpu_s'] / node['wall_s'],
+        'subscriber_cpu_share': subscriber_share,
         'system_busy_cores': node['load']['busy_cores'],
         'steal_cores': node['load']['steal_cores'],
         # Cores other processes on the machine kept busy during the run.
-        'other_load_cores': max(0.0, node['load']['busy_cores'] - node['cpu_s'] / node['wall_s']
-                                - received['cpu_s'] / node['wall_s']),
+        'other_load_cores': max(0.0, node['load']['busy_cores'] - cpu_share - subscriber_share),
     }
 
 
-def measure_latency(work, domain_id, duration_s, period_s, speed):
+# -- 2. throughput at rtf 0, against raw PyBullet ----------------------------------------
+
+def alternate(advances, min_s, chunk=60):
+    """
+    Step each of ``advances`` ``chunk`` steps in turn until each had ``min_s`` s; return rates.
+
+    Returns (steps per CPU second of this thread, steps per wall second) for
+    each. Taking turns every chunk (about 10 ms) puts every configuration of a
+    group under the same load from other processes; thread CPU time leaves
+    out the time the scheduler gives to them.
+    """
+    thread_time, perf_counter = time.thread_time, time.perf_counter
+    cpu, wall = [0.0] * len(advances), [0.0] * len(advances)
+    steps, end = 0, perf_counter() + min_s * len(advances)
+    while perf_counter() < end:
+        for i, advance in enumerate(advances):
+            wall0, cpu0 = perf_counter(), thread_time()
+            advance(chunk)
+            cpu[i] += thread_time() - cpu0
+            wall[i] += perf_counter() - wall0
+        steps += chunk
+    return [steps / c for c in cpu], [steps / w for w in wall]
+
+
+def raw_stepper(world):
+    """
+    Return ``advance(steps)`` that steps ``world``'s PyBullet client and nothing else.
+
+    As SimWorld.step does, but without counting the steps: the node's
+    schedules (sensor rates) do not see them, so raw and node stepping can
+    alternate on one world and world-to-world differences cancel.
+    """
+    import pybullet
+    step = functools.partial(pybullet.stepSimulation, physicsClientId=world.client._client)
+
+    def advance(steps):
+        for _ in range(steps):
+            step()
+    return advance
+
+
+def count_publications(node, message, counter):
+    """Count the node's publications of type ``message`` (not on /tf_static) in ``counter``."""
+    for publisher in node.publishers:
+        if (publisher.msg_type.__name__ != message
+                or publisher.topic_name.endswith('tf_static')):
+            continue
+        publish = publisher.publish
+
+        def counted(msg, publish=publish):
+            counter[message] = counter.get(message, 0) + 1
+            publish(msg)
+        publisher.publish = counted
+
+
+def time_output_calls(node, message, steps):
+    """
+    Advance ``node`` ``steps`` steps; return the wall us of the output calls that sent ``message``.
+
+    Every output class of ``r2d2_sim.outputs`` has its ``publish`` timed (put
+    back afterwards); a call counts when it published ``message`` through one
+    of the node's publishers. The median of these resists preemption by other
+    processes better than a difference of two throughputs does.
+    """
+    from r2d2_sim import outputs
+    perf_counter = time.perf_counter
+    published, durations_us, saved = [], [], []
+    for publisher in node.publishers:
+        if publisher.msg_type.__name__ == message:
+            publish = publisher.publish
+
+            def noted(msg, publish=publish):
+                published.append(True)
+                publish(msg)
+            publisher.publish = noted
+    for cls in vars(outputs).values():
+        original = getattr(cls, '__dict__', {}).get('publish')
+        if not (isinstance(cls, type) and cls.__module__ == outputs.__name__
+                and callable(original)):
+            continue
+
+        def timed(self, *args, original=original):
+            published.clear()
+            begin = perf_counter()
+            original(self, *args)
+            if published:
+                durations_us.append(1e6 * (perf_counter() - begin))
+        saved.append((cls, original))
+        cls.publish = timed
+    try:
+        node.advance(steps)
+    finally:
+        for cls, original in saved:
+            cls.publish = original
+    return durations_us
+
+
+class SubprocessSim:
+    """
+    ``python -m r2d2_sim`` at rtf 0 with a subscriber process, run in measured windows.
+
+    The node starts paused; each :meth:`window` un-pauses it through
+    ``~/pause``, lets it settle, measures, and pauses it again, so the
+    in-process measurements between windows have the cores to themselves.
+    Steps/s come from the ``/clock`` stamps the subscriber received during the
+    window (both processes read the same monotonic clock), CPU shares from
+    ``/proc``.
+    """
+
+    def __init__(self, work, domain_id, params):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from std_srvs.srv import SetBool
+        self.sim_log = os.path.join(work, 'sim_rtf0.log')
+        self.subscriber_log = os.path.join(work, 'subscriber_rtf0.log')
+        self.subscriber_out = os.path.join(work, 'subscriber_rtf0.json')
+        self.windows = []
+        self.sim = self.subscriber = None
+        self.context = Context()
+        init_ros(domain_id, self.context)
+        self.node = rclpy.create_node('bench_control', context=self.context)
+        self.client = self.node.create_client(SetBool, '/r2d2_sim/pause')
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        try:
+            self._start(domain_id, params)
+        except BaseException:
+            self.close()
+            raise
+
+    def _start(self, domain_id, params):
+        self.sim = start_sim(domain_id, self.sim_log, real_time_factor=0.0, start_paused=True,
+                             **params)
+        self.subscriber = start_role('subscriber', domain_id, self.subscriber_log,
+                                     '--out', self.subscriber_out, '--timeout', 1800)
+        deadline = time.monotonic() + 30.0
+        topics = ('/joint_states', '/odom', '/ground_truth', '/clock')
+        while (not self.client.service_is_ready()
+               or min(self.node.count_subscribers(t) for t in topics) < 1
+               or min(self.node.count_publishers(t) for t in topics) < 1):
+            if time.monotonic() > deadline or self.sim.poll() is not None:
+                raise RuntimeError('the node or its subscriber did not appear:\n'
+                                   + log_tail(self.sim_log) + log_tail(self.subscriber_log))
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def pause(self, paused):
+        """Call ``~/pause``; return the step its reply names."""
+        from std_srvs.srv import SetBool
+        future = self.client.call_async(SetBool.Request(data=paused))
+        self.executor.spin_until_future_complete(future, timeout_sec=10.0)
+        if not future.done():
+            raise RuntimeError('~/pause did not answer:\n' + log_tail(self.sim_log))
+        return json.loads(future.result().message)['step']
+
+    def window(self, settle_s, window_s, record=True):
+        """Run the node for ``settle_s`` + ``window_s`` wall seconds, measuring the window."""
+        perf_counter = time.perf_counter
+        step0, wall0 = self.pause(False), perf_counter()
+        time.sleep(settle_s)
+        t0 = perf_counter()
+        node0, sub0 = process_cpu_s(self.sim.pid), process_cpu_s(self.subscriber.pid)
+        time.sleep(window_s)
+        t1 = perf_counter()
+        node1, sub1 = process_cpu_s(self.sim.pid), process_cpu_s(self.subscriber.pid)
+        step1 = self.pause(True)
+        wall1 = perf_counter()
+        if record:
+            self.windows.append({
+                't0': t0, 't1': t1, 'node_cpu_share': (node1 - node0) / (t1 - t0),
+                'subscriber_cpu_share': (sub1 - sub0) / (t1 - t0),
+                # Cross-check: steps between the two replies, over the time between them.
+                'reply_steps_per_s': (step1 - step0) / (wall1 - wall0)})
+
+    def close(self):
+        """Stop both processes and the control node; return the summary of the windows."""
+        import rclpy
+        for process in (self.subscriber, self.sim):
+            if process is not None:
+                stop_process(process)
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        if not self.windows:
+            return None
+        received = read_json(self.subscriber_out, self.subscriber_log, 'the rtf-0 subscriber')
+        steps, arrivals = received['clock_steps'], received['clock_arrivals']
+        for window in self.windows:
+            inside = [(a, s) for a, s in zip(arrivals, steps) if window['t0'] <= a <= window['t1']]
+            window['clock_received'] = len(inside)
+            if len(inside) >= 20:
+                _, slope = fit_line([a for a, _ in inside], [s for _, s in inside])
+                window['steps_per_s'] = slope
+                span = inside[-1][1] - inside[0][1]
+                window['received_fraction'] = (len(inside) - 1) / span if span else math.nan
+            else:  # the subscriber got (almost) nothing: fall back on the replies
+                window['steps_per_s'] = window['reply_steps_per_s']
+                window['received_fraction'] = math.nan
+
+        for window in self.windows:
+            window['steps_per_node_cpu_s'] = window['steps_per_s'] / window['node_cpu_share']
+        # The fastest window is the one other processes disturbed least.
+        best = max(self.windows, key=lambda w: w['steps_per_s'])
+        summary = {key: best[key] for key in (
+            'steps_per_s', 'steps_per_node_cpu_s', 'reply_steps_per_s', 'node_cpu_share',
+            'subscriber_cpu_share', 'received_fraction')}
+        summary['median_steps_per_s'] = statistics.median(w['steps_per_s'] for w in self.windows)
+        summary['windows'] = self.windows
+        return summary
+
+
+def measure_throughput(work, domain_id, subprocess_domain, plan, params):
+    """
+    Steps/s of every configuration against raw stepping of the same world, interleaved.
+
+    In-process nodes (own context, rtf 0, ``advance`` without executor) for
+    each publish rate, each sensor output on its own, the default outputs,
+    and chains of joints; a ``...:raw`` configuration steps that node's world
+    with ``stepSimulation`` alone ('raw': the every-step node's world). The
+    configurations compared with each other form a group, whose members take
+    turns chunk by chunk (:func:`alternate`). One round measures every group
+    once, then runs one window of the subprocess node (:class:`SubprocessSim`).
+    """
+    import rclpy
+    from rclpy.context import Context
+    from r2d2_sim.node import StartupError
+    from r2d2_sim.parameters import PARAMETERS_BY_NAME
+
+    context = Context()
+    init_ros(domain_id, context)
+    nodes, advances, counters, sensors = {}, {}, {}, {}
+    groups = {'rates': ['node@every', 'raw'] + [rate_name(r) for r in PUBLISH_RATES_HZ if r]}
+    sub = None
+
+    def add(name, node_params, raw=None):
+        node = make_sim_node(context, '/bench_' + re.sub(r'\W', '_', name),
+                             dict(node_params, real_time_factor=0.0))
+        nodes[name], advances[name] = node, node.advance
+        if raw is not None:
+            nodes[raw], advances[raw] = node, raw_stepper(node.world)
+        return node
+
+    try:
+        for rate in PUBLISH_RATES_HZ:
+            add(rate_name(rate), dict(params, publish_rate=rate), None if rate else 'raw')
+        for case in SENSOR_CASES:
+            spec = PARAMETERS_BY_NAME.get(case.parameter)
+            if spec is None:
+                sensors[case.name] = {'missing': 'parameter missing'}
+                continue
+            value = case.value
+            if spec.bounds is not None and isinstance(value, float):
+                value = min(max(value, spec.bounds.low), spec.bounds.high)
+            setting = existing_parameters({case.parameter: value})
+            try:
+                node = add(case.name, dict(params, **setting), f'{case.name}:raw')
+            except StartupError as exc:
+                sensors[case.name] = {'missing': f'node refused {setting}: {exc}'}
+                continue
+            sensors[case.name] = {'setting': setting}
+            counters[case.name] = {}
+            count_publications(node, case.message, counters[case.name])
+            groups[case.name] = [case.name, f'{case.name}:raw', 'node@every', 'raw']
+        defaults = add('defaults', {}, 'defaults:raw')
+        counters['defaults'] = {}
+        for case in SENSOR_CASES:
+            count_publications(defaults, case.message, counters['defaults'])
+        groups['defaults'] = ['defaults', 'defaults:raw']
+        for joints in CHAIN_JOINTS:
+            path = os.path.join(work, f'chain{joints}.urdf')
+            with open(path, 'w', encoding='utf-8') as urdf:
+                urdf.write(chain_urdf(joints))
+            add(f'chain{joints}:node', dict(params, urdf=path), f'chain{joints}:raw')
+            groups[f'chain{joints}'] = [f'chain{joints}:node', f'chain{joints}:raw']
+        joints_published = {name: len(node.simulation.movable) for name, node in nodes.items()}
+        sub = SubprocessSim(work, subprocess_domain, params)
+        for advance in advances.values():  # warm-up: the robots settle, code paths get hot
+            advance(240)
+        sub.window(plan['rtf0_settle_s'], plan['rtf0_window_s'], record=False)
+        for counter in counters.values():
+            counter.clear()
+        start_steps = {name: node.step_count for name, node in nodes.items()}
+        samples = {group: {name: [] for name in members} for group, members in groups.items()}
+        wall_samples = {group: {name: [] for name in members}
+                        for group, members in groups.items()}
+        for _ in range(plan['throughput_rounds']):
+            for group, members in groups.items():
+                cpu_rates, wall_rates = alternate([advances[name] for name in members],
+                                                  plan['inprocess_min_s'])
+                for name, cpu_rate, wall_rate in zip(members, cpu_rates, wall_rates):
+                    samples[group][name].append(cpu_rate)
+                    wall_samples[group][name].append(wall_rate)
+            sub.window(plan['rtf0_settle_s'], plan['rtf0_window_s'])
+        stepped = {name: node.step_count - start_steps[name] for name, node in nodes.items()}
+        publications = {name: {message: count / stepped[name]
+                               for message, count in counter.items()}
+                        for name, counter in counters.items()}
+        for case in SENSOR_CASES:
+            if case.name in nodes:
+                calls = time_output_calls(nodes[case.name], case.message, plan['call_steps'])
+                sensors[case.name]['calls_timed'] = len(calls)
+                sensors[case.name]['call_us_median'] = statistics.median(calls or [math.nan])
+    finally:
+        subprocess_result = sub.close() if sub is not None else None
+        for node in {id(node): node for node in nodes.values()}.values():
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+    def over_rounds(table, function):
+        return {group: {name: function(v) for name, v in rates.items()}
+                for group, rates in table.items()}
+    return {'rounds': plan['throughput_rounds'], 'groups': groups,
+            'best_steps_per_s': over_rounds(samples, max),
+            'best_wall_steps_per_s': over_rounds(wall_samples, max),
+            'median_steps_per_s': over_rounds(samples, statistics.median),
+            'median_wall_steps_per_s': over_rounds(wall_samples, statistics.median),
+            'samples_steps_per_s': samples, 'samples_wall_steps_per_s': wall_samples,
+            'joints_published': joints_published, 'publications_per_step': publications,
+            'sensor_settings': sensors, 'subprocess': subprocess_result}
+
+
+def extra_us(best, name, reference, base=None, base_reference=None):
+    """
+    Return the us per step ``name`` takes beyond ``reference``, from one group's best rounds.
+
+    With ``base`` and ``base_reference``, their difference is subtracted: the
+    cost of what ``name`` has and ``base`` has not. Each configuration's
+    fastest round is the one other processes disturbed least (as ``timeit``
+    takes the minimum), so the differences of those are the code's own costs.
+    """
+    extra = 1e6 / best[name] - 1e6 / best[reference]
+    if base is not None:
+        extra -= 1e6 / best[base] - 1e6 / best[base_reference]
+    return extra
+
+
+def throughput_summary(throughput):
+    """Fit the bridge cost against publication rounds per step and against joints; sensors."""
+    best = throughput['best_steps_per_s']
+    extra = [extra_us(best['rates'], rate_name(rate), 'raw') for rate in PUBLISH_RATES_HZ]
+    fixed, per_round = fit_line([rounds_per_step(rate) for rate in PUBLISH_RATES_HZ], extra)
+    joint_extra = [extra_us(best[f'chain{j}'], f'chain{j}:node', f'chain{j}:raw')
+                   for j in CHAIN_JOINTS]
+    joint_fixed, per_joint = fit_line(list(CHAIN_JOINTS), joint_extra)
+    sensors = {}
+    for case in SENSOR_CASES:
+        entry = dict(throughput['sensor_settings'][case.name])
+        if 'missing' not in entry:
+            per_step = throughput['publications_per_step'][case.name].get(case.message, 0.0)
+            entry['messages_per_step'] = per_step
+            entry['extra_us_per_step'] = extra_us(
+                best[case.name], case.name, f'{case.name}:raw', 'node@every', 'raw')
+            entry['us_per_message'] = (entry['extra_us_per_step'] / per_step
+                                       if per_step else math.nan)
+        sensors[case.name] = entry
+    return {'rate_fixed_us': fixed, 'per_publication_round_us': per_round,
+            'bridge_us_by_rate': dict(zip([f'{r:g}' for r in PUBLISH_RATES_HZ], extra)),
+            'joint_fixed_us': joint_fixed, 'per_joint_us': per_joint,
+            'bridge_us_by_chain_joints': dict(zip(map(str, CHAIN_JOINTS), joint_extra)),
+            'r2d2_joints': throughput['joints_published']['node@every'],
+            'defaults_extra_us': extra_us(best['defaults'], 'defaults', 'defaults:raw'),
+            'sensors': sensors}
+
+
+# -- 3. command latency -------------------------------------------------------------------
+
+def measure_latency(work, domain_id, duration_s, period_s, speed, params):
     """Command latency against the node as a subprocess at real time."""
     out = os.path.join(work, 'latency.json')
     log = os.path.join(work, 'latency.log')
@@ -537,7 +555,7 @@ def measure_latency(work, domain_id, duration_s, period_s, speed):
         # Without the acceleration ramp: this measures the bridge, not how long the
         # wheels take to reverse at 1 m/s^2 (2 x 0.2 m/s / 1 m/s^2 = 0.4 s by design).
         sim = start_sim(domain_id, sim_log, real_time_factor=1.0,
-                        max_linear_acceleration=0.0, max_angular_acceleration=0.0)
+                        max_linear_acceleration=0.0, max_angular_acceleration=0.0, **params)
         probe = start_role('latency', domain_id, log, '--out', out, '--duration', duration_s,
                            '--period', period_s, '--speed', speed, '--node-pid', sim.pid)
         if not wait_process(probe, duration_s + 45.0):
@@ -563,6 +581,8 @@ def measure_latency(work, domain_id, duration_s, period_s, speed):
         'subprocess_rtf': rtf,
     }
 
+
+# -- 4. start-up ---------------------------------------------------------------------------
 
 class ArrivalSubscriber:
     """A joint_states subscriber in a context of its own that records arrival times."""
@@ -592,7 +612,7 @@ class ArrivalSubscriber:
 
 def startup_once(work, domain_id, tag, subscriber=None):
     """
-    Seconds from Popen of the simulator to the first joint_states received.
+    Return the seconds from Popen of the simulator to the first joint_states received.
 
     ``subscriber`` is an :class:`ArrivalSubscriber` kept across runs; by
     default a fresh one is made just before the Popen.
@@ -628,353 +648,245 @@ def measure_startup(work, domain_id, runs, restarts):
     up throughout, as a running rviz or controller would.
     """
     times = [startup_once(work, domain_id, f'fresh{i}') for i in range(runs)]
-    subscriber = ArrivalSubscriber(domain_id, 'bench_startup_kept')
-    executor = subscriber.executor
     restart_times = []
-    try:
-        for i in range(restarts + 1):
-            elapsed = startup_once(work, domain_id, f'kept{i}', subscriber)
-            if i:  # the first start is not a restart
-                restart_times.append(elapsed)
-            # Drop messages still queued from this run before the next one starts.
-            drain_until = time.monotonic() + 0.3
-            while time.monotonic() < drain_until:
-                executor.spin_once(timeout_sec=0.05)
-    finally:
-        subscriber.close()
+    if restarts:
+        subscriber = ArrivalSubscriber(domain_id, 'bench_startup_kept')
+        try:
+            for i in range(restarts + 1):
+                elapsed = startup_once(work, domain_id, f'kept{i}', subscriber)
+                if i:  # the first start is not a restart
+                    restart_times.append(elapsed)
+                # Drop messages still queued from this run before the next one starts.
+                drain_until = time.monotonic() + 0.3
+                while time.monotonic() < drain_until:
+                    subscriber.executor.spin_once(timeout_sec=0.05)
+        finally:
+            subscriber.close()
     return {'runs_s': times, 'median_s': statistics.median(times),
             'restarts_s': restart_times}
 
 
-def measure_subprocess_rtf0(work, domain_id, window_s, publish_rate):
-    """
-    Steps/s of the node run as a subprocess at real_time_factor 0, from /clock stamps.
+# -- report ---------------------------------------------------------------------------------
 
-    A keep-last-1 best-effort subscriber samples the newest /clock at the start
-    and end of a window without spinning in between, so this process does not
-    compete with the node for CPU while it runs flat out.
-    """
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from rosgraph_msgs.msg import Clock
+class Row(NamedTuple):
+    """One line of the table."""
 
-    context = Context()
-    init_ros(domain_id, context)
-    node = rclpy.create_node('bench_clock', context=context)
-    latest = []
-    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-    node.create_subscription(
-        Clock, '/clock',
-        lambda msg: latest.append((msg.clock.sec + msg.clock.nanosec * 1e-9,
-                                   time.perf_counter())), qos)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    log = os.path.join(work, f'sim_rtf0_{publish_rate:g}.log')
-    sim = None
-
-    def sample():
-        latest.clear()
-        deadline = time.monotonic() + 5.0
-        while len(latest) < 2 and time.monotonic() < deadline:  # the 1st may be queued
-            executor.spin_once(timeout_sec=0.05)
-        if len(latest) < 2:
-            raise RuntimeError('no /clock from the simulator:\n' + log_tail(log))
-        return latest[-1]
-
-    try:
-        sim = start_sim(domain_id, log, real_time_factor=0.0, publish_rate=publish_rate)
-        deadline = time.monotonic() + 20.0
-        while not latest and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        time.sleep(0.5)
-        first = sample()
-        time.sleep(window_s)
-        last = sample()
-    finally:
-        if sim is not None:
-            stop_process(sim)
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
-    return (last[0] - first[0]) / (last[1] - first[1]) * PHYSICS_RATE_HZ
+    section: str
+    measurement: str
+    target: str = ''
+    measured: str = ''
+    status: str = ''
 
 
-def steps_per_second(advance, min_s, chunk=60):
-    """
-    Call ``advance(chunk)`` for ``min_s`` wall seconds; return steps/s by CPU and by wall time.
-
-    The CPU rate divides by this thread's CPU time, so time the scheduler
-    gives to other processes on a shared machine does not count as our cost.
-    """
-    steps, start, cpu_start = 0, time.perf_counter(), time.thread_time()
-    while True:
-        advance(chunk)
-        steps += chunk
-        elapsed = time.perf_counter() - start
-        if elapsed >= min_s:
-            return steps / (time.thread_time() - cpu_start), steps / elapsed
-
-
-def make_inprocess_node(context, name, urdf='', publish_rate=0.0):
-    """Build a SimNode at rtf 0 in ``context`` under the namespace ``/bench_<name>``."""
-    from rclpy.logging import LoggingSeverity, set_logger_level
-    from rclpy.parameter import Parameter
-    # Quieten the 'no default wheel joints' warning of the chain robots.
-    set_logger_level(f'bench_{name}.r2d2_sim', LoggingSeverity.ERROR)
-    with silenced_stdout():
-        from r2d2_sim.node import SimNode
-        return SimNode(context=context, namespace=f'/bench_{name}', parameter_overrides=[
-            Parameter('real_time_factor', value=0.0),
-            Parameter('publish_rate', value=float(publish_rate)),
-            Parameter('urdf', value=urdf)])
-
-
-def measure_inprocess(work, domain_id, reps, min_s):
-    """
-    Bridge overhead and scaling: SimNode.advance against raw stepping, interleaved.
-
-    Each world has a node of its own; 'raw' steps a node's world directly with
-    the cached ``stepSimulation`` (SimWorld.step), the same world and settings
-    without the bridge. One round measures every configuration once; the
-    medians of ``reps`` rounds are returned as steps per CPU second of the
-    stepping thread (and per wall second).
-    """
-    import rclpy
-    from rclpy.context import Context
-
-    context = Context()
-    init_ros(domain_id, context)
-    nodes, configs = [], []
-    subscriber = None
-    try:
-        raw = make_inprocess_node(context, 'raw')
-        nodes.append(raw)
-        configs.append(('raw', raw.world.step))
-        for rate in PUBLISH_RATES_HZ:
-            node = make_inprocess_node(context, f'rate{rate:g}', publish_rate=rate)
-            nodes.append(node)
-            configs.append((f'node@{rate:g}', node.advance))
-        # The same every-step node with another process subscribed to joint_states and odom.
-        listened = make_inprocess_node(context, 'listened')
-        nodes.append(listened)
-        configs.append(('node@240+subscriber', listened.advance))
-        subscriber = start_role('subscriber', domain_id, os.path.join(work, 'sub_inproc.log'),
-                                '--namespace', '/bench_listened', '--timeout', 600,
-                                '--out', os.path.join(work, 'sub_inproc.json'))
-        for joints in CHAIN_JOINTS:
-            path = os.path.join(work, f'chain{joints}.urdf')
-            with open(path, 'w', encoding='utf-8') as urdf:
-                urdf.write(chain_urdf(joints))
-            # Raw and node step the same world (an every-step node does not mind
-            # raw steps in between), so world-to-world differences cancel.
-            chain_node = make_inprocess_node(context, f'chain{joints}', urdf=path)
-            nodes += [chain_node, chain_node]
-            configs.append((f'chain{joints}:raw', chain_node.world.step))
-            configs.append((f'chain{joints}:node', chain_node.advance))
-        joints_published = {name: len(node.world.movable_joints())
-                            for (name, _), node in zip(configs, nodes)}
-        deadline = time.monotonic() + 30.0
-        while (listened.count_subscribers('joint_states') < 1
-               or listened.count_subscribers('odom') < 1):
-            if time.monotonic() > deadline:
-                raise RuntimeError('no subscriber process appeared:\n'
-                                   + log_tail(os.path.join(work, 'sub_inproc.log')))
-            time.sleep(0.02)
-        for _, advance in configs:  # warm-up: the robots settle, code paths get hot
-            advance(240)
-        samples = {name: [] for name, _ in configs}
-        wall_samples = {name: [] for name, _ in configs}
-        for _ in range(reps):
-            for name, advance in configs:
-                cpu_rate, wall_rate = steps_per_second(advance, min_s)
-                samples[name].append(cpu_rate)
-                wall_samples[name].append(wall_rate)
-    finally:
-        if subscriber is not None:
-            stop_process(subscriber)
-        for node in {id(node): node for node in nodes}.values():
-            node.destroy_node()
-        rclpy.try_shutdown(context=context)
-    return {'median_steps_per_s': {name: statistics.median(v) for name, v in samples.items()},
-            'median_wall_steps_per_s': {name: statistics.median(v)
-                                        for name, v in wall_samples.items()},
-            'samples_steps_per_s': samples, 'samples_wall_steps_per_s': wall_samples,
-            'joints_published': joints_published}
-
-
-# -- report -------------------------------------------------------------------------
-
-def status(ok):
-    """Return PASS or MISS."""
-    return 'PASS' if ok else 'MISS'
-
-
-def build_table(results):
-    """Turn the measurements into rows of (section, metric, value, target, status)."""
-    rows = []
-    fid = results['fidelity']
-    rate_error = abs(fid['node_rtf'] - 1.0)
-    rows += [
-        ('1 fidelity', f'physics rate, node clock ({fid["sim_seconds"]:g} s sim, '
-         f'publish every step)', f'{fid["node_rate_hz"]:.2f} Hz (rtf {fid["node_rtf"]:.5f})',
-         'within 0.5% of 240 Hz', status(rate_error <= TARGET_RATE_ERROR)),
-        ('1 fidelity', 'physics rate, subscriber (stamps vs arrival)',
-         f'rtf {fid["subscriber_rtf"]:.5f}', 'within 0.5%',
-         status(abs(fid['subscriber_rtf'] - 1.0) <= TARGET_RATE_ERROR)),
-        ('1 fidelity', 'tick jitter mean / p50 (wake - deadline)',
-         f'{fid["jitter_mean_ms"]:.3f} / {fid["jitter_p50_ms"]:.3f} ms', '', ''),
-        ('1 fidelity', 'tick jitter p99', f'{fid["jitter_p99_ms"]:.3f} ms',
-         f'< {TARGET_JITTER_P99_MS} ms', status(fid['jitter_p99_ms'] < TARGET_JITTER_P99_MS)),
-        ('1 fidelity', 'tick jitter max', f'{fid["jitter_max_ms"]:.3f} ms '
-         f'({fid["late_over_1ms"]} ticks > 1 ms)', '', ''),
-        ('1 fidelity', 'node process CPU (of one core)', f'{100 * fid["cpu_share"]:.1f} %',
-         f'< {100 * TARGET_CPU_SHARE:g} %', status(fid['cpu_share'] < TARGET_CPU_SHARE)),
-        ('1 fidelity', 'tick cost p50 in the paced loop: advance / physics alone',
-         f'{1e3 * fid["step_cost_p50_ms"]:.0f} / {1e3 * fid["physics_cost_p50_ms"]:.0f} us',
-         '', ''),
-        ('1 fidelity', 'subscriber CPU; other processes; steal (cores)',
-         f'{100 * fid["subscriber_cpu_share"]:.1f} %; {fid["other_load_cores"]:.2f}; '
-         f'{fid["steal_cores"]:.2f}', 'quiet machine: ~0', ''),
-        ('1 fidelity', 'joint_states / odom received of published',
-         f'{fid["joint_states_received"]} / {fid["odom_received"]} of {fid["published"]}',
-         '', ''),
-        ('1 fidelity', 'delivery step start -> subscriber p50 / p99',
-         f'{fid["delivery_p50_ms"]:.3f} / {fid["delivery_p99_ms"]:.3f} ms', '', ''),
+def fidelity_rows(fid, fid50):
+    """Rows of the real-time runs."""
+    section = (f'1. real time (rtf 1, {fid["sim_seconds"]:g} s simulated, publishing every '
+               'step, one subscriber process on joint_states, odom, ground_truth, /clock)')
+    received = fid['received']
+    rows = [
+        Row(section, 'physics rate, node clock', 'within 0.5 % of 240 Hz',
+            f'{fid["node_rate_hz"]:.2f} Hz (rtf {fid["node_rtf"]:.5f})',
+            status(abs(fid['node_rtf'] - 1.0) <= TARGET_RATE_ERROR)),
+        Row(section, 'physics rate, subscriber (stamps vs arrival)', 'within 0.5 %',
+            f'rtf {fid["subscriber_rtf"]:.5f}',
+            status(abs(fid['subscriber_rtf'] - 1.0) <= TARGET_RATE_ERROR)),
+        Row(section, 'tick jitter (wake - deadline) mean / p50 / p99', 'p99 < 0.3 ms',
+            f'{fid["jitter_mean_ms"]:.3f} / {fid["jitter_p50_ms"]:.3f} / '
+            f'{fid["jitter_p99_ms"]:.3f} ms', status(fid['jitter_p99_ms'] < TARGET_JITTER_P99_MS)),
+        Row(section, 'tick jitter max', '',
+            f'{fid["jitter_max_ms"]:.3f} ms ({fid["late_over_1ms"]} ticks > 1 ms)'),
+        Row(section, 'CPU of the node at real time, publishing every step, subscriber attached',
+            f'<= {100 * TARGET_CPU_SHARE:g} % of a core', f'{100 * fid["cpu_share"]:.1f} %',
+            status(fid['cpu_share'] <= TARGET_CPU_SHARE)),
+        Row(section, 'tick cost p50 in the paced loop: advance / physics alone', '',
+            f'{1e3 * fid["step_cost_p50_ms"]:.0f} / {1e3 * fid["physics_cost_p50_ms"]:.0f} us'),
+        Row(section, 'subscriber CPU; other processes; steal (cores)', 'quiet machine: ~0',
+            f'{100 * fid["subscriber_cpu_share"]:.1f} %; {fid["other_load_cores"]:.2f}; '
+            f'{fid["steal_cores"]:.2f}'),
+        Row(section, 'received of published: joint_states / odom / ground_truth / /clock', '',
+            ' / '.join(str(received[t]) for t in ('joint_states', 'odom', 'ground_truth',
+                                                  '/clock')) + f' of {fid["published"]}'),
+        Row(section, 'delivery step start -> subscriber p50 / p99', '',
+            f'{fid["delivery_p50_ms"]:.3f} / {fid["delivery_p99_ms"]:.3f} ms'),
     ]
-    fid50 = results.get('fidelity_50hz')
     if fid50:
         rows += [
-            ('1 fidelity', f'@ publish_rate 50 ({fid50["sim_seconds"]:g} s): rate / jitter p99',
-             f'rtf {fid50["node_rtf"]:.5f} / {fid50["jitter_p99_ms"]:.3f} ms',
-             '0.5% / < 0.3 ms', status(abs(fid50['node_rtf'] - 1.0) <= TARGET_RATE_ERROR
-                                       and fid50['jitter_p99_ms'] < TARGET_JITTER_P99_MS)),
-            ('1 fidelity', '@ publish_rate 50: node process CPU',
-             f'{100 * fid50["cpu_share"]:.1f} %', f'< {100 * TARGET_CPU_SHARE:g} %',
-             status(fid50['cpu_share'] < TARGET_CPU_SHARE)),
+            Row(section, f'at publish_rate 50 ({fid50["sim_seconds"]:g} s): rate / jitter p99',
+                '0.5 % / < 0.3 ms',
+                f'rtf {fid50["node_rtf"]:.5f} / {fid50["jitter_p99_ms"]:.3f} ms',
+                status(abs(fid50['node_rtf'] - 1.0) <= TARGET_RATE_ERROR
+                       and fid50['jitter_p99_ms'] < TARGET_JITTER_P99_MS)),
+            Row(section, 'at publish_rate 50: CPU of the node',
+                f'<= {100 * TARGET_CPU_SHARE_50HZ:g} % of a core',
+                f'{100 * fid50["cpu_share"]:.1f} %',
+                status(fid50['cpu_share'] <= TARGET_CPU_SHARE_50HZ)),
         ]
-
-    over = results['overhead']
-    sps = over['median_steps_per_s']
-    wall = over['median_wall_steps_per_s']
-    raw = sps['raw']
-    every, fifty = sps['node@240'] / raw, sps['node@50'] / raw
-    rows += [
-        ('2 overhead', 'raw PyBullet steps/s, same world (CPU time; wall)',
-         f'{raw:,.0f}; {wall["raw"]:,.0f}', '', ''),
-        ('2 overhead', 'node publishing every step: steps/s, ratio (wall ratio)',
-         f'{sps["node@240"]:,.0f}, {every:.3f} ({wall["node@240"] / wall["raw"]:.3f})',
-         f'>= {TARGET_RATIO_EVERY}', status(every >= TARGET_RATIO_EVERY)),
-        ('2 overhead', 'node publishing at 50 Hz: steps/s, ratio (wall ratio)',
-         f'{sps["node@50"]:,.0f}, {fifty:.3f} ({wall["node@50"] / wall["raw"]:.3f})',
-         f'>= {TARGET_RATIO_50HZ}', status(fifty >= TARGET_RATIO_50HZ)),
-    ]
-    listened = sps['node@240+subscriber']
-    rows.append(('2 overhead', 'node every step + subscriber process (joint_states, odom): '
-                 'steps/s, ratio (wall ratio)',
-                 f'{listened:,.0f}, {listened / raw:.3f} '
-                 f'({wall["node@240+subscriber"] / wall["raw"]:.3f})', '', ''))
-    for key, label in (('subprocess_rtf0_every', 'every step'),
-                       ('subprocess_rtf0_50hz', '50 Hz')):
-        if results.get(key):
-            rows.append(('2 overhead',
-                         f'node subprocess rtf 0, {label}: steps/s (/clock, wall), wall ratio',
-                         f'{results[key]:,.0f}, {results[key] / wall["raw"]:.3f}', '', ''))
-
-    lat = results['latency']
-    rows += [
-        ('3 latency', f'cmd_vel -> joint_states min / p50 ({lat["commands"]} commands, '
-         f'{lat["missed"]} missed)', f'{lat["min_ms"]:.2f} / {lat["p50_ms"]:.2f} ms', '', ''),
-        ('3 latency', 'cmd_vel -> joint_states p99 / max',
-         f'{lat["p99_ms"]:.2f} / {lat["max_ms"]:.2f} ms',
-         f'< {TARGET_LATENCY_P99_MS:g} ms (physics period {PHYSICS_PERIOD_MS:.2f} ms)',
-         status(lat['p99_ms'] < TARGET_LATENCY_P99_MS and not lat['missed'])),
-        ('3 latency', 'node subprocess during it: CPU, rtf',
-         f'{100 * lat["subprocess_cpu_share"]:.1f} %, {lat["subprocess_rtf"]:.4f}', '', ''),
-    ]
-
-    scale = results['scaling']
-    for rate in PUBLISH_RATES_HZ:
-        node_us = 1e6 / sps[f'node@{rate:g}']
-        rows.append(('4 scaling', f'publish {rate:>3g} Hz: node / raw us per step',
-                     f'{node_us:.0f} / {1e6 / raw:.0f} (+{node_us - 1e6 / raw:.0f})', '', ''))
-    rows.append(('4 scaling', 'bridge cost = fixed + per publication',
-                 f'{scale["rate_fixed_us"]:.1f} + {scale["per_publication_us"]:.1f} us '
-                 'x publications/step', '', ''))
-    rows.append(('4 scaling', f'R2D2 ({scale["r2d2_joints"]} joints + odom): bridge us/step',
-                 f'+{scale["r2d2_overhead_us"]:.0f}', '', ''))
-    for joints in CHAIN_JOINTS:
-        node_us = 1e6 / sps[f'chain{joints}:node']
-        raw_us = 1e6 / sps[f'chain{joints}:raw']
-        rows.append(('4 scaling', f'chain {joints} joints: node / raw us per step',
-                     f'{node_us:.0f} / {raw_us:.0f} (+{node_us - raw_us:.0f})', '', ''))
-    rows.append(('4 scaling', 'bridge cost vs joints (chains, every step)',
-                 f'{scale["joint_fixed_us"]:.1f} + {scale["per_joint_us"]:.2f} us x joints',
-                 '', ''))
-
-    start = results['startup']
-    rows.append(('5 start-up', f'Popen -> first joint_states (fresh subscriber), median of '
-                 f'{len(start["runs_s"])}',
-                 f'{start["median_s"]:.3f} s ('
-                 + ', '.join(f'{t:.3f}' for t in start['runs_s']) + ')',
-                 f'< {TARGET_STARTUP_S:g} s', status(start['median_s'] < TARGET_STARTUP_S)))
-    if start['restarts_s']:
-        rows.append(('5 start-up', 'restart while a subscriber stays up (Fast DDS re-discovery)',
-                     ', '.join(f'{t:.3f}' for t in start['restarts_s']) + ' s', '', ''))
     return rows
 
 
-def scaling_summary(overhead):
-    """Fit the bridge cost against publications per step and against published joints."""
-    sps = overhead['median_steps_per_s']
-    raw_us = 1e6 / sps['raw']
-    fractions = [rate / PHYSICS_RATE_HZ for rate in PUBLISH_RATES_HZ]
-    extra = [1e6 / sps[f'node@{rate:g}'] - raw_us for rate in PUBLISH_RATES_HZ]
-    rate_fixed, per_publication = fit_line(fractions, extra)
-    joint_extra = [1e6 / sps[f'chain{j}:node'] - 1e6 / sps[f'chain{j}:raw']
-                   for j in CHAIN_JOINTS]
-    joint_fixed, per_joint = fit_line(list(CHAIN_JOINTS), joint_extra)
-    return {'rate_fixed_us': rate_fixed, 'per_publication_us': per_publication,
-            'bridge_us_by_rate': dict(zip([f'{r:g}' for r in PUBLISH_RATES_HZ], extra)),
-            'joint_fixed_us': joint_fixed, 'per_joint_us': per_joint,
-            'bridge_us_by_chain_joints': dict(zip(map(str, CHAIN_JOINTS), joint_extra)),
-            'r2d2_joints': overhead['joints_published']['node@240'],
-            'r2d2_overhead_us': extra[0]}
+def throughput_rows(throughput, summary):
+    """Rows of the interleaved throughput measurement and of the sensor outputs."""
+    section = (f'2. throughput at rtf 0 against raw PyBullet stepping of the same world '
+               f'(interleaved, fastest of {throughput["rounds"]} rounds; in-process by thread '
+               'CPU time; the subscriber takes joint_states, odom, ground_truth, /clock)')
+    best, medians = throughput['best_steps_per_s'], throughput['median_steps_per_s']
+    sps, wall = best['rates'], throughput['best_wall_steps_per_s']['rates']
+    raw, raw_wall = sps['raw'], wall['raw']
+
+    def ratio_row(name, label, target):
+        ratio = sps[name] / raw
+        median = medians['rates'][name] / medians['rates']['raw']
+        return Row(section, label, f'>= {target:g}',
+                   f'{sps[name]:,.0f} / {raw:,.0f} = {ratio:.3f} '
+                   f'(median {median:.3f}, wall {wall[name] / raw_wall:.3f})',
+                   status(ratio >= target))
+
+    rows = [
+        Row(section, 'raw PyBullet steps/s (CPU time; wall)', '', f'{raw:,.0f}; {raw_wall:,.0f}'),
+        ratio_row('node@every', 'in-process, publishing every step / raw', TARGET_RATIO_EVERY),
+        ratio_row('node@50', 'in-process, publish_rate 50 / raw', TARGET_RATIO_50HZ),
+    ]
+    sub = throughput['subprocess']
+    if sub:
+        ratio = sub['steps_per_s'] / raw_wall
+        median = (sub['median_steps_per_s']
+                  / throughput['median_wall_steps_per_s']['rates']['raw'])
+        rows.append(Row(
+            section, 'subprocess at rtf 0, every step, one subscriber process / raw (wall)',
+            f'>= {TARGET_RATIO_SUBPROCESS:g}',
+            f'{sub["steps_per_s"]:,.0f} / {raw_wall:,.0f} = {ratio:.3f} (median {median:.3f}); '
+            f'subscriber CPU {100 * sub["subscriber_cpu_share"]:.0f} %',
+            status(ratio >= TARGET_RATIO_SUBPROCESS)))
+        rows.append(Row(
+            section, 'the same: node CPU; steps per node CPU s / raw (CPU)', '',
+            f'{100 * sub["node_cpu_share"]:.0f} %; {sub["steps_per_node_cpu_s"]:,.0f} / '
+            f'{raw:,.0f} = {sub["steps_per_node_cpu_s"] / raw:.3f}'))
+        rows.append(Row(
+            section, 'the same: /clock received by the subscriber; steps/s by ~/pause replies',
+            '', f'{100 * sub["received_fraction"]:.0f} %; {sub["reply_steps_per_s"]:,.0f}'))
+    fixed, per_round = summary['rate_fixed_us'], summary['per_publication_round_us']
+    rows.append(Row(section, 'bridge cost per step = fixed + per publication round '
+                    '(fit over publish rates)',
+                    f'<= {TARGET_BRIDGE_FIXED_US:g} + {TARGET_BRIDGE_PER_ROUND_US:g} us',
+                    f'{fixed:.1f} + {per_round:.1f} us',
+                    status(fixed <= TARGET_BRIDGE_FIXED_US
+                           and per_round <= TARGET_BRIDGE_PER_ROUND_US)))
+    for rate in PUBLISH_RATES_HZ:
+        name = rate_name(rate)
+        label = 'every step' if not rate else f'publish_rate {rate:g}'
+        rows.append(Row(section, f'{label}: node / raw us per step (+bridge)', '',
+                        f'{1e6 / sps[name]:.0f} / {1e6 / raw:.0f} '
+                        f'(+{summary["bridge_us_by_rate"][f"{rate:g}"]:.1f})'))
+    for joints in CHAIN_JOINTS:
+        chain = best[f'chain{joints}']
+        node_us, raw_us = 1e6 / chain[f'chain{joints}:node'], 1e6 / chain[f'chain{joints}:raw']
+        rows.append(Row(section, f'chain of {joints} joints: node / raw us per step', '',
+                        f'{node_us:.0f} / {raw_us:.0f} '
+                        f'(+{summary["bridge_us_by_chain_joints"][str(joints)]:.1f})'))
+    rows.append(Row(section, 'bridge cost vs joints (chains, every step)', '',
+                    f'{summary["joint_fixed_us"]:.1f} + {summary["per_joint_us"]:.2f} us '
+                    'x joints'))
+
+    section = ('3. sensor outputs (in-process, rtf 0, publishing every step, one sensor on: '
+               'its bridge minus the bridge without it, per message; and the median wall '
+               'time of the output call that publishes it)')
+    for case in SENSOR_CASES:
+        entry = summary['sensors'][case.name]
+        if 'missing' in entry:
+            rows.append(Row(section, f'{case.label} ({case.parameter})', '',
+                            f'n/a: {entry["missing"]}'))
+            continue
+        setting = ', '.join(f'{k}:={v}' for k, v in entry['setting'].items())
+        if entry['messages_per_step']:
+            measured = (f'{entry["us_per_message"]:.1f} us ({entry["messages_per_step"]:.3f} '
+                        f'per step); its publish call {entry["call_us_median"]:.1f} us')
+        else:
+            measured = f'n/a: no {case.message} published'
+        rows.append(Row(section, f'{case.label} ({setting})', '', measured))
+    defaults, defaults_raw = best['defaults']['defaults'], best['defaults']['defaults:raw']
+    published = throughput['publications_per_step']['defaults']
+    outputs = ', '.join(f'{message} {per_step:.3f}' for message, per_step in published.items())
+    rows.append(Row(section, 'in-process, default outputs / raw', '',
+                    f'{defaults:,.0f} / {defaults_raw:,.0f} = {defaults / defaults_raw:.3f} '
+                    f'(+{summary["defaults_extra_us"]:.1f} us per step)'))
+    rows.append(Row(section, 'the same: sensor messages per step', '', outputs or 'none'))
+    return rows
+
+
+def build_table(results):
+    """Turn the measurements into table rows."""
+    rows = fidelity_rows(results['fidelity'], results.get('fidelity_50hz'))
+    rows += throughput_rows(results['throughput'], results['throughput_summary'])
+    lat = results['latency']
+    section = '4. command latency (node subprocess at rtf 1, no acceleration ramp)'
+    rows += [
+        Row(section, f'cmd_vel -> joint_states min / p50 ({lat["commands"]} commands, '
+            f'{lat["missed"]} missed)', '', f'{lat["min_ms"]:.2f} / {lat["p50_ms"]:.2f} ms'),
+        Row(section, 'cmd_vel -> joint_states p99 / max',
+            f'p99 < {TARGET_LATENCY_P99_MS:g} ms (physics period {PHYSICS_PERIOD_MS:.2f} ms)',
+            f'{lat["p99_ms"]:.2f} / {lat["max_ms"]:.2f} ms',
+            status(lat['p99_ms'] < TARGET_LATENCY_P99_MS and not lat['missed'])),
+        Row(section, 'node subprocess during it: CPU, rtf', '',
+            f'{100 * lat["subprocess_cpu_share"]:.1f} %, {lat["subprocess_rtf"]:.4f}'),
+    ]
+    start = results['startup']
+    section = '5. start-up (default parameters)'
+    rows.append(Row(section, f'Popen -> first joint_states (fresh subscriber), median of '
+                    f'{len(start["runs_s"])}', f'< {TARGET_STARTUP_S:g} s',
+                    f'{start["median_s"]:.3f} s ('
+                    + ', '.join(f'{t:.3f}' for t in start['runs_s']) + ')',
+                    status(start['median_s'] < TARGET_STARTUP_S)))
+    if start['restarts_s']:
+        rows.append(Row(section, 'restart while a subscriber stays up (Fast DDS re-discovery)',
+                        '', ', '.join(f'{t:.3f}' for t in start['restarts_s']) + ' s'))
+    return rows
 
 
 def print_table(rows, header):
-    """Print the rows aligned, under ``header`` lines."""
-    widths = [max(len(str(row[i])) for row in rows) for i in range(5)]
+    """Print the rows under ``header`` lines, one block per section."""
+    columns = ('measurement', 'target', 'measured', 'pass/miss')
+    cells = [(r.measurement, r.target, r.measured, r.status) for r in rows]
+    widths = [max(len(c[i]) for c in cells + [columns]) for i in range(3)]
     print('\n'.join(header))
-    print('-' * (sum(widths) + 8))
+    line = '  '.join(title.ljust(w) for title, w in zip(columns, widths + [0])).rstrip()
+    print(line)
+    print('-' * len(line))
     section = None
-    for row in rows:
-        cells = list(row)
-        if cells[0] == section:
-            cells[0] = ''
-        else:
-            section = cells[0]
-        print('  '.join(str(c).ljust(w) for c, w in zip(cells, widths)).rstrip())
+    for row, cell in zip(rows, cells):
+        if row.section != section:
+            section = row.section
+            print(f'\n{section}')
+        print('  '.join(c.ljust(w) for c, w in zip(cell, widths + [0])).rstrip())
 
 
-def run_bench(args):
-    """Measure everything once and write bench/results.json."""
-    quick = args.quick
-    plan = {
+# -- the run ---------------------------------------------------------------------------------
+
+def make_plan(quick):
+    """Return the durations and repetitions of a quick or a full run."""
+    return {
         'fidelity_sim_s': 10.0 if quick else 60.0,
         'fidelity_50hz_sim_s': 0.0 if quick else 10.0,
         'latency_s': 5.0 if quick else 10.0,
         'latency_period_s': 0.25, 'latency_speed_m_s': 0.2,
         'startup_runs': 3,
         'startup_restarts': 0 if quick else 2,
-        'rtf0_window_s': 1.0 if quick else 2.0,
-        'inprocess_reps': 3 if quick else 7,
-        'inprocess_min_s': 0.15 if quick else 0.3,
+        'throughput_rounds': 5 if quick else 9,
+        'inprocess_min_s': 0.08 if quick else 0.2,
+        'rtf0_settle_s': 0.3,
+        'rtf0_window_s': 0.8 if quick else 1.5,
+        'call_steps': 1000 if quick else 2400,
     }
+
+
+def run_bench(args):
+    """Measure everything once, print the table and write bench/results.json."""
+    quick = args.quick
+    plan = make_plan(quick)
     base = args.domain
-    began = time.monotonic()
-    results = {'background_load_before': background_load()}
+    params = outputs_off()
+    results = {'outputs_off': params,
+               'sensor_parameters_missing': missing_parameters(SENSOR_PARAMETERS),
+               'background_load_before': background_load()}
     quiet_deadline = time.monotonic() + args.wait_quiet
     while (results['background_load_before']['busy_cores'] >= 0.25
            and time.monotonic() < quiet_deadline):
@@ -994,82 +906,59 @@ def run_bench(args):
             meter.start()
             print(f'[{time.monotonic() - began:6.1f} s] {name}', flush=True)
 
-        phase(f'1. real-time fidelity, {plan["fidelity_sim_s"]:g} s simulated')
-        results['fidelity'] = measure_fidelity(work, base, plan['fidelity_sim_s'], 0.0)
+        phase(f'1. real time, {plan["fidelity_sim_s"]:g} s simulated')
+        results['fidelity'] = measure_fidelity(work, base, plan['fidelity_sim_s'], 0.0, params)
         if plan['fidelity_50hz_sim_s']:
-            phase(f'1b. real-time fidelity at publish_rate 50, '
-                  f'{plan["fidelity_50hz_sim_s"]:g} s simulated')
+            phase(f'1b. real time at publish_rate 50, {plan["fidelity_50hz_sim_s"]:g} s simulated')
             results['fidelity_50hz'] = measure_fidelity(
-                work, base, plan['fidelity_50hz_sim_s'], 50.0)
-        phase('3. command latency')
+                work, base, plan['fidelity_50hz_sim_s'], 50.0, params)
+        phase('4. command latency')
         results['latency'] = measure_latency(work, base + 1, plan['latency_s'],
                                              plan['latency_period_s'],
-                                             plan['latency_speed_m_s'])
+                                             plan['latency_speed_m_s'], params)
         phase('5. start-up')
         results['startup'] = measure_startup(work, base + 2, plan['startup_runs'],
                                              plan['startup_restarts'])
-        phase('2. node subprocess at rtf 0')
-        results['subprocess_rtf0_every'] = measure_subprocess_rtf0(
-            work, base + 3, plan['rtf0_window_s'], 0.0)
-        if not quick:
-            results['subprocess_rtf0_50hz'] = measure_subprocess_rtf0(
-                work, base + 3, plan['rtf0_window_s'], 50.0)
-        phase('2+4. in-process overhead and scaling')
-        results['overhead'] = measure_inprocess(work, base + 4, plan['inprocess_reps'],
-                                                plan['inprocess_min_s'])
-        results['scaling'] = scaling_summary(results['overhead'])
+        phase('2+3. throughput and sensor outputs, interleaved')
+        results['throughput'] = measure_throughput(work, base + 4, base + 3, plan, params)
+        results['throughput_summary'] = throughput_summary(results['throughput'])
         phase('done')
     elapsed = time.monotonic() - began
-    machine = {'cpu_model': cpu_model(), 'cores': os.cpu_count(),
-               'usable_cores': len(os.sched_getaffinity(0)),
-               'python': sys.version.split()[0]}
-    date = datetime.datetime.now().astimezone().isoformat(timespec='seconds')
+    machine = machine_info()
+    date = local_date()
     rows = build_table(results)
+    off = ', '.join(f'{k}:={v}' for k, v in params.items()) or 'none exist'
+    missing = results['sensor_parameters_missing']
     header = [f'r2d2_sim benchmark ({"quick" if quick else "full"}), {date}',
               f'{machine["cpu_model"]}, {machine["cores"]} cores, Python {machine["python"]}, '
               f'run took {elapsed:.0f} s; other processes kept '
               f'{results["background_load_before"]["busy_cores"]:.2f} cores busy before it '
-              f'and {results["fidelity"]["other_load_cores"]:.2f} during the fidelity run',
+              f'and {results["fidelity"]["other_load_cores"]:.2f} during the real-time run',
               'cores busy per phase, the bench included: ' + ', '.join(
-                  f'{name.split(".")[0]}: {busy:.2f}' for name, busy in loads.items())]
+                  f'{name.split(".")[0]}: {busy:.2f}' for name, busy in loads.items()),
+              f'sensor outputs off except in 3. and 5.: {off}'
+              + (f' (not declared: {", ".join(missing)})' if missing else ''), '']
     print()
     print_table(rows, header)
     write_json(args.output, {
         'date': date, 'mode': 'quick' if quick else 'full', 'machine': machine,
-        'elapsed_s': elapsed, 'plan': plan,
-        'table': [dict(zip(('section', 'metric', 'value', 'target', 'status'), row))
-                  for row in rows],
+        'elapsed_s': elapsed, 'plan': plan, 'table': [row._asdict() for row in rows],
         'results': results})
     print(f'\nwrote {args.output}')
     return 0
 
 
 def main(argv=None):
-    """Parse arguments: run the benchmark, or one of its helper roles."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    """Parse the arguments and run the benchmark."""
+    parser = argparse.ArgumentParser(description=__doc__.strip().split('\n')[0])
     parser.add_argument('--quick', action='store_true',
-                        help='shorter runs (10 s fidelity instead of 60 s)')
+                        help='shorter runs (10 s real time instead of 60 s, fewer rounds)')
     parser.add_argument('--domain', type=int, default=90,
                         help='first of the 5 ROS domain ids the bench uses (default 90)')
     parser.add_argument('--output', default=RESULTS_PATH, help='where to write the JSON')
     parser.add_argument('--wait-quiet', type=float, default=0.0, metavar='SECONDS',
                         help='first wait up to SECONDS for other processes to use < 0.25 cores')
-    parser.add_argument('--role', choices=('harness', 'subscriber', 'latency'),
-                        help=argparse.SUPPRESS)
-    parser.add_argument('--out', help=argparse.SUPPRESS)
-    parser.add_argument('--sim-seconds', type=float, default=10.0, help=argparse.SUPPRESS)
-    parser.add_argument('--publish-rate', type=float, default=0.0, help=argparse.SUPPRESS)
-    parser.add_argument('--timeout', type=float, default=120.0, help=argparse.SUPPRESS)
-    parser.add_argument('--duration', type=float, default=10.0, help=argparse.SUPPRESS)
-    parser.add_argument('--period', type=float, default=0.25, help=argparse.SUPPRESS)
-    parser.add_argument('--speed', type=float, default=0.2, help=argparse.SUPPRESS)
-    parser.add_argument('--node-pid', type=int, default=0, help=argparse.SUPPRESS)
-    parser.add_argument('--namespace', default='/', help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
-    roles = {'harness': role_harness, 'subscriber': role_subscriber, 'latency': role_latency}
-    if args.role:
-        return roles[args.role](args) or 0
-    return run_bench(args)
+    return run_bench(parser.parse_args(argv))
 
 
 if __name__ == '__main__':

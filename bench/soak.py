@@ -30,25 +30,19 @@ import tempfile
 import threading
 import time
 
-BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.dirname(BENCH_DIR)
-if REPO not in sys.path:
-    sys.path.insert(0, REPO)
-# Discovery must stay on this host; set before rclpy is imported anywhere.
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-
-from run import (  # noqa: E402  (bench/ is on sys.path when run as a script)
-    cpu_model, fit_line, init_ros, LoadMeter, log_tail, PHYSICS_RATE_HZ, process_cpu_s,
-    start_sim, status, stop_process, write_json)
+# Importing common puts the repository on sys.path and keeps discovery on this host.
+from common import (
+    BENCH_DIR, cpu_model, fit_line, init_ros, LoadMeter, log_tail, PHYSICS_RATE_HZ,
+    process_cpu_s, start_sim, status, stop_process, write_json)
 
 SOAK_PATH = os.path.join(BENCH_DIR, 'soak.json')
 RATE = int(PHYSICS_RATE_HZ)     # steps per simulated second; step k is at k * 10**9 // RATE ns
 # (linear m/s, angular rad/s), one per simulated second, in turn.
 COMMANDS = ((0.3, 0.0), (0.0, 0.5), (0.0, 0.0), (-0.3, 0.0), (0.0, -0.5), (0.0, 0.0))
 TARGET_RSS_GROWTH_MB = 5.0      # after warm-up, to the end
-# The tests take domains 1..100 (conftest) and run.py 90..95: a soak there met a
-# simulator of a concurrent test run. 215..232 are valid Fast DDS domains on Linux
-# whose ports lie above the ephemeral range.
+# The tests take domains 1..100 (conftest), run.py and profile_step.py 90..95: a
+# soak there met a simulator of a concurrent test run. 215..232 are valid Fast DDS
+# domains on Linux whose ports lie above the ephemeral range.
 DEFAULT_DOMAIN = 222
 # Log lines that count as problems, by kind (case-insensitive).
 LOG_PROBLEMS = {'warning': re.compile(r'\bwarn', re.I),
@@ -360,6 +354,7 @@ def check_pause_and_steps(driver, steps=5):
                                     and clock_ns == k * 10**9 // RATE
                                     and reply['sim_time_ns'] == clock_ns)})
         previous_k = k
+    result['steps'] = step_results
     result['steps_ok'] = all(s['ok'] for s in step_results) and len(step_results) == steps
     return result
 

@@ -1,0 +1,274 @@
+"""
+Helpers shared by the benchmarks: processes, CPU and load meters, statistics, JSON, nodes.
+
+Importing this module puts the repository first on ``sys.path`` (so the
+benchmarks measure this checkout's ``r2d2_sim``) and keeps ROS discovery on
+this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) before anything
+imports rclpy. Nothing here imports rclpy or PyBullet at module level.
+"""
+
+import datetime
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+BENCH_DIR = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(BENCH_DIR)
+if REPO not in sys.path:
+    sys.path.insert(0, REPO)
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+
+ROLES_SCRIPT = os.path.join(BENCH_DIR, 'roles.py')
+PHYSICS_RATE_HZ = 240.0
+
+# The sensor outputs, off: throughput and CPU rows measure the state outputs
+# alone. Only the parameters this r2d2_sim declares are set (see
+# existing_parameters): some of them are being added while the bench exists.
+OUTPUTS_OFF = {'scan_rate': 0.0, 'imu_rate': 0.0, 'publish_tf': False, 'camera_rate': 0.0}
+
+
+# -- statistics --------------------------------------------------------------------
+
+def percentile(values, q):
+    """Interpolate linearly the value below which q % (0..100) of ``values`` fall."""
+    ordered = sorted(values)
+    if not ordered:
+        return math.nan
+    position = (len(ordered) - 1) * q / 100.0
+    low = math.floor(position)
+    high = min(low + 1, len(ordered) - 1)
+    return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
+
+
+def fit_line(xs, ys):
+    """Fit a least-squares line through (xs, ys): return (intercept, slope)."""
+    n = len(xs)
+    mean_x, mean_y = sum(xs) / n, sum(ys) / n
+    sxx = sum((x - mean_x) ** 2 for x in xs)
+    sxy = sum((x - mean_x) * (y - mean_y) for x, y in zip(xs, ys))
+    slope = sxy / sxx if sxx else math.nan
+    return mean_y - slope * mean_x, slope
+
+
+def status(ok):
+    """Return PASS or MISS."""
+    return 'PASS' if ok else 'MISS'
+
+
+def step_of(stamp, rate_hz=PHYSICS_RATE_HZ):
+    """Return the physics step of a builtin_interfaces Time stamp."""
+    return round((stamp.sec * 10**9 + stamp.nanosec) * rate_hz / 1e9)
+
+
+# -- the machine -------------------------------------------------------------------
+
+def cpu_model():
+    """Return the CPU model name from /proc/cpuinfo."""
+    try:
+        with open('/proc/cpuinfo', encoding='utf-8') as cpuinfo:
+            for line in cpuinfo:
+                if line.startswith('model name'):
+                    return line.split(':', 1)[1].strip()
+    except OSError:
+        pass
+    return 'unknown'
+
+
+def machine_info():
+    """Return the CPU model, core counts and Python version of this machine."""
+    return {'cpu_model': cpu_model(), 'cores': os.cpu_count(),
+            'usable_cores': len(os.sched_getaffinity(0)), 'python': sys.version.split()[0]}
+
+
+def local_date():
+    """Return the local date and time in ISO format, to the second."""
+    return datetime.datetime.now().astimezone().isoformat(timespec='seconds')
+
+
+def process_cpu_s(pid):
+    """Return user + system CPU seconds of process ``pid`` from /proc/<pid>/stat."""
+    with open(f'/proc/{pid}/stat', encoding='utf-8') as stat:
+        fields = stat.read().rsplit(')', 1)[1].split()
+    # fields[0] is field 3 (state); utime and stime are fields 14 and 15.
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def system_cpu_ticks():
+    """Return (busy, steal, total) jiffies summed over all CPUs, from /proc/stat."""
+    with open('/proc/stat', encoding='utf-8') as stat:
+        values = [int(v) for v in stat.readline().split()[1:]]
+    idle = values[3] + values[4]           # idle + iowait
+    steal = values[7] if len(values) > 7 else 0
+    total = sum(values[:8])
+    return total - idle - steal, steal, total
+
+
+class LoadMeter:
+    """Measure how many cores were busy (and stolen) between start() and stop()."""
+
+    def __init__(self):
+        self._begin = None
+
+    def start(self):
+        """Begin a measurement window; return self."""
+        self._begin = system_cpu_ticks()
+        return self
+
+    def stop(self):
+        """End the window: return {'busy_cores', 'steal_cores'} averaged over it."""
+        busy1, steal1, total1 = system_cpu_ticks()
+        busy0, steal0, total0 = self._begin
+        cores = os.cpu_count() or 1
+        span = max(total1 - total0, 1)
+        return {'busy_cores': cores * (busy1 - busy0) / span,
+                'steal_cores': cores * (steal1 - steal0) / span}
+
+
+def background_load(seconds=1.0):
+    """Return the cores kept busy by other processes while this one sleeps."""
+    meter = LoadMeter().start()
+    time.sleep(seconds)
+    return meter.stop()
+
+
+# -- processes ---------------------------------------------------------------------
+
+def ros_value(value):
+    """Write a Python value as a ``-p name:=value`` argument reads it."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def start_process(args, domain_id, log_path):
+    """Start ``args`` on ``domain_id`` with stdout and stderr going to ``log_path``."""
+    from r2d2_sim.testing import ros_child_env
+    with open(log_path, 'w', encoding='utf-8') as log:
+        return subprocess.Popen(args, env=ros_child_env(domain_id), cwd=REPO,
+                                stdout=log, stderr=subprocess.STDOUT)
+
+
+def start_sim(domain_id, log_path, **params):
+    """Start ``python -m r2d2_sim`` with ``params`` as ROS parameters."""
+    args = [sys.executable, '-m', 'r2d2_sim', '--ros-args']
+    for name, value in params.items():
+        args += ['-p', f'{name}:={ros_value(value)}']
+    return start_process(args, domain_id, log_path)
+
+
+def start_role(role, domain_id, log_path, *extra):
+    """Start ``bench/roles.py`` in a helper role (see that module)."""
+    args = [sys.executable, ROLES_SCRIPT, role, '--domain', str(domain_id), *map(str, extra)]
+    return start_process(args, domain_id, log_path)
+
+
+def stop_process(process, timeout_s=5.0):
+    """SIGINT ``process``, wait for it, kill it as a last resort; return its exit code."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.wait()
+
+
+def wait_process(process, timeout_s):
+    """Wait up to ``timeout_s`` for ``process`` to exit by itself; True if it did."""
+    try:
+        process.wait(timeout=timeout_s)
+        return True
+    except subprocess.TimeoutExpired:
+        return False
+
+
+def log_tail(path, lines=15):
+    """Return the last lines of a log file (for error messages)."""
+    try:
+        with open(path, encoding='utf-8', errors='replace') as log:
+            return ''.join(log.readlines()[-lines:])
+    except OSError:
+        return ''
+
+
+def read_json(path, log_path, what):
+    """Load a helper's JSON output or raise with its log tail."""
+    try:
+        with open(path, encoding='utf-8') as result:
+            return json.load(result)
+    except (OSError, ValueError) as exc:
+        raise RuntimeError(f'{what} produced no result ({exc}); its log ends:\n'
+                           + log_tail(log_path)) from None
+
+
+def write_json(path, data):
+    """Write ``data`` as JSON to ``path`` atomically."""
+    tmp = path + '.tmp'
+    with open(tmp, 'w', encoding='utf-8') as out:
+        json.dump(data, out, indent=1)
+    os.replace(tmp, path)
+
+
+# -- ROS and the node ----------------------------------------------------------------
+
+def init_ros(domain_id, context=None):
+    """Initialise rclpy on ``domain_id`` without its signal handlers."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    rclpy.init(context=context, domain_id=domain_id,
+               signal_handler_options=SignalHandlerOptions.NO)
+
+
+def existing_parameters(params):
+    """
+    Return the entries of ``params`` that this r2d2_sim declares, in their declared types.
+
+    A parameter the node does not declare would only be warned about and
+    ignored, so a measurement that needs one checks ``missing_parameters``.
+    """
+    from r2d2_sim.parameters import PARAMETERS_BY_NAME
+    convert = {'double': float, 'integer': int, 'bool': bool, 'string': str}
+    kept = {}
+    for name, value in params.items():
+        spec = PARAMETERS_BY_NAME.get(name)
+        if spec is not None:
+            kept[name] = convert.get(spec.ros_type, lambda v: v)(value)
+    return kept
+
+
+def missing_parameters(names):
+    """Return those of ``names`` that this r2d2_sim does not declare."""
+    from r2d2_sim.parameters import PARAMETERS_BY_NAME
+    return [name for name in names if name not in PARAMETERS_BY_NAME]
+
+
+def outputs_off():
+    """Return the parameters that turn every sensor output off (those that exist)."""
+    return existing_parameters(OUTPUTS_OFF)
+
+
+def make_sim_node(context, namespace, params, quiet=True):
+    """
+    Build a SimNode in ``context`` (None: the default one) under ``namespace``.
+
+    ``params`` maps parameter names to values. PyBullet's banner is silenced;
+    with ``quiet`` the node logs errors only (a chain robot has no wheels to
+    warn about).
+    """
+    from rclpy.logging import LoggingSeverity, set_logger_level
+    from rclpy.parameter import Parameter
+    from r2d2_sim.stdio import silenced_stdout
+    if quiet:
+        prefix = '.'.join(part for part in namespace.split('/') if part)
+        set_logger_level(f'{prefix}.r2d2_sim' if prefix else 'r2d2_sim',
+                         LoggingSeverity.ERROR)
+    with silenced_stdout():
+        from r2d2_sim.node import SimNode
+        return SimNode(context=context, namespace=namespace, parameter_overrides=[
+            Parameter(name, value=value) for name, value in params.items()])
