@@ -26,7 +26,10 @@ class StepSchedule:
     """
 
     def __init__(self, physics_rate_hz: float, event_rate_hz: float) -> None:
-        steps_per_event = exact_rate(physics_rate_hz) / exact_rate(event_rate_hz)
+        event_rate = exact_rate(event_rate_hz)
+        if event_rate <= 0:  # includes rates too small for a millionth: 1e-7 Hz rounds to 0
+            raise ValueError(f'event rate must be a positive number of Hz, got {event_rate_hz}')
+        steps_per_event = exact_rate(physics_rate_hz) / event_rate
         self._num = steps_per_event.numerator
         self._den = steps_per_event.denominator
         self.count = 0

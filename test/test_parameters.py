@@ -58,6 +58,11 @@ def test_every_parameter_has_a_description():
     ('max_angular_acceleration', 1e9, 'must be in [0.001, 1000] rad/s^2'),
     ('real_time_factor', 1e308, 'must be in [0, 1000]'),
     ('wheel_separation_multiplier', 1e-3, 'must be in [0.1, 10]'),
+    ('publish_rate', 1e-7, 'must be in [0.001, 10000] Hz (every step with 0)'),
+    ('camera_rate', 1e-7, 'must be in [0.001, 10000] Hz (off with 0)'),
+    ('scan_rate', 1e-7, 'scan_rate must be in'),
+    ('imu_rate', 1e-7, 'imu_rate must be in'),
+    ('scan_samples', 1, 'scan_samples must be in [2, 10000]'),
 ])
 def test_bad_values_raise_one_line(name, value, fragment):
     """Each invalid value raises ConfigError naming the parameter or the problem."""

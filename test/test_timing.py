@@ -94,3 +94,10 @@ def test_step_schedule_fires_once_when_a_step_is_seen_late():
     assert schedule.due(9)
     assert schedule.next_step == 8  # the second event is still owed
     assert schedule.due(10) and schedule.next_step == 12
+
+
+@pytest.mark.parametrize('rate_hz', [0.0, 1e-7, -5.0])
+def test_a_schedule_refuses_a_rate_that_is_no_rate(rate_hz):
+    """A rate that rounds to 0 Hz would divide by zero: a ValueError instead."""
+    with pytest.raises(ValueError, match='positive'):
+        StepSchedule(240.0, rate_hz)
