@@ -68,23 +68,13 @@ class SimNode(Node):
                                          error=self._log_blow_up)
         except (ConfigError, WorldError, DriveConfigError) as exc:
             raise StartupError(str(exc)) from exc
+        try:
+            self._build_outputs()
+        except (ConfigError, WorldError) as exc:
+            self.simulation.close()
+            raise StartupError(str(exc)) from exc
         simulation = self.simulation
         self._paused = self.config.start_paused
-        self._state_outputs = [ClockOutput(self), JointStateOutput(self, simulation.movable),
-                               GroundTruthOutput(self, self.config)]
-        if simulation.controller is not None:
-            self._state_outputs.append(OdometryOutput(self, self.config))
-        self._sensor_outputs = []
-        if simulation.camera is not None:
-            self._sensor_outputs.append(HeadCameraOutput(self, self.config, simulation.camera))
-        if simulation.laser is not None:
-            self._sensor_outputs.append(ScanOutput(self, self.config, simulation.laser))
-        if simulation.imu is not None:
-            self._sensor_outputs.append(ImuOutput(self, self.config, simulation.imu))
-        if self.config.publish_tf:
-            tf = start_tf(self, self.config, simulation)
-            if tf is not None:
-                self._state_outputs.append(tf)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
         self.create_publisher(String, 'robot_description', latched).publish(
@@ -103,6 +93,25 @@ class SimNode(Node):
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/get_status', self._on_get_status)
         self._publish_frame(simulation.frame())
+
+    def _build_outputs(self) -> None:
+        """Create one output per published thing the configuration asks for."""
+        config, simulation = self.config, self.simulation
+        self._state_outputs = [ClockOutput(self), JointStateOutput(self, simulation.movable),
+                               GroundTruthOutput(self, config)]
+        if simulation.controller is not None:
+            self._state_outputs.append(OdometryOutput(self, config, simulation))
+        self._sensor_outputs = {}
+        if simulation.camera is not None:
+            self._sensor_outputs['camera'] = HeadCameraOutput(self, config, simulation.camera)
+        if simulation.laser is not None:
+            self._sensor_outputs['scan'] = ScanOutput(self, config, simulation.laser)
+        if simulation.imu is not None:
+            self._sensor_outputs['imu'] = ImuOutput(self, config, simulation.imu)
+        if config.publish_tf:
+            tf = start_tf(self, config, simulation)
+            if tf is not None:
+                self._state_outputs.append(tf)
 
     # -- the simulation, as tests and main() see it -----------------------------
 
@@ -156,14 +165,11 @@ class SimNode(Node):
         with self._lock:
             simulation, sensors = self.simulation, self._sensor_outputs
             for _ in range(steps):
-                frame = simulation.step()
+                frame, sensors_due = simulation.step()
                 if frame is not None:
                     self._publish_frame(frame)
-                if sensors:
-                    step = simulation.step_count
-                    for sensor in sensors:
-                        if sensor.schedule.due(step):
-                            sensor.publish(simulation)
+                for name in sensors_due:
+                    sensors[name].publish(simulation)
 
     def advance_to_next_publish(self) -> int:
         """Advance one control period: to and including the next publication."""
@@ -318,8 +324,10 @@ class SimNode(Node):
 
     def _on_reset(self, request, response):
         with self._lock:
+            # Not published now: this step's state is out already, and a second
+            # odom -> base_footprint at one stamp is one tf2 drops (TF_REPEATED_DATA).
+            # The next publication carries the reset robot.
             self.simulation.reset()
-            self._publish_frame(self.simulation.frame())
             response.message = self.status()
         response.success = True
         return response

@@ -1,14 +1,15 @@
 """
 The node's published outputs: one small class per published thing.
 
-State outputs (clock, joint states, odometry, ground truth) publish from the
-:class:`~r2d2_sim.simulation.Frame` that the simulation reads once per state
-publication. Sensor outputs (the head camera) have their own rate and their
-own :class:`~r2d2_sim.timing.StepSchedule`, and take what they measure from the
-simulation when they are due. Each keeps its message serialized once
-(:class:`~r2d2_sim.serialization.MessageTemplate`), patches only the bytes that
-move and publishes the bytes: rclpy then skips the Python-to-C conversion and
-serialization (an Odometry: 11-21 us typed, 2-9 us as bytes, measured here).
+State outputs (clock, joint states, odometry, ground truth, TF) publish from
+the :class:`~r2d2_sim.simulation.Frame` that the simulation reads once per
+state publication. Sensor outputs (camera, scan, IMU) have their own rates:
+the simulation says when they are due, and they measure then. Each keeps its
+message serialized once (:class:`~r2d2_sim.serialization.MessageTemplate`),
+patches only the bytes that move and publishes the bytes: rclpy then skips
+the Python-to-C conversion and serialization (an Odometry: 11-21 us typed,
+2-9 us as bytes, measured here). The camera's images are typed messages: a
+render costs milliseconds, so the conversion does not matter there.
 """
 
 from typing import List, Optional, Sequence, Tuple
@@ -27,7 +28,6 @@ from r2d2_sim.robot import (
     HEAD_CAMERA_FRAME_ID, HeadCamera, IMU_FRAME_ID, ImuSensor, LASER_FRAME_ID, LaserScanner)
 from r2d2_sim.serialization import MessageTemplate
 from r2d2_sim.simulation import Frame, Simulation
-from r2d2_sim.timing import StepSchedule
 from r2d2_sim.transforms import (
     compose, IDENTITY, inverse, LinkTransforms, split_yaw, Transform)
 from r2d2_sim.world import JointRecord
@@ -109,9 +109,15 @@ class GroundTruthOutput:
 
 
 class OdometryOutput:
-    """``odom``: wheel odometry, pose in the odom frame and twist in the body frame."""
+    """
+    ``odom``: wheel odometry, the body frame's pose in the odom frame and its twist in the body.
 
-    def __init__(self, node: Node, config: SimConfig) -> None:
+    The pose's z is the body frame's height at rest, as TF has it (odom ->
+    base_footprint on the ground, base_footprint -> base_link above it), so
+    the message and the transform tree agree on where base_link is.
+    """
+
+    def __init__(self, node: Node, config: SimConfig, simulation: Simulation) -> None:
         self._publisher = node.create_publisher(Odometry, 'odom', STATE_QOS)
         msg = Odometry()
         msg.header.frame_id = config.frame(config.odom_frame_id)
@@ -121,12 +127,14 @@ class OdometryOutput:
         for i, variance in enumerate(config.twist_covariance_diagonal):
             msg.twist.covariance[7 * i] = variance
         self._msg = _OdometryTemplate(msg)
+        self._height_m = simulation.footprint_height_m
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's wheel odometry."""
         msg, odometry = self._msg, frame.odometry
         msg.stamp.set(*frame.stamp)
-        msg.pose.set((odometry.x_m, odometry.y_m, 0.0) + yaw_to_quaternion(odometry.yaw_rad))
+        msg.pose.set((odometry.x_m, odometry.y_m, self._height_m)
+                     + yaw_to_quaternion(odometry.yaw_rad))
         msg.twist.set((odometry.linear_m_s, 0.0, 0.0, 0.0, 0.0, odometry.angular_rad_s))
         self._publisher.publish(msg.template.to_bytes())
 
@@ -141,7 +149,6 @@ class HeadCameraOutput:
     """
 
     def __init__(self, node: Node, config: SimConfig, head_camera: HeadCamera) -> None:
-        self.schedule = StepSchedule(config.physics_rate_hz, config.camera_rate_hz)
         self._camera = head_camera
         k = head_camera.intrinsics
         frame_id = config.frame(HEAD_CAMERA_FRAME_ID)
@@ -314,9 +321,10 @@ def static_transforms(config: SimConfig, simulation: Simulation,
             result.append((base, frame(links.root_link), Transform(
                 (0.0, 0.0, 0.0), yaw_to_quaternion(-config.body_yaw_offset_rad))))
         result += [(frame(j.parent_link), frame(j.child_link), j.transform) for j in links.fixed()]
-        if simulation.camera is not None:
-            result.append((frame(simulation.camera.link_name), frame(HEAD_CAMERA_FRAME_ID),
-                           simulation.camera.optical_mount))
+    if simulation.camera is not None:
+        # Not a URDF link, so robot_state_publisher never publishes it: always ours.
+        result.append((frame(simulation.camera.link_name), frame(HEAD_CAMERA_FRAME_ID),
+                       simulation.camera.optical_mount))
     return result
 
 
@@ -346,7 +354,6 @@ class ScanOutput:
     """``scan`` (sensor_msgs/LaserScan) at ``scan_rate``, in frame base_scan (REP-117)."""
 
     def __init__(self, node: Node, config: SimConfig, laser: LaserScanner) -> None:
-        self.schedule = StepSchedule(config.physics_rate_hz, config.scan_rate_hz)
         self._laser = laser
         self._publisher = node.create_publisher(LaserScan, 'scan', SENSOR_QOS)
         geometry = laser.geometry
@@ -373,7 +380,6 @@ class ImuOutput:
     """``imu`` (sensor_msgs/Imu) at ``imu_rate``, in frame imu_link (REP-145)."""
 
     def __init__(self, node: Node, config: SimConfig, imu: ImuSensor) -> None:
-        self.schedule = StepSchedule(config.physics_rate_hz, config.imu_rate_hz)
         self._imu = imu
         self._publisher = node.create_publisher(Imu, 'imu', SENSOR_QOS)
         msg = Imu()

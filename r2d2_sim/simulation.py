@@ -9,7 +9,7 @@ odometry) that every output of that step shares. Every step also checks that
 the physics has not blown up, and resets the robot if it has.
 """
 
-from typing import Callable, List, NamedTuple, Optional
+from typing import Callable, Dict, List, NamedTuple, Optional, Tuple
 
 from r2d2_sim.drive_controller import CommandVerdict, DriveController, timeout_steps
 from r2d2_sim.kinematics import DiffDriveOdometry
@@ -35,6 +35,16 @@ class Frame(NamedTuple):
     def stamp(self):
         """Return (sec, nanosec) of the frame's simulated time."""
         return divmod(self.time_ns, 10**9)
+
+
+class StepResult(NamedTuple):
+    """What one physics step produced: the frame if a publication is due, the sensors due."""
+
+    frame: Optional[Frame]
+    sensors_due: Tuple[str, ...]  # of 'camera', 'scan', 'imu', at their own rates
+
+
+NOTHING_DUE = StepResult(None, ())
 
 
 def _ignore(text: str) -> None:
@@ -64,6 +74,8 @@ class Simulation:
         self.camera: Optional[HeadCamera] = None
         self.laser: Optional[LaserScanner] = None
         self.imu: Optional[ImuSensor] = None
+        # Each sensor's own rate, in physics steps (camera, scan, imu when on).
+        self.sensor_schedules: Dict[str, StepSchedule] = {}
         self.world = SimWorld(
             config.urdf or None, robot_description=config.robot_description,
             gui=config.gui, time_step_s=self.time_step_s,
@@ -105,12 +117,16 @@ class Simulation:
                 len(drive.left_indices), len(drive.right_indices),
                 config.wheel_velocity_sign, config.initial_pose)
             self._drive(self.controller.reset(0, self._wheel_positions()))
+        rate = config.physics_rate_hz
         if config.camera_rate_hz > 0.0:
             self.camera = HeadCamera(world, config)
+            self.sensor_schedules['camera'] = StepSchedule(rate, config.camera_rate_hz)
         if config.scan_rate_hz > 0.0:
             self.laser = LaserScanner(world, config, self.footprint_height_m)
+            self.sensor_schedules['scan'] = StepSchedule(rate, config.scan_rate_hz)
         if config.imu_rate_hz > 0.0:
             self.imu = ImuSensor(world, config)
+            self.sensor_schedules['imu'] = StepSchedule(rate, config.imu_rate_hz)
 
     # -- time -------------------------------------------------------------------
 
@@ -137,12 +153,13 @@ class Simulation:
             return None
         return self.controller.command(linear_x, angular_z, **other_axes)
 
-    def step(self) -> Optional[Frame]:
+    def step(self) -> StepResult:
         """
-        Run one physics step; return the robot's frame when a state publication is due.
+        Run one physics step; return the state frame if a publication is due, and the sensors due.
 
         Command -> wheel targets -> physics -> (frame and odometry, or the
-        cheap blow-up check when nothing is published at this step).
+        cheap blow-up check when nothing is published at this step) -> which
+        sensors are due at their own rates.
         """
         world, controller = self.world, self.controller
         if controller is not None:
@@ -153,12 +170,17 @@ class Simulation:
         step = world.step_count
         if world.gui and step % self.steps_per_gui_frame == 0:
             world.follow_camera()
+        frame = None
         if self.publish_schedule.due(step):
-            return self.frame()
-        problem = world.state_problem()  # two raw queries, about 5 us
-        if problem is not None:
-            self._recover(problem)
-        return None
+            frame = self.frame()
+        else:
+            problem = world.state_problem()  # two raw queries, about 4 us
+            if problem is not None:
+                self._recover(problem)
+        if not self.sensor_schedules:
+            return NOTHING_DUE if frame is None else StepResult(frame, ())
+        return StepResult(frame, tuple(name for name, schedule in self.sensor_schedules.items()
+                                       if schedule.due(step)))
 
     def frame(self) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""

@@ -96,7 +96,7 @@ def test_state_outputs_publish_exactly_the_typed_messages(simulation):
     outputs = [ClockOutput(node), JointStateOutput(node, simulation.movable),
                GroundTruthOutput(node, config)]
     if simulation.controller is not None:
-        outputs.append(OdometryOutput(node, config))
+        outputs.append(OdometryOutput(node, config, simulation))
     rng = random.Random(7)
     frames = [random_frame(rng, len(simulation.movable), simulation.controller is not None)
               for _ in range(FRAMES)]
@@ -104,6 +104,7 @@ def test_state_outputs_publish_exactly_the_typed_messages(simulation):
         for output in outputs:
             output.publish(frame)
     for publisher in node.publishers.values():
+        assert len(publisher.published) == FRAMES
         assert all(type(b) is bytes for b in publisher.published)  # the cheap rclpy path
     names = [j.name for j in simulation.movable]
     for frame, clock, joints, truth in zip(
@@ -142,7 +143,7 @@ def test_state_outputs_publish_exactly_the_typed_messages(simulation):
             expected.twist.covariance[7 * i] = variance
         o = frame.odometry
         p, q = expected.pose.pose.position, expected.pose.pose.orientation
-        p.x, p.y = o.x_m, o.y_m
+        p.x, p.y, p.z = o.x_m, o.y_m, simulation.footprint_height_m
         q.x, q.y, q.z, q.w = yaw_to_quaternion(o.yaw_rad)
         expected.twist.twist.linear.x = o.linear_m_s
         expected.twist.twist.angular.z = o.angular_rad_s
@@ -164,3 +165,79 @@ def test_real_frames_round_trip(simulation):
         assert tuple(joints.position) == tuple(frame.joints.positions)
         pose = published(node.publishers['ground_truth'])[-1].pose.pose
         assert (pose.position.x, pose.position.y, pose.position.z) == frame.base.position
+
+
+def test_tf_output_publishes_exactly_the_typed_transforms():
+    """/tf with odometry, ground truth and the package R2D2's links: every transform, stamp."""
+    from r2d2_sim.outputs import link_transforms, TfOutput
+    from r2d2_sim.transforms import compose, inverse, split_yaw, Transform
+    config = parse_config({'publish_ground_truth_tf': True, 'frame_prefix': 'abc/'})
+    simulation = Simulation(config)
+    links = link_transforms(simulation)
+    node = RecordingNode()
+    output = TfOutput(node, config, simulation, links)
+    rng = random.Random(11)
+    frames = [random_frame(rng, len(simulation.movable), True) for _ in range(FRAMES)]
+    for frame in frames:
+        output.publish(frame)
+    published_tf = published(node.publishers['/tf'])
+    assert len(published_tf) == FRAMES
+    for frame, msg in zip(frames, published_tf):
+        o, base = frame.odometry, frame.base
+        odom = Transform((o.x_m, o.y_m, 0.0), yaw_to_quaternion(o.yaw_rad))
+        truth = Transform((base.position[0], base.position[1], 0.0),
+                          split_yaw(base.orientation)[0])
+        expected = [('abc/odom', 'abc/base_footprint', odom),
+                    ('world', 'abc/odom', compose(truth, inverse(odom)))]
+        expected += [('abc/' + j.parent_link, 'abc/' + j.child_link, j.transform)
+                     for j in links.moving(list(frame.joints.positions))]
+        assert len(msg.transforms) == len(expected)
+        for t, (parent, child, transform) in zip(msg.transforms, expected):
+            assert (t.header.frame_id, t.child_frame_id) == (parent, child)
+            assert (t.header.stamp.sec, t.header.stamp.nanosec) == divmod(frame.time_ns, 10**9)
+            tr, r = t.transform.translation, t.transform.rotation
+            assert (tr.x, tr.y, tr.z) == transform.translation
+            assert (r.x, r.y, r.z, r.w) == transform.rotation
+    simulation.close()
+
+
+def test_scan_and_imu_outputs_publish_exactly_what_the_sensors_read(simulation):
+    """LaserScan ranges (float32) and Imu fields land where the typed messages have them."""
+    import numpy
+    from r2d2_sim.outputs import ImuOutput, ScanOutput
+    from r2d2_sim.sensors import ImuModel, ImuReading, ScanGeometry
+    rng = random.Random(5)
+    config = parse_config({'scan_rate': 20.0, 'frame_prefix': 'p/'})
+    geometry = ScanGeometry(-2.0, 2.0, 181, 0.1, 9.0)
+    scans = [numpy.array([rng.choice([rng.uniform(0.1, 9.0), math.inf, -math.inf])
+                          for _ in range(181)], dtype=numpy.float32) for _ in range(20)]
+    laser = SimpleNamespace(geometry=geometry, scan=iter(scans).__next__)
+    readings = [ImuReading(tuple(rng.uniform(-1, 1) for _ in range(4)),
+                           tuple(rng.uniform(-5, 5) for _ in range(3)),
+                           tuple(rng.uniform(-20, 20) for _ in range(3))) for _ in range(20)]
+    imu = SimpleNamespace(model=ImuModel(linear_acceleration_std_m_s2=0.1,
+                                         rng=numpy.random.default_rng(0)),
+                          read=lambda time_s, it=iter(readings): next(it))
+    node = RecordingNode()
+    scan_output, imu_output = ScanOutput(node, config, laser), ImuOutput(node, config, imu)
+    times = [rng.randrange(10**15) for _ in range(20)]
+    for time_ns in times:
+        clock = SimpleNamespace(time_ns=time_ns)
+        scan_output.publish(clock)
+        imu_output.publish(clock)
+    for time_ns, scan, msg in zip(times, scans, published(node.publishers['scan'])):
+        assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == divmod(time_ns, 10**9)
+        assert msg.header.frame_id == 'p/base_scan'
+        assert numpy.array_equal(numpy.array(msg.ranges, dtype=numpy.float32), scan)
+        assert (msg.angle_min, msg.angle_increment) == pytest.approx((-2.0, 4.0 / 180))
+        assert (msg.range_min, msg.range_max, msg.time_increment) == pytest.approx((0.1, 9.0, 0))
+    for time_ns, reading, msg in zip(times, readings, published(node.publishers['imu'])):
+        assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == divmod(time_ns, 10**9)
+        assert msg.header.frame_id == 'p/imu_link'
+        q, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
+        assert (q.x, q.y, q.z, q.w) == reading.orientation_xyzw
+        assert (w.x, w.y, w.z) == reading.angular_velocity_rad_s
+        assert (a.x, a.y, a.z) == reading.linear_acceleration_m_s2
+        assert msg.linear_acceleration_covariance[0] == pytest.approx(0.01)
+        assert msg.linear_acceleration_covariance[4] == pytest.approx(0.01)
+    assert len(node.publishers['scan'].published) == len(node.publishers['imu'].published) == 20

@@ -81,6 +81,9 @@ def test_tf_chains_odom_footprint_base_with_the_odom_stamp(ros):
     static = transforms([listener.wait('/tf_static')])
     footprint = static[('base_footprint', 'base_link')][0].transform
     assert footprint.translation.z == pytest.approx(0.47, abs=0.01)  # body frame height
+    # The odom message places base_link where the tree does: on the footprint, that high.
+    assert all(m.pose.pose.position.z == footprint.translation.z
+               for m in listener.messages['odom'])
     scan = static[('base_link', 'base_scan')][0].transform.translation
     assert footprint.translation.z + scan.z == pytest.approx(LASER_HEIGHT_M)
     assert ('base_link', 'imu_link') in static
@@ -88,10 +91,17 @@ def test_tf_chains_odom_footprint_base_with_the_odom_stamp(ros):
 
 def test_late_subscribers_get_the_static_transforms(ros):
     """/tf_static is transient local: a subscriber that comes later still gets it."""
-    sim = make_sim(ros)
+    sim = make_sim(ros, camera_rate=5.0)
     sim.advance(10)
     listener = Listener(ros, {'/tf_static': (TFMessage, STATIC_QOS)})
-    assert ('base_footprint', 'base_link') in transforms([listener.wait('/tf_static')])
+    static = transforms([listener.wait('/tf_static')])
+    assert ('base_footprint', 'base_link') in static
+    # With robot_state_publisher doing the links, the camera's frame still hangs on head.
+    optical = static[('head', 'head_camera_optical')][0].transform.rotation
+    # The optical z axis (forward) is the head's x: rotate (0, 0, 1) by the quaternion.
+    x, y, z, w = optical.x, optical.y, optical.z, optical.w
+    forward = (2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y))
+    assert forward == pytest.approx((1.0, 0.0, 0.0), abs=1e-9)
 
 
 def test_frame_prefix_and_link_transforms(ros):
