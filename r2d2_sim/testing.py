@@ -710,7 +710,10 @@ class SimHarness(RosHarness):
         """
         Put the robot back at its initial pose through ``~/reset``; return the reply's JSON.
 
-        Simulated time goes on; the state readers return the reset state.
+        The node publishes the reset robot at its next publication (never a
+        second state at a stamp already published), so this then advances one
+        control period: simulated time goes on, and the state readers return
+        the reset robot.
         """
         topics = ['joint_states', 'ground_truth'] + (['odom'] if self.sim.has_wheels else [])
         for topic in topics:  # nothing older may arrive after the reset
@@ -719,6 +722,7 @@ class SimHarness(RosHarness):
             self._latest[topic] = None
         reply = self._call(Trigger, self.sim.get_fully_qualified_name() + '/reset',
                            Trigger.Request())
+        self.advance()
         return json.loads(reply.message)
 
     def _call(self, srv_type, name: str, request):
@@ -863,6 +867,7 @@ class SimProcess:
         self.result: Optional[ProcessResult] = None
         self.paused = False
         self.last_status: Dict[str, Any] = {}
+        self._not_before_ns = 0  # state readers take no message stamped before (a reset)
         self.process: Optional[subprocess.Popen] = None
         self.probe: Optional[RemoteProbe] = None
         self._latest: Dict[str, Any] = {'joint_states': None, 'odom': None,
@@ -995,11 +1000,15 @@ class SimProcess:
         return facts
 
     def reset(self) -> Dict[str, Any]:
-        """Put the robot back at its initial pose through ``~/reset``; return the reply's JSON."""
-        if self.paused:  # nothing older may be taken for the reset state
-            for key in ('joint_states', 'ground_truth', 'odom'):
-                self._latest[key] = None
-        return self._request('reset', Trigger.Request())
+        """
+        Put the robot back at its initial pose through ``~/reset``; return the reply's JSON.
+
+        The node publishes the reset robot at its next publication: the state
+        readers wait for one after the reply's time (while paused, step() first).
+        """
+        facts = self._request('reset', Trigger.Request())
+        self._not_before_ns = facts['sim_time_ns'] + 1
+        return facts
 
     def joint_info(self) -> Dict[str, Any]:
         """Return ``~/get_joint_info``'s JSON: ``robot``, ``urdf`` and ``joints``."""
@@ -1045,24 +1054,26 @@ class SimProcess:
         A paused simulator has published its state at the time its last reply
         gives (pause lands on a publication, a step ends with one).
         """
-        if self.paused and self.last_status:
-            wanted = self.last_status['sim_time_ns']
+        if not (self.paused and self.last_status):
+            self.status()  # running: wait for what is published from now on
+        wanted = self.last_status['sim_time_ns']
+        if self.paused and wanted < self._not_before_ns:
+            raise HarnessError(f'no {key} yet: the reset robot is published at the next '
+                               'publication; step() first')
+        floor = max(wanted, self._not_before_ns)
 
-            def arrived():
-                msg = self._latest[key]
-                return msg is not None and stamp_ns(msg.header.stamp) == wanted
-        else:
-            wanted = None
-            self.probe.spin_until(lambda: False, 0.01)  # take what has arrived
-
-            def arrived():
-                return self._latest[key] is not None
+        def arrived():
+            msg = self._latest[key]
+            if msg is None:
+                return False
+            stamp = stamp_ns(msg.header.stamp)
+            return stamp == wanted if self.paused else stamp >= floor
         if not self.probe.spin_until(arrived, self.timeout_s):
-            at = '' if wanted is None else f' of t={wanted / 1e9:.6f} s'
             hint = (': a simulator that started paused has published nothing since this '
                     'client connected; step() it first'
                     if self.paused and self.last_status.get('step') == 0 else '')
-            raise HarnessError(f'no {key}{at} within {self.timeout_s:g} s{hint}')
+            raise HarnessError(f'no {key} of t={wanted / 1e9:.6f} s within '
+                               f'{self.timeout_s:g} s{hint}')
         return self._latest[key]
 
     # -- teardown -----------------------------------------------------------------

@@ -178,12 +178,17 @@ def test_reset_restores_robot_keeps_clock(ros, paused):
     states = sim.world.joint_states([j.index for j in sim.world.movable_joints()])
     assert max(abs(p) for p in states.positions) < 1e-9
     assert max(abs(v) for v in states.velocities) < 1e-9
+    published = len(probe.messages['ground_truth'])
     sim.advance(10)
     assert sim.step_count == step_before + 10
-    clocks = [m.clock.sec * 10**9 + m.clock.nanosec for m in probe.messages['clock']]
-    wait_for(lambda: len(probe.messages['clock']) > len(clocks))
-    clocks = [m.clock.sec * 10**9 + m.clock.nanosec for m in probe.messages['clock']]
-    assert all(b >= a for a, b in zip(clocks, clocks[1:]))  # never backwards
+    probe.wait_count('ground_truth', published + 10)
+    truths = probe.messages['ground_truth']
+    assert abs(truths[published].pose.pose.position.x) < 1e-3  # the next publication: reset
+    # One state per stamp: nothing was published twice at the reset's step.
+    for topic in ('clock', 'ground_truth', 'odom', 'joint_states'):
+        stamps = [m.clock if topic == 'clock' else m.header.stamp for m in probe.messages[topic]]
+        ns = [s.sec * 10**9 + s.nanosec for s in stamps]
+        assert all(b > a for a, b in zip(ns, ns[1:])), topic
 
 
 def _run_schedule_in_process(ros):

@@ -388,8 +388,14 @@ def test_sim_process_services_reply_with_json(r2d2_sim_process):
     assert step['steps'] == 12 and step['step'] == paused['step'] + 12
     assert testing.stamp_ns(sim.joint_states().header.stamp) == step['sim_time_ns']
     assert sim.status() == {k: v for k, v in step.items() if k != 'steps'}
-    assert sim.reset()['step'] == step['step']
-    assert abs(sim.ground_truth().pose.pose.position.x) < 1e-6
+    sim.send_cmd_vel(linear=0.3)
+    driven = sim.step(20)
+    assert sim.ground_truth().pose.pose.position.x > 0.02
+    assert sim.reset()['step'] == driven['step']
+    with pytest.raises(HarnessError, match='step'):  # the reset shows at the next publication
+        sim.ground_truth()
+    sim.step()
+    assert abs(sim.ground_truth().pose.pose.position.x) < 1e-3
     info = sim.joint_info()
     assert info['robot'] and len(info['joints']) == 15
     sim.resume()
