@@ -55,7 +55,8 @@ class DriveController:
     ``wheel_velocity_sign`` -1 is for a URDF whose wheels roll forward with a
     negative velocity. :meth:`command` may be called from another thread than
     :meth:`update` (the ROS subscription and the physics loop): it only
-    replaces one attribute, which the next update takes.
+    replaces one attribute, which the next update reads once and compares by
+    identity with the last one it took.
     """
 
     def __init__(self, geometry: DiffDriveGeometry, limits: TwistLimits, time_step_s: float,
@@ -79,7 +80,11 @@ class DriveController:
         self.target = STOP          # the command being followed (after limits)
         self.ramped = STOP          # where the acceleration ramp has got to
         self.wheel_targets = (0.0, 0.0)  # left, right wheel speeds in rad/s (REP-103 sign)
-        self._pending: Optional[Twist2D] = None
+        # The latest command (written by command(), maybe from another thread)
+        # and the one update() took last: compared by identity, never cleared by
+        # the reader, so a command written between a read and a clear is not lost.
+        self._latest: Optional[Twist2D] = None
+        self._taken: Optional[Twist2D] = None
         self._command_step = 0
         self._odometry_step = 0
 
@@ -99,7 +104,7 @@ class DriveController:
         limited = Twist2D(*limit_twist(self.geometry, linear_x, angular_z, self.limits))
         clamped = (max(map(abs, limited))
                    < max(abs(linear_x), abs(angular_z)) * (1.0 - 1e-9))
-        self._pending = limited  # one assignment: no lock needed against update()
+        self._latest = limited  # one assignment, which update() reads once
         return CommandVerdict(limited, ignored_axes=ignored, clamped=clamped)
 
     def update(self, step: int) -> Optional[List[float]]:
@@ -110,11 +115,11 @@ class DriveController:
         by one step. Returns the wheel joint velocity targets (left wheels, then
         right, in joint space) when they changed, else None.
         """
-        pending = self._pending
-        if pending is not None:
-            self._pending = None
+        latest = self._latest
+        if latest is not self._taken:
+            self._taken = latest
             self._command_step = step
-            self.target = pending
+            self.target = latest
         elif (self.timeout_steps and self.target != STOP
               and step - self._command_step >= self.timeout_steps):
             self.target = STOP
@@ -144,7 +149,7 @@ class DriveController:
 
     def reset(self, step: int, wheel_positions_rad: Sequence[float]) -> List[float]:
         """Drop the command, go back to the initial pose; return the wheel targets (all 0)."""
-        self._pending = None
+        self._taken = self._latest  # a command from before the reset is dropped
         self.target = self.ramped = STOP
         self.odometry.reset(*self.initial_pose)
         self._odometry_step = step

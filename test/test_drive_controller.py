@@ -134,3 +134,39 @@ def test_impossible_drive_trains_are_refused(left, right, sign):
     """A side without wheels, or a sign other than +-1, is a ValueError."""
     with pytest.raises(ValueError):
         controller(left=left, right=right, sign=sign)
+
+
+class RacingController(DriveController):
+    """Another thread's command lands right after update() has read the latest one."""
+
+    racing = False
+
+    def __getattribute__(self, name):
+        value = super().__getattribute__(name)
+        if name == '_latest' and super().__getattribute__('racing'):
+            object.__setattr__(self, 'racing', False)
+            self.command(0.4, 0.0)  # what the subscription thread does meanwhile
+        return value
+
+
+def test_a_command_written_while_update_reads_is_not_lost():
+    """The command written during update() is taken at the next update, not wiped."""
+    c = RacingController(GEOMETRY, TwistLimits(), DT_S, 0, 1, 1)
+    c.command(0.2, 0.0)
+    c.racing = True
+    c.update(0)
+    assert c.target == Twist2D(0.2, 0.0)
+    c.update(1)
+    assert c.target == Twist2D(0.4, 0.0)
+
+
+def test_the_same_command_sent_again_restarts_the_timeout():
+    """An equal twist is a new command: the timeout counts from the latest one."""
+    c = controller(timeout=3)
+    c.command(0.5, 0.0)
+    c.update(0)
+    c.update(2)
+    c.command(0.5, 0.0)
+    c.update(3)  # 3 steps after the first command, 1 after the second
+    assert c.target == Twist2D(0.5, 0.0)
+    assert c.update(6) == [0.0, 0.0]
