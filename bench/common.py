@@ -263,12 +263,12 @@ def make_sim_node(context, namespace, params, quiet=True):
     """
     from rclpy.logging import LoggingSeverity, set_logger_level
     from rclpy.parameter import Parameter
-    from r2d2_sim.stdio import silenced_stdout
+    from r2d2_sim.stdio import silenced_output
     if quiet:
         prefix = '.'.join(part for part in namespace.split('/') if part)
         set_logger_level(f'{prefix}.r2d2_sim' if prefix else 'r2d2_sim',
                          LoggingSeverity.ERROR)
-    with silenced_stdout():
+    with silenced_output():
         from r2d2_sim.node import SimNode
         return SimNode(context=context, namespace=namespace, parameter_overrides=[
             Parameter(name, value=value) for name, value in params.items()])

@@ -17,9 +17,9 @@ from typing import Optional, Sequence
 import numpy
 from pybullet_utils.bullet_client import BulletClient
 
-from r2d2_sim.stdio import silenced_stdout
+from r2d2_sim.stdio import silenced_output
 
-with silenced_stdout():  # PyBullet prints its build time on import
+with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 
 __all__ = ['RAY_EXCLUDED_GROUP', 'RAY_MASK', 'exclude_from_rays', 'cast_rays']

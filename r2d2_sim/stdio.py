@@ -1,9 +1,10 @@
 """
-Silence PyBullet's own stdout chatter: its build-time banner and ``argv[0]=``.
+Silence PyBullet's own chatter: its build-time banner and ``argv[0]=``.
 
-PyBullet prints those from C on import and on every connect, so a ROS node's
-output would not be only its own log lines. Only those two moments are
-silenced: warnings PyBullet prints while loading or simulating still show.
+PyBullet prints those from C on import (to stderr) and on every connect (to
+stdout), so a ROS node's output would not be only its own log lines. Only
+those two moments are silenced: warnings PyBullet prints while loading or
+simulating still show, and an exception raised inside still propagates.
 """
 
 from contextlib import contextmanager
@@ -18,22 +19,26 @@ def _flush_c_stdio() -> None:
 
 
 @contextmanager
-def silenced_stdout() -> Iterator[None]:
+def silenced_output(stderr: bool = True) -> Iterator[None]:
     """
-    Send file descriptor 1 to /dev/null while the block runs.
+    Send file descriptor 1 (and 2, with ``stderr``) to /dev/null while the block runs.
 
     C stdio buffers are flushed on the way in and out, so what was printed
     inside is dropped, not delayed until exit.
     """
+    fds = (1, 2) if stderr else (1,)
     sys.stdout.flush()
+    sys.stderr.flush()
     _flush_c_stdio()
-    saved = os.dup(1)
+    saved = [os.dup(fd) for fd in fds]
     devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, 1)
+    for fd in fds:
+        os.dup2(devnull, fd)
     os.close(devnull)
     try:
         yield
     finally:
         _flush_c_stdio()
-        os.dup2(saved, 1)
-        os.close(saved)
+        for fd, copy in zip(fds, saved):
+            os.dup2(copy, fd)
+            os.close(copy)

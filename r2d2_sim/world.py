@@ -14,9 +14,9 @@ from typing import Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy
 
-from r2d2_sim.stdio import silenced_stdout
+from r2d2_sim.stdio import silenced_output
 
-with silenced_stdout():  # PyBullet prints its build time on import
+with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
 from pybullet_utils.bullet_client import BulletClient
@@ -180,7 +180,8 @@ class SimWorld:
         except DescriptionError as exc:
             self.close()
             raise WorldError(str(exc)) from None
-        with silenced_stdout():  # 'argv[0]=' on every connect
+        # 'argv[0]=' on every connect, on stdout; why a GUI cannot open goes to stderr.
+        with silenced_output(stderr=False):
             self._client = BulletClient(
                 connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         try:
