@@ -4,11 +4,11 @@ from fractions import Fraction
 import json
 import math
 import threading
+import time
 
 from conftest import latest_truth, make_sim, Probe, wait_for
 from nav_msgs.msg import Odometry
 import pytest
-from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
@@ -122,14 +122,24 @@ def test_paused_node_does_not_advance_in_the_paced_loop(ros):
 
 def test_timeout_does_not_fire_while_paused(ros):
     """Wall time spent paused is not simulated time: the command survives a pause."""
-    sim = make_sim(ros, start_paused=True)
+    sim = make_sim(ros, start_paused=True, real_time_factor=1.0)
     probe = Probe(ros, sim)
     probe.send(0.3)
     trigger(probe, 'step')
     controller = sim.simulation.controller
     command = controller.target
     assert command != (0.0, 0.0)
-    assert not wait_for(lambda: controller.target != command, 0.7)  # > 0.5 s wall time
+    # The paced loop runs, as in sim_node, for more wall time than the 0.5 s timeout.
+    stop = threading.Event()
+    runner = threading.Thread(target=run_paced, args=(sim, stop), daemon=True)
+    started = time.monotonic()
+    runner.start()
+    try:
+        assert not wait_for(lambda: controller.target != command or sim.step_count != 1, 0.7)
+        assert time.monotonic() - started > 0.5
+    finally:
+        stop.set()
+        runner.join(5.0)
     sim.advance(60)
     assert controller.target == command  # 61 steps < 120 steps of timeout
 
@@ -178,12 +188,14 @@ def test_reset_restores_robot_keeps_clock(ros, paused):
     states = sim.world.joint_states([j.index for j in sim.world.movable_joints()])
     assert max(abs(p) for p in states.positions) < 1e-9
     assert max(abs(v) for v in states.velocities) < 1e-9
-    published = len(probe.messages['ground_truth'])
     sim.advance(10)
     assert sim.step_count == step_before + 10
-    probe.wait_count('ground_truth', published + 10)
+    reset_ns = facts['sim_time_ns']
     truths = probe.messages['ground_truth']
-    assert abs(truths[published].pose.pose.position.x) < 1e-3  # the next publication: reset
+    assert wait_for(lambda: truths and truths[-1].header.stamp.sec * 10**9
+                    + truths[-1].header.stamp.nanosec > reset_ns)
+    after = [m for m in truths if m.header.stamp.sec * 10**9 + m.header.stamp.nanosec > reset_ns]
+    assert abs(after[0].pose.pose.position.x) < 1e-3  # the next publication: reset
     # One state per stamp: nothing was published twice at the reset's step.
     for topic in ('clock', 'ground_truth', 'odom', 'joint_states'):
         stamps = [m.clock if topic == 'clock' else m.header.stamp for m in probe.messages[topic]]
@@ -263,4 +275,4 @@ def test_start_paused_parameter_holds_time(ros):
     """start_paused: no step is taken until asked."""
     sim = make_sim(ros, start_paused=True)
     assert sim.paused and sim.step_count == 0
-    assert Parameter is not None
+    assert sim.get_parameter('start_paused').value is True
