@@ -47,8 +47,9 @@ class SimNode(Node):
     Simulates R2D2 in PyBullet and exposes it through standard ROS interfaces.
 
     Publishes ``joint_states``, ``odom`` (wheel odometry), ``ground_truth``,
-    ``/clock``, the latched ``robot_description`` and, with ``camera_rate``,
-    ``camera/image_raw`` and ``camera/camera_info``; subscribes ``cmd_vel``;
+    ``/clock``, ``/tf`` and ``/tf_static``, ``scan``, ``imu``, the latched
+    ``robot_description`` and, with ``camera_rate``, ``camera/image_raw`` and
+    ``camera/camera_info`` (and ``camera/depth/*``); subscribes ``cmd_vel``;
     serves ``~/get_joint_info``, ``~/get_status``, ``~/pause``, ``~/step`` and ``~/reset``.
     Takes rclpy's Node keywords (``context``, ``namespace``,
     ``parameter_overrides``...). Raises :class:`StartupError` when its

@@ -214,7 +214,12 @@ def test_publish_rate_divides_physics(ros):
 
 
 def test_two_named_simulators_share_one_process(ros):
-    """Name two SimNodes and give them namespaces: two robots in one context, no cross-talk."""
+    """
+    Name two SimNodes and give them namespaces: each robot obeys only its own cmd_vel.
+
+    Their relative topics are apart; /clock is absolute and /tf shared, which
+    is what a remap of /clock and frame_prefix are for (README, Robustness).
+    """
     sims = {ns: ros.add(SimNode(f'sim_{ns}', namespace=f'/{ns}', context=ros.context))
             for ns in ('a', 'b')}
     assert sims['a'].get_fully_qualified_name() == '/a/sim_a'
