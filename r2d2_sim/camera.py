@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import math
 from typing import List, Sequence, Tuple
 
+from r2d2_sim.transforms import rotate
+
 Vec3 = Tuple[float, float, float]
 
 
@@ -93,17 +95,6 @@ def view_matrix(eye: Sequence[float], forward: Sequence[float],
             -_dot(s, eye), -_dot(u, eye), _dot(f, eye), 1.0]
 
 
-def rotate_by_quaternion(q: Sequence[float], v: Sequence[float]) -> Vec3:
-    """Rotate vector ``v`` by the unit quaternion ``q`` = (x, y, z, w)."""
-    x, y, z, w = q
-    # v' = v + 2 w (r x v) + 2 r x (r x v), with r the vector part.
-    r = (x, y, z)
-    t = _cross(r, v)
-    t = (2.0 * t[0], 2.0 * t[1], 2.0 * t[2])
-    c = _cross(r, t)
-    return (v[0] + w * t[0] + c[0], v[1] + w * t[1] + c[1], v[2] + w * t[2] + c[2])
-
-
 def link_camera_axes(link_orientation: Sequence[float],
                      yaw_offset_rad: float) -> Tuple[Vec3, Vec3]:
     """
@@ -114,5 +105,5 @@ def link_camera_axes(link_orientation: Sequence[float],
     and keeps the link's z axis up.
     """
     forward_in_link = (math.cos(yaw_offset_rad), math.sin(yaw_offset_rad), 0.0)
-    return (rotate_by_quaternion(link_orientation, forward_in_link),
-            rotate_by_quaternion(link_orientation, (0.0, 0.0, 1.0)))
+    return (rotate(link_orientation, forward_in_link),
+            rotate(link_orientation, (0.0, 0.0, 1.0)))

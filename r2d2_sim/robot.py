@@ -21,10 +21,11 @@ from r2d2_sim.parameters import (
     WHEEL_VELOCITY)
 from r2d2_sim.raycast import cast_rays, exclude_from_rays
 from r2d2_sim.sensors import (
-    ImuModel, ImuReading, linearize_depth, ranges_from_hits, ray_endpoints, rotate_vector,
+    ImuModel, ImuReading, linearize_depth, ranges_from_hits, ray_endpoints,
     ScanGeometry, SensorConfigError)
 from r2d2_sim.transforms import (
-    apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotate, Transform)
+    apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotate, rotation_matrix,
+    Transform)
 from r2d2_sim.world import SimWorld, WorldError
 
 # The head camera: its link, image frame, clipping planes, and the gap between
@@ -40,7 +41,6 @@ HEAD_CAMERA_CLEARANCE_M = 0.01
 LASER_FRAME_ID = 'base_scan'
 LASER_HEIGHT_M = 0.25
 IMU_FRAME_ID = 'imu_link'
-_AXES = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 
 
 @dataclass(frozen=True)
@@ -225,8 +225,7 @@ class LaserScanner:
         base = world.base_state()
         pose = Transform(base.position, base.orientation)
         origin = numpy.array(apply(pose, self.mount.translation))
-        rotation = numpy.array([rotate(base.orientation, axis) for axis in _AXES]).T
-        ends = origin + self._rays_in_sensor @ rotation.T
+        ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
         starts = numpy.broadcast_to(origin, ends.shape)
         return ranges_from_hits(cast_rays(world.client, starts, ends), self.geometry,
                                 self._noise_std_m, self._rng)
@@ -249,8 +248,8 @@ class ImuSensor:
         """Return the reading for the body's true motion now (acceleration since the last)."""
         base = self._world.base_state()
         q = base.orientation
-        return self.model.update(time_s, q, rotate_vector(q, base.linear_velocity),
-                                 rotate_vector(q, base.angular_velocity))
+        return self.model.update(time_s, q, rotate(q, base.linear_velocity),
+                                 rotate(q, base.angular_velocity))
 
     def reset(self) -> None:
         """Forget the last sample: a reset teleports the robot, which is no acceleration."""

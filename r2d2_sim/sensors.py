@@ -16,6 +16,9 @@ from typing import Optional, Sequence, Tuple
 
 import numpy
 
+from r2d2_sim.transforms import (
+    quaternion_from_axis_angle, quaternion_multiply, rotate, rotate_inverse, rotation_matrix)
+
 __all__ = [
     'SensorConfigError',
     'ScanGeometry',
@@ -171,7 +174,8 @@ def ray_endpoints(geometry: ScanGeometry, origin_m: Sequence[float],
     frame of ``origin_m`` (usually the world).
     """
     origin = numpy.asarray(origin_m, dtype=float).reshape(3)
-    directions = beam_directions(geometry) @ _rotation_matrix(orientation_xyzw).T
+    directions = beam_directions(geometry) @ numpy.array(
+        rotation_matrix(_unit_quaternion(orientation_xyzw))).T
     starts = numpy.broadcast_to(origin, directions.shape).copy()
     return starts, origin + geometry.range_max_m * directions
 
@@ -209,51 +213,31 @@ def ranges_from_hits(hit_fractions: Sequence[float], geometry: ScanGeometry,
 # --------------------------------------------------------------------------- rotations
 
 
-def _unit_quaternion(q: Sequence[float]) -> numpy.ndarray:
+def _unit_quaternion(q: Sequence[float]) -> Tuple[float, float, float, float]:
     """Return ``q`` (x, y, z, w) normalised, or raise ValueError if it has no direction."""
-    array = numpy.asarray(q, dtype=float).reshape(4)
-    norm = numpy.linalg.norm(array)
+    x, y, z, w = (float(c) for c in q)
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
     if not (math.isfinite(norm) and norm > 0.0):
         raise ValueError(f'quaternion must be finite and non-zero, got {tuple(q)!r}')
-    return array / norm
-
-
-def _rotation_matrix(q: Sequence[float]) -> numpy.ndarray:
-    """Return the 3x3 matrix R of quaternion ``q``: R v turns sensor vectors into world ones."""
-    x, y, z, w = _unit_quaternion(q)
-    return numpy.array([
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
-        [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
-        [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)]])
+    return (x / norm, y / norm, z / norm, w / norm)
 
 
 def rotate_vector(q: Sequence[float], v: Sequence[float]) -> numpy.ndarray:
     """Rotate ``v`` by the quaternion ``q`` (x, y, z, w): a frame's vector into its parent."""
-    return _rotation_matrix(q) @ numpy.asarray(v, dtype=float)
+    return numpy.array(rotate(_unit_quaternion(q), v))
 
 
 def rotate_vector_inverse(q: Sequence[float], v: Sequence[float]) -> numpy.ndarray:
     """Rotate ``v`` by the inverse of ``q``: a parent (world) vector into the frame ``q``."""
-    return _rotation_matrix(q).T @ numpy.asarray(v, dtype=float)
+    return numpy.array(rotate_inverse(_unit_quaternion(q), v))
 
 
-def _quaternion_multiply(a: numpy.ndarray, b: numpy.ndarray) -> numpy.ndarray:
-    """Return the Hamilton product a * b of two (x, y, z, w) quaternions."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return numpy.array([aw * bx + ax * bw + ay * bz - az * by,
-                        aw * by - ax * bz + ay * bw + az * bx,
-                        aw * bz + ax * by - ay * bx + az * bw,
-                        aw * bw - ax * bx - ay * by - az * bz])
-
-
-def _rotation_vector_quaternion(rotation_rad: numpy.ndarray) -> numpy.ndarray:
+def _rotation_vector_quaternion(rotation_rad: numpy.ndarray) -> Tuple[float, ...]:
     """Return the quaternion of a rotation by |r| about the axis r."""
     angle_rad = float(numpy.linalg.norm(rotation_rad))
     if angle_rad == 0.0:
-        return numpy.array([0.0, 0.0, 0.0, 1.0])
-    axis = rotation_rad / angle_rad
-    return numpy.append(axis * math.sin(angle_rad / 2.0), math.cos(angle_rad / 2.0))
+        return (0.0, 0.0, 0.0, 1.0)
+    return quaternion_from_axis_angle(rotation_rad.tolist(), angle_rad)
 
 
 # --------------------------------------------------------------------------- IMU
@@ -361,15 +345,14 @@ class ImuModel:
         self._previous_velocity_m_s = velocity_m_s
 
         gx, gy, gz = self._gravity
-        angular_rad_s = _rotate_inverse(q, angular_world_rad_s)
-        specific_force_m_s2 = _rotate_inverse(q, (acceleration_m_s2[0] - gx,
-                                                  acceleration_m_s2[1] - gy,
-                                                  acceleration_m_s2[2] - gz))
+        angular_rad_s = rotate_inverse(q, angular_world_rad_s)
+        specific_force_m_s2 = rotate_inverse(q, (acceleration_m_s2[0] - gx,
+                                                 acceleration_m_s2[1] - gy,
+                                                 acceleration_m_s2[2] - gz))
         rng = self._rng
         if self.orientation_std_rad > 0.0:
             error_rad = rng.normal(0.0, self.orientation_std_rad, 3)
-            q = tuple(_quaternion_multiply(_rotation_vector_quaternion(error_rad),
-                                           numpy.array(q)).tolist())
+            q = quaternion_multiply(_rotation_vector_quaternion(error_rad), q)
         if self.angular_velocity_std_rad_s > 0.0:
             angular_rad_s = tuple((numpy.array(angular_rad_s) + rng.normal(
                 0.0, self.angular_velocity_std_rad_s, 3)).tolist())
@@ -378,17 +361,6 @@ class ImuModel:
                 0.0, self.linear_acceleration_std_m_s2, 3)).tolist())
         return ImuReading(orientation_xyzw=q, angular_velocity_rad_s=angular_rad_s,
                           linear_acceleration_m_s2=specific_force_m_s2)
-
-
-def _rotate_inverse(q: Tuple[float, float, float, float],
-                    v: Tuple[float, float, float]) -> Tuple[float, float, float]:
-    """Rotate ``v`` by the inverse of unit quaternion ``q``: world vector -> sensor frame."""
-    x, y, z, w = -q[0], -q[1], -q[2], q[3]
-    vx, vy, vz = v
-    # v' = v + 2 w (r x v) + 2 r x (r x v), r the vector part of the conjugate.
-    tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
-    return (vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz),
-            vz + w * tz + (x * ty - y * tx))
 
 
 # --------------------------------------------------------------------------- depth image

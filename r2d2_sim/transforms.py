@@ -109,6 +109,20 @@ def rotate(rotation: Quaternion, vector: Sequence[float]) -> Vector3:
             vz + qw * tz + qx * ty - qy * tx)
 
 
+def rotation_matrix(rotation: Quaternion) -> tuple[Vector3, Vector3, Vector3]:
+    """Return the rows of the 3x3 matrix of a unit quaternion (R v == rotate(q, v))."""
+    x, y, z, w = rotation
+    return ((1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)),
+            (2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)),
+            (2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)))
+
+
+def rotate_inverse(rotation: Quaternion, vector: Sequence[float]) -> Vector3:
+    """Rotate ``vector`` by the inverse of the unit quaternion ``rotation``."""
+    x, y, z, w = rotation
+    return rotate((-x, -y, -z, w), vector)
+
+
 def compose(a: Transform, b: Transform) -> Transform:
     """Return a * b, where b is expressed in a's child frame (tf2's ``operator*``)."""
     (ax, ay, az), rotation_a = a

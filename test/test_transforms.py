@@ -14,7 +14,7 @@ import pytest
 from r2d2_sim.transforms import (
     apply, compose, IDENTITY, inverse, joint_transform, JointModel, LinkTransforms,
     parse_joints, quaternion_from_axis_angle, quaternion_from_rpy, quaternion_multiply,
-    root_link, rotate, split_yaw, Transform, yaw_of,
+    root_link, rotate, rotate_inverse, rotation_matrix, split_yaw, Transform, yaw_of,
 )
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -508,3 +508,15 @@ def test_pybullet_scales_prismatic_motion_by_an_unnormalised_axis(tmp_path):
     (edge,) = LinkTransforms(xml).moving([0.25])
     assert edge.transform.translation == (0.0, 0.0, 0.25)
     assert pybullet_z_m == pytest.approx(0.5, abs=PYBULLET_TOL)
+
+
+def test_rotation_matrix_and_inverse_rotation_agree_with_rotate():
+    """R v equals rotate(q, v); rotate_inverse undoes it (yaw 90: x -> y -> x)."""
+    q = quaternion_from_rpy(0.3, -0.2, 1.1)
+    v = (0.5, -1.0, 2.0)
+    rows = rotation_matrix(q)
+    by_matrix = tuple(sum(r[i] * v[i] for i in range(3)) for r in rows)
+    assert by_matrix == pytest.approx(rotate(q, v), abs=1e-12)
+    assert rotate_inverse(q, rotate(q, v)) == pytest.approx(v, abs=1e-12)
+    yaw_90 = quaternion_from_rpy(0.0, 0.0, math.pi / 2)
+    assert rotate_inverse(yaw_90, (0.0, 1.0, 0.0)) == pytest.approx((1.0, 0.0, 0.0), abs=1e-12)
