@@ -628,13 +628,7 @@ class SimHarness(RosHarness):
             self.sim.advance(steps)
             return steps
         with self._own_executor():
-            done = 0
-            while done < steps:
-                chunk = min(self.sim.steps_to_next_publish(), steps - done)
-                self.sim.advance(chunk)
-                done += chunk
-                self._run_until_idle(self.timeout_s)
-                self.raise_callback_error()
+            self._run_periods(steps)
         return steps
 
     def advance_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
@@ -650,17 +644,25 @@ class SimHarness(RosHarness):
         # Driven from this thread: each period's messages are handled before
         # the predicate looks, with no hand-over to the executor thread.
         with self._own_executor():
-            if predicate():
+            return predicate() or self._run_periods(limit, predicate)
+
+    def _run_periods(self, steps: int,
+                     predicate: Optional[Callable[[], bool]] = None) -> bool:
+        """
+        Advance ``steps`` one control period at a time, handling each period's messages.
+
+        Returns True as soon as ``predicate`` holds after a period (False if
+        it never did, or without one).
+        """
+        done = 0
+        while done < steps:
+            chunk = min(self.sim.steps_to_next_publish(), steps - done)
+            self.sim.advance(chunk)
+            done += chunk
+            self._run_until_idle(self.timeout_s)
+            self.raise_callback_error()
+            if predicate is not None and predicate():
                 return True
-            done = 0
-            while done < limit:
-                chunk = min(self.sim.steps_to_next_publish(), limit - done)
-                self.sim.advance(chunk)
-                done += chunk
-                self._run_until_idle(self.timeout_s)
-                self.raise_callback_error()
-                if predicate():
-                    return True
         return False
 
     def _steps(self, seconds: float) -> int:
