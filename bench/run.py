@@ -678,7 +678,37 @@ class Row(NamedTuple):
     status: str = ''
 
 
-def fidelity_rows(fid, fid50):
+def measure_raw_paced_cpu(seconds):
+    """
+    CPU share of raw PyBullet stepping the same world at 240 Hz with the node's pacer.
+
+    The floor under the node's CPU at real time: no ROS, no readout, just
+    stepSimulation and an absolute-deadline sleep per tick (caches go cold
+    in every sleep, so a step costs more than at rtf 0).
+    """
+    import resource
+    from r2d2_sim.timing import DeadlinePacer
+    from r2d2_sim.world import SimWorld
+    world = SimWorld()
+    try:
+        pacer = DeadlinePacer(1.0 / PHYSICS_RATE_HZ)
+        usage = resource.getrusage(resource.RUSAGE_SELF)
+        cpu0 = usage.ru_utime + usage.ru_stime
+        start = time.monotonic()
+        ticks = 0
+        while time.monotonic() - start < seconds:
+            world.step(1)
+            pacer.wait()
+            ticks += 1
+        wall = time.monotonic() - start
+        usage = resource.getrusage(resource.RUSAGE_SELF)
+        return {'seconds': wall, 'rate_hz': ticks / wall,
+                'cpu_share': (usage.ru_utime + usage.ru_stime - cpu0) / wall}
+    finally:
+        world.close()
+
+
+def fidelity_rows(fid, fid50, raw_paced=None):
     """Rows of the real-time runs."""
     section = (f'1. real time (rtf 1, {fid["sim_seconds"]:g} s simulated, publishing every '
                'step, one subscriber process on joint_states, odom, ground_truth, /clock)')
@@ -698,6 +728,9 @@ def fidelity_rows(fid, fid50):
         Row(section, 'CPU of the node at real time, publishing every step, subscriber attached',
             f'<= {100 * TARGET_CPU_SHARE:g} % of a core', f'{100 * fid["cpu_share"]:.1f} %',
             status(fid['cpu_share'] <= TARGET_CPU_SHARE)),
+        Row(section, 'raw PyBullet, same world and pacer, no ROS: CPU (the floor)', '',
+            '' if raw_paced is None else
+            f'{100 * raw_paced["cpu_share"]:.1f} % at {raw_paced["rate_hz"]:.1f} Hz'),
         Row(section, 'tick cost p50 in the paced loop: advance / physics alone', '',
             f'{1e3 * fid["step_cost_p50_ms"]:.0f} / {1e3 * fid["physics_cost_p50_ms"]:.0f} us'),
         Row(section, 'subscriber CPU; other processes; steal (cores)', 'quiet machine: ~0',
@@ -815,7 +848,8 @@ def throughput_rows(throughput, summary):
 
 def build_table(results):
     """Turn the measurements into table rows."""
-    rows = fidelity_rows(results['fidelity'], results.get('fidelity_50hz'))
+    rows = fidelity_rows(results['fidelity'], results.get('fidelity_50hz'),
+                         results.get('raw_paced'))
     rows += throughput_rows(results['throughput'], results['throughput_summary'])
     lat = results['latency']
     section = '4. command latency (node subprocess at rtf 1, no acceleration ramp)'
@@ -866,6 +900,7 @@ def make_plan(quick):
     return {
         'fidelity_sim_s': 10.0 if quick else 60.0,
         'fidelity_50hz_sim_s': 0.0 if quick else 10.0,
+        'raw_paced_s': 4.0 if quick else 10.0,
         'latency_s': 5.0 if quick else 10.0,
         'latency_period_s': 0.25, 'latency_speed_m_s': 0.2,
         'startup_runs': 3,
@@ -912,6 +947,8 @@ def run_bench(args):
             phase(f'1b. real time at publish_rate 50, {plan["fidelity_50hz_sim_s"]:g} s simulated')
             results['fidelity_50hz'] = measure_fidelity(
                 work, base, plan['fidelity_50hz_sim_s'], 50.0, params)
+        phase('1c. raw PyBullet paced at 240 Hz')
+        results['raw_paced'] = measure_raw_paced_cpu(plan['raw_paced_s'])
         phase('4. command latency')
         results['latency'] = measure_latency(work, base + 1, plan['latency_s'],
                                              plan['latency_period_s'],
