@@ -15,12 +15,12 @@ either pair filter PyBullet offers (``collisionFilterMode``): the default
 from typing import Optional, Sequence
 
 import numpy
-from pybullet_utils.bullet_client import BulletClient
 
 from r2d2_sim.stdio import silenced_output
 
-with silenced_output():  # PyBullet prints its build time on import
+with silenced_output():  # PyBullet prints its build time on import (bullet_client imports it)
     import pybullet
+from pybullet_utils.bullet_client import BulletClient  # noqa: I100 (after the quiet import)
 
 __all__ = ['RAY_EXCLUDED_GROUP', 'RAY_MASK', 'exclude_from_rays', 'cast_rays']
 

@@ -202,7 +202,7 @@ def test_tf_output_publishes_exactly_the_typed_transforms():
 
 
 def test_scan_and_imu_outputs_publish_exactly_what_the_sensors_read(simulation):
-    """LaserScan ranges (float32) and Imu fields land where the typed messages have them."""
+    """Put scan ranges (float32) and IMU fields where the typed messages have them."""
     import numpy
     from r2d2_sim.outputs import ImuOutput, ScanOutput
     from r2d2_sim.sensors import ImuModel, ImuReading, ScanGeometry
