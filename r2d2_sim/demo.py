@@ -43,6 +43,8 @@ COMMAND_RATE_HZ = 20.0
 LOG_TAIL_LINES = 10
 EXIT_INTERRUPTED = 130
 PLOT_NAME = 'trajectory.png'
+# How long to look for another simulator on the domain before starting ours (s).
+OTHER_SIMULATOR_WAIT_S = 0.5
 # The world the demo drives in: walls and boxes for the laser scan in the plot.
 DEMO_WORLD = 'package://r2d2_sim/urdf/room.urdf'
 SNAPSHOT_NAME = 'head_camera.png'
@@ -442,10 +444,17 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     simulator = Simulator.for_real_time_factor(options.real_time_factor, ros_child_env())
     node = None
     try:
-        simulator.start()
         node = ManoeuvreDriver()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        # Another simulator on this domain would interleave its poses with ours.
+        # Discovery takes 5-200 ms here: look for one before starting our own.
+        if spin_until(executor, lambda: node.count_publishers('/clock') > 0,
+                      OTHER_SIMULATOR_WAIT_S):
+            _error('another simulator publishes /clock on this ROS domain: stop it, or give '
+                   'the demo a domain of its own (--domain-id N)')
+            return 1
+        simulator.start()
         return _run(node, executor, simulator, output_dir)
     except (KeyboardInterrupt, ExternalShutdownException):
         print('demo: interrupted, stopping the simulator', file=sys.stderr)

@@ -67,11 +67,21 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
     from r2d2_sim.node import NODE_NAME, SimNode, StartupError
+    from rclpy.utilities import remove_ros_args
+    argv = sys.argv if args is None else list(args)
     try:
-        rclpy.init(args=sys.argv if args is None else list(args),
-                   signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+        # sim_node takes only ROS arguments: '-p x:=1' without --ros-args
+        # would otherwise be ignored and the node run on its defaults.
+        unexpected = remove_ros_args(argv)[1:]
     except Exception as exc:  # rclpy reports bad --ros-args as assorted errors
         print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+        return 2
+    if unexpected:
+        print(f'{NODE_NAME}: error: unexpected arguments {" ".join(unexpected)}: parameters '
+              'and remaps go after --ros-args (sim_node --ros-args -p name:=value)',
+              file=sys.stderr)
+        rclpy.try_shutdown()
         return 2
     if stop.is_set():  # stopped while rclpy and PyBullet were still loading
         rclpy.try_shutdown()

@@ -50,7 +50,22 @@ from r2d2_sim.kinematics import quaternion_to_yaw
 # from 7400 + 250 * d: up to about 100 they stay below the kernel's ephemeral
 # range (32768+), where another program's socket could already hold them.
 # Domain 0, the default, is left to the user's own ROS graph.
-DOMAIN_IDS = range(1, 101)
+
+
+def _domain_ids_from_env() -> range:
+    """Return the ids harnesses may lease: ``R2D2_SIM_DOMAIN_IDS`` ("first-last") or 1-100."""
+    text = os.environ.get('R2D2_SIM_DOMAIN_IDS', '1-100')
+    try:
+        first, last = (int(part) for part in text.split('-'))
+    except ValueError:
+        raise ValueError(f'R2D2_SIM_DOMAIN_IDS must be "first-last", e.g. "1-100", '
+                         f'got {text!r}') from None
+    if not 0 <= first <= last <= 232:
+        raise ValueError(f'R2D2_SIM_DOMAIN_IDS must lie within 0-232, got {text!r}')
+    return range(first, last + 1)
+
+
+DOMAIN_IDS = _domain_ids_from_env()
 # A directory for the per-domain lock files instead of the default below.
 DOMAIN_LOCK_DIR_ENV = 'R2D2_SIM_DOMAIN_LOCK_DIR'
 # How often a waiting lease_domain tries again (s).

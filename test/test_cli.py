@@ -1,6 +1,7 @@
 """The real sim_node executable in its own process, driven from this test process."""
 
 import signal
+import sys
 
 from conftest import (
     drive_forward_until, next_domain_id, RemoteProbe, start_sim_process, stop_process)
@@ -35,6 +36,16 @@ def test_sim_node_process_drives_and_stops_cleanly(domain, sig):
         probe.close()
     assert code == 0, err
     assert 'Traceback' not in err + out
+
+
+def test_parameters_without_ros_args_are_refused_not_ignored(domain):
+    """A forgotten --ros-args would run on the defaults: one line naming it, exit 2."""
+    process = start_sim_process(domain, command=[sys.executable, '-m', 'r2d2_sim', '-p',
+                                                 'wheel_radius:=1e308'])
+    out, err = process.communicate(timeout=30.0)
+    assert process.returncode == 2 and 'Traceback' not in err
+    lines = [line for line in err.splitlines() if 'error' in line]
+    assert len(lines) == 1 and 'go after --ros-args' in lines[0], err
 
 
 @pytest.mark.parametrize('args, fragment', [

@@ -12,7 +12,7 @@ import sys
 import time
 
 from conftest import (
-    ros_env, simulators_in_domain, start_sim_process, stop_process, wait_for)
+    RemoteProbe, ros_env, simulators_in_domain, start_sim_process, stop_process, wait_for)
 import pytest
 
 from r2d2_sim.demo import (
@@ -130,6 +130,29 @@ def test_simulator_stop_kills_a_process_that_ignores_sigint():
 
 
 # --------------------------------------------------------------------------- demo, end to end
+
+
+def test_demo_refuses_a_domain_another_simulator_publishes_on(tmp_path, domain_id):
+    """With sim_node already running on its domain, the demo says so in one line."""
+    from rosgraph_msgs.msg import Clock
+    other = subprocess.Popen([sys.executable, '-m', 'r2d2_sim'], env=ros_env(domain_id),
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    probe = RemoteProbe(domain_id, 'other_sim_probe')
+    try:
+        clocks = []
+        probe.node.create_subscription(Clock, '/clock', clocks.append, 10)
+        assert probe.spin_until(lambda: clocks, 30.0), 'the other simulator did not start'
+        result = subprocess.run(demo_command(tmp_path, domain_id, 0), env=ros_env(domain_id),
+                                cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
+    finally:
+        probe.close()
+        other.send_signal(signal.SIGINT)
+        other.wait(timeout=10)
+    assert result.returncode == 1, result.stdout + result.stderr
+    errors = [line for line in result.stderr.splitlines() if line.startswith('demo: error')]
+    assert len(errors) == 1 and 'another simulator' in errors[0], result.stderr
+    assert 'Traceback' not in result.stderr
+    assert simulators_in_domain(domain_id) == [], 'the demo left its simulator running'
 
 
 def test_demo_turns_then_drives_and_writes_a_plot(tmp_path, domain_id):

@@ -432,3 +432,15 @@ def test_sim_process_honours_ros_domain_id_unless_told_not_to(monkeypatch):
             assert other.status()['paused']
             assert other.joint_info()['urdf'].endswith('cube.urdf')
     assert not sim.lease.held and not other.lease.held
+
+
+@pytest.mark.parametrize('value, expected', [('230-232', 'range(230, 233)'),
+                                             ('5-1', 'R2D2_SIM_DOMAIN_IDS must lie'),
+                                             ('lots', 'must be "first-last"')])
+def test_the_leased_domain_range_can_be_set_for_a_shared_machine(value, expected):
+    """R2D2_SIM_DOMAIN_IDS keeps harnesses inside the ids a machine's users agreed on."""
+    env = dict(os.environ, R2D2_SIM_DOMAIN_IDS=value)
+    result = subprocess.run([sys.executable, '-c',
+                             'import r2d2_sim.testing as t; print(t.DOMAIN_IDS)'],
+                            env=env, capture_output=True, text=True, timeout=60)
+    assert expected in result.stdout + result.stderr
