@@ -11,7 +11,6 @@ import datetime
 import json
 import math
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -170,13 +169,8 @@ def start_role(role, domain_id, log_path, *extra):
 
 def stop_process(process, timeout_s=5.0):
     """SIGINT ``process``, wait for it, kill it as a last resort; return its exit code."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-    try:
-        return process.wait(timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        return process.wait()
+    from r2d2_sim.testing import stop_process as stop
+    return stop(process, timeout_s=timeout_s).returncode
 
 
 def wait_process(process, timeout_s):

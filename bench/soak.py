@@ -34,6 +34,7 @@ import time
 from common import (
     BENCH_DIR, cpu_model, fit_line, init_ros, LoadMeter, log_tail, PHYSICS_RATE_HZ,
     process_cpu_s, start_sim, status, stop_process, write_json)
+from r2d2_sim.testing import stamp_ns  # noqa: E402,I100 (after common set sys.path)
 
 SOAK_PATH = os.path.join(BENCH_DIR, 'soak.json')
 RATE = int(PHYSICS_RATE_HZ)     # steps per simulated second; step k is at k * 10**9 // RATE ns
@@ -58,11 +59,6 @@ def step_of_ns(ns):
 def grid_error_ns(ns):
     """Return ``ns`` minus the exact time of its nearest step (0 when on the grid)."""
     return ns - step_of_ns(ns) * 10**9 // RATE
-
-
-def stamp_ns(stamp):
-    """Return a builtin_interfaces Time as integer nanoseconds."""
-    return stamp.sec * 10**9 + stamp.nanosec
 
 
 def parse_reply(text):

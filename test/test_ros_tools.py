@@ -22,14 +22,10 @@ from tf2_msgs.msg import TFMessage
 
 from r2d2_sim.kinematics import quaternion_to_yaw
 from r2d2_sim.robot import LASER_HEIGHT_M
+from r2d2_sim.testing import stamp_ns
 
 ROOM = 'package://r2d2_sim/urdf/room.urdf'
 STATIC_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-def stamp_ns(header):
-    """Return a header's stamp in integer nanoseconds."""
-    return header.stamp.sec * 10**9 + header.stamp.nanosec
 
 
 class Listener:
@@ -69,11 +65,11 @@ def test_tf_chains_odom_footprint_base_with_the_odom_stamp(ros):
         sim.advance(40)
         listener.wait('odom', 1)
     assert wait_for(lambda: len(listener.messages['/tf']) >= len(listener.messages['odom']))
-    odom_by_stamp = {stamp_ns(m.header): m for m in listener.messages['odom']}
+    odom_by_stamp = {stamp_ns(m.header.stamp): m for m in listener.messages['odom']}
     chain = transforms(listener.messages['/tf'])[('odom', 'base_footprint')]
-    assert chain and all(stamp_ns(t.header) in odom_by_stamp for t in chain)
+    assert chain and all(stamp_ns(t.header.stamp) in odom_by_stamp for t in chain)
     for t in chain:
-        pose = odom_by_stamp[stamp_ns(t.header)].pose.pose
+        pose = odom_by_stamp[stamp_ns(t.header.stamp)].pose.pose
         assert (t.transform.translation.x, t.transform.translation.y) == (
             pose.position.x, pose.position.y)
         assert t.transform.translation.z == 0.0  # the footprint is on the ground
@@ -145,8 +141,8 @@ def test_ground_truth_tf_places_odom_so_that_the_chain_is_the_true_pose(ros):
     sim.advance(480)
     now = sim.sim_time_ns
     assert wait_for(lambda: listener.messages['ground_truth'] and listener.messages['/tf']
-                    and stamp_ns(listener.messages['ground_truth'][-1].header) == now
-                    and stamp_ns(listener.messages['/tf'][-1].transforms[0].header) == now)
+                    and stamp_ns(listener.messages['ground_truth'][-1].header.stamp) == now
+                    and stamp_ns(listener.messages['/tf'][-1].transforms[0].header.stamp) == now)
     truth = listener.messages['ground_truth'][-1]
     last = {(t.header.frame_id, t.child_frame_id): t.transform
             for t in listener.messages['/tf'][-1].transforms}
@@ -185,7 +181,7 @@ def test_scan_follows_rep_117_against_the_room(ros):
     listener = Listener(ros, {'scan': (LaserScan, 10)})
     sim.advance(24)  # 10 Hz: the first scan is due at step 24
     scan = listener.wait('scan')
-    assert stamp_ns(scan.header) == 24 * 10**9 // 240 == sim.sim_time_ns
+    assert stamp_ns(scan.header.stamp) == 24 * 10**9 // 240 == sim.sim_time_ns
     assert scan.header.frame_id == 'base_scan'
     assert len(scan.ranges) == 360
     assert scan.angle_increment == pytest.approx(2 * math.pi / 360)
@@ -263,7 +259,7 @@ def test_imu_at_rest_reads_gravity_up_and_world_orientation(ros):
     sim.advance(240)
     imu = listener.wait('imu', 100)
     assert imu.header.frame_id == 'imu_link'
-    assert stamp_ns(imu.header) <= sim.sim_time_ns
+    assert stamp_ns(imu.header.stamp) <= sim.sim_time_ns
     q = imu.orientation
     assert quaternion_to_yaw(q.x, q.y, q.z, q.w) == pytest.approx(1.0, abs=0.01)
     a = imu.linear_acceleration
