@@ -25,9 +25,11 @@ from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Image, LaserScan
 
 from r2d2_sim.cli import non_negative_number, non_ros_args
+from r2d2_sim.sim_node import raise_if_stopped, stop_on_signals
 from r2d2_sim.testing import Pose2D, pose_from_odometry, ros_child_env, spin_until
 
 NODE_NAME = 'r2d2_demo'
@@ -392,8 +394,12 @@ def _error(text: str) -> None:
     print(f'demo: error: {text}', file=sys.stderr, flush=True)
 
 
-def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path) -> int:
-    if not spin_until(executor, node.connected, STARTUP_TIMEOUT_S, abort=simulator.exited):
+def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path,
+         stop) -> int:
+    started = spin_until(executor, node.connected, STARTUP_TIMEOUT_S,
+                         abort=lambda: stop.is_set() or simulator.exited())
+    raise_if_stopped(stop)
+    if not started:
         _error(simulator.failure_message(
             f'no ground_truth/odom from the simulator, or no cmd_vel subscriber, within '
             f'{STARTUP_TIMEOUT_S:g} s'))
@@ -402,6 +408,7 @@ def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path
     started_s = time.monotonic()
     while not node.done:
         executor.spin_once(timeout_sec=0.1)
+        raise_if_stopped(stop)
         if simulator.exited():
             _error(simulator.failure_message(
                 f'the simulator stopped at t={node.elapsed_s:.1f} s of the manoeuvre'))
@@ -436,8 +443,10 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     if options.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(options.domain_id)
+    # SIGINT and SIGTERM only set this event from here on; the loops check it.
+    stop = stop_on_signals()
     try:
-        rclpy.init(args=argv)
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
         _error(f'cannot initialise ROS: {exc}')
         return 2
@@ -449,13 +458,16 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         executor.add_node(node)
         # Another simulator on this domain would interleave its poses with ours.
         # Discovery takes 5-200 ms here: look for one before starting our own.
-        if spin_until(executor, lambda: node.count_publishers('/clock') > 0,
-                      OTHER_SIMULATOR_WAIT_S):
+        other_simulator = spin_until(
+            executor, lambda: node.count_publishers('/clock') > 0, OTHER_SIMULATOR_WAIT_S,
+            abort=stop.is_set)
+        raise_if_stopped(stop)
+        if other_simulator:
             _error('another simulator publishes /clock on this ROS domain: stop it, or give '
                    'the demo a domain of its own (--domain-id N)')
             return 1
         simulator.start()
-        return _run(node, executor, simulator, output_dir)
+        return _run(node, executor, simulator, output_dir, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         print('demo: interrupted, stopping the simulator', file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -465,6 +477,8 @@ def main(args: Optional[Sequence[str]] = None) -> int:
                 node.destroy_node()
             rclpy.try_shutdown()
         finally:
+            # A second Ctrl-C while the simulator stops cuts the wait short.
+            signal.signal(signal.SIGINT, signal.default_int_handler)
             simulator.stop()
 
 

@@ -19,8 +19,10 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
 from r2d2_sim.cli import finite_number, non_negative_number, non_ros_args, positive_number
+from r2d2_sim.sim_node import raise_if_stopped, stop_on_signals
 from r2d2_sim.testing import spin_until
 
 NODE_NAME = 'drive'
@@ -67,14 +69,15 @@ class DriveCommand(Node):
         self._timer = None
         self.done = False
 
-    def wait_for_subscriber(self, executor, timeout_s: float) -> bool:
-        """Spin until something subscribes to the topic; False at the deadline."""
+    def wait_for_subscriber(self, executor, timeout_s: float, abort=None) -> bool:
+        """Spin until something subscribes to the topic; False at the deadline or on abort()."""
         return spin_until(executor, lambda: self._publisher.get_subscription_count() > 0,
-                          timeout_s)
+                          timeout_s, abort)
 
-    def wait_for_clock(self, executor, timeout_s: float) -> bool:
+    def wait_for_clock(self, executor, timeout_s: float, abort=None) -> bool:
         """Spin until the clock runs (with use_sim_time it reads 0 until /clock arrives)."""
-        return spin_until(executor, lambda: self.get_clock().now().nanoseconds > 0, timeout_s)
+        return spin_until(executor, lambda: self.get_clock().now().nanoseconds > 0, timeout_s,
+                          abort)
 
     def start(self) -> None:
         """Publish the command now and from then on at the rate, on the node's clock."""
@@ -110,11 +113,18 @@ class DriveCommand(Node):
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:
-    """Drive, then stop; return the exit status (1 if nobody subscribes to the topic)."""
+    """
+    Drive, then stop; return the exit status (1 if nobody subscribes to the topic).
+
+    Ctrl-C (or SIGTERM) publishes the zero Twist before exiting with 130. The
+    signals only set an event that the loops check, so the context is still up
+    to publish it and no exception lands inside rclpy's message handling.
+    """
     argv = list(sys.argv if args is None else args)
     options = build_parser().parse_args(non_ros_args(argv, NODE_NAME))
+    stop = stop_on_signals()
     try:
-        rclpy.init(args=argv)
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
         print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
         return 2
@@ -124,18 +134,21 @@ def main(args: Optional[Sequence[str]] = None) -> int:
                             options.rate, options.topic)
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        if not node.wait_for_subscriber(executor, DISCOVERY_TIMEOUT_S):
+        if not node.wait_for_subscriber(executor, DISCOVERY_TIMEOUT_S, stop.is_set):
+            raise_if_stopped(stop)
             print(f'{NODE_NAME}: error: nothing subscribed to {node.topic} within '
                   f'{DISCOVERY_TIMEOUT_S:g} s: is the simulator running (same '
                   'ROS_DOMAIN_ID)?', file=sys.stderr)
             return 1
-        if not node.wait_for_clock(executor, DISCOVERY_TIMEOUT_S):
+        if not node.wait_for_clock(executor, DISCOVERY_TIMEOUT_S, stop.is_set):
+            raise_if_stopped(stop)
             print(f'{NODE_NAME}: error: no /clock within {DISCOVERY_TIMEOUT_S:g} s '
                   '(use_sim_time is true)', file=sys.stderr)
             return 1
         node.start()
         while not node.done:
             executor.spin_once(timeout_sec=0.1)
+            raise_if_stopped(stop)
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         if node is not None and not node.done and node.context.ok():

@@ -28,6 +28,19 @@ def stop_on_signals() -> threading.Event:
     return stop
 
 
+def raise_if_stopped(stop: threading.Event) -> None:
+    """
+    Raise ``KeyboardInterrupt`` if ``stop`` is set: Ctrl-C, taken where the caller chooses.
+
+    For the client executables (``demo``, ``drive``), called between spins.
+    rclpy's own SIGINT handler raises wherever the main thread happens to be;
+    inside ``take_message`` pybind11 turns that into a ``RuntimeError``
+    traceback, and the context is already shut down, too late to publish a stop.
+    """
+    if stop.is_set():
+        raise KeyboardInterrupt
+
+
 def run_paced(node, stop: threading.Event) -> None:
     """
     Step a :class:`~r2d2_sim.node.SimNode` against the wall clock until ``stop`` is set.

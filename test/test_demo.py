@@ -307,6 +307,32 @@ def test_drive_moves_the_simulated_robot_forward(simulator_process, ros_probe, d
     assert moved, f'x moved only {poses[-1].x_m - start_x_m:.3f} m'
 
 
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_drive_stops_the_robot_when_interrupted(ros_probe, domain_id, sig):
+    """Ctrl-C or SIGTERM mid-command: one zero Twist goes out, exit 130, no traceback."""
+    from geometry_msgs.msg import Twist
+
+    from r2d2_sim.testing import spin_until
+
+    node, executor = ros_probe
+    received = []
+    node.create_subscription(Twist, 'cmd_vel', lambda msg: received.append(msg.linear.x), 10)
+    drive = subprocess.Popen(
+        [sys.executable, '-m', 'r2d2_sim.drive_cmd', '--linear', '0.3', '--duration', '100'],
+        env=ros_env(domain_id), cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True)
+    try:
+        assert spin_until(executor, lambda: 0.3 in received, 20.0), 'drive never published'
+        drive.send_signal(sig)
+        stopped = spin_until(executor, lambda: received[-1] == 0.0, 10.0)
+        spin_until(executor, lambda: drive.poll() is not None, 10.0)
+    finally:
+        status, _, stderr = stop_process(drive)
+    assert stopped, f'no zero Twist after the signal; last linear.x {received[-1]}'
+    assert status == 130, stderr
+    assert stderr == ''
+
+
 def _assert_camera_picture(path):
     """Check a head-camera PNG shows more than one colour (ground below, sky above)."""
     from matplotlib import pyplot
