@@ -47,6 +47,10 @@ EXIT_INTERRUPTED = 130
 PLOT_NAME = 'trajectory.png'
 # How long to look for another simulator on the domain before starting ours (s).
 OTHER_SIMULATOR_WAIT_S = 0.5
+# How often to look again while ours runs (wall s): discovery can take longer.
+OTHER_SIMULATOR_CHECK_S = 0.1
+ANOTHER_SIMULATOR = ('another simulator publishes /clock on this ROS domain: stop it, or give '
+                     'the demo a domain of its own (--domain-id N)')
 # The world the demo drives in: walls and boxes for the laser scan in the plot.
 DEMO_WORLD = 'package://r2d2_sim/urdf/room.urdf'
 SNAPSHOT_NAME = 'head_camera.png'
@@ -396,19 +400,34 @@ def _error(text: str) -> None:
 
 def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path,
          stop) -> int:
-    started = spin_until(executor, node.connected, STARTUP_TIMEOUT_S,
-                         abort=lambda: stop.is_set() or simulator.exited())
+    def another_simulator() -> bool:
+        # Ours is one /clock publisher. Another one found only now (discovery
+        # took longer than OTHER_SIMULATOR_WAIT_S) would take our cmd_vel and
+        # interleave its poses with ours.
+        return node.count_publishers('/clock') > 1
+
+    started = spin_until(
+        executor, node.connected, STARTUP_TIMEOUT_S,
+        abort=lambda: stop.is_set() or simulator.exited() or another_simulator())
     raise_if_stopped(stop)
+    if another_simulator():
+        _error(ANOTHER_SIMULATOR)
+        return 1
     if not started:
         _error(simulator.failure_message(
             f'no ground_truth/odom from the simulator, or no cmd_vel subscriber, within '
             f'{STARTUP_TIMEOUT_S:g} s'))
         return 1
     node.begin()
-    started_s = time.monotonic()
+    started_s = next_check_s = time.monotonic()
     while not node.done:
         executor.spin_once(timeout_sec=0.1)
         raise_if_stopped(stop)
+        if time.monotonic() >= next_check_s:
+            next_check_s = time.monotonic() + OTHER_SIMULATOR_CHECK_S
+            if another_simulator():
+                _error(ANOTHER_SIMULATOR)
+                return 1
         if simulator.exited():
             _error(simulator.failure_message(
                 f'the simulator stopped at t={node.elapsed_s:.1f} s of the manoeuvre'))
@@ -457,14 +476,14 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         # Another simulator on this domain would interleave its poses with ours.
-        # Discovery takes 5-200 ms here: look for one before starting our own.
+        # Discovery takes 5-200 ms here: look for one before starting our own
+        # (and again while ours runs, for a machine too busy to discover it in time).
         other_simulator = spin_until(
             executor, lambda: node.count_publishers('/clock') > 0, OTHER_SIMULATOR_WAIT_S,
             abort=stop.is_set)
         raise_if_stopped(stop)
         if other_simulator:
-            _error('another simulator publishes /clock on this ROS domain: stop it, or give '
-                   'the demo a domain of its own (--domain-id N)')
+            _error(ANOTHER_SIMULATOR)
             return 1
         simulator.start()
         return _run(node, executor, simulator, output_dir, stop)

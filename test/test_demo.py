@@ -16,8 +16,8 @@ from conftest import (
 import pytest
 
 from r2d2_sim.demo import (
-    command_at, format_progress, manoeuvre_duration_s, MANOEUVRE, phase_at, Simulator,
-    write_trajectory_plot)
+    ANOTHER_SIMULATOR, command_at, format_progress, manoeuvre_duration_s, MANOEUVRE, phase_at,
+    Simulator, write_trajectory_plot)
 from r2d2_sim.testing import Pose2D
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -182,21 +182,25 @@ def test_demo_turns_then_drives_and_writes_a_plot(tmp_path, domain_id):
     print(f'demo at real_time_factor 0 took {wall_s:.1f} s of wall time')
 
 
+def _wait_until_under_way(demo: subprocess.Popen, timeout_s: float = 30.0) -> None:
+    """Read the demo's stdout until the line for t = 1 s of the manoeuvre."""
+    output = b''
+    deadline = time.monotonic() + timeout_s
+    while b't=  1.0 s' not in output and time.monotonic() < deadline:
+        readable, _, _ = select.select([demo.stdout], [], [], 0.1)
+        if readable:
+            chunk = os.read(demo.stdout.fileno(), 4096)
+            if not chunk:
+                break
+            output += chunk
+    assert b't=  1.0 s' in output, output.decode() + demo.stderr.read1().decode()
+
+
 def test_demo_stops_itself_and_the_simulator_on_sigint(tmp_path, domain_id):
     demo = subprocess.Popen(demo_command(tmp_path, domain_id, 1), env=ros_env(domain_id),
                             cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    output = b''
     try:
-        # Wait for the manoeuvre to be under way: the line for t = 1 s.
-        deadline = time.monotonic() + 30.0
-        while b't=  1.0 s' not in output and time.monotonic() < deadline:
-            readable, _, _ = select.select([demo.stdout], [], [], 0.1)
-            if readable:
-                chunk = os.read(demo.stdout.fileno(), 4096)
-                if not chunk:
-                    break
-                output += chunk
-        assert b't=  1.0 s' in output, output.decode() + demo.stderr.read1().decode()
+        _wait_until_under_way(demo)
         assert simulators_in_domain(domain_id), 'no simulator found while the demo runs'
         demo.send_signal(signal.SIGINT)
         stdout, stderr = demo.communicate(timeout=15)
@@ -207,6 +211,26 @@ def test_demo_stops_itself_and_the_simulator_on_sigint(tmp_path, domain_id):
     assert demo.returncode == 130, stderr.decode()
     assert b'interrupted' in stderr
     assert b'Traceback' not in stderr, stderr.decode()
+    assert wait_for(lambda: simulators_in_domain(domain_id) == [], 5.0, interval_s=0.05)
+
+
+def test_demo_stops_when_another_simulator_appears_mid_run(tmp_path, domain_id):
+    """A second /clock publisher found late (a slow discovery) still ends the demo."""
+    demo = subprocess.Popen(demo_command(tmp_path, domain_id, 1), env=ros_env(domain_id),
+                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    other = None
+    try:
+        _wait_until_under_way(demo)
+        other = start_sim_process(domain_id)
+        _, stderr = demo.communicate(timeout=30)
+    finally:
+        if demo.poll() is None:
+            demo.kill()
+            demo.communicate()
+        if other is not None:
+            stop_process(other)
+    assert demo.returncode == 1, stderr.decode()
+    assert stderr.decode().splitlines() == ['demo: error: ' + ANOTHER_SIMULATOR]
     assert wait_for(lambda: simulators_in_domain(domain_id) == [], 5.0, interval_s=0.05)
 
 
