@@ -75,6 +75,10 @@ SPIN_POLL_S = 0.05
 # Name of the node through which a harness talks to the simulator (the
 # leading underscore hides it from `ros2 node list`).
 LINK_NODE_NAME = '_r2d2_sim_harness'
+# SimProcess sends an idempotent query (get_status, get_joint_info) again after
+# this long without a reply (wall s); a reply sent before the server had found
+# our reply reader is lost. Replies take 0.5-1.5 ms here.
+STATUS_RESEND_S = 1.0
 
 
 class Pose2D(NamedTuple):
@@ -786,18 +790,50 @@ class RemoteProbe:
         """Spin until ``condition()`` holds (True) or the deadline passes (False)."""
         return spin_until(self.executor, condition, timeout_s)
 
-    def call(self, srv_type, name: str, request, timeout_s: float = 10.0):
-        """Call service ``name`` and return its response; HarnessError at the deadline."""
+    def call(self, srv_type, name: str, request, timeout_s: float = 10.0,
+             resend_after_s: Optional[float] = None):
+        """
+        Call service ``name`` and return its response; HarnessError at the deadline.
+
+        ``resend_after_s``: see :meth:`call_client` (idempotent services only).
+        """
         client = self.node.create_client(srv_type, name)
         try:
             if not self.spin_until(client.service_is_ready, timeout_s):
                 raise HarnessError(f'service {name} is not available')
-            future = client.call_async(request)
-            if not self.spin_until(future.done, timeout_s):
+            response = self.call_client(client, request, timeout_s, resend_after_s)
+            if response is None:
                 raise HarnessError(f'{name} did not answer within {timeout_s:g} s')
-            return future.result()
+            return response
         finally:
             self.node.destroy_client(client)
+
+    def call_client(self, client, request, timeout_s: float,
+                    resend_after_s: Optional[float] = None,
+                    abort: Optional[Callable[[], bool]] = None):
+        """
+        Send ``request`` through ``client`` and spin for the reply (None: deadline or abort()).
+
+        ``resend_after_s``, for idempotent requests only: send the request
+        again if no reply came in that long. A reply can be lost for good:
+        rmw_fastrtps drops it when, 100 ms after the request came in, the
+        server has still not discovered the client's reply reader, which a
+        busy machine does (seen once with one core kept busy beside the test
+        suite). A late reply to an earlier send is dropped.
+        """
+        deadline = time.monotonic() + timeout_s
+        while True:
+            future = client.call_async(request)
+            wait_s = deadline - time.monotonic()
+            if resend_after_s is not None:
+                wait_s = min(wait_s, resend_after_s)
+            spin_until(self.executor, lambda: future.done() or (abort is not None and abort()),
+                       max(wait_s, 0.0))
+            if future.done():
+                return future.result()
+            client.remove_pending_request(future)
+            if (abort is not None and abort()) or time.monotonic() >= deadline:
+                return None
 
     def close(self) -> None:
         """Shut the executor down, destroy the node, shut the context down; safe twice."""
@@ -947,7 +983,10 @@ class SimProcess:
                                       and all(s.get_publisher_count() > 0 for s in state))
         if not self.probe.spin_until(linked, self.timeout_s) or self._exited():
             self._fail_start('did not serve its services')
-        self.status()  # paused or not (start_paused may come from a --params-file)
+        # Paused or not (start_paused may come from a --params-file). get_status's
+        # client is created last: the server learns of our reply readers in the
+        # order we made them, so once it answers here it can answer every client.
+        self.status()
         if not self.paused and not self.probe.spin_until(
                 lambda: self._latest['clock'] is not None or self._exited(), self.timeout_s):
             self._fail_start('published no /clock')
@@ -961,10 +1000,15 @@ class SimProcess:
 
     # -- services -------------------------------------------------------------------
 
-    def _request(self, name: str, request) -> Dict[str, Any]:
+    def _request(self, name: str, request, resend_after_s: Optional[float] = None
+                 ) -> Dict[str, Any]:
         if self._exited():
             raise HarnessError(f'sim_node has exited (status {self.process.returncode})')
-        reply = self._call_client(name, request)
+        reply = self.probe.call_client(self._clients[name], request, self.timeout_s,
+                                       resend_after_s, abort=self._exited)
+        if reply is None:
+            raise HarnessError(f'{self.node_path}/{name} did not answer within '
+                               f'{self.timeout_s:g} s')
         facts = json.loads(reply.message)
         if name != 'get_joint_info':
             self.last_status = facts
@@ -972,15 +1016,6 @@ class SimProcess:
         if not reply.success:
             raise HarnessError(f'~/{name} failed: {facts.get("error", reply.message)}')
         return facts
-
-    def _call_client(self, name: str, request):
-        client = self._clients[name]
-        future = client.call_async(request)
-        if not self.probe.spin_until(lambda: future.done() or self._exited(), self.timeout_s) \
-                or not future.done():
-            raise HarnessError(f'{self.node_path}/{name} did not answer within '
-                               f'{self.timeout_s:g} s')
-        return future.result()
 
     def pause(self, paused: bool = True) -> Dict[str, Any]:
         """Pause (or with False resume) through ``~/pause``; return the reply's JSON state."""
@@ -999,7 +1034,7 @@ class SimProcess:
         Asks ``~/get_status`` and returns its JSON reply: ``paused``, ``step``,
         ``sim_time_ns``, ``sim_time``, ``commands_received``.
         """
-        return self._request('get_status', Trigger.Request())
+        return self._request('get_status', Trigger.Request(), STATUS_RESEND_S)
 
     def step(self, count: int = 1) -> Dict[str, Any]:
         """
@@ -1029,7 +1064,7 @@ class SimProcess:
 
     def joint_info(self) -> Dict[str, Any]:
         """Return ``~/get_joint_info``'s JSON: ``robot``, ``urdf`` and ``joints``."""
-        return self._request('get_joint_info', Trigger.Request())
+        return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S)
 
     # -- topics -------------------------------------------------------------------
 

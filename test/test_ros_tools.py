@@ -61,10 +61,13 @@ def test_tf_chains_odom_footprint_base_with_the_odom_stamp(ros):
     listener = Listener(ros, {'/tf': (TFMessage, 100), 'odom': (Odometry, 100),
                               '/tf_static': (TFMessage, STATIC_QOS)})
     assert wait_for(lambda: listener.node.count_publishers('/tf') > 0)
-    for _ in range(6):
+    # Publishing every step: take each advance's 40 before the next, or a listener
+    # starved on a busy machine falls more than its depth (100) behind and drops some.
+    for advance in range(1, 7):
         sim.advance(40)
-        listener.wait('odom', 1)
-    assert wait_for(lambda: len(listener.messages['/tf']) >= len(listener.messages['odom']))
+        listener.wait('odom', 40 * advance)
+        listener.wait('/tf', 40 * advance)
+    assert len(listener.messages['/tf']) == len(listener.messages['odom'])
     odom_by_stamp = {stamp_ns(m.header.stamp): m for m in listener.messages['odom']}
     chain = transforms(listener.messages['/tf'])[('odom', 'base_footprint')]
     assert chain and all(stamp_ns(t.header.stamp) in odom_by_stamp for t in chain)

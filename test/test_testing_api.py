@@ -444,3 +444,55 @@ def test_the_leased_domain_range_can_be_set_for_a_shared_machine(value, expected
                              'import r2d2_sim.testing as t; print(t.DOMAIN_IDS)'],
                             env=env, capture_output=True, text=True, timeout=60)
     assert expected in result.stdout + result.stderr
+
+
+def test_remote_call_resends_an_idempotent_request_whose_reply_is_late():
+    """resend_after_s: a reply that does not come is asked for again; late ones are dropped."""
+    import threading
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from std_srvs.srv import Trigger
+
+    calls, answered = [], []
+    slow_calls = [0]  # how many of the next calls take 1 s to answer
+
+    def answer(request, response):
+        calls.append(time.monotonic())
+        if slow_calls[0] > 0:
+            slow_calls[0] -= 1
+            time.sleep(1.0)
+        response.success = True
+        response.message = f'call {len(calls)}'
+        answered.append(response.message)
+        return response
+
+    with lease_domain() as lease:
+        context = Context()
+        rclpy.init(context=context, domain_id=lease.domain_id)
+        server = Node('slow_server', context=context)
+        server.create_service(Trigger, 'query', answer)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(server)
+        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner.start()
+        try:
+            with testing.RemoteProbe(lease.domain_id) as probe:
+                slow_calls[0] = 1
+                reply = probe.call(Trigger, '/query', Trigger.Request(), timeout_s=10.0,
+                                   resend_after_s=0.3)
+                # Sent again every 0.3 s; the reply taken is the last send's.
+                assert len(calls) >= 2 and reply.message == f'call {len(calls)}'
+                # Without a resend the caller waits for the slow reply, and gets it.
+                slow_calls[0] = 1
+                reply = probe.call(Trigger, '/query', Trigger.Request(), timeout_s=10.0)
+                assert reply.message == f'call {len(calls)}'
+                slow_calls[0] = 1
+                with pytest.raises(HarnessError, match='did not answer within 0.2 s'):
+                    probe.call(Trigger, '/query', Trigger.Request(), timeout_s=0.2)
+                assert testing.wait_for(lambda: len(answered) == len(calls), 5.0)
+        finally:
+            executor.shutdown()
+            server.destroy_node()
+            rclpy.try_shutdown(context=context)
+            spinner.join(timeout=5.0)
