@@ -49,6 +49,10 @@ PLOT_NAME = 'trajectory.png'
 OTHER_SIMULATOR_WAIT_S = 0.5
 # How often to look again while ours runs (wall s): discovery can take longer.
 OTHER_SIMULATOR_CHECK_S = 0.1
+# The demo's own simulator, named so that any other /clock publisher is told apart.
+SIMULATOR_NODE_NAME = f'r2d2_sim_demo_{os.getpid()}'
+# What rmw reports as the node of an endpoint whose node it has not yet discovered.
+UNKNOWN_NODE_NAME = '_NODE_NAME_UNKNOWN_'
 ANOTHER_SIMULATOR = ('another simulator publishes /clock on this ROS domain: stop it, or give '
                      'the demo a domain of its own (--domain-id N)')
 # The world the demo drives in: walls and boxes for the laser scan in the plot.
@@ -208,6 +212,7 @@ class Simulator:
     def for_real_time_factor(cls, real_time_factor: float, env: dict) -> 'Simulator':
         """Build the command for ``python -m r2d2_sim`` at the given speed."""
         return cls([sys.executable, '-m', 'r2d2_sim', '--ros-args',
+                    '-r', f'__node:={SIMULATOR_NODE_NAME}',
                     '-p', f'world:={DEMO_WORLD}',
                     '-p', f'real_time_factor:={_ros_double(real_time_factor)}',
                     '-p', f'camera_rate:={_ros_double(CAMERA_RATE_HZ)}'], env)
@@ -269,8 +274,9 @@ class ManoeuvreDriver(Node):
     every simulated second; ``done`` turns True after the last phase.
     """
 
-    def __init__(self, phases: Sequence[Phase] = MANOEUVRE, out=sys.stdout) -> None:
-        super().__init__(NODE_NAME)
+    def __init__(self, phases: Sequence[Phase] = MANOEUVRE, out=sys.stdout,
+                 context=None) -> None:
+        super().__init__(NODE_NAME, context=context)
         self.phases = tuple(phases)
         self.total_s = manoeuvre_duration_s(self.phases)
         self._out = out
@@ -287,6 +293,8 @@ class ManoeuvreDriver(Node):
         self.truth_xy: List[Tuple[float, float]] = []
         self.last_truth_wall_s = time.monotonic()
         self.done = False
+        # (from s, to s) once a ground_truth stamp is older than the one before.
+        self.time_went_back: Optional[Tuple[float, float]] = None
         self._recording = False
         self._start_s: Optional[float] = None
         self._phase: Optional[Phase] = None
@@ -325,7 +333,15 @@ class ManoeuvreDriver(Node):
             self.odom_xy.append((self.odom.x_m, self.odom.y_m))
 
     def _on_truth(self, msg: Odometry) -> None:
-        self.truth = pose_from_odometry(msg)
+        truth = pose_from_odometry(msg)
+        if self.time_went_back is not None:
+            return
+        if self.truth is not None and truth.stamp_s < self.truth.stamp_s:
+            # Two simulators on one domain interleave their stamps; a run timed
+            # by them means nothing.
+            self.time_went_back = (self.truth.stamp_s, truth.stamp_s)
+            return
+        self.truth = truth
         self.last_truth_wall_s = time.monotonic()
         if not self._recording or self.done:
             return
@@ -398,20 +414,31 @@ def _error(text: str) -> None:
     print(f'demo: error: {text}', file=sys.stderr, flush=True)
 
 
+def _another_simulator_message(node: ManoeuvreDriver) -> str:
+    if node.time_went_back is None:
+        return ANOTHER_SIMULATOR
+    return ('ground_truth went back in time ({:.3f} s -> {:.3f} s): '.format(
+        *node.time_went_back) + ANOTHER_SIMULATOR)
+
+
 def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path,
          stop) -> int:
     def another_simulator() -> bool:
-        # Ours is one /clock publisher. Another one found only now (discovery
-        # took longer than OTHER_SIMULATOR_WAIT_S) would take our cmd_vel and
+        # A /clock publisher found only now (discovery took longer than
+        # OTHER_SIMULATOR_WAIT_S) that is not ours would take our cmd_vel and
         # interleave its poses with ours.
-        return node.count_publishers('/clock') > 1
+        # An endpoint can be discovered before its node's name, which rmw then
+        # reports as _NODE_NAME_UNKNOWN_: that one is not counted yet.
+        return node.time_went_back is not None or any(
+            info.node_name not in (SIMULATOR_NODE_NAME, UNKNOWN_NODE_NAME)
+            for info in node.get_publishers_info_by_topic('/clock'))
 
     started = spin_until(
         executor, node.connected, STARTUP_TIMEOUT_S,
         abort=lambda: stop.is_set() or simulator.exited() or another_simulator())
     raise_if_stopped(stop)
     if another_simulator():
-        _error(ANOTHER_SIMULATOR)
+        _error(_another_simulator_message(node))
         return 1
     if not started:
         _error(simulator.failure_message(
@@ -426,7 +453,7 @@ def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path
         if time.monotonic() >= next_check_s:
             next_check_s = time.monotonic() + OTHER_SIMULATOR_CHECK_S
             if another_simulator():
-                _error(ANOTHER_SIMULATOR)
+                _error(_another_simulator_message(node))
                 return 1
         if simulator.exited():
             _error(simulator.failure_message(
