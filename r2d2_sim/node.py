@@ -10,16 +10,14 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 
 import json
 import threading
-import time
-from typing import Callable, Dict, Optional, Tuple
+from typing import Optional
 
-from geometry_msgs.msg import Twist, TwistStamped
-from rclpy.clock import Clock as RclpyClock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
+from r2d2_sim.command_input import CmdVelInput, ThrottledLog
 from r2d2_sim.kinematics import DriveConfigError
 from r2d2_sim.outputs import (
     ClockOutput, GroundTruthOutput, HeadCameraOutput, ImuOutput, JointStateOutput,
@@ -30,12 +28,6 @@ from r2d2_sim.simulation import Simulation
 from r2d2_sim.world import SimWorld, WorldError
 
 NODE_NAME = 'r2d2_sim'
-# Warnings about rejected commands repeat at most this often per kind of problem.
-WARNING_PERIOD_S = 5.0
-# How often (wall-clock seconds) to look for cmd_vel publishers of a wrong type.
-GRAPH_CHECK_PERIOD_S = 1.0
-CMD_VEL_TYPE = 'geometry_msgs/msg/Twist'
-CMD_VEL_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 
 
 class StartupError(RuntimeError):
@@ -59,9 +51,7 @@ class SimNode(Node):
     def __init__(self, node_name: str = NODE_NAME, **node_kwargs) -> None:
         super().__init__(node_name, **node_kwargs)
         self._lock = threading.RLock()  # one thread in PyBullet at a time
-        self._warned_at: Dict[str, Tuple[float, int]] = {}
-        self.commands_received = 0
-        self.commands_rejected = 0
+        self._throttled = ThrottledLog()
         self.simulation: Optional[Simulation] = None
         try:
             self.config: SimConfig = declare_parameters(self)
@@ -80,14 +70,7 @@ class SimNode(Node):
                              reliability=ReliabilityPolicy.RELIABLE)
         self.create_publisher(String, 'robot_description', latched).publish(
             String(data=simulation.world.robot_description))
-        if self.config.enable_stamped_cmd_vel:
-            self.create_subscription(TwistStamped, 'cmd_vel', self._on_cmd_vel_stamped, 10)
-        else:
-            self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, 10)
-        # The middleware never delivers a publisher of another type (say
-        # TwistStamped) on cmd_vel; look at the graph now and then to say so.
-        self.create_timer(GRAPH_CHECK_PERIOD_S, self._check_cmd_vel_publishers,
-                          clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
+        self.cmd_vel = CmdVelInput(self, self.config, simulation, self._throttled)
         self.create_service(Trigger, '~/get_joint_info', self._on_get_joint_info)
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.create_service(Trigger, '~/step', self._on_step)
@@ -146,6 +129,16 @@ class SimNode(Node):
     def blow_ups(self) -> int:
         """Return how often the physics blew up and the robot was reset."""
         return self.simulation.blow_ups
+
+    @property
+    def commands_received(self) -> int:
+        """Return the number of cmd_vel messages taken, refused ones included."""
+        return self.cmd_vel.received
+
+    @property
+    def commands_rejected(self) -> int:
+        """Return the number of cmd_vel messages refused (NaN, stale stamp...)."""
+        return self.cmd_vel.rejected
 
     @property
     def has_wheels(self) -> bool:
@@ -215,73 +208,8 @@ class SimNode(Node):
 
     # -- callbacks --------------------------------------------------------------
 
-    def _log_throttled(self, kind: str, log: Callable[[str], None], text: str) -> None:
-        """Log ``text`` with ``log`` at most once per WARNING_PERIOD_S for each kind."""
-        now = time.monotonic()
-        last, suppressed = self._warned_at.get(kind, (None, 0))
-        if last is not None and now - last < WARNING_PERIOD_S:
-            self._warned_at[kind] = (last, suppressed + 1)
-            return
-        extra = f' ({suppressed} more since the last one)' if suppressed else ''
-        log(text + extra)
-        self._warned_at[kind] = (now, 0)
-
-    def _warn(self, kind: str, text: str) -> None:
-        self._log_throttled(kind, self.get_logger().warning, text)
-
     def _log_blow_up(self, text: str) -> None:
-        self._log_throttled('blow-up', self.get_logger().error, text)
-
-    def _on_cmd_vel_stamped(self, msg: TwistStamped) -> None:
-        stamp = msg.header.stamp
-        stamp_ns = stamp.sec * 10**9 + stamp.nanosec
-        timeout_ns = round(self.config.cmd_vel_timeout_s * 1e9)
-        # A zero stamp means "now" (as Nav2's and teleop's unstamped senders fill it).
-        age_ns = self.sim_time_ns - stamp_ns
-        if stamp_ns and timeout_ns and age_ns > timeout_ns:
-            self.commands_received += 1
-            self.commands_rejected += 1
-            self._warn('cmd_vel stale', f'rejected cmd_vel stamped {stamp_ns / 1e9:.3f} s: '
-                       f'{age_ns / 1e9:.3f} s old at t={self.sim_time_ns / 1e9:.3f} s, more '
-                       f'than cmd_vel_timeout ({self.config.cmd_vel_timeout_s:g} s)')
-            return
-        self._on_cmd_vel(msg.twist)
-
-    def _on_cmd_vel(self, msg: Twist) -> None:
-        self.commands_received += 1
-        linear, angular = msg.linear, msg.angular
-        verdict = self.simulation.command(linear.x, angular.z, linear_y=linear.y,
-                                          linear_z=linear.z, angular_x=angular.x,
-                                          angular_y=angular.y)
-        if verdict is None:
-            self._warn('cmd_vel no wheels', 'cmd_vel ignored: the robot has no wheels configured')
-            return
-        if verdict.problem is not None:
-            self.commands_rejected += 1
-            self._warn(f'cmd_vel {verdict.problem}', f'rejected cmd_vel with {verdict.problem}; '
-                       'keeping the last valid command')
-            return
-        if verdict.ignored_axes:
-            self._warn('cmd_vel ignored axes',
-                       f'cmd_vel {", ".join(verdict.ignored_axes)} ignored: a differential '
-                       'drive follows linear.x and angular.z only')
-        if verdict.clamped:
-            self._warn('cmd_vel clamped',
-                       f'cmd_vel (linear.x {linear.x:.4g}, angular.z {angular.z:.4g}) exceeds '
-                       f'the speed limits: scaled to ({verdict.accepted.linear_m_s:.4g}, '
-                       f'{verdict.accepted.angular_rad_s:.4g})')
-
-    def _check_cmd_vel_publishers(self) -> None:
-        topic = self.resolve_topic_name('cmd_vel')
-        expected = CMD_VEL_STAMPED_TYPE if self.config.enable_stamped_cmd_vel else CMD_VEL_TYPE
-        for info in self.get_publishers_info_by_topic('cmd_vel'):
-            if info.topic_type != expected:
-                publisher = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
-                self._warn(f'cmd_vel type {info.topic_type}',
-                           f'{publisher} publishes {info.topic_type} on {topic}, which ROS '
-                           f'does not deliver: this node takes {expected}'
-                           + ('' if self.config.enable_stamped_cmd_vel else
-                              ' (set enable_stamped_cmd_vel for TwistStamped)'))
+        self._throttled('blow-up', self.get_logger().error, text)
 
     def _on_get_joint_info(self, request, response):
         with self._lock:

@@ -14,8 +14,8 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
+import r2d2_sim.command_input as command_input
 from r2d2_sim.kinematics import twist_to_wheel_velocities
-import r2d2_sim.node as node_module
 from r2d2_sim.node import StartupError
 
 NAN, INF = math.nan, math.inf
@@ -134,7 +134,7 @@ def test_one_throttled_warning_per_kind_of_problem(sim, probe, capfd, monkeypatc
     for fragment in kinds:
         assert captured.count(fragment) == 1, (fragment, captured)
     # Once the throttle period has passed, the next warning counts what it held back.
-    monkeypatch.setattr(node_module, 'WARNING_PERIOD_S', 0.0)
+    monkeypatch.setattr(command_input, 'WARNING_PERIOD_S', 0.0)
     probe.send(linear_x=NAN)
     assert len(log_lines(capfd, '(19 more since the last one)')) == 1
 
@@ -212,7 +212,7 @@ def test_repeated_blow_ups_log_one_error_per_period(sim, capfd):
 def test_twist_stamped_on_cmd_vel_is_refused_by_ros_and_reported(ros, sim, probe, capfd,
                                                                  monkeypatch):
     """A TwistStamped never reaches the node; it says so in a warning and still drives."""
-    monkeypatch.setattr(node_module, 'GRAPH_CHECK_PERIOD_S', 0.1)
+    monkeypatch.setattr(command_input, 'GRAPH_CHECK_PERIOD_S', 0.1)
     context = Context()
     rclpy.init(context=context, domain_id=ros.domain_id)
     other = rclpy.create_node('stamped_teleop', context=context)

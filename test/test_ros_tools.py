@@ -349,7 +349,7 @@ def test_twist_stamped_drives_zero_stamp_is_now_and_stale_is_refused(ros, capfd)
 
 def test_a_twist_publisher_is_named_when_stamped_commands_are_expected(ros, capfd, monkeypatch):
     """The wrong-type warning works the other way round too (a Twist sender, another context)."""
-    monkeypatch.setattr('r2d2_sim.node.GRAPH_CHECK_PERIOD_S', 0.05)
+    monkeypatch.setattr('r2d2_sim.command_input.GRAPH_CHECK_PERIOD_S', 0.05)
     sim = make_sim(ros, enable_stamped_cmd_vel=True)
     context = Context()
     rclpy.init(context=context, domain_id=ros.domain_id)
