@@ -414,6 +414,12 @@ def _error(text: str) -> None:
     print(f'demo: error: {text}', file=sys.stderr, flush=True)
 
 
+def _interrupt_on_signals() -> None:
+    """Make SIGINT and SIGTERM raise KeyboardInterrupt, for code that does not spin."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+
+
 def _another_simulator_message(node: ManoeuvreDriver) -> str:
     if node.time_went_back is None:
         return ANOTHER_SIMULATOR
@@ -463,6 +469,9 @@ def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path
             _error(simulator.failure_message(
                 f'no ground_truth for {STALL_TIMEOUT_S:g} s: the simulator seems stuck'))
             return 1
+    # Done spinning: from here on a signal may interrupt wherever it lands.
+    _interrupt_on_signals()
+    raise_if_stopped(stop)  # one that came before the switch
     plot = write_trajectory_plot(output_dir.absolute() / PLOT_NAME, node.odom_xy, node.truth_xy,
                                  node.scan_xy)
     print(f'simulated {node.elapsed_s:.1f} s in {time.monotonic() - started_s:.1f} s of wall time')
@@ -523,8 +532,8 @@ def main(args: Optional[Sequence[str]] = None) -> int:
                 node.destroy_node()
             rclpy.try_shutdown()
         finally:
-            # A second Ctrl-C while the simulator stops cuts the wait short.
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+            # A second Ctrl-C (or SIGTERM) while the simulator stops cuts the wait short.
+            _interrupt_on_signals()
             simulator.stop()
 
 
