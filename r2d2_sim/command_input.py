@@ -46,7 +46,9 @@ class CmdVelInput:
     The ``cmd_vel`` subscription of ``node``, feeding ``simulation.command``.
 
     ``received`` counts the messages taken (refused ones too, so a client can
-    confirm its command arrived), ``rejected`` those refused.
+    confirm its command arrived), ``rejected`` those refused. A message is
+    counted last, once the simulation holds it and its warnings are out: a
+    test that waits for the count and then steps is sure to step with it.
     """
 
     def __init__(self, node, config, simulation, throttled: ThrottledLog) -> None:
@@ -75,17 +77,22 @@ class CmdVelInput:
         # A zero stamp means "now" (as Nav2's and teleop's unstamped senders fill it).
         age_ns = now_ns - stamp_ns
         if stamp_ns and timeout_ns and age_ns > timeout_ns:
-            self.received += 1
             self.rejected += 1
             self._warn('cmd_vel stale', f'rejected cmd_vel stamped {stamp_ns / 1e9:.3f} s: '
                        f'{age_ns / 1e9:.3f} s old at t={now_ns / 1e9:.3f} s, more than '
                        f'cmd_vel_timeout ({timeout_s:g} s)')
+            self.received += 1
             return
         self.on_twist(msg.twist)
 
     def on_twist(self, msg: Twist) -> None:
         """Hand a command to the simulation and report its verdict."""
-        self.received += 1
+        try:
+            self._take(msg)
+        finally:
+            self.received += 1
+
+    def _take(self, msg: Twist) -> None:
         linear, angular = msg.linear, msg.angular
         verdict = self._simulation.command(linear.x, angular.z, linear_y=linear.y,
                                            linear_z=linear.z, angular_x=angular.x,
