@@ -333,9 +333,9 @@ class ManoeuvreDriver(Node):
             self.odom_xy.append((self.odom.x_m, self.odom.y_m))
 
     def _on_truth(self, msg: Odometry) -> None:
-        truth = pose_from_odometry(msg)
         if self.time_went_back is not None:
             return
+        truth = pose_from_odometry(msg)
         if self.truth is not None and truth.stamp_s < self.truth.stamp_s:
             # Two simulators on one domain interleave their stamps; a run timed
             # by them means nothing.
@@ -432,9 +432,8 @@ def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path
     def another_simulator() -> bool:
         # A /clock publisher found only now (discovery took longer than
         # OTHER_SIMULATOR_WAIT_S) that is not ours would take our cmd_vel and
-        # interleave its poses with ours.
-        # An endpoint can be discovered before its node's name, which rmw then
-        # reports as _NODE_NAME_UNKNOWN_: that one is not counted yet.
+        # interleave its poses with ours. An endpoint can be discovered before
+        # its node's name (rmw says _NODE_NAME_UNKNOWN_): not counted yet.
         return node.time_went_back is not None or any(
             info.node_name not in (SIMULATOR_NODE_NAME, UNKNOWN_NODE_NAME)
             for info in node.get_publishers_info_by_topic('/clock'))
