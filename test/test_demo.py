@@ -228,44 +228,35 @@ def _wait_until_under_way(demo: subprocess.Popen, line: bytes = b't=  1.0 s',
     return line in output
 
 
-def _end_demo(demo: subprocess.Popen):
-    """Return (stdout, stderr) once the demo has ended: Ctrl-C first, so it stops its simulator."""
-    if demo.poll() is None:
-        demo.send_signal(signal.SIGINT)
-    try:
-        return demo.communicate(timeout=15)
-    except subprocess.TimeoutExpired:
-        demo.kill()
-        return demo.communicate()
-
-
 def test_demo_stops_itself_and_the_simulator_on_sigint(tmp_path, domain_id):
     demo = subprocess.Popen(demo_command(tmp_path, domain_id, 1), env=ros_env(domain_id),
-                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
     try:
         under_way = _wait_until_under_way(demo)
         running = simulators_in_domain(domain_id)
     finally:
-        _, stderr = _end_demo(demo)
-    assert under_way, stderr.decode()
+        _, _, stderr = stop_process(demo, timeout_s=15.0)
+    assert under_way, stderr
     assert running, 'no simulator found while the demo runs'
-    assert demo.returncode == 130, stderr.decode()
-    assert b'interrupted' in stderr
-    assert b'Traceback' not in stderr, stderr.decode()
+    assert demo.returncode == 130, stderr
+    assert 'interrupted' in stderr
+    assert 'Traceback' not in stderr, stderr
     assert wait_for(lambda: simulators_in_domain(domain_id) == [], 5.0, interval_s=0.05)
 
 
 def test_demo_ctrl_c_after_the_manoeuvre_still_exits_130(tmp_path, domain_id):
     """Ctrl-C while the plot is written (no spinning then) interrupts it too."""
     demo = subprocess.Popen(demo_command(tmp_path, domain_id, 0), env=ros_env(domain_id),
-                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
     try:
         finished = _wait_until_under_way(demo, f't={manoeuvre_duration_s():5.1f} s'.encode())
     finally:
-        stdout, stderr = _end_demo(demo)
-    assert finished, stderr.decode()
-    assert demo.returncode == 130, stdout.decode() + stderr.decode()
-    assert b'interrupted' in stderr and b'Traceback' not in stderr, stderr.decode()
+        _, stdout, stderr = stop_process(demo, timeout_s=15.0)
+    assert finished, stderr
+    assert demo.returncode == 130, stdout + stderr
+    assert 'interrupted' in stderr and 'Traceback' not in stderr, stderr
     assert wait_for(lambda: simulators_in_domain(domain_id) == [], 5.0, interval_s=0.05)
 
 
@@ -274,7 +265,8 @@ def test_demo_stops_when_another_clock_publisher_appears_mid_run(tmp_path, domai
     from rosgraph_msgs.msg import Clock
 
     demo = subprocess.Popen(demo_command(tmp_path, domain_id, 1), env=ros_env(domain_id),
-                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
     try:
         under_way = _wait_until_under_way(demo)
         if under_way:
@@ -284,10 +276,10 @@ def test_demo_stops_when_another_clock_publisher_appears_mid_run(tmp_path, domai
                 other.node.create_publisher(Clock, '/clock', 10)
                 other.spin_until(lambda: demo.poll() is not None, 30.0)
     finally:
-        _, stderr = _end_demo(demo)
-    assert under_way, stderr.decode()
-    assert demo.returncode == 1, stderr.decode()
-    assert stderr.decode().splitlines() == ['demo: error: ' + ANOTHER_SIMULATOR]
+        _, _, stderr = stop_process(demo, timeout_s=15.0)
+    assert under_way, stderr
+    assert demo.returncode == 1, stderr
+    assert stderr.splitlines() == ['demo: error: ' + ANOTHER_SIMULATOR]
     assert wait_for(lambda: simulators_in_domain(domain_id) == [], 5.0, interval_s=0.05)
 
 

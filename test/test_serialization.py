@@ -17,7 +17,6 @@ import string
 import struct
 import subprocess
 import sys
-import time
 from typing import Any, Callable, List, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
@@ -33,6 +32,7 @@ from std_msgs.msg import Header
 
 from r2d2_sim import serialization
 from r2d2_sim.serialization import FieldError, MessageTemplate
+from r2d2_sim.testing import wait_for
 
 STATES = 200
 FRAME_ID_LENGTHS = range(10)    # every remainder of string padding, twice over
@@ -598,16 +598,6 @@ finally:
 '''
 
 
-def poll_until(condition: Callable[[], bool], timeout_s: float) -> bool:
-    """Poll ``condition`` until it holds (True) or the deadline passes (False)."""
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.005)
-    return True
-
-
 def bits(values: Sequence[float]) -> List[bytes]:
     """Return the float64 bit patterns of ``values``: exact, and NaN equals NaN."""
     return [struct.pack('<d', value) for value in values]
@@ -652,7 +642,7 @@ def test_typed_subscriber_in_another_process_receives_patched_bytes(monkeypatch)
         odom_msg.pose.covariance = covariance
         odom = MessageTemplate(odom_msg)
         odom_slots = [odom.stamp(), odom.field('pose.pose'), odom.field('twist.twist')]
-        assert poll_until(lambda: listener.poll() is not None or (
+        assert wait_for(lambda: listener.poll() is not None or (
             joint_pub.get_subscription_count() > 0 and odom_pub.get_subscription_count() > 0),
             timeout_s=10.0), 'the listener never subscribed'
         assert listener.poll() is None, listener.communicate()[1][-2000:]
