@@ -13,13 +13,15 @@ import xml.etree.ElementTree as ElementTree
 
 import pybullet_data
 
+from r2d2_sim.errors import SetupError
+
 PACKAGE_SCHEME = 'package://'
 PACKAGE_NAME = 'r2d2_sim'
 # The checkout this module sits in (urdf/ and package.xml beside r2d2_sim/), if any.
 SOURCE_TREE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-class DescriptionError(RuntimeError):
+class DescriptionError(SetupError, RuntimeError):
     """A robot or model description that cannot be found, read or parsed."""
 
 

@@ -15,15 +15,7 @@ from typing import List, NamedTuple, Optional, Sequence, Tuple
 
 from r2d2_sim.kinematics import (
     DiffDriveGeometry, DiffDriveOdometry, limit_twist, ramp_twist, twist_to_wheel_velocities,
-    TwistLimits)
-
-
-class Twist2D(NamedTuple):
-    """A planar body twist: forward speed and yaw rate."""
-
-    linear_m_s: float
-    angular_rad_s: float
-
+    Twist2D, TwistLimits)
 
 STOP = Twist2D(0.0, 0.0)
 
@@ -101,7 +93,7 @@ class DriveController:
             return CommandVerdict(None, 'infinite value')
         ignored = tuple(name for name, value in zip(
             IGNORED_AXES, (linear_y, linear_z, angular_x, angular_y)) if value != 0.0)
-        limited = Twist2D(*limit_twist(self.geometry, linear_x, angular_z, self.limits))
+        limited = limit_twist(self.geometry, linear_x, angular_z, self.limits)
         clamped = (max(map(abs, limited))
                    < max(abs(linear_x), abs(angular_z)) * (1.0 - 1e-9))
         self._latest = limited  # one assignment, which update() reads once
@@ -125,8 +117,7 @@ class DriveController:
             self.target = STOP
         if self.ramped == self.target:
             return None
-        self.ramped = Twist2D(*ramp_twist(self.ramped, self.target, self.limits,
-                                          self.time_step_s))
+        self.ramped = ramp_twist(self.ramped, self.target, self.limits, self.time_step_s)
         return self._wheel_velocities(*twist_to_wheel_velocities(self.geometry, *self.ramped))
 
     def _wheel_velocities(self, left_rad_s: float, right_rad_s: float) -> List[float]:

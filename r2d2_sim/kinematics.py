@@ -22,8 +22,14 @@ carries its unit in its name (``_m``, ``_rad``, ``_m_s``, ``_rad_s``, ``_s``).
 
 from dataclasses import dataclass
 import math
+from typing import NamedTuple
+
+from r2d2_sim.errors import SetupError
+# One home for rotations: re-exported here, where they used to live.
+from r2d2_sim.transforms import quaternion_to_yaw, yaw_to_quaternion  # noqa: F401
 
 __all__ = [
+    'Twist2D',
     'DriveConfigError',
     'DiffDriveGeometry',
     'TwistLimits',
@@ -41,7 +47,14 @@ __all__ = [
 _RK2_YAW_THRESHOLD_RAD = 1e-6
 
 
-class DriveConfigError(ValueError):
+class Twist2D(NamedTuple):
+    """A planar body twist: forward speed and yaw rate (REP-103 x forward, z up)."""
+
+    linear_m_s: float
+    angular_rad_s: float
+
+
+class DriveConfigError(SetupError, ValueError):
     """Invalid drive geometry or limit; the message names the field and value."""
 
 
@@ -142,7 +155,7 @@ NO_LIMITS = TwistLimits()
 
 
 def limit_twist(geometry: DiffDriveGeometry, linear_x_m_s: float, angular_z_rad_s: float,
-                limits: TwistLimits = NO_LIMITS) -> tuple[float, float]:
+                limits: TwistLimits = NO_LIMITS) -> Twist2D:
     """
     Scale a twist down to the wheel and body speed limits, keeping its curvature.
 
@@ -154,7 +167,7 @@ def limit_twist(geometry: DiffDriveGeometry, linear_x_m_s: float, angular_z_rad_
     _require_finite(linear_x_m_s=linear_x_m_s, angular_z_rad_s=angular_z_rad_s)
     magnitude = max(abs(linear_x_m_s), abs(angular_z_rad_s))
     if magnitude == 0.0:
-        return linear_x_m_s, angular_z_rad_s
+        return Twist2D(linear_x_m_s, angular_z_rad_s)
     unit_v = linear_x_m_s / magnitude
     unit_w = angular_z_rad_s / magnitude
     unit_wheel_m_s = abs(unit_v) + abs(unit_w) * geometry.wheel_separation_m / 2.0
@@ -164,11 +177,11 @@ def limit_twist(geometry: DiffDriveGeometry, linear_x_m_s: float, angular_z_rad_
     if unit_w:
         allowed = min(allowed, limits.max_angular_rad_s / abs(unit_w))
     scale = min(magnitude, allowed)
-    return unit_v * scale, unit_w * scale
+    return Twist2D(unit_v * scale, unit_w * scale)
 
 
-def ramp_twist(current: tuple[float, float], target: tuple[float, float],
-               limits: TwistLimits, dt_s: float) -> tuple[float, float]:
+def ramp_twist(current: Twist2D, target: Twist2D, limits: TwistLimits,
+               dt_s: float) -> Twist2D:
     """
     Move ``current`` (v, w) towards ``target`` within the acceleration limits over ``dt_s``.
 
@@ -178,8 +191,8 @@ def ramp_twist(current: tuple[float, float], target: tuple[float, float],
     a turn on the spot, where a skid-steered robot slips most.) The target is
     reached exactly, and at once with infinite limits.
     """
-    delta_v = target[0] - current[0]
-    delta_w = target[1] - current[1]
+    delta_v = target.linear_m_s - current.linear_m_s
+    delta_w = target.angular_rad_s - current.angular_rad_s
     fraction = 1.0
     max_dv = limits.max_linear_acceleration_m_s2 * dt_s
     max_dw = limits.max_angular_acceleration_rad_s2 * dt_s
@@ -189,13 +202,18 @@ def ramp_twist(current: tuple[float, float], target: tuple[float, float],
         fraction = min(fraction, max_dw / abs(delta_w))
     if fraction == 1.0:
         return target
-    return current[0] + fraction * delta_v, current[1] + fraction * delta_w
+    return Twist2D(current.linear_m_s + fraction * delta_v,
+                   current.angular_rad_s + fraction * delta_w)
 
 
 def wheel_velocities_to_twist(geometry: DiffDriveGeometry, left_rad_s: float,
-                              right_rad_s: float) -> tuple[float, float]:
+                              right_rad_s: float) -> Twist2D:
     """
     Convert (left, right) wheel angular velocities into a body twist (v, w).
+
+    The inverse of :func:`twist_to_wheel_velocities` without the limit, as
+    diff_drive_controller's odometry ``update_from_vel``; the simulator itself
+    integrates wheel angles instead (:class:`DiffDriveOdometry`).
 
     v = r * (left + right) / 2 in m/s and w = r * (right - left) / s in rad/s.
     No limit is applied.  Non-finite inputs raise ValueError.
@@ -204,30 +222,7 @@ def wheel_velocities_to_twist(geometry: DiffDriveGeometry, left_rad_s: float,
     radius_m = geometry.wheel_radius_m
     linear_x_m_s = radius_m * (left_rad_s + right_rad_s) / 2.0
     angular_z_rad_s = radius_m * (right_rad_s - left_rad_s) / geometry.wheel_separation_m
-    return linear_x_m_s, angular_z_rad_s
-
-
-def yaw_to_quaternion(yaw_rad: float) -> tuple[float, float, float, float]:
-    """Return the (x, y, z, w) quaternion of a pure rotation by yaw about +z."""
-    _require_finite(yaw_rad=yaw_rad)
-    half_rad = yaw_rad / 2.0
-    return 0.0, 0.0, math.sin(half_rad), math.cos(half_rad)
-
-
-def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
-    """
-    Return the yaw (ZYX Euler convention) of a quaternion, in (-pi, pi].
-
-    The quaternion need not be normalised; roll and pitch are ignored.
-    Non-finite or all-zero quaternions raise ValueError.
-    """
-    _require_finite(x=x, y=y, z=z, w=w)
-    if x == 0.0 and y == 0.0 and z == 0.0 and w == 0.0:
-        raise ValueError('quaternion (0, 0, 0, 0) has no orientation')
-    # Written without assuming unit norm: the common scale cancels in atan2.
-    sin_yaw = 2.0 * (w * z + x * y)
-    cos_yaw = w * w + x * x - y * y - z * z
-    return _wrap_angle_rad(math.atan2(sin_yaw, cos_yaw))
+    return Twist2D(linear_x_m_s, angular_z_rad_s)
 
 
 class DiffDriveOdometry:

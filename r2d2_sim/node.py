@@ -18,20 +18,17 @@ from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.command_input import CmdVelInput, ThrottledLog
-from r2d2_sim.kinematics import DriveConfigError
+from r2d2_sim.errors import SetupError, StartupError
 from r2d2_sim.outputs import (
     ClockOutput, GroundTruthOutput, HeadCameraOutput, ImuOutput, JointStateOutput,
     OdometryOutput, ScanOutput, start_tf)
-from r2d2_sim.parameters import ConfigError, SimConfig
+from r2d2_sim.parameters import SimConfig
 from r2d2_sim.ros_parameters import declare_parameters
 from r2d2_sim.simulation import Simulation
-from r2d2_sim.world import SimWorld, WorldError
+from r2d2_sim.world import SimWorld
 
 NODE_NAME = 'r2d2_sim'
-
-
-class StartupError(RuntimeError):
-    """The node cannot start with the given parameters or files."""
+__all__ = ['SimNode', 'StartupError', 'NODE_NAME']
 
 
 class SimNode(Node):
@@ -57,11 +54,11 @@ class SimNode(Node):
             self.config: SimConfig = declare_parameters(self)
             self.simulation = Simulation(self.config, warn=self.get_logger().warning,
                                          error=self._log_blow_up)
-        except (ConfigError, WorldError, DriveConfigError) as exc:
+        except SetupError as exc:
             raise StartupError(str(exc)) from exc
         try:
             self._build_outputs()
-        except (ConfigError, WorldError) as exc:
+        except SetupError as exc:
             self.simulation.close()
             raise StartupError(str(exc)) from exc
         simulation = self.simulation

@@ -11,8 +11,10 @@ from dataclasses import make_dataclass
 import math
 from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
+from r2d2_sim.errors import SetupError
 
-class ConfigError(ValueError):
+
+class ConfigError(SetupError, ValueError):
     """A parameter value the simulator cannot run with."""
 
 

@@ -16,6 +16,7 @@ from typing import Optional, Sequence, Tuple
 
 import numpy
 
+from r2d2_sim.errors import SetupError
 from r2d2_sim.transforms import (
     quaternion_from_axis_angle, quaternion_multiply, rotate, rotate_inverse, rotation_matrix)
 
@@ -40,7 +41,7 @@ FULL_CIRCLE_TOLERANCE_RAD = 1e-9
 STANDARD_GRAVITY_M_S2: Vec3 = (0.0, 0.0, -9.8)
 
 
-class SensorConfigError(ValueError):
+class SensorConfigError(SetupError, ValueError):
     """Invalid sensor setting; the message names the field and its value."""
 
 

@@ -8,7 +8,19 @@ n-th tick is due at ``start + n * period``, so lateness is never accumulated.
 
 from fractions import Fraction
 import time
-from typing import Callable
+from typing import Callable, Tuple
+
+NS_PER_S = 10**9
+
+
+def stamp_of(time_ns: int) -> Tuple[int, int]:
+    """Return integer nanoseconds as a ROS stamp's ``(sec, nanosec)``."""
+    return divmod(time_ns, NS_PER_S)
+
+
+def ns_of(stamp) -> int:
+    """Return a ``builtin_interfaces/Time`` (``sec``, ``nanosec``) in integer nanoseconds."""
+    return stamp.sec * NS_PER_S + stamp.nanosec
 
 
 def exact_rate(rate_hz: float) -> Fraction:

@@ -30,7 +30,11 @@ __all__ = [
     'inverse',
     'apply',
     'yaw_of',
+    'yaw_to_quaternion',
+    'quaternion_to_yaw',
     'split_yaw',
+    'rotation_matrix',
+    'rotate_inverse',
     'JointModel',
     'JointTransform',
     'parse_joints',
@@ -155,6 +159,31 @@ def yaw_of(q: Quaternion) -> float:
     """
     x, y, z, w = q
     return math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
+
+
+def yaw_to_quaternion(yaw_rad: float) -> Quaternion:
+    """Return the (x, y, z, w) quaternion of a pure rotation by yaw about +z (finite yaw)."""
+    if not math.isfinite(yaw_rad):
+        raise ValueError(f'yaw_rad must be finite, got {yaw_rad!r}')
+    half_rad = yaw_rad / 2.0
+    return 0.0, 0.0, math.sin(half_rad), math.cos(half_rad)
+
+
+def quaternion_to_yaw(x: float, y: float, z: float, w: float) -> float:
+    """
+    Return the yaw (ZYX Euler convention) of a quaternion, in (-pi, pi].
+
+    :func:`yaw_of` with checks, for quaternions from outside (messages): it
+    need not be normalised; roll and pitch are ignored. Non-finite or
+    all-zero quaternions raise ValueError.
+    """
+    for name, value in (('x', x), ('y', y), ('z', z), ('w', w)):
+        if not math.isfinite(value):
+            raise ValueError(f'{name} must be finite, got {value!r}')
+    if x == 0.0 and y == 0.0 and z == 0.0 and w == 0.0:
+        raise ValueError('quaternion (0, 0, 0, 0) has no orientation')
+    yaw_rad = yaw_of((x, y, z, w))
+    return math.pi if yaw_rad == -math.pi else yaw_rad
 
 
 def split_yaw(q: Quaternion) -> tuple[Quaternion, Quaternion]:

@@ -24,6 +24,7 @@ from pybullet_utils.bullet_client import BulletClient
 from r2d2_sim.description import (
     check_urdf_xml, default_urdf_path, DescriptionError, DescriptionFile, read_description,
     resolve_description_path)
+from r2d2_sim.errors import SetupError
 
 Vec3 = Tuple[float, float, float]
 Quat = Tuple[float, float, float, float]
@@ -49,7 +50,7 @@ MAX_LINEAR_SPEED_M_S = 50.0
 MAX_ANGULAR_SPEED_RAD_S = 50.0
 
 
-class WorldError(RuntimeError):
+class WorldError(SetupError, RuntimeError):
     """A robot description or world setting that cannot be simulated."""
 
 
