@@ -1,8 +1,9 @@
 """
 Command-line pieces shared by the ``demo`` and ``drive`` executables and the benchmarks.
 
-argparse number types that refuse NaN and infinity, and the split between a
-program's own arguments and ROS's (``--ros-args ...``).
+argparse types that refuse NaN and infinity or an impossible domain id, the
+split between a program's own arguments and ROS's (``--ros-args ...``), and
+the exit status after Ctrl-C.
 """
 
 import argparse
@@ -11,6 +12,11 @@ import sys
 from typing import List, Sequence
 
 from rclpy.utilities import remove_ros_args
+
+# Exit status after Ctrl-C, as a shell reports a process ended by SIGINT.
+EXIT_INTERRUPTED = 130
+# The largest ROS domain id (Fast DDS and rmw's limit on Linux).
+MAX_DOMAIN_ID = 232
 
 
 def finite_number(text: str) -> float:
@@ -37,6 +43,17 @@ def positive_number(text: str) -> float:
     value = finite_number(text)
     if value <= 0.0:
         raise argparse.ArgumentTypeError(f'must be > 0, got {text!r}')
+    return value
+
+
+def domain_id_arg(text: str) -> int:
+    """Parse a ROS domain id, 0-232 (an argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be an integer, got {text!r}') from None
+    if not 0 <= value <= MAX_DOMAIN_ID:
+        raise argparse.ArgumentTypeError(f'must be in 0..{MAX_DOMAIN_ID}, got {text!r}')
     return value
 
 

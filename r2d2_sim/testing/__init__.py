@@ -1,0 +1,49 @@
+"""
+Testing code against the simulator: harnesses, deadline waits, ROS domains, processes.
+
+:class:`SimHarness` runs the simulator inside the test's process, in an rclpy
+context of its own, and moves simulated time only when told (``advance``).
+:class:`SimProcess` runs the ``sim_node`` executable in a process of its own
+and drives it through its services. Each gets a ROS domain that no other
+harness on this machine uses (:func:`lease_domain`), so tests can run in
+parallel (``pytest -n auto``). The pytest fixtures built on these are in
+:mod:`r2d2_sim.pytest_plugin`; this package needs no pytest.
+
+The package, by role: :mod:`~r2d2_sim.testing.domains` (domain leases),
+:mod:`~r2d2_sim.testing.executor` (a context and an executor the caller can
+take over), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
+:mod:`~r2d2_sim.testing.remote` (:class:`RemoteProbe`),
+:mod:`~r2d2_sim.testing.process` (child processes) and
+:mod:`~r2d2_sim.testing.sim_process` (:class:`SimProcess`). Every name is
+importable from here, as it was when this was one module.
+"""
+
+from r2d2_sim.client import (
+    Pose2D, pose_from_odometry, ros_child_env, spin_until, stamp_ns, wait_for)
+from r2d2_sim.errors import StartupError
+from r2d2_sim.testing import domains
+from r2d2_sim.testing.domains import (
+    DOMAIN_LOCK_DIR_ENV, DomainLease, domain_lock_dir, DomainUnavailable, lease_domain)
+from r2d2_sim.testing.executor import (
+    CallbackError, HarnessError, parameter_overrides, RosHarness, SPIN_POLL_S)
+from r2d2_sim.testing.harness import LINK_NODE_NAME, SimHarness
+from r2d2_sim.testing.process import (
+    ChildProcess, ProcessResult, sim_node_command, stop_process)
+from r2d2_sim.testing.remote import RemoteProbe
+from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
+
+__all__ = [
+    'SimHarness', 'SimProcess', 'RosHarness', 'RemoteProbe', 'ChildProcess',
+    'HarnessError', 'CallbackError', 'StartupError', 'DomainUnavailable', 'DomainLease',
+    'lease_domain', 'domain_lock_dir', 'DOMAIN_IDS', 'DOMAIN_LOCK_DIR_ENV',
+    'ProcessResult', 'stop_process', 'sim_node_command', 'parameter_overrides',
+    'Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env', 'stamp_ns',
+    'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S',
+]
+
+
+def __getattr__(name: str):
+    # DOMAIN_IDS follows R2D2_SIM_DOMAIN_IDS as it is when asked, not at import.
+    if name == 'DOMAIN_IDS':
+        return domains.domain_ids()
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')

@@ -1,0 +1,210 @@
+"""
+ROS domain leases: each harness gets a ROS domain id that no other test on this machine uses.
+
+Two mechanisms are held together, so every ROS test on the machine agrees:
+our own ``flock`` on a file per id (it ends when the lease is released or its
+process dies), and the one of ROS's own test tooling, ``domain_coordinator``
+(used by launch_testing's ``add_ros_test`` and ament_cmake_ros' isolated test
+runner), which reserves an id by binding TCP port 32768 + id. A domain is ours
+only when we hold both; a colcon test run beside an r2d2_sim suite then never
+picks the same domain.
+
+Domain ids come from ``R2D2_SIM_DOMAIN_IDS`` ("first-last", default 1-100),
+read at each lease. Fast DDS maps domain d to UDP ports from 7400 + 250 * d:
+up to about 100 they stay below the kernel's ephemeral range (32768+), where
+another program's socket could already hold them. Domain 0, the default, is
+left to the user's own ROS graph.
+"""
+
+import errno
+import fcntl
+import itertools
+import os
+from pathlib import Path
+import socket
+import tempfile
+import time
+from typing import Optional
+
+__all__ = ['DOMAIN_LOCK_DIR_ENV', 'DOMAIN_IDS_ENV', 'COORDINATOR_PORT_BASE',
+           'DomainUnavailable', 'DomainLease', 'domain_ids', 'domain_lock_dir',
+           'lease_domain', 'env_domain_id']
+
+DOMAIN_IDS_ENV = 'R2D2_SIM_DOMAIN_IDS'
+# A directory for the per-domain lock files instead of the default below.
+DOMAIN_LOCK_DIR_ENV = 'R2D2_SIM_DOMAIN_LOCK_DIR'
+# domain_coordinator's reservation: a bound TCP port at this base + the id.
+COORDINATOR_PORT_BASE = 32768
+# How often a waiting lease_domain tries again (s).
+DOMAIN_RETRY_S = 0.05
+# The largest ROS domain id (Fast DDS and rmw's limit on Linux).
+MAX_DOMAIN_ID = 232
+
+
+def domain_ids() -> range:
+    """Return the ids harnesses may lease now: ``R2D2_SIM_DOMAIN_IDS`` ("first-last") or 1-100."""
+    text = os.environ.get(DOMAIN_IDS_ENV, '1-100')
+    try:
+        first, last = (int(part) for part in text.split('-'))
+    except ValueError:
+        raise ValueError(f'{DOMAIN_IDS_ENV} must be "first-last", e.g. "1-100", '
+                         f'got {text!r}') from None
+    if not 0 <= first <= last <= MAX_DOMAIN_ID:
+        raise ValueError(f'{DOMAIN_IDS_ENV} must lie within 0-{MAX_DOMAIN_ID}, got {text!r}')
+    return range(first, last + 1)
+
+
+def __getattr__(name: str):
+    # DOMAIN_IDS reads the environment when asked, not once at import.
+    if name == 'DOMAIN_IDS':
+        return domain_ids()
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+
+
+class DomainUnavailable(RuntimeError):
+    """No ROS domain could be leased before the deadline."""
+
+
+class DomainLease:
+    """
+    An exclusive claim on one ROS domain id among the processes of this machine.
+
+    Held as an ``flock`` on a file per domain id plus domain_coordinator's
+    bound port, so it ends when released or when the process dies, and two
+    leases never share a domain, whether they are in one process or in
+    several (pytest-xdist workers, a launch_testing run beside).
+    """
+
+    def __init__(self, domain_id: int, fd: int, port: Optional[socket.socket] = None) -> None:
+        self.domain_id = domain_id
+        self._fd: Optional[int] = fd
+        self._port = port
+
+    @property
+    def held(self) -> bool:
+        """Return True until released."""
+        return self._fd is not None
+
+    def release(self) -> None:
+        """Give the domain back (closing the file drops the lock); safe to call twice."""
+        if self._port is not None:
+            self._port.close()
+            self._port = None
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> 'DomainLease':
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.release()
+
+    def __repr__(self) -> str:
+        return f'DomainLease({self.domain_id}, held={self.held})'
+
+
+# Where the next free-domain search starts in this process: spread by process
+# id so xdist workers do not all race for domain 1, then rotated so a domain
+# just released is not reused at once.
+_search_starts = itertools.count(os.getpid())
+
+
+def domain_lock_dir() -> Path:
+    """Return the directory of the per-domain lock files (shared by every user of the machine)."""
+    configured = os.environ.get(DOMAIN_LOCK_DIR_ENV)
+    path = Path(configured) if configured else Path(tempfile.gettempdir()) / 'r2d2_sim-domains'
+    if not path.is_dir():
+        path.mkdir(parents=True, exist_ok=True)
+        try:  # sticky and writable for all: another user's tests lock here too
+            path.chmod(0o1777)
+        except OSError:
+            pass
+    return path
+
+
+def _try_lock(directory: Path, domain_id: int) -> Optional[int]:
+    """Return an fd holding the lock of ``domain_id``, or None if another holder has it."""
+    path = directory / f'domain-{domain_id}.lock'
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    except PermissionError:  # another user's file: flock works on a read-only fd
+        fd = os.open(path, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        os.close(fd)
+        if exc.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+            return None
+        raise
+    return fd
+
+
+def _try_coordinator_port(domain_id: int) -> Optional[socket.socket]:
+    """Bind domain_coordinator's port for ``domain_id`` as it does; None if someone holds it."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        sock.bind(('', COORDINATOR_PORT_BASE + domain_id))
+    except OSError:
+        sock.close()
+        return None
+    return sock
+
+
+def _try_lease(directory: Path, domain_id: int) -> Optional[DomainLease]:
+    fd = _try_lock(directory, domain_id)
+    if fd is None:
+        return None
+    port = _try_coordinator_port(domain_id)
+    if port is None:
+        os.close(fd)
+        return None
+    return DomainLease(domain_id, fd, port)
+
+
+def lease_domain(domain_id: Optional[int] = None, timeout_s: float = 60.0) -> DomainLease:
+    """
+    Lease a ROS domain id that no other lease on this machine holds.
+
+    :param domain_id: that id (waiting for its current holder); None for any
+        free id of :func:`domain_ids`
+    :param timeout_s: how long to wait for one to come free (wall clock)
+    :raises DomainUnavailable: none came free in time
+    :raises ValueError: ``domain_id`` outside 0-232, or a malformed ``R2D2_SIM_DOMAIN_IDS``
+
+    Release the lease when done (or use it as a context manager); the
+    harnesses do.
+    """
+    if domain_id is not None and not 0 <= domain_id <= MAX_DOMAIN_ID:
+        raise ValueError(f'a ROS domain id is 0-{MAX_DOMAIN_ID}, got {domain_id}')
+    directory = domain_lock_dir()
+    deadline = time.monotonic() + timeout_s
+    while True:
+        if domain_id is not None:
+            candidates = [domain_id]
+        else:
+            ids = domain_ids()
+            start = next(_search_starts)
+            candidates = [ids[(start + i) % len(ids)] for i in range(len(ids))]
+        for candidate in candidates:
+            lease = _try_lease(directory, candidate)
+            if lease is not None:
+                return lease
+        if time.monotonic() > deadline:
+            wanted = f'domain {domain_id}' if domain_id is not None else 'a free domain'
+            raise DomainUnavailable(
+                f'could not lease {wanted} within {timeout_s:g} s: other harnesses hold the '
+                f'locks in {directory} or domain_coordinator ports '
+                f'({COORDINATOR_PORT_BASE} + id)')
+        time.sleep(DOMAIN_RETRY_S)
+
+
+def env_domain_id() -> Optional[int]:
+    """Return ``ROS_DOMAIN_ID`` from the environment as an int (None when unset or empty)."""
+    value = os.environ.get('ROS_DOMAIN_ID', '').strip()
+    if not value:
+        return None
+    try:
+        return int(value)
+    except ValueError:
+        raise ValueError(f'ROS_DOMAIN_ID must be an integer, got {value!r}') from None

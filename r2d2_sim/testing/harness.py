@@ -1,0 +1,248 @@
+"""
+The simulator in the test's process, advanced only when told: :class:`SimHarness`.
+
+Simulated time moves only in :meth:`SimHarness.advance` and
+:meth:`SimHarness.advance_until`; with nodes of the user's own in the harness
+they run in lockstep with the simulator, so a run repeats bit for bit.
+"""
+
+import json
+from typing import Any, Callable, Dict, Optional
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from r2d2_sim.client import stamp_ns, wait_for
+from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarness
+
+__all__ = ['SimHarness', 'LINK_NODE_NAME']
+
+# Name of the node through which a harness talks to the simulator (the
+# leading underscore hides it from `ros2 node list`).
+LINK_NODE_NAME = '_r2d2_sim_harness'
+
+
+class SimHarness(RosHarness):
+    """
+    The simulator in this process, advanced only when told, plus nodes of your own.
+
+    ``SimHarness(cmd_vel_timeout=0.0, urdf='r2d2.urdf')``: keywords other than
+    the harness's own are the simulator's ROS parameters (``sim_node`` takes
+    the same names). ``node_name`` and ``namespace`` place the simulator (its
+    services are ``<namespace>/<node_name>/pause`` and so on). Raises
+    :class:`r2d2_sim.node.StartupError` when the parameters are unusable.
+
+    Simulated time moves only in :meth:`advance` and :meth:`advance_until`.
+    With nodes of your own (:meth:`create_node`, :meth:`add_node`), they go
+    one control period at a time and let every callback that a period's
+    publications trigger run before the next one (lockstep): a controller
+    that answers ``odom`` with ``cmd_vel`` sees every state, its command takes
+    effect at the next step, and a run repeats bit for bit.
+    """
+
+    def __init__(self, node_name: str = 'r2d2_sim', *, namespace: str = '',
+                 domain_id: Optional[int] = None, timeout_s: float = 10.0,
+                 **parameters: Any) -> None:
+        super().__init__(domain_id=domain_id, timeout_s=timeout_s)
+        self.namespace = namespace
+        self.sim = None  # the SimNode
+        self._link: Optional[Node] = None
+        self._cmd_vel = None
+        self._lockstep = False
+        self._types = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry}
+        self._latest: Dict[str, Optional[bytes]] = dict.fromkeys(self._types)
+        try:
+            from r2d2_sim.node import SimNode  # PyBullet: only when a simulator is wanted
+            # Without parameter services or rosout: fewer entities for the
+            # executor to gather on every wait of a lockstep run.
+            link = self._link = Node(LINK_NODE_NAME, context=self.context,
+                                     namespace=namespace or None,
+                                     start_parameter_services=False, enable_rosout=False)
+            RosHarness.add_node(self, link, use_sim_time=False)
+            # Subscribed before the simulator exists: it publishes its first
+            # state from its constructor, and delivery within one context is
+            # synchronous once matched. Depth 1: only the latest matters here.
+            # Raw bytes, deserialized only when asked for: a lockstep run
+            # takes every publication.
+            for topic, msg_type in self._types.items():
+                link.create_subscription(msg_type, topic, self._keeper(topic), 1, raw=True)
+            self._cmd_vel = link.create_publisher(Twist, 'cmd_vel', 10)
+            self.sim = SimNode(node_name, context=self.context, namespace=namespace or None,
+                               parameter_overrides=parameter_overrides(parameters))
+            RosHarness.add_node(self, self.sim, use_sim_time=False)
+            if not wait_for(lambda: self._cmd_vel.get_subscription_count() > 0, timeout_s):
+                raise HarnessError('the simulator did not subscribe cmd_vel')
+        except BaseException:
+            self.close()
+            raise
+
+    def _keeper(self, topic: str) -> Callable[[Any], None]:
+        def keep(msg) -> None:
+            self._latest[topic] = msg
+        return keep
+
+    def create_node(self, name: str, *, use_sim_time: bool = True, **node_kwargs) -> Node:
+        """Create a node of yours (in the simulator's namespace unless given one); see add_node."""
+        node_kwargs.setdefault('namespace', self.namespace or None)
+        return super().create_node(name, use_sim_time=use_sim_time, **node_kwargs)
+
+    def add_node(self, node: Node, *, use_sim_time: bool = True) -> Node:
+        """Spin a node of yours with the simulator; from now on advance in lockstep with it."""
+        self._lockstep = True
+        return super().add_node(node, use_sim_time=use_sim_time)
+
+    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
+                     twist: Optional[Twist] = None) -> None:
+        """
+        Publish a Twist on ``cmd_vel`` and return once the simulator has taken it.
+
+        ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
+        ``twist``. Raises HarnessError if the command does not arrive in time.
+        """
+        if twist is None:
+            twist = Twist()
+            twist.linear.x, twist.angular.z = float(linear), float(angular)
+        before = self.sim.commands_received
+        self._cmd_vel.publish(twist)
+        self._wait(lambda: self.sim.commands_received > before,
+                   'the simulator did not take cmd_vel')
+
+    @property
+    def physics_rate_hz(self) -> float:
+        """Return physics steps per simulated second."""
+        return self.sim.config.physics_rate_hz
+
+    def advance(self, steps: Optional[int] = None, *, seconds: Optional[float] = None) -> int:
+        """
+        Step the physics ``steps`` times, or for ``seconds`` of simulated time; return the steps.
+
+        Seconds are rounded to whole physics steps. With neither, one control
+        period: up to and including the next state publication (as ``~/step``).
+        Pause does not apply here: the harness decides when time moves.
+        """
+        if steps is not None and seconds is not None:
+            raise ValueError('give steps or seconds, not both')
+        if seconds is not None:
+            steps = self._steps(seconds)
+        elif steps is None:
+            steps = self.sim.steps_to_next_publish()
+        if steps < 0:
+            raise ValueError(f'cannot advance by {steps} steps')
+        self.raise_callback_error()
+        if not self._lockstep:
+            self.sim.advance(steps)
+            return steps
+        with self._own_executor():
+            self._run_periods(steps)
+        return steps
+
+    def advance_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
+        """
+        Advance one control period at a time until ``predicate()`` is true.
+
+        ``timeout_s`` is simulated time. Returns True as soon as the predicate
+        holds (checked first before any step, then after each publication),
+        False when the time is up: write ``assert harness.advance_until(...)``,
+        or ``assert not ...`` for something that must not happen.
+        """
+        limit = self._steps(timeout_s)
+        # Driven from this thread: each period's messages are handled before
+        # the predicate looks, with no hand-over to the executor thread.
+        with self._own_executor():
+            return predicate() or self._run_periods(limit, predicate)
+
+    def _run_periods(self, steps: int,
+                     predicate: Optional[Callable[[], bool]] = None) -> bool:
+        """
+        Advance ``steps`` one control period at a time, handling each period's messages.
+
+        Returns True as soon as ``predicate`` holds after a period (False if
+        it never did, or without one).
+        """
+        done = 0
+        while done < steps:
+            chunk = min(self.sim.steps_to_next_publish(), steps - done)
+            self.sim.advance(chunk)
+            done += chunk
+            self._run_until_idle(self.timeout_s)
+            self.raise_callback_error()
+            if predicate is not None and predicate():
+                return True
+        return False
+
+    def _steps(self, seconds: float) -> int:
+        if not seconds >= 0.0:
+            raise ValueError(f'simulated time must be >= 0 s, got {seconds}')
+        return round(seconds * self.physics_rate_hz)
+
+    def ground_truth(self) -> Odometry:
+        """Return the latest ``ground_truth`` (true pose in the world frame, twist in the body)."""
+        return self._wait_latest('ground_truth')
+
+    def odom(self) -> Odometry:
+        """Return the latest ``odom`` (wheel odometry); HarnessError for a robot without wheels."""
+        if not self.sim.has_wheels:
+            raise HarnessError('this robot has no wheels, so the simulator publishes no odom')
+        return self._wait_latest('odom')
+
+    def joint_states(self) -> JointState:
+        """Return the latest ``joint_states`` (every movable joint)."""
+        return self._wait_latest('joint_states')
+
+    def last_publication_ns(self) -> int:
+        """Return the simulated time (ns) of the simulator's latest state publication."""
+        return self.sim.last_publication_ns
+
+    def _wait_latest(self, topic: str):
+        """Wait until the message of the latest publication has been delivered; return it."""
+        # The simulator publishes from advance(), in this thread; the messages
+        # reach the harness's subscriptions through the executor.
+        wanted = self.last_publication_ns()
+
+        found = []
+
+        def arrived():
+            raw = self._latest[topic]
+            if raw is None:
+                return False
+            msg = deserialize_message(raw, self._types[topic])
+            found[:] = [msg]
+            return stamp_ns(msg.header.stamp) == wanted
+        self._wait(arrived, f'{topic} of t={wanted / 1e9:.6f} s did not arrive')
+        return found[0]
+
+    def reset(self) -> Dict[str, Any]:
+        """
+        Put the robot back at its initial pose through ``~/reset``; return the reply's JSON.
+
+        The node publishes the reset robot at its next publication (never a
+        second state at a stamp already published), so this then advances one
+        control period: simulated time goes on, and the state readers return
+        the reset robot.
+        """
+        topics = ['joint_states', 'ground_truth'] + (['odom'] if self.sim.has_wheels else [])
+        for topic in topics:  # nothing older may arrive after the reset
+            self._wait_latest(topic)
+        for topic in topics:
+            self._latest[topic] = None
+        reply = self._call(Trigger, self.sim.get_fully_qualified_name() + '/reset',
+                           Trigger.Request())
+        self.advance()
+        return json.loads(reply.message)
+
+    def _call(self, srv_type, name: str, request):
+        client = self._link.create_client(srv_type, name)
+        try:
+            self._wait(client.service_is_ready, f'service {name} was not available')
+            future = client.call_async(request)
+            self._wait(future.done, f'{name} did not answer')
+            return future.result()
+        finally:
+            self._link.destroy_client(client)
+
+    def __enter__(self) -> 'SimHarness':
+        return self
