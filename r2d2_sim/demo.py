@@ -1,12 +1,17 @@
 """
 ``demo``: start the simulator, replay the tutorial's manoeuvre, plot the trajectory.
 
-Runs ``python -m r2d2_sim`` as a child process and, in this process, a
-driver node that sends ``cmd_vel``: settle, turn about 90 degrees in place,
-drive forward, stop. Everything is timed in simulated seconds, read from the
-stamps of ``ground_truth`` (published after every physics step), so the result
-does not depend on ``--real-time-factor`` or on how busy the machine is.
-At the end it writes odometry against ground truth as a PNG.
+Runs ``sim_node`` in a process of its own (through the public testing API,
+:class:`~r2d2_sim.testing.SimProcess`) and, in this process, a driver node
+that sends ``cmd_vel``: settle, turn about 90 degrees in place, drive forward,
+stop. Everything is timed in simulated seconds, read from the stamps of
+``ground_truth``. At real time the simulator runs on its own clock, publishing
+after every physics step, and the driver follows; with ``--real-time-factor
+0`` the demo steps the paused simulator one control period (1/60 s) at a
+time and answers each state before the next step (lockstep), so the run is
+the same, bit for bit, however busy the machine is. At the end it writes
+odometry against ground truth as a PNG, with the last laser scan and a head
+camera snapshot.
 """
 
 import argparse
@@ -14,11 +19,9 @@ import math
 import os
 from pathlib import Path
 import signal
-import subprocess
 import sys
-import tempfile
 import time
-from typing import List, NamedTuple, Optional, Sequence, Tuple
+from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -28,22 +31,26 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import Image, LaserScan
 
-from r2d2_sim.cli import non_negative_number, non_ros_args
+from r2d2_sim.cli import domain_id_arg, EXIT_INTERRUPTED, non_negative_number, non_ros_args
+from r2d2_sim.client import Pose2D, pose_from_odometry, spin_until, stamp_ns, twist_message
+from r2d2_sim.plots import scan_points_xy, write_camera_snapshot, write_trajectory_plot
 from r2d2_sim.sim_node import raise_if_stopped, stop_on_signals
-from r2d2_sim.testing import Pose2D, pose_from_odometry, ros_child_env, spin_until
 
 NODE_NAME = 'r2d2_demo'
-# Wall-clock seconds to wait for the simulator's topics after starting it.
+# Wall-clock seconds for the simulator to start and for its topics to reach the driver.
 STARTUP_TIMEOUT_S = 10.0
 # Wall-clock seconds without ground_truth after which the simulator is taken as hung.
 STALL_TIMEOUT_S = 10.0
+# In lockstep the simulator publishes at this rate (simulated Hz): each period
+# is one ~/step call, so phases start on a 1/60 s grid.
+LOCKSTEP_PUBLISH_RATE_HZ = 60.0
+# In lockstep, wall-clock seconds to wait for a state early in the settle phase,
+# which a subscriber matched late never gets.
+SETTLE_WAIT_S = 0.2
 # Wall-clock seconds the simulator gets to exit after SIGINT before it is killed.
 STOP_TIMEOUT_S = 5.0
 # cmd_vel is re-sent at this rate of simulated time (the simulator brakes after 0.5 s).
 COMMAND_RATE_HZ = 20.0
-# Lines of the simulator's output shown when it fails.
-LOG_TAIL_LINES = 10
-EXIT_INTERRUPTED = 130
 PLOT_NAME = 'trajectory.png'
 # How long to look for another simulator on the domain before starting ours (s).
 OTHER_SIMULATOR_WAIT_S = 0.5
@@ -113,174 +120,28 @@ def format_progress(t_s: float, odom: Pose2D, truth: Pose2D) -> str:
     return f't={t_s:5.1f} s  odom {pose(odom)} | truth {pose(truth)}'
 
 
-def scan_points_xy(scan: LaserScan, pose: Pose2D,
-                   laser_offset_xy: Tuple[float, float] = (0.0, 0.0)) -> List[Tuple[float, float]]:
-    """
-    Return a scan's finite returns as world x-y points, seen from ``pose`` (the base's).
-
-    ``laser_offset_xy`` is the laser's position in the base frame. Readings
-    of +-inf (REP-117: no return, too close) have no point.
-    """
-    cos_yaw, sin_yaw = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    origin_x = pose.x_m + cos_yaw * laser_offset_xy[0] - sin_yaw * laser_offset_xy[1]
-    origin_y = pose.y_m + sin_yaw * laser_offset_xy[0] + cos_yaw * laser_offset_xy[1]
-    points = []
-    for i, r in enumerate(scan.ranges):
-        if math.isfinite(r):
-            angle = pose.yaw_rad + scan.angle_min + i * scan.angle_increment
-            points.append((origin_x + r * math.cos(angle), origin_y + r * math.sin(angle)))
-    return points
-
-
-def write_trajectory_plot(path, odom_xy: Sequence[Tuple[float, float]],
-                          truth_xy: Sequence[Tuple[float, float]],
-                          scan_xy: Sequence[Tuple[float, float]] = ()) -> Path:
-    """
-    Plot odometry against ground truth in the x-y plane as a PNG; return its path.
-
-    ``scan_xy`` (the last laser scan, in the world frame) is drawn as dots.
-
-    Uses matplotlib's Agg canvas directly (no pyplot), so it needs no display
-    and leaves matplotlib's global backend alone.
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    path = Path(path)
-    figure = Figure(figsize=(6.4, 7.0), dpi=100, layout='constrained')
-    FigureCanvasAgg(figure)
-    axes = figure.add_subplot()
-    if scan_xy:
-        axes.plot([p[0] for p in scan_xy], [p[1] for p in scan_xy], '.', color='tab:green',
-                  markersize=3, label='last laser scan')
-    for points, label, style, colour in ((truth_xy, 'ground truth (world)', '-', 'tab:blue'),
-                                         (odom_xy, 'wheel odometry (odom)', '--', 'tab:orange')):
-        if not points:
-            continue
-        xs = [p[0] for p in points]
-        ys = [p[1] for p in points]
-        axes.plot(xs, ys, style, color=colour, linewidth=2, label=label)
-        axes.plot(xs[:1], ys[:1], 'o', color=colour, markersize=8)
-        axes.plot(xs[-1:], ys[-1:], 's', color=colour, markersize=8)
-    # Marker legend entries, drawn off-data so they only label the symbols.
-    axes.plot([], [], 'o', color='grey', label='start')
-    axes.plot([], [], 's', color='grey', label='end')
-    axes.set_aspect('equal', adjustable='datalim')
-    axes.set_xlabel('x (m)')
-    axes.set_ylabel('y (m)')
-    axes.set_title('R2D2 demo in the room: wheel odometry vs ground truth')
-    axes.grid(True, alpha=0.4)
-    axes.legend(loc='upper center', bbox_to_anchor=(0.5, -0.1), ncols=2)
-    figure.savefig(path, format='png')
-    return path
-
-
-def write_camera_snapshot(path, image: Image) -> Path:
-    """Write an rgb8 sensor_msgs/Image as a PNG and return its path."""
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib import pyplot
-    import numpy
-    if image.encoding != 'rgb8':
-        raise ValueError(f'expected an rgb8 image, got {image.encoding!r}')
-    rows = numpy.frombuffer(bytes(image.data), dtype=numpy.uint8)
-    pixels = rows.reshape(image.height, image.step)[:, :image.width * 3]
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    pyplot.imsave(path, pixels.reshape(image.height, image.width, 3))
-    return path
-
-
-def _ros_double(value: float) -> str:
-    """Format a float so a ROS parameter override parses it as a double."""
-    text = repr(float(value))
-    if '.' not in text and 'e' in text:
-        text = text.replace('e', '.0e')
-    return text
-
-
-class Simulator:
-    """The simulator as a child process, its output kept in a temporary file."""
-
-    def __init__(self, command: Sequence[str], env: Optional[dict] = None) -> None:
-        self.command = list(command)
-        self.env = env
-        self.process: Optional[subprocess.Popen] = None
-        self._log = None
-
-    @classmethod
-    def for_real_time_factor(cls, real_time_factor: float, env: dict) -> 'Simulator':
-        """Build the command for ``python -m r2d2_sim`` at the given speed."""
-        return cls([sys.executable, '-m', 'r2d2_sim', '--ros-args',
-                    '-r', f'__node:={SIMULATOR_NODE_NAME}',
-                    '-p', f'world:={DEMO_WORLD}',
-                    '-p', f'real_time_factor:={_ros_double(real_time_factor)}',
-                    '-p', f'camera_rate:={_ros_double(CAMERA_RATE_HZ)}'], env)
-
-    def start(self) -> None:
-        """Start the process; stdout and stderr go to a temporary file."""
-        self._log = tempfile.TemporaryFile()
-        self.process = subprocess.Popen(self.command, env=self.env, stdin=subprocess.DEVNULL,
-                                        stdout=self._log, stderr=subprocess.STDOUT)
-
-    def exited(self) -> bool:
-        """Return True once the process has ended."""
-        return self.process is not None and self.process.poll() is not None
-
-    def log_tail(self, lines: int = LOG_TAIL_LINES) -> List[str]:
-        """Return the last non-empty lines of the process's output."""
-        if self._log is None:
-            return []
-        self._log.flush()
-        self._log.seek(0)
-        text = self._log.read().decode('utf-8', errors='replace')
-        return [line for line in text.splitlines() if line.strip()][-lines:]
-
-    def failure_message(self, what: str) -> str:
-        """Return a readable error: ``what``, the exit status if any, and the output tail."""
-        if self.exited():
-            what += f' (the simulator exited with status {self.process.returncode})'
-        tail = self.log_tail()
-        if tail:
-            what += ':\n' + '\n'.join('  simulator: ' + line for line in tail)
-        return what
-
-    def stop(self, timeout_s: float = STOP_TIMEOUT_S) -> Optional[int]:
-        """SIGINT, wait up to ``timeout_s``, kill as a last resort; return the exit status."""
-        process = self.process
-        if process is None:
-            return None
-        try:
-            if process.poll() is None:
-                process.send_signal(signal.SIGINT)
-                try:
-                    process.wait(timeout=timeout_s)
-                except (subprocess.TimeoutExpired, KeyboardInterrupt):
-                    # Hung, or the user pressed Ctrl-C again: do not wait any longer.
-                    process.kill()
-                    process.wait()
-            return process.returncode
-        finally:
-            if self._log is not None:
-                self._log.close()
-                self._log = None
-
-
 class ManoeuvreDriver(Node):
     """
     Sends the manoeuvre on ``cmd_vel``, timed by the stamps of ``ground_truth``.
 
     Records both trajectories from :meth:`begin` on and prints a progress line
-    every simulated second; ``done`` turns True after the last phase.
+    every simulated second; ``done`` turns True after the last phase. With
+    ``send`` given, commands go to it instead of this node's publisher (the
+    lockstep loop sends them and waits until the simulator has them). A
+    command is sent on change and again every ``resend_period_s`` (the
+    simulator brakes 0.5 s after the last one; inf: on change only).
     """
 
     def __init__(self, phases: Sequence[Phase] = MANOEUVRE, out=sys.stdout,
-                 context=None) -> None:
+                 context=None, send: Optional[Callable[[Twist], None]] = None,
+                 resend_period_s: float = 1.0 / COMMAND_RATE_HZ) -> None:
         super().__init__(NODE_NAME, context=context)
         self.phases = tuple(phases)
         self.total_s = manoeuvre_duration_s(self.phases)
         self._out = out
         self._cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10)
+        self._send_twist = send or self._cmd_pub.publish
+        self._resend_period_s = resend_period_s
         self.create_subscription(Odometry, 'odom', self._on_odom, 10)
         self.create_subscription(Odometry, 'ground_truth', self._on_truth, 10)
         self.create_subscription(Image, 'camera/image_raw', self._on_image, 2)
@@ -289,6 +150,7 @@ class ManoeuvreDriver(Node):
         self.scan_xy: List[Tuple[float, float]] = []
         self.odom: Optional[Pose2D] = None
         self.truth: Optional[Pose2D] = None
+        self.truth_ns = -1
         self.odom_xy: List[Tuple[float, float]] = []
         self.truth_xy: List[Tuple[float, float]] = []
         self.last_truth_wall_s = time.monotonic()
@@ -307,9 +169,15 @@ class ManoeuvreDriver(Node):
         return (self.odom is not None and self.truth is not None
                 and self._cmd_pub.get_subscription_count() > 0)
 
-    def begin(self) -> None:
-        """Start the manoeuvre at the stamp of the next ground_truth message."""
+    def linked(self) -> bool:
+        """Return True once the graph shows the simulator's state publishers and cmd_vel reader."""
+        return (self.count_publishers('ground_truth') > 0 and self.count_publishers('odom') > 0
+                and self._cmd_pub.get_subscription_count() > 0)
+
+    def begin(self, start_s: Optional[float] = None) -> None:
+        """Start the manoeuvre at simulated time ``start_s`` (default: the next ground_truth)."""
         self._recording = True
+        self._start_s = start_s
 
     @property
     def elapsed_s(self) -> float:
@@ -329,7 +197,7 @@ class ManoeuvreDriver(Node):
 
     def _on_odom(self, msg: Odometry) -> None:
         self.odom = pose_from_odometry(msg)
-        if self._start_s is not None and not self.done:
+        if self.truth_xy and not self.done:
             self.odom_xy.append((self.odom.x_m, self.odom.y_m))
 
     def _on_truth(self, msg: Odometry) -> None:
@@ -342,13 +210,16 @@ class ManoeuvreDriver(Node):
             self.time_went_back = (self.truth.stamp_s, truth.stamp_s)
             return
         self.truth = truth
+        self.truth_ns = stamp_ns(msg.header.stamp)
         self.last_truth_wall_s = time.monotonic()
-        if not self._recording or self.done:
-            return
+        if self._recording and not self.done:
+            self._follow_manoeuvre()
+
+    def _follow_manoeuvre(self) -> None:
         if self._start_s is None:
             self._start_s = self.truth.stamp_s
-            if self.odom is not None:
-                self.odom_xy.append((self.odom.x_m, self.odom.y_m))
+        if not self.truth_xy and self.odom is not None:
+            self.odom_xy.append((self.odom.x_m, self.odom.y_m))
         self.truth_xy.append((self.truth.x_m, self.truth.y_m))
         t_s = self.elapsed_s
         self._report(t_s)
@@ -370,12 +241,10 @@ class ManoeuvreDriver(Node):
             self._next_report_s = math.floor(t_s) + 1.0
 
     def _send(self, command: Tuple[float, float], t_s: float) -> None:
-        """Publish on change, and otherwise at COMMAND_RATE_HZ of simulated time."""
-        if command == self._last_command and t_s - self._last_command_s < 1.0 / COMMAND_RATE_HZ:
+        """Send on change, and otherwise every ``resend_period_s`` of simulated time."""
+        if command == self._last_command and t_s - self._last_command_s < self._resend_period_s:
             return
-        msg = Twist()
-        msg.linear.x, msg.angular.z = command
-        self._cmd_pub.publish(msg)
+        self._send_twist(twist_message(*command))
         self._last_command = command
         self._last_command_s = t_s
 
@@ -383,14 +252,42 @@ class ManoeuvreDriver(Node):
         print(line, file=self._out, flush=True)
 
 
-def _domain_id(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'must be an integer, got {text!r}') from None
-    if not 0 <= value <= 232:
-        raise argparse.ArgumentTypeError(f'must be in 0..232, got {text!r}')
-    return value
+class DemoError(RuntimeError):
+    """The demo cannot go on: the message is its one-line reason (with the simulator's tail)."""
+
+
+class OtherSimulatorGuard:
+    """
+    Another simulator on the demo's domain: found in the graph, or by ground_truth going back.
+
+    A /clock publisher that is not ours would take our cmd_vel and interleave
+    its poses with ours. An endpoint can be discovered before its node's name
+    (rmw says _NODE_NAME_UNKNOWN_): it is not counted until named.
+    """
+
+    def __init__(self, driver: ManoeuvreDriver, own_name: str) -> None:
+        self._driver = driver
+        self._own_name = own_name
+        self._next_check_s = 0.0
+        self._seen = False
+
+    def found(self) -> bool:
+        """Return True once another simulator shows (the graph looked at every 0.1 s at most)."""
+        driver = self._driver
+        now = time.monotonic()
+        if not self._seen and now >= self._next_check_s:
+            self._next_check_s = now + OTHER_SIMULATOR_CHECK_S
+            self._seen = any(info.node_name not in (self._own_name, UNKNOWN_NODE_NAME)
+                             for info in driver.get_publishers_info_by_topic('/clock'))
+        return self._seen or driver.time_went_back is not None
+
+    def check(self) -> None:
+        """Raise DemoError naming the other simulator when one shows."""
+        if self.found():
+            went_back = self._driver.time_went_back
+            prefix = '' if went_back is None else (
+                'ground_truth went back in time ({:.3f} s -> {:.3f} s): '.format(*went_back))
+            raise DemoError(prefix + ANOTHER_SIMULATOR)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -403,8 +300,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help='where to write the trajectory plot (default ./demo_output)')
     parser.add_argument('--real-time-factor', type=non_negative_number, default=1.0,
                         metavar='X', help='simulated seconds per wall second; 0 runs as '
-                                          'fast as possible (default 1)')
-    parser.add_argument('--domain-id', type=_domain_id, default=None, metavar='N',
+                                          'fast as possible, in lockstep (default 1)')
+    parser.add_argument('--domain-id', type=domain_id_arg, default=None, metavar='N',
                         help='ROS_DOMAIN_ID for the simulator and the driver '
                              '(default: the environment\'s)')
     return parser
@@ -420,76 +317,143 @@ def _interrupt_on_signals() -> None:
     signal.signal(signal.SIGTERM, signal.default_int_handler)
 
 
-def _another_simulator_message(node: ManoeuvreDriver) -> str:
-    if node.time_went_back is None:
-        return ANOTHER_SIMULATOR
-    return ('ground_truth went back in time ({:.3f} s -> {:.3f} s): '.format(
-        *node.time_went_back) + ANOTHER_SIMULATOR)
+def _start_simulator(real_time_factor: float, domain_id: int):
+    """Start sim_node in the room (paused for lockstep at factor 0); DemoError if it fails."""
+    from r2d2_sim.testing import HarnessError, SimProcess
+    # Lockstep: paused, one ~/step per period of LOCKSTEP_PUBLISH_RATE_HZ, and
+    # commands held until the next (sent on change only, so a few round trips).
+    lockstep = {'start_paused': True, 'publish_rate': LOCKSTEP_PUBLISH_RATE_HZ,
+                'cmd_vel_timeout': 0.0} if real_time_factor == 0.0 else {}
+    try:
+        return SimProcess(node_name=SIMULATOR_NODE_NAME, domain_id=domain_id,
+                          timeout_s=STARTUP_TIMEOUT_S, world=DEMO_WORLD,
+                          real_time_factor=float(real_time_factor),
+                          camera_rate=CAMERA_RATE_HZ, **lockstep)
+    except HarnessError as exc:
+        raise DemoError(str(exc)) from None
 
 
-def _run(node: ManoeuvreDriver, executor, simulator: Simulator, output_dir: Path,
-         stop) -> int:
-    def another_simulator() -> bool:
-        # A /clock publisher found only now (discovery took longer than
-        # OTHER_SIMULATOR_WAIT_S) that is not ours would take our cmd_vel and
-        # interleave its poses with ours. An endpoint can be discovered before
-        # its node's name (rmw says _NODE_NAME_UNKNOWN_): not counted yet.
-        return node.time_went_back is not None or any(
-            info.node_name not in (SIMULATOR_NODE_NAME, UNKNOWN_NODE_NAME)
-            for info in node.get_publishers_info_by_topic('/clock'))
-
-    started = spin_until(
-        executor, node.connected, STARTUP_TIMEOUT_S,
-        abort=lambda: stop.is_set() or simulator.exited() or another_simulator())
+def _spin_or_fail(executor, condition: Callable[[], bool], what: str, simulator, guard,
+                  stop, timeout_s: float) -> None:
+    """Spin until ``condition``; DemoError (another simulator, exit, deadline) otherwise."""
+    done = spin_until(executor, condition, timeout_s,
+                      abort=lambda: stop.is_set() or simulator.process.exited() or guard.found())
     raise_if_stopped(stop)
-    if another_simulator():
-        _error(_another_simulator_message(node))
-        return 1
-    if not started:
-        _error(simulator.failure_message(
-            f'no ground_truth/odom from the simulator, or no cmd_vel subscriber, within '
-            f'{STARTUP_TIMEOUT_S:g} s'))
-        return 1
-    node.begin()
-    started_s = next_check_s = time.monotonic()
-    while not node.done:
-        executor.spin_once(timeout_sec=0.1)
-        raise_if_stopped(stop)
-        if time.monotonic() >= next_check_s:
-            next_check_s = time.monotonic() + OTHER_SIMULATOR_CHECK_S
-            if another_simulator():
-                _error(_another_simulator_message(node))
-                return 1
-        if simulator.exited():
-            _error(simulator.failure_message(
-                f'the simulator stopped at t={node.elapsed_s:.1f} s of the manoeuvre'))
-            return 1
-        if time.monotonic() - node.last_truth_wall_s > STALL_TIMEOUT_S:
-            _error(simulator.failure_message(
+    guard.check()
+    if simulator.process.exited():
+        raise DemoError(simulator.process.failure_message(f'the simulator stopped {what}'))
+    if not done:
+        raise DemoError(simulator.process.failure_message(f'no {what} within {timeout_s:g} s'))
+
+
+def _run_real_time(driver: ManoeuvreDriver, executor, simulator, guard, stop) -> None:
+    """Let the simulator run on its clock; the driver answers each ground_truth."""
+    _spin_or_fail(executor, driver.connected, 'ground_truth/odom or cmd_vel subscriber',
+                  simulator, guard, stop, STARTUP_TIMEOUT_S)
+    driver.begin()
+    while not driver.done:
+        _spin_or_fail(executor, lambda: driver.done or time.monotonic()
+                      - driver.last_truth_wall_s > STALL_TIMEOUT_S,
+                      'ground_truth', simulator, guard, stop, 0.1 + STALL_TIMEOUT_S)
+        if not driver.done:
+            raise DemoError(simulator.process.failure_message(
                 f'no ground_truth for {STALL_TIMEOUT_S:g} s: the simulator seems stuck'))
-            return 1
-    # Done spinning: from here on a signal may interrupt wherever it lands.
-    _interrupt_on_signals()
-    raise_if_stopped(stop)  # one that came before the switch
-    plot = write_trajectory_plot(output_dir.absolute() / PLOT_NAME, node.odom_xy, node.truth_xy,
-                                 node.scan_xy)
-    print(f'simulated {node.elapsed_s:.1f} s in {time.monotonic() - started_s:.1f} s of wall time')
+
+
+def _run_lockstep(driver: ManoeuvreDriver, executor, simulator, guard, stop,
+                  commands: List[Twist]) -> None:
+    """
+    Step the paused simulator one control period at a time; answer each state before the next.
+
+    The manoeuvre is timed from simulated time 0, so every run starts it at
+    the same step. The first states may be published before the simulator
+    has matched the driver's subscription (discovery runs in parallel), and
+    are then never delivered: during the settle phase, when the driver only
+    holds the robot still, a state that does not come is not waited for.
+    """
+    from r2d2_sim.testing import HarnessError
+    settle_ns = round(driver.phases[0].duration_s / 2 * 1e9) if driver.phases else 0
+    _spin_or_fail(executor, driver.linked, 'link between the driver and the simulator',
+                  simulator, guard, stop, STARTUP_TIMEOUT_S)
+    driver.begin(start_s=0.0)
+    while not driver.done:
+        try:
+            wanted = simulator.step()['sim_time_ns']
+        except HarnessError as exc:
+            raise DemoError(simulator.process.failure_message(str(exc))) from None
+        if wanted < settle_ns:
+            spin_until(executor, lambda: driver.truth_ns >= wanted, SETTLE_WAIT_S)
+        else:
+            _spin_or_fail(executor, lambda: driver.truth_ns >= wanted, 'ground_truth',
+                          simulator, guard, stop, STALL_TIMEOUT_S)
+        while commands:  # what the driver said to that state, taken before the next step
+            simulator.send_cmd_vel(twist=commands.pop(0))
+
+
+def _write_pictures(driver: ManoeuvreDriver, output_dir: Path) -> None:
+    plot = write_trajectory_plot(output_dir.absolute() / PLOT_NAME, driver.odom_xy,
+                                 driver.truth_xy, driver.scan_xy)
     print(f'trajectory plot: {plot}', flush=True)
-    if node.image is not None:
-        snapshot = write_camera_snapshot(output_dir.absolute() / SNAPSHOT_NAME, node.image)
+    if driver.image is not None:
+        snapshot = write_camera_snapshot(output_dir.absolute() / SNAPSHOT_NAME, driver.image)
         print(f'head camera snapshot: {snapshot}', flush=True)
     else:
         print('head camera snapshot: none received', flush=True)
-    return 0
+
+
+def _run(options, stop) -> int:
+    """Drive the manoeuvre against a simulator of the demo's own; return the exit status."""
+    lockstep = options.real_time_factor == 0.0
+    commands: List[Twist] = []
+    driver = ManoeuvreDriver(send=commands.append, resend_period_s=math.inf) if lockstep \
+        else ManoeuvreDriver()
+    executor = SingleThreadedExecutor()
+    executor.add_node(driver)
+    simulator = None
+    guard = OtherSimulatorGuard(driver, SIMULATOR_NODE_NAME)
+    try:
+        # Discovery takes 5-200 ms here: look for another simulator before starting
+        # our own (and again while ours runs, for a machine too busy to find it in time).
+        found = spin_until(executor, lambda: driver.count_publishers('/clock') > 0,
+                           OTHER_SIMULATOR_WAIT_S, abort=stop.is_set)
+        raise_if_stopped(stop)
+        if found:
+            raise DemoError(ANOTHER_SIMULATOR)
+        simulator = _start_simulator(options.real_time_factor, options.domain_id)
+        raise_if_stopped(stop)
+        started_s = time.monotonic()
+        if lockstep:
+            _run_lockstep(driver, executor, simulator, guard, stop, commands)
+        else:
+            _run_real_time(driver, executor, simulator, guard, stop)
+        # Done spinning: from here on a signal may interrupt wherever it lands.
+        _interrupt_on_signals()
+        raise_if_stopped(stop)  # one that came before the switch
+        print(f'simulated {driver.elapsed_s:.1f} s in {time.monotonic() - started_s:.1f} s '
+              'of wall time')
+        truth = driver.truth
+        print(f'final ground truth: x={truth.x_m!r} y={truth.y_m!r} yaw={truth.yaw_rad!r}')
+        _write_pictures(driver, options.output_dir)
+        return 0
+    except DemoError as exc:
+        _error(str(exc))
+        return 1
+    finally:
+        executor.shutdown()
+        driver.destroy_node()
+        if simulator is not None:
+            # A second Ctrl-C (or SIGTERM) while the simulator stops cuts the wait short.
+            _interrupt_on_signals()
+            simulator.stop(STOP_TIMEOUT_S)
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:
     """Run the demo; return 0 on success, 1 if the simulator fails, 130 on Ctrl-C."""
     argv = list(sys.argv if args is None else args)
     options = build_parser().parse_args(non_ros_args(argv, 'demo'))
-    output_dir = Path(options.output_dir)
+    options.output_dir = Path(options.output_dir)
     try:
-        output_dir.mkdir(parents=True, exist_ok=True)
+        options.output_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         _error(f'cannot create the output directory: {exc}')
         return 1
@@ -497,6 +461,11 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     if options.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(options.domain_id)
+    try:
+        options.domain_id = int(os.environ.get('ROS_DOMAIN_ID', '').strip() or 0)
+    except ValueError:
+        _error(f'ROS_DOMAIN_ID must be an integer, got {os.environ["ROS_DOMAIN_ID"]!r}')
+        return 2
     # SIGINT and SIGTERM only set this event from here on; the loops check it.
     stop = stop_on_signals()
     try:
@@ -504,36 +473,13 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
         _error(f'cannot initialise ROS: {exc}')
         return 2
-    simulator = Simulator.for_real_time_factor(options.real_time_factor, ros_child_env())
-    node = None
     try:
-        node = ManoeuvreDriver()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        # Another simulator on this domain would interleave its poses with ours.
-        # Discovery takes 5-200 ms here: look for one before starting our own
-        # (and again while ours runs, for a machine too busy to discover it in time).
-        other_simulator = spin_until(
-            executor, lambda: node.count_publishers('/clock') > 0, OTHER_SIMULATOR_WAIT_S,
-            abort=stop.is_set)
-        raise_if_stopped(stop)
-        if other_simulator:
-            _error(ANOTHER_SIMULATOR)
-            return 1
-        simulator.start()
-        return _run(node, executor, simulator, output_dir, stop)
+        return _run(options, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         print('demo: interrupted, stopping the simulator', file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:
-        try:
-            if node is not None:
-                node.destroy_node()
-            rclpy.try_shutdown()
-        finally:
-            # A second Ctrl-C (or SIGTERM) while the simulator stops cuts the wait short.
-            _interrupt_on_signals()
-            simulator.stop()
+        rclpy.try_shutdown()
 
 
 if __name__ == '__main__':

@@ -21,16 +21,15 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from r2d2_sim.cli import finite_number, non_negative_number, non_ros_args, positive_number
+from r2d2_sim.cli import (
+    EXIT_INTERRUPTED, finite_number, non_negative_number, non_ros_args, positive_number)
+from r2d2_sim.client import spin_until
 from r2d2_sim.sim_node import raise_if_stopped, stop_on_signals
-from r2d2_sim.testing import spin_until
 
 NODE_NAME = 'drive'
 # Wall-clock seconds to wait for the simulator's cmd_vel subscription (and, with
 # use_sim_time, for its first /clock message).
 DISCOVERY_TIMEOUT_S = 5.0
-# Exit status after Ctrl-C, as a shell reports a process ended by SIGINT.
-EXIT_INTERRUPTED = 130
 # Wall-clock seconds the final zero Twist gets to reach subscribers before exit.
 STOP_LINGER_S = 0.25
 
@@ -136,10 +135,10 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
         return 2
     node = None
+    executor = SingleThreadedExecutor()
     try:
         node = DriveCommand(options.linear, options.angular, options.duration,
                             options.rate, options.topic)
-        executor = SingleThreadedExecutor()
         executor.add_node(node)
         if not node.wait_for_subscriber(executor, DISCOVERY_TIMEOUT_S, stop.is_set):
             raise_if_stopped(stop)
@@ -162,6 +161,10 @@ def main(args: Optional[Sequence[str]] = None) -> int:
             node.stop()
         return EXIT_INTERRUPTED
     finally:
+        # Shut the executor down before the context: left to the garbage
+        # collector at exit, its __del__ met a destroyed guard condition and
+        # printed "Exception ignored in Executor.__del__" now and then.
+        executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
