@@ -7,7 +7,7 @@ intrinsics a ROS CameraInfo publishes, so the image and its CameraInfo agree.
 
 import math
 
-from conftest import make_sim, RATE_HZ, wait_for
+from helpers import make_sim, RATE_HZ, wait_for
 import numpy
 import pybullet
 import pytest
@@ -115,7 +115,7 @@ def _image_array(msg_or_bytes, width, height):
 def test_images_and_camera_info_at_camera_rate(ros):
     """10 Hz for 1 simulated second: 10 rgb8 images stamped 0.1 s apart, matching info."""
     sim = make_sim(ros, camera_rate=10.0, camera_width=160, camera_height=120, camera_fov=50.0)
-    node = ros.node('camera_probe')
+    node = ros.create_node('camera_probe', use_sim_time=False)
     images, infos = [], []
     node.create_subscription(Image, 'camera/image_raw', images.append, 20)
     node.create_subscription(CameraInfo, 'camera/camera_info', infos.append, 20)

@@ -3,7 +3,7 @@
 import signal
 import sys
 
-from conftest import (
+from helpers import (
     drive_forward_until, next_domain_id, RemoteProbe, start_sim_process, stop_process)
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry

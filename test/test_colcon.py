@@ -11,7 +11,7 @@ import shutil
 import subprocess
 import sys
 
-from conftest import next_domain_id, REPO, ros_env, stop_process
+from helpers import next_domain_id, REPO, ros_env, stop_process
 import pytest
 
 RESOLVE_AND_RUN = '''

@@ -6,7 +6,7 @@ import math
 import threading
 import time
 
-from conftest import latest_truth, make_sim, Probe, wait_for
+from helpers import latest_truth, make_sim, Probe, wait_for
 from nav_msgs.msg import Odometry
 import pytest
 from rosgraph_msgs.msg import Clock
@@ -226,7 +226,7 @@ def _snapshot(sim):
 
 def test_in_process_runs_are_bit_identical():
     """The same command schedule at the same steps gives identical states, twice."""
-    from conftest import RosHarness
+    from r2d2_sim.testing import RosHarness
     runs = []
     for _ in range(2):
         harness = RosHarness()

@@ -11,14 +11,14 @@ import subprocess
 import sys
 import time
 
-from conftest import (
+from helpers import (
     RemoteProbe, ros_env, simulators_in_domain, start_sim_process, stop_process, wait_for)
 import pytest
 
+from r2d2_sim.client import Pose2D
 from r2d2_sim.demo import (
-    ANOTHER_SIMULATOR, command_at, format_progress, manoeuvre_duration_s, MANOEUVRE, phase_at,
-    Simulator, write_trajectory_plot)
-from r2d2_sim.testing import Pose2D
+    ANOTHER_SIMULATOR, command_at, format_progress, manoeuvre_duration_s, MANOEUVRE, phase_at)
+from r2d2_sim.plots import write_trajectory_plot
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
@@ -97,38 +97,6 @@ def test_trajectory_plot_copes_with_a_missing_trajectory(tmp_path):
     assert path.read_bytes()[:8] == PNG_SIGNATURE
 
 
-def test_simulator_failure_message_names_status_and_output_tail():
-    simulator = Simulator([sys.executable, '-c',
-                           'import sys; print("r2d2_sim: error: bad parameter", file=sys.stderr);'
-                           ' sys.exit(2)'])
-    simulator.start()
-    try:
-        assert wait_for(simulator.exited, 10.0)
-        message = simulator.failure_message('no topics')
-    finally:
-        simulator.stop()
-    assert message.startswith('no topics (the simulator exited with status 2):')
-    assert 'simulator: r2d2_sim: error: bad parameter' in message
-
-
-def test_simulator_stop_kills_a_process_that_ignores_sigint():
-    ready = 'import signal, sys, time; signal.signal(signal.SIGINT, signal.SIG_IGN); '
-    simulator = Simulator([sys.executable, '-c', ready + 'print("ready", flush=True); '
-                           'time.sleep(60)'])
-    simulator.start()
-    try:
-        # Wait until SIGINT is ignored, or stop() would succeed for the wrong reason.
-        assert wait_for(lambda: simulator.log_tail() == ['ready'], 10.0, interval_s=0.05)
-        started = time.monotonic()
-        status = simulator.stop(timeout_s=0.5)
-        assert status == -signal.SIGKILL
-        assert time.monotonic() - started < 5.0
-    finally:
-        if simulator.process.poll() is None:
-            simulator.process.kill()
-            simulator.process.wait()
-
-
 # --------------------------------------------------------------------------- demo, end to end
 
 
@@ -182,6 +150,26 @@ def test_demo_turns_then_drives_and_writes_a_plot(tmp_path, domain_id):
     _assert_camera_picture(snapshot)
     assert simulators_in_domain(domain_id) == [], 'the demo left its simulator running'
     print(f'demo at real_time_factor 0 took {wall_s:.1f} s of wall time')
+
+
+def test_demo_in_lockstep_repeats_bit_for_bit_on_a_busy_machine(tmp_path, domain_id):
+    """At factor 0 the demo steps the simulator in lockstep: the same final pose, every bit."""
+    hog = subprocess.Popen([sys.executable, '-c', 'while True: pass'])  # one busy core
+    try:
+        finals = []
+        for run in range(2):
+            result = subprocess.run(demo_command(tmp_path / str(run), domain_id, 0),
+                                    env=ros_env(domain_id), cwd=REPO_ROOT, capture_output=True,
+                                    text=True, timeout=120)
+            assert result.returncode == 0, result.stdout + result.stderr
+            finals += [line for line in result.stdout.splitlines()
+                       if line.startswith('final ground truth: ')]
+    finally:
+        hog.kill()
+        hog.wait()
+    assert len(finals) == 2 and finals[0] == finals[1], finals
+    yaw_deg = math.degrees(float(finals[0].rsplit('yaw=', 1)[1]))
+    assert 85.0 < yaw_deg < 100.0, finals[0]
 
 
 def _odometry_at(stamp_s, x_m=0.0):
@@ -356,7 +344,7 @@ def ros_probe(domain_id):
 def test_drive_moves_the_simulated_robot_forward(simulator_process, ros_probe, domain_id):
     from nav_msgs.msg import Odometry
 
-    from r2d2_sim.testing import pose_from_odometry, spin_until
+    from r2d2_sim.client import pose_from_odometry, spin_until
 
     node, executor = ros_probe
     poses = []
@@ -385,7 +373,7 @@ def test_drive_stops_the_robot_when_interrupted(ros_probe, domain_id, sig):
     """Ctrl-C or SIGTERM mid-command: one zero Twist goes out, exit 130, no traceback."""
     from geometry_msgs.msg import Twist
 
-    from r2d2_sim.testing import spin_until
+    from r2d2_sim.client import spin_until
 
     node, executor = ros_probe
     received = []
@@ -419,7 +407,7 @@ def test_camera_snapshot_writer_round_trips(tmp_path):
     """An rgb8 Image with a padded row stride becomes a PNG of the right size and colours."""
     from matplotlib import pyplot
     from sensor_msgs.msg import Image
-    from r2d2_sim.demo import write_camera_snapshot
+    from r2d2_sim.plots import write_camera_snapshot
     image = Image(height=2, width=3, encoding='rgb8', step=11)
     image.data = bytes([255, 0, 0] * 3 + [0, 0]) + bytes([0, 0, 255] * 3 + [0, 0])
     path = write_camera_snapshot(tmp_path / 'snap.png', image)
@@ -432,7 +420,7 @@ def test_camera_snapshot_writer_round_trips(tmp_path):
 def test_scan_points_are_placed_in_the_world_from_the_pose():
     """A robot at (1, 2) facing +y sees a return 1 m ahead at (1, 3); infinities are skipped."""
     from sensor_msgs.msg import LaserScan
-    from r2d2_sim.demo import scan_points_xy
+    from r2d2_sim.plots import scan_points_xy
     scan = LaserScan(angle_min=-math.pi / 2, angle_increment=math.pi / 2,
                      ranges=[2.0, 1.0, math.inf, -math.inf])
     points = scan_points_xy(scan, Pose2D(0.0, 1.0, 2.0, math.pi / 2))

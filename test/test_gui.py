@@ -11,7 +11,7 @@ import shutil
 import subprocess
 import sys
 
-from conftest import next_domain_id, ros_env, wait_for
+from helpers import next_domain_id, ros_env, wait_for
 import pytest
 
 GUI_SCRIPT = r'''

@@ -19,7 +19,7 @@ import subprocess
 import sys
 import textwrap
 
-from conftest import next_domain_id, REPO, RemoteProbe, stop_process
+from helpers import next_domain_id, REPO, RemoteProbe, stop_process
 import pytest
 from sensor_msgs.msg import JointState
 

@@ -9,7 +9,7 @@ time; an executor thread delivers messages between the two nodes.
 import json
 import math
 
-from conftest import latest_truth, make_sim, Probe, RATE_HZ, wait_for
+from helpers import latest_truth, make_sim, Probe, RATE_HZ, wait_for
 from geometry_msgs.msg import Twist
 import pytest
 from std_srvs.srv import Trigger
@@ -220,11 +220,12 @@ def test_two_named_simulators_share_one_process(ros):
     Their relative topics are apart; /clock is absolute and /tf shared, which
     is what a remap of /clock and frame_prefix are for (README, Robustness).
     """
-    sims = {ns: ros.add(SimNode(f'sim_{ns}', namespace=f'/{ns}', context=ros.context))
+    sims = {ns: ros.add_node(SimNode(f'sim_{ns}', namespace=f'/{ns}', context=ros.context),
+                             use_sim_time=False)
             for ns in ('a', 'b')}
     assert sims['a'].get_fully_qualified_name() == '/a/sim_a'
     assert sims['b'].get_fully_qualified_name() == '/b/sim_b'
-    node = ros.node('two_sims_probe')
+    node = ros.create_node('two_sims_probe', use_sim_time=False)
     pub = node.create_publisher(Twist, '/a/cmd_vel', 10)
     received = sims['a'].commands_received
     command = Twist()

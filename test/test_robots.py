@@ -10,7 +10,7 @@ import json
 import math
 import os
 
-from conftest import (
+from helpers import (
     drive_forward_until, latest_truth, make_sim, next_domain_id, Probe, RemoteProbe, REPO,
     start_sim_process, stop_process)
 import pybullet_data

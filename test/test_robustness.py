@@ -8,7 +8,7 @@ writes to the process's stderr).
 
 import math
 
-from conftest import latest_truth, make_sim, Probe, RATE_HZ, wait_for
+from helpers import latest_truth, make_sim, Probe, RATE_HZ, wait_for
 from geometry_msgs.msg import TwistStamped
 import pytest
 import rclpy

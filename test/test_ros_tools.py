@@ -9,7 +9,7 @@ y = +-2.5 m; 0.4 m boxes centred at (1, 1.2), (-1.5, -1) and (0, -1.5)).
 import math
 import sys
 
-from conftest import make_sim, wait_for
+from helpers import make_sim, wait_for
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy
@@ -32,7 +32,7 @@ class Listener:
     """A probe node recording topics by name."""
 
     def __init__(self, ros, topics):
-        self.node = ros.node('listener')
+        self.node = ros.create_node('listener', use_sim_time=False)
         self.messages = {}
         for topic, (msg_type, qos) in topics.items():
             self.messages[topic] = []
@@ -331,7 +331,7 @@ def _stamped(sim, linear, stamp_ns_):
 def test_twist_stamped_drives_zero_stamp_is_now_and_stale_is_refused(ros, capfd):
     """enable_stamped_cmd_vel: fresh and zero stamps drive; older than the timeout is refused."""
     sim = make_sim(ros, enable_stamped_cmd_vel=True)
-    node = ros.node('stamped_sender')
+    node = ros.create_node('stamped_sender', use_sim_time=False)
     pub = node.create_publisher(TwistStamped, 'cmd_vel', 10)
     assert wait_for(lambda: pub.get_subscription_count() > 0)
     sim.advance(480)  # t = 2 s

@@ -17,7 +17,7 @@ import sys
 import textwrap
 import time
 
-from conftest import REPO
+from helpers import REPO
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest

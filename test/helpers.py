@@ -1,0 +1,154 @@
+"""
+Helpers of this project's own tests, on top of the public testing API.
+
+The harnesses, deadline waits, process helpers and ROS domain leases live in
+:mod:`r2d2_sim.testing` (the user-facing fixtures in :mod:`r2d2_sim.pytest_plugin`);
+what is left here records every message for exact-count checks, or knows this
+repository's layout. Test modules import from here, never from ``conftest``.
+"""
+
+import os
+from pathlib import Path
+import subprocess
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+
+from r2d2_sim import testing
+from r2d2_sim.client import ros_child_env as ros_env, wait_for  # noqa: F401 (for the tests)
+from r2d2_sim.node import SimNode
+from r2d2_sim.testing import (  # noqa: F401 (for the tests)
+    RemoteProbe, sim_node_command, stop_process)
+from r2d2_sim.transforms import quaternion_to_yaw
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+RATE_HZ = 240
+
+# Leases taken by next_domain_id, released by conftest after each test.
+leases = []
+
+
+def next_domain_id() -> int:
+    """Lease a ROS domain id that no other test on this machine uses, until this test ends."""
+    lease = testing.lease_domain()
+    leases.append(lease)
+    return lease.domain_id
+
+
+def start_sim_process(domain_id, *ros_args, command=None):
+    """Start the simulator executable in its own process on ``domain_id``, output piped."""
+    return subprocess.Popen(sim_node_command(ros_args=ros_args, command=command),
+                            env=ros_env(domain_id), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def simulators_in_domain(domain_id):
+    """Return the pids of ``python -m r2d2_sim`` processes running with this ROS_DOMAIN_ID."""
+    pids = []
+    for entry in Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / 'cmdline').read_bytes().split(b'\0')
+            environ = (entry / 'environ').read_bytes().split(b'\0')
+        except OSError:  # gone, or not ours
+            continue
+        if b'r2d2_sim' in cmdline and f'ROS_DOMAIN_ID={domain_id}'.encode() in environ:
+            pids.append(int(entry.name))
+    return pids
+
+
+def drive_forward_until(spin_until, publisher, truth, distance_m, timeout_s, speed_m_s=0.3):
+    """
+    Publish a forward cmd_vel while spinning until ground truth x grows by ``distance_m``.
+
+    ``truth`` is the list a ground_truth subscription appends to; returns
+    ``spin_until``'s verdict (False when the deadline passed first).
+    """
+    x0 = truth[-1].pose.pose.position.x
+    command = Twist()
+    command.linear.x = speed_m_s
+
+    def moved():
+        publisher.publish(command)
+        return truth[-1].pose.pose.position.x - x0 > distance_m
+    return spin_until(moved, timeout_s)
+
+
+class Probe:
+    """A test-side node: publishes cmd_vel, records every message the simulator sends."""
+
+    def __init__(self, ros, sim):
+        from rclpy.qos import DurabilityPolicy, QoSProfile
+        self.sim = sim
+        self.node = ros.create_node('probe', use_sim_time=False)
+        self.messages = {'joint_states': [], 'odom': [], 'ground_truth': [], 'clock': [],
+                         'robot_description': []}
+        node = self.node
+        node.create_subscription(JointState, 'joint_states',
+                                 self.messages['joint_states'].append, 100)
+        node.create_subscription(Odometry, 'odom', self.messages['odom'].append, 100)
+        node.create_subscription(Odometry, 'ground_truth',
+                                 self.messages['ground_truth'].append, 100)
+        node.create_subscription(Clock, '/clock', self.messages['clock'].append, 100)
+        node.create_subscription(
+            String, 'robot_description', self.messages['robot_description'].append,
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.cmd_pub = node.create_publisher(Twist, 'cmd_vel', 10)
+        assert wait_for(lambda: self.cmd_pub.get_subscription_count() > 0), 'no cmd_vel link'
+
+    def send(self, linear=0.0, angular=0.0, **fields):
+        """Publish a Twist and wait until the simulator's callback has seen it."""
+        msg = Twist()
+        msg.linear.x, msg.angular.z = float(linear), float(angular)
+        for name, value in fields.items():
+            part, axis = name.split('_')
+            setattr(getattr(msg, part), axis, value)
+        before = self.sim.commands_received
+        self.cmd_pub.publish(msg)
+        assert wait_for(lambda: self.sim.commands_received > before), 'cmd_vel not received'
+
+    def drive(self, linear, angular, seconds, resend_hz=20):
+        """Command a twist for ``seconds`` of simulated time, re-sent at ``resend_hz``."""
+        chunk = RATE_HZ // resend_hz
+        for _ in range(round(seconds * resend_hz)):
+            self.send(linear, angular)
+            self.sim.advance(chunk)
+
+    def advance_and_collect(self, steps, chunk=8):
+        """Advance in chunks small enough that no published message is dropped."""
+        topics = ('clock', 'joint_states', 'odom', 'ground_truth')
+        for done in range(0, steps, chunk):
+            expected = {t: len(self.messages[t]) + min(chunk, steps - done) for t in topics}
+            self.sim.advance(min(chunk, steps - done))
+            for topic in topics:
+                self.wait_count(topic, expected[topic])
+
+    def wait_count(self, topic, count):
+        """Wait until ``count`` messages of ``topic`` have arrived."""
+        assert wait_for(lambda: len(self.messages[topic]) >= count), \
+            f'{topic}: {len(self.messages[topic])} < {count}'
+
+    def call(self, srv_type, name, request, timeout_s=10.0):
+        """Call a service of the simulator and return the response."""
+        client = self.node.create_client(srv_type, name)
+        assert client.wait_for_service(timeout_sec=timeout_s), f'{name} unavailable'
+        future = client.call_async(request)
+        assert wait_for(future.done, timeout_s), f'{name} did not answer'
+        return future.result()
+
+
+def make_sim(ros, **params):
+    """Build the simulator in the harness's context with parameter overrides."""
+    return ros.add_node(SimNode(context=ros.context,
+                                parameter_overrides=testing.parameter_overrides(params)),
+                        use_sim_time=False)
+
+
+def latest_truth(sim):
+    """Return the simulator's true (x, y, yaw) now."""
+    base = sim.world.base_state()
+    return base.position[0], base.position[1], quaternion_to_yaw(*base.orientation)
