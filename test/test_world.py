@@ -6,6 +6,7 @@ import pybullet
 import pytest
 
 from r2d2_sim.kinematics import quaternion_to_yaw
+from r2d2_sim.body import BodyRemoved
 from r2d2_sim.world import JointRecord, SimWorld, WorldError
 
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
@@ -21,19 +22,20 @@ def world():
 
 def test_joints_are_looked_up_by_name(world):
     """All 15 joints are known by name; unknown names list the known ones."""
-    assert len(world.joints) == 15
-    wheel = world.joint('left_front_wheel_joint')
+    assert len(world.robot.joints) == 15
+    wheel = world.robot.joint('left_front_wheel_joint')
     assert isinstance(wheel, JointRecord)
     assert wheel.type_name == 'revolute' and wheel.movable
-    assert world.joint('base_to_left_leg').type_name == 'fixed'
-    assert world.joint('gripper_extension').type_name == 'prismatic'
+    assert world.robot.joint('base_to_left_leg').type_name == 'fixed'
+    assert world.robot.joint('gripper_extension').type_name == 'prismatic'
     with pytest.raises(WorldError, match='head_swivel'):
-        world.joint('no_such_joint')
+        world.robot.joint('no_such_joint')
 
 
 def test_joint_info_has_17_attributes_per_joint(world):
     """Each joint record carries the 17 getJointInfo attributes plus its link."""
-    info = world.joint_info()
+    from r2d2_sim.joint_info import joint_info
+    info = joint_info(world.robot)
     assert len(info) == 15
     for entry in info:
         assert len([k for k in entry if k not in ('link', 'type_code')]) == 17
@@ -54,7 +56,7 @@ def test_240_steps_are_one_second(world):
 def test_robot_rests_on_its_wheels_level(world):
     """After settling the base is level and about 0.47 m up (wheels on the plane)."""
     world.step(240)
-    base = world.base_state()
+    base = world.robot.base_state()
     roll, pitch, _ = world.client.getEulerFromQuaternion(base.orientation)
     assert abs(roll) < math.radians(1) and abs(pitch) < math.radians(1)
     assert base.position[2] == pytest.approx(0.47, abs=0.01)
@@ -62,11 +64,11 @@ def test_robot_rests_on_its_wheels_level(world):
 
 def test_positive_wheel_velocity_drives_along_plus_x(world):
     """REP-103: all wheels at +5 rad/s move the base forward along +x."""
-    indices = [world.joint(n).index for n in WHEELS]
+    indices = [world.robot.joint(n).index for n in WHEELS]
     world.step(60)
-    world.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+    world.robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
     world.step(480)
-    base = world.base_state()
+    base = world.robot.base_state()
     assert base.position[0] > 0.25
     assert abs(base.position[1]) < 0.05 * base.position[0]
     assert base.linear_velocity[0] == pytest.approx(5.0 * 0.035, rel=0.05)  # body frame
@@ -74,33 +76,33 @@ def test_positive_wheel_velocity_drives_along_plus_x(world):
 
 def test_left_faster_than_right_turns_clockwise(world):
     """Left wheels forward, right wheels backward: yaw decreases (turning right)."""
-    left = [world.joint(n).index for n in WHEELS[:2]]
-    right = [world.joint(n).index for n in WHEELS[2:]]
-    world.set_joint_velocities(left + right, [5.0, 5.0, -5.0, -5.0], [20.0] * 4)
+    left = [world.robot.joint(n).index for n in WHEELS[:2]]
+    right = [world.robot.joint(n).index for n in WHEELS[2:]]
+    world.robot.set_joint_velocities(left + right, [5.0, 5.0, -5.0, -5.0], [20.0] * 4)
     world.step(240)
-    assert quaternion_to_yaw(*world.base_state().orientation) < -0.2
+    assert quaternion_to_yaw(*world.robot.base_state().orientation) < -0.2
 
 
 def test_base_twist_is_in_the_body_frame():
     """Spawned at yaw 90 degrees, driving forward shows as +x body velocity."""
     with SimWorld(initial_pose=(1.0, 2.0, math.pi / 2)) as world:
-        indices = [world.joint(n).index for n in WHEELS]
-        world.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+        indices = [world.robot.joint(n).index for n in WHEELS]
+        world.robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
         world.step(240)
-        base = world.base_state()
+        base = world.robot.base_state()
         assert base.position[1] > 2.1  # world +y
         assert base.linear_velocity[0] > 0.1 and abs(base.linear_velocity[1]) < 0.02
 
 
 def test_reset_restores_spawn_state_and_keeps_time(world):
     """reset() puts the robot back exactly; the step counter keeps counting."""
-    start = world.base_state()
-    indices = [world.joint(n).index for n in WHEELS]
-    world.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+    start = world.robot.base_state()
+    indices = [world.robot.joint(n).index for n in WHEELS]
+    world.robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
     world.step(240)
-    assert world.base_state().position[0] > start.position[0] + 0.1
+    assert world.robot.base_state().position[0] > start.position[0] + 0.1
     world.reset()
-    assert world.base_state() == start
+    assert world.robot.base_state() == start
     assert world.step_count == 240
 
 
@@ -108,12 +110,12 @@ def test_two_worlds_are_independent():
     """Each world has its own client: stepping one leaves the other untouched."""
     with SimWorld() as a, SimWorld() as b:
         assert a.client._client != b.client._client
-        indices = [a.joint(n).index for n in WHEELS]
-        a.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+        indices = [a.robot.joint(n).index for n in WHEELS]
+        a.robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
         a.step(240)
         b.step(240)
-        assert a.base_state().position[0] > 0.1
-        assert abs(b.base_state().position[0]) < 0.01
+        assert a.robot.base_state().position[0] > 0.1
+        assert abs(b.robot.base_state().position[0]) < 0.01
 
 
 def test_close_disconnects(world):
@@ -126,9 +128,9 @@ def test_close_disconnects(world):
 
 def test_sanity_check_detects_non_finite_and_far_states(world):
     """state_problem names the problem when the base is flung away."""
-    assert world.state_problem() is None
+    assert world.robot.state_problem() is None
     world.client.resetBasePositionAndOrientation(world.robot_id, (1e5, 0, 0), (0, 0, 0, 1))
-    assert 'left the world' in world.state_problem()
+    assert 'left the world' in world.robot.state_problem()
 
 
 def test_missing_urdf_is_a_world_error():
@@ -147,6 +149,56 @@ def test_malformed_urdf_is_a_world_error(tmp_path):
 
 def test_wheel_radius_from_collision_shape(world):
     """The wheel radius is read from the wheel's cylinder: 0.035 m."""
-    assert world.wheel_radius_m(world.joint('left_front_wheel_joint').index) == \
-        pytest.approx(0.035)
+    from r2d2_sim.drive_train import _wheel_radius_m
+    wheel = world.robot.joint('left_front_wheel_joint').index
+    assert _wheel_radius_m(world.robot, wheel) == pytest.approx(0.035)
     assert pybullet.GEOM_CYLINDER != pybullet.GEOM_MESH
+
+
+def test_bodies_come_and_go_and_reset_each_on_its_own(world):
+    """A removed body's id goes to the next one loaded; our Body objects never mix them up."""
+    robot_start = world.robot.world_state()
+    cube = world.load('cube_small.urdf', (1.0, 0.0, 0.5))
+    old_id = cube.id
+    world.remove(cube)
+    with pytest.raises(BodyRemoved):
+        cube.world_state()
+    sphere = world.load('sphere_small.urdf', (0.0, 1.0, 0.5))
+    assert sphere.id == old_id and sphere.name not in (cube.name, world.robot.name)
+    world.step(120)  # the sphere falls; restoreState would now refuse the changed world
+    world.robot.set_base_state(position=(0.5, 0.5, 0.8))
+    world.reset()
+    assert world.robot.world_state() == robot_start
+    assert sphere.world_state().position == pytest.approx((0.0, 1.0, 0.5))
+    assert sorted(world.bodies) == sorted(['ground_plane', world.robot.name, sphere.name])
+
+
+def test_names_are_unique_with_a_suffix(world):
+    """Loading the same URDF twice gives cube, then cube_1."""
+    first = world.load('cube_small.urdf', (1.0, 0.0, 0.5))
+    second = world.load('cube_small.urdf', (2.0, 0.0, 0.5))
+    assert second.name == first.name + '_1'
+    with pytest.raises(WorldError, match='already in the world'):
+        world.load('cube_small.urdf', name=first.name)
+
+
+def test_world_state_round_trips_through_set_world_state(world):
+    """Place the body frame (not the centre of mass) with a world twist; read the same back."""
+    pose = ((0.3, -0.2, 0.9), (0.0, 0.0, math.sin(0.4), math.cos(0.4)))
+    world.robot.set_world_state(*pose, (0.2, 0.1, 0.0), (0.0, 0.0, 0.5))
+    state = world.robot.world_state()
+    # PyBullet keeps poses in single precision: 1e-7 relative.
+    assert state.position == pytest.approx(pose[0], abs=1e-6)
+    assert state.orientation == pytest.approx(pose[1], abs=1e-6)
+    assert state.linear_velocity == pytest.approx((0.2, 0.1, 0.0), abs=1e-6)
+    assert state.angular_velocity == pytest.approx((0.0, 0.0, 0.5), abs=1e-6)
+
+
+def test_gui_without_a_display_is_one_line_not_the_end_of_the_process(monkeypatch):
+    """Without a display the GUI connect would exit the interpreter: the world refuses first."""
+    from r2d2_sim.world import display_problem
+    monkeypatch.delenv('DISPLAY', raising=False)
+    with pytest.raises(WorldError, match='DISPLAY is not set'):
+        SimWorld(gui=True)
+    assert 'none answers' in display_problem({'DISPLAY': ':987'})
+    assert 'is not one' in display_problem({'DISPLAY': 'nonsense'})
