@@ -32,6 +32,10 @@ class CommandVerdict(NamedTuple):
     clamped: bool = False               # scaled down to the speed limits
 
 
+# The verdict on any command for a robot that has no wheels to drive.
+NO_WHEELS = CommandVerdict(None, 'no wheels')
+
+
 def timeout_steps(timeout_s: float, physics_rate_hz: float) -> int:
     """Return the whole physics steps of a command timeout; 0 (none) for 0 or beyond any run."""
     steps = timeout_s * physics_rate_hz

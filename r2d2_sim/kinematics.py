@@ -39,6 +39,7 @@ __all__ = [
     'wheel_velocities_to_twist',
     'yaw_to_quaternion',
     'quaternion_to_yaw',
+    'OdometryState',
     'DiffDriveOdometry',
 ]
 
@@ -225,6 +226,16 @@ def wheel_velocities_to_twist(geometry: DiffDriveGeometry, left_rad_s: float,
     return Twist2D(linear_x_m_s, angular_z_rad_s)
 
 
+class OdometryState(NamedTuple):
+    """A snapshot of wheel odometry: the pose in the odom frame and the twist in the body."""
+
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    linear_m_s: float
+    angular_rad_s: float
+
+
 class DiffDriveOdometry:
     """Wheel odometry in the odom frame from wheel encoder angles."""
 
@@ -336,6 +347,11 @@ class DiffDriveOdometry:
     def yaw_rad(self) -> float:
         """Return the heading in the odom frame, radians in (-pi, pi]."""
         return self._yaw_rad
+
+    def state(self) -> OdometryState:
+        """Return the pose and twist now, as a snapshot that later updates leave alone."""
+        return OdometryState(self._x_m, self._y_m, self._yaw_rad, self._linear_m_s,
+                             self._angular_rad_s)
 
     @property
     def linear_m_s(self) -> float:

@@ -333,6 +333,16 @@ class ImuModel:
             raise ValueError('IMU time and velocities must be finite, got '
                              f'{time_s!r}, {tuple(linear_velocity_m_s)!r}, '
                              f'{tuple(angular_velocity_rad_s)!r}')
+        acceleration_m_s2 = self._acceleration(time_s, velocity_m_s)
+        gx, gy, gz = self._gravity
+        angular_rad_s = rotate_inverse(q, angular_world_rad_s)
+        specific_force_m_s2 = rotate_inverse(q, (acceleration_m_s2[0] - gx,
+                                                 acceleration_m_s2[1] - gy,
+                                                 acceleration_m_s2[2] - gz))
+        return self._with_noise(q, angular_rad_s, specific_force_m_s2)
+
+    def _acceleration(self, time_s: float, velocity_m_s: Tuple[float, ...]) -> Tuple[float, ...]:
+        """Difference the velocity with the previous update's (zero for the first)."""
         if self._previous_time_s is None:
             acceleration_m_s2 = (0.0, 0.0, 0.0)
         else:
@@ -344,12 +354,9 @@ class ImuModel:
             acceleration_m_s2 = tuple((v - p) / dt_s for v, p in zip(velocity_m_s, previous))
         self._previous_time_s = time_s
         self._previous_velocity_m_s = velocity_m_s
+        return acceleration_m_s2
 
-        gx, gy, gz = self._gravity
-        angular_rad_s = rotate_inverse(q, angular_world_rad_s)
-        specific_force_m_s2 = rotate_inverse(q, (acceleration_m_s2[0] - gx,
-                                                 acceleration_m_s2[1] - gy,
-                                                 acceleration_m_s2[2] - gz))
+    def _with_noise(self, q, angular_rad_s, specific_force_m_s2) -> ImuReading:
         rng = self._rng
         if self.orientation_std_rad > 0.0:
             error_rad = rng.normal(0.0, self.orientation_std_rad, 3)

@@ -33,22 +33,29 @@ class StepSchedule:
     The physics steps at which an event of ``event_rate_hz`` falls due.
 
     The n-th event is due at the first step at or after n / event_rate_hz of
-    simulated time: every 4 steps for 60 Hz at 240 Hz, every 4 or 5 for 50 Hz.
-    Integer arithmetic only (Fraction costs ~7 us per event on the physics loop).
+    simulated time counted from ``start_step``: every 4 steps for 60 Hz at 240
+    Hz, every 4 or 5 for 50 Hz. Integer arithmetic only (Fraction costs ~7 us
+    per event on the physics loop).
     """
 
-    def __init__(self, physics_rate_hz: float, event_rate_hz: float) -> None:
+    def __init__(self, physics_rate_hz: float, event_rate_hz: float,
+                 start_step: int = 0) -> None:
         event_rate = exact_rate(event_rate_hz)
         if event_rate <= 0:  # includes rates too small for a millionth: 1e-7 Hz rounds to 0
             raise ValueError(f'event rate must be a positive number of Hz, got {event_rate_hz}')
         steps_per_event = exact_rate(physics_rate_hz) / event_rate
         self._num = steps_per_event.numerator
         self._den = steps_per_event.denominator
+        self.restart(start_step)
+
+    def restart(self, start_step: int) -> None:
+        """Count events afresh from ``start_step`` (the first is due one period after it)."""
+        self.start_step = start_step
         self.count = 0
         self.next_step = self._due_step(1)
 
     def _due_step(self, count: int) -> int:
-        return -(-count * self._num // self._den)
+        return self.start_step - (-count * self._num // self._den)
 
     def due(self, step: int) -> bool:
         """Return True (and schedule the next event) if an event is due at ``step``."""

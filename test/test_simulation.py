@@ -1,0 +1,135 @@
+"""
+The simulation core without ROS: what each step measures, when, and how a blow-up is put right.
+
+:meth:`Simulation.step` returns plain data (None when nothing is due), so
+these tests read it directly: no rclpy context, no subscriber.
+"""
+
+import math
+
+import pytest
+
+from r2d2_sim.parameters import parse_config
+from r2d2_sim.simulation import Simulation
+
+QUIET = {'scan_rate': 0.0, 'imu_rate': 0.0, 'camera_rate': 0.0}
+
+
+@pytest.fixture
+def make():
+    """Build simulations from parameter dicts; close them after the test."""
+    made = []
+
+    def build(errors=None, **parameters):
+        error = errors.append if errors is not None else (lambda text: None)
+        simulation = Simulation(parse_config(parameters), error=error)
+        made.append(simulation)
+        return simulation
+    yield build
+    for simulation in made:
+        simulation.close()
+
+
+def test_nothing_is_returned_between_publications(make):
+    """At 60 Hz of 240, three steps give None and the fourth the state at step 4."""
+    simulation = make(publish_rate=60.0, **QUIET)
+    results = [simulation.step() for _ in range(8)]
+    assert [r is None for r in results] == [True, True, True, False] * 2
+    result = results[3]
+    assert (result.step, result.time_ns, result.state_due) == (4, 4 * 10**9 // 240, True)
+    frame = result.measurements[0].frame
+    assert (frame.step, frame.time_ns) == (4, result.time_ns)
+    assert len(frame.joints.positions) == len(simulation.robot.movable)
+
+
+def test_sensors_are_measured_at_their_own_rates(make):
+    """Scan at 10 Hz (every 24 steps), IMU at 100 Hz (2.4 steps), camera at 5 Hz; state never."""
+    simulation = make(publish_rate=1.0, scan_rate=10.0, imu_rate=100.0, camera_rate=5.0,
+                      camera_width=8, camera_height=6)
+    seen = {'scan': [], 'imu': [], 'image': []}
+    for _ in range(48):
+        result = simulation.step()
+        if result is None:
+            continue
+        assert not result.state_due
+        measurement = result.measurements[0]
+        assert measurement.frame is None and measurement.time_ns == result.time_ns
+        for name in seen:
+            if getattr(measurement, name) is not None:
+                seen[name].append(result.step)
+    assert seen['scan'] == [24, 48]
+    assert seen['imu'] == [math.ceil(n * 2.4) for n in range(1, 21)]
+    assert seen['image'] == [48]
+    scan = simulation.step() or None  # step 49: nothing due
+    assert scan is None
+
+
+def test_readings_are_plain_data(make):
+    """A scan is an array of REP-117 ranges, an image rgb bytes, an IMU reading a tuple."""
+    simulation = make(scan_rate=240.0, imu_rate=240.0, camera_rate=240.0, camera_width=8,
+                      camera_height=6, camera_depth=True)
+    measurement = simulation.step().measurements[0]
+    assert measurement.scan.dtype.name == 'float32' and len(measurement.scan) == 360
+    assert len(measurement.image.rgb) == 8 * 6 * 3 and measurement.image.depth.shape == (6, 8)
+    assert measurement.imu.linear_acceleration_m_s2[2] == pytest.approx(9.8, abs=0.5)
+
+
+def test_a_kept_frame_does_not_change_afterwards(make):
+    """Frame.odometry is a snapshot, not the live odometry object."""
+    simulation = make(cmd_vel_timeout=0.0, **QUIET)
+    simulation.robot.command(0.5, 0.0)
+    first = simulation.step().measurements[0].frame
+    kept = first.odometry
+    for _ in range(120):
+        last = simulation.step().measurements[0].frame
+    assert first.odometry == kept
+    assert last.odometry.x_m > kept.x_m + 0.01
+
+
+def test_a_blow_up_between_publications_resets_the_robot_and_says_why(make):
+    """Caught by the every-step check; the next state published is the reset robot."""
+    errors = []
+    simulation = make(errors, publish_rate=10.0, **QUIET)
+    simulation.robot.command(0.3, 0.0)
+    for _ in range(12):
+        simulation.step()
+    simulation.robot.body.set_base_state(linear_velocity=(math.nan, 0.0, 0.0))
+    assert simulation.step() is None  # step 13: no publication, the check still ran
+    assert simulation.blow_ups == 1
+    assert len(errors) == 1 and 'is not finite' in errors[0]
+    assert 'resetting the robot' in errors[0]
+    for _ in range(11):
+        result = simulation.step()
+    frame = result.measurements[0].frame
+    assert all(map(math.isfinite, frame.base.linear_velocity))
+    assert frame.base.position[0] == pytest.approx(0.0, abs=1e-3)  # back at the start
+    assert simulation.robot.controller.target == (0.0, 0.0)        # command dropped
+
+
+def test_a_blown_up_robot_is_reset_alone(make):
+    """A cube the robot pushed keeps its place when the robot is put back."""
+    simulation = make(extra_models=['cube_small.urdf 0.3 0 0.025'], **QUIET)
+    cube = simulation.world.extras[0]
+    cube.set_base_state(position=(0.3, 0.5, 0.025))
+    simulation.robot.body.set_base_state(position=(1e5, 0.0, 0.5))
+    simulation.step()
+    assert simulation.blow_ups == 1
+    assert cube.world_state().position[1] == pytest.approx(0.5, abs=1e-3)
+    assert simulation.robot.body.world_state().position[0] == pytest.approx(0.0, abs=1e-3)
+
+
+def test_reset_puts_every_body_back_and_keeps_time(make):
+    """Simulation.reset: robot and extra bodies where they started; the clock goes on."""
+    simulation = make(extra_models=['cube_small.urdf 0.8 0 0.025'], cmd_vel_timeout=0.0,
+                      **QUIET)
+    start = simulation.robot.body.world_state()
+    simulation.robot.command(0.5, 0.0)
+    for _ in range(240):
+        simulation.step()
+    simulation.world.extras[0].set_base_state(position=(3.0, 3.0, 0.025))
+    simulation.reset()
+    assert simulation.robot.body.world_state() == start
+    assert simulation.world.extras[0].world_state().position == pytest.approx((0.8, 0, 0.025))
+    assert simulation.step_count == 240
+    frame = simulation.step().measurements[0].frame
+    assert frame.odometry.x_m == pytest.approx(0.0, abs=1e-3)
