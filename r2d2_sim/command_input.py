@@ -1,7 +1,7 @@
 """
-``cmd_vel`` into the simulation, and what the node says about the commands it gets.
+``cmd_vel`` into a robot, and what the node says about the commands it gets.
 
-:class:`CmdVelInput` is the node's one subscription: ``Twist``, or
+:class:`CmdVelInput` is a robot's one subscription: ``Twist``, or
 ``TwistStamped`` with ``enable_stamped_cmd_vel`` (a zero stamp means now, a
 stale one is refused). Each command goes to the drive controller, whose
 verdict (refused, clamped, axes a differential drive cannot follow) becomes a
@@ -15,6 +15,9 @@ from typing import Callable, Dict, Tuple
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.clock import Clock as RclpyClock, ClockType
 
+from r2d2_sim.drive_controller import NO_WHEELS
+from r2d2_sim.timing import ns_of
+
 # Warnings about rejected commands repeat at most this often per kind of problem.
 WARNING_PERIOD_S = 5.0
 # How often (wall-clock seconds) to look for cmd_vel publishers of a wrong type.
@@ -24,16 +27,17 @@ CMD_VEL_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 
 
 class ThrottledLog:
-    """Logs each kind of message at most once per ``WARNING_PERIOD_S``, counting the rest."""
+    """Logs each kind of message at most once per ``period_s`` (wall clock), counting the rest."""
 
-    def __init__(self) -> None:
+    def __init__(self, period_s: float = WARNING_PERIOD_S) -> None:
+        self.period_s = period_s
         self._last: Dict[str, Tuple[float, int]] = {}  # kind -> (logged at, suppressed)
 
     def __call__(self, kind: str, log: Callable[[str], None], text: str) -> None:
         """Log ``text`` with ``log`` unless a message of this kind went out recently."""
         now = time.monotonic()
         last, suppressed = self._last.get(kind, (None, 0))
-        if last is not None and now - last < WARNING_PERIOD_S:
+        if last is not None and now - last < self.period_s:
             self._last[kind] = (last, suppressed + 1)
             return
         extra = f' ({suppressed} more since the last one)' if suppressed else ''
@@ -43,25 +47,30 @@ class ThrottledLog:
 
 class CmdVelInput:
     """
-    The ``cmd_vel`` subscription of ``node``, feeding ``simulation.command``.
+    The ``cmd_vel`` subscription of ``node``, feeding ``robot.command``.
 
     ``received`` counts the messages taken (refused ones too, so a client can
     confirm its command arrived), ``rejected`` those refused. A message is
-    counted last, once the simulation holds it and its warnings are out: a
-    test that waits for the count and then steps is sure to step with it.
+    counted last, once the robot holds it and its warnings are out: a test
+    that waits for the count and then steps is sure to step with it.
+    ``now_ns`` gives the simulated time, against which a TwistStamped's age
+    is judged; the graph is looked at every ``graph_check_period_s`` of wall time.
     """
 
-    def __init__(self, node, config, simulation, throttled: ThrottledLog) -> None:
+    def __init__(self, node, config, robot, throttled: ThrottledLog,
+                 now_ns: Callable[[], int], *,
+                 graph_check_period_s: float = GRAPH_CHECK_PERIOD_S) -> None:
         self.received = 0
         self.rejected = 0
-        self._node, self._config, self._simulation = node, config, simulation
+        self._node, self._config, self._robot = node, config, robot
+        self._now_ns = now_ns
         self._throttled = throttled
         self._stamped = config.enable_stamped_cmd_vel
         if self._stamped:
             node.create_subscription(TwistStamped, 'cmd_vel', self.on_twist_stamped, 10)
         else:
             node.create_subscription(Twist, 'cmd_vel', self.on_twist, 10)
-        node.create_timer(GRAPH_CHECK_PERIOD_S, self.check_publishers,
+        node.create_timer(graph_check_period_s, self.check_publishers,
                           clock=RclpyClock(clock_type=ClockType.STEADY_TIME))
 
     def _warn(self, kind: str, text: str) -> None:
@@ -69,11 +78,10 @@ class CmdVelInput:
 
     def on_twist_stamped(self, msg: TwistStamped) -> None:
         """Take a stamped command unless its stamp is older than ``cmd_vel_timeout``."""
-        stamp = msg.header.stamp
-        stamp_ns = stamp.sec * 10**9 + stamp.nanosec
+        stamp_ns = ns_of(msg.header.stamp)
         timeout_s = self._config.cmd_vel_timeout_s
         timeout_ns = round(timeout_s * 1e9)
-        now_ns = self._simulation.time_ns
+        now_ns = self._now_ns()
         # A zero stamp means "now" (as Nav2's and teleop's unstamped senders fill it).
         age_ns = now_ns - stamp_ns
         if stamp_ns and timeout_ns and age_ns > timeout_ns:
@@ -94,10 +102,10 @@ class CmdVelInput:
 
     def _take(self, msg: Twist) -> None:
         linear, angular = msg.linear, msg.angular
-        verdict = self._simulation.command(linear.x, angular.z, linear_y=linear.y,
-                                           linear_z=linear.z, angular_x=angular.x,
-                                           angular_y=angular.y)
-        if verdict is None:
+        verdict = self._robot.command(linear.x, angular.z, linear_y=linear.y,
+                                      linear_z=linear.z, angular_x=angular.x,
+                                      angular_y=angular.y)
+        if verdict is NO_WHEELS:
             self._warn('cmd_vel no wheels', 'cmd_vel ignored: the robot has no wheels configured')
             return
         if verdict.problem is not None:

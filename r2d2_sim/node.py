@@ -10,21 +10,21 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 
 import json
 import threading
-from typing import Optional
+from typing import List, Optional
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
-from r2d2_sim.command_input import CmdVelInput, ThrottledLog
+from r2d2_sim.command_input import (
+    CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, WARNING_PERIOD_S)
 from r2d2_sim.errors import SetupError, StartupError
-from r2d2_sim.outputs import (
-    ClockOutput, GroundTruthOutput, HeadCameraOutput, ImuOutput, JointStateOutput,
-    OdometryOutput, ScanOutput, start_tf)
+from r2d2_sim.joint_info import joint_info_json
+from r2d2_sim.outputs import ClockOutput, RobotOutputs
 from r2d2_sim.parameters import SimConfig
 from r2d2_sim.ros_parameters import declare_parameters
-from r2d2_sim.simulation import Simulation
+from r2d2_sim.simulation import Simulation, StepResult
 from r2d2_sim.world import SimWorld
 
 NODE_NAME = 'r2d2_sim'
@@ -41,60 +41,48 @@ class SimNode(Node):
     ``camera/camera_info`` (and ``camera/depth/*``); subscribes ``cmd_vel``;
     serves ``~/get_joint_info``, ``~/get_status``, ``~/pause``, ``~/step`` and ``~/reset``.
     Takes rclpy's Node keywords (``context``, ``namespace``,
-    ``parameter_overrides``...). Raises :class:`StartupError` when its
-    parameters or URDF are unusable.
+    ``parameter_overrides``...), and how often (wall seconds) a kind of
+    warning may repeat (``warning_period_s``) and the graph is checked for
+    ``cmd_vel`` publishers of the wrong type (``graph_check_period_s``).
+    Raises :class:`StartupError` when its parameters or URDF are unusable.
     """
 
-    def __init__(self, node_name: str = NODE_NAME, **node_kwargs) -> None:
+    def __init__(self, node_name: str = NODE_NAME, *,
+                 warning_period_s: float = WARNING_PERIOD_S,
+                 graph_check_period_s: float = GRAPH_CHECK_PERIOD_S, **node_kwargs) -> None:
         super().__init__(node_name, **node_kwargs)
         self._lock = threading.RLock()  # one thread in PyBullet at a time
-        self._throttled = ThrottledLog()
+        self._throttled = ThrottledLog(warning_period_s)
         self.simulation: Optional[Simulation] = None
+        self._clock_output: Optional[ClockOutput] = None
+        self._robot_outputs: List[RobotOutputs] = []
         try:
             self.config: SimConfig = declare_parameters(self)
             self.simulation = Simulation(self.config, warn=self.get_logger().warning,
                                          error=self._log_blow_up)
+            self._clock_output = ClockOutput(self)
+            self._robot_outputs = [RobotOutputs(self, self.config, robot,
+                                                self.simulation.time_ns)
+                                   for robot in self.simulation.robots]
         except SetupError as exc:
-            raise StartupError(str(exc)) from exc
-        try:
-            self._build_outputs()
-        except SetupError as exc:
-            self.simulation.close()
+            if self.simulation is not None:
+                self.simulation.close()
             raise StartupError(str(exc)) from exc
         simulation = self.simulation
         self._paused = self.config.start_paused
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
         self.create_publisher(String, 'robot_description', latched).publish(
-            String(data=simulation.world.robot_description))
-        self.cmd_vel = CmdVelInput(self, self.config, simulation, self._throttled)
+            String(data=simulation.robot.description))
+        self.cmd_vel = CmdVelInput(self, self.config, simulation.robot, self._throttled,
+                                   lambda: self.simulation.time_ns,
+                                   graph_check_period_s=graph_check_period_s)
         self.create_service(Trigger, '~/get_joint_info', self._on_get_joint_info)
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.create_service(Trigger, '~/step', self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/get_status', self._on_get_status)
-        self._publish_frame(simulation.frame())
-
-    def _build_outputs(self) -> None:
-        """Create one output per published thing the configuration asks for."""
-        config, simulation = self.config, self.simulation
-        self._state_outputs = [ClockOutput(self), JointStateOutput(self, simulation.movable),
-                               GroundTruthOutput(self, config)]
-        if simulation.controller is not None:
-            self._state_outputs.append(OdometryOutput(self, config, simulation))
-        self._sensor_outputs = {}
-        if simulation.camera is not None:
-            self._sensor_outputs['camera'] = HeadCameraOutput(self, config, simulation.camera)
-        if simulation.laser is not None:
-            self._sensor_outputs['scan'] = ScanOutput(self, config, simulation.laser)
-        if simulation.imu is not None:
-            self._sensor_outputs['imu'] = ImuOutput(self, config, simulation.imu)
-        if config.publish_tf:
-            tf = start_tf(self, config, simulation)
-            if tf is not None:
-                self._state_outputs.append(tf)
-
-    # -- the simulation, as tests and main() see it -----------------------------
+        self._publish(simulation.read_states())
 
     @property
     def world(self) -> SimWorld:
@@ -124,7 +112,7 @@ class SimNode(Node):
 
     @property
     def blow_ups(self) -> int:
-        """Return how often the physics blew up and the robot was reset."""
+        """Return how often the physics blew up and a robot was reset."""
         return self.simulation.blow_ups
 
     @property
@@ -140,7 +128,7 @@ class SimNode(Node):
     @property
     def has_wheels(self) -> bool:
         """Return True when cmd_vel drives wheels."""
-        return self.simulation.controller is not None
+        return self.simulation.robot.controller is not None
 
     def steps_to_next_publish(self) -> int:
         """Return the number of physics steps until the next state publication."""
@@ -154,13 +142,11 @@ class SimNode(Node):
         test can advance simulated time deterministically between its own spins.
         """
         with self._lock:
-            simulation, sensors = self.simulation, self._sensor_outputs
+            step, publish = self.simulation.step, self._publish
             for _ in range(steps):
-                frame, sensors_due = simulation.step()
-                if frame is not None:
-                    self._publish_frame(frame)
-                for name in sensors_due:
-                    sensors[name].publish(simulation)
+                result = step()
+                if result is not None:
+                    publish(result)
 
     def advance_to_next_publish(self) -> int:
         """Advance one control period: to and including the next publication."""
@@ -184,9 +170,13 @@ class SimNode(Node):
                 self.advance(steps)
             return True
 
-    def _publish_frame(self, frame) -> None:
-        for output in self._state_outputs:
-            output.publish(frame)
+    def _publish(self, result: StepResult) -> None:
+        """Translate one step's measurements into messages: /clock first, then each robot's."""
+        if result.state_due:
+            self._clock_output.publish(result.time_ns)
+        for outputs, measurement in zip(self._robot_outputs, result.measurements):
+            if measurement is not None:
+                outputs.publish(measurement)
 
     def status(self, **facts) -> str:
         """
@@ -203,18 +193,14 @@ class SimNode(Node):
         state.update(facts)
         return json.dumps(state)
 
-    # -- callbacks --------------------------------------------------------------
-
     def _log_blow_up(self, text: str) -> None:
         self._throttled('blow-up', self.get_logger().error, text)
 
     def _on_get_joint_info(self, request, response):
+        robot = self.simulation.robot
         with self._lock:
-            info = self.world.joint_info()
+            response.message = joint_info_json(robot.body, robot.source)
         response.success = True
-        response.message = json.dumps({'robot': self.world.base_link_name,
-                                       'urdf': self.simulation.description_source,
-                                       'joints': info})
         return response
 
     def _on_pause(self, request, response):

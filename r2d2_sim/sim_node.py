@@ -11,7 +11,7 @@ only set an event: the paced loop sees it and exits with status 0.
 import signal
 import sys
 import threading
-from typing import Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 # The executor thread checks for a stop request at least this often (s).
 SPIN_POLL_S = 0.1
@@ -41,13 +41,17 @@ def raise_if_stopped(stop: threading.Event) -> None:
         raise KeyboardInterrupt
 
 
-def run_paced(node, stop: threading.Event) -> None:
+def run_paced(node, stop: threading.Event, pacer=None,
+              advance: Optional[Callable[[Optional[int]], bool]] = None) -> None:
     """
     Step a :class:`~r2d2_sim.node.SimNode` against the wall clock until ``stop`` is set.
 
     Real time (``real_time_factor`` > 0): one physics step per absolute
     deadline, or with a GUI one batch of steps per frame. As fast as
-    possible: whole control periods back to back.
+    possible: whole control periods back to back. ``pacer`` (a
+    :class:`~r2d2_sim.timing.DeadlinePacer`; made from the rate when None)
+    and ``advance`` (default ``node.advance_if_running``) are seams for
+    measuring the loop.
     """
     from r2d2_sim.timing import DeadlinePacer
     config = node.config
@@ -56,9 +60,11 @@ def run_paced(node, stop: threading.Event) -> None:
     # next call wait for that frame (measured under Xvfb: 6 s for 240 paced
     # steps). Stepping in batches, one per GUI frame, keeps real time.
     batch = node.simulation.steps_per_gui_frame if config.gui else 1
-    pacer = DeadlinePacer(batch / rate) if rate > 0.0 else None
+    if pacer is None and rate > 0.0:
+        pacer = DeadlinePacer(batch / rate)
+    advance = advance or node.advance_if_running
     while not stop.is_set():
-        if not node.advance_if_running(None if pacer is None else batch):
+        if not advance(None if pacer is None else batch):
             stop.wait(0.005)
             if pacer is not None:
                 pacer.reanchor()
@@ -78,24 +84,11 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
         stop = stop_on_signals()
     import rclpy  # heavy imports, now covered by the handlers
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
     from r2d2_sim.node import NODE_NAME, SimNode, StartupError
-    from rclpy.utilities import remove_ros_args
     argv = sys.argv if args is None else list(args)
-    try:
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-        # sim_node takes only ROS arguments: '-p x:=1' without --ros-args
-        # would otherwise be ignored and the node run on its defaults.
-        unexpected = remove_ros_args(argv)[1:]
-    except Exception as exc:  # rclpy reports bad --ros-args as assorted errors
-        print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
-        return 2
-    if unexpected:
-        print(f'{NODE_NAME}: error: unexpected arguments {" ".join(unexpected)}: parameters '
-              'and remaps go after --ros-args (sim_node --ros-args -p name:=value)',
-              file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
+    status = _init_ros(argv)
+    if status is not None:
+        return status
     if stop.is_set():  # stopped while rclpy and PyBullet were still loading
         rclpy.try_shutdown()
         return 0
@@ -108,7 +101,7 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
         spinner = threading.Thread(target=_spin, args=(executor, stop), daemon=True)
         spinner.start()
         node.get_logger().info(
-            f'simulating {node.simulation.description_source} at '
+            f'simulating {node.simulation.robot.source} at '
             f'{node.config.physics_rate_hz:g} Hz, real time factor '
             f'{node.config.real_time_factor:g}' + (', paused' if node.paused else ''))
         run_paced(node, stop)
@@ -127,6 +120,29 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def _init_ros(argv: Sequence[str]) -> Optional[int]:
+    """Initialise rclpy without its signal handlers; an exit status (2) on a one-line error."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    from rclpy.utilities import remove_ros_args
+    from r2d2_sim.node import NODE_NAME
+    try:
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+        # sim_node takes only ROS arguments: '-p x:=1' without --ros-args
+        # would otherwise be ignored and the node run on its defaults.
+        unexpected = remove_ros_args(argv)[1:]
+    except Exception as exc:  # rclpy reports bad --ros-args as assorted errors
+        print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+        return 2
+    if unexpected:
+        print(f'{NODE_NAME}: error: unexpected arguments {" ".join(unexpected)}: parameters '
+              'and remaps go after --ros-args (sim_node --ros-args -p name:=value)',
+              file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    return None
 
 
 def _spin(executor, stop: threading.Event) -> None:

@@ -141,14 +141,15 @@ class Probe:
         return future.result()
 
 
-def make_sim(ros, **params):
-    """Build the simulator in the harness's context with parameter overrides."""
+def make_sim(ros, node_kwargs=None, **params):
+    """Build the simulator in the harness's context: parameter overrides, SimNode keywords."""
     return ros.add_node(SimNode(context=ros.context,
-                                parameter_overrides=testing.parameter_overrides(params)),
+                                parameter_overrides=testing.parameter_overrides(params),
+                                **(node_kwargs or {})),
                         use_sim_time=False)
 
 
 def latest_truth(sim):
     """Return the simulator's true (x, y, yaw) now."""
-    base = sim.world.base_state()
+    base = sim.world.robot.base_state()
     return base.position[0], base.position[1], quaternion_to_yaw(*base.orientation)

@@ -4,7 +4,6 @@ from types import SimpleNamespace
 
 from geometry_msgs.msg import Twist, TwistStamped
 
-from r2d2_sim import command_input
 from r2d2_sim.command_input import CmdVelInput, ThrottledLog
 
 
@@ -24,7 +23,7 @@ class FakeNode:
         return SimpleNamespace(warning=self.warnings.append)
 
 
-class RecordingSimulation:
+class RecordingRobot:
     """Answers every command with ``verdict`` and notes what ``received`` read meanwhile."""
 
     time_ns = 10**9
@@ -40,9 +39,10 @@ class RecordingSimulation:
 
 
 def make_input(verdict, stamped=False):
-    node, simulation = FakeNode(), RecordingSimulation(verdict)
+    node, simulation = FakeNode(), RecordingRobot(verdict)
     config = SimpleNamespace(enable_stamped_cmd_vel=stamped, cmd_vel_timeout_s=0.5)
-    simulation.input = CmdVelInput(node, config, simulation, ThrottledLog())
+    simulation.input = CmdVelInput(node, config, simulation, ThrottledLog(),
+                                   lambda: simulation.time_ns)
     return node, simulation, simulation.input
 
 
@@ -72,12 +72,12 @@ def test_a_stale_stamped_command_is_counted_after_its_warning():
     assert (cmd_vel.received, cmd_vel.rejected) == (1, 1)
 
 
-def test_throttled_log_holds_back_repeats_and_counts_them(monkeypatch):
+def test_throttled_log_holds_back_repeats_and_counts_them():
     lines, throttled = [], ThrottledLog()
     for _ in range(3):
         throttled('a', lines.append, 'first kind')
     throttled('b', lines.append, 'second kind')
     assert lines == ['first kind', 'second kind']
-    monkeypatch.setattr(command_input, 'WARNING_PERIOD_S', 0.0)
+    throttled.period_s = 0.0
     throttled('a', lines.append, 'first kind')
     assert lines[-1] == 'first kind (2 more since the last one)'

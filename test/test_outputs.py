@@ -12,7 +12,6 @@ differ there; test_serialization.py checks the written bytes.)
 
 import math
 import random
-from types import SimpleNamespace
 
 from nav_msgs.msg import Odometry
 import pytest
@@ -20,11 +19,13 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from r2d2_sim.kinematics import yaw_to_quaternion
+from r2d2_sim.bullet_records import BaseState, JointStates
+from r2d2_sim.kinematics import OdometryState
 from r2d2_sim.outputs import ClockOutput, GroundTruthOutput, JointStateOutput, OdometryOutput
 from r2d2_sim.parameters import parse_config
-from r2d2_sim.simulation import Frame, Simulation
-from r2d2_sim.world import BaseState, JointStates
+from r2d2_sim.robot import Frame
+from r2d2_sim.simulation import Simulation
+from r2d2_sim.transforms import yaw_to_quaternion
 
 ROBOTS = {
     'package R2D2': {},
@@ -75,9 +76,9 @@ def random_frame(rng, joints, with_odometry):
         return tuple(value() for _ in range(n))
     odometry = None
     if with_odometry:
-        odometry = SimpleNamespace(x_m=value(), y_m=value(),
-                                   yaw_rad=rng.uniform(-math.pi, math.pi),
-                                   linear_m_s=value(), angular_rad_s=value())
+        odometry = OdometryState(x_m=value(), y_m=value(),
+                                 yaw_rad=rng.uniform(-math.pi, math.pi),
+                                 linear_m_s=value(), angular_rad_s=value())
     # Up to the largest stamp ROS time holds (int32 seconds: 68 years of simulated time).
     step = rng.choice([0, 1, 239, 240, rng.randrange((2**31 - 1) * 240)])
     time_ns = step * 10**9 // 240
@@ -92,21 +93,22 @@ def published(publisher):
 
 def test_state_outputs_publish_exactly_the_typed_messages(simulation):
     """Clock, joint_states, ground_truth and odom: 100 random frames, every field equal."""
-    node, config = RecordingNode(), simulation.config
-    outputs = [ClockOutput(node), JointStateOutput(node, simulation.movable),
-               GroundTruthOutput(node, config)]
-    if simulation.controller is not None:
-        outputs.append(OdometryOutput(node, config, simulation))
+    node, config, robot = RecordingNode(), simulation.config, simulation.robot
+    clock = ClockOutput(node)
+    outputs = [JointStateOutput(node, robot.movable), GroundTruthOutput(node, config)]
+    if robot.controller is not None:
+        outputs.append(OdometryOutput(node, config, robot.footprint_height_m))
     rng = random.Random(7)
-    frames = [random_frame(rng, len(simulation.movable), simulation.controller is not None)
+    frames = [random_frame(rng, len(robot.movable), robot.controller is not None)
               for _ in range(FRAMES)]
     for frame in frames:
+        clock.publish(frame.time_ns)
         for output in outputs:
             output.publish(frame)
     for publisher in node.publishers.values():
         assert len(publisher.published) == FRAMES
         assert all(type(b) is bytes for b in publisher.published)  # the cheap rclpy path
-    names = [j.name for j in simulation.movable]
+    names = [j.name for j in robot.movable]
     for frame, clock, joints, truth in zip(
             frames, published(node.publishers['/clock']),
             published(node.publishers['joint_states']),
@@ -129,7 +131,7 @@ def test_state_outputs_publish_exactly_the_typed_messages(simulation):
         t.linear.x, t.linear.y, t.linear.z = frame.base.linear_velocity
         t.angular.x, t.angular.y, t.angular.z = frame.base.angular_velocity
         assert truth == expected
-    if simulation.controller is None:
+    if robot.controller is None:
         assert 'odom' not in node.publishers
         return
     for frame, odom in zip(frames, published(node.publishers['odom'])):
@@ -143,7 +145,7 @@ def test_state_outputs_publish_exactly_the_typed_messages(simulation):
             expected.twist.covariance[7 * i] = variance
         o = frame.odometry
         p, q = expected.pose.pose.position, expected.pose.pose.orientation
-        p.x, p.y, p.z = o.x_m, o.y_m, simulation.footprint_height_m
+        p.x, p.y, p.z = o.x_m, o.y_m, robot.footprint_height_m
         q.x, q.y, q.z, q.w = yaw_to_quaternion(o.yaw_rad)
         expected.twist.twist.linear.x = o.linear_m_s
         expected.twist.twist.angular.z = o.angular_rad_s
@@ -153,12 +155,12 @@ def test_state_outputs_publish_exactly_the_typed_messages(simulation):
 def test_real_frames_round_trip(simulation):
     """Frames the simulation itself reads (not random ones) come out as they went in."""
     node = RecordingNode()
-    output = JointStateOutput(node, simulation.movable)
+    output = JointStateOutput(node, simulation.robot.movable)
     truth = GroundTruthOutput(node, simulation.config)
     for _ in range(5):
         for _ in range(24):
             simulation.step()
-        frame = simulation.frame()
+        frame = simulation.read_states().measurements[0].frame
         output.publish(frame)
         truth.publish(frame)
         joints = published(node.publishers['joint_states'])[-1]
@@ -169,15 +171,15 @@ def test_real_frames_round_trip(simulation):
 
 def test_tf_output_publishes_exactly_the_typed_transforms():
     """/tf with odometry, ground truth and the package R2D2's links: every transform, stamp."""
-    from r2d2_sim.outputs import link_transforms, TfOutput
+    from r2d2_sim.tf_outputs import link_transforms, TfOutput
     from r2d2_sim.transforms import compose, inverse, split_yaw, Transform
     config = parse_config({'publish_ground_truth_tf': True, 'frame_prefix': 'abc/'})
     simulation = Simulation(config)
-    links = link_transforms(simulation)
+    links = link_transforms(config, simulation.robot)
     node = RecordingNode()
-    output = TfOutput(node, config, simulation, links)
+    output = TfOutput(node, config, simulation.robot, links)
     rng = random.Random(11)
-    frames = [random_frame(rng, len(simulation.movable), True) for _ in range(FRAMES)]
+    frames = [random_frame(rng, len(simulation.robot.movable), True) for _ in range(FRAMES)]
     for frame in frames:
         output.publish(frame)
     published_tf = published(node.publishers['/tf'])
@@ -201,7 +203,7 @@ def test_tf_output_publishes_exactly_the_typed_transforms():
     simulation.close()
 
 
-def test_scan_and_imu_outputs_publish_exactly_what_the_sensors_read(simulation):
+def test_scan_and_imu_outputs_publish_exactly_the_readings_given():
     """Put scan ranges (float32) and IMU fields where the typed messages have them."""
     import numpy
     from r2d2_sim.outputs import ImuOutput, ScanOutput
@@ -211,20 +213,16 @@ def test_scan_and_imu_outputs_publish_exactly_what_the_sensors_read(simulation):
     geometry = ScanGeometry(-2.0, 2.0, 181, 0.1, 9.0)
     scans = [numpy.array([rng.choice([rng.uniform(0.1, 9.0), math.inf, -math.inf])
                           for _ in range(181)], dtype=numpy.float32) for _ in range(20)]
-    laser = SimpleNamespace(geometry=geometry, scan=iter(scans).__next__)
     readings = [ImuReading(tuple(rng.uniform(-1, 1) for _ in range(4)),
                            tuple(rng.uniform(-5, 5) for _ in range(3)),
                            tuple(rng.uniform(-20, 20) for _ in range(3))) for _ in range(20)]
-    imu = SimpleNamespace(model=ImuModel(linear_acceleration_std_m_s2=0.1,
-                                         rng=numpy.random.default_rng(0)),
-                          read=lambda time_s, it=iter(readings): next(it))
+    model = ImuModel(linear_acceleration_std_m_s2=0.1, rng=numpy.random.default_rng(0))
     node = RecordingNode()
-    scan_output, imu_output = ScanOutput(node, config, laser), ImuOutput(node, config, imu)
+    scan_output, imu_output = ScanOutput(node, config, geometry), ImuOutput(node, config, model)
     times = [rng.randrange(10**15) for _ in range(20)]
-    for time_ns in times:
-        clock = SimpleNamespace(time_ns=time_ns)
-        scan_output.publish(clock)
-        imu_output.publish(clock)
+    for time_ns, scan, reading in zip(times, scans, readings):
+        scan_output.publish(time_ns, scan)
+        imu_output.publish(time_ns, reading)
     for time_ns, scan, msg in zip(times, scans, published(node.publishers['scan'])):
         assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == divmod(time_ns, 10**9)
         assert msg.header.frame_id == 'p/base_scan'

@@ -7,6 +7,7 @@ writes to the process's stderr).
 """
 
 import math
+import time
 
 from helpers import latest_truth, make_sim, Probe, RATE_HZ, wait_for
 from geometry_msgs.msg import TwistStamped
@@ -14,7 +15,6 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-import r2d2_sim.command_input as command_input
 from r2d2_sim.kinematics import twist_to_wheel_velocities
 from r2d2_sim.node import StartupError
 
@@ -39,10 +39,10 @@ GARBAGE = _garbage_cases()
 
 def upright_and_grounded(sim, z0):
     """Return why the robot is not standing on the ground near its start height (or None)."""
-    problem = sim.world.state_problem()
+    problem = sim.world.robot.state_problem()
     if problem:
         return problem
-    base = sim.world.base_state()
+    base = sim.world.robot.base_state()
     qx, qy = base.orientation[0], base.orientation[1]
     tilt_cos = 1.0 - 2.0 * (qx * qx + qy * qy)  # body z . world z
     if tilt_cos < math.cos(0.2):
@@ -75,14 +75,14 @@ def log_lines(capfd, fragment):
 @pytest.mark.parametrize('fields', GARBAGE.values(), ids=GARBAGE.keys())
 def test_garbage_command_is_refused_and_the_robot_stays_sane(sim, probe, fields):
     """Refuse NaN or infinity anywhere, keep the last valid command, stay upright and finite."""
-    z0 = sim.world.base_state().position[2]
+    z0 = sim.world.robot.base_state().position[2]
     probe.send(0.3, 0.2)
     sim.advance(24)
-    command = sim.simulation.controller.target
+    command = sim.simulation.robot.controller.target
     probe.send(**fields)
     sim.advance(24)
     assert sim.commands_rejected == 1
-    assert sim.simulation.controller.target == command
+    assert sim.simulation.robot.controller.target == command
     probe.advance_and_collect(RATE_HZ)
     assert upright_and_grounded(sim, z0) is None
     assert all_finite(probe.messages['ground_truth']) and all_finite(probe.messages['odom'])
@@ -91,11 +91,11 @@ def test_garbage_command_is_refused_and_the_robot_stays_sane(sim, probe, fields)
 @pytest.mark.parametrize('sign', [1.0, -1.0])
 def test_1e308_in_all_six_fields_is_clamped_not_refused(sim, probe, sign):
     """The largest doubles drive the wheels at their limit; the robot stays on its wheels."""
-    z0 = sim.world.base_state().position[2]
+    z0 = sim.world.robot.base_state().position[2]
     probe.send(**dict.fromkeys(FIELDS, sign * 1e308))
     sim.advance(1)
     assert sim.commands_rejected == 0
-    controller = sim.simulation.controller
+    controller = sim.simulation.robot.controller
     left, right = twist_to_wheel_velocities(controller.geometry, *controller.target)
     assert max(abs(left), abs(right)) == pytest.approx(
         controller.geometry.max_wheel_velocity_rad_s)
@@ -112,29 +112,35 @@ def test_negative_zero_is_a_plain_stop(sim, probe, capfd):
     probe.send(**dict.fromkeys(FIELDS, -0.0))
     sim.advance(1)
     assert sim.commands_rejected == 0
-    assert sim.simulation.controller.target == (0.0, 0.0)
+    assert sim.simulation.robot.controller.target == (0.0, 0.0)
     sim.advance(RATE_HZ // 2)  # braking from 0.3 m/s at 1 m/s^2 takes 0.3 s
-    assert sim.simulation.controller.wheel_targets == (0.0, 0.0)
+    assert sim.simulation.robot.controller.wheel_targets == (0.0, 0.0)
     assert log_lines(capfd, 'cmd_vel') == []
 
 
-def test_one_throttled_warning_per_kind_of_problem(sim, probe, capfd, monkeypatch):
+def test_one_throttled_warning_per_kind_of_problem(ros, capfd):
     """Twenty messages of each kind give one warning per kind, then a count of the rest."""
+    period_s = 0.5
+    sim = make_sim(ros, node_kwargs={'warning_period_s': period_s})
+    probe = Probe(ros, sim)
     kinds = {
         'rejected cmd_vel with NaN': {'linear_x': NAN},
         'rejected cmd_vel with infinite value': {'angular_z': -INF},
         'exceeds the speed limits': {'linear_x': 1e308},
         'ignored: a differential drive follows': {'linear_y': 0.2},
     }
+    started = time.monotonic()
     for _ in range(20):
         for fields in kinds.values():
             probe.send(**fields)
     assert sim.commands_rejected == 40
+    assert time.monotonic() - started < period_s, 'too slow to see the throttle: rerun'
+
     captured = capfd.readouterr().err
     for fragment in kinds:
         assert captured.count(fragment) == 1, (fragment, captured)
     # Once the throttle period has passed, the next warning counts what it held back.
-    monkeypatch.setattr(command_input, 'WARNING_PERIOD_S', 0.0)
+    time.sleep(period_s)  # the throttle's own period (wall clock), not a message
     probe.send(linear_x=NAN)
     assert len(log_lines(capfd, '(19 more since the last one)')) == 1
 
@@ -159,7 +165,7 @@ def test_blow_up_is_detected_within_one_step_and_the_robot_reset(ros, capfd, pub
     probe.send(0.3)
     sim.advance(RATE_HZ // 2)
     assert latest_truth(sim)[0] > 0.05  # it has driven away from the start
-    sim.world.set_base_state(**state)
+    sim.world.robot.set_base_state(**state)
     if publish_rate != 0.0:
         assert sim.steps_to_next_publish() > 1  # the next step publishes nothing
     sim.advance(1)
@@ -168,7 +174,7 @@ def test_blow_up_is_detected_within_one_step_and_the_robot_reset(ros, capfd, pub
     assert len(errors) == 1 and cause in errors[0] and 'resetting the robot' in errors[0]
     x, y, yaw = latest_truth(sim)
     assert abs(x) < 1e-3 and abs(y) < 1e-3 and abs(yaw) < 1e-3
-    controller = sim.simulation.controller
+    controller = sim.simulation.robot.controller
     assert controller.target == controller.wheel_targets == (0.0, 0.0)  # command dropped
     assert (controller.odometry.x_m, controller.odometry.y_m) == (0.0, 0.0)
     truths = probe.messages['ground_truth']
@@ -188,7 +194,7 @@ def test_blow_up_is_detected_within_one_step_and_the_robot_reset(ros, capfd, pub
 
 def test_non_finite_joint_state_is_a_blow_up(sim, probe, capfd):
     """A NaN wheel angle is caught before it is published, naming the joint."""
-    wheel = sim.world.joint('left_front_wheel_joint').index
+    wheel = sim.world.robot.joint('left_front_wheel_joint').index
     sim.world.client.resetJointState(sim.world.robot_id, wheel, NAN)
     sim.advance(1)
     assert sim.blow_ups == 1
@@ -201,7 +207,7 @@ def test_non_finite_joint_state_is_a_blow_up(sim, probe, capfd):
 def test_repeated_blow_ups_log_one_error_per_period(sim, capfd):
     """A robot that keeps exploding is reset every time, but the log is throttled."""
     for _ in range(5):
-        sim.world.set_base_state(linear_velocity=(NAN, 0.0, 0.0))
+        sim.world.robot.set_base_state(linear_velocity=(NAN, 0.0, 0.0))
         sim.advance(1)
     assert sim.blow_ups == 5
     assert len(log_lines(capfd, 'physics blew up')) == 1
@@ -209,10 +215,10 @@ def test_repeated_blow_ups_log_one_error_per_period(sim, capfd):
 
 # -- a publisher of the wrong type on cmd_vel ---------------------------------
 
-def test_twist_stamped_on_cmd_vel_is_refused_by_ros_and_reported(ros, sim, probe, capfd,
-                                                                 monkeypatch):
+def test_twist_stamped_on_cmd_vel_is_refused_by_ros_and_reported(ros, capfd):
     """A TwistStamped never reaches the node; it says so in a warning and still drives."""
-    monkeypatch.setattr(command_input, 'GRAPH_CHECK_PERIOD_S', 0.1)
+    sim = make_sim(ros, node_kwargs={'graph_check_period_s': 0.1})
+    probe = Probe(ros, sim)
     context = Context()
     rclpy.init(context=context, domain_id=ros.domain_id)
     other = rclpy.create_node('stamped_teleop', context=context)
@@ -260,7 +266,7 @@ def test_a_timeout_of_1e308_seconds_never_brakes(ros):
     probe = Probe(ros, sim)
     probe.send(0.3)
     sim.advance(2 * RATE_HZ)
-    assert sim.simulation.controller.wheel_targets != (0.0, 0.0)
+    assert sim.simulation.robot.controller.wheel_targets != (0.0, 0.0)
 
 
 def test_an_unknown_parameter_is_named_with_a_suggestion(ros, capfd):

@@ -109,7 +109,8 @@ def test_frame_prefix_and_link_transforms(ros):
     listener = Listener(ros, {'/tf': (TFMessage, 100), '/tf_static': (TFMessage, STATIC_QOS),
                               'odom': (Odometry, 10), 'ground_truth': (Odometry, 10),
                               'scan': (LaserScan, 10), 'imu': (Imu, 10)})
-    sim.world.client.resetJointState(sim.world.robot_id, sim.world.joint('head_swivel').index,
+    robot = sim.world.robot
+    sim.world.client.resetJointState(robot.id, robot.joint('head_swivel').index,
                                      0.5)
     sim.advance(1)
     listener.wait('/tf')
@@ -140,7 +141,7 @@ def test_ground_truth_tf_places_odom_so_that_the_chain_is_the_true_pose(ros):
     """Compose world -> odom -> base_footprint into the true planar pose."""
     sim = make_sim(ros, publish_ground_truth_tf=True, cmd_vel_timeout=0.0)
     listener = Listener(ros, {'/tf': (TFMessage, 1000), 'ground_truth': (Odometry, 1000)})
-    sim.simulation.command(0.3, 0.5)
+    sim.simulation.robot.command(0.3, 0.5)
     sim.advance(480)
     now = sim.sim_time_ns
     assert wait_for(lambda: listener.messages['ground_truth'] and listener.messages['/tf']
@@ -170,7 +171,8 @@ def test_without_tf2_msgs_tf_is_off_with_one_warning(ros, monkeypatch, capfd):
     monkeypatch.setitem(sys.modules, 'tf2_msgs.msg', None)  # import raises ImportError
     sim = make_sim(ros)
     sim.advance(24)
-    assert not [o for o in sim._state_outputs if type(o).__name__ == 'TfOutput']
+    assert not [o for outputs in sim._robot_outputs for o in outputs.state
+                if type(o).__name__ == 'TfOutput']
     assert sim.count_publishers('/tf') == 0
     warnings = [line for line in capfd.readouterr().err.splitlines() if 'tf2_msgs' in line]
     assert len(warnings) == 1 and 'build_tf2_msgs' in warnings[0]
@@ -192,7 +194,7 @@ def test_scan_follows_rep_117_against_the_room(ros):
     assert scan.angle_max == pytest.approx(scan.angle_min + 359 * scan.angle_increment)
     assert scan.time_increment == 0.0 and scan.scan_time == pytest.approx(0.1)
     assert len(scan.intensities) == 0
-    x = sim.world.base_state().position[0]
+    x = sim.world.robot.base_state().position[0]
 
     def beam(angle_rad):
         return scan.ranges[round((angle_rad - scan.angle_min) / scan.angle_increment)]
@@ -219,7 +221,7 @@ def test_scan_noise_is_seeded_and_zero_means_exact(ros):
     scans = []
     for seed, noise in ((3, 0.01), (3, 0.01), (4, 0.01), (3, 0.0)):
         sim = make_sim(ros, world=ROOM, scan_noise_std=noise, noise_seed=seed)
-        scans.append(numpy.array(sim.simulation.laser.scan()))
+        scans.append(numpy.array(sim.simulation.robot.laser.scan()))
         sim.destroy_node()
         ros.nodes.remove(sim)
     assert numpy.array_equal(scans[0], scans[1])
@@ -233,9 +235,9 @@ def test_the_scanner_leaves_the_physics_alone(ros):
     poses = []
     for rate in (10.0, 0.0):
         sim = make_sim(ros, scan_rate=rate, cmd_vel_timeout=0.0)
-        sim.simulation.command(0.3, 0.5)
+        sim.simulation.robot.command(0.3, 0.5)
         sim.advance(600)
-        poses.append(sim.world.base_state())
+        poses.append(sim.world.robot.base_state())
     assert poses[0] == poses[1]
 
 
@@ -276,7 +278,7 @@ def test_imu_measures_a_turn_in_its_own_frame_with_noise_covariance(ros):
     """Turning at 0.5 rad/s reads +0.5 on the sensor's z; covariances are std^2."""
     sim = make_sim(ros, cmd_vel_timeout=0.0, imu_angular_velocity_noise_std=0.01)
     listener = Listener(ros, {'imu': (Imu, 1000)})
-    sim.simulation.command(0.0, 0.5)
+    sim.simulation.robot.command(0.0, 0.5)
     sim.advance(480)
     imu = listener.wait('imu')
     assert imu.angular_velocity.z == pytest.approx(0.5, abs=0.08)
@@ -302,8 +304,9 @@ def test_depth_of_a_wall_at_a_known_distance(ros):
     assert (rgb.width, rgb.height) == (64, 48)
     assert depth.header.frame_id == rgb.header.frame_id == info.header.frame_id
     pixels = numpy.frombuffer(bytes(depth.data), dtype='<f4').reshape(48, 64)
-    camera = sim.simulation.camera
-    lens_x = sim.world.link_pose(sim.world.link_index('head'))[0][0] + camera._lens_offset_m
+    camera = sim.simulation.robot.camera
+    robot = sim.world.robot
+    lens_x = robot.link_pose(robot.link_index('head'))[0][0] + camera._lens_offset_m
     assert pixels[24, 32] == pytest.approx(2.0 - lens_x, abs=5e-3)
     # Along the optical axis, not the ray: the whole row across the wall reads the same.
     assert pixels[24, 8] == pytest.approx(pixels[24, 32], abs=5e-3)
@@ -314,7 +317,7 @@ def test_depth_without_anything_in_view_is_plus_inf(ros):
     """Sky (nothing within the far plane) reads +inf, as REP-118 says."""
     sim = make_sim(ros, camera_rate=10.0, camera_depth=True, camera_width=32,
                    camera_height=24, camera_fov=90.0)
-    _, depth = sim.simulation.camera.render(depth=True)
+    _, depth = sim.simulation.robot.camera.render(depth=True)
     assert depth[0, 16] == math.inf  # the top row looks above the horizon
     assert math.isfinite(depth[23, 16])  # the bottom row sees the ground
 
@@ -342,15 +345,14 @@ def test_twist_stamped_drives_zero_stamp_is_now_and_stale_is_refused(ros, capfd)
         assert wait_for(lambda: sim.commands_received > before)
         assert (sim.commands_rejected == rejected) == accepted
     sim.advance(240)
-    assert sim.world.base_state().position[0] > 0.05
+    assert sim.world.robot.base_state().position[0] > 0.05
     stale = [line for line in capfd.readouterr().err.splitlines() if 'rejected cmd_vel' in line]
     assert len(stale) == 1 and 'cmd_vel_timeout' in stale[0]
 
 
-def test_a_twist_publisher_is_named_when_stamped_commands_are_expected(ros, capfd, monkeypatch):
+def test_a_twist_publisher_is_named_when_stamped_commands_are_expected(ros, capfd):
     """The wrong-type warning works the other way round too (a Twist sender, another context)."""
-    monkeypatch.setattr('r2d2_sim.command_input.GRAPH_CHECK_PERIOD_S', 0.05)
-    sim = make_sim(ros, enable_stamped_cmd_vel=True)
+    sim = make_sim(ros, {'graph_check_period_s': 0.05}, enable_stamped_cmd_vel=True)
     context = Context()
     rclpy.init(context=context, domain_id=ros.domain_id)
     other = rclpy.create_node('plain_twist_sender', context=context)

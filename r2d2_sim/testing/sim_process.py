@@ -48,6 +48,8 @@ class SimProcess:
     ``timeout_s`` bounds start-up and every wait (wall clock).
     ``state_subscriptions=False`` leaves out the state subscriptions (a
     benchmark that must not add a subscriber); the state readers then refuse.
+    ``lease=False`` uses ``domain_id`` without leasing it (a program, such as
+    the demo, that runs on the user's own domain beside whatever holds it).
 
     Attributes: ``domain_id``, ``node_path`` (the node's fully qualified name,
     under which its ``~/`` services are), ``process`` (a
@@ -60,7 +62,7 @@ class SimProcess:
                  domain_id: Optional[int] = None, use_env_domain: bool = True,
                  ros_args: Sequence[str] = (), command: Optional[Sequence[str]] = None,
                  timeout_s: float = 30.0, state_subscriptions: bool = True,
-                 **parameters: Any) -> None:
+                 lease: bool = True, **parameters: Any) -> None:
         if domain_id is None and use_env_domain:
             domain_id = env_domain_id()
         self.timeout_s = timeout_s
@@ -76,8 +78,11 @@ class SimProcess:
         self._cmd_vel = None
         self._stamped = False
         self._state_subscriptions = state_subscriptions
-        self.lease = lease_domain(domain_id, timeout_s=max(timeout_s, 60.0))
-        self.domain_id = self.lease.domain_id
+        if lease or domain_id is None:
+            self.lease = lease_domain(domain_id, timeout_s=max(timeout_s, 60.0))
+            self.domain_id = self.lease.domain_id
+        else:
+            self.lease, self.domain_id = None, domain_id
         # The node's name and namespace: ours, overridden by remaps in ros_args.
         given = parse_ros_args(ros_args, node_name)
         node_name = given.node_name or node_name
@@ -309,7 +314,8 @@ class SimProcess:
         finally:
             if self.probe is not None:
                 self.probe.close()
-            self.lease.release()
+            if self.lease is not None:
+                self.lease.release()
         return self.result
 
     def __enter__(self) -> 'SimProcess':
