@@ -1,5 +1,5 @@
 """
-Helpers shared by the benchmarks: processes, CPU and load meters, statistics, JSON, nodes.
+Helpers shared by the benchmarks: CPU and load meters, statistics, JSON, processes, nodes.
 
 Importing this module puts the repository first on ``sys.path`` (so the
 benchmarks measure this checkout's ``r2d2_sim``) and keeps ROS discovery on
@@ -136,29 +136,17 @@ def background_load(seconds=1.0):
 
 # -- processes ---------------------------------------------------------------------
 
-def ros_value(value):
-    """Write a Python value as a ``-p name:=value`` argument reads it."""
-    if isinstance(value, bool):
-        return 'true' if value else 'false'
-    if isinstance(value, float):
-        return repr(value)
-    return str(value)
-
-
 def start_process(args, domain_id, log_path):
-    """Start ``args`` on ``domain_id`` with stdout and stderr going to ``log_path``."""
-    from r2d2_sim.testing import ros_child_env
-    with open(log_path, 'w', encoding='utf-8') as log:
-        return subprocess.Popen(args, env=ros_child_env(domain_id), cwd=REPO,
-                                stdout=log, stderr=subprocess.STDOUT)
+    """Start ``args`` on ``domain_id`` as a ChildProcess, stdout and stderr into ``log_path``."""
+    from r2d2_sim.client import ros_child_env
+    from r2d2_sim.testing import ChildProcess
+    return ChildProcess(args, ros_child_env(domain_id), cwd=REPO, log_path=log_path).start()
 
 
 def start_sim(domain_id, log_path, **params):
     """Start ``python -m r2d2_sim`` with ``params`` as ROS parameters."""
-    args = [sys.executable, '-m', 'r2d2_sim', '--ros-args']
-    for name, value in params.items():
-        args += ['-p', f'{name}:={ros_value(value)}']
-    return start_process(args, domain_id, log_path)
+    from r2d2_sim.testing import sim_node_command
+    return start_process(sim_node_command(params), domain_id, log_path)
 
 
 def start_role(role, domain_id, log_path, *extra):
@@ -168,15 +156,14 @@ def start_role(role, domain_id, log_path, *extra):
 
 
 def stop_process(process, timeout_s=5.0):
-    """SIGINT ``process``, wait for it, kill it as a last resort; return its exit code."""
-    from r2d2_sim.testing import stop_process as stop
-    return stop(process, timeout_s=timeout_s).returncode
+    """SIGINT a ChildProcess, wait for it, kill it as a last resort; return its exit code."""
+    return process.stop(timeout_s=timeout_s).returncode
 
 
 def wait_process(process, timeout_s):
-    """Wait up to ``timeout_s`` for ``process`` to exit by itself; True if it did."""
+    """Wait up to ``timeout_s`` for a ChildProcess to exit by itself; True if it did."""
     try:
-        process.wait(timeout=timeout_s)
+        process.process.wait(timeout=timeout_s)
         return True
     except subprocess.TimeoutExpired:
         return False

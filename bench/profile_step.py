@@ -114,28 +114,34 @@ class Patches:
 
 
 def instrument(node, patches):
-    """Wrap the parts of a step on this node, its simulation, world and controller."""
-    from r2d2_sim import outputs, serialization
+    """Wrap the parts of a step on this node, its simulation, world, robot and controller."""
+    from r2d2_sim import outputs, sensor_mounts, serialization, tf_outputs
     simulation = node.simulation
-    world, controller = simulation.world, simulation.controller
+    world, robot = simulation.world, simulation.robot
+    body, controller = robot.body, robot.controller
     patches.wrap(ADVANCE, node, 'advance')
-    patches.wrap('SimNode._publish_frame (loop over outputs)', node, '_publish_frame')
+    patches.wrap('SimNode._publish (clock, then each robot\'s outputs)', node, '_publish')
     patches.wrap('Simulation.step (glue)', simulation, 'step')
-    patches.wrap('Simulation.frame (glue, Frame)', simulation, 'frame')
+    patches.wrap('Robot.measure (glue, what is due)', robot, 'measure')
+    patches.wrap('Robot.read_frame (glue, Frame)', robot, 'read_frame')
     patches.wrap(PHYSICS, world, 'step')
-    patches.wrap('SimWorld.joint_states (read)', world, 'joint_states')
-    patches.wrap('SimWorld.base_state (read)', world, 'base_state')
-    patches.wrap('SimWorld.state_problem (blow-up check)', world, 'state_problem')
-    patches.wrap('SimWorld.joint_problem (blow-up check)', world, 'joint_problem')
+    patches.wrap('Body.joint_states (read)', body, 'joint_states')
+    patches.wrap('Body.base_state (read)', body, 'base_state')
+    patches.wrap('Body.state_problem (blow-up check)', body, 'state_problem')
+    patches.wrap('Body.joint_problem (blow-up check)', body, 'joint_problem')
     if controller is not None:
         patches.wrap('DriveController.update (command -> wheels)', controller, 'update')
         patches.wrap('DriveController.update_odometry', controller, 'update_odometry')
+    for name, method in (('LaserScanner', 'scan'), ('ImuSensor', 'read'),
+                         ('HeadCamera', 'render')):
+        patches.wrap(f'{name}.{method} (measure)', getattr(sensor_mounts, name), method)
     # Every output class, whichever the node has: class attributes, so also
     # outputs that hold a bound method would be timed.
-    for name, cls in sorted(vars(outputs).items()):
-        if (isinstance(cls, type) and cls.__module__ == outputs.__name__
-                and callable(cls.__dict__.get('publish'))):
-            patches.wrap(f'{name}.publish (outputs)', cls, 'publish')
+    for module in (outputs, tf_outputs):
+        for name, cls in sorted(vars(module).items()):
+            if (isinstance(cls, type) and cls.__module__ == module.__name__
+                    and callable(cls.__dict__.get('publish'))):
+                patches.wrap(f'{name}.publish (outputs)', cls, 'publish')
     patches.wrap('MessageTemplate.to_bytes', serialization.MessageTemplate, 'to_bytes')
     patches.wrap('StampSlot.set', serialization.StampSlot, 'set')
     patches.wrap('FieldSlot.set', serialization.FieldSlot, 'set')

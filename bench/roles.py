@@ -8,7 +8,8 @@ The benchmark's helper processes; ``run.py`` starts them, they are not meant to 
 
 ``harness``
     SimNode in this process at real time, paced by ``run_paced`` as ``main()``
-    paces it, recording every deadline and the wall time around every step.
+    paces it (with a recording pacer and advance passed in), recording every
+    deadline and the wall time around every step.
 ``subscriber``
     Typed subscriptions on ``joint_states``, ``odom``, ``ground_truth`` and
     ``/clock``, as a Python consumer of the simulator would have them;
@@ -55,11 +56,11 @@ def harness(args):
     """
     Run SimNode at real time as ``main()`` does, recording each tick; write the record.
 
-    ``run_paced`` takes its DeadlinePacer from ``r2d2_sim.timing`` when called,
-    so a subclass put there records the deadline each wait aims at; the node's
-    ``advance`` and its world's ``step`` are wrapped to record ``perf_counter``
-    around each tick and the physics alone. Starts stepping once a subscriber
-    is on every state topic.
+    ``run_paced`` takes a DeadlinePacer subclass that records the deadline
+    each wait aims at and an ``advance`` that records ``perf_counter`` around
+    each tick; the world's ``step`` is wrapped (on this instance only) to time
+    the physics alone. Starts stepping once a subscriber is on every state
+    topic.
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -77,7 +78,6 @@ def harness(args):
             super().wait()
 
     stop = stop_on_signals()
-    timing.DeadlinePacer = RecordingPacer
     init_ros(args.domain)
     params = dict(json.loads(args.params), real_time_factor=1.0)
     node = make_sim_node(None, '/', params, quiet=False)
@@ -93,24 +93,24 @@ def harness(args):
             time.sleep(0.01)
         time.sleep(0.2)  # let the matching settle on both sides
         end_step = round(args.sim_seconds * PHYSICS_RATE_HZ)
-        advance, world_step = node.advance, node.world.step
+        world_step = node.world.step
 
-        def recording_advance(steps=1):
+        def recording_advance(steps):
             starts.append(perf_counter())
-            advance(steps)
+            advanced = node.advance_if_running(steps)
             ends.append(perf_counter())
             if node.step_count >= end_step:
                 stop.set()
+            return advanced
 
         def recording_step(steps=1):
             begin = perf_counter()
             world_step(steps)
             physics.append(perf_counter() - begin)
-        node.advance = recording_advance
         node.world.step = recording_step
         meter = LoadMeter().start()
         usage0, wall0 = resource.getrusage(resource.RUSAGE_SELF), perf_counter()
-        run_paced(node, stop)
+        run_paced(node, stop, RecordingPacer(1.0 / PHYSICS_RATE_HZ), recording_advance)
         usage1, wall1 = resource.getrusage(resource.RUSAGE_SELF), perf_counter()
         load = meter.stop()
         cpu = (usage1.ru_utime + usage1.ru_stime) - (usage0.ru_utime + usage0.ru_stime)

@@ -30,6 +30,7 @@ from common import (
     log_tail, machine_info, make_sim_node, missing_parameters, outputs_off, percentile,
     PHYSICS_RATE_HZ, process_cpu_s, read_json, start_role, start_sim, status, stop_process,
     wait_process, write_json)
+from r2d2_sim.client import wait_for  # noqa: I100 (after common put the repository on sys.path)
 
 RESULTS_PATH = os.path.join(BENCH_DIR, 'results.json')
 PHYSICS_PERIOD_MS = 1000.0 / PHYSICS_RATE_HZ
@@ -236,16 +237,19 @@ def count_publications(node, message, counter):
 
 def time_output_calls(node, message, steps):
     """
-    Advance ``node`` ``steps`` steps; return the wall us of the output calls that sent ``message``.
+    Advance ``node`` ``steps`` steps; return the wall us each ``message`` cost, measured and sent.
 
-    Every output class of ``r2d2_sim.outputs`` has its ``publish`` timed (put
-    back afterwards); a call counts when it published ``message`` through one
-    of the node's publishers. The median of these resists preemption by other
-    processes better than a difference of two throughputs does.
+    The sensors' measuring methods (scan, IMU read, render) and every output
+    class's ``publish`` (``r2d2_sim.outputs``, ``r2d2_sim.tf_outputs``) are
+    timed (put back afterwards). Per step, the time of the measurement that
+    produces ``message`` and of the output call that published it through
+    one of the node's publishers are added up. The median of these resists
+    preemption by other processes better than a difference of two
+    throughputs does.
     """
-    from r2d2_sim import outputs
+    from r2d2_sim import outputs, sensor_mounts, tf_outputs
     perf_counter = time.perf_counter
-    published, durations_us, saved = [], [], []
+    published, spent, saved = [], [0.0], []
     for publisher in node.publishers:
         if publisher.msg_type.__name__ == message:
             publish = publisher.publish
@@ -254,25 +258,38 @@ def time_output_calls(node, message, steps):
                 published.append(True)
                 publish(msg)
             publisher.publish = noted
-    for cls in vars(outputs).values():
-        original = getattr(cls, '__dict__', {}).get('publish')
-        if not (isinstance(cls, type) and cls.__module__ == outputs.__name__
-                and callable(original)):
-            continue
 
-        def timed(self, *args, original=original):
+    def wrap(cls, name, produces=None):
+        original = cls.__dict__[name]
+
+        def timed(self, *args, **kwargs):
             published.clear()
             begin = perf_counter()
-            original(self, *args)
-            if published:
-                durations_us.append(1e6 * (perf_counter() - begin))
-        saved.append((cls, original))
-        cls.publish = timed
+            result = original(self, *args, **kwargs)
+            if produces == message or (produces is None and published):
+                spent[0] += perf_counter() - begin
+            return result
+        saved.append((cls, name, original))
+        setattr(cls, name, timed)
+    for module in (outputs, tf_outputs):
+        for cls in vars(module).values():
+            if (isinstance(cls, type) and cls.__module__ == module.__name__
+                    and callable(cls.__dict__.get('publish'))):
+                wrap(cls, 'publish')
+    for cls, name, produces in ((sensor_mounts.LaserScanner, 'scan', 'LaserScan'),
+                                (sensor_mounts.ImuSensor, 'read', 'Imu'),
+                                (sensor_mounts.HeadCamera, 'render', 'Image')):
+        wrap(cls, name, produces)
+    durations_us = []
     try:
-        node.advance(steps)
+        for _ in range(steps):
+            spent[0] = 0.0
+            node.advance(1)
+            if spent[0]:
+                durations_us.append(1e6 * spent[0])
     finally:
-        for cls, original in saved:
-            cls.publish = original
+        for cls, name, original in reversed(saved):
+            setattr(cls, name, original)
     return durations_us
 
 
@@ -289,50 +306,33 @@ class SubprocessSim:
     """
 
     def __init__(self, work, domain_id, params):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from std_srvs.srv import SetBool
-        self.sim_log = os.path.join(work, 'sim_rtf0.log')
+        from r2d2_sim.testing import SimProcess
         self.subscriber_log = os.path.join(work, 'subscriber_rtf0.log')
         self.subscriber_out = os.path.join(work, 'subscriber_rtf0.json')
         self.windows = []
-        self.sim = self.subscriber = None
-        self.context = Context()
-        init_ros(domain_id, self.context)
-        self.node = rclpy.create_node('bench_control', context=self.context)
-        self.client = self.node.create_client(SetBool, '/r2d2_sim/pause')
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+        self.subscriber = None
+        # The public process harness, without subscriptions of its own: the
+        # subscriber process is the only one the node publishes to.
+        self.sim = SimProcess(domain_id=domain_id, use_env_domain=False, start_paused=True,
+                              state_subscriptions=False,
+                              **existing_parameters(dict(params, real_time_factor=0.0)))
         try:
-            self._start(domain_id, params)
+            self.subscriber = start_role('subscriber', domain_id, self.subscriber_log,
+                                         '--out', self.subscriber_out, '--timeout', 1800)
+            node, deadline = self.sim.probe.node, time.monotonic() + 30.0
+            topics = ('/joint_states', '/odom', '/ground_truth', '/clock')
+            while min(node.count_subscribers(t) for t in topics) < 1:
+                if time.monotonic() > deadline or self.subscriber.exited():
+                    raise RuntimeError('the subscriber did not appear:\n'
+                                       + log_tail(self.subscriber_log))
+                self.sim.probe.spin_until(lambda: False, 0.05)
         except BaseException:
             self.close()
             raise
 
-    def _start(self, domain_id, params):
-        self.sim = start_sim(domain_id, self.sim_log, real_time_factor=0.0, start_paused=True,
-                             **params)
-        self.subscriber = start_role('subscriber', domain_id, self.subscriber_log,
-                                     '--out', self.subscriber_out, '--timeout', 1800)
-        deadline = time.monotonic() + 30.0
-        topics = ('/joint_states', '/odom', '/ground_truth', '/clock')
-        while (not self.client.service_is_ready()
-               or min(self.node.count_subscribers(t) for t in topics) < 1
-               or min(self.node.count_publishers(t) for t in topics) < 1):
-            if time.monotonic() > deadline or self.sim.poll() is not None:
-                raise RuntimeError('the node or its subscriber did not appear:\n'
-                                   + log_tail(self.sim_log) + log_tail(self.subscriber_log))
-            self.executor.spin_once(timeout_sec=0.05)
-
     def pause(self, paused):
         """Call ``~/pause``; return the step its reply names."""
-        from std_srvs.srv import SetBool
-        future = self.client.call_async(SetBool.Request(data=paused))
-        self.executor.spin_until_future_complete(future, timeout_sec=10.0)
-        if not future.done():
-            raise RuntimeError('~/pause did not answer:\n' + log_tail(self.sim_log))
-        return json.loads(future.result().message)['step']
+        return self.sim.pause(paused)['step']
 
     def window(self, settle_s, window_s, record=True):
         """Run the node for ``settle_s`` + ``window_s`` wall seconds, measuring the window."""
@@ -340,10 +340,11 @@ class SubprocessSim:
         step0, wall0 = self.pause(False), perf_counter()
         time.sleep(settle_s)
         t0 = perf_counter()
-        node0, sub0 = process_cpu_s(self.sim.pid), process_cpu_s(self.subscriber.pid)
+        pid = self.sim.process.pid
+        node0, sub0 = process_cpu_s(pid), process_cpu_s(self.subscriber.pid)
         time.sleep(window_s)
         t1 = perf_counter()
-        node1, sub1 = process_cpu_s(self.sim.pid), process_cpu_s(self.subscriber.pid)
+        node1, sub1 = process_cpu_s(pid), process_cpu_s(self.subscriber.pid)
         step1 = self.pause(True)
         wall1 = perf_counter()
         if record:
@@ -354,14 +355,10 @@ class SubprocessSim:
                 'reply_steps_per_s': (step1 - step0) / (wall1 - wall0)})
 
     def close(self):
-        """Stop both processes and the control node; return the summary of the windows."""
-        import rclpy
-        for process in (self.subscriber, self.sim):
-            if process is not None:
-                stop_process(process)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        """Stop both processes; return the summary of the windows."""
+        if self.subscriber is not None:
+            stop_process(self.subscriber)
+        self.sim.stop(timeout_s=5.0)
         if not self.windows:
             return None
         received = read_json(self.subscriber_out, self.subscriber_log, 'the rtf-0 subscriber')
@@ -453,7 +450,8 @@ def measure_throughput(work, domain_id, subprocess_domain, plan, params):
                 urdf.write(chain_urdf(joints))
             add(f'chain{joints}:node', dict(params, urdf=path), f'chain{joints}:raw')
             groups[f'chain{joints}'] = [f'chain{joints}:node', f'chain{joints}:raw']
-        joints_published = {name: len(node.simulation.movable) for name, node in nodes.items()}
+        joints_published = {name: len(node.simulation.robot.movable)
+                            for name, node in nodes.items()}
         sub = SubprocessSim(work, subprocess_domain, params)
         for advance in advances.values():  # warm-up: the robots settle, code paths get hot
             advance(240)
@@ -585,29 +583,20 @@ def measure_latency(work, domain_id, duration_s, period_s, speed, params):
 # -- 4. start-up ---------------------------------------------------------------------------
 
 class ArrivalSubscriber:
-    """A joint_states subscriber in a context of its own that records arrival times."""
+    """A joint_states subscriber on the testing API's RosHarness that records arrival times."""
 
     def __init__(self, domain_id, name):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
         from sensor_msgs.msg import JointState
-        self.context = Context()
-        init_ros(domain_id, self.context)
-        self.node = rclpy.create_node(name, context=self.context)
+        from r2d2_sim.testing import RosHarness
+        self.harness = RosHarness(domain_id=domain_id)
         self.received = []
-        self.node.create_subscription(
-            JointState, 'joint_states',
-            lambda msg: self.received.append(time.perf_counter()), 10)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+        self.harness.create_node(name, use_sim_time=False).create_subscription(
+            JointState, 'joint_states', lambda msg: self.received.append(time.perf_counter()),
+            10)
 
     def close(self):
-        """Stop the executor, destroy the node, shut the context down."""
-        import rclpy
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        """Stop spinning, destroy the node, shut the context down (in that order)."""
+        self.harness.close()
 
 
 def startup_once(work, domain_id, tag, subscriber=None):
@@ -620,17 +609,14 @@ def startup_once(work, domain_id, tag, subscriber=None):
     own = subscriber is None
     if own:
         subscriber = ArrivalSubscriber(domain_id, 'bench_startup')
-    executor, received = subscriber.executor, subscriber.received
+    received = subscriber.received
     received.clear()
     log = os.path.join(work, f'sim_startup_{tag}.log')
     sim = None
     try:
         start = time.perf_counter()
         sim = start_sim(domain_id, log)
-        deadline = time.monotonic() + 20.0
-        while not received and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.01)
-        if not received:
+        if not wait_for(lambda: received, 20.0, interval_s=0.001):
             raise RuntimeError('no joint_states from the simulator:\n' + log_tail(log))
         return received[0] - start
     finally:
@@ -656,10 +642,8 @@ def measure_startup(work, domain_id, runs, restarts):
                 elapsed = startup_once(work, domain_id, f'kept{i}', subscriber)
                 if i:  # the first start is not a restart
                     restart_times.append(elapsed)
-                # Drop messages still queued from this run before the next one starts.
-                drain_until = time.monotonic() + 0.3
-                while time.monotonic() < drain_until:
-                    subscriber.executor.spin_once(timeout_sec=0.05)
+                # Messages still queued from this run arrive before the next one starts.
+                time.sleep(0.3)
         finally:
             subscriber.close()
     return {'runs_s': times, 'median_s': statistics.median(times),

@@ -32,9 +32,9 @@ import time
 
 # Importing common puts the repository on sys.path and keeps discovery on this host.
 from common import (
-    BENCH_DIR, cpu_model, fit_line, init_ros, LoadMeter, log_tail, PHYSICS_RATE_HZ,
+    BENCH_DIR, cpu_model, fit_line, LoadMeter, log_tail, PHYSICS_RATE_HZ,
     process_cpu_s, start_sim, status, stop_process, write_json)
-from r2d2_sim.testing import stamp_ns  # noqa: E402,I100 (after common set sys.path)
+from r2d2_sim.client import stamp_ns  # noqa: E402,I100 (after common set sys.path)
 
 SOAK_PATH = os.path.join(BENCH_DIR, 'soak.json')
 RATE = int(PHYSICS_RATE_HZ)     # steps per simulated second; step k is at k * 10**9 // RATE ns
@@ -140,27 +140,25 @@ class StampCheck:
 
 class Driver:
     """
-    The subscriber and commander, in an rclpy context of its own on ``domain_id``.
+    The subscriber and commander, on the testing API's RosHarness (``domain_id``, leased).
 
-    Its executor spins in a thread; the callbacks check every stamp, send a
-    command at each new simulated second and sample the node's /proc entry
-    every ``sample_every_s`` simulated seconds, and set ``done`` once /clock
-    reaches ``end_s``.
+    The harness spins its executor in a thread; the callbacks check every
+    stamp, send a command at each new simulated second and sample the node's
+    /proc entry every ``sample_every_s`` simulated seconds, and set ``done``
+    once /clock reaches ``end_s``. Closing stops the spinning thread before
+    the executor shuts down, the order rclpy 7.1 needs.
     """
 
     def __init__(self, domain_id, end_s, sample_every_s):
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import JointState
         from std_srvs.srv import SetBool, Trigger
+        from r2d2_sim.testing import RosHarness
 
-        self.context = Context()
-        init_ros(domain_id, self.context)
-        self.node = rclpy.create_node('soak_driver', context=self.context)
+        self.harness = RosHarness(domain_id=domain_id)
+        self.node = self.harness.create_node('soak_driver', use_sim_time=False)
         self.twist_type = Twist
         self.cmd_pub = self.node.create_publisher(Twist, 'cmd_vel', 10)
         self.node.create_subscription(Clock, '/clock', self._on_clock, 10)
@@ -170,9 +168,6 @@ class Driver:
         self.pause_type = SetBool
         self.step_client = self.node.create_client(Trigger, '/r2d2_sim/step')
         self.step_type = Trigger
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.spinner = threading.Thread(target=self._spin, daemon=True)
 
         self.end_k = round(end_s * RATE)
         self.sample_every_k = max(1, round(sample_every_s * RATE))
@@ -194,15 +189,6 @@ class Driver:
         self.errors = []
         self.foreign_nodes = set()
         self.max_clock_publishers = 0
-
-    # -- callbacks (executor thread) -------------------------------------------------
-
-    def _spin(self):
-        from rclpy.executors import ExternalShutdownException
-        try:
-            self.executor.spin()
-        except ExternalShutdownException:
-            pass
 
     def _on_clock(self, msg):
         ns = stamp_ns(msg.clock)
@@ -236,15 +222,13 @@ class Driver:
         self.joint_states.add(stamp_ns(msg.header.stamp))
 
     def _on_odom(self, msg):
-        from r2d2_sim.testing import pose_from_odometry
+        from r2d2_sim.client import pose_from_odometry
         self.odom.add(stamp_ns(msg.header.stamp))
         pose = pose_from_odometry(msg)
         if self.odom_pose is not None:
             self.odom_path_m += ((pose.x_m - self.odom_pose.x_m) ** 2
                                  + (pose.y_m - self.odom_pose.y_m) ** 2) ** 0.5
         self.odom_pose = pose
-
-    # -- used from the main thread --------------------------------------------------
 
     def sample(self, k, wall):
         """Record the node's memory, threads, descriptors and CPU time at step ``k``."""
@@ -269,9 +253,8 @@ class Driver:
                                         self.node.count_publishers('/clock'))
 
     def start(self, pid):
-        """Start spinning; sample process ``pid``."""
+        """Sample process ``pid`` from now on."""
         self.pid = pid
-        self.spinner.start()
 
     def call(self, client, request, timeout_s=10.0):
         """Call a service while the executor spins in its thread; None on timeout."""
@@ -302,12 +285,8 @@ class Driver:
         return self.clock.last_ns
 
     def close(self):
-        """Stop the executor, destroy the node, shut the context down."""
-        import rclpy
-        self.executor.shutdown(timeout_sec=2.0)
-        self.spinner.join(timeout=2.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
+        """Stop spinning, shut the executor down, destroy the node and the context."""
+        self.harness.close()
 
 
 def check_pause_and_steps(driver, steps=5):

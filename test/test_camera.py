@@ -102,7 +102,7 @@ def test_camera_needs_a_head(ros):
 
 def test_camera_is_off_by_default(sim):
     """No camera topics unless camera_rate is set."""
-    assert sim.simulation.camera is None
+    assert sim.simulation.robot.camera is None
     topics = [name for name, _ in sim.get_topic_names_and_types()]
     assert not any(name.startswith('/camera') for name in topics)
 
@@ -146,10 +146,10 @@ def test_turning_the_head_turns_the_camera(ros):
     """head_swivel a quarter turn: the cube ahead leaves the centre of the image."""
     sim = make_sim(ros, camera_rate=5.0, camera_width=80, camera_height=60,
                    extra_models=['cube.urdf 3 0 0.5'])
-    ahead = _image_array(sim.simulation.camera.render_rgb(), 80, 60).astype(int)
-    swivel = sim.world.joint('head_swivel').index
+    ahead = _image_array(sim.simulation.robot.camera.render().rgb, 80, 60).astype(int)
+    swivel = sim.world.robot.joint('head_swivel').index
     sim.world.client.resetJointState(sim.world.robot_id, swivel, math.pi / 2)
-    turned = _image_array(sim.simulation.camera.render_rgb(), 80, 60).astype(int)
+    turned = _image_array(sim.simulation.robot.camera.render().rgb, 80, 60).astype(int)
     centre = (slice(25, 35), slice(35, 45))
     assert numpy.abs(ahead[centre] - turned[centre]).mean() > 20
     assert numpy.abs(ahead - turned).mean() > 5
@@ -161,9 +161,9 @@ def test_camera_looks_rep103_forward(ros, robot):
     params = classic_params() if robot == 'classic' else {}
     sim = make_sim(ros, camera_rate=5.0, camera_width=80, camera_height=60,
                    extra_models=['cube.urdf 3 0 0.5'], **params)
-    with_cube = _image_array(sim.simulation.camera.render_rgb(), 80, 60).astype(int)
+    with_cube = _image_array(sim.simulation.robot.camera.render().rgb, 80, 60).astype(int)
     cube = sim.world.extra_model_ids[0]
     sim.world.client.resetBasePositionAndOrientation(cube, (-20.0, 0.0, 0.5), (0, 0, 0, 1))
-    without = _image_array(sim.simulation.camera.render_rgb(), 80, 60).astype(int)
+    without = _image_array(sim.simulation.robot.camera.render().rgb, 80, 60).astype(int)
     centre = (slice(25, 35), slice(35, 45))
     assert numpy.abs(with_cube[centre] - without[centre]).mean() > 20

@@ -126,7 +126,7 @@ def test_timeout_does_not_fire_while_paused(ros):
     probe = Probe(ros, sim)
     probe.send(0.3)
     trigger(probe, 'step')
-    controller = sim.simulation.controller
+    controller = sim.simulation.robot.controller
     command = controller.target
     assert command != (0.0, 0.0)
     # The paced loop runs, as in sim_node, for more wall time than the 0.5 s timeout.
@@ -182,10 +182,10 @@ def test_reset_restores_robot_keeps_clock(ros, paused):
     assert facts['sim_time'] == pytest.approx(step_before / 240, abs=1e-9)
     x, y, yaw = latest_truth(sim)
     assert abs(x) < 1e-6 and abs(y) < 1e-6 and abs(yaw) < 1e-6
-    controller = sim.simulation.controller
+    controller = sim.simulation.robot.controller
     assert controller.odometry.x_m == 0.0 and controller.odometry.yaw_rad == 0.0
     assert controller.wheel_targets == (0.0, 0.0)
-    states = sim.world.joint_states([j.index for j in sim.world.movable_joints()])
+    states = sim.world.robot.joint_states([j.index for j in sim.world.robot.movable_joints()])
     assert max(abs(p) for p in states.positions) < 1e-9
     assert max(abs(v) for v in states.velocities) < 1e-9
     sim.advance(10)
@@ -218,8 +218,8 @@ def _run_schedule_in_process(ros):
 
 
 def _snapshot(sim):
-    joints = sim.world.joint_states([j.index for j in sim.world.movable_joints()])
-    base = sim.world.base_state()
+    joints = sim.world.robot.joint_states([j.index for j in sim.world.robot.movable_joints()])
+    base = sim.world.robot.base_state()
     return (tuple(joints.positions), tuple(joints.velocities), base.position,
             base.orientation, base.linear_velocity, base.angular_velocity)
 

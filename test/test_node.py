@@ -90,7 +90,7 @@ def test_yaw_rate_tracks_command(sim, probe):
 
 
 def _odom_error(sim):
-    o = sim.simulation.controller.odometry
+    o = sim.simulation.robot.controller.odometry
     x, y, yaw = latest_truth(sim)
     return math.hypot(o.x_m - x, o.y_m - y), abs(math.remainder(o.yaw_rad - yaw, 2 * math.pi))
 
@@ -98,7 +98,7 @@ def _odom_error(sim):
 def test_odometry_matches_truth_straight(sim, probe):
     """After 2 s straight the odometry is within 5 % of distance and 5 degrees."""
     probe.drive(0.3, 0.0, 2.0)
-    distance = sim.simulation.controller.odometry.distance_m
+    distance = sim.simulation.robot.controller.odometry.distance_m
     position_error, heading_error = _odom_error(sim)
     assert distance > 0.5
     assert position_error < 0.05 * distance
@@ -116,7 +116,7 @@ def test_odometry_matches_truth_after_quarter_turn(sim, probe):
     _, _, yaw = latest_truth(sim)
     assert math.degrees(yaw) == pytest.approx(90, abs=9)
     position_error, heading_error = _odom_error(sim)
-    assert position_error < 0.10 * sim.simulation.controller.odometry.distance_m
+    assert position_error < 0.10 * sim.simulation.robot.controller.odometry.distance_m
     assert heading_error < math.radians(5)
 
 
@@ -124,13 +124,13 @@ def test_timeout_brakes_the_wheels(sim, probe):
     """No cmd_vel for 0.5 s of simulated time: wheel targets go to zero, robot stops."""
     probe.drive(0.3, 0.0, 0.5)
     sim.advance(RATE_HZ // 2 - 12)  # just under the timeout since the last command
-    assert sim.simulation.controller.wheel_targets != (0.0, 0.0)
+    assert sim.simulation.robot.controller.wheel_targets != (0.0, 0.0)
     sim.advance(RATE_HZ)
-    assert sim.simulation.controller.wheel_targets == (0.0, 0.0)
+    assert sim.simulation.robot.controller.wheel_targets == (0.0, 0.0)
     x0 = latest_truth(sim)[0]
     sim.advance(RATE_HZ)
     assert abs(latest_truth(sim)[0] - x0) < 0.01
-    states = sim.world.joint_states([sim.world.joint(n).index for n in WHEELS])
+    states = sim.world.robot.joint_states([sim.world.robot.joint(n).index for n in WHEELS])
     assert max(abs(v) for v in states.velocities) < 0.5
 
 
@@ -140,14 +140,14 @@ def test_timeout_zero_disables_braking(ros):
     probe = Probe(ros, sim)
     probe.send(0.3)
     sim.advance(3 * RATE_HZ)
-    assert sim.world.base_state().linear_velocity[0] == pytest.approx(0.3, rel=0.05)
+    assert sim.world.robot.base_state().linear_velocity[0] == pytest.approx(0.3, rel=0.05)
 
 
 def test_huge_command_is_clamped_preserving_curvature(sim, probe):
     """1e308 on both axes gives wheels at the limit, turning, all finite."""
     probe.send(1e308, 1e308)
     sim.advance(1)
-    controller = sim.simulation.controller
+    controller = sim.simulation.robot.controller
     left, right = twist_to_wheel_velocities(controller.geometry, *controller.target)
     limit = controller.geometry.max_wheel_velocity_rad_s
     assert max(abs(left), abs(right)) == pytest.approx(limit)

@@ -20,6 +20,7 @@ import yaml
 
 from r2d2_sim.description import (
     default_urdf_path, DescriptionError, resolve_description_path)
+from r2d2_sim.joint_info import joint_info
 from r2d2_sim.node import StartupError
 from r2d2_sim.world import SimWorld, WorldError
 
@@ -81,19 +82,19 @@ def test_unresolvable_descriptions_name_the_problem(fake_package, spec, fragment
 def test_a_robot_without_joints_is_simulated():
     """pybullet_data's cube: no joints, empty joint readouts, a sane base state."""
     with SimWorld('cube.urdf') as world:
-        assert world.joints == {} and world.movable_joints() == []
-        assert world.joint_states([]).positions == []
-        assert world.joint_info() == []
+        assert world.robot.joints == {} and world.robot.movable_joints() == []
+        assert world.robot.joint_states([]).positions == []
+        assert joint_info(world.robot) == []
         world.step(24)
-        assert world.state_problem() is None
-        assert world.base_state().position[2] == pytest.approx(0.5, abs=0.01)
+        assert world.robot.state_problem() is None
+        assert world.robot.base_state().position[2] == pytest.approx(0.5, abs=0.01)
 
 
 def test_body_yaw_offset_reports_the_rep103_frame():
     """The classic with +pi/2: body yaw = spawn heading, URDF base turned by -pi/2."""
     with SimWorld('r2d2.urdf', body_yaw_offset_rad=math.pi / 2,
                   initial_pose=(0.0, 0.0, 0.3)) as world:
-        base = world.base_state()
+        base = world.robot.base_state()
         client = world.client
         body_yaw = client.getEulerFromQuaternion(base.orientation)[2]
         urdf_orientation = client.getBasePositionAndOrientation(world.robot_id)[1]
@@ -101,8 +102,9 @@ def test_body_yaw_offset_reports_the_rep103_frame():
         assert client.getEulerFromQuaternion(urdf_orientation)[2] == \
             pytest.approx(0.3 - math.pi / 2, abs=1e-6)
         # The left leg is at URDF x = -0.22: body y = +0.22.
-        left_leg = world.joint('base_to_left_leg').index
-        assert world.link_positions_in_base([left_leg])[0][1] == pytest.approx(0.22, abs=1e-3)
+        left_leg = world.robot.joint('base_to_left_leg').index
+        left = world.robot.link_positions_in_base([left_leg])[0]
+        assert left[1] == pytest.approx(0.22, abs=1e-3)
 
 
 def test_node_with_cube_ignores_cmd_vel_without_crashing(ros):
@@ -137,7 +139,7 @@ def test_robot_description_overrides_urdf_and_is_published(ros):
     probe = Probe(ros, sim)
     probe.wait_count('robot_description', 1)
     assert probe.messages['robot_description'][0].data == text
-    assert sim.has_wheels and len(sim.world.joints) == 15
+    assert sim.has_wheels and len(sim.world.robot.joints) == 15
     temp_path = sim.world.urdf_path
     assert os.path.isfile(temp_path)
     sim.destroy_node()
@@ -183,7 +185,7 @@ def test_classic_drives_like_ours(ros):
     assert abs(y1 - y0) < 0.02 and abs(yaw1 - yaw0) < math.radians(2)
     probe.wait_count('ground_truth', 10)
     assert probe.messages['ground_truth'][-1].twist.twist.linear.x == pytest.approx(0.3, rel=0.05)
-    odom = sim.simulation.controller.odometry
+    odom = sim.simulation.robot.controller.odometry
     assert math.hypot(odom.x_m - x1, odom.y_m - y1) < 0.05 * odom.distance_m
     assert abs(math.remainder(odom.yaw_rad - yaw1, 2 * math.pi)) < math.radians(3)
 
