@@ -9,6 +9,7 @@ error rather than a traceback) and the node's typed ROS declarations.
 
 from dataclasses import make_dataclass
 import math
+import re
 from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
 
@@ -32,6 +33,14 @@ DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S = 3.0
 
 # Yaw from the URDF base frame to the REP-103 body frame for each forward axis.
 FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.pi / 2}
+
+
+# The frames of the node's own sensors (with frame_prefix in front), and the
+# URDF link the head camera's frame hangs from; r2d2_sim.robot publishes them.
+LASER_FRAME_ID = 'base_scan'
+IMU_FRAME_ID = 'imu_link'
+HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
+HEAD_CAMERA_LINK = 'head'
 
 
 class Bounds(NamedTuple):
@@ -123,11 +132,35 @@ def _string(name: str, value: Any) -> str:
     return value
 
 
+# A frame id: names of letters, digits, '_', '-' and '.', joined by single '/'.
+# tf2 refuses a leading '/' (ROS 1's tf_prefix style) and an empty id; spaces,
+# quotes, ':' and the like break YAML files, command lines and tools that echo
+# frames, so they are refused here too.
+_FRAME_PART = r'[A-Za-z0-9_.\-]+'
+_FRAME_ID = re.compile(rf'{_FRAME_PART}(?:/{_FRAME_PART})*')
+_FRAME_PREFIX = re.compile(rf'(?:{_FRAME_PART}/)*(?:{_FRAME_PART})?')
+
+
+def _frame_syntax(name: str, value: str, pattern: 're.Pattern', what: str) -> str:
+    if value.startswith('/'):
+        raise ConfigError(f'parameter {name} must not start with \'/\' (tf2 refuses such '
+                          f'frame ids), got {value!r}; use {value.lstrip("/")!r}')
+    if not pattern.fullmatch(value):
+        raise ConfigError(f'parameter {name} must be {what} (letters, digits, _ - . '
+                          f'and single / between names, no spaces), got {value!r}')
+    return value
+
+
 def _frame(name: str, value: Any) -> str:
     value = _string(name, value)
     if not value.strip():
-        raise ConfigError(f'parameter {name} must not be empty')
-    return value
+        raise ConfigError(f'parameter {name} must not be empty, got {value!r}')
+    return _frame_syntax(name, value, _FRAME_ID, 'a tf2 frame id')
+
+
+def _frame_prefix(name: str, value: Any) -> str:
+    return _frame_syntax(name, _string(name, value), _FRAME_PREFIX,
+                         'empty or a frame id prefix such as robot1/')
 
 
 def _is_string_list(value: Any) -> bool:
@@ -339,7 +372,7 @@ PARAMETERS: List[Parameter] = [
               'footprint_frame_id', _frame),
     Parameter('frame_prefix', 'string', '',
               'Prefix for every frame the robot publishes (not world_frame_id), e.g. robot1/.',
-              'frame_prefix', _string),
+              'frame_prefix', _frame_prefix),
     Parameter('scan_rate', 'double', 10.0,
               'Laser scans per simulated second (Hz) on scan; 0 turns the scanner off.',
               'scan_rate_hz', _non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
@@ -452,4 +485,52 @@ def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
     if not fields['scan_range_min_m'] < fields['scan_range_max_m']:
         raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
                           f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')
+    _check_frames(fields)
     return SimConfig(**fields)
+
+
+def _check_frames(fields: Mapping[str, Any]) -> None:
+    """
+    Refuse frame ids that would break the TF tree: any two of the robot's frames alike.
+
+    TF is one tree: odom -> footprint -> base -> sensors, under world when
+    publish_ground_truth_tf is on. Two roles given one frame make a cycle
+    (odom_frame_id base_link) or a transform from a frame to itself
+    (footprint_frame_id base_link), which tf2 refuses. frame_prefix goes in
+    front of every robot frame but not of world_frame_id, so world is
+    compared with the prefixed names.
+    """
+    prefix = fields['frame_prefix']
+    parameters = [(name, fields[name])
+                  for name in ('odom_frame_id', 'footprint_frame_id', 'base_frame_id')]
+    sensors = []
+    for rate, frames, what, switch in (
+            ('scan_rate_hz', (LASER_FRAME_ID,), "the laser's frame", 'scan_rate > 0'),
+            ('imu_rate_hz', (IMU_FRAME_ID,), "the IMU's frame", 'imu_rate > 0'),
+            ('camera_rate_hz', (HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK),
+             "a head camera frame", 'camera_rate > 0')):
+        if fields[rate] > 0.0:
+            sensors += [(frame, what, switch) for frame in frames]
+    distinct = ': TF needs a distinct frame for each'
+    seen: Dict[str, str] = {}
+    for name, frame in parameters:
+        if frame in seen:
+            raise ConfigError(f'parameters {seen[frame]} and {name} both name the frame '
+                              f'{prefix + frame!r}{distinct}')
+        seen[frame] = name
+    for frame, what, switch in sensors:
+        if frame in seen:
+            raise ConfigError(f'parameter {seen[frame]} names {what} {prefix + frame!r} '
+                              f'({switch}){distinct}')
+    world = fields['world_frame_id']
+    if not world.startswith(prefix):
+        return
+    local = world[len(prefix):]
+    with_prefix = f' (with frame_prefix {prefix!r})' if prefix else ''
+    if local in seen:
+        raise ConfigError(f'parameters world_frame_id and {seen[local]}{with_prefix} both name '
+                          f'the frame {world!r}{distinct}')
+    for frame, what, switch in sensors:
+        if frame == local:
+            raise ConfigError(f'parameter world_frame_id names {what} {world!r} '
+                              f'({switch}){distinct}')

@@ -72,6 +72,13 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
     (['-p', 'max_wheel_force:=1.0e308'], 'max_wheel_force must be in'),
     (['-p', 'wheel_separation:=1.0e6'], 'wheel_separation must be in'),
     (['-p', 'real_time_factor:=1.0e308'], 'real_time_factor must be in [0, 1000]'),
+    (['-p', 'odom_frame_id:=base_link'],
+     "parameters odom_frame_id and base_frame_id both name the frame 'base_link'"),
+    (['-p', 'footprint_frame_id:=base_link'], 'footprint_frame_id and base_frame_id'),
+    (['-p', 'world_frame_id:=odom', '-p', 'publish_ground_truth_tf:=true'],
+     'world_frame_id and odom_frame_id'),
+    (['-p', 'frame_prefix:=/robot1/'], "frame_prefix must not start with '/'"),
+    (['-p', 'base_frame_id:=base link'], 'base_frame_id must be a tf2 frame id'),
 ])
 def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     """A wrong parameter stops start-up with one readable line and exit code 2."""
