@@ -8,8 +8,10 @@ error rather than a traceback) and the node's typed ROS declarations.
 """
 
 from dataclasses import make_dataclass
+import json
 import math
 import re
+import textwrap
 from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
 
@@ -192,6 +194,7 @@ def _choice(choices: Sequence[Any]) -> Callable[[str, Any], Any]:
             raise ConfigError(f'parameter {name} must be one of '
                               f'{", ".join(str(c) for c in choices)}; got {value!r}{hint}')
         return value
+    read.choices = tuple(choices)  # for parameter_help()
     return read
 
 
@@ -534,3 +537,34 @@ def _check_frames(fields: Mapping[str, Any]) -> None:
         if frame == local:
             raise ConfigError(f'parameter world_frame_id names {what} {world!r} '
                               f'({switch}){distinct}')
+
+
+def _help_number(spec: Parameter, value: float) -> str:
+    return str(int(value)) if spec.ros_type.startswith('integer') else f'{value:g}'
+
+
+def parameter_help(width: int = 79) -> str:
+    """
+    Return every parameter as ``--help`` lists it: name, type, default, range, description.
+
+    Defaults are written as JSON, which ROS reads as YAML, so each can be
+    typed after ``-p name:=`` as shown.
+    """
+    lines = []
+    for spec in PARAMETERS:
+        facts = [spec.ros_type, f'default {json.dumps(spec.default)}']
+        choices = getattr(spec.read, 'choices', None)
+        if choices is not None:
+            facts.append('one of ' + ', '.join(str(c) for c in choices))
+        bounds = spec.bounds
+        if bounds is not None:
+            unit = f' {bounds.unit}' if bounds.unit else ''
+            zero = f' or 0 ({bounds.zero})' if bounds.zero else ''
+            facts.append(f'range [{_help_number(spec, bounds.low)}, '
+                         f'{_help_number(spec, bounds.high)}]{unit}{zero}')
+        lines += textwrap.wrap(f'{spec.name}: {"; ".join(facts)}', width, initial_indent='  ',
+                               subsequent_indent=' ' * 6, break_long_words=False,
+                               break_on_hyphens=False)
+        lines += textwrap.wrap(spec.description, width, initial_indent=' ' * 6,
+                               subsequent_indent=' ' * 6)
+    return '\n'.join(lines) + '\n'

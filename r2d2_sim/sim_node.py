@@ -8,6 +8,7 @@ top, so its handlers are in place from the first line the package runs. They
 only set an event: the paced loop sees it and exits with status 0.
 """
 
+import os
 import signal
 import sys
 import threading
@@ -66,14 +67,50 @@ def run_paced(node, stop: threading.Event) -> None:
             pacer.wait()
 
 
+HELP_FLAGS = ('-h', '--help')
+
+
+def wants_help(argv: Sequence[str]) -> bool:
+    """
+    Return True if ``-h`` or ``--help`` is among the arguments, wherever it is.
+
+    Also after ``--ros-args``, where rcl would refuse it as an unknown ROS
+    argument; a parameter value or a file name is never one of them on its own
+    (``-p name:=--help`` is one argument).
+    """
+    return any(arg in HELP_FLAGS for arg in argv[1:])
+
+
+def usage(argv0: str) -> str:
+    """Return the ``--help`` text: usage, what the node does, and every parameter."""
+    from r2d2_sim.parameters import parameter_help  # standard library only
+    prog = 'python -m r2d2_sim' if argv0.endswith('__main__.py') else os.path.basename(argv0)
+    return (f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE]]\n\n'
+            'Run the ROS 2 node r2d2_sim, R2D2 simulated in PyBullet, until SIGINT or\n'
+            'SIGTERM. Parameters, parameter files and remaps (-r FROM:=TO) go after\n'
+            '--ros-args; all parameters are read-only once the node runs. A bad value\n'
+            'stops it with one error line and exit status 2.\n\n'
+            f'example: {prog} --ros-args -p real_time_factor:=0.0 -p scan_rate:=0.0\n\n'
+            'parameters:\n' + parameter_help())
+
+
 def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] = None) -> int:
     """
     Run the simulator node until SIGINT or SIGTERM, or until ``stop`` is set.
 
-    Returns the exit status: 0 after a stop request, 2 when the node cannot
-    start. ``args`` defaults to ``sys.argv``; ``stop`` to a new event set by
-    SIGINT and SIGTERM (installed before rclpy and PyBullet are imported).
+    Returns the exit status: 0 after a stop request or ``--help``, 2 when the
+    node cannot start. ``args`` defaults to ``sys.argv``; ``stop`` to a new
+    event set by SIGINT and SIGTERM (installed before rclpy and PyBullet are
+    imported).
     """
+    argv = sys.argv if args is None else list(args)
+    if wants_help(argv):
+        try:
+            sys.stdout.write(usage(argv[0] if argv else 'sim_node'))
+            sys.stdout.flush()
+        except BrokenPipeError:  # sim_node --help | head
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     if stop is None:
         stop = stop_on_signals()
     import rclpy  # heavy imports, now covered by the handlers
@@ -81,7 +118,6 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
     from rclpy.signals import SignalHandlerOptions
     from r2d2_sim.node import NODE_NAME, SimNode, StartupError
     from rclpy.utilities import remove_ros_args
-    argv = sys.argv if args is None else list(args)
     try:
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         # sim_node takes only ROS arguments: '-p x:=1' without --ros-args
