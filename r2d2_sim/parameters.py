@@ -4,7 +4,9 @@ The node's parameters in one table: name, ROS type, default, unit, bounds, descr
 No ROS here. Everything else is derived from :data:`PARAMETERS`: the
 :class:`SimConfig` fields, the validation in :func:`parse_config` (one readable
 :class:`ConfigError` line per bad value, so a bad parameter is a clear start-up
-error rather than a traceback) and the node's typed ROS declarations.
+error rather than a traceback; frame ids that would break the TF tree
+included), the node's typed ROS declarations and ``sim_node --help``
+(:func:`parameter_help`).
 """
 
 from dataclasses import make_dataclass
