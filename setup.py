@@ -6,6 +6,22 @@ from setuptools import find_packages, setup
 
 package_name = 'r2d2_sim'
 
+# What the package imports at run time, so that `pip install .` alone gives a
+# working sim_node, demo and pytest plugin. ROS is pinned to Jazzy through the
+# ros-jazzy-* names (the unprefixed ros-* names resolve to a newer distribution),
+# at the versions of requirements.txt (test_install.py checks they agree).
+# Under colcon these come from the ROS install instead (package.xml).
+INSTALL_REQUIRES = [
+    'setuptools',
+    'ros-jazzy-rclpy[fastrtps]==7.1.6',        # rclpy, rcl_interfaces, rosgraph_msgs, ament_index
+    'ros-jazzy-common-interfaces==5.3.6',      # geometry, sensor, nav, std msgs; std_srvs
+    'ros-jazzy-rosidl-parser==4.6.6',          # serialization.py reads message definitions
+    'pybullet==3.2.7',
+    'numpy>=1.24,<3',
+    # The demo executable, installed with the package, writes its plot with it.
+    'matplotlib>=3.6,<4',
+]
+
 setup(
     name=package_name,
     version='0.1.0',
@@ -15,7 +31,8 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/urdf', glob('urdf/*')),
     ],
-    install_requires=['setuptools'],
+    install_requires=INSTALL_REQUIRES,
+    python_requires='>=3.10',
     zip_safe=True,
     maintainer='r2d2_sim maintainers',
     maintainer_email='maintainers@r2d2-sim.dev',

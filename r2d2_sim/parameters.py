@@ -4,18 +4,20 @@ The node's parameters in one table: name, ROS type, default, unit, bounds, descr
 No ROS here. Everything else is derived from :data:`PARAMETERS`: the
 :class:`SimConfig` fields, the validation in :func:`parse_config` (one readable
 :class:`ConfigError` line per bad value, so a bad parameter is a clear start-up
-error rather than a traceback) and the node's typed ROS declarations.
+error rather than a traceback; frame ids that would break the TF tree
+included), the node's typed ROS declarations and ``sim_node --help``
+(:func:`parameter_help`).
 """
 
 from dataclasses import make_dataclass
+import json
 import math
-from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
+import textwrap
+from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple
 
-from r2d2_sim.errors import SetupError
-
-
-class ConfigError(SetupError, ValueError):
-    """A parameter value the simulator cannot run with."""
+from r2d2_sim import parameter_readers as read
+# ConfigError and Bounds are defined with the readers; the table's users import them here.
+from r2d2_sim.parameter_readers import Bounds, ConfigError  # noqa: F401
 
 
 # Measured on the package's own R2D2 (four wheels skid-steering, lateral
@@ -36,29 +38,12 @@ DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S = 3.0
 FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.pi / 2}
 
 
-class Bounds(NamedTuple):
-    """
-    The plausible range of a number, with its unit for messages.
-
-    ``zero`` names what 0 means when 0 is allowed outside the range ("derive
-    it from the URDF", "no limit"); None when 0 is just a value to check.
-    """
-
-    low: float
-    high: float
-    unit: str = ''
-    zero: Optional[str] = None
-
-    def check(self, name: str, value: float) -> float:
-        """Return ``value`` if it is in range (or an allowed 0), else raise ConfigError."""
-        if value == 0.0 and self.zero is not None:
-            return value
-        if not self.low <= value <= self.high:
-            unit = f' {self.unit}' if self.unit else ''
-            zero = f' ({self.zero} with 0)' if self.zero else ''
-            raise ConfigError(f'parameter {name} must be in [{self.low:g}, {self.high:g}]'
-                              f'{unit}{zero}, got {value:g}')
-        return value
+# The frames of the node's own sensors (with frame_prefix in front), and the
+# URDF link the head camera's frame hangs from; r2d2_sim.sensor_mounts mounts them.
+LASER_FRAME_ID = 'base_scan'
+IMU_FRAME_ID = 'imu_link'
+HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
+HEAD_CAMERA_LINK = 'head'
 
 
 # Physical quantities of a robot that drives on wheels; beyond these a value is
@@ -70,135 +55,6 @@ WHEEL_FORCE = Bounds(0.001, 100000.0, 'N m', 'take the URDF effort limit')
 
 
 # -- readers: raw parameter value -> validated value (one ConfigError line) ---
-
-def _number(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f'parameter {name} must be a number, got {value!r}')
-    value = float(value)
-    if not math.isfinite(value):
-        raise ConfigError(f'parameter {name} must be finite, got {value}')
-    return value
-
-
-def _positive(name: str, value: Any) -> float:
-    value = _number(name, value)
-    if value <= 0.0:
-        raise ConfigError(f'parameter {name} must be > 0, got {value}')
-    return value
-
-
-def _non_negative(name: str, value: Any) -> float:
-    value = _number(name, value)
-    if value < 0.0:
-        raise ConfigError(f'parameter {name} must be >= 0, got {value}')
-    return value
-
-
-def _limit(name: str, value: Any) -> float:
-    """Read a limit where 0 means none: math.inf."""
-    return _non_negative(name, value) or math.inf
-
-
-def _field_of_view(name: str, value: Any) -> float:
-    value = _positive(name, value)
-    if value >= 180.0:
-        raise ConfigError(f'parameter {name} must be below 180 degrees, got {value}')
-    return value
-
-
-def _ratio(name: str, value: Any) -> float:
-    value = _positive(name, value)
-    if value > 1.0:
-        raise ConfigError(f'parameter {name} must be in (0, 1], got {value}')
-    return value
-
-
-def _boolean(name: str, value: Any) -> bool:
-    if not isinstance(value, bool):
-        raise ConfigError(f'parameter {name} must be true or false, got {value!r}')
-    return value
-
-
-def _string(name: str, value: Any) -> str:
-    if not isinstance(value, str):
-        raise ConfigError(f'parameter {name} must be a string, got {value!r}')
-    return value
-
-
-def _frame(name: str, value: Any) -> str:
-    value = _string(name, value)
-    if not value.strip():
-        raise ConfigError(f'parameter {name} must not be empty')
-    return value
-
-
-def _is_string_list(value: Any) -> bool:
-    return (isinstance(value, (list, tuple))
-            and all(isinstance(v, str) for v in value))
-
-
-def _joint_names(name: str, value: Any) -> Tuple[str, ...]:
-    if not _is_string_list(value):
-        raise ConfigError(f'parameter {name} must be a list of joint names, got {value!r}')
-    names = tuple(value)
-    if len(set(names)) != len(names):
-        raise ConfigError(f'parameter {name} lists a joint twice: {list(names)}')
-    return names
-
-
-def _integer(name: str, value: Any) -> int:
-    if (isinstance(value, bool) or not isinstance(value, (int, float))
-            or (isinstance(value, float) and not value.is_integer())):
-        raise ConfigError(f'parameter {name} must be an integer, got {value!r}')
-    return int(value)
-
-
-def _choice(choices: Sequence[Any]) -> Callable[[str, Any], Any]:
-    def read(name: str, value: Any) -> Any:
-        if isinstance(value, bool) or value not in choices:
-            # ROS parameter files read a bare y, n, yes, on... as booleans.
-            hint = ' (quote the value in YAML files)' if isinstance(value, bool) else ''
-            raise ConfigError(f'parameter {name} must be one of '
-                              f'{", ".join(str(c) for c in choices)}; got {value!r}{hint}')
-        return value
-    return read
-
-
-def _numbers(length: int) -> Callable[[str, Any], Tuple[float, ...]]:
-    def read(name: str, value: Any) -> Tuple[float, ...]:
-        if (isinstance(value, (str, bytes)) or not hasattr(value, '__len__')
-                or len(value) != length):
-            raise ConfigError(
-                f'parameter {name} must be a list of {length} numbers, got {value!r}')
-        return tuple(_number(name, v) for v in value)
-    return read
-
-
-def _variances(name: str, value: Any) -> Tuple[float, ...]:
-    values = _numbers(6)(name, value)
-    if min(values) < 0.0:
-        raise ConfigError(f'parameter {name} must not contain negative variances')
-    return values
-
-
-def _extra_models(name: str, value: Any) -> Tuple[Tuple[str, Tuple[float, float, float]], ...]:
-    if not _is_string_list(value):
-        raise ConfigError(f'parameter {name} must be a list of strings, got {value!r}')
-    models = []
-    for entry in value:
-        parts = entry.rsplit(None, 3)
-        try:
-            if len(parts) != 4:
-                raise ValueError
-            position = tuple(float(p) for p in parts[1:])
-        except ValueError:
-            raise ConfigError(f'parameter {name}: entry {entry!r} is not '
-                              '"description x y z"') from None
-        if not all(math.isfinite(p) for p in position):
-            raise ConfigError(f'parameter {name}: entry {entry!r} has a non-finite position')
-        models.append((parts[0], position))
-    return tuple(models)
-
 
 # -- the table -----------------------------------------------------------------
 
@@ -224,160 +80,160 @@ PARAMETERS: List[Parameter] = [
     Parameter('urdf', 'string', '',
               'Robot description: a file path, a package://pkg/path URI or a name in '
               'pybullet_data (r2d2.urdf); empty means the package\'s own urdf/r2d2.urdf.',
-              'urdf', _string),
+              'urdf', read.string),
     Parameter('robot_description', 'string', '',
               'URDF XML text (as robot_state_publisher takes it); overrides urdf.',
-              'robot_description', _string),
+              'robot_description', read.string),
     Parameter('base_forward_axis', 'string', 'x',
               'Axis of the URDF base frame the robot drives along: x, y, -x or -y.',
-              'base_forward_axis', _choice(list(FORWARD_AXIS_YAW_RAD))),
+              'base_forward_axis', read.choice(list(FORWARD_AXIS_YAW_RAD))),
     Parameter('wheel_velocity_sign', 'integer', 1,
               '1, or -1 when a negative wheel velocity drives the robot forward.',
-              'wheel_velocity_sign', _choice([1, -1])),
+              'wheel_velocity_sign', read.choice([1, -1])),
     Parameter('gravity', 'double_array', [0.0, 0.0, -9.8], 'Gravity [x, y, z] in m/s^2.',
-              'gravity_m_s2', _numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis')),
+              'gravity_m_s2', read.numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis')),
     Parameter('ground_plane', 'bool', True, 'Load pybullet_data\'s plane.urdf as the ground.',
-              'ground_plane', _boolean),
+              'ground_plane', read.boolean),
     Parameter('extra_models', 'string_array', [],
               'Other bodies, each "description x y z" (description resolved like urdf).',
-              'extra_models', _extra_models),
+              'extra_models', read.extra_models),
     Parameter('gui', 'bool', False, 'Open the PyBullet window (needs a display).',
-              'gui', _boolean),
+              'gui', read.boolean),
     Parameter('physics_rate', 'double', 240.0, 'Physics steps per simulated second (Hz).',
-              'physics_rate_hz', _positive, Bounds(10.0, 10000.0, 'Hz')),
+              'physics_rate_hz', read.positive, Bounds(10.0, 10000.0, 'Hz')),
     Parameter('real_time_factor', 'double', 1.0,
               'Simulated seconds per wall-clock second; 0 runs as fast as possible.',
-              'real_time_factor', _non_negative, Bounds(0.0, 1000.0)),
+              'real_time_factor', read.non_negative, Bounds(0.0, 1000.0)),
     Parameter('publish_rate', 'double', 0.0,
               'State publishing rate in simulated Hz; 0 publishes after every physics step.',
-              'publish_rate_hz', _non_negative, Bounds(0.001, 10000.0, 'Hz', 'every step')),
+              'publish_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'every step')),
     Parameter('cmd_vel_timeout', 'double', 0.5,
               'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
-              'cmd_vel_timeout_s', _non_negative),
+              'cmd_vel_timeout_s', read.non_negative),
     Parameter('start_paused', 'bool', False,
               'Start with physics stopped, waiting for ~/pause false or ~/step.',
-              'start_paused', _boolean),
+              'start_paused', read.boolean),
     Parameter('wheel_radius', 'double', 0.0,
               'Wheel radius in metres; 0 derives it from the wheels\' collision shapes.',
-              'wheel_radius_m', _non_negative, WHEEL_RADIUS),
+              'wheel_radius_m', read.non_negative, WHEEL_RADIUS),
     Parameter('wheel_separation', 'double', 0.0,
               'Distance between left and right wheels in metres; 0 derives it from the URDF.',
-              'wheel_separation_m', _non_negative, WHEEL_SEPARATION),
+              'wheel_separation_m', read.non_negative, WHEEL_SEPARATION),
     Parameter('wheel_separation_multiplier', 'double', DEFAULT_WHEEL_SEPARATION_MULTIPLIER,
               'Effective/nominal track ratio used by commands and odometry (skid steering).',
-              'wheel_separation_multiplier', _positive, Bounds(0.1, 10.0)),
+              'wheel_separation_multiplier', read.positive, Bounds(0.1, 10.0)),
     Parameter('wheel_lateral_friction_ratio', 'double', 0.35,
               'Wheel grip along the axle relative to rolling grip, in (0, 1].',
-              'wheel_lateral_friction_ratio', _ratio),
+              'wheel_lateral_friction_ratio', read.ratio),
     Parameter('left_wheel_names', 'string_array',
               ['left_front_wheel_joint', 'left_back_wheel_joint'],
-              'Joints driven as the left side.', 'left_wheel_names', _joint_names),
+              'Joints driven as the left side.', 'left_wheel_names', read.joint_names),
     Parameter('right_wheel_names', 'string_array',
               ['right_front_wheel_joint', 'right_back_wheel_joint'],
-              'Joints driven as the right side.', 'right_wheel_names', _joint_names),
+              'Joints driven as the right side.', 'right_wheel_names', read.joint_names),
     Parameter('max_wheel_velocity', 'double', 0.0,
               'Wheel speed limit in rad/s; 0 takes the URDF joint velocity limit.',
-              'max_wheel_velocity_rad_s', _non_negative, WHEEL_VELOCITY),
+              'max_wheel_velocity_rad_s', read.non_negative, WHEEL_VELOCITY),
     Parameter('max_wheel_force', 'double', 0.0,
               'Wheel motor torque limit in N m; 0 takes the URDF joint effort limit.',
-              'max_wheel_force_n_m', _non_negative, WHEEL_FORCE),
+              'max_wheel_force_n_m', read.non_negative, WHEEL_FORCE),
     Parameter('max_linear_velocity', 'double', 0.0,
               'Forward speed limit in m/s; 0 leaves only the wheel speed limit.',
-              'max_linear_velocity_m_s', _limit, Bounds(0.001, 50.0, 'm/s', 'no limit')),
+              'max_linear_velocity_m_s', read.limit, Bounds(0.001, 50.0, 'm/s', 'no limit')),
     Parameter('max_angular_velocity', 'double', DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S,
               'Turn rate limit in rad/s; 0 leaves only the wheel speed limit.',
-              'max_angular_velocity_rad_s', _limit, Bounds(0.001, 50.0, 'rad/s', 'no limit')),
+              'max_angular_velocity_rad_s', read.limit, Bounds(0.001, 50.0, 'rad/s', 'no limit')),
     Parameter('max_linear_acceleration', 'double', DEFAULT_MAX_LINEAR_ACCELERATION_M_S2,
               'Forward acceleration and braking limit in m/s^2; 0 means none.',
-              'max_linear_acceleration_m_s2', _limit,
+              'max_linear_acceleration_m_s2', read.limit,
               Bounds(0.001, 1000.0, 'm/s^2', 'no limit')),
     Parameter('max_angular_acceleration', 'double', DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2,
               'Turn rate acceleration limit in rad/s^2; 0 means none.',
-              'max_angular_acceleration_rad_s2', _limit,
+              'max_angular_acceleration_rad_s2', read.limit,
               Bounds(0.001, 1000.0, 'rad/s^2', 'no limit')),
     Parameter('odom_frame_id', 'string', 'odom', 'Frame of the wheel odometry.',
-              'odom_frame_id', _frame),
+              'odom_frame_id', read.frame),
     Parameter('base_frame_id', 'string', 'base_link', 'Child frame of both odometry topics.',
-              'base_frame_id', _frame),
+              'base_frame_id', read.frame),
     Parameter('world_frame_id', 'string', 'world', 'Frame of the ground_truth odometry.',
-              'world_frame_id', _frame),
+              'world_frame_id', read.frame),
     Parameter('initial_pose', 'double_array', [0.0, 0.0, 0.0],
               'Spawn pose [x (m), y (m), yaw (rad)] in the world frame.',
-              'initial_pose', _numbers(3)),
+              'initial_pose', read.numbers(3)),
     Parameter('pose_covariance_diagonal', 'double_array',
               [0.001, 0.001, 1.0e6, 1.0e6, 1.0e6, 0.01],
               'Diagonal of the odom pose covariance (x, y, z, roll, pitch, yaw).',
-              'pose_covariance_diagonal', _variances),
+              'pose_covariance_diagonal', read.variances),
     Parameter('twist_covariance_diagonal', 'double_array',
               [0.001, 1.0e6, 1.0e6, 1.0e6, 1.0e6, 0.01],
               'Diagonal of the odom twist covariance (vx, vy, vz, wx, wy, wz).',
-              'twist_covariance_diagonal', _variances),
+              'twist_covariance_diagonal', read.variances),
     Parameter('camera_rate', 'double', 0.0,
               'Head camera images per simulated second (Hz); 0 turns the camera off.',
-              'camera_rate_hz', _non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
+              'camera_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
     Parameter('camera_width', 'integer', 320, 'Head camera image width in pixels.',
-              'camera_width_px', _integer, Bounds(1, 4096, 'px')),
+              'camera_width_px', read.integer, Bounds(1, 4096, 'px')),
     Parameter('camera_height', 'integer', 240, 'Head camera image height in pixels.',
-              'camera_height_px', _integer, Bounds(1, 4096, 'px')),
+              'camera_height_px', read.integer, Bounds(1, 4096, 'px')),
     Parameter('camera_fov', 'double', 60.0, 'Head camera vertical field of view in degrees.',
-              'camera_fov_deg', _field_of_view),
+              'camera_fov_deg', read.field_of_view),
     Parameter('camera_depth', 'bool', False,
               'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
-              'camera_depth', _boolean),
+              'camera_depth', read.boolean),
     Parameter('world', 'string', '',
               'A world to load around the robot at the origin, resolved like urdf '
-              '(package://r2d2_sim/urdf/room.urdf); empty for none.', 'world', _string),
+              '(package://r2d2_sim/urdf/room.urdf); empty for none.', 'world', read.string),
     Parameter('publish_tf', 'bool', True,
               'Publish odom -> base_footprint on /tf and the static frames on /tf_static '
-              '(needs tf2_msgs).', 'publish_tf', _boolean),
+              '(needs tf2_msgs).', 'publish_tf', read.boolean),
     Parameter('publish_link_tf', 'bool', False,
               'Also publish the robot\'s link transforms (what robot_state_publisher would).',
-              'publish_link_tf', _boolean),
+              'publish_link_tf', read.boolean),
     Parameter('publish_ground_truth_tf', 'bool', False,
               'Also publish world -> odom so that world -> base follows the true pose.',
-              'publish_ground_truth_tf', _boolean),
+              'publish_ground_truth_tf', read.boolean),
     Parameter('footprint_frame_id', 'string', 'base_footprint',
               'The base\'s projection on the ground, parent of base_frame_id in TF.',
-              'footprint_frame_id', _frame),
+              'footprint_frame_id', read.frame),
     Parameter('frame_prefix', 'string', '',
               'Prefix for every frame the robot publishes (not world_frame_id), e.g. robot1/.',
-              'frame_prefix', _string),
+              'frame_prefix', read.frame_prefix),
     Parameter('scan_rate', 'double', 10.0,
               'Laser scans per simulated second (Hz) on scan; 0 turns the scanner off.',
-              'scan_rate_hz', _non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
-    Parameter('scan_samples', 'integer', 360, 'Beams per scan.', 'scan_samples', _integer,
+              'scan_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
+    Parameter('scan_samples', 'integer', 360, 'Beams per scan.', 'scan_samples', read.integer,
               Bounds(2, 10000)),
     Parameter('scan_angle_min', 'double', -math.pi, 'First beam angle in rad (0 = forward).',
-              'scan_angle_min_rad', _number, Bounds(-math.pi, math.pi, 'rad')),
+              'scan_angle_min_rad', read.number, Bounds(-math.pi, math.pi, 'rad')),
     Parameter('scan_angle_max', 'double', math.pi,
               'Last beam angle in rad; a full circle has no duplicate last beam.',
-              'scan_angle_max_rad', _number, Bounds(-math.pi, math.pi, 'rad')),
+              'scan_angle_max_rad', read.number, Bounds(-math.pi, math.pi, 'rad')),
     Parameter('scan_range_min', 'double', 0.12, 'Closest range in m; nearer reads -inf.',
-              'scan_range_min_m', _non_negative, Bounds(0.0, 100.0, 'm')),
+              'scan_range_min_m', read.non_negative, Bounds(0.0, 100.0, 'm')),
     Parameter('scan_range_max', 'double', 12.0, 'Farthest range in m; no return reads +inf.',
-              'scan_range_max_m', _positive, Bounds(0.01, 1000.0, 'm')),
+              'scan_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm')),
     Parameter('scan_noise_std', 'double', 0.0,
               'Gaussian range noise standard deviation in m; 0 = exact.',
-              'scan_noise_std_m', _non_negative, Bounds(0.0, 10.0, 'm')),
+              'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm')),
     Parameter('imu_rate', 'double', 100.0,
               'IMU messages per simulated second (Hz) on imu; 0 turns the IMU off.',
-              'imu_rate_hz', _non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
+              'imu_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
     Parameter('imu_orientation_noise_std', 'double', 0.0,
               'IMU orientation noise standard deviation in rad; 0 = exact.',
-              'imu_orientation_noise_std_rad', _non_negative, Bounds(0.0, 1.0, 'rad')),
+              'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad')),
     Parameter('imu_angular_velocity_noise_std', 'double', 0.0,
               'IMU angular velocity noise standard deviation in rad/s; 0 = exact.',
-              'imu_angular_velocity_noise_std_rad_s', _non_negative,
+              'imu_angular_velocity_noise_std_rad_s', read.non_negative,
               Bounds(0.0, 10.0, 'rad/s')),
     Parameter('imu_linear_acceleration_noise_std', 'double', 0.0,
               'IMU acceleration noise standard deviation in m/s^2; 0 = exact.',
-              'imu_linear_acceleration_noise_std_m_s2', _non_negative,
+              'imu_linear_acceleration_noise_std_m_s2', read.non_negative,
               Bounds(0.0, 100.0, 'm/s^2')),
     Parameter('noise_seed', 'integer', 0, 'Seed of the scan and IMU noise (runs repeat).',
-              'noise_seed', _integer, Bounds(0, 2**31 - 1)),
+              'noise_seed', read.integer, Bounds(0, 2**31 - 1)),
     Parameter('enable_stamped_cmd_vel', 'bool', False,
               'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name).',
-              'enable_stamped_cmd_vel', _boolean),
+              'enable_stamped_cmd_vel', read.boolean),
 ]
 
 PARAMETERS_BY_NAME: Dict[str, Parameter] = {p.name: p for p in PARAMETERS}
@@ -420,7 +276,7 @@ def _read(spec: Parameter, value: Any) -> Any:
     if spec.bounds is not None:
         values = result if isinstance(result, tuple) else (result,)
         for v in values:
-            if math.isfinite(v):  # inf is how _limit says "none"
+            if math.isfinite(v):  # inf is how read.limit says "none"
                 spec.bounds.check(spec.name, v)
     return result
 
@@ -454,4 +310,83 @@ def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
     if not fields['scan_range_min_m'] < fields['scan_range_max_m']:
         raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
                           f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')
+    _check_frames(fields)
     return SimConfig(**fields)
+
+
+def _check_frames(fields: Mapping[str, Any]) -> None:
+    """
+    Refuse frame ids that would break the TF tree: any two of the robot's frames alike.
+
+    TF is one tree: odom -> footprint -> base -> sensors, under world when
+    publish_ground_truth_tf is on. Two roles given one frame make a cycle
+    (odom_frame_id base_link) or a transform from a frame to itself
+    (footprint_frame_id base_link), which tf2 refuses. frame_prefix goes in
+    front of every robot frame but not of world_frame_id, so world is
+    compared with the prefixed names.
+    """
+    prefix = fields['frame_prefix']
+    parameters = [(name, fields[name])
+                  for name in ('odom_frame_id', 'footprint_frame_id', 'base_frame_id')]
+    sensors = []
+    for rate, frames, what, switch in (
+            ('scan_rate_hz', (LASER_FRAME_ID,), "the laser's frame", 'scan_rate > 0'),
+            ('imu_rate_hz', (IMU_FRAME_ID,), "the IMU's frame", 'imu_rate > 0'),
+            ('camera_rate_hz', (HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK),
+             "a head camera frame", 'camera_rate > 0')):
+        if fields[rate] > 0.0:
+            sensors += [(frame, what, switch) for frame in frames]
+    distinct = ': TF needs a distinct frame for each'
+    seen: Dict[str, str] = {}
+    for name, frame in parameters:
+        if frame in seen:
+            raise ConfigError(f'parameters {seen[frame]} and {name} both name the frame '
+                              f'{prefix + frame!r}{distinct}')
+        seen[frame] = name
+    for frame, what, switch in sensors:
+        if frame in seen:
+            raise ConfigError(f'parameter {seen[frame]} names {what} {prefix + frame!r} '
+                              f'({switch}){distinct}')
+    world = fields['world_frame_id']
+    if not world.startswith(prefix):
+        return
+    local = world[len(prefix):]
+    with_prefix = f' (with frame_prefix {prefix!r})' if prefix else ''
+    if local in seen:
+        raise ConfigError(f'parameters world_frame_id and {seen[local]}{with_prefix} both name '
+                          f'the frame {world!r}{distinct}')
+    for frame, what, switch in sensors:
+        if frame == local:
+            raise ConfigError(f'parameter world_frame_id names {what} {world!r} '
+                              f'({switch}){distinct}')
+
+
+def _help_number(spec: Parameter, value: float) -> str:
+    return str(int(value)) if spec.ros_type.startswith('integer') else f'{value:g}'
+
+
+def parameter_help(width: int = 79) -> str:
+    """
+    Return every parameter as ``--help`` lists it: name, type, default, range, description.
+
+    Defaults are written as JSON, which ROS reads as YAML, so each can be
+    typed after ``-p name:=`` as shown.
+    """
+    lines = []
+    for spec in PARAMETERS:
+        facts = [spec.ros_type, f'default {json.dumps(spec.default)}']
+        choices = getattr(spec.read, 'choices', None)
+        if choices is not None:
+            facts.append('one of ' + ', '.join(str(c) for c in choices))
+        bounds = spec.bounds
+        if bounds is not None:
+            unit = f' {bounds.unit}' if bounds.unit else ''
+            zero = f' or 0 ({bounds.zero})' if bounds.zero else ''
+            facts.append(f'range [{_help_number(spec, bounds.low)}, '
+                         f'{_help_number(spec, bounds.high)}]{unit}{zero}')
+        lines += textwrap.wrap(f'{spec.name}: {"; ".join(facts)}', width, initial_indent='  ',
+                               subsequent_indent=' ' * 6, break_long_words=False,
+                               break_on_hyphens=False)
+        lines += textwrap.wrap(spec.description, width, initial_indent=' ' * 6,
+                               subsequent_indent=' ' * 6)
+    return '\n'.join(lines) + '\n'

@@ -57,11 +57,30 @@ def _declare_typed(node: Node, spec: ParameterSpec, value: Any) -> None:
     if convert is not None:
         value = convert(value)
     if isinstance(value, list) and not value:
-        # rclpy types an empty list as a byte array: declare the type, with no value.
-        node.declare_parameter(spec.name, ROS_TYPES[spec.ros_type], descriptor,
-                               ignore_override=True)
+        _declare_empty_list(node, spec.name, ROS_TYPES[spec.ros_type], descriptor)
     else:
         node.declare_parameter(spec.name, value, descriptor, ignore_override=True)
+
+
+def _declare_empty_list(node: Node, name: str, ros_type: Parameter.Type,
+                        descriptor: ParameterDescriptor) -> None:
+    """
+    Declare ``name`` read-only with an empty list of ``ros_type`` as its value.
+
+    rclpy infers a type from the value, and an empty list reads as a byte
+    array. Declared with only its type, the parameter has no value, and
+    rclpy's GetParameters service then answers any request naming it with no
+    values at all: ``ros2 param dump`` and rqt, which ask for every listed
+    name at once, got nothing. So: declare the type writable, set the typed
+    empty value, then make it read-only (all through rclpy's public API).
+    """
+    writable = ParameterDescriptor(description=descriptor.description)
+    node.declare_parameter(name, ros_type, writable, ignore_override=True)
+    (result,) = node.set_parameters([Parameter(name, ros_type, [])])
+    if not result.successful:
+        raise RuntimeError(f'cannot set parameter {name} to []: {result.reason}')
+    descriptor.type = ros_type.value
+    node.set_descriptor(name, descriptor)
 
 
 def _warn_unknown_overrides(node: Node, overrides) -> None:

@@ -15,7 +15,9 @@ import numpy
 
 from r2d2_sim import camera
 from r2d2_sim.body import Body, WorldError
-from r2d2_sim.parameters import ConfigError, SimConfig
+# The sensors' frame ids are the parameter table's, which checks them against the others.
+from r2d2_sim.parameters import (
+    ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID, SimConfig)
 from r2d2_sim.sensors import (
     ImuModel, ImuReading, linearize_depth, ranges_from_hits, ray_endpoints, ScanGeometry,
     SensorConfigError)
@@ -26,19 +28,15 @@ from r2d2_sim.transforms import (
 __all__ = ['HEAD_CAMERA_LINK', 'HEAD_CAMERA_FRAME_ID', 'LASER_FRAME_ID', 'LASER_HEIGHT_M',
            'IMU_FRAME_ID', 'CameraImage', 'HeadCamera', 'LaserScanner', 'ImuSensor']
 
-# The head camera: its link, image frame, clipping planes, and the gap between
-# the link's bounding box and the lens (so the head itself is not in view).
-HEAD_CAMERA_LINK = 'head'
-HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
+# The head camera's clipping planes, and the gap between its link's bounding
+# box and the lens (so the head itself is not in view).
 HEAD_CAMERA_NEAR_M = 0.01
 HEAD_CAMERA_FAR_M = 100.0
 HEAD_CAMERA_CLEARANCE_M = 0.01
 # The laser (frame base_scan) sits on the body's axis this high above the
 # ground: R2D2's body frame is 0.47 m up, and at 0.25 m the scan sees the
 # room's 0.4 m boxes and walls. The IMU (imu_link) is at the body frame.
-LASER_FRAME_ID = 'base_scan'
 LASER_HEIGHT_M = 0.25
-IMU_FRAME_ID = 'imu_link'
 
 
 class CameraImage(NamedTuple):

@@ -4,10 +4,12 @@ The ``sim_node`` executable: signal handling first, then the paced simulator.
 Importing rclpy and PyBullet takes about a quarter of a second. A signal in that
 window used to end the process with a ``KeyboardInterrupt`` traceback (SIGINT)
 or status -15 (SIGTERM). This module imports only the standard library at the
-top, so its handlers are in place from the first line the package runs. They
-only set an event: the paced loop sees it and exits with status 0.
+top, so its handlers are in place from the first line the package runs: during
+the heavy imports a signal ends the process at once with status 0, after them
+it only sets an event, which the paced loop sees and exits with status 0.
 """
 
+import os
 import signal
 import sys
 import threading
@@ -26,6 +28,10 @@ def stop_on_signals() -> threading.Event:
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     return stop
+
+
+def _exit_at_once(signum, frame):
+    raise SystemExit(0)
 
 
 def raise_if_stopped(stop: threading.Event) -> None:
@@ -72,26 +78,93 @@ def run_paced(node, stop: threading.Event, pacer=None,
             pacer.wait()
 
 
+HELP_FLAGS = ('-h', '--help')
+
+
+def wants_help(argv: Sequence[str]) -> bool:
+    """
+    Return True if ``-h`` or ``--help`` is among the arguments, wherever it is.
+
+    Also after ``--ros-args``, where rcl would refuse it as an unknown ROS
+    argument; a parameter value or a file name is never one of them on its own
+    (``-p name:=--help`` is one argument).
+    """
+    return any(arg in HELP_FLAGS for arg in argv[1:])
+
+
+def usage(argv0: str) -> str:
+    """Return the ``--help`` text: usage, what the node does, and every parameter."""
+    from r2d2_sim.parameters import parameter_help  # standard library only
+    prog = 'python -m r2d2_sim' if argv0.endswith('__main__.py') else os.path.basename(argv0)
+    return (f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE]]\n\n'
+            'Run the ROS 2 node r2d2_sim, R2D2 simulated in PyBullet, until SIGINT or\n'
+            'SIGTERM. Parameters, parameter files and remaps (-r FROM:=TO) go after\n'
+            '--ros-args; all parameters are read-only once the node runs. A bad value\n'
+            'stops it with one error line and exit status 2.\n\n'
+            f'example: {prog} --ros-args -p real_time_factor:=0.0 -p scan_rate:=0.0\n\n'
+            'parameters:\n' + parameter_help())
+
+
 def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] = None) -> int:
     """
     Run the simulator node until SIGINT or SIGTERM, or until ``stop`` is set.
 
-    Returns the exit status: 0 after a stop request, 2 when the node cannot
-    start. ``args`` defaults to ``sys.argv``; ``stop`` to a new event set by
-    SIGINT and SIGTERM (installed before rclpy and PyBullet are imported).
+    Returns the exit status: 0 after a stop request or ``--help``, 2 when the
+    node cannot start. ``args`` defaults to ``sys.argv``; ``stop`` to a new
+    event set by SIGINT and SIGTERM (installed before rclpy and PyBullet are
+    imported).
     """
-    if stop is None:
-        stop = stop_on_signals()
-    import rclpy  # heavy imports, now covered by the handlers
-    from rclpy.executors import SingleThreadedExecutor
-    from r2d2_sim.node import NODE_NAME, SimNode, StartupError
     argv = sys.argv if args is None else list(args)
+    if wants_help(argv):
+        return _print_usage(argv)
+    if stop is None:
+        stop = _import_stopping_at_once()
+    import rclpy
+    from r2d2_sim.node import NODE_NAME, StartupError
     status = _init_ros(argv)
     if status is not None:
         return status
-    if stop.is_set():  # stopped while rclpy and PyBullet were still loading
-        rclpy.try_shutdown()
+    try:
+        if not stop.is_set():  # stopped while PyBullet was still loading
+            _run_node(stop)
         return 0
+    except StartupError as exc:
+        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
+        return 2
+    finally:
+        rclpy.try_shutdown()
+
+
+def _print_usage(argv: Sequence[str]) -> int:
+    try:
+        sys.stdout.write(usage(argv[0] if argv else 'sim_node'))
+        sys.stdout.flush()
+    except BrokenPipeError:  # sim_node --help | head
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0
+
+
+def _import_stopping_at_once() -> threading.Event:
+    """
+    Import rclpy and PyBullet; a signal meanwhile ends the process at once (status 0).
+
+    The imports take 0.25 s, seconds on a loaded machine, and a stop request
+    would otherwise wait for them. Returns the event the signals set from then on.
+    """
+    signal.signal(signal.SIGINT, _exit_at_once)
+    signal.signal(signal.SIGTERM, _exit_at_once)
+    try:
+        import rclpy  # noqa: F401
+        import r2d2_sim.node  # noqa: F401
+    finally:
+        stop = stop_on_signals()
+    return stop
+
+
+def _run_node(stop: threading.Event) -> None:
+    """Build the node, serve it from a thread and pace it here until ``stop`` is set."""
+    from rclpy.executors import SingleThreadedExecutor
+    from r2d2_sim.node import SimNode
     node = None
     executor = SingleThreadedExecutor()
     spinner = None
@@ -105,10 +178,6 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
             f'{node.config.physics_rate_hz:g} Hz, real time factor '
             f'{node.config.real_time_factor:g}' + (', paused' if node.paused else ''))
         run_paced(node, stop)
-        return 0
-    except StartupError as exc:
-        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
-        return 2
     finally:
         stop.set()
         if spinner is not None:
@@ -119,7 +188,6 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
         executor.shutdown(timeout_sec=1.0)
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
 
 
 def _init_ros(argv: Sequence[str]) -> Optional[int]:

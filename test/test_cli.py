@@ -1,14 +1,20 @@
 """The real sim_node executable in its own process, driven from this test process."""
 
+import json
 import signal
+import subprocess
 import sys
 
 from helpers import (
-    drive_forward_until, next_domain_id, RemoteProbe, start_sim_process, stop_process)
+    drive_forward_until, next_domain_id, RemoteProbe, ros_env, start_sim_process,
+    stop_process)
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
 from sensor_msgs.msg import JointState
+
+from r2d2_sim.parameters import PARAMETERS
+from r2d2_sim.sim_node import main
 
 
 @pytest.fixture
@@ -72,6 +78,13 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
     (['-p', 'max_wheel_force:=1.0e308'], 'max_wheel_force must be in'),
     (['-p', 'wheel_separation:=1.0e6'], 'wheel_separation must be in'),
     (['-p', 'real_time_factor:=1.0e308'], 'real_time_factor must be in [0, 1000]'),
+    (['-p', 'odom_frame_id:=base_link'],
+     "parameters odom_frame_id and base_frame_id both name the frame 'base_link'"),
+    (['-p', 'footprint_frame_id:=base_link'], 'footprint_frame_id and base_frame_id'),
+    (['-p', 'world_frame_id:=odom', '-p', 'publish_ground_truth_tf:=true'],
+     'world_frame_id and odom_frame_id'),
+    (['-p', 'frame_prefix:=/robot1/'], "frame_prefix must not start with '/'"),
+    (['-p', 'base_frame_id:=base link'], 'base_frame_id must be a tf2 frame id'),
 ])
 def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     """A wrong parameter stops start-up with one readable line and exit code 2."""
@@ -82,3 +95,36 @@ def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     assert 'Traceback' not in err
     lines = [line for line in err.splitlines() if 'error' in line]
     assert len(lines) == 1 and fragment in lines[0], err
+
+
+def _check_help(text, prog):
+    """Check the help text: a usage line for ``prog``, then every parameter of the table."""
+    assert text.startswith(f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]...'), text[:200]
+    flat = ' '.join(text.split())  # the lines are wrapped to 79 columns
+    for spec in PARAMETERS:
+        assert f' {spec.name}: {spec.ros_type}; default {json.dumps(spec.default)}' in flat, \
+            spec.name
+        assert ' '.join(spec.description.split()) in flat, spec.name
+    assert 'physics_rate: double; default 240.0; range [10, 10000] Hz' in flat
+    assert 'publish_rate: double; default 0.0; range [0.001, 10000] Hz or 0 (every step)' in flat
+    assert 'noise_seed: integer; default 0; range [0, 2147483647]' in flat
+    assert 'base_forward_axis: string; default "x"; one of x, y, -x, -y' in flat
+    assert max(len(line) for line in text.splitlines()) <= 90
+
+
+@pytest.mark.parametrize('args', [
+    ['--help'], ['-h'], ['--ros-args', '-p', 'physics_rate:=100.0', '--help']])
+def test_help_prints_usage_and_parameters_and_exits_0(args):
+    """Print the usage and the parameter table on stdout for --help (or -h), status 0."""
+    result = subprocess.run([sys.executable, '-m', 'r2d2_sim'] + args, capture_output=True,
+                            text=True, timeout=60.0, env=ros_env(next_domain_id()))
+    assert result.returncode == 0 and result.stderr == '', result.stderr
+    _check_help(result.stdout, 'python -m r2d2_sim')
+
+
+def test_sim_node_help_names_the_executable(capsys):
+    """sim_node --help, as its console script calls main: no ROS started, usage names sim_node."""
+    assert main(['/usr/lib/r2d2_sim/sim_node', '--help']) == 0
+    out, err = capsys.readouterr()
+    assert err == ''
+    _check_help(out, 'sim_node')

@@ -1,9 +1,10 @@
 """
 Every way a user installs r2d2_sim, proved by taking it: here, a plain ``pip install .``.
 
-A fresh virtual environment gets the ROS wheels and PyBullet from PyPI (the
-pip cache makes that about 20 s), then the package, not editable, built from
-a copy of the sources. Everything then runs from another directory with no
+A fresh virtual environment gets the package, not editable, built from a copy
+of the sources, and nothing else but pytest: the ROS wheels, PyBullet, numpy
+and matplotlib must come from the package's own declared dependencies (the
+pip cache makes that about 20 s). Everything then runs from another directory with no
 ``PYTHONPATH`` and no ``AMENT_PREFIX_PATH``, as for a pip user without a ROS
 install. (./run.sh puts the source tree on ``PYTHONPATH``, which once hid that
 such an install could not find its own URDF.) The colcon layout is proved in
@@ -23,9 +24,10 @@ from helpers import next_domain_id, REPO, RemoteProbe, stop_process
 import pytest
 from sensor_msgs.msg import JointState
 
-# What a pip user installs first (README "pip install"), at the pins of requirements.txt.
-USER_REQUIREMENTS = ['ros-jazzy-rclpy[fastrtps]==7.1.6', 'ros-jazzy-common-interfaces==5.3.6',
-                     'pybullet==3.2.7', 'numpy', 'matplotlib', 'pytest']
+# What a pip user adds to test their own code (README "pip install"); no ROS, no PyBullet.
+USER_REQUIREMENTS = ['pytest']
+# Run-time dependencies that requirements.txt pins too: the installed package must agree.
+PINNED = ('ros-jazzy-rclpy', 'ros-jazzy-common-interfaces', 'pybullet', 'numpy', 'matplotlib')
 PYBULLET_CHATTER = ('pybullet build time', 'argv[0]=')
 
 
@@ -50,8 +52,8 @@ def pip_venv(tmp_path_factory):
     _run([sys.executable, '-m', 'venv', str(venv)])
     pip = [str(venv / 'bin' / 'python'), '-m', 'pip', 'install', '--quiet',
            '--disable-pip-version-check']
+    _run(pip + [str(sources)], cwd=root)  # alone: the package brings what it needs
     _run(pip + USER_REQUIREMENTS)
-    _run(pip + [str(sources)], cwd=root)
     shutil.rmtree(sources)  # nothing may come from the source tree
     return venv
 
@@ -64,6 +66,52 @@ def user_env(domain_id=None):
     if domain_id is not None:
         env['ROS_DOMAIN_ID'] = str(domain_id)
     return env
+
+
+def _requirement(line):
+    """Split a requirement into (name with extras, version specifier)."""
+    for i, char in enumerate(line):
+        if char in '=<>!~':
+            return line[:i].strip(), line[i:].strip()
+    return line.strip(), ''
+
+
+def test_pip_install_alone_brings_the_pinned_dependencies(pip_venv, tmp_path):
+    """Declare ROS Jazzy, PyBullet, numpy and matplotlib at the pins of requirements.txt."""
+    script = textwrap.dedent('''
+        import json
+        from importlib import metadata
+        print(json.dumps({
+            'requires': metadata.requires('r2d2_sim'),
+            'versions': {name: metadata.version(name) for name in (
+                'ros-jazzy-rclpy', 'ros-jazzy-common-interfaces', 'ros-jazzy-rosidl-parser',
+                'pybullet', 'numpy', 'matplotlib')}}))
+    ''')
+    result = _run([str(pip_venv / 'bin' / 'python'), '-c', script], cwd=tmp_path,
+                  env=user_env())
+    facts = json.loads(result.stdout.strip().splitlines()[-1])
+    declared = dict(_requirement(line) for line in facts['requires'])
+    lines = (Path(REPO) / 'requirements.txt').read_text().splitlines()
+    pinned = dict(_requirement(line) for line in lines if line and not line.startswith('#'))
+    for name in PINNED:
+        key = next(k for k in pinned if k.split('[')[0] == name)
+        assert key in declared, f'{key} is not declared by setup.py: {sorted(declared)}'
+        assert set(declared[key].split(',')) == set(pinned[key].split(',')), name
+    for name, version in facts['versions'].items():
+        spec = declared[next(k for k in declared if k.split('[')[0] == name)]
+        if spec.startswith('=='):
+            assert version == spec[2:], (name, version, spec)
+    # pip's own consistency check: every declared dependency is there, at its version.
+    _run([str(pip_venv / 'bin' / 'python'), '-m', 'pip', 'check'], env=user_env())
+
+
+def test_pip_installed_sim_node_help(pip_venv, tmp_path):
+    """The installed sim_node prints its usage and parameters, exit 0, without starting ROS."""
+    result = _run([str(pip_venv / 'bin' / 'sim_node'), '--help'], cwd=tmp_path,
+                  env=user_env(), timeout=60)
+    assert result.stdout.startswith('usage: sim_node [-h]'), result.stdout[:200]
+    assert 'physics_rate: double; default 240.0' in result.stdout
+    assert result.stderr == ''
 
 
 def test_in_process_simulator_finds_its_installed_urdf(pip_venv, tmp_path):

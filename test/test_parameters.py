@@ -116,3 +116,87 @@ def test_any_value_of_any_type_is_accepted_or_one_config_error(spec):
             parse_config({spec.name: value})
         except ConfigError as exc:
             assert '\n' not in str(exc) and spec.name.split('_')[0] in str(exc), exc
+
+
+# -- frames: what would break the TF tree is refused at start-up ----------------
+
+@pytest.mark.parametrize('values, fragments', [
+    ({'odom_frame_id': 'base_link'},
+     ['parameters odom_frame_id and base_frame_id', "'base_link'"]),  # a cycle
+    ({'footprint_frame_id': 'base_link'},
+     ['parameters footprint_frame_id and base_frame_id', "'base_link'"]),  # base -> base
+    ({'odom_frame_id': 'base_footprint'},
+     ['parameters odom_frame_id and footprint_frame_id', "'base_footprint'"]),
+    ({'world_frame_id': 'odom', 'publish_ground_truth_tf': True},
+     ['parameters world_frame_id and odom_frame_id', "'odom'"]),  # odom -> odom
+    ({'world_frame_id': 'base_link'}, ['parameters world_frame_id and base_frame_id']),
+    ({'world_frame_id': 'base_footprint'},
+     ['parameters world_frame_id and footprint_frame_id']),
+    ({'frame_prefix': 'robot1/', 'world_frame_id': 'robot1/odom'},
+     ["world_frame_id and odom_frame_id (with frame_prefix 'robot1/')", "'robot1/odom'"]),
+    ({'frame_prefix': 'r', 'odom_frame_id': 'x', 'footprint_frame_id': 'x'}, ["'rx'"]),
+    ({'base_frame_id': 'base_scan'}, ["base_frame_id names the laser's frame 'base_scan'",
+                                      'scan_rate > 0']),
+    ({'odom_frame_id': 'imu_link'}, ["odom_frame_id names the IMU's frame 'imu_link'"]),
+    ({'footprint_frame_id': 'head_camera_optical', 'camera_rate': 10.0},
+     ['footprint_frame_id names a head camera frame', 'camera_rate > 0']),
+    ({'odom_frame_id': 'head', 'camera_rate': 10.0}, ["head camera frame 'head'"]),
+    ({'world_frame_id': 'base_scan'}, ["world_frame_id names the laser's frame"]),
+    ({'frame_prefix': 'r/', 'world_frame_id': 'r/imu_link'}, ["IMU's frame 'r/imu_link'"]),
+])
+def test_frames_that_collide_are_refused(values, fragments):
+    """Two roles given one frame (after frame_prefix) would make a cycle or a self transform."""
+    with pytest.raises(ConfigError) as info:
+        parse_config(values)
+    message = str(info.value)
+    assert '\n' not in message and 'TF needs a distinct frame for each' in message
+    for fragment in fragments:
+        assert fragment in message
+
+
+@pytest.mark.parametrize('values', [
+    {'frame_prefix': 'robot1/', 'world_frame_id': 'odom'},  # robot1/odom is not odom
+    {'frame_prefix': 'robot1/', 'world_frame_id': 'robot1/map'},
+    {'base_frame_id': 'base_scan', 'scan_rate': 0.0},  # no laser, no laser frame
+    {'odom_frame_id': 'head'},  # no camera: head is only a URDF link
+    {'odom_frame_id': 'robot_1/odom.2-b', 'world_frame_id': 'map'},
+    {'frame_prefix': 'fleet/robot1/'},
+    {'frame_prefix': 'robot1_'},
+])
+def test_distinct_frames_are_accepted(values):
+    """Frames that stay distinct, and tf2-valid names, pass."""
+    parse_config(values)
+
+
+@pytest.mark.parametrize('name, value, fragment', [
+    ('odom_frame_id', '/odom', "must not start with '/' (tf2 refuses such frame ids)"),
+    ('base_frame_id', '/base_link', "use 'base_link'"),
+    ('world_frame_id', '/world', "must not start with '/'"),
+    ('footprint_frame_id', '/base_footprint', "must not start with '/'"),
+    ('frame_prefix', '/robot1/', "use 'robot1/'"),
+    ('frame_prefix', '/', "must not start with '/'"),
+    ('odom_frame_id', 'my odom', 'no spaces'),
+    ('odom_frame_id', ' odom', 'no spaces'),
+    ('base_frame_id', 'base_link\t', 'a tf2 frame id'),
+    ('world_frame_id', 'world/', 'single / between names'),
+    ('world_frame_id', 'a//b', 'single / between names'),
+    ('odom_frame_id', 'odom:1', 'a tf2 frame id'),
+    ('base_frame_id', 'base"link', 'a tf2 frame id'),
+    ('frame_prefix', 'robot 1/', 'frame id prefix'),
+    ('frame_prefix', 'robot1//', 'frame id prefix'),
+    ('odom_frame_id', '   ', 'must not be empty'),
+])
+def test_frame_ids_tf2_refuses_are_refused(name, value, fragment):
+    """A leading '/', whitespace and other characters are one line naming the parameter."""
+    with pytest.raises(ConfigError) as info:
+        parse_config({name: value})
+    message = str(info.value)
+    assert '\n' not in message and message.startswith(f'parameter {name} ')
+    assert fragment in message and repr(value) in message
+
+
+def test_sensor_frame_names_match_what_the_robot_publishes():
+    """The frames checked here are the ones r2d2_sim.robot puts on its sensors."""
+    from r2d2_sim import parameters, robot  # robot needs PyBullet, not ROS
+    for name in ('LASER_FRAME_ID', 'IMU_FRAME_ID', 'HEAD_CAMERA_FRAME_ID', 'HEAD_CAMERA_LINK'):
+        assert getattr(parameters, name) == getattr(robot, name), name
