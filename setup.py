@@ -16,6 +16,8 @@ setup(
         ('share/' + package_name + '/urdf', glob('urdf/*')),
     ],
     install_requires=['setuptools'],
+    # The live view and MCAP recording (foxglove_sink) and the replay tool.
+    extras_require={'foxglove': ['foxglove-sdk>=0.30,<0.31', 'mcap>=1.2,<2']},
     zip_safe=True,
     maintainer='r2d2_sim maintainers',
     maintainer_email='maintainers@r2d2-sim.dev',
