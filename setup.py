@@ -29,6 +29,7 @@ setup(
             'sim_node = r2d2_sim.sim_node:main',
             'demo = r2d2_sim.demo:main',
             'drive = r2d2_sim.drive_cmd:main',
+            'replay = r2d2_sim.replay:main',
         ],
         'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin'],
     },
