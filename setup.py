@@ -14,6 +14,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/urdf', glob('urdf/*')),
+        ('share/' + package_name + '/foxglove', ['resource/foxglove_layout.json']),
     ],
     install_requires=['setuptools'],
     # The live view and MCAP recording (foxglove_sink) and the replay tool.

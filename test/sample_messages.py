@@ -7,9 +7,10 @@ and otherwise from rosbags' serializer (its CDR bytes are the same), so no
 test has to leave ``/tf`` out.
 """
 
+import itertools
 import math
 from pathlib import Path
-from typing import Dict, List, NamedTuple, Tuple
+from typing import Dict, Iterator, List, NamedTuple, Optional, Tuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
@@ -159,41 +160,46 @@ def static_transforms() -> bytes:
     return tf_message_bytes([_transform('base_footprint', 'base_link', 0, z=BASE_HEIGHT_M)])
 
 
-def samples(duration_s: float = 1.0, clock_hz: int = 50, scan_hz: int = 10,
-            image_hz: int = 5, start_ns: int = 0) -> List[Sample]:
+def drive(duration_s: Optional[float] = 1.0, clock_hz: int = 50, scan_hz: int = 10,
+          image_hz: int = 5, start_ns: int = 0) -> Iterator[Sample]:
     """
-    Return a drive of ``duration_s`` as the node would log it, in time order.
+    Yield a drive of ``duration_s`` (None: endless) as the node would log it, in time order.
 
     The latched topics come first (at ``start_ns``); then at each clock tick
     /clock, /tf (odom -> base_footprint), /odom, /ground_truth and
     /joint_states, with /scan and the camera at their own rates.
     """
-    result = [Sample('/robot_description', TOPICS['/robot_description'][0], start_ns,
-                     robot_description()),
-              Sample('/tf_static', TOPICS['/tf_static'][0], start_ns, static_transforms())]
+    yield Sample('/robot_description', TOPICS['/robot_description'][0], start_ns,
+                 robot_description())
+    yield Sample('/tf_static', TOPICS['/tf_static'][0], start_ns, static_transforms())
     period_ns = 10**9 // clock_hz
-    for tick in range(round(duration_s * clock_hz) + 1):
+    ticks = itertools.count() if duration_s is None else range(round(duration_s * clock_hz) + 1)
+    for tick in ticks:
         time_ns = start_ns + tick * period_ns
         x, y, yaw = pose_at(time_ns * 1e-9)
         odom_x, odom_y = 0.97 * x, 0.95 * y  # wheel odometry drifts from the truth
 
-        def add(topic, data):
-            result.append(Sample(topic, TOPICS[topic][0], time_ns, data))
-        add('/clock', serialize_message(Clock(clock=stamp(time_ns))))
-        add('/tf', tf_message_bytes(
+        def sample(topic, data):
+            return Sample(topic, TOPICS[topic][0], time_ns, data)
+        yield sample('/clock', serialize_message(Clock(clock=stamp(time_ns))))
+        yield sample('/tf', tf_message_bytes(
             [_transform('odom', 'base_footprint', time_ns, odom_x, odom_y, yaw=yaw)]))
-        add('/odom', serialize_message(
+        yield sample('/odom', serialize_message(
             _odometry(time_ns, 'odom', 'base_footprint', odom_x, odom_y, yaw)))
-        add('/ground_truth', serialize_message(
+        yield sample('/ground_truth', serialize_message(
             _odometry(time_ns, 'world', 'base_footprint', x, y, yaw)))
         joints = JointState(name=['left_wheel', 'right_wheel'], position=[tick * 0.1, tick * 0.12])
         joints.header.stamp = stamp(time_ns)
-        add('/joint_states', serialize_message(joints))
+        yield sample('/joint_states', serialize_message(joints))
         if tick % (clock_hz // scan_hz) == 0:
-            add('/scan', serialize_message(_scan(time_ns, odom_x, odom_y, yaw)))
+            yield sample('/scan', serialize_message(_scan(time_ns, odom_x, odom_y, yaw)))
         if tick % (clock_hz // image_hz) == 0:
-            add('/camera/image_raw', serialize_message(_image(time_ns)))
-    return result
+            yield sample('/camera/image_raw', serialize_message(_image(time_ns)))
+
+
+def samples(duration_s: float = 1.0, **rates) -> List[Sample]:
+    """Return :func:`drive` of ``duration_s`` as a list."""
+    return list(drive(duration_s, **rates))
 
 
 def message_class(type_name: str):
