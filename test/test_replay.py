@@ -184,12 +184,17 @@ def test_a_bad_file_is_one_error_line_and_status_2(recording, tmp_path, content,
         assert word in lines[0]
 
 
-def test_bad_arguments_exit_2():
-    """A rate that is not positive is an argparse error."""
-    result = subprocess.run(replay_command('x.mcap', '--rate', '0'), env=ros_child_env(),
+@pytest.mark.parametrize('args, words', [
+    (['--rate', '0'], ['must be > 0']),
+    (['--ros-args', '-r'], ['replay: error: bad ROS arguments']),
+])
+def test_bad_arguments_exit_2(recording, args, words):
+    """A rate that is not positive, or malformed ROS arguments: a usage error, exit 2."""
+    result = subprocess.run(replay_command(recording[0], *args), env=ros_child_env(),
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
-    assert 'must be > 0' in result.stderr
+    for word in words:
+        assert word in result.stderr
 
 
 @pytest.mark.parametrize('qos', [
