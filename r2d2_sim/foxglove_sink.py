@@ -183,22 +183,23 @@ class FoxgloveSink:
         foxglove = self._foxglove = _import_foxglove()
         # Two contexts, so that messages sent again for a late viewer reach
         # the server but not the file (the SDK gives Python no per-sink log).
-        doing = f'cannot record to {self.record_path}'
+        # The server first: a taken port then leaves no file behind.
+        doing = f'cannot serve on {host}:{port}'
         try:
+            if port is not None:
+                self._live_context = foxglove.Context()
+                self._server = foxglove.start_server(
+                    name=name, host=host, port=port, context=self._live_context,
+                    capabilities=[foxglove.websocket.Capability.Time],
+                    server_listener=_make_listener(foxglove, self._latched_by_id))
             if self.record_path is not None:
+                doing = f'cannot record to {self.record_path}'
                 if os.path.exists(self.record_path) and not overwrite:
                     raise SinkError(f'{self.record_path} exists: choose another file name')
                 self._file_context = foxglove.Context()
                 self._writer = foxglove.open_mcap(
                     self.record_path, allow_overwrite=overwrite, context=self._file_context,
                     writer_options=foxglove.mcap.MCAPWriteOptions(profile='ros2'))
-            if port is not None:
-                doing = f'cannot serve on {host}:{port}'
-                self._live_context = foxglove.Context()
-                self._server = foxglove.start_server(
-                    name=name, host=host, port=port, context=self._live_context,
-                    capabilities=[foxglove.websocket.Capability.Time],
-                    server_listener=_make_listener(foxglove, self._latched_by_id))
         except SinkError:
             _close(self._writer, self._server)
             raise

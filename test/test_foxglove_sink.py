@@ -308,11 +308,13 @@ def test_bad_channels_and_sinks_are_one_line_errors(tmp_path):
             lambda: FoxgloveSink(record_path=path),
             lambda: FoxgloveSink(record_path=tmp_path / 'missing' / 'run.mcap'),
             lambda: FoxgloveSink(port=sink.port),
+            lambda: FoxgloveSink(port=sink.port, record_path=tmp_path / 'never.mcap'),
         ]
         for case in cases:
             with pytest.raises(SinkError) as raised:
                 case()
             assert '\n' not in str(raised.value) and str(raised.value)
+    assert not (tmp_path / 'never.mcap').exists(), 'a sink that failed left a file'
     assert sink.port is None
     sink.close()  # again: nothing happens
 
