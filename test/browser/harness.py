@@ -50,9 +50,9 @@ NPM_PACKAGES = [f'@foxglove/studio-base@{STUDIO_VERSION}', 'react@17.0.2', 'reac
 STUDIO_SUBPROTOCOL = 'foxglove.websocket.v1'
 SDK_SUBPROTOCOL = 'foxglove.sdk.v1'
 # Flags for a root user on a machine with no GPU and no network beyond loopback:
-# no sandbox (root), WebGL through SwiftShader (no --disable-gpu: it turns
-# WebGL off and the 3D panel with it), and none of the background requests
-# that a closed network refuses.
+# no sandbox (root), WebGL through SwiftShader for the 3D panel, and none of
+# the background requests that a closed network refuses. --disable-gpu is
+# left out: Chromium 156 gave WebGL 2 on SwiftShader with and without it.
 CHROMIUM_FLAGS = [
     '--headless=new', '--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
     '--no-first-run', '--no-default-browser-check', '--disable-background-networking',
