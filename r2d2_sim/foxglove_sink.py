@@ -78,10 +78,12 @@ class SinkChannel:
     """
     One topic of a :class:`FoxgloveSink`: ``log(data, time_ns)`` sends the bytes on.
 
-    ``data`` is one serialized message (``bytes``), ``time_ns`` the simulated
-    time in nanoseconds, which becomes the MCAP log time and the WebSocket
-    message time. ``log`` is bound at construction to the cheapest call for
-    the sinks that exist (the SDK's own method when there is one).
+    ``data`` is one serialized message as ``bytes`` (the SDK refuses a
+    ``bytearray`` or ``memoryview`` with TypeError: pass the object given to
+    ``publish``), ``time_ns`` the simulated time in nanoseconds (>= 0), which
+    becomes the MCAP log time and the WebSocket message time. ``log`` is
+    bound at construction to the cheapest call for the sinks that exist (the
+    SDK's own method when there is one).
     """
 
     def __init__(self, topic: str, type_name: str, live_log: Optional[Callable],
