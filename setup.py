@@ -20,6 +20,10 @@ INSTALL_REQUIRES = [
     'numpy>=1.24,<3',
     # The demo executable, installed with the package, writes its plot with it.
     'matplotlib>=3.6,<4',
+    # The live view (foxglove_port), MCAP recording (record) and the replay tool;
+    # one abi3 wheel with no dependencies. Under colcon: pip install foxglove-sdk mcap.
+    'foxglove-sdk>=0.30,<0.31',
+    'mcap>=1.2,<2',
 ]
 
 setup(
@@ -30,6 +34,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/urdf', glob('urdf/*')),
+        ('share/' + package_name + '/foxglove', ['resource/foxglove_layout.json']),
     ],
     install_requires=INSTALL_REQUIRES,
     python_requires='>=3.10',
@@ -44,6 +49,7 @@ setup(
             'sim_node = r2d2_sim.sim_node:main',
             'demo = r2d2_sim.demo:main',
             'drive = r2d2_sim.drive_cmd:main',
+            'replay = r2d2_sim.replay:main',
         ],
         'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin'],
     },

@@ -1,0 +1,422 @@
+"""
+FoxgloveSink with real serialized messages: a real WebSocket viewer, and MCAP files read back.
+
+The viewer is the ``websockets`` package speaking the Foxglove protocol
+(subprotocol ``foxglove.sdk.v1``) to the SDK's server on loopback. The
+recordings are read with two independent readers: ``mcap``'s and rosbags'
+``AnyReader`` (which also decodes every message from the definitions the
+file carries).
+"""
+
+from collections import defaultdict
+from contextlib import ExitStack
+import json
+import os
+from pathlib import Path
+import signal
+import struct
+import subprocess
+import sys
+import time
+
+from mcap.reader import make_reader
+import pytest
+from rclpy.qos import QoSProfile
+from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.highlevel import AnyReader
+from rosbags.interfaces import QosDurability
+from std_msgs.msg import String
+from websockets.sync.client import connect
+
+from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError, SUBPROTOCOL
+from r2d2_sim.message_definitions import message_definition, type_hash
+from r2d2_sim.testing import ProcessResult, ros_child_env, stop_process, wait_for
+from sample_messages import LATCHED, message_class, samples, TOPICS
+
+TEST_DIR = Path(__file__).resolve().parent
+
+
+class Viewer:
+    """A Foxglove WebSocket client: what the app does, minus the drawing."""
+
+    def __init__(self, port: int) -> None:
+        self._stack = ExitStack()
+        self.ws = self._stack.enter_context(connect(
+            f'ws://127.0.0.1:{port}', subprotocols=[SUBPROTOCOL], max_size=None,
+            open_timeout=10))
+        self.server_info = None
+        self.channels = {}               # topic -> the advertised channel
+        self.messages = defaultdict(list)  # topic -> [(log time, payload)]
+        self.times = []
+        self._topic_of_subscription = {}
+
+    def pump(self, condition, timeout_s: float = 10.0) -> bool:
+        """Read what the server sends until ``condition()`` holds or the deadline passes."""
+        deadline = time.monotonic() + timeout_s
+        while not condition():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            try:
+                frame = self.ws.recv(timeout=min(remaining, 0.1))
+            except TimeoutError:
+                continue
+            self._take(frame)
+        return True
+
+    def _take(self, frame) -> None:
+        if isinstance(frame, str):
+            message = json.loads(frame)
+            if message['op'] == 'serverInfo':
+                self.server_info = message
+            elif message['op'] == 'advertise':
+                for channel in message['channels']:
+                    self.channels[channel['topic']] = channel
+            return
+        if frame[0] == 1:  # MessageData: op, subscription id, log time, payload
+            subscription, log_time = struct.unpack_from('<IQ', frame, 1)
+            self.messages[self._topic_of_subscription[subscription]].append(
+                (log_time, bytes(frame[13:])))
+        elif frame[0] == 2:  # Time
+            self.times.append(struct.unpack_from('<Q', frame, 1)[0])
+
+    def subscribe(self, topics) -> None:
+        """Subscribe to advertised topics (one request, as the app does)."""
+        subscriptions = []
+        for topic in topics:
+            subscription = len(self._topic_of_subscription) + 1
+            self._topic_of_subscription[subscription] = topic
+            subscriptions.append({'id': subscription, 'channelId': self.channels[topic]['id']})
+        self.ws.send(json.dumps({'op': 'subscribe', 'subscriptions': subscriptions}))
+
+    def close(self) -> None:
+        """Disconnect."""
+        self._stack.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        self.close()
+
+
+def open_channels(sink):
+    """Register every sample topic with the QoS the node publishes it with."""
+    return {topic: sink.channel(topic, type_name, qos)
+            for topic, (type_name, qos) in TOPICS.items()}
+
+
+def log_all(channels, batch):
+    """Log samples in order."""
+    for sample in batch:
+        channels[sample.topic].log(sample.data, sample.time_ns)
+
+
+def by_topic(batch):
+    """Group samples as topic -> [(time, bytes)]."""
+    grouped = defaultdict(list)
+    for sample in batch:
+        grouped[sample.topic].append((sample.time_ns, sample.data))
+    return grouped
+
+
+PROBE_NS = 1
+
+
+def received(viewer, topic):
+    """Return what a viewer got on ``topic``, without the probes."""
+    return [m for m in viewer.messages[topic] if m[0] != PROBE_NS]
+
+
+def connected_viewer(sink, topics):
+    """Connect a viewer, wait for the channels' advertisements, subscribe to ``topics``."""
+    viewer = Viewer(sink.port)
+    assert viewer.pump(lambda: set(TOPICS) <= set(viewer.channels)), viewer.channels.keys()
+    viewer.subscribe(topics)
+    return viewer
+
+
+def test_viewer_gets_ros_channels_and_the_logged_bytes():
+    """Every channel is cdr/ros2msg with its ROS type; each payload is the logged message."""
+    batch = samples(1.0)
+    with FoxgloveSink(port=0) as sink:
+        channels = open_channels(sink)
+        with connected_viewer(sink, TOPICS) as viewer:
+            assert viewer.server_info['name'] == 'r2d2_sim'
+            assert 'time' in viewer.server_info['capabilities']
+            for topic, (type_name, _) in TOPICS.items():
+                advertised = viewer.channels[topic]
+                assert advertised['encoding'] == 'cdr'
+                assert advertised['schemaEncoding'] == 'ros2msg'
+                assert advertised['schemaName'] == type_name
+                assert advertised['schema'] == message_definition(type_name)
+            # The server takes the subscription asynchronously: log a probe
+            # clock (at a time of its own) until one arrives, then the drive.
+            probe = batch[2]
+            assert probe.topic == '/clock'
+            assert viewer.pump(lambda: channels['/clock'].log(probe.data, PROBE_NS) or
+                               viewer.messages['/clock'], timeout_s=10.0)
+            log_all(channels, batch)
+            expected = by_topic(batch)
+            assert viewer.pump(lambda: all(len(received(viewer, t)) >= len(expected[t])
+                                           for t in expected)), \
+                {t: len(m) for t, m in viewer.messages.items()}
+    for topic, sent in expected.items():
+        viewer.messages[topic] = received(viewer, topic)
+        assert viewer.messages[topic] == sent, topic
+        try:
+            cls = message_class(TOPICS[topic][0])
+        except ImportError:
+            continue
+        for _, payload in viewer.messages[topic]:
+            assert isinstance(deserialize_message(payload, cls), cls)
+    clock = deserialize_message(viewer.messages['/clock'][-1][1], message_class(
+        'rosgraph_msgs/msg/Clock'))
+    assert clock.clock.sec * 10**9 + clock.clock.nanosec == viewer.messages['/clock'][-1][0]
+
+
+def test_late_viewer_gets_latched_topics_which_the_file_has_once(tmp_path):
+    """/robot_description and /tf_static reach viewers that subscribe after they were logged."""
+    path = tmp_path / 'run.mcap'
+    batch = samples(0.5)
+    with FoxgloveSink(port=0, record_path=path) as sink:
+        channels = open_channels(sink)
+        log_all(channels, batch)
+        latched = ['/robot_description', '/tf_static']
+        expected = by_topic(batch)
+        for _ in range(2):  # each new viewer, not only the first
+            with connected_viewer(sink, TOPICS) as viewer:
+                assert viewer.pump(lambda: all(viewer.messages[t] for t in latched))
+                for topic in latched:
+                    assert viewer.messages[topic] == expected[topic]
+                assert not viewer.messages['/odom'], 'a volatile topic was re-sent'
+        newer = serialize_message(String(data='<robot name="newer"/>'))
+        channels['/robot_description'].log(newer, 10**9)
+        with connected_viewer(sink, ['/robot_description']) as viewer:
+            assert viewer.pump(lambda: viewer.messages['/robot_description'])
+            assert viewer.messages['/robot_description'] == [(10**9, newer)]
+    with open(path, 'rb') as stream:
+        counts = defaultdict(int)
+        for _, channel, _ in make_reader(stream).iter_messages():
+            counts[channel.topic] += 1
+    assert counts['/robot_description'] == 2  # the first and the newer, no repeats
+    assert counts['/tf_static'] == 1
+
+
+def test_time_messages_carry_the_simulated_time():
+    """set_time reaches viewers as Time; a time going back is sent at once; the rate is capped."""
+    with FoxgloveSink(port=0, time_rate_hz=10.0) as sink:
+        open_channels(sink)
+        with connected_viewer(sink, []) as viewer:
+            sink.set_time(123_456_789_012)
+            assert viewer.pump(lambda: viewer.times)
+            assert viewer.times == [123_456_789_012]
+            sink.set_time(5_000)  # a reset: back in time
+            assert viewer.pump(lambda: len(viewer.times) == 2)
+            assert viewer.times[-1] == 5_000
+            started = time.monotonic()
+            for step in range(1, 1001):
+                sink.set_time(5_000 + step)
+            elapsed = time.monotonic() - started
+            viewer.pump(lambda: False, timeout_s=0.3)
+            # 1000 calls in `elapsed` seconds at 10 Hz: at most one per 0.1 s.
+            assert len(viewer.times) - 2 <= 1 + elapsed * 10.0, viewer.times
+
+
+def read_with_mcap(path):
+    """Return (header, summary, [(channel, schema, message)]) from mcap's reader."""
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream)
+        header, summary = reader.get_header(), reader.get_summary()
+        messages = [(channel, schema, message)
+                    for schema, channel, message in reader.iter_messages(log_time_order=False)]
+    return header, summary, messages
+
+
+def decode_with_rosbags(reader, raw, msgtype):
+    """
+    Decode with the deserializer rosbags generated from the file's own definitions.
+
+    Not ``reader.deserialize``: rclpy's ``serialize_message`` returns
+    rmw_fastrtps' estimated size, which for some types (JointState: 8 bytes)
+    runs past the last field, and rosbags refuses more than 3 bytes after
+    it. Those trailing bytes are allowed here, and no more.
+    """
+    msgdef = reader.typestore.get_msgdef(msgtype)
+    assert raw[:4] == b'\x00\x01\x00\x00', 'not little-endian CDR'
+    message, end = msgdef.deserialize_cdr_le(raw[4:], 0, msgdef.cls, reader.typestore)
+    assert 0 <= len(raw) - 4 - end <= 8, f'{msgtype}: {len(raw) - 4 - end} bytes left over'
+    return message
+
+
+def test_recording_reads_back_with_two_readers(tmp_path):
+    """The closed file: ros2 profile, zstd chunks, rosbag2 metadata; rosbags decodes it all."""
+    path = tmp_path / 'run.mcap'
+    batch = samples(2.0)
+    with FoxgloveSink(record_path=path) as sink:
+        log_all(open_channels(sink), batch)
+    expected = by_topic(batch)
+
+    header, summary, messages = read_with_mcap(path)
+    assert header.profile == 'ros2'
+    assert summary is not None and summary.statistics.message_count == len(batch)
+    assert {index.compression for index in summary.chunk_indexes} == {'zstd'}
+    got = defaultdict(list)
+    for channel, schema, message in messages:
+        type_name, qos = TOPICS[channel.topic]
+        assert channel.message_encoding == 'cdr'
+        assert (schema.name, schema.encoding) == (type_name, 'ros2msg')
+        assert schema.data.decode() == message_definition(type_name)
+        assert channel.metadata['topic_type_hash'] == type_hash(type_name)
+        assert 'durability: transient_local' in channel.metadata['offered_qos_profiles'] \
+            or qos is not LATCHED
+        got[channel.topic].append((message.log_time, message.data))
+    assert got == expected
+
+    with AnyReader([path]) as reader:
+        assert {c.topic: c.msgtype for c in reader.connections} == \
+            {t: type_name for t, (type_name, _) in TOPICS.items()}
+        counts = {t: info.msgcount for t, info in reader.topics.items()}
+        assert counts == {t: len(m) for t, m in expected.items()}
+        for connection in reader.connections:
+            qos = connection.ext.offered_qos_profiles[0]
+            latched = TOPICS[connection.topic][1] is LATCHED
+            assert (qos.durability == QosDurability.TRANSIENT_LOCAL) == latched
+            assert qos.depth == TOPICS[connection.topic][1].depth
+        decoded = 0
+        for connection, time_ns, raw in reader.messages():
+            message = decode_with_rosbags(reader, raw, connection.msgtype)
+            decoded += 1
+            if connection.topic == '/clock':
+                assert message.clock.sec * 10**9 + message.clock.nanosec == time_ns
+            if connection.topic == '/scan':
+                scan = deserialize_message(raw, message_class('sensor_msgs/msg/LaserScan'))
+                assert list(message.ranges) == pytest.approx(list(scan.ranges))
+        assert decoded == len(batch)
+
+
+def test_bad_channels_and_sinks_are_one_line_errors(tmp_path):
+    """Relative or repeated topics, unknown types, an existing file, a taken port."""
+    path = tmp_path / 'run.mcap'
+    path.write_bytes(b'')
+    with FoxgloveSink(port=0) as sink:
+        sink.channel('/scan', 'sensor_msgs/msg/LaserScan', QoSProfile(depth=5))
+        cases = [
+            lambda: sink.channel('scan', 'sensor_msgs/msg/LaserScan', QoSProfile(depth=5)),
+            lambda: sink.channel('/scan', 'sensor_msgs/msg/LaserScan', QoSProfile(depth=5)),
+            lambda: sink.channel('/x', 'foo_msgs/msg/Bar', QoSProfile(depth=5)),
+            lambda: FoxgloveSink(record_path=path),
+            lambda: FoxgloveSink(record_path=tmp_path / 'missing' / 'run.mcap'),
+            lambda: FoxgloveSink(port=sink.port),
+            lambda: FoxgloveSink(port=sink.port, record_path=tmp_path / 'never.mcap'),
+        ]
+        for case in cases:
+            with pytest.raises(SinkError) as raised:
+                case()
+            assert '\n' not in str(raised.value) and str(raised.value)
+    assert not (tmp_path / 'never.mcap').exists(), 'a sink that failed left a file'
+    assert sink.port is None
+    sink.close()  # again: nothing happens
+
+
+def test_foxglove_is_imported_only_for_a_sink():
+    """Without foxglove-sdk, an empty sink works and a real one says what to install."""
+    code = '\n'.join([
+        'import sys',
+        'sys.modules["foxglove"] = None',
+        'from rclpy.qos import QoSProfile',
+        'from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError',
+        'sink = FoxgloveSink()',
+        'sink.channel("/scan", "sensor_msgs/msg/LaserScan", QoSProfile(depth=5)).log(b"x", 1)',
+        'sink.set_time(1); sink.close()',
+        'try:',
+        '    FoxgloveSink(port=0)',
+        'except SinkError as exc:',
+        '    print(exc)',
+    ])
+    result = subprocess.run([sys.executable, '-c', code], env=ros_child_env(),
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert 'pip install "r2d2_sim[foxglove]"' in result.stdout
+
+
+RECORDER = '''
+import sys, time
+mode, path, test_dir = sys.argv[1:4]
+if mode == 'handlers':
+    from r2d2_sim.sim_node import stop_on_signals
+    stop = stop_on_signals()
+sys.path.insert(0, test_dir)
+from r2d2_sim.foxglove_sink import FoxgloveSink
+from sample_messages import samples, TOPICS
+batch = samples(0.5)
+sink = FoxgloveSink(record_path=path)
+channels = {t: sink.channel(t, *TOPICS[t]) for t in TOPICS}
+logged = 0
+
+def log_batch(offset_ns):
+    global logged
+    for sample in batch:
+        channels[sample.topic].log(sample.data, sample.time_ns + offset_ns)
+        logged += 1
+
+try:
+    for rounds in range(1, 10**6):
+        log_batch(rounds * 10**9)
+        if rounds == 3:
+            print('recording', flush=True)
+            if mode == 'forgotten':  # no close(): the finalizer (or the SDK's own) must finish
+                break
+        if mode == 'handlers':
+            if stop.wait(0.02):
+                break
+        else:
+            time.sleep(0.02)
+finally:
+    print(logged, flush=True)
+    if not mode.startswith('forgotten'):
+        sink.close()
+'''
+
+
+@pytest.mark.parametrize('mode, sig', [
+    ('handlers', signal.SIGINT), ('handlers', signal.SIGTERM),
+    ('keyboard_interrupt', signal.SIGINT), ('forgotten', None),
+    ('forgotten_keyboard_interrupt', signal.SIGINT)])
+def test_a_stopped_recorder_leaves_a_complete_file(tmp_path, mode, sig):
+    """
+    A process that records until SIGINT/SIGTERM leaves a file with every message and a summary.
+
+    ``handlers``: the owner turns both signals into an event (sim_node's
+    way) and closes in ``finally``. ``keyboard_interrupt``: Python's own
+    SIGINT handling, closed in ``finally``. ``forgotten``: never closed,
+    normal exit; ``forgotten_keyboard_interrupt``: never closed, Ctrl-C.
+    """
+    path = tmp_path / 'run.mcap'
+    process = subprocess.Popen([sys.executable, '-c', RECORDER, mode, str(path), str(TEST_DIR)],
+                               env=ros_child_env(), stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        assert process.stdout.readline().strip() == 'recording', process.stderr.read()
+        if sig is None:
+            # Not communicate(): it reads the pipe's fd and would miss what
+            # readline() already buffered; the output is small.
+            process.wait(timeout=20.0)
+            result = ProcessResult(process.returncode, process.stdout.read(),
+                                   process.stderr.read())
+        else:
+            result = stop_process(process, sig, timeout_s=20.0)  # one signal only
+    finally:
+        if process.poll() is None:
+            process.kill()
+    logged = int(result.stdout.split()[-1])
+    if mode == 'handlers' or mode == 'forgotten':
+        assert result.returncode == 0, result.stderr
+    assert wait_for(lambda: path.stat().st_size > 0, 1.0)
+    header, summary, messages = read_with_mcap(path)
+    assert summary is not None, 'no summary: the file was not closed'
+    assert summary.statistics.message_count == logged == len(messages)
+    assert len(messages) >= 3 * len(TOPICS)
+    with AnyReader([path]) as reader:
+        assert sum(info.msgcount for info in reader.topics.values()) == logged
+    assert os.path.getsize(path) > 1000
