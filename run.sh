@@ -40,7 +40,10 @@ shift || true
 case "$cmd" in
   demo)  setup; exec "$PY" -m r2d2_sim.demo "$@" ;;
   sim)   setup; exec "$PY" -m r2d2_sim "$@" ;;
-  test)  setup; need_xvfb; exec "$PY" -m pytest -q -p no:cacheprovider test "$@" ;;
+  # Two workers: every ROS test leases a domain of its own. Paths given replace test/.
+  test)  setup; need_xvfb
+         paths=(test); for arg in "$@"; do [ -e "${arg%%::*}" ] && paths=(); done
+         exec "$PY" -m pytest -q -p no:cacheprovider -n 2 "${paths[@]}" "$@" ;;
   bench) setup; exec "$PY" bench/run.py "$@" ;;
   *) echo "usage: ./run.sh demo|test|bench|sim [args...]" >&2; exit 2 ;;
 esac

@@ -20,7 +20,10 @@ from r2d2_sim.timing import ns_of, stamp_of
 from r2d2_sim.transforms import quaternion_to_yaw
 
 __all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env',
-           'ros_arg', 'stamp_ns', 'twist_message', 'twist_stamped_message']
+           'ros_arg', 'stamp_ns', 'twist_message', 'twist_stamped_message', 'UNKNOWN_NODE_NAME']
+
+# What rmw reports as the node of an endpoint whose node it has not yet discovered.
+UNKNOWN_NODE_NAME = '_NODE_NAME_UNKNOWN_'
 
 
 class Pose2D(NamedTuple):

@@ -15,6 +15,7 @@ from typing import Callable, Dict, Tuple
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.clock import Clock as RclpyClock, ClockType
 
+from r2d2_sim.client import UNKNOWN_NODE_NAME
 from r2d2_sim.drive_controller import NO_WHEELS
 from r2d2_sim.timing import ns_of
 
@@ -129,7 +130,8 @@ class CmdVelInput:
         topic = node.resolve_topic_name('cmd_vel')
         expected = CMD_VEL_STAMPED_TYPE if self._stamped else CMD_VEL_TYPE
         for info in node.get_publishers_info_by_topic('cmd_vel'):
-            if info.topic_type != expected:
+            # An endpoint can be discovered before its node's name: the next check names it.
+            if info.topic_type != expected and info.node_name != UNKNOWN_NODE_NAME:
                 publisher = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
                 self._warn(f'cmd_vel type {info.topic_type}',
                            f'{publisher} publishes {info.topic_type} on {topic}, which ROS '

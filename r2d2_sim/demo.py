@@ -29,7 +29,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 
 from r2d2_sim.cli import domain_id_arg, EXIT_INTERRUPTED, non_negative_number, non_ros_args
-from r2d2_sim.client import spin_until
+from r2d2_sim.client import spin_until, UNKNOWN_NODE_NAME
 from r2d2_sim.manoeuvre import (  # noqa: F401 (the model's names, importable from the demo)
     command_at, format_progress, MANOEUVRE, manoeuvre_duration_s, ManoeuvreDriver, Phase,
     phase_at)
@@ -55,8 +55,6 @@ OTHER_SIMULATOR_WAIT_S = 0.5
 OTHER_SIMULATOR_CHECK_S = 0.1
 # The demo's own simulator, named so that any other /clock publisher is told apart.
 SIMULATOR_NODE_NAME = f'r2d2_sim_demo_{os.getpid()}'
-# What rmw reports as the node of an endpoint whose node it has not yet discovered.
-UNKNOWN_NODE_NAME = '_NODE_NAME_UNKNOWN_'
 ANOTHER_SIMULATOR = ('another simulator publishes /clock on this ROS domain: stop it, or give '
                      'the demo a domain of its own (--domain-id N)')
 # The world the demo drives in: walls and boxes for the laser scan in the plot.

@@ -20,7 +20,9 @@ from std_srvs.srv import SetBool, Trigger
 from r2d2_sim.command_input import (
     CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, WARNING_PERIOD_S)
 from r2d2_sim.errors import SetupError, StartupError
+from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError
 from r2d2_sim.joint_info import joint_info_json
+from r2d2_sim.mirror import mirror
 from r2d2_sim.outputs import ClockOutput, RobotOutputs
 from r2d2_sim.parameters import SimConfig
 from r2d2_sim.ros_parameters import declare_parameters
@@ -50,6 +52,7 @@ class SimNode(Node):
     def __init__(self, node_name: str = NODE_NAME, *,
                  warning_period_s: float = WARNING_PERIOD_S,
                  graph_check_period_s: float = GRAPH_CHECK_PERIOD_S, **node_kwargs) -> None:
+        self.sink: Optional[FoxgloveSink] = None  # before rclpy makes its own publishers
         super().__init__(node_name, **node_kwargs)
         self._lock = threading.RLock()  # one thread in PyBullet at a time
         self._throttled = ThrottledLog(warning_period_s)
@@ -58,15 +61,15 @@ class SimNode(Node):
         self._robot_outputs: List[RobotOutputs] = []
         try:
             self.config: SimConfig = declare_parameters(self)
+            self.sink = self._start_sink(self.config)
             self.simulation = Simulation(self.config, warn=self.get_logger().warning,
                                          error=self._log_blow_up)
             self._clock_output = ClockOutput(self)
             self._robot_outputs = [RobotOutputs(self, self.config, robot,
                                                 self.simulation.time_ns)
                                    for robot in self.simulation.robots]
-        except SetupError as exc:
-            if self.simulation is not None:
-                self.simulation.close()
+        except (SetupError, SinkError) as exc:
+            self._close()
             raise StartupError(str(exc)) from exc
         simulation = self.simulation
         self._paused = self.config.start_paused
@@ -83,6 +86,27 @@ class SimNode(Node):
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/get_status', self._on_get_status)
         self._publish(simulation.read_states())
+
+    def _start_sink(self, config: SimConfig) -> Optional[FoxgloveSink]:
+        """Start the live view and the recording the parameters ask for (None: neither)."""
+        port = config.foxglove_port or None
+        record = config.record or None
+        if port is None and record is None:
+            return None
+        sink = FoxgloveSink(port, config.foxglove_host, record, name=self.get_name())
+        if sink.url is not None:
+            self.get_logger().info(f'Foxglove live view at {sink.url}')
+        if record is not None:
+            self.get_logger().info(f'recording every output to {record}')
+        return sink
+
+    def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
+        """Create a publisher; with a live view or a recording on, one that feeds them too."""
+        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        if self.sink is None:
+            return publisher
+        return mirror(publisher, msg_type, self.sink,
+                      lambda: 0 if self.simulation is None else self.simulation.time_ns)
 
     @property
     def world(self) -> SimWorld:
@@ -174,6 +198,8 @@ class SimNode(Node):
         """Translate one step's measurements into messages: /clock first, then each robot's."""
         if result.state_due:
             self._clock_output.publish(result.time_ns)
+            if self.sink is not None:
+                self.sink.set_time(result.time_ns)
         for outputs, measurement in zip(self._robot_outputs, result.measurements):
             if measurement is not None:
                 outputs.publish(measurement)
@@ -244,9 +270,14 @@ class SimNode(Node):
         response.success = True
         return response
 
-    def destroy_node(self) -> None:
-        """Disconnect the physics client, then destroy the ROS node."""
+    def _close(self) -> None:
         if self.simulation is not None:
-            with self._lock:
-                self.simulation.close()
+            self.simulation.close()
+        if self.sink is not None:
+            self.sink.close()  # an MCAP file is readable only once closed
+
+    def destroy_node(self) -> None:
+        """Disconnect the physics client, finish the recording, then destroy the ROS node."""
+        with self._lock:
+            self._close()
         super().destroy_node()

@@ -234,6 +234,15 @@ PARAMETERS: List[Parameter] = [
     Parameter('enable_stamped_cmd_vel', 'bool', False,
               'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name).',
               'enable_stamped_cmd_vel', read.boolean),
+    Parameter('foxglove_port', 'integer', 0,
+              'Serve a Foxglove live view of every output on this port (ws://); 0 = off.',
+              'foxglove_port', read.integer, Bounds(1, 65535, '', 'off')),
+    Parameter('foxglove_host', 'string', '127.0.0.1',
+              'Address the live view binds (0.0.0.0 shows it to the whole network).',
+              'foxglove_host', read.string),
+    Parameter('record', 'string', '',
+              'Record every output into this MCAP file (ros2 bag play, Foxglove); empty = off.',
+              'record', read.string),
 ]
 
 PARAMETERS_BY_NAME: Dict[str, Parameter] = {p.name: p for p in PARAMETERS}

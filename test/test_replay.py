@@ -6,8 +6,6 @@ publishes it, and ``topic_listener.py`` subscribes (raw bytes, so content
 is compared byte for byte with the recording) on a leased ROS domain.
 """
 
-import json
-from pathlib import Path
 import signal
 import subprocess
 import sys
@@ -22,8 +20,8 @@ from r2d2_sim.message_definitions import offered_qos_profiles
 from r2d2_sim.replay import DEFAULT_DEPTH, qos_from_metadata
 from r2d2_sim.testing import lease_domain, ros_child_env, stop_process
 from sample_messages import message_class, samples, TOPICS
+from topic_listener import read_listener, start_listener
 
-LISTENER = Path(__file__).resolve().parent / 'topic_listener.py'
 DURATION_S = 2.0
 CLOCK_HZ = 50
 
@@ -58,29 +56,6 @@ def recording(tmp_path_factory):
 def replay_command(path, *args):
     """Return the command line of the replay tool (the module behind the ``replay`` script)."""
     return [sys.executable, '-m', 'r2d2_sim.replay', str(path), *args]
-
-
-def start_listener(domain_id, topics, out_path, timeout_s=60.0):
-    """Start topic_listener.py and wait until it has subscribed."""
-    spec = {'topics': topics, 'timeout_s': timeout_s}
-    process = subprocess.Popen([sys.executable, str(LISTENER), json.dumps(spec), str(out_path)],
-                               env=ros_child_env(domain_id), stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    assert process.stdout.readline().strip() == 'ready', process.stderr.read()
-    return process
-
-
-def read_listener(process, out_path, timeout_s):
-    """Wait for the listener's exit; return its result {topic: [(time, bytes)]}."""
-    try:
-        process.wait(timeout=timeout_s)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 0, f'incomplete: {process.stderr.read()}'
-    result = json.loads(out_path.read_text())
-    return {topic: [(t, bytes.fromhex(data)) for t, data in messages]
-            for topic, messages in result.items()}
 
 
 def test_replay_publishes_each_topic_with_its_bytes_at_the_recorded_pace(recording, tmp_path):

@@ -3,6 +3,8 @@ A subscriber in a process of its own, for tests of publishers in other processes
 
     python topic_listener.py SPEC_JSON OUT_JSON
 
+or, from a test, :func:`start_listener` then :func:`read_listener`.
+
 SPEC_JSON: ``{"topics": {name: {"type": "pkg/msg/Type", "durability":
 "volatile"|"transient_local", "distinct": N, "count": M}}, "timeout_s": S}``.
 Prints ``ready`` once subscribed, then takes raw messages until every topic
@@ -16,6 +18,7 @@ Python subscriber sharing the GIL with a fast publisher misses messages.
 import importlib
 import json
 import os
+import subprocess
 import sys
 import time
 
@@ -62,6 +65,30 @@ def main() -> int:
         return 0 if complete() else 1
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def start_listener(domain_id, topics, out_path, timeout_s=60.0):
+    """Start topic_listener.py and wait until it has subscribed."""
+    from r2d2_sim.client import ros_child_env  # the child itself needs no r2d2_sim
+    spec = {'topics': topics, 'timeout_s': timeout_s}
+    process = subprocess.Popen([sys.executable, __file__, json.dumps(spec), str(out_path)],
+                               env=ros_child_env(domain_id), stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    assert process.stdout.readline().strip() == 'ready', process.stderr.read()
+    return process
+
+
+def read_listener(process, out_path, timeout_s):
+    """Wait for the listener's exit; return its result {topic: [(time, bytes)]}."""
+    try:
+        process.wait(timeout=timeout_s)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, f'incomplete: {process.stderr.read()}'
+    result = json.loads(out_path.read_text())
+    return {topic: [(t, bytes.fromhex(data)) for t, data in messages]
+            for topic, messages in result.items()}
 
 
 if __name__ == '__main__':

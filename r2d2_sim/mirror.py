@@ -1,0 +1,55 @@
+"""
+The node's publishers with a second consumer: the same bytes to DDS and to a Foxglove sink.
+
+With ``foxglove_port`` or ``record`` set, :meth:`SimNode.create_publisher
+<r2d2_sim.node.SimNode.create_publisher>` hands out a :class:`MirroredPublisher`
+instead of rclpy's: every ``publish`` goes to DDS unchanged and, as bytes, to
+the sink's channel of that topic (the live view and the MCAP file), stamped
+with the simulated time of the step that published it. The outputs do not
+know: they publish as always. Pre-serialized messages go on as they are;
+typed ones (camera images, ``/tf_static``, ``robot_description``) are
+serialized once for the sink. Without a sink the node keeps rclpy's
+publishers, so mirroring costs nothing when it is off.
+"""
+
+from typing import Callable
+
+from rclpy.publisher import Publisher
+from rclpy.serialization import serialize_message
+
+from r2d2_sim.foxglove_sink import FoxgloveSink, SinkChannel
+
+__all__ = ['MirroredPublisher', 'ros_type_name', 'mirror']
+
+
+def ros_type_name(msg_type: type) -> str:
+    """Return the ROS name of an rclpy message class: ``sensor_msgs/msg/LaserScan``."""
+    package = msg_type.__module__.split('.', 1)[0]
+    return f'{package}/msg/{msg_type.__name__}'
+
+
+class MirroredPublisher:
+    """An rclpy publisher whose messages also go, as bytes, to a sink channel; else the same."""
+
+    def __init__(self, publisher: Publisher, channel: SinkChannel,
+                 time_ns: Callable[[], int]) -> None:
+        self.publisher = publisher
+        self.channel = channel
+        self._time_ns = time_ns
+
+    def publish(self, msg) -> None:
+        """Publish ``msg`` (a message or its serialized bytes) to DDS and to the sink."""
+        self.publisher.publish(msg)
+        self.channel.log(msg if type(msg) is bytes else serialize_message(msg), self._time_ns())
+
+    def __getattr__(self, name: str):
+        # Everything else (topic_name, get_subscription_count, destroy...) is the publisher's.
+        return getattr(self.publisher, name)
+
+
+def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
+           time_ns: Callable[[], int]) -> MirroredPublisher:
+    """Register ``publisher``'s topic with ``sink`` and return the mirrored publisher."""
+    channel = sink.channel(publisher.topic_name, ros_type_name(msg_type),
+                           publisher.qos_profile)
+    return MirroredPublisher(publisher, channel, time_ns)
