@@ -23,6 +23,7 @@ from tf2_msgs.msg import TFMessage
 from r2d2_sim.kinematics import quaternion_to_yaw
 from r2d2_sim.robot import LASER_HEIGHT_M
 from r2d2_sim.testing import stamp_ns
+from r2d2_sim.transforms import apply, Transform
 
 ROOM = 'package://r2d2_sim/urdf/room.urdf'
 STATIC_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -137,33 +138,38 @@ def test_frame_prefix_and_link_transforms(ros):
     assert len(joints) == len(set(joints)) == 15
 
 
-def test_ground_truth_tf_places_odom_so_that_the_chain_is_the_true_pose(ros):
-    """Compose world -> odom -> base_footprint into the true planar pose."""
-    sim = make_sim(ros, publish_ground_truth_tf=True, cmd_vel_timeout=0.0)
-    listener = Listener(ros, {'/tf': (TFMessage, 1000), 'ground_truth': (Odometry, 1000)})
-    sim.simulation.robot.command(0.3, 0.5)
-    sim.advance(480)
-    now = sim.sim_time_ns
-    assert wait_for(lambda: listener.messages['ground_truth'] and listener.messages['/tf']
-                    and stamp_ns(listener.messages['ground_truth'][-1].header.stamp) == now
-                    and stamp_ns(listener.messages['/tf'][-1].transforms[0].header.stamp) == now)
-    truth = listener.messages['ground_truth'][-1]
-    last = {(t.header.frame_id, t.child_frame_id): t.transform
-            for t in listener.messages['/tf'][-1].transforms}
-    world_odom, odom_base = last[('world', 'odom')], last[('odom', 'base_footprint')]
-    yaw_wo = quaternion_to_yaw(world_odom.rotation.x, world_odom.rotation.y,
-                               world_odom.rotation.z, world_odom.rotation.w)
-    yaw_ob = quaternion_to_yaw(odom_base.rotation.x, odom_base.rotation.y,
-                               odom_base.rotation.z, odom_base.rotation.w)
-    x = world_odom.translation.x + (math.cos(yaw_wo) * odom_base.translation.x
-                                    - math.sin(yaw_wo) * odom_base.translation.y)
-    y = world_odom.translation.y + (math.sin(yaw_wo) * odom_base.translation.x
-                                    + math.cos(yaw_wo) * odom_base.translation.y)
+def test_ground_truth_tf_places_odom_so_that_the_chain_is_the_true_pose(r2d2_sim_factory):
+    """world -> odom -> base_footprint -> base_link, looked up as tf2 does, is the true pose."""
+    harness = r2d2_sim_factory(publish_ground_truth_tf=True, cmd_vel_timeout=0.0)
+    harness.listen_tf()
+    harness.send_cmd_vel(linear=0.3, angular=0.5)
+    harness.advance(480)
+    truth = harness.ground_truth()
+    chain = harness.lookup_transform('world', 'base_link')
+    assert chain.stamp_ns == stamp_ns(truth.header.stamp)  # the latest, of that very step
     p, q = truth.pose.pose.position, truth.pose.pose.orientation
-    assert (x, y) == pytest.approx((p.x, p.y), abs=1e-9)
-    assert math.remainder(yaw_wo + yaw_ob - quaternion_to_yaw(q.x, q.y, q.z, q.w),
-                          2 * math.pi) == pytest.approx(0.0, abs=1e-9)
-    assert math.hypot(world_odom.translation.x, world_odom.translation.y) > 0.001  # slip
+    # Planar: base_footprint -> base_link holds the body at its height at rest, upright.
+    assert chain.translation[:2] == pytest.approx((p.x, p.y), abs=1e-9)
+    assert chain.translation[2] == pytest.approx(p.z, abs=0.005)
+    assert math.remainder(quaternion_to_yaw(*chain.rotation) - quaternion_to_yaw(
+        q.x, q.y, q.z, q.w), 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+    world_odom = harness.lookup_transform('world', 'odom')
+    assert math.hypot(*world_odom.translation[:2]) > 0.001  # skid steering slips
+
+
+def test_a_laser_point_lands_on_the_wall_in_odom(r2d2_sim_factory):
+    """REP-105 chain odom -> base_scan: a beam's return, moved into odom, is on the wall."""
+    from sensor_msgs.msg import LaserScan
+    harness = r2d2_sim_factory(world=ROOM, cmd_vel_timeout=0.0)
+    scans = []
+    harness.create_node('scan_listener').create_subscription(LaserScan, 'scan', scans.append, 10)
+    harness.listen_tf()
+    harness.advance(seconds=0.5)
+    scan = scans[-1]
+    ahead = scan.ranges[round((0.0 - scan.angle_min) / scan.angle_increment)]
+    point = harness.lookup_transform('odom', 'base_scan', stamp_ns(scan.header.stamp))
+    x, y, _ = apply(Transform(point.translation, point.rotation), (ahead, 0.0, 0.0))
+    assert x == pytest.approx(2.0, abs=0.02) and abs(y) < 0.02  # the room's +x wall
 
 
 def test_without_tf2_msgs_tf_is_off_with_one_warning(ros, monkeypatch, capfd):

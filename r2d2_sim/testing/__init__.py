@@ -13,8 +13,9 @@ The package, by role: :mod:`~r2d2_sim.testing.domains` (domain leases),
 :mod:`~r2d2_sim.testing.executor` (a context and an executor the caller can
 take over), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
 :mod:`~r2d2_sim.testing.remote` (:class:`RemoteProbe`),
-:mod:`~r2d2_sim.testing.process` (child processes) and
-:mod:`~r2d2_sim.testing.sim_process` (:class:`SimProcess`). Every name is
+:mod:`~r2d2_sim.testing.process` (child processes),
+:mod:`~r2d2_sim.testing.sim_process` (:class:`SimProcess`) and
+:mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over ``/tf``, as tf2 does). Every name is
 importable from here, as it was when this was one module.
 """
 
@@ -31,6 +32,8 @@ from r2d2_sim.testing.process import (
     ChildProcess, ProcessResult, sim_node_command, stop_process)
 from r2d2_sim.testing.remote import RemoteProbe
 from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
+from r2d2_sim.testing.tf import TfListener
+from r2d2_sim.tf_buffer import StampedTransform, TransformBuffer, TransformException
 
 __all__ = [
     'SimHarness', 'SimProcess', 'RosHarness', 'RemoteProbe', 'ChildProcess',
@@ -38,7 +41,8 @@ __all__ = [
     'lease_domain', 'domain_lock_dir', 'DOMAIN_IDS', 'DOMAIN_LOCK_DIR_ENV',
     'ProcessResult', 'stop_process', 'sim_node_command', 'parameter_overrides',
     'Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env', 'stamp_ns',
-    'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S',
+    'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S', 'TfListener', 'TransformBuffer',
+    'StampedTransform', 'TransformException',
 ]
 
 

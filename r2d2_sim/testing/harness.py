@@ -7,17 +7,21 @@ they run in lockstep with the simulator, so a run repeats bit for bit.
 """
 
 import json
+import math
 from typing import Any, Callable, Dict, Optional
 
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from r2d2_sim.client import stamp_ns, wait_for
+from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message, wait_for
 from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarness
+from r2d2_sim.testing.tf import TfListener
+from r2d2_sim.tf_buffer import StampedTransform, TransformException
 
 __all__ = ['SimHarness', 'LINK_NODE_NAME']
 
@@ -52,7 +56,9 @@ class SimHarness(RosHarness):
         self.sim = None  # the SimNode
         self._link: Optional[Node] = None
         self._cmd_vel = None
+        self._stamped = False
         self._lockstep = False
+        self._tf: Optional[TfListener] = None
         self._types = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry}
         self._latest: Dict[str, Optional[bytes]] = dict.fromkeys(self._types)
         try:
@@ -70,10 +76,15 @@ class SimHarness(RosHarness):
             # takes every publication.
             for topic, msg_type in self._types.items():
                 link.create_subscription(msg_type, topic, self._keeper(topic), 1, raw=True)
-            self._cmd_vel = link.create_publisher(Twist, 'cmd_vel', 10)
             self.sim = SimNode(node_name, context=self.context, namespace=namespace or None,
                                parameter_overrides=parameter_overrides(parameters))
             RosHarness.add_node(self, self.sim, use_sim_time=False)
+            # The type the simulator takes: one participant cannot hold a Twist
+            # publisher and a TwistStamped subscription on one topic ("invalid
+            # allocator"), and the middleware would not deliver it anyway.
+            self._stamped = self.sim.config.enable_stamped_cmd_vel
+            self._cmd_vel = link.create_publisher(TwistStamped if self._stamped else Twist,
+                                                  'cmd_vel', 10)
             if not wait_for(lambda: self._cmd_vel.get_subscription_count() > 0, timeout_s):
                 raise HarnessError('the simulator did not subscribe cmd_vel')
         except BaseException:
@@ -91,21 +102,57 @@ class SimHarness(RosHarness):
         return super().create_node(name, use_sim_time=use_sim_time, **node_kwargs)
 
     def add_node(self, node: Node, *, use_sim_time: bool = True) -> Node:
-        """Spin a node of yours with the simulator; from now on advance in lockstep with it."""
+        """
+        Spin a node of yours with the simulator; from now on advance in lockstep with it.
+
+        Returns once the node's transient-local subscriptions to the
+        simulator's latched topics (``robot_description``, ``/tf_static``)
+        have their message: delivery of a latched message waits for the
+        middleware to match the new subscription, which took 40-430 ms of
+        wall time, so without this a node would start on a simulated time
+        that depends on the machine's load.
+        """
         self._lockstep = True
-        return super().add_node(node, use_sim_time=use_sim_time)
+        super().add_node(node, use_sim_time=use_sim_time)
+        self._wait_for_latched(node)
+        return node
+
+    def _wait_for_latched(self, node: Node) -> None:
+        latched = {publisher.topic_name for publisher in self.sim.publishers
+                   if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL}
+        pending = [sub for sub in node.subscriptions if sub.topic_name in latched
+                   and sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL]
+        if not pending:
+            return
+        delivered = set()
+        originals = [(sub, sub.callback) for sub in pending]
+        for sub, callback in originals:
+            def noted(msg, sub=sub, callback=callback):
+                delivered.add(sub)
+                return callback(msg)
+            sub.callback = noted
+        try:
+            with self._own_executor():
+                self._wait(lambda: len(delivered) == len(pending),
+                           f'the latched topics did not reach {node.get_name()}')
+        finally:
+            for sub, callback in originals:
+                sub.callback = callback
 
     def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
                      twist: Optional[Twist] = None) -> None:
         """
-        Publish a Twist on ``cmd_vel`` and return once the simulator has taken it.
+        Publish a command on ``cmd_vel`` and return once the simulator has taken it.
 
         ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
-        ``twist``. Raises HarnessError if the command does not arrive in time.
+        ``twist``. A simulator with ``enable_stamped_cmd_vel`` gets a
+        TwistStamped stamped with the simulated time now. Raises HarnessError
+        if the command does not arrive in time.
         """
         if twist is None:
-            twist = Twist()
-            twist.linear.x, twist.angular.z = float(linear), float(angular)
+            twist = twist_message(linear, angular)
+        if self._stamped and not isinstance(twist, TwistStamped):
+            twist = twist_stamped_message(twist=twist, stamp_ns=self.sim.sim_time_ns)
         before = self.sim.commands_received
         self._cmd_vel.publish(twist)
         self._wait(lambda: self.sim.commands_received > before,
@@ -175,8 +222,8 @@ class SimHarness(RosHarness):
         return False
 
     def _steps(self, seconds: float) -> int:
-        if not seconds >= 0.0:
-            raise ValueError(f'simulated time must be >= 0 s, got {seconds}')
+        if not 0.0 <= seconds < math.inf:
+            raise ValueError(f'simulated time must be a finite number >= 0 s, got {seconds}')
         return round(seconds * self.physics_rate_hz)
 
     def ground_truth(self) -> Odometry:
@@ -192,6 +239,39 @@ class SimHarness(RosHarness):
     def joint_states(self) -> JointState:
         """Return the latest ``joint_states`` (every movable joint)."""
         return self._wait_latest('joint_states')
+
+    def listen_tf(self) -> TfListener:
+        """Start taking ``/tf`` and ``/tf_static`` into a transform buffer (once); return it."""
+        if self._tf is None:
+            self._tf = TfListener(self._link)
+        return self._tf
+
+    def lookup_transform(self, target_frame: str, source_frame: str,
+                         time_ns: int = 0) -> StampedTransform:
+        """
+        Return the transform from ``source_frame`` to ``target_frame`` at ``time_ns``.
+
+        As tf2's ``Buffer.lookup_transform``, over what the simulator put on
+        ``/tf`` and ``/tf_static`` since :meth:`listen_tf` (called by the
+        first lookup: advance once after it for /tf to arrive). ``time_ns``
+        0 means the latest state publication's time, so the answer is the
+        current state, never one still on its way. Waits for the transform
+        by deadline; HarnessError with tf2's reason otherwise.
+        """
+        buffer = self.listen_tf().buffer
+        time_ns = time_ns or self.last_publication_ns()
+        try:
+            self._wait(lambda: buffer.can_transform(target_frame, source_frame, time_ns),
+                       'no transform')
+        except HarnessError:
+            try:
+                buffer.lookup_transform(target_frame, source_frame, time_ns)
+            except TransformException as exc:
+                raise HarnessError(f'no transform {source_frame} -> {target_frame}: {exc} '
+                                   '(the harness listens from its first lookup_transform '
+                                   'or listen_tf(): advance() after it)') from None
+            raise
+        return buffer.lookup_transform(target_frame, source_frame, time_ns)
 
     def last_publication_ns(self) -> int:
         """Return the simulated time (ns) of the simulator's latest state publication."""

@@ -15,6 +15,8 @@ from r2d2_sim.testing.domains import env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import RemoteProbe
+from r2d2_sim.testing.tf import TfListener
+from r2d2_sim.tf_buffer import StampedTransform, TransformException
 
 __all__ = ['SimProcess', 'STATUS_RESEND_S']
 
@@ -78,6 +80,7 @@ class SimProcess:
         self._cmd_vel = None
         self._stamped = False
         self._state_subscriptions = state_subscriptions
+        self._tf: Optional[TfListener] = None
         if lease or domain_id is None:
             self.lease = lease_domain(domain_id, timeout_s=max(timeout_s, 60.0))
             self.domain_id = self.lease.domain_id
@@ -264,6 +267,28 @@ class SimProcess:
     def joint_states(self) -> JointState:
         """Return the latest ``joint_states`` (when paused: of the time the last reply gave)."""
         return self._wait_latest('joint_states')
+
+    def lookup_transform(self, target_frame: str, source_frame: str,
+                         time_ns: int = 0) -> StampedTransform:
+        """
+        Return the transform from ``source_frame`` to ``target_frame`` at ``time_ns`` (0: latest).
+
+        As tf2's ``Buffer.lookup_transform``, over ``/tf`` and ``/tf_static``
+        since the first call (which starts listening). Waits by deadline;
+        HarnessError with tf2's reason otherwise.
+        """
+        if self._tf is None:
+            self._tf = TfListener(self.probe.node)
+        buffer = self._tf.buffer
+        if not self.probe.spin_until(
+                lambda: buffer.can_transform(target_frame, source_frame, time_ns),
+                self.timeout_s):
+            try:
+                buffer.lookup_transform(target_frame, source_frame, time_ns)
+            except TransformException as exc:
+                raise HarnessError(f'no transform {source_frame} -> {target_frame}: {exc}'
+                                   ) from None
+        return buffer.lookup_transform(target_frame, source_frame, time_ns)
 
     def _wait_latest(self, key: str):
         """
