@@ -35,6 +35,8 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/urdf', glob('urdf/*')),
         ('share/' + package_name + '/foxglove', ['resource/foxglove_layout.json']),
+        ('share/' + package_name + '/launch', ['resource/sim.launch.xml']),
+        ('share/' + package_name + '/rviz', ['resource/r2d2_sim.rviz']),
     ],
     install_requires=INSTALL_REQUIRES,
     python_requires='>=3.10',

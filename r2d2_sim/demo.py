@@ -11,7 +11,8 @@ after every physics step, and the driver follows; with ``--real-time-factor
 time and answers each state before the next step (lockstep), so the run is
 the same, bit for bit, however busy the machine is. At the end it writes
 odometry against ground truth as a PNG, with the last laser scan and a head
-camera snapshot.
+camera snapshot, and the simulator records every output of the run into
+``run.mcap`` beside it.
 """
 
 import argparse
@@ -60,6 +61,7 @@ ANOTHER_SIMULATOR = ('another simulator publishes /clock on this ROS domain: sto
 # The world the demo drives in: walls and boxes for the laser scan in the plot.
 DEMO_WORLD = 'package://r2d2_sim/urdf/room.urdf'
 SNAPSHOT_NAME = 'head_camera.png'
+RECORDING_NAME = 'run.mcap'
 # A few head-camera images per simulated second are plenty for the final snapshot.
 CAMERA_RATE_HZ = 2.0
 
@@ -129,8 +131,8 @@ def _interrupt_on_signals() -> None:
     signal.signal(signal.SIGTERM, signal.default_int_handler)
 
 
-def _start_simulator(real_time_factor: float, domain_id: int):
-    """Start sim_node in the room (paused for lockstep at factor 0); DemoError if it fails."""
+def _start_simulator(real_time_factor: float, domain_id: int, recording: Path):
+    """Start sim_node in the room, recording (paused for lockstep at factor 0); DemoError if not."""
     from r2d2_sim.testing import HarnessError, SimProcess
     # Lockstep: paused, one ~/step per period of LOCKSTEP_PUBLISH_RATE_HZ, and
     # commands held until the next (sent on change only, so a few round trips).
@@ -140,7 +142,7 @@ def _start_simulator(real_time_factor: float, domain_id: int):
         return SimProcess(node_name=SIMULATOR_NODE_NAME, domain_id=domain_id, lease=False,
                           timeout_s=STARTUP_TIMEOUT_S, world=DEMO_WORLD,
                           real_time_factor=float(real_time_factor),
-                          camera_rate=CAMERA_RATE_HZ, **lockstep)
+                          camera_rate=CAMERA_RATE_HZ, record=str(recording), **lockstep)
     except HarnessError as exc:
         raise DemoError(str(exc)) from None
 
@@ -231,7 +233,9 @@ def _run(options, stop) -> int:
         raise_if_stopped(stop)
         if found:
             raise DemoError(ANOTHER_SIMULATOR)
-        simulator = _start_simulator(options.real_time_factor, options.domain_id)
+        recording = options.output_dir.absolute() / RECORDING_NAME
+        recording.unlink(missing_ok=True)  # like the plot, the last run's
+        simulator = _start_simulator(options.real_time_factor, options.domain_id, recording)
         raise_if_stopped(stop)
         started_s = time.monotonic()
         if lockstep:
@@ -246,6 +250,10 @@ def _run(options, stop) -> int:
         truth = driver.truth
         print(f'final ground truth: x={truth.x_m!r} y={truth.y_m!r} yaw={truth.yaw_rad!r}')
         _write_pictures(driver, options.output_dir)
+        # Finished only once the simulator closes it, after the manoeuvre.
+        if simulator.stop(STOP_TIMEOUT_S).returncode == 0:
+            print(f'recording: {recording} (replay it: replay {recording}; or open it in '
+                  'Foxglove)', flush=True)
         return 0
     except DemoError as exc:
         _error(str(exc))

@@ -1,14 +1,13 @@
 """
-The live view in a real browser: Foxglove Studio 1.48 in headless Chromium, fed by FoxgloveSink.
+The live view in a real browser: Foxglove Studio 1.48 in headless Chromium, fed by sim_node.
 
-A stand-in publisher process (``browser/standin.py``) serves a real-time
-drive through the sink: the package's URDF on ``/robot_description``, TF
-odom -> base_footprint -> base_link, a scan of a room, odometry and a camera
-image, all real serialized messages. Studio opens it through the
+sim_node runs at real time in the room, driving a circle, with
+``foxglove_port`` and ``record`` set. Studio opens its live view through the
 subprotocol relay with the layout users get (``resource/foxglove_layout.json``),
 and the test reads the page over the DevTools protocol: the topic list with
-rates, and the robot's blue in the 3D panel. The recording the stand-in made
-is then opened from a loopback HTTP server (``ds=remote-file``).
+rates, and the robot's blue in the 3D panel (drawn from ``/robot_description``
+on TF). The recording the node made is then opened from a loopback HTTP
+server (``ds=remote-file``).
 
 Slow (about a minute; the first run also installs Studio from npm and, as
 root, Debian's chromium). Skipped where neither is available or installable,
@@ -20,23 +19,24 @@ import io
 import os
 from pathlib import Path
 import re
-import subprocess
 import sys
 import time
 
 import pytest
 
-from r2d2_sim.testing import ros_child_env, stop_process
+from r2d2_sim.testing import SimProcess
 from sample_messages import ROBOT_RGB
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / 'browser'))
 import harness  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-STANDIN = Path(__file__).resolve().parent / 'browser' / 'standin.py'
-# Topic -> the rate the stand-in logs it at (Hz).
+# Topic -> the rate the node publishes it at (Hz), with these parameters.
 RATES = {'/tf': 50.0, '/odom': 50.0, '/ground_truth': 50.0, '/scan': 10.0,
          '/camera/image_raw': 5.0}
+SIMULATOR = {'world': 'package://r2d2_sim/urdf/room.urdf', 'publish_rate': 50.0,
+             'scan_rate': 10.0, 'camera_rate': 5.0, 'cmd_vel_timeout': 0.0,
+             'real_time_factor': 1.0}
 LATCHED = ['/robot_description', '/tf_static']
 # R2D2's blue body in a 730x830 3D view covers about 10,000 pixels; the blue
 # z axes of the frames a few hundred.
@@ -94,14 +94,12 @@ def test_studio_shows_topics_rates_and_the_robot(browser_tools, tmp_path):
     chromium, studio, install_s = browser_tools
     print(f'browser tools ready in {install_s:.1f} s')
     recording = tmp_path / 'run.mcap'
-    standin = subprocess.Popen([sys.executable, str(STANDIN), '--record', str(recording)],
-                               env=ros_child_env(), stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    port = harness.free_port()
+    sim = SimProcess(foxglove_port=port, record=str(recording), **SIMULATOR)
     relay = server = browser = None
     try:
-        line = standin.stdout.readline()
-        assert line.strip().isdigit(), standin.stderr.read()
-        relay = harness.Relay(int(line))
+        sim.send_cmd_vel(linear=0.2, angular=0.3)  # a circle of 0.67 m, inside the room
+        relay = harness.Relay(port)
         server = harness.StaticServer(studio, files_dir=tmp_path)
         started = time.monotonic()
         browser = harness.Chromium(chromium, server.url(
@@ -137,8 +135,8 @@ def test_studio_shows_topics_rates_and_the_robot(browser_tools, tmp_path):
         if os.environ.get('R2D2_SIM_UPDATE_DOCS') == '1':
             (REPO / 'docs' / 'foxglove_view.png').write_bytes(screenshot)
 
-        # The recording, opened as a remote file once the stand-in has closed it.
-        assert stop_process(standin).returncode == 0
+        # The recording, opened as a remote file once the node has closed it.
+        assert sim.stop().returncode == 0
         browser.call('Page.navigate', url=server.url(
             f'/index.html?ds=remote-file&ds.url={server.url("/files/run.mcap")}'))
         assert browser.wait_for('window.r2d2HostReady || window.r2d2HostError', 60) is True
@@ -150,5 +148,4 @@ def test_studio_shows_topics_rates_and_the_robot(browser_tools, tmp_path):
         for part in (browser, relay, server):
             if part is not None:
                 part.close()
-        if standin.poll() is None:
-            stop_process(standin)
+        sim.stop()

@@ -147,6 +147,12 @@ def test_demo_turns_then_drives_and_writes_a_plot(tmp_path, domain_id):
     assert plot.read_bytes()[:8] == PNG_SIGNATURE
     snapshot = tmp_path / 'head_camera.png'
     assert f'head camera snapshot: {snapshot}' in result.stdout, report
+    recording = tmp_path / 'run.mcap'
+    assert f'recording: {recording}' in result.stdout, report
+    from mcap.reader import make_reader
+    with open(recording, 'rb') as stream:  # closed, with its summary
+        counts = make_reader(stream).get_summary().statistics.channel_message_counts
+    assert sum(counts.values()) > 1000
     _assert_camera_picture(snapshot)
     assert simulators_in_domain(domain_id) == [], 'the demo left its simulator running'
     print(f'demo at real_time_factor 0 took {wall_s:.1f} s of wall time')

@@ -29,6 +29,7 @@ import os
 from pathlib import Path
 import re
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
@@ -63,6 +64,13 @@ CHROMIUM_FLAGS = [
 
 class HarnessUnavailable(RuntimeError):
     """This machine cannot run the browser harness (no npm, no Chromium and no way to install)."""
+
+
+def free_port() -> int:
+    """Return a loopback TCP port nothing listens on now (a server binds it a moment later)."""
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        return sock.getsockname()[1]
 
 
 def cache_dir() -> Path:
