@@ -57,6 +57,23 @@ def domain_id_arg(text: str) -> int:
     return value
 
 
+def init_ros(argv: Sequence[str], prog: str) -> bool:
+    """
+    Initialise rclpy for a tool without rclpy's signal handlers; False after one error line.
+
+    The tools take Ctrl-C themselves (``sim_node.stop_on_signals``): rclpy's
+    handler would raise inside its own message handling.
+    """
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    try:
+        rclpy.init(args=list(argv), signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
+        print(f'{prog}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+        return False
+    return True
+
+
 def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
     """
     Return the arguments after the program name that are not for ROS.

@@ -27,9 +27,9 @@ from typing import Callable, List, Optional, Sequence
 from geometry_msgs.msg import Twist
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.signals import SignalHandlerOptions
 
-from r2d2_sim.cli import domain_id_arg, EXIT_INTERRUPTED, non_negative_number, non_ros_args
+from r2d2_sim.cli import (
+    domain_id_arg, EXIT_INTERRUPTED, init_ros, non_negative_number, non_ros_args)
 from r2d2_sim.client import spin_until, UNKNOWN_NODE_NAME
 from r2d2_sim.manoeuvre import (  # noqa: F401 (the model's names, importable from the demo)
     command_at, format_progress, MANOEUVRE, manoeuvre_duration_s, ManoeuvreDriver, Phase,
@@ -132,7 +132,7 @@ def _interrupt_on_signals() -> None:
 
 
 def _start_simulator(real_time_factor: float, domain_id: int, recording: Path):
-    """Start sim_node in the room, recording (paused for lockstep at factor 0); DemoError if not."""
+    """Start sim_node in the room, recording (paused for lockstep at 0); DemoError if not."""
     from r2d2_sim.testing import HarnessError, SimProcess
     # Lockstep: paused, one ~/step per period of LOCKSTEP_PUBLISH_RATE_HZ, and
     # commands held until the next (sent on change only, so a few round trips).
@@ -288,10 +288,7 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         return 2
     # SIGINT and SIGTERM only set this event from here on; the loops check it.
     stop = stop_on_signals()
-    try:
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
-        _error(f'cannot initialise ROS: {exc}')
+    if not init_ros(argv, 'demo'):
         return 2
     try:
         return _run(options, stop)

@@ -19,10 +19,10 @@ import rclpy
 from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 
 from r2d2_sim.cli import (
-    EXIT_INTERRUPTED, finite_number, non_negative_number, non_ros_args, positive_number)
+    EXIT_INTERRUPTED, finite_number, init_ros, non_negative_number, non_ros_args,
+    positive_number)
 from r2d2_sim.client import spin_until
 from r2d2_sim.sim_node import raise_if_stopped, stop_on_signals
 
@@ -129,10 +129,7 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     argv = list(sys.argv if args is None else args)
     options = build_parser().parse_args(non_ros_args(argv, NODE_NAME))
     stop = stop_on_signals()
-    try:
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
-        print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+    if not init_ros(argv, NODE_NAME):
         return 2
     node = None
     executor = SingleThreadedExecutor()

@@ -262,11 +262,8 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         return 2
     import rclpy
     from rclpy.duration import Duration
-    from rclpy.signals import SignalHandlerOptions
-    try:
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
-        print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+    from r2d2_sim.cli import init_ros
+    if not init_ros(argv, NODE_NAME):
         return 2
     node = None
     try:
