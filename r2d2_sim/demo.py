@@ -196,9 +196,9 @@ def _run_lockstep(driver: ManoeuvreDriver, executor, simulator, guard, stop,
         except HarnessError as exc:
             raise DemoError(simulator.process.failure_message(str(exc))) from None
         if wanted < settle_ns:
-            spin_until(executor, lambda: driver.truth_ns >= wanted, SETTLE_WAIT_S)
+            spin_until(executor, lambda: driver.handled_ns >= wanted, SETTLE_WAIT_S)
         else:
-            _spin_or_fail(executor, lambda: driver.truth_ns >= wanted, 'ground_truth',
+            _spin_or_fail(executor, lambda: driver.handled_ns >= wanted, 'ground_truth/odom',
                           simulator, guard, stop, STALL_TIMEOUT_S)
         while commands:  # what the driver said to that state, taken before the next step
             simulator.send_cmd_vel(twist=commands.pop(0))

@@ -110,6 +110,8 @@ class ManoeuvreDriver(Node):
         self.odom: Optional[Pose2D] = None
         self.truth: Optional[Pose2D] = None
         self.truth_ns = -1
+        self.odom_ns = -2
+        self.handled_ns = -1  # the time (ns) of the last state the manoeuvre answered
         self.odom_xy: List[Tuple[float, float]] = []
         self.truth_xy: List[Tuple[float, float]] = []
         self.last_truth_wall_s = time.monotonic()
@@ -156,8 +158,10 @@ class ManoeuvreDriver(Node):
 
     def _on_odom(self, msg: Odometry) -> None:
         self.odom = pose_from_odometry(msg)
+        self.odom_ns = stamp_ns(msg.header.stamp)
         if self.truth_xy and not self.done:
             self.odom_xy.append((self.odom.x_m, self.odom.y_m))
+        self._step_if_both()
 
     def _on_truth(self, msg: Odometry) -> None:
         if self.time_went_back is not None:
@@ -171,7 +175,13 @@ class ManoeuvreDriver(Node):
         self.truth = truth
         self.truth_ns = stamp_ns(msg.header.stamp)
         self.last_truth_wall_s = time.monotonic()
-        if self._recording and not self.done:
+        self._step_if_both()
+
+    def _step_if_both(self) -> None:
+        """Follow the manoeuvre once per step, when its truth and its odometry are both in."""
+        if (self._recording and not self.done and self.truth_ns == self.odom_ns
+                and self.truth_ns > self.handled_ns):
+            self.handled_ns = self.truth_ns
             self._follow_manoeuvre()
 
     def _follow_manoeuvre(self) -> None:

@@ -19,19 +19,15 @@ from typing import Callable, Optional, Sequence
 SPIN_POLL_S = 0.1
 
 
-def stop_on_signals() -> threading.Event:
-    """Return an event that SIGINT and SIGTERM set from now on."""
-    stop = threading.Event()
+def stop_on_signals(stop: Optional[threading.Event] = None) -> threading.Event:
+    """Return an event (``stop``, or a new one) that SIGINT and SIGTERM set from now on."""
+    stop = threading.Event() if stop is None else stop
 
     def handler(signum, frame):
         stop.set()
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     return stop
-
-
-def _exit_at_once(signum, frame):
-    raise SystemExit(0)
 
 
 def raise_if_stopped(stop: threading.Event) -> None:
@@ -151,13 +147,18 @@ def _import_stopping_at_once() -> threading.Event:
     The imports take 0.25 s, seconds on a loaded machine, and a stop request
     would otherwise wait for them. Returns the event the signals set from then on.
     """
-    signal.signal(signal.SIGINT, _exit_at_once)
-    signal.signal(signal.SIGTERM, _exit_at_once)
+    stop = threading.Event()
+
+    def exit_at_once(signum, frame):
+        stop.set()  # should anything on the way out swallow the SystemExit, main stops anyway
+        raise SystemExit(0)
+    signal.signal(signal.SIGINT, exit_at_once)
+    signal.signal(signal.SIGTERM, exit_at_once)
     try:
         import rclpy  # noqa: F401
         import r2d2_sim.node  # noqa: F401
     finally:
-        stop = stop_on_signals()
+        stop_on_signals(stop)
     return stop
 
 

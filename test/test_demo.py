@@ -198,11 +198,13 @@ def test_driver_stops_timing_when_ground_truth_goes_back_in_time(ros):
     driver = ros.add_node(ManoeuvreDriver(out=out, context=ros.context), use_sim_time=False)
     driver._on_odom(_odometry_at(15.0))
     driver.begin()
-    driver._on_truth(_odometry_at(15.0))
+    driver._on_truth(_odometry_at(15.0))  # each step's odometry and truth: answered
+    driver._on_odom(_odometry_at(15.5))
     driver._on_truth(_odometry_at(15.5, x_m=0.1))
     assert driver.elapsed_s == 0.5 and driver.time_went_back is None
     driver._on_truth(_odometry_at(0.1))  # before the start: no phase to follow
     assert driver.time_went_back == (15.5, 0.1)
+    driver._on_odom(_odometry_at(15.6))
     driver._on_truth(_odometry_at(15.6, x_m=0.2))  # nothing is timed from here on
     assert driver.elapsed_s == 0.5 and driver.truth_xy[-1] == (0.1, 0.0)
 

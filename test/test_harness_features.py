@@ -14,7 +14,7 @@ import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
 
-from helpers import REPO
+from helpers import REPO, wait_for
 from r2d2_sim.client import ros_child_env
 from r2d2_sim.testing import HarnessError, SimHarness, StartupError
 
@@ -43,7 +43,7 @@ def test_stamped_cmd_vel_in_process_by_a_node_of_the_users(r2d2_sim_factory):
 
 
 def test_stamped_cmd_vel_in_another_process(r2d2_sim_process):
-    """SimProcess publishes what the node subscribes: TwistStamped here."""
+    """In another process the harness publishes what the node subscribes: TwistStamped."""
     sim = r2d2_sim_process(enable_stamped_cmd_vel=True, start_paused=True, cmd_vel_timeout=0.0)
     sim.send_cmd_vel(linear=0.3)
     sim.step(240)
@@ -59,7 +59,7 @@ def test_sim_process_with_the_readmes_isolation_remaps(r2d2_sim_process, kwargs)
     sim = r2d2_sim_process(cmd_vel_timeout=0.0, **kwargs)
     namespace = kwargs.get('namespace', '/b')
     assert sim.node_path == f'{namespace}/r2d2_sim'
-    assert sim.status()['step'] > 0  # running, and its /clock (remapped) arrived
+    assert wait_for(lambda: sim.status()['step'] > 0)  # running (its remapped /clock came)
     sim.send_cmd_vel(linear=0.3)
     assert sim.ground_truth().header.frame_id == 'world'
 
@@ -112,7 +112,7 @@ def test_lookup_transform_says_why_it_cannot(r2d2_sim_factory):
 
 
 def test_lookup_transform_in_another_process(r2d2_sim_process):
-    """SimProcess looks transforms up over DDS as well: base_scan is 0.25 m above the ground."""
+    """Looked up across processes too: base_scan is 0.25 m above the ground."""
     sim = r2d2_sim_process()
     scan_in_odom = sim.lookup_transform('odom', 'base_scan')
     assert scan_in_odom.translation[2] == pytest.approx(0.25, abs=1e-6)

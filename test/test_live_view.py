@@ -149,7 +149,7 @@ def recording(tmp_path_factory):
 
 
 def test_the_recording_reads_back_with_two_readers(recording):
-    """mcap and rosbags agree on topics, types, counts; QoS kept; every message decodes."""
+    """Two readers (mcap, rosbags) agree on topics, types, counts; QoS kept; all decodes."""
     with open(recording, 'rb') as stream:
         reader = make_reader(stream)
         summary = reader.get_summary()
@@ -180,7 +180,7 @@ def test_the_recording_reads_back_with_two_readers(recording):
 
 
 def test_the_recording_replays_to_another_process(recording, tmp_path):
-    """replay publishes the recorded bytes; a subscriber process hears them, latched ones too."""
+    """The replay tool publishes the recorded bytes; another process hears them, latched too."""
     with lease_domain() as lease:
         topics = {'/odom': {'type': OUTPUTS['/odom'], 'distinct': 20},
                   '/robot_description': {'type': 'std_msgs/msg/String', 'distinct': 1,

@@ -139,7 +139,7 @@ def test_frame_prefix_and_link_transforms(ros):
 
 
 def test_ground_truth_tf_places_odom_so_that_the_chain_is_the_true_pose(r2d2_sim_factory):
-    """world -> odom -> base_footprint -> base_link, looked up as tf2 does, is the true pose."""
+    """The chain world -> odom -> base_footprint -> base_link, looked up, is the true pose."""
     harness = r2d2_sim_factory(publish_ground_truth_tf=True, cmd_vel_timeout=0.0)
     harness.listen_tf()
     harness.send_cmd_vel(linear=0.3, angular=0.5)
