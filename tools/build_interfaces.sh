@@ -11,18 +11,19 @@
 # into VENV/share (found when AMENT_PREFIX_PATH includes VENV).
 #
 # - Idempotent: exits 0 at once, silently (~0.5 s), when every package and its
-#   type support already load in the venv (from this build, or from a sourced
-#   ROS install).
+#   type support already load in the venv, built from the current sources and
+#   wheels (or from a sourced ROS install, which is left alone).
 # - Cached per package: the installed files are kept as a tarball under
 #   ${XDG_CACHE_HOME:-$HOME/.cache}/r2d2_sim/, keyed on the Python ABI, numpy's
 #   major version, the versions of the ros-jazzy wheels the build uses, the
 #   build pins below and a hash of this script, tools/interfaces/common.cmake
 #   and the package's sources; another venv with the same key just unpacks it
-#   (~1 s, no cmake, no compiler).
+#   (~1-2 s, no cmake, no compiler).
 # - A cold build compiles only what rclpy loads: the C code, the C type
 #   supports and the Python extension, not the C++ ones (see
 #   tools/interfaces/common.cmake). Packages that need a build are built
-#   concurrently. On 2 cores: tf2_msgs ~10 s, simulation_interfaces ~1 min.
+#   concurrently. Both together: ~70 s on 2 idle cores, ~130 s on a busy
+#   machine (about 2 CPU-minutes, most of it simulation_interfaces).
 # - The build-only wheels (ament_cmake, rosidl generators, ...) are installed
 #   with `pip --prefix` into the temporary build directory, not into the venv:
 #   the venv only gains the packages' files (listed in
