@@ -18,8 +18,14 @@ setup() {
     "$PY" -m pip install --quiet --disable-pip-version-check -r requirements.txt
     touch "$VENV/.installed"
   fi
-  # TFMessage for pip-only installs (tf2_msgs is not on PyPI): built once, then cached.
-  tools/build_tf2_msgs.sh "$VENV" || echo "run.sh: tf2_msgs unavailable, TF off" >&2
+  # Interface packages that are not on PyPI (tf2_msgs, simulation_interfaces)
+  # for pip-only installs: built once, then cached; ~0.5 s when installed.
+  if ! tools/build_interfaces.sh "$VENV"; then
+    tools/build_interfaces.sh --check "$VENV" tf2_msgs \
+      || echo "run.sh: tf2_msgs unavailable, TF off" >&2
+    tools/build_interfaces.sh --check "$VENV" simulation_interfaces \
+      || echo "run.sh: simulation_interfaces unavailable, the simulation_interfaces services are off" >&2
+  fi
   export PATH="$PWD/$VENV/bin:$PATH"
   export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 }
