@@ -18,7 +18,7 @@ from r2d2_sim import bullet_records as records
 from r2d2_sim.bullet_records import (
     Aabb, BaseState, CollisionShape, Dynamics, JointRecord, JointStates, LinkState, Pose, Quat,
     Vec3)
-from r2d2_sim.errors import SetupError
+from r2d2_sim.errors import WorldError
 from r2d2_sim.health import base_problem, joint_problem
 from r2d2_sim.raycast import exclude_from_rays
 from r2d2_sim.stdio import silenced_output
@@ -30,10 +30,6 @@ with silenced_output():  # PyBullet prints its build time on import
 __all__ = ['Body', 'BodyRemoved', 'WorldError']
 
 ZERO: Vec3 = (0.0, 0.0, 0.0)
-
-
-class WorldError(SetupError, RuntimeError):
-    """A robot description, body or world setting that cannot be simulated."""
 
 
 class BodyRemoved(RuntimeError):

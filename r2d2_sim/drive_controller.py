@@ -142,6 +142,11 @@ class DriveController:
         self.odometry.update_from_positions(left, right, dt_s)
         self._odometry_step = step
 
+    def shift_time(self, steps: int) -> None:
+        """Move the step anchors by ``steps`` when the step count is set back (a time reset)."""
+        self._command_step += steps
+        self._odometry_step += steps
+
     def reset(self, step: int, wheel_positions_rad: Sequence[float]) -> List[float]:
         """Drop the command, go back to the initial pose; return the wheel targets (all 0)."""
         self._taken = self._latest  # a command from before the reset is dropped

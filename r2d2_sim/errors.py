@@ -9,7 +9,7 @@ catches them in one place and turns them into :class:`StartupError`, which
 No imports: the pure layers and the testing API use it without rclpy or PyBullet.
 """
 
-__all__ = ['SetupError', 'StartupError']
+__all__ = ['SetupError', 'StartupError', 'WorldError']
 
 
 class SetupError(Exception):
@@ -18,3 +18,7 @@ class SetupError(Exception):
 
 class StartupError(RuntimeError):
     """The simulator node cannot start with the given parameters or files."""
+
+
+class WorldError(SetupError, RuntimeError):
+    """A robot description, body or world setting that cannot be simulated."""

@@ -182,7 +182,13 @@ class FoxgloveSink:
         self._finalizer = None
         if port is None and self.record_path is None:
             return  # nothing to feed: every channel ignores its messages
-        foxglove = self._foxglove = _import_foxglove()
+        self._foxglove = _import_foxglove()
+        self._open(port, host, name, overwrite)
+        self._finalizer = weakref.finalize(self, _close, self._writer, self._server)
+
+    def _open(self, port: Optional[int], host: str, name: str, overwrite: bool) -> None:
+        """Start the server and open the file asked for (SinkError, leaving neither, if not)."""
+        foxglove = self._foxglove
         # Two contexts, so that messages sent again for a late viewer reach
         # the server but not the file (the SDK gives Python no per-sink log).
         # The server first: a taken port then leaves no file behind.
@@ -208,7 +214,6 @@ class FoxgloveSink:
         except Exception as exc:  # the SDK raises assorted types (RuntimeError, OSError...)
             _close(self._writer, self._server)
             raise SinkError(f'{doing}: {exc}') from None
-        self._finalizer = weakref.finalize(self, _close, self._writer, self._server)
 
     @property
     def port(self) -> Optional[int]:

@@ -10,7 +10,7 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 
 import json
 import threading
-from typing import List, Optional
+from typing import Callable, List, Optional
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -25,7 +25,9 @@ from r2d2_sim.joint_info import joint_info_json
 from r2d2_sim.mirror import mirror
 from r2d2_sim.outputs import ClockOutput, RobotOutputs
 from r2d2_sim.parameters import SimConfig
+from r2d2_sim import sim_interfaces
 from r2d2_sim.ros_parameters import declare_parameters
+from r2d2_sim.sim_interfaces import SimulationInterfaces
 from r2d2_sim.simulation import Simulation, StepResult
 from r2d2_sim.world import SimWorld
 
@@ -46,15 +48,20 @@ class SimNode(Node):
     ``parameter_overrides``...), and how often (wall seconds) a kind of
     warning may repeat (``warning_period_s``) and the graph is checked for
     ``cmd_vel`` publishers of the wrong type (``graph_check_period_s``).
-    Raises :class:`StartupError` when its parameters or URDF are unusable.
+    With simulation_interfaces installed it also serves ROS 2's simulation
+    standard (:mod:`r2d2_sim.sim_interfaces`); ``on_quit`` is what a request
+    for the QUITTING state calls (``sim_node`` stops itself; without it
+    QUITTING is unsupported). Raises :class:`StartupError` when its
+    parameters or URDF are unusable.
     """
 
     def __init__(self, node_name: str = NODE_NAME, *,
                  warning_period_s: float = WARNING_PERIOD_S,
-                 graph_check_period_s: float = GRAPH_CHECK_PERIOD_S, **node_kwargs) -> None:
+                 graph_check_period_s: float = GRAPH_CHECK_PERIOD_S,
+                 on_quit: Optional[Callable[[], None]] = None, **node_kwargs) -> None:
         self.sink: Optional[FoxgloveSink] = None  # before rclpy makes its own publishers
         super().__init__(node_name, **node_kwargs)
-        self._lock = threading.RLock()  # one thread in PyBullet at a time
+        self.lock = threading.RLock()  # one thread in PyBullet at a time (public: the services')
         self._throttled = ThrottledLog(warning_period_s)
         self.simulation: Optional[Simulation] = None
         self._clock_output: Optional[ClockOutput] = None
@@ -85,6 +92,14 @@ class SimNode(Node):
         self.create_service(Trigger, '~/step', self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/get_status', self._on_get_status)
+        self.standard: Optional[SimulationInterfaces] = None
+        if sim_interfaces.available():
+            self.standard = SimulationInterfaces(self, on_quit)
+        else:
+            self.get_logger().warning(
+                'simulation_interfaces is not installed: its services (spawn_entity, '
+                'step_simulation...) are off (a pip-only venv gets it from '
+                'tools/build_interfaces.sh VENV); everything else works')
         self._publish(simulation.read_states())
 
     def _start_sink(self, config: SimConfig) -> Optional[FoxgloveSink]:
@@ -165,7 +180,7 @@ class SimNode(Node):
         This is the in-process API for tests: it ignores pause and pacing, so a
         test can advance simulated time deterministically between its own spins.
         """
-        with self._lock:
+        with self.lock:
             step, publish = self.simulation.step, self._publish
             for _ in range(steps):
                 result = step()
@@ -185,7 +200,7 @@ class SimNode(Node):
         The check and the steps hold the lock that ``~/pause`` takes, so once a
         pause is answered no further step runs and the reply's time is final.
         """
-        with self._lock:
+        with self.lock:
             if self._paused:
                 return False
             if steps is None:
@@ -224,26 +239,51 @@ class SimNode(Node):
 
     def _on_get_joint_info(self, request, response):
         robot = self.simulation.robot
-        with self._lock:
+        with self.lock:
             response.message = joint_info_json(robot.body, robot.source)
         response.success = True
         return response
 
-    def _on_pause(self, request, response):
-        with self._lock:  # no step runs between the change and the reply's time
-            if request.data and not self._paused:
-                # Stop where a client sees the state: finish the control period
-                # up to the step that publishes, so the reply's time is the last
-                # /clock and every ~/step after it is one whole period.
+    def set_paused(self, paused: bool) -> None:
+        """
+        Pause (stopping on a publication) or resume physics, under the lock.
+
+        Pause lands where a client sees the state: physics finishes the
+        control period up to the step that publishes, so the time is the
+        last /clock and every ~/step after it is one whole period.
+        """
+        with self.lock:  # no step runs between the change and the caller's reply
+            if paused and not self._paused:
                 if self.step_count != self.simulation.last_frame_step:
                     self.advance_to_next_publish()
-            self._paused = bool(request.data)
+            self._paused = bool(paused)
+
+    def step_paused(self, steps: int) -> None:
+        """Advance a paused simulation ``steps`` physics steps (the standard's step_simulation)."""
+        with self.lock:
+            self.advance(steps)
+
+    def reset_simulation(self, *, time: bool = False, state: bool = True,
+                         spawned: bool = False) -> None:
+        """
+        Reset what is asked (see :meth:`Simulation.reset`), publishing nothing now.
+
+        This step's state is out already, and a second odom -> base_footprint
+        at one stamp is one tf2 drops (TF_REPEATED_DATA): the next publication
+        carries the reset robot.
+        """
+        with self.lock:
+            self.simulation.reset(time=time, state=state, spawned=spawned)
+
+    def _on_pause(self, request, response):
+        with self.lock:  # the reply's time is the state the pause landed on
+            self.set_paused(request.data)
             response.message = self.status()
         response.success = True
         return response
 
     def _on_step(self, request, response):
-        with self._lock:
+        with self.lock:
             if not self._paused:
                 response.success = False
                 response.message = self.status(
@@ -255,17 +295,14 @@ class SimNode(Node):
         return response
 
     def _on_get_status(self, request, response):
-        with self._lock:
+        with self.lock:
             response.message = self.status()
         response.success = True
         return response
 
     def _on_reset(self, request, response):
-        with self._lock:
-            # Not published now: this step's state is out already, and a second
-            # odom -> base_footprint at one stamp is one tf2 drops (TF_REPEATED_DATA).
-            # The next publication carries the reset robot.
-            self.simulation.reset()
+        with self.lock:
+            self.reset_simulation()  # the robot; time goes on, spawned entities stay
             response.message = self.status()
         response.success = True
         return response
@@ -278,6 +315,6 @@ class SimNode(Node):
 
     def destroy_node(self) -> None:
         """Disconnect the physics client, finish the recording, then destroy the ROS node."""
-        with self._lock:
+        with self.lock:
             self._close()
         super().destroy_node()

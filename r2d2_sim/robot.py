@@ -185,6 +185,22 @@ class Robot:
             odometry = self.controller.odometry.state()
         return Frame(step, time_ns, joints, base, odometry)
 
+    def restart_time(self, steps_back: int) -> None:
+        """The step count went back by ``steps_back`` (a time reset): sensor rates start afresh."""
+        step = self.world.step_count
+        for schedule in (self._camera_due, self._scan_due, self._imu_due):
+            if schedule is not None:
+                schedule.restart(step)
+        if self.controller is not None:
+            self.controller.shift_time(-steps_back)
+        if self.imu is not None:
+            self.imu.reset()  # its time went back: no acceleration from the jump
+
+    def teleported(self) -> None:
+        """The body was placed somewhere: the IMU must not read the jump as an acceleration."""
+        if self.imu is not None:
+            self.imu.reset()
+
     def reset(self) -> None:
         """Put the robot back at its initial pose at rest, dropping the command and odometry."""
         self.body.reset()

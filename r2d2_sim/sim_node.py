@@ -164,13 +164,15 @@ def _import_stopping_at_once() -> threading.Event:
 
 def _run_node(stop: threading.Event) -> None:
     """Build the node, serve it from a thread and pace it here until ``stop`` is set."""
-    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.executors import MultiThreadedExecutor
     from r2d2_sim.node import SimNode
     node = None
-    executor = SingleThreadedExecutor()
+    # Two threads: a long step_simulation (its own callback group) leaves the
+    # other services, cmd_vel and cancel requests answered meanwhile.
+    executor = MultiThreadedExecutor(num_threads=2)
     spinner = None
     try:
-        node = SimNode()
+        node = SimNode(on_quit=stop.set)
         executor.add_node(node)
         spinner = threading.Thread(target=_spin, args=(executor, stop), daemon=True)
         spinner.start()

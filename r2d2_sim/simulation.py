@@ -13,6 +13,7 @@ robot's physics has blown up, and puts back one that has.
 
 from typing import Callable, List, NamedTuple, Optional, Tuple
 
+from r2d2_sim.entities import Entities
 from r2d2_sim.parameters import SimConfig
 from r2d2_sim.robot import Frame, Measurement, Robot
 from r2d2_sim.timing import StepClock, StepSchedule
@@ -57,6 +58,7 @@ class Simulation:
         self.steps_per_gui_frame = max(1, round(rate / GUI_CAMERA_RATE_HZ))
         self.last_frame_step = 0
         self.robots: List[Robot] = []
+        self.entities: Optional[Entities] = None
         self.world = SimWorld(
             config.urdf or None, robot_description=config.robot_description,
             gui=config.gui, time_step_s=self.time_step_s,
@@ -73,6 +75,16 @@ class Simulation:
         except Exception:
             self.world.close()
             raise
+        self.entities = Entities(self.world, lambda: self.robots, config.world_frame_id,
+                                 self._teleported)
+        # Nothing changed since start-up (or a full reset): with time at 0, 'stopped'.
+        self.pristine = True
+
+    def _teleported(self, body) -> None:
+        self.pristine = False
+        for robot in self.robots:
+            if robot.body is body:
+                robot.teleported()
 
     @property
     def robot(self) -> Robot:
@@ -110,6 +122,7 @@ class Simulation:
         for robot in robots:
             robot.drive_wheels(world.step_count)
         world.step(1)
+        self.pristine = False
         step = world.step_count
         if world.gui and step % self.steps_per_gui_frame == 0:
             world.follow_camera()
@@ -131,12 +144,32 @@ class Simulation:
             Measurement(time_ns, robot.read_frame(step, time_ns), None, None, None)
             for robot in self.robots))
 
-    def reset(self) -> None:
-        """Put every body back where it started and every robot at rest, commands dropped."""
-        self.world.reset()
-        for robot in self.robots:
-            robot.reset()
+    def reset(self, *, time: bool = False, state: bool = True, spawned: bool = False) -> None:
+        """
+        Reset what is asked: ``~/reset`` is ``state`` alone, the standard's scopes these three.
+
+        ``spawned``: delete every entity spawned while running. ``state``: every
+        body back where it started (spawned ones at their spawn pose) and
+        every robot at rest, commands and odometry dropped. ``time``: the
+        step count and simulated time back to 0, every schedule from there.
+        """
+        if spawned:
+            self.entities.delete_spawned()
+        if state:
+            self.world.reset()
+            for robot in self.robots:
+                robot.reset()
+        if time:
+            steps_back = self.world.step_count
+            self.world.step_count = 0
+            self.publish_schedule.restart(0)
+            self.last_frame_step = 0
+            for robot in self.robots:
+                robot.restart_time(steps_back)
+        self.pristine = time and state and spawned
 
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice."""
+        if self.entities is not None:
+            self.entities.close()
         self.world.close()

@@ -237,6 +237,32 @@ def test_tf_scan_and_imu_reach_another_process_after_the_documented_build(pip_ve
     assert got['imu'][-1].linear_acceleration.z == pytest.approx(9.8, abs=0.3)
 
 
+def test_the_standard_drives_the_pip_installed_simulator(pip_venv, tmp_path):
+    """After tools/build_interfaces.sh VENV, a client of the standard alone drives sim_node."""
+    _run(['bash', os.path.join(REPO, 'tools', 'build_interfaces.sh'), str(pip_venv)],
+         env=user_env())
+    domain = next_domain_id()
+    process = subprocess.Popen(
+        [str(pip_venv / 'bin' / 'sim_node'), '--ros-args', '-p', 'scan_rate:=60.0'],
+        cwd=tmp_path, env=user_env(domain), text=True, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE)
+    try:
+        out = tmp_path / 'seen.json'
+        client = subprocess.run(
+            [str(pip_venv / 'bin' / 'python'), os.path.join(REPO, 'test', 'children',
+                                                          'standard_client.py'), str(out)],
+            cwd=tmp_path, env=user_env(domain), capture_output=True, text=True, timeout=120)
+    finally:
+        code, _, err = stop_process(process, signal.SIGINT)
+    assert client.returncode == 0, client.stderr + err
+    assert code == 0, err
+    assert 'simulation_interfaces is not installed' not in err
+    seen = json.loads(out.read_text())
+    assert seen['clock_advance_ns'] == 10**9
+    assert seen['scan_ahead_m'] == pytest.approx(1.35, abs=0.01)
+    assert seen['after_delete'] == ['ground_plane', 'r2d2']
+
+
 def test_readme_examples_run_unchanged_in_the_pip_venv(pip_venv, tmp_path):
     """The testing section's examples pass with nothing but pip install . and pytest."""
     for example in (Path(REPO) / 'test' / 'examples').glob('test_*.py'):

@@ -32,7 +32,9 @@ from r2d2_sim.testing.process import (
     ChildProcess, ProcessResult, sim_node_command, stop_process)
 from r2d2_sim.testing.remote import RemoteProbe
 from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
+from r2d2_sim.testing.standard import StandardClient, StandardError
 from r2d2_sim.testing.tf import TfListener
+from r2d2_sim.testing.world_verbs import EntityState, WorldError
 from r2d2_sim.tf_buffer import StampedTransform, TransformBuffer, TransformException
 
 __all__ = [
@@ -42,7 +44,8 @@ __all__ = [
     'ProcessResult', 'stop_process', 'sim_node_command', 'parameter_overrides',
     'Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env', 'stamp_ns',
     'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S', 'TfListener', 'TransformBuffer',
-    'StampedTransform', 'TransformException',
+    'StampedTransform', 'TransformException', 'StandardClient', 'StandardError', 'EntityState',
+    'WorldError',
 ]
 
 

@@ -20,8 +20,8 @@ from std_srvs.srv import Trigger
 
 from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message, wait_for
 from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarness
-from r2d2_sim.testing.tf import TfListener
-from r2d2_sim.tf_buffer import StampedTransform, TransformException
+from r2d2_sim.testing.tf import TransformLookup
+from r2d2_sim.testing.world_verbs import CoreWorld, WorldVerbs
 
 __all__ = ['SimHarness', 'LINK_NODE_NAME']
 
@@ -30,7 +30,7 @@ __all__ = ['SimHarness', 'LINK_NODE_NAME']
 LINK_NODE_NAME = '_r2d2_sim_harness'
 
 
-class SimHarness(RosHarness):
+class SimHarness(RosHarness, TransformLookup, WorldVerbs):
     """
     The simulator in this process, advanced only when told, plus nodes of your own.
 
@@ -46,6 +46,11 @@ class SimHarness(RosHarness):
     publications trigger run before the next one (lockstep): a controller
     that answers ``odom`` with ``cmd_vel`` sees every state, its command takes
     effect at the next step, and a run repeats bit for bit.
+
+    The world verbs (:class:`~r2d2_sim.testing.world_verbs.WorldVerbs`:
+    ``spawn``, ``entity_state``, ``set_entity_state``, ``delete_entity``,
+    ``reset_world``) act on the simulation directly; ``advance(steps=n)``
+    steps n physics steps.
     """
 
     def __init__(self, node_name: str = 'r2d2_sim', *, namespace: str = '',
@@ -58,7 +63,6 @@ class SimHarness(RosHarness):
         self._cmd_vel = None
         self._stamped = False
         self._lockstep = False
-        self._tf: Optional[TfListener] = None
         self._types = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry}
         self._latest: Dict[str, Optional[bytes]] = dict.fromkeys(self._types)
         try:
@@ -240,38 +244,18 @@ class SimHarness(RosHarness):
         """Return the latest ``joint_states`` (every movable joint)."""
         return self._wait_latest('joint_states')
 
-    def listen_tf(self) -> TfListener:
-        """Start taking ``/tf`` and ``/tf_static`` into a transform buffer (once); return it."""
-        if self._tf is None:
-            self._tf = TfListener(self._link)
-        return self._tf
+    def _tf_node(self) -> Node:
+        return self._link
 
-    def lookup_transform(self, target_frame: str, source_frame: str,
-                         time_ns: int = 0) -> StampedTransform:
-        """
-        Return the transform from ``source_frame`` to ``target_frame`` at ``time_ns``.
+    def _tf_default_time_ns(self) -> int:
+        return self.last_publication_ns()  # the current state, never one on its way
 
-        As tf2's ``Buffer.lookup_transform``, over what the simulator put on
-        ``/tf`` and ``/tf_static`` since :meth:`listen_tf` (called by the
-        first lookup: advance once after it for /tf to arrive). ``time_ns``
-        0 means the latest state publication's time, so the answer is the
-        current state, never one still on its way. Waits for the transform
-        by deadline; HarnessError with tf2's reason otherwise.
-        """
-        buffer = self.listen_tf().buffer
-        time_ns = time_ns or self.last_publication_ns()
+    def _tf_wait(self, condition) -> bool:
         try:
-            self._wait(lambda: buffer.can_transform(target_frame, source_frame, time_ns),
-                       'no transform')
+            self._wait(condition, 'no transform')
         except HarnessError:
-            try:
-                buffer.lookup_transform(target_frame, source_frame, time_ns)
-            except TransformException as exc:
-                raise HarnessError(f'no transform {source_frame} -> {target_frame}: {exc} '
-                                   '(the harness listens from its first lookup_transform '
-                                   'or listen_tf(): advance() after it)') from None
-            raise
-        return buffer.lookup_transform(target_frame, source_frame, time_ns)
+            return False
+        return True
 
     def last_publication_ns(self) -> int:
         """Return the simulated time (ns) of the simulator's latest state publication."""
@@ -304,17 +288,29 @@ class SimHarness(RosHarness):
         control period: simulated time goes on, and the state readers return
         the reset robot.
         """
-        topics = ['joint_states', 'ground_truth'] + (['odom'] if self.sim.has_wheels else [])
-        for topic in topics:  # nothing older may arrive after the reset
-            self._wait_latest(topic)
-        for topic in topics:
-            self._latest[topic] = None
-        reply = self._call(Trigger, self.sim.get_fully_qualified_name() + '/reset',
-                           Trigger.Request())
-        self.advance()
+        self._before_reset()
+        reply = self.call_service(Trigger, self.sim.get_fully_qualified_name() + '/reset',
+                                  Trigger.Request())
+        self._after_reset()
         return json.loads(reply.message)
 
-    def _call(self, srv_type, name: str, request):
+    def _world_backend(self) -> CoreWorld:
+        return CoreWorld(self.sim)
+
+    def _before_reset(self) -> None:
+        """Take the latest state first: nothing older may arrive after the reset."""
+        topics = ['joint_states', 'ground_truth'] + (['odom'] if self.sim.has_wheels else [])
+        for topic in topics:
+            self._wait_latest(topic)
+
+    def _after_reset(self) -> None:
+        """The state readers return the reset world: one control period is published after it."""
+        for topic in self._latest:
+            self._latest[topic] = None
+        self.advance()
+
+    def call_service(self, srv_type, name: str, request):
+        """Call a service (of the simulator or yours) from the harness's node; return the reply."""
         client = self._link.create_client(srv_type, name)
         try:
             self._wait(client.service_is_ready, f'service {name} was not available')

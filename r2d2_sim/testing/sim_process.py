@@ -15,8 +15,9 @@ from r2d2_sim.testing.domains import env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import RemoteProbe
-from r2d2_sim.testing.tf import TfListener
-from r2d2_sim.tf_buffer import StampedTransform, TransformException
+from r2d2_sim.testing.standard import StandardClient
+from r2d2_sim.testing.tf import TransformLookup
+from r2d2_sim.testing.world_verbs import StandardWorld, WorldVerbs
 
 __all__ = ['SimProcess', 'STATUS_RESEND_S']
 
@@ -31,7 +32,86 @@ SERVICES = (('pause', SetBool), ('step', Trigger), ('reset', Trigger),
 TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 
 
-class SimProcess:
+class ControlServices:
+    """
+    The node's own control services (``~/pause``, ``~/step``, ``~/reset``, ``~/get_status``...).
+
+    Each reply is the node's JSON state; ``last_status`` and ``paused`` follow
+    the replies. The owner gives ``probe``, ``process``, ``node_path``,
+    ``timeout_s``, ``_clients`` and ``_not_before_ns``.
+    """
+
+    paused = False
+    last_status: Dict[str, Any] = {}
+
+    def _request(self, name: str, request, resend_after_s: Optional[float] = None
+                 ) -> Dict[str, Any]:
+        if self._exited():
+            raise HarnessError(f'sim_node has exited (status {self.process.returncode})')
+        reply = self.probe.call_client(self._clients[name], request, self.timeout_s,
+                                       resend_after_s, abort=self._exited)
+        if reply is None:
+            raise HarnessError(f'{self.node_path}/{name} did not answer within '
+                               f'{self.timeout_s:g} s')
+        facts = json.loads(reply.message)
+        if name != 'get_joint_info':
+            self.last_status = facts
+            self.paused = facts['paused']
+        if not reply.success:
+            raise HarnessError(f'~/{name} failed: {facts.get("error", reply.message)}')
+        return facts
+
+    def pause(self, paused: bool = True) -> Dict[str, Any]:
+        """Pause (or with False resume) through ``~/pause``; return the reply's JSON state."""
+        request = SetBool.Request()
+        request.data = paused
+        return self._request('pause', request)
+
+    def resume(self) -> Dict[str, Any]:
+        """Let simulated time run again; return the reply's JSON state."""
+        return self.pause(False)
+
+    def status(self) -> Dict[str, Any]:
+        """
+        Return the simulator's state without changing it.
+
+        Asks ``~/get_status`` and returns its JSON reply: ``paused``, ``step``,
+        ``sim_time_ns``, ``sim_time``, ``commands_received``.
+        """
+        return self._request('get_status', Trigger.Request(), STATUS_RESEND_S)
+
+    def step(self, count: int = 1) -> Dict[str, Any]:
+        """
+        Advance a paused simulator ``count`` control periods through ``~/step``.
+
+        Returns the last reply with ``steps``, the physics steps of all the
+        calls. Raises HarnessError if it is running (pause it first).
+        """
+        total = 0
+        facts: Dict[str, Any] = {}
+        for _ in range(count):
+            facts = self._request('step', Trigger.Request())
+            total += facts['steps']
+        facts['steps'] = total
+        return facts
+
+    def reset(self) -> Dict[str, Any]:
+        """
+        Put the robot back at its initial pose through ``~/reset``; return the reply's JSON.
+
+        The node publishes the reset robot at its next publication: the state
+        readers wait for one after the reply's time (while paused, step() first).
+        """
+        facts = self._request('reset', Trigger.Request())
+        self._not_before_ns = facts['sim_time_ns'] + 1
+        return facts
+
+    def joint_info(self) -> Dict[str, Any]:
+        """Return ``~/get_joint_info``'s JSON: ``robot``, ``urdf`` and ``joints``."""
+        return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S)
+
+
+class SimProcess(ControlServices, TransformLookup, WorldVerbs):
     """
     The ``sim_node`` executable in a process of its own, driven through its services.
 
@@ -58,6 +138,11 @@ class SimProcess:
     :class:`~r2d2_sim.testing.process.ChildProcess`), ``probe`` (the
     :class:`~r2d2_sim.testing.remote.RemoteProbe` whose node you may give
     subscriptions of your own), ``paused`` and ``last_status``.
+
+    With simulation_interfaces installed, ``standard`` is a
+    :class:`~r2d2_sim.testing.standard.StandardClient` of its services, and
+    the world verbs (``spawn``, ``entity_state``, ``set_entity_state``,
+    ``delete_entity``, ``reset_world``, ``step_physics``) go through it.
     """
 
     def __init__(self, *, node_name: str = 'r2d2_sim', namespace: str = '',
@@ -80,7 +165,7 @@ class SimProcess:
         self._cmd_vel = None
         self._stamped = False
         self._state_subscriptions = state_subscriptions
-        self._tf: Optional[TfListener] = None
+        self._standard: Optional[StandardClient] = None
         if lease or domain_id is None:
             self.lease = lease_domain(domain_id, timeout_s=max(timeout_s, 60.0))
             self.domain_id = self.lease.domain_id
@@ -168,72 +253,6 @@ class SimProcess:
                                f'starting: {result.stderr.strip()[-2000:]}')
         raise HarnessError(f'sim_node {what} within {self.timeout_s:g} s')
 
-    def _request(self, name: str, request, resend_after_s: Optional[float] = None
-                 ) -> Dict[str, Any]:
-        if self._exited():
-            raise HarnessError(f'sim_node has exited (status {self.process.returncode})')
-        reply = self.probe.call_client(self._clients[name], request, self.timeout_s,
-                                       resend_after_s, abort=self._exited)
-        if reply is None:
-            raise HarnessError(f'{self.node_path}/{name} did not answer within '
-                               f'{self.timeout_s:g} s')
-        facts = json.loads(reply.message)
-        if name != 'get_joint_info':
-            self.last_status = facts
-            self.paused = facts['paused']
-        if not reply.success:
-            raise HarnessError(f'~/{name} failed: {facts.get("error", reply.message)}')
-        return facts
-
-    def pause(self, paused: bool = True) -> Dict[str, Any]:
-        """Pause (or with False resume) through ``~/pause``; return the reply's JSON state."""
-        request = SetBool.Request()
-        request.data = paused
-        return self._request('pause', request)
-
-    def resume(self) -> Dict[str, Any]:
-        """Let simulated time run again; return the reply's JSON state."""
-        return self.pause(False)
-
-    def status(self) -> Dict[str, Any]:
-        """
-        Return the simulator's state without changing it.
-
-        Asks ``~/get_status`` and returns its JSON reply: ``paused``, ``step``,
-        ``sim_time_ns``, ``sim_time``, ``commands_received``.
-        """
-        return self._request('get_status', Trigger.Request(), STATUS_RESEND_S)
-
-    def step(self, count: int = 1) -> Dict[str, Any]:
-        """
-        Advance a paused simulator ``count`` control periods through ``~/step``.
-
-        Returns the last reply with ``steps``, the physics steps of all the
-        calls. Raises HarnessError if it is running (pause it first).
-        """
-        total = 0
-        facts: Dict[str, Any] = {}
-        for _ in range(count):
-            facts = self._request('step', Trigger.Request())
-            total += facts['steps']
-        facts['steps'] = total
-        return facts
-
-    def reset(self) -> Dict[str, Any]:
-        """
-        Put the robot back at its initial pose through ``~/reset``; return the reply's JSON.
-
-        The node publishes the reset robot at its next publication: the state
-        readers wait for one after the reply's time (while paused, step() first).
-        """
-        facts = self._request('reset', Trigger.Request())
-        self._not_before_ns = facts['sim_time_ns'] + 1
-        return facts
-
-    def joint_info(self) -> Dict[str, Any]:
-        """Return ``~/get_joint_info``'s JSON: ``robot``, ``urdf`` and ``joints``."""
-        return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S)
-
     def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *, twist=None) -> None:
         """
         Publish a command on ``cmd_vel`` and return once the simulator has counted it.
@@ -268,27 +287,36 @@ class SimProcess:
         """Return the latest ``joint_states`` (when paused: of the time the last reply gave)."""
         return self._wait_latest('joint_states')
 
-    def lookup_transform(self, target_frame: str, source_frame: str,
-                         time_ns: int = 0) -> StampedTransform:
-        """
-        Return the transform from ``source_frame`` to ``target_frame`` at ``time_ns`` (0: latest).
+    @property
+    def standard(self) -> StandardClient:
+        """Return the client of the node's simulation_interfaces services (made on first use)."""
+        if self._standard is None:
+            namespace = self.node_path.rsplit('/', 1)[0]
+            self._standard = StandardClient(self.probe.node, self.probe.spin_until, namespace,
+                                            self.timeout_s)
+        return self._standard
 
-        As tf2's ``Buffer.lookup_transform``, over ``/tf`` and ``/tf_static``
-        since the first call (which starts listening). Waits by deadline;
-        HarnessError with tf2's reason otherwise.
-        """
-        if self._tf is None:
-            self._tf = TfListener(self.probe.node)
-        buffer = self._tf.buffer
-        if not self.probe.spin_until(
-                lambda: buffer.can_transform(target_frame, source_frame, time_ns),
-                self.timeout_s):
-            try:
-                buffer.lookup_transform(target_frame, source_frame, time_ns)
-            except TransformException as exc:
-                raise HarnessError(f'no transform {source_frame} -> {target_frame}: {exc}'
-                                   ) from None
-        return buffer.lookup_transform(target_frame, source_frame, time_ns)
+    def _world_backend(self) -> StandardWorld:
+        return StandardWorld(self.standard)
+
+    def _after_reset(self) -> None:
+        """The reset world is published at the next publication: readers wait for it."""
+        facts = self.status()
+        self._not_before_ns = facts['sim_time_ns'] + 1
+        for key in self._latest:
+            self._latest[key] = None
+
+    def step_physics(self, steps: int) -> Dict[str, Any]:
+        """Step a paused simulator ``steps`` physics steps (step_simulation); return its status."""
+        self.standard.step(steps)
+        self._not_before_ns = 0
+        return self.status()
+
+    def _tf_node(self):
+        return self.probe.node
+
+    def _tf_wait(self, condition) -> bool:
+        return self.probe.spin_until(condition, self.timeout_s)
 
     def _wait_latest(self, key: str):
         """

@@ -1,0 +1,162 @@
+"""
+Changing the world from a test: spawn, place, read, delete, reset with a scope, step physics.
+
+Both harnesses have these verbs: :class:`~r2d2_sim.testing.harness.SimHarness`
+calls the simulation core in its own process (no interface package needed),
+:class:`~r2d2_sim.testing.sim_process.SimProcess` the standard's services
+(``simulation_interfaces``). A refusal is :class:`WorldError` in both, its
+``code`` the standard's result name (``NOT_FOUND``, ``NAME_NOT_UNIQUE``...).
+"""
+
+import math
+from typing import List, Optional, Sequence
+
+from r2d2_sim.entities import EntityError, EntityState
+
+__all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'EntityState']
+
+IDENTITY = (0.0, 0.0, 0.0, 1.0)
+
+
+def _orientation(yaw: float, orientation: Optional[Sequence[float]]) -> tuple:
+    if orientation is not None:
+        return tuple(orientation)
+    return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+
+
+def _resource(urdf: str) -> tuple:
+    """Return (uri, resource_string): XML text goes as a resource string, anything else a uri."""
+    return ('', urdf) if urdf.lstrip().startswith('<') else (urdf, '')
+
+
+class CoreWorld:
+    """The verbs on a SimNode in this process: the core's entities, under the node's lock."""
+
+    def __init__(self, node) -> None:
+        self._node = node
+
+    def spawn(self, uri, resource_string, name, position, orientation, allow_renaming) -> str:
+        with self._node.lock:
+            return self._node.simulation.entities.spawn(
+                name, allow_renaming, uri, resource_string, '', position, orientation)
+
+    def entity_state(self, name: str) -> EntityState:
+        with self._node.lock:
+            return self._node.simulation.entities.state(name)
+
+    def set_entity_state(self, name, position, orientation, linear, angular) -> None:
+        with self._node.lock:
+            self._node.simulation.entities.set_state(name, '', position, orientation, linear,
+                                                     angular)
+
+    def delete(self, name: str) -> None:
+        with self._node.lock:
+            self._node.simulation.entities.delete(name)
+
+    def entities(self) -> List[str]:
+        with self._node.lock:
+            return self._node.simulation.entities.names()
+
+    def reset(self, time: bool, state: bool, spawned: bool) -> None:
+        self._node.reset_simulation(time=time, state=state, spawned=spawned)
+
+
+class StandardWorld:
+    """The verbs through a :class:`~r2d2_sim.testing.standard.StandardClient`."""
+
+    def __init__(self, client) -> None:
+        self._client = client
+
+    def spawn(self, uri, resource_string, name, position, orientation, allow_renaming) -> str:
+        return self._client.spawn(uri, resource_string, name, position, orientation,
+                                  allow_renaming)
+
+    def entity_state(self, name: str) -> EntityState:
+        msg = self._client.entity_state(name)
+        p, q, v, w = msg.pose.position, msg.pose.orientation, msg.twist.linear, msg.twist.angular
+        return EntityState((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), (v.x, v.y, v.z),
+                           (w.x, w.y, w.z))
+
+    def set_entity_state(self, name, position, orientation, linear, angular) -> None:
+        self._client.set_entity_state(name, position, orientation, linear, angular)
+
+    def delete(self, name: str) -> None:
+        self._client.delete(name)
+
+    def entities(self) -> List[str]:
+        return self._client.entities()
+
+    def reset(self, time: bool, state: bool, spawned: bool) -> None:
+        scope = (1 if time else 0) | (2 if state else 0) | (4 if spawned else 0)
+        self._client.reset(scope or 255)
+
+
+class WorldError(RuntimeError):
+    """A world verb was refused; ``code`` is the standard's result name (``NOT_FOUND``...)."""
+
+    def __init__(self, code: str, message: str) -> None:
+        super().__init__(f'{code}: {message}')
+        self.code = code
+
+
+class WorldVerbs:
+    """A harness's world verbs, on ``self._world_backend()`` (a CoreWorld or StandardWorld)."""
+
+    def _world_backend(self):
+        raise NotImplementedError
+
+    def _before_reset(self) -> None:
+        """Called before reset_world (the harness takes what is still on its way)."""
+
+    def _after_reset(self) -> None:
+        """Called after reset_world (the harness resyncs its state readers)."""
+
+    def _do(self, verb: str, *args):
+        from r2d2_sim.testing.standard import StandardError
+        try:
+            return getattr(self._world_backend(), verb)(*args)
+        except EntityError as exc:
+            raise WorldError(exc.code, str(exc)) from None
+        except StandardError as exc:
+            raise WorldError(exc.code, str(exc)) from None
+
+    def spawn(self, urdf: str, *, name: str = '', position: Sequence[float] = (0.0, 0.0, 0.0),
+              yaw: float = 0.0, orientation: Optional[Sequence[float]] = None,
+              allow_renaming: bool = True) -> str:
+        """
+        Spawn a URDF and return the entity's name.
+
+        ``urdf``: a pybullet_data name (``cube.urdf``), a path, a
+        ``package://`` URI, or the XML text itself. Its base link is placed at
+        ``position`` turned by ``yaw`` (or ``orientation``, x y z w), exactly.
+        """
+        uri, text = _resource(urdf)
+        return self._do('spawn', uri, text, name, tuple(position),
+                        _orientation(yaw, orientation), allow_renaming)
+
+    def entities(self) -> List[str]:
+        """Return every entity's name: the robot, the ground plane, models, spawned ones."""
+        return self._do('entities')
+
+    def entity_state(self, name: str) -> EntityState:
+        """Return an entity's pose (of its base link) and twist, both in the world frame."""
+        return self._do('entity_state', name)
+
+    def set_entity_state(self, name: str, position: Sequence[float], *, yaw: float = 0.0,
+                         orientation: Optional[Sequence[float]] = None,
+                         linear: Sequence[float] = (0.0, 0.0, 0.0),
+                         angular: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+        """Place an entity; its twist (world frame) is set too, so a pose alone stops it."""
+        self._do('set_entity_state', name, tuple(position), _orientation(yaw, orientation),
+                 tuple(linear), tuple(angular))
+
+    def delete_entity(self, name: str) -> None:
+        """Delete a spawned entity."""
+        self._do('delete', name)
+
+    def reset_world(self, *, time: bool = True, state: bool = True,
+                    spawned: bool = True) -> None:
+        """Reset with the standard's scopes (all by default: time back to 0, as at start-up)."""
+        self._before_reset()
+        self._do('reset', time, state, spawned)
+        self._after_reset()
