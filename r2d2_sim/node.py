@@ -314,7 +314,9 @@ class SimNode(Node):
             self.sink.close()  # an MCAP file is readable only once closed
 
     def destroy_node(self) -> None:
-        """Disconnect the physics client, finish the recording, then destroy the ROS node."""
+        """Take the standard's services down, disconnect physics, end the recording, destroy."""
+        if self.standard is not None:
+            self.standard.close()
         with self.lock:
             self._close()
         super().destroy_node()

@@ -186,7 +186,7 @@ class Robot:
         return Frame(step, time_ns, joints, base, odometry)
 
     def restart_time(self, steps_back: int) -> None:
-        """The step count went back by ``steps_back`` (a time reset): sensor rates start afresh."""
+        """Start the sensor rates afresh: the step count went back ``steps_back`` (a reset)."""
         step = self.world.step_count
         for schedule in (self._camera_due, self._scan_due, self._imu_due):
             if schedule is not None:
@@ -197,7 +197,7 @@ class Robot:
             self.imu.reset()  # its time went back: no acceleration from the jump
 
     def teleported(self) -> None:
-        """The body was placed somewhere: the IMU must not read the jump as an acceleration."""
+        """Forget the motion so far: the body was placed, and the IMU must not read the jump."""
         if self.imu is not None:
             self.imu.reset()
 

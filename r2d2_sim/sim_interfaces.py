@@ -7,9 +7,15 @@ they resolve to the root as O3DE, Isaac Sim and the example clients expect,
 and move with ``-r __ns:=``. Every reply sets its result: a default
 ``Result`` (0) means "unsupported". The operations themselves are the core's
 (:mod:`r2d2_sim.entities`, :class:`~r2d2_sim.simulation.Simulation`); this
-module only translates, under the node's lock, and a long step releases the
-lock between chunks so other services, ``cmd_vel`` and cancel requests are
-answered meanwhile (they run in another thread of a multi-threaded executor).
+module only translates, under the simulator's lock, and a long step releases
+the lock between chunks so other services, ``cmd_vel`` and cancel requests are
+answered meanwhile.
+
+The services live on a node of their own (``<simulator>_standard``, in the
+simulator's namespace) for ``sim_node`` to serve from a multi-threaded
+executor: a long step in one thread, the other requests in the other. The
+simulator node itself stays on a single-threaded executor, whose small wait
+set takes a ``cmd_vel`` flood 2-3 times faster.
 
 Where the big simulators disagree, the standard's own text decides: stepping
 while playing fails without a step; STOPPED is paused at time 0 in the initial
@@ -23,11 +29,12 @@ from typing import Callable, Optional
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
 
 from r2d2_sim.entities import EntityError
 from r2d2_sim.timing import stamp_of
 
-__all__ = ['SimulationInterfaces', 'EntityServices', 'available', 'STEP_CHUNK']
+__all__ = ['SimulationInterfaces', 'EntityServices', 'StandardNode', 'available', 'STEP_CHUNK']
 
 # Physics steps taken per hold of the node's lock by step_simulation: 0.1 s of
 # simulated time, a few milliseconds of wall time.
@@ -43,6 +50,26 @@ def available() -> bool:
     except Exception:  # ImportError, or a library of the type support missing
         return False
     return True
+
+
+class StandardNode(Node):
+    """The node the standard's services live on; destroying it twice is harmless."""
+
+    def __init__(self, simulator: Node) -> None:
+        super().__init__(f'{simulator.get_name()}_standard', context=simulator.context,
+                         namespace=simulator.get_namespace(),
+                         start_parameter_services=False)
+        self.action_server: Optional[ActionServer] = None
+        self._destroyed = False
+
+    def destroy_node(self) -> None:
+        """Destroy the action server, then the node, once."""
+        if self._destroyed:
+            return
+        self._destroyed = True
+        if self.action_server is not None:
+            self.action_server.destroy()
+        super().destroy_node()
 
 
 class _Replies:
@@ -67,7 +94,11 @@ class _Replies:
 
 
 class SimulationInterfaces(_Replies):
-    """The standard on ``node`` (a SimNode): simulation control; entities in EntityServices."""
+    """
+    The standard for ``node`` (a SimNode), served by ``self.node``; entities in EntityServices.
+
+    ``close()`` (or destroying ``self.node``) takes the services down.
+    """
 
     def __init__(self, node, on_quit: Optional[Callable[[], None]] = None) -> None:
         from simulation_interfaces import action, msg, srv
@@ -75,6 +106,7 @@ class SimulationInterfaces(_Replies):
         self._msg = msg
         self._on_quit = on_quit
         self._stepping = threading.Lock()  # one step request at a time
+        self.node = server = StandardNode(node)
         group = ReentrantCallbackGroup()  # the long ones, beside everything else
         services = (
             ('get_simulator_features', srv.GetSimulatorFeatures, self._features, None),
@@ -83,12 +115,16 @@ class SimulationInterfaces(_Replies):
             ('step_simulation', srv.StepSimulation, self._step, group),
             ('reset_simulation', srv.ResetSimulation, self._reset, None),
         )
-        self.services = [node.create_service(srv_type, name, callback, callback_group=group)
-                         for name, srv_type, callback, group in services]
-        self.action = ActionServer(node, action.SimulateSteps, 'simulate_steps',
-                                   self._simulate_steps, goal_callback=self._accept,
-                                   cancel_callback=self._allow_cancel, callback_group=group)
-        self.entities = EntityServices(node, msg, srv)
+        for name, srv_type, callback, callback_group in services:
+            server.create_service(srv_type, name, callback, callback_group=callback_group)
+        server.action_server = ActionServer(
+            server, action.SimulateSteps, 'simulate_steps', self._simulate_steps,
+            goal_callback=self._accept, cancel_callback=self._allow_cancel, callback_group=group)
+        self.entities = EntityServices(node, server, msg, srv)
+
+    def close(self) -> None:
+        """Take the services down (destroy their node); safe to call twice."""
+        self.node.destroy_node()
 
     # -- the simulation --------------------------------------------------------------
 
@@ -232,7 +268,8 @@ class SimulationInterfaces(_Replies):
 class EntityServices(_Replies):
     """The standard's entity services on ``node``: list, read, place, describe, spawn, delete."""
 
-    def __init__(self, node, msg, srv) -> None:
+    def __init__(self, node, server: Node, msg, srv) -> None:
+        """Serve on ``server`` the entities of ``node``'s simulation."""
         self._node = node
         self._msg = msg
         services = (
@@ -246,8 +283,8 @@ class EntityServices(_Replies):
             ('delete_entity', srv.DeleteEntity, self._delete),
             ('get_spawnables', srv.GetSpawnables, self._spawnables),
         )
-        self.services = [node.create_service(srv_type, name, callback)
-                         for name, srv_type, callback in services]
+        for name, srv_type, callback in services:
+            server.create_service(srv_type, name, callback)
 
     def _matching(self, filters):
         """Return the names the filters pick: regex (search), categories, tags, a sphere."""
@@ -390,15 +427,19 @@ class EntityServices(_Replies):
         return self._ok(response)
 
     def _spawnables(self, request, response):
+        """List this package's URDFs and pybullet_data's, or those of the ``sources`` asked for."""
         from r2d2_sim.entities import spawnable_uris
-        unknown = [s for s in request.sources if s not in SPAWNABLE_DIRECTORIES
-                   and s != 'pybullet_data']
+        known = SPAWNABLE_DIRECTORIES + ('pybullet_data',)
+        sources = list(request.sources) or list(known)
         for uri in spawnable_uris():
-            spawnable = self._msg.Spawnable()
-            spawnable.uri = uri
-            spawnable.description = 'URDF'
-            response.spawnables.append(spawnable)
+            source = known[0] if uri.startswith(known[0]) else 'pybullet_data'
+            if source in sources:
+                spawnable = self._msg.Spawnable()
+                spawnable.uri = uri
+                spawnable.description = f'URDF from {source}'
+                response.spawnables.append(spawnable)
         self._ok(response)
+        unknown = [s for s in sources if s not in known]
         if unknown:
             response.result.error_message = f'unknown sources left out: {", ".join(unknown)}'
         return response

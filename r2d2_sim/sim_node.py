@@ -163,19 +163,24 @@ def _import_stopping_at_once() -> threading.Event:
 
 
 def _run_node(stop: threading.Event) -> None:
-    """Build the node, serve it from a thread and pace it here until ``stop`` is set."""
-    from rclpy.executors import MultiThreadedExecutor
+    """Build the node, serve it from threads and pace it here until ``stop`` is set."""
+    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
     from r2d2_sim.node import SimNode
     node = None
-    # Two threads: a long step_simulation (its own callback group) leaves the
-    # other services, cmd_vel and cancel requests answered meanwhile.
-    executor = MultiThreadedExecutor(num_threads=2)
-    spinner = None
+    executors = []
+    spinners = []
     try:
         node = SimNode(on_quit=stop.set)
-        executor.add_node(node)
-        spinner = threading.Thread(target=_spin, args=(executor, stop), daemon=True)
-        spinner.start()
+        executors.append(SingleThreadedExecutor())
+        executors[0].add_node(node)
+        if node.standard is not None:
+            # Two threads: a long step_simulation (its own callback group) leaves
+            # the standard's other services and cancel requests answered.
+            executors.append(MultiThreadedExecutor(num_threads=2))
+            executors[1].add_node(node.standard.node)
+        for executor in executors:
+            spinners.append(threading.Thread(target=_spin, args=(executor, stop), daemon=True))
+            spinners[-1].start()
         node.get_logger().info(
             f'simulating {node.simulation.robot.source} at '
             f'{node.config.physics_rate_hz:g} Hz, real time factor '
@@ -183,12 +188,13 @@ def _run_node(stop: threading.Event) -> None:
         run_paced(node, stop)
     finally:
         stop.set()
-        if spinner is not None:
+        for spinner in spinners:
             spinner.join(timeout=1.0)
         # Only now, with no thread spinning: shutting an executor down under a
         # spinning thread races in rclpy 7.1 (a callback handler made during
         # shutdown fails with AttributeError on the destroyed guard condition).
-        executor.shutdown(timeout_sec=1.0)
+        for executor in executors:
+            executor.shutdown(timeout_sec=1.0)
         if node is not None:
             node.destroy_node()
 

@@ -4,8 +4,12 @@ The `ros2 run` layout: colcon builds the package and the ament index finds sim_n
 `ros2 run r2d2_sim sim_node` executes <prefix>/lib/r2d2_sim/sim_node, where the
 prefix comes from the ament index; this test resolves it the same way (the
 ros2 CLI itself is not installable from PyPI) and starts the executable.
+simulation_interfaces comes from the system package where a ROS Jazzy install
+has it (``/opt/ros/jazzy``, sourced first), else from the venv's local build
+(tools/build_interfaces.sh); the started node serves the standard either way.
 """
 
+import json
 import os
 import shutil
 import subprocess
@@ -14,9 +18,13 @@ import sys
 from helpers import next_domain_id, REPO, ros_env, stop_process
 import pytest
 
+SYSTEM_ROS = '/opt/ros/jazzy'
 RESOLVE_AND_RUN = '''
 set -e
+if [ -n "$2" ]; then source "$2/setup.bash"; fi
 source "$1/install/setup.bash"
+python3 -c "import os, simulation_interfaces as s
+print('interfaces', os.path.dirname(s.__file__))"
 prefix=$(python3 -c "from ament_index_python.packages import get_package_prefix as p
 print(p('r2d2_sim'))")
 exe="$prefix/lib/r2d2_sim/sim_node"
@@ -53,18 +61,28 @@ def test_colcon_installs_executables_and_data(colcon_workspace):
 
 
 def test_sim_node_resolved_through_ament_index_starts(colcon_workspace):
-    """The executable found as `ros2 run` would find it publishes joint_states, stops on SIGINT."""
+    """
+    The executable found as `ros2 run` would find it publishes joint_states, stops on SIGINT.
+
+    It serves the simulation standard, from the system's simulation_interfaces
+    when there is one, else from the local build.
+    """
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
+    from simulation_interfaces.msg import SimulatorFeatures
+    from simulation_interfaces.srv import GetSimulatorFeatures
     import time
+
+    system = os.path.isdir(os.path.join(SYSTEM_ROS, 'share', 'simulation_interfaces'))
 
     domain = next_domain_id()
     env = ros_env(domain)
     env['PYTHONPATH'] = ''  # only what install/setup.bash provides
     env['PATH'] = os.path.dirname(sys.executable) + os.pathsep + env.get('PATH', '')
-    process = subprocess.Popen(['bash', '-c', RESOLVE_AND_RUN, 'run', str(colcon_workspace)],
+    process = subprocess.Popen(['bash', '-c', RESOLVE_AND_RUN, 'run', str(colcon_workspace),
+                                SYSTEM_ROS if system else ''],
                                cwd=colcon_workspace, env=env, stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
     ctx = Context()
@@ -74,10 +92,18 @@ def test_sim_node_resolved_through_ament_index_starts(colcon_workspace):
     executor.add_node(node)
     received = []
     node.create_subscription(JointState, 'joint_states', received.append, 10)
+    features = node.create_client(GetSimulatorFeatures, '/get_simulator_features')
+    reply = None
     try:
         deadline = time.monotonic() + 20.0
         while not received and time.monotonic() < deadline and process.poll() is None:
             executor.spin_once(timeout_sec=0.05)
+        while not features.service_is_ready() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        future = features.call_async(GetSimulatorFeatures.Request())
+        while not future.done() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        reply = future.result()
     finally:
         code, out, err = stop_process(process)
         node.destroy_node()
@@ -87,3 +113,9 @@ def test_sim_node_resolved_through_ament_index_starts(colcon_workspace):
     assert code == 0, err
     assert 'resolved' in out and str(colcon_workspace) in out
     assert 'share/r2d2_sim/urdf/r2d2.urdf' in err + out  # the installed URDF, not the source one
+    assert reply is not None, out + err
+    assert SimulatorFeatures.SPAWNING in reply.features.features
+    assert json.loads(reply.features.custom_info)['simulator'] == 'r2d2_sim'
+    interfaces = next(line for line in out.splitlines() if line.startswith('interfaces '))
+    expected = SYSTEM_ROS if system else os.path.dirname(os.path.dirname(sys.executable))
+    assert interfaces.split(' ', 1)[1].startswith(expected), interfaces

@@ -249,8 +249,8 @@ def test_the_standard_drives_the_pip_installed_simulator(pip_venv, tmp_path):
     try:
         out = tmp_path / 'seen.json'
         client = subprocess.run(
-            [str(pip_venv / 'bin' / 'python'), os.path.join(REPO, 'test', 'children',
-                                                          'standard_client.py'), str(out)],
+            [str(pip_venv / 'bin' / 'python'),
+             os.path.join(REPO, 'test', 'children', 'standard_client.py'), str(out)],
             cwd=tmp_path, env=user_env(domain), capture_output=True, text=True, timeout=120)
     finally:
         code, _, err = stop_process(process, signal.SIGINT)

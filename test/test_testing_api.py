@@ -31,7 +31,8 @@ from r2d2_sim.testing import (
 
 EXAMPLES = Path(REPO) / 'test' / 'examples'
 # In README order.
-EXAMPLE_FILES = ['test_drive_forward.py', 'test_closed_loop.py', 'test_sim_process.py']
+EXAMPLE_FILES = ['test_drive_forward.py', 'test_closed_loop.py', 'test_sim_process.py',
+                 'test_change_the_world.py']
 README_HEADING = '## Testing your own code against it'
 SECTION_DRAFT = Path(REPO) / 'docs' / 'testing_section.md'
 
@@ -134,7 +135,8 @@ def test_examples_pass_in_parallel_workers_without_cross_talk(tmp_path):
          '--dist', 'each', str(tmp_path)],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
-    assert '8 passed' in result.stdout, result.stdout[-2000:]
+    # Each worker runs every example and the isolation test.
+    assert f'{2 * (len(EXAMPLE_FILES) + 1)} passed' in result.stdout, result.stdout[-2000:]
     print(f'pytest -n 2 of the examples: {time.monotonic() - started:.1f} s')
 
 

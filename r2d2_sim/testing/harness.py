@@ -83,6 +83,8 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
             self.sim = SimNode(node_name, context=self.context, namespace=namespace or None,
                                parameter_overrides=parameter_overrides(parameters))
             RosHarness.add_node(self, self.sim, use_sim_time=False)
+            if self.sim.standard is not None:  # its services, on a node of their own
+                RosHarness.add_node(self, self.sim.standard.node, use_sim_time=False)
             # The type the simulator takes: one participant cannot hold a Twist
             # publisher and a TwistStamped subscription on one topic ("invalid
             # allocator"), and the middleware would not deliver it anyway.
@@ -304,7 +306,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
             self._wait_latest(topic)
 
     def _after_reset(self) -> None:
-        """The state readers return the reset world: one control period is published after it."""
+        """Make the state readers wait for the reset world (published one control period on)."""
         for topic in self._latest:
             self._latest[topic] = None
         self.advance()

@@ -300,7 +300,7 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
         return StandardWorld(self.standard)
 
     def _after_reset(self) -> None:
-        """The reset world is published at the next publication: readers wait for it."""
+        """Make the readers wait for the reset world, published at the next publication."""
         facts = self.status()
         self._not_before_ns = facts['sim_time_ns'] + 1
         for key in self._latest:

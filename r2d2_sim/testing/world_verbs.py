@@ -106,10 +106,10 @@ class WorldVerbs:
         raise NotImplementedError
 
     def _before_reset(self) -> None:
-        """Called before reset_world (the harness takes what is still on its way)."""
+        """Take what is still on its way before reset_world (a harness hook)."""
 
     def _after_reset(self) -> None:
-        """Called after reset_world (the harness resyncs its state readers)."""
+        """Resync the state readers after reset_world (a harness hook)."""
 
     def _do(self, verb: str, *args):
         from r2d2_sim.testing.standard import StandardError

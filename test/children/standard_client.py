@@ -137,14 +137,17 @@ def main():
     steps = ActionClient(node, SimulateSteps, '/simulate_steps')
     c.spin_until(steps.server_is_ready)
     feedback = []
+    before_ns = c.clock_ns
     goal = steps.send_goal_async(SimulateSteps.Goal(steps=12),
                                  feedback_callback=lambda f: feedback.append(
                                      f.feedback.completed_steps))
     c.spin_until(goal.done)
     result = goal.result().get_result_async()
     c.spin_until(result.done)
+    c.spin_until(lambda: c.clock_ns >= before_ns + 12 * 10**9 // 240)  # 12 steps: 50 ms
     out['action'] = {'status': result.result().status,
-                     'result': result.result().result.result.result, 'feedback': feedback}
+                     'result': result.result().result.result.result, 'feedback': feedback,
+                     'clock_advance_ns': c.clock_ns - before_ns}
     state = c.call(srv.GetSimulationState, '/get_simulation_state',
                    srv.GetSimulationState.Request()).state.state
     out['final_state'] = state
