@@ -8,7 +8,7 @@ the sink's channel of that topic (the live view and the MCAP file), stamped
 with the simulated time of the step that published it. The outputs do not
 know: they publish as always. Pre-serialized messages go on as they are;
 typed ones (camera images, ``/tf_static``, ``robot_description``) are
-serialized once for the sink. Without a sink the node keeps rclpy's
+serialized once, and DDS and the sink both get those bytes. Without a sink the node keeps rclpy's
 publishers, so mirroring costs nothing when it is off.
 """
 
@@ -39,8 +39,11 @@ class MirroredPublisher:
 
     def publish(self, msg) -> None:
         """Publish ``msg`` (a message or its serialized bytes) to DDS and to the sink."""
-        self.publisher.publish(msg)
-        self.channel.log(msg if type(msg) is bytes else serialize_message(msg), self._time_ns())
+        # A typed message is serialized once, here, and both get the bytes: a
+        # camera image (230-300 kB) is not serialized a second time by rclpy.
+        data = msg if type(msg) is bytes else serialize_message(msg)
+        self.publisher.publish(data)
+        self.channel.log(data, self._time_ns())
 
     def __getattr__(self, name: str):
         # Everything else (topic_name, get_subscription_count, destroy...) is the publisher's.

@@ -265,10 +265,11 @@ def test_the_standard_drives_the_pip_installed_simulator(pip_venv, tmp_path):
 
 def test_readme_examples_run_unchanged_in_the_pip_venv(pip_venv, tmp_path):
     """The testing section's examples pass with nothing but pip install . and pytest."""
-    for example in (Path(REPO) / 'test' / 'examples').glob('test_*.py'):
+    examples = list((Path(REPO) / 'test' / 'examples').glob('test_*.py'))
+    for example in examples:
         shutil.copy(example, tmp_path / example.name)
     result = subprocess.run([str(pip_venv / 'bin' / 'python'), '-m', 'pytest', '-q', '-p',
                              'no:cacheprovider', '.'], cwd=tmp_path, env=user_env(),
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    assert '3 passed' in result.stdout
+    assert f'{len(examples)} passed' in result.stdout  # one test per example file
