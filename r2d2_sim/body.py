@@ -19,7 +19,7 @@ from r2d2_sim.bullet_records import (
     Aabb, BaseState, CollisionShape, Dynamics, JointRecord, JointStates, LinkState, Pose, Quat,
     Vec3)
 from r2d2_sim.errors import WorldError
-from r2d2_sim.health import base_problem, joint_problem
+from r2d2_sim.health import base_problem, joint_problem, joints_finite, twist_problem
 from r2d2_sim.raycast import exclude_from_rays
 from r2d2_sim.stdio import silenced_output
 from r2d2_sim.transforms import rotate_inverse
@@ -162,8 +162,14 @@ class Body:
             return base_problem(position, orientation, linear, angular)
         return base_problem(*base)
 
+    def twist_problem(self) -> Optional[str]:
+        """Return None if the base's velocity is finite and in bounds (one query, ~2 us)."""
+        return twist_problem(*self._get_base_velocity())
+
     def joint_problem(self, indices: Sequence[int], states: JointStates) -> Optional[str]:
         """Return None if the joint readout ``states`` of ``indices`` is finite, else which."""
+        if joints_finite(states.positions, states.velocities):
+            return None  # every publication: no names looked up
         names = [j.name for j in self.joints.values()]  # stored in index order
         return joint_problem([names[i] for i in indices], states.positions, states.velocities)
 

@@ -12,7 +12,7 @@ import math
 from typing import Optional, Sequence
 
 __all__ = ['MAX_DISTANCE_M', 'MAX_LINEAR_SPEED_M_S', 'MAX_ANGULAR_SPEED_RAD_S',
-           'base_problem', 'joint_problem']
+           'base_problem', 'twist_problem', 'joint_problem', 'joints_finite']
 
 MAX_DISTANCE_M = 1.0e4
 MAX_LINEAR_SPEED_M_S = 50.0
@@ -55,10 +55,30 @@ def base_problem(position: Sequence[float], orientation: Sequence[float],
     return None
 
 
+def twist_problem(linear: Sequence[float], angular: Sequence[float]) -> Optional[str]:
+    """
+    Return None if a base's twist is finite and in bounds, else what is wrong.
+
+    The check of the steps that measure nothing: a body blowing up shows in
+    its velocity at once (a NaN or a runaway pose comes from it), and the
+    whole state is checked before anything is read for publishing.
+    """
+    (vx, vy, vz), (wx, wy, wz) = linear, angular
+    if (vx * vx + vy * vy + vz * vz < MAX_LINEAR_SPEED_M_S ** 2
+            and wx * wx + wy * wy + wz * wz < MAX_ANGULAR_SPEED_RAD_S ** 2):
+        return None
+    return base_problem((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), linear, angular)
+
+
+def joints_finite(positions: Sequence[float], velocities: Sequence[float]) -> bool:
+    """Return True when every value is finite: the usual case, in one expression."""
+    return math.isfinite(sum(positions) + sum(velocities))  # False too on an overflowed sum
+
+
 def joint_problem(names: Sequence[str], positions: Sequence[float],
                   velocities: Sequence[float]) -> Optional[str]:
     """Return None if the joints' readout is finite, else which joints are not."""
-    if math.isfinite(sum(positions) + sum(velocities)):
+    if joints_finite(positions, velocities):
         return None  # a sum of finite values that overflowed is looked at below
     for values in (positions, velocities):
         bad = [name for name, v in zip(names, values) if not math.isfinite(v)]

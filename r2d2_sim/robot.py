@@ -145,28 +145,31 @@ class Robot:
         """
         After physics step ``step``: measure what is due; None when nothing is.
 
-        The state (and odometry) when ``state_due``; else only the cheap
-        blow-up check. Then each sensor at its own rate.
+        The state (and odometry) when ``state_due``, then each sensor at its
+        own rate; whatever is measured, the whole state is checked first (and
+        the robot reset if it blew up). A step that measures nothing checks
+        only the base's velocity, where a blow-up shows at once (one query,
+        about 2 us, against 4 for the whole state).
         """
+        camera = self._camera_due is not None and self._camera_due.due(step)
+        scan = self._scan_due is not None and self._scan_due.due(step)
+        imu = self._imu_due is not None and self._imu_due.due(step)
         frame = None
         if state_due:
             frame = self.read_frame(step, time_ns)
         else:
-            problem = self.body.state_problem()  # two raw queries, about 4 us
+            body = self.body
+            problem = (body.state_problem() if camera or scan or imu
+                       else body.twist_problem())
             if problem is not None:
                 self._recover(problem, time_ns)
-        if not self.has_sensors:
-            return None if frame is None else Measurement(time_ns, frame, None, None, None)
-        image = scan = imu = None
-        if self._camera_due is not None and self._camera_due.due(step):
-            image = self.camera.render(depth=self.config.camera_depth)
-        if self._scan_due is not None and self._scan_due.due(step):
-            scan = self.laser.scan()
-        if self._imu_due is not None and self._imu_due.due(step):
-            imu = self.imu.read(time_ns / 1e9)
-        if frame is None and image is None and scan is None and imu is None:
-            return None
-        return Measurement(time_ns, frame, image, scan, imu)
+            if not (camera or scan or imu):
+                return None
+        return Measurement(
+            time_ns, frame,
+            self.camera.render(depth=self.config.camera_depth) if camera else None,
+            self.laser.scan() if scan else None,
+            self.imu.read(time_ns / 1e9) if imu else None)
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""

@@ -119,19 +119,20 @@ class Simulation:
         their own rates.
         """
         world, robots = self.world, self.robots
+        step = world.step_count
         for robot in robots:
-            robot.drive_wheels(world.step_count)
+            robot.drive_wheels(step)
         world.step(1)
         self.pristine = False
-        step = world.step_count
+        step += 1
         if world.gui and step % self.steps_per_gui_frame == 0:
             world.follow_camera()
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
-        measurements = tuple(robot.measure(step, time_ns, state_due) for robot in robots)
+        measurements = tuple([robot.measure(step, time_ns, state_due) for robot in robots])
         if state_due:
             self.last_frame_step = step
-        elif not any(measurements):
+        elif measurements.count(None) == len(measurements):
             return None
         return StepResult(step, time_ns, state_due, measurements)
 

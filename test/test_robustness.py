@@ -159,8 +159,14 @@ BLOW_UPS = {
 @pytest.mark.parametrize('state, cause', BLOW_UPS.values(), ids=BLOW_UPS.keys())
 def test_blow_up_is_detected_within_one_step_and_the_robot_reset(ros, capfd, publish_rate,
                                                                  state, cause):
-    """An absurd state is caught at the next step, named in an error, and never published."""
-    sim = make_sim(ros, publish_rate=publish_rate)
+    """
+    An absurd state is caught in time, named in an error, and never published.
+
+    An absurd velocity (every physics blow-up) is caught at the next step;
+    an absurd pose alone, which only a teleport makes, at the next step that
+    measures anything (sensors off here: the next publication), before it is read.
+    """
+    sim = make_sim(ros, publish_rate=publish_rate, scan_rate=0.0, imu_rate=0.0)
     probe = Probe(ros, sim)
     probe.send(0.3)
     sim.advance(RATE_HZ // 2)
@@ -169,6 +175,11 @@ def test_blow_up_is_detected_within_one_step_and_the_robot_reset(ros, capfd, pub
     if publish_rate != 0.0:
         assert sim.steps_to_next_publish() > 1  # the next step publishes nothing
     sim.advance(1)
+    if 'position' in state and publish_rate != 0.0:
+        assert sim.blow_ups == 0
+        sim.advance(sim.steps_to_next_publish() - 1)
+        assert sim.blow_ups == 0  # not yet read, nor published
+        sim.advance(1)  # the publication: checked before reading
     assert sim.blow_ups == 1
     errors = log_lines(capfd, 'physics blew up')
     assert len(errors) == 1 and cause in errors[0] and 'resetting the robot' in errors[0]
@@ -190,6 +201,16 @@ def test_blow_up_is_detected_within_one_step_and_the_robot_reset(ros, capfd, pub
         probe.wait_count('ground_truth', published + 1)
     assert sim.blow_ups == 1
     assert all_finite(truths) and max(abs(m.pose.pose.position.x) for m in truths) < 1.0
+
+
+def test_a_sensor_reading_is_preceded_by_the_whole_check(ros, capfd):
+    """With the IMU due every step, a teleport far away is caught at the next step."""
+    sim = make_sim(ros, publish_rate=10.0, scan_rate=0.0, imu_rate=240.0)
+    sim.advance(RATE_HZ // 2)
+    sim.world.robot.set_base_state(position=(1.0e5, 0.0, 0.5))
+    assert sim.steps_to_next_publish() > 1
+    sim.advance(1)
+    assert sim.blow_ups == 1 and log_lines(capfd, 'left the world')
 
 
 def test_non_finite_joint_state_is_a_blow_up(sim, probe, capfd):
