@@ -129,6 +129,7 @@ def instrument(node, patches):
     patches.wrap('Body.base_state (read)', body, 'base_state')
     patches.wrap('Body.state_problem (blow-up check)', body, 'state_problem')
     patches.wrap('Body.joint_problem (blow-up check)', body, 'joint_problem')
+    patches.wrap('Body.twist_problem (blow-up check)', body, 'twist_problem')
     if controller is not None:
         patches.wrap('DriveController.update (command -> wheels)', controller, 'update')
         patches.wrap('DriveController.update_odometry', controller, 'update_odometry')
@@ -206,11 +207,14 @@ def publication_round(rows, rounds_per_step):
         'read joints and base': total(exclusive, lambda f: f.endswith('(read)')),
         'blow-up checks': total(exclusive, lambda f: 'blow-up' in f),
         'odometry': total(exclusive, lambda f: f.startswith('DriveController.update_odometry')),
-        'Frame and its glue': total(exclusive, lambda f: f.startswith('Simulation.frame')),
-        'loop over outputs': total(exclusive, lambda f: f.startswith('SimNode._publish_frame')),
+        'reading glue (Robot.measure, read_frame)': total(
+            exclusive, lambda f: f.startswith(('Robot.measure', 'Robot.read_frame'))),
+        'publishing glue (SimNode._publish, RobotOutputs)': total(
+            exclusive, lambda f: f.startswith(('SimNode._publish', 'RobotOutputs.publish'))),
     }
+    # Each output with its inclusive time; RobotOutputs only dispatches (its own time above).
     parts.update((label.split('.')[0], us) for label, us in inclusive.items()
-                 if label.endswith('.publish (outputs)'))
+                 if label.endswith('.publish (outputs)') and not label.startswith('RobotOutputs'))
     parts['total'] = sum(parts.values())
     parts['of which: rclpy publish'] = total(exclusive, lambda f: f.startswith('rclpy publish'))
     parts['of which: MessageTemplate.to_bytes'] = exclusive.get('MessageTemplate.to_bytes', 0.0)
