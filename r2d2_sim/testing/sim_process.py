@@ -15,9 +15,9 @@ from r2d2_sim.testing.domains import env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import RemoteProbe
-from r2d2_sim.testing.standard import StandardClient
+from r2d2_sim.testing.standard import StandardClient, StandardError
 from r2d2_sim.testing.tf import TransformLookup
-from r2d2_sim.testing.world_verbs import StandardWorld, WorldVerbs
+from r2d2_sim.testing.world_verbs import StandardWorld, world_error, WorldVerbs
 
 __all__ = ['SimProcess', 'STATUS_RESEND_S']
 
@@ -307,8 +307,15 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
             self._latest[key] = None
 
     def step_physics(self, steps: int) -> Dict[str, Any]:
-        """Step a paused simulator ``steps`` physics steps (step_simulation); return its status."""
-        self.standard.step(steps)
+        """
+        Step a paused simulator ``steps`` physics steps (step_simulation); return its status.
+
+        Raises WorldError (OPERATION_FAILED) while the simulator is playing.
+        """
+        try:
+            self.standard.step(steps)
+        except StandardError as exc:
+            raise world_error(exc) from None
         self._not_before_ns = 0
         return self.status()
 

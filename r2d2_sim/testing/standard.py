@@ -23,7 +23,7 @@ class StandardError(RuntimeError):
 
     def __init__(self, service: str, code: str, message: str) -> None:
         super().__init__(f'{service}: {code}: {message}')
-        self.service, self.code = service, code
+        self.service, self.code, self.message = service, code, message
 
 
 def yaw_quaternion(yaw_rad: float) -> tuple:

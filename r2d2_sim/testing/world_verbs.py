@@ -13,7 +13,8 @@ from typing import List, Optional, Sequence
 
 from r2d2_sim.entities import EntityError, EntityState
 
-__all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'EntityState']
+__all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'EntityState', 'WorldError',
+           'world_error']
 
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
@@ -99,6 +100,11 @@ class WorldError(RuntimeError):
         self.code = code
 
 
+def world_error(exc) -> WorldError:
+    """Return the WorldError for a StandardError: ``CODE: service: message``."""
+    return WorldError(exc.code, f'{exc.service}: {exc.message}')
+
+
 class WorldVerbs:
     """A harness's world verbs, on ``self._world_backend()`` (a CoreWorld or StandardWorld)."""
 
@@ -118,21 +124,26 @@ class WorldVerbs:
         except EntityError as exc:
             raise WorldError(exc.code, str(exc)) from None
         except StandardError as exc:
-            raise WorldError(exc.code, str(exc)) from None
+            raise world_error(exc) from None
 
     def spawn(self, urdf: str, *, name: str = '', position: Sequence[float] = (0.0, 0.0, 0.0),
               yaw: float = 0.0, orientation: Optional[Sequence[float]] = None,
-              allow_renaming: bool = True) -> str:
+              allow_renaming: Optional[bool] = None) -> str:
         """
         Spawn a URDF and return the entity's name.
 
         ``urdf``: a pybullet_data name (``cube.urdf``), a path, a
         ``package://`` URI, or the XML text itself. Its base link is placed at
         ``position`` turned by ``yaw`` (or ``orientation``, x y z w), exactly.
+        ``name``: the entity's name; a taken or invalid one is refused
+        (NAME_NOT_UNIQUE, NAME_INVALID). Without one, the URDF's robot name,
+        made unique (``cube``, ``cube_1``...). ``allow_renaming`` overrides
+        either default.
         """
         uri, text = _resource(urdf)
+        renaming = not name if allow_renaming is None else allow_renaming
         return self._do('spawn', uri, text, name, tuple(position),
-                        _orientation(yaw, orientation), allow_renaming)
+                        _orientation(yaw, orientation), renaming)
 
     def entities(self) -> List[str]:
         """Return every entity's name: the robot, the ground plane, models, spawned ones."""
