@@ -26,6 +26,7 @@ from r2d2_sim.description import (
     DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
     resolve_description_path)
 from r2d2_sim.errors import WorldError
+from r2d2_sim.health import MAX_DISTANCE_M
 from r2d2_sim.transforms import compose, quaternion_multiply, Quaternion as Quat, Transform
 from r2d2_sim.transforms import Vector3 as Vec3
 
@@ -75,9 +76,17 @@ def _finite(*vectors: Sequence[float]) -> bool:
 
 
 def check_pose(position: Sequence[float], orientation: Sequence[float]) -> Quat:
-    """Return the orientation normalised; INVALID_POSE for a NaN or a non-unit quaternion."""
+    """
+    Return the orientation normalised; INVALID_POSE for a NaN or a non-unit quaternion.
+
+    Also for a position beyond the blow-up check's bound (10 km): a robot put
+    there would be reset as blown up at its next measurement.
+    """
     if not _finite(position, orientation):
         raise EntityError('INVALID_POSE', 'the pose has a value that is not finite')
+    if max(map(abs, position)) > MAX_DISTANCE_M:
+        raise EntityError('INVALID_POSE', f'the position is more than {MAX_DISTANCE_M:g} m '
+                                          'from the origin')
     norm = math.sqrt(sum(q * q for q in orientation))
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise EntityError('INVALID_POSE', f'the orientation is not a unit quaternion '

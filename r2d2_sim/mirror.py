@@ -41,7 +41,12 @@ class MirroredPublisher:
         """Publish ``msg`` (a message or its serialized bytes) to DDS and to the sink."""
         # A typed message is serialized once, here, and both get the bytes: a
         # camera image (230-300 kB) is not serialized a second time by rclpy.
-        data = msg if type(msg) is bytes else serialize_message(msg)
+        if type(msg) is bytes:
+            data = msg
+        elif isinstance(msg, self.publisher.msg_type):
+            data = serialize_message(msg)
+        else:  # what rclpy's publish says, before anything goes out as bytes
+            raise TypeError(f'Expected {self.publisher.msg_type}, got {type(msg)}')
         self.publisher.publish(data)
         self.channel.log(data, self._time_ns())
 

@@ -122,11 +122,6 @@ class Robot:
             config.wheel_velocity_sign, config.initial_pose)
         self._set_wheels(self.controller.reset(self.world.step_count, self._wheel_positions()))
 
-    @property
-    def has_sensors(self) -> bool:
-        """Return True when any sensor is on (camera, laser or IMU)."""
-        return self.camera is not None or self.laser is not None or self.imu is not None
-
     def command(self, linear_x: float, angular_z: float, **other_axes: float) -> CommandVerdict:
         """Hand a Twist's fields to the drive controller; NO_WHEELS for a robot without wheels."""
         if self.controller is None:
@@ -146,10 +141,11 @@ class Robot:
         After physics step ``step``: measure what is due; None when nothing is.
 
         The state (and odometry) when ``state_due``, then each sensor at its
-        own rate; whatever is measured, the whole state is checked first (and
-        the robot reset if it blew up). A step that measures nothing checks
-        only the base's velocity, where a blow-up shows at once (one query,
-        about 2 us, against 4 for the whole state).
+        own rate; whatever is measured, the base's whole state is checked first
+        (and the joints, for a publication or the head camera), and the robot
+        reset if it blew up. A step that measures nothing checks only the
+        base's velocity, where a blow-up shows at once (one query, about 2 us,
+        against 4 for the whole state).
         """
         camera = self._camera_due is not None and self._camera_due.due(step)
         scan = self._scan_due is not None and self._scan_due.due(step)
@@ -159,8 +155,13 @@ class Robot:
             frame = self.read_frame(step, time_ns)
         else:
             body = self.body
-            problem = (body.state_problem() if camera or scan or imu
-                       else body.twist_problem())
+            if camera or scan or imu:
+                problem = body.state_problem()
+                if problem is None and camera:  # the camera rides on the head's joint
+                    indices = self.movable_indices
+                    problem = body.joint_problem(indices, body.joint_states(indices))
+            else:
+                problem = body.twist_problem()
             if problem is not None:
                 self._recover(problem, time_ns)
             if not (camera or scan or imu):

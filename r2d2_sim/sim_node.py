@@ -188,6 +188,10 @@ def _run_node(stop: threading.Event) -> None:
         run_paced(node, stop)
     finally:
         stop.set()
+        if node is not None and node.standard is not None:
+            # A step_simulation under way ends at its next chunk, before physics
+            # is closed under it (rclpy's Executor.shutdown does not wait for it).
+            node.standard.stop()
         for spinner in spinners:
             spinner.join(timeout=1.0)
         # Only now, with no thread spinning: shutting an executor down under a

@@ -5,8 +5,9 @@ The `ros2 run` layout: colcon builds the package and the ament index finds sim_n
 prefix comes from the ament index; this test resolves it the same way (the
 ros2 CLI itself is not installable from PyPI) and starts the executable.
 simulation_interfaces comes from the system package where a ROS Jazzy install
-has it (``/opt/ros/jazzy``, sourced first), else from the venv's local build
-(tools/build_interfaces.sh); the started node serves the standard either way.
+has it for this Python (``/opt/ros/jazzy``, sourced first), else from the
+venv's local build (tools/build_interfaces.sh); the started node serves the
+standard either way, which needs the type support, not only the Python files.
 """
 
 import json
@@ -75,7 +76,11 @@ def test_sim_node_resolved_through_ament_index_starts(colcon_workspace):
     from simulation_interfaces.srv import GetSimulatorFeatures
     import time
 
-    system = os.path.isdir(os.path.join(SYSTEM_ROS, 'share', 'simulation_interfaces'))
+    # The system's packages only for the Python they were built for: sourcing
+    # /opt/ros/jazzy puts them ahead of the venv's on PYTHONPATH.
+    python = f'python{sys.version_info.major}.{sys.version_info.minor}'
+    system = os.path.isdir(os.path.join(SYSTEM_ROS, 'lib', python, 'site-packages',
+                                        'simulation_interfaces'))
 
     domain = next_domain_id()
     env = ros_env(domain)
@@ -116,6 +121,7 @@ def test_sim_node_resolved_through_ament_index_starts(colcon_workspace):
     assert reply is not None, out + err
     assert SimulatorFeatures.SPAWNING in reply.features.features
     assert json.loads(reply.features.custom_info)['simulator'] == 'r2d2_sim'
-    interfaces = next(line for line in out.splitlines() if line.startswith('interfaces '))
+    interfaces = next((line for line in out.splitlines() if line.startswith('interfaces ')), '')
+    assert interfaces, out + err
     expected = SYSTEM_ROS if system else os.path.dirname(os.path.dirname(sys.executable))
     assert interfaces.split(' ', 1)[1].startswith(expected), interfaces

@@ -120,6 +120,18 @@ def test_a_late_viewer_gets_the_latched_topics():
             assert {t.child_frame_id for t in static.transforms} >= {'base_link', 'base_scan'}
 
 
+def test_a_mirrored_publisher_refuses_a_wrong_type_as_rclpy_does(tmp_path):
+    """A message of another type is a TypeError, sent neither to DDS nor to the recording."""
+    from nav_msgs.msg import Odometry
+    from std_msgs.msg import String
+    with SimHarness(record=str(tmp_path / 'run.mcap')) as harness:
+        odom = harness.sim.create_publisher(Odometry, 'mirrored_odom', 10)
+        assert type(odom).__name__ == 'MirroredPublisher'
+        with pytest.raises(TypeError, match='Odometry'):
+            odom.publish(String(data='not an odometry'))
+        odom.publish(Odometry())  # the right type goes out
+
+
 def test_a_taken_port_or_an_existing_recording_is_one_startup_error(tmp_path):
     """The node refuses what the sink cannot do, in one line, and leaves nothing behind."""
     with socket.socket() as taken:

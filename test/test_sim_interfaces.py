@@ -140,8 +140,8 @@ def test_a_bad_spawn_gets_its_code_and_changes_nothing(r2d2_sim, standard, field
 
 
 def test_a_bad_pose_is_invalid_pose(r2d2_sim, standard):
-    """A NaN and a non-unit quaternion: INVALID_POSE for spawn (109) and set_entity_state (101)."""
-    for bad in ({'x': math.nan, 'w': 1.0}, {'x': 0.0, 'w': 2.0}):
+    """NaN, a non-unit quaternion, 20 km out: INVALID_POSE for spawn and set_entity_state."""
+    for bad in ({'x': math.nan, 'w': 1.0}, {'x': 0.0, 'w': 2.0}, {'x': 2.0e4, 'w': 1.0}):
         request = spawn_request()
         request.initial_pose.pose.position.x = bad['x']
         request.initial_pose.pose.orientation.w = bad['w']
@@ -270,22 +270,19 @@ def test_states_and_steps_follow_the_standard(r2d2_sim, standard):
     assert get_state() == state.STATE_PAUSED and r2d2_sim.sim.step_count == 24
 
 
-def test_a_long_step_is_the_same_as_the_steps_one_by_one(r2d2_sim, r2d2_sim_factory, standard):
-    """step_simulation (in chunks, the lock released between) ends where 480 single steps do."""
-    alone = r2d2_sim_factory(cmd_vel_timeout=0.0)
-    for harness in (r2d2_sim, alone):
-        harness.send_cmd_vel(linear=0.3, angular=0.5)
-    paused = srv.SetSimulationState.Request()
-    paused.state.state = msg.SimulationState.STATE_PAUSED
-    assert code(standard('set_simulation_state', srv.SetSimulationState, paused)) == OK
-    assert code(standard('step_simulation', srv.StepSimulation,
-                         srv.StepSimulation.Request(steps=480))) == OK
-    for _ in range(480):
-        alone.advance(1)
-    chunked, single = r2d2_sim.ground_truth(), alone.ground_truth()
-    assert chunked.header.stamp == single.header.stamp
-    assert chunked.pose.pose == single.pose.pose and chunked.twist.twist == single.twist.twist
-    assert chunked.pose.pose.position.x > 0.3  # it did drive
+def test_a_long_step_repeats_bit_for_bit_however_it_is_cut(r2d2_sim_process):
+    """Two sim_node processes: 480 steps in one step_simulation, or in 48 of 10: one pose."""
+    poses = []
+    for calls, steps in ((1, 480), (48, 10)):
+        sim = r2d2_sim_process(start_paused=True, cmd_vel_timeout=0.0)
+        sim.send_cmd_vel(linear=0.3, angular=0.5)  # returns once the node has counted it
+        for _ in range(calls):
+            sim.step_physics(steps)
+        state = sim.entity_state('r2d2')
+        poses.append((state.position, state.orientation, state.linear_velocity))
+        assert sim.status()['step'] == 480
+    assert poses[0] == poses[1]  # exactly: the lock released between chunks changes nothing
+    assert poses[0][0][0] > 0.3  # it did drive
 
 
 def test_a_long_step_leaves_the_other_services_answered(r2d2_sim_process):
@@ -328,6 +325,74 @@ def test_simulate_steps_gives_feedback_and_can_be_cancelled(r2d2_sim_process):
     assert sim.probe.spin_until(outcome.done, 30.0)
     assert outcome.result().status == GoalStatus.STATUS_CANCELED
     assert sim.status()['paused'] and 5 < sim.status()['step'] < 5 + 240 * 60
+
+
+class FakeGoal:
+    """What _simulate_steps uses of a ServerGoalHandle; a cancel requested after N feedbacks."""
+
+    def __init__(self, steps, cancel_after=None):
+        self.request = SimulateSteps.Goal(steps=steps)
+        self.feedback, self.ended = [], None
+        self._cancel_after = cancel_after
+
+    @property
+    def is_cancel_requested(self):
+        return self._cancel_after is not None and len(self.feedback) >= self._cancel_after
+
+    def publish_feedback(self, feedback):
+        self.feedback.append((feedback.completed_steps, feedback.remaining_steps))
+
+    def succeed(self):
+        self.ended = 'succeeded'
+
+    def canceled(self):
+        self.ended = 'canceled'
+
+    def abort(self):
+        self.ended = 'aborted'
+
+
+def test_the_action_sends_every_feedback_and_ends_as_it_should(r2d2_sim):
+    """
+    The action's server side, in process: feedback after each step, exactly; the ending.
+
+    (A client cannot see all of it: rclpy's ActionClient drops feedback that arrives
+    after the result.) A cancel after the last step is a success; a cancel mid-way ends
+    it there; playing, it aborts without a step.
+    """
+    standard, sim = r2d2_sim.sim.standard, r2d2_sim.sim
+    playing = FakeGoal(5)
+    assert standard._simulate_steps(playing).result.result == msg.Result.RESULT_OPERATION_FAILED
+    assert playing.ended == 'aborted' and not playing.feedback
+    sim.set_paused(True)
+    for goal, ended, done in ((FakeGoal(5), 'succeeded', 5),
+                              (FakeGoal(5, cancel_after=5), 'succeeded', 5),
+                              (FakeGoal(5, cancel_after=3), 'canceled', 3)):
+        before = sim.step_count
+        assert standard._simulate_steps(goal).result.result == OK
+        assert goal.ended == ended and sim.step_count - before == done
+        assert goal.feedback == [(i, 5 - i) for i in range(1, done + 1)]
+
+
+def test_the_standard_node_keeps_its_name_under_a_node_remap(r2d2_sim_process):
+    """-r __node:=x (launch's name=) renames the simulator; its standard node is x_standard."""
+    sim = r2d2_sim_process(node_name='custom_sim', start_paused=True)
+    names = {name for name, _ in sim.probe.node.get_node_names_and_namespaces()}
+    assert {'custom_sim', 'custom_sim_standard'} <= names
+    assert sim.standard.state() == msg.SimulationState.STATE_STOPPED
+
+
+def test_sigint_during_a_long_step_stops_cleanly(r2d2_sim_process):
+    """The step under way ends at its chunk before physics closes: exit 0, nothing on stderr."""
+    sim = r2d2_sim_process(start_paused=True)
+    step = sim.probe.node.create_client(srv.StepSimulation, '/step_simulation')
+    assert sim.probe.spin_until(step.service_is_ready, 30.0)
+    step.call_async(srv.StepSimulation.Request(steps=240 * 600))
+    assert sim.probe.spin_until(lambda: sim.status()['step'] > 0, 30.0)
+    result = sim.stop()
+    assert result.returncode == 0, result.stderr
+    assert 'never retrieved' not in result.stderr and 'Traceback' not in result.stderr
+    assert 'physics server' not in result.stderr
 
 
 def test_the_testing_api_changes_the_world_in_process_and_across(r2d2_sim, r2d2_sim_process):
