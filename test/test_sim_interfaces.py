@@ -377,8 +377,11 @@ def test_the_action_sends_every_feedback_and_ends_as_it_should(r2d2_sim):
 def test_the_standard_node_keeps_its_name_under_a_node_remap(r2d2_sim_process):
     """-r __node:=x (launch's name=) renames the simulator; its standard node is x_standard."""
     sim = r2d2_sim_process(node_name='custom_sim', start_paused=True)
-    names = {name for name, _ in sim.probe.node.get_node_names_and_namespaces()}
-    assert {'custom_sim', 'custom_sim_standard'} <= names
+
+    def names():
+        return {name for name, _ in sim.probe.node.get_node_names_and_namespaces()}
+    assert sim.probe.spin_until(lambda: {'custom_sim', 'custom_sim_standard'} <= names(), 30.0), \
+        names()  # the graph's node names arrive with discovery, after the services
     assert sim.standard.state() == msg.SimulationState.STATE_STOPPED
 
 
