@@ -157,9 +157,7 @@ class Body:
         pose and velocity directly (two queries, ~5 us: cheap enough for every step).
         """
         if base is None:
-            position, orientation = self._get_base_pose()
-            linear, angular = self._get_base_velocity()
-            return base_problem(position, orientation, linear, angular)
+            return base_problem(*self._get_base_pose(), *self._get_base_velocity())
         return base_problem(*base)
 
     def twist_problem(self) -> Optional[str]:

@@ -25,6 +25,7 @@ bitfield; twists are in the world frame.
 
 import json
 import threading
+import time
 from typing import Callable, Optional, Tuple
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -208,6 +209,10 @@ class SimulationInterfaces(Replies):
                     count = min(chunk, steps - done)
                     node.step_paused(count)
                 done += count
+                # PyBullet keeps the GIL while it steps: hand it over between
+                # chunks, or the other threads (the main loop seeing a SIGINT,
+                # the other services) get it only every switch interval.
+                time.sleep(0)
                 if each is not None and not each(done):
                     break
             return None, done

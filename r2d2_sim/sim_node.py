@@ -178,13 +178,16 @@ def _run_node(stop: threading.Event) -> None:
             # the standard's other services and cancel requests answered.
             executors.append(MultiThreadedExecutor(num_threads=2))
             executors[1].add_node(node.standard.node)
-        for executor in executors:
-            spinners.append(threading.Thread(target=_spin, args=(executor, stop), daemon=True))
-            spinners[-1].start()
+        # Logged before any request can start a step: rclpy's logger looks its
+        # caller up through inspect (hundreds of file-system calls), which a
+        # step holding the GIL in PyBullet would stretch to seconds.
         node.get_logger().info(
             f'simulating {node.simulation.robot.source} at '
             f'{node.config.physics_rate_hz:g} Hz, real time factor '
             f'{node.config.real_time_factor:g}' + (', paused' if node.paused else ''))
+        for executor in executors:
+            spinners.append(threading.Thread(target=_spin, args=(executor, stop), daemon=True))
+            spinners[-1].start()
         run_paced(node, stop)
     finally:
         stop.set()

@@ -129,10 +129,10 @@ class Simulation:
             world.follow_camera()
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
-        measurements = tuple([robot.measure(step, time_ns, state_due) for robot in robots])
+        measurements = tuple(robot.measure(step, time_ns, state_due) for robot in robots)
         if state_due:
             self.last_frame_step = step
-        elif measurements.count(None) == len(measurements):
+        elif not any(measurements):
             return None
         return StepResult(step, time_ns, state_due, measurements)
 

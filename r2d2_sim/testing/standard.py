@@ -9,13 +9,12 @@ is one; the verbs of :class:`~r2d2_sim.testing.sim_process.SimProcess`
 (``spawn``, ``entity_state``, ``step_physics``...) use it.
 """
 
-import math
 from typing import Callable, List, Optional, Sequence
 
 from rclpy.action import ActionClient
 from rclpy.node import Node
 
-__all__ = ['StandardClient', 'StandardError', 'yaw_quaternion']
+__all__ = ['StandardClient', 'StandardError']
 
 
 class StandardError(RuntimeError):
@@ -24,11 +23,6 @@ class StandardError(RuntimeError):
     def __init__(self, service: str, code: str, message: str) -> None:
         super().__init__(f'{service}: {code}: {message}')
         self.service, self.code, self.message = service, code, message
-
-
-def yaw_quaternion(yaw_rad: float) -> tuple:
-    """Return (x, y, z, w) of a turn by ``yaw_rad`` about z."""
-    return 0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0)
 
 
 def _code_name(response, value: int) -> str:
