@@ -20,7 +20,7 @@ from r2d2_sim.bullet_records import (
     Vec3)
 from r2d2_sim.errors import WorldError
 from r2d2_sim.health import base_problem, joint_problem, joints_finite, twist_problem
-from r2d2_sim.raycast import exclude_from_rays
+from r2d2_sim.raycast import exclude_from_rays, RAY_EXCLUDED_GROUP
 from r2d2_sim.stdio import silenced_output
 from r2d2_sim.transforms import rotate_inverse
 
@@ -317,9 +317,10 @@ class Body:
         """Return a link's collision shapes (-1: the base)."""
         return records.collision_shapes(self._client, self.id, link)
 
-    def exclude_from_rays(self, links: Optional[Sequence[int]] = None) -> None:
-        """Make links of the body (default: all) invisible to the sensor rays of the world."""
-        exclude_from_rays(self._client, self.id, links)
+    def exclude_from_rays(self, links: Optional[Sequence[int]] = None,
+                          group: int = RAY_EXCLUDED_GROUP) -> None:
+        """Make links of the body (default: all) invisible to rays of ``group`` (see raycast)."""
+        exclude_from_rays(self._client, self.id, links, group)
 
     def remove(self) -> None:
         """Take the body out of the world; its id is forgotten (PyBullet will reuse it)."""

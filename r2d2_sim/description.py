@@ -8,7 +8,7 @@ failure is a :class:`DescriptionError` with a one-line message.
 import os
 import sys
 import tempfile
-from typing import Optional
+from typing import NamedTuple, Optional
 import xml.etree.ElementTree as ElementTree
 
 import pybullet_data
@@ -142,3 +142,33 @@ class DescriptionFile:
             except OSError:
                 pass
             self._directory = None
+
+
+class RobotDescription(NamedTuple):
+    """A robot's URDF ready to load: a file path, its text, and a temporary file to close."""
+
+    path: str
+    text: str
+    temporary: Optional[DescriptionFile]
+
+    @staticmethod
+    def load(urdf: str = '', text: str = '') -> 'RobotDescription':
+        """
+        Read a description as the ``urdf`` and ``robot_description`` parameters give it.
+
+        XML ``text`` wins (written to a temporary file PyBullet can load); else
+        ``urdf`` resolved as a path, URI or pybullet_data name, else the
+        package's own R2D2. DescriptionError (one line) when it cannot be had.
+        """
+        if text:
+            temporary = DescriptionFile(text)
+            return RobotDescription(temporary.path, text, temporary)
+        path = resolve_description_path(urdf) if urdf else default_urdf_path()
+        text = read_description(path)
+        check_urdf_xml(text, path)
+        return RobotDescription(path, text, None)
+
+    def close(self) -> None:
+        """Delete the temporary file, if there is one."""
+        if self.temporary is not None:
+            self.temporary.close()

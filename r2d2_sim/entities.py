@@ -152,9 +152,10 @@ def _check_mesh(filename: str, base_dir: Optional[str]) -> None:
         raise EntityError('MISSING_ASSETS', f'mesh {shown} does not exist')
 
 
-def read_spawnable(uri: str, resource_string: str) -> Tuple[str, Optional[DescriptionFile], str]:
+def read_spawnable(uri: str, resource_string: str
+                   ) -> Tuple[str, Optional[DescriptionFile], str, str]:
     """
-    Return (URDF path to load, a temporary file to close or None, robot name) for a request.
+    Return (URDF path to load, a temporary file to close or None, robot name, text).
 
     ``uri`` wins over ``resource_string`` (the standard's rule): a file path,
     ``file://``, ``package://`` or a pybullet_data name, resolved as the
@@ -178,12 +179,12 @@ def read_spawnable(uri: str, resource_string: str) -> Tuple[str, Optional[Descri
         except (OSError, UnicodeDecodeError):
             raise EntityError('RESOURCE_PARSE_ERROR', f'{uri[:200]} cannot be read as '
                                                       'text') from None
-        return path, None, check_description(text, os.path.dirname(path))
+        return path, None, check_description(text, os.path.dirname(path)), text
     if not resource_string:
         raise EntityError('NO_RESOURCE', 'neither a uri nor a resource_string was given')
     name = check_description(resource_string, None)
     description = DescriptionFile(resource_string)
-    return description.path, description, name
+    return description.path, description, name, resource_string
 
 
 def spawnable_uris() -> List[str]:
@@ -285,16 +286,31 @@ class Entities:
         Named ``name``, or the URDF's robot name when empty; a taken or
         invalid name is refused unless ``allow_renaming`` (then ``_1``, ``_2``...).
         """
+        body, _ = self.spawn_body(name, allow_renaming, uri, resource_string, frame_id,
+                                  position, orientation)
+        return body.name
+
+    def spawn_body(self, name: str, allow_renaming: bool, uri: str, resource_string: str,
+                   frame_id: str, position: Sequence[float], orientation: Sequence[float], *,
+                   flags: int = 0, body_yaw_offset_rad: float = 0.0) -> Tuple['Body', str]:
+        """
+        Spawn as :meth:`spawn` does; return the body and its description's text.
+
+        ``flags`` go to loadURDF (a driven robot's: true cylinders, inertias
+        from the file); ``body_yaw_offset_rad`` turns its body frame from the
+        URDF base (a robot that drives along its base y).
+        """
         if sum(body.spawned for body in self._world.bodies.values()) >= MAX_SPAWNED:
             raise EntityError('OPERATION_FAILED', f'{MAX_SPAWNED} entities are spawned already: '
                                                   'delete some first')
         orientation = check_pose(position, orientation)
         pose = compose(self.frame_pose(frame_id), Transform(tuple(position), orientation))
-        path, text_file, urdf_name = read_spawnable(uri, resource_string)
+        path, text_file, urdf_name, text = read_spawnable(uri, resource_string)
         try:
             name = self._name(name or urdf_name, allow_renaming)
             body = self._world.load(path, pose.translation, pose.rotation, name=name,
-                                    spawned=True, source=uri or 'resource_string')
+                                    spawned=True, source=uri or 'resource_string', flags=flags,
+                                    body_yaw_offset_rad=body_yaw_offset_rad)
         except (EntityError, WorldError) as exc:
             if text_file is not None:
                 text_file.close()
@@ -303,7 +319,7 @@ class Entities:
             raise
         if text_file is not None:
             self._files[name] = text_file
-        return body.name
+        return body, text
 
     def _name(self, wanted: str, allow_renaming: bool) -> str:
         if not NAME.match(wanted or ''):

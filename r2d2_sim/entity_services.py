@@ -149,21 +149,11 @@ class EntityServices(Replies):
         return self._ok(response)
 
     def _spawn_one(self, name, allow_renaming, uri, resource_string, namespace, pose):
-        """Spawn through the core; return the entity name (EntityError otherwise)."""
-        from rclpy.validate_namespace import validate_namespace
-        if namespace:
-            try:
-                validate_namespace(namespace)
-            except Exception as exc:  # rclpy raises InvalidNamespaceException
-                reason = str(exc).splitlines()[0]  # rclpy adds the name and a caret below
-                raise EntityError('NAMESPACE_INVALID', f'{namespace[:100]!r}: {reason}') from None
-            raise EntityError('FEATURE_UNSUPPORTED', 'entity_namespace (a driven robot with '
-                              'its own ROS interfaces) is not supported yet')
+        """Spawn through the node (a driven robot with a namespace); return the entity name."""
         p, q = pose.pose.position, pose.pose.orientation
-        with self._node.lock:
-            return self._node.simulation.entities.spawn(
-                name, allow_renaming, uri, resource_string, pose.header.frame_id,
-                (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+        return self._node.spawn_entity(name, allow_renaming, uri, resource_string, namespace,
+                                       pose.header.frame_id, (p.x, p.y, p.z),
+                                       (q.x, q.y, q.z, q.w))
 
     def _spawn(self, request, response):
         try:
@@ -195,8 +185,7 @@ class EntityServices(Replies):
 
     def _delete(self, request, response):
         try:
-            with self._node.lock:
-                self._node.simulation.entities.delete(request.entity)
+            self._node.delete_entity(request.entity)
         except EntityError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)

@@ -174,8 +174,9 @@ class FoxgloveSink:
         self._server = None
         self._writer = None
         self._channels: Dict[str, SinkChannel] = {}
-        # The live channels of latched topics, by the SDK's channel id.
-        self._latched_by_id: Dict[int, SinkChannel] = {}
+        # Each publisher's handle of a latched topic, by the SDK's channel id.
+        self._latched_by_id: Dict[int, List[SinkChannel]] = {}
+        self._live_ids: Dict[str, Optional[int]] = {}
         self._time_period_s = 1.0 / time_rate_hz
         self._next_time_s = 0.0
         self._last_time_ns = -1
@@ -235,19 +236,24 @@ class FoxgloveSink:
 
     def channel(self, topic: str, type_name: str, qos) -> SinkChannel:
         """
-        Register ``topic`` (absolute) of ROS type ``type_name`` published with ``qos``.
+        Register a publisher of ``topic`` (absolute) of ROS type ``type_name`` with ``qos``.
 
         ``qos`` is the rclpy ``QoSProfile`` of the DDS publisher: it goes into
         the recording, and transient-local durability makes the topic
         latched here too (its last ``qos.depth`` messages are re-sent to
-        viewers that subscribe later). Raises :class:`SinkError` for a
-        relative or repeated topic or a type with no definition installed.
+        viewers that subscribe later). A topic that several publishers share
+        (several robots' ``/tf`` and ``/tf_static``) is one channel; each
+        publisher's handle keeps its own latched messages, as each DDS
+        publisher does. Raises :class:`SinkError` for a relative topic, a
+        topic registered with another type, or a type with no definition
+        installed.
         """
         if not topic.startswith('/'):
             raise SinkError(f'topic {topic!r} is relative: pass the resolved name '
                             '(the publisher\'s topic_name)')
-        if topic in self._channels:
-            raise SinkError(f'topic {topic} is already registered')
+        first = self._channels.get(topic)
+        if first is not None:
+            return self._share(first, type_name, qos)
         latched = qos.durability.name == 'TRANSIENT_LOCAL'
         live_log = file_log = None
         live_id = None
@@ -275,8 +281,22 @@ class FoxgloveSink:
         depth = max(qos.depth, 1) if latched else 0
         handle = SinkChannel(topic, type_name, live_log, file_log, depth)
         self._channels[topic] = handle
+        self._live_ids[topic] = live_id
         if latched and live_id is not None:
-            self._latched_by_id[live_id] = handle
+            self._latched_by_id.setdefault(live_id, []).append(handle)
+        return handle
+
+    def _share(self, first: SinkChannel, type_name: str, qos) -> SinkChannel:
+        """Return a handle of another publisher on ``first``'s channel."""
+        if type_name != first.type_name:
+            raise SinkError(f'topic {first.topic} is registered as {first.type_name}, '
+                            f'not {type_name}')
+        latched = qos.durability.name == 'TRANSIENT_LOCAL'
+        logs = [None if log is _ignore else log for log in (first._live_log, first._file_log)]
+        handle = SinkChannel(first.topic, type_name, *logs, max(qos.depth, 1) if latched else 0)
+        live_id = self._live_ids.get(first.topic)
+        if latched and live_id is not None:
+            self._latched_by_id.setdefault(live_id, []).append(handle)
         return handle
 
     def set_time(self, time_ns: int) -> None:
@@ -309,13 +329,12 @@ class FoxgloveSink:
                 f'topics={len(self._channels)})')
 
 
-def _make_listener(foxglove, latched_by_id: Dict[int, SinkChannel]):
+def _make_listener(foxglove, latched_by_id: Dict[int, List[SinkChannel]]):
     """Return a server listener that re-sends latched topics to a viewer that subscribes."""
     class LatchingListener(foxglove.websocket.ServerListener):
         # A subclass, not a plain class: the server calls every method of the
         # protocol, and a missing one fails ("AttributeError: on_unsubscribe").
         def on_subscribe(self, client, channel) -> None:
-            handle = latched_by_id.get(channel.id)
-            if handle is not None:
+            for handle in latched_by_id.get(channel.id, ()):
                 handle._send_latched()
     return LatchingListener()

@@ -12,14 +12,15 @@ serialized once, and DDS and the sink both get those bytes. Without a sink the n
 publishers, so mirroring costs nothing when it is off.
 """
 
-from typing import Callable
+from typing import Callable, Optional
 
+from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.serialization import serialize_message
 
 from r2d2_sim.foxglove_sink import FoxgloveSink, SinkChannel
 
-__all__ = ['MirroredPublisher', 'ros_type_name', 'mirror']
+__all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode']
 
 
 def ros_type_name(msg_type: type) -> str:
@@ -61,3 +62,26 @@ def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
     channel = sink.channel(publisher.topic_name, ros_type_name(msg_type),
                            publisher.qos_profile)
     return MirroredPublisher(publisher, channel, time_ns)
+
+
+class MirroringNode(Node):
+    """
+    An rclpy Node whose publishers also feed ``sink`` (the live view and recording), if set.
+
+    Subclasses set ``sink`` after ``Node.__init__`` (rclpy's own publishers,
+    made there, stay unmirrored) and give the simulated time of what they
+    publish with :meth:`sink_time_ns`.
+    """
+
+    sink: Optional[FoxgloveSink] = None
+
+    def sink_time_ns(self) -> int:
+        """Return the simulated time (ns) that mirrored messages are logged at."""
+        return 0
+
+    def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
+        """Create a publisher; with a live view or a recording on, one that feeds them too."""
+        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        if self.sink is None:
+            return publisher
+        return mirror(publisher, msg_type, self.sink, self.sink_time_ns)

@@ -10,22 +10,23 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 
 import json
 import threading
-from typing import Callable, List, Optional
+from typing import Callable, List, Optional, Sequence, Tuple
 
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
 
-from r2d2_sim.command_input import (
-    CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, WARNING_PERIOD_S)
+from r2d2_sim.command_input import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, \
+    WARNING_PERIOD_S
+from r2d2_sim.entities import EntityError
 from r2d2_sim.errors import SetupError, StartupError
 from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError
-from r2d2_sim.joint_info import joint_info_json
-from r2d2_sim.mirror import mirror
-from r2d2_sim.outputs import ClockOutput, RobotOutputs
-from r2d2_sim.parameters import SimConfig
+from r2d2_sim.mirror import MirroringNode
+from r2d2_sim.outputs import ClockOutput
+from r2d2_sim.parameter_readers import ConfigError, namespace as read_namespace
+from r2d2_sim.parameters import resolve_namespace, RobotSpec, SimConfig
 from r2d2_sim import sim_interfaces
+from r2d2_sim.robot import Robot
+from r2d2_sim.robot_interfaces import RobotInterfaces, RobotNode
 from r2d2_sim.ros_parameters import declare_parameters
 from r2d2_sim.sim_interfaces import SimulationInterfaces
 from r2d2_sim.simulation import Simulation, StepResult
@@ -34,16 +35,22 @@ from r2d2_sim.world import SimWorld
 NODE_NAME = 'r2d2_sim'
 __all__ = ['SimNode', 'StartupError', 'NODE_NAME']
 
+NodeWatcher = Tuple[Callable[[Node], None], Callable[[Node], None]]
 
-class SimNode(Node):
+
+class SimNode(MirroringNode):
     """
     Simulates R2D2 in PyBullet and exposes it through standard ROS interfaces.
 
-    Publishes ``joint_states``, ``odom`` (wheel odometry), ``ground_truth``,
-    ``/clock``, ``/tf`` and ``/tf_static``, ``scan``, ``imu``, the latched
-    ``robot_description`` and, with ``camera_rate``, ``camera/image_raw`` and
-    ``camera/camera_info`` (and ``camera/depth/*``); subscribes ``cmd_vel``;
-    serves ``~/get_joint_info``, ``~/get_status``, ``~/pause``, ``~/step`` and ``~/reset``.
+    Each robot publishes ``joint_states``, ``odom`` (wheel odometry),
+    ``ground_truth``, TF, ``scan``, ``imu``, the latched ``robot_description``
+    and, with ``camera_rate``, ``camera/image_raw`` and ``camera/camera_info``
+    (and ``camera/depth/*``); subscribes ``cmd_vel``; serves
+    ``~/get_joint_info``. One robot (the default) does so on this node, in its
+    namespace; several (the ``robots`` parameter, or spawned with a namespace
+    through the standard) each on a :class:`~r2d2_sim.robot_interfaces.RobotNode`
+    in its own. This node publishes ``/clock`` (one per world) and serves
+    ``~/get_status``, ``~/pause``, ``~/step`` and ``~/reset``.
     Takes rclpy's Node keywords (``context``, ``namespace``,
     ``parameter_overrides``...), and how often (wall seconds) a kind of
     warning may repeat (``warning_period_s``) and the graph is checked for
@@ -63,36 +70,32 @@ class SimNode(Node):
         super().__init__(node_name, **node_kwargs)
         self.lock = threading.RLock()  # one thread in PyBullet at a time (public: the services')
         self._throttled = ThrottledLog(warning_period_s)
+        self._warning_period_s = warning_period_s
+        self._graph_check_period_s = graph_check_period_s
         self.simulation: Optional[Simulation] = None
+        self.standard: Optional[SimulationInterfaces] = None
         self._clock_output: Optional[ClockOutput] = None
-        self._robot_outputs: List[RobotOutputs] = []
+        # One per robot, in the order of simulation.robots (their measurements').
+        self.robots: List[RobotInterfaces] = []
+        self._watchers: List[NodeWatcher] = []
+        self._removed_commands = [0, 0]  # received, rejected: of robots deleted since
         try:
-            self.config: SimConfig = declare_parameters(self)
+            self.config, specs = declare_parameters(self)
+            namespaces = self._start_namespaces(specs)
             self.sink = self._start_sink(self.config)
-            self.simulation = Simulation(self.config, warn=self.get_logger().warning,
+            self.simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
                                          error=self._log_blow_up)
             self._clock_output = ClockOutput(self)
-            self._robot_outputs = [RobotOutputs(self, self.config, robot,
-                                                self.simulation.time_ns)
-                                   for robot in self.simulation.robots]
+            for robot, namespace in zip(self.simulation.robots, namespaces):
+                self._add_interfaces(robot, namespace)
         except (SetupError, SinkError) as exc:
             self._close()
             raise StartupError(str(exc)) from exc
-        simulation = self.simulation
         self._paused = self.config.start_paused
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                             reliability=ReliabilityPolicy.RELIABLE)
-        self.create_publisher(String, 'robot_description', latched).publish(
-            String(data=simulation.robot.description))
-        self.cmd_vel = CmdVelInput(self, self.config, simulation.robot, self._throttled,
-                                   lambda: self.simulation.time_ns,
-                                   graph_check_period_s=graph_check_period_s)
-        self.create_service(Trigger, '~/get_joint_info', self._on_get_joint_info)
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.create_service(Trigger, '~/step', self._on_step)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/get_status', self._on_get_status)
-        self.standard: Optional[SimulationInterfaces] = None
         if sim_interfaces.available():
             self.standard = SimulationInterfaces(self, on_quit)
         else:
@@ -100,7 +103,132 @@ class SimNode(Node):
                 'simulation_interfaces is not installed: its services (spawn_entity, '
                 'step_simulation...) are off (a pip-only venv gets it from '
                 'tools/build_interfaces.sh VENV); everything else works')
-        self._publish(simulation.read_states())
+        self._publish(self.simulation.read_states())
+
+    def sink_time_ns(self) -> int:
+        """Return the simulated time that mirrored messages are logged at (0 before physics)."""
+        return 0 if self.simulation is None else self.simulation.time_ns
+
+    # -- robots and their interfaces ---------------------------------------------------
+
+    def _resolve_namespace(self, namespace: str) -> str:
+        """Return ``namespace`` absolute: a relative one is under this node's namespace."""
+        return resolve_namespace(self.get_namespace(), namespace)
+
+    def _start_namespaces(self, specs: Sequence[RobotSpec]) -> List[Optional[str]]:
+        """Return each listed robot's namespace, resolved (None: the one default robot)."""
+        if not specs:
+            return [None]
+        namespaces = [self._resolve_namespace(spec.namespace) for spec in specs]
+        for i, namespace in enumerate(namespaces):
+            if namespace in namespaces[:i]:
+                other = specs[namespaces.index(namespace)].name
+                raise ConfigError(f'robots {other} and {specs[i].name} both have the namespace '
+                                  f'{namespace}: each robot needs one of its own')
+        return namespaces
+
+    def _add_interfaces(self, robot: Robot, namespace: Optional[str]) -> RobotInterfaces:
+        """Give ``robot`` its interfaces: on this node in its namespace, else on a node its own."""
+        own = namespace is not None and namespace != self.get_namespace()
+        node = RobotNode(self, namespace) if own else self
+        try:
+            interfaces = RobotInterfaces(
+                node, robot, self.lock, now_ns=lambda: self.simulation.time_ns,
+                time_ns=self.simulation.time_ns, warning_period_s=self._warning_period_s,
+                graph_check_period_s=self._graph_check_period_s, own_node=own)
+        except BaseException:
+            if own:
+                node.destroy_node()
+            raise
+        self.robots.append(interfaces)
+        if own:
+            for added, _ in self._watchers:
+                added(node)
+        return interfaces
+
+    def _sync_robots(self) -> None:
+        """Take down the interfaces of robots that left the world; keep the core's order."""
+        live = {id(robot) for robot in self.simulation.robots}
+        for interfaces in [i for i in self.robots if id(i.robot) not in live]:
+            self.robots.remove(interfaces)
+            self._removed_commands[0] += interfaces.cmd_vel.received
+            self._removed_commands[1] += interfaces.cmd_vel.rejected
+            if interfaces.own_node:
+                for _, removed in self._watchers:
+                    removed(interfaces.node)
+            interfaces.close()
+        by_robot = {id(i.robot): i for i in self.robots}
+        self.robots = [by_robot[id(robot)] for robot in self.simulation.robots]
+
+    def watch_robot_nodes(self, added: Callable[[Node], None],
+                          removed: Callable[[Node], None]) -> None:
+        """
+        Follow the robots' own nodes: ``added`` for each, now and later; ``removed`` for leavers.
+
+        Whoever spins this node spins the robots' nodes too (``sim_node``'s
+        executor, a test harness's); ``removed`` must take the node out of
+        the executor before it is destroyed.
+        """
+        self._watchers.append((added, removed))
+        for interfaces in self.robots:
+            if interfaces.own_node:
+                added(interfaces.node)
+
+    def robot(self, name: Optional[str] = None) -> RobotInterfaces:
+        """Return a robot's interfaces by name (default: the first robot); KeyError if none."""
+        for interfaces in self.robots:
+            if name is None or interfaces.name == name:
+                return interfaces
+        raise KeyError(f'no robot named {name!r}; the robots are: '
+                       f'{", ".join(i.name for i in self.robots)}')
+
+    def spawn_entity(self, name: str, allow_renaming: bool, uri: str, resource_string: str,
+                     namespace: str, frame_id: str, position: Sequence[float],
+                     orientation: Sequence[float]) -> str:
+        """
+        Spawn an entity (see :class:`~r2d2_sim.entities.Entities`); return its name.
+
+        With a ``namespace`` it is a driven robot with every interface a robot
+        has, there (relative: under this node's namespace), on the world's
+        robot settings. EntityError NAMESPACE_INVALID for a malformed or
+        taken namespace, or this node's own.
+        """
+        with self.lock:
+            if not namespace:
+                return self.simulation.entities.spawn(name, allow_renaming, uri,
+                                                      resource_string, frame_id, position,
+                                                      orientation)
+            resolved = self._free_namespace(namespace)
+            robot = self.simulation.spawn_robot(name, allow_renaming, uri, resource_string,
+                                                frame_id, position, orientation)
+            try:
+                self._add_interfaces(robot, resolved)
+            except BaseException:
+                self.simulation.delete_entity(robot.name)
+                raise
+            return robot.name
+
+    def _free_namespace(self, namespace: str) -> str:
+        try:
+            resolved = self._resolve_namespace(read_namespace('entity_namespace', namespace))
+        except ConfigError as exc:
+            raise EntityError('NAMESPACE_INVALID', str(exc)) from None
+        if resolved == self.get_namespace():
+            raise EntityError('NAMESPACE_INVALID', f'{resolved} is the simulator\'s own '
+                                                   'namespace: give the robot one of its own')
+        for interfaces in self.robots:
+            if interfaces.namespace == resolved:
+                raise EntityError('NAMESPACE_INVALID', f'robot {interfaces.name} has the '
+                                                       f'namespace {resolved} already')
+        return resolved
+
+    def delete_entity(self, name: str) -> None:
+        """Delete a spawned entity, and a robot's interfaces with it (EntityError if refused)."""
+        with self.lock:
+            try:
+                self.simulation.delete_entity(name)
+            finally:
+                self._sync_robots()
 
     def _start_sink(self, config: SimConfig) -> Optional[FoxgloveSink]:
         """Start the live view and the recording the parameters ask for (None: neither)."""
@@ -114,14 +242,6 @@ class SimNode(Node):
         if record is not None:
             self.get_logger().info(f'recording every output to {record}')
         return sink
-
-    def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
-        """Create a publisher; with a live view or a recording on, one that feeds them too."""
-        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
-        if self.sink is None:
-            return publisher
-        return mirror(publisher, msg_type, self.sink,
-                      lambda: 0 if self.simulation is None else self.simulation.time_ns)
 
     @property
     def world(self) -> SimWorld:
@@ -155,18 +275,23 @@ class SimNode(Node):
         return self.simulation.blow_ups
 
     @property
+    def cmd_vel(self) -> CmdVelInput:
+        """Return the first robot's ``cmd_vel`` input (the one robot's, by default)."""
+        return self.robots[0].cmd_vel
+
+    @property
     def commands_received(self) -> int:
-        """Return the number of cmd_vel messages taken, refused ones included."""
-        return self.cmd_vel.received
+        """Return the number of cmd_vel messages taken by every robot, refused ones included."""
+        return sum(i.cmd_vel.received for i in self.robots) + self._removed_commands[0]
 
     @property
     def commands_rejected(self) -> int:
-        """Return the number of cmd_vel messages refused (NaN, stale stamp...)."""
-        return self.cmd_vel.rejected
+        """Return the number of cmd_vel messages refused (NaN, stale stamp...), all robots'."""
+        return sum(i.cmd_vel.rejected for i in self.robots) + self._removed_commands[1]
 
     @property
     def has_wheels(self) -> bool:
-        """Return True when cmd_vel drives wheels."""
+        """Return True when cmd_vel drives the first robot's wheels."""
         return self.simulation.robot.controller is not None
 
     def steps_to_next_publish(self) -> int:
@@ -215,9 +340,9 @@ class SimNode(Node):
             self._clock_output.publish(result.time_ns)
             if self.sink is not None:
                 self.sink.set_time(result.time_ns)
-        for outputs, measurement in zip(self._robot_outputs, result.measurements):
+        for interfaces, measurement in zip(self.robots, result.measurements):
             if measurement is not None:
-                outputs.publish(measurement)
+                interfaces.publish(measurement)
 
     def status(self, **facts) -> str:
         """
@@ -225,24 +350,22 @@ class SimNode(Node):
 
         Keys: ``paused``, ``step`` (physics steps since start), ``sim_time_ns``
         and ``sim_time`` (s) of the last step, ``commands_received`` (cmd_vel
-        messages taken so far, so a client can confirm its command arrived),
-        plus the service's own ``facts`` (``steps`` advanced, an ``error``).
+        messages taken so far by all robots, so a client can confirm its
+        command arrived), ``robots`` (each robot's ``namespace``, ``tf`` topic
+        and ``commands_received``, by name), plus the service's own ``facts``
+        (``steps`` advanced, an ``error``).
         """
         ns = self.sim_time_ns
         state = {'paused': self._paused, 'step': self.step_count, 'sim_time_ns': ns,
-                 'sim_time': ns / 1e9, 'commands_received': self.commands_received}
+                 'sim_time': ns / 1e9, 'commands_received': self.commands_received,
+                 'robots': {i.name: {'namespace': i.namespace, 'tf': i.tf_topics[0],
+                                     'commands_received': i.cmd_vel.received}
+                            for i in self.robots}}
         state.update(facts)
         return json.dumps(state)
 
     def _log_blow_up(self, text: str) -> None:
         self._throttled('blow-up', self.get_logger().error, text)
-
-    def _on_get_joint_info(self, request, response):
-        robot = self.simulation.robot
-        with self.lock:
-            response.message = joint_info_json(robot.body, robot.source)
-        response.success = True
-        return response
 
     def set_paused(self, paused: bool) -> None:
         """
@@ -273,7 +396,10 @@ class SimNode(Node):
         carries the reset robot.
         """
         with self.lock:
-            self.simulation.reset(time=time, state=state, spawned=spawned)
+            try:
+                self.simulation.reset(time=time, state=state, spawned=spawned)
+            finally:
+                self._sync_robots()
 
     def _on_pause(self, request, response):
         with self.lock:  # the reply's time is the state the pause landed on
@@ -308,6 +434,10 @@ class SimNode(Node):
         return response
 
     def _close(self) -> None:
+        # No watcher is told: whoever spins the robots' nodes is shutting down too.
+        for interfaces in reversed(self.robots):
+            interfaces.close()
+        self.robots.clear()
         if self.simulation is not None:
             self.simulation.close()
         if self.sink is not None:

@@ -16,7 +16,8 @@ from r2d2_sim.errors import SetupError
 
 __all__ = ['ConfigError', 'Bounds', 'number', 'positive', 'non_negative', 'limit',
            'field_of_view', 'ratio', 'boolean', 'string', 'frame', 'frame_prefix', 'joint_names',
-           'integer', 'choice', 'numbers', 'variances', 'extra_models']
+           'integer', 'choice', 'numbers', 'variances', 'extra_models', 'robot_names',
+           'namespace', 'ROBOT_NAME']
 
 
 class ConfigError(SetupError, ValueError):
@@ -200,3 +201,33 @@ def extra_models(name: str, value: Any) -> Tuple[Tuple[str, Tuple[float, float, 
             raise ConfigError(f'parameter {name}: entry {entry!r} has a non-finite position')
         models.append((parts[0], position))
     return tuple(models)
+
+
+# A robot's name: its entity name, the first part of its parameters'
+# names (robot_a.initial_pose) and, by default, its namespace and frame
+# prefix, so it must be a valid ROS name token.
+ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*\Z')
+_NAMESPACE = re.compile(r'/?(?:[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*)?\Z')
+
+
+def robot_names(name: str, value: Any) -> Tuple[str, ...]:
+    if not _is_string_list(value):
+        raise ConfigError(f'parameter {name} must be a list of robot names, got {value!r}')
+    names = tuple(value)
+    for robot in names:
+        if not ROBOT_NAME.match(robot):
+            raise ConfigError(f'parameter {name}: {robot!r} is not a robot name (a letter or _, '
+                              'then letters, digits and _: it is also a namespace)')
+    if len(set(names)) != len(names):
+        raise ConfigError(f'parameter {name} lists a robot twice: {list(names)}')
+    return names
+
+
+def namespace(name: str, value: Any) -> str:
+    """Read a ROS namespace: names of letters, digits and _ joined by /, absolute or not."""
+    value = string(name, value)
+    if not _NAMESPACE.match(value) or value.endswith('/') and value != '/':
+        raise ConfigError(f'parameter {name} must be a ROS namespace such as /robot1 or '
+                          f'robot1 (letters, digits, _ and single / between names), got '
+                          f'{value!r}')
+    return value

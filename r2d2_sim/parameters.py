@@ -65,6 +65,9 @@ class Parameter(NamedTuple):
     ``ros_type`` is the declared ROS type (double, integer, bool, string,
     double_array, string_array); ``read`` validates and converts a raw value;
     ``bounds`` then holds numbers (or each element of a number list) to a range.
+    ``per_robot``: a robot's own setting (its description, drive, frames,
+    sensors), which each robot listed in ``robots`` may override; the others
+    are the world's (physics, time, the ground, the live view).
     """
 
     name: str
@@ -74,22 +77,23 @@ class Parameter(NamedTuple):
     field: str
     read: Callable[[str, Any], Any]
     bounds: Optional[Bounds] = None
+    per_robot: bool = False  # each robot of several may set its own (robot_a.<name>)
 
 
 PARAMETERS: List[Parameter] = [
     Parameter('urdf', 'string', '',
               'Robot description: a file path, a package://pkg/path URI or a name in '
               'pybullet_data (r2d2.urdf); empty means the package\'s own urdf/r2d2.urdf.',
-              'urdf', read.string),
+              'urdf', read.string, per_robot=True),
     Parameter('robot_description', 'string', '',
               'URDF XML text (as robot_state_publisher takes it); overrides urdf.',
-              'robot_description', read.string),
+              'robot_description', read.string, per_robot=True),
     Parameter('base_forward_axis', 'string', 'x',
               'Axis of the URDF base frame the robot drives along: x, y, -x or -y.',
-              'base_forward_axis', read.choice(list(FORWARD_AXIS_YAW_RAD))),
+              'base_forward_axis', read.choice(list(FORWARD_AXIS_YAW_RAD)), per_robot=True),
     Parameter('wheel_velocity_sign', 'integer', 1,
               '1, or -1 when a negative wheel velocity drives the robot forward.',
-              'wheel_velocity_sign', read.choice([1, -1])),
+              'wheel_velocity_sign', read.choice([1, -1]), per_robot=True),
     Parameter('gravity', 'double_array', [0.0, 0.0, -9.8], 'Gravity [x, y, z] in m/s^2.',
               'gravity_m_s2', read.numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis')),
     Parameter('ground_plane', 'bool', True, 'Load pybullet_data\'s plane.urdf as the ground.',
@@ -109,131 +113,139 @@ PARAMETERS: List[Parameter] = [
               'publish_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'every step')),
     Parameter('cmd_vel_timeout', 'double', 0.5,
               'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
-              'cmd_vel_timeout_s', read.non_negative),
+              'cmd_vel_timeout_s', read.non_negative, per_robot=True),
     Parameter('start_paused', 'bool', False,
               'Start with physics stopped, waiting for ~/pause false or ~/step.',
               'start_paused', read.boolean),
     Parameter('wheel_radius', 'double', 0.0,
               'Wheel radius in metres; 0 derives it from the wheels\' collision shapes.',
-              'wheel_radius_m', read.non_negative, WHEEL_RADIUS),
+              'wheel_radius_m', read.non_negative, WHEEL_RADIUS, per_robot=True),
     Parameter('wheel_separation', 'double', 0.0,
               'Distance between left and right wheels in metres; 0 derives it from the URDF.',
-              'wheel_separation_m', read.non_negative, WHEEL_SEPARATION),
+              'wheel_separation_m', read.non_negative, WHEEL_SEPARATION, per_robot=True),
     Parameter('wheel_separation_multiplier', 'double', DEFAULT_WHEEL_SEPARATION_MULTIPLIER,
               'Effective/nominal track ratio used by commands and odometry (skid steering).',
-              'wheel_separation_multiplier', read.positive, Bounds(0.1, 10.0)),
+              'wheel_separation_multiplier', read.positive, Bounds(0.1, 10.0), per_robot=True),
     Parameter('wheel_lateral_friction_ratio', 'double', 0.35,
               'Wheel grip along the axle relative to rolling grip, in (0, 1].',
-              'wheel_lateral_friction_ratio', read.ratio),
+              'wheel_lateral_friction_ratio', read.ratio, per_robot=True),
     Parameter('left_wheel_names', 'string_array',
               ['left_front_wheel_joint', 'left_back_wheel_joint'],
-              'Joints driven as the left side.', 'left_wheel_names', read.joint_names),
+              'Joints driven as the left side.', 'left_wheel_names', read.joint_names,
+              per_robot=True),
     Parameter('right_wheel_names', 'string_array',
               ['right_front_wheel_joint', 'right_back_wheel_joint'],
-              'Joints driven as the right side.', 'right_wheel_names', read.joint_names),
+              'Joints driven as the right side.', 'right_wheel_names', read.joint_names,
+              per_robot=True),
     Parameter('max_wheel_velocity', 'double', 0.0,
               'Wheel speed limit in rad/s; 0 takes the URDF joint velocity limit.',
-              'max_wheel_velocity_rad_s', read.non_negative, WHEEL_VELOCITY),
+              'max_wheel_velocity_rad_s', read.non_negative, WHEEL_VELOCITY, per_robot=True),
     Parameter('max_wheel_force', 'double', 0.0,
               'Wheel motor torque limit in N m; 0 takes the URDF joint effort limit.',
-              'max_wheel_force_n_m', read.non_negative, WHEEL_FORCE),
+              'max_wheel_force_n_m', read.non_negative, WHEEL_FORCE, per_robot=True),
     Parameter('max_linear_velocity', 'double', 0.0,
               'Forward speed limit in m/s; 0 leaves only the wheel speed limit.',
-              'max_linear_velocity_m_s', read.limit, Bounds(0.001, 50.0, 'm/s', 'no limit')),
+              'max_linear_velocity_m_s', read.limit, Bounds(0.001, 50.0, 'm/s', 'no limit'),
+              per_robot=True),
     Parameter('max_angular_velocity', 'double', DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S,
               'Turn rate limit in rad/s; 0 leaves only the wheel speed limit.',
-              'max_angular_velocity_rad_s', read.limit, Bounds(0.001, 50.0, 'rad/s', 'no limit')),
+              'max_angular_velocity_rad_s', read.limit, Bounds(0.001, 50.0, 'rad/s', 'no limit'),
+              per_robot=True),
     Parameter('max_linear_acceleration', 'double', DEFAULT_MAX_LINEAR_ACCELERATION_M_S2,
               'Forward acceleration and braking limit in m/s^2; 0 means none.',
               'max_linear_acceleration_m_s2', read.limit,
-              Bounds(0.001, 1000.0, 'm/s^2', 'no limit')),
+              Bounds(0.001, 1000.0, 'm/s^2', 'no limit'), per_robot=True),
     Parameter('max_angular_acceleration', 'double', DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2,
               'Turn rate acceleration limit in rad/s^2; 0 means none.',
               'max_angular_acceleration_rad_s2', read.limit,
-              Bounds(0.001, 1000.0, 'rad/s^2', 'no limit')),
+              Bounds(0.001, 1000.0, 'rad/s^2', 'no limit'), per_robot=True),
     Parameter('odom_frame_id', 'string', 'odom', 'Frame of the wheel odometry.',
-              'odom_frame_id', read.frame),
+              'odom_frame_id', read.frame, per_robot=True),
     Parameter('base_frame_id', 'string', 'base_link', 'Child frame of both odometry topics.',
-              'base_frame_id', read.frame),
+              'base_frame_id', read.frame, per_robot=True),
     Parameter('world_frame_id', 'string', 'world', 'Frame of the ground_truth odometry.',
               'world_frame_id', read.frame),
     Parameter('initial_pose', 'double_array', [0.0, 0.0, 0.0],
               'Spawn pose [x (m), y (m), yaw (rad)] in the world frame.',
-              'initial_pose', read.numbers(3)),
+              'initial_pose', read.numbers(3), per_robot=True),
     Parameter('pose_covariance_diagonal', 'double_array',
               [0.001, 0.001, 1.0e6, 1.0e6, 1.0e6, 0.01],
               'Diagonal of the odom pose covariance (x, y, z, roll, pitch, yaw).',
-              'pose_covariance_diagonal', read.variances),
+              'pose_covariance_diagonal', read.variances, per_robot=True),
     Parameter('twist_covariance_diagonal', 'double_array',
               [0.001, 1.0e6, 1.0e6, 1.0e6, 1.0e6, 0.01],
               'Diagonal of the odom twist covariance (vx, vy, vz, wx, wy, wz).',
-              'twist_covariance_diagonal', read.variances),
+              'twist_covariance_diagonal', read.variances, per_robot=True),
     Parameter('camera_rate', 'double', 0.0,
               'Head camera images per simulated second (Hz); 0 turns the camera off.',
-              'camera_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
+              'camera_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
     Parameter('camera_width', 'integer', 320, 'Head camera image width in pixels.',
-              'camera_width_px', read.integer, Bounds(1, 4096, 'px')),
+              'camera_width_px', read.integer, Bounds(1, 4096, 'px'), per_robot=True),
     Parameter('camera_height', 'integer', 240, 'Head camera image height in pixels.',
-              'camera_height_px', read.integer, Bounds(1, 4096, 'px')),
+              'camera_height_px', read.integer, Bounds(1, 4096, 'px'), per_robot=True),
     Parameter('camera_fov', 'double', 60.0, 'Head camera vertical field of view in degrees.',
-              'camera_fov_deg', read.field_of_view),
+              'camera_fov_deg', read.field_of_view, per_robot=True),
     Parameter('camera_depth', 'bool', False,
               'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
-              'camera_depth', read.boolean),
+              'camera_depth', read.boolean, per_robot=True),
     Parameter('world', 'string', '',
               'A world to load around the robot at the origin, resolved like urdf '
               '(package://r2d2_sim/urdf/room.urdf); empty for none.', 'world', read.string),
     Parameter('publish_tf', 'bool', True,
               'Publish odom -> base_footprint on /tf and the static frames on /tf_static '
-              '(needs tf2_msgs).', 'publish_tf', read.boolean),
+              '(needs tf2_msgs).', 'publish_tf', read.boolean, per_robot=True),
     Parameter('publish_link_tf', 'bool', False,
               'Also publish the robot\'s link transforms (what robot_state_publisher would).',
-              'publish_link_tf', read.boolean),
+              'publish_link_tf', read.boolean, per_robot=True),
     Parameter('publish_ground_truth_tf', 'bool', False,
               'Also publish world -> odom so that world -> base follows the true pose.',
-              'publish_ground_truth_tf', read.boolean),
+              'publish_ground_truth_tf', read.boolean, per_robot=True),
     Parameter('footprint_frame_id', 'string', 'base_footprint',
               'The base\'s projection on the ground, parent of base_frame_id in TF.',
-              'footprint_frame_id', read.frame),
+              'footprint_frame_id', read.frame, per_robot=True),
     Parameter('frame_prefix', 'string', '',
               'Prefix for every frame the robot publishes (not world_frame_id), e.g. robot1/.',
-              'frame_prefix', read.frame_prefix),
+              'frame_prefix', read.frame_prefix, per_robot=True),
     Parameter('scan_rate', 'double', 10.0,
               'Laser scans per simulated second (Hz) on scan; 0 turns the scanner off.',
-              'scan_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
+              'scan_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
     Parameter('scan_samples', 'integer', 360, 'Beams per scan.', 'scan_samples', read.integer,
-              Bounds(2, 10000)),
+              Bounds(2, 10000), per_robot=True),
     Parameter('scan_angle_min', 'double', -math.pi, 'First beam angle in rad (0 = forward).',
-              'scan_angle_min_rad', read.number, Bounds(-math.pi, math.pi, 'rad')),
+              'scan_angle_min_rad', read.number, Bounds(-math.pi, math.pi, 'rad'), per_robot=True),
     Parameter('scan_angle_max', 'double', math.pi,
               'Last beam angle in rad; a full circle has no duplicate last beam.',
-              'scan_angle_max_rad', read.number, Bounds(-math.pi, math.pi, 'rad')),
+              'scan_angle_max_rad', read.number, Bounds(-math.pi, math.pi, 'rad'), per_robot=True),
     Parameter('scan_range_min', 'double', 0.12, 'Closest range in m; nearer reads -inf.',
-              'scan_range_min_m', read.non_negative, Bounds(0.0, 100.0, 'm')),
+              'scan_range_min_m', read.non_negative, Bounds(0.0, 100.0, 'm'), per_robot=True),
     Parameter('scan_range_max', 'double', 12.0, 'Farthest range in m; no return reads +inf.',
-              'scan_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm')),
+              'scan_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm'), per_robot=True),
     Parameter('scan_noise_std', 'double', 0.0,
               'Gaussian range noise standard deviation in m; 0 = exact.',
-              'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm')),
+              'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm'), per_robot=True),
     Parameter('imu_rate', 'double', 100.0,
               'IMU messages per simulated second (Hz) on imu; 0 turns the IMU off.',
-              'imu_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off')),
+              'imu_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
     Parameter('imu_orientation_noise_std', 'double', 0.0,
               'IMU orientation noise standard deviation in rad; 0 = exact.',
-              'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad')),
+              'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad'),
+              per_robot=True),
     Parameter('imu_angular_velocity_noise_std', 'double', 0.0,
               'IMU angular velocity noise standard deviation in rad/s; 0 = exact.',
               'imu_angular_velocity_noise_std_rad_s', read.non_negative,
-              Bounds(0.0, 10.0, 'rad/s')),
+              Bounds(0.0, 10.0, 'rad/s'), per_robot=True),
     Parameter('imu_linear_acceleration_noise_std', 'double', 0.0,
               'IMU acceleration noise standard deviation in m/s^2; 0 = exact.',
               'imu_linear_acceleration_noise_std_m_s2', read.non_negative,
-              Bounds(0.0, 100.0, 'm/s^2')),
+              Bounds(0.0, 100.0, 'm/s^2'), per_robot=True),
     Parameter('noise_seed', 'integer', 0, 'Seed of the scan and IMU noise (runs repeat).',
-              'noise_seed', read.integer, Bounds(0, 2**31 - 1)),
+              'noise_seed', read.integer, Bounds(0, 2**31 - 1), per_robot=True),
     Parameter('enable_stamped_cmd_vel', 'bool', False,
               'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name).',
-              'enable_stamped_cmd_vel', read.boolean),
+              'enable_stamped_cmd_vel', read.boolean, per_robot=True),
     Parameter('foxglove_port', 'integer', 0,
               'Serve a Foxglove live view of every output on this port (ws://); 0 = off.',
               'foxglove_port', read.integer, Bounds(1, 65535, '', 'off')),
@@ -243,6 +255,16 @@ PARAMETERS: List[Parameter] = [
     Parameter('record', 'string', '',
               'Record every output into this MCAP file (ros2 bag play, Foxglove); empty = off.',
               'record', read.string),
+    Parameter('robots', 'string_array', [],
+              'Names of several robots in one world, each in its own namespace (its name '
+              'unless NAME.namespace says otherwise), set per robot with NAME.<parameter> '
+              '(NAME.initial_pose...); empty: one robot, named by its URDF, in the node\'s '
+              'namespace.', 'robots', read.robot_names),
+    Parameter('tf_layout', 'string', 'shared',
+              'shared: one /tf and /tf_static; the frames of a robot listed in robots (or '
+              'spawned with a namespace) are prefixed NAME/. namespaced: tf and tf_static in '
+              'each robot\'s namespace, frames unprefixed (Nav2\'s multi-robot remap).',
+              'tf_layout', read.choice(['shared', 'namespaced'])),
 ]
 
 PARAMETERS_BY_NAME: Dict[str, Parameter] = {p.name: p for p in PARAMETERS}
@@ -277,16 +299,18 @@ SimConfig = make_dataclass(
 SimConfig.__module__ = __name__
 
 
-def _read(spec: Parameter, value: Any) -> Any:
+def _read(spec: Parameter, value: Any, label: Optional[str] = None) -> Any:
+    """Read one raw value; ``label`` names it in messages (default: the parameter's name)."""
+    label = label or spec.name
     # ROS cannot tell the type of an empty list (-p names:=[]): it arrives as None.
     if value is None and spec.ros_type.endswith('_array'):
         value = []
-    result = spec.read(spec.name, value)
+    result = spec.read(label, value)
     if spec.bounds is not None:
         values = result if isinstance(result, tuple) else (result,)
         for v in values:
             if math.isfinite(v):  # inf is how read.limit says "none"
-                spec.bounds.check(spec.name, v)
+                spec.bounds.check(label, v)
     return result
 
 
@@ -298,13 +322,19 @@ def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
     fields = {}
     for spec in PARAMETERS:
         fields[spec.field] = _read(spec, values.get(spec.name, spec.default))
+    _check(fields)
+    fields['publish_rate_hz'] = fields['publish_rate_hz'] or fields['physics_rate_hz']
+    return SimConfig(**fields)
+
+
+def _check(fields: Mapping[str, Any]) -> None:
+    """Check what no single value shows: rates against physics, wheel lists, ranges, frames."""
     physics_rate = fields['physics_rate_hz']
     for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz'),
                         ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz')):
         if fields[field] > physics_rate:
             raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
                               f'physics_rate ({physics_rate} Hz)')
-    fields['publish_rate_hz'] = fields['publish_rate_hz'] or physics_rate
     left, right = fields['left_wheel_names'], fields['right_wheel_names']
     if bool(left) != bool(right):
         raise ConfigError('left_wheel_names and right_wheel_names must both list wheels '
@@ -320,7 +350,89 @@ def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
         raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
                           f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')
     _check_frames(fields)
+
+
+class RobotSpec(NamedTuple):
+    """One robot listed in ``robots``: its name, its namespace as given, its settings."""
+
+    name: str
+    namespace: str   # relative (under the simulator's namespace) or absolute
+    config: 'SimConfig'
+
+
+def robot_config(world: 'SimConfig', name: str,
+                 overrides: Optional[Mapping[str, Any]] = None) -> 'SimConfig':
+    """
+    Return the settings of the robot ``name``: the world's, with its own ``overrides``.
+
+    ``overrides`` are raw values of per-robot parameters by their table
+    name (``initial_pose``...). With ``tf_layout`` shared, the robot's
+    frames are prefixed with its name (after the world's ``frame_prefix``)
+    unless it sets ``frame_prefix`` itself. ConfigError (one line, naming
+    ``name.parameter``) for a value that is bad or not a robot's to set.
+    """
+    overrides = dict(overrides or {})
+    fields = {spec.field: getattr(world, spec.field) for spec in PARAMETERS}
+    for key, value in overrides.items():
+        spec = PARAMETERS_BY_NAME.get(key)
+        if spec is None:
+            raise ConfigError(f'unknown parameter {name}.{key}')
+        if not spec.per_robot:
+            raise ConfigError(f'parameter {name}.{key}: {key} is the world\'s, one for all '
+                              'robots (set it without the robot\'s name)')
+        fields[spec.field] = _read(spec, value, f'{name}.{key}')
+    if 'frame_prefix' not in overrides and world.tf_layout == 'shared':
+        fields['frame_prefix'] = f'{world.frame_prefix}{name}/'
+    try:
+        _check(fields)
+    except ConfigError as exc:
+        raise ConfigError(f'robot {name}: {exc}') from None
     return SimConfig(**fields)
+
+
+def resolve_namespace(base: str, namespace: str) -> str:
+    """Return ``namespace`` absolute: a relative one is under ``base`` (a node's namespace)."""
+    if namespace.startswith('/'):
+        return namespace
+    return f'{base.rstrip("/")}/{namespace}'
+
+
+def robot_namespaces(values: Mapping[str, Any], base: str) -> Dict[str, str]:
+    """
+    Return each listed robot's namespace, resolved under ``base``, from raw parameter values.
+
+    Empty without ``robots`` (the one default robot is in ``base`` itself).
+    For clients that need the topics before the simulator runs (the harnesses).
+    """
+    names = values.get('robots') or []
+    return {name: resolve_namespace(base, values.get(f'{name}.namespace') or name)
+            for name in names}
+
+
+def parse_world(values: Mapping[str, Any]) -> Tuple['SimConfig', List[RobotSpec]]:
+    """
+    Validate the world's parameters and each robot's (``NAME.parameter`` keys).
+
+    Returns the world's SimConfig (the settings of the one default robot too,
+    when ``robots`` is empty) and a RobotSpec per robot listed in ``robots``;
+    ``NAME.namespace`` is a robot's namespace (default: its name).
+    """
+    config = parse_config({k: v for k, v in values.items() if '.' not in k})
+    own: Dict[str, Dict[str, Any]] = {name: {} for name in config.robots}
+    for key, value in values.items():
+        if '.' not in key:
+            continue
+        robot, _, parameter = key.partition('.')
+        if robot not in own:
+            listed = ', '.join(config.robots) or 'none'
+            raise ConfigError(f'parameter {key} is for a robot {robot!r} that robots does not '
+                              f'list (robots: {listed})')
+        own[robot][parameter] = value
+    specs = []
+    for name in config.robots:
+        namespace = read.namespace(f'{name}.namespace', own[name].pop('namespace', ''))
+        specs.append(RobotSpec(name, namespace or name, robot_config(config, name, own[name])))
+    return config, specs
 
 
 def _check_frames(fields: Mapping[str, Any]) -> None:
@@ -397,5 +509,5 @@ def parameter_help(width: int = 79) -> str:
                                subsequent_indent=' ' * 6, break_long_words=False,
                                break_on_hyphens=False)
         lines += textwrap.wrap(spec.description, width, initial_indent=' ' * 6,
-                               subsequent_indent=' ' * 6)
+                               subsequent_indent=' ' * 6, break_on_hyphens=False)
     return '\n'.join(lines) + '\n'

@@ -6,10 +6,12 @@ only if (its collision filter group & mask) != 0. Bullet's default groups are
 1 for dynamic links and 2 for static bodies, whose masks are all bits and all
 but 2. :func:`exclude_from_rays` moves a body into group 4 with a full mask,
 and rays cast with :data:`RAY_MASK` (every bit but 4) pass through it: a laser
-inside the robot sees the world, not the robot. Its contacts are kept under
+inside the robot sees the world, not the robot. With several robots each
+takes a bit of its own (4, 8, 16...): its rays pass through its own links and
+hit every other robot's. Its contacts are kept under
 either pair filter PyBullet offers (``collisionFilterMode``): the default
 (group A & mask B) or (group B & mask A), and the stricter "and", since
-4 & every other body's mask and their groups & -1 are all non-zero.
+the group & every other body's mask and their groups & -1 are all non-zero.
 """
 
 from typing import Optional, Sequence
@@ -22,18 +24,30 @@ with silenced_output():  # PyBullet prints its build time on import (bullet_clie
     import pybullet
 from pybullet_utils.bullet_client import BulletClient  # noqa: I100 (after the quiet import)
 
-__all__ = ['RAY_EXCLUDED_GROUP', 'RAY_MASK', 'exclude_from_rays', 'cast_rays']
+__all__ = ['RAY_EXCLUDED_GROUP', 'RAY_MASK', 'ray_mask', 'exclude_from_rays', 'cast_rays']
 
 RAY_EXCLUDED_GROUP = 4
-# All bits but 4, as the C int rayTestBatch takes (-5; ~4 in two's complement).
-RAY_MASK = -1 ^ RAY_EXCLUDED_GROUP
 MAX_BATCH_SIZE = pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE
 
 
+def ray_mask(group: int) -> int:
+    """Return the mask of rays that pass through ``group`` and hit every other group."""
+    return -1 ^ group  # as the C int rayTestBatch takes: ~group in two's complement
+
+
+# All bits but 4 (-5).
+RAY_MASK = ray_mask(RAY_EXCLUDED_GROUP)
+
+
 def exclude_from_rays(client: BulletClient, body_id: int,
-                      links: Optional[Sequence[int]] = None) -> None:
+                      links: Optional[Sequence[int]] = None,
+                      group: int = RAY_EXCLUDED_GROUP) -> None:
     """
-    Make links of a body (default: all, -1 being the base) invisible to rays cast with RAY_MASK.
+    Make links of a body (default: all, -1 being the base) invisible to rays of ``group``.
+
+    Rays cast with ``ray_mask(group)`` (RAY_MASK for the default group) pass through them.
+    Several robots each take a group bit of their own (SimWorld.take_ray_group),
+    so one robot's rays pass through its own links and hit the others'.
 
     Their collisions are kept: the full mask lets them meet every group. Bullet
     re-inserts the links into its broadphase, which can change the order in
@@ -44,7 +58,7 @@ def exclude_from_rays(client: BulletClient, body_id: int,
     0.4 ms of a 1 ms 360-beam scan in room.urdf.
     """
     for link in range(-1, client.getNumJoints(body_id)) if links is None else links:
-        client.setCollisionFilterGroupMask(body_id, link, RAY_EXCLUDED_GROUP, -1)
+        client.setCollisionFilterGroupMask(body_id, link, group, -1)
 
 
 def cast_rays(client: BulletClient, starts: Sequence[Sequence[float]],

@@ -24,7 +24,7 @@ from r2d2_sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner
 from r2d2_sim.sensors import ImuReading
 from r2d2_sim.timing import stamp_of, StepSchedule
-from r2d2_sim.world import SimWorld
+from r2d2_sim.world import SimWorld, SPAWN_CLEARANCE_M
 
 # Names that lived here before the sensors and the drive train had modules of their own.
 from r2d2_sim.sensor_mounts import (  # noqa: F401,I100
@@ -70,12 +70,13 @@ class Robot:
     schedules run on; ``source`` says where its description came from (for
     messages), ``description`` is its URDF text. ``warn`` receives one-line
     reports while it is built, ``error`` one line per blow-up. Raises ConfigError (one line) when
-    the configuration cannot drive or sense this robot.
+    the configuration cannot drive or sense this robot. ``resources`` (a temporary
+    description file...) are closed with the robot (:meth:`close`).
     """
 
     def __init__(self, world: SimWorld, body: Body, config: SimConfig, source: str,
                  description: str, *, warn: Callable[[str], None] = _ignore,
-                 error: Callable[[str], None] = _ignore) -> None:
+                 error: Callable[[str], None] = _ignore, resources: Sequence = ()) -> None:
         self.world = world
         self.body = body
         self.name = body.name
@@ -84,12 +85,19 @@ class Robot:
         self.description = description
         self.blow_ups = 0
         self._error = error
+        self._resources = list(resources)
+        self.laser: Optional[LaserScanner] = None
         problem = body.state_problem()
         if problem is not None:
             raise ConfigError(f'the robot cannot start there: {problem}')
         # base_footprint is the base's projection on the ground: the body frame
-        # sits this high above it when the robot stands at rest.
+        # sits this high above it when the robot stands at rest. A robot loaded
+        # at start-up stands on the ground; one spawned through the standard
+        # is where its pose says (in the air, maybe): measured from its lowest
+        # point, with the start-up robots' clearance.
         self.footprint_height_m = body.world_state().position[2]
+        if body.spawned:
+            self.footprint_height_m -= body.lowest_point_m() - SPAWN_CLEARANCE_M
         self.movable: List[JointRecord] = body.movable_joints()
         self.movable_indices = [j.index for j in self.movable]
         self.drive: Optional[DriveTrain] = find_drive_train(body, config, source, warn)
@@ -213,6 +221,14 @@ class Robot:
         if self.controller is not None:
             self._set_wheels(self.controller.reset(self.world.step_count,
                                                    self._wheel_positions()))
+
+    def close(self) -> None:
+        """Give back what the robot holds in the world (its ray group) and close its files."""
+        if self.laser is not None:
+            self.laser.close()
+        for resource in self._resources:
+            resource.close()
+        self._resources.clear()
 
     def _recover(self, problem: str, time_ns: int) -> None:
         self.blow_ups += 1

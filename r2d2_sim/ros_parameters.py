@@ -4,16 +4,24 @@ The node's parameters on the ROS side: typed declarations from the one table.
 :mod:`r2d2_sim.parameters` holds the table and the validation without ROS;
 this declares every entry on a node with its type, description and range, so
 ``ros2 param describe`` shows them, and names overrides that nothing reads.
+Each robot listed in ``robots`` has the parameters it sets as
+``NAME.parameter`` (and ``NAME.namespace``), declared the same way.
 """
 
 import difflib
-from typing import Any
+from typing import Any, List, Tuple
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from r2d2_sim.parameters import Parameter as ParameterSpec, PARAMETERS, parse_config, SimConfig
+from r2d2_sim.parameters import (
+    Parameter as ParameterSpec, PARAMETERS, PARAMETERS_BY_NAME, parse_world,
+    RobotSpec, SimConfig)
+
+NAMESPACE_SPEC = ParameterSpec(
+    'namespace', 'string', '', 'The robot\'s namespace: absolute, or relative to the '
+    'simulator\'s; empty for its name.', 'namespace', lambda name, value: value)
 
 ROS_TYPES = {'double': Parameter.Type.DOUBLE, 'integer': Parameter.Type.INTEGER,
              'bool': Parameter.Type.BOOL, 'string': Parameter.Type.STRING,
@@ -21,23 +29,32 @@ ROS_TYPES = {'double': Parameter.Type.DOUBLE, 'integer': Parameter.Type.INTEGER,
              'string_array': Parameter.Type.STRING_ARRAY}
 
 
-def declare_parameters(node: Node) -> SimConfig:
+def declare_parameters(node: Node) -> Tuple[SimConfig, List[RobotSpec]]:
     """
     Validate the node's overrides, then declare every parameter with its type and that value.
 
     Validation comes first so a wrong value or type is one ConfigError line
     (rclpy would raise its own exception for a type mismatch). The values
     are declared converted to the table's type (an integer given for a
-    double becomes a double).
+    double becomes a double). Returns the world's settings and each robot's.
     """
     overrides = getattr(node, '_parameter_overrides', {})
     raw = {spec.name: overrides[spec.name].value if spec.name in overrides else spec.default
            for spec in PARAMETERS}
-    config = parse_config(raw)
+    robots = raw['robots'] or []
+    if not isinstance(robots, (list, tuple)):
+        robots = []  # parse_world says what is wrong with it
+    own = {name: value.value for name, value in overrides.items()
+           if name.partition('.')[0] in robots and '.' in name}
+    config, specs = parse_world({**raw, **own})
     for spec in PARAMETERS:
         _declare_typed(node, spec, raw[spec.name])
+    for name, value in own.items():
+        parameter = name.partition('.')[2]
+        spec = NAMESPACE_SPEC if parameter == 'namespace' else PARAMETERS_BY_NAME[parameter]
+        _declare_typed(node, spec._replace(name=name), value)
     _warn_unknown_overrides(node, overrides)
-    return config
+    return config, specs
 
 
 def _declare_typed(node: Node, spec: ParameterSpec, value: Any) -> None:

@@ -18,6 +18,7 @@ from r2d2_sim.body import Body, WorldError
 # The sensors' frame ids are the parameter table's, which checks them against the others.
 from r2d2_sim.parameters import (
     ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID, SimConfig)
+from r2d2_sim.raycast import ray_mask
 from r2d2_sim.sensors import (
     ImuModel, ImuReading, linearize_depth, ranges_from_hits, ray_endpoints, ScanGeometry,
     SensorConfigError)
@@ -99,9 +100,10 @@ class LaserScanner:
 
     Rays start at the laser origin (REP-117 ranges are from there) and pass
     through the robot's own links that cross the scan plane (R2D2's body and
-    legs), which are excluded from rays; links below or above it (wheels,
-    head) keep their broadphase entries, so the physics is the same with the
-    scanner on or off.
+    legs), which go into a ray group of this robot's own; links below or
+    above it (wheels, head) keep their broadphase entries, so the physics is
+    the same with the scanner on or off. Every other robot's links stay
+    visible. :meth:`close` gives the group back.
     """
 
     def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float) -> None:
@@ -119,7 +121,13 @@ class LaserScanner:
         self._rays_in_sensor = ends
         self._noise_std_m = config.scan_noise_std_m
         self._rng = numpy.random.default_rng(config.noise_seed)
-        body.exclude_from_rays(body.links_spanning_height(LASER_HEIGHT_M))
+        # The scan plane in the world now: the robot stands on the ground, or
+        # (spawned in the air) is about to fall onto it.
+        ground_z = body.world_state().position[2] - footprint_height_m
+        self._group = world.take_ray_group()
+        self._mask = ray_mask(self._group)
+        body.exclude_from_rays(body.links_spanning_height(ground_z + LASER_HEIGHT_M),
+                               self._group)
 
     def scan(self) -> numpy.ndarray:
         """Cast the beams from where the laser is now; return REP-117 ranges (float32)."""
@@ -128,8 +136,14 @@ class LaserScanner:
         origin = numpy.array(apply(pose, self.mount.translation))
         ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
         starts = numpy.broadcast_to(origin, ends.shape)
-        return ranges_from_hits(self._world.cast_rays(starts, ends), self.geometry,
+        return ranges_from_hits(self._world.cast_rays(starts, ends, self._mask), self.geometry,
                                 self._noise_std_m, self._rng)
+
+    def close(self) -> None:
+        """Give the robot's ray group back to the world (the robot left it)."""
+        if self._group is not None:
+            self._world.release_ray_group(self._group)
+            self._group = None
 
 
 class ImuSensor:

@@ -173,6 +173,9 @@ def _run_node(stop: threading.Event) -> None:
         node = SimNode(on_quit=stop.set)
         executors.append(SingleThreadedExecutor())
         executors[0].add_node(node)
+        # Several robots: each robot's node, from start-up or spawned later, is
+        # served beside the simulator's (whose lock guards them all).
+        node.watch_robot_nodes(executors[0].add_node, executors[0].remove_node)
         if node.standard is not None:
             # Two threads: a long step_simulation (its own callback group) leaves
             # the standard's other services and cancel requests answered.
@@ -181,9 +184,11 @@ def _run_node(stop: threading.Event) -> None:
         # Logged before any request can start a step: rclpy's logger looks its
         # caller up through inspect (hundreds of file-system calls), which a
         # step holding the GIL in PyBullet would stretch to seconds.
+        robots = node.robots
+        what = (robots[0].robot.source if len(robots) == 1 else
+                f'{len(robots)} robots ({", ".join(r.namespace for r in robots)})')
         node.get_logger().info(
-            f'simulating {node.simulation.robot.source} at '
-            f'{node.config.physics_rate_hz:g} Hz, real time factor '
+            f'simulating {what} at {node.config.physics_rate_hz:g} Hz, real time factor '
             f'{node.config.real_time_factor:g}' + (', paused' if node.paused else ''))
         for executor in executors:
             spinners.append(threading.Thread(target=_spin, args=(executor, stop), daemon=True))

@@ -11,12 +11,15 @@ outputs only translate them into messages. Every step also checks that no
 robot's physics has blown up, and puts back one that has.
 """
 
-from typing import Callable, List, NamedTuple, Optional, Tuple
+from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
-from r2d2_sim.entities import Entities
-from r2d2_sim.parameters import SimConfig
+from r2d2_sim.description import DescriptionError, RobotDescription
+from r2d2_sim.entities import Entities, EntityError
+from r2d2_sim.errors import SetupError, WorldError
+from r2d2_sim.parameters import robot_config, RobotSpec, SimConfig
 from r2d2_sim.robot import Frame, Measurement, Robot
 from r2d2_sim.timing import StepClock, StepSchedule
+from r2d2_sim.transforms import yaw_of
 from r2d2_sim.world import ExtraModel, SimWorld
 
 # Frame and Measurement are the core's data, defined beside the robot that measures them.
@@ -43,12 +46,18 @@ class Simulation:
     """
     The world, its robots and the step schedule.
 
-    ``warn`` and ``error`` receive one-line reports (the node logs them,
-    throttled); they default to silence. Raises a SetupError subclass
-    (ConfigError, WorldError...) when the configuration cannot be simulated.
+    ``config`` holds the world's settings; ``robots`` the robots listed in
+    the ``robots`` parameter, each with its own settings. Without them the
+    world has one robot, named after its URDF, with ``config``'s settings.
+    More robots join with :meth:`add_robot` and :meth:`spawn_robot`, and a
+    spawned one leaves with :meth:`delete_entity`. ``warn`` and ``error``
+    receive one-line reports (the node logs them, throttled); they default
+    to silence. Raises a SetupError subclass (ConfigError, WorldError...)
+    when the configuration cannot be simulated.
     """
 
-    def __init__(self, config: SimConfig, warn: Callable[[str], None] = _ignore,
+    def __init__(self, config: SimConfig, robots: Sequence[RobotSpec] = (),
+                 warn: Callable[[str], None] = _ignore,
                  error: Callable[[str], None] = _ignore) -> None:
         self.config = config
         rate = config.physics_rate_hz
@@ -59,26 +68,110 @@ class Simulation:
         self.last_frame_step = 0
         self.robots: List[Robot] = []
         self.entities: Optional[Entities] = None
+        self._warn, self._error = warn, error
+        first = robots[0].config if robots else config
         self.world = SimWorld(
-            config.urdf or None, robot_description=config.robot_description,
+            first.urdf or None, robot_description=first.robot_description,
             gui=config.gui, time_step_s=self.time_step_s,
             gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane,
-            initial_pose=config.initial_pose,
-            body_yaw_offset_rad=config.body_yaw_offset_rad,
+            initial_pose=first.initial_pose, body_yaw_offset_rad=first.body_yaw_offset_rad,
+            robot_name=robots[0].name if robots else None,
             extra_models=[ExtraModel(name, position) for name, position in config.extra_models]
             + ([ExtraModel(config.world, (0.0, 0.0, 0.0))] if config.world else []))
         try:
-            source = ('the robot_description parameter' if config.robot_description
+            source = ('the robot_description parameter' if first.robot_description
                       else self.world.urdf_path)
-            self.robots.append(Robot(self.world, self.world.robot, config, source,
+            self.robots.append(Robot(self.world, self.world.robot, first, source,
                                      self.world.robot_description, warn=warn, error=error))
+            for spec in robots[1:]:
+                self.add_robot(spec.name, spec.config)
         except Exception:
+            for robot in self.robots:
+                robot.close()
             self.world.close()
             raise
         self.entities = Entities(self.world, lambda: self.robots, config.world_frame_id,
                                  self._teleported)
         # Nothing changed since start-up (or a full reset): with time at 0, 'stopped'.
         self.pristine = True
+
+    def add_robot(self, name: str, config: SimConfig) -> Robot:
+        """
+        Load a driven robot ``name`` standing at ``config.initial_pose``; return it.
+
+        Its description, drive and sensors are ``config``'s (see
+        :func:`~r2d2_sim.parameters.robot_config`). Raises a SetupError
+        (WorldError, ConfigError) when it cannot be loaded or driven; nothing
+        of it then stays in the world.
+        """
+        try:
+            description = RobotDescription.load(config.urdf, config.robot_description)
+        except DescriptionError as exc:
+            raise WorldError(f'robot {name}: {exc}') from None
+        body = None
+        try:
+            body = self.world.load_robot(description.path, config.initial_pose,
+                                         config.body_yaw_offset_rad, name=name,
+                                         source=config.urdf or description.path)
+            source = ('the robot_description parameter' if config.robot_description
+                      else description.path)
+            robot = Robot(self.world, body, config, source, description.text, warn=self._warn,
+                          error=self._error, resources=[description])
+        except Exception:
+            if body is not None:
+                self.world.remove(body)
+            description.close()
+            raise
+        self.robots.append(robot)
+        self.pristine = False
+        return robot
+
+    def spawn_robot(self, name: str, allow_renaming: bool, uri: str, resource_string: str,
+                    frame_id: str, position: Sequence[float],
+                    orientation: Sequence[float]) -> Robot:
+        """
+        Spawn a driven robot through the standard: at its pose exactly, with the world's settings.
+
+        As :meth:`Entities.spawn <r2d2_sim.entities.Entities.spawn>` (the
+        same names, resources and refusals), then driven as a robot whose
+        odometry starts at that pose; EntityError OPERATION_FAILED when the
+        world's robot settings cannot drive it.
+        """
+        body, description = self.entities.spawn_body(
+            name, allow_renaming, uri, resource_string, frame_id, position, orientation,
+            flags=self.world.robot_flags, body_yaw_offset_rad=self.config.body_yaw_offset_rad)
+        base = body.world_state()
+        try:
+            config = robot_config(self.config, body.name, {
+                'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]})
+            robot = Robot(self.world, body, config, body.source, description,
+                          warn=self._warn, error=self._error)
+        except SetupError as exc:
+            self.entities.delete(body.name)
+            raise EntityError('OPERATION_FAILED', f'{body.name} cannot be driven: {exc}') from None
+        self.robots.append(robot)
+        self.pristine = False
+        return robot
+
+    def robot_named(self, name: str) -> Robot:
+        """Return the robot named ``name``; EntityError NOT_FOUND listing the robots."""
+        for robot in self.robots:
+            if robot.name == name:
+                return robot
+        raise EntityError('NOT_FOUND', f'no robot named {name!r}; the robots are: '
+                                       f'{", ".join(r.name for r in self.robots)}')
+
+    def delete_entity(self, name: str) -> None:
+        """Delete a spawned entity, and the robot it is if it is one (start-up ones stay)."""
+        body = self.entities.body(name)
+        self.entities.delete(name)  # refuses a start-up entity before anything changes
+        self._forget_robots([r for r in self.robots if r.body is body])
+        self.pristine = False
+
+    def _forget_robots(self, robots: Sequence[Robot]) -> None:
+        for robot in robots:
+            self.robots.remove(robot)
+            robot.close()
 
     def _teleported(self, body) -> None:
         self.pristine = False
@@ -155,6 +248,7 @@ class Simulation:
         step count and simulated time back to 0, every schedule from there.
         """
         if spawned:
+            self._forget_robots([r for r in self.robots if r.body.spawned])
             self.entities.delete_spawned()
         if state:
             self.world.reset()
@@ -171,6 +265,8 @@ class Simulation:
 
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice."""
+        for robot in self.robots:
+            robot.close()
         if self.entities is not None:
             self.entities.close()
         self.world.close()

@@ -1,6 +1,9 @@
 """
 TF for one robot: ``/tf`` every state publication, ``/tf_static`` once (transient local).
 
+With ``tf_layout`` namespaced, ``tf`` and ``tf_static`` in the robot's
+namespace instead (:func:`tf_topics`), as Nav2's multi-robot launch remaps them.
+
 Like the other outputs, these only translate a :class:`~r2d2_sim.robot.Frame`
 into bytes: odom -> base_footprint from wheel odometry, optionally world ->
 odom (the truth) and the URDF's moving joints; the static frames (footprint,
@@ -23,11 +26,16 @@ from r2d2_sim.transforms import (
     compose, IDENTITY, inverse, LinkTransforms, split_yaw, Transform, yaw_to_quaternion)
 
 __all__ = ['TF_QOS', 'TF_STATIC_QOS', 'TfOutput', 'start_tf', 'link_transforms',
-           'static_transforms', 'publish_static_transforms']
+           'static_transforms', 'publish_static_transforms', 'tf_topics']
 
 # As tf2's TransformBroadcaster and StaticTransformBroadcaster set them.
 TF_QOS = QoSProfile(depth=100)
 TF_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def tf_topics(config: SimConfig) -> Tuple[str, str]:
+    """Return the robot's TF topics: ``/tf`` and ``/tf_static``, or relative (namespaced)."""
+    return ('tf', 'tf_static') if config.tf_layout == 'namespaced' else ('/tf', '/tf_static')
 
 
 class TfOutput:
@@ -43,7 +51,7 @@ class TfOutput:
     def __init__(self, node: Node, config: SimConfig, robot: Robot,
                  links: Optional[LinkTransforms]) -> None:
         from tf2_msgs.msg import TFMessage  # optional: the node checks it is importable
-        self._publisher = node.create_publisher(TFMessage, '/tf', TF_QOS)
+        self._publisher = node.create_publisher(TFMessage, tf_topics(config)[0], TF_QOS)
         frame = config.frame
         pairs = []
         self._odometry = robot.controller is not None
@@ -107,7 +115,8 @@ def start_tf(node: Node, config: SimConfig, robot: Robot, time_ns: int) -> Optio
             'it from tools/build_tf2_msgs.sh VENV); everything else works')
         return None
     links = link_transforms(config, robot) if config.publish_link_tf else None
-    publish_static_transforms(node, static_transforms(config, robot, links), stamp_of(time_ns))
+    publish_static_transforms(node, static_transforms(config, robot, links), stamp_of(time_ns),
+                              tf_topics(config)[1])
     tf = TfOutput(node, config, robot, links)
     return None if tf.empty else tf
 
@@ -163,11 +172,11 @@ def static_transforms(config: SimConfig, robot: Robot,
 
 
 def publish_static_transforms(node: Node, transforms: Sequence[Tuple[str, str, Transform]],
-                              stamp: Tuple[int, int]):
-    """Publish ``/tf_static`` once, transient local for late subscribers; return its publisher."""
+                              stamp: Tuple[int, int], topic: str = '/tf_static'):
+    """Publish ``topic`` once, transient local for late subscribers; return its publisher."""
     # The publisher stays alive with the node (rclpy keeps it), so late joiners get it.
     from tf2_msgs.msg import TFMessage
-    publisher = node.create_publisher(TFMessage, '/tf_static', TF_STATIC_QOS)
+    publisher = node.create_publisher(TFMessage, topic, TF_STATIC_QOS)
     msg = TFMessage(transforms=[_transform_stamped(p, c, t, stamp) for p, c, t in transforms])
     publisher.publish(msg)
     return publisher

@@ -21,10 +21,8 @@ import numpy
 
 from r2d2_sim.body import Body, WorldError
 from r2d2_sim.bullet_records import Quat, Vec3
-from r2d2_sim.description import (
-    check_urdf_xml, default_urdf_path, DescriptionError, DescriptionFile, read_description,
-    resolve_description_path)
-from r2d2_sim.raycast import cast_rays, RAY_MASK
+from r2d2_sim.description import DescriptionError, resolve_description_path, RobotDescription
+from r2d2_sim.raycast import cast_rays, RAY_EXCLUDED_GROUP, RAY_MASK, ray_mask
 from r2d2_sim.stdio import silenced_output
 from r2d2_sim.transforms import yaw_of
 
@@ -39,13 +37,17 @@ from r2d2_sim.bullet_records import (  # noqa: F401
     BaseState, JOINT_TYPE_NAMES, JointRecord, JointStates)
 
 __all__ = ['SimWorld', 'ExtraModel', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
-           'GROUND_PLANE_NAME']
+           'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask']
 
 # Gap left between the lowest point of the robot and the ground at spawn, so
 # that it starts just above the plane instead of interpenetrating it.
 SPAWN_CLEARANCE_M = 0.001
 GROUND_PLANE_NAME = 'ground_plane'
 IDENTITY_QUATERNION: Quat = (0.0, 0.0, 0.0, 1.0)
+# Each robot's laser passes through its own links, put in a collision group
+# of that robot's (one bit each), and sees every other robot. Bits 0 and 1
+# are Bullet's default groups (dynamic, static); the group is a C int.
+RAY_GROUPS = tuple(RAY_EXCLUDED_GROUP << bit for bit in range(29))  # 4 ... 2**30
 
 
 @dataclass(frozen=True)
@@ -108,7 +110,8 @@ class SimWorld:
                  initial_pose: Tuple[float, float, float] = (0.0, 0.0, 0.0),
                  robot_description: str = '',
                  body_yaw_offset_rad: float = 0.0,
-                 extra_models: Sequence[ExtraModel] = ()) -> None:
+                 extra_models: Sequence[ExtraModel] = (),
+                 robot_name: Optional[str] = None) -> None:
         if not (math.isfinite(time_step_s) and time_step_s > 0.0):
             raise WorldError(f'time step must be a positive number of seconds, got {time_step_s}')
         self.time_step_s = time_step_s
@@ -118,10 +121,12 @@ class SimWorld:
         self.robot: Optional[Body] = None
         self.plane: Optional[Body] = None
         self.extras: List[Body] = []
-        self._description_file: Optional[DescriptionFile] = None
+        self._free_ray_groups = list(RAY_GROUPS)
+        self._description: Optional[RobotDescription] = None
         self._client: Optional[BulletClient] = None
         try:
-            self._read_robot_description(urdf_path, robot_description)
+            self._description = RobotDescription.load(urdf_path or '', robot_description)
+            self.urdf_path, self.robot_description = self._description[:2]
             extra_paths = [resolve_description_path(m.description) for m in extra_models]
         except DescriptionError as exc:
             self.close()
@@ -140,24 +145,12 @@ class SimWorld:
             if ground_plane:
                 self.plane = self.load('plane.urdf', name=GROUND_PLANE_NAME)
             self.robot = self.load_robot(self.urdf_path, initial_pose, body_yaw_offset_rad,
-                                         source=urdf_path or self.urdf_path)
+                                         name=robot_name, source=urdf_path or self.urdf_path)
             self.extras = [self.load(path, m.position, source=m.description)
                            for path, m in zip(extra_paths, extra_models)]
         except Exception:
             self.close()
             raise
-
-    def _read_robot_description(self, urdf_path: Optional[str], text: str) -> None:
-        """Set ``urdf_path`` and ``robot_description`` from XML text or a description reference."""
-        if text:
-            self._description_file = DescriptionFile(text)
-            self.urdf_path = self._description_file.path
-            self.robot_description = text
-        else:
-            self.urdf_path = resolve_description_path(urdf_path) if urdf_path \
-                else default_urdf_path()
-            self.robot_description = read_description(self.urdf_path)
-            check_urdf_xml(self.robot_description, self.urdf_path)
 
     def _setup(self, gravity: Vec3) -> None:
         client = self._client
@@ -221,15 +214,37 @@ class SimWorld:
         client = self._client
         orientation = client.getQuaternionFromEuler((0.0, 0.0, yaw - body_yaw_offset_rad))
         body = self.load(path, (x, y, 0.0), orientation, name=name, spawned=spawned,
-                         flags=client.URDF_USE_INERTIA_FROM_FILE
-                         | client.URDF_USE_IMPLICIT_CYLINDER,
-                         body_yaw_offset_rad=body_yaw_offset_rad, source=source)
+                         flags=self.robot_flags, body_yaw_offset_rad=body_yaw_offset_rad,
+                         source=source)
         position, _ = client.getBasePositionAndOrientation(body.id)
         client.resetBasePositionAndOrientation(
             body.id, (position[0], position[1],
                       position[2] - body.lowest_point_m() + SPAWN_CLEARANCE_M), orientation)
         body.save_initial_state()
         return body
+
+    @property
+    def robot_flags(self) -> int:
+        """Return the loadURDF flags of a driven robot: inertias from the file, true cylinders."""
+        return pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
+
+    def take_ray_group(self) -> int:
+        """
+        Return a collision group bit of its own for a robot's sensor rays to pass through.
+
+        The first robot gets 4 (``RAY_EXCLUDED_GROUP``), as when a world had one
+        robot. WorldError when all 29 are taken: that many robots with a laser.
+        """
+        if not self._free_ray_groups:
+            raise WorldError(f'{len(RAY_GROUPS)} robots with a laser scanner are in the world '
+                             'already, as many as Bullet\'s collision groups can tell apart')
+        return self._free_ray_groups.pop(0)
+
+    def release_ray_group(self, group: int) -> None:
+        """Give a ray group back (its robot left the world)."""
+        if group in RAY_GROUPS and group not in self._free_ray_groups:
+            self._free_ray_groups.append(group)
+            self._free_ray_groups.sort()
 
     def remove(self, body: Body) -> None:
         """Take ``body`` out of the world."""
@@ -269,7 +284,12 @@ class SimWorld:
 
     def cast_rays(self, starts: numpy.ndarray, ends: numpy.ndarray,
                   mask: int = RAY_MASK) -> numpy.ndarray:
-        """Cast rays (N x 3 world points) and return hit fractions (1.0: no hit); see raycast."""
+        """
+        Cast rays (N x 3 world points) and return hit fractions (1.0: no hit); see raycast.
+
+        ``mask``: the groups the rays can hit; ``ray_mask(group)`` passes
+        through the links a robot put in its own ray group.
+        """
         return cast_rays(self._client, starts, ends, mask)
 
     def render(self, width_px: int, height_px: int, view: Sequence[float],
@@ -329,9 +349,9 @@ class SimWorld:
             except pybullet.error:
                 pass
             self._client = None
-        description_file = self.__dict__.get('_description_file')
-        if description_file is not None:
-            description_file.close()
+        description = self.__dict__.get('_description')
+        if description is not None:
+            description.close()
 
     @property
     def connected(self) -> bool:

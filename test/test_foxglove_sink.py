@@ -228,15 +228,35 @@ def test_recording_reads_back_with_two_readers(tmp_path):
         assert decoded == len(batch)
 
 
+def test_publishers_sharing_a_latched_topic_each_reach_a_late_viewer(tmp_path):
+    """Two robots' /tf_static: one channel, each publisher's last message re-sent, logged once."""
+    path = tmp_path / 'run.mcap'
+    type_name, qos = TOPICS['/tf_static']
+    with FoxgloveSink(port=0, record_path=path) as sink:
+        first = sink.channel('/tf_static', type_name, qos)
+        second = sink.channel('/tf_static', type_name, qos)
+        assert sink.topics == ['/tf_static']
+        first.log(b'robot_a', 5)
+        second.log(b'robot_b', 6)
+        with Viewer(sink.port) as viewer:
+            assert viewer.pump(lambda: '/tf_static' in viewer.channels)
+            viewer.subscribe(['/tf_static'])
+            assert viewer.pump(lambda: len(viewer.messages['/tf_static']) >= 2)
+            assert sorted(viewer.messages['/tf_static']) == [(5, b'robot_a'), (6, b'robot_b')]
+    with open(path, 'rb') as stream:
+        logged = [message.data for _, _, message in make_reader(stream).iter_messages()]
+    assert logged == [b'robot_a', b'robot_b']
+
+
 def test_bad_channels_and_sinks_are_one_line_errors(tmp_path):
-    """Relative or repeated topics, unknown types, an existing file, a taken port."""
+    """Relative topics, a topic with two types, unknown types, an existing file, a taken port."""
     path = tmp_path / 'run.mcap'
     path.write_bytes(b'')
     with FoxgloveSink(port=0) as sink:
         sink.channel('/scan', 'sensor_msgs/msg/LaserScan', QoSProfile(depth=5))
         cases = [
             lambda: sink.channel('scan', 'sensor_msgs/msg/LaserScan', QoSProfile(depth=5)),
-            lambda: sink.channel('/scan', 'sensor_msgs/msg/LaserScan', QoSProfile(depth=5)),
+            lambda: sink.channel('/scan', 'sensor_msgs/msg/Imu', QoSProfile(depth=5)),
             lambda: sink.channel('/x', 'foo_msgs/msg/Bar', QoSProfile(depth=5)),
             lambda: FoxgloveSink(record_path=path),
             lambda: FoxgloveSink(record_path=tmp_path / 'missing' / 'run.mcap'),

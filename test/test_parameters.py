@@ -200,3 +200,48 @@ def test_sensor_frame_names_match_what_the_robot_publishes():
     from r2d2_sim import parameters, robot  # robot needs PyBullet, not ROS
     for name in ('LASER_FRAME_ID', 'IMU_FRAME_ID', 'HEAD_CAMERA_FRAME_ID', 'HEAD_CAMERA_LINK'):
         assert getattr(parameters, name) == getattr(robot, name), name
+
+
+def test_robots_get_the_world_settings_with_their_own_on_top():
+    """NAME.parameter overrides one robot's; the frames of each get NAME/ (shared TF)."""
+    from r2d2_sim.parameters import parse_world
+    config, robots = parse_world({
+        'robots': ['a', 'b'], 'max_linear_velocity': 0.5, 'scan_rate': 5.0,
+        'b.initial_pose': [2, 0, 3], 'b.max_linear_velocity': 0.2, 'b.namespace': '/fleet/b'})
+    assert config.robots == ('a', 'b')
+    a, b = robots
+    assert (a.name, a.namespace, b.name, b.namespace) == ('a', 'a', 'b', '/fleet/b')
+    assert a.config.max_linear_velocity_m_s == 0.5 and b.config.max_linear_velocity_m_s == 0.2
+    assert a.config.initial_pose == (0.0, 0.0, 0.0) and b.config.initial_pose == (2.0, 0.0, 3.0)
+    assert a.config.scan_rate_hz == b.config.scan_rate_hz == 5.0
+    assert (a.config.frame_prefix, b.config.frame_prefix) == ('a/', 'b/')
+
+
+def test_namespaced_tf_leaves_frames_unprefixed_and_a_robot_may_set_its_prefix():
+    """tf_layout namespaced: frames as the world's prefix has them; NAME.frame_prefix wins."""
+    from r2d2_sim.parameters import parse_world
+    _, robots = parse_world({'robots': ['a', 'b'], 'tf_layout': 'namespaced',
+                             'b.frame_prefix': 'bee/'})
+    assert [r.config.frame_prefix for r in robots] == ['', 'bee/']
+    _, robots = parse_world({'robots': ['a'], 'frame_prefix': 'fleet/'})
+    assert robots[0].config.frame_prefix == 'fleet/a/'
+
+
+@pytest.mark.parametrize('values, fragment', [
+    ({'robots': ['a'], 'a.physics_rate': 100.0}, "a.physics_rate: physics_rate is the world's"),
+    ({'robots': ['a'], 'a.no_such': 1}, 'unknown parameter a.no_such'),
+    ({'robots': ['a'], 'b.urdf': 'x'}, "robot 'b' that robots does not list"),
+    ({'robots': ['a'], 'a.max_linear_velocity': -1.0}, 'parameter a.max_linear_velocity'),
+    ({'robots': ['a'], 'a.scan_range_min': 20.0}, 'robot a: parameter scan_range_min'),
+    ({'robots': ['a'], 'a.namespace': 'a//b'}, 'a.namespace must be a ROS namespace'),
+    ({'robots': ['a-1']}, 'not a robot name'),
+    ({'robots': ['a', 'a']}, 'lists a robot twice'),
+    ({'robots': 'a'}, 'list of robot names'),
+    ({'tf_layout': 'mixed'}, 'one of shared, namespaced'),
+])
+def test_bad_robot_parameters_are_one_line_naming_them(values, fragment):
+    """Each mistake names the robot's parameter as the user wrote it."""
+    from r2d2_sim.parameters import parse_world
+    with pytest.raises(ConfigError) as raised:
+        parse_world(values)
+    assert fragment in str(raised.value) and '\n' not in str(raised.value)

@@ -177,7 +177,7 @@ def test_without_tf2_msgs_tf_is_off_with_one_warning(ros, monkeypatch, capfd):
     monkeypatch.setitem(sys.modules, 'tf2_msgs.msg', None)  # import raises ImportError
     sim = make_sim(ros)
     sim.advance(24)
-    assert not [o for outputs in sim._robot_outputs for o in outputs.state
+    assert not [o for robot in sim.robots for o in robot.outputs.state
                 if type(o).__name__ == 'TfOutput']
     assert sim.count_publishers('/tf') == 0
     warnings = [line for line in capfd.readouterr().err.splitlines() if 'tf2_msgs' in line]

@@ -8,18 +8,17 @@ they run in lockstep with the simulator, so a run repeats bit for bit.
 
 import json
 import math
-from typing import Any, Callable, Dict, Optional
+from typing import Any, Callable, Dict, List, Optional
 
-from geometry_msgs.msg import Twist, TwistStamped
+from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
-from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message, wait_for
 from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarness
+from r2d2_sim.testing.robots import expected_namespaces, flatten_robots, LocalRobot
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import CoreWorld, WorldVerbs
 
@@ -39,6 +38,12 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
     the same names). ``node_name`` and ``namespace`` place the simulator (its
     services are ``<namespace>/<node_name>/pause`` and so on). Raises
     :class:`r2d2_sim.node.StartupError` when the parameters are unusable.
+
+    Several robots: ``robots=['a', 'b']`` with ``**{'b.initial_pose': [...]}``,
+    or ``robots={'a': {}, 'b': {'initial_pose': [2.0, 0.0, 3.14]}}``.
+    :meth:`robot` returns a handle per robot (``send_cmd_vel``,
+    ``ground_truth``, ``odom``, ``joint_states``); the harness's own are the
+    first robot's.
 
     Simulated time moves only in :meth:`advance` and :meth:`advance_until`.
     With nodes of your own (:meth:`create_node`, :meth:`add_node`), they go
@@ -60,11 +65,9 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         self.namespace = namespace
         self.sim = None  # the SimNode
         self._link: Optional[Node] = None
-        self._cmd_vel = None
-        self._stamped = False
         self._lockstep = False
-        self._types = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry}
-        self._latest: Dict[str, Optional[bytes]] = dict.fromkeys(self._types)
+        self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
+        parameters = flatten_robots(parameters)
         try:
             from r2d2_sim.node import SimNode  # PyBullet: only when a simulator is wanted
             # Without parameter services or rosout: fewer entities for the
@@ -75,32 +78,76 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
             RosHarness.add_node(self, link, use_sim_time=False)
             # Subscribed before the simulator exists: it publishes its first
             # state from its constructor, and delivery within one context is
-            # synchronous once matched. Depth 1: only the latest matters here.
-            # Raw bytes, deserialized only when asked for: a lockstep run
-            # takes every publication.
-            for topic, msg_type in self._types.items():
-                link.create_subscription(msg_type, topic, self._keeper(topic), 1, raw=True)
+            # synchronous once matched.
+            waiting = [LocalRobot(self, link, ns)
+                       for ns in expected_namespaces(parameters, namespace)]
             self.sim = SimNode(node_name, context=self.context, namespace=namespace or None,
                                parameter_overrides=parameter_overrides(parameters))
             RosHarness.add_node(self, self.sim, use_sim_time=False)
             if self.sim.standard is not None:  # its services, on a node of their own
                 RosHarness.add_node(self, self.sim.standard.node, use_sim_time=False)
-            # The type the simulator takes: one participant cannot hold a Twist
-            # publisher and a TwistStamped subscription on one topic ("invalid
-            # allocator"), and the middleware would not deliver it anyway.
-            self._stamped = self.sim.config.enable_stamped_cmd_vel
-            self._cmd_vel = link.create_publisher(TwistStamped if self._stamped else Twist,
-                                                  'cmd_vel', 10)
-            if not wait_for(lambda: self._cmd_vel.get_subscription_count() > 0, timeout_s):
-                raise HarnessError('the simulator did not subscribe cmd_vel')
+            self.sim.watch_robot_nodes(self._robot_node_added, self._robot_node_removed)
+            for interfaces in self.sim.robots:
+                handle = next((h for h in waiting if h.namespace == interfaces.namespace), None)
+                if handle is None:
+                    handle = LocalRobot(self, link, interfaces.namespace)
+                else:
+                    waiting.remove(handle)
+                self._robots[interfaces.name] = handle.attach(interfaces)
+            for handle in waiting:
+                handle.close()
         except BaseException:
             self.close()
             raise
 
-    def _keeper(self, topic: str) -> Callable[[Any], None]:
-        def keep(msg) -> None:
-            self._latest[topic] = msg
-        return keep
+    def _robot_node_added(self, node: Node) -> None:
+        RosHarness.add_node(self, node, use_sim_time=False)
+
+    def _robot_node_removed(self, node: Node) -> None:
+        self.executor.remove_node(node)
+        if node in self.nodes:
+            self.nodes.remove(node)
+
+    def robot(self, name: Optional[str] = None) -> LocalRobot:
+        """
+        Return the handle of the robot ``name`` (default: the first robot).
+
+        A robot spawned with a namespace has one from its spawn on. HarnessError
+        for a robot the world does not have.
+        """
+        self._drop_departed()
+        if name is None:
+            if not self._robots:
+                raise HarnessError('the world has no robot')
+            return next(iter(self._robots.values()))
+        handle = self._robots.get(name)
+        if handle is None:
+            try:
+                interfaces = self.sim.robot(name)
+            except KeyError as exc:
+                raise HarnessError(str(exc.args[0])) from None
+            # Spawned by someone else: its state is readable from the next publication.
+            handle = self._robots[name] = LocalRobot(
+                self, self._link, interfaces.namespace).attach(interfaces)
+        return handle
+
+    @property
+    def robot_names(self) -> List[str]:
+        """Return the names of the robots in the world, in the simulator's order."""
+        return [interfaces.name for interfaces in self.sim.robots]
+
+    def _drop_departed(self) -> None:
+        """Close the handles of robots that left the world (deleted, or a reset)."""
+        names = set(self.robot_names)
+        for name in [n for n in self._robots if n not in names]:
+            self._robots.pop(name).close()
+
+    def _after_spawn(self, name: str, namespace: str) -> None:
+        if namespace:
+            self.robot(name)  # listening before its first publication
+
+    def _after_delete(self, name: str) -> None:
+        self._drop_departed()
 
     def create_node(self, name: str, *, use_sim_time: bool = True, **node_kwargs) -> Node:
         """Create a node of yours (in the simulator's namespace unless given one); see add_node."""
@@ -124,7 +171,9 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         return node
 
     def _wait_for_latched(self, node: Node) -> None:
-        latched = {publisher.topic_name for publisher in self.sim.publishers
+        publishers = list(self.sim.publishers) + [
+            p for robot in self.sim.robots if robot.own_node for p in robot.publishers]
+        latched = {publisher.topic_name for publisher in publishers
                    if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL}
         pending = [sub for sub in node.subscriptions if sub.topic_name in latched
                    and sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL]
@@ -148,21 +197,15 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
     def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
                      twist: Optional[Twist] = None) -> None:
         """
-        Publish a command on ``cmd_vel`` and return once the simulator has taken it.
+        Publish a command on the first robot's ``cmd_vel``; return once the simulator has it.
 
         ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
         ``twist``. A simulator with ``enable_stamped_cmd_vel`` gets a
         TwistStamped stamped with the simulated time now. Raises HarnessError
-        if the command does not arrive in time.
+        if the command does not arrive in time. ``robot(name).send_cmd_vel``
+        commands another robot.
         """
-        if twist is None:
-            twist = twist_message(linear, angular)
-        if self._stamped and not isinstance(twist, TwistStamped):
-            twist = twist_stamped_message(twist=twist, stamp_ns=self.sim.sim_time_ns)
-        before = self.sim.commands_received
-        self._cmd_vel.publish(twist)
-        self._wait(lambda: self.sim.commands_received > before,
-                   'the simulator did not take cmd_vel')
+        self.robot().send_cmd_vel(linear, angular, twist=twist)
 
     @property
     def physics_rate_hz(self) -> float:
@@ -233,18 +276,16 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         return round(seconds * self.physics_rate_hz)
 
     def ground_truth(self) -> Odometry:
-        """Return the latest ``ground_truth`` (true pose in the world frame, twist in the body)."""
-        return self._wait_latest('ground_truth')
+        """Return the first robot's latest ``ground_truth`` (world pose, twist in the body)."""
+        return self.robot().ground_truth()
 
     def odom(self) -> Odometry:
-        """Return the latest ``odom`` (wheel odometry); HarnessError for a robot without wheels."""
-        if not self.sim.has_wheels:
-            raise HarnessError('this robot has no wheels, so the simulator publishes no odom')
-        return self._wait_latest('odom')
+        """Return the first robot's latest ``odom``; HarnessError for a robot without wheels."""
+        return self.robot().odom()
 
     def joint_states(self) -> JointState:
-        """Return the latest ``joint_states`` (every movable joint)."""
-        return self._wait_latest('joint_states')
+        """Return the first robot's latest ``joint_states`` (every movable joint)."""
+        return self.robot().joint_states()
 
     def _tf_node(self) -> Node:
         return self._link
@@ -262,24 +303,6 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
     def last_publication_ns(self) -> int:
         """Return the simulated time (ns) of the simulator's latest state publication."""
         return self.sim.last_publication_ns
-
-    def _wait_latest(self, topic: str):
-        """Wait until the message of the latest publication has been delivered; return it."""
-        # The simulator publishes from advance(), in this thread; the messages
-        # reach the harness's subscriptions through the executor.
-        wanted = self.last_publication_ns()
-
-        found = []
-
-        def arrived():
-            raw = self._latest[topic]
-            if raw is None:
-                return False
-            msg = deserialize_message(raw, self._types[topic])
-            found[:] = [msg]
-            return stamp_ns(msg.header.stamp) == wanted
-        self._wait(arrived, f'{topic} of t={wanted / 1e9:.6f} s did not arrive')
-        return found[0]
 
     def reset(self) -> Dict[str, Any]:
         """
@@ -301,14 +324,15 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
 
     def _before_reset(self) -> None:
         """Take the latest state first: nothing older may arrive after the reset."""
-        topics = ['joint_states', 'ground_truth'] + (['odom'] if self.sim.has_wheels else [])
-        for topic in topics:
-            self._wait_latest(topic)
+        self._drop_departed()
+        for handle in self._robots.values():
+            handle.take_latest()
 
     def _after_reset(self) -> None:
         """Make the state readers wait for the reset world (published one control period on)."""
-        for topic in self._latest:
-            self._latest[topic] = None
+        self._drop_departed()
+        for handle in self._robots.values():
+            handle.forget()
         self.advance()
 
     def call_service(self, srv_type, name: str, request):

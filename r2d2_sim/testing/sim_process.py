@@ -2,19 +2,19 @@
 
 import json
 import signal
-import time
-from typing import Any, Callable, Dict, Optional, Sequence
+from typing import Any, Dict, Optional, Sequence
 
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from r2d2_sim.client import ros_child_env, stamp_ns, twist_message, twist_stamped_message
+from r2d2_sim.client import ros_child_env, stamp_ns
 from r2d2_sim.testing.domains import env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import RemoteProbe
+from r2d2_sim.testing.robots import expected_namespaces, flatten_robots, RemoteRobot
 from r2d2_sim.testing.standard import StandardClient, StandardError
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import StandardWorld, world_error, WorldVerbs
@@ -25,11 +25,7 @@ __all__ = ['SimProcess', 'STATUS_RESEND_S']
 # this long without a reply (wall s); a reply sent before the server had found
 # our reply reader is lost. Replies take 0.5-1.5 ms here.
 STATUS_RESEND_S = 1.0
-STATE_TOPICS = (('joint_states', JointState), ('odom', Odometry), ('ground_truth', Odometry),
-                ('/clock', Clock))
-SERVICES = (('pause', SetBool), ('step', Trigger), ('reset', Trigger),
-            ('get_joint_info', Trigger), ('get_status', Trigger))
-TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
+SERVICES = (('pause', SetBool), ('step', Trigger), ('reset', Trigger), ('get_status', Trigger))
 
 
 class ControlServices:
@@ -44,15 +40,15 @@ class ControlServices:
     paused = False
     last_status: Dict[str, Any] = {}
 
-    def _request(self, name: str, request, resend_after_s: Optional[float] = None
-                 ) -> Dict[str, Any]:
+    def _request(self, name: str, request, resend_after_s: Optional[float] = None,
+                 client=None) -> Dict[str, Any]:
         if self._exited():
             raise HarnessError(f'sim_node has exited (status {self.process.returncode})')
-        reply = self.probe.call_client(self._clients[name], request, self.timeout_s,
+        client = client or self._clients[name]
+        reply = self.probe.call_client(client, request, self.timeout_s,
                                        resend_after_s, abort=self._exited)
         if reply is None:
-            raise HarnessError(f'{self.node_path}/{name} did not answer within '
-                               f'{self.timeout_s:g} s')
+            raise HarnessError(f'{client.srv_name} did not answer within {self.timeout_s:g} s')
         facts = json.loads(reply.message)
         if name != 'get_joint_info':
             self.last_status = facts
@@ -106,9 +102,24 @@ class ControlServices:
         self._not_before_ns = facts['sim_time_ns'] + 1
         return facts
 
-    def joint_info(self) -> Dict[str, Any]:
-        """Return ``~/get_joint_info``'s JSON: ``robot``, ``urdf`` and ``joints``."""
-        return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S)
+    def joint_info(self, robot: Optional[str] = None) -> Dict[str, Any]:
+        """
+        Return a robot's ``~/get_joint_info`` JSON: ``robot``, ``urdf`` and ``joints``.
+
+        ``robot``: its name (default: the first robot). Its service is on the
+        robot's node: the simulator's for the one default robot, else
+        ``<robot namespace>/<node name>/get_joint_info``.
+        """
+        handle = self.robot(robot)
+        path = f'{handle.namespace.rstrip("/")}/{self.node_path.rsplit("/", 1)[1]}'
+        client = self._clients.get(path)
+        if client is None:
+            client = self._clients[path] = self.probe.node.create_client(
+                Trigger, f'{path}/get_joint_info')
+            if not self.probe.spin_until(client.service_is_ready, self.timeout_s):
+                raise HarnessError(f'{path}/get_joint_info was not available within '
+                                   f'{self.timeout_s:g} s')
+        return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S, client)
 
 
 class SimProcess(ControlServices, TransformLookup, WorldVerbs):
@@ -159,12 +170,13 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
         self._not_before_ns = 0  # state readers take no message stamped before (a reset)
         self.process: Optional[ChildProcess] = None
         self.probe: Optional[RemoteProbe] = None
-        self._latest: Dict[str, Any] = {topic.lstrip('/'): None for topic, _ in STATE_TOPICS}
-        self._subscriptions: Dict[str, Any] = {}
+        self._clock: Optional[Clock] = None
+        self._clock_subscription = None
         self._clients: Dict[str, Any] = {}
-        self._cmd_vel = None
-        self._stamped = False
+        self._robots: Dict[str, RemoteRobot] = {}  # by name, once the node has said
+        self._pending = []  # made before the node says their names
         self._state_subscriptions = state_subscriptions
+        parameters = flatten_robots(parameters)
         self._standard: Optional[StandardClient] = None
         if lease or domain_id is None:
             self.lease = lease_domain(domain_id, timeout_s=max(timeout_s, 60.0))
@@ -185,66 +197,113 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
             probe_args = [arg for rule in given.remaps for arg in ('-r', rule)]
             self.probe = RemoteProbe(self.domain_id, '_r2d2_sim_process_client',
                                      namespace=namespace or None, ros_args=probe_args)
-            self._connect()
+            self._connect(expected_namespaces(parameters, namespace))
             self._wait_ready()
         except BaseException:
             self.stop()
             raise
 
-    def _connect(self) -> None:
-        """Create this side's subscriptions and service clients."""
+    def _connect(self, namespaces) -> None:
+        """Create the clients, ``/clock`` and the subscriptions of robots in ``namespaces``."""
         node = self.probe.node
         if self._state_subscriptions:
-            for topic, msg_type in STATE_TOPICS:
-                key = topic.lstrip('/')
-                self._subscriptions[key] = node.create_subscription(
-                    msg_type, topic, self._keeper(key), 1)
+            self._clock_subscription = node.create_subscription(
+                Clock, '/clock', self._keep_clock, 1)
+        self._pending = [RemoteRobot(self, namespace, subscribe=self._state_subscriptions)
+                         for namespace in namespaces]
         self._clients = {name: node.create_client(srv, f'{self.node_path}/{name}')
                          for name, srv in SERVICES}
 
-    def _keeper(self, key: str) -> Callable[[Any], None]:
-        def keep(msg) -> None:
-            self._latest[key] = msg
-        return keep
+    def _keep_clock(self, msg: Clock) -> None:
+        self._clock = msg
 
     def _exited(self) -> bool:
         return self.process.exited()
 
-    def _cmd_vel_type(self) -> Optional[str]:
-        """Return the type the node subscribes ``cmd_vel`` with, once the graph shows it."""
-        node = self.probe.node
-        for info in node.get_subscriptions_info_by_topic(node.resolve_topic_name('cmd_vel')):
-            if info.node_name != node.get_name():
-                return info.topic_type
-        return None
-
     def _wait_ready(self) -> None:
-        # odom is left out: a robot without wheels has none.
-        state = [self._subscriptions[key] for key in ('joint_states', 'ground_truth', 'clock')
-                 if key in self._subscriptions]
+        services = [self._clients[name] for name, _ in SERVICES]
 
         def linked():
-            return self._exited() or (all(c.service_is_ready() for c in self._clients.values())
-                                      and self._cmd_vel_type() is not None
-                                      and all(s.get_publisher_count() > 0 for s in state))
+            return self._exited() or (all(c.service_is_ready() for c in services)
+                                      and all(robot.linked() for robot in self._pending)
+                                      and (self._clock_subscription is None or
+                                           self._clock_subscription.get_publisher_count() > 0))
         if not self.probe.spin_until(linked, self.timeout_s) or self._exited():
             self._fail_start('did not serve its services')
-        # Twist or TwistStamped (enable_stamped_cmd_vel, maybe from a params
-        # file): publish what the node takes, which the middleware delivers.
-        self._stamped = self._cmd_vel_type() == TWIST_STAMPED_TYPE
-        msg_type = type(twist_stamped_message() if self._stamped else twist_message())
-        self._cmd_vel = self.probe.node.create_publisher(msg_type, 'cmd_vel', 10)
+        for robot in self._pending:
+            robot.attach()
         if not self.probe.spin_until(
-                lambda: self._cmd_vel.get_subscription_count() > 0 or self._exited(),
+                lambda: all(r.cmd_vel_linked() for r in self._pending) or self._exited(),
                 self.timeout_s) or self._exited():
             self._fail_start('did not subscribe cmd_vel')
         # Paused or not (start_paused may come from a --params-file). get_status's
         # client is created last: the server learns of our reply readers in the
         # order we made them, so once it answers here it can answer every client.
-        self.status()
+        robots = self.status()['robots']
+        for robot in self._pending:
+            robot.name = next((name for name, facts in robots.items()
+                               if facts['namespace'] == robot.namespace), None)
+            if robot.name is None:
+                robot.close()  # the parameters (a params file?) placed the robots elsewhere
+                continue
+            robot.tf_topics = (robots[robot.name]['tf'], robots[robot.name]['tf'] + '_static')
+            self._robots[robot.name] = robot
+        # In the node's order: the first robot is the harness's own.
+        self._robots = {name: self._robots[name] for name in robots if name in self._robots}
+        self._pending = []
         if (self._state_subscriptions and not self.paused and not self.probe.spin_until(
-                lambda: self._latest['clock'] is not None or self._exited(), self.timeout_s)):
+                lambda: self._clock is not None or self._exited(), self.timeout_s)):
             self._fail_start('published no /clock')
+
+    def robot(self, name: Optional[str] = None) -> RemoteRobot:
+        """
+        Return the handle of the robot ``name`` (default: the first robot).
+
+        A robot spawned with a namespace has one from its spawn on. HarnessError
+        for a robot the world does not have.
+        """
+        robots = None
+        if name is None and self._robots:  # a start-up robot: never deleted
+            return next(iter(self._robots.values()))
+        if name is None:
+            robots = self.status()['robots']
+            if not robots:
+                raise HarnessError('the world has no robot')
+            name = next(iter(robots))
+        handle = self._robots.get(name)
+        if handle is not None:
+            return handle
+        robots = robots or self.status()['robots']
+        if name not in robots:
+            raise HarnessError(f'no robot named {name!r}; the robots are: {", ".join(robots)}')
+        facts = robots[name]
+        handle = RemoteRobot(self, facts['namespace'], name, facts['tf'],
+                             subscribe=self._state_subscriptions)
+        if not self.probe.spin_until(lambda: handle.linked() or self._exited(), self.timeout_s):
+            handle.close()
+            raise HarnessError(f'the robot {name} did not link its topics within '
+                               f'{self.timeout_s:g} s')
+        handle.attach()
+        if not self.probe.spin_until(handle.cmd_vel_linked, self.timeout_s):
+            handle.close()
+            raise HarnessError(f'the robot {name} did not subscribe cmd_vel within '
+                               f'{self.timeout_s:g} s')
+        self._robots[name] = handle
+        return handle
+
+    @property
+    def robot_names(self):
+        """Return the names of the robots in the world, in the simulator's order."""
+        return list(self.status()['robots'])
+
+    def _after_spawn(self, name: str, namespace: str) -> None:
+        if namespace:
+            self.robot(name)  # listening from now on
+
+    def _after_delete(self, name: str) -> None:
+        handle = self._robots.pop(name, None)
+        if handle is not None:
+            handle.close()
 
     def _fail_start(self, what: str) -> None:
         if self._exited():
@@ -255,37 +314,27 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
 
     def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *, twist=None) -> None:
         """
-        Publish a command on ``cmd_vel`` and return once the simulator has counted it.
+        Publish a command on the first robot's ``cmd_vel``; return once the node has counted it.
 
         ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
         ``twist`` (a Twist, or a TwistStamped for a node that takes them). A
         node with ``enable_stamped_cmd_vel`` gets a TwistStamped stamped 0
         ("now"). Confirmed through the ``commands_received`` of its services.
+        ``robot(name).send_cmd_vel`` commands another robot.
         """
-        if twist is None:
-            twist = twist_message(linear, angular)
-        if self._stamped and not hasattr(twist, 'header'):
-            twist = twist_stamped_message(twist=twist)
-        before = self.status()['commands_received']
-        self._cmd_vel.publish(twist)
-        deadline = time.monotonic() + self.timeout_s
-        while self.status()['commands_received'] <= before:
-            if time.monotonic() > deadline:
-                raise HarnessError(f'the simulator did not take cmd_vel within '
-                                   f'{self.timeout_s:g} s')
-            self.probe.spin_until(lambda: False, 0.002)
+        self.robot().send_cmd_vel(linear, angular, twist=twist)
 
     def ground_truth(self) -> Odometry:
-        """Return the latest ``ground_truth`` (when paused: of the time the last reply gave)."""
-        return self._wait_latest('ground_truth')
+        """Return the first robot's latest ``ground_truth`` (paused: of the last reply's time)."""
+        return self.robot().ground_truth()
 
     def odom(self) -> Odometry:
-        """Return the latest ``odom`` (wheel odometry; when paused: of the last reply's time)."""
-        return self._wait_latest('odom')
+        """Return the first robot's latest ``odom`` (paused: of the last reply's time)."""
+        return self.robot().odom()
 
     def joint_states(self) -> JointState:
-        """Return the latest ``joint_states`` (when paused: of the time the last reply gave)."""
-        return self._wait_latest('joint_states')
+        """Return the first robot's latest ``joint_states`` (paused: of the last reply's time)."""
+        return self.robot().joint_states()
 
     @property
     def standard(self) -> StandardClient:
@@ -303,8 +352,11 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
         """Make the readers wait for the reset world, published at the next publication."""
         facts = self.status()
         self._not_before_ns = facts['sim_time_ns'] + 1
-        for key in self._latest:
-            self._latest[key] = None
+        self._clock = None
+        for name in [n for n in self._robots if n not in facts['robots']]:
+            self._robots.pop(name).close()
+        for robot in self._robots.values():
+            robot.forget()
 
     def step_physics(self, steps: int) -> Dict[str, Any]:
         """
@@ -325,12 +377,13 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
     def _tf_wait(self, condition) -> bool:
         return self.probe.spin_until(condition, self.timeout_s)
 
-    def _wait_latest(self, key: str):
+    def _wait_latest(self, key: str, latest: Dict[str, Any], what: str):
         """
         Paused: wait for the message stamped with the last reply's time. Running: the newest.
 
         A paused simulator has published its state at the time its last reply
-        gives (pause lands on a publication, a step ends with one).
+        gives (pause lands on a publication, a step ends with one). ``latest``
+        holds a robot's latest message of each topic, ``what`` names the topic.
         """
         if not self._state_subscriptions:
             raise HarnessError(f'no {key}: this SimProcess was made with '
@@ -344,7 +397,7 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
         floor = max(wanted, self._not_before_ns)
 
         def arrived():
-            msg = self._latest[key]
+            msg = latest[key]
             if msg is None:
                 return False
             stamp = stamp_ns(msg.header.stamp)
@@ -353,9 +406,9 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
             hint = (': a simulator that started paused has published nothing since this '
                     'client connected; step() it first'
                     if self.paused and self.last_status.get('step') == 0 else '')
-            raise HarnessError(f'no {key} of t={wanted / 1e9:.6f} s within '
+            raise HarnessError(f'no {what} of t={wanted / 1e9:.6f} s within '
                                f'{self.timeout_s:g} s{hint}')
-        return self._latest[key]
+        return latest[key]
 
     def stop(self, timeout_s: float = 10.0) -> ProcessResult:
         """

@@ -10,7 +10,7 @@ to the buffer. The harnesses make one on first use
 :meth:`SimProcess.lookup_transform <r2d2_sim.testing.sim_process.SimProcess.lookup_transform>`).
 """
 
-from typing import Callable, Optional
+from typing import Callable, Optional, Tuple
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -29,18 +29,21 @@ class TfListener:
     """
     Fills a :class:`~r2d2_sim.tf_buffer.TransformBuffer` (``buffer``) from the two TF topics.
 
+    ``topics``: ``/tf`` and ``/tf_static``, or a robot's own (``/robot_a/tf``...).
     The node's executor delivers the messages; ``static_received`` and
     ``dynamic_received`` count them. Needs tf2_msgs (ImportError without it:
     ``tools/build_tf2_msgs.sh`` builds it for a pip-only venv).
     """
 
-    def __init__(self, node: Node, buffer: TransformBuffer = None) -> None:
+    def __init__(self, node: Node, buffer: TransformBuffer = None,
+                 topics: Tuple[str, str] = ('/tf', '/tf_static')) -> None:
         from tf2_msgs.msg import TFMessage
         self.buffer = buffer if buffer is not None else TransformBuffer()
         self.static_received = 0
         self.dynamic_received = 0
-        node.create_subscription(TFMessage, '/tf', self._on_tf, TF_QOS)
-        node.create_subscription(TFMessage, '/tf_static', self._on_tf_static, TF_STATIC_QOS)
+        self.topics = topics
+        node.create_subscription(TFMessage, topics[0], self._on_tf, TF_QOS)
+        node.create_subscription(TFMessage, topics[1], self._on_tf_static, TF_STATIC_QOS)
 
     def _on_tf(self, msg) -> None:
         self.buffer.add_tf_message(msg, static=False)
@@ -71,10 +74,13 @@ class TransformLookup:
     def _tf_default_time_ns(self) -> int:
         return 0
 
+    def _tf_topics(self) -> Tuple[str, str]:
+        return '/tf', '/tf_static'
+
     def listen_tf(self) -> TfListener:
         """Start taking ``/tf`` and ``/tf_static`` into a transform buffer (once); return it."""
         if self._tf is None:
-            self._tf = TfListener(self._tf_node())
+            self._tf = TfListener(self._tf_node(), topics=self._tf_topics())
         return self._tf
 
     def lookup_transform(self, target_frame: str, source_frame: str,

@@ -36,10 +36,10 @@ class CoreWorld:
     def __init__(self, node) -> None:
         self._node = node
 
-    def spawn(self, uri, resource_string, name, position, orientation, allow_renaming) -> str:
-        with self._node.lock:
-            return self._node.simulation.entities.spawn(
-                name, allow_renaming, uri, resource_string, '', position, orientation)
+    def spawn(self, uri, resource_string, name, position, orientation, allow_renaming,
+              namespace='') -> str:
+        return self._node.spawn_entity(name, allow_renaming, uri, resource_string, namespace,
+                                       '', position, orientation)
 
     def entity_state(self, name: str) -> EntityState:
         with self._node.lock:
@@ -51,8 +51,7 @@ class CoreWorld:
                                                      angular)
 
     def delete(self, name: str) -> None:
-        with self._node.lock:
-            self._node.simulation.entities.delete(name)
+        self._node.delete_entity(name)
 
     def entities(self) -> List[str]:
         with self._node.lock:
@@ -68,9 +67,10 @@ class StandardWorld:
     def __init__(self, client) -> None:
         self._client = client
 
-    def spawn(self, uri, resource_string, name, position, orientation, allow_renaming) -> str:
+    def spawn(self, uri, resource_string, name, position, orientation, allow_renaming,
+              namespace='') -> str:
         return self._client.spawn(uri, resource_string, name, position, orientation,
-                                  allow_renaming)
+                                  allow_renaming, namespace)
 
     def entity_state(self, name: str) -> EntityState:
         msg = self._client.entity_state(name)
@@ -117,6 +117,12 @@ class WorldVerbs:
     def _after_reset(self) -> None:
         """Resync the state readers after reset_world (a harness hook)."""
 
+    def _after_spawn(self, name: str, namespace: str) -> None:
+        """Listen to a robot spawned with a namespace (a harness hook)."""
+
+    def _after_delete(self, name: str) -> None:
+        """Forget a deleted robot (a harness hook)."""
+
     def _do(self, verb: str, *args):
         from r2d2_sim.testing.standard import StandardError
         try:
@@ -128,7 +134,7 @@ class WorldVerbs:
 
     def spawn(self, urdf: str, *, name: str = '', position: Sequence[float] = (0.0, 0.0, 0.0),
               yaw: float = 0.0, orientation: Optional[Sequence[float]] = None,
-              allow_renaming: Optional[bool] = None) -> str:
+              allow_renaming: Optional[bool] = None, namespace: str = '') -> str:
         """
         Spawn a URDF and return the entity's name.
 
@@ -138,12 +144,16 @@ class WorldVerbs:
         ``name``: the entity's name; a taken or invalid one is refused
         (NAME_NOT_UNIQUE, NAME_INVALID). Without one, the URDF's robot name,
         made unique (``cube``, ``cube_1``...). ``allow_renaming`` overrides
-        either default.
+        either default. With a ``namespace`` it is a driven robot with every
+        interface a robot has, there (``robot(name)`` is its handle); our
+        R2D2's base link stands 0.47 m above the ground.
         """
         uri, text = _resource(urdf)
         renaming = not name if allow_renaming is None else allow_renaming
-        return self._do('spawn', uri, text, name, tuple(position),
-                        _orientation(yaw, orientation), renaming)
+        spawned = self._do('spawn', uri, text, name, tuple(position),
+                           _orientation(yaw, orientation), renaming, namespace)
+        self._after_spawn(spawned, namespace)
+        return spawned
 
     def entities(self) -> List[str]:
         """Return every entity's name: the robot, the ground plane, models, spawned ones."""
@@ -162,8 +172,9 @@ class WorldVerbs:
                  tuple(linear), tuple(angular))
 
     def delete_entity(self, name: str) -> None:
-        """Delete a spawned entity."""
+        """Delete a spawned entity (a robot with all its interfaces)."""
         self._do('delete', name)
+        self._after_delete(name)
 
     def reset_world(self, *, time: bool = True, state: bool = True,
                     spawned: bool = True) -> None:

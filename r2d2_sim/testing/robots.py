@@ -1,0 +1,351 @@
+"""
+One robot of the simulator, seen from a test: send it commands, read its state.
+
+A simulator can hold several robots, each in its own namespace. Both
+harnesses give a handle per robot (``harness.robot('robot_a')``):
+:class:`LocalRobot` for :class:`~r2d2_sim.testing.harness.SimHarness` (the
+simulator in this process) and :class:`RemoteRobot` for
+:class:`~r2d2_sim.testing.sim_process.SimProcess`. The harnesses' own
+``send_cmd_vel``, ``ground_truth``, ``odom`` and ``joint_states`` are those
+of their first robot (the one robot, by default).
+"""
+
+import time
+from typing import Any, Callable, Dict, Mapping, Optional, Tuple
+
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+
+from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
+from r2d2_sim.parameters import robot_namespaces
+from r2d2_sim.testing.executor import HarnessError
+from r2d2_sim.testing.tf import TransformLookup
+
+__all__ = ['LocalRobot', 'RemoteRobot', 'STATE_TYPES', 'flatten_robots',
+           'expected_namespaces']
+
+STATE_TYPES = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry}
+TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
+
+
+def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:
+    """
+    Return the simulator's parameters with ``robots`` given as a dict spelled out.
+
+    ``robots={'a': {}, 'b': {'initial_pose': [2.0, 0.0, 3.14]}}`` becomes
+    ``robots=['a', 'b']`` and ``'b.initial_pose': [2.0, 0.0, 3.14]``, as a
+    parameter file would give them; a list of names stays as it is.
+    """
+    flat = dict(parameters)
+    robots = flat.get('robots')
+    if isinstance(robots, Mapping):
+        flat['robots'] = list(robots)
+        for name, own in robots.items():
+            for key, value in (own or {}).items():
+                flat[f'{name}.{key}'] = value
+    return flat
+
+
+def expected_namespaces(parameters: Mapping[str, Any], namespace: str) -> list:
+    """Return the namespaces of the robots the parameters ask for (default: ``namespace``)."""
+    base = '/' + namespace.strip('/') if namespace.strip('/') else '/'
+    try:
+        listed = robot_namespaces(parameters, base)
+    except (AttributeError, TypeError):  # a malformed robots: the simulator will say what
+        listed = {}
+    return list(listed.values()) or [base]
+
+
+def _topic(namespace: str, name: str) -> str:
+    return f'{namespace.rstrip("/")}/{name}'
+
+
+class _RobotHandle(TransformLookup):
+    """
+    What both handles share: the robot's name and namespace, three state readers, TF.
+
+    ``lookup_transform`` listens on the robot's own TF topics: ``/tf`` and
+    ``/tf_static`` (``tf_layout`` shared, frames prefixed ``NAME/``), or its
+    namespace's ``tf`` and ``tf_static`` (namespaced, frames unprefixed).
+    """
+
+    name: Optional[str] = None
+    namespace: str = '/'
+    tf_topics: Tuple[str, str] = ('/tf', '/tf_static')
+
+    def _tf_topics(self) -> Tuple[str, str]:
+        return self.tf_topics
+
+    def ground_truth(self) -> Odometry:
+        """Return the robot's latest ``ground_truth`` (world pose, twist in the body frame)."""
+        return self._wait_latest('ground_truth')
+
+    def odom(self) -> Odometry:
+        """Return the robot's latest ``odom`` (wheel odometry)."""
+        return self._wait_latest('odom')
+
+    def joint_states(self) -> JointState:
+        """Return the robot's latest ``joint_states`` (every movable joint)."""
+        return self._wait_latest('joint_states')
+
+    def _wait_latest(self, topic: str):
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f'{type(self).__name__}({self.name!r}, namespace={self.namespace!r})'
+
+
+class LocalRobot(_RobotHandle):
+    """
+    One robot of a :class:`~r2d2_sim.testing.harness.SimHarness`, through the harness's node.
+
+    Its state topics are subscribed when the handle is made (before the
+    simulator publishes, for the robots the parameters list); :meth:`attach`
+    binds it to the simulator's robot once that exists.
+    """
+
+    def __init__(self, harness, link: Node, namespace: str) -> None:
+        self.namespace = namespace
+        self._harness = harness
+        self._link = link
+        self._interfaces = None
+        self._cmd_vel = None
+        self._stamped = False
+        self._latest: Dict[str, Optional[bytes]] = dict.fromkeys(STATE_TYPES)
+        # Raw bytes, deserialized only when asked for: a lockstep run takes
+        # every publication. Depth 1: only the latest matters here.
+        self._subscriptions = [
+            link.create_subscription(msg_type, _topic(namespace, topic), self._keeper(topic),
+                                     1, raw=True)
+            for topic, msg_type in STATE_TYPES.items()]
+
+    def _keeper(self, topic: str) -> Callable[[Any], None]:
+        def keep(msg) -> None:
+            self._latest[topic] = msg
+        return keep
+
+    def attach(self, interfaces) -> 'LocalRobot':
+        """Bind to the simulator's robot ``interfaces``: its name, and cmd_vel of its type."""
+        self._interfaces = interfaces
+        self.name = interfaces.name
+        self.tf_topics = interfaces.tf_topics
+        # The type the simulator takes: one participant cannot hold a Twist
+        # publisher and a TwistStamped subscription on one topic ("invalid
+        # allocator"), and the middleware would not deliver it anyway.
+        self._stamped = interfaces.robot.config.enable_stamped_cmd_vel
+        self._cmd_vel = self._link.create_publisher(
+            TwistStamped if self._stamped else Twist, _topic(self.namespace, 'cmd_vel'), 10)
+        state = [s for topic, s in zip(STATE_TYPES, self._subscriptions)
+                 if topic != 'odom' or self.has_wheels]
+        self._harness._wait(lambda: self._cmd_vel.get_subscription_count() > 0 and all(
+            s.get_publisher_count() > 0 for s in state),
+            f'the robot {self.name} did not link its topics')
+        return self
+
+    @property
+    def has_wheels(self) -> bool:
+        """Return True when cmd_vel drives the robot's wheels."""
+        return self._interfaces.robot.controller is not None
+
+    @property
+    def commands_received(self) -> int:
+        """Return the number of cmd_vel messages the robot took, refused ones included."""
+        return self._interfaces.cmd_vel.received
+
+    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
+                     twist: Optional[Twist] = None) -> None:
+        """
+        Publish a command on the robot's ``cmd_vel``; return once the simulator has taken it.
+
+        ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
+        ``twist``. A robot with ``enable_stamped_cmd_vel`` gets a
+        TwistStamped stamped with the simulated time now. Raises HarnessError
+        if the command does not arrive in time.
+        """
+        if twist is None:
+            twist = twist_message(linear, angular)
+        if self._stamped and not isinstance(twist, TwistStamped):
+            twist = twist_stamped_message(twist=twist,
+                                          stamp_ns=self._harness.sim.sim_time_ns)
+        before = self.commands_received
+        self._cmd_vel.publish(twist)
+        self._harness._wait(lambda: self.commands_received > before,
+                            f'the robot {self.name} did not take cmd_vel')
+
+    def odom(self) -> Odometry:
+        """Return the robot's latest ``odom``; HarnessError for a robot without wheels."""
+        if not self.has_wheels:
+            raise HarnessError(f'the robot {self.name} has no wheels, so the simulator '
+                               'publishes no odom')
+        return self._wait_latest('odom')
+
+    def _wait_latest(self, topic: str):
+        """Wait until the message of the latest publication has been delivered; return it."""
+        harness = self._harness
+        if self._interfaces is None or not harness.sim.simulation.robots.count(
+                self._interfaces.robot):
+            raise HarnessError(f'the robot {self.name} is not in the world any more')
+        wanted = harness.last_publication_ns()
+        found = []
+
+        def arrived():
+            raw = self._latest[topic]
+            if raw is None:
+                return False
+            msg = deserialize_message(raw, STATE_TYPES[topic])
+            found[:] = [msg]
+            return stamp_ns(msg.header.stamp) == wanted
+        harness._wait(arrived, f'{_topic(self.namespace, topic)} of t={wanted / 1e9:.6f} s '
+                               'did not arrive')
+        return found[0]
+
+    def _tf_node(self) -> Node:
+        return self._link
+
+    def _tf_default_time_ns(self) -> int:
+        return self._harness.last_publication_ns()  # the current state, never one on its way
+
+    def _tf_wait(self, condition) -> bool:
+        try:
+            self._harness._wait(condition, 'no transform')
+        except HarnessError:
+            return False
+        return True
+
+    def take_latest(self) -> None:
+        """Wait for every state topic of the latest publication (before a reset)."""
+        for topic in STATE_TYPES:
+            if topic != 'odom' or self.has_wheels:
+                self._wait_latest(topic)
+
+    def forget(self) -> None:
+        """Drop what was received: the state readers wait for the next publication."""
+        for topic in self._latest:
+            self._latest[topic] = None
+
+    def close(self) -> None:
+        """Stop listening (the robot left the world)."""
+        for subscription in self._subscriptions:
+            self._link.destroy_subscription(subscription)
+        self._subscriptions = []
+        if self._cmd_vel is not None:
+            self._link.destroy_publisher(self._cmd_vel)
+            self._cmd_vel = None
+
+
+class RemoteRobot(_RobotHandle):
+    """
+    One robot of a :class:`~r2d2_sim.testing.sim_process.SimProcess`, through its probe's node.
+
+    The state readers follow the process's rules (paused: the message of the
+    last reply's time). :meth:`linked` says when its topics are matched;
+    :meth:`attach` then makes the ``cmd_vel`` publisher of the type the node takes.
+    """
+
+    def __init__(self, process, namespace: str, name: Optional[str] = None,
+                 tf_topic: Optional[str] = None, *, subscribe: bool = True) -> None:
+        self.namespace = namespace
+        self.name = name
+        if tf_topic:
+            self.tf_topics = (tf_topic, tf_topic + '_static')
+        self._process = process
+        node = process.probe.node
+        self._node = node
+        self._cmd_vel = None
+        self._stamped = False
+        self._latest: Dict[str, Any] = dict.fromkeys(STATE_TYPES)
+        # subscribe=False: no state subscriptions (a benchmark must not add a subscriber).
+        self._subscriptions = {
+            topic: node.create_subscription(msg_type, _topic(namespace, topic),
+                                            self._keeper(topic), 1)
+            for topic, msg_type in STATE_TYPES.items()} if subscribe else {}
+
+    def _keeper(self, topic: str) -> Callable[[Any], None]:
+        def keep(msg) -> None:
+            self._latest[topic] = msg
+        return keep
+
+    def cmd_vel_type(self) -> Optional[str]:
+        """Return the type the node subscribes the robot's ``cmd_vel`` with, once seen."""
+        node = self._node
+        for info in node.get_subscriptions_info_by_topic(_topic(self.namespace, 'cmd_vel')):
+            if info.node_name != node.get_name():
+                return info.topic_type
+        return None
+
+    def linked(self) -> bool:
+        """Return True once the robot's state topics and ``cmd_vel`` are matched here."""
+        # odom is left out: a robot without wheels has none.
+        return (self.cmd_vel_type() is not None
+                and all(self._subscriptions[t].get_publisher_count() > 0
+                        for t in ('joint_states', 'ground_truth') if t in self._subscriptions))
+
+    def attach(self) -> 'RemoteRobot':
+        """Make the ``cmd_vel`` publisher of the type the node takes (Twist or TwistStamped)."""
+        # Twist or TwistStamped (enable_stamped_cmd_vel, maybe from a params
+        # file): publish what the node takes, which the middleware delivers.
+        self._stamped = self.cmd_vel_type() == TWIST_STAMPED_TYPE
+        msg_type = type(twist_stamped_message() if self._stamped else twist_message())
+        self._cmd_vel = self._node.create_publisher(
+            msg_type, _topic(self.namespace, 'cmd_vel'), 10)
+        return self
+
+    def cmd_vel_linked(self) -> bool:
+        """Return True once the node's ``cmd_vel`` subscription matches the publisher."""
+        return self._cmd_vel is not None and self._cmd_vel.get_subscription_count() > 0
+
+    def commands_received(self) -> int:
+        """Ask the node how many cmd_vel messages the robot took (``~/get_status``)."""
+        robots = self._process.status().get('robots', {})
+        if self.name not in robots:
+            raise HarnessError(f'the robot {self.name} is not in the world any more')
+        return robots[self.name]['commands_received']
+
+    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *, twist=None) -> None:
+        """
+        Publish a command on the robot's ``cmd_vel``; return once the simulator has counted it.
+
+        ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
+        ``twist``. A node with ``enable_stamped_cmd_vel`` gets a TwistStamped
+        stamped 0 ("now"). Confirmed through the node's ``~/get_status``.
+        """
+        if twist is None:
+            twist = twist_message(linear, angular)
+        if self._stamped and not hasattr(twist, 'header'):
+            twist = twist_stamped_message(twist=twist)
+        before = self.commands_received()
+        self._cmd_vel.publish(twist)
+        process = self._process
+        deadline = time.monotonic() + process.timeout_s
+        while self.commands_received() <= before:
+            if time.monotonic() > deadline:
+                raise HarnessError(f'the robot {self.name} did not take cmd_vel within '
+                                   f'{process.timeout_s:g} s')
+            process.probe.spin_until(lambda: False, 0.002)
+
+    def _wait_latest(self, topic: str):
+        return self._process._wait_latest(topic, self._latest,
+                                          _topic(self.namespace, topic))
+
+    def _tf_node(self) -> Node:
+        return self._node
+
+    def _tf_wait(self, condition) -> bool:
+        return self._process.probe.spin_until(condition, self._process.timeout_s)
+
+    def forget(self) -> None:
+        """Drop what was received: the state readers wait for newer messages."""
+        for topic in self._latest:
+            self._latest[topic] = None
+
+    def close(self) -> None:
+        """Stop listening (the robot left the world)."""
+        for subscription in self._subscriptions.values():
+            self._node.destroy_subscription(subscription)
+        self._subscriptions = {}
+        if self._cmd_vel is not None:
+            self._node.destroy_publisher(self._cmd_vel)
+            self._cmd_vel = None
