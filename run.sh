@@ -50,6 +50,7 @@ case "$cmd" in
   test)  setup; need_xvfb
          paths=(test); for arg in "$@"; do [ -e "${arg%%::*}" ] && paths=(); done
          exec "$PY" -m pytest -q -p no:cacheprovider -n 2 "${paths[@]}" "$@" ;;
-  bench) setup; exec "$PY" bench/run.py "$@" ;;
+  # The main bench, then several robots in one world (bench/fleet.py).
+  bench) setup; "$PY" bench/run.py "$@"; exec "$PY" bench/fleet.py "$@" ;;
   *) echo "usage: ./run.sh demo|test|bench|sim [args...]" >&2; exit 2 ;;
 esac

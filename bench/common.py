@@ -8,6 +8,7 @@ imports rclpy. Nothing here imports rclpy or PyBullet at module level.
 """
 
 import datetime
+import functools
 import json
 import math
 import os
@@ -194,6 +195,47 @@ def write_json(path, data):
     with open(tmp, 'w', encoding='utf-8') as out:
         json.dump(data, out, indent=1)
     os.replace(tmp, path)
+
+
+# -- stepping side by side ---------------------------------------------------------
+
+def alternate(advances, min_s, chunk=60):
+    """
+    Step each of ``advances`` ``chunk`` steps in turn until each had ``min_s`` s; return rates.
+
+    Returns (steps per CPU second of this thread, steps per wall second) for
+    each. Taking turns every chunk (about 10 ms) puts every configuration of a
+    group under the same load from other processes; thread CPU time leaves
+    out the time the scheduler gives to them.
+    """
+    thread_time, perf_counter = time.thread_time, time.perf_counter
+    cpu, wall = [0.0] * len(advances), [0.0] * len(advances)
+    steps, end = 0, perf_counter() + min_s * len(advances)
+    while perf_counter() < end:
+        for i, advance in enumerate(advances):
+            wall0, cpu0 = perf_counter(), thread_time()
+            advance(chunk)
+            cpu[i] += thread_time() - cpu0
+            wall[i] += perf_counter() - wall0
+        steps += chunk
+    return [steps / c for c in cpu], [steps / w for w in wall]
+
+
+def raw_stepper(world):
+    """
+    Return ``advance(steps)`` that steps ``world``'s PyBullet client and nothing else.
+
+    As SimWorld.step does, but without counting the steps: the node's
+    schedules (sensor rates) do not see them, so raw and node stepping can
+    alternate on one world and world-to-world differences cancel.
+    """
+    import pybullet
+    step = functools.partial(pybullet.stepSimulation, physicsClientId=world.client._client)
+
+    def advance(steps):
+        for _ in range(steps):
+            step()
+    return advance
 
 
 # -- ROS and the node ----------------------------------------------------------------

@@ -14,7 +14,6 @@ The helper processes are in ``roles.py``, the shared helpers in ``common.py``.
 """
 
 import argparse
-import functools
 import json
 import math
 import os
@@ -26,10 +25,10 @@ import time
 from typing import NamedTuple
 
 from common import (
-    background_load, BENCH_DIR, existing_parameters, fit_line, init_ros, LoadMeter, local_date,
-    log_tail, machine_info, make_sim_node, missing_parameters, outputs_off, percentile,
-    PHYSICS_RATE_HZ, process_cpu_s, read_json, start_role, start_sim, status, stop_process,
-    wait_process, write_json)
+    alternate, background_load, BENCH_DIR, existing_parameters, fit_line, init_ros, LoadMeter,
+    local_date, log_tail, machine_info, make_sim_node, missing_parameters, outputs_off,
+    percentile, PHYSICS_RATE_HZ, process_cpu_s, raw_stepper, read_json, start_role, start_sim,
+    status, stop_process, wait_process, write_json)
 from r2d2_sim.client import wait_for  # noqa: I100 (after common put the repository on sys.path)
 
 RESULTS_PATH = os.path.join(BENCH_DIR, 'results.json')
@@ -181,45 +180,6 @@ def measure_fidelity(work, domain_id, sim_seconds, publish_rate, params):
 
 
 # -- 2. throughput at rtf 0, against raw PyBullet ----------------------------------------
-
-def alternate(advances, min_s, chunk=60):
-    """
-    Step each of ``advances`` ``chunk`` steps in turn until each had ``min_s`` s; return rates.
-
-    Returns (steps per CPU second of this thread, steps per wall second) for
-    each. Taking turns every chunk (about 10 ms) puts every configuration of a
-    group under the same load from other processes; thread CPU time leaves
-    out the time the scheduler gives to them.
-    """
-    thread_time, perf_counter = time.thread_time, time.perf_counter
-    cpu, wall = [0.0] * len(advances), [0.0] * len(advances)
-    steps, end = 0, perf_counter() + min_s * len(advances)
-    while perf_counter() < end:
-        for i, advance in enumerate(advances):
-            wall0, cpu0 = perf_counter(), thread_time()
-            advance(chunk)
-            cpu[i] += thread_time() - cpu0
-            wall[i] += perf_counter() - wall0
-        steps += chunk
-    return [steps / c for c in cpu], [steps / w for w in wall]
-
-
-def raw_stepper(world):
-    """
-    Return ``advance(steps)`` that steps ``world``'s PyBullet client and nothing else.
-
-    As SimWorld.step does, but without counting the steps: the node's
-    schedules (sensor rates) do not see them, so raw and node stepping can
-    alternate on one world and world-to-world differences cancel.
-    """
-    import pybullet
-    step = functools.partial(pybullet.stepSimulation, physicsClientId=world.client._client)
-
-    def advance(steps):
-        for _ in range(steps):
-            step()
-    return advance
-
 
 def count_publications(node, message, counter):
     """Count the node's publications of type ``message`` (not on /tf_static) in ``counter``."""

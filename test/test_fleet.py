@@ -1,0 +1,271 @@
+"""
+Several robots in one world, through ROS: each in its namespace, one /clock, both TF layouts.
+
+In-process (the ``r2d2_sim_factory`` fixture) unless the standard's services
+across processes are the point (``r2d2_sim_process``). Robot a stands at the
+origin facing +x, robot b 2 m ahead facing it; R2D2's grippers touch when
+their base links are about 1.03 m apart.
+"""
+
+import math
+
+import pytest
+from geometry_msgs.msg import TwistStamped
+from rcl_interfaces.srv import GetParameters
+from sensor_msgs.msg import LaserScan
+from std_srvs.srv import Trigger
+
+from r2d2_sim import sim_interfaces
+from r2d2_sim.testing import StartupError, WorldError
+from r2d2_sim.testing.tf import TF_STATIC_QOS
+
+FACING = {'a': {}, 'b': {'initial_pose': [2.0, 0.0, math.pi]}}
+FORWARD_BEAM = 180
+ROBOT_TOPICS = ('cmd_vel', 'joint_states', 'odom', 'ground_truth', 'scan', 'imu',
+                'robot_description')
+needs_standard = pytest.mark.skipif(not sim_interfaces.available(),
+                                    reason='simulation_interfaces is not built here')
+
+
+def x_of(odometry):
+    """Return an Odometry's x (m)."""
+    return odometry.pose.pose.position.x
+
+
+def topic_types(harness):
+    """Return {topic: [types]} as the harness's node sees the graph."""
+    return dict(harness._link.get_topic_names_and_types())
+
+
+def test_two_robots_see_touch_and_stay_their_own(r2d2_sim_factory):
+    """The done-when scene: b's scan sees a come, they touch, nothing of one moves the other."""
+    sim = r2d2_sim_factory(robots=FACING, cmd_vel_timeout=0.0)
+    a, b = sim.robot('a'), sim.robot('b')
+    assert sim.robot_names == ['a', 'b'] and sim.robot() is a
+    scans = []
+    sim.create_node('listener').create_subscription(LaserScan, '/b/scan', scans.append, 10)
+    b_start = b.ground_truth()
+    a.send_cmd_vel(linear=0.3)
+    sim.advance(seconds=2.0)  # a drives about 0.5 m, still short of touching
+    assert x_of(a.ground_truth()) > 0.45 and x_of(a.odom()) > 0.45
+    first, last = scans[0], scans[-1]
+    assert first.header.frame_id == 'b/base_scan'
+    assert first.ranges[FORWARD_BEAM] - last.ranges[FORWARD_BEAM] == pytest.approx(
+        x_of(a.ground_truth()) - 0.0, abs=0.05)
+    # b stands still: its ground truth and odometry are its own, untouched.
+    assert x_of(b.ground_truth()) == pytest.approx(x_of(b_start), abs=1e-3)
+    assert x_of(b.odom()) == pytest.approx(2.0, abs=1e-3)
+    assert b.odom().child_frame_id == 'b/base_link' and a.odom().child_frame_id == 'a/base_link'
+    assert b.commands_received == 0 and a.commands_received == 1
+    # On into b: b is shoved back, a stops short of passing through it.
+    assert sim.advance_until(lambda: x_of(b.ground_truth()) > 2.02, timeout_s=6.0)
+    a.send_cmd_vel(linear=0.0)
+    sim.advance(seconds=1.0)
+    gap = x_of(b.ground_truth()) - x_of(a.ground_truth())
+    assert gap > 0.95
+    for robot in (a, b):
+        assert robot.ground_truth().pose.pose.position.z == pytest.approx(0.47, abs=0.03)
+
+
+def test_each_robot_has_every_interface_in_its_namespace_and_the_world_one_clock(
+        r2d2_sim_factory):
+    """cmd_vel, states, sensors, camera, description, joint info per robot; one /clock."""
+    sim = r2d2_sim_factory(robots=FACING, camera_rate=5.0, camera_width=16, camera_height=12)
+    sim.advance(seconds=0.25)
+    topics = topic_types(sim)
+    for robot in ('a', 'b'):
+        for topic in ROBOT_TOPICS + ('camera/image_raw', 'camera/camera_info'):
+            assert f'/{robot}/{topic}' in topics, (robot, topic)
+    assert sim.sim.count_publishers('/clock') == 1
+    assert sim.sim.count_publishers('/tf') == 2 and sim.sim.count_publishers('/tf_static') == 2
+    assert not [t for t in topics if t in ('/cmd_vel', '/odom', '/scan')]
+    info = sim.call_service(Trigger, '/b/r2d2_sim/get_joint_info', Trigger.Request())
+    assert info.success and '"joints"' in info.message
+    status = sim.reset()
+    assert status['robots'] == {
+        'a': {'namespace': '/a', 'tf': '/tf', 'commands_received': 0},
+        'b': {'namespace': '/b', 'tf': '/tf', 'commands_received': 0}}
+
+
+def test_each_robot_keeps_its_own_limits_timeout_and_command_type(r2d2_sim_factory):
+    """b: slower, braking after 0.5 s, taking TwistStamped; a: the world's settings."""
+    sim = r2d2_sim_factory(robots={'a': {}, 'b': {
+        'initial_pose': [0.0, 2.0, 0.0], 'max_linear_velocity': 0.1, 'cmd_vel_timeout': 0.5,
+        'enable_stamped_cmd_vel': True}}, cmd_vel_timeout=0.0)
+    a, b = sim.robot('a'), sim.robot('b')
+    assert sim.sim.robot('b').cmd_vel._stamped
+    types = topic_types(sim)
+    assert types['/b/cmd_vel'] == ['geometry_msgs/msg/TwistStamped']
+    assert types['/a/cmd_vel'] == ['geometry_msgs/msg/Twist']
+    a.send_cmd_vel(linear=0.3)
+    b.send_cmd_vel(twist=TwistStamped())  # stamp 0: now
+    b.send_cmd_vel(linear=0.3)
+    sim.advance(seconds=0.45)
+    assert b.ground_truth().twist.twist.linear.x == pytest.approx(0.1, abs=0.01)
+    sim.advance(seconds=1.5)
+    assert a.ground_truth().twist.twist.linear.x == pytest.approx(0.3, abs=0.01)
+    assert abs(b.ground_truth().twist.twist.linear.x) < 0.01  # braked after its timeout
+
+
+def test_shared_tf_is_one_tree_under_world_with_each_robot_prefixed(r2d2_sim_factory):
+    """REP-105 per robot on /tf: world -> a/odom -> a/base_footprint -> a/base_link -> sensors."""
+    sim = r2d2_sim_factory(robots=FACING, publish_ground_truth_tf=True, cmd_vel_timeout=0.0)
+    sim.listen_tf()
+    sim.robot('a').send_cmd_vel(linear=0.3, angular=0.2)
+    sim.advance(seconds=1.0)
+    for name in ('a', 'b'):
+        truth = sim.robot(name).ground_truth().pose.pose
+        chain = [('world', f'{name}/odom'), (f'{name}/odom', f'{name}/base_footprint'),
+                 (f'{name}/base_footprint', f'{name}/base_link'),
+                 (f'{name}/base_link', f'{name}/base_scan'),
+                 (f'{name}/base_link', f'{name}/imu_link')]
+        for parent, child in chain:
+            sim.lookup_transform(parent, child)
+        base = sim.lookup_transform('world', f'{name}/base_link').transform.translation
+        assert base[:2] == pytest.approx((truth.position.x, truth.position.y), abs=1e-6)
+        assert base[2] == pytest.approx(truth.position.z, abs=0.002)  # TF: its height at rest
+        odom = sim.lookup_transform(f'{name}/odom', f'{name}/base_link').transform.translation
+        assert odom[2] == pytest.approx(0.47, abs=0.005)  # base_footprint on the ground
+    # One tree: the robots' frames reach each other through world.
+    between = sim.lookup_transform('a/base_link', 'b/base_link').transform.translation
+    assert math.hypot(between[0], between[1]) == pytest.approx(
+        2.0 - x_of(sim.robot('a').ground_truth()), abs=0.05)
+
+
+def test_namespaced_tf_gives_each_robot_its_own_tree_of_plain_frames(r2d2_sim_factory):
+    """tf_layout namespaced: /a/tf and /b/tf with odom -> base_footprint -> base_link; no /tf."""
+    sim = r2d2_sim_factory(robots=FACING, tf_layout='namespaced', publish_ground_truth_tf=True)
+    a, b = sim.robot('a'), sim.robot('b')
+    assert (a.tf_topics, b.tf_topics) == (('/a/tf', '/a/tf_static'), ('/b/tf', '/b/tf_static'))
+    a.listen_tf()
+    b.listen_tf()
+    sim.advance(seconds=0.5)
+    assert sim.sim.count_publishers('/tf') == 0 and sim.sim.count_publishers('/tf_static') == 0
+    for robot, x in ((a, 0.0), (b, 2.0)):
+        for parent, child in (('world', 'odom'), ('odom', 'base_footprint'),
+                              ('base_footprint', 'base_link'), ('base_link', 'base_scan')):
+            robot.lookup_transform(parent, child)
+        base = robot.lookup_transform('world', 'base_link').transform.translation
+        assert base[0] == pytest.approx(x, abs=0.01)
+    assert 'b/odom' not in b.listen_tf().buffer.frames and 'odom' in b.listen_tf().buffer.frames
+    assert b.odom().header.frame_id == 'odom'
+
+
+def test_robot_parameters_are_declared_and_read_back(r2d2_sim_factory):
+    """The parameters robots and NAME.parameter are declared and answer with their values."""
+    sim = r2d2_sim_factory(robots=FACING)
+    request = GetParameters.Request(names=['robots', 'b.initial_pose', 'tf_layout'])
+    reply = sim.call_service(GetParameters, '/r2d2_sim/get_parameters', request)
+    robots, pose, layout = reply.values
+    assert list(robots.string_array_value) == ['a', 'b']
+    assert list(pose.double_array_value) == pytest.approx([2.0, 0.0, math.pi])
+    assert layout.string_value == 'shared'
+
+
+@pytest.mark.parametrize('parameters, fragment', [
+    ({'robots': {'a': {'namespace': '/x'}, 'b': {'namespace': 'x'}}},
+     'robots a and b both have the namespace /x'),
+    ({'robots': {'a': {'max_wheel_force': -1.0}}}, 'a.max_wheel_force'),
+])
+def test_a_bad_fleet_is_one_line_at_start_up(r2d2_sim_factory, parameters, fragment):
+    """Robots sharing a namespace, a robot's bad value: StartupError, one line."""
+    with pytest.raises(StartupError) as raised:
+        r2d2_sim_factory(**parameters)
+    assert fragment in str(raised.value) and '\n' not in str(raised.value)
+
+
+def test_a_robot_spawned_in_process_gets_its_interfaces_and_loses_them_on_delete(
+        r2d2_sim_factory):
+    """The harness's spawn with a namespace: a driven robot; delete takes node and topics."""
+    sim = r2d2_sim_factory(cmd_vel_timeout=0.0)  # the default robot r2d2, at the root
+    name = sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='c',
+                     position=(0.0, 2.0, 0.48))
+    c = sim.robot(name)
+    assert c.namespace == '/c' and sim.robot_names == ['r2d2', 'c']
+    c.send_cmd_vel(linear=0.3)
+    sim.advance(seconds=1.0)
+    assert x_of(c.ground_truth()) > 0.2 and abs(x_of(sim.ground_truth())) < 0.01
+    assert c.odom().header.frame_id == 'c/odom'
+    sim.delete_entity('c')
+    sim.advance(seconds=0.1)
+    assert sim.robot_names == ['r2d2'] and 'c' not in sim.entities()
+    assert not [t for t in topic_types(sim) if t.startswith('/c/')
+                and sim._link.count_publishers(t)]
+    assert sim.sim.count_publishers('/tf') == 1
+    with pytest.raises(Exception) as raised:
+        sim.robot('c')
+    assert 'no robot named' in str(raised.value)
+
+
+@pytest.mark.parametrize('namespace, fragment', [
+    ('/', "the simulator's own namespace"),
+    ('/a', 'robot a has the namespace /a already'),
+    ('a b', 'must be a ROS namespace'),
+])
+def test_a_spawn_in_a_bad_namespace_is_namespace_invalid(r2d2_sim_factory, namespace,
+                                                         fragment):
+    """A taken, the simulator's or a malformed namespace; nothing is left of the attempt."""
+    sim = r2d2_sim_factory(robots=FACING)
+    with pytest.raises(WorldError) as raised:
+        sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace=namespace,
+                  position=(0.0, 2.0, 0.48))
+    assert raised.value.code == 'NAMESPACE_INVALID' and fragment in str(raised.value)
+    assert sim.entities() == ['ground_plane', 'a', 'b'] and sim.robot_names == ['a', 'b']
+
+
+@needs_standard
+def test_a_third_robot_spawned_through_the_standard_drives_and_leaves_nothing(
+        r2d2_sim_process):
+    """Across processes: spawn_entity with a namespace, drive, delete: topics, TF, body gone."""
+    from tf2_msgs.msg import TFMessage
+    sim = r2d2_sim_process(robots=FACING, start_paused=True, publish_rate=20.0,
+                           cmd_vel_timeout=0.0)
+    assert sim.robot_names == ['a', 'b']
+    name = sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='/c',
+                     position=(0.0, 2.0, 0.48))
+    assert name == 'c' and sim.robot_names == ['a', 'b', 'c']
+    c = sim.robot('c')
+    c.send_cmd_vel(linear=0.3)
+    sim.step(20)  # 1 s
+    assert x_of(c.ground_truth()) > 0.2 and x_of(c.odom()) > 0.2
+    assert abs(x_of(sim.robot('a').ground_truth())) < 0.01
+    assert sim.joint_info('c')['urdf'] == 'package://r2d2_sim/urdf/r2d2.urdf'
+    frames = set()
+    sim.probe.node.create_subscription(
+        TFMessage, '/tf', lambda msg: frames.update(t.child_frame_id for t in msg.transforms), 100)
+    sim.step(2)
+    assert 'c/base_footprint' in frames
+    sim.delete_entity('c')
+    assert sim.entities() == ['ground_plane', 'a', 'b'] and sim.robot_names == ['a', 'b']
+    node = sim.probe.node
+    assert sim.probe.spin_until(lambda: not [
+        t for t, _ in node.get_topic_names_and_types()
+        if t.startswith('/c/') and node.count_publishers(t)], 10.0)
+    assert '/c' not in [ns for _, ns in node.get_node_names_and_namespaces()]
+    frames.clear()
+    sim.step(2)
+    assert frames and not [f for f in frames if f.startswith('c/')]
+    late = set()
+    node.create_subscription(
+        TFMessage, '/tf_static', lambda msg: late.update(t.child_frame_id for t in msg.transforms),
+        TF_STATIC_QOS)
+    assert sim.probe.spin_until(lambda: 'a/base_link' in late and 'b/base_link' in late, 10.0)
+    assert not [f for f in late if f.startswith('c/')]
+
+
+def test_the_recording_holds_every_robot_and_both_static_trees(tmp_path):
+    """record with two robots: /a/* and /b/* in one MCAP, /tf_static once per robot."""
+    from mcap.reader import make_reader
+    from r2d2_sim.testing import SimHarness
+    path = tmp_path / 'run.mcap'
+    with SimHarness(robots=FACING, record=str(path)) as sim:
+        sim.advance(seconds=0.5)
+    counts = {}
+    with open(path, 'rb') as stream:
+        for _, channel, _ in make_reader(stream).iter_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+    for robot in ('a', 'b'):
+        for topic in ('odom', 'ground_truth', 'joint_states', 'scan', 'robot_description'):
+            assert counts.get(f'/{robot}/{topic}'), (robot, topic)
+    assert counts['/tf_static'] == 2 and counts['/clock'] == 121
+    assert counts['/tf'] == 2 * 121
