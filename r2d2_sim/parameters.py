@@ -491,7 +491,8 @@ def parameter_help(width: int = 79) -> str:
     Return every parameter as ``--help`` lists it: name, type, default, range, description.
 
     Defaults are written as JSON, which ROS reads as YAML, so each can be
-    typed after ``-p name:=`` as shown.
+    typed after ``-p name:=`` as shown. "per robot" marks what each robot
+    listed in ``robots`` may set for itself (``-p NAME.parameter:=``).
     """
     lines = []
     for spec in PARAMETERS:
@@ -505,6 +506,8 @@ def parameter_help(width: int = 79) -> str:
             zero = f' or 0 ({bounds.zero})' if bounds.zero else ''
             facts.append(f'range [{_help_number(spec, bounds.low)}, '
                          f'{_help_number(spec, bounds.high)}]{unit}{zero}')
+        if spec.per_robot:
+            facts.append('per robot')
         lines += textwrap.wrap(f'{spec.name}: {"; ".join(facts)}', width, initial_indent='  ',
                                subsequent_indent=' ' * 6, break_long_words=False,
                                break_on_hyphens=False)

@@ -97,8 +97,11 @@ def usage(argv0: str) -> str:
             'SIGTERM. Parameters, parameter files and remaps (-r FROM:=TO) go after\n'
             '--ros-args; all parameters are read-only once the node runs. A bad value\n'
             'stops it with one error line and exit status 2.\n\n'
-            f'example: {prog} --ros-args -p real_time_factor:=0.0 -p scan_rate:=0.0\n\n'
-            'parameters:\n' + parameter_help())
+            f'example: {prog} --ros-args -p real_time_factor:=0.0 -p scan_rate:=0.0\n'
+            f'two robots: {prog} --ros-args -p robots:="[a, b]" \\\n'
+            '              -p b.initial_pose:="[2.0, 0.0, 3.1416]"\n\n'
+            'parameters ("per robot": each robot of robots may set its own, NAME.parameter):\n'
+            + parameter_help())
 
 
 def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] = None) -> int:

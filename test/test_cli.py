@@ -107,7 +107,8 @@ def _check_help(text, prog):
         assert ' '.join(spec.description.split()) in flat, spec.name
     assert 'physics_rate: double; default 240.0; range [10, 10000] Hz' in flat
     assert 'publish_rate: double; default 0.0; range [0.001, 10000] Hz or 0 (every step)' in flat
-    assert 'noise_seed: integer; default 0; range [0, 2147483647]' in flat
+    assert 'noise_seed: integer; default 0; range [0, 2147483647]; per robot' in flat
+    assert 'robots: string_array; default []' in flat and '-p b.initial_pose:=' in flat
     assert 'base_forward_axis: string; default "x"; one of x, y, -x, -y' in flat
     assert max(len(line) for line in text.splitlines()) <= 90
 

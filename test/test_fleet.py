@@ -254,7 +254,7 @@ def test_a_third_robot_spawned_through_the_standard_drives_and_leaves_nothing(
 
 
 def test_the_recording_holds_every_robot_and_both_static_trees(tmp_path):
-    """record with two robots: /a/* and /b/* in one MCAP, /tf_static once per robot."""
+    """Recording two robots: /a/* and /b/* in one MCAP, /tf_static once per robot."""
     from mcap.reader import make_reader
     from r2d2_sim.testing import SimHarness
     path = tmp_path / 'run.mcap'

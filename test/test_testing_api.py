@@ -32,7 +32,7 @@ from r2d2_sim.testing import (
 EXAMPLES = Path(REPO) / 'test' / 'examples'
 # In README order.
 EXAMPLE_FILES = ['test_drive_forward.py', 'test_closed_loop.py', 'test_sim_process.py',
-                 'test_change_the_world.py']
+                 'test_change_the_world.py', 'test_two_robots.py']
 README_HEADING = '## Testing your own code against it'
 SECTION_DRAFT = Path(REPO) / 'docs' / 'testing_section.md'
 
