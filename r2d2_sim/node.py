@@ -10,23 +10,22 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 
 import json
 import threading
-from typing import Callable, List, Optional, Sequence, Tuple
+from typing import Callable, Optional, Sequence
 
 from rclpy.node import Node
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.command_input import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, \
     WARNING_PERIOD_S
-from r2d2_sim.entities import EntityError
 from r2d2_sim.errors import SetupError, StartupError
 from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError
+from r2d2_sim.fleet import Fleet
 from r2d2_sim.mirror import MirroringNode
 from r2d2_sim.outputs import ClockOutput
-from r2d2_sim.parameter_readers import ConfigError, namespace as read_namespace
-from r2d2_sim.parameters import resolve_namespace, RobotSpec, SimConfig
+from r2d2_sim.parameters import SimConfig
 from r2d2_sim import sim_interfaces
 from r2d2_sim.robot import Robot
-from r2d2_sim.robot_interfaces import RobotInterfaces, RobotNode
+from r2d2_sim.robot_interfaces import RobotInterfaces
 from r2d2_sim.ros_parameters import declare_parameters
 from r2d2_sim.sim_interfaces import SimulationInterfaces
 from r2d2_sim.simulation import Simulation, StepResult
@@ -34,8 +33,6 @@ from r2d2_sim.world import SimWorld
 
 NODE_NAME = 'r2d2_sim'
 __all__ = ['SimNode', 'StartupError', 'NODE_NAME']
-
-NodeWatcher = Tuple[Callable[[Node], None], Callable[[Node], None]]
 
 
 class SimNode(MirroringNode):
@@ -76,18 +73,16 @@ class SimNode(MirroringNode):
         self.standard: Optional[SimulationInterfaces] = None
         self._clock_output: Optional[ClockOutput] = None
         # One per robot, in the order of simulation.robots (their measurements').
-        self.robots: List[RobotInterfaces] = []
-        self._watchers: List[NodeWatcher] = []
-        self._removed_commands = [0, 0]  # received, rejected: of robots deleted since
+        self.fleet = Fleet(self, self._robot_interfaces)
         try:
             self.config, specs = declare_parameters(self)
-            namespaces = self._start_namespaces(specs)
+            namespaces = self.fleet.start_namespaces(specs)
             self.sink = self._start_sink(self.config)
             self.simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
                                          error=self._log_blow_up)
             self._clock_output = ClockOutput(self)
             for robot, namespace in zip(self.simulation.robots, namespaces):
-                self._add_interfaces(robot, namespace)
+                self.fleet.add(robot, namespace)
         except (SetupError, SinkError) as exc:
             self._close()
             raise StartupError(str(exc)) from exc
@@ -111,54 +106,17 @@ class SimNode(MirroringNode):
 
     # -- robots and their interfaces ---------------------------------------------------
 
-    def _resolve_namespace(self, namespace: str) -> str:
-        """Return ``namespace`` absolute: a relative one is under this node's namespace."""
-        return resolve_namespace(self.get_namespace(), namespace)
+    @property
+    def robots(self) -> Fleet:
+        """Return every robot's interfaces, in the simulation's order (iterable, indexable)."""
+        return self.fleet
 
-    def _start_namespaces(self, specs: Sequence[RobotSpec]) -> List[Optional[str]]:
-        """Return each listed robot's namespace, resolved (None: the one default robot)."""
-        if not specs:
-            return [None]
-        namespaces = [self._resolve_namespace(spec.namespace) for spec in specs]
-        for i, namespace in enumerate(namespaces):
-            if namespace in namespaces[:i]:
-                other = specs[namespaces.index(namespace)].name
-                raise ConfigError(f'robots {other} and {specs[i].name} both have the namespace '
-                                  f'{namespace}: each robot needs one of its own')
-        return namespaces
-
-    def _add_interfaces(self, robot: Robot, namespace: Optional[str]) -> RobotInterfaces:
-        """Give ``robot`` its interfaces: on this node in its namespace, else on a node its own."""
-        own = namespace is not None and namespace != self.get_namespace()
-        node = RobotNode(self, namespace) if own else self
-        try:
-            interfaces = RobotInterfaces(
-                node, robot, self.lock, now_ns=lambda: self.simulation.time_ns,
-                time_ns=self.simulation.time_ns, warning_period_s=self._warning_period_s,
-                graph_check_period_s=self._graph_check_period_s, own_node=own)
-        except BaseException:
-            if own:
-                node.destroy_node()
-            raise
-        self.robots.append(interfaces)
-        if own:
-            for added, _ in self._watchers:
-                added(node)
-        return interfaces
-
-    def _sync_robots(self) -> None:
-        """Take down the interfaces of robots that left the world; keep the core's order."""
-        live = {id(robot) for robot in self.simulation.robots}
-        for interfaces in [i for i in self.robots if id(i.robot) not in live]:
-            self.robots.remove(interfaces)
-            self._removed_commands[0] += interfaces.cmd_vel.received
-            self._removed_commands[1] += interfaces.cmd_vel.rejected
-            if interfaces.own_node:
-                for _, removed in self._watchers:
-                    removed(interfaces.node)
-            interfaces.close()
-        by_robot = {id(i.robot): i for i in self.robots}
-        self.robots = [by_robot[id(robot)] for robot in self.simulation.robots]
+    def _robot_interfaces(self, node: MirroringNode, robot: Robot,
+                          own_node: bool) -> RobotInterfaces:
+        return RobotInterfaces(
+            node, robot, self.lock, now_ns=lambda: self.simulation.time_ns,
+            time_ns=self.simulation.time_ns, warning_period_s=self._warning_period_s,
+            graph_check_period_s=self._graph_check_period_s, own_node=own_node)
 
     def watch_robot_nodes(self, added: Callable[[Node], None],
                           removed: Callable[[Node], None]) -> None:
@@ -169,18 +127,11 @@ class SimNode(MirroringNode):
         executor, a test harness's); ``removed`` must take the node out of
         the executor before it is destroyed.
         """
-        self._watchers.append((added, removed))
-        for interfaces in self.robots:
-            if interfaces.own_node:
-                added(interfaces.node)
+        self.fleet.watch(added, removed)
 
     def robot(self, name: Optional[str] = None) -> RobotInterfaces:
         """Return a robot's interfaces by name (default: the first robot); KeyError if none."""
-        for interfaces in self.robots:
-            if name is None or interfaces.name == name:
-                return interfaces
-        raise KeyError(f'no robot named {name!r}; the robots are: '
-                       f'{", ".join(i.name for i in self.robots)}')
+        return self.fleet.named(name)
 
     def spawn_entity(self, name: str, allow_renaming: bool, uri: str, resource_string: str,
                      namespace: str, frame_id: str, position: Sequence[float],
@@ -198,29 +149,15 @@ class SimNode(MirroringNode):
                 return self.simulation.entities.spawn(name, allow_renaming, uri,
                                                       resource_string, frame_id, position,
                                                       orientation)
-            resolved = self._free_namespace(namespace)
+            resolved = self.fleet.free_namespace(namespace)
             robot = self.simulation.spawn_robot(name, allow_renaming, uri, resource_string,
                                                 frame_id, position, orientation)
             try:
-                self._add_interfaces(robot, resolved)
+                self.fleet.add(robot, resolved)
             except BaseException:
                 self.simulation.delete_entity(robot.name)
                 raise
             return robot.name
-
-    def _free_namespace(self, namespace: str) -> str:
-        try:
-            resolved = self._resolve_namespace(read_namespace('entity_namespace', namespace))
-        except ConfigError as exc:
-            raise EntityError('NAMESPACE_INVALID', str(exc)) from None
-        if resolved == self.get_namespace():
-            raise EntityError('NAMESPACE_INVALID', f'{resolved} is the simulator\'s own '
-                                                   'namespace: give the robot one of its own')
-        for interfaces in self.robots:
-            if interfaces.namespace == resolved:
-                raise EntityError('NAMESPACE_INVALID', f'robot {interfaces.name} has the '
-                                                       f'namespace {resolved} already')
-        return resolved
 
     def delete_entity(self, name: str) -> None:
         """Delete a spawned entity, and a robot's interfaces with it (EntityError if refused)."""
@@ -228,7 +165,7 @@ class SimNode(MirroringNode):
             try:
                 self.simulation.delete_entity(name)
             finally:
-                self._sync_robots()
+                self.fleet.sync(self.simulation.robots)
 
     def _start_sink(self, config: SimConfig) -> Optional[FoxgloveSink]:
         """Start the live view and the recording the parameters ask for (None: neither)."""
@@ -282,12 +219,12 @@ class SimNode(MirroringNode):
     @property
     def commands_received(self) -> int:
         """Return the number of cmd_vel messages taken by every robot, refused ones included."""
-        return sum(i.cmd_vel.received for i in self.robots) + self._removed_commands[0]
+        return self.fleet.received
 
     @property
     def commands_rejected(self) -> int:
         """Return the number of cmd_vel messages refused (NaN, stale stamp...), all robots'."""
-        return sum(i.cmd_vel.rejected for i in self.robots) + self._removed_commands[1]
+        return self.fleet.rejected
 
     @property
     def has_wheels(self) -> bool:
@@ -399,7 +336,7 @@ class SimNode(MirroringNode):
             try:
                 self.simulation.reset(time=time, state=state, spawned=spawned)
             finally:
-                self._sync_robots()
+                self.fleet.sync(self.simulation.robots)
 
     def _on_pause(self, request, response):
         with self.lock:  # the reply's time is the state the pause landed on
@@ -434,10 +371,7 @@ class SimNode(MirroringNode):
         return response
 
     def _close(self) -> None:
-        # No watcher is told: whoever spins the robots' nodes is shutting down too.
-        for interfaces in reversed(self.robots):
-            interfaces.close()
-        self.robots.clear()
+        self.fleet.close()
         if self.simulation is not None:
             self.simulation.close()
         if self.sink is not None:
