@@ -20,7 +20,8 @@ from r2d2_sim.timing import ns_of, stamp_of
 from r2d2_sim.transforms import quaternion_to_yaw
 
 __all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env',
-           'ros_arg', 'stamp_ns', 'twist_message', 'twist_stamped_message', 'UNKNOWN_NODE_NAME']
+           'numbers_alike', 'ros_arg', 'stamp_ns', 'twist_message', 'twist_stamped_message',
+           'UNKNOWN_NODE_NAME']
 
 # What rmw reports as the node of an endpoint whose node it has not yet discovered.
 UNKNOWN_NODE_NAME = '_NODE_NAME_UNKNOWN_'
@@ -128,12 +129,22 @@ def ros_child_env(domain_id: Optional[int] = None) -> dict:
     return env
 
 
+def numbers_alike(value: Any) -> Any:
+    """Return a list of numbers with a float among them as all floats; anything else as is."""
+    if (isinstance(value, (list, tuple)) and value
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+            and any(isinstance(v, float) for v in value)):
+        return [float(v) for v in value]
+    return value
+
+
 def ros_arg(value: Any) -> str:
     """
     Write a value as the right-hand side of ``-p name:=value``, keeping its type.
 
     ROS reads the text as YAML: JSON is YAML, so strings stay strings (even
     ``'true'`` or ``'1'``), lists stay lists, and a float keeps its point
-    (``1.0``, ``1e-05``, both doubles on Jazzy's rcl).
+    (``1.0``, ``1e-05``, both doubles on Jazzy's rcl). A list of numbers with
+    a float among them is written all floats (rcl refuses mixed lists).
     """
-    return json.dumps(value)
+    return json.dumps(numbers_alike(value))

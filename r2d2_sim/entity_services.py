@@ -24,6 +24,26 @@ class Replies:
     """Setting a reply's result: OK on every success (a default Result reads as unsupported)."""
 
     _msg = None
+    _log = None  # the node's logger, for what no request should cause
+
+    def _guarded(self, callback):
+        """
+        Return ``callback`` answering OPERATION_FAILED for an error nobody foresaw.
+
+        An exception that escapes a service callback ends the executor's spin,
+        and with it the simulator: a request must never do that.
+        """
+        def guarded(request, response):
+            try:
+                return callback(request, response)
+            except Exception as exc:  # a defect here, answered and logged, not fatal
+                what = f'{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ""}'
+                if self._log is not None:
+                    self._log.error(f'{callback.__name__} failed unexpectedly ({what})')
+                if hasattr(response, 'result'):
+                    return self._fail(response, 'OPERATION_FAILED', f'unexpected error: {what}')
+                return response
+        return guarded
 
     def _ok(self, response, result_field: str = 'result'):
         getattr(response, result_field).result = self._msg.Result.RESULT_OK
@@ -48,6 +68,7 @@ class EntityServices(Replies):
         """Serve on ``server`` the entities of ``node``'s simulation."""
         self._node = node
         self._msg = msg
+        self._log = node.get_logger()
         services = (
             ('get_entities', srv.GetEntities, self._entities),
             ('get_entities_states', srv.GetEntitiesStates, self._entities_states),
@@ -60,7 +81,7 @@ class EntityServices(Replies):
             ('get_spawnables', srv.GetSpawnables, self._spawnables),
         )
         for name, srv_type, callback in services:
-            server.create_service(srv_type, name, callback)
+            server.create_service(srv_type, name, self._guarded(callback))
 
     def _matching(self, filters):
         """Return the names the filters pick: regex (search), categories, tags, a sphere."""

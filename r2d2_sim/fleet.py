@@ -94,16 +94,26 @@ class Fleet:
         return resolved
 
     def add(self, robot: Robot, namespace: Optional[str]) -> RobotInterfaces:
-        """Give ``robot`` its interfaces: on the simulator in its namespace, else its own node."""
+        """
+        Give ``robot`` its interfaces: on the simulator in its namespace, else its own node.
+
+        ConfigError (one line) when ROS refuses a name there (rclpy's own
+        checks: a namespace or a topic too long for the middleware...).
+        """
         simulator = self._simulator
         own = namespace is not None and namespace != simulator.get_namespace()
-        node = RobotNode(simulator, namespace) if own else simulator
+        node = None
         try:
+            node = RobotNode(simulator, namespace) if own else simulator
             interfaces = self._make(node, robot, own)
-        except BaseException:
-            if own:
+        except Exception as exc:
+            if own and node is not None:
                 node.destroy_node()
-            raise
+            if isinstance(exc, ConfigError):
+                raise
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise ConfigError(f'robot {robot.name} cannot have its interfaces in '
+                              f'{namespace or simulator.get_namespace()}: {reason}') from None
         self._interfaces.append(interfaces)
         if own:
             for added, _ in self._watchers:

@@ -74,6 +74,10 @@ def _ignore(data: bytes, time_ns: int) -> None:
     """Stand in for a sink that is not there."""
 
 
+def _nothing() -> None:
+    """Release a handle no sink tracks."""
+
+
 class SinkChannel:
     """
     One topic of a :class:`FoxgloveSink`: ``log(data, time_ns)`` sends the bytes on.
@@ -96,6 +100,7 @@ class SinkChannel:
             deque(maxlen=latched_depth) if latched_depth > 0 else None)
         self._latched_version = 0
         self._lock = threading.Lock()
+        self.release: Callable[[], None] = _nothing  # set by the sink that made it
         if self._latched is not None:
             self.log = self._log_latched
         elif live_log is not None and file_log is not None:
@@ -177,6 +182,9 @@ class FoxgloveSink:
         # Each publisher's handle of a latched topic, by the SDK's channel id.
         self._latched_by_id: Dict[int, List[SinkChannel]] = {}
         self._live_ids: Dict[str, Optional[int]] = {}
+        # Each topic's publisher handles, and the SDK channels to close with the last one.
+        self._handles: Dict[str, List[SinkChannel]] = {}
+        self._sdk_channels: Dict[str, list] = {}
         self._time_period_s = 1.0 / time_rate_hz
         self._next_time_s = 0.0
         self._last_time_ns = -1
@@ -272,8 +280,10 @@ class FoxgloveSink:
             for context in (self._live_context, self._file_context):
                 if context is None:
                     continue
-                base = self._foxglove.Channel(topic, schema=schema, message_encoding='cdr',
-                                              context=context, metadata=metadata).base
+                channel = self._foxglove.Channel(topic, schema=schema, message_encoding='cdr',
+                                                 context=context, metadata=metadata)
+                self._sdk_channels.setdefault(topic, []).append(channel)
+                base = channel.base
                 if context is self._live_context:
                     live_log, live_id = base.log, base.id()
                 else:
@@ -282,9 +292,43 @@ class FoxgloveSink:
         handle = SinkChannel(topic, type_name, live_log, file_log, depth)
         self._channels[topic] = handle
         self._live_ids[topic] = live_id
+        return self._track(handle, latched)
+
+    def _track(self, handle: SinkChannel, latched: bool) -> SinkChannel:
+        """Keep ``handle`` among its topic's publishers (and latched ones) until released."""
+        topic = handle.topic
+        self._handles.setdefault(topic, []).append(handle)
+        live_id = self._live_ids.get(topic)
         if latched and live_id is not None:
             self._latched_by_id.setdefault(live_id, []).append(handle)
+        handle.release = lambda: self._release(handle)
         return handle
+
+    def _release(self, handle: SinkChannel) -> None:
+        """
+        Forget one publisher's handle (its node is gone: a deleted robot).
+
+        Its latched messages are no longer re-sent to new viewers; with its
+        topic's last publisher the channel is closed, which unadvertises it.
+        """
+        topic = handle.topic
+        handles = self._handles.get(topic, [])
+        if handle not in handles:
+            return
+        handles.remove(handle)
+        handle.release = _nothing
+        live_id = self._live_ids.get(topic)
+        latched = self._latched_by_id.get(live_id, [])
+        if handle in latched:
+            latched.remove(handle)
+        if handles:
+            return
+        for channel in self._sdk_channels.pop(topic, []):
+            channel.close()
+        self._latched_by_id.pop(live_id, None)
+        self._live_ids.pop(topic, None)
+        self._channels.pop(topic, None)
+        self._handles.pop(topic, None)
 
     def _share(self, first: SinkChannel, type_name: str, qos) -> SinkChannel:
         """Return a handle of another publisher on ``first``'s channel."""
@@ -294,10 +338,7 @@ class FoxgloveSink:
         latched = qos.durability.name == 'TRANSIENT_LOCAL'
         logs = [None if log is _ignore else log for log in (first._live_log, first._file_log)]
         handle = SinkChannel(first.topic, type_name, *logs, max(qos.depth, 1) if latched else 0)
-        live_id = self._live_ids.get(first.topic)
-        if latched and live_id is not None:
-            self._latched_by_id.setdefault(live_id, []).append(handle)
-        return handle
+        return self._track(handle, latched)
 
     def set_time(self, time_ns: int) -> None:
         """

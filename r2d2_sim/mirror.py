@@ -14,11 +14,11 @@ publishers, so mirroring costs nothing when it is off.
 
 from typing import Callable, Optional
 
-from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.serialization import serialize_message
 
 from r2d2_sim.foxglove_sink import FoxgloveSink, SinkChannel
+from r2d2_sim.quiet_node import QuietNode
 
 __all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode']
 
@@ -51,6 +51,10 @@ class MirroredPublisher:
         self.publisher.publish(data)
         self.channel.log(data, self._time_ns())
 
+    def release(self) -> None:
+        """Stop feeding the sink: the publisher's node is going (a deleted robot's)."""
+        self.channel.release()
+
     def __getattr__(self, name: str):
         # Everything else (topic_name, get_subscription_count, destroy...) is the publisher's.
         return getattr(self.publisher, name)
@@ -64,9 +68,11 @@ def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
     return MirroredPublisher(publisher, channel, time_ns)
 
 
-class MirroringNode(Node):
+class MirroringNode(QuietNode):
     """
-    An rclpy Node whose publishers also feed ``sink`` (the live view and recording), if set.
+    A node whose publishers also feed ``sink`` (the live view and recording), if set.
+
+    A :class:`~r2d2_sim.quiet_node.QuietNode`: no default QoS event handlers.
 
     Subclasses set ``sink`` after ``Node.__init__`` (rclpy's own publishers,
     made there, stay unmirrored) and give the simulated time of what they
@@ -84,4 +90,11 @@ class MirroringNode(Node):
         publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
         if self.sink is None:
             return publisher
-        return mirror(publisher, msg_type, self.sink, self.sink_time_ns)
+        mirrored = mirror(publisher, msg_type, self.sink, self.sink_time_ns)
+        self.__dict__.setdefault('_mirrored', []).append(mirrored)
+        return mirrored
+
+    def release_mirrors(self) -> None:
+        """Release this node's publishers from the sink (before the node is destroyed)."""
+        for mirrored in self.__dict__.pop('_mirrored', []):
+            mirrored.release()

@@ -17,12 +17,13 @@ from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.command_input import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, \
     WARNING_PERIOD_S
+from r2d2_sim.entities import EntityError
 from r2d2_sim.errors import SetupError, StartupError
 from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError
 from r2d2_sim.fleet import Fleet
 from r2d2_sim.mirror import MirroringNode
 from r2d2_sim.outputs import ClockOutput
-from r2d2_sim.parameters import SimConfig
+from r2d2_sim.parameters import ConfigError, SimConfig
 from r2d2_sim import sim_interfaces
 from r2d2_sim.robot import Robot
 from r2d2_sim.robot_interfaces import RobotInterfaces
@@ -154,8 +155,10 @@ class SimNode(MirroringNode):
                                                 frame_id, position, orientation)
             try:
                 self.fleet.add(robot, resolved)
-            except BaseException:
+            except BaseException as exc:
                 self.simulation.delete_entity(robot.name)
+                if isinstance(exc, ConfigError):
+                    raise EntityError('NAMESPACE_INVALID', str(exc)) from None
                 raise
             return robot.name
 
@@ -302,7 +305,9 @@ class SimNode(MirroringNode):
         return json.dumps(state)
 
     def _log_blow_up(self, text: str) -> None:
-        self._throttled('blow-up', self.get_logger().error, text)
+        # Throttled per robot: the line ends "resetting the robot NAME to ...".
+        self._throttled('blow-up ' + text[text.rfind(' the robot '):], self.get_logger().error,
+                        text)
 
     def set_paused(self, paused: bool) -> None:
         """

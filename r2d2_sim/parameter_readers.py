@@ -17,7 +17,7 @@ from r2d2_sim.errors import SetupError
 __all__ = ['ConfigError', 'Bounds', 'number', 'positive', 'non_negative', 'limit',
            'field_of_view', 'ratio', 'boolean', 'string', 'frame', 'frame_prefix', 'joint_names',
            'integer', 'choice', 'numbers', 'variances', 'extra_models', 'robot_names',
-           'namespace', 'ROBOT_NAME']
+           'namespace', 'ROBOT_NAME', 'MAX_NAMESPACE_LENGTH']
 
 
 class ConfigError(SetupError, ValueError):
@@ -223,11 +223,19 @@ def robot_names(name: str, value: Any) -> Tuple[str, ...]:
     return names
 
 
+# Names derived from a robot's namespace (its services' DDS topics) must stay
+# within the middleware's 255 characters.
+MAX_NAMESPACE_LENGTH = 150
+
+
 def namespace(name: str, value: Any) -> str:
     """Read a ROS namespace: names of letters, digits and _ joined by /, absolute or not."""
     value = string(name, value)
+    if len(value) > MAX_NAMESPACE_LENGTH:
+        raise ConfigError(f'parameter {name} must be at most {MAX_NAMESPACE_LENGTH} '
+                          f'characters long, got {len(value)}')
     if not _NAMESPACE.match(value) or value.endswith('/') and value != '/':
         raise ConfigError(f'parameter {name} must be a ROS namespace such as /robot1 or '
                           f'robot1 (letters, digits, _ and single / between names), got '
-                          f'{value!r}')
+                          f'{value[:100]!r}')
     return value

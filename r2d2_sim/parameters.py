@@ -432,6 +432,14 @@ def parse_world(values: Mapping[str, Any]) -> Tuple['SimConfig', List[RobotSpec]
     for name in config.robots:
         namespace = read.namespace(f'{name}.namespace', own[name].pop('namespace', ''))
         specs.append(RobotSpec(name, namespace or name, robot_config(config, name, own[name])))
+    if config.tf_layout == 'shared':  # one /tf: each robot's frames must be its own
+        prefixes = {}
+        for spec in specs:
+            other = prefixes.setdefault(spec.config.frame_prefix, spec.name)
+            if other != spec.name:
+                raise ConfigError(f'robots {other} and {spec.name} both prefix their frames '
+                                  f'{spec.config.frame_prefix!r} on the shared /tf: give '
+                                  f'{spec.name}.frame_prefix another')
     return config, specs
 
 

@@ -52,9 +52,10 @@ class RobotNode(MirroringNode):
         self._destroyed = False
 
     def destroy_node(self) -> None:
-        """Destroy the node once (the simulator and a harness may both ask)."""
+        """Destroy the node once (the simulator and a harness may both ask), sink first."""
         if not self._destroyed:
             self._destroyed = True
+            self.release_mirrors()
             super().destroy_node()
 
 

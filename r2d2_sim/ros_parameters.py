@@ -53,7 +53,7 @@ def declare_parameters(node: Node) -> Tuple[SimConfig, List[RobotSpec]]:
         parameter = name.partition('.')[2]
         spec = NAMESPACE_SPEC if parameter == 'namespace' else PARAMETERS_BY_NAME[parameter]
         _declare_typed(node, spec._replace(name=name), value)
-    _warn_unknown_overrides(node, overrides)
+    _warn_unknown_overrides(node, overrides, list(config.robots))
     return config, specs
 
 
@@ -100,13 +100,18 @@ def _declare_empty_list(node: Node, name: str, ros_type: Parameter.Type,
     node.set_descriptor(name, descriptor)
 
 
-def _warn_unknown_overrides(node: Node, overrides) -> None:
+def _warn_unknown_overrides(node: Node, overrides, robots) -> None:
     """Name parameters given on the command line or in a file that nothing reads."""
     # ROS ignores overrides nobody declares, so a typo would run on the default.
     known = [spec.name for spec in PARAMETERS]
     for name in sorted(overrides):
         if node.has_parameter(name) or name.startswith('qos_overrides.'):
             continue  # ours, or rclpy's own (use_sim_time)
-        close = difflib.get_close_matches(name, known, n=1)
-        hint = f' (did you mean {close[0]}?)' if close else ''
+        if '.' in name:  # NAME.parameter of a robot robots does not list (a typo?)
+            close = difflib.get_close_matches(name.partition('.')[0], robots, n=1)
+            hint = (f' (did you mean {close[0]}.{name.partition(".")[2]}?)' if close else
+                    f' (robots lists {", ".join(robots) or "none"})')
+        else:
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f' (did you mean {close[0]}?)' if close else ''
         node.get_logger().warning(f'ignoring unknown parameter {name}{hint}')

@@ -33,6 +33,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
 from r2d2_sim.entity_services import EntityServices, Replies
+from r2d2_sim.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 
 __all__ = ['SimulationInterfaces', 'EntityServices', 'StandardNode', 'available', 'STEP_CHUNK']
 
@@ -51,7 +52,7 @@ def available() -> bool:
     return True
 
 
-class StandardNode(Node):
+class StandardNode(QuietNode):
     """The node the standard's services live on; destroying it twice is harmless."""
 
     def __init__(self, simulator: Node) -> None:
@@ -61,7 +62,8 @@ class StandardNode(Node):
         # into a second 'x'. The global namespace remap still applies.
         super().__init__(name, context=simulator.context, namespace=simulator.get_namespace(),
                          start_parameter_services=False,
-                         cli_args=['--ros-args', '-r', f'__node:={name}'])
+                         cli_args=['--ros-args', '-r', f'__node:={name}'],
+                         parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE])
         self.action_server: Optional[ActionServer] = None
         self._destroyed = False
 
@@ -86,6 +88,7 @@ class SimulationInterfaces(Replies):
         from simulation_interfaces import action, msg, srv
         self._node = node
         self._msg = msg
+        self._log = node.get_logger()
         self._on_quit = on_quit
         self._stepping = threading.Lock()  # one step request at a time
         self._closing = threading.Event()
@@ -100,7 +103,8 @@ class SimulationInterfaces(Replies):
             ('reset_simulation', srv.ResetSimulation, self._reset, None),
         )
         for name, srv_type, callback, callback_group in services:
-            server.create_service(srv_type, name, callback, callback_group=callback_group)
+            server.create_service(srv_type, name, self._guarded(callback),
+                                  callback_group=callback_group)
         server.action_server = ActionServer(
             server, action.SimulateSteps, 'simulate_steps', self._simulate_steps,
             goal_callback=self._accept, cancel_callback=self._allow_cancel, callback_group=group)

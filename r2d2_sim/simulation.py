@@ -16,7 +16,7 @@ from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 from r2d2_sim.description import DescriptionError, RobotDescription
 from r2d2_sim.entities import Entities, EntityError
 from r2d2_sim.errors import SetupError, WorldError
-from r2d2_sim.parameters import robot_config, RobotSpec, SimConfig
+from r2d2_sim.parameters import ConfigError, robot_config, RobotSpec, SimConfig
 from r2d2_sim.robot import Frame, Measurement, Robot
 from r2d2_sim.timing import StepClock, StepSchedule
 from r2d2_sim.transforms import yaw_of
@@ -40,6 +40,13 @@ class StepResult(NamedTuple):
 
 def _ignore(text: str) -> None:
     pass
+
+
+def _box(body) -> tuple:
+    """Return the world bounding box (low, high) of all of a body's links."""
+    boxes = [body.aabb(link) for link in body.links()]
+    return (tuple(min(b.low[k] for b in boxes) for k in range(3)),
+            tuple(max(b.high[k] for b in boxes) for k in range(3)))
 
 
 class Simulation:
@@ -85,6 +92,7 @@ class Simulation:
                                      self.world.robot_description, warn=warn, error=error))
             for spec in robots[1:]:
                 self.add_robot(spec.name, spec.config)
+            self._check_apart()
         except Exception:
             for robot in self.robots:
                 robot.close()
@@ -94,6 +102,16 @@ class Simulation:
                                  self._teleported)
         # Nothing changed since start-up (or a full reset): with time at 0, 'stopped'.
         self.pristine = True
+
+    def _check_apart(self) -> None:
+        """Refuse robots that start inside each other (two poses left alike, a name mistyped)."""
+        boxes = [(robot, _box(robot.body)) for robot in self.robots]
+        for i, (robot, box) in enumerate(boxes):
+            for other, other_box in boxes[:i]:
+                if all(box[0][k] < other_box[1][k] and other_box[0][k] < box[1][k]
+                       for k in range(3)):
+                    raise ConfigError(f'robots {other.name} and {robot.name} overlap where they '
+                                      f'start: give {robot.name}.initial_pose a place of its own')
 
     def add_robot(self, name: str, config: SimConfig) -> Robot:
         """
@@ -115,8 +133,9 @@ class Simulation:
                                          source=config.urdf or description.path)
             source = ('the robot_description parameter' if config.robot_description
                       else description.path)
-            robot = Robot(self.world, body, config, source, description.text, warn=self._warn,
-                          error=self._error, resources=[description])
+            robot = Robot(self.world, body, config, source, description.text,
+                          warn=self._named_warn(name), error=self._error,
+                          resources=[description])
         except Exception:
             if body is not None:
                 self.world.remove(body)
@@ -144,14 +163,31 @@ class Simulation:
         try:
             config = robot_config(self.config, body.name, {
                 'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]})
+            self._check_frames_free(body.name, config)
             robot = Robot(self.world, body, config, body.source, description,
-                          warn=self._warn, error=self._error)
+                          warn=self._named_warn(body.name), error=self._error)
+        except EntityError:
+            self.entities.delete(body.name)
+            raise
         except SetupError as exc:
             self.entities.delete(body.name)
             raise EntityError('OPERATION_FAILED', f'{body.name} cannot be driven: {exc}') from None
         self.robots.append(robot)
         self.pristine = False
         return robot
+
+    def _named_warn(self, name: str) -> Callable[[str], None]:
+        return lambda text: self._warn(f'robot {name}: {text}')
+
+    def _check_frames_free(self, name: str, config: SimConfig) -> None:
+        """Refuse a robot whose frames would be another's on the shared /tf."""
+        if config.tf_layout != 'shared':
+            return
+        for robot in self.robots:
+            if robot.config.frame_prefix == config.frame_prefix:
+                raise EntityError('NAME_NOT_UNIQUE', f'robot {robot.name} publishes its frames '
+                                  f'with the prefix {config.frame_prefix!r} already: name the new '
+                                  'robot otherwise')
 
     def robot_named(self, name: str) -> Robot:
         """Return the robot named ``name``; EntityError NOT_FOUND listing the robots."""

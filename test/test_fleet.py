@@ -16,7 +16,7 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
 from r2d2_sim import sim_interfaces
-from r2d2_sim.testing import StartupError, WorldError
+from r2d2_sim.testing import StartupError, wait_for, WorldError
 from r2d2_sim.testing.tf import TF_STATIC_QOS
 
 FACING = {'a': {}, 'b': {'initial_pose': [2.0, 0.0, math.pi]}}
@@ -166,9 +166,14 @@ def test_robot_parameters_are_declared_and_read_back(r2d2_sim_factory):
     ({'robots': {'a': {'namespace': '/x'}, 'b': {'namespace': 'x'}}},
      'robots a and b both have the namespace /x'),
     ({'robots': {'a': {'max_wheel_force': -1.0}}}, 'a.max_wheel_force'),
+    ({'robots': {'a': {}, 'b': {}}}, 'robots a and b overlap where they start'),
+    ({'robots': {'a': {'frame_prefix': 'x/'},
+                 'b': {'initial_pose': [3.0, 0, 0], 'frame_prefix': 'x/'}}},
+     "robots a and b both prefix their frames 'x/'"),
+    ({'robots': {'a': {'namespace': '/' + 'n' * 151}}}, 'at most 150 characters'),
 ])
 def test_a_bad_fleet_is_one_line_at_start_up(r2d2_sim_factory, parameters, fragment):
-    """Robots sharing a namespace, a robot's bad value: StartupError, one line."""
+    """Shared namespaces, overlap, shared frame prefixes, bad values: StartupError, one line."""
     with pytest.raises(StartupError) as raised:
         r2d2_sim_factory(**parameters)
     assert fragment in str(raised.value) and '\n' not in str(raised.value)
@@ -189,9 +194,10 @@ def test_a_robot_spawned_in_process_gets_its_interfaces_and_loses_them_on_delete
     sim.delete_entity('c')
     sim.advance(seconds=0.1)
     assert sim.robot_names == ['r2d2'] and 'c' not in sim.entities()
-    assert not [t for t in topic_types(sim) if t.startswith('/c/')
-                and sim._link.count_publishers(t)]
-    assert sim.sim.count_publishers('/tf') == 1
+    # The graph forgets the publishers asynchronously: wait for it by deadline.
+    assert wait_for(lambda: not [t for t in topic_types(sim) if t.startswith('/c/')
+                                 and sim._link.count_publishers(t)], 10.0)
+    assert wait_for(lambda: sim.sim.count_publishers('/tf') == 1, 10.0)
     with pytest.raises(Exception) as raised:
         sim.robot('c')
     assert 'no robot named' in str(raised.value)
@@ -201,6 +207,7 @@ def test_a_robot_spawned_in_process_gets_its_interfaces_and_loses_them_on_delete
     ('/', "the simulator's own namespace"),
     ('/a', 'robot a has the namespace /a already'),
     ('a b', 'must be a ROS namespace'),
+    ('/' + 'x' * 300, 'at most 150 characters'),  # rclpy's limits, and its topics' in DDS
 ])
 def test_a_spawn_in_a_bad_namespace_is_namespace_invalid(r2d2_sim_factory, namespace,
                                                          fragment):
@@ -224,6 +231,10 @@ def test_a_third_robot_spawned_through_the_standard_drives_and_leaves_nothing(
     name = sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='/c',
                      position=(0.0, 2.0, 0.48))
     assert name == 'c' and sim.robot_names == ['a', 'b', 'c']
+    with pytest.raises(WorldError) as raised:  # refused in one line; the simulator runs on
+        sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='d', namespace='/' + 'd' * 300,
+                  position=(0.0, 4.0, 0.48))
+    assert raised.value.code == 'NAMESPACE_INVALID' and not sim.process.exited()
     c = sim.robot('c')
     c.send_cmd_vel(linear=0.3)
     sim.step(20)  # 1 s
@@ -269,3 +280,101 @@ def test_the_recording_holds_every_robot_and_both_static_trees(tmp_path):
             assert counts.get(f'/{robot}/{topic}'), (robot, topic)
     assert counts['/tf_static'] == 2 and counts['/clock'] == 121
     assert counts['/tf'] == 2 * 121
+
+
+def test_a_spawned_robot_may_not_take_another_robots_frames(r2d2_sim_factory):
+    """On the shared /tf a robot's frames are its name's: a clash is NAME_NOT_UNIQUE."""
+    sim = r2d2_sim_factory(robots={'a': {'frame_prefix': 'c/'}})
+    with pytest.raises(WorldError) as raised:
+        sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='/c',
+                  position=(0.0, 2.0, 0.48))
+    assert raised.value.code == 'NAME_NOT_UNIQUE' and "prefix 'c/'" in str(raised.value)
+    assert sim.entities() == ['ground_plane', 'a'] and sim.robot_names == ['a']
+
+
+def test_a_reset_right_after_a_spawn_resets(r2d2_sim_factory):
+    """The new robot has published nothing yet; reset_world still resets everything."""
+    sim = r2d2_sim_factory(robots=FACING)
+    sim.advance(seconds=0.1)
+    sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='/c',
+              position=(0.0, 2.0, 0.48))
+    sim.reset_world()
+    assert sim.robot_names == ['a', 'b'] and sim.entities() == ['ground_plane', 'a', 'b']
+    assert sim.sim.step_count == 1  # time went back to 0; then one control period
+    assert x_of(sim.robot('b').ground_truth()) == pytest.approx(2.0, abs=1e-3)
+    sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='/c',
+              position=(0.0, 2.0, 0.48))  # its namespace is free again
+    sim.advance()
+    assert sim.robot('c').ground_truth().pose.pose.position.y == pytest.approx(2.0, abs=1e-3)
+
+
+def test_the_live_view_forgets_a_deleted_robot(r2d2_sim_factory):
+    """Spawn and delete c three times: no /c/ channel, /tf_static's two robots alone latched."""
+    sim = r2d2_sim_factory(robots=FACING, foxglove_port=_free_port())
+    sink = sim.sim.sink
+    for _ in range(3):
+        sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='/c',
+                  position=(0.0, 2.0, 0.48))
+        assert '/c/robot_description' in sink.topics
+        sim.advance()
+        sim.delete_entity('c')
+    assert not [t for t in sink.topics if t.startswith('/c/')]
+    assert len(sink._handles['/tf_static']) == 2 and len(sink._handles['/tf']) == 2
+
+
+def test_a_robot_spawned_without_wheels_says_so_by_name(r2d2_sim_factory, capfd):
+    """A cube in a namespace: every interface but odom, and one warning naming the robot."""
+    sim = r2d2_sim_factory()
+    sim.spawn('cube.urdf', name='box', namespace='/box', position=(2.0, 0.0, 0.5))
+    box = sim.robot('box')
+    sim.advance()
+    assert not box.has_wheels and box.ground_truth().pose.pose.position.x == pytest.approx(2.0)
+    warnings = [line for line in capfd.readouterr().err.splitlines() if 'wheel joints' in line]
+    assert len(warnings) == 1 and 'robot box:' in warnings[0]
+
+
+def test_each_robots_blow_up_is_reported(r2d2_sim_factory, capfd):
+    """Two robots blowing up within the throttle period: one error line each."""
+    sim = r2d2_sim_factory(robots=FACING)
+    for robot in sim.sim.simulation.robots:
+        robot.body.set_base_state(linear_velocity=(1e5, 0.0, 0.0))
+    sim.advance()
+    errors = [line for line in capfd.readouterr().err.splitlines() if 'blew up' in line]
+    assert len(errors) == 2
+    assert 'robot a ' in errors[0] and 'robot b ' in errors[1]
+
+
+def _free_port():
+    import socket
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
+
+
+def test_a_name_ros_refuses_is_one_line_and_leaves_no_node(r2d2_sim_factory):
+    """Fleet.add turns rclpy's refusal of a robot's namespace into ConfigError."""
+    from r2d2_sim.parameters import ConfigError
+    sim = r2d2_sim_factory(robots=FACING)
+    nodes_before = len(sim._link.get_node_names())
+    with pytest.raises(ConfigError) as raised:
+        sim.sim.fleet.add(sim.sim.simulation.robots[1], '/9starts_with_a_digit')
+    assert 'robot b cannot have its interfaces in /9starts_with_a_digit' in str(raised.value)
+    assert '\n' not in str(raised.value) and len(sim.sim.robots) == 2
+    assert wait_for(lambda: len(sim._link.get_node_names()) == nodes_before, 5.0)
+
+
+@needs_standard
+def test_an_unforeseen_error_in_a_service_is_answered_not_fatal(r2d2_sim_factory, monkeypatch):
+    """A defect behind get_entities: OPERATION_FAILED in the reply, one error line, no crash."""
+    from simulation_interfaces.srv import GetEntities
+
+    def broken():
+        raise RuntimeError('a defect')
+    sim = r2d2_sim_factory()
+    monkeypatch.setattr(sim.sim.simulation.entities, 'names', broken)
+    reply = sim.call_service(GetEntities, '/get_entities', GetEntities.Request())
+    assert reply.result.result == reply.result.RESULT_OPERATION_FAILED
+    assert 'RuntimeError: a defect' in reply.result.error_message
+    monkeypatch.undo()
+    reply = sim.call_service(GetEntities, '/get_entities', GetEntities.Request())
+    assert reply.result.result == reply.result.RESULT_OK and 'r2d2' in reply.entities

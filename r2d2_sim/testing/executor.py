@@ -17,13 +17,13 @@ from typing import Any, Callable, Iterator, List, Mapping, Optional
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import (
-    ConditionReachedException, ExternalShutdownException, ShutdownException,
-    SingleThreadedExecutor, TimeoutException)
+    ConditionReachedException, ExternalShutdownException, ShutdownException, TimeoutException)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from r2d2_sim.client import wait_for
+from r2d2_sim.client import numbers_alike, wait_for
 from r2d2_sim.testing.domains import lease_domain
+from r2d2_sim.testing.lockstep import LockstepExecutor
 
 __all__ = ['HarnessError', 'CallbackError', 'parameter_overrides', 'RosHarness']
 
@@ -40,8 +40,13 @@ class CallbackError(HarnessError):
 
 
 def parameter_overrides(parameters: Mapping[str, Any]) -> List[Parameter]:
-    """Turn ``{'name': value}`` into the ``parameter_overrides`` list of an rclpy Node."""
-    return [Parameter(name, value=value) for name, value in parameters.items()]
+    """
+    Turn ``{'name': value}`` into the ``parameter_overrides`` list of an rclpy Node.
+
+    A list of numbers with a float among them becomes all floats
+    (``[2, 0, 3.14]``): rclpy refuses a list of mixed types.
+    """
+    return [Parameter(name, value=numbers_alike(value)) for name, value in parameters.items()]
 
 
 class RosHarness:
@@ -83,7 +88,7 @@ class RosHarness:
         except BaseException:
             self.lease.release()
             raise
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor = LockstepExecutor(context=self.context)
         self._thread = threading.Thread(target=self._spin, daemon=True,
                                         name=f'ros-harness-{self.domain_id}')
         self._thread.start()

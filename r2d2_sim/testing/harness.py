@@ -17,6 +17,7 @@ from rclpy.qos import DurabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from r2d2_sim.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarness
 from r2d2_sim.testing.robots import expected_namespaces, flatten_robots, LocalRobot
 from r2d2_sim.testing.tf import TransformLookup
@@ -65,21 +66,28 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         self.namespace = namespace
         self.sim = None  # the SimNode
         self._link: Optional[Node] = None
+        self._readers: Optional[Node] = None
         self._lockstep = False
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
         parameters = flatten_robots(parameters)
         try:
             from r2d2_sim.node import SimNode  # PyBullet: only when a simulator is wanted
-            # Without parameter services or rosout: fewer entities for the
-            # executor to gather on every wait of a lockstep run.
-            link = self._link = Node(LINK_NODE_NAME, context=self.context,
-                                     namespace=namespace or None,
-                                     start_parameter_services=False, enable_rosout=False)
+            # Without parameter services, rosout, type descriptions or QoS
+            # event handlers: fewer entities for the executor to gather on every
+            # wait of a lockstep run.
+            quiet = dict(context=self.context, namespace=namespace or None,
+                         start_parameter_services=False, enable_rosout=False,
+                         parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE])
+            link = self._link = QuietNode(LINK_NODE_NAME, **quiet)
             RosHarness.add_node(self, link, use_sim_time=False)
-            # Subscribed before the simulator exists: it publishes its first
-            # state from its constructor, and delivery within one context is
-            # synchronous once matched.
-            waiting = [LocalRobot(self, link, ns)
+            # The robots' state readers, on a node no executor spins: they take
+            # the latest message when asked, so a lockstep period spends nothing
+            # on them. Subscribed before the simulator exists: it publishes its
+            # first state from its constructor, and delivery within one context
+            # is synchronous once matched.
+            readers = self._readers = QuietNode(LINK_NODE_NAME + '_readers', **quiet)
+            self.nodes.append(readers)  # destroyed on close
+            waiting = [LocalRobot(self, link, readers, ns)
                        for ns in expected_namespaces(parameters, namespace)]
             self.sim = SimNode(node_name, context=self.context, namespace=namespace or None,
                                parameter_overrides=parameter_overrides(parameters))
@@ -90,7 +98,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
             for interfaces in self.sim.robots:
                 handle = next((h for h in waiting if h.namespace == interfaces.namespace), None)
                 if handle is None:
-                    handle = LocalRobot(self, link, interfaces.namespace)
+                    handle = LocalRobot(self, link, readers, interfaces.namespace)
                 else:
                     waiting.remove(handle)
                 self._robots[interfaces.name] = handle.attach(interfaces)
@@ -128,7 +136,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
                 raise HarnessError(str(exc.args[0])) from None
             # Spawned by someone else: its state is readable from the next publication.
             handle = self._robots[name] = LocalRobot(
-                self, self._link, interfaces.namespace).attach(interfaces)
+                self, self._link, self._readers, interfaces.namespace).attach(interfaces)
         return handle
 
     @property
@@ -138,9 +146,10 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
 
     def _drop_departed(self) -> None:
         """Close the handles of robots that left the world (deleted, or a reset)."""
-        names = set(self.robot_names)
-        for name in [n for n in self._robots if n not in names]:
-            self._robots.pop(name).close()
+        live = {interfaces.name: interfaces for interfaces in self.sim.robots}
+        for name, handle in list(self._robots.items()):
+            if not handle.bound_to(live.get(name)):  # gone, or another robot of that name
+                self._robots.pop(name).close()
 
     def _after_spawn(self, name: str, namespace: str) -> None:
         if namespace:
@@ -323,10 +332,8 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         return CoreWorld(self.sim)
 
     def _before_reset(self) -> None:
-        """Take the latest state first: nothing older may arrive after the reset."""
+        """Nothing to take first: delivery here is synchronous, forget() drains what came."""
         self._drop_departed()
-        for handle in self._robots.values():
-            handle.take_latest()
 
     def _after_reset(self) -> None:
         """Make the state readers wait for the reset world (published one control period on)."""

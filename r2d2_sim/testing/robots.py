@@ -59,6 +59,10 @@ def expected_namespaces(parameters: Mapping[str, Any], namespace: str) -> list:
     return list(listed.values()) or [base]
 
 
+def _unused(msg) -> None:
+    """Stand in as the readers' callback, never called: no executor spins their node."""
+
+
 def _topic(namespace: str, name: str) -> str:
     return f'{namespace.rstrip("/")}/{name}'
 
@@ -100,32 +104,39 @@ class _RobotHandle(TransformLookup):
 
 class LocalRobot(_RobotHandle):
     """
-    One robot of a :class:`~r2d2_sim.testing.harness.SimHarness`, through the harness's node.
+    One robot of a :class:`~r2d2_sim.testing.harness.SimHarness`, through the harness's nodes.
 
     Its state topics are subscribed when the handle is made (before the
-    simulator publishes, for the robots the parameters list); :meth:`attach`
-    binds it to the simulator's robot once that exists.
+    simulator publishes, for the robots the parameters list) on ``readers``, a
+    node no executor spins: the latest message is taken when asked for (depth
+    1 keeps it), as raw bytes deserialized only then. ``cmd_vel`` goes out
+    from ``link``. :meth:`attach` binds the handle to the simulator's robot
+    once that exists.
     """
 
-    def __init__(self, harness, link: Node, namespace: str) -> None:
+    def __init__(self, harness, link: Node, readers: Node, namespace: str) -> None:
         self.namespace = namespace
         self._harness = harness
         self._link = link
+        self._readers = readers
         self._interfaces = None
         self._cmd_vel = None
         self._stamped = False
         self._latest: Dict[str, Optional[bytes]] = dict.fromkeys(STATE_TYPES)
-        # Raw bytes, deserialized only when asked for: a lockstep run takes
-        # every publication. Depth 1: only the latest matters here.
         self._subscriptions = [
-            link.create_subscription(msg_type, _topic(namespace, topic), self._keeper(topic),
-                                     1, raw=True)
+            readers.create_subscription(msg_type, _topic(namespace, topic), _unused, 1,
+                                        raw=True)
             for topic, msg_type in STATE_TYPES.items()]
 
-    def _keeper(self, topic: str) -> Callable[[Any], None]:
-        def keep(msg) -> None:
-            self._latest[topic] = msg
-        return keep
+    def _take(self, topic: str) -> Optional[bytes]:
+        """Take what arrived on ``topic`` since the last time; return the latest (bytes)."""
+        subscription = self._subscriptions[list(STATE_TYPES).index(topic)]
+        with subscription.handle:
+            while True:
+                taken = subscription.handle.take_message(subscription.msg_type, True)
+                if taken is None:
+                    return self._latest[topic]
+                self._latest[topic] = taken[0]
 
     def attach(self, interfaces) -> 'LocalRobot':
         """Bind to the simulator's robot ``interfaces``: its name, and cmd_vel of its type."""
@@ -192,7 +203,7 @@ class LocalRobot(_RobotHandle):
         found = []
 
         def arrived():
-            raw = self._latest[topic]
+            raw = self._take(topic)
             if raw is None:
                 return False
             msg = deserialize_message(raw, STATE_TYPES[topic])
@@ -215,21 +226,20 @@ class LocalRobot(_RobotHandle):
             return False
         return True
 
-    def take_latest(self) -> None:
-        """Wait for every state topic of the latest publication (before a reset)."""
-        for topic in STATE_TYPES:
-            if topic != 'odom' or self.has_wheels:
-                self._wait_latest(topic)
+    def bound_to(self, interfaces) -> bool:
+        """Return True if this handle is of the robot ``interfaces`` (the very same robot)."""
+        return interfaces is not None and interfaces is self._interfaces
 
     def forget(self) -> None:
         """Drop what was received: the state readers wait for the next publication."""
         for topic in self._latest:
+            self._take(topic)
             self._latest[topic] = None
 
     def close(self) -> None:
         """Stop listening (the robot left the world)."""
         for subscription in self._subscriptions:
-            self._link.destroy_subscription(subscription)
+            self._readers.destroy_subscription(subscription)
         self._subscriptions = []
         if self._cmd_vel is not None:
             self._link.destroy_publisher(self._cmd_vel)
