@@ -140,6 +140,27 @@ def test_examples_pass_in_parallel_workers_without_cross_talk(tmp_path):
     print(f'pytest -n 2 of the examples: {time.monotonic() - started:.1f} s')
 
 
+def test_a_suite_shards_over_machines_with_pytest_split(tmp_path):
+    """The README's CI recipe: two shards at once run every example exactly once, all passing."""
+    for name in EXAMPLE_FILES:
+        (tmp_path / name).write_text((EXAMPLES / name).read_text(encoding='utf-8'))
+    env = testing.ros_child_env()
+    env.pop('ROS_DOMAIN_ID', None)
+    env['PYTHONPATH'] = os.pathsep.join(p for p in (REPO, env.get('PYTHONPATH')) if p)
+    shards = [subprocess.Popen(
+        [sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider', '-rA',
+         '--splits', '2', '--group', str(group), str(tmp_path)],
+        cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        for group in (1, 2)]
+    ran = []
+    for shard in shards:
+        out, _ = shard.communicate(timeout=120)
+        assert shard.returncode == 0, out[-3000:]
+        ran.append({line.split()[1] for line in out.splitlines() if line.startswith('PASSED ')})
+    assert ran[0] and ran[1] and not ran[0] & ran[1]
+    assert len(ran[0] | ran[1]) == len(EXAMPLE_FILES)  # one test per example file
+
+
 def test_the_pytest_plugins_line_also_works_where_r2d2_sim_is_installed(tmp_path):
     """With setup.py's pytest11 entry point active (pip, colcon), the README's files still run."""
     # egg_info writes the metadata an install would, entry points included.
