@@ -20,7 +20,7 @@ import pytest
 
 @pytest.fixture
 def ros():
-    """A context of its own on a leased domain, with the harness's executor."""
+    """Provide a context of its own on a leased domain, with the harness's executor."""
     with RosHarness() as harness:
         yield harness
 
@@ -31,7 +31,7 @@ def poll_until_idle(harness):
 
 
 def test_the_harness_executor_is_the_lockstep_one(ros):
-    """RosHarness (and so SimHarness) spins a LockstepExecutor."""
+    """The executor of RosHarness (and so of SimHarness) is a LockstepExecutor."""
     assert isinstance(ros.executor, LockstepExecutor)
 
 
@@ -117,3 +117,39 @@ def test_an_error_in_a_direct_callback_is_raised_by_the_next_call(ros):
     with pytest.raises(CallbackError) as raised:
         poll_until_idle(ros)
     assert isinstance(raised.value.__cause__, ValueError) and 'bad 3' in str(raised.value)
+
+
+def test_a_closed_loop_harness_polls_by_taking_and_a_client_brings_the_wait_back(
+        r2d2_sim_factory):
+    """The README's controller needs no wait set (sweep); a client in the harness does."""
+    import importlib.util
+    from pathlib import Path
+    example = Path(__file__).parent / 'examples' / 'test_closed_loop.py'
+    spec = importlib.util.spec_from_file_location('closed_loop_example', example)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    sim = r2d2_sim_factory()
+    controller = sim.add_node(module.DriveToX(context=sim.context))
+    sim.advance(seconds=0.1)
+    assert sim.executor._gathered.sweepable
+    client = controller.create_client(Trigger, '/r2d2_sim/get_status')
+    sim.advance(seconds=0.1)
+    assert not sim.executor._gathered.sweepable  # its service must be waited on now
+    future = client.call_async(Trigger.Request())
+    sim.advance()  # answered within the period
+    assert future.done() and '"paused"' in future.result().message
+    controller.destroy_client(client)
+    sim.advance(seconds=0.1)
+    assert sim.executor._gathered.sweepable
+
+
+def test_timers_on_simulated_time_fire_in_the_sweep_at_their_period(r2d2_sim_factory):
+    """A 10 Hz timer on /clock ticks exactly 10 times in one simulated second."""
+    sim = r2d2_sim_factory()
+    node = sim.create_node('ticker')
+    ticks = []
+    node.create_timer(0.1, lambda: ticks.append(node.get_clock().now().nanoseconds))
+    sim.advance(seconds=1.0)
+    assert sim.executor._gathered.sweepable
+    assert len(ticks) == 10
+    assert [b - a for a, b in zip(ticks, ticks[1:])] == pytest.approx([1e8] * 9, abs=5e6)

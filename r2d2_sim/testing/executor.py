@@ -220,7 +220,9 @@ class RosHarness:
             raise CallbackError(f'a callback raised {type(error).__name__}: {error}') from error
 
     def _park_wanted(self) -> bool:
-        return self._park_requests > 0
+        # Checked after each wake of a wait: a stop request ends the wait at once
+        # (rclpy's wait would go on until its timeout after a wake with no work).
+        return self._park_requests > 0 or self._stop.is_set()
 
     def _spin(self) -> None:
         """Serve callbacks until stopped, parking while a caller drives."""

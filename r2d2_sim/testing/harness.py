@@ -66,7 +66,6 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         self.namespace = namespace
         self.sim = None  # the SimNode
         self._link: Optional[Node] = None
-        self._readers: Optional[Node] = None
         self._lockstep = False
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
         parameters = flatten_robots(parameters)
@@ -80,14 +79,12 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
                          parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE])
             link = self._link = QuietNode(LINK_NODE_NAME, **quiet)
             RosHarness.add_node(self, link, use_sim_time=False)
-            # The robots' state readers, on a node no executor spins: they take
-            # the latest message when asked, so a lockstep period spends nothing
-            # on them. Subscribed before the simulator exists: it publishes its
-            # first state from its constructor, and delivery within one context
-            # is synchronous once matched.
-            readers = self._readers = QuietNode(LINK_NODE_NAME + '_readers', **quiet)
-            self.nodes.append(readers)  # destroyed on close
-            waiting = [LocalRobot(self, link, readers, ns)
+            # The robots' state readers take the latest message when asked (a
+            # callback group no executor runs), so a lockstep period spends
+            # nothing on them. Subscribed before the simulator exists: it
+            # publishes its first state from its constructor, and delivery
+            # within one context is synchronous once matched.
+            waiting = [LocalRobot(self, link, ns)
                        for ns in expected_namespaces(parameters, namespace)]
             self.sim = SimNode(node_name, context=self.context, namespace=namespace or None,
                                parameter_overrides=parameter_overrides(parameters))
@@ -98,7 +95,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
             for interfaces in self.sim.robots:
                 handle = next((h for h in waiting if h.namespace == interfaces.namespace), None)
                 if handle is None:
-                    handle = LocalRobot(self, link, readers, interfaces.namespace)
+                    handle = LocalRobot(self, link, interfaces.namespace)
                 else:
                     waiting.remove(handle)
                 self._robots[interfaces.name] = handle.attach(interfaces)
@@ -136,7 +133,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
                 raise HarnessError(str(exc.args[0])) from None
             # Spawned by someone else: its state is readable from the next publication.
             handle = self._robots[name] = LocalRobot(
-                self, self._link, self._readers, interfaces.namespace).attach(interfaces)
+                self, self._link, interfaces.namespace).attach(interfaces)
         return handle
 
     @property

@@ -22,6 +22,7 @@ from sensor_msgs.msg import JointState
 from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
 from r2d2_sim.parameters import robot_namespaces
 from r2d2_sim.testing.executor import HarnessError
+from r2d2_sim.testing.lockstep import TakenOnDemand
 from r2d2_sim.testing.tf import TransformLookup
 
 __all__ = ['LocalRobot', 'RemoteRobot', 'STATE_TYPES', 'flatten_robots',
@@ -60,7 +61,7 @@ def expected_namespaces(parameters: Mapping[str, Any], namespace: str) -> list:
 
 
 def _unused(msg) -> None:
-    """Stand in as the readers' callback, never called: no executor spins their node."""
+    """Stand in as the readers' callback, never called: no executor runs their group."""
 
 
 def _topic(namespace: str, name: str) -> str:
@@ -106,26 +107,26 @@ class LocalRobot(_RobotHandle):
     """
     One robot of a :class:`~r2d2_sim.testing.harness.SimHarness`, through the harness's nodes.
 
-    Its state topics are subscribed when the handle is made (before the
-    simulator publishes, for the robots the parameters list) on ``readers``, a
-    node no executor spins: the latest message is taken when asked for (depth
-    1 keeps it), as raw bytes deserialized only then. ``cmd_vel`` goes out
-    from ``link``. :meth:`attach` binds the handle to the simulator's robot
-    once that exists.
+    Its state topics are subscribed on ``link`` when the handle is made
+    (before the simulator publishes, for the robots the parameters list), in
+    a callback group no executor runs: the latest message is taken when asked
+    for (depth 1 keeps it), as raw bytes deserialized only then, and a
+    lockstep period spends nothing on them. :meth:`attach` binds the handle
+    to the simulator's robot once that exists.
     """
 
-    def __init__(self, harness, link: Node, readers: Node, namespace: str) -> None:
+    def __init__(self, harness, link: Node, namespace: str) -> None:
         self.namespace = namespace
         self._harness = harness
         self._link = link
-        self._readers = readers
         self._interfaces = None
         self._cmd_vel = None
         self._stamped = False
         self._latest: Dict[str, Optional[bytes]] = dict.fromkeys(STATE_TYPES)
+        on_demand = TakenOnDemand()
         self._subscriptions = [
-            readers.create_subscription(msg_type, _topic(namespace, topic), _unused, 1,
-                                        raw=True)
+            link.create_subscription(msg_type, _topic(namespace, topic), _unused, 1,
+                                     raw=True, callback_group=on_demand)
             for topic, msg_type in STATE_TYPES.items()]
 
     def _take(self, topic: str) -> Optional[bytes]:
@@ -239,7 +240,7 @@ class LocalRobot(_RobotHandle):
     def close(self) -> None:
         """Stop listening (the robot left the world)."""
         for subscription in self._subscriptions:
-            self._readers.destroy_subscription(subscription)
+            self._link.destroy_subscription(subscription)
         self._subscriptions = []
         if self._cmd_vel is not None:
             self._link.destroy_publisher(self._cmd_vel)
