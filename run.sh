@@ -50,7 +50,8 @@ case "$cmd" in
   test)  setup; need_xvfb
          paths=(test); for arg in "$@"; do [ -e "${arg%%::*}" ] && paths=(); done
          exec "$PY" -m pytest -q -p no:cacheprovider -n 2 "${paths[@]}" "$@" ;;
-  # The main bench, then several robots in one world (bench/fleet.py).
-  bench) setup; "$PY" bench/run.py "$@"; exec "$PY" bench/fleet.py "$@" ;;
+  # The main bench, then several robots in one world, then the test harness's speed.
+  bench) setup; "$PY" bench/run.py "$@"; "$PY" bench/fleet.py "$@"
+         exec "$PY" bench/lockstep.py "$@" ;;
   *) echo "usage: ./run.sh demo|test|bench|sim [args...]" >&2; exit 2 ;;
 esac

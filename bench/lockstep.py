@@ -15,6 +15,10 @@ Each harness and raw ``stepSimulation`` of its very own world take turns every
 simulated second (``common.alternate``, wall clock), so both see the same
 load; the ratio is the harness's share of the physics' speed.
 
+- **Breakdown**: where a closed-loop period (every step) goes: ``SimNode.advance``
+  (physics and the bridge) and the lockstep part (the controller's callbacks and
+  the polls), timed around each; an empty poll; a typed take of an Odometry and
+  of a Clock (what rclpy costs the controller's node per message).
 - **Fixture**: wall time to build a ``SimHarness`` and to close it (median).
 - **Suite**: ``bench/scenarios`` (16 closed-loop scenarios of 5 simulated
   seconds) under ``pytest -n 1`` and ``-n 2``, wall time of each run.
@@ -73,6 +77,52 @@ def measure_harnesses(rounds, min_s):
     return results
 
 
+def measure_breakdown(periods):
+    """Wall us per closed-loop period in advance and in lockstep; an empty poll; typed takes."""
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import serialize_message
+    from rosgraph_msgs.msg import Clock
+    from r2d2_sim.testing import SimHarness
+    with SimHarness(cmd_vel_timeout=0.0) as harness:
+        harness.add_node(controller_class()(goal_m=1000.0, context=harness.context))
+        harness.advance(steps=CHUNK_STEPS)
+        advance_s = lockstep_s = 0.0
+        clock = time.perf_counter
+        with harness._own_executor():
+            for _ in range(periods):
+                started = clock()
+                harness.sim.advance(1)
+                stepped = clock()
+                harness._run_until_idle(10.0)
+                advance_s += stepped - started
+                lockstep_s += clock() - stepped
+            started = clock()
+            for _ in range(periods):
+                harness._run_until_idle(10.0)
+            empty_s = clock() - started
+        takes = {}
+        node = harness.create_node('take_probe', use_sim_time=False)
+        for name, msg_type in (('Odometry', Odometry), ('Clock', Clock)):
+            publisher = node.create_publisher(msg_type, f'/probe_{name}', 10)
+            subscription = node.create_subscription(msg_type, f'/probe_{name}', _unused, 10)
+            harness._wait(lambda: publisher.get_subscription_count() > 0, 'the probe matched')
+            data, spent = serialize_message(msg_type()), 0.0
+            for _ in range(periods):
+                publisher.publish(data)
+                started = clock()
+                with subscription.handle:
+                    subscription.handle.take_message(msg_type, False)
+                spent += clock() - started
+            takes[name] = spent / periods * 1e6
+    return {'advance_us_per_period': advance_s / periods * 1e6,
+            'lockstep_us_per_period': lockstep_s / periods * 1e6,
+            'empty_poll_us': empty_s / periods * 1e6, 'typed_take_us': takes}
+
+
+def _unused(msg):
+    """Stand in as the probe's callback: its messages are taken by hand."""
+
+
 def measure_fixture(count):
     """Wall seconds to build a SimHarness (the r2d2_sim fixture's) and to close it."""
     from r2d2_sim.testing import SimHarness
@@ -110,6 +160,13 @@ def print_table(results):
         print(f'{name:32} | {statistics.median(entry["harness_steps_per_s"]):>15.0f} | '
               f'{statistics.median(entry["raw_steps_per_s"]):>11.0f} | '
               f'{entry["ratio_median"]:>14.3f} | >= {entry["goal"]}')
+    split = results['breakdown']
+    print(f'\nclosed loop, every step, per period: advance '
+          f'{split["advance_us_per_period"]:.0f} us, lockstep '
+          f'{split["lockstep_us_per_period"]:.0f} us; an empty poll '
+          f'{split["empty_poll_us"]:.1f} us; typed take: Odometry '
+          f'{split["typed_take_us"]["Odometry"]:.1f} us, Clock '
+          f'{split["typed_take_us"]["Clock"]:.1f} us')
     fixture = results['fixture']
     print(f'\nfixture: build {fixture["build_s_median"] * 1e3:.0f} ms, '
           f'close {fixture["close_s_median"] * 1e3:.0f} ms (medians)')
@@ -122,10 +179,13 @@ def main(argv=None):
     """Run the lockstep bench; print and save the results."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help='fewer and shorter windows')
+    parser.add_argument('--domain', type=int, help='ignored: every harness leases a free domain '
+                        '(accepted so that ./run.sh bench can pass the same arguments)')
     args = parser.parse_args(argv)
     rounds, min_s, builds = (2, 1.0, 3) if args.quick else (5, 2.0, 9)
     results = {'machine': machine_info(), 'date': local_date(), 'quick': args.quick,
                'harnesses': measure_harnesses(rounds, min_s),
+               'breakdown': measure_breakdown(1200 if args.quick else 4800),
                'fixture': measure_fixture(builds),
                'suite': measure_suite((1, 2))}
     write_json(RESULTS_PATH, results)
