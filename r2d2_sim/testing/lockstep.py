@@ -68,12 +68,19 @@ class TakenOnDemand(CallbackGroup):
 
 
 class _DirectCallback:
-    """A ready subscription's callback run at once: take the message, call (as rclpy's Task)."""
+    """
+    A ready subscription's plain callback run at once, as rclpy's Task would run it.
 
-    __slots__ = ('_subscription', '_exception')
+    With ``taken`` (a sweep took the message already) it calls back with that;
+    else it takes the next message first. Inside the callback group's
+    execution; an exception is kept for the caller, as a Task keeps it.
+    """
 
-    def __init__(self, subscription: Subscription) -> None:
+    __slots__ = ('_subscription', '_taken', '_exception')
+
+    def __init__(self, subscription: Subscription, taken=None) -> None:
         self._subscription = subscription
+        self._taken = taken
         self._exception: Optional[BaseException] = None
 
     def __call__(self) -> None:
@@ -82,9 +89,11 @@ class _DirectCallback:
         if not group.beginning_execution(subscription):
             return
         try:
-            with subscription.handle:
-                taken = subscription.handle.take_message(subscription.msg_type,
-                                                         subscription.raw)
+            taken = self._taken
+            if taken is None:
+                with subscription.handle:
+                    taken = subscription.handle.take_message(subscription.msg_type,
+                                                             subscription.raw)
             if taken is not None:
                 if subscription._callback_type is Subscription.CallbackType.MessageOnly:
                     subscription.callback(taken[0])
@@ -109,31 +118,6 @@ class _DirectCallback:
     def done(self) -> bool:
         """Return True: the callback has run by the time anyone asks."""
         return True
-
-
-class _TakenCallback(_DirectCallback):
-    """A subscription's callback for a message already taken (a sweep takes before running)."""
-
-    __slots__ = ('_taken',)
-
-    def __init__(self, subscription: Subscription, taken) -> None:
-        super().__init__(subscription)
-        self._taken = taken
-
-    def __call__(self) -> None:
-        subscription = self._subscription
-        group = subscription.callback_group
-        if not group.beginning_execution(subscription):
-            return
-        try:
-            if subscription._callback_type is Subscription.CallbackType.MessageOnly:
-                subscription.callback(self._taken[0])
-            else:
-                subscription.callback(*self._taken)
-        except Exception as exc:  # kept for the caller, as a Task keeps it
-            self._exception = exc
-        finally:
-            group.ending_execution(subscription)
 
 
 class _Gathered:
@@ -357,7 +341,7 @@ class LockstepExecutor(SingleThreadedExecutor):
                         taken = subscription.handle.take_message(subscription.msg_type,
                                                                  subscription.raw)
                     if taken is not None:
-                        work.append((_TakenCallback(subscription, taken), subscription, node))
+                        work.append((_DirectCallback(subscription, taken), subscription, node))
         except InvalidHandle:
             self._gathered = None
             if work:  # taken messages are not lost: their callbacks still run
