@@ -42,13 +42,6 @@ def _ignore(text: str) -> None:
     pass
 
 
-def _box(body) -> tuple:
-    """Return the world bounding box (low, high) of all of a body's links."""
-    boxes = [body.aabb(link) for link in body.links()]
-    return (tuple(min(b.low[k] for b in boxes) for k in range(3)),
-            tuple(max(b.high[k] for b in boxes) for k in range(3)))
-
-
 class Simulation:
     """
     The world, its robots and the step schedule.
@@ -105,7 +98,7 @@ class Simulation:
 
     def _check_apart(self) -> None:
         """Refuse robots that start inside each other (two poses left alike, a name mistyped)."""
-        boxes = [(robot, _box(robot.body)) for robot in self.robots]
+        boxes = [(robot, robot.body.bounding_box()) for robot in self.robots]
         for i, (robot, box) in enumerate(boxes):
             for other, other_box in boxes[:i]:
                 if all(box[0][k] < other_box[1][k] and other_box[0][k] < box[1][k]
@@ -188,14 +181,6 @@ class Simulation:
                 raise EntityError('NAME_NOT_UNIQUE', f'robot {robot.name} publishes its frames '
                                   f'with the prefix {config.frame_prefix!r} already: name the new '
                                   'robot otherwise')
-
-    def robot_named(self, name: str) -> Robot:
-        """Return the robot named ``name``; EntityError NOT_FOUND listing the robots."""
-        for robot in self.robots:
-            if robot.name == name:
-                return robot
-        raise EntityError('NOT_FOUND', f'no robot named {name!r}; the robots are: '
-                                       f'{", ".join(r.name for r in self.robots)}')
 
     def delete_entity(self, name: str) -> None:
         """Delete a spawned entity, and the robot it is if it is one (start-up ones stay)."""
