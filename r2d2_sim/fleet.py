@@ -17,7 +17,7 @@ from rclpy.node import Node
 from r2d2_sim.entities import EntityError
 from r2d2_sim.mirror import MirroringNode
 from r2d2_sim.parameter_readers import ConfigError, namespace as read_namespace
-from r2d2_sim.parameters import resolve_namespace, RobotSpec
+from r2d2_sim.robot_parameters import resolve_namespace, RobotSpec
 from r2d2_sim.robot import Robot
 from r2d2_sim.robot_interfaces import RobotInterfaces, RobotNode
 

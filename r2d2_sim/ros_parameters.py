@@ -16,8 +16,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from r2d2_sim.parameters import (
-    Parameter as ParameterSpec, PARAMETERS, PARAMETERS_BY_NAME, parse_world,
-    RobotSpec, SimConfig)
+    Parameter as ParameterSpec, PARAMETERS, PARAMETERS_BY_NAME, SimConfig)
+from r2d2_sim.robot_parameters import parse_world, RobotSpec
 
 NAMESPACE_SPEC = ParameterSpec(
     'namespace', 'string', '', 'The robot\'s namespace: absolute, or relative to the '

@@ -16,8 +16,9 @@ from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 from r2d2_sim.description import DescriptionError, RobotDescription
 from r2d2_sim.entities import Entities, EntityError
 from r2d2_sim.errors import SetupError, WorldError
-from r2d2_sim.parameters import ConfigError, robot_config, RobotSpec, SimConfig
+from r2d2_sim.parameters import ConfigError, SimConfig
 from r2d2_sim.robot import Frame, Measurement, Robot
+from r2d2_sim.robot_parameters import robot_config, RobotSpec
 from r2d2_sim.timing import StepClock, StepSchedule
 from r2d2_sim.transforms import yaw_of
 from r2d2_sim.world import ExtraModel, SimWorld
@@ -111,7 +112,7 @@ class Simulation:
         Load a driven robot ``name`` standing at ``config.initial_pose``; return it.
 
         Its description, drive and sensors are ``config``'s (see
-        :func:`~r2d2_sim.parameters.robot_config`). Raises a SetupError
+        :func:`~r2d2_sim.robot_parameters.robot_config`). Raises a SetupError
         (WorldError, ConfigError) when it cannot be loaded or driven; nothing
         of it then stays in the world.
         """

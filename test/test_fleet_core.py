@@ -11,7 +11,8 @@ import math
 
 import pytest
 
-from r2d2_sim.parameters import ConfigError, parse_world
+from r2d2_sim.parameters import ConfigError
+from r2d2_sim.robot_parameters import parse_world
 from r2d2_sim.simulation import Simulation
 from r2d2_sim.world import RAY_GROUPS, SimWorld
 
