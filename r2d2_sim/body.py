@@ -286,14 +286,9 @@ class Body:
         return records.dynamics(self._client, self.id, link)
 
     def bounding_box(self) -> Aabb:
-        """Return the world bounding box around all of the body's links."""
-        boxes = [self.aabb(link) for link in self.links()]
-        return Aabb(tuple(min(b.low[k] for b in boxes) for k in range(3)),
-                    tuple(max(b.high[k] for b in boxes) for k in range(3)))
-
-    def lowest_point_m(self) -> float:
-        """Return the height of the body's lowest point (its bounding boxes)."""
-        return self.bounding_box().low[2]
+        """Return the world bounding box around all of the body's links (``low[2]``: its floor)."""
+        lows, highs = zip(*(self.aabb(link) for link in self.links()))
+        return Aabb(tuple(map(min, zip(*lows))), tuple(map(max, zip(*highs))))
 
     def links_spanning_height(self, height_m: float) -> List[int]:
         """Return the links whose bounding box spans ``height_m`` now (a sensor plane)."""

@@ -263,36 +263,40 @@ class FoxgloveSink:
         if first is not None:
             return self._share(first, type_name, qos)
         latched = qos.durability.name == 'TRANSIENT_LOCAL'
-        live_log = file_log = None
-        live_id = None
-        if self._foxglove is not None:
-            try:
-                definition = message_definition(type_name)
-            except UnknownMessageType as exc:
-                raise SinkError(f'{topic}: {exc}') from None
-            metadata = {'offered_qos_profiles': offered_qos_profiles(qos)}
-            try:
-                metadata['topic_type_hash'] = type_hash(type_name)
-            except UnknownMessageType:
-                pass  # rosbag2 writes no hash either when it has none
-            schema = self._foxglove.Schema(name=type_name, encoding='ros2msg',
-                                           data=definition.encode('utf-8'))
-            for context in (self._live_context, self._file_context):
-                if context is None:
-                    continue
-                channel = self._foxglove.Channel(topic, schema=schema, message_encoding='cdr',
-                                                 context=context, metadata=metadata)
-                self._sdk_channels.setdefault(topic, []).append(channel)
-                base = channel.base
-                if context is self._live_context:
-                    live_log, live_id = base.log, base.id()
-                else:
-                    file_log = base.log
+        live_log, file_log, live_id = self._open_channels(topic, type_name, qos)
         depth = max(qos.depth, 1) if latched else 0
         handle = SinkChannel(topic, type_name, live_log, file_log, depth)
         self._channels[topic] = handle
         self._live_ids[topic] = live_id
         return self._track(handle, latched)
+
+    def _open_channels(self, topic: str, type_name: str, qos) -> tuple:
+        """Advertise ``topic`` to the live view and the file; return their logs and live id."""
+        live_log = file_log = live_id = None
+        if self._foxglove is None:
+            return live_log, file_log, live_id
+        try:
+            definition = message_definition(type_name)
+        except UnknownMessageType as exc:
+            raise SinkError(f'{topic}: {exc}') from None
+        metadata = {'offered_qos_profiles': offered_qos_profiles(qos)}
+        try:
+            metadata['topic_type_hash'] = type_hash(type_name)
+        except UnknownMessageType:
+            pass  # rosbag2 writes no hash either when it has none
+        schema = self._foxglove.Schema(name=type_name, encoding='ros2msg',
+                                       data=definition.encode('utf-8'))
+        for context in (self._live_context, self._file_context):
+            if context is None:
+                continue
+            channel = self._foxglove.Channel(topic, schema=schema, message_encoding='cdr',
+                                             context=context, metadata=metadata)
+            self._sdk_channels.setdefault(topic, []).append(channel)
+            if context is self._live_context:
+                live_log, live_id = channel.base.log, channel.base.id()
+            else:
+                file_log = channel.base.log
+        return live_log, file_log, live_id
 
     def _track(self, handle: SinkChannel, latched: bool) -> SinkChannel:
         """Keep ``handle`` among its topic's publishers (and latched ones) until released."""

@@ -97,7 +97,7 @@ class Robot:
         # point, with the start-up robots' clearance.
         self.footprint_height_m = body.world_state().position[2]
         if body.spawned:
-            self.footprint_height_m -= body.lowest_point_m() - SPAWN_CLEARANCE_M
+            self.footprint_height_m -= body.bounding_box().low[2] - SPAWN_CLEARANCE_M
         self.movable: List[JointRecord] = body.movable_joints()
         self.movable_indices = [j.index for j in self.movable]
         self.drive: Optional[DriveTrain] = find_drive_train(body, config, source, warn)

@@ -219,7 +219,7 @@ class SimWorld:
         position, _ = client.getBasePositionAndOrientation(body.id)
         client.resetBasePositionAndOrientation(
             body.id, (position[0], position[1],
-                      position[2] - body.lowest_point_m() + SPAWN_CLEARANCE_M), orientation)
+                      position[2] - body.bounding_box().low[2] + SPAWN_CLEARANCE_M), orientation)
         body.save_initial_state()
         return body
 

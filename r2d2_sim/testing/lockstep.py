@@ -42,6 +42,7 @@ from rclpy.executors import ExternalShutdownException, ShutdownException, \
     SingleThreadedExecutor, TimeoutException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
+from rclpy.waitable import NumberOfEntities
 
 __all__ = ['LockstepExecutor', 'TakenOnDemand']
 
@@ -125,26 +126,22 @@ class _Gathered:
 
     def __init__(self, executor: 'LockstepExecutor') -> None:
         self.nodes = executor.get_nodes()
-        self.subscriptions = [s for n in self.nodes for s in n.subscriptions
-                              if not isinstance(s.callback_group, TakenOnDemand)]
-        self.timers = [t for n in self.nodes for t in n.timers]
-        self.clients = [c for n in self.nodes for c in n.clients]
         # Only the services a client here may call: nobody else's request can
         # be part of a lockstep period (one from another process is served
         # between advances, by rclpy's own waits). The simulator's and the
         # standard's 21 services would otherwise be most of each poll's wait.
-        called = {c.handle.service_name for c in self.clients}
-        self.services = [s for n in self.nodes for s in n.services if s.handle.name in called]
-        self.guards = [g for n in self.nodes for g in n.guards]
+        called = {c.handle.service_name for n in self.nodes for c in n.clients}
+        # Per node, in rclpy's order: timers, subscriptions, guards, clients, services.
+        self.by_node = [(n, (list(n.timers),
+                             [s for s in n.subscriptions
+                              if not isinstance(s.callback_group, TakenOnDemand)],
+                             list(n.guards), list(n.clients),
+                             [s for s in n.services if s.handle.name in called]))
+                        for n in self.nodes]
+        self.timers, self.subscriptions, self.guards, self.clients, self.services = (
+            [entity for _, kinds in self.by_node for entity in kinds[kind]] for kind in range(5))
         self.waitables = [w for n in self.nodes for w in n.waitables]
         self.owner = {id(w): n for n in self.nodes for w in n.waitables}
-        # Per node, in rclpy's order, with the pointers the wait set reports.
-        self.by_node = [(n, (list(n.timers), [(s, s.handle.pointer) for s in n.subscriptions
-                                              if not isinstance(s.callback_group, TakenOnDemand)],
-                             list(n.guards), [(c, c.handle.pointer) for c in n.clients],
-                             [(s, s.handle.pointer) for s in n.services
-                              if s.handle.name in called]))
-                        for n in self.nodes]
         self.direct = {id(s) for s in self.subscriptions
                        if not inspect.iscoroutinefunction(s.callback)}
         # What only a wait set can tell: guard conditions, clients and services,
@@ -156,30 +153,26 @@ class _Gathered:
             and len(self.direct) == len(self.subscriptions)
             and all(isinstance(w, (EventHandler, ActionServer)) for w in self.waitables))
         guards = self.guards + [executor._guard, executor._sigint_gc]
-        self.handles = ([s.handle for s in self.subscriptions] + [c.handle for c in self.clients]
-                        + [s.handle for s in self.services] + [t.handle for t in self.timers]
-                        + [g.handle for g in guards])
-        events = 0
-        extra = [0, 0, 0, 0, 0]  # subscriptions, guards, timers, clients, services of waitables
+        self.handles = [e.handle for e in self.subscriptions + self.clients + self.services
+                        + self.timers + guards]
+        self.wait_set = self._wait_set(executor, guards)
+
+    def _wait_set(self, executor: 'LockstepExecutor', guards: list):
+        """Make the wait set for these entities and keep how to fill it (``adders``)."""
+        count = NumberOfEntities(len(self.subscriptions), len(guards), len(self.timers),
+                                 len(self.clients), len(self.services))
         for waitable in self.waitables:
-            entities = waitable.get_num_entities()
-            extra[0] += entities.num_subscriptions
-            extra[1] += entities.num_guard_conditions
-            extra[2] += entities.num_timers
-            extra[3] += entities.num_clients
-            extra[4] += entities.num_services
-            events += entities.num_events
-        self.wait_set = _rclpy.WaitSet(
-            len(self.subscriptions) + extra[0], len(guards) + extra[1],
-            len(self.timers) + extra[2], len(self.clients) + extra[3],
-            len(self.services) + extra[4], events, executor._context.handle)
-        wait_set = self.wait_set
+            count += waitable.get_num_entities()
+        wait_set = _rclpy.WaitSet(count.num_subscriptions, count.num_guard_conditions,
+                                  count.num_timers, count.num_clients, count.num_services,
+                                  count.num_events, executor._context.handle)
         self.adders: List[Tuple[Callable, object]] = (
             [(wait_set.add_subscription, s.handle) for s in self.subscriptions]
             + [(wait_set.add_client, c.handle) for c in self.clients]
             + [(wait_set.add_service, s.handle) for s in self.services]
             + [(wait_set.add_timer, t.handle) for t in self.timers]
             + [(wait_set.add_guard_condition, g.handle) for g in guards])
+        return wait_set
 
 
 class LockstepExecutor(SingleThreadedExecutor):
@@ -229,25 +222,27 @@ class LockstepExecutor(SingleThreadedExecutor):
         raise TimeoutException()
 
     def _poll(self):
-        """Wait once with timeout 0; return the ready work in rclpy's order (None: gather anew)."""
+        """Poll once; return the ready work in rclpy's order (None: gather anew first)."""
         gathered = self._gathered
         if gathered is None:
             gathered = self._gathered = _Gathered(self)
         if gathered.sweepable:
             return self._sweep(gathered)
+        ready = self._wait_once(gathered)
+        if ready is None:
+            return None
+        return self._ready_work(gathered, *ready)
+
+    def _wait_once(self, gathered: _Gathered):
+        """Wait on the kept wait set with timeout 0; return what is ready (None: stale handle)."""
         for guard in gathered.guards:  # triggered, not handled yet: keep it so (as rclpy)
             if guard._executor_triggered:
                 guard.trigger()
         entered = []
         try:
-            for handle in gathered.handles:
-                handle.__enter__()
-                entered.append(handle)
-            for waitable in gathered.waitables:
-                waitable.__enter__()
-                entered.append(waitable)
-            self._context.handle.__enter__()
-            entered.append(self._context.handle)
+            for item in gathered.handles + gathered.waitables + [self._context.handle]:
+                item.__enter__()
+                entered.append(item)
             wait_set = gathered.wait_set
             wait_set.clear_entities()
             for add, handle in gathered.adders:
@@ -259,61 +254,48 @@ class LockstepExecutor(SingleThreadedExecutor):
                 raise ShutdownException()
             if not self._context.ok():
                 raise ExternalShutdownException()
-            subscriptions = set(wait_set.get_ready_entities('subscription'))
-            guards = set(wait_set.get_ready_entities('guard_condition'))
-            timers = set(wait_set.get_ready_entities('timer'))
-            clients = set(wait_set.get_ready_entities('client'))
-            services = set(wait_set.get_ready_entities('service'))
+            ready = {kind: set(wait_set.get_ready_entities(kind)) for kind in (
+                'timer', 'subscription', 'guard_condition', 'client', 'service')}
             for guard in gathered.guards:
-                if guard.handle.pointer in guards:
+                if guard.handle.pointer in ready['guard_condition']:
                     guard._executor_triggered = True
-            waitables = [w for w in gathered.waitables if w.is_ready(wait_set)]
+            return [w for w in gathered.waitables if w.is_ready(wait_set)], ready
         except InvalidHandle:
             self._gathered = None
             return None
         finally:
             for item in reversed(entered):
                 item.__exit__(None, None, None)
+
+    def _ready_work(self, gathered: _Gathered, waitables: list, ready: dict) -> list:
+        """Return handlers for what is ready: waitables first, then per node in rclpy's order."""
         work = []
         for waitable in waitables:
             if waitable.callback_group.can_execute(waitable):
                 node = gathered.owner[id(waitable)]
                 work.append((self._make_handler(waitable, node, self._take_waitable),
                              waitable, node))
-        if not (timers or subscriptions or clients or services or gathered.guards):
+        if not (ready['timer'] or ready['subscription'] or ready['client']
+                or ready['service'] or gathered.guards):
             return work  # the usual idle poll: nothing but the executor's own guards
-        direct = gathered.direct
-        for node, kinds in gathered.by_node:
-            timers_of, subscriptions_of, guards_of, clients_of, services_of = kinds
-            if timers:
-                for timer in timers_of:
-                    if timer.handle.pointer in timers and timer.handle.is_timer_ready() \
-                            and timer.callback_group.can_execute(timer):
-                        work.append((self._make_handler(timer, node, self._take_timer),
-                                     timer, node))
-            if subscriptions:
-                for subscription, pointer in subscriptions_of:
-                    if pointer in subscriptions:
-                        if id(subscription) in direct:
-                            work.append((_DirectCallback(subscription), subscription, node))
-                        elif subscription.callback_group.can_execute(subscription):
-                            work.append((self._make_handler(
-                                subscription, node, self._take_subscription), subscription,
-                                node))
-            for guard in guards_of:
-                if guard._executor_triggered and guard.callback_group.can_execute(guard):
-                    work.append((self._make_handler(guard, node, self._take_guard_condition),
-                                 guard, node))
-            if clients:
-                for client, pointer in clients_of:
-                    if pointer in clients and client.callback_group.can_execute(client):
-                        work.append((self._make_handler(client, node, self._take_client),
-                                     client, node))
-            if services:
-                for service, pointer in services_of:
-                    if pointer in services and service.callback_group.can_execute(service):
-                        work.append((self._make_handler(service, node, self._take_service),
-                                     service, node))
+        takes = (self._take_timer, self._take_subscription, self._take_guard_condition,
+                 self._take_client, self._take_service)
+        kinds = ('timer', 'subscription', 'guard_condition', 'client', 'service')
+        for node, entities in gathered.by_node:
+            for kind, take, of_kind in zip(kinds, takes, entities):
+                pointers = ready[kind]
+                for entity in of_kind:
+                    if kind == 'guard_condition':
+                        if not entity._executor_triggered:
+                            continue
+                    elif entity.handle.pointer not in pointers:
+                        continue
+                    elif kind == 'timer' and not entity.handle.is_timer_ready():
+                        continue
+                    if kind == 'subscription' and id(entity) in gathered.direct:
+                        work.append((_DirectCallback(entity), entity, node))
+                    elif entity.callback_group.can_execute(entity):
+                        work.append((self._make_handler(entity, node, take), entity, node))
         return work
 
     def _sweep(self, gathered: _Gathered):
@@ -336,7 +318,7 @@ class LockstepExecutor(SingleThreadedExecutor):
                     if timer.handle.is_timer_ready() and timer.callback_group.can_execute(timer):
                         work.append((self._make_handler(timer, node, self._take_timer),
                                      timer, node))
-                for subscription, _ in subscriptions:
+                for subscription in subscriptions:
                     with subscription.handle:
                         taken = subscription.handle.take_message(subscription.msg_type,
                                                                  subscription.raw)
