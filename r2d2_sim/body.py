@@ -292,12 +292,8 @@ class Body:
 
     def links_spanning_height(self, height_m: float) -> List[int]:
         """Return the links whose bounding box spans ``height_m`` now (a sensor plane)."""
-        spanning = []
-        for link in self.links():
-            box = self.aabb(link)
-            if box.low[2] <= height_m <= box.high[2]:
-                spanning.append(link)
-        return spanning
+        boxes = ((link, self.aabb(link)) for link in self.links())
+        return [link for link, box in boxes if box.low[2] <= height_m <= box.high[2]]
 
     def link_half_extent_m(self, link: int) -> float:
         """Return half the largest horizontal size of a link's bounding box."""
