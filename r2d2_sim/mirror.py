@@ -20,7 +20,7 @@ from rclpy.serialization import serialize_message
 from r2d2_sim.foxglove_sink import FoxgloveSink, SinkChannel
 from r2d2_sim.quiet_node import QuietNode
 
-__all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode']
+__all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode', 'start_sink']
 
 
 def ros_type_name(msg_type: type) -> str:
@@ -66,6 +66,25 @@ def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
     channel = sink.channel(publisher.topic_name, ros_type_name(msg_type),
                            publisher.qos_profile)
     return MirroredPublisher(publisher, channel, time_ns)
+
+
+def start_sink(config, name: str, log: Callable[[str], None]) -> Optional[FoxgloveSink]:
+    """
+    Start the live view and the recording a SimConfig asks for (None: neither); say where.
+
+    ``name`` is the server's name viewers show; ``log`` gets one line for each
+    (the view's address, the recording's file). SinkError when either cannot start.
+    """
+    port = config.foxglove_port or None
+    record = config.record or None
+    if port is None and record is None:
+        return None
+    sink = FoxgloveSink(port, config.foxglove_host, record, name=name)
+    if sink.url is not None:
+        log(f'Foxglove live view at {sink.url}')
+    if record is not None:
+        log(f'recording every output to {record}')
+    return sink
 
 
 class MirroringNode(QuietNode):

@@ -8,22 +8,21 @@ serves topics and services in another thread; tests drive it step by step.
 Everything here is ROS plumbing: parameters in, messages out, services.
 """
 
-import json
 import threading
 from typing import Callable, Optional, Sequence
 
 from rclpy.node import Node
-from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.command_input import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, \
     WARNING_PERIOD_S
+from r2d2_sim.control_services import ControlServices
 from r2d2_sim.entities import EntityError
 from r2d2_sim.errors import SetupError, StartupError
 from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError
 from r2d2_sim.fleet import Fleet
-from r2d2_sim.mirror import MirroringNode
+from r2d2_sim.mirror import MirroringNode, start_sink
 from r2d2_sim.outputs import ClockOutput
-from r2d2_sim.parameters import ConfigError, SimConfig
+from r2d2_sim.parameters import ConfigError
 from r2d2_sim import sim_interfaces
 from r2d2_sim.robot import Robot
 from r2d2_sim.robot_interfaces import RobotInterfaces
@@ -78,7 +77,7 @@ class SimNode(MirroringNode):
         try:
             self.config, specs = declare_parameters(self)
             namespaces = self.fleet.start_namespaces(specs)
-            self.sink = self._start_sink(self.config)
+            self.sink = start_sink(self.config, self.get_name(), self.get_logger().info)
             self.simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
                                          error=self._log_blow_up)
             self._clock_output = ClockOutput(self)
@@ -88,10 +87,7 @@ class SimNode(MirroringNode):
             self._close()
             raise StartupError(str(exc)) from exc
         self._paused = self.config.start_paused
-        self.create_service(SetBool, '~/pause', self._on_pause)
-        self.create_service(Trigger, '~/step', self._on_step)
-        self.create_service(Trigger, '~/reset', self._on_reset)
-        self.create_service(Trigger, '~/get_status', self._on_get_status)
+        self.control = ControlServices(self)
         if sim_interfaces.available():
             self.standard = SimulationInterfaces(self, on_quit)
         else:
@@ -169,19 +165,6 @@ class SimNode(MirroringNode):
                 self.simulation.delete_entity(name)
             finally:
                 self.fleet.sync(self.simulation.robots)
-
-    def _start_sink(self, config: SimConfig) -> Optional[FoxgloveSink]:
-        """Start the live view and the recording the parameters ask for (None: neither)."""
-        port = config.foxglove_port or None
-        record = config.record or None
-        if port is None and record is None:
-            return None
-        sink = FoxgloveSink(port, config.foxglove_host, record, name=self.get_name())
-        if sink.url is not None:
-            self.get_logger().info(f'Foxglove live view at {sink.url}')
-        if record is not None:
-            self.get_logger().info(f'recording every output to {record}')
-        return sink
 
     @property
     def world(self) -> SimWorld:
@@ -285,24 +268,8 @@ class SimNode(MirroringNode):
                 interfaces.publish(measurement)
 
     def status(self, **facts) -> str:
-        """
-        Return the simulation's state as the JSON text the control services reply with.
-
-        Keys: ``paused``, ``step`` (physics steps since start), ``sim_time_ns``
-        and ``sim_time`` (s) of the last step, ``commands_received`` (cmd_vel
-        messages taken so far by all robots, so a client can confirm its
-        command arrived), ``robots`` (each robot's ``namespace``, ``tf`` topic
-        and ``commands_received``, by name), plus the service's own ``facts``
-        (``steps`` advanced, an ``error``).
-        """
-        ns = self.sim_time_ns
-        state = {'paused': self._paused, 'step': self.step_count, 'sim_time_ns': ns,
-                 'sim_time': ns / 1e9, 'commands_received': self.commands_received,
-                 'robots': {i.name: {'namespace': i.namespace, 'tf': i.tf_topics[0],
-                                     'commands_received': i.cmd_vel.received}
-                            for i in self.robots}}
-        state.update(facts)
-        return json.dumps(state)
+        """Return the simulation's state as the control services' JSON (see ControlServices)."""
+        return self.control.status(**facts)
 
     def _log_blow_up(self, text: str) -> None:
         # Throttled per robot: the line ends "resetting the robot NAME to ...".
@@ -342,38 +309,6 @@ class SimNode(MirroringNode):
                 self.simulation.reset(time=time, state=state, spawned=spawned)
             finally:
                 self.fleet.sync(self.simulation.robots)
-
-    def _on_pause(self, request, response):
-        with self.lock:  # the reply's time is the state the pause landed on
-            self.set_paused(request.data)
-            response.message = self.status()
-        response.success = True
-        return response
-
-    def _on_step(self, request, response):
-        with self.lock:
-            if not self._paused:
-                response.success = False
-                response.message = self.status(
-                    steps=0, error='the simulation is running: pause it (~/pause true) to step')
-                return response
-            steps = self.advance_to_next_publish()
-            response.message = self.status(steps=steps)
-        response.success = True
-        return response
-
-    def _on_get_status(self, request, response):
-        with self.lock:
-            response.message = self.status()
-        response.success = True
-        return response
-
-    def _on_reset(self, request, response):
-        with self.lock:
-            self.reset_simulation()  # the robot; time goes on, spawned entities stay
-            response.message = self.status()
-        response.success = True
-        return response
 
     def _close(self) -> None:
         self.fleet.close()

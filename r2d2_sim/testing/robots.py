@@ -257,11 +257,11 @@ class RemoteRobot(_RobotHandle):
     """
 
     def __init__(self, process, namespace: str, name: Optional[str] = None,
-                 tf_topic: Optional[str] = None, *, subscribe: bool = True) -> None:
+                 facts: Optional[Mapping[str, Any]] = None, *, subscribe: bool = True) -> None:
         self.namespace = namespace
         self.name = name
-        if tf_topic:
-            self.tf_topics = (tf_topic, tf_topic + '_static')
+        if name is not None:
+            self.bind(name, facts)
         self._process = process
         node = process.probe.node
         self._node = node
@@ -278,6 +278,27 @@ class RemoteRobot(_RobotHandle):
         def keep(msg) -> None:
             self._latest[topic] = msg
         return keep
+
+    def bind(self, name: str, facts: Mapping[str, Any]) -> 'RemoteRobot':
+        """Take the node's name for the robot and its facts from ``~/get_status`` (TF topic)."""
+        self.name = name
+        self.tf_topics = (facts['tf'], facts['tf'] + '_static')
+        return self
+
+    def connect(self) -> 'RemoteRobot':
+        """Wait (by deadline) until linked, make the ``cmd_vel`` publisher, wait for its match."""
+        process = self._process
+        if not process.probe.spin_until(lambda: self.linked() or process.process.exited(),
+                                        process.timeout_s):
+            self.close()
+            raise HarnessError(f'the robot {self.name} did not link its topics within '
+                               f'{process.timeout_s:g} s')
+        self.attach()
+        if not process.probe.spin_until(self.cmd_vel_linked, process.timeout_s):
+            self.close()
+            raise HarnessError(f'the robot {self.name} did not subscribe cmd_vel within '
+                               f'{process.timeout_s:g} s')
+        return self
 
     def cmd_vel_type(self) -> Optional[str]:
         """Return the type the node subscribes the robot's ``cmd_vel`` with, once seen."""

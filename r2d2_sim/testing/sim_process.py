@@ -246,8 +246,7 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
             if robot.name is None:
                 robot.close()  # the parameters (a params file?) placed the robots elsewhere
                 continue
-            robot.tf_topics = (robots[robot.name]['tf'], robots[robot.name]['tf'] + '_static')
-            self._robots[robot.name] = robot
+            self._robots[robot.name] = robot.bind(robot.name, robots[robot.name])
         # In the node's order: the first robot is the harness's own.
         self._robots = {name: self._robots[name] for name in robots if name in self._robots}
         self._pending = []
@@ -277,18 +276,9 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
         if name not in robots:
             raise HarnessError(f'no robot named {name!r}; the robots are: {", ".join(robots)}')
         facts = robots[name]
-        handle = RemoteRobot(self, facts['namespace'], name, facts['tf'],
-                             subscribe=self._state_subscriptions)
-        if not self.probe.spin_until(lambda: handle.linked() or self._exited(), self.timeout_s):
-            handle.close()
-            raise HarnessError(f'the robot {name} did not link its topics within '
-                               f'{self.timeout_s:g} s')
-        handle.attach()
-        if not self.probe.spin_until(handle.cmd_vel_linked, self.timeout_s):
-            handle.close()
-            raise HarnessError(f'the robot {name} did not subscribe cmd_vel within '
-                               f'{self.timeout_s:g} s')
-        self._robots[name] = handle
+        handle = self._robots[name] = RemoteRobot(
+            self, facts['namespace'], name, facts,
+            subscribe=self._state_subscriptions).connect()
         return handle
 
     @property
