@@ -221,11 +221,7 @@ class LocalRobot(_RobotHandle):
         return self._harness.last_publication_ns()  # the current state, never one on its way
 
     def _tf_wait(self, condition) -> bool:
-        try:
-            self._harness._wait(condition, 'no transform')
-        except HarnessError:
-            return False
-        return True
+        return self._harness._tf_wait(condition)
 
     def bound_to(self, interfaces) -> bool:
         """Return True if this handle is of the robot ``interfaces`` (the very same robot)."""
