@@ -160,6 +160,12 @@ def _import_stopping_at_once() -> threading.Event:
     try:
         import rclpy  # noqa: F401
         import r2d2_sim.node  # noqa: F401
+    except Exception:
+        # The SystemExit raised inside a C extension's initialisation comes
+        # out as an ImportError ("initialization failed"): stopping was asked for.
+        if stop.is_set():
+            raise SystemExit(0) from None
+        raise
     finally:
         stop_on_signals(stop)
     return stop

@@ -687,3 +687,38 @@ def test_two_simulators_in_one_domain_are_isolated_by_namespace():
         assert results[f'/{bystander} drift while /{mover} drove'] < 1e-3, results
     for code, out, err in codes.values():
         assert_clean_exit(code, out, err)
+
+
+SIGNAL_INSIDE_A_C_EXTENSION = r'''
+import importlib.abc, importlib.machinery, os, signal, sys, time
+
+class Loader(importlib.abc.Loader):
+    """rclpy's C extension, as a signal meets it: the SystemExit becomes an ImportError."""
+    def create_module(self, spec):
+        return None
+    def exec_module(self, module):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)
+        except SystemExit as exc:
+            raise ImportError('initialization failed') from exc
+
+class Finder(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name == 'rclpy':
+            return importlib.machinery.ModuleSpec(name, Loader())
+        return None
+
+sys.meta_path.insert(0, Finder())
+from r2d2_sim import sim_node
+sys.exit(sim_node.main(['sim_node']))
+'''
+
+
+def test_a_signal_inside_a_c_extensions_import_still_exits_0():
+    """SIGTERM while rclpy's C extension initialises: pybind11 turns SystemExit into ImportError."""
+    result = subprocess.run([sys.executable, '-c', SIGNAL_INSIDE_A_C_EXTENSION],
+                            env=ros_env(next_domain_id()), capture_output=True, text=True,
+                            timeout=30)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert 'Traceback' not in result.stderr
