@@ -716,7 +716,7 @@ sys.exit(sim_node.main(['sim_node']))
 
 
 def test_a_signal_inside_a_c_extensions_import_still_exits_0():
-    """SIGTERM while rclpy's C extension initialises: pybind11 turns SystemExit into ImportError."""
+    """SIGTERM while rclpy's C extension loads: pybind11 turns SystemExit into ImportError."""
     result = subprocess.run([sys.executable, '-c', SIGNAL_INSIDE_A_C_EXTENSION],
                             env=ros_env(next_domain_id()), capture_output=True, text=True,
                             timeout=30)
