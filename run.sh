@@ -44,7 +44,7 @@ need_xvfb() {
 cmd="${1:-demo}"
 shift || true
 case "$cmd" in
-  demo)  setup; exec "$PY" -m r2d2_sim.demo "$@" ;;
+  demo)  setup; exec "$PY" -m r2d2_sim.apps.demo "$@" ;;
   sim)   setup; exec "$PY" -m r2d2_sim "$@" ;;
   # Two workers: every ROS test leases a domain of its own. Paths given replace test/.
   test)  setup; need_xvfb

@@ -255,7 +255,7 @@ def existing_parameters(params):
     A parameter the node does not declare would only be warned about and
     ignored, so a measurement that needs one checks ``missing_parameters``.
     """
-    from r2d2_sim.parameters import PARAMETERS_BY_NAME
+    from r2d2_sim.sim.parameters import PARAMETERS_BY_NAME
     convert = {'double': float, 'integer': int, 'bool': bool, 'string': str}
     kept = {}
     for name, value in params.items():
@@ -267,7 +267,7 @@ def existing_parameters(params):
 
 def missing_parameters(names):
     """Return those of ``names`` that this r2d2_sim does not declare."""
-    from r2d2_sim.parameters import PARAMETERS_BY_NAME
+    from r2d2_sim.sim.parameters import PARAMETERS_BY_NAME
     return [name for name in names if name not in PARAMETERS_BY_NAME]
 
 
@@ -286,12 +286,12 @@ def make_sim_node(context, namespace, params, quiet=True):
     """
     from rclpy.logging import LoggingSeverity, set_logger_level
     from rclpy.parameter import Parameter
-    from r2d2_sim.stdio import silenced_output
+    from r2d2_sim.physics.stdio import silenced_output
     if quiet:
         prefix = '.'.join(part for part in namespace.split('/') if part)
         set_logger_level(f'{prefix}.r2d2_sim' if prefix else 'r2d2_sim',
                          LoggingSeverity.ERROR)
     with silenced_output():
-        from r2d2_sim.node import SimNode
+        from r2d2_sim.ros.node import SimNode
         return SimNode(context=context, namespace=namespace, parameter_overrides=[
             Parameter(name, value=value) for name, value in params.items()])

@@ -115,7 +115,10 @@ class Patches:
 
 def instrument(node, patches):
     """Wrap the parts of a step on this node, its simulation, world, robot and controller."""
-    from r2d2_sim import outputs, sensor_mounts, serialization, tf_outputs
+    from r2d2_sim.ros import outputs
+    from r2d2_sim.sim import sensor_mounts
+    from r2d2_sim.ros import serialization
+    from r2d2_sim.ros import tf_outputs
     simulation = node.simulation
     world, robot = simulation.world, simulation.robot
     body, controller = robot.body, robot.controller

@@ -64,8 +64,9 @@ def harness(args):
     """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
-    from r2d2_sim import timing
-    from r2d2_sim.sim_node import run_paced, stop_on_signals
+    from r2d2_sim.model import timing
+    from r2d2_sim.apps.cli import stop_on_signals
+    from r2d2_sim.apps.sim_node import run_paced
 
     deadlines, starts, ends, physics = [], [], [], []
     perf_counter = time.perf_counter
@@ -139,7 +140,7 @@ def subscriber(args):
     from nav_msgs.msg import Odometry
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
-    from r2d2_sim.sim_node import stop_on_signals
+    from r2d2_sim.apps.cli import stop_on_signals
 
     stop = stop_on_signals()
     init_ros(args.domain)
@@ -199,7 +200,7 @@ def latency(args):
     from rclpy.executors import SingleThreadedExecutor
     from geometry_msgs.msg import Twist
     from sensor_msgs.msg import JointState
-    from r2d2_sim.sim_node import stop_on_signals
+    from r2d2_sim.apps.cli import stop_on_signals
 
     stop = stop_on_signals()
     init_ros(args.domain)

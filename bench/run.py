@@ -200,14 +200,16 @@ def time_output_calls(node, message, steps):
     Advance ``node`` ``steps`` steps; return the wall us each ``message`` cost, measured and sent.
 
     The sensors' measuring methods (scan, IMU read, render) and every output
-    class's ``publish`` (``r2d2_sim.outputs``, ``r2d2_sim.tf_outputs``) are
+    class's ``publish`` (``r2d2_sim.ros.outputs``, ``r2d2_sim.ros.tf_outputs``) are
     timed (put back afterwards). Per step, the time of the measurement that
     produces ``message`` and of the output call that published it through
     one of the node's publishers are added up. The median of these resists
     preemption by other processes better than a difference of two
     throughputs does.
     """
-    from r2d2_sim import outputs, sensor_mounts, tf_outputs
+    from r2d2_sim.ros import outputs
+    from r2d2_sim.sim import sensor_mounts
+    from r2d2_sim.ros import tf_outputs
     perf_counter = time.perf_counter
     published, spent, saved = [], [0.0], []
     for publisher in node.publishers:
@@ -361,8 +363,8 @@ def measure_throughput(work, domain_id, subprocess_domain, plan, params):
     """
     import rclpy
     from rclpy.context import Context
-    from r2d2_sim.node import StartupError
-    from r2d2_sim.parameters import PARAMETERS_BY_NAME
+    from r2d2_sim.ros.node import StartupError
+    from r2d2_sim.sim.parameters import PARAMETERS_BY_NAME
 
     context = Context()
     init_ros(domain_id, context)
@@ -631,8 +633,8 @@ def measure_raw_paced_cpu(seconds):
     in every sleep, so a step costs more than at rtf 0).
     """
     import resource
-    from r2d2_sim.timing import DeadlinePacer
-    from r2d2_sim.world import SimWorld
+    from r2d2_sim.model.timing import DeadlinePacer
+    from r2d2_sim.physics.world import SimWorld
     world = SimWorld()
     try:
         pacer = DeadlinePacer(1.0 / PHYSICS_RATE_HZ)

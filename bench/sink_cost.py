@@ -57,7 +57,7 @@ def viewer(port: int) -> None:
     """Connect to the live view, subscribe to every channel, drain until stdin closes."""
     import threading
     from websockets.sync.client import connect
-    from r2d2_sim.foxglove_sink import SUBPROTOCOL
+    from r2d2_sim.recording.sink import SUBPROTOCOL
     done = threading.Event()
     threading.Thread(target=lambda: (sys.stdin.read(), done.set()), daemon=True).start()
     with connect(f'ws://127.0.0.1:{port}', subprotocols=[SUBPROTOCOL], max_size=None,

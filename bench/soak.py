@@ -522,7 +522,7 @@ def print_summary(results, checks, header):
 
 def main(argv=None):
     """Parse arguments, run the soak, print and write the results; 0 if every check passes."""
-    from r2d2_sim.cli import positive_number
+    from r2d2_sim.apps.cli import positive_number
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     parser.add_argument('--sim-seconds', type=positive_number, default=3600.0,
                         help='simulated seconds to run (default 3600)')

@@ -1,12 +1,21 @@
 """
 r2d2_sim: a ROS 2 node that runs a PyBullet simulation of R2D2.
 
-Layered so each part can be tested alone, with no import running back up:
-pure math (``kinematics``, ``transforms``, ``sensors``, ``drive_controller``,
-``parameters``, ``timing``), PyBullet (``body``, ``world``), the ROS-free
-simulation core (``robot``, ``simulation``: ``Simulation.step()`` returns what
-every robot measured), and ROS (``outputs``, ``command_input``,
-``robot_interfaces``: one robot's ROS side, ``node``, ``sim_node``). Tools and
-the testing API (``testing``, ``pytest_plugin``) sit on top. README.md's
-Design section maps every module and follows one ``cmd_vel`` through them.
+The folders are the layers, each importing only from those listed before it:
+
+- :mod:`r2d2_sim.model`: pure math, numpy at most (kinematics, transforms, sensor
+  models, timing, the drive controller);
+- :mod:`r2d2_sim.physics`: PyBullet only (named records, bodies that own their
+  ids, the world, ray casts, robot descriptions);
+- :mod:`r2d2_sim.sim`: the ROS-free core (parameters, robots, entities,
+  ``Simulation.step()`` returning plain data);
+- :mod:`r2d2_sim.recording`: the live view and MCAP recording (no ROS, no physics);
+- :mod:`r2d2_sim.ros`: the node, translation only (outputs, ``cmd_vel``, the
+  control services, the simulation standard);
+- :mod:`r2d2_sim.testing`: the public testing API (harnesses, domain leases, clients);
+- :mod:`r2d2_sim.apps`: the executables (``sim_node``, ``demo``, ``drive``, ``replay``).
+
+At the top: :mod:`~r2d2_sim.errors` (one-line errors every layer raises),
+:mod:`~r2d2_sim.client` (what any ROS client of the simulator needs) and the
+pytest plugin. ``docs/design.md`` follows one ``cmd_vel`` and one spawn through them.
 """

@@ -2,7 +2,7 @@
 
 import sys
 
-from r2d2_sim.sim_node import main
+from r2d2_sim.apps.sim_node import main
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -16,8 +16,8 @@ from typing import Any, Callable, NamedTuple, Optional
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 
-from r2d2_sim.timing import ns_of, stamp_of
-from r2d2_sim.transforms import quaternion_to_yaw
+from r2d2_sim.model.timing import ns_of, stamp_of
+from r2d2_sim.model.transforms import quaternion_to_yaw
 
 __all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env',
            'numbers_alike', 'ros_arg', 'stamp_ns', 'twist_message', 'twist_stamped_message',

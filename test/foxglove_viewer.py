@@ -8,7 +8,7 @@ import time
 
 from websockets.sync.client import connect
 
-from r2d2_sim.foxglove_sink import SUBPROTOCOL
+from r2d2_sim.recording.sink import SUBPROTOCOL
 
 
 class Viewer:

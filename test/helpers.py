@@ -19,10 +19,10 @@ from std_msgs.msg import String
 
 from r2d2_sim import testing
 from r2d2_sim.client import ros_child_env as ros_env, wait_for  # noqa: F401 (for the tests)
-from r2d2_sim.node import SimNode
+from r2d2_sim.ros.node import SimNode
 from r2d2_sim.testing import (  # noqa: F401 (for the tests)
     RemoteProbe, sim_node_command, stop_process)
-from r2d2_sim.transforms import quaternion_to_yaw
+from r2d2_sim.model.transforms import quaternion_to_yaw
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RATE_HZ = 240

@@ -3,7 +3,7 @@ The live view in a real browser: Foxglove Studio 1.48 in headless Chromium, fed 
 
 sim_node runs at real time in the room, driving a circle, with
 ``foxglove_port`` and ``record`` set. Studio opens its live view through the
-subprotocol relay with the layout users get (``resource/foxglove_layout.json``),
+subprotocol relay with the layout users get (``config/foxglove_layout.json``),
 and the test reads the page over the DevTools protocol: the topic list with
 rates, and the robot's blue in the 3D panel (drawn from ``/robot_description``
 on TF). The recording the node made is then opened from a loopback HTTP

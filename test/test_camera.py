@@ -13,9 +13,9 @@ import pybullet
 import pytest
 from sensor_msgs.msg import CameraInfo, Image
 
-from r2d2_sim import camera
-from r2d2_sim.parameters import ConfigError, parse_config
-from r2d2_sim.node import StartupError
+from r2d2_sim.model import camera
+from r2d2_sim.sim.parameters import ConfigError, parse_config
+from r2d2_sim.ros.node import StartupError
 from test_robots import classic_params
 
 

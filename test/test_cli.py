@@ -13,8 +13,8 @@ from nav_msgs.msg import Odometry
 import pytest
 from sensor_msgs.msg import JointState
 
-from r2d2_sim.parameters import PARAMETERS
-from r2d2_sim.sim_node import main
+from r2d2_sim.sim.parameters import PARAMETERS
+from r2d2_sim.apps.sim_node import main
 
 
 @pytest.fixture

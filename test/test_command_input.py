@@ -4,7 +4,7 @@ from types import SimpleNamespace
 
 from geometry_msgs.msg import Twist, TwistStamped
 
-from r2d2_sim.command_input import CmdVelInput, ThrottledLog
+from r2d2_sim.ros.cmd_vel import CmdVelInput, ThrottledLog
 
 
 class FakeNode:

@@ -13,7 +13,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
-from r2d2_sim.sim_node import run_paced
+from r2d2_sim.apps.sim_node import run_paced
 from r2d2_sim.testing import SimProcess
 
 # (step, linear, angular) commands of the determinism schedule; NaN is refused.

@@ -16,9 +16,9 @@ from helpers import (
 import pytest
 
 from r2d2_sim.client import Pose2D
-from r2d2_sim.demo import (
+from r2d2_sim.apps.demo import (
     ANOTHER_SIMULATOR, command_at, format_progress, manoeuvre_duration_s, MANOEUVRE, phase_at)
-from r2d2_sim.plots import write_trajectory_plot
+from r2d2_sim.apps.plots import write_trajectory_plot
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
@@ -41,7 +41,8 @@ def domain_id():
 
 
 def demo_command(output_dir, domain_id, real_time_factor):
-    return [sys.executable, '-m', 'r2d2_sim.demo', '--real-time-factor', str(real_time_factor),
+    return [sys.executable, '-m', 'r2d2_sim.apps.demo',
+            '--real-time-factor', str(real_time_factor),
             '--output-dir', str(output_dir), '--domain-id', str(domain_id)]
 
 
@@ -192,7 +193,7 @@ def test_driver_stops_timing_when_ground_truth_goes_back_in_time(ros):
     """Two simulators interleave their stamps: the driver records it instead of crashing."""
     import io
 
-    from r2d2_sim.demo import ManoeuvreDriver
+    from r2d2_sim.apps.demo import ManoeuvreDriver
 
     out = io.StringIO()
     driver = ros.add_node(ManoeuvreDriver(out=out, context=ros.context), use_sim_time=False)
@@ -288,7 +289,7 @@ def test_demo_stops_when_another_clock_publisher_appears_mid_run(tmp_path, domai
     (['--rate', '0'], 'argument --rate: must be > 0'),
 ])
 def test_drive_rejects_bad_arguments_with_a_usage_error(args, complaint):
-    result = subprocess.run([sys.executable, '-m', 'r2d2_sim.drive_cmd'] + args,
+    result = subprocess.run([sys.executable, '-m', 'r2d2_sim.apps.drive'] + args,
                             cwd=REPO_ROOT, capture_output=True, text=True, timeout=30)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
@@ -296,7 +297,7 @@ def test_drive_rejects_bad_arguments_with_a_usage_error(args, complaint):
     assert lines[-1].startswith('drive: error: ' + complaint)
 
 
-@pytest.mark.parametrize('module', ['r2d2_sim.drive_cmd', 'r2d2_sim.demo'])
+@pytest.mark.parametrize('module', ['r2d2_sim.apps.drive', 'r2d2_sim.apps.demo'])
 def test_malformed_ros_args_are_a_one_line_error(module):
     result = subprocess.run([sys.executable, '-m', module, '--ros-args', '-p'],
                             cwd=REPO_ROOT, capture_output=True, text=True, timeout=30)
@@ -306,7 +307,7 @@ def test_malformed_ros_args_are_a_one_line_error(module):
 
 
 def test_drive_without_a_subscriber_fails_with_one_line(domain_id):
-    result = subprocess.run([sys.executable, '-m', 'r2d2_sim.drive_cmd', '--linear', '0.3'],
+    result = subprocess.run([sys.executable, '-m', 'r2d2_sim.apps.drive', '--linear', '0.3'],
                             env=ros_env(domain_id), cwd=REPO_ROOT, capture_output=True,
                             text=True, timeout=30)
     assert result.returncode == 1
@@ -363,7 +364,7 @@ def test_drive_moves_the_simulated_robot_forward(simulator_process, ros_probe, d
                     + stop_process(simulator_process)[2])
     start_x_m = poses[-1].x_m
     drive = subprocess.Popen(
-        [sys.executable, '-m', 'r2d2_sim.drive_cmd', '--linear', '0.3', '--duration', '1.0'],
+        [sys.executable, '-m', 'r2d2_sim.apps.drive', '--linear', '0.3', '--duration', '1.0'],
         env=ros_env(domain_id), cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True)
     try:
@@ -387,7 +388,7 @@ def test_drive_stops_the_robot_when_interrupted(ros_probe, domain_id, sig):
     received = []
     node.create_subscription(Twist, 'cmd_vel', lambda msg: received.append(msg.linear.x), 10)
     drive = subprocess.Popen(
-        [sys.executable, '-m', 'r2d2_sim.drive_cmd', '--linear', '0.3', '--duration', '100'],
+        [sys.executable, '-m', 'r2d2_sim.apps.drive', '--linear', '0.3', '--duration', '100'],
         env=ros_env(domain_id), cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True)
     try:
@@ -415,7 +416,7 @@ def test_camera_snapshot_writer_round_trips(tmp_path):
     """An rgb8 Image with a padded row stride becomes a PNG of the right size and colours."""
     from matplotlib import pyplot
     from sensor_msgs.msg import Image
-    from r2d2_sim.plots import write_camera_snapshot
+    from r2d2_sim.apps.plots import write_camera_snapshot
     image = Image(height=2, width=3, encoding='rgb8', step=11)
     image.data = bytes([255, 0, 0] * 3 + [0, 0]) + bytes([0, 0, 255] * 3 + [0, 0])
     path = write_camera_snapshot(tmp_path / 'snap.png', image)
@@ -428,7 +429,7 @@ def test_camera_snapshot_writer_round_trips(tmp_path):
 def test_scan_points_are_placed_in_the_world_from_the_pose():
     """A robot at (1, 2) facing +y sees a return 1 m ahead at (1, 3); infinities are skipped."""
     from sensor_msgs.msg import LaserScan
-    from r2d2_sim.plots import scan_points_xy
+    from r2d2_sim.apps.plots import scan_points_xy
     scan = LaserScan(angle_min=-math.pi / 2, angle_increment=math.pi / 2,
                      ranges=[2.0, 1.0, math.inf, -math.inf])
     points = scan_points_xy(scan, Pose2D(0.0, 1.0, 2.0, math.pi / 2))

@@ -10,8 +10,8 @@ import math
 
 import pytest
 
-from r2d2_sim.drive_controller import DriveController, STOP, timeout_steps, Twist2D
-from r2d2_sim.kinematics import DiffDriveGeometry, TwistLimits
+from r2d2_sim.model.drive_controller import DriveController, STOP, timeout_steps, Twist2D
+from r2d2_sim.model.kinematics import DiffDriveGeometry, TwistLimits
 
 GEOMETRY = DiffDriveGeometry(wheel_radius_m=0.5, wheel_separation_m=1.0,
                              max_wheel_velocity_rad_s=10.0)

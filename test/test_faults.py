@@ -710,7 +710,7 @@ class Finder(importlib.abc.MetaPathFinder):
         return None
 
 sys.meta_path.insert(0, Finder())
-from r2d2_sim import sim_node
+from r2d2_sim.apps import sim_node
 sys.exit(sim_node.main(['sim_node']))
 '''
 

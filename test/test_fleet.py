@@ -15,7 +15,7 @@ from rcl_interfaces.srv import GetParameters
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
-from r2d2_sim import sim_interfaces
+from r2d2_sim.ros.standard import server as sim_interfaces
 from r2d2_sim.testing import StartupError, wait_for, WorldError
 from r2d2_sim.testing.tf import TF_STATIC_QOS
 
@@ -353,7 +353,7 @@ def _free_port():
 
 def test_a_name_ros_refuses_is_one_line_and_leaves_no_node(r2d2_sim_factory):
     """Fleet.add turns rclpy's refusal of a robot's namespace into ConfigError."""
-    from r2d2_sim.parameters import ConfigError
+    from r2d2_sim.sim.parameters import ConfigError
     sim = r2d2_sim_factory(robots=FACING)
     nodes_before = len(sim._link.get_node_names())
     with pytest.raises(ConfigError) as raised:

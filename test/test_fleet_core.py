@@ -11,10 +11,10 @@ import math
 
 import pytest
 
-from r2d2_sim.parameters import ConfigError
-from r2d2_sim.robot_parameters import parse_world
-from r2d2_sim.simulation import Simulation
-from r2d2_sim.world import RAY_GROUPS, SimWorld
+from r2d2_sim.sim.parameters import ConfigError
+from r2d2_sim.sim.robot_parameters import parse_world
+from r2d2_sim.sim.simulation import Simulation
+from r2d2_sim.physics.world import RAY_GROUPS, SimWorld
 
 FACING = {'robots': ['a', 'b'], 'b.initial_pose': [2.0, 0.0, math.pi],
           'cmd_vel_timeout': 0.0, 'imu_rate': 0.0}
@@ -174,7 +174,7 @@ def test_a_state_reset_puts_every_robot_home_and_a_spawned_one_at_its_spawn_pose
 
 def test_start_up_robots_cannot_be_deleted(make):
     """Only spawned entities can be deleted: a listed robot stays, and so does its interface."""
-    from r2d2_sim.entities import EntityError
+    from r2d2_sim.sim.entities import EntityError
     simulation = make(**FACING)
     with pytest.raises(EntityError) as raised:
         simulation.delete_entity('b')
@@ -184,7 +184,7 @@ def test_start_up_robots_cannot_be_deleted(make):
 
 def test_a_robot_that_cannot_be_driven_is_refused_and_leaves_nothing(make):
     """A spawned robot whose wheels the settings name but its URDF lacks: OPERATION_FAILED."""
-    from r2d2_sim.entities import EntityError
+    from r2d2_sim.sim.entities import EntityError
     simulation = make(robots=['a'], left_wheel_names=['l'], right_wheel_names=['r'],
                       **{'a.left_wheel_names': ['left_front_wheel_joint'],
                          'a.right_wheel_names': ['right_front_wheel_joint']})

@@ -24,8 +24,8 @@ from rosbags.highlevel import AnyReader
 from rosbags.interfaces import QosDurability
 from std_msgs.msg import String
 
-from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError
-from r2d2_sim.message_definitions import message_definition, type_hash
+from r2d2_sim.recording.sink import FoxgloveSink, SinkError
+from r2d2_sim.recording.message_definitions import message_definition, type_hash
 from r2d2_sim.testing import ProcessResult, ros_child_env, stop_process, wait_for
 from foxglove_viewer import Viewer
 from sample_messages import LATCHED, message_class, samples, TOPICS
@@ -278,7 +278,7 @@ def test_foxglove_is_imported_only_for_a_sink():
         'import sys',
         'sys.modules["foxglove"] = None',
         'from rclpy.qos import QoSProfile',
-        'from r2d2_sim.foxglove_sink import FoxgloveSink, SinkError',
+        'from r2d2_sim.recording.sink import FoxgloveSink, SinkError',
         'sink = FoxgloveSink()',
         'sink.channel("/scan", "sensor_msgs/msg/LaserScan", QoSProfile(depth=5)).log(b"x", 1)',
         'sink.set_time(1); sink.close()',
@@ -297,10 +297,10 @@ RECORDER = '''
 import sys, time
 mode, path, test_dir = sys.argv[1:4]
 if mode == 'handlers':
-    from r2d2_sim.sim_node import stop_on_signals
+    from r2d2_sim.apps.cli import stop_on_signals
     stop = stop_on_signals()
 sys.path.insert(0, test_dir)
-from r2d2_sim.foxglove_sink import FoxgloveSink
+from r2d2_sim.recording.sink import FoxgloveSink
 from sample_messages import samples, TOPICS
 batch = samples(0.5)
 sink = FoxgloveSink(record_path=path)

@@ -19,8 +19,8 @@ import json, sys, threading, time
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
-from r2d2_sim.node import SimNode
-from r2d2_sim.sim_node import run_paced
+from r2d2_sim.ros.node import SimNode
+from r2d2_sim.apps.sim_node import run_paced
 
 STEPS = 240
 ctx = Context()

@@ -120,8 +120,8 @@ def test_in_process_simulator_finds_its_installed_urdf(pip_venv, tmp_path):
         import json, sys
         import rclpy
         from rclpy.context import Context
-        from r2d2_sim.description import resolve_description_path
-        from r2d2_sim.node import SimNode
+        from r2d2_sim.physics.description import resolve_description_path
+        from r2d2_sim.ros.node import SimNode
         import r2d2_sim
         context = Context()
         rclpy.init(context=context, domain_id=%d)

@@ -1,10 +1,10 @@
-"""Unit tests for r2d2_sim.kinematics (pure kinematics, no ROS or PyBullet)."""
+"""Unit tests for r2d2_sim.model.kinematics (pure kinematics, no ROS or PyBullet)."""
 
 import math
 
 import pytest
 
-from r2d2_sim.kinematics import (
+from r2d2_sim.model.kinematics import (
     DiffDriveGeometry,
     DiffDriveOdometry,
     DriveConfigError,

@@ -16,13 +16,12 @@ import pytest
 import yaml
 
 from helpers import REPO
-from r2d2_sim.parameters import parse_config, PARAMETERS_BY_NAME
+from r2d2_sim.sim.parameters import parse_config, PARAMETERS_BY_NAME
 from r2d2_sim.testing import SimHarness
 
-RESOURCE = Path(REPO) / 'resource'
-LAUNCH = RESOURCE / 'sim.launch.xml'
-RVIZ = RESOURCE / 'r2d2_sim.rviz'
-LAYOUT = RESOURCE / 'foxglove_layout.json'
+LAUNCH = Path(REPO) / 'launch' / 'sim.launch.xml'
+RVIZ = Path(REPO) / 'config' / 'r2d2_sim.rviz'
+LAYOUT = Path(REPO) / 'config' / 'foxglove_layout.json'
 # Other packages' executables the launch file starts (declared in package.xml).
 EXTERNAL = {('robot_state_publisher', 'robot_state_publisher'), ('rviz2', 'rviz2')}
 

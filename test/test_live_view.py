@@ -19,7 +19,7 @@ from rosbags.interfaces import QosDurability
 
 from foxglove_viewer import Viewer
 from r2d2_sim.client import stamp_ns
-from r2d2_sim.replay import message_class
+from r2d2_sim.apps.replay import message_class
 from r2d2_sim.testing import (
     lease_domain, ros_child_env, SimHarness, SimProcess, StartupError, stop_process)
 from topic_listener import read_listener, start_listener
@@ -198,7 +198,7 @@ def test_the_recording_replays_to_another_process(recording, tmp_path):
                   '/robot_description': {'type': 'std_msgs/msg/String', 'distinct': 1,
                                          'durability': 'transient_local'}}
         listener = start_listener(lease.domain_id, topics, tmp_path / 'heard.json')
-        replay = subprocess.Popen([sys.executable, '-m', 'r2d2_sim.replay', str(recording),
+        replay = subprocess.Popen([sys.executable, '-m', 'r2d2_sim.apps.replay', str(recording),
                                    '--rate', '4', '--loop'], env=ros_child_env(lease.domain_id),
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:

@@ -30,8 +30,8 @@ from rosbags.rosbag2.metadata import dump_qos_v9, parse_qos
 from rosbags.typesys import get_typestore, Stores
 import yaml
 
-from r2d2_sim import message_definitions
-from r2d2_sim.message_definitions import (
+from r2d2_sim.recording import message_definitions
+from r2d2_sim.recording.message_definitions import (
     message_definition, offered_qos_profiles, type_hash, UnknownMessageType)
 from r2d2_sim.testing import lease_domain
 
@@ -259,7 +259,7 @@ def test_qos_yaml_is_what_a_recorder_sees_in_the_graph():
 def test_no_rclpy_needed():
     """The module imports and builds definitions in an interpreter that has no rclpy."""
     code = ('import sys; sys.modules["rclpy"] = None; '
-            'from r2d2_sim.message_definitions import message_definition; '
+            'from r2d2_sim.recording.message_definitions import message_definition; '
             'print(len(message_definition("sensor_msgs/msg/LaserScan")))')
     import subprocess
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))

@@ -14,8 +14,8 @@ from geometry_msgs.msg import Twist
 import pytest
 from std_srvs.srv import Trigger
 
-from r2d2_sim.kinematics import quaternion_to_yaw, twist_to_wheel_velocities
-from r2d2_sim.node import SimNode, StartupError
+from r2d2_sim.model.kinematics import quaternion_to_yaw, twist_to_wheel_velocities
+from r2d2_sim.ros.node import SimNode, StartupError
 
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
           'right_front_wheel_joint', 'right_back_wheel_joint']

@@ -19,13 +19,13 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from r2d2_sim.bullet_records import BaseState, JointStates
-from r2d2_sim.kinematics import OdometryState
-from r2d2_sim.outputs import ClockOutput, GroundTruthOutput, JointStateOutput, OdometryOutput
-from r2d2_sim.parameters import parse_config
-from r2d2_sim.robot import Frame
-from r2d2_sim.simulation import Simulation
-from r2d2_sim.transforms import yaw_to_quaternion
+from r2d2_sim.physics.records import BaseState, JointStates
+from r2d2_sim.model.kinematics import OdometryState
+from r2d2_sim.ros.outputs import ClockOutput, GroundTruthOutput, JointStateOutput, OdometryOutput
+from r2d2_sim.sim.parameters import parse_config
+from r2d2_sim.sim.robot import Frame
+from r2d2_sim.sim.simulation import Simulation
+from r2d2_sim.model.transforms import yaw_to_quaternion
 
 ROBOTS = {
     'package R2D2': {},
@@ -171,8 +171,8 @@ def test_real_frames_round_trip(simulation):
 
 def test_tf_output_publishes_exactly_the_typed_transforms():
     """/tf with odometry, ground truth and the package R2D2's links: every transform, stamp."""
-    from r2d2_sim.tf_outputs import link_transforms, TfOutput
-    from r2d2_sim.transforms import compose, inverse, split_yaw, Transform
+    from r2d2_sim.ros.tf_outputs import link_transforms, TfOutput
+    from r2d2_sim.model.transforms import compose, inverse, split_yaw, Transform
     config = parse_config({'publish_ground_truth_tf': True, 'frame_prefix': 'abc/'})
     simulation = Simulation(config)
     links = link_transforms(config, simulation.robot)
@@ -206,8 +206,8 @@ def test_tf_output_publishes_exactly_the_typed_transforms():
 def test_scan_and_imu_outputs_publish_exactly_the_readings_given():
     """Put scan ranges (float32) and IMU fields where the typed messages have them."""
     import numpy
-    from r2d2_sim.outputs import ImuOutput, ScanOutput
-    from r2d2_sim.sensors import ImuModel, ImuReading, ScanGeometry
+    from r2d2_sim.ros.outputs import ImuOutput, ScanOutput
+    from r2d2_sim.model.sensors import ImuModel, ImuReading, ScanGeometry
     rng = random.Random(5)
     config = parse_config({'scan_rate': 20.0, 'frame_prefix': 'p/'})
     geometry = ScanGeometry(-2.0, 2.0, 181, 0.1, 9.0)

@@ -16,8 +16,8 @@ from rcl_interfaces.srv import (
     DescribeParameters, GetParameters, GetParameterTypes, ListParameters, SetParameters)
 from rclpy.parameter import Parameter, parameter_value_to_python
 
-from r2d2_sim.parameters import PARAMETERS, PARAMETERS_BY_NAME
-from r2d2_sim.ros_parameters import ROS_TYPES
+from r2d2_sim.sim.parameters import PARAMETERS, PARAMETERS_BY_NAME
+from r2d2_sim.ros.parameters import ROS_TYPES
 from r2d2_sim.testing import RemoteProbe
 
 NODE = '/r2d2_sim'

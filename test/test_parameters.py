@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from r2d2_sim.parameters import ConfigError, PARAMETERS, parse_config
+from r2d2_sim.sim.parameters import ConfigError, PARAMETERS, parse_config
 
 
 def test_defaults_are_valid():
@@ -196,15 +196,16 @@ def test_frame_ids_tf2_refuses_are_refused(name, value, fragment):
 
 
 def test_sensor_frame_names_match_what_the_robot_publishes():
-    """The frames checked here are the ones r2d2_sim.robot puts on its sensors."""
-    from r2d2_sim import parameters, robot  # robot needs PyBullet, not ROS
+    """The frames checked here are the ones r2d2_sim.sim.robot puts on its sensors."""
+    from r2d2_sim.sim import parameters
+    from r2d2_sim.sim import robot  # robot needs PyBullet, not ROS
     for name in ('LASER_FRAME_ID', 'IMU_FRAME_ID', 'HEAD_CAMERA_FRAME_ID', 'HEAD_CAMERA_LINK'):
         assert getattr(parameters, name) == getattr(robot, name), name
 
 
 def test_robots_get_the_world_settings_with_their_own_on_top():
     """NAME.parameter overrides one robot's; the frames of each get NAME/ (shared TF)."""
-    from r2d2_sim.robot_parameters import parse_world
+    from r2d2_sim.sim.robot_parameters import parse_world
     config, robots = parse_world({
         'robots': ['a', 'b'], 'max_linear_velocity': 0.5, 'scan_rate': 5.0,
         'b.initial_pose': [2, 0, 3], 'b.max_linear_velocity': 0.2, 'b.namespace': '/fleet/b'})
@@ -219,7 +220,7 @@ def test_robots_get_the_world_settings_with_their_own_on_top():
 
 def test_namespaced_tf_leaves_frames_unprefixed_and_a_robot_may_set_its_prefix():
     """tf_layout namespaced: frames as the world's prefix has them; NAME.frame_prefix wins."""
-    from r2d2_sim.robot_parameters import parse_world
+    from r2d2_sim.sim.robot_parameters import parse_world
     _, robots = parse_world({'robots': ['a', 'b'], 'tf_layout': 'namespaced',
                              'b.frame_prefix': 'bee/'})
     assert [r.config.frame_prefix for r in robots] == ['', 'bee/']
@@ -241,7 +242,7 @@ def test_namespaced_tf_leaves_frames_unprefixed_and_a_robot_may_set_its_prefix()
 ])
 def test_bad_robot_parameters_are_one_line_naming_them(values, fragment):
     """Each mistake names the robot's parameter as the user wrote it."""
-    from r2d2_sim.robot_parameters import parse_world
+    from r2d2_sim.sim.robot_parameters import parse_world
     with pytest.raises(ConfigError) as raised:
         parse_world(values)
     assert fragment in str(raised.value) and '\n' not in str(raised.value)

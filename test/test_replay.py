@@ -1,7 +1,7 @@
 """
 The ``replay`` command against a recording made by FoxgloveSink, heard by another process.
 
-Three processes: this test records a file, ``python -m r2d2_sim.replay``
+Three processes: this test records a file, ``python -m r2d2_sim.apps.replay``
 publishes it, and ``topic_listener.py`` subscribes (raw bytes, so content
 is compared byte for byte with the recording) on a leased ROS domain.
 """
@@ -15,9 +15,9 @@ import pytest
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
-from r2d2_sim.foxglove_sink import FoxgloveSink
-from r2d2_sim.message_definitions import offered_qos_profiles
-from r2d2_sim.replay import DEFAULT_DEPTH, qos_from_metadata
+from r2d2_sim.recording.sink import FoxgloveSink
+from r2d2_sim.recording.message_definitions import offered_qos_profiles
+from r2d2_sim.apps.replay import DEFAULT_DEPTH, qos_from_metadata
 from r2d2_sim.testing import lease_domain, ros_child_env, stop_process
 from sample_messages import message_class, samples, TOPICS
 from topic_listener import read_listener, start_listener
@@ -55,7 +55,7 @@ def recording(tmp_path_factory):
 
 def replay_command(path, *args):
     """Return the command line of the replay tool (the module behind the ``replay`` script)."""
-    return [sys.executable, '-m', 'r2d2_sim.replay', str(path), *args]
+    return [sys.executable, '-m', 'r2d2_sim.apps.replay', str(path), *args]
 
 
 def test_replay_publishes_each_topic_with_its_bytes_at_the_recorded_pace(recording, tmp_path):

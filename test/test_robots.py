@@ -18,11 +18,11 @@ import pytest
 from std_srvs.srv import Trigger
 import yaml
 
-from r2d2_sim.description import (
+from r2d2_sim.physics.description import (
     default_urdf_path, DescriptionError, resolve_description_path)
-from r2d2_sim.joint_info import joint_info
-from r2d2_sim.node import StartupError
-from r2d2_sim.world import SimWorld, WorldError
+from r2d2_sim.ros.joint_info import joint_info
+from r2d2_sim.ros.node import StartupError
+from r2d2_sim.physics.world import SimWorld, WorldError
 
 CLASSIC_YAML = os.path.join(REPO, 'urdf', 'classic_r2d2.yaml')
 
@@ -230,7 +230,7 @@ def test_classic_params_file_cross_process():
 ])
 def test_bad_extra_models_are_one_line(value, fragment):
     """Each malformed extra_models entry is one ConfigError line quoting it."""
-    from r2d2_sim.parameters import ConfigError, parse_config
+    from r2d2_sim.sim.parameters import ConfigError, parse_config
     with pytest.raises(ConfigError, match=fragment) as info:
         parse_config({'extra_models': value})
     assert '\n' not in str(info.value)
@@ -255,7 +255,7 @@ def test_world_settings_reach_the_node(ros):
 
 def test_extra_cube_falls_onto_the_plane():
     """A 5 cm cube dropped from 0.5 m comes to rest on the ground (centre at 2.5 cm)."""
-    from r2d2_sim.world import ExtraModel
+    from r2d2_sim.physics.world import ExtraModel
     with SimWorld(extra_models=[ExtraModel('cube_small.urdf', (0.6, 0.0, 0.5))]) as world:
         cube = world.extra_model_ids[0]
         world.step(240)

@@ -15,8 +15,8 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-from r2d2_sim.kinematics import twist_to_wheel_velocities
-from r2d2_sim.node import StartupError
+from r2d2_sim.model.kinematics import twist_to_wheel_velocities
+from r2d2_sim.ros.node import StartupError
 
 NAN, INF = math.nan, math.inf
 FIELDS = ('linear_x', 'linear_y', 'linear_z', 'angular_x', 'angular_y', 'angular_z')

@@ -20,10 +20,10 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile, DurabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan
 from tf2_msgs.msg import TFMessage
 
-from r2d2_sim.kinematics import quaternion_to_yaw
-from r2d2_sim.robot import LASER_HEIGHT_M
+from r2d2_sim.model.kinematics import quaternion_to_yaw
+from r2d2_sim.sim.robot import LASER_HEIGHT_M
 from r2d2_sim.testing import stamp_ns
-from r2d2_sim.transforms import apply, Transform
+from r2d2_sim.model.transforms import apply, Transform
 
 ROOM = 'package://r2d2_sim/urdf/room.urdf'
 STATIC_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -1,11 +1,11 @@
-"""Unit tests for r2d2_sim.sensors: laser scan, IMU and depth math (no ROS, no PyBullet)."""
+"""Unit tests for r2d2_sim.model.sensors: laser scan, IMU and depth math (no ROS, no PyBullet)."""
 
 import math
 
 import numpy
 import pytest
 
-from r2d2_sim.sensors import (
+from r2d2_sim.model.sensors import (
     beam_directions,
     ImuModel,
     linearize_depth,

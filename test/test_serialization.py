@@ -30,8 +30,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, LaserScan, Range
 from std_msgs.msg import Header
 
-from r2d2_sim import serialization
-from r2d2_sim.serialization import FieldError, MessageTemplate
+from r2d2_sim.ros import serialization
+from r2d2_sim.ros.serialization import FieldError, MessageTemplate
 from r2d2_sim.testing import wait_for
 
 STATES = 200

@@ -20,7 +20,7 @@ from simulation_interfaces.action import SimulateSteps
 
 from helpers import REPO
 from r2d2_sim.client import ros_child_env
-from r2d2_sim.entities import MAX_LINKS, MAX_SPAWNED
+from r2d2_sim.sim.entities import MAX_LINKS, MAX_SPAWNED
 from r2d2_sim.testing import WorldError
 
 CLIENT = Path(__file__).resolve().parent / 'children' / 'standard_client.py'

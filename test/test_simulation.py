@@ -9,8 +9,8 @@ import math
 
 import pytest
 
-from r2d2_sim.parameters import parse_config
-from r2d2_sim.simulation import Simulation
+from r2d2_sim.sim.parameters import parse_config
+from r2d2_sim.sim.simulation import Simulation
 
 QUIET = {'scan_rate': 0.0, 'imu_rate': 0.0, 'camera_rate': 0.0}
 

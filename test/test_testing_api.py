@@ -25,7 +25,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 from r2d2_sim import testing
-from r2d2_sim.node import StartupError
+from r2d2_sim.ros.node import StartupError
 from r2d2_sim.testing import (
     CallbackError, DomainUnavailable, HarnessError, lease_domain, SimHarness, SimProcess)
 

@@ -14,11 +14,11 @@ from types import SimpleNamespace
 
 import pytest
 
-from r2d2_sim.tf_buffer import (
+from r2d2_sim.model.tf_buffer import (
     ConnectivityException, DEFAULT_CACHE_TIME_NS, ExtrapolationException, from_tf_message,
     interpolate, InvalidArgumentException, LookupException, slerp, StampedTransform,
     TransformBuffer, TransformException)
-from r2d2_sim.transforms import Transform, yaw_of
+from r2d2_sim.model.transforms import Transform, yaw_of
 
 S = 10**9  # ns per second
 NO_TURN = (0.0, 0.0, 0.0, 1.0)
@@ -350,7 +350,7 @@ def test_a_real_tf2_msgs_message_feeds_the_buffer():
 
 def test_the_module_needs_no_ros():
     """Importing it loads neither rclpy nor any message package."""
-    code = ('import sys, r2d2_sim.tf_buffer; '
+    code = ('import sys, r2d2_sim.model.tf_buffer; '
             'print(sorted(m for m in sys.modules if m.split(".")[0] in '
             '("rclpy", "tf2_msgs", "geometry_msgs", "pybullet", "numpy")))')
     result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,

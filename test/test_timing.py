@@ -2,7 +2,7 @@
 
 import pytest
 
-from r2d2_sim.timing import DeadlinePacer, StepSchedule
+from r2d2_sim.model.timing import DeadlinePacer, StepSchedule
 
 
 class FakeTime:

@@ -11,7 +11,7 @@ import os
 
 import pytest
 
-from r2d2_sim.transforms import (
+from r2d2_sim.model.transforms import (
     apply, compose, IDENTITY, inverse, joint_transform, JointModel, LinkTransforms,
     parse_joints, quaternion_from_axis_angle, quaternion_from_rpy, quaternion_multiply,
     root_link, rotate, rotate_inverse, rotation_matrix, split_yaw, Transform, yaw_of,

@@ -5,9 +5,9 @@ import math
 import pybullet
 import pytest
 
-from r2d2_sim.kinematics import quaternion_to_yaw
-from r2d2_sim.body import BodyRemoved
-from r2d2_sim.world import JointRecord, SimWorld, WorldError
+from r2d2_sim.model.kinematics import quaternion_to_yaw
+from r2d2_sim.physics.body import BodyRemoved
+from r2d2_sim.physics.world import JointRecord, SimWorld, WorldError
 
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
           'right_front_wheel_joint', 'right_back_wheel_joint']
@@ -34,7 +34,7 @@ def test_joints_are_looked_up_by_name(world):
 
 def test_joint_info_has_17_attributes_per_joint(world):
     """Each joint record carries the 17 getJointInfo attributes plus its link."""
-    from r2d2_sim.joint_info import joint_info
+    from r2d2_sim.ros.joint_info import joint_info
     info = joint_info(world.robot)
     assert len(info) == 15
     for entry in info:
@@ -149,7 +149,7 @@ def test_malformed_urdf_is_a_world_error(tmp_path):
 
 def test_wheel_radius_from_collision_shape(world):
     """The wheel radius is read from the wheel's cylinder: 0.035 m."""
-    from r2d2_sim.drive_train import _wheel_radius_m
+    from r2d2_sim.sim.drive_train import _wheel_radius_m
     wheel = world.robot.joint('left_front_wheel_joint').index
     assert _wheel_radius_m(world.robot, wheel) == pytest.approx(0.035)
     assert pybullet.GEOM_CYLINDER != pybullet.GEOM_MESH
@@ -196,7 +196,7 @@ def test_world_state_round_trips_through_set_world_state(world):
 
 def test_gui_without_a_display_is_one_line_not_the_end_of_the_process(monkeypatch):
     """Without a display the GUI connect would exit the interpreter: the world refuses first."""
-    from r2d2_sim.world import display_problem
+    from r2d2_sim.physics.world import display_problem
     monkeypatch.delenv('DISPLAY', raising=False)
     with pytest.raises(WorldError, match='DISPLAY is not set'):
         SimWorld(gui=True)

@@ -35,7 +35,7 @@ from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
 from r2d2_sim.testing.standard import StandardClient, StandardError
 from r2d2_sim.testing.tf import TfListener
 from r2d2_sim.testing.world_verbs import EntityState, WorldError
-from r2d2_sim.tf_buffer import StampedTransform, TransformBuffer, TransformException
+from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
 
 __all__ = [
     'SimHarness', 'SimProcess', 'RosHarness', 'RemoteProbe', 'ChildProcess',

@@ -17,7 +17,7 @@ from rclpy.qos import DurabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from r2d2_sim.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
+from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarness
 from r2d2_sim.testing.robots import expected_namespaces, flatten_robots, LocalRobot
 from r2d2_sim.testing.tf import TransformLookup
@@ -38,7 +38,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
     the harness's own are the simulator's ROS parameters (``sim_node`` takes
     the same names). ``node_name`` and ``namespace`` place the simulator (its
     services are ``<namespace>/<node_name>/pause`` and so on). Raises
-    :class:`r2d2_sim.node.StartupError` when the parameters are unusable.
+    :class:`r2d2_sim.ros.node.StartupError` when the parameters are unusable.
 
     Several robots: ``robots=['a', 'b']`` with ``**{'b.initial_pose': [...]}``,
     or ``robots={'a': {}, 'b': {'initial_pose': [2.0, 0.0, 3.14]}}``.
@@ -70,7 +70,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
         parameters = flatten_robots(parameters)
         try:
-            from r2d2_sim.node import SimNode  # PyBullet: only when a simulator is wanted
+            from r2d2_sim.ros.node import SimNode  # PyBullet: only when a simulator is wanted
             # Without parameter services, rosout, type descriptions or QoS
             # event handlers: fewer entities for the executor to gather on every
             # wait of a lockstep run.

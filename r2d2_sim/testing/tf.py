@@ -3,7 +3,7 @@ TF for tests: a listener on ``/tf`` and ``/tf_static`` that answers ``lookup_tra
 
 tf2_ros is not on PyPI; :class:`TfListener` does what its ``Buffer`` and
 ``TransformListener`` do for a test, on top of the pure
-:class:`~r2d2_sim.tf_buffer.TransformBuffer`: it subscribes both topics on a
+:class:`~r2d2_sim.model.tf_buffer.TransformBuffer`: it subscribes both topics on a
 node (``/tf_static`` transient local, as tf2 does) and adds every transform
 to the buffer. The harnesses make one on first use
 (:meth:`SimHarness.lookup_transform <r2d2_sim.testing.harness.SimHarness.lookup_transform>`,
@@ -16,7 +16,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from r2d2_sim.testing.executor import HarnessError
-from r2d2_sim.tf_buffer import StampedTransform, TransformBuffer, TransformException
+from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
 
 __all__ = ['TfListener', 'TransformLookup', 'TF_QOS', 'TF_STATIC_QOS']
 
@@ -27,7 +27,7 @@ TF_STATIC_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCA
 
 class TfListener:
     """
-    Fills a :class:`~r2d2_sim.tf_buffer.TransformBuffer` (``buffer``) from the two TF topics.
+    Fills a :class:`~r2d2_sim.model.tf_buffer.TransformBuffer` (``buffer``) from TF's topics.
 
     ``topics``: ``/tf`` and ``/tf_static``, or a robot's own (``/robot_a/tf``...).
     The node's executor delivers the messages; ``static_received`` and

@@ -11,7 +11,7 @@ calls the simulation core in its own process (no interface package needed),
 import math
 from typing import List, Optional, Sequence
 
-from r2d2_sim.entities import EntityError, EntityState
+from r2d2_sim.sim.entities import EntityError, EntityState
 
 __all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'EntityState', 'WorldError',
            'world_error']

@@ -10,7 +10,7 @@ Everything runs on loopback and installs itself once:
 - :func:`ensure_chromium`: Debian's ``chromium`` (``apt-get install -y
   chromium`` when running as root and it is missing; about a minute).
 - :class:`StaticServer`: serves ``index.html`` and ``host.js`` from this
-  directory, the seeded layout ``resource/foxglove_layout.json``, the npm
+  directory, the seeded layout ``config/foxglove_layout.json``, the npm
   packages, and optionally a directory of recordings (with HTTP ranges, for
   ``?ds=remote-file``).
 - :class:`Relay`: Studio 1.48 speaks only the ``foxglove.websocket.v1``
@@ -45,7 +45,7 @@ from websockets.sync.server import serve
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
-LAYOUT_PATH = REPO / 'resource' / 'foxglove_layout.json'
+LAYOUT_PATH = REPO / 'config' / 'foxglove_layout.json'
 STUDIO_VERSION = '1.48.0'
 NPM_PACKAGES = [f'@foxglove/studio-base@{STUDIO_VERSION}', 'react@17.0.2', 'react-dom@17.0.2']
 STUDIO_SUBPROTOCOL = 'foxglove.websocket.v1'

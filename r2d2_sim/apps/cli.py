@@ -1,0 +1,113 @@
+"""
+Command-line pieces shared by the ``demo`` and ``drive`` executables and the benchmarks.
+
+argparse types that refuse NaN and infinity or an impossible domain id, the
+split between a program's own arguments and ROS's (``--ros-args ...``), and
+the exit status after Ctrl-C.
+"""
+
+import argparse
+import math
+import signal
+import sys
+import threading
+from typing import List, Optional, Sequence
+
+# Exit status after Ctrl-C, as a shell reports a process ended by SIGINT.
+EXIT_INTERRUPTED = 130
+# The largest ROS domain id (Fast DDS and rmw's limit on Linux).
+MAX_DOMAIN_ID = 232
+
+
+def finite_number(text: str) -> float:
+    """Parse a command-line number that must be finite (an argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be a number, got {text!r}') from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'must be a finite number, got {text!r}')
+    return value
+
+
+def non_negative_number(text: str) -> float:
+    """Parse a finite command-line number >= 0 (an argparse type)."""
+    value = finite_number(text)
+    if value < 0.0:
+        raise argparse.ArgumentTypeError(f'must be >= 0, got {text!r}')
+    return value
+
+
+def positive_number(text: str) -> float:
+    """Parse a finite command-line number > 0 (an argparse type)."""
+    value = finite_number(text)
+    if value <= 0.0:
+        raise argparse.ArgumentTypeError(f'must be > 0, got {text!r}')
+    return value
+
+
+def domain_id_arg(text: str) -> int:
+    """Parse a ROS domain id, 0-232 (an argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'must be an integer, got {text!r}') from None
+    if not 0 <= value <= MAX_DOMAIN_ID:
+        raise argparse.ArgumentTypeError(f'must be in 0..{MAX_DOMAIN_ID}, got {text!r}')
+    return value
+
+
+def init_ros(argv: Sequence[str], prog: str) -> bool:
+    """
+    Initialise rclpy for a tool without rclpy's signal handlers; False after one error line.
+
+    The tools take Ctrl-C themselves (``sim_node.stop_on_signals``): rclpy's
+    handler would raise inside its own message handling.
+    """
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    try:
+        rclpy.init(args=list(argv), signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types
+        print(f'{prog}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+        return False
+    return True
+
+
+def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
+    """
+    Return the arguments after the program name that are not for ROS.
+
+    Malformed ``--ros-args`` end the program like an argparse error: one line
+    on stderr and exit status 2.
+    """
+    from rclpy.utilities import remove_ros_args
+    try:
+        return remove_ros_args(list(argv))[1:]
+    except Exception as exc:  # rcl's parse errors come as assorted exception types
+        print(f'{prog}: error: bad ROS arguments: {exc}', file=sys.stderr)
+        raise SystemExit(2)
+
+
+def stop_on_signals(stop: Optional[threading.Event] = None) -> threading.Event:
+    """Return an event (``stop``, or a new one) that SIGINT and SIGTERM set from now on."""
+    stop = threading.Event() if stop is None else stop
+
+    def handler(signum, frame):
+        stop.set()
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return stop
+
+
+def raise_if_stopped(stop: threading.Event) -> None:
+    """
+    Raise ``KeyboardInterrupt`` if ``stop`` is set: Ctrl-C, taken where the caller chooses.
+
+    For the client executables (``demo``, ``drive``), called between spins.
+    rclpy's own SIGINT handler raises wherever the main thread happens to be;
+    inside ``take_message`` pybind11 turns that into a ``RuntimeError``
+    traceback, and the context is already shut down, too late to publish a stop.
+    """
+    if stop.is_set():
+        raise KeyboardInterrupt

@@ -1,0 +1,237 @@
+"""
+The ``sim_node`` executable: signal handling first, then the paced simulator.
+
+Importing rclpy and PyBullet takes about a quarter of a second. A signal in that
+window used to end the process with a ``KeyboardInterrupt`` traceback (SIGINT)
+or status -15 (SIGTERM). This module imports only the standard library at the
+top, so its handlers are in place from the first line the package runs: during
+the heavy imports a signal ends the process at once with status 0, after them
+it only sets an event, which the paced loop sees and exits with status 0.
+"""
+
+import os
+import signal
+import sys
+import threading
+from typing import Callable, Optional, Sequence
+
+from r2d2_sim.apps.cli import stop_on_signals
+
+# The executor thread checks for a stop request at least this often (s).
+SPIN_POLL_S = 0.1
+
+
+def run_paced(node, stop: threading.Event, pacer=None,
+              advance: Optional[Callable[[Optional[int]], bool]] = None) -> None:
+    """
+    Step a :class:`~r2d2_sim.ros.node.SimNode` against the wall clock until ``stop`` is set.
+
+    Real time (``real_time_factor`` > 0): one physics step per absolute
+    deadline, or with a GUI one batch of steps per frame. As fast as
+    possible: whole control periods back to back. ``pacer`` (a
+    :class:`~r2d2_sim.model.timing.DeadlinePacer`; made from the rate when None)
+    and ``advance`` (default ``node.advance_if_running``) are seams for
+    measuring the loop.
+    """
+    from r2d2_sim.model.timing import DeadlinePacer
+    config = node.config
+    rate = config.physics_rate_hz * config.real_time_factor
+    # With a window, PyBullet renders whenever the client is idle and makes the
+    # next call wait for that frame (measured under Xvfb: 6 s for 240 paced
+    # steps). Stepping in batches, one per GUI frame, keeps real time.
+    batch = node.simulation.steps_per_gui_frame if config.gui else 1
+    if pacer is None and rate > 0.0:
+        pacer = DeadlinePacer(batch / rate)
+    advance = advance or node.advance_if_running
+    while not stop.is_set():
+        if not advance(None if pacer is None else batch):
+            stop.wait(0.005)
+            if pacer is not None:
+                pacer.reanchor()
+        elif pacer is not None:
+            pacer.wait()
+
+
+HELP_FLAGS = ('-h', '--help')
+
+
+def wants_help(argv: Sequence[str]) -> bool:
+    """
+    Return True if ``-h`` or ``--help`` is among the arguments, wherever it is.
+
+    Also after ``--ros-args``, where rcl would refuse it as an unknown ROS
+    argument; a parameter value or a file name is never one of them on its own
+    (``-p name:=--help`` is one argument).
+    """
+    return any(arg in HELP_FLAGS for arg in argv[1:])
+
+
+def usage(argv0: str) -> str:
+    """Return the ``--help`` text: usage, what the node does, and every parameter."""
+    from r2d2_sim.sim.parameters import parameter_help  # standard library only
+    prog = 'python -m r2d2_sim' if argv0.endswith('__main__.py') else os.path.basename(argv0)
+    return (f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE]]\n\n'
+            'Run the ROS 2 node r2d2_sim, R2D2 simulated in PyBullet, until SIGINT or\n'
+            'SIGTERM. Parameters, parameter files and remaps (-r FROM:=TO) go after\n'
+            '--ros-args; all parameters are read-only once the node runs. A bad value\n'
+            'stops it with one error line and exit status 2.\n\n'
+            f'example: {prog} --ros-args -p real_time_factor:=0.0 -p scan_rate:=0.0\n'
+            f'two robots: {prog} --ros-args -p robots:="[a, b]" \\\n'
+            '              -p b.initial_pose:="[2.0, 0.0, 3.1416]"\n\n'
+            'parameters ("per robot": each robot of robots may set its own, NAME.parameter):\n'
+            + parameter_help())
+
+
+def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] = None) -> int:
+    """
+    Run the simulator node until SIGINT or SIGTERM, or until ``stop`` is set.
+
+    Returns the exit status: 0 after a stop request or ``--help``, 2 when the
+    node cannot start. ``args`` defaults to ``sys.argv``; ``stop`` to a new
+    event set by SIGINT and SIGTERM (installed before rclpy and PyBullet are
+    imported).
+    """
+    argv = sys.argv if args is None else list(args)
+    if wants_help(argv):
+        return _print_usage(argv)
+    if stop is None:
+        stop = _import_stopping_at_once()
+    import rclpy
+    from r2d2_sim.ros.node import NODE_NAME, StartupError
+    status = _init_ros(argv)
+    if status is not None:
+        return status
+    try:
+        if not stop.is_set():  # stopped while PyBullet was still loading
+            _run_node(stop)
+        return 0
+    except StartupError as exc:
+        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
+        return 2
+    finally:
+        rclpy.try_shutdown()
+
+
+def _print_usage(argv: Sequence[str]) -> int:
+    try:
+        sys.stdout.write(usage(argv[0] if argv else 'sim_node'))
+        sys.stdout.flush()
+    except BrokenPipeError:  # sim_node --help | head
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0
+
+
+def _import_stopping_at_once() -> threading.Event:
+    """
+    Import rclpy and PyBullet; a signal meanwhile ends the process at once (status 0).
+
+    The imports take 0.25 s, seconds on a loaded machine, and a stop request
+    would otherwise wait for them. Returns the event the signals set from then on.
+    """
+    stop = threading.Event()
+
+    def exit_at_once(signum, frame):
+        stop.set()  # should anything on the way out swallow the SystemExit, main stops anyway
+        raise SystemExit(0)
+    signal.signal(signal.SIGINT, exit_at_once)
+    signal.signal(signal.SIGTERM, exit_at_once)
+    try:
+        import rclpy  # noqa: F401
+        import r2d2_sim.ros.node  # noqa: F401
+    except Exception:
+        # The SystemExit raised inside a C extension's initialisation comes
+        # out as an ImportError ("initialization failed"): stopping was asked for.
+        if stop.is_set():
+            raise SystemExit(0) from None
+        raise
+    finally:
+        stop_on_signals(stop)
+    return stop
+
+
+def _run_node(stop: threading.Event) -> None:
+    """Build the node, serve it from threads and pace it here until ``stop`` is set."""
+    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+    from r2d2_sim.ros.node import SimNode
+    node = None
+    executors = []
+    spinners = []
+    try:
+        node = SimNode(on_quit=stop.set)
+        executors.append(SingleThreadedExecutor())
+        executors[0].add_node(node)
+        # Several robots: each robot's node, from start-up or spawned later, is
+        # served beside the simulator's (whose lock guards them all).
+        node.watch_robot_nodes(executors[0].add_node, executors[0].remove_node)
+        if node.standard is not None:
+            # Two threads: a long step_simulation (its own callback group) leaves
+            # the standard's other services and cancel requests answered.
+            executors.append(MultiThreadedExecutor(num_threads=2))
+            executors[1].add_node(node.standard.node)
+        # Logged before any request can start a step: rclpy's logger looks its
+        # caller up through inspect (hundreds of file-system calls), which a
+        # step holding the GIL in PyBullet would stretch to seconds.
+        robots = node.robots
+        what = (robots[0].robot.source if len(robots) == 1 else
+                f'{len(robots)} robots ({", ".join(r.namespace for r in robots)})')
+        node.get_logger().info(
+            f'simulating {what} at {node.config.physics_rate_hz:g} Hz, real time factor '
+            f'{node.config.real_time_factor:g}' + (', paused' if node.paused else ''))
+        for executor in executors:
+            spinners.append(threading.Thread(target=_spin, args=(executor, stop), daemon=True))
+            spinners[-1].start()
+        run_paced(node, stop)
+    finally:
+        stop.set()
+        if node is not None and node.standard is not None:
+            # A step_simulation under way ends at its next chunk, before physics
+            # is closed under it (rclpy's Executor.shutdown does not wait for it).
+            node.standard.stop()
+        for spinner in spinners:
+            spinner.join(timeout=1.0)
+        # Only now, with no thread spinning: shutting an executor down under a
+        # spinning thread races in rclpy 7.1 (a callback handler made during
+        # shutdown fails with AttributeError on the destroyed guard condition).
+        for executor in executors:
+            executor.shutdown(timeout_sec=1.0)
+        if node is not None:
+            node.destroy_node()
+
+
+def _init_ros(argv: Sequence[str]) -> Optional[int]:
+    """Initialise rclpy without its signal handlers; an exit status (2) on a one-line error."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    from rclpy.utilities import remove_ros_args
+    from r2d2_sim.ros.node import NODE_NAME
+    try:
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+        # sim_node takes only ROS arguments: '-p x:=1' without --ros-args
+        # would otherwise be ignored and the node run on its defaults.
+        unexpected = remove_ros_args(argv)[1:]
+    except Exception as exc:  # rclpy reports bad --ros-args as assorted errors
+        print(f'{NODE_NAME}: error: cannot initialise ROS: {exc}', file=sys.stderr)
+        return 2
+    if unexpected:
+        print(f'{NODE_NAME}: error: unexpected arguments {" ".join(unexpected)}: parameters '
+              'and remaps go after --ros-args (sim_node --ros-args -p name:=value)',
+              file=sys.stderr)
+        rclpy.try_shutdown()
+        return 2
+    return None
+
+
+def _spin(executor, stop: threading.Event) -> None:
+    """Serve callbacks until ``stop`` is set (checked at least every SPIN_POLL_S)."""
+    from rclpy.executors import ExternalShutdownException
+    try:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=SPIN_POLL_S)
+    except ExternalShutdownException:
+        pass
+    finally:
+        stop.set()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

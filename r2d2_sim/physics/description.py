@@ -1,0 +1,175 @@
+"""
+Where robot and object descriptions come from: files, ROS packages, pybullet_data, XML text.
+
+No ROS messaging here, only the ament index for ``package://`` URIs. Every
+failure is a :class:`DescriptionError` with a one-line message.
+"""
+
+import os
+from pathlib import Path
+import sys
+import tempfile
+from typing import NamedTuple, Optional
+import xml.etree.ElementTree as ElementTree
+
+import pybullet_data
+
+from r2d2_sim.errors import SetupError
+
+PACKAGE_SCHEME = 'package://'
+PACKAGE_NAME = 'r2d2_sim'
+# The checkout this module sits in (urdf/ and package.xml beside r2d2_sim/), if any.
+SOURCE_TREE = str(Path(__file__).resolve().parents[2])
+
+
+class DescriptionError(SetupError, RuntimeError):
+    """A robot or model description that cannot be found, read or parsed."""
+
+
+def resolve_description_path(spec: str) -> str:
+    """
+    Turn a description reference into an absolute file path.
+
+    Accepted, in this order: ``package://pkg/relative/path`` (an installed
+    ROS package's share directory), an existing file path, and a bare name
+    found in pybullet_data (``r2d2.urdf``, ``cube.urdf``).
+    """
+    if spec.startswith(PACKAGE_SCHEME):
+        return _resolve_package_uri(spec)
+    if os.path.isfile(spec):
+        return os.path.abspath(spec)
+    if not os.path.isabs(spec):
+        candidate = os.path.join(pybullet_data.getDataPath(), spec)
+        if os.path.isfile(candidate):
+            return candidate
+    raise DescriptionError(f'URDF file not found: {spec} (not a file, nor in pybullet_data)')
+
+
+def _resolve_package_uri(uri: str) -> str:
+    package, _, relative = uri[len(PACKAGE_SCHEME):].partition('/')
+    if not package or not relative:
+        raise DescriptionError(f'malformed package URI {uri!r}: expected package://pkg/path')
+    path = os.path.join(package_share_directory(package), relative)
+    if not os.path.isfile(path):
+        raise DescriptionError(f'URDF file not found: {path} (from {uri})')
+    return path
+
+
+def package_share_directory(package: str) -> str:
+    """
+    Return the share directory of an installed ROS package, as ``package://`` means it.
+
+    Looked up, in this order: the ament index (colcon workspaces and ROS
+    installs, through ``AMENT_PREFIX_PATH``); ``<sys.prefix>/share/<package>``,
+    where ``pip install`` puts a package's data files and where nothing sets
+    ``AMENT_PREFIX_PATH``; and, for r2d2_sim itself, its source tree.
+    """
+    from ament_index_python.packages import (
+        get_package_share_directory, PackageNotFoundError)
+    try:
+        return get_package_share_directory(package)
+    except (PackageNotFoundError, OSError, ValueError):
+        pass  # OSError: AMENT_PREFIX_PATH is unset, as for every pip-only user
+    candidates = [os.path.join(sys.prefix, 'share', package)]
+    if package == PACKAGE_NAME:
+        candidates.append(SOURCE_TREE)
+    for candidate in candidates:
+        if os.path.isfile(os.path.join(candidate, 'package.xml')):
+            return candidate
+    raise DescriptionError(
+        f'cannot find package {package!r}: {package!r} is not in the ament index '
+        f'(AMENT_PREFIX_PATH) nor under {os.path.join(sys.prefix, "share")}')
+
+
+def default_urdf_path() -> str:
+    """
+    Return the package's own R2D2 description.
+
+    The copy beside the sources wins (a source checkout, or an editable pip
+    install, which installs no data files); otherwise the one installed under
+    ``share/r2d2_sim`` by colcon or ``pip install .``.
+    """
+    source_copy = os.path.join(SOURCE_TREE, 'urdf', 'r2d2.urdf')
+    if os.path.isfile(source_copy):
+        return source_copy
+    try:
+        share = package_share_directory(PACKAGE_NAME)
+    except DescriptionError as exc:
+        raise DescriptionError(f'cannot find the package URDF: {exc}') from None
+    return os.path.join(share, 'urdf', 'r2d2.urdf')
+
+
+def read_description(path: str) -> str:
+    """Return the text of a description file, with a one-line error if unreadable."""
+    try:
+        with open(path, encoding='utf-8') as handle:
+            return handle.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise DescriptionError(f'cannot read {path}: {reason}') from None
+
+
+def check_urdf_xml(text: str, source: str) -> None:
+    """Raise DescriptionError unless ``text`` is well-formed XML with a <robot> root."""
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise DescriptionError(f'cannot load {source}: not well-formed XML ({exc})') from None
+    if root.tag != 'robot':
+        raise DescriptionError(
+            f'cannot load {source}: the root element is <{root.tag}>, not <robot>')
+
+
+class DescriptionFile:
+    """
+    A URDF given as text, written to a temporary file PyBullet can load.
+
+    The file lives in its own temporary directory until :meth:`close`.
+    """
+
+    def __init__(self, text: str) -> None:
+        check_urdf_xml(text, 'robot_description')
+        self._directory: Optional[str] = tempfile.mkdtemp(prefix='r2d2_sim_')
+        self.path = os.path.join(self._directory, 'robot_description.urdf')
+        with open(self.path, 'w', encoding='utf-8') as handle:
+            handle.write(text)
+
+    def close(self) -> None:
+        """Delete the file and its directory; safe to call twice."""
+        if self._directory is not None:
+            try:
+                os.remove(self.path)
+                os.rmdir(self._directory)
+            except OSError:
+                pass
+            self._directory = None
+
+
+class RobotDescription(NamedTuple):
+    """A robot's URDF ready to load: a file path, its text, and a temporary file to close."""
+
+    path: str
+    text: str
+    temporary: Optional[DescriptionFile]
+
+    @staticmethod
+    def load(urdf: str = '', text: str = '') -> 'RobotDescription':
+        """
+        Read a description as the ``urdf`` and ``robot_description`` parameters give it.
+
+        XML ``text`` wins (written to a temporary file PyBullet can load); else
+        ``urdf`` resolved as a path, URI or pybullet_data name, else the
+        package's own R2D2. DescriptionError (one line) when it cannot be had.
+        """
+        if text:
+            temporary = DescriptionFile(text)
+            return RobotDescription(temporary.path, text, temporary)
+        path = resolve_description_path(urdf) if urdf else default_urdf_path()
+        text = read_description(path)
+        check_urdf_xml(text, path)
+        return RobotDescription(path, text, None)
+
+    def close(self) -> None:
+        """Delete the temporary file, if there is one."""
+        if self.temporary is not None:
+            self.temporary.close()

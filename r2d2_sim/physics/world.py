@@ -1,0 +1,366 @@
+"""
+The PyBullet world: bodies on a plane, stepped at a fixed time step.
+
+No ROS here. The world owns its own physics client (never the module-global
+``pybullet`` state), so several worlds can live in one process and tests can
+build and tear down their own. Every body in it is a
+:class:`~r2d2_sim.physics.body.Body` with a unique name; bodies are referred to
+through those objects, never through ids cached elsewhere (PyBullet reuses
+the ids of removed bodies), so bodies can be added and removed while it runs.
+"""
+
+from dataclasses import dataclass
+from functools import partial
+import math
+import os
+import socket
+from typing import Dict, List, Optional, Sequence, Tuple
+import warnings
+
+import numpy
+
+from r2d2_sim.physics.body import Body, WorldError
+from r2d2_sim.physics.records import Quat, Vec3
+from r2d2_sim.physics.description import (
+    DescriptionError, resolve_description_path, RobotDescription)
+from r2d2_sim.physics.raycast import cast_rays, RAY_EXCLUDED_GROUP, RAY_MASK, ray_mask
+from r2d2_sim.physics.stdio import silenced_output
+from r2d2_sim.model.transforms import yaw_of
+
+with silenced_output():  # PyBullet prints its build time on import
+    import pybullet
+import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
+from pybullet_utils.bullet_client import BulletClient
+
+# Names kept where they were: the world's module used to define them.
+from r2d2_sim.physics.body import BodyRemoved  # noqa: F401,I100
+from r2d2_sim.physics.records import (  # noqa: F401
+    BaseState, JOINT_TYPE_NAMES, JointRecord, JointStates)
+
+__all__ = ['SimWorld', 'ExtraModel', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
+           'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask']
+
+# Gap left between the lowest point of the robot and the ground at spawn, so
+# that it starts just above the plane instead of interpenetrating it.
+SPAWN_CLEARANCE_M = 0.001
+GROUND_PLANE_NAME = 'ground_plane'
+IDENTITY_QUATERNION: Quat = (0.0, 0.0, 0.0, 1.0)
+# Each robot's laser passes through its own links, put in a collision group
+# of that robot's (one bit each), and sees every other robot. Bits 0 and 1
+# are Bullet's default groups (dynamic, static); the group is a C int.
+RAY_GROUPS = tuple(RAY_EXCLUDED_GROUP << bit for bit in range(29))  # 4 ... 2**30
+
+
+@dataclass(frozen=True)
+class ExtraModel:
+    """Another body in the world: a description reference and its spawn position."""
+
+    description: str
+    position: Vec3
+
+
+def display_problem(environ=os.environ) -> Optional[str]:
+    """
+    Return why PyBullet's window cannot open here (None if an X display answers).
+
+    PyBullet's GUI connect ends the whole process (exit status 1, three lines
+    of X11 errors) when no X server answers, so this looks first: DISPLAY set,
+    and its socket (``/tmp/.X11-unix/X<n>`` or TCP 6000 + n) accepting.
+    """
+    display = environ.get('DISPLAY', '')
+    if not display:
+        return ('gui needs a display, and DISPLAY is not set (on a headless machine run '
+                'under Xvfb: xvfb-run -a sim_node --ros-args -p gui:=true)')
+    host, _, number = display.rpartition(':')
+    number = number.split('.')[0]
+    try:
+        if host in ('', 'unix'):
+            sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            address = f'/tmp/.X11-unix/X{int(number)}'
+        else:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            address = (host, 6000 + int(number))
+    except ValueError:
+        return f'gui needs a display, and DISPLAY={display!r} is not one'
+    sock.settimeout(1.0)
+    try:
+        sock.connect(address)
+    except OSError as exc:
+        return f'gui needs a display, and none answers at DISPLAY={display} ({exc.strerror})'
+    finally:
+        sock.close()
+    return None
+
+
+class SimWorld:
+    """
+    A PyBullet world holding a robot, the ground and other bodies, stepped at a fixed time step.
+
+    The robot (:attr:`robot`) is spawned at ``initial_pose`` (x, y, yaw) with
+    its lowest point just above the ground; :meth:`reset` puts every body back
+    where it started. ``body_yaw_offset_rad`` is the yaw from the URDF base
+    frame to the robot's REP-103 body frame (x forward, y left): +pi/2 for a
+    robot that drives along its base +y. Raises WorldError (one line) when a
+    description, a body or the GUI cannot be had.
+    """
+
+    def __init__(self, urdf_path: Optional[str] = None, *, gui: bool = False,
+                 time_step_s: float = 1.0 / 240.0,
+                 gravity_m_s2: Vec3 = (0.0, 0.0, -9.8),
+                 ground_plane: bool = True,
+                 initial_pose: Tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 robot_description: str = '',
+                 body_yaw_offset_rad: float = 0.0,
+                 extra_models: Sequence[ExtraModel] = (),
+                 robot_name: Optional[str] = None) -> None:
+        if not (math.isfinite(time_step_s) and time_step_s > 0.0):
+            raise WorldError(f'time step must be a positive number of seconds, got {time_step_s}')
+        self.time_step_s = time_step_s
+        self.gui = gui
+        self.step_count = 0
+        self.bodies: Dict[str, Body] = {}
+        self.robot: Optional[Body] = None
+        self.plane: Optional[Body] = None
+        self.extras: List[Body] = []
+        self._free_ray_groups = list(RAY_GROUPS)
+        self._description: Optional[RobotDescription] = None
+        self._client: Optional[BulletClient] = None
+        try:
+            self._description = RobotDescription.load(urdf_path or '', robot_description)
+            self.urdf_path, self.robot_description = self._description[:2]
+            extra_paths = [resolve_description_path(m.description) for m in extra_models]
+        except DescriptionError as exc:
+            self.close()
+            raise WorldError(str(exc)) from None
+        problem = display_problem() if gui else None
+        if problem is not None:
+            raise WorldError(problem)
+        # 'argv[0]=' on every connect, on stdout; why a GUI cannot open goes to stderr.
+        with silenced_output(stderr=False):
+            self._client = BulletClient(
+                connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        self._step_simulation = partial(pybullet.stepSimulation,
+                                        physicsClientId=self._client._client)
+        try:
+            self._setup(gravity_m_s2)
+            if ground_plane:
+                self.plane = self.load('plane.urdf', name=GROUND_PLANE_NAME)
+            self.robot = self.load_robot(self.urdf_path, initial_pose, body_yaw_offset_rad,
+                                         name=robot_name, source=urdf_path or self.urdf_path)
+            self.extras = [self.load(path, m.position, source=m.description)
+                           for path, m in zip(extra_paths, extra_models)]
+        except Exception:
+            self.close()
+            raise
+
+    def _setup(self, gravity: Vec3) -> None:
+        client = self._client
+        client.resetSimulation()
+        client.setAdditionalSearchPath(pybullet_data.getDataPath())
+        client.setTimeStep(self.time_step_s)
+        client.setGravity(*gravity)
+        # Bullet's cone friction makes skid-steered wheels creep into a turn over
+        # seconds (measured: 0.04 -> 0.11 rad/s for a 0.5 rad/s command); the
+        # classic pyramid model reaches a steady yaw rate within 0.1 s.
+        client.setPhysicsEngineParameter(enableConeFriction=0)
+        if self.gui:
+            client.configureDebugVisualizer(client.COV_ENABLE_GUI, 0)
+
+    def unique_name(self, wanted: str) -> str:
+        """Return ``wanted``, or with the first free ``_1``, ``_2``... suffix when taken."""
+        if wanted not in self.bodies:
+            return wanted
+        suffix = 1
+        while f'{wanted}_{suffix}' in self.bodies:
+            suffix += 1
+        return f'{wanted}_{suffix}'
+
+    def load(self, path: str, position: Vec3 = (0.0, 0.0, 0.0),
+             orientation: Quat = IDENTITY_QUATERNION, *, name: Optional[str] = None,
+             flags: int = 0, body_yaw_offset_rad: float = 0.0, spawned: bool = False,
+             source: Optional[str] = None) -> Body:
+        """
+        Load a URDF file as a new body; return it.
+
+        ``name`` (default: the URDF's ``<robot name>``, made unique) must not
+        be taken. ``orientation`` is that of the URDF base frame.
+        """
+        try:
+            body_id = self._client.loadURDF(path, basePosition=position,
+                                            baseOrientation=orientation, flags=flags)
+        except self._client.error as exc:
+            raise WorldError(f'PyBullet cannot load {path}: {exc}') from None
+        if name is None:
+            urdf_name = self._client.getBodyInfo(body_id)[1].decode('utf-8')
+            name = self.unique_name(urdf_name or os.path.splitext(os.path.basename(path))[0])
+        elif name in self.bodies:
+            self._client.removeBody(body_id)
+            raise WorldError(f'a body named {name!r} is already in the world')
+        body = Body(self._client, body_id, name, source or path,
+                    body_yaw_offset_rad=body_yaw_offset_rad, spawned=spawned)
+        self.bodies[name] = body
+        return body
+
+    def load_robot(self, path: str, pose: Tuple[float, float, float],
+                   body_yaw_offset_rad: float = 0.0, *, name: Optional[str] = None,
+                   spawned: bool = False, source: Optional[str] = None) -> Body:
+        """
+        Load a driven robot at (x, y, yaw), its lowest point just above the ground.
+
+        True cylinders (``URDF_USE_IMPLICIT_CYLINDER``) roll smoothly; the
+        default faceted convex hulls make wheels bump along. Inertias come
+        from the file.
+        """
+        x, y, yaw = pose
+        client = self._client
+        orientation = client.getQuaternionFromEuler((0.0, 0.0, yaw - body_yaw_offset_rad))
+        body = self.load(path, (x, y, 0.0), orientation, name=name, spawned=spawned,
+                         flags=self.robot_flags, body_yaw_offset_rad=body_yaw_offset_rad,
+                         source=source)
+        position, _ = client.getBasePositionAndOrientation(body.id)
+        client.resetBasePositionAndOrientation(
+            body.id, (position[0], position[1],
+                      position[2] - body.bounding_box().low[2] + SPAWN_CLEARANCE_M), orientation)
+        body.save_initial_state()
+        return body
+
+    @property
+    def robot_flags(self) -> int:
+        """Return the loadURDF flags of a driven robot: inertias from the file, true cylinders."""
+        return pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
+
+    def take_ray_group(self) -> int:
+        """
+        Return a collision group bit of its own for a robot's sensor rays to pass through.
+
+        The first robot gets 4 (``RAY_EXCLUDED_GROUP``), as when a world had one
+        robot. WorldError when all 29 are taken: that many robots with a laser.
+        """
+        if not self._free_ray_groups:
+            raise WorldError(f'{len(RAY_GROUPS)} robots with a laser scanner are in the world '
+                             'already, as many as Bullet\'s collision groups can tell apart')
+        return self._free_ray_groups.pop(0)
+
+    def release_ray_group(self, group: int) -> None:
+        """Give a ray group back (its robot left the world)."""
+        if group in RAY_GROUPS and group not in self._free_ray_groups:
+            self._free_ray_groups.append(group)
+            self._free_ray_groups.sort()
+
+    def remove(self, body: Body) -> None:
+        """Take ``body`` out of the world."""
+        if self.bodies.get(body.name) is body:
+            del self.bodies[body.name]
+        if body is self.robot:
+            self.robot = None
+        if body in self.extras:
+            self.extras.remove(body)
+        body.remove()
+
+    @property
+    def client(self) -> BulletClient:
+        """Return the PyBullet client of this world (for advanced use)."""
+        return self._client
+
+    @property
+    def sim_time_s(self) -> float:
+        """Return the simulated time since start, in seconds."""
+        return self.step_count * self.time_step_s
+
+    def step(self, steps: int = 1) -> None:
+        """Advance the physics by ``steps`` fixed time steps."""
+        step_simulation = self._step_simulation
+        for _ in range(steps):
+            step_simulation()
+        self.step_count += steps
+
+    def reset(self) -> None:
+        """
+        Put every body back in the state it was loaded in: initial pose, zero velocities.
+
+        The step counter keeps counting: simulated time never goes backwards.
+        """
+        for body in self.bodies.values():
+            body.reset()
+
+    def cast_rays(self, starts: numpy.ndarray, ends: numpy.ndarray,
+                  mask: int = RAY_MASK) -> numpy.ndarray:
+        """
+        Cast rays (N x 3 world points) and return hit fractions (1.0: no hit); see raycast.
+
+        ``mask``: the groups the rays can hit; ``ray_mask(group)`` passes
+        through the links a robot put in its own ray group.
+        """
+        return cast_rays(self._client, starts, ends, mask)
+
+    def render(self, width_px: int, height_px: int, view: Sequence[float],
+               projection: Sequence[float]) -> Tuple[bytes, numpy.ndarray]:
+        """
+        Render with the CPU renderer: rgb8 rows (top row first) and the raw depth buffer.
+
+        ER_TINY_RENDERER works without a display (DIRECT mode) and gives the
+        same pixels in GUI mode, so tests and headless runs see what users see.
+        The depth buffer is OpenGL's non-linear d in [0, 1], shaped (height, width).
+        """
+        _, _, rgba, depth, _ = self._client.getCameraImage(
+            width_px, height_px, viewMatrix=list(view), projectionMatrix=list(projection),
+            renderer=pybullet.ER_TINY_RENDERER, flags=pybullet.ER_NO_SEGMENTATION_MASK)
+        rgb = numpy.asarray(rgba, dtype=numpy.uint8).reshape(height_px, width_px, 4)[:, :, :3]
+        return rgb.tobytes(), numpy.asarray(depth, dtype=float).reshape(height_px, width_px)
+
+    def follow_camera(self, body: Optional[Body] = None, distance_m: float = 2.0) -> None:
+        """Point the GUI camera at a body (default: the robot); no-op without a window."""
+        body = body or self.robot
+        if not self.gui or body is None:
+            return
+        base = body.world_state()
+        yaw = math.degrees(yaw_of(base.orientation))
+        self._client.resetDebugVisualizerCamera(distance_m, yaw - 90.0, -30.0, base.position)
+
+    @property
+    def robot_id(self) -> int:
+        """Return the robot's PyBullet id (for advanced use: prefer :attr:`robot`)."""
+        return self.robot.id
+
+    @property
+    def plane_id(self) -> Optional[int]:
+        """Return the ground plane's PyBullet id, None without one."""
+        return None if self.plane is None else self.plane.id
+
+    @property
+    def extra_model_ids(self) -> List[int]:
+        """Return the PyBullet ids of the extra models (advanced use: prefer :attr:`extras`)."""
+        return [body.id for body in self.extras]
+
+    def __getattr__(self, name: str):
+        # What the world used to answer for its one robot: now the robot body's.
+        robot = self.__dict__.get('robot')
+        if robot is not None and not name.startswith('_') and hasattr(robot, name):
+            warnings.warn(f'SimWorld.{name} is deprecated: use SimWorld.robot.{name}',
+                          DeprecationWarning, stacklevel=2)
+            return getattr(robot, name)
+        raise AttributeError(f'{type(self).__name__!r} object has no attribute {name!r}')
+
+    def close(self) -> None:
+        """Disconnect the physics client and delete temporary files; safe to call twice."""
+        client = self.__dict__.get('_client')
+        if client is not None:
+            try:
+                client.disconnect()
+            except pybullet.error:
+                pass
+            self._client = None
+        description = self.__dict__.get('_description')
+        if description is not None:
+            description.close()
+
+    @property
+    def connected(self) -> bool:
+        """Return True while the physics client is connected."""
+        return self._client is not None and self._client.isConnected()
+
+    def __enter__(self) -> 'SimWorld':
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

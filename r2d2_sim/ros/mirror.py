@@ -1,0 +1,119 @@
+"""
+The node's publishers with a second consumer: the same bytes to DDS and to a Foxglove sink.
+
+With ``foxglove_port`` or ``record`` set, :meth:`SimNode.create_publisher
+<r2d2_sim.ros.node.SimNode.create_publisher>` hands out a :class:`MirroredPublisher`
+instead of rclpy's: every ``publish`` goes to DDS unchanged and, as bytes, to
+the sink's channel of that topic (the live view and the MCAP file), stamped
+with the simulated time of the step that published it. The outputs do not
+know: they publish as always. Pre-serialized messages go on as they are;
+typed ones (camera images, ``/tf_static``, ``robot_description``) are
+serialized once, and DDS and the sink both get those bytes. Without a sink the node keeps rclpy's
+publishers, so mirroring costs nothing when it is off.
+"""
+
+from typing import Callable, Optional
+
+from rclpy.publisher import Publisher
+from rclpy.serialization import serialize_message
+
+from r2d2_sim.recording.sink import FoxgloveSink, SinkChannel
+from r2d2_sim.ros.quiet_node import QuietNode
+
+__all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode', 'start_sink']
+
+
+def ros_type_name(msg_type: type) -> str:
+    """Return the ROS name of an rclpy message class: ``sensor_msgs/msg/LaserScan``."""
+    package = msg_type.__module__.split('.', 1)[0]
+    return f'{package}/msg/{msg_type.__name__}'
+
+
+class MirroredPublisher:
+    """An rclpy publisher whose messages also go, as bytes, to a sink channel; else the same."""
+
+    def __init__(self, publisher: Publisher, channel: SinkChannel,
+                 time_ns: Callable[[], int]) -> None:
+        self.publisher = publisher
+        self.channel = channel
+        self._time_ns = time_ns
+
+    def publish(self, msg) -> None:
+        """Publish ``msg`` (a message or its serialized bytes) to DDS and to the sink."""
+        # A typed message is serialized once, here, and both get the bytes: a
+        # camera image (230-300 kB) is not serialized a second time by rclpy.
+        if type(msg) is bytes:
+            data = msg
+        elif isinstance(msg, self.publisher.msg_type):
+            data = serialize_message(msg)
+        else:  # what rclpy's publish says, before anything goes out as bytes
+            raise TypeError(f'Expected {self.publisher.msg_type}, got {type(msg)}')
+        self.publisher.publish(data)
+        self.channel.log(data, self._time_ns())
+
+    def release(self) -> None:
+        """Stop feeding the sink: the publisher's node is going (a deleted robot's)."""
+        self.channel.release()
+
+    def __getattr__(self, name: str):
+        # Everything else (topic_name, get_subscription_count, destroy...) is the publisher's.
+        return getattr(self.publisher, name)
+
+
+def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
+           time_ns: Callable[[], int]) -> MirroredPublisher:
+    """Register ``publisher``'s topic with ``sink`` and return the mirrored publisher."""
+    channel = sink.channel(publisher.topic_name, ros_type_name(msg_type),
+                           publisher.qos_profile)
+    return MirroredPublisher(publisher, channel, time_ns)
+
+
+def start_sink(config, name: str, log: Callable[[str], None]) -> Optional[FoxgloveSink]:
+    """
+    Start the live view and the recording a SimConfig asks for (None: neither); say where.
+
+    ``name`` is the server's name viewers show; ``log`` gets one line for each
+    (the view's address, the recording's file). SinkError when either cannot start.
+    """
+    port = config.foxglove_port or None
+    record = config.record or None
+    if port is None and record is None:
+        return None
+    sink = FoxgloveSink(port, config.foxglove_host, record, name=name)
+    if sink.url is not None:
+        log(f'Foxglove live view at {sink.url}')
+    if record is not None:
+        log(f'recording every output to {record}')
+    return sink
+
+
+class MirroringNode(QuietNode):
+    """
+    A node whose publishers also feed ``sink`` (the live view and recording), if set.
+
+    A :class:`~r2d2_sim.ros.quiet_node.QuietNode`: no default QoS event handlers.
+
+    Subclasses set ``sink`` after ``Node.__init__`` (rclpy's own publishers,
+    made there, stay unmirrored) and give the simulated time of what they
+    publish with :meth:`sink_time_ns`.
+    """
+
+    sink: Optional[FoxgloveSink] = None
+
+    def sink_time_ns(self) -> int:
+        """Return the simulated time (ns) that mirrored messages are logged at."""
+        return 0
+
+    def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
+        """Create a publisher; with a live view or a recording on, one that feeds them too."""
+        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        if self.sink is None:
+            return publisher
+        mirrored = mirror(publisher, msg_type, self.sink, self.sink_time_ns)
+        self.__dict__.setdefault('_mirrored', []).append(mirrored)
+        return mirrored
+
+    def release_mirrors(self) -> None:
+        """Release this node's publishers from the sink (before the node is destroyed)."""
+        for mirrored in self.__dict__.pop('_mirrored', []):
+            mirrored.release()

@@ -1,0 +1,326 @@
+"""
+The ``r2d2_sim`` ROS 2 node: translation between ROS and the simulation core.
+
+The node owns a :class:`~r2d2_sim.sim.simulation.Simulation` and advances it only
+when asked (:meth:`SimNode.advance`); it has no timers of its own for physics.
+:func:`r2d2_sim.apps.sim_node.main` paces it against the wall clock while an executor
+serves topics and services in another thread; tests drive it step by step.
+Everything here is ROS plumbing: parameters in, messages out, services.
+"""
+
+import threading
+from typing import Callable, Optional, Sequence
+
+from rclpy.node import Node
+
+from r2d2_sim.ros.cmd_vel import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, \
+    WARNING_PERIOD_S
+from r2d2_sim.ros.control_services import ControlServices
+from r2d2_sim.sim.entities import EntityError
+from r2d2_sim.errors import SetupError, StartupError
+from r2d2_sim.recording.sink import FoxgloveSink, SinkError
+from r2d2_sim.ros.fleet import Fleet
+from r2d2_sim.ros.mirror import MirroringNode, start_sink
+from r2d2_sim.ros.outputs import ClockOutput
+from r2d2_sim.sim.parameters import ConfigError
+from r2d2_sim.ros.standard import server as sim_interfaces
+from r2d2_sim.sim.robot import Robot
+from r2d2_sim.ros.robot_interfaces import RobotInterfaces
+from r2d2_sim.ros.parameters import declare_parameters
+from r2d2_sim.ros.standard.server import SimulationInterfaces
+from r2d2_sim.sim.simulation import Simulation, StepResult
+from r2d2_sim.physics.world import SimWorld
+
+NODE_NAME = 'r2d2_sim'
+__all__ = ['SimNode', 'StartupError', 'NODE_NAME']
+
+
+class SimNode(MirroringNode):
+    """
+    Simulates R2D2 in PyBullet and exposes it through standard ROS interfaces.
+
+    Each robot publishes ``joint_states``, ``odom`` (wheel odometry),
+    ``ground_truth``, TF, ``scan``, ``imu``, the latched ``robot_description``
+    and, with ``camera_rate``, ``camera/image_raw`` and ``camera/camera_info``
+    (and ``camera/depth/*``); subscribes ``cmd_vel``; serves
+    ``~/get_joint_info``. One robot (the default) does so on this node, in its
+    namespace; several (the ``robots`` parameter, or spawned with a namespace
+    through the standard) each on a :class:`~r2d2_sim.ros.robot_interfaces.RobotNode`
+    in its own. This node publishes ``/clock`` (one per world) and serves
+    ``~/get_status``, ``~/pause``, ``~/step`` and ``~/reset``.
+    Takes rclpy's Node keywords (``context``, ``namespace``,
+    ``parameter_overrides``...), and how often (wall seconds) a kind of
+    warning may repeat (``warning_period_s``) and the graph is checked for
+    ``cmd_vel`` publishers of the wrong type (``graph_check_period_s``).
+    With simulation_interfaces installed it also serves ROS 2's simulation
+    standard (:mod:`r2d2_sim.ros.standard.server`); ``on_quit`` is what a request
+    for the QUITTING state calls (``sim_node`` stops itself; without it
+    QUITTING is unsupported). Raises :class:`StartupError` when its
+    parameters or URDF are unusable.
+    """
+
+    def __init__(self, node_name: str = NODE_NAME, *,
+                 warning_period_s: float = WARNING_PERIOD_S,
+                 graph_check_period_s: float = GRAPH_CHECK_PERIOD_S,
+                 on_quit: Optional[Callable[[], None]] = None, **node_kwargs) -> None:
+        self.sink: Optional[FoxgloveSink] = None  # before rclpy makes its own publishers
+        super().__init__(node_name, **node_kwargs)
+        self.lock = threading.RLock()  # one thread in PyBullet at a time (public: the services')
+        self._throttled = ThrottledLog(warning_period_s)
+        self._warning_period_s = warning_period_s
+        self._graph_check_period_s = graph_check_period_s
+        self.simulation: Optional[Simulation] = None
+        self.standard: Optional[SimulationInterfaces] = None
+        self._clock_output: Optional[ClockOutput] = None
+        # One per robot, in the order of simulation.robots (their measurements').
+        self.fleet = Fleet(self, self._robot_interfaces)
+        try:
+            self.config, specs = declare_parameters(self)
+            namespaces = self.fleet.start_namespaces(specs)
+            self.sink = start_sink(self.config, self.get_name(), self.get_logger().info)
+            self.simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
+                                         error=self._log_blow_up)
+            self._clock_output = ClockOutput(self)
+            for robot, namespace in zip(self.simulation.robots, namespaces):
+                self.fleet.add(robot, namespace)
+        except (SetupError, SinkError) as exc:
+            self._close()
+            raise StartupError(str(exc)) from exc
+        self._paused = self.config.start_paused
+        self.control = ControlServices(self)
+        if sim_interfaces.available():
+            self.standard = SimulationInterfaces(self, on_quit)
+        else:
+            self.get_logger().warning(
+                'simulation_interfaces is not installed: its services (spawn_entity, '
+                'step_simulation...) are off (a pip-only venv gets it from '
+                'tools/build_interfaces.sh VENV); everything else works')
+        self._publish(self.simulation.read_states())
+
+    def sink_time_ns(self) -> int:
+        """Return the simulated time that mirrored messages are logged at (0 before physics)."""
+        return 0 if self.simulation is None else self.simulation.time_ns
+
+    # -- robots and their interfaces ---------------------------------------------------
+
+    @property
+    def robots(self) -> Fleet:
+        """Return every robot's interfaces, in the simulation's order (iterable, indexable)."""
+        return self.fleet
+
+    def _robot_interfaces(self, node: MirroringNode, robot: Robot,
+                          own_node: bool) -> RobotInterfaces:
+        return RobotInterfaces(
+            node, robot, self.lock, now_ns=lambda: self.simulation.time_ns,
+            time_ns=self.simulation.time_ns, warning_period_s=self._warning_period_s,
+            graph_check_period_s=self._graph_check_period_s, own_node=own_node)
+
+    def watch_robot_nodes(self, added: Callable[[Node], None],
+                          removed: Callable[[Node], None]) -> None:
+        """
+        Follow the robots' own nodes: ``added`` for each, now and later; ``removed`` for leavers.
+
+        Whoever spins this node spins the robots' nodes too (``sim_node``'s
+        executor, a test harness's); ``removed`` must take the node out of
+        the executor before it is destroyed.
+        """
+        self.fleet.watch(added, removed)
+
+    def robot(self, name: Optional[str] = None) -> RobotInterfaces:
+        """Return a robot's interfaces by name (default: the first robot); KeyError if none."""
+        return self.fleet.named(name)
+
+    def spawn_entity(self, name: str, allow_renaming: bool, uri: str, resource_string: str,
+                     namespace: str, frame_id: str, position: Sequence[float],
+                     orientation: Sequence[float]) -> str:
+        """
+        Spawn an entity (see :class:`~r2d2_sim.sim.entities.Entities`); return its name.
+
+        With a ``namespace`` it is a driven robot with every interface a robot
+        has, there (relative: under this node's namespace), on the world's
+        robot settings. EntityError NAMESPACE_INVALID for a malformed or
+        taken namespace, or this node's own.
+        """
+        with self.lock:
+            if not namespace:
+                return self.simulation.entities.spawn(name, allow_renaming, uri,
+                                                      resource_string, frame_id, position,
+                                                      orientation)
+            resolved = self.fleet.free_namespace(namespace)
+            robot = self.simulation.spawn_robot(name, allow_renaming, uri, resource_string,
+                                                frame_id, position, orientation)
+            try:
+                self.fleet.add(robot, resolved)
+            except BaseException as exc:
+                self.simulation.delete_entity(robot.name)
+                if isinstance(exc, ConfigError):
+                    raise EntityError('NAMESPACE_INVALID', str(exc)) from None
+                raise
+            return robot.name
+
+    def delete_entity(self, name: str) -> None:
+        """Delete a spawned entity, and a robot's interfaces with it (EntityError if refused)."""
+        with self.lock:
+            try:
+                self.simulation.delete_entity(name)
+            finally:
+                self.fleet.sync(self.simulation.robots)
+
+    @property
+    def world(self) -> SimWorld:
+        """Return the PyBullet world, for tests and advanced use."""
+        return self.simulation.world
+
+    @property
+    def step_count(self) -> int:
+        """Return the number of physics steps taken since start."""
+        return self.simulation.step_count
+
+    @property
+    def sim_time_ns(self) -> int:
+        """Return simulated time in integer nanoseconds (exact, no drift)."""
+        return self.simulation.time_ns
+
+    @property
+    def last_publication_ns(self) -> int:
+        """Return the simulated time (ns) of the latest state publication (its stamps)."""
+        simulation = self.simulation
+        return simulation.clock.time_ns(simulation.last_frame_step)
+
+    @property
+    def paused(self) -> bool:
+        """Return True while physics is stopped."""
+        return self._paused
+
+    @property
+    def blow_ups(self) -> int:
+        """Return how often the physics blew up and a robot was reset."""
+        return self.simulation.blow_ups
+
+    @property
+    def cmd_vel(self) -> CmdVelInput:
+        """Return the first robot's ``cmd_vel`` input (the one robot's, by default)."""
+        return self.robots[0].cmd_vel
+
+    @property
+    def commands_received(self) -> int:
+        """Return the number of cmd_vel messages taken by every robot, refused ones included."""
+        return self.fleet.received
+
+    @property
+    def commands_rejected(self) -> int:
+        """Return the number of cmd_vel messages refused (NaN, stale stamp...), all robots'."""
+        return self.fleet.rejected
+
+    @property
+    def has_wheels(self) -> bool:
+        """Return True when cmd_vel drives the first robot's wheels."""
+        return self.simulation.robot.controller is not None
+
+    def steps_to_next_publish(self) -> int:
+        """Return the number of physics steps until the next state publication."""
+        return self.simulation.steps_to_next_publish()
+
+    def advance(self, steps: int = 1) -> None:
+        """
+        Step the physics ``steps`` times, applying commands and publishing on schedule.
+
+        This is the in-process API for tests: it ignores pause and pacing, so a
+        test can advance simulated time deterministically between its own spins.
+        """
+        with self.lock:
+            step, publish = self.simulation.step, self._publish
+            for _ in range(steps):
+                result = step()
+                if result is not None:
+                    publish(result)
+
+    def advance_to_next_publish(self) -> int:
+        """Advance one control period: to and including the next publication."""
+        steps = self.steps_to_next_publish()
+        self.advance(steps)
+        return steps
+
+    def advance_if_running(self, steps: Optional[int] = None) -> bool:
+        """
+        Advance ``steps`` (default: one control period) unless paused; return whether it did.
+
+        The check and the steps hold the lock that ``~/pause`` takes, so once a
+        pause is answered no further step runs and the reply's time is final.
+        """
+        with self.lock:
+            if self._paused:
+                return False
+            if steps is None:
+                self.advance_to_next_publish()
+            else:
+                self.advance(steps)
+            return True
+
+    def _publish(self, result: StepResult) -> None:
+        """Translate one step's measurements into messages: /clock first, then each robot's."""
+        if result.state_due:
+            self._clock_output.publish(result.time_ns)
+            if self.sink is not None:
+                self.sink.set_time(result.time_ns)
+        for interfaces, measurement in zip(self.robots, result.measurements):
+            if measurement is not None:
+                interfaces.publish(measurement)
+
+    def status(self, **facts) -> str:
+        """Return the simulation's state as the control services' JSON (see ControlServices)."""
+        return self.control.status(**facts)
+
+    def _log_blow_up(self, text: str) -> None:
+        # Throttled per robot: the line ends "resetting the robot NAME to ...".
+        self._throttled('blow-up ' + text[text.rfind(' the robot '):], self.get_logger().error,
+                        text)
+
+    def set_paused(self, paused: bool) -> None:
+        """
+        Pause (stopping on a publication) or resume physics, under the lock.
+
+        Pause lands where a client sees the state: physics finishes the
+        control period up to the step that publishes, so the time is the
+        last /clock and every ~/step after it is one whole period.
+        """
+        with self.lock:  # no step runs between the change and the caller's reply
+            if paused and not self._paused:
+                if self.step_count != self.simulation.last_frame_step:
+                    self.advance_to_next_publish()
+            self._paused = bool(paused)
+
+    def step_paused(self, steps: int) -> None:
+        """Advance a paused simulation ``steps`` physics steps (the standard's step_simulation)."""
+        with self.lock:
+            self.advance(steps)
+
+    def reset_simulation(self, *, time: bool = False, state: bool = True,
+                         spawned: bool = False) -> None:
+        """
+        Reset what is asked (see :meth:`Simulation.reset`), publishing nothing now.
+
+        This step's state is out already, and a second odom -> base_footprint
+        at one stamp is one tf2 drops (TF_REPEATED_DATA): the next publication
+        carries the reset robot.
+        """
+        with self.lock:
+            try:
+                self.simulation.reset(time=time, state=state, spawned=spawned)
+            finally:
+                self.fleet.sync(self.simulation.robots)
+
+    def _close(self) -> None:
+        self.fleet.close()
+        if self.simulation is not None:
+            self.simulation.close()
+        if self.sink is not None:
+            self.sink.close()  # an MCAP file is readable only once closed
+
+    def destroy_node(self) -> None:
+        """Take the standard's services down, disconnect physics, end the recording, destroy."""
+        if self.standard is not None:
+            self.standard.close()
+        with self.lock:
+            self._close()
+        super().destroy_node()

@@ -1,0 +1,117 @@
+"""
+The node's parameters on the ROS side: typed declarations from the one table.
+
+:mod:`r2d2_sim.sim.parameters` holds the table and the validation without ROS;
+this declares every entry on a node with its type, description and range, so
+``ros2 param describe`` shows them, and names overrides that nothing reads.
+Each robot listed in ``robots`` has the parameters it sets as
+``NAME.parameter`` (and ``NAME.namespace``), declared the same way.
+"""
+
+import difflib
+from typing import Any, List, Tuple
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from r2d2_sim.sim.parameters import (
+    Parameter as ParameterSpec, PARAMETERS, PARAMETERS_BY_NAME, SimConfig)
+from r2d2_sim.sim.robot_parameters import parse_world, RobotSpec
+
+NAMESPACE_SPEC = ParameterSpec(
+    'namespace', 'string', '', 'The robot\'s namespace: absolute, or relative to the '
+    'simulator\'s; empty for its name.', 'namespace', lambda name, value: value)
+
+ROS_TYPES = {'double': Parameter.Type.DOUBLE, 'integer': Parameter.Type.INTEGER,
+             'bool': Parameter.Type.BOOL, 'string': Parameter.Type.STRING,
+             'double_array': Parameter.Type.DOUBLE_ARRAY,
+             'string_array': Parameter.Type.STRING_ARRAY}
+
+
+def declare_parameters(node: Node) -> Tuple[SimConfig, List[RobotSpec]]:
+    """
+    Validate the node's overrides, then declare every parameter with its type and that value.
+
+    Validation comes first so a wrong value or type is one ConfigError line
+    (rclpy would raise its own exception for a type mismatch). The values
+    are declared converted to the table's type (an integer given for a
+    double becomes a double). Returns the world's settings and each robot's.
+    """
+    overrides = getattr(node, '_parameter_overrides', {})
+    raw = {spec.name: overrides[spec.name].value if spec.name in overrides else spec.default
+           for spec in PARAMETERS}
+    robots = raw['robots'] or []
+    if not isinstance(robots, (list, tuple)):
+        robots = []  # parse_world says what is wrong with it
+    own = {name: value.value for name, value in overrides.items()
+           if name.partition('.')[0] in robots and '.' in name}
+    config, specs = parse_world({**raw, **own})
+    for spec in PARAMETERS:
+        _declare_typed(node, spec, raw[spec.name])
+    for name, value in own.items():
+        parameter = name.partition('.')[2]
+        spec = NAMESPACE_SPEC if parameter == 'namespace' else PARAMETERS_BY_NAME[parameter]
+        _declare_typed(node, spec._replace(name=name), value)
+    _warn_unknown_overrides(node, overrides, list(config.robots))
+    return config, specs
+
+
+def _declare_typed(node: Node, spec: ParameterSpec, value: Any) -> None:
+    descriptor = ParameterDescriptor(description=spec.description, read_only=True)
+    bounds = spec.bounds
+    if bounds is not None and bounds.zero is None:
+        if spec.ros_type == 'double':
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(bounds.low), to_value=float(bounds.high))]
+        elif spec.ros_type == 'integer':
+            descriptor.integer_range = [IntegerRange(
+                from_value=int(bounds.low), to_value=int(bounds.high))]
+    # The raw value passed validation: only its Python type may differ.
+    convert = {'double': float, 'integer': int,
+               'double_array': lambda v: [float(x) for x in v],
+               'string_array': lambda v: list(v or [])}.get(spec.ros_type)
+    if convert is not None:
+        value = convert(value)
+    if isinstance(value, list) and not value:
+        _declare_empty_list(node, spec.name, ROS_TYPES[spec.ros_type], descriptor)
+    else:
+        node.declare_parameter(spec.name, value, descriptor, ignore_override=True)
+
+
+def _declare_empty_list(node: Node, name: str, ros_type: Parameter.Type,
+                        descriptor: ParameterDescriptor) -> None:
+    """
+    Declare ``name`` read-only with an empty list of ``ros_type`` as its value.
+
+    rclpy infers a type from the value, and an empty list reads as a byte
+    array. Declared with only its type, the parameter has no value, and
+    rclpy's GetParameters service then answers any request naming it with no
+    values at all: ``ros2 param dump`` and rqt, which ask for every listed
+    name at once, got nothing. So: declare the type writable, set the typed
+    empty value, then make it read-only (all through rclpy's public API).
+    """
+    writable = ParameterDescriptor(description=descriptor.description)
+    node.declare_parameter(name, ros_type, writable, ignore_override=True)
+    (result,) = node.set_parameters([Parameter(name, ros_type, [])])
+    if not result.successful:
+        raise RuntimeError(f'cannot set parameter {name} to []: {result.reason}')
+    descriptor.type = ros_type.value
+    node.set_descriptor(name, descriptor)
+
+
+def _warn_unknown_overrides(node: Node, overrides, robots) -> None:
+    """Name parameters given on the command line or in a file that nothing reads."""
+    # ROS ignores overrides nobody declares, so a typo would run on the default.
+    known = [spec.name for spec in PARAMETERS]
+    for name in sorted(overrides):
+        if node.has_parameter(name) or name.startswith('qos_overrides.'):
+            continue  # ours, or rclpy's own (use_sim_time)
+        if '.' in name:  # NAME.parameter of a robot robots does not list (a typo?)
+            close = difflib.get_close_matches(name.partition('.')[0], robots, n=1)
+            hint = (f' (did you mean {close[0]}.{name.partition(".")[2]}?)' if close else
+                    f' (robots lists {", ".join(robots) or "none"})')
+        else:
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f' (did you mean {close[0]}?)' if close else ''
+        node.get_logger().warning(f'ignoring unknown parameter {name}{hint}')

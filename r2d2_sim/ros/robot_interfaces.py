@@ -1,0 +1,117 @@
+"""
+One robot's ROS side: ``cmd_vel`` in, its outputs, ``robot_description``, joint info.
+
+Every robot in the world has the same interfaces, in its own namespace: the
+one robot of a default simulator on the simulator's node itself (so its names
+are the simulator's: ``/cmd_vel``, ``/r2d2_sim/get_joint_info``), each robot
+of several on a :class:`RobotNode` of its own (``/robot_a/cmd_vel``,
+``/robot_a/r2d2_sim/get_joint_info``). rclpy has no sub-nodes: a node per
+namespace is how one process serves several (they share one DDS participant).
+"""
+
+import threading
+from typing import Callable
+
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+
+from r2d2_sim.ros.cmd_vel import CmdVelInput, ThrottledLog
+from r2d2_sim.ros.joint_info import joint_info_json
+from r2d2_sim.ros.mirror import MirroringNode
+from r2d2_sim.ros.outputs import RobotOutputs
+from r2d2_sim.sim.robot import Measurement, Robot
+from r2d2_sim.ros.tf_outputs import tf_topics
+
+__all__ = ['RobotInterfaces', 'RobotNode', 'DESCRIPTION_QOS']
+
+# robot_description as robot_state_publisher offers it: latched for late joiners.
+DESCRIPTION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                             reliability=ReliabilityPolicy.RELIABLE)
+
+
+class RobotNode(MirroringNode):
+    """
+    The node of one robot of several: named as the simulator, in the robot's namespace.
+
+    Its name and namespace are node-local remaps, which win over the
+    process's global ``-r __node:=`` and ``-r __ns:=`` (those place the
+    simulator; the robot's namespace is already resolved under it). Other
+    global remaps (``-r /tf:=tf``) apply, as to every node. No parameter
+    services: the robots' parameters are the simulator's (``robot_a.initial_pose``).
+    """
+
+    def __init__(self, simulator: MirroringNode, namespace: str) -> None:
+        name = simulator.get_name()
+        super().__init__(name, context=simulator.context, namespace=namespace,
+                         start_parameter_services=False,
+                         cli_args=['--ros-args', '-r', f'__node:={name}',
+                                   '-r', f'__ns:={namespace}'])
+        self.sink = simulator.sink
+        self.sink_time_ns = simulator.sink_time_ns
+        self._destroyed = False
+
+    def destroy_node(self) -> None:
+        """Destroy the node once (the simulator and a harness may both ask), sink first."""
+        if not self._destroyed:
+            self._destroyed = True
+            self.release_mirrors()
+            super().destroy_node()
+
+
+class RobotInterfaces:
+    """
+    Everything one robot has in ROS, on ``node``: outputs, ``cmd_vel``, description, joint info.
+
+    ``lock`` is the simulator's (PyBullet is single-threaded); ``now_ns``
+    gives the simulated time (a TwistStamped's age is judged by it),
+    ``time_ns`` the time of the first static transforms. ``own_node``: the
+    node is this robot's alone, destroyed by :meth:`close`.
+    """
+
+    def __init__(self, node: MirroringNode, robot: Robot, lock: threading.RLock, *,
+                 now_ns: Callable[[], int], time_ns: int, warning_period_s: float,
+                 graph_check_period_s: float, own_node: bool) -> None:
+        self.node = node
+        self.robot = robot
+        self.own_node = own_node
+        self._lock = lock
+        self.outputs = RobotOutputs(node, robot.config, robot, time_ns)
+        self._description = node.create_publisher(String, 'robot_description', DESCRIPTION_QOS)
+        self._description.publish(String(data=robot.description))
+        self.cmd_vel = CmdVelInput(node, robot.config, robot, ThrottledLog(warning_period_s),
+                                   now_ns, graph_check_period_s=graph_check_period_s)
+        self._joint_info = node.create_service(Trigger, '~/get_joint_info',
+                                               self._on_get_joint_info)
+        # Where its transforms go (resolved): /tf and /tf_static, or its namespace's.
+        self.tf_topics = tuple(node.resolve_topic_name(t) for t in tf_topics(robot.config))
+
+    @property
+    def name(self) -> str:
+        """Return what the robot is called: its entity name."""
+        return self.robot.name
+
+    @property
+    def namespace(self) -> str:
+        """Return the namespace of the robot's topics."""
+        return self.node.get_namespace()
+
+    @property
+    def publishers(self) -> list:
+        """Return every publisher of the robot's node (the simulator's, for the default robot)."""
+        return self.node.publishers
+
+    def publish(self, measurement: Measurement) -> None:
+        """Publish what the robot measured at one step."""
+        self.outputs.publish(measurement)
+
+    def _on_get_joint_info(self, request, response):
+        with self._lock:
+            response.message = joint_info_json(self.robot.body, self.robot.source)
+        response.success = True
+        return response
+
+    def close(self) -> None:
+        """Take the robot's interfaces down: destroy its node, when it has one of its own."""
+        if self.own_node:
+            self.node.destroy_node()

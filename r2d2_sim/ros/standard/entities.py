@@ -1,0 +1,229 @@
+"""
+The simulation standard's entity services: list, read, place, describe, spawn, delete.
+
+They translate ``simulation_interfaces`` requests into the operations of
+:mod:`r2d2_sim.sim.entities` (the ROS-free core), under the simulator's lock,
+and every refusal into the standard's result code with a one-line message.
+:class:`~r2d2_sim.ros.standard.server.SimulationInterfaces` makes them beside its
+simulation control, on the same node.
+"""
+
+import re
+
+from rclpy.node import Node
+
+from r2d2_sim.sim.entities import EntityError, spawnable_uris
+from r2d2_sim.model.timing import stamp_of
+
+__all__ = ['EntityServices', 'Replies', 'SPAWNABLE_DIRECTORIES']
+
+SPAWNABLE_DIRECTORIES = ('package://r2d2_sim/urdf',)
+
+
+class Replies:
+    """Setting a reply's result: OK on every success (a default Result reads as unsupported)."""
+
+    _msg = None
+    _log = None  # the node's logger, for what no request should cause
+
+    def _guarded(self, callback):
+        """
+        Return ``callback`` answering OPERATION_FAILED for an error nobody foresaw.
+
+        An exception that escapes a service callback ends the executor's spin,
+        and with it the simulator: a request must never do that.
+        """
+        def guarded(request, response):
+            try:
+                return callback(request, response)
+            except Exception as exc:  # a defect here, answered and logged, not fatal
+                what = f'{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ""}'
+                if self._log is not None:
+                    self._log.error(f'{callback.__name__} failed unexpectedly ({what})')
+                if hasattr(response, 'result'):
+                    return self._fail(response, 'OPERATION_FAILED', f'unexpected error: {what}')
+                return response
+        return guarded
+
+    def _ok(self, response, result_field: str = 'result'):
+        getattr(response, result_field).result = self._msg.Result.RESULT_OK
+        return response
+
+    def _fail(self, response, code: str, message: str, owner=None):
+        """Set a generic result (NOT_FOUND...) or the service's own code (NAME_NOT_UNIQUE...)."""
+        generic = getattr(self._msg.Result, f'RESULT_{code}', None)
+        value = generic if generic is not None else getattr(owner or type(response), code)
+        response.result.result = value
+        response.result.error_message = message
+        return response
+
+    def _fail_entity(self, response, error: EntityError, owner=None):
+        return self._fail(response, error.code, str(error), owner)
+
+
+class EntityServices(Replies):
+    """The standard's entity services on ``node``: list, read, place, describe, spawn, delete."""
+
+    def __init__(self, node, server: Node, msg, srv) -> None:
+        """Serve on ``server`` the entities of ``node``'s simulation."""
+        self._node = node
+        self._msg = msg
+        self._log = node.get_logger()
+        services = (
+            ('get_entities', srv.GetEntities, self._entities),
+            ('get_entities_states', srv.GetEntitiesStates, self._entities_states),
+            ('get_entity_state', srv.GetEntityState, self._entity_state),
+            ('set_entity_state', srv.SetEntityState, self._set_entity_state),
+            ('get_entity_info', srv.GetEntityInfo, self._entity_info),
+            ('spawn_entity', srv.SpawnEntity, self._spawn),
+            ('spawn_entities', srv.SpawnEntities, self._spawn_many),
+            ('delete_entity', srv.DeleteEntity, self._delete),
+            ('get_spawnables', srv.GetSpawnables, self._spawnables),
+        )
+        for name, srv_type, callback in services:
+            server.create_service(srv_type, name, self._guarded(callback))
+
+    def _matching(self, filters):
+        """Return the names the filters pick: regex (search), categories, tags, a sphere."""
+        entities = self._node.simulation.entities
+        try:
+            pattern = re.compile(filters.filter) if filters.filter else None
+        except re.error as exc:
+            raise EntityError('OPERATION_FAILED', f'bad filter regex: {exc}') from None
+        names = [n for n in entities.names() if pattern is None or pattern.search(n)]
+        if filters.categories:
+            wanted = {c.category for c in filters.categories}
+            names = [n for n in names if entities.category(entities.body(n)) in wanted]
+        if filters.tags.tags:  # no entity has tags: ANY and ALL both match none
+            names = []
+        bounds = filters.bounds
+        if bounds.type == bounds.TYPE_SPHERE and len(bounds.points) >= 2:
+            centre = (bounds.points[0].x, bounds.points[0].y, bounds.points[0].z)
+            inside = set(entities.overlapping(centre, bounds.points[1].x))
+            names = [n for n in names if n in inside]
+        elif bounds.type != bounds.TYPE_EMPTY:
+            raise EntityError('FEATURE_UNSUPPORTED', 'only sphere bounds filter entities here')
+        return names
+
+    def _entities(self, request, response):
+        try:
+            with self._node.lock:
+                response.entities = self._matching(request.filters)
+        except EntityError as exc:
+            return self._fail_entity(response, exc)
+        return self._ok(response)
+
+    def _entities_states(self, request, response):
+        try:
+            with self._node.lock:
+                names = self._matching(request.filters)
+                response.states = [self._state_message(n) for n in names]
+        except EntityError as exc:
+            return self._fail_entity(response, exc)
+        response.entities = names
+        return self._ok(response)
+
+    def _state_message(self, name: str):
+        simulation = self._node.simulation
+        state = simulation.entities.state(name)
+        msg = self._msg.EntityState()
+        msg.header.frame_id = simulation.entities.world_frame_id
+        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp_of(simulation.time_ns)
+        p, q = msg.pose.position, msg.pose.orientation
+        p.x, p.y, p.z = state.position
+        q.x, q.y, q.z, q.w = state.orientation
+        v, w = msg.twist.linear, msg.twist.angular
+        v.x, v.y, v.z = state.linear_velocity
+        w.x, w.y, w.z = state.angular_velocity
+        return msg
+
+    def _entity_state(self, request, response):
+        try:
+            with self._node.lock:
+                response.state = self._state_message(request.entity)
+        except EntityError as exc:
+            return self._fail_entity(response, exc)
+        return self._ok(response)
+
+    def _set_entity_state(self, request, response):
+        state = request.state
+        p, q = state.pose.position, state.pose.orientation
+        v, w = state.twist.linear, state.twist.angular
+        try:
+            with self._node.lock:
+                self._node.simulation.entities.set_state(
+                    request.entity, state.header.frame_id, (p.x, p.y, p.z),
+                    (q.x, q.y, q.z, q.w), (v.x, v.y, v.z), (w.x, w.y, w.z))
+        except EntityError as exc:
+            return self._fail_entity(response, exc)
+        return self._ok(response)
+
+    def _entity_info(self, request, response):
+        entities = self._node.simulation.entities
+        try:
+            with self._node.lock:
+                body = entities.body(request.entity)
+                response.info.category.category = entities.category(body)
+                response.info.description = body.source
+        except EntityError as exc:
+            return self._fail_entity(response, exc)
+        return self._ok(response)
+
+    def _spawn_one(self, name, allow_renaming, uri, resource_string, namespace, pose):
+        """Spawn through the node (a driven robot with a namespace); return the entity name."""
+        p, q = pose.pose.position, pose.pose.orientation
+        return self._node.spawn_entity(name, allow_renaming, uri, resource_string, namespace,
+                                       pose.header.frame_id, (p.x, p.y, p.z),
+                                       (q.x, q.y, q.z, q.w))
+
+    def _spawn(self, request, response):
+        try:
+            response.entity_name = self._spawn_one(
+                request.name, request.allow_renaming, request.uri, request.resource_string,
+                request.entity_namespace, request.initial_pose)
+        except EntityError as exc:
+            return self._fail_entity(response, exc)
+        return self._ok(response)
+
+    def _spawn_many(self, request, response):
+        failed = False
+        for spawn in request.spawn_requests:
+            result = self._msg.SpawnResult()
+            try:
+                result.entity_name = self._spawn_one(
+                    spawn.name, spawn.allow_renaming, spawn.entity_resource.uri,
+                    spawn.entity_resource.resource_string, spawn.entity_namespace,
+                    spawn.initial_pose)
+                self._ok(result)
+            except EntityError as exc:
+                failed = True
+                self._fail(result, exc.code, str(exc), self._msg.SpawnResult)
+            response.results.append(result)
+        if failed:
+            return self._fail(response, 'ENTITIES_SPAWN_FAILED', 'at least one entity was '
+                                                                 'not spawned: see results')
+        return self._ok(response)
+
+    def _delete(self, request, response):
+        try:
+            self._node.delete_entity(request.entity)
+        except EntityError as exc:
+            return self._fail_entity(response, exc)
+        return self._ok(response)
+
+    def _spawnables(self, request, response):
+        """List this package's URDFs and pybullet_data's, or those of the ``sources`` asked for."""
+        known = SPAWNABLE_DIRECTORIES + ('pybullet_data',)
+        sources = [source.rstrip('/') for source in request.sources] or list(known)
+        for uri in spawnable_uris():
+            source = known[0] if uri.startswith(known[0]) else 'pybullet_data'
+            if source in sources:
+                spawnable = self._msg.Spawnable()
+                spawnable.uri = uri
+                spawnable.description = f'URDF from {source}'
+                response.spawnables.append(spawnable)
+        self._ok(response)
+        unknown = [s for s in sources if s not in known]
+        if unknown:
+            response.result.error_message = f'unknown sources left out: {", ".join(unknown)}'
+        return response

@@ -1,0 +1,259 @@
+"""
+ROS 2's simulation standard on the simulator node: ``simulation_interfaces`` (Jazzy 1.x).
+
+The services and the action have relative names on the node
+(``get_simulator_features``, ``step_simulation``, ``simulate_steps``...), so
+they resolve to the root as O3DE, Isaac Sim and the example clients expect,
+and move with ``-r __ns:=``. Every reply sets its result: a default
+``Result`` (0) means "unsupported". The operations themselves are the core's
+(:mod:`r2d2_sim.sim.entities`, :class:`~r2d2_sim.sim.simulation.Simulation`); this
+module only translates, under the simulator's lock, and a long step releases
+the lock between chunks so other services, ``cmd_vel`` and cancel requests are
+answered meanwhile.
+
+The services live on a node of their own (``<simulator>_standard``, in the
+simulator's namespace) for ``sim_node`` to serve from a multi-threaded
+executor: a long step in one thread, the other requests in the other. The
+simulator node itself stays on a single-threaded executor, whose small wait
+set takes a ``cmd_vel`` flood 2-3 times faster.
+
+Where the big simulators disagree, the standard's own text decides: stepping
+while playing fails without a step; STOPPED is paused at time 0 in the initial
+world, and pausing from it is an incorrect transition; the reset scope is a
+bitfield; twists are in the world frame.
+"""
+
+import json
+import threading
+import time
+from typing import Callable, Optional, Tuple
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+
+from r2d2_sim.ros.standard.entities import EntityServices, Replies
+from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
+
+__all__ = ['SimulationInterfaces', 'EntityServices', 'StandardNode', 'available', 'STEP_CHUNK']
+
+# Physics steps taken per hold of the node's lock by step_simulation: 0.1 s of
+# simulated time, a few milliseconds of wall time.
+STEP_CHUNK = 24
+
+
+def available() -> bool:
+    """Return True when simulation_interfaces (with its type support) can be imported."""
+    try:
+        from simulation_interfaces.srv import GetSimulatorFeatures
+        GetSimulatorFeatures.Request.__class__.__import_type_support__()
+    except Exception:  # ImportError, or a library of the type support missing
+        return False
+    return True
+
+
+class StandardNode(QuietNode):
+    """The node the standard's services live on; destroying it twice is harmless."""
+
+    def __init__(self, simulator: Node) -> None:
+        name = f'{simulator.get_name()}_standard'
+        # A node-local remap wins over a global one: '-r __node:=x' (launch's
+        # name=, SimProcess's node_name) renames the simulator, not this node
+        # into a second 'x'. The global namespace remap still applies.
+        super().__init__(name, context=simulator.context, namespace=simulator.get_namespace(),
+                         start_parameter_services=False,
+                         cli_args=['--ros-args', '-r', f'__node:={name}'],
+                         parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE])
+        self.action_server: Optional[ActionServer] = None
+        self._destroyed = False
+
+    def destroy_node(self) -> None:
+        """Destroy the action server, then the node, once."""
+        if self._destroyed:
+            return
+        self._destroyed = True
+        if self.action_server is not None:
+            self.action_server.destroy()
+        super().destroy_node()
+
+
+class SimulationInterfaces(Replies):
+    """
+    The standard for ``node`` (a SimNode), served by ``self.node``; entities in EntityServices.
+
+    ``close()`` (or destroying ``self.node``) takes the services down.
+    """
+
+    def __init__(self, node, on_quit: Optional[Callable[[], None]] = None) -> None:
+        from simulation_interfaces import action, msg, srv
+        self._node = node
+        self._msg = msg
+        self._log = node.get_logger()
+        self._on_quit = on_quit
+        self._stepping = threading.Lock()  # one step request at a time
+        self._closing = threading.Event()
+        self._steps_action = action.SimulateSteps
+        self.node = server = StandardNode(node)
+        group = ReentrantCallbackGroup()  # the long ones, beside everything else
+        services = (
+            ('get_simulator_features', srv.GetSimulatorFeatures, self._features, None),
+            ('get_simulation_state', srv.GetSimulationState, self._get_state, None),
+            ('set_simulation_state', srv.SetSimulationState, self._set_state, None),
+            ('step_simulation', srv.StepSimulation, self._step, group),
+            ('reset_simulation', srv.ResetSimulation, self._reset, None),
+        )
+        for name, srv_type, callback, callback_group in services:
+            server.create_service(srv_type, name, self._guarded(callback),
+                                  callback_group=callback_group)
+        server.action_server = ActionServer(
+            server, action.SimulateSteps, 'simulate_steps', self._simulate_steps,
+            goal_callback=self._accept, cancel_callback=self._allow_cancel, callback_group=group)
+        self.entities = EntityServices(node, server, msg, srv)
+
+    def stop(self, timeout_s: float = 2.0) -> None:
+        """Refuse new steps and wait (up to ``timeout_s``) for a running one to end its chunk."""
+        self._closing.set()
+        if self._stepping.acquire(timeout=timeout_s):
+            self._stepping.release()
+
+    def close(self) -> None:
+        """Stop stepping, then take the services down (destroy their node); safe to call twice."""
+        self.stop()
+        self.node.destroy_node()
+
+    # -- the simulation --------------------------------------------------------------
+
+    def _features(self, request, response):
+        features = self._msg.SimulatorFeatures
+        response.features.features = [getattr(features, name) for name in (
+            'SPAWNING', 'DELETING', 'ENTITY_CATEGORIES', 'SPAWNING_RESOURCE_STRING',
+            'ENTITY_STATE_GETTING', 'ENTITY_STATE_SETTING', 'ENTITY_INFO_GETTING', 'SPAWNABLES',
+            'SIMULATION_RESET', 'SIMULATION_RESET_TIME', 'SIMULATION_RESET_STATE',
+            'SIMULATION_RESET_SPAWNED', 'SIMULATION_STATE_GETTING', 'SIMULATION_STATE_SETTING',
+            'SIMULATION_STATE_PAUSE', 'STEP_SIMULATION_SINGLE', 'STEP_SIMULATION_MULTIPLE',
+            'STEP_SIMULATION_ACTION', 'SPAWNING_ENTITIES')]
+        response.features.spawn_formats = ['urdf']
+        config = self._node.config
+        response.features.custom_info = json.dumps({
+            'simulator': 'r2d2_sim', 'physics_rate_hz': config.physics_rate_hz,
+            'step_s': 1.0 / config.physics_rate_hz, 'world_frame': config.world_frame_id,
+            'entity_filter': 'Python re.search on names (a part of the name matches)'})
+        return response
+
+    def state(self) -> int:
+        """Return the standard's state: PLAYING, or STOPPED (time 0, initial world), or PAUSED."""
+        state = self._msg.SimulationState
+        node = self._node
+        if not node.paused:
+            return state.STATE_PLAYING
+        simulation = node.simulation
+        if simulation.step_count == 0 and simulation.pristine:
+            return state.STATE_STOPPED
+        return state.STATE_PAUSED
+
+    def _get_state(self, request, response):
+        with self._node.lock:
+            response.state.state = self.state()
+        return self._ok(response)
+
+    def _set_state(self, request, response):
+        state, node = self._msg.SimulationState, self._node
+        wanted = request.state.state
+        with node.lock:
+            now = self.state()
+            if wanted == now:
+                return self._fail(response, 'ALREADY_IN_TARGET_STATE',
+                                  'the simulation is in that state already')
+            if wanted == state.STATE_PLAYING:
+                node.set_paused(False)
+            elif wanted == state.STATE_PAUSED:
+                if now == state.STATE_STOPPED:
+                    return self._fail(response, 'INCORRECT_TRANSITION', 'a stopped simulation '
+                                      'can only be played (step it to pause it at time > 0)')
+                node.set_paused(True)
+            elif wanted == state.STATE_STOPPED:
+                node.set_paused(True)
+                node.reset_simulation(time=True, state=True, spawned=True)
+            elif wanted == state.STATE_QUITTING and self._on_quit is not None:
+                # After the reply has gone out: the process then stops as on SIGINT.
+                threading.Timer(0.2, self._on_quit).start()
+            elif wanted in (state.STATE_QUITTING, state.STATE_NO_WORLD,
+                            state.STATE_LOADING_WORLD):
+                return self._fail(response, 'FEATURE_UNSUPPORTED', 'this simulator has one '
+                                  'world, loaded at start-up')
+            else:
+                return self._fail(response, 'INCORRECT_TRANSITION', f'unknown state {wanted}')
+        return self._ok(response)
+
+    def _step(self, request, response):
+        error, _ = self._run_steps(request.steps)
+        return self._fail(response, 'OPERATION_FAILED', error) if error else self._ok(response)
+
+    def _run_steps(self, steps: int, each: Optional[Callable[[int], bool]] = None,
+                   chunk: int = STEP_CHUNK) -> Tuple[Optional[str], int]:
+        """
+        Step a paused simulation ``steps`` physics steps; return (error text or None, done).
+
+        The node's lock is taken per ``chunk`` of steps; ``each(done)`` after
+        each chunk returns False to stop early (a cancel). A node shutting
+        down stops it at the next chunk.
+        """
+        node = self._node
+        if not self._stepping.acquire(blocking=False):
+            return 'another step request is running', 0
+        done = 0
+        try:
+            while done < steps:
+                if self._closing.is_set():
+                    return f'the simulator is shutting down (after {done} steps)', done
+                with node.lock:
+                    if not node.paused:
+                        return ('the simulation is playing: pause it first' if done == 0 else
+                                f'the simulation was played after {done} steps'), done
+                    count = min(chunk, steps - done)
+                    node.step_paused(count)
+                done += count
+                # PyBullet keeps the GIL while it steps: hand it over between
+                # chunks, or the other threads (the main loop seeing a SIGINT,
+                # the other services) get it only every switch interval.
+                time.sleep(0)
+                if each is not None and not each(done):
+                    break
+            return None, done
+        finally:
+            self._stepping.release()
+
+    def _accept(self, goal_request):
+        return GoalResponse.ACCEPT
+
+    def _allow_cancel(self, goal_handle):
+        return CancelResponse.ACCEPT
+
+    def _simulate_steps(self, goal_handle):
+        action = self._steps_action
+        result = action.Result()
+        steps = goal_handle.request.steps
+
+        def feedback(done: int) -> bool:
+            goal_handle.publish_feedback(action.Feedback(completed_steps=done,
+                                                         remaining_steps=steps - done))
+            return not goal_handle.is_cancel_requested
+        error, done = self._run_steps(steps, feedback, chunk=1)
+        if error is not None:
+            goal_handle.abort()
+            return self._fail(result, 'OPERATION_FAILED', error)
+        if done < steps:  # stopped by a cancel; one that came after the last step changes nothing
+            goal_handle.canceled()
+        else:
+            goal_handle.succeed()
+        return self._ok(result)
+
+    def _reset(self, request, response):
+        scope, reset = request.scope, type(request)
+        if scope in (reset.SCOPE_DEFAULT, reset.SCOPE_ALL):
+            scope = reset.SCOPE_TIME | reset.SCOPE_STATE | reset.SCOPE_SPAWNED
+        with self._node.lock:
+            self._node.reset_simulation(time=bool(scope & reset.SCOPE_TIME),
+                                        state=bool(scope & reset.SCOPE_STATE),
+                                        spawned=bool(scope & reset.SCOPE_SPAWNED))
+        return self._ok(response)

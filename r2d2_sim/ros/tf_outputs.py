@@ -1,0 +1,193 @@
+"""
+TF for one robot: ``/tf`` every state publication, ``/tf_static`` once (transient local).
+
+With ``tf_layout`` namespaced, ``tf`` and ``tf_static`` in the robot's
+namespace instead (:func:`tf_topics`), as Nav2's multi-robot launch remaps them.
+
+Like the other outputs, these only translate a :class:`~r2d2_sim.sim.robot.Frame`
+into bytes: odom -> base_footprint from wheel odometry, optionally world ->
+odom (the truth) and the URDF's moving joints; the static frames (footprint,
+sensor mounts, fixed joints, the camera's optical frame) once at start-up.
+tf2_msgs is in every ROS install but not on PyPI: without it TF is off.
+"""
+
+from typing import List, Optional, Sequence, Tuple
+
+from geometry_msgs.msg import TransformStamped
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile
+
+from r2d2_sim.sim.parameters import ConfigError, SimConfig
+from r2d2_sim.sim.robot import Frame, Robot
+from r2d2_sim.sim.sensor_mounts import HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID
+from r2d2_sim.ros.serialization import MessageTemplate
+from r2d2_sim.model.timing import stamp_of
+from r2d2_sim.model.transforms import (
+    compose, IDENTITY, inverse, LinkTransforms, split_yaw, Transform, yaw_to_quaternion)
+
+__all__ = ['TF_QOS', 'TF_STATIC_QOS', 'TfOutput', 'start_tf', 'link_transforms',
+           'static_transforms', 'publish_static_transforms', 'tf_topics']
+
+# As tf2's TransformBroadcaster and StaticTransformBroadcaster set them.
+TF_QOS = QoSProfile(depth=100)
+TF_STATIC_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def tf_topics(config: SimConfig) -> Tuple[str, str]:
+    """Return the robot's TF topics: ``/tf`` and ``/tf_static``, or relative (namespaced)."""
+    return ('tf', 'tf_static') if config.tf_layout == 'namespaced' else ('/tf', '/tf_static')
+
+
+class TfOutput:
+    """
+    ``/tf`` each state publication: odom -> base_footprint from wheel odometry.
+
+    Optionally world -> odom (so world -> base_footprint is the true pose) and
+    the robot's moving joints (parent -> child link, as robot_state_publisher
+    would publish them). All transforms carry the frame's stamp: the same as
+    that step's odom message, so no sensor message is newer than its transform.
+    """
+
+    def __init__(self, node: Node, config: SimConfig, robot: Robot,
+                 links: Optional[LinkTransforms]) -> None:
+        from tf2_msgs.msg import TFMessage  # optional: the node checks it is importable
+        self._publisher = node.create_publisher(TFMessage, tf_topics(config)[0], TF_QOS)
+        frame = config.frame
+        pairs = []
+        self._odometry = robot.controller is not None
+        if self._odometry:
+            pairs.append((frame(config.odom_frame_id), frame(config.footprint_frame_id)))
+        self._truth = config.publish_ground_truth_tf and self._odometry
+        if self._truth:
+            pairs.append((config.world_frame_id, frame(config.odom_frame_id)))
+        self._links = links
+        self._joint_slots = []
+        if links is not None:
+            index = {j.name: i for i, j in enumerate(robot.movable)}
+            self._joint_slots = [index[name] for name in links.moving_joint_names]
+            pairs += [(frame(j.parent_link), frame(j.child_link))
+                      for j in links.moving([0.0] * len(self._joint_slots))]
+        msg = TFMessage(transforms=[_transform_stamped(parent, child, IDENTITY)
+                                    for parent, child in pairs])
+        self._template = MessageTemplate(msg)
+        self._stamps = [self._template.stamp(f'transforms[{i}].header.stamp')
+                        for i in range(len(pairs))]
+        self._transforms = [self._template.field(f'transforms[{i}].transform')
+                            for i in range(len(pairs))]
+        self.empty = not pairs
+
+    def publish(self, frame: Frame) -> None:
+        """Publish the frame's transforms."""
+        stamp = frame.stamp
+        for slot in self._stamps:
+            slot.set(*stamp)
+        slots = iter(self._transforms)
+        if self._odometry:
+            odometry = frame.odometry
+            odom = Transform((odometry.x_m, odometry.y_m, 0.0),
+                             yaw_to_quaternion(odometry.yaw_rad))
+            next(slots).set(odom.translation + odom.rotation)
+            if self._truth:
+                base = frame.base
+                yaw, _ = split_yaw(base.orientation)
+                truth = Transform((base.position[0], base.position[1], 0.0), yaw)
+                world_odom = compose(truth, inverse(odom))
+                next(slots).set(world_odom.translation + world_odom.rotation)
+        if self._links is not None:
+            positions = frame.joints.positions
+            for joint in self._links.moving([positions[i] for i in self._joint_slots]):
+                next(slots).set(joint.transform.translation + joint.transform.rotation)
+        self._publisher.publish(self._template.to_bytes())
+
+
+def start_tf(node: Node, config: SimConfig, robot: Robot, time_ns: int) -> Optional[TfOutput]:
+    """
+    Publish /tf_static once and return the /tf output (None if it has nothing to publish).
+
+    tf2_msgs is in every ROS install but not on PyPI: without it, say so once
+    and return None; everything else works.
+    """
+    try:
+        import tf2_msgs.msg  # noqa: F401  (a pip-only venv: tools/build_tf2_msgs.sh)
+    except ImportError:
+        node.get_logger().warning(
+            'tf2_msgs is not installed: /tf and /tf_static are off (a pip-only venv gets '
+            'it from tools/build_tf2_msgs.sh VENV); everything else works')
+        return None
+    links = link_transforms(config, robot) if config.publish_link_tf else None
+    publish_static_transforms(node, static_transforms(config, robot, links), stamp_of(time_ns),
+                              tf_topics(config)[1])
+    tf = TfOutput(node, config, robot, links)
+    return None if tf.empty else tf
+
+
+def link_transforms(config: SimConfig, robot: Robot) -> LinkTransforms:
+    """
+    Return the robot's link transforms from its URDF, moving joints as the joint readout has them.
+
+    The URDF's root link must be the body frame: a robot whose URDF base is
+    turned (base_forward_axis other than x) would publish two different
+    frames of one name.
+    """
+    try:
+        links = LinkTransforms(robot.description, [j.name for j in robot.movable])
+    except ValueError as exc:
+        raise ConfigError(f'publish_link_tf: {exc}') from None
+    if config.body_yaw_offset_rad and links.root_link == config.base_frame_id:
+        raise ConfigError(
+            f'publish_link_tf: the URDF base {links.root_link!r} is turned from the body frame '
+            f'(base_forward_axis {config.base_forward_axis}): give base_frame_id another name')
+    return links
+
+
+def static_transforms(config: SimConfig, robot: Robot,
+                      links: Optional[LinkTransforms]) -> List[Tuple[str, str, Transform]]:
+    """
+    Return the frames that never move, for ``/tf_static``: (parent, child, transform).
+
+    base_footprint -> base_link (the body frame's height at rest; a frame of
+    the node's own, not a URDF link, so the robot keeps the tutorial's 15
+    joints and PyBullet gets no extra body), the sensor mounts, the URDF's
+    fixed joints when link transforms are on, and the head camera's optical
+    frame (z forward, x right, y down) on the head link.
+    """
+    frame = config.frame
+    base = frame(config.base_frame_id)
+    result = [(frame(config.footprint_frame_id), base,
+               Transform((0.0, 0.0, robot.footprint_height_m), IDENTITY.rotation))]
+    if robot.laser is not None:
+        result.append((base, frame(LASER_FRAME_ID), robot.laser.mount))
+    if robot.imu is not None:
+        result.append((base, frame(IMU_FRAME_ID), IDENTITY))
+    if links is not None:
+        if links.root_link != config.base_frame_id:  # the URDF base, turned from the body
+            result.append((base, frame(links.root_link), Transform(
+                (0.0, 0.0, 0.0), yaw_to_quaternion(-config.body_yaw_offset_rad))))
+        result += [(frame(j.parent_link), frame(j.child_link), j.transform) for j in links.fixed()]
+    if robot.camera is not None:
+        # Not a URDF link, so robot_state_publisher never publishes it: always ours.
+        result.append((frame(robot.camera.link_name), frame(HEAD_CAMERA_FRAME_ID),
+                       robot.camera.optical_mount))
+    return result
+
+
+def publish_static_transforms(node: Node, transforms: Sequence[Tuple[str, str, Transform]],
+                              stamp: Tuple[int, int], topic: str = '/tf_static'):
+    """Publish ``topic`` once, transient local for late subscribers; return its publisher."""
+    # The publisher stays alive with the node (rclpy keeps it), so late joiners get it.
+    from tf2_msgs.msg import TFMessage
+    publisher = node.create_publisher(TFMessage, topic, TF_STATIC_QOS)
+    msg = TFMessage(transforms=[_transform_stamped(p, c, t, stamp) for p, c, t in transforms])
+    publisher.publish(msg)
+    return publisher
+
+
+def _transform_stamped(parent: str, child: str, transform: Transform,
+                       stamp: Tuple[int, int] = (0, 0)) -> TransformStamped:
+    msg = TransformStamped()
+    msg.header.frame_id, msg.child_frame_id = parent, child
+    msg.header.stamp.sec, msg.header.stamp.nanosec = stamp
+    t, r = msg.transform.translation, msg.transform.rotation
+    t.x, t.y, t.z = transform.translation
+    r.x, r.y, r.z, r.w = transform.rotation
+    return msg

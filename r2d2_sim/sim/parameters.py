@@ -1,0 +1,434 @@
+"""
+The node's parameters in one table: name, ROS type, default, unit, bounds, description.
+
+No ROS here. Everything else is derived from :data:`PARAMETERS`: the
+:class:`SimConfig` fields, the validation in :func:`parse_config` (one readable
+:class:`ConfigError` line per bad value, so a bad parameter is a clear start-up
+error rather than a traceback; frame ids that would break the TF tree
+included), the node's typed ROS declarations and ``sim_node --help``
+(:func:`parameter_help`). Several robots' settings come from it in
+:mod:`r2d2_sim.sim.robot_parameters`.
+"""
+
+from dataclasses import make_dataclass
+import json
+import math
+import textwrap
+from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple
+
+from r2d2_sim.sim import parameter_readers as read
+# ConfigError and Bounds are defined with the readers; the table's users import them here.
+from r2d2_sim.sim.parameter_readers import Bounds, ConfigError  # noqa: F401
+
+
+# Measured on the package's own R2D2 (four wheels skid-steering, lateral
+# friction ratio 0.35): it turns at 90-95 % of an ideal differential drive's
+# yaw rate for wheel speeds of 1 to 10 rad/s; an effective track of 1.1 x the
+# geometric 0.44 m makes a 0.5 rad/s command turn at 0.5 rad/s.
+DEFAULT_WHEEL_SEPARATION_MULTIPLIER = 1.1
+
+# Measured on the package's R2D2 (tall, 0.44 m track): a step to full speed
+# (1.75 m/s, the wheels' 50 rad/s) tips it over at 3 m/s^2 and above, but not at
+# 2; spinning in place it stays upright up to about 3 rad/s (7 degrees of
+# wobble) and falls over at 5. The defaults keep any command on its wheels.
+DEFAULT_MAX_LINEAR_ACCELERATION_M_S2 = 1.0
+DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2 = 2.0
+DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S = 3.0
+
+# Yaw from the URDF base frame to the REP-103 body frame for each forward axis.
+FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.pi / 2}
+
+
+# The frames of the node's own sensors (with frame_prefix in front), and the
+# URDF link the head camera's frame hangs from; r2d2_sim.sim.sensor_mounts mounts them.
+LASER_FRAME_ID = 'base_scan'
+IMU_FRAME_ID = 'imu_link'
+HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
+HEAD_CAMERA_LINK = 'head'
+
+
+# Physical quantities of a robot that drives on wheels; beyond these a value is
+# a typo (wheel_radius 1e308 once made odom report x = -5e284).
+WHEEL_RADIUS = Bounds(0.001, 10.0, 'm', 'derive it from the URDF')
+WHEEL_SEPARATION = Bounds(0.001, 100.0, 'm', 'derive it from the URDF')
+WHEEL_VELOCITY = Bounds(0.001, 10000.0, 'rad/s', 'take the URDF velocity limit')
+WHEEL_FORCE = Bounds(0.001, 100000.0, 'N m', 'take the URDF effort limit')
+
+
+# -- readers: raw parameter value -> validated value (one ConfigError line) ---
+
+# -- the table -----------------------------------------------------------------
+
+class Parameter(NamedTuple):
+    """
+    One ROS parameter and the :class:`SimConfig` field it becomes.
+
+    ``ros_type`` is the declared ROS type (double, integer, bool, string,
+    double_array, string_array); ``read`` validates and converts a raw value;
+    ``bounds`` then holds numbers (or each element of a number list) to a range.
+    ``per_robot``: a robot's own setting (its description, drive, frames,
+    sensors), which each robot listed in ``robots`` may override; the others
+    are the world's (physics, time, the ground, the live view).
+    """
+
+    name: str
+    ros_type: str
+    default: Any
+    description: str
+    field: str
+    read: Callable[[str, Any], Any]
+    bounds: Optional[Bounds] = None
+    per_robot: bool = False  # each robot of several may set its own (robot_a.<name>)
+
+
+PARAMETERS: List[Parameter] = [
+    Parameter('urdf', 'string', '',
+              'Robot description: a file path, a package://pkg/path URI or a name in '
+              'pybullet_data (r2d2.urdf); empty means the package\'s own urdf/r2d2.urdf.',
+              'urdf', read.string, per_robot=True),
+    Parameter('robot_description', 'string', '',
+              'URDF XML text (as robot_state_publisher takes it); overrides urdf.',
+              'robot_description', read.string, per_robot=True),
+    Parameter('base_forward_axis', 'string', 'x',
+              'Axis of the URDF base frame the robot drives along: x, y, -x or -y.',
+              'base_forward_axis', read.choice(list(FORWARD_AXIS_YAW_RAD)), per_robot=True),
+    Parameter('wheel_velocity_sign', 'integer', 1,
+              '1, or -1 when a negative wheel velocity drives the robot forward.',
+              'wheel_velocity_sign', read.choice([1, -1]), per_robot=True),
+    Parameter('gravity', 'double_array', [0.0, 0.0, -9.8], 'Gravity [x, y, z] in m/s^2.',
+              'gravity_m_s2', read.numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis')),
+    Parameter('ground_plane', 'bool', True, 'Load pybullet_data\'s plane.urdf as the ground.',
+              'ground_plane', read.boolean),
+    Parameter('extra_models', 'string_array', [],
+              'Other bodies, each "description x y z" (description resolved like urdf).',
+              'extra_models', read.extra_models),
+    Parameter('gui', 'bool', False, 'Open the PyBullet window (needs a display).',
+              'gui', read.boolean),
+    Parameter('physics_rate', 'double', 240.0, 'Physics steps per simulated second (Hz).',
+              'physics_rate_hz', read.positive, Bounds(10.0, 10000.0, 'Hz')),
+    Parameter('real_time_factor', 'double', 1.0,
+              'Simulated seconds per wall-clock second; 0 runs as fast as possible.',
+              'real_time_factor', read.non_negative, Bounds(0.0, 1000.0)),
+    Parameter('publish_rate', 'double', 0.0,
+              'State publishing rate in simulated Hz; 0 publishes after every physics step.',
+              'publish_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'every step')),
+    Parameter('cmd_vel_timeout', 'double', 0.5,
+              'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
+              'cmd_vel_timeout_s', read.non_negative, per_robot=True),
+    Parameter('start_paused', 'bool', False,
+              'Start with physics stopped, waiting for ~/pause false or ~/step.',
+              'start_paused', read.boolean),
+    Parameter('wheel_radius', 'double', 0.0,
+              'Wheel radius in metres; 0 derives it from the wheels\' collision shapes.',
+              'wheel_radius_m', read.non_negative, WHEEL_RADIUS, per_robot=True),
+    Parameter('wheel_separation', 'double', 0.0,
+              'Distance between left and right wheels in metres; 0 derives it from the URDF.',
+              'wheel_separation_m', read.non_negative, WHEEL_SEPARATION, per_robot=True),
+    Parameter('wheel_separation_multiplier', 'double', DEFAULT_WHEEL_SEPARATION_MULTIPLIER,
+              'Effective/nominal track ratio used by commands and odometry (skid steering).',
+              'wheel_separation_multiplier', read.positive, Bounds(0.1, 10.0), per_robot=True),
+    Parameter('wheel_lateral_friction_ratio', 'double', 0.35,
+              'Wheel grip along the axle relative to rolling grip, in (0, 1].',
+              'wheel_lateral_friction_ratio', read.ratio, per_robot=True),
+    Parameter('left_wheel_names', 'string_array',
+              ['left_front_wheel_joint', 'left_back_wheel_joint'],
+              'Joints driven as the left side.', 'left_wheel_names', read.joint_names,
+              per_robot=True),
+    Parameter('right_wheel_names', 'string_array',
+              ['right_front_wheel_joint', 'right_back_wheel_joint'],
+              'Joints driven as the right side.', 'right_wheel_names', read.joint_names,
+              per_robot=True),
+    Parameter('max_wheel_velocity', 'double', 0.0,
+              'Wheel speed limit in rad/s; 0 takes the URDF joint velocity limit.',
+              'max_wheel_velocity_rad_s', read.non_negative, WHEEL_VELOCITY, per_robot=True),
+    Parameter('max_wheel_force', 'double', 0.0,
+              'Wheel motor torque limit in N m; 0 takes the URDF joint effort limit.',
+              'max_wheel_force_n_m', read.non_negative, WHEEL_FORCE, per_robot=True),
+    Parameter('max_linear_velocity', 'double', 0.0,
+              'Forward speed limit in m/s; 0 leaves only the wheel speed limit.',
+              'max_linear_velocity_m_s', read.limit, Bounds(0.001, 50.0, 'm/s', 'no limit'),
+              per_robot=True),
+    Parameter('max_angular_velocity', 'double', DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S,
+              'Turn rate limit in rad/s; 0 leaves only the wheel speed limit.',
+              'max_angular_velocity_rad_s', read.limit, Bounds(0.001, 50.0, 'rad/s', 'no limit'),
+              per_robot=True),
+    Parameter('max_linear_acceleration', 'double', DEFAULT_MAX_LINEAR_ACCELERATION_M_S2,
+              'Forward acceleration and braking limit in m/s^2; 0 means none.',
+              'max_linear_acceleration_m_s2', read.limit,
+              Bounds(0.001, 1000.0, 'm/s^2', 'no limit'), per_robot=True),
+    Parameter('max_angular_acceleration', 'double', DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2,
+              'Turn rate acceleration limit in rad/s^2; 0 means none.',
+              'max_angular_acceleration_rad_s2', read.limit,
+              Bounds(0.001, 1000.0, 'rad/s^2', 'no limit'), per_robot=True),
+    Parameter('odom_frame_id', 'string', 'odom', 'Frame of the wheel odometry.',
+              'odom_frame_id', read.frame, per_robot=True),
+    Parameter('base_frame_id', 'string', 'base_link', 'Child frame of both odometry topics.',
+              'base_frame_id', read.frame, per_robot=True),
+    Parameter('world_frame_id', 'string', 'world', 'Frame of the ground_truth odometry.',
+              'world_frame_id', read.frame),
+    Parameter('initial_pose', 'double_array', [0.0, 0.0, 0.0],
+              'Spawn pose [x (m), y (m), yaw (rad)] in the world frame.',
+              'initial_pose', read.numbers(3), per_robot=True),
+    Parameter('pose_covariance_diagonal', 'double_array',
+              [0.001, 0.001, 1.0e6, 1.0e6, 1.0e6, 0.01],
+              'Diagonal of the odom pose covariance (x, y, z, roll, pitch, yaw).',
+              'pose_covariance_diagonal', read.variances, per_robot=True),
+    Parameter('twist_covariance_diagonal', 'double_array',
+              [0.001, 1.0e6, 1.0e6, 1.0e6, 1.0e6, 0.01],
+              'Diagonal of the odom twist covariance (vx, vy, vz, wx, wy, wz).',
+              'twist_covariance_diagonal', read.variances, per_robot=True),
+    Parameter('camera_rate', 'double', 0.0,
+              'Head camera images per simulated second (Hz); 0 turns the camera off.',
+              'camera_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
+    Parameter('camera_width', 'integer', 320, 'Head camera image width in pixels.',
+              'camera_width_px', read.integer, Bounds(1, 4096, 'px'), per_robot=True),
+    Parameter('camera_height', 'integer', 240, 'Head camera image height in pixels.',
+              'camera_height_px', read.integer, Bounds(1, 4096, 'px'), per_robot=True),
+    Parameter('camera_fov', 'double', 60.0, 'Head camera vertical field of view in degrees.',
+              'camera_fov_deg', read.field_of_view, per_robot=True),
+    Parameter('camera_depth', 'bool', False,
+              'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
+              'camera_depth', read.boolean, per_robot=True),
+    Parameter('world', 'string', '',
+              'A world to load around the robot at the origin, resolved like urdf '
+              '(package://r2d2_sim/urdf/room.urdf); empty for none.', 'world', read.string),
+    Parameter('publish_tf', 'bool', True,
+              'Publish odom -> base_footprint on /tf and the static frames on /tf_static '
+              '(needs tf2_msgs).', 'publish_tf', read.boolean, per_robot=True),
+    Parameter('publish_link_tf', 'bool', False,
+              'Also publish the robot\'s link transforms (what robot_state_publisher would).',
+              'publish_link_tf', read.boolean, per_robot=True),
+    Parameter('publish_ground_truth_tf', 'bool', False,
+              'Also publish world -> odom so that world -> base follows the true pose.',
+              'publish_ground_truth_tf', read.boolean, per_robot=True),
+    Parameter('footprint_frame_id', 'string', 'base_footprint',
+              'The base\'s projection on the ground, parent of base_frame_id in TF.',
+              'footprint_frame_id', read.frame, per_robot=True),
+    Parameter('frame_prefix', 'string', '',
+              'Prefix for every frame the robot publishes (not world_frame_id), e.g. robot1/.',
+              'frame_prefix', read.frame_prefix, per_robot=True),
+    Parameter('scan_rate', 'double', 10.0,
+              'Laser scans per simulated second (Hz) on scan; 0 turns the scanner off.',
+              'scan_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
+    Parameter('scan_samples', 'integer', 360, 'Beams per scan.', 'scan_samples', read.integer,
+              Bounds(2, 10000), per_robot=True),
+    Parameter('scan_angle_min', 'double', -math.pi, 'First beam angle in rad (0 = forward).',
+              'scan_angle_min_rad', read.number, Bounds(-math.pi, math.pi, 'rad'), per_robot=True),
+    Parameter('scan_angle_max', 'double', math.pi,
+              'Last beam angle in rad; a full circle has no duplicate last beam.',
+              'scan_angle_max_rad', read.number, Bounds(-math.pi, math.pi, 'rad'), per_robot=True),
+    Parameter('scan_range_min', 'double', 0.12, 'Closest range in m; nearer reads -inf.',
+              'scan_range_min_m', read.non_negative, Bounds(0.0, 100.0, 'm'), per_robot=True),
+    Parameter('scan_range_max', 'double', 12.0, 'Farthest range in m; no return reads +inf.',
+              'scan_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm'), per_robot=True),
+    Parameter('scan_noise_std', 'double', 0.0,
+              'Gaussian range noise standard deviation in m; 0 = exact.',
+              'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm'), per_robot=True),
+    Parameter('imu_rate', 'double', 100.0,
+              'IMU messages per simulated second (Hz) on imu; 0 turns the IMU off.',
+              'imu_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
+    Parameter('imu_orientation_noise_std', 'double', 0.0,
+              'IMU orientation noise standard deviation in rad; 0 = exact.',
+              'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad'),
+              per_robot=True),
+    Parameter('imu_angular_velocity_noise_std', 'double', 0.0,
+              'IMU angular velocity noise standard deviation in rad/s; 0 = exact.',
+              'imu_angular_velocity_noise_std_rad_s', read.non_negative,
+              Bounds(0.0, 10.0, 'rad/s'), per_robot=True),
+    Parameter('imu_linear_acceleration_noise_std', 'double', 0.0,
+              'IMU acceleration noise standard deviation in m/s^2; 0 = exact.',
+              'imu_linear_acceleration_noise_std_m_s2', read.non_negative,
+              Bounds(0.0, 100.0, 'm/s^2'), per_robot=True),
+    Parameter('noise_seed', 'integer', 0, 'Seed of the scan and IMU noise (runs repeat).',
+              'noise_seed', read.integer, Bounds(0, 2**31 - 1), per_robot=True),
+    Parameter('enable_stamped_cmd_vel', 'bool', False,
+              'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name).',
+              'enable_stamped_cmd_vel', read.boolean, per_robot=True),
+    Parameter('foxglove_port', 'integer', 0,
+              'Serve a Foxglove live view of every output on this port (ws://); 0 = off.',
+              'foxglove_port', read.integer, Bounds(1, 65535, '', 'off')),
+    Parameter('foxglove_host', 'string', '127.0.0.1',
+              'Address the live view binds (0.0.0.0 shows it to the whole network).',
+              'foxglove_host', read.string),
+    Parameter('record', 'string', '',
+              'Record every output into this MCAP file (ros2 bag play, Foxglove); empty = off.',
+              'record', read.string),
+    Parameter('robots', 'string_array', [],
+              'Names of several robots in one world, each in its own namespace (its name '
+              'unless NAME.namespace says otherwise), set per robot with NAME.<parameter> '
+              '(NAME.initial_pose...); empty: one robot, named by its URDF, in the node\'s '
+              'namespace.', 'robots', read.robot_names),
+    Parameter('tf_layout', 'string', 'shared',
+              'shared: one /tf and /tf_static; the frames of a robot listed in robots (or '
+              'spawned with a namespace) are prefixed NAME/. namespaced: tf and tf_static in '
+              'each robot\'s namespace, frames unprefixed (Nav2\'s multi-robot remap).',
+              'tf_layout', read.choice(['shared', 'namespaced'])),
+]
+
+PARAMETERS_BY_NAME: Dict[str, Parameter] = {p.name: p for p in PARAMETERS}
+
+# Python types of the SimConfig fields, by ROS type.
+_FIELD_TYPES = {'double': float, 'integer': int, 'bool': bool, 'string': str,
+                'double_array': Tuple[float, ...], 'string_array': Tuple[str, ...]}
+
+
+def _body_yaw_offset_rad(self) -> float:
+    """Return the yaw from the URDF base frame to the REP-103 body frame."""
+    return FORWARD_AXIS_YAW_RAD[self.base_forward_axis]
+
+
+def _prefixed_frame(self, name: str) -> str:
+    """Return a frame id of this robot with ``frame_prefix`` in front."""
+    return self.frame_prefix + name
+
+
+def _wheel_names_are_default(self) -> bool:
+    """Return True when the wheel joint names were left at their defaults."""
+    return (list(self.left_wheel_names) == PARAMETERS_BY_NAME['left_wheel_names'].default
+            and list(self.right_wheel_names) == PARAMETERS_BY_NAME['right_wheel_names'].default)
+
+
+SimConfig = make_dataclass(
+    'SimConfig', [(p.field, _FIELD_TYPES[p.ros_type]) for p in PARAMETERS], frozen=True,
+    namespace={'__doc__': 'Validated simulator settings in SI units, one field per parameter.',
+               'body_yaw_offset_rad': property(_body_yaw_offset_rad),
+               'frame': _prefixed_frame,
+               'wheel_names_are_default': property(_wheel_names_are_default)})
+SimConfig.__module__ = __name__
+
+
+def read_value(spec: Parameter, value: Any, label: Optional[str] = None) -> Any:
+    """Read one raw value; ``label`` names it in messages (default: the parameter's name)."""
+    label = label or spec.name
+    # ROS cannot tell the type of an empty list (-p names:=[]): it arrives as None.
+    if value is None and spec.ros_type.endswith('_array'):
+        value = []
+    result = spec.read(label, value)
+    if spec.bounds is not None:
+        values = result if isinstance(result, tuple) else (result,)
+        for v in values:
+            if math.isfinite(v):  # inf is how read.limit says "none"
+                spec.bounds.check(label, v)
+    return result
+
+
+def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
+    """Validate raw parameter values (defaults filled in) into a SimConfig."""
+    unknown = set(values) - set(PARAMETERS_BY_NAME)
+    if unknown:
+        raise ConfigError(f'unknown parameter(s): {", ".join(sorted(unknown))}')
+    fields = {}
+    for spec in PARAMETERS:
+        fields[spec.field] = read_value(spec, values.get(spec.name, spec.default))
+    check_fields(fields)
+    fields['publish_rate_hz'] = fields['publish_rate_hz'] or fields['physics_rate_hz']
+    return SimConfig(**fields)
+
+
+def check_fields(fields: Mapping[str, Any]) -> None:
+    """Check what no single value shows: rates against physics, wheel lists, ranges, frames."""
+    physics_rate = fields['physics_rate_hz']
+    for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz'),
+                        ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz')):
+        if fields[field] > physics_rate:
+            raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
+                              f'physics_rate ({physics_rate} Hz)')
+    left, right = fields['left_wheel_names'], fields['right_wheel_names']
+    if bool(left) != bool(right):
+        raise ConfigError('left_wheel_names and right_wheel_names must both list wheels '
+                          'or both be empty')
+    both = set(left) & set(right)
+    if both:
+        raise ConfigError(
+            f'joint(s) {", ".join(sorted(both))} listed as both left and right wheels')
+    if not fields['scan_angle_min_rad'] < fields['scan_angle_max_rad']:
+        raise ConfigError('parameter scan_angle_min must be below scan_angle_max, got '
+                          f'{fields["scan_angle_min_rad"]} >= {fields["scan_angle_max_rad"]}')
+    if not fields['scan_range_min_m'] < fields['scan_range_max_m']:
+        raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
+                          f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')
+    _check_frames(fields)
+
+
+def _check_frames(fields: Mapping[str, Any]) -> None:
+    """
+    Refuse frame ids that would break the TF tree: any two of the robot's frames alike.
+
+    TF is one tree: odom -> footprint -> base -> sensors, under world when
+    publish_ground_truth_tf is on. Two roles given one frame make a cycle
+    (odom_frame_id base_link) or a transform from a frame to itself
+    (footprint_frame_id base_link), which tf2 refuses. frame_prefix goes in
+    front of every robot frame but not of world_frame_id, so world is
+    compared with the prefixed names.
+    """
+    prefix = fields['frame_prefix']
+    parameters = [(name, fields[name])
+                  for name in ('odom_frame_id', 'footprint_frame_id', 'base_frame_id')]
+    sensors = []
+    for rate, frames, what, switch in (
+            ('scan_rate_hz', (LASER_FRAME_ID,), "the laser's frame", 'scan_rate > 0'),
+            ('imu_rate_hz', (IMU_FRAME_ID,), "the IMU's frame", 'imu_rate > 0'),
+            ('camera_rate_hz', (HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK),
+             "a head camera frame", 'camera_rate > 0')):
+        if fields[rate] > 0.0:
+            sensors += [(frame, what, switch) for frame in frames]
+    distinct = ': TF needs a distinct frame for each'
+    seen: Dict[str, str] = {}
+    for name, frame in parameters:
+        if frame in seen:
+            raise ConfigError(f'parameters {seen[frame]} and {name} both name the frame '
+                              f'{prefix + frame!r}{distinct}')
+        seen[frame] = name
+    for frame, what, switch in sensors:
+        if frame in seen:
+            raise ConfigError(f'parameter {seen[frame]} names {what} {prefix + frame!r} '
+                              f'({switch}){distinct}')
+    world = fields['world_frame_id']
+    if not world.startswith(prefix):
+        return
+    local = world[len(prefix):]
+    with_prefix = f' (with frame_prefix {prefix!r})' if prefix else ''
+    if local in seen:
+        raise ConfigError(f'parameters world_frame_id and {seen[local]}{with_prefix} both name '
+                          f'the frame {world!r}{distinct}')
+    for frame, what, switch in sensors:
+        if frame == local:
+            raise ConfigError(f'parameter world_frame_id names {what} {world!r} '
+                              f'({switch}){distinct}')
+
+
+def _help_number(spec: Parameter, value: float) -> str:
+    return str(int(value)) if spec.ros_type.startswith('integer') else f'{value:g}'
+
+
+def parameter_help(width: int = 79) -> str:
+    """
+    Return every parameter as ``--help`` lists it: name, type, default, range, description.
+
+    Defaults are written as JSON, which ROS reads as YAML, so each can be
+    typed after ``-p name:=`` as shown. "per robot" marks what each robot
+    listed in ``robots`` may set for itself (``-p NAME.parameter:=``).
+    """
+    lines = []
+    for spec in PARAMETERS:
+        facts = [spec.ros_type, f'default {json.dumps(spec.default)}']
+        choices = getattr(spec.read, 'choices', None)
+        if choices is not None:
+            facts.append('one of ' + ', '.join(str(c) for c in choices))
+        bounds = spec.bounds
+        if bounds is not None:
+            unit = f' {bounds.unit}' if bounds.unit else ''
+            zero = f' or 0 ({bounds.zero})' if bounds.zero else ''
+            facts.append(f'range [{_help_number(spec, bounds.low)}, '
+                         f'{_help_number(spec, bounds.high)}]{unit}{zero}')
+        if spec.per_robot:
+            facts.append('per robot')
+        lines += textwrap.wrap(f'{spec.name}: {"; ".join(facts)}', width, initial_indent='  ',
+                               subsequent_indent=' ' * 6, break_long_words=False,
+                               break_on_hyphens=False)
+        lines += textwrap.wrap(spec.description, width, initial_indent=' ' * 6,
+                               subsequent_indent=' ' * 6, break_on_hyphens=False)
+    return '\n'.join(lines) + '\n'

@@ -1,0 +1,170 @@
+"""
+The robot's sensors and where they sit on it: head camera, planar laser, IMU.
+
+No ROS here. Each sensor measures the :class:`~r2d2_sim.physics.body.Body` it is
+mounted on, in the world it is in, when the simulation says it is due; the
+readings are plain data (bytes, arrays, tuples) that outputs only translate.
+The sensors' models (ray geometry, REP-117 ranges, IMU noise, depth) are
+pure math in :mod:`r2d2_sim.model.sensors` and :mod:`r2d2_sim.model.camera`.
+"""
+
+import math
+from typing import NamedTuple, Optional
+
+import numpy
+
+from r2d2_sim.model import camera
+from r2d2_sim.physics.body import Body, WorldError
+# The sensors' frame ids are the parameter table's, which checks them against the others.
+from r2d2_sim.sim.parameters import (
+    ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID, SimConfig)
+from r2d2_sim.physics.raycast import ray_mask
+from r2d2_sim.model.sensors import (
+    ImuModel, ImuReading, linearize_depth, ranges_from_hits, ray_endpoints, ScanGeometry,
+    SensorConfigError)
+from r2d2_sim.model.transforms import (
+    apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotation_matrix,
+    Transform)
+
+__all__ = ['HEAD_CAMERA_LINK', 'HEAD_CAMERA_FRAME_ID', 'LASER_FRAME_ID', 'LASER_HEIGHT_M',
+           'IMU_FRAME_ID', 'CameraImage', 'HeadCamera', 'LaserScanner', 'ImuSensor']
+
+# The head camera's clipping planes, and the gap between its link's bounding
+# box and the lens (so the head itself is not in view).
+HEAD_CAMERA_NEAR_M = 0.01
+HEAD_CAMERA_FAR_M = 100.0
+HEAD_CAMERA_CLEARANCE_M = 0.01
+# The laser (frame base_scan) sits on the body's axis this high above the
+# ground: R2D2's body frame is 0.47 m up, and at 0.25 m the scan sees the
+# room's 0.4 m boxes and walls. The IMU (imu_link) is at the body frame.
+LASER_HEIGHT_M = 0.25
+
+
+class CameraImage(NamedTuple):
+    """One render of the head camera: rgb8 rows (top row first), and depth in metres if asked."""
+
+    rgb: bytes
+    depth: Optional[numpy.ndarray]  # float32 metres along the optical axis (REP-118)
+
+
+class HeadCamera:
+    """A pinhole camera on the head link looking forward (turning with head_swivel)."""
+
+    def __init__(self, world, body: Body, config: SimConfig) -> None:
+        try:
+            self._link = body.link_index(HEAD_CAMERA_LINK)
+        except WorldError as exc:
+            raise ConfigError(f'camera_rate > 0 needs a link named {HEAD_CAMERA_LINK!r}: '
+                              f'{exc}') from None
+        self._world = world
+        self._body = body
+        self.link_name = HEAD_CAMERA_LINK
+        self._lens_offset_m = body.link_half_extent_m(self._link) + HEAD_CAMERA_CLEARANCE_M
+        # The optical frame (z forward, x right, y down) on the head link: the
+        # lens sits ahead of the head along the robot's forward axis.
+        yaw = body.body_yaw_offset_rad
+        self.optical_mount = Transform(
+            (self._lens_offset_m * math.cos(yaw), self._lens_offset_m * math.sin(yaw), 0.0),
+            quaternion_multiply(quaternion_from_rpy(0.0, 0.0, yaw),
+                                quaternion_from_rpy(-math.pi / 2, 0.0, -math.pi / 2)))
+        width, height, fov = (config.camera_width_px, config.camera_height_px,
+                              config.camera_fov_deg)
+        self.intrinsics = camera.intrinsics(width, height, fov)
+        self._projection = camera.projection_matrix(
+            width, height, fov, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
+
+    def render(self, depth: bool = False) -> CameraImage:
+        """
+        Render the camera's view now: rgb8 rows (top row first), and depth if asked.
+
+        Depth is float32 metres along the optical axis (REP-118: +inf where
+        nothing is within the far plane), from the same render as the image.
+        """
+        position, orientation = self._body.link_pose(self._link)
+        forward, up = camera.link_camera_axes(orientation, self._body.body_yaw_offset_rad)
+        offset = self._lens_offset_m
+        eye = [position[i] + offset * forward[i] for i in range(3)]
+        k = self.intrinsics
+        rgb, depth_buffer = self._world.render(k.width_px, k.height_px,
+                                               camera.view_matrix(eye, forward, up),
+                                               self._projection)
+        if not depth:
+            return CameraImage(rgb, None)
+        return CameraImage(rgb, linearize_depth(depth_buffer, HEAD_CAMERA_NEAR_M,
+                                                HEAD_CAMERA_FAR_M).astype(numpy.float32))
+
+
+class LaserScanner:
+    """
+    A planar laser scanner on the body's axis, ``LASER_HEIGHT_M`` above the ground.
+
+    Rays start at the laser origin (REP-117 ranges are from there) and pass
+    through the robot's own links that cross the scan plane (R2D2's body and
+    legs), which go into a ray group of this robot's own; links below or
+    above it (wheels, head) keep their broadphase entries, so the physics is
+    the same with the scanner on or off. Every other robot's links stay
+    visible. :meth:`close` gives the group back.
+    """
+
+    def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float) -> None:
+        try:
+            self.geometry = ScanGeometry(config.scan_angle_min_rad, config.scan_angle_max_rad,
+                                         config.scan_samples, config.scan_range_min_m,
+                                         config.scan_range_max_m)
+        except SensorConfigError as exc:
+            raise ConfigError(f'laser scanner: {exc}') from None
+        self._world = world
+        self._body = body
+        self.mount = Transform((0.0, 0.0, LASER_HEIGHT_M - footprint_height_m), IDENTITY.rotation)
+        # Each beam's full-length ray in the sensor frame, computed once (69 us a scan).
+        _, ends = ray_endpoints(self.geometry, (0.0, 0.0, 0.0))
+        self._rays_in_sensor = ends
+        self._noise_std_m = config.scan_noise_std_m
+        self._rng = numpy.random.default_rng(config.noise_seed)
+        # The scan plane in the world now: the robot stands on the ground, or
+        # (spawned in the air) is about to fall onto it.
+        ground_z = body.world_state().position[2] - footprint_height_m
+        self._group = world.take_ray_group()
+        self._mask = ray_mask(self._group)
+        body.exclude_from_rays(body.links_spanning_height(ground_z + LASER_HEIGHT_M),
+                               self._group)
+
+    def scan(self) -> numpy.ndarray:
+        """Cast the beams from where the laser is now; return REP-117 ranges (float32)."""
+        base = self._body.world_state()
+        pose = Transform(base.position, base.orientation)
+        origin = numpy.array(apply(pose, self.mount.translation))
+        ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
+        starts = numpy.broadcast_to(origin, ends.shape)
+        return ranges_from_hits(self._world.cast_rays(starts, ends, self._mask), self.geometry,
+                                self._noise_std_m, self._rng)
+
+    def close(self) -> None:
+        """Give the robot's ray group back to the world (the robot left it)."""
+        if self._group is not None:
+            self._world.release_ray_group(self._group)
+            self._group = None
+
+
+class ImuSensor:
+    """An IMU at the body frame's origin, axes along the body's (REP-145 ``imu_link``)."""
+
+    def __init__(self, body: Body, config: SimConfig) -> None:
+        self._body = body
+        # Its own stream of noise, so turning the scanner on does not change it.
+        self.model = ImuModel(
+            gravity_m_s2=config.gravity_m_s2,
+            orientation_std_rad=config.imu_orientation_noise_std_rad,
+            angular_velocity_std_rad_s=config.imu_angular_velocity_noise_std_rad_s,
+            linear_acceleration_std_m_s2=config.imu_linear_acceleration_noise_std_m_s2,
+            rng=numpy.random.default_rng([config.noise_seed, 1]))
+
+    def read(self, time_s: float) -> ImuReading:
+        """Return the reading for the body's true motion now (acceleration since the last)."""
+        base = self._body.world_state()
+        return self.model.update(time_s, base.orientation, base.linear_velocity,
+                                 base.angular_velocity)
+
+    def reset(self) -> None:
+        """Forget the last sample: a reset teleports the robot, which is no acceleration."""
+        self.model.reset()
