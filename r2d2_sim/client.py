@@ -16,7 +16,7 @@ from typing import Any, Callable, NamedTuple, Optional
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 
-from r2d2_sim.model.timing import ns_of, stamp_of
+from r2d2_sim.model.timing import stamp_ns, stamp_of
 from r2d2_sim.model.transforms import quaternion_to_yaw
 
 __all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env',
@@ -65,11 +65,6 @@ def twist_stamped_message(linear: float = 0.0, angular: float = 0.0, *, stamp_ns
     msg.header.frame_id = frame_id
     msg.twist = twist if twist is not None else twist_message(linear, angular)
     return msg
-
-
-def stamp_ns(stamp) -> int:
-    """Return a ``builtin_interfaces/Time`` (a header stamp, a Clock) in integer nanoseconds."""
-    return ns_of(stamp)
 
 
 def spin_until(executor, condition: Callable[[], bool], timeout_s: float,

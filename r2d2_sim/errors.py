@@ -6,10 +6,13 @@ subclass of :class:`SetupError` (``ConfigError``, ``DriveConfigError``,
 ``SensorConfigError``, ``DescriptionError``, ``WorldError``), so the node
 catches them in one place and turns them into :class:`StartupError`, which
 ``sim_node`` prints as one ``r2d2_sim: error: ...`` line with exit status 2.
+A request to a running simulator that the simulation standard's rules refuse
+is a :class:`RefusedError` with the standard's result code, raised by the
+core, answered by the ROS services and raised again by the testing API.
 No imports: the pure layers and the testing API use it without rclpy or PyBullet.
 """
 
-__all__ = ['SetupError', 'StartupError', 'WorldError']
+__all__ = ['SetupError', 'StartupError', 'WorldError', 'RefusedError']
 
 
 class SetupError(Exception):
@@ -22,3 +25,19 @@ class StartupError(RuntimeError):
 
 class WorldError(SetupError, RuntimeError):
     """A robot description, body or world setting that cannot be simulated."""
+
+
+class RefusedError(RuntimeError):
+    """
+    A request refused with one of the simulation standard's results.
+
+    ``code`` names the result (``NOT_FOUND``, ``NAME_NOT_UNIQUE``,
+    ``INCORRECT_TRANSITION``...: a ``simulation_interfaces/Result`` constant
+    without ``RESULT_``, or the service's own), ``message`` says why in one
+    line that quotes no file; ``str()`` gives both: ``NOT_FOUND: no entity...``.
+    """
+
+    def __init__(self, code: str, message: str) -> None:
+        super().__init__(f'{code}: {message}')
+        self.code = code
+        self.message = message

@@ -151,5 +151,5 @@ def make_sim(ros, node_kwargs=None, **params):
 
 def latest_truth(sim):
     """Return the simulator's true (x, y, yaw) now."""
-    base = sim.world.robot.base_state()
+    base = sim.simulation.robot.body.base_state()
     return base.position[0], base.position[1], quaternion_to_yaw(*base.orientation)

@@ -147,8 +147,8 @@ def test_turning_the_head_turns_the_camera(ros):
     sim = make_sim(ros, camera_rate=5.0, camera_width=80, camera_height=60,
                    extra_models=['cube.urdf 3 0 0.5'])
     ahead = _image_array(sim.simulation.robot.camera.render().rgb, 80, 60).astype(int)
-    swivel = sim.world.robot.joint('head_swivel').index
-    sim.world.client.resetJointState(sim.world.robot_id, swivel, math.pi / 2)
+    swivel = sim.simulation.robot.body.joint('head_swivel').index
+    sim.world.client.resetJointState(sim.simulation.robot.body.id, swivel, math.pi / 2)
     turned = _image_array(sim.simulation.robot.camera.render().rgb, 80, 60).astype(int)
     centre = (slice(25, 35), slice(35, 45))
     assert numpy.abs(ahead[centre] - turned[centre]).mean() > 20
@@ -162,7 +162,7 @@ def test_camera_looks_rep103_forward(ros, robot):
     sim = make_sim(ros, camera_rate=5.0, camera_width=80, camera_height=60,
                    extra_models=['cube.urdf 3 0 0.5'], **params)
     with_cube = _image_array(sim.simulation.robot.camera.render().rgb, 80, 60).astype(int)
-    cube = sim.world.extra_model_ids[0]
+    cube = sim.simulation.models[0].id
     sim.world.client.resetBasePositionAndOrientation(cube, (-20.0, 0.0, 0.5), (0, 0, 0, 1))
     without = _image_array(sim.simulation.robot.camera.render().rgb, 80, 60).astype(int)
     centre = (slice(25, 35), slice(35, 45))

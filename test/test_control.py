@@ -185,7 +185,8 @@ def test_reset_restores_robot_keeps_clock(ros, paused):
     controller = sim.simulation.robot.controller
     assert controller.odometry.x_m == 0.0 and controller.odometry.yaw_rad == 0.0
     assert controller.wheel_targets == (0.0, 0.0)
-    states = sim.world.robot.joint_states([j.index for j in sim.world.robot.movable_joints()])
+    body = sim.simulation.robot.body
+    states = body.joint_states([j.index for j in body.movable_joints()])
     assert max(abs(p) for p in states.positions) < 1e-9
     assert max(abs(v) for v in states.velocities) < 1e-9
     sim.advance(10)
@@ -218,8 +219,9 @@ def _run_schedule_in_process(ros):
 
 
 def _snapshot(sim):
-    joints = sim.world.robot.joint_states([j.index for j in sim.world.robot.movable_joints()])
-    base = sim.world.robot.base_state()
+    body = sim.simulation.robot.body
+    joints = body.joint_states([j.index for j in body.movable_joints()])
+    base = body.base_state()
     return (tuple(joints.positions), tuple(joints.velocities), base.position,
             base.orientation, base.linear_velocity, base.angular_velocity)
 

@@ -16,7 +16,7 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 
 from r2d2_sim.ros.standard import server as sim_interfaces
-from r2d2_sim.testing import StartupError, wait_for, WorldError
+from r2d2_sim.testing import RefusedError, StartupError, wait_for
 from r2d2_sim.testing.tf import TF_STATIC_QOS
 
 FACING = {'a': {}, 'b': {'initial_pose': [2.0, 0.0, math.pi]}}
@@ -213,7 +213,7 @@ def test_a_spawn_in_a_bad_namespace_is_namespace_invalid(r2d2_sim_factory, names
                                                          fragment):
     """A taken, the simulator's or a malformed namespace; nothing is left of the attempt."""
     sim = r2d2_sim_factory(robots=FACING)
-    with pytest.raises(WorldError) as raised:
+    with pytest.raises(RefusedError) as raised:
         sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace=namespace,
                   position=(0.0, 2.0, 0.48))
     assert raised.value.code == 'NAMESPACE_INVALID' and fragment in str(raised.value)
@@ -231,7 +231,7 @@ def test_a_third_robot_spawned_through_the_standard_drives_and_leaves_nothing(
     name = sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='/c',
                      position=(0.0, 2.0, 0.48))
     assert name == 'c' and sim.robot_names == ['a', 'b', 'c']
-    with pytest.raises(WorldError) as raised:  # refused in one line; the simulator runs on
+    with pytest.raises(RefusedError) as raised:  # refused in one line; the simulator runs on
         sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='d', namespace='/' + 'd' * 300,
                   position=(0.0, 4.0, 0.48))
     assert raised.value.code == 'NAMESPACE_INVALID' and not sim.process.exited()
@@ -285,7 +285,7 @@ def test_the_recording_holds_every_robot_and_both_static_trees(tmp_path):
 def test_a_spawned_robot_may_not_take_another_robots_frames(r2d2_sim_factory):
     """On the shared /tf a robot's frames are its name's: a clash is NAME_NOT_UNIQUE."""
     sim = r2d2_sim_factory(robots={'a': {'frame_prefix': 'c/'}})
-    with pytest.raises(WorldError) as raised:
+    with pytest.raises(RefusedError) as raised:
         sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='/c',
                   position=(0.0, 2.0, 0.48))
     assert raised.value.code == 'NAME_NOT_UNIQUE' and "prefix 'c/'" in str(raised.value)
@@ -352,12 +352,16 @@ def _free_port():
 
 
 def test_a_name_ros_refuses_is_one_line_and_leaves_no_node(r2d2_sim_factory):
-    """Fleet.add turns rclpy's refusal of a robot's namespace into ConfigError."""
+    """The fleet turns rclpy's refusal of a robot's namespace into ConfigError."""
+    import copy
     from r2d2_sim.sim.parameters import ConfigError
     sim = r2d2_sim_factory(robots=FACING)
     nodes_before = len(sim._link.get_node_names())
+    robots = sim.sim.simulation.robots
+    refused = copy.copy(robots[1])  # b again, where ROS allows no namespace
+    refused.namespace = '/9starts_with_a_digit'
     with pytest.raises(ConfigError) as raised:
-        sim.sim.fleet.add(sim.sim.simulation.robots[1], '/9starts_with_a_digit')
+        sim.sim.fleet.follow(robots + [refused])
     assert 'robot b cannot have its interfaces in /9starts_with_a_digit' in str(raised.value)
     assert '\n' not in str(raised.value) and len(sim.sim.robots) == 2
     assert wait_for(lambda: len(sim._link.get_node_names()) == nodes_before, 5.0)

@@ -13,7 +13,7 @@ import pytest
 
 from r2d2_sim.sim.parameters import ConfigError
 from r2d2_sim.sim.robot_parameters import parse_world
-from r2d2_sim.sim.simulation import Simulation
+from r2d2_sim.sim.simulation import Simulation, SpawnRequest
 from r2d2_sim.physics.world import RAY_GROUPS, SimWorld
 
 FACING = {'robots': ['a', 'b'], 'b.initial_pose': [2.0, 0.0, math.pi],
@@ -34,6 +34,13 @@ def make():
     yield build
     for simulation in made:
         simulation.close()
+
+
+def spawn_c(simulation, z):
+    """Spawn our R2D2 as robot c in namespace c at (0, 2, z) through the core; return it."""
+    name = simulation.spawn(SpawnRequest('c', uri='package://r2d2_sim/urdf/r2d2.urdf',
+                                         namespace='c', position=(0.0, 2.0, z)))
+    return next(robot for robot in simulation.robots if robot.name == name)
 
 
 def x_of(robot):
@@ -135,10 +142,9 @@ def test_a_blown_up_robot_is_reset_alone(make):
 
 
 def test_a_robot_spawned_at_run_time_drives_and_leaves_nothing_behind(make):
-    """spawn_robot: at its pose exactly, driven, falls to its feet; delete frees its ray group."""
+    """Spawned: at its pose exactly, driven, falls to its feet; delete frees its ray group."""
     simulation = make(**FACING)
-    robot = simulation.spawn_robot('c', False, 'package://r2d2_sim/urdf/r2d2.urdf', '', '',
-                                   (0.0, 2.0, 0.6), (0.0, 0.0, 0.0, 1.0))
+    robot = spawn_c(simulation, 0.6)
     assert robot.name == 'c' and robot.body.spawned and robot.config.frame_prefix == 'c/'
     assert robot.laser._group == RAY_GROUPS[2]
     assert robot.footprint_height_m == pytest.approx(0.47, abs=0.005)  # from its lowest point
@@ -159,8 +165,7 @@ def test_a_robot_spawned_at_run_time_drives_and_leaves_nothing_behind(make):
 def test_a_state_reset_puts_every_robot_home_and_a_spawned_one_at_its_spawn_pose(make):
     """reset(state) keeps spawned robots; reset(spawned) deletes them, start-up ones stay."""
     simulation = make(**FACING)
-    c = simulation.spawn_robot('c', False, 'package://r2d2_sim/urdf/r2d2.urdf', '', '',
-                               (0.0, 2.0, 0.48), (0.0, 0.0, 0.0, 1.0))
+    c = spawn_c(simulation, 0.48)
     for robot in simulation.robots:
         robot.command(0.3, 0.0)
     for _ in range(240):
@@ -174,9 +179,9 @@ def test_a_state_reset_puts_every_robot_home_and_a_spawned_one_at_its_spawn_pose
 
 def test_start_up_robots_cannot_be_deleted(make):
     """Only spawned entities can be deleted: a listed robot stays, and so does its interface."""
-    from r2d2_sim.sim.entities import EntityError
+    from r2d2_sim.errors import RefusedError
     simulation = make(**FACING)
-    with pytest.raises(EntityError) as raised:
+    with pytest.raises(RefusedError) as raised:
         simulation.delete_entity('b')
     assert raised.value.code == 'OPERATION_FAILED'
     assert [r.name for r in simulation.robots] == ['a', 'b']
@@ -184,13 +189,12 @@ def test_start_up_robots_cannot_be_deleted(make):
 
 def test_a_robot_that_cannot_be_driven_is_refused_and_leaves_nothing(make):
     """A spawned robot whose wheels the settings name but its URDF lacks: OPERATION_FAILED."""
-    from r2d2_sim.sim.entities import EntityError
+    from r2d2_sim.errors import RefusedError
     simulation = make(robots=['a'], left_wheel_names=['l'], right_wheel_names=['r'],
                       **{'a.left_wheel_names': ['left_front_wheel_joint'],
                          'a.right_wheel_names': ['right_front_wheel_joint']})
-    with pytest.raises(EntityError) as raised:
-        simulation.spawn_robot('c', False, 'package://r2d2_sim/urdf/r2d2.urdf', '', '',
-                               (0.0, 2.0, 0.48), (0.0, 0.0, 0.0, 1.0))
+    with pytest.raises(RefusedError) as raised:
+        spawn_c(simulation, 0.48)
     assert raised.value.code == 'OPERATION_FAILED' and 'c cannot be driven' in str(raised.value)
     assert simulation.entities.names() == ['ground_plane', 'a']
     assert [r.name for r in simulation.robots] == ['a']

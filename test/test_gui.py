@@ -44,7 +44,7 @@ elapsed = time.monotonic() - start
 camera_target = node.world.client.getDebugVisualizerCamera()[11]
 report = {'gui': node.world.gui, 'steps': node.step_count, 'elapsed_s': elapsed,
           'camera_target': list(camera_target),
-          'base': list(node.world.robot.base_state().position)}
+          'base': list(node.simulation.robot.body.base_state().position)}
 node.destroy_node()
 rclpy.try_shutdown(context=ctx)
 print('REPORT ' + json.dumps(report))

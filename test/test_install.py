@@ -128,10 +128,11 @@ def test_in_process_simulator_finds_its_installed_urdf(pip_venv, tmp_path):
         sim = SimNode(context=context)
         sim.advance(24)
         print(json.dumps({
-            'package': r2d2_sim.__file__, 'urdf': sim.world.urdf_path, 'prefix': sys.prefix,
+            'package': r2d2_sim.__file__, 'urdf': sim.simulation.robot.source,
+            'prefix': sys.prefix,
             'package_uri': resolve_description_path('package://r2d2_sim/urdf/r2d2.urdf'),
             'classic': resolve_description_path('package://r2d2_sim/urdf/classic_r2d2.yaml'),
-            'joints': len(sim.world.robot.joints), 'step': sim.step_count}))
+            'joints': len(sim.simulation.robot.body.joints), 'step': sim.step_count}))
         sim.destroy_node()
         rclpy.shutdown(context=context)
     ''' % next_domain_id())

@@ -130,7 +130,8 @@ def test_timeout_brakes_the_wheels(sim, probe):
     x0 = latest_truth(sim)[0]
     sim.advance(RATE_HZ)
     assert abs(latest_truth(sim)[0] - x0) < 0.01
-    states = sim.world.robot.joint_states([sim.world.robot.joint(n).index for n in WHEELS])
+    body = sim.simulation.robot.body
+    states = body.joint_states([body.joint(n).index for n in WHEELS])
     assert max(abs(v) for v in states.velocities) < 0.5
 
 
@@ -140,7 +141,8 @@ def test_timeout_zero_disables_braking(ros):
     probe = Probe(ros, sim)
     probe.send(0.3)
     sim.advance(3 * RATE_HZ)
-    assert sim.world.robot.base_state().linear_velocity[0] == pytest.approx(0.3, rel=0.05)
+    velocity = sim.simulation.robot.body.base_state().linear_velocity
+    assert velocity[0] == pytest.approx(0.3, rel=0.05)
 
 
 def test_huge_command_is_clamped_preserving_curvature(sim, probe):

@@ -19,7 +19,8 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from r2d2_sim.physics.records import BaseState, JointStates
+from r2d2_sim.model.transforms import BaseState
+from r2d2_sim.physics.records import JointStates
 from r2d2_sim.model.kinematics import OdometryState
 from r2d2_sim.ros.outputs import ClockOutput, GroundTruthOutput, JointStateOutput, OdometryOutput
 from r2d2_sim.sim.parameters import parse_config

@@ -196,11 +196,11 @@ def test_frame_ids_tf2_refuses_are_refused(name, value, fragment):
 
 
 def test_sensor_frame_names_match_what_the_robot_publishes():
-    """The frames checked here are the ones r2d2_sim.sim.robot puts on its sensors."""
+    """The frames checked here are the ones r2d2_sim.sim.sensor_mounts puts on the sensors."""
     from r2d2_sim.sim import parameters
-    from r2d2_sim.sim import robot  # robot needs PyBullet, not ROS
+    from r2d2_sim.sim import sensor_mounts  # needs PyBullet, not ROS
     for name in ('LASER_FRAME_ID', 'IMU_FRAME_ID', 'HEAD_CAMERA_FRAME_ID', 'HEAD_CAMERA_LINK'):
-        assert getattr(parameters, name) == getattr(robot, name), name
+        assert getattr(parameters, name) == getattr(sensor_mounts, name), name
 
 
 def test_robots_get_the_world_settings_with_their_own_on_top():

@@ -21,8 +21,10 @@ import yaml
 from r2d2_sim.physics.description import (
     default_urdf_path, DescriptionError, resolve_description_path)
 from r2d2_sim.ros.joint_info import joint_info
-from r2d2_sim.ros.node import StartupError
 from r2d2_sim.physics.world import SimWorld, WorldError
+from r2d2_sim.ros.node import StartupError
+from r2d2_sim.sim.parameters import parse_config
+from r2d2_sim.sim.simulation import Simulation
 
 CLASSIC_YAML = os.path.join(REPO, 'urdf', 'classic_r2d2.yaml')
 
@@ -81,29 +83,31 @@ def test_unresolvable_descriptions_name_the_problem(fake_package, spec, fragment
 
 def test_a_robot_without_joints_is_simulated():
     """pybullet_data's cube: no joints, empty joint readouts, a sane base state."""
-    with SimWorld('cube.urdf') as world:
-        assert world.robot.joints == {} and world.robot.movable_joints() == []
-        assert world.robot.joint_states([]).positions == []
-        assert joint_info(world.robot) == []
+    with SimWorld() as world:
+        robot = world.load_robot(resolve_description_path('cube.urdf'), (0.0, 0.0, 0.0))
+        assert robot.joints == {} and robot.movable_joints() == []
+        assert robot.joint_states([]).positions == []
+        assert joint_info(robot) == []
         world.step(24)
-        assert world.robot.state_problem() is None
-        assert world.robot.base_state().position[2] == pytest.approx(0.5, abs=0.01)
+        assert robot.state_problem() is None
+        assert robot.base_state().position[2] == pytest.approx(0.5, abs=0.01)
 
 
 def test_body_yaw_offset_reports_the_rep103_frame():
     """The classic with +pi/2: body yaw = spawn heading, URDF base turned by -pi/2."""
-    with SimWorld('r2d2.urdf', body_yaw_offset_rad=math.pi / 2,
-                  initial_pose=(0.0, 0.0, 0.3)) as world:
-        base = world.robot.base_state()
+    with SimWorld() as world:
+        robot = world.load_robot(resolve_description_path('r2d2.urdf'), (0.0, 0.0, 0.3),
+                                 math.pi / 2)
+        base = robot.base_state()
         client = world.client
         body_yaw = client.getEulerFromQuaternion(base.orientation)[2]
-        urdf_orientation = client.getBasePositionAndOrientation(world.robot_id)[1]
+        urdf_orientation = client.getBasePositionAndOrientation(robot.id)[1]
         assert body_yaw == pytest.approx(0.3, abs=1e-6)
         assert client.getEulerFromQuaternion(urdf_orientation)[2] == \
             pytest.approx(0.3 - math.pi / 2, abs=1e-6)
         # The left leg is at URDF x = -0.22: body y = +0.22.
-        left_leg = world.robot.joint('base_to_left_leg').index
-        left = world.robot.link_positions_in_base([left_leg])[0]
+        left_leg = robot.joint('base_to_left_leg').index
+        left = robot.link_positions_in_base([left_leg])[0]
         assert left[1] == pytest.approx(0.22, abs=1e-3)
 
 
@@ -127,7 +131,7 @@ def test_node_with_cube_ignores_cmd_vel_without_crashing(ros):
 def test_node_loads_a_package_uri(ros, fake_package):
     """urdf:=package://fake_robots/urdf/robot.urdf loads and drives."""
     sim = make_sim(ros, urdf='package://fake_robots/urdf/robot.urdf')
-    assert sim.world.urdf_path == str(fake_package)
+    assert sim.simulation.robot.source == str(fake_package)
     assert sim.has_wheels
 
 
@@ -139,8 +143,8 @@ def test_robot_description_overrides_urdf_and_is_published(ros):
     probe = Probe(ros, sim)
     probe.wait_count('robot_description', 1)
     assert probe.messages['robot_description'][0].data == text
-    assert sim.has_wheels and len(sim.world.robot.joints) == 15
-    temp_path = sim.world.urdf_path
+    assert sim.has_wheels and len(sim.simulation.robot.body.joints) == 15
+    temp_path = sim.simulation.robot.body.source
     assert os.path.isfile(temp_path)
     sim.destroy_node()
     ros.nodes.remove(sim)
@@ -170,7 +174,7 @@ def test_unreadable_file_is_a_world_error(tmp_path):
     bad = tmp_path / 'binary.urdf'
     bad.write_bytes(b'\xff\xfe\x00robot')
     with pytest.raises(WorldError, match='cannot read .*binary.urdf'):
-        SimWorld(str(bad))
+        Simulation(parse_config({'urdf': str(bad)}))
 
 
 def test_classic_drives_like_ours(ros):
@@ -247,17 +251,18 @@ def test_world_settings_reach_the_node(ros):
     sim = make_sim(ros, gravity=[0.0, 0.0, 0.0], ground_plane=False,
                    extra_models=['cube_small.urdf 0.6 0 1.0', 'cube.urdf -2 0 0.5'])
     world = sim.world
-    assert world.plane_id is None and len(world.extra_model_ids) == 2
+    models = sim.simulation.models
+    assert 'ground_plane' not in world.bodies and len(models) == 2
     sim.advance(120)
-    position = world.client.getBasePositionAndOrientation(world.extra_model_ids[0])[0]
+    position = models[0].world_state().position
     assert position == pytest.approx((0.6, 0.0, 1.0), abs=1e-6)  # weightless: it floats
 
 
 def test_extra_cube_falls_onto_the_plane():
     """A 5 cm cube dropped from 0.5 m comes to rest on the ground (centre at 2.5 cm)."""
-    from r2d2_sim.physics.world import ExtraModel
-    with SimWorld(extra_models=[ExtraModel('cube_small.urdf', (0.6, 0.0, 0.5))]) as world:
-        cube = world.extra_model_ids[0]
+    with SimWorld() as world:
+        world.load_robot(default_urdf_path(), (0.0, 0.0, 0.0))
+        cube = world.load('cube_small.urdf', (0.6, 0.0, 0.5)).id
         world.step(240)
         position = world.client.getBasePositionAndOrientation(cube)[0]
         assert position[2] == pytest.approx(0.025, abs=0.003)
@@ -271,10 +276,10 @@ def test_driving_into_a_cube_collides(ros):
     """Driving at pybullet_data's 1 m, 1 kg cube: contact, and the cube is shoved along +x."""
     sim = make_sim(ros, extra_models=['cube.urdf 1.0 0 0.5'])
     probe = Probe(ros, sim)
-    cube = sim.world.extra_model_ids[0]
+    cube = sim.simulation.models[0].id
     client = sim.world.client
     probe.drive(0.3, 0.0, 2.0)
-    touching = client.getContactPoints(sim.world.robot_id, cube)
+    touching = client.getContactPoints(sim.simulation.robot.body.id, cube)
     x0 = client.getBasePositionAndOrientation(cube)[0][0]
     probe.drive(0.3, 0.0, 2.0)
     x1 = client.getBasePositionAndOrientation(cube)[0][0]

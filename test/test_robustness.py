@@ -39,10 +39,10 @@ GARBAGE = _garbage_cases()
 
 def upright_and_grounded(sim, z0):
     """Return why the robot is not standing on the ground near its start height (or None)."""
-    problem = sim.world.robot.state_problem()
+    problem = sim.simulation.robot.body.state_problem()
     if problem:
         return problem
-    base = sim.world.robot.base_state()
+    base = sim.simulation.robot.body.base_state()
     qx, qy = base.orientation[0], base.orientation[1]
     tilt_cos = 1.0 - 2.0 * (qx * qx + qy * qy)  # body z . world z
     if tilt_cos < math.cos(0.2):
@@ -75,7 +75,7 @@ def log_lines(capfd, fragment):
 @pytest.mark.parametrize('fields', GARBAGE.values(), ids=GARBAGE.keys())
 def test_garbage_command_is_refused_and_the_robot_stays_sane(sim, probe, fields):
     """Refuse NaN or infinity anywhere, keep the last valid command, stay upright and finite."""
-    z0 = sim.world.robot.base_state().position[2]
+    z0 = sim.simulation.robot.body.base_state().position[2]
     probe.send(0.3, 0.2)
     sim.advance(24)
     command = sim.simulation.robot.controller.target
@@ -91,7 +91,7 @@ def test_garbage_command_is_refused_and_the_robot_stays_sane(sim, probe, fields)
 @pytest.mark.parametrize('sign', [1.0, -1.0])
 def test_1e308_in_all_six_fields_is_clamped_not_refused(sim, probe, sign):
     """The largest doubles drive the wheels at their limit; the robot stays on its wheels."""
-    z0 = sim.world.robot.base_state().position[2]
+    z0 = sim.simulation.robot.body.base_state().position[2]
     probe.send(**dict.fromkeys(FIELDS, sign * 1e308))
     sim.advance(1)
     assert sim.commands_rejected == 0
@@ -171,7 +171,7 @@ def test_blow_up_is_detected_within_one_step_and_the_robot_reset(ros, capfd, pub
     probe.send(0.3)
     sim.advance(RATE_HZ // 2)
     assert latest_truth(sim)[0] > 0.05  # it has driven away from the start
-    sim.world.robot.set_base_state(**state)
+    sim.simulation.robot.body.set_base_state(**state)
     if publish_rate != 0.0:
         assert sim.steps_to_next_publish() > 1  # the next step publishes nothing
     sim.advance(1)
@@ -207,7 +207,7 @@ def test_a_sensor_reading_is_preceded_by_the_whole_check(ros, capfd):
     """With the IMU due every step, a teleport far away is caught at the next step."""
     sim = make_sim(ros, publish_rate=10.0, scan_rate=0.0, imu_rate=240.0)
     sim.advance(RATE_HZ // 2)
-    sim.world.robot.set_base_state(position=(1.0e5, 0.0, 0.5))
+    sim.simulation.robot.body.set_base_state(position=(1.0e5, 0.0, 0.5))
     assert sim.steps_to_next_publish() > 1
     sim.advance(1)
     assert sim.blow_ups == 1 and log_lines(capfd, 'left the world')
@@ -215,8 +215,8 @@ def test_a_sensor_reading_is_preceded_by_the_whole_check(ros, capfd):
 
 def test_non_finite_joint_state_is_a_blow_up(sim, probe, capfd):
     """A NaN wheel angle is caught before it is published, naming the joint."""
-    wheel = sim.world.robot.joint('left_front_wheel_joint').index
-    sim.world.client.resetJointState(sim.world.robot_id, wheel, NAN)
+    wheel = sim.simulation.robot.body.joint('left_front_wheel_joint').index
+    sim.world.client.resetJointState(sim.simulation.robot.body.id, wheel, NAN)
     sim.advance(1)
     assert sim.blow_ups == 1
     errors = log_lines(capfd, 'physics blew up')
@@ -228,7 +228,7 @@ def test_non_finite_joint_state_is_a_blow_up(sim, probe, capfd):
 def test_repeated_blow_ups_log_one_error_per_period(sim, capfd):
     """A robot that keeps exploding is reset every time, but the log is throttled."""
     for _ in range(5):
-        sim.world.robot.set_base_state(linear_velocity=(NAN, 0.0, 0.0))
+        sim.simulation.robot.body.set_base_state(linear_velocity=(NAN, 0.0, 0.0))
         sim.advance(1)
     assert sim.blow_ups == 5
     assert len(log_lines(capfd, 'physics blew up')) == 1

@@ -21,7 +21,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan
 from tf2_msgs.msg import TFMessage
 
 from r2d2_sim.model.kinematics import quaternion_to_yaw
-from r2d2_sim.sim.robot import LASER_HEIGHT_M
+from r2d2_sim.sim.sensor_mounts import LASER_HEIGHT_M
 from r2d2_sim.testing import stamp_ns
 from r2d2_sim.model.transforms import apply, Transform
 
@@ -110,7 +110,7 @@ def test_frame_prefix_and_link_transforms(ros):
     listener = Listener(ros, {'/tf': (TFMessage, 100), '/tf_static': (TFMessage, STATIC_QOS),
                               'odom': (Odometry, 10), 'ground_truth': (Odometry, 10),
                               'scan': (LaserScan, 10), 'imu': (Imu, 10)})
-    robot = sim.world.robot
+    robot = sim.simulation.robot.body
     sim.world.client.resetJointState(robot.id, robot.joint('head_swivel').index,
                                      0.5)
     sim.advance(1)
@@ -200,7 +200,7 @@ def test_scan_follows_rep_117_against_the_room(ros):
     assert scan.angle_max == pytest.approx(scan.angle_min + 359 * scan.angle_increment)
     assert scan.time_increment == 0.0 and scan.scan_time == pytest.approx(0.1)
     assert len(scan.intensities) == 0
-    x = sim.world.robot.base_state().position[0]
+    x = sim.simulation.robot.body.base_state().position[0]
 
     def beam(angle_rad):
         return scan.ranges[round((angle_rad - scan.angle_min) / scan.angle_increment)]
@@ -243,7 +243,7 @@ def test_the_scanner_leaves_the_physics_alone(ros):
         sim = make_sim(ros, scan_rate=rate, cmd_vel_timeout=0.0)
         sim.simulation.robot.command(0.3, 0.5)
         sim.advance(600)
-        poses.append(sim.world.robot.base_state())
+        poses.append(sim.simulation.robot.body.base_state())
     assert poses[0] == poses[1]
 
 
@@ -311,7 +311,7 @@ def test_depth_of_a_wall_at_a_known_distance(ros):
     assert depth.header.frame_id == rgb.header.frame_id == info.header.frame_id
     pixels = numpy.frombuffer(bytes(depth.data), dtype='<f4').reshape(48, 64)
     camera = sim.simulation.robot.camera
-    robot = sim.world.robot
+    robot = sim.simulation.robot.body
     lens_x = robot.link_pose(robot.link_index('head'))[0][0] + camera._lens_offset_m
     assert pixels[24, 32] == pytest.approx(2.0 - lens_x, abs=5e-3)
     # Along the optical axis, not the ray: the whole row across the wall reads the same.
@@ -351,7 +351,7 @@ def test_twist_stamped_drives_zero_stamp_is_now_and_stale_is_refused(ros, capfd)
         assert wait_for(lambda: sim.commands_received > before)
         assert (sim.commands_rejected == rejected) == accepted
     sim.advance(240)
-    assert sim.world.robot.base_state().position[0] > 0.05
+    assert sim.simulation.robot.body.base_state().position[0] > 0.05
     stale = [line for line in capfd.readouterr().err.splitlines() if 'rejected cmd_vel' in line]
     assert len(stale) == 1 and 'cmd_vel_timeout' in stale[0]
 

@@ -20,8 +20,9 @@ from simulation_interfaces.action import SimulateSteps
 
 from helpers import REPO
 from r2d2_sim.client import ros_child_env
-from r2d2_sim.sim.entities import MAX_LINKS, MAX_SPAWNED
-from r2d2_sim.testing import WorldError
+from r2d2_sim.sim.entities import MAX_SPAWNED
+from r2d2_sim.sim.spawnables import MAX_LINKS
+from r2d2_sim.testing import RefusedError
 
 CLIENT = Path(__file__).resolve().parent / 'children' / 'standard_client.py'
 ROOM = 'package://r2d2_sim/urdf/room.urdf'
@@ -411,18 +412,18 @@ def test_the_testing_api_changes_the_world_in_process_and_across(r2d2_sim, r2d2_
         step()
         assert harness.entity_state('r2d2').position[:2] == pytest.approx((-1.0, 0.5), abs=0.01)
         harness.delete_entity(box + '_1')
-        with pytest.raises(WorldError, match='NOT_FOUND') as refused:
+        with pytest.raises(RefusedError, match='NOT_FOUND') as refused:
             harness.delete_entity(box + '_1')
         assert refused.value.code == 'NOT_FOUND' and str(refused.value).count('NOT_FOUND') == 1
         # A name given is that name or an error; renaming only on request.
-        with pytest.raises(WorldError, match='NAME_NOT_UNIQUE'):
+        with pytest.raises(RefusedError, match='NAME_NOT_UNIQUE'):
             harness.spawn(BOX, name=box)
-        with pytest.raises(WorldError, match='NAME_INVALID'):
+        with pytest.raises(RefusedError, match='NAME_INVALID'):
             harness.spawn(BOX, name='a box/1')
         assert harness.spawn(BOX, name=box, allow_renaming=True) == box + '_1'
         harness.reset_world()  # all: time back to 0, spawned gone, everything home
         assert harness.entities() == ['ground_plane', 'r2d2']
         assert harness.entity_state('r2d2').position[0] == pytest.approx(0.0, abs=1e-3)
     process.resume()
-    with pytest.raises(WorldError, match='OPERATION_FAILED'):
+    with pytest.raises(RefusedError, match='OPERATION_FAILED'):
         process.step_physics(24)  # the standard steps only a paused simulation

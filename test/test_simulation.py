@@ -109,7 +109,7 @@ def test_a_blow_up_between_publications_resets_the_robot_and_says_why(make):
 def test_a_blown_up_robot_is_reset_alone(make):
     """A cube the robot pushed keeps its place when the robot is put back."""
     simulation = make(extra_models=['cube_small.urdf 0.3 0 0.025'], **QUIET)
-    cube = simulation.world.extras[0]
+    cube = simulation.models[0]
     cube.set_base_state(position=(0.3, 0.5, 0.025))
     simulation.robot.body.set_base_state(position=(1e5, 0.0, 0.5))
     simulation.step()
@@ -126,10 +126,11 @@ def test_reset_puts_every_body_back_and_keeps_time(make):
     simulation.robot.command(0.5, 0.0)
     for _ in range(240):
         simulation.step()
-    simulation.world.extras[0].set_base_state(position=(3.0, 3.0, 0.025))
+    simulation.models[0].set_base_state(position=(3.0, 3.0, 0.025))
     simulation.reset()
     assert simulation.robot.body.world_state() == start
-    assert simulation.world.extras[0].world_state().position == pytest.approx((0.8, 0, 0.025))
+    cube = simulation.models[0]
+    assert cube.world_state().position == pytest.approx((0.8, 0, 0.025))
     assert simulation.step_count == 240
     frame = simulation.step().measurements[0].frame
     assert frame.odometry.x_m == pytest.approx(0.0, abs=1e-3)

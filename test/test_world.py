@@ -7,39 +7,53 @@ import pytest
 
 from r2d2_sim.model.kinematics import quaternion_to_yaw
 from r2d2_sim.physics.body import BodyRemoved
-from r2d2_sim.physics.world import JointRecord, SimWorld, WorldError
+from r2d2_sim.physics.description import default_urdf_path
+from r2d2_sim.physics.records import JointRecord
+from r2d2_sim.physics.world import SimWorld, WorldError
 
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
           'right_front_wheel_joint', 'right_back_wheel_joint']
+
+
+def load_r2d2(world, pose=(0.0, 0.0, 0.0), urdf=None):
+    """Load R2D2 (the package's, or ``urdf``) standing at (x, y, yaw), as a robot is loaded."""
+    return world.load_robot(urdf or default_urdf_path(), pose)
 
 
 @pytest.fixture
 def world():
     """Provide a fresh world with the package's R2D2, closed afterwards."""
     with SimWorld() as w:
+        load_r2d2(w)
         yield w
 
 
-def test_joints_are_looked_up_by_name(world):
+@pytest.fixture
+def robot(world):
+    """Provide the world's R2D2."""
+    return world.bodies['r2d2']
+
+
+def test_joints_are_looked_up_by_name(world, robot):
     """All 15 joints are known by name; unknown names list the known ones."""
-    assert len(world.robot.joints) == 15
-    wheel = world.robot.joint('left_front_wheel_joint')
+    assert len(robot.joints) == 15
+    wheel = robot.joint('left_front_wheel_joint')
     assert isinstance(wheel, JointRecord)
     assert wheel.type_name == 'revolute' and wheel.movable
-    assert world.robot.joint('base_to_left_leg').type_name == 'fixed'
-    assert world.robot.joint('gripper_extension').type_name == 'prismatic'
+    assert robot.joint('base_to_left_leg').type_name == 'fixed'
+    assert robot.joint('gripper_extension').type_name == 'prismatic'
     with pytest.raises(WorldError, match='head_swivel'):
-        world.robot.joint('no_such_joint')
+        robot.joint('no_such_joint')
 
 
-def test_joint_info_has_17_attributes_per_joint(world):
+def test_joint_info_has_17_attributes_per_joint(world, robot):
     """Each joint record carries the 17 getJointInfo attributes plus its link."""
     from r2d2_sim.ros.joint_info import joint_info
-    info = joint_info(world.robot)
+    info = joint_info(robot)
     assert len(info) == 15
     for entry in info:
         assert len([k for k in entry if k not in ('link', 'type_code')]) == 17
-        raw = world.client.getJointInfo(world.robot_id, entry['index'])
+        raw = world.client.getJointInfo(robot.id, entry['index'])
         assert entry['name'] == raw[1].decode() and entry['link_name'] == raw[12].decode()
         assert entry['type_code'] == raw[2] and entry['max_force'] == raw[10]
         assert entry['link']['mass'] > 0.0
@@ -53,69 +67,71 @@ def test_240_steps_are_one_second(world):
     assert world.client.getPhysicsEngineParameters()['fixedTimeStep'] == pytest.approx(1 / 240)
 
 
-def test_robot_rests_on_its_wheels_level(world):
+def test_robot_rests_on_its_wheels_level(world, robot):
     """After settling the base is level and about 0.47 m up (wheels on the plane)."""
     world.step(240)
-    base = world.robot.base_state()
+    base = robot.base_state()
     roll, pitch, _ = world.client.getEulerFromQuaternion(base.orientation)
     assert abs(roll) < math.radians(1) and abs(pitch) < math.radians(1)
     assert base.position[2] == pytest.approx(0.47, abs=0.01)
 
 
-def test_positive_wheel_velocity_drives_along_plus_x(world):
+def test_positive_wheel_velocity_drives_along_plus_x(world, robot):
     """REP-103: all wheels at +5 rad/s move the base forward along +x."""
-    indices = [world.robot.joint(n).index for n in WHEELS]
+    indices = [robot.joint(n).index for n in WHEELS]
     world.step(60)
-    world.robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+    robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
     world.step(480)
-    base = world.robot.base_state()
+    base = robot.base_state()
     assert base.position[0] > 0.25
     assert abs(base.position[1]) < 0.05 * base.position[0]
     assert base.linear_velocity[0] == pytest.approx(5.0 * 0.035, rel=0.05)  # body frame
 
 
-def test_left_faster_than_right_turns_clockwise(world):
+def test_left_faster_than_right_turns_clockwise(world, robot):
     """Left wheels forward, right wheels backward: yaw decreases (turning right)."""
-    left = [world.robot.joint(n).index for n in WHEELS[:2]]
-    right = [world.robot.joint(n).index for n in WHEELS[2:]]
-    world.robot.set_joint_velocities(left + right, [5.0, 5.0, -5.0, -5.0], [20.0] * 4)
+    left = [robot.joint(n).index for n in WHEELS[:2]]
+    right = [robot.joint(n).index for n in WHEELS[2:]]
+    robot.set_joint_velocities(left + right, [5.0, 5.0, -5.0, -5.0], [20.0] * 4)
     world.step(240)
-    assert quaternion_to_yaw(*world.robot.base_state().orientation) < -0.2
+    assert quaternion_to_yaw(*robot.base_state().orientation) < -0.2
 
 
 def test_base_twist_is_in_the_body_frame():
     """Spawned at yaw 90 degrees, driving forward shows as +x body velocity."""
-    with SimWorld(initial_pose=(1.0, 2.0, math.pi / 2)) as world:
-        indices = [world.robot.joint(n).index for n in WHEELS]
-        world.robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+    with SimWorld() as world:
+        robot = load_r2d2(world, (1.0, 2.0, math.pi / 2))
+        indices = [robot.joint(n).index for n in WHEELS]
+        robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
         world.step(240)
-        base = world.robot.base_state()
+        base = robot.base_state()
         assert base.position[1] > 2.1  # world +y
         assert base.linear_velocity[0] > 0.1 and abs(base.linear_velocity[1]) < 0.02
 
 
-def test_reset_restores_spawn_state_and_keeps_time(world):
+def test_reset_restores_spawn_state_and_keeps_time(world, robot):
     """reset() puts the robot back exactly; the step counter keeps counting."""
-    start = world.robot.base_state()
-    indices = [world.robot.joint(n).index for n in WHEELS]
-    world.robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+    start = robot.base_state()
+    indices = [robot.joint(n).index for n in WHEELS]
+    robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
     world.step(240)
-    assert world.robot.base_state().position[0] > start.position[0] + 0.1
+    assert robot.base_state().position[0] > start.position[0] + 0.1
     world.reset()
-    assert world.robot.base_state() == start
+    assert robot.base_state() == start
     assert world.step_count == 240
 
 
 def test_two_worlds_are_independent():
     """Each world has its own client: stepping one leaves the other untouched."""
     with SimWorld() as a, SimWorld() as b:
+        robot_a, robot_b = load_r2d2(a), load_r2d2(b)
         assert a.client._client != b.client._client
-        indices = [a.robot.joint(n).index for n in WHEELS]
-        a.robot.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
+        indices = [robot_a.joint(n).index for n in WHEELS]
+        robot_a.set_joint_velocities(indices, [5.0] * 4, [20.0] * 4)
         a.step(240)
         b.step(240)
-        assert a.robot.base_state().position[0] > 0.1
-        assert abs(b.robot.base_state().position[0]) < 0.01
+        assert robot_a.base_state().position[0] > 0.1
+        assert abs(robot_b.base_state().position[0]) < 0.01
 
 
 def test_close_disconnects(world):
@@ -126,51 +142,53 @@ def test_close_disconnects(world):
     assert not world.connected
 
 
-def test_sanity_check_detects_non_finite_and_far_states(world):
+def test_sanity_check_detects_non_finite_and_far_states(world, robot):
     """state_problem names the problem when the base is flung away."""
-    assert world.robot.state_problem() is None
-    world.client.resetBasePositionAndOrientation(world.robot_id, (1e5, 0, 0), (0, 0, 0, 1))
-    assert 'left the world' in world.robot.state_problem()
+    assert robot.state_problem() is None
+    world.client.resetBasePositionAndOrientation(robot.id, (1e5, 0, 0), (0, 0, 0, 1))
+    assert 'left the world' in robot.state_problem()
 
 
 def test_missing_urdf_is_a_world_error():
     """An unknown file gives a WorldError naming it."""
+    from r2d2_sim.sim.simulation import Simulation
+    from r2d2_sim.sim.parameters import parse_config
     with pytest.raises(WorldError, match='not found'):
-        SimWorld('/no/such/robot.urdf')
+        Simulation(parse_config({'urdf': '/no/such/robot.urdf'}))
 
 
 def test_malformed_urdf_is_a_world_error(tmp_path):
     """A file PyBullet refuses gives a WorldError, not a crash."""
     bad = tmp_path / 'bad.urdf'
     bad.write_text('<robot name="x"><link name="a"></robot')
-    with pytest.raises(WorldError, match='cannot load'):
-        SimWorld(str(bad))
+    with SimWorld() as world, pytest.raises(WorldError, match='cannot load'):
+        load_r2d2(world, urdf=str(bad))
 
 
-def test_wheel_radius_from_collision_shape(world):
+def test_wheel_radius_from_collision_shape(world, robot):
     """The wheel radius is read from the wheel's cylinder: 0.035 m."""
     from r2d2_sim.sim.drive_train import _wheel_radius_m
-    wheel = world.robot.joint('left_front_wheel_joint').index
-    assert _wheel_radius_m(world.robot, wheel) == pytest.approx(0.035)
+    wheel = robot.joint('left_front_wheel_joint').index
+    assert _wheel_radius_m(robot, wheel) == pytest.approx(0.035)
     assert pybullet.GEOM_CYLINDER != pybullet.GEOM_MESH
 
 
-def test_bodies_come_and_go_and_reset_each_on_its_own(world):
+def test_bodies_come_and_go_and_reset_each_on_its_own(world, robot):
     """A removed body's id goes to the next one loaded; our Body objects never mix them up."""
-    robot_start = world.robot.world_state()
+    robot_start = robot.world_state()
     cube = world.load('cube_small.urdf', (1.0, 0.0, 0.5))
     old_id = cube.id
     world.remove(cube)
     with pytest.raises(BodyRemoved):
         cube.world_state()
     sphere = world.load('sphere_small.urdf', (0.0, 1.0, 0.5))
-    assert sphere.id == old_id and sphere.name not in (cube.name, world.robot.name)
+    assert sphere.id == old_id and sphere.name not in (cube.name, robot.name)
     world.step(120)  # the sphere falls; restoreState would now refuse the changed world
-    world.robot.set_base_state(position=(0.5, 0.5, 0.8))
+    robot.set_base_state(position=(0.5, 0.5, 0.8))
     world.reset()
-    assert world.robot.world_state() == robot_start
+    assert robot.world_state() == robot_start
     assert sphere.world_state().position == pytest.approx((0.0, 1.0, 0.5))
-    assert sorted(world.bodies) == sorted(['ground_plane', world.robot.name, sphere.name])
+    assert sorted(world.bodies) == sorted(['ground_plane', robot.name, sphere.name])
 
 
 def test_names_are_unique_with_a_suffix(world):
@@ -182,11 +200,11 @@ def test_names_are_unique_with_a_suffix(world):
         world.load('cube_small.urdf', name=first.name)
 
 
-def test_world_state_round_trips_through_set_world_state(world):
+def test_world_state_round_trips_through_set_world_state(world, robot):
     """Place the body frame (not the centre of mass) with a world twist; read the same back."""
     pose = ((0.3, -0.2, 0.9), (0.0, 0.0, math.sin(0.4), math.cos(0.4)))
-    world.robot.set_world_state(*pose, (0.2, 0.1, 0.0), (0.0, 0.0, 0.5))
-    state = world.robot.world_state()
+    robot.set_world_state(*pose, (0.2, 0.1, 0.0), (0.0, 0.0, 0.5))
+    state = robot.world_state()
     # PyBullet keeps poses in single precision: 1e-7 relative.
     assert state.position == pytest.approx(pose[0], abs=1e-6)
     assert state.orientation == pytest.approx(pose[1], abs=1e-6)

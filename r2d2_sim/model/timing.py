@@ -18,8 +18,8 @@ def stamp_of(time_ns: int) -> Tuple[int, int]:
     return divmod(time_ns, NS_PER_S)
 
 
-def ns_of(stamp) -> int:
-    """Return a ``builtin_interfaces/Time`` (``sec``, ``nanosec``) in integer nanoseconds."""
+def stamp_ns(stamp) -> int:
+    """Return a ``builtin_interfaces/Time`` (a header stamp, a Clock) in integer nanoseconds."""
     return stamp.sec * NS_PER_S + stamp.nanosec
 
 

@@ -22,6 +22,7 @@ __all__ = [
     'Quaternion',
     'Transform',
     'IDENTITY',
+    'BaseState',
     'quaternion_multiply',
     'quaternion_from_rpy',
     'quaternion_from_axis_angle',
@@ -55,6 +56,20 @@ class Transform(NamedTuple):
 
 
 IDENTITY = Transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+
+
+class BaseState(NamedTuple):
+    """
+    Where a body's frame is and how it moves: the pose in the world, the twist.
+
+    A body's base state, an entity's state: the reader says in which frame
+    the twist is given (the body frame for odometry, the world for entities).
+    """
+
+    position: Vector3
+    orientation: Quaternion
+    linear_velocity: Vector3
+    angular_velocity: Vector3
 
 
 def quaternion_multiply(a: Quaternion, b: Quaternion) -> Quaternion:

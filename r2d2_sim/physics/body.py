@@ -14,15 +14,14 @@ from functools import partial
 import math
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from r2d2_sim.physics import records as records
-from r2d2_sim.physics.records import (
-    Aabb, BaseState, CollisionShape, Dynamics, JointRecord, JointStates, LinkState, Pose, Quat,
-    Vec3)
 from r2d2_sim.errors import WorldError
 from r2d2_sim.model.health import base_problem, joint_problem, joints_finite, twist_problem
+from r2d2_sim.model.transforms import BaseState, rotate_inverse
+from r2d2_sim.physics import records
 from r2d2_sim.physics.raycast import exclude_from_rays, RAY_EXCLUDED_GROUP
+from r2d2_sim.physics.records import (
+    Aabb, CollisionShape, Dynamics, JointRecord, JointStates, LinkState, Pose, Quat, Vec3)
 from r2d2_sim.physics.stdio import silenced_output
-from r2d2_sim.model.transforms import rotate_inverse
 
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet

@@ -15,10 +15,9 @@ from r2d2_sim.physics.stdio import silenced_output
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 
-__all__ = ['Vec3', 'Quat', 'JOINT_TYPE_NAMES', 'JointRecord', 'BaseState', 'JointStates',
-           'Pose', 'LinkState', 'Aabb', 'Dynamics', 'CollisionShape', 'joint_records',
-           'link_state', 'aabb', 'dynamics', 'collision_shapes', 'BodyInfo', 'body_info',
-           'ContactPoint',
+__all__ = ['Vec3', 'Quat', 'JOINT_TYPE_NAMES', 'JointRecord', 'JointStates', 'Pose',
+           'LinkState', 'Aabb', 'Dynamics', 'CollisionShape', 'joint_records', 'link_state',
+           'aabb', 'dynamics', 'collision_shapes', 'BodyInfo', 'body_info', 'ContactPoint',
            'contact_points']
 
 Vec3 = Tuple[float, float, float]
@@ -84,15 +83,6 @@ class JointRecord:
     def movable(self) -> bool:
         """Return True for joints with one degree of freedom (not fixed)."""
         return self.type_code in (pybullet.JOINT_REVOLUTE, pybullet.JOINT_PRISMATIC)
-
-
-class BaseState(NamedTuple):
-    """Pose of a body's frame in the world and its twist (in the frame the reader says)."""
-
-    position: Vec3
-    orientation: Quat
-    linear_velocity: Vec3
-    angular_velocity: Vec3
 
 
 class JointStates(NamedTuple):

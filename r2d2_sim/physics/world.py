@@ -9,35 +9,27 @@ through those objects, never through ids cached elsewhere (PyBullet reuses
 the ids of removed bodies), so bodies can be added and removed while it runs.
 """
 
-from dataclasses import dataclass
 from functools import partial
 import math
 import os
 import socket
-from typing import Dict, List, Optional, Sequence, Tuple
-import warnings
+from typing import Dict, Optional, Sequence, Tuple
 
 import numpy
 
-from r2d2_sim.physics.body import Body, WorldError
-from r2d2_sim.physics.records import Quat, Vec3
-from r2d2_sim.physics.description import (
-    DescriptionError, resolve_description_path, RobotDescription)
-from r2d2_sim.physics.raycast import cast_rays, RAY_EXCLUDED_GROUP, RAY_MASK, ray_mask
-from r2d2_sim.physics.stdio import silenced_output
 from r2d2_sim.model.transforms import yaw_of
+from r2d2_sim.physics.body import Body, WorldError
+from r2d2_sim.physics import records
+from r2d2_sim.physics.raycast import cast_rays, RAY_EXCLUDED_GROUP, RAY_MASK, ray_mask
+from r2d2_sim.physics.records import Quat, Vec3
+from r2d2_sim.physics.stdio import silenced_output
 
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
 from pybullet_utils.bullet_client import BulletClient
 
-# Names kept where they were: the world's module used to define them.
-from r2d2_sim.physics.body import BodyRemoved  # noqa: F401,I100
-from r2d2_sim.physics.records import (  # noqa: F401
-    BaseState, JOINT_TYPE_NAMES, JointRecord, JointStates)
-
-__all__ = ['SimWorld', 'ExtraModel', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
+__all__ = ['SimWorld', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
            'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask']
 
 # Gap left between the lowest point of the robot and the ground at spawn, so
@@ -49,14 +41,6 @@ IDENTITY_QUATERNION: Quat = (0.0, 0.0, 0.0, 1.0)
 # of that robot's (one bit each), and sees every other robot. Bits 0 and 1
 # are Bullet's default groups (dynamic, static); the group is a C int.
 RAY_GROUPS = tuple(RAY_EXCLUDED_GROUP << bit for bit in range(29))  # 4 ... 2**30
-
-
-@dataclass(frozen=True)
-class ExtraModel:
-    """Another body in the world: a description reference and its spawn position."""
-
-    description: str
-    position: Vec3
 
 
 def display_problem(environ=os.environ) -> Optional[str]:
@@ -94,44 +78,25 @@ def display_problem(environ=os.environ) -> Optional[str]:
 
 class SimWorld:
     """
-    A PyBullet world holding a robot, the ground and other bodies, stepped at a fixed time step.
+    A PyBullet world: the ground and the bodies loaded into it, stepped at a fixed time step.
 
-    The robot (:attr:`robot`) is spawned at ``initial_pose`` (x, y, yaw) with
-    its lowest point just above the ground; :meth:`reset` puts every body back
-    where it started. ``body_yaw_offset_rad`` is the yaw from the URDF base
-    frame to the robot's REP-103 body frame (x forward, y left): +pi/2 for a
-    robot that drives along its base +y. Raises WorldError (one line) when a
-    description, a body or the GUI cannot be had.
+    It loads no robot of its own: :meth:`load_robot` places a driven robot
+    standing on the ground, :meth:`load` any other description; every body
+    is a :class:`~r2d2_sim.physics.body.Body` in :attr:`bodies`, by its unique
+    name, and :meth:`reset` puts each back where it started. Raises WorldError
+    (one line) when the time step or the GUI cannot be had.
     """
 
-    def __init__(self, urdf_path: Optional[str] = None, *, gui: bool = False,
-                 time_step_s: float = 1.0 / 240.0,
-                 gravity_m_s2: Vec3 = (0.0, 0.0, -9.8),
-                 ground_plane: bool = True,
-                 initial_pose: Tuple[float, float, float] = (0.0, 0.0, 0.0),
-                 robot_description: str = '',
-                 body_yaw_offset_rad: float = 0.0,
-                 extra_models: Sequence[ExtraModel] = (),
-                 robot_name: Optional[str] = None) -> None:
+    def __init__(self, *, gui: bool = False, time_step_s: float = 1.0 / 240.0,
+                 gravity_m_s2: Vec3 = (0.0, 0.0, -9.8), ground_plane: bool = True) -> None:
         if not (math.isfinite(time_step_s) and time_step_s > 0.0):
             raise WorldError(f'time step must be a positive number of seconds, got {time_step_s}')
         self.time_step_s = time_step_s
         self.gui = gui
         self.step_count = 0
         self.bodies: Dict[str, Body] = {}
-        self.robot: Optional[Body] = None
-        self.plane: Optional[Body] = None
-        self.extras: List[Body] = []
         self._free_ray_groups = list(RAY_GROUPS)
-        self._description: Optional[RobotDescription] = None
         self._client: Optional[BulletClient] = None
-        try:
-            self._description = RobotDescription.load(urdf_path or '', robot_description)
-            self.urdf_path, self.robot_description = self._description[:2]
-            extra_paths = [resolve_description_path(m.description) for m in extra_models]
-        except DescriptionError as exc:
-            self.close()
-            raise WorldError(str(exc)) from None
         problem = display_problem() if gui else None
         if problem is not None:
             raise WorldError(problem)
@@ -144,11 +109,7 @@ class SimWorld:
         try:
             self._setup(gravity_m_s2)
             if ground_plane:
-                self.plane = self.load('plane.urdf', name=GROUND_PLANE_NAME)
-            self.robot = self.load_robot(self.urdf_path, initial_pose, body_yaw_offset_rad,
-                                         name=robot_name, source=urdf_path or self.urdf_path)
-            self.extras = [self.load(path, m.position, source=m.description)
-                           for path, m in zip(extra_paths, extra_models)]
+                self.load('plane.urdf', name=GROUND_PLANE_NAME)
         except Exception:
             self.close()
             raise
@@ -191,7 +152,7 @@ class SimWorld:
         except self._client.error as exc:
             raise WorldError(f'PyBullet cannot load {path}: {exc}') from None
         if name is None:
-            urdf_name = self._client.getBodyInfo(body_id)[1].decode('utf-8')
+            urdf_name = records.body_info(self._client, body_id).name
             name = self.unique_name(urdf_name or os.path.splitext(os.path.basename(path))[0])
         elif name in self.bodies:
             self._client.removeBody(body_id)
@@ -251,10 +212,6 @@ class SimWorld:
         """Take ``body`` out of the world."""
         if self.bodies.get(body.name) is body:
             del self.bodies[body.name]
-        if body is self.robot:
-            self.robot = None
-        if body in self.extras:
-            self.extras.remove(body)
         body.remove()
 
     @property
@@ -308,51 +265,23 @@ class SimWorld:
         rgb = numpy.asarray(rgba, dtype=numpy.uint8).reshape(height_px, width_px, 4)[:, :, :3]
         return rgb.tobytes(), numpy.asarray(depth, dtype=float).reshape(height_px, width_px)
 
-    def follow_camera(self, body: Optional[Body] = None, distance_m: float = 2.0) -> None:
-        """Point the GUI camera at a body (default: the robot); no-op without a window."""
-        body = body or self.robot
-        if not self.gui or body is None:
+    def follow_camera(self, body: Body, distance_m: float = 2.0) -> None:
+        """Point the GUI camera at a body; no-op without a window."""
+        if not self.gui:
             return
         base = body.world_state()
         yaw = math.degrees(yaw_of(base.orientation))
         self._client.resetDebugVisualizerCamera(distance_m, yaw - 90.0, -30.0, base.position)
 
-    @property
-    def robot_id(self) -> int:
-        """Return the robot's PyBullet id (for advanced use: prefer :attr:`robot`)."""
-        return self.robot.id
-
-    @property
-    def plane_id(self) -> Optional[int]:
-        """Return the ground plane's PyBullet id, None without one."""
-        return None if self.plane is None else self.plane.id
-
-    @property
-    def extra_model_ids(self) -> List[int]:
-        """Return the PyBullet ids of the extra models (advanced use: prefer :attr:`extras`)."""
-        return [body.id for body in self.extras]
-
-    def __getattr__(self, name: str):
-        # What the world used to answer for its one robot: now the robot body's.
-        robot = self.__dict__.get('robot')
-        if robot is not None and not name.startswith('_') and hasattr(robot, name):
-            warnings.warn(f'SimWorld.{name} is deprecated: use SimWorld.robot.{name}',
-                          DeprecationWarning, stacklevel=2)
-            return getattr(robot, name)
-        raise AttributeError(f'{type(self).__name__!r} object has no attribute {name!r}')
-
     def close(self) -> None:
-        """Disconnect the physics client and delete temporary files; safe to call twice."""
-        client = self.__dict__.get('_client')
+        """Disconnect the physics client; safe to call twice."""
+        client = self._client
         if client is not None:
             try:
                 client.disconnect()
             except pybullet.error:
                 pass
             self._client = None
-        description = self.__dict__.get('_description')
-        if description is not None:
-            description.close()
 
     @property
     def connected(self) -> bool:

@@ -14,10 +14,13 @@ from typing import Callable, Dict, Tuple
 
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.clock import Clock as RclpyClock, ClockType
+from rclpy.node import Node
 
 from r2d2_sim.client import UNKNOWN_NODE_NAME
 from r2d2_sim.model.drive_controller import NO_WHEELS
-from r2d2_sim.model.timing import ns_of
+from r2d2_sim.model.timing import stamp_ns
+from r2d2_sim.ros.seams import Commandable
+from r2d2_sim.sim.parameters import SimConfig
 
 # Warnings about rejected commands repeat at most this often per kind of problem.
 WARNING_PERIOD_S = 5.0
@@ -48,7 +51,7 @@ class ThrottledLog:
 
 class CmdVelInput:
     """
-    The ``cmd_vel`` subscription of ``node``, feeding ``robot.command``.
+    The ``cmd_vel`` subscription of ``node``, feeding ``robot.command`` (a Robot's).
 
     ``received`` counts the messages taken (refused ones too, so a client can
     confirm its command arrived), ``rejected`` those refused. A message is
@@ -58,8 +61,8 @@ class CmdVelInput:
     is judged; the graph is looked at every ``graph_check_period_s`` of wall time.
     """
 
-    def __init__(self, node, config, robot, throttled: ThrottledLog,
-                 now_ns: Callable[[], int], *,
+    def __init__(self, node: Node, config: SimConfig, robot: Commandable,
+                 throttled: ThrottledLog, now_ns: Callable[[], int], *,
                  graph_check_period_s: float = GRAPH_CHECK_PERIOD_S) -> None:
         self.received = 0
         self.rejected = 0
@@ -79,15 +82,15 @@ class CmdVelInput:
 
     def on_twist_stamped(self, msg: TwistStamped) -> None:
         """Take a stamped command unless its stamp is older than ``cmd_vel_timeout``."""
-        stamp_ns = ns_of(msg.header.stamp)
+        stamped_ns = stamp_ns(msg.header.stamp)
         timeout_s = self._config.cmd_vel_timeout_s
         timeout_ns = round(timeout_s * 1e9)
         now_ns = self._now_ns()
         # A zero stamp means "now" (as Nav2's and teleop's unstamped senders fill it).
-        age_ns = now_ns - stamp_ns
-        if stamp_ns and timeout_ns and age_ns > timeout_ns:
+        age_ns = now_ns - stamped_ns
+        if stamped_ns and timeout_ns and age_ns > timeout_ns:
             self.rejected += 1
-            self._warn('cmd_vel stale', f'rejected cmd_vel stamped {stamp_ns / 1e9:.3f} s: '
+            self._warn('cmd_vel stale', f'rejected cmd_vel stamped {stamped_ns / 1e9:.3f} s: '
                        f'{age_ns / 1e9:.3f} s old at t={now_ns / 1e9:.3f} s, more than '
                        f'cmd_vel_timeout ({timeout_s:g} s)')
             self.received += 1

@@ -10,20 +10,30 @@ this module only answers, under the node's lock.
 
 import json
 
+from rclpy.node import Node
 from std_srvs.srv import SetBool, Trigger
+
+from r2d2_sim.ros.fleet import Fleet
+from r2d2_sim.ros.seams import SimulatorControl
 
 __all__ = ['ControlServices']
 
 
 class ControlServices:
-    """The control services of ``node`` (a :class:`~r2d2_sim.ros.node.SimNode`), on that node."""
+    """
+    The control services of ``simulator`` on ``server`` (the simulator's own node).
 
-    def __init__(self, node) -> None:
-        self._node = node
-        node.create_service(SetBool, '~/pause', self._on_pause)
-        node.create_service(Trigger, '~/step', self._on_step)
-        node.create_service(Trigger, '~/reset', self._on_reset)
-        node.create_service(Trigger, '~/get_status', self._on_get_status)
+    ``fleet`` gives each robot's ``cmd_vel`` counts and where its topics are,
+    for the status.
+    """
+
+    def __init__(self, simulator: SimulatorControl, server: Node, fleet: Fleet) -> None:
+        self._simulator = simulator
+        self._fleet = fleet
+        server.create_service(SetBool, '~/pause', self._on_pause)
+        server.create_service(Trigger, '~/step', self._on_step)
+        server.create_service(Trigger, '~/reset', self._on_reset)
+        server.create_service(Trigger, '~/get_status', self._on_get_status)
 
     def status(self, **facts) -> str:
         """
@@ -36,45 +46,45 @@ class ControlServices:
         and ``commands_received``, by name), plus the service's own ``facts``
         (``steps`` advanced, an ``error``).
         """
-        node = self._node
-        ns = node.sim_time_ns
-        state = {'paused': node.paused, 'step': node.step_count, 'sim_time_ns': ns,
-                 'sim_time': ns / 1e9, 'commands_received': node.commands_received,
+        simulator, fleet = self._simulator, self._fleet
+        ns = simulator.sim_time_ns
+        state = {'paused': simulator.paused, 'step': simulator.step_count, 'sim_time_ns': ns,
+                 'sim_time': ns / 1e9, 'commands_received': fleet.received,
                  'robots': {i.name: {'namespace': i.namespace, 'tf': i.tf_topics[0],
                                      'commands_received': i.cmd_vel.received}
-                            for i in node.robots}}
+                            for i in fleet}}
         state.update(facts)
         return json.dumps(state)
 
     def _on_pause(self, request, response):
-        with self._node.lock:  # the reply's time is the state the pause landed on
-            self._node.set_paused(request.data)
+        with self._simulator.lock:  # the reply's time is the state the pause landed on
+            self._simulator.set_paused(request.data)
             response.message = self.status()
         response.success = True
         return response
 
     def _on_step(self, request, response):
-        node = self._node
-        with node.lock:
-            if not node.paused:
+        simulator = self._simulator
+        with simulator.lock:
+            if not simulator.paused:
                 response.success = False
                 response.message = self.status(
                     steps=0, error='the simulation is running: pause it (~/pause true) to step')
                 return response
-            steps = node.advance_to_next_publish()
+            steps = simulator.advance_to_next_publish()
             response.message = self.status(steps=steps)
         response.success = True
         return response
 
     def _on_get_status(self, request, response):
-        with self._node.lock:
+        with self._simulator.lock:
             response.message = self.status()
         response.success = True
         return response
 
     def _on_reset(self, request, response):
-        with self._node.lock:
-            self._node.reset_simulation()  # the robots; time goes on, spawned entities stay
+        with self._simulator.lock:
+            self._simulator.reset_simulation()  # the robots; time goes on, spawned entities stay
             response.message = self.status()
         response.success = True
         return response

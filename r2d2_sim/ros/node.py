@@ -9,27 +9,24 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 """
 
 import threading
-from typing import Callable, Optional, Sequence
+from typing import Callable, Optional
 
 from rclpy.node import Node
 
+from r2d2_sim.errors import SetupError, StartupError
+from r2d2_sim.physics.world import SimWorld
+from r2d2_sim.recording.sink import FoxgloveSink, SinkError
 from r2d2_sim.ros.cmd_vel import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, \
     WARNING_PERIOD_S
 from r2d2_sim.ros.control_services import ControlServices
-from r2d2_sim.sim.entities import EntityError
-from r2d2_sim.errors import SetupError, StartupError
-from r2d2_sim.recording.sink import FoxgloveSink, SinkError
 from r2d2_sim.ros.fleet import Fleet
 from r2d2_sim.ros.mirror import MirroringNode, start_sink
 from r2d2_sim.ros.outputs import ClockOutput
-from r2d2_sim.sim.parameters import ConfigError
-from r2d2_sim.ros.standard import server as sim_interfaces
-from r2d2_sim.sim.robot import Robot
-from r2d2_sim.ros.robot_interfaces import RobotInterfaces
 from r2d2_sim.ros.parameters import declare_parameters
+from r2d2_sim.ros.robot_interfaces import RobotInterfaces
+from r2d2_sim.ros.standard import server as standard
 from r2d2_sim.ros.standard.server import SimulationInterfaces
 from r2d2_sim.sim.simulation import Simulation, StepResult
-from r2d2_sim.physics.world import SimWorld
 
 NODE_NAME = 'r2d2_sim'
 __all__ = ['SimNode', 'StartupError', 'NODE_NAME']
@@ -67,29 +64,27 @@ class SimNode(MirroringNode):
         super().__init__(node_name, **node_kwargs)
         self.lock = threading.RLock()  # one thread in PyBullet at a time (public: the services')
         self._throttled = ThrottledLog(warning_period_s)
-        self._warning_period_s = warning_period_s
-        self._graph_check_period_s = graph_check_period_s
         self.simulation: Optional[Simulation] = None
         self.standard: Optional[SimulationInterfaces] = None
         self._clock_output: Optional[ClockOutput] = None
         # One per robot, in the order of simulation.robots (their measurements').
-        self.fleet = Fleet(self, self._robot_interfaces)
+        self.fleet = Fleet(self, self.lock, now_ns=lambda: self.simulation.time_ns,
+                           warning_period_s=warning_period_s,
+                           graph_check_period_s=graph_check_period_s)
         try:
             self.config, specs = declare_parameters(self)
-            namespaces = self.fleet.start_namespaces(specs)
             self.sink = start_sink(self.config, self.get_name(), self.get_logger().info)
             self.simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
-                                         error=self._log_blow_up)
+                                         error=self._log_blow_up, namespace=self.get_namespace())
             self._clock_output = ClockOutput(self)
-            for robot, namespace in zip(self.simulation.robots, namespaces):
-                self.fleet.add(robot, namespace)
+            self.simulation.watch_robots(self.fleet.follow)
         except (SetupError, SinkError) as exc:
             self._close()
             raise StartupError(str(exc)) from exc
         self._paused = self.config.start_paused
-        self.control = ControlServices(self)
-        if sim_interfaces.available():
-            self.standard = SimulationInterfaces(self, on_quit)
+        self.control = ControlServices(self, self, self.fleet)
+        if standard.available():
+            self.standard = SimulationInterfaces(self, self.simulation, self, on_quit)
         else:
             self.get_logger().warning(
                 'simulation_interfaces is not installed: its services (spawn_entity, '
@@ -108,13 +103,6 @@ class SimNode(MirroringNode):
         """Return every robot's interfaces, in the simulation's order (iterable, indexable)."""
         return self.fleet
 
-    def _robot_interfaces(self, node: MirroringNode, robot: Robot,
-                          own_node: bool) -> RobotInterfaces:
-        return RobotInterfaces(
-            node, robot, self.lock, now_ns=lambda: self.simulation.time_ns,
-            time_ns=self.simulation.time_ns, warning_period_s=self._warning_period_s,
-            graph_check_period_s=self._graph_check_period_s, own_node=own_node)
-
     def watch_robot_nodes(self, added: Callable[[Node], None],
                           removed: Callable[[Node], None]) -> None:
         """
@@ -129,42 +117,6 @@ class SimNode(MirroringNode):
     def robot(self, name: Optional[str] = None) -> RobotInterfaces:
         """Return a robot's interfaces by name (default: the first robot); KeyError if none."""
         return self.fleet.named(name)
-
-    def spawn_entity(self, name: str, allow_renaming: bool, uri: str, resource_string: str,
-                     namespace: str, frame_id: str, position: Sequence[float],
-                     orientation: Sequence[float]) -> str:
-        """
-        Spawn an entity (see :class:`~r2d2_sim.sim.entities.Entities`); return its name.
-
-        With a ``namespace`` it is a driven robot with every interface a robot
-        has, there (relative: under this node's namespace), on the world's
-        robot settings. EntityError NAMESPACE_INVALID for a malformed or
-        taken namespace, or this node's own.
-        """
-        with self.lock:
-            if not namespace:
-                return self.simulation.entities.spawn(name, allow_renaming, uri,
-                                                      resource_string, frame_id, position,
-                                                      orientation)
-            resolved = self.fleet.free_namespace(namespace)
-            robot = self.simulation.spawn_robot(name, allow_renaming, uri, resource_string,
-                                                frame_id, position, orientation)
-            try:
-                self.fleet.add(robot, resolved)
-            except BaseException as exc:
-                self.simulation.delete_entity(robot.name)
-                if isinstance(exc, ConfigError):
-                    raise EntityError('NAMESPACE_INVALID', str(exc)) from None
-                raise
-            return robot.name
-
-    def delete_entity(self, name: str) -> None:
-        """Delete a spawned entity, and a robot's interfaces with it (EntityError if refused)."""
-        with self.lock:
-            try:
-                self.simulation.delete_entity(name)
-            finally:
-                self.fleet.sync(self.simulation.robots)
 
     @property
     def world(self) -> SimWorld:
@@ -191,6 +143,11 @@ class SimNode(MirroringNode):
     def paused(self) -> bool:
         """Return True while physics is stopped."""
         return self._paused
+
+    @property
+    def pristine(self) -> bool:
+        """Return True when nothing changed since start-up or a full reset (time may run)."""
+        return self.simulation.pristine
 
     @property
     def blow_ups(self) -> int:
@@ -290,11 +247,6 @@ class SimNode(MirroringNode):
                     self.advance_to_next_publish()
             self._paused = bool(paused)
 
-    def step_paused(self, steps: int) -> None:
-        """Advance a paused simulation ``steps`` physics steps (the standard's step_simulation)."""
-        with self.lock:
-            self.advance(steps)
-
     def reset_simulation(self, *, time: bool = False, state: bool = True,
                          spawned: bool = False) -> None:
         """
@@ -305,10 +257,7 @@ class SimNode(MirroringNode):
         carries the reset robot.
         """
         with self.lock:
-            try:
-                self.simulation.reset(time=time, state=state, spawned=spawned)
-            finally:
-                self.fleet.sync(self.simulation.robots)
+            self.simulation.reset(time=time, state=state, spawned=spawned)
 
     def _close(self) -> None:
         self.fleet.close()

@@ -15,7 +15,8 @@ from typing import Callable, List, NamedTuple, Optional, Sequence
 import numpy
 
 from r2d2_sim.physics.body import Body
-from r2d2_sim.physics.records import BaseState, JointRecord, JointStates
+from r2d2_sim.model.transforms import BaseState
+from r2d2_sim.physics.records import JointRecord, JointStates
 from r2d2_sim.model.drive_controller import (
     CommandVerdict, DriveController, NO_WHEELS, timeout_steps)
 from r2d2_sim.sim.drive_train import DriveTrain, find_drive_train
@@ -25,10 +26,6 @@ from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, Laser
 from r2d2_sim.model.sensors import ImuReading
 from r2d2_sim.model.timing import stamp_of, StepSchedule
 from r2d2_sim.physics.world import SimWorld, SPAWN_CLEARANCE_M
-
-# Names that lived here before the sensors and the drive train had modules of their own.
-from r2d2_sim.sim.sensor_mounts import (  # noqa: F401,I100
-    HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID, LASER_HEIGHT_M)
 
 __all__ = ['Frame', 'Measurement', 'Robot', 'DriveTrain']
 
@@ -68,18 +65,22 @@ class Robot:
 
     ``config`` gives its drive and sensor settings and the physics rate their
     schedules run on; ``source`` says where its description came from (for
-    messages), ``description`` is its URDF text. ``warn`` receives one-line
-    reports while it is built, ``error`` one line per blow-up. Raises ConfigError (one line) when
-    the configuration cannot drive or sense this robot. ``resources`` (a temporary
-    description file...) are closed with the robot (:meth:`close`).
+    messages), ``description`` is its URDF text, ``namespace`` where its ROS
+    interfaces live (resolved; the simulator's own for the one default robot).
+    ``warn`` receives one-line reports while it is built, ``error`` one line
+    per blow-up. Raises ConfigError (one line) when the configuration cannot
+    drive or sense this robot. ``resources`` (a temporary description
+    file...) are closed with the robot (:meth:`close`).
     """
 
     def __init__(self, world: SimWorld, body: Body, config: SimConfig, source: str,
                  description: str, *, warn: Callable[[str], None] = _ignore,
-                 error: Callable[[str], None] = _ignore, resources: Sequence = ()) -> None:
+                 error: Callable[[str], None] = _ignore, resources: Sequence = (),
+                 namespace: str = '/') -> None:
         self.world = world
         self.body = body
         self.name = body.name
+        self.namespace = namespace
         self.config = config
         self.source = source
         self.description = description

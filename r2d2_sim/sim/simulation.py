@@ -9,25 +9,37 @@ robot measures what is due at that step: its state when a publication is due
 and IMU at their own rates. It returns the measurements as plain data;
 outputs only translate them into messages. Every step also checks that no
 robot's physics has blown up, and puts back one that has.
+
+The world changes through this class alone (spawn, delete, place, reset):
+it decides whether a spawned entity is a driven robot, and whoever follows
+the robots (the ROS node's fleet) is told of every change and may refuse one,
+which is then undone.
 """
 
 from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
-from r2d2_sim.physics.description import DescriptionError, RobotDescription
-from r2d2_sim.sim.entities import Entities, EntityError
-from r2d2_sim.errors import SetupError, WorldError
+from r2d2_sim.errors import RefusedError, SetupError, WorldError
+from r2d2_sim.model.timing import StepClock, StepSchedule
+from r2d2_sim.model.transforms import BaseState, yaw_of
+from r2d2_sim.physics.body import Body
+from r2d2_sim.physics.description import (
+    DescriptionError, resolve_description_path, RobotDescription)
+from r2d2_sim.physics.world import SimWorld
+from r2d2_sim.sim.entities import Category, Entities, SpawnRequest
+from r2d2_sim.sim.parameter_readers import namespace as read_namespace
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.robot import Frame, Measurement, Robot
-from r2d2_sim.sim.robot_parameters import robot_config, RobotSpec
-from r2d2_sim.model.timing import StepClock, StepSchedule
-from r2d2_sim.model.transforms import yaw_of
-from r2d2_sim.physics.world import ExtraModel, SimWorld
+from r2d2_sim.sim.robot_parameters import resolve_namespace, robot_config, RobotSpec
 
 # Frame and Measurement are the core's data, defined beside the robot that measures them.
-__all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'GUI_CAMERA_RATE_HZ']
+__all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest',
+           'GUI_CAMERA_RATE_HZ']
 
 # Follow the robot with the GUI camera this many times per simulated second.
 GUI_CAMERA_RATE_HZ = 30.0
+
+# Told the robots after every change of the set (start-up, spawn, delete, reset).
+RobotsWatcher = Callable[[Sequence[Robot]], None]
 
 
 class StepResult(NamedTuple):
@@ -48,19 +60,21 @@ class Simulation:
     The world, its robots and the step schedule.
 
     ``config`` holds the world's settings; ``robots`` the robots listed in
-    the ``robots`` parameter, each with its own settings. Without them the
-    world has one robot, named after its URDF, with ``config``'s settings.
-    More robots join with :meth:`add_robot` and :meth:`spawn_robot`, and a
-    spawned one leaves with :meth:`delete_entity`. ``warn`` and ``error``
-    receive one-line reports (the node logs them, throttled); they default
-    to silence. Raises a SetupError subclass (ConfigError, WorldError...)
-    when the configuration cannot be simulated.
+    the ``robots`` parameter, each with its own settings and namespace
+    (resolved under ``namespace``, the simulator's own). Without them the
+    world has one robot, named after its URDF, with ``config``'s settings, in
+    ``namespace`` itself. More robots join through :meth:`spawn` and leave
+    through :meth:`delete_entity`. ``warn`` and ``error`` receive one-line
+    reports (the node logs them, throttled); they default to silence. Raises a
+    SetupError subclass (ConfigError, WorldError...) when the configuration
+    cannot be simulated.
     """
 
     def __init__(self, config: SimConfig, robots: Sequence[RobotSpec] = (),
                  warn: Callable[[str], None] = _ignore,
-                 error: Callable[[str], None] = _ignore) -> None:
+                 error: Callable[[str], None] = _ignore, namespace: str = '/') -> None:
         self.config = config
+        self.namespace = namespace
         rate = config.physics_rate_hz
         self.time_step_s = 1.0 / rate
         self.clock = StepClock(rate)
@@ -68,34 +82,80 @@ class Simulation:
         self.steps_per_gui_frame = max(1, round(rate / GUI_CAMERA_RATE_HZ))
         self.last_frame_step = 0
         self.robots: List[Robot] = []
-        self.entities: Optional[Entities] = None
+        self.models: List[Body] = []  # extra_models and the world model, as loaded at start-up
         self._warn, self._error = warn, error
-        first = robots[0].config if robots else config
-        self.world = SimWorld(
-            first.urdf or None, robot_description=first.robot_description,
-            gui=config.gui, time_step_s=self.time_step_s,
-            gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane,
-            initial_pose=first.initial_pose, body_yaw_offset_rad=first.body_yaw_offset_rad,
-            robot_name=robots[0].name if robots else None,
-            extra_models=[ExtraModel(name, position) for name, position in config.extra_models]
-            + ([ExtraModel(config.world, (0.0, 0.0, 0.0))] if config.world else []))
+        self._watchers: List[RobotsWatcher] = []
+        self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
+                              gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
+        self.entities = Entities(self.world, config.world_frame_id)
         try:
-            source = ('the robot_description parameter' if first.robot_description
-                      else self.world.urdf_path)
-            self.robots.append(Robot(self.world, self.world.robot, first, source,
-                                     self.world.robot_description, warn=warn, error=error))
-            for spec in robots[1:]:
-                self.add_robot(spec.name, spec.config)
-            self._check_apart()
+            self._start(robots)
         except Exception:
-            for robot in self.robots:
-                robot.close()
-            self.world.close()
+            self.close()
             raise
-        self.entities = Entities(self.world, lambda: self.robots, config.world_frame_id,
-                                 self._teleported)
         # Nothing changed since start-up (or a full reset): with time at 0, 'stopped'.
         self.pristine = True
+
+    def _start(self, specs: Sequence[RobotSpec]) -> None:
+        """Load the robots and models at start-up: the first robot, the models, the others."""
+        config = self.config
+        if specs:
+            namespaces = [resolve_namespace(self.namespace, spec.namespace) for spec in specs]
+            for i, namespace in enumerate(namespaces):
+                if namespace in namespaces[:i]:
+                    other = specs[namespaces.index(namespace)].name
+                    raise ConfigError(f'robots {other} and {specs[i].name} both have the '
+                                      f'namespace {namespace}: each robot needs one of its own')
+            starts = [(spec.name, spec.config, ns) for spec, ns in zip(specs, namespaces)]
+        else:
+            starts = [(None, config, self.namespace)]
+        # In the order PyBullet has always had them (body ids and solver order).
+        self._load_robot(*starts[0], listed=bool(specs))
+        models = [(name, position) for name, position in config.extra_models]
+        models += [(config.world, (0.0, 0.0, 0.0))] if config.world else []
+        for description, position in models:
+            try:
+                path = resolve_description_path(description)
+            except DescriptionError as exc:
+                raise WorldError(str(exc)) from None
+            self.models.append(self.world.load(path, position, source=description))
+        for start in starts[1:]:
+            self._load_robot(*start, listed=True)
+        self._check_apart()
+
+    def _load_robot(self, name: Optional[str], config: SimConfig, namespace: str, *,
+                    listed: bool) -> Robot:
+        """
+        Load a driven robot standing at ``config.initial_pose``; return it.
+
+        ``name`` None: the URDF's robot name, made unique. Its description,
+        drive and sensors are ``config``'s. Raises a SetupError (WorldError,
+        ConfigError) when it cannot be loaded or driven, naming the robot
+        when it is one of those ``robots`` lists; nothing of it then stays.
+        """
+        try:
+            description = RobotDescription.load(config.urdf, config.robot_description)
+        except DescriptionError as exc:
+            raise WorldError(f'robot {name}: {exc}' if listed else str(exc)) from None
+        body = None
+        try:
+            # The body's source is where PyBullet read it: the urdf parameter as given,
+            # or the temporary file robot_description's text was written to.
+            body = self.world.load_robot(
+                description.path, config.initial_pose, config.body_yaw_offset_rad, name=name,
+                source=description.path if config.robot_description else config.urdf or None)
+            source = ('the robot_description parameter' if config.robot_description
+                      else description.path)
+            robot = Robot(self.world, body, config, source, description.text,
+                          warn=self._named_warn(body.name) if listed else self._warn,
+                          error=self._error, resources=[description], namespace=namespace)
+        except Exception:
+            if body is not None:
+                self.world.remove(body)
+            description.close()
+            raise
+        self.robots.append(robot)
+        return robot
 
     def _check_apart(self) -> None:
         """Refuse robots that start inside each other (two poses left alike, a name mistyped)."""
@@ -107,71 +167,127 @@ class Simulation:
                     raise ConfigError(f'robots {other.name} and {robot.name} overlap where they '
                                       f'start: give {robot.name}.initial_pose a place of its own')
 
-    def add_robot(self, name: str, config: SimConfig) -> Robot:
-        """
-        Load a driven robot ``name`` standing at ``config.initial_pose``; return it.
+    def _named_warn(self, name: str) -> Callable[[str], None]:
+        return lambda text: self._warn(f'robot {name}: {text}')
 
-        Its description, drive and sensors are ``config``'s (see
-        :func:`~r2d2_sim.sim.robot_parameters.robot_config`). Raises a SetupError
-        (WorldError, ConfigError) when it cannot be loaded or driven; nothing
-        of it then stays in the world.
+    # -- who follows the robots --------------------------------------------------------
+
+    def watch_robots(self, watcher: RobotsWatcher) -> None:
         """
-        try:
-            description = RobotDescription.load(config.urdf, config.robot_description)
-        except DescriptionError as exc:
-            raise WorldError(f'robot {name}: {exc}') from None
-        body = None
-        try:
-            body = self.world.load_robot(description.path, config.initial_pose,
-                                         config.body_yaw_offset_rad, name=name,
-                                         source=config.urdf or description.path)
-            source = ('the robot_description parameter' if config.robot_description
-                      else description.path)
-            robot = Robot(self.world, body, config, source, description.text,
-                          warn=self._named_warn(name), error=self._error,
-                          resources=[description])
-        except Exception:
-            if body is not None:
-                self.world.remove(body)
-            description.close()
-            raise
-        self.robots.append(robot)
+        Call ``watcher(robots)`` now and after every change of the robots (in their order).
+
+        A watcher that raises while a robot is spawned refuses it: the robot
+        is deleted again, and the spawn fails.
+        """
+        self._watchers.append(watcher)
+        watcher(tuple(self.robots))
+
+    def _robots_changed(self) -> None:
+        for watcher in self._watchers:
+            watcher(tuple(self.robots))
+
+    # -- the entities, as the standard sees them -----------------------------------------
+
+    @property
+    def world_frame_id(self) -> str:
+        """Return the frame entity poses are given in."""
+        return self.entities.world_frame_id
+
+    def entity_names(self) -> List[str]:
+        """Return every entity's name, in the order the world loaded them."""
+        return self.entities.names()
+
+    def entity_category(self, name: str) -> int:
+        """Return the standard's category of an entity: ROBOT, STATIC_ or DYNAMIC_OBJECT."""
+        body = self.entities.body(name)
+        if any(robot.body is body for robot in self.robots):
+            return Category.ROBOT
+        return Category.STATIC_OBJECT if body.static else Category.DYNAMIC_OBJECT
+
+    def entity_source(self, name: str) -> str:
+        """Return where an entity's description came from (a path, a URI, 'resource_string')."""
+        return self.entities.body(name).source
+
+    def entity_state(self, name: str) -> BaseState:
+        """Return the pose of an entity's URDF base link and its origin's twist, in the world."""
+        return self.entities.state(name)
+
+    def set_entity_state(self, name: str, frame_id: str, position: Sequence[float],
+                         orientation: Sequence[float], linear: Sequence[float],
+                         angular: Sequence[float]) -> None:
+        """Place an entity (see :meth:`Entities.set_state <r2d2_sim.sim.entities.Entities>`)."""
+        body = self.entities.set_state(name, frame_id, position, orientation, linear, angular)
         self.pristine = False
-        return robot
+        for robot in self.robots:
+            if robot.body is body:
+                robot.teleported()  # its IMU must not take the jump for an acceleration
 
-    def spawn_robot(self, name: str, allow_renaming: bool, uri: str, resource_string: str,
-                    frame_id: str, position: Sequence[float],
-                    orientation: Sequence[float]) -> Robot:
-        """
-        Spawn a driven robot through the standard: at its pose exactly, with the world's settings.
+    def entities_overlapping(self, centre: Sequence[float], radius_m: float) -> List[str]:
+        """Return the entities whose bounding boxes meet a sphere (the standard's bounds)."""
+        return self.entities.overlapping(centre, radius_m)
 
-        As :meth:`Entities.spawn <r2d2_sim.sim.entities.Entities.spawn>` (the
-        same names, resources and refusals), then driven as a robot whose
-        odometry starts at that pose; EntityError OPERATION_FAILED when the
-        world's robot settings cannot drive it.
+    def spawn(self, request: SpawnRequest) -> str:
         """
-        body, description = self.entities.spawn_body(
-            name, allow_renaming, uri, resource_string, frame_id, position, orientation,
-            flags=self.world.robot_flags, body_yaw_offset_rad=self.config.body_yaw_offset_rad)
+        Spawn an entity as the standard asks (:class:`SpawnRequest`); return its name.
+
+        With a ``namespace`` it is a driven robot with the world's robot
+        settings, its odometry starting at its pose: RefusedError
+        NAMESPACE_INVALID for a malformed or taken namespace (or the
+        simulator's own), NAME_NOT_UNIQUE when its frames would be another
+        robot's, OPERATION_FAILED when the world's settings cannot drive it or
+        a watcher refuses it. Without one, a plain entity. Refusals leave the
+        world as it was.
+        """
+        if not request.namespace:
+            body, _ = self.entities.spawn(request)
+            self.pristine = False
+            return body.name
+        namespace = self._free_namespace(request.namespace)
+        body, description = self.entities.spawn(
+            request, flags=self.world.robot_flags,
+            body_yaw_offset_rad=self.config.body_yaw_offset_rad)
         base = body.world_state()
         try:
             config = robot_config(self.config, body.name, {
                 'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]})
             self._check_frames_free(body.name, config)
             robot = Robot(self.world, body, config, body.source, description,
-                          warn=self._named_warn(body.name), error=self._error)
-        except EntityError:
+                          warn=self._named_warn(body.name), error=self._error,
+                          namespace=namespace)
+        except RefusedError:
             self.entities.delete(body.name)
             raise
         except SetupError as exc:
             self.entities.delete(body.name)
-            raise EntityError('OPERATION_FAILED', f'{body.name} cannot be driven: {exc}') from None
+            raise RefusedError('OPERATION_FAILED',
+                               f'{body.name} cannot be driven: {exc}') from None
         self.robots.append(robot)
         self.pristine = False
-        return robot
+        try:
+            self._robots_changed()
+        except Exception as exc:
+            self._delete(robot.name)
+            self._robots_changed()
+            if isinstance(exc, ConfigError):
+                raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
+            raise
+        return robot.name
 
-    def _named_warn(self, name: str) -> Callable[[str], None]:
-        return lambda text: self._warn(f'robot {name}: {text}')
+    def _free_namespace(self, namespace: str) -> str:
+        """Return a spawned robot's namespace, resolved; NAMESPACE_INVALID if it cannot be."""
+        try:
+            resolved = resolve_namespace(self.namespace,
+                                         read_namespace('entity_namespace', namespace))
+        except ConfigError as exc:
+            raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
+        if resolved == self.namespace:
+            raise RefusedError('NAMESPACE_INVALID', f'{resolved} is the simulator\'s own '
+                                                    'namespace: give the robot one of its own')
+        for robot in self.robots:
+            if robot.namespace == resolved:
+                raise RefusedError('NAMESPACE_INVALID', f'robot {robot.name} has the '
+                                                        f'namespace {resolved} already')
+        return resolved
 
     def _check_frames_free(self, name: str, config: SimConfig) -> None:
         """Refuse a robot whose frames would be another's on the shared /tf."""
@@ -179,12 +295,16 @@ class Simulation:
             return
         for robot in self.robots:
             if robot.config.frame_prefix == config.frame_prefix:
-                raise EntityError('NAME_NOT_UNIQUE', f'robot {robot.name} publishes its frames '
-                                  f'with the prefix {config.frame_prefix!r} already: name the new '
-                                  'robot otherwise')
+                raise RefusedError('NAME_NOT_UNIQUE', f'robot {robot.name} publishes its frames '
+                                   f'with the prefix {config.frame_prefix!r} already: name the '
+                                   'new robot otherwise')
 
     def delete_entity(self, name: str) -> None:
         """Delete a spawned entity, and the robot it is if it is one (start-up ones stay)."""
+        self._delete(name)
+        self._robots_changed()
+
+    def _delete(self, name: str) -> None:
         body = self.entities.body(name)
         self.entities.delete(name)  # refuses a start-up entity before anything changes
         self._forget_robots([r for r in self.robots if r.body is body])
@@ -195,11 +315,7 @@ class Simulation:
             self.robots.remove(robot)
             robot.close()
 
-    def _teleported(self, body) -> None:
-        self.pristine = False
-        for robot in self.robots:
-            if robot.body is body:
-                robot.teleported()
+    # -- stepping -------------------------------------------------------------------------
 
     @property
     def robot(self) -> Robot:
@@ -240,8 +356,8 @@ class Simulation:
         world.step(1)
         self.pristine = False
         step += 1
-        if world.gui and step % self.steps_per_gui_frame == 0:
-            world.follow_camera()
+        if world.gui and step % self.steps_per_gui_frame == 0 and robots:
+            world.follow_camera(robots[0].body)
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = tuple(robot.measure(step, time_ns, state_due) for robot in robots)
@@ -272,6 +388,7 @@ class Simulation:
         if spawned:
             self._forget_robots([r for r in self.robots if r.body.spawned])
             self.entities.delete_spawned()
+            self._robots_changed()
         if state:
             self.world.reset()
             for robot in self.robots:
@@ -289,6 +406,5 @@ class Simulation:
         """Disconnect the physics client; safe to call twice."""
         for robot in self.robots:
             robot.close()
-        if self.entities is not None:
-            self.entities.close()
+        self.entities.close()
         self.world.close()

@@ -11,17 +11,23 @@ parallel (``pytest -n auto``). The pytest fixtures built on these are in
 
 The package, by role: :mod:`~r2d2_sim.testing.domains` (domain leases),
 :mod:`~r2d2_sim.testing.executor` (a context and an executor the caller can
-take over), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
+take over), :mod:`~r2d2_sim.testing.lockstep` (the executor that makes runs
+repeat bit for bit), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
 :mod:`~r2d2_sim.testing.remote` (:class:`RemoteProbe`),
 :mod:`~r2d2_sim.testing.process` (child processes),
-:mod:`~r2d2_sim.testing.sim_process` (:class:`SimProcess`) and
-:mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over ``/tf``, as tf2 does). Every name is
-importable from here, as it was when this was one module.
+:mod:`~r2d2_sim.testing.sim_process` (:class:`SimProcess`),
+:mod:`~r2d2_sim.testing.robots` (one robot's handle in either harness),
+:mod:`~r2d2_sim.testing.world_verbs` (spawn, place, read, delete, reset),
+:mod:`~r2d2_sim.testing.standard` (a client of ROS 2's simulation standard for
+any simulator) and :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
+``/tf``, as tf2 does). Every public name is importable from here.
 """
 
 from r2d2_sim.client import (
     Pose2D, pose_from_odometry, ros_child_env, spin_until, stamp_ns, wait_for)
-from r2d2_sim.errors import StartupError
+from r2d2_sim.errors import RefusedError, StartupError
+from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
+from r2d2_sim.model.transforms import BaseState
 from r2d2_sim.testing import domains
 from r2d2_sim.testing.domains import (
     DOMAIN_LOCK_DIR_ENV, DomainLease, domain_lock_dir, DomainUnavailable, lease_domain)
@@ -34,8 +40,6 @@ from r2d2_sim.testing.remote import RemoteProbe
 from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
 from r2d2_sim.testing.standard import StandardClient, StandardError
 from r2d2_sim.testing.tf import TfListener
-from r2d2_sim.testing.world_verbs import EntityState, WorldError
-from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
 
 __all__ = [
     'SimHarness', 'SimProcess', 'RosHarness', 'RemoteProbe', 'ChildProcess',
@@ -44,8 +48,8 @@ __all__ = [
     'ProcessResult', 'stop_process', 'sim_node_command', 'parameter_overrides',
     'Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env', 'stamp_ns',
     'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S', 'TfListener', 'TransformBuffer',
-    'StampedTransform', 'TransformException', 'StandardClient', 'StandardError', 'EntityState',
-    'WorldError',
+    'StampedTransform', 'TransformException', 'StandardClient', 'StandardError', 'BaseState',
+    'RefusedError',
 ]
 
 

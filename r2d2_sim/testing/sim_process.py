@@ -15,9 +15,9 @@ from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import RemoteProbe
 from r2d2_sim.testing.robots import expected_namespaces, flatten_robots, RemoteRobot
-from r2d2_sim.testing.standard import StandardClient, StandardError
+from r2d2_sim.testing.standard import StandardClient
 from r2d2_sim.testing.tf import TransformLookup
-from r2d2_sim.testing.world_verbs import StandardWorld, world_error, WorldVerbs
+from r2d2_sim.testing.world_verbs import StandardWorld, WorldVerbs
 
 __all__ = ['SimProcess', 'STATUS_RESEND_S']
 
@@ -28,7 +28,7 @@ STATUS_RESEND_S = 1.0
 SERVICES = (('pause', SetBool), ('step', Trigger), ('reset', Trigger), ('get_status', Trigger))
 
 
-class ControlServices:
+class ControlClient:
     """
     The node's own control services (``~/pause``, ``~/step``, ``~/reset``, ``~/get_status``...).
 
@@ -122,7 +122,7 @@ class ControlServices:
         return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S, client)
 
 
-class SimProcess(ControlServices, TransformLookup, WorldVerbs):
+class SimProcess(ControlClient, TransformLookup, WorldVerbs):
     """
     The ``sim_node`` executable in a process of its own, driven through its services.
 
@@ -352,12 +352,9 @@ class SimProcess(ControlServices, TransformLookup, WorldVerbs):
         """
         Step a paused simulator ``steps`` physics steps (step_simulation); return its status.
 
-        Raises WorldError (OPERATION_FAILED) while the simulator is playing.
+        Raises StandardError (OPERATION_FAILED) while the simulator is playing.
         """
-        try:
-            self.standard.step(steps)
-        except StandardError as exc:
-            raise world_error(exc) from None
+        self.standard.step(steps)
         self._not_before_ns = 0
         return self.status()
 

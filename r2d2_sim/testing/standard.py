@@ -14,15 +14,23 @@ from typing import Callable, List, Optional, Sequence
 from rclpy.action import ActionClient
 from rclpy.node import Node
 
+from r2d2_sim.errors import RefusedError
+
 __all__ = ['StandardClient', 'StandardError']
 
 
-class StandardError(RuntimeError):
-    """A standard service answered with something else than RESULT_OK; ``code`` is its name."""
+class StandardError(RefusedError):
+    """
+    A standard service answered with something else than RESULT_OK.
+
+    A :class:`~r2d2_sim.errors.RefusedError` (``code``, ``message``) that
+    also names the ``service``: ``str()`` is ``CODE: service: message``.
+    """
 
     def __init__(self, service: str, code: str, message: str) -> None:
-        super().__init__(f'{service}: {code}: {message}')
-        self.service, self.code, self.message = service, code, message
+        super().__init__(code, f'{service}: {message}')
+        self.service = service
+        self.message = message
 
 
 def _code_name(response, value: int) -> str:

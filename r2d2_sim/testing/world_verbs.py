@@ -4,17 +4,19 @@ Changing the world from a test: spawn, place, read, delete, reset with a scope, 
 Both harnesses have these verbs: :class:`~r2d2_sim.testing.harness.SimHarness`
 calls the simulation core in its own process (no interface package needed),
 :class:`~r2d2_sim.testing.sim_process.SimProcess` the standard's services
-(``simulation_interfaces``). A refusal is :class:`WorldError` in both, its
-``code`` the standard's result name (``NOT_FOUND``, ``NAME_NOT_UNIQUE``...).
+(``simulation_interfaces``). A refusal is a :class:`~r2d2_sim.errors.RefusedError`
+in both (a :class:`~r2d2_sim.testing.standard.StandardError` through the
+services), its ``code`` the standard's result name (``NOT_FOUND``,
+``NAME_NOT_UNIQUE``...).
 """
 
 import math
 from typing import List, Optional, Sequence
 
-from r2d2_sim.sim.entities import EntityError, EntityState
+from r2d2_sim.model.transforms import BaseState
+from r2d2_sim.sim.entities import SpawnRequest
 
-__all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'EntityState', 'WorldError',
-           'world_error']
+__all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld']
 
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
@@ -31,31 +33,34 @@ def _resource(urdf: str) -> tuple:
 
 
 class CoreWorld:
-    """The verbs on a SimNode in this process: the core's entities, under the node's lock."""
+    """The verbs on a SimNode in this process: its core's operations, under the node's lock."""
 
     def __init__(self, node) -> None:
         self._node = node
 
     def spawn(self, uri, resource_string, name, position, orientation, allow_renaming,
               namespace='') -> str:
-        return self._node.spawn_entity(name, allow_renaming, uri, resource_string, namespace,
-                                       '', position, orientation)
-
-    def entity_state(self, name: str) -> EntityState:
         with self._node.lock:
-            return self._node.simulation.entities.state(name)
+            return self._node.simulation.spawn(SpawnRequest(
+                name, allow_renaming, uri, resource_string, namespace, '', position,
+                orientation))
+
+    def entity_state(self, name: str) -> BaseState:
+        with self._node.lock:
+            return self._node.simulation.entity_state(name)
 
     def set_entity_state(self, name, position, orientation, linear, angular) -> None:
         with self._node.lock:
-            self._node.simulation.entities.set_state(name, '', position, orientation, linear,
-                                                     angular)
+            self._node.simulation.set_entity_state(name, '', position, orientation, linear,
+                                                   angular)
 
     def delete(self, name: str) -> None:
-        self._node.delete_entity(name)
+        with self._node.lock:
+            self._node.simulation.delete_entity(name)
 
     def entities(self) -> List[str]:
         with self._node.lock:
-            return self._node.simulation.entities.names()
+            return self._node.simulation.entity_names()
 
     def reset(self, time: bool, state: bool, spawned: bool) -> None:
         self._node.reset_simulation(time=time, state=state, spawned=spawned)
@@ -72,11 +77,11 @@ class StandardWorld:
         return self._client.spawn(uri, resource_string, name, position, orientation,
                                   allow_renaming, namespace)
 
-    def entity_state(self, name: str) -> EntityState:
+    def entity_state(self, name: str) -> BaseState:
         msg = self._client.entity_state(name)
         p, q, v, w = msg.pose.position, msg.pose.orientation, msg.twist.linear, msg.twist.angular
-        return EntityState((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), (v.x, v.y, v.z),
-                           (w.x, w.y, w.z))
+        return BaseState((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), (v.x, v.y, v.z),
+                         (w.x, w.y, w.z))
 
     def set_entity_state(self, name, position, orientation, linear, angular) -> None:
         self._client.set_entity_state(name, position, orientation, linear, angular)
@@ -90,19 +95,6 @@ class StandardWorld:
     def reset(self, time: bool, state: bool, spawned: bool) -> None:
         scope = (1 if time else 0) | (2 if state else 0) | (4 if spawned else 0)
         self._client.reset(scope or 255)
-
-
-class WorldError(RuntimeError):
-    """A world verb was refused; ``code`` is the standard's result name (``NOT_FOUND``...)."""
-
-    def __init__(self, code: str, message: str) -> None:
-        super().__init__(f'{code}: {message}')
-        self.code = code
-
-
-def world_error(exc) -> WorldError:
-    """Return the WorldError for a StandardError: ``CODE: service: message``."""
-    return WorldError(exc.code, f'{exc.service}: {exc.message}')
 
 
 class WorldVerbs:
@@ -123,15 +115,6 @@ class WorldVerbs:
     def _after_delete(self, name: str) -> None:
         """Forget a deleted robot (a harness hook)."""
 
-    def _do(self, verb: str, *args):
-        from r2d2_sim.testing.standard import StandardError
-        try:
-            return getattr(self._world_backend(), verb)(*args)
-        except EntityError as exc:
-            raise WorldError(exc.code, str(exc)) from None
-        except StandardError as exc:
-            raise world_error(exc) from None
-
     def spawn(self, urdf: str, *, name: str = '', position: Sequence[float] = (0.0, 0.0, 0.0),
               yaw: float = 0.0, orientation: Optional[Sequence[float]] = None,
               allow_renaming: Optional[bool] = None, namespace: str = '') -> str:
@@ -150,35 +133,37 @@ class WorldVerbs:
         """
         uri, text = _resource(urdf)
         renaming = not name if allow_renaming is None else allow_renaming
-        spawned = self._do('spawn', uri, text, name, tuple(position),
-                           _orientation(yaw, orientation), renaming, namespace)
+        spawned = self._world_backend().spawn(uri, text, name, tuple(position),
+                                              _orientation(yaw, orientation), renaming,
+                                              namespace)
         self._after_spawn(spawned, namespace)
         return spawned
 
     def entities(self) -> List[str]:
         """Return every entity's name: the robot, the ground plane, models, spawned ones."""
-        return self._do('entities')
+        return self._world_backend().entities()
 
-    def entity_state(self, name: str) -> EntityState:
+    def entity_state(self, name: str) -> BaseState:
         """Return an entity's pose (of its base link) and twist, both in the world frame."""
-        return self._do('entity_state', name)
+        return self._world_backend().entity_state(name)
 
     def set_entity_state(self, name: str, position: Sequence[float], *, yaw: float = 0.0,
                          orientation: Optional[Sequence[float]] = None,
                          linear: Sequence[float] = (0.0, 0.0, 0.0),
                          angular: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         """Place an entity; its twist (world frame) is set too, so a pose alone stops it."""
-        self._do('set_entity_state', name, tuple(position), _orientation(yaw, orientation),
-                 tuple(linear), tuple(angular))
+        self._world_backend().set_entity_state(name, tuple(position),
+                                               _orientation(yaw, orientation), tuple(linear),
+                                               tuple(angular))
 
     def delete_entity(self, name: str) -> None:
         """Delete a spawned entity (a robot with all its interfaces)."""
-        self._do('delete', name)
+        self._world_backend().delete(name)
         self._after_delete(name)
 
     def reset_world(self, *, time: bool = True, state: bool = True,
                     spawned: bool = True) -> None:
         """Reset with the standard's scopes (all by default: time back to 0, as at start-up)."""
         self._before_reset()
-        self._do('reset', time, state, spawned)
+        self._world_backend().reset(time, state, spawned)
         self._after_reset()

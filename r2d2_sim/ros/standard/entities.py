@@ -1,19 +1,24 @@
 """
 The simulation standard's entity services: list, read, place, describe, spawn, delete.
 
-They translate ``simulation_interfaces`` requests into the operations of
-:mod:`r2d2_sim.sim.entities` (the ROS-free core), under the simulator's lock,
+They translate ``simulation_interfaces`` requests into the core's entity
+operations (an :class:`~r2d2_sim.ros.seams.EntityWorld`: the
+:class:`~r2d2_sim.sim.simulation.Simulation`), under the simulator's lock,
 and every refusal into the standard's result code with a one-line message.
-:class:`~r2d2_sim.ros.standard.server.SimulationInterfaces` makes them beside its
-simulation control, on the same node.
+:class:`~r2d2_sim.ros.standard.server.SimulationInterfaces` makes them beside
+its simulation control, on the same node.
 """
 
 import re
+import threading
 
 from rclpy.node import Node
 
-from r2d2_sim.sim.entities import EntityError, spawnable_uris
+from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.timing import stamp_of
+from r2d2_sim.ros.seams import EntityWorld
+from r2d2_sim.sim.entities import SpawnRequest
+from r2d2_sim.sim.spawnables import spawnable_uris
 
 __all__ = ['EntityServices', 'Replies', 'SPAWNABLE_DIRECTORIES']
 
@@ -57,18 +62,23 @@ class Replies:
         response.result.error_message = message
         return response
 
-    def _fail_entity(self, response, error: EntityError, owner=None):
-        return self._fail(response, error.code, str(error), owner)
+    def _fail_entity(self, response, error: RefusedError, owner=None):
+        return self._fail(response, error.code, error.message, owner)
 
 
 class EntityServices(Replies):
-    """The standard's entity services on ``node``: list, read, place, describe, spawn, delete."""
+    """
+    The standard's entity services: list, read, place, describe, spawn, delete.
 
-    def __init__(self, node, server: Node, msg, srv) -> None:
-        """Serve on ``server`` the entities of ``node``'s simulation."""
-        self._node = node
+    Served on ``server`` for ``world``, each under ``lock`` (the simulator's).
+    """
+
+    def __init__(self, world: EntityWorld, lock: threading.RLock, server: Node, msg,
+                 srv) -> None:
+        self._world = world
+        self._lock = lock
         self._msg = msg
-        self._log = node.get_logger()
+        self._log = server.get_logger()
         services = (
             ('get_entities', srv.GetEntities, self._entities),
             ('get_entities_states', srv.GetEntitiesStates, self._entities_states),
@@ -85,50 +95,50 @@ class EntityServices(Replies):
 
     def _matching(self, filters):
         """Return the names the filters pick: regex (search), categories, tags, a sphere."""
-        entities = self._node.simulation.entities
+        world = self._world
         try:
             pattern = re.compile(filters.filter) if filters.filter else None
         except re.error as exc:
-            raise EntityError('OPERATION_FAILED', f'bad filter regex: {exc}') from None
-        names = [n for n in entities.names() if pattern is None or pattern.search(n)]
+            raise RefusedError('OPERATION_FAILED', f'bad filter regex: {exc}') from None
+        names = [n for n in world.entity_names() if pattern is None or pattern.search(n)]
         if filters.categories:
             wanted = {c.category for c in filters.categories}
-            names = [n for n in names if entities.category(entities.body(n)) in wanted]
+            names = [n for n in names if world.entity_category(n) in wanted]
         if filters.tags.tags:  # no entity has tags: ANY and ALL both match none
             names = []
         bounds = filters.bounds
         if bounds.type == bounds.TYPE_SPHERE and len(bounds.points) >= 2:
             centre = (bounds.points[0].x, bounds.points[0].y, bounds.points[0].z)
-            inside = set(entities.overlapping(centre, bounds.points[1].x))
+            inside = set(world.entities_overlapping(centre, bounds.points[1].x))
             names = [n for n in names if n in inside]
         elif bounds.type != bounds.TYPE_EMPTY:
-            raise EntityError('FEATURE_UNSUPPORTED', 'only sphere bounds filter entities here')
+            raise RefusedError('FEATURE_UNSUPPORTED', 'only sphere bounds filter entities here')
         return names
 
     def _entities(self, request, response):
         try:
-            with self._node.lock:
+            with self._lock:
                 response.entities = self._matching(request.filters)
-        except EntityError as exc:
+        except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)
 
     def _entities_states(self, request, response):
         try:
-            with self._node.lock:
+            with self._lock:
                 names = self._matching(request.filters)
                 response.states = [self._state_message(n) for n in names]
-        except EntityError as exc:
+        except RefusedError as exc:
             return self._fail_entity(response, exc)
         response.entities = names
         return self._ok(response)
 
     def _state_message(self, name: str):
-        simulation = self._node.simulation
-        state = simulation.entities.state(name)
+        world = self._world
+        state = world.entity_state(name)
         msg = self._msg.EntityState()
-        msg.header.frame_id = simulation.entities.world_frame_id
-        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp_of(simulation.time_ns)
+        msg.header.frame_id = world.world_frame_id
+        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp_of(world.time_ns)
         p, q = msg.pose.position, msg.pose.orientation
         p.x, p.y, p.z = state.position
         q.x, q.y, q.z, q.w = state.orientation
@@ -139,9 +149,9 @@ class EntityServices(Replies):
 
     def _entity_state(self, request, response):
         try:
-            with self._node.lock:
+            with self._lock:
                 response.state = self._state_message(request.entity)
-        except EntityError as exc:
+        except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)
 
@@ -150,38 +160,37 @@ class EntityServices(Replies):
         p, q = state.pose.position, state.pose.orientation
         v, w = state.twist.linear, state.twist.angular
         try:
-            with self._node.lock:
-                self._node.simulation.entities.set_state(
+            with self._lock:
+                self._world.set_entity_state(
                     request.entity, state.header.frame_id, (p.x, p.y, p.z),
                     (q.x, q.y, q.z, q.w), (v.x, v.y, v.z), (w.x, w.y, w.z))
-        except EntityError as exc:
+        except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)
 
     def _entity_info(self, request, response):
-        entities = self._node.simulation.entities
         try:
-            with self._node.lock:
-                body = entities.body(request.entity)
-                response.info.category.category = entities.category(body)
-                response.info.description = body.source
-        except EntityError as exc:
+            with self._lock:
+                response.info.category.category = self._world.entity_category(request.entity)
+                response.info.description = self._world.entity_source(request.entity)
+        except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)
 
     def _spawn_one(self, name, allow_renaming, uri, resource_string, namespace, pose):
-        """Spawn through the node (a driven robot with a namespace); return the entity name."""
+        """Spawn in the core (a driven robot with a namespace); return the entity name."""
         p, q = pose.pose.position, pose.pose.orientation
-        return self._node.spawn_entity(name, allow_renaming, uri, resource_string, namespace,
-                                       pose.header.frame_id, (p.x, p.y, p.z),
-                                       (q.x, q.y, q.z, q.w))
+        with self._lock:
+            return self._world.spawn(SpawnRequest(
+                name, allow_renaming, uri, resource_string, namespace, pose.header.frame_id,
+                (p.x, p.y, p.z), (q.x, q.y, q.z, q.w)))
 
     def _spawn(self, request, response):
         try:
             response.entity_name = self._spawn_one(
                 request.name, request.allow_renaming, request.uri, request.resource_string,
                 request.entity_namespace, request.initial_pose)
-        except EntityError as exc:
+        except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)
 
@@ -195,9 +204,9 @@ class EntityServices(Replies):
                     spawn.entity_resource.resource_string, spawn.entity_namespace,
                     spawn.initial_pose)
                 self._ok(result)
-            except EntityError as exc:
+            except RefusedError as exc:
                 failed = True
-                self._fail(result, exc.code, str(exc), self._msg.SpawnResult)
+                self._fail(result, exc.code, exc.message, self._msg.SpawnResult)
             response.results.append(result)
         if failed:
             return self._fail(response, 'ENTITIES_SPAWN_FAILED', 'at least one entity was '
@@ -206,8 +215,9 @@ class EntityServices(Replies):
 
     def _delete(self, request, response):
         try:
-            self._node.delete_entity(request.entity)
-        except EntityError as exc:
+            with self._lock:
+                self._world.delete_entity(request.entity)
+        except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)
 

@@ -32,8 +32,9 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
-from r2d2_sim.ros.standard.entities import EntityServices, Replies
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
+from r2d2_sim.ros.seams import EntityWorld, SimulatorControl
+from r2d2_sim.ros.standard.entities import EntityServices, Replies
 
 __all__ = ['SimulationInterfaces', 'EntityServices', 'StandardNode', 'available', 'STEP_CHUNK']
 
@@ -79,21 +80,25 @@ class StandardNode(QuietNode):
 
 class SimulationInterfaces(Replies):
     """
-    The standard for ``node`` (a SimNode), served by ``self.node``; entities in EntityServices.
+    The standard for a simulator: its control (``simulator``), its entities (``world``).
 
+    The services live on a node of their own beside ``simulator_node`` (the
+    simulator's: ``self.node``, in its context and namespace); the entity
+    services are :class:`~r2d2_sim.ros.standard.entities.EntityServices`.
     ``close()`` (or destroying ``self.node``) takes the services down.
     """
 
-    def __init__(self, node, on_quit: Optional[Callable[[], None]] = None) -> None:
+    def __init__(self, simulator: SimulatorControl, world: EntityWorld, simulator_node: Node,
+                 on_quit: Optional[Callable[[], None]] = None) -> None:
         from simulation_interfaces import action, msg, srv
-        self._node = node
+        self._simulator = simulator
         self._msg = msg
-        self._log = node.get_logger()
+        self._log = simulator_node.get_logger()
         self._on_quit = on_quit
         self._stepping = threading.Lock()  # one step request at a time
         self._closing = threading.Event()
         self._steps_action = action.SimulateSteps
-        self.node = server = StandardNode(node)
+        self.node = server = StandardNode(simulator_node)
         group = ReentrantCallbackGroup()  # the long ones, beside everything else
         services = (
             ('get_simulator_features', srv.GetSimulatorFeatures, self._features, None),
@@ -108,7 +113,7 @@ class SimulationInterfaces(Replies):
         server.action_server = ActionServer(
             server, action.SimulateSteps, 'simulate_steps', self._simulate_steps,
             goal_callback=self._accept, cancel_callback=self._allow_cancel, callback_group=group)
-        self.entities = EntityServices(node, server, msg, srv)
+        self.entities = EntityServices(world, simulator.lock, server, msg, srv)
 
     def stop(self, timeout_s: float = 2.0) -> None:
         """Refuse new steps and wait (up to ``timeout_s``) for a running one to end its chunk."""
@@ -133,7 +138,7 @@ class SimulationInterfaces(Replies):
             'SIMULATION_STATE_PAUSE', 'STEP_SIMULATION_SINGLE', 'STEP_SIMULATION_MULTIPLE',
             'STEP_SIMULATION_ACTION', 'SPAWNING_ENTITIES')]
         response.features.spawn_formats = ['urdf']
-        config = self._node.config
+        config = self._simulator.config
         response.features.custom_info = json.dumps({
             'simulator': 'r2d2_sim', 'physics_rate_hz': config.physics_rate_hz,
             'step_s': 1.0 / config.physics_rate_hz, 'world_frame': config.world_frame_id,
@@ -143,21 +148,20 @@ class SimulationInterfaces(Replies):
     def state(self) -> int:
         """Return the standard's state: PLAYING, or STOPPED (time 0, initial world), or PAUSED."""
         state = self._msg.SimulationState
-        node = self._node
+        node = self._simulator
         if not node.paused:
             return state.STATE_PLAYING
-        simulation = node.simulation
-        if simulation.step_count == 0 and simulation.pristine:
+        if node.step_count == 0 and node.pristine:
             return state.STATE_STOPPED
         return state.STATE_PAUSED
 
     def _get_state(self, request, response):
-        with self._node.lock:
+        with self._simulator.lock:
             response.state.state = self.state()
         return self._ok(response)
 
     def _set_state(self, request, response):
-        state, node = self._msg.SimulationState, self._node
+        state, node = self._msg.SimulationState, self._simulator
         wanted = request.state.state
         with node.lock:
             now = self.state()
@@ -198,7 +202,7 @@ class SimulationInterfaces(Replies):
         each chunk returns False to stop early (a cancel). A node shutting
         down stops it at the next chunk.
         """
-        node = self._node
+        node = self._simulator
         if not self._stepping.acquire(blocking=False):
             return 'another step request is running', 0
         done = 0
@@ -211,7 +215,7 @@ class SimulationInterfaces(Replies):
                         return ('the simulation is playing: pause it first' if done == 0 else
                                 f'the simulation was played after {done} steps'), done
                     count = min(chunk, steps - done)
-                    node.step_paused(count)
+                    node.advance(count)
                 done += count
                 # PyBullet keeps the GIL while it steps: hand it over between
                 # chunks, or the other threads (the main loop seeing a SIGINT,
@@ -252,8 +256,8 @@ class SimulationInterfaces(Replies):
         scope, reset = request.scope, type(request)
         if scope in (reset.SCOPE_DEFAULT, reset.SCOPE_ALL):
             scope = reset.SCOPE_TIME | reset.SCOPE_STATE | reset.SCOPE_SPAWNED
-        with self._node.lock:
-            self._node.reset_simulation(time=bool(scope & reset.SCOPE_TIME),
-                                        state=bool(scope & reset.SCOPE_STATE),
-                                        spawned=bool(scope & reset.SCOPE_SPAWNED))
+        with self._simulator.lock:
+            self._simulator.reset_simulation(time=bool(scope & reset.SCOPE_TIME),
+                                             state=bool(scope & reset.SCOPE_STATE),
+                                             spawned=bool(scope & reset.SCOPE_SPAWNED))
         return self._ok(response)

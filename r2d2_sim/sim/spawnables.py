@@ -1,0 +1,137 @@
+"""
+What a spawn request may load, read safely: a URDF from a file, a package or text.
+
+No ROS here. Spawn requests come from anyone on the ROS domain, so what one
+may cost is bounded: the description's size, its links, no XML entities or
+DOCTYPE (the billion-laughs bomb), and meshes only from the description's own
+directory, a ROS package or pybullet_data. Every refusal is a
+:class:`~r2d2_sim.errors.RefusedError` with the standard's result code and a
+one-line message that names neither a file's content nor more than the
+offending path.
+"""
+
+import os
+from typing import List, Optional, Tuple
+import xml.etree.ElementTree as ElementTree
+
+import pybullet_data
+
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.physics.description import (
+    DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
+    resolve_description_path)
+
+__all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'MAX_DESCRIPTION_BYTES',
+           'MAX_LINKS']
+
+# What one spawn request may cost (a URDF of R2D2 is 14 kB and 16 links).
+MAX_DESCRIPTION_BYTES = 1_000_000
+MAX_LINKS = 200
+
+
+def check_description(text: str, base_dir: Optional[str]) -> str:
+    """
+    Return the URDF's robot name if ``text`` is one a domain peer may have us load.
+
+    ``base_dir`` is the description file's directory (None for text sent in
+    a request). RefusedError otherwise: RESOURCE_PARSE_ERROR, UNSUPPORTED_FORMAT,
+    MISSING_ASSETS or UNSUPPORTED_ASSETS, naming neither a file's content nor
+    more than the offending path.
+    """
+    if len(text.encode('utf-8', errors='replace')) > MAX_DESCRIPTION_BYTES:
+        raise RefusedError('RESOURCE_PARSE_ERROR', f'the description is larger than '
+                           f'{MAX_DESCRIPTION_BYTES} bytes')
+    if '<!DOCTYPE' in text or '<!ENTITY' in text:
+        raise RefusedError('RESOURCE_PARSE_ERROR', 'the description declares a DOCTYPE or '
+                           'entities, which a URDF does not need')
+    try:
+        root = ElementTree.fromstring(text)
+    except ElementTree.ParseError as exc:
+        raise RefusedError('RESOURCE_PARSE_ERROR', f'not well-formed XML ({exc})') from None
+    if root.tag != 'robot':
+        raise RefusedError('UNSUPPORTED_FORMAT', f'the root element is <{root.tag[:40]}>, '
+                           'not a URDF <robot>')
+    links = root.findall('link')
+    if not links:
+        raise RefusedError('RESOURCE_PARSE_ERROR', 'the URDF has no <link>')
+    if len(links) > MAX_LINKS:
+        raise RefusedError('RESOURCE_PARSE_ERROR', f'the URDF has {len(links)} links, more '
+                           f'than {MAX_LINKS}')
+    for mesh in root.iter('mesh'):
+        _check_mesh(mesh.get('filename', ''), base_dir)
+    return root.get('name', '')
+
+
+def _check_mesh(filename: str, base_dir: Optional[str]) -> None:
+    """Allow a mesh from the description's directory, a ROS package or pybullet_data."""
+    shown = filename[:200]
+    if filename.startswith(PACKAGE_SCHEME):
+        package, _, relative = filename[len(PACKAGE_SCHEME):].partition('/')
+        try:
+            root = package_share_directory(package)
+        except DescriptionError:
+            raise RefusedError('MISSING_ASSETS', f'mesh {shown}: no package {package!r}') from None
+        path = os.path.join(root, relative)
+    elif filename.startswith('file://') or os.path.isabs(filename) or base_dir is None:
+        raise RefusedError('UNSUPPORTED_ASSETS', f'mesh {shown}: meshes must be relative to the '
+                           'URDF file or package:// URIs')
+    else:
+        root = base_dir
+        path = os.path.join(base_dir, filename)
+    real = os.path.realpath(path)
+    roots = (os.path.realpath(root), os.path.realpath(pybullet_data.getDataPath()))
+    if not any(real == r or real.startswith(r + os.sep) for r in roots):
+        raise RefusedError('UNSUPPORTED_ASSETS', f'mesh {shown} lies outside the URDF\'s '
+                           'directory and package')
+    if not os.path.isfile(real):
+        raise RefusedError('MISSING_ASSETS', f'mesh {shown} does not exist')
+
+
+def read_spawnable(uri: str, resource_string: str
+                   ) -> Tuple[str, Optional[DescriptionFile], str, str]:
+    """
+    Return (URDF path to load, a temporary file to close or None, robot name, text).
+
+    ``uri`` wins over ``resource_string`` (the standard's rule): a file path,
+    ``file://``, ``package://`` or a pybullet_data name, resolved as the
+    ``urdf`` parameter is. RefusedError NO_RESOURCE, UNSUPPORTED_FORMAT...
+    """
+    if uri:
+        path = uri[len('file://'):] if uri.startswith('file://') else uri
+        try:
+            path = resolve_description_path(path)
+        except DescriptionError as exc:
+            raise RefusedError('NO_RESOURCE', str(exc)) from None
+        if not path.lower().endswith('.urdf'):
+            raise RefusedError('UNSUPPORTED_FORMAT', f'{uri[:200]}: only .urdf files can be '
+                               'spawned')
+        if os.path.getsize(path) > MAX_DESCRIPTION_BYTES:
+            raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} is larger than '
+                               f'{MAX_DESCRIPTION_BYTES} bytes')
+        try:
+            with open(path, encoding='utf-8') as handle:
+                text = handle.read()
+        except (OSError, UnicodeDecodeError):
+            raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} cannot be read as '
+                               'text') from None
+        return path, None, check_description(text, os.path.dirname(path)), text
+    if not resource_string:
+        raise RefusedError('NO_RESOURCE', 'neither a uri nor a resource_string was given')
+    name = check_description(resource_string, None)
+    description = DescriptionFile(resource_string)
+    return description.path, description, name, resource_string
+
+
+def spawnable_uris() -> List[str]:
+    """Return the URDFs GetSpawnables offers: this package's and pybullet_data's own."""
+    uris = []
+    try:
+        share = package_share_directory('r2d2_sim')
+        uris += [f'{PACKAGE_SCHEME}r2d2_sim/urdf/{name}'
+                 for name in sorted(os.listdir(os.path.join(share, 'urdf')))
+                 if name.endswith('.urdf')]
+    except (DescriptionError, OSError):
+        pass
+    data = pybullet_data.getDataPath()
+    uris += sorted(name for name in os.listdir(data) if name.endswith('.urdf'))
+    return uris
