@@ -163,7 +163,7 @@ def choice(choices: Sequence[Any]) -> Callable[[str, Any], Any]:
             raise ConfigError(f'parameter {name} must be one of '
                               f'{", ".join(str(c) for c in choices)}; got {value!r}{hint}')
         return value
-    read.choices = tuple(choices)  # for parameter_help()
+    read.choices = tuple(choices)  # for --help and docs/parameters.md (parameter_docs)
     return read
 
 

@@ -5,15 +5,13 @@ No ROS here. Everything else is derived from :data:`PARAMETERS`: the
 :class:`SimConfig` fields, the validation in :func:`parse_config` (one readable
 :class:`ConfigError` line per bad value, so a bad parameter is a clear start-up
 error rather than a traceback; frame ids that would break the TF tree
-included), the node's typed ROS declarations and ``sim_node --help``
-(:func:`parameter_help`). Several robots' settings come from it in
-:mod:`r2d2_sim.sim.robot_parameters`.
+included), the node's typed ROS declarations, and ``sim_node --help`` and
+``docs/parameters.md`` (:mod:`r2d2_sim.sim.parameter_docs`). Several robots'
+settings come from it in :mod:`r2d2_sim.sim.robot_parameters`.
 """
 
 from dataclasses import make_dataclass
-import json
 import math
-import textwrap
 from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple
 
 from r2d2_sim.sim import parameter_readers as read
@@ -90,7 +88,8 @@ PARAMETERS: List[Parameter] = [
               'URDF XML text (as robot_state_publisher takes it); overrides urdf.',
               'robot_description', read.string, per_robot=True),
     Parameter('base_forward_axis', 'string', 'x',
-              'Axis of the URDF base frame the robot drives along: x, y, -x or -y.',
+              'Axis of the URDF base frame the robot drives along: x, y, -x or -y (quote it '
+              'in YAML files, which read a bare y as true).',
               'base_forward_axis', read.choice(list(FORWARD_AXIS_YAW_RAD)), per_robot=True),
     Parameter('wheel_velocity_sign', 'integer', 1,
               '1, or -1 when a negative wheel velocity drives the robot forward.',
@@ -100,9 +99,12 @@ PARAMETERS: List[Parameter] = [
     Parameter('ground_plane', 'bool', True, 'Load pybullet_data\'s plane.urdf as the ground.',
               'ground_plane', read.boolean),
     Parameter('extra_models', 'string_array', [],
-              'Other bodies, each "description x y z" (description resolved like urdf).',
+              'Other bodies, each "description x y z" (description resolved like urdf), '
+              'e.g. the tutorial\'s cube: ["cube.urdf 0 0 1"]. They collide with the robot.',
               'extra_models', read.extra_models),
-    Parameter('gui', 'bool', False, 'Open the PyBullet window (needs a display).',
+    Parameter('gui', 'bool', False,
+              'Open the PyBullet window (needs a display); same paced rate, the camera '
+              'follows the robot.',
               'gui', read.boolean),
     Parameter('physics_rate', 'double', 240.0, 'Physics steps per simulated second (Hz).',
               'physics_rate_hz', read.positive, Bounds(10.0, 10000.0, 'Hz')),
@@ -110,7 +112,9 @@ PARAMETERS: List[Parameter] = [
               'Simulated seconds per wall-clock second; 0 runs as fast as possible.',
               'real_time_factor', read.non_negative, Bounds(0.0, 1000.0)),
     Parameter('publish_rate', 'double', 0.0,
-              'State publishing rate in simulated Hz; 0 publishes after every physics step.',
+              'State publishing rate in simulated Hz; 0 publishes after every physics step. '
+              'A rate that does not divide physics_rate (50 Hz at 240 Hz) publishes at the '
+              'first step after each period.',
               'publish_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'every step')),
     Parameter('cmd_vel_timeout', 'double', 0.5,
               'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
@@ -119,13 +123,16 @@ PARAMETERS: List[Parameter] = [
               'Start with physics stopped, waiting for ~/pause false or ~/step.',
               'start_paused', read.boolean),
     Parameter('wheel_radius', 'double', 0.0,
-              'Wheel radius in metres; 0 derives it from the wheels\' collision shapes.',
+              'Wheel radius in metres; 0 derives it from the wheels\' collision cylinders '
+              '(0.035 m on R2D2).',
               'wheel_radius_m', read.non_negative, WHEEL_RADIUS, per_robot=True),
     Parameter('wheel_separation', 'double', 0.0,
-              'Distance between left and right wheels in metres; 0 derives it from the URDF.',
+              'Distance between left and right wheels in metres; 0 derives it from the URDF '
+              '(0.44 m between R2D2\'s left and right wheel centres).',
               'wheel_separation_m', read.non_negative, WHEEL_SEPARATION, per_robot=True),
     Parameter('wheel_separation_multiplier', 'double', DEFAULT_WHEEL_SEPARATION_MULTIPLIER,
-              'Effective/nominal track ratio used by commands and odometry (skid steering).',
+              'Effective/nominal track ratio used by commands and odometry (skid steering; '
+              'the default is calibrated on R2D2).',
               'wheel_separation_multiplier', read.positive, Bounds(0.1, 10.0), per_robot=True),
     Parameter('wheel_lateral_friction_ratio', 'double', 0.35,
               'Wheel grip along the axle relative to rolling grip, in (0, 1].',
@@ -139,21 +146,25 @@ PARAMETERS: List[Parameter] = [
               'Joints driven as the right side.', 'right_wheel_names', read.joint_names,
               per_robot=True),
     Parameter('max_wheel_velocity', 'double', 0.0,
-              'Wheel speed limit in rad/s; 0 takes the URDF joint velocity limit.',
+              'Wheel speed limit in rad/s; 0 takes the URDF joint velocity limit (50 rad/s on '
+              'R2D2). Commands beyond it are scaled down keeping their curvature.',
               'max_wheel_velocity_rad_s', read.non_negative, WHEEL_VELOCITY, per_robot=True),
     Parameter('max_wheel_force', 'double', 0.0,
-              'Wheel motor torque limit in N m; 0 takes the URDF joint effort limit.',
+              'Wheel motor torque limit in N m; 0 takes the URDF joint effort limit (20 N m '
+              'on R2D2). Values taken from the URDF are held to the same range.',
               'max_wheel_force_n_m', read.non_negative, WHEEL_FORCE, per_robot=True),
     Parameter('max_linear_velocity', 'double', 0.0,
               'Forward speed limit in m/s; 0 leaves only the wheel speed limit.',
               'max_linear_velocity_m_s', read.limit, Bounds(0.001, 50.0, 'm/s', 'no limit'),
               per_robot=True),
     Parameter('max_angular_velocity', 'double', DEFAULT_MAX_ANGULAR_VELOCITY_RAD_S,
-              'Turn rate limit in rad/s; 0 leaves only the wheel speed limit.',
+              'Turn rate limit in rad/s; 0 leaves only the wheel speed limit. Spinning faster '
+              'than about 4 rad/s throws R2D2 over.',
               'max_angular_velocity_rad_s', read.limit, Bounds(0.001, 50.0, 'rad/s', 'no limit'),
               per_robot=True),
     Parameter('max_linear_acceleration', 'double', DEFAULT_MAX_LINEAR_ACCELERATION_M_S2,
-              'Forward acceleration and braking limit in m/s^2; 0 means none.',
+              'Forward acceleration and braking limit in m/s^2; 0 means none. A step to full '
+              'speed at 3 m/s^2 or more tips R2D2 over.',
               'max_linear_acceleration_m_s2', read.limit,
               Bounds(0.001, 1000.0, 'm/s^2', 'no limit'), per_robot=True),
     Parameter('max_angular_acceleration', 'double', DEFAULT_MAX_ANGULAR_ACCELERATION_RAD_S2,
@@ -185,7 +196,8 @@ PARAMETERS: List[Parameter] = [
               'camera_width_px', read.integer, Bounds(1, 4096, 'px'), per_robot=True),
     Parameter('camera_height', 'integer', 240, 'Head camera image height in pixels.',
               'camera_height_px', read.integer, Bounds(1, 4096, 'px'), per_robot=True),
-    Parameter('camera_fov', 'double', 60.0, 'Head camera vertical field of view in degrees.',
+    Parameter('camera_fov', 'double', 60.0,
+              'Head camera vertical field of view in degrees, below 180.',
               'camera_fov_deg', read.field_of_view, per_robot=True),
     Parameter('camera_depth', 'bool', False,
               'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
@@ -224,28 +236,33 @@ PARAMETERS: List[Parameter] = [
     Parameter('scan_range_max', 'double', 12.0, 'Farthest range in m; no return reads +inf.',
               'scan_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm'), per_robot=True),
     Parameter('scan_noise_std', 'double', 0.0,
-              'Gaussian range noise standard deviation in m; 0 = exact.',
+              'Gaussian range noise standard deviation in m, clipped into the range so that '
+              'noise never fakes a miss; 0 = exact.',
               'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm'), per_robot=True),
     Parameter('imu_rate', 'double', 100.0,
               'IMU messages per simulated second (Hz) on imu; 0 turns the IMU off.',
               'imu_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
               per_robot=True),
     Parameter('imu_orientation_noise_std', 'double', 0.0,
-              'IMU orientation noise standard deviation in rad; 0 = exact.',
+              'IMU orientation noise standard deviation in rad (its covariance is the '
+              'square); 0 = exact.',
               'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad'),
               per_robot=True),
     Parameter('imu_angular_velocity_noise_std', 'double', 0.0,
-              'IMU angular velocity noise standard deviation in rad/s; 0 = exact.',
+              'IMU angular velocity noise standard deviation in rad/s (its covariance is the '
+              'square); 0 = exact.',
               'imu_angular_velocity_noise_std_rad_s', read.non_negative,
               Bounds(0.0, 10.0, 'rad/s'), per_robot=True),
     Parameter('imu_linear_acceleration_noise_std', 'double', 0.0,
-              'IMU acceleration noise standard deviation in m/s^2; 0 = exact.',
+              'IMU acceleration noise standard deviation in m/s^2 (its covariance is the '
+              'square); 0 = exact.',
               'imu_linear_acceleration_noise_std_m_s2', read.non_negative,
               Bounds(0.0, 100.0, 'm/s^2'), per_robot=True),
     Parameter('noise_seed', 'integer', 0, 'Seed of the scan and IMU noise (runs repeat).',
               'noise_seed', read.integer, Bounds(0, 2**31 - 1), per_robot=True),
     Parameter('enable_stamped_cmd_vel', 'bool', False,
-              'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name).',
+              'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name); a '
+              'zero stamp means now, one older than cmd_vel_timeout is refused with a warning.',
               'enable_stamped_cmd_vel', read.boolean, per_robot=True),
     Parameter('foxglove_port', 'integer', 0,
               'Serve a Foxglove live view of every output on this port (ws://); 0 = off.',
@@ -254,7 +271,8 @@ PARAMETERS: List[Parameter] = [
               'Address the live view binds (0.0.0.0 shows it to the whole network).',
               'foxglove_host', read.string),
     Parameter('record', 'string', '',
-              'Record every output into this MCAP file (ros2 bag play, Foxglove); empty = off.',
+              'Record every output into this MCAP file (ros2 bag play, Foxglove); refused if '
+              'the file exists; empty = off.',
               'record', read.string),
     Parameter('robots', 'string_array', [],
               'Names of several robots in one world, each in its own namespace (its name '
@@ -398,37 +416,3 @@ def _check_frames(fields: Mapping[str, Any]) -> None:
         if frame == local:
             raise ConfigError(f'parameter world_frame_id names {what} {world!r} '
                               f'({switch}){distinct}')
-
-
-def _help_number(spec: Parameter, value: float) -> str:
-    return str(int(value)) if spec.ros_type.startswith('integer') else f'{value:g}'
-
-
-def parameter_help(width: int = 79) -> str:
-    """
-    Return every parameter as ``--help`` lists it: name, type, default, range, description.
-
-    Defaults are written as JSON, which ROS reads as YAML, so each can be
-    typed after ``-p name:=`` as shown. "per robot" marks what each robot
-    listed in ``robots`` may set for itself (``-p NAME.parameter:=``).
-    """
-    lines = []
-    for spec in PARAMETERS:
-        facts = [spec.ros_type, f'default {json.dumps(spec.default)}']
-        choices = getattr(spec.read, 'choices', None)
-        if choices is not None:
-            facts.append('one of ' + ', '.join(str(c) for c in choices))
-        bounds = spec.bounds
-        if bounds is not None:
-            unit = f' {bounds.unit}' if bounds.unit else ''
-            zero = f' or 0 ({bounds.zero})' if bounds.zero else ''
-            facts.append(f'range [{_help_number(spec, bounds.low)}, '
-                         f'{_help_number(spec, bounds.high)}]{unit}{zero}')
-        if spec.per_robot:
-            facts.append('per robot')
-        lines += textwrap.wrap(f'{spec.name}: {"; ".join(facts)}', width, initial_indent='  ',
-                               subsequent_indent=' ' * 6, break_long_words=False,
-                               break_on_hyphens=False)
-        lines += textwrap.wrap(spec.description, width, initial_indent=' ' * 6,
-                               subsequent_indent=' ' * 6, break_on_hyphens=False)
-    return '\n'.join(lines) + '\n'

@@ -97,7 +97,7 @@ class StandardClient:
                               self.srv.GetSimulatorFeatures.Request()).features.features)
 
     def state(self) -> int:
-        """Return the simulation state, one of SimulationState's STATE_ constants."""
+        """Return the simulation state, one of SimulationState's ``STATE_*`` constants."""
         return self.call('get_simulation_state',
                          self.srv.GetSimulationState.Request()).state.state
 
