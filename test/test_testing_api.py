@@ -1,17 +1,15 @@
 """
-The public testing API (r2d2_sim.testing, r2d2_sim.pytest_plugin) and the README's examples.
+The public testing API (r2d2_sim.testing, r2d2_sim.pytest_plugin) and its example files.
 
-The README's testing section and test/examples/ must not drift apart: every
-``python`` block of the section that is a test file (it names the plugin) is
-byte for byte one of the example files, in order, and the other blocks run
-here. The examples run in a subprocess under ``pytest -n 2``, as a user's own
-test files would, next to a test that proves two workers never share a domain.
+The examples of docs/testing.md are test/examples/ (test/lint/test_docs.py checks
+them byte for byte). They run here in a subprocess under ``pytest -n 2``, as a
+user's own test files would, next to a test that proves two workers never share
+a domain.
 """
 
 import importlib.util
 import os
 from pathlib import Path
-import re
 import subprocess
 import sys
 import textwrap
@@ -30,30 +28,9 @@ from r2d2_sim.testing import (
     CallbackError, DomainUnavailable, HarnessError, lease_domain, SimHarness, SimProcess)
 
 EXAMPLES = Path(REPO) / 'test' / 'examples'
-# In README order.
+# In the order docs/testing.md shows them.
 EXAMPLE_FILES = ['test_drive_forward.py', 'test_closed_loop.py', 'test_sim_process.py',
                  'test_change_the_world.py', 'test_two_robots.py']
-README_HEADING = '## Testing your own code against it'
-SECTION_DRAFT = Path(REPO) / 'docs' / 'testing_section.md'
-
-
-def _python_blocks(text):
-    return re.findall(r'^```python\n(.*?)^```$', text, re.S | re.M)
-
-
-def _testing_sections():
-    """Return {where: text} of the README section and its draft in docs/, where they exist."""
-    sections = {}
-    readme = (Path(REPO) / 'README.md').read_text(encoding='utf-8')
-    lines = readme.splitlines(keepends=True)
-    if README_HEADING + '\n' in lines:
-        start = lines.index(README_HEADING + '\n')
-        end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith('## ')),
-                   len(lines))
-        sections['README.md'] = ''.join(lines[start:end])
-    if SECTION_DRAFT.exists():
-        sections['docs/testing_section.md'] = SECTION_DRAFT.read_text(encoding='utf-8')
-    return sections
 
 
 def _load_example(name):
@@ -61,31 +38,6 @@ def _load_example(name):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
-
-
-# -- the README and the examples ----------------------------------------------------
-
-
-def test_readme_test_files_are_the_example_files():
-    """Each test-file block of the testing section is one example file, byte for byte."""
-    sections = _testing_sections()
-    assert sections, f'no "{README_HEADING}" section in README.md and no {SECTION_DRAFT}'
-    assert sorted(p.name for p in EXAMPLES.glob('test_*.py')) == sorted(EXAMPLE_FILES)
-    examples = [(EXAMPLES / name).read_text(encoding='utf-8') for name in EXAMPLE_FILES]
-    for where, text in sections.items():
-        blocks = [b for b in _python_blocks(text) if 'r2d2_sim.pytest_plugin' in b]
-        assert blocks == examples, f'{where} and test/examples/ differ'
-
-
-def test_readme_other_snippets_run(capsys):
-    """The section's python blocks that are not test files run as written."""
-    for where, text in _testing_sections().items():
-        snippets = [b for b in _python_blocks(text) if 'r2d2_sim.pytest_plugin' not in b]
-        assert snippets, where
-        for snippet in snippets:
-            exec(compile(snippet, where, 'exec'), {})
-        printed = capsys.readouterr().out.split()
-        assert float(printed[-1]) > 0.5, printed
 
 
 ISOLATION_TEST = '''
