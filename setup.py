@@ -18,6 +18,9 @@ INSTALL_REQUIRES = [
     'ros-jazzy-rosidl-parser==4.6.6',          # serialization.py reads message definitions
     'pybullet==3.2.7',
     'numpy>=1.24,<3',
+    # The standard's entity filters are regular expressions from any peer: RE2
+    # matches in linear time (Python's re backtracks, exponentially).
+    'google-re2>=1.1,<2',
     # The demo executable, installed with the package, writes its plot with it.
     'matplotlib>=3.6,<4',
     # The live view (foxglove_port), MCAP recording (record) and the replay tool;

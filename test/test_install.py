@@ -27,7 +27,8 @@ from sensor_msgs.msg import JointState
 # What a pip user adds to test their own code (README "pip install"); no ROS, no PyBullet.
 USER_REQUIREMENTS = ['pytest']
 # Run-time dependencies that requirements.txt pins too: the installed package must agree.
-PINNED = ('ros-jazzy-rclpy', 'ros-jazzy-common-interfaces', 'pybullet', 'numpy', 'matplotlib')
+PINNED = ('ros-jazzy-rclpy', 'ros-jazzy-common-interfaces', 'pybullet', 'numpy', 'matplotlib',
+          'google-re2')
 PYBULLET_CHATTER = ('pybullet build time', 'argv[0]=')
 
 

@@ -192,6 +192,16 @@ class Body:
         for index in indices:
             self._client.changeDynamics(self.id, index, anisotropicFriction=(1.0, 1.0, ratio))
 
+    def drop_damping(self) -> None:
+        """
+        Let the body move without Bullet's default damping, as Gazebo and Isaac Sim do.
+
+        Bullet slows every multibody by (0.04 + 0.04 |v|) v, linear and
+        angular: a box thrown at 5 m/s is at 3.69 m/s after 1 s of free fall.
+        """
+        for link in self.links():
+            self._client.changeDynamics(self.id, link, linearDamping=0.0, angularDamping=0.0)
+
     def set_base_state(self, position: Optional[Vec3] = None,
                        orientation: Optional[Quat] = None,
                        linear_velocity: Optional[Vec3] = None,

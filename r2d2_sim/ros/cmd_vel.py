@@ -15,6 +15,7 @@ from typing import Callable, Dict, Tuple
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.clock import Clock as RclpyClock, ClockType
 from rclpy.node import Node
+from rclpy.qos import ReliabilityPolicy
 
 from r2d2_sim.client import UNKNOWN_NODE_NAME
 from r2d2_sim.model.drive_controller import NO_WHEELS
@@ -128,14 +129,23 @@ class CmdVelInput:
                        f'{verdict.accepted.angular_rad_s:.4g})')
 
     def check_publishers(self) -> None:
-        """Warn about publishers of the type this node does not take on ``cmd_vel``."""
+        """Warn about ``cmd_vel`` publishers ROS does not deliver here: wrong type, best effort."""
         node = self._node
         topic = node.resolve_topic_name('cmd_vel')
         expected = CMD_VEL_STAMPED_TYPE if self._stamped else CMD_VEL_TYPE
         for info in node.get_publishers_info_by_topic('cmd_vel'):
             # An endpoint can be discovered before its node's name: the next check names it.
-            if info.topic_type != expected and info.node_name != UNKNOWN_NODE_NAME:
-                publisher = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+            if info.node_name == UNKNOWN_NODE_NAME:
+                continue
+            publisher = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+            if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT:
+                # A reliable subscription and a best-effort publisher do not match
+                # (only the publisher's side warns): say so on this side too.
+                self._warn(f'cmd_vel best effort {publisher}',
+                           f'{publisher} publishes on {topic} best effort, which this node\'s '
+                           'reliable subscription does not take (ROS delivers nothing): '
+                           'publish cmd_vel reliable, as teleop and Nav2 do')
+            if info.topic_type != expected:
                 self._warn(f'cmd_vel type {info.topic_type}',
                            f'{publisher} publishes {info.topic_type} on {topic}, which ROS '
                            f'does not deliver: this node takes {expected}'

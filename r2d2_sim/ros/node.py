@@ -245,19 +245,29 @@ class SimNode(MirroringNode):
             if paused and not self._paused:
                 if self.step_count != self.simulation.last_frame_step:
                     self.advance_to_next_publish()
+            if not paused:
+                # Played once, it is no longer the untouched world at time 0: a
+                # pause before any step is PAUSED, not STOPPED, for the standard.
+                self.simulation.pristine = False
             self._paused = bool(paused)
 
     def reset_simulation(self, *, time: bool = False, state: bool = True,
                          spawned: bool = False) -> None:
         """
-        Reset what is asked (see :meth:`Simulation.reset`), publishing nothing now.
+        Reset what is asked (see :meth:`Simulation.reset`); with time, ``/clock`` says so now.
 
-        This step's state is out already, and a second odom -> base_footprint
-        at one stamp is one tf2 drops (TF_REPEATED_DATA): the next publication
-        carries the reset robot.
+        A node on simulated time must not go on seeing the old time while the
+        simulation waits, paused, at 0. The robots' states are not published
+        now: this step's state is out already, and a second odom ->
+        base_footprint at one stamp is one tf2 drops (TF_REPEATED_DATA); the
+        next publication carries the reset robots.
         """
         with self.lock:
             self.simulation.reset(time=time, state=state, spawned=spawned)
+            if time:
+                self._clock_output.publish(self.simulation.time_ns)
+                if self.sink is not None:
+                    self.sink.set_time(self.simulation.time_ns)
 
     def _close(self) -> None:
         self.fleet.close()

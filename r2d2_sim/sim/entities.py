@@ -14,21 +14,29 @@ that never quotes a file; what a spawn may load is checked in
 
 import math
 import re
-from typing import Dict, List, NamedTuple, Sequence, Tuple, TYPE_CHECKING
+from typing import Callable, Dict, List, NamedTuple, Sequence, Tuple, TYPE_CHECKING
 
 from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.model.health import MAX_DISTANCE_M
 from r2d2_sim.model.transforms import (
-    BaseState, compose, quaternion_multiply, Quaternion as Quat, Transform, Vector3 as Vec3)
+    BaseState, compose, quaternion_multiply, Quaternion as Quat, rotate, Transform,
+    Vector3 as Vec3)
 from r2d2_sim.physics.description import DescriptionFile
 from r2d2_sim.sim.spawnables import read_spawnable
 
 if TYPE_CHECKING:  # typing only: the testing API imports this module without PyBullet
     from r2d2_sim.physics.body import Body
 
-__all__ = ['Category', 'SpawnRequest', 'Entities', 'check_pose', 'MAX_SPAWNED']
+__all__ = ['Category', 'SpawnRequest', 'Entities', 'check_pose', 'name_filter',
+           'MAX_SPAWNED', 'MAX_NAME_LENGTH', 'MAX_FILTER_LENGTH']
 
 MAX_SPAWNED = 100
+# An entity's name, and a name filter, as long as a request may make them: every
+# name is matched against every filter a peer sends.
+MAX_NAME_LENGTH = 255
+MAX_FILTER_LENGTH = 1000
+# What RE2 may take to compile one filter (bytes); a bigger program is refused.
+FILTER_MEMORY_BYTES = 8 << 20
 # A unit quaternion, give or take rounding in a client's arithmetic.
 QUATERNION_NORM_TOLERANCE = 1e-3
 NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_\-]*\Z')
@@ -65,6 +73,39 @@ class SpawnRequest(NamedTuple):
 
 def _finite(*vectors: Sequence[float]) -> bool:
     return all(math.isfinite(v) for vector in vectors for v in vector)
+
+
+def name_filter(pattern: str) -> Callable[[str], bool]:
+    """
+    Return whether a name matches ``pattern`` (a part of it: a search), as a function.
+
+    The standard's filters are POSIX extended regular expressions from any
+    peer, so they run on RE2, whose time is linear in the name's length:
+    Python's backtracking engine takes exponential time on ``(a+)+c`` and
+    holds the interpreter meanwhile. RefusedError OPERATION_FAILED for a
+    pattern longer than MAX_FILTER_LENGTH, one RE2 refuses, or without RE2.
+    """
+    if not pattern:
+        return lambda name: True
+    if len(pattern) > MAX_FILTER_LENGTH:
+        raise RefusedError('OPERATION_FAILED', f'the filter is longer than {MAX_FILTER_LENGTH} '
+                                               'characters')
+    try:
+        import re2
+    except ImportError:
+        raise RefusedError('OPERATION_FAILED', 'name filters need RE2: pip install '
+                                               'google-re2') from None
+    options = re2.Options()
+    options.log_errors = False  # one stderr line per bad pattern a peer sends, otherwise
+    options.never_capture = True
+    options.max_mem = FILTER_MEMORY_BYTES
+    try:
+        compiled = re2.compile(pattern, options)
+    except re2.error as exc:
+        reason = exc.args[0].decode('utf-8', 'replace') if exc.args and isinstance(
+            exc.args[0], bytes) else str(exc)
+        raise RefusedError('OPERATION_FAILED', f'bad filter regex: {reason[:200]}') from None
+    return lambda name: compiled.search(name) is not None
 
 
 def check_pose(position: Sequence[float], orientation: Sequence[float]) -> Quat:
@@ -135,11 +176,14 @@ class Entities:
                   orientation: Sequence[float], linear: Sequence[float],
                   angular: Sequence[float]) -> 'Body':
         """
-        Place the entity's base link at a pose in ``frame_id`` with a world-frame twist.
+        Place the entity's base link at a pose and with a twist, both in ``frame_id``.
 
-        The twist is always applied (the Jazzy request has no flags): a
-        pose-only request stops the body. A static body may not move.
-        Returns the body placed.
+        ``frame_id`` is '' or the world frame, or an entity's name: the pose is
+        then relative to that entity's base link, and the twist's axes are its
+        axes (``EntityState.msg``: "observed in the frame specified by
+        header.frame_id"), turned into the world's here. The twist is always
+        applied (the Jazzy request has no flags): a pose-only request stops
+        the body. A static body may not move. Returns the body placed.
         """
         body = self.body(name)
         orientation = check_pose(position, orientation)
@@ -148,11 +192,12 @@ class Entities:
         if body.static and any(v != 0.0 for v in (*linear, *angular)):
             raise RefusedError('OPERATION_FAILED', f'{name} is static: it takes a pose, '
                                                    'not a twist')
-        pose = compose(self.frame_pose(frame_id), Transform(tuple(position), orientation))
+        frame = self.frame_pose(frame_id)
+        pose = compose(frame, Transform(tuple(position), orientation))
         yaw = body.body_yaw_offset_rad
         turn = (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
         body.set_world_state(pose.translation, quaternion_multiply(pose.rotation, turn),
-                             tuple(linear), tuple(angular))
+                             rotate(frame.rotation, linear), rotate(frame.rotation, angular))
         return body
 
     def spawn(self, request: SpawnRequest, *, flags: int = 0,
@@ -190,6 +235,11 @@ class Entities:
         return body, text
 
     def _name(self, wanted: str, allow_renaming: bool) -> str:
+        if len(wanted) > MAX_NAME_LENGTH:
+            if not allow_renaming:
+                raise RefusedError('NAME_INVALID', f'an entity name is at most {MAX_NAME_LENGTH} '
+                                                   f'characters, not {len(wanted)}')
+            wanted = wanted[:MAX_NAME_LENGTH - 8]  # room for a _N suffix
         if not NAME.match(wanted or ''):
             if not allow_renaming:
                 raise RefusedError('NAME_INVALID', f'{wanted[:100]!r} is not a valid entity '

@@ -118,7 +118,9 @@ class Simulation:
                 path = resolve_description_path(description)
             except DescriptionError as exc:
                 raise WorldError(str(exc)) from None
-            self.models.append(self.world.load(path, position, source=description))
+            model = self.world.load(path, position, source=description)
+            model.drop_damping()  # as a spawned entity: no damping Gazebo would not have
+            self.models.append(model)
         for start in starts[1:]:
             self._load_robot(*start, listed=True)
         self._check_apart()
@@ -235,11 +237,13 @@ class Simulation:
         NAMESPACE_INVALID for a malformed or taken namespace (or the
         simulator's own), NAME_NOT_UNIQUE when its frames would be another
         robot's, OPERATION_FAILED when the world's settings cannot drive it or
-        a watcher refuses it. Without one, a plain entity. Refusals leave the
-        world as it was.
+        a watcher refuses it. Without one, a plain entity, free of Bullet's
+        default damping as the start-up models are. Refusals leave the world
+        as it was.
         """
         if not request.namespace:
             body, _ = self.entities.spawn(request)
+            body.drop_damping()  # a free body keeps its speed, as in Gazebo and Isaac Sim
             self.pristine = False
             return body.name
         namespace = self._free_namespace(request.namespace)

@@ -9,7 +9,6 @@ and every refusal into the standard's result code with a one-line message.
 its simulation control, on the same node.
 """
 
-import re
 import threading
 
 from rclpy.node import Node
@@ -17,7 +16,7 @@ from rclpy.node import Node
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.timing import stamp_of
 from r2d2_sim.ros.seams import EntityWorld
-from r2d2_sim.sim.entities import SpawnRequest
+from r2d2_sim.sim.entities import name_filter, SpawnRequest
 from r2d2_sim.sim.spawnables import spawnable_uris
 
 __all__ = ['EntityServices', 'Replies', 'SPAWNABLE_DIRECTORIES']
@@ -96,11 +95,8 @@ class EntityServices(Replies):
     def _matching(self, filters):
         """Return the names the filters pick: regex (search), categories, tags, a sphere."""
         world = self._world
-        try:
-            pattern = re.compile(filters.filter) if filters.filter else None
-        except re.error as exc:
-            raise RefusedError('OPERATION_FAILED', f'bad filter regex: {exc}') from None
-        names = [n for n in world.entity_names() if pattern is None or pattern.search(n)]
+        matches = name_filter(filters.filter)
+        names = [n for n in world.entity_names() if matches(n)]
         if filters.categories:
             wanted = {c.category for c in filters.categories}
             names = [n for n in names if world.entity_category(n) in wanted]

@@ -35,6 +35,7 @@ from rclpy.node import Node
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.ros.seams import EntityWorld, SimulatorControl
 from r2d2_sim.ros.standard.entities import EntityServices, Replies
+from r2d2_sim.sim.entities import MAX_FILTER_LENGTH
 
 __all__ = ['SimulationInterfaces', 'EntityServices', 'StandardNode', 'available', 'STEP_CHUNK']
 
@@ -142,7 +143,8 @@ class SimulationInterfaces(Replies):
         response.features.custom_info = json.dumps({
             'simulator': 'r2d2_sim', 'physics_rate_hz': config.physics_rate_hz,
             'step_s': 1.0 / config.physics_rate_hz, 'world_frame': config.world_frame_id,
-            'entity_filter': 'Python re.search on names (a part of the name matches)'})
+            'entity_filter': 'RE2 search on names (a part of the name matches), at most '
+                             f'{MAX_FILTER_LENGTH} characters'})
         return response
 
     def state(self) -> int:
