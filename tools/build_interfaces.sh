@@ -279,6 +279,9 @@ command -v cmake >/dev/null || die "cmake not found (Debian: apt-get install cma
 command -v c++ >/dev/null && command -v cc >/dev/null || die "no C/C++ compiler (Debian: apt-get install g++)"
 [ -f "$py_include/Python.h" ] || die "no Python headers at $py_include (Debian: apt-get install python3-dev)"
 
+# A cold build is silent for a minute or two: say what is coming, and for how long.
+echo "$ME: building ${BUILD[*]} once for this venv (about 70-90 s on 2 idle cores," \
+  "2-3 min on a busy machine; cached in $CACHE afterwards)..."
 BP="$TMP/buildtools"  # the build-only wheels, outside the venv
 pins=("${BUILD_PINS[@]}")
 vpy -c 'import catkin_pkg' >/dev/null 2>&1 || pins+=("$CATKIN_PKG_PIN")
