@@ -273,7 +273,7 @@ def test_reset_returns_the_json_state_and_the_readers_the_reset_robot(r2d2_sim):
     assert r2d2_sim.ground_truth().pose.pose.position.x > 0.1
     state = r2d2_sim.reset()
     assert state == {'paused': False, 'step': 240, 'sim_time_ns': 10**9, 'sim_time': 1.0,
-                     'commands_received': 1,
+                     'published_ns': 10**9, 'commands_received': 1,
                      'robots': {'r2d2': {'namespace': '/', 'tf': '/tf',
                                          'commands_received': 1}}}
     truth = r2d2_sim.ground_truth()

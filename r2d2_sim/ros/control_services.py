@@ -40,7 +40,8 @@ class ControlServices:
         Return the simulation's state as the JSON text the control services reply with.
 
         Keys: ``paused``, ``step`` (physics steps since start), ``sim_time_ns``
-        and ``sim_time`` (s) of the last step, ``commands_received`` (cmd_vel
+        and ``sim_time`` (s) of the last step, ``published_ns`` (the stamp of
+        the latest state publication), ``commands_received`` (cmd_vel
         messages taken so far by all robots, so a client can confirm its
         command arrived), ``robots`` (each robot's ``namespace``, ``tf`` topic
         and ``commands_received``, by name), plus the service's own ``facts``
@@ -49,7 +50,8 @@ class ControlServices:
         simulator, fleet = self._simulator, self._fleet
         ns = simulator.sim_time_ns
         state = {'paused': simulator.paused, 'step': simulator.step_count, 'sim_time_ns': ns,
-                 'sim_time': ns / 1e9, 'commands_received': fleet.received,
+                 'sim_time': ns / 1e9, 'published_ns': simulator.last_publication_ns,
+                 'commands_received': fleet.received,
                  'robots': {i.name: {'namespace': i.namespace, 'tf': i.tf_topics[0],
                                      'commands_received': i.cmd_vel.received}
                             for i in fleet}}

@@ -81,6 +81,10 @@ class SimulatorControl(Protocol):
     def sim_time_ns(self) -> int:
         """Return the simulated time now (ns)."""
 
+    @property
+    def last_publication_ns(self) -> int:
+        """Return the simulated time (ns) of the latest state publication: its stamps."""
+
     def set_paused(self, paused: bool) -> None:
         """Pause (landing on a publication) or resume physics."""
 

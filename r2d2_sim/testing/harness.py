@@ -79,6 +79,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
                          parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE])
             link = self._link = QuietNode(LINK_NODE_NAME, **quiet)
             RosHarness.add_node(self, link, use_sim_time=False)
+            self._listen_tf_from_now()  # taken on demand: free in a lockstep period
             # The robots' state readers take the latest message when asked (a
             # callback group no executor runs), so a lockstep period spends
             # nothing on them. Subscribed before the simulator exists: it

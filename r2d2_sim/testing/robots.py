@@ -155,6 +155,7 @@ class LocalRobot(_RobotHandle):
         self._harness._wait(lambda: self._cmd_vel.get_subscription_count() > 0 and all(
             s.get_publisher_count() > 0 for s in state),
             f'the robot {self.name} did not link its topics')
+        self._listen_tf_from_now()
         return self
 
     @property
@@ -294,6 +295,8 @@ class RemoteRobot(_RobotHandle):
             self.close()
             raise HarnessError(f'the robot {self.name} did not subscribe cmd_vel within '
                                f'{process.timeout_s:g} s')
+        if self._subscriptions:  # not for a benchmark's handle, which adds no subscriber
+            self._listen_tf_from_now()
         return self
 
     def cmd_vel_type(self) -> Optional[str]:

@@ -209,6 +209,7 @@ class SimProcess(ControlClient, TransformLookup, WorldVerbs):
         if self._state_subscriptions:
             self._clock_subscription = node.create_subscription(
                 Clock, '/clock', self._keep_clock, 1)
+            self._listen_tf_from_now()
         self._pending = [RemoteRobot(self, namespace, subscribe=self._state_subscriptions)
                          for namespace in namespaces]
         self._clients = {name: node.create_client(srv, f'{self.node_path}/{name}')
@@ -366,18 +367,19 @@ class SimProcess(ControlClient, TransformLookup, WorldVerbs):
 
     def _wait_latest(self, key: str, latest: Dict[str, Any], what: str):
         """
-        Paused: wait for the message stamped with the last reply's time. Running: the newest.
+        Paused: wait for the latest state publication's message. Running: the newest.
 
-        A paused simulator has published its state at the time its last reply
-        gives (pause lands on a publication, a step ends with one). ``latest``
-        holds a robot's latest message of each topic, ``what`` names the topic.
+        The node's status says the stamp of its latest state publication, asked
+        afresh each time: another client (the standard's ``step_simulation``,
+        a second harness) may have stepped it since this one's last reply.
+        Running, what is published from the reply on. ``latest`` holds a
+        robot's latest message of each topic, ``what`` names the topic.
         """
         if not self._state_subscriptions:
             raise HarnessError(f'no {key}: this SimProcess was made with '
                                'state_subscriptions=False')
-        if not (self.paused and self.last_status):
-            self.status()  # running: wait for what is published from now on
-        wanted = self.last_status['sim_time_ns']
+        facts = self.status()
+        wanted = facts['published_ns'] if self.paused else facts['sim_time_ns']
         if self.paused and wanted < self._not_before_ns:
             raise HarnessError(f'no {key} yet: the reset robot is published at the next '
                                'publication; step() first')
@@ -392,7 +394,7 @@ class SimProcess(ControlClient, TransformLookup, WorldVerbs):
         if not self.probe.spin_until(arrived, self.timeout_s):
             hint = (': a simulator that started paused has published nothing since this '
                     'client connected; step() it first'
-                    if self.paused and self.last_status.get('step') == 0 else '')
+                    if self.paused and facts.get('step') == 0 else '')
             raise HarnessError(f'no {what} of t={wanted / 1e9:.6f} s within '
                                f'{self.timeout_s:g} s{hint}')
         return latest[key]

@@ -5,7 +5,9 @@ tf2_ros is not on PyPI; :class:`TfListener` does what its ``Buffer`` and
 ``TransformListener`` do for a test, on top of the pure
 :class:`~r2d2_sim.model.tf_buffer.TransformBuffer`: it subscribes both topics on a
 node (``/tf_static`` transient local, as tf2 does) and adds every transform
-to the buffer. The harnesses make one on first use
+to the buffer. The harnesses make one as they start, taken on demand: the
+messages wait in the middleware until a lookup takes them, so a lookup finds
+what was published since the start and a lockstep period pays nothing for it
 (:meth:`SimHarness.lookup_transform <r2d2_sim.testing.harness.SimHarness.lookup_transform>`,
 :meth:`SimProcess.lookup_transform <r2d2_sim.testing.sim_process.SimProcess.lookup_transform>`).
 """
@@ -15,14 +17,18 @@ from typing import Callable, Optional, Tuple
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
-from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
+from r2d2_sim.testing.executor import HarnessError
+from r2d2_sim.testing.lockstep import TakenOnDemand
 
 __all__ = ['TfListener', 'TransformLookup', 'TF_QOS', 'TF_STATIC_QOS']
 
 # As tf2_ros's TransformListener subscribes.
 TF_QOS = QoSProfile(depth=100)
 TF_STATIC_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Taken on demand, /tf waits in the middleware's history: this many messages, about
+# 8 s of a robot publishing at 240 Hz (the buffer keeps 10 s, as tf2's does).
+TF_ON_DEMAND_QOS = QoSProfile(depth=2000)
 
 
 class TfListener:
@@ -30,28 +36,68 @@ class TfListener:
     Fills a :class:`~r2d2_sim.model.tf_buffer.TransformBuffer` (``buffer``) from TF's topics.
 
     ``topics``: ``/tf`` and ``/tf_static``, or a robot's own (``/robot_a/tf``...).
-    The node's executor delivers the messages; ``static_received`` and
-    ``dynamic_received`` count them. Needs tf2_msgs (ImportError without it:
-    ``tools/build_tf2_msgs.sh`` builds it for a pip-only venv).
+    The node's executor delivers the messages, or with ``on_demand`` they wait
+    in the middleware until :meth:`take`, which reading ``buffer`` does (no
+    executor runs them: a lockstep period costs nothing for them);
+    ``static_received`` and ``dynamic_received`` count them. Needs tf2_msgs
+    (ImportError without it: ``tools/build_tf2_msgs.sh`` builds it for a
+    pip-only venv).
     """
 
     def __init__(self, node: Node, buffer: TransformBuffer = None,
-                 topics: Tuple[str, str] = ('/tf', '/tf_static')) -> None:
+                 topics: Tuple[str, str] = ('/tf', '/tf_static'), *,
+                 on_demand: bool = False) -> None:
         from tf2_msgs.msg import TFMessage
-        self.buffer = buffer if buffer is not None else TransformBuffer()
-        self.static_received = 0
-        self.dynamic_received = 0
+        self._buffer = buffer if buffer is not None else TransformBuffer()
+        self._received = [0, 0]  # dynamic, static
         self.topics = topics
-        node.create_subscription(TFMessage, topics[0], self._on_tf, TF_QOS)
-        node.create_subscription(TFMessage, topics[1], self._on_tf_static, TF_STATIC_QOS)
+        group = TakenOnDemand() if on_demand else None
+        self._subscriptions = (
+            node.create_subscription(TFMessage, topics[0], self._on_tf,
+                                     TF_ON_DEMAND_QOS if on_demand else TF_QOS,
+                                     callback_group=group),
+            node.create_subscription(TFMessage, topics[1], self._on_tf_static, TF_STATIC_QOS,
+                                     callback_group=group))
+        self._on_demand = on_demand
+
+    @property
+    def buffer(self) -> TransformBuffer:
+        """Return the transform buffer, with everything received so far in it."""
+        self.take()
+        return self._buffer
+
+    @property
+    def dynamic_received(self) -> int:
+        """Return how many ``/tf`` messages arrived so far."""
+        self.take()
+        return self._received[0]
+
+    @property
+    def static_received(self) -> int:
+        """Return how many ``/tf_static`` messages arrived so far."""
+        self.take()
+        return self._received[1]
 
     def _on_tf(self, msg) -> None:
-        self.buffer.add_tf_message(msg, static=False)
-        self.dynamic_received += 1
+        self._buffer.add_tf_message(msg, static=False)
+        self._received[0] += 1
 
     def _on_tf_static(self, msg) -> None:
-        self.buffer.add_tf_message(msg, static=True)
-        self.static_received += 1
+        self._buffer.add_tf_message(msg, static=True)
+        self._received[1] += 1
+
+    def take(self) -> None:
+        """Take what waits in the middleware into the buffer (only ``on_demand``)."""
+        if not self._on_demand:
+            return
+        for subscription, callback in zip(self._subscriptions, (self._on_tf,
+                                                                self._on_tf_static)):
+            with subscription.handle:
+                while True:
+                    taken = subscription.handle.take_message(subscription.msg_type, False)
+                    if taken is None:
+                        break
+                    callback(taken[0])
 
 
 class TransformLookup:
@@ -80,8 +126,15 @@ class TransformLookup:
     def listen_tf(self) -> TfListener:
         """Start taking ``/tf`` and ``/tf_static`` into a transform buffer (once); return it."""
         if self._tf is None:
-            self._tf = TfListener(self._tf_node(), topics=self._tf_topics())
+            self._tf = TfListener(self._tf_node(), topics=self._tf_topics(), on_demand=True)
         return self._tf
+
+    def _listen_tf_from_now(self) -> None:
+        """Listen from the harness's start when tf2_msgs is there (a first lookup then works)."""
+        try:
+            self.listen_tf()
+        except ImportError:
+            pass  # no tf2_msgs: lookup_transform says so when it is used
 
     def lookup_transform(self, target_frame: str, source_frame: str,
                          time_ns: int = 0) -> StampedTransform:
@@ -89,19 +142,21 @@ class TransformLookup:
         Return the transform from ``source_frame`` to ``target_frame`` at ``time_ns``.
 
         As tf2's ``Buffer.lookup_transform``, over what the simulator put on
-        ``/tf`` and ``/tf_static`` since :meth:`listen_tf` (called by the
-        first lookup: advance once after it for /tf to arrive). ``time_ns``
+        ``/tf`` and ``/tf_static`` since the harness started (or, without
+        tf2_msgs then, since :meth:`listen_tf`). ``time_ns``
         0 means the latest: in the in-process harness the latest state
         publication's time, so the answer is the current state, never one
         still on its way. Waits by deadline; HarnessError with tf2's reason.
         """
-        buffer = self.listen_tf().buffer
+        listener = self.listen_tf()
         time_ns = time_ns or self._tf_default_time_ns()
-        if not self._tf_wait(lambda: buffer.can_transform(target_frame, source_frame, time_ns)):
+
+        def can_transform() -> bool:
+            return listener.buffer.can_transform(target_frame, source_frame, time_ns)
+        if not self._tf_wait(can_transform):
             try:
-                buffer.lookup_transform(target_frame, source_frame, time_ns)
+                listener.buffer.lookup_transform(target_frame, source_frame, time_ns)
             except TransformException as exc:
-                raise HarnessError(f'no transform {source_frame} -> {target_frame}: {exc} '
-                                   '(the harness listens from its first lookup_transform '
-                                   'or listen_tf(): advance() after it)') from None
-        return buffer.lookup_transform(target_frame, source_frame, time_ns)
+                raise HarnessError(f'no transform {source_frame} -> {target_frame}: '
+                                   f'{exc}') from None
+        return listener.buffer.lookup_transform(target_frame, source_frame, time_ns)
