@@ -19,8 +19,9 @@ repeat bit for bit), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
 :mod:`~r2d2_sim.testing.robots` (one robot's handle in either harness),
 :mod:`~r2d2_sim.testing.world_verbs` (spawn, place, read, delete, reset),
 :mod:`~r2d2_sim.testing.standard` (a client of ROS 2's simulation standard for
-any simulator) and :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
-``/tf``, as tf2 does). Every public name is importable from here.
+any simulator), :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
+``/tf``, as tf2 does) and :mod:`~r2d2_sim.testing.recordings` (a recording
+read into typed messages per topic). Every public name is importable from here.
 """
 
 from r2d2_sim.client import (
@@ -36,6 +37,7 @@ from r2d2_sim.testing.executor import (
 from r2d2_sim.testing.harness import LINK_NODE_NAME, SimHarness
 from r2d2_sim.testing.process import (
     ChildProcess, ProcessResult, sim_node_command, stop_process)
+from r2d2_sim.testing.recordings import read_recording, RecordedMessage, RecordingError
 from r2d2_sim.testing.remote import RemoteProbe
 from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
 from r2d2_sim.testing.standard import StandardClient, StandardError
@@ -49,7 +51,7 @@ __all__ = [
     'Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env', 'stamp_ns',
     'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S', 'TfListener', 'TransformBuffer',
     'StampedTransform', 'TransformException', 'StandardClient', 'StandardError', 'BaseState',
-    'RefusedError',
+    'RefusedError', 'read_recording', 'RecordedMessage', 'RecordingError',
 ]
 
 
