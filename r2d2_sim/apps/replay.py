@@ -269,6 +269,8 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     except RecordingError as exc:
         print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
         return 2
+    if stop.is_set():  # Ctrl-C while the file was read through (about 3 us a message)
+        return EXIT_INTERRUPTED
     import rclpy
     from rclpy.duration import Duration
     from r2d2_sim.apps.cli import init_ros

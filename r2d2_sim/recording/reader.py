@@ -99,8 +99,8 @@ def message_class(type_name: str) -> type:
     try:
         module = importlib.import_module(f'{package}.msg')
     except ImportError as exc:
-        raise UnknownMessageType(f'{full_name}: its package is installed but its Python '
-                                 f'module is not importable ({exc})') from None
+        raise UnknownMessageType(f'{full_name}: {package}.msg cannot be imported ({exc})') \
+            from None
     cls = getattr(module, name, None)
     if not isinstance(cls, type) or not callable(getattr(cls, '__import_type_support__', None)):
         raise UnknownMessageType(f'{full_name}: {package}.msg has no message class {name}')
