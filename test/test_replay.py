@@ -140,14 +140,14 @@ def test_a_whole_pass_ends_with_status_0(recording):
     (None, ['cannot open', 'No such file']),
     (b'', ['not a readable MCAP file']),
     (b'this is not an mcap file, it is text\n' * 10, ['not a readable MCAP file']),
-    ('truncated', ['was not finished', 'killed']),
+    ('truncated', ['nothing to replay', 'cut short']),
 ])
 def test_a_bad_file_is_one_error_line_and_status_2(recording, tmp_path, content, words):
-    """Missing, empty, foreign or unfinished files: ``replay: error: ...``, exit 2."""
+    """Missing, empty, foreign files, or one cut inside its first chunk: one line, exit 2."""
     path = tmp_path / 'bad.mcap'
-    if content == 'truncated':  # a recorder killed before close: no summary, no footer
+    if content == 'truncated':  # a recorder killed inside its first (and only) chunk
         good = recording[0].read_bytes()
-        path.write_bytes(good[:len(good) * 2 // 3])
+        path.write_bytes(good[:len(good) // 3])
     elif content is not None:
         path.write_bytes(content)
     result = subprocess.run(replay_command(path), env=ros_child_env(), capture_output=True,

@@ -11,17 +11,23 @@ nothing is decoded. Each topic gets the QoS its recorder wrote in the
 ``/robot_description`` replay latched. The pace follows the log times,
 which :class:`~r2d2_sim.recording.sink.FoxgloveSink` sets to simulated time;
 the recording carries ``/clock``, so subscribers with ``use_sim_time``
-follow the replayed time. Needs the ``mcap`` package
+follow the replayed time. A recording is data from anywhere: the file is read
+by :mod:`r2d2_sim.recording.reader`, which imports message types only from
+installed ROS interface packages, bounds what it decompresses, and recovers
+every complete message of a file whose recorder never closed it. A topic
+that cannot be played (an unknown type, a bad name, an impossible QoS) is
+skipped with one line. Needs the ``mcap`` package's dependencies
 (``pip install "r2d2_sim[foxglove]"``).
 """
 
 import argparse
-import importlib
 import sys
 import time
-from typing import Dict, Iterator, NamedTuple, Optional, Sequence, Tuple
+from typing import Dict, NamedTuple, Optional, Sequence
 
 from r2d2_sim.apps.cli import non_ros_args, positive_number, raise_if_stopped, stop_on_signals
+from r2d2_sim.recording.message_definitions import UnknownMessageType
+from r2d2_sim.recording.reader import message_class, RecordingError, RecordingFile
 
 NODE_NAME = 'replay'
 # Exit status after Ctrl-C or SIGTERM, as a shell reports a process ended by SIGINT.
@@ -30,15 +36,17 @@ EXIT_INTERRUPTED = 130
 ACK_WAIT_S = 1.0
 # rosbag2's publisher depth for a recording that gives none.
 DEFAULT_DEPTH = 10
+# The largest depth rmw takes (a 32-bit int); 2**40 made rclpy raise a TypeError.
+MAX_DEPTH = 2**31 - 1
 # Durations that mean "infinite" in recordings: rmw's RMW_DURATION_INFINITE,
 # and what Foxy-era Fast DDS and Connext reported.
 _INFINITE = {(9223372036, 854775807), (2147483647, 4294967295), (2147483647, 2147483647)}
-# The first and last 8 bytes of an MCAP file.
-_MCAP_MAGIC = b'\x89MCAP0\r\n'
-
-
-class RecordingError(Exception):
-    """The file cannot be replayed (the message is one line for the user)."""
+_MAX_DURATION_NS = 2**63 - 1
+# rosbag2 writes a few hundred bytes of offered_qos_profiles per topic.
+_MAX_QOS_TEXT = 64 * 1024
+_GIB = 2**30
+# Topics a "nothing to replay" line names (a file may have thousands).
+MAX_REASONS = 3
 
 
 class Topic(NamedTuple):
@@ -61,22 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help='playback speed, a multiple of the recorded pace (default 1)')
     parser.add_argument('--loop', action='store_true',
                         help='start again at the end, until Ctrl-C')
+    parser.add_argument('--max-gib', type=positive_number, default=None, metavar='G',
+                        help='refuse a file that decompresses to more than G GiB in one pass '
+                             '(default: the larger of 1 GiB and 100 times its size)')
     return parser
-
-
-def message_class(type_name: str) -> type:
-    """Import the rclpy class of ``pkg/msg/Type`` (or ``pkg/Type``); ImportError if missing."""
-    parts = type_name.split('/')
-    if len(parts) == 2:
-        parts.insert(1, 'msg')
-    if len(parts) != 3 or not all(part.isidentifier() for part in parts):
-        raise ImportError(f'{type_name!r} is not a ROS message type name')
-    package, namespace, name = parts
-    module = importlib.import_module(f'{package}.{namespace}')
-    try:
-        return getattr(module, name)
-    except AttributeError:
-        raise ImportError(f'{package}.{namespace} has no {name}') from None
 
 
 def qos_from_metadata(text: Optional[str]):
@@ -86,16 +82,26 @@ def qos_from_metadata(text: Optional[str]):
     The first recorded profile is used. Unknown history or depth 0 (what
     rosbag2 records from the graph) become keep-last 10, as in
     ``ros2 bag play``; infinite durations are left unspecified. No metadata:
-    reliable, volatile, keep-last 10.
+    reliable, volatile, keep-last 10. Raises ValueError, saying why, for
+    metadata that is not such a profile (a depth of 2**40, a duration past
+    rcl's int64 nanoseconds, text that is not YAML).
     """
     import yaml
     from rclpy.duration import Duration
     from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
                            ReliabilityPolicy)
     qos = QoSProfile(depth=DEFAULT_DEPTH)
-    profiles = yaml.safe_load(text) if text else None
+    if text and len(text) > _MAX_QOS_TEXT:
+        raise ValueError(f'{len(text)} characters of offered_qos_profiles, more than '
+                         f'{_MAX_QOS_TEXT}')
+    try:
+        profiles = yaml.safe_load(text) if text else None
+    except yaml.YAMLError as exc:
+        raise ValueError(f'offered_qos_profiles is not YAML ({type(exc).__name__})') from None
     if not profiles:
         return qos
+    if not isinstance(profiles, list) or not isinstance(profiles[0], dict):
+        raise ValueError('offered_qos_profiles is not a list of QoS profiles')
     profile = profiles[0]
 
     def policy(enum, key):
@@ -105,17 +111,31 @@ def qos_from_metadata(text: Optional[str]):
             return enum[value.upper()]
         return None
 
+    def integer(value, key):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f'{key} {str(value)[:40]!r} is not an integer')
+        return value
+
     def duration(key):
         value = profile.get(key) or {}
-        sec, nsec = int(value.get('sec', 0)), int(value.get('nsec', 0))
+        if not isinstance(value, dict):
+            raise ValueError(f'{key} is not a duration')
+        sec = integer(value.get('sec', 0), f'{key}.sec')
+        nsec = integer(value.get('nsec', 0), f'{key}.nsec')
         if (sec, nsec) in _INFINITE or (sec, nsec) == (0, 0):
             return None
+        if not 0 <= sec * 10**9 + nsec <= _MAX_DURATION_NS or sec < 0 or nsec < 0:
+            raise ValueError(f'{key} of {str(sec)[:40]} s {str(nsec)[:40]} ns is out of range')
         return Duration(seconds=sec, nanoseconds=nsec)
 
     if policy(HistoryPolicy, 'history') is HistoryPolicy.KEEP_ALL:
         qos.history = HistoryPolicy.KEEP_ALL
-    elif int(profile.get('depth') or 0) > 0:
-        qos.depth = int(profile['depth'])
+    else:
+        depth = integer(profile.get('depth') or 0, 'depth')
+        if not 0 <= depth <= MAX_DEPTH:
+            raise ValueError(f'depth {str(depth)[:40]} is out of range 0..{MAX_DEPTH}')
+        if depth > 0:
+            qos.depth = depth
     for attribute, enum in (('reliability', ReliabilityPolicy),
                             ('durability', DurabilityPolicy),
                             ('liveliness', LivelinessPolicy)):
@@ -131,89 +151,48 @@ def qos_from_metadata(text: Optional[str]):
 
 
 class Recording:
-    """An MCAP file opened for replay: its replayable topics and its messages by log time."""
+    """
+    An MCAP file opened for replay: its replayable topics and its messages.
 
-    def __init__(self, path: str) -> None:
-        try:
-            from mcap.reader import make_reader
-        except ImportError:
-            raise RecordingError('reading MCAP needs the mcap package: '
-                                 'pip install "r2d2_sim[foxglove]"') from None
+    ``topics`` by channel id; ``skipped``: topic -> why, for the channels that
+    cannot be replayed; ``file``: the :class:`RecordingFile` (``cut_short``,
+    counts). Raises :class:`RecordingError` for a file with nothing to replay.
+    """
+
+    def __init__(self, path: str, max_bytes: Optional[int] = None) -> None:
         self.path = path
-        self._make_reader = make_reader
-        self.topics: Dict[int, Topic] = {}     # by channel id
-        self.skipped: Dict[str, str] = {}      # topic -> why
-        self.message_count = 0
-        try:
-            with open(path, 'rb') as stream:
-                if _unfinished(stream):
-                    raise RecordingError(
-                        f'{path} was not finished: its recorder stopped before closing it '
-                        '(killed?), and the summary at its end is missing')
-                summary = make_reader(stream).get_summary()
-        except OSError as exc:
-            raise RecordingError(f'cannot open {path}: {exc.strerror or exc}') from None
-        except RecordingError:
-            raise
-        except Exception as exc:  # mcap raises assorted types for a bad file
-            raise RecordingError(f'{path} is not a readable MCAP file: {_one_line(exc)}') from None
-        if summary is None:
-            raise RecordingError(f'{path} has no summary section: replay needs one')
-        self.message_count = summary.statistics.message_count if summary.statistics else 0
-        for channel_id, channel in summary.channels.items():
-            schema = summary.schemas.get(channel.schema_id)
-            self._add(channel_id, channel, schema)
-        if not self.topics:
-            reasons = '; '.join(f'{t}: {why}' for t, why in self.skipped.items()) or 'no topics'
-            raise RecordingError(f'{path}: nothing to replay ({reasons})')
+        self.file = RecordingFile(path, max_bytes)
+        self.topics: Dict[int, Topic] = {}
+        self.skipped: Dict[str, str] = {}
+        for channel in self.file.channels.values():
+            self._add(channel)
+        self.message_count = sum(self.file.message_counts.get(c, 0) for c in self.topics)
+        if self.file.message_count == 0:
+            cut = f', cut short after {self.file.readable_bytes} of its {self.file.size} ' \
+                'bytes' if self.file.cut_short else ''
+            raise RecordingError(f'{path}: nothing to replay: no complete message{cut}')
+        if self.message_count == 0:
+            raise RecordingError(nothing_playable(self))
 
-    def _add(self, channel_id, channel, schema) -> None:
+    def _add(self, channel) -> None:
         if channel.message_encoding != 'cdr':
-            self.skipped[channel.topic] = f'encoding {channel.message_encoding!r}, not cdr'
+            self.skipped[channel.topic] = \
+                f'encoding {channel.message_encoding[:40]!r}, not cdr'
             return
-        if schema is None or not schema.name:
+        if not channel.type_name:
             self.skipped[channel.topic] = 'no ROS type'
             return
         try:
-            cls = message_class(schema.name)
-        except ImportError as exc:
-            self.skipped[channel.topic] = f'cannot import {schema.name} ({exc})'
+            cls = message_class(channel.type_name)
+        except UnknownMessageType as exc:
+            self.skipped[channel.topic] = f'unknown type: {exc}'
             return
         try:
             qos = qos_from_metadata(channel.metadata.get('offered_qos_profiles'))
-        except Exception as exc:  # YAML errors come as several types
-            raise RecordingError(f'{self.path}: {channel.topic}: bad offered_qos_profiles: '
-                                 f'{_one_line(exc)}') from None
-        self.topics[channel_id] = Topic(channel.topic, schema.name, cls, qos)
-
-    def messages(self) -> Iterator[Tuple[int, int, bytes]]:
-        """Yield (channel id, log time in ns, bytes) of the replayable topics by log time."""
-        try:
-            with open(self.path, 'rb') as stream:
-                reader = self._make_reader(stream)
-                for _, channel, message in reader.iter_messages(log_time_order=True):
-                    if channel.id in self.topics:
-                        yield channel.id, message.log_time, message.data
-        except OSError as exc:
-            raise RecordingError(f'cannot read {self.path}: {exc.strerror or exc}') from None
-        except RecordingError:
-            raise
-        except Exception as exc:
-            raise RecordingError(f'{self.path}: damaged: {_one_line(exc)}') from None
-
-
-def _unfinished(stream) -> bool:
-    """Return True for an MCAP file that starts like one but lacks the closing magic."""
-    head = stream.read(len(_MCAP_MAGIC))
-    stream.seek(0, 2)
-    size = stream.tell()
-    if head != _MCAP_MAGIC or size < 2 * len(_MCAP_MAGIC):
-        stream.seek(0)
-        return False
-    stream.seek(size - len(_MCAP_MAGIC))
-    tail = stream.read()
-    stream.seek(0)
-    return tail != _MCAP_MAGIC
+        except ValueError as exc:
+            self.skipped[channel.topic] = f'bad offered_qos_profiles: {exc}'
+            return
+        self.topics[channel.id] = Topic(channel.topic, channel.type_name, cls, qos)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -225,13 +204,14 @@ def play(recording: Recording, publishers: Dict[int, object], rate: float, stop)
     """
     Publish one pass of the recording, paced by log time over ``rate``; return the count.
 
-    Each message waits for its absolute deadline (no drift); raises
-    KeyboardInterrupt when ``stop`` is set.
+    Messages come in file order (recorders write in log-time order); each
+    waits for its absolute deadline (no drift), and one logged before the
+    message ahead of it goes at once. Raises KeyboardInterrupt when ``stop`` is set.
     """
     count = 0
     start_wall = None
     start_log = 0
-    for channel_id, log_time, data in recording.messages():
+    for channel_id, log_time, data in recording.file.messages(publishers):
         if start_wall is None:
             start_wall, start_log = time.monotonic(), log_time
         wait_s = start_wall + (log_time - start_log) * 1e-9 / rate - time.monotonic()
@@ -243,22 +223,54 @@ def play(recording: Recording, publishers: Dict[int, object], rate: float, stop)
     return count
 
 
+def nothing_playable(recording: Recording) -> str:
+    """Return the one line for a file whose messages are all on topics that cannot be played."""
+    reasons = [f'{topic!r}: {why}' for topic, why in recording.skipped.items()]
+    if len(reasons) > MAX_REASONS:
+        reasons[MAX_REASONS:] = [f'and {len(reasons) - MAX_REASONS} more']
+    return f'{recording.path}: nothing to replay: no topic can be played ({"; ".join(reasons)})'
+
+
+def create_publishers(node, recording: Recording) -> Dict[int, object]:
+    """
+    Return a publisher per replayable channel, by channel id.
+
+    A topic rclpy refuses (a name that is not a ROS name, a type that clashes
+    with another topic's of the same name) is moved to ``recording.skipped``.
+    """
+    from rclpy.exceptions import NameValidationException
+    publishers = {}
+    for channel_id, topic in recording.topics.items():
+        try:
+            publishers[channel_id] = node.create_publisher(
+                topic.message_class, topic.name, topic.qos)
+        except NameValidationException as exc:  # its text ends with the name and a caret
+            recording.skipped[topic.name] = str(exc).splitlines()[0].rstrip(':')
+        except Exception as exc:  # rclpy raises assorted types
+            recording.skipped[topic.name] = f'cannot publish it: {_one_line(exc)}'
+    return publishers
+
+
 def main(args: Optional[Sequence[str]] = None) -> int:
     """
     Replay a recording; return the exit status.
 
-    0 at the end of the file, 130 after Ctrl-C or SIGTERM (the signals set an
-    event that the pacing waits on), 2 for a bad file or bad arguments (one
-    ``replay: error:`` line).
+    0 at the end of the file (also for a file cut short: one line says how
+    much of it was recovered), 130 after Ctrl-C or SIGTERM (the signals set
+    an event that the pacing waits on), 2 for a bad or refused file, one with
+    nothing playable, or bad arguments (one ``replay: error:`` line).
     """
     argv = list(sys.argv if args is None else args)
     stop = stop_on_signals()
     options = build_parser().parse_args(non_ros_args(argv, NODE_NAME))
+    max_bytes = None if options.max_gib is None else int(options.max_gib * _GIB)
     try:
-        recording = Recording(options.file)
+        recording = Recording(options.file, max_bytes)
     except RecordingError as exc:
         print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
         return 2
+    if stop.is_set():  # Ctrl-C while the file was read through (about 3 us a message)
+        return EXIT_INTERRUPTED
     import rclpy
     from rclpy.duration import Duration
     from r2d2_sim.apps.cli import init_ros
@@ -267,10 +279,14 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     node = None
     try:
         node = rclpy.create_node(NODE_NAME)
-        publishers = {channel_id: node.create_publisher(t.message_class, t.name, t.qos)
-                      for channel_id, t in recording.topics.items()}
+        publishers = create_publishers(node, recording)
+        if not publishers:
+            print(f'{NODE_NAME}: error: {nothing_playable(recording)}', file=sys.stderr)
+            return 2
         for topic, why in recording.skipped.items():
-            print(f'{NODE_NAME}: skipping {topic}: {why}', file=sys.stderr)
+            print(f'{NODE_NAME}: skipping {topic!r}: {why}', file=sys.stderr)
+        if recording.file.cut_short:
+            print(f'{NODE_NAME}: {recording.file.describe_cut()}', file=sys.stderr)
         print(f'{NODE_NAME}: playing {len(publishers)} topics of {recording.path} at '
               f'{options.rate:g}x' + (', looping' if options.loop else ''), flush=True)
         while True:

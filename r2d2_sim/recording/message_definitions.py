@@ -27,8 +27,8 @@ import re
 import sys
 from typing import Iterable, List, Optional, Sequence, Tuple
 
-__all__ = ['UnknownMessageType', 'message_definition', 'offered_qos_profiles',
-           'search_prefixes', 'type_hash']
+__all__ = ['UnknownMessageType', 'known_message_type', 'message_definition',
+           'offered_qos_profiles', 'search_prefixes', 'type_hash']
 
 # rosbag2's regular expression for the field types of a .msg file ("pkg/Type"
 # in "pkg/Type[] name"), applied to the whole text, comments included.
@@ -75,10 +75,10 @@ def search_prefixes() -> List[Path]:
 
 def _split(type_name: str) -> Tuple[str, str, str]:
     """Split ``pkg/msg/Type`` or ``pkg/Type`` into (package, namespace, type)."""
-    match = _TYPE_NAME.match(type_name)
+    match = _TYPE_NAME.fullmatch(type_name)
     if match is None:
         raise UnknownMessageType(
-            f'{type_name!r} is not a ROS message type name (expected pkg/msg/Type)')
+            f'{type_name[:200]!r} is not a ROS message type name (expected pkg/msg/Type)')
     package, namespace, name = match.groups()
     return package, namespace or 'msg', name
 
@@ -119,6 +119,25 @@ def _dependencies(text: str, package: str) -> List[str]:
 
 def _prefixes(prefixes: Optional[Iterable[os.PathLike]]) -> Tuple[Path, ...]:
     return tuple(Path(p) for p in (search_prefixes() if prefixes is None else prefixes))
+
+
+def known_message_type(type_name: str,
+                       prefixes: Optional[Sequence[os.PathLike]] = None) -> str:
+    """
+    Return ``pkg/msg/Type`` for a message type that an installed ROS interface package defines.
+
+    ``type_name`` is ``pkg/msg/Type`` or ``pkg/Type``; it is known when
+    ``share/<pkg>/msg/<Type>.msg`` is under one of ``prefixes`` (default
+    :func:`search_prefixes`: where the ament index and the ROS wheels put
+    interface packages), or it is tf2_msgs' TFMessage. Raises
+    :class:`UnknownMessageType`, saying where it looked, otherwise. Nothing is
+    imported: a name read from a file is checked here before any code runs for it.
+    """
+    package, namespace, name = _split(type_name)
+    if namespace != 'msg':
+        raise UnknownMessageType(f'{type_name!r} is not a message type (pkg/msg/Type)')
+    _read(type_name, '.msg', _prefixes(prefixes))
+    return f'{package}/msg/{name}'
 
 
 def message_definition(type_name: str,

@@ -20,8 +20,9 @@ repeat bit for bit), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
 :mod:`~r2d2_sim.testing.world_verbs` (spawn, place, read, delete, reset),
 :mod:`~r2d2_sim.testing.scenery` (boxes to spawn, a scan's range at an angle),
 :mod:`~r2d2_sim.testing.standard` (a client of ROS 2's simulation standard for
-any simulator) and :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
-``/tf``, as tf2 does). Every public name is importable from here.
+any simulator), :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
+``/tf``, as tf2 does) and :mod:`~r2d2_sim.testing.recordings` (a recording
+read into typed messages per topic). Every public name is importable from here.
 """
 
 from r2d2_sim.client import (
@@ -37,6 +38,7 @@ from r2d2_sim.testing.executor import (
 from r2d2_sim.testing.harness import LINK_NODE_NAME, SimHarness
 from r2d2_sim.testing.process import (
     ChildProcess, ProcessResult, sim_node_command, stop_process)
+from r2d2_sim.testing.recordings import read_recording, RecordedMessage, RecordingError
 from r2d2_sim.testing.remote import RemoteProbe
 from r2d2_sim.testing.scenery import box_urdf, scan_range
 from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
@@ -51,7 +53,8 @@ __all__ = [
     'Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env', 'stamp_ns',
     'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S', 'TfListener', 'TransformBuffer',
     'StampedTransform', 'TransformException', 'StandardClient', 'StandardError', 'BaseState',
-    'RefusedError', 'box_urdf', 'scan_range',
+    'RefusedError', 'box_urdf', 'scan_range', 'read_recording', 'RecordedMessage',
+    'RecordingError',
 ]
 
 
