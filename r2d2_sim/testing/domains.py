@@ -37,8 +37,10 @@ DOMAIN_LOCK_DIR_ENV = 'R2D2_SIM_DOMAIN_LOCK_DIR'
 COORDINATOR_PORT_BASE = 32768
 # How often a waiting lease_domain tries again (s).
 DOMAIN_RETRY_S = 0.05
-# The largest ROS domain id (Fast DDS and rmw's limit on Linux).
-MAX_DOMAIN_ID = 232
+# The largest ROS domain id handed out. Fast DDS refuses 233 and up ("Calculated
+# port number is too high"); at 232 its port formula (7400 + 250 * d + 11 + 2 * p
+# for participant p) passes 65535 from the 64th participant on: we stay below 232.
+MAX_DOMAIN_ID = 231
 
 
 def domain_ids() -> range:
@@ -170,7 +172,7 @@ def lease_domain(domain_id: Optional[int] = None, timeout_s: float = 60.0) -> Do
         free id of :func:`domain_ids`
     :param timeout_s: how long to wait for one to come free (wall clock)
     :raises DomainUnavailable: none came free in time
-    :raises ValueError: ``domain_id`` outside 0-232, or a malformed ``R2D2_SIM_DOMAIN_IDS``
+    :raises ValueError: ``domain_id`` outside 0-231, or a malformed ``R2D2_SIM_DOMAIN_IDS``
 
     Release the lease when done (or use it as a context manager); the
     harnesses do.
