@@ -10,7 +10,10 @@ beside an r2d2_sim suite then never picks the same domain. The port is one
 per machine, so it also keeps apart the harnesses of two users, whose lock
 files are in directories of their own.
 
-A lease ends when it is released or when its process ends.
+A lease ends when it is released or when the last process holding it ends:
+a child given its descriptors (:attr:`DomainLease.fds`, as ``SimProcess``
+gives them to ``sim_node``) keeps it held after its parent died, so a
+simulator that outlives its test never shares its domain.
 
 The lock files are in a directory only their owner can write
 (``$TMPDIR/r2d2_sim-domains-<uid>``, 0700), checked before use and opened
@@ -85,7 +88,8 @@ class DomainLease:
     Held as an exclusive ``flock`` on a file per domain id plus
     domain_coordinator's bound port, so two leases never share a domain,
     whether they are in one process or in several (pytest-xdist workers, a
-    launch_testing run beside). It ends when released or when the process dies.
+    launch_testing run beside). It ends when released and the last process
+    holding :attr:`fds` (this one, and the children it gave them to) has ended.
     """
 
     def __init__(self, domain_id: int, fd: int, port: Optional[socket.socket] = None) -> None:
@@ -97,6 +101,19 @@ class DomainLease:
     def held(self) -> bool:
         """Return True until released."""
         return self._fd is not None
+
+    @property
+    def fds(self) -> Tuple[int, ...]:
+        """
+        Return the descriptors that hold the lease (none once released).
+
+        Give them to a child that runs on the domain (``Popen(pass_fds=...)``):
+        the lease then lasts as long as that child too, even past this
+        process's death. They are not inherited otherwise.
+        """
+        if self._fd is None:
+            return ()
+        return (self._fd,) + ((self._port.fileno(),) if self._port is not None else ())
 
     def release(self) -> None:
         """Give the domain back (closing the file drops the lock); safe to call twice."""
