@@ -1,5 +1,5 @@
 """
-Each half of a domain lease on its own: the ``flock`` on the lock file, and the port of ROS's tooling.
+Each half of a domain lease on its own: the ``flock`` on its lock file, and the port of ROS tools.
 
 A lease holds both (``r2d2_sim.testing.domains``), so a test that only ever
 meets leases of its own kind cannot tell a lease without its port, or with a

@@ -1,5 +1,5 @@
 """
-The domain lock directory in a shared ``$TMPDIR``: private, checked, and never followed through a link.
+The domain lock directory in a shared ``$TMPDIR``: private, checked, never followed through a link.
 
 Another user of the machine can create names in ``/tmp`` before we do: a
 symbolic link where our directory or one of its lock files should be (once
