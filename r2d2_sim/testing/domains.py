@@ -156,7 +156,7 @@ def _kind(facts: os.stat_result) -> str:
         return 'a directory'
     if stat.S_ISREG(mode):
         return 'a plain file'
-    return 'neither a file nor a directory'
+    return 'a special file (a FIFO, socket or device)'
 
 
 def _open_lock_dir() -> Tuple[Path, int]:
@@ -228,10 +228,10 @@ def _try_lock(dir_fd: int, domain_id: int) -> Optional[int]:
                      dir_fd=dir_fd)
     except OSError as exc:
         try:
-            what = _kind(os.lstat(name, dir_fd=dir_fd))
+            what = f'{name} is {_kind(os.lstat(name, dir_fd=dir_fd))}'
         except OSError:
-            what = 'unusable'
-        raise _Unusable(f'{name} is {what} ({exc.strerror})') from None
+            what = f'{name}: {exc.strerror}'
+        raise _Unusable(what) from None
     facts = os.fstat(fd)
     if not stat.S_ISREG(facts.st_mode) or facts.st_uid != os.getuid():
         os.close(fd)
@@ -314,8 +314,10 @@ def _lease_in(directory: Path, dir_fd: int, domain_id: Optional[int],
                 return lease
         squatted = ''
         if unusable:
-            squatted = (f'; in {directory}, {"; ".join(unusable.values())} (remove '
-                        f'{"it" if len(unusable) == 1 else "them"})')
+            one = len(unusable) == 1
+            squatted = (f'; in {directory}, {"; ".join(unusable.values())}, not '
+                        f'{"a plain file" if one else "plain files"} of ours: remove '
+                        f'{"it" if one else "them"}')
             if set(candidates) <= set(unusable):  # waiting changes nothing
                 raise DomainUnavailable(f'cannot lease {_wanted(domain_id)}{squatted}')
         if time.monotonic() > deadline:
