@@ -42,7 +42,7 @@ RATE = int(PHYSICS_RATE_HZ)     # steps per simulated second; step k is at k * 1
 COMMANDS = ((0.3, 0.0), (0.0, 0.5), (0.0, 0.0), (-0.3, 0.0), (0.0, -0.5), (0.0, 0.0))
 TARGET_RSS_GROWTH_MB = 5.0      # after warm-up, to the end
 # The tests take domains 1..100 (conftest), run.py and profile_step.py 90..95: a
-# soak there met a simulator of a concurrent test run. 215..232 are valid Fast DDS
+# soak there met a simulator of a concurrent test run. 215..231 are valid Fast DDS
 # domains on Linux whose ports lie above the ephemeral range.
 DEFAULT_DOMAIN = 222
 # Log lines that count as problems, by kind (case-insensitive).

@@ -1,30 +1,42 @@
 """
-What any ROS client of the simulator needs: poses, deadline waits, child environments.
+What any ROS client of the simulator needs: poses, deadline waits, child processes.
 
 Used by the ``demo`` and ``drive`` executables, the benchmarks and the testing
 API alike, so none of them reaches into another for a small helper. Imports
-rclpy message types only (no PyBullet, no pytest).
+rclpy message types only (no PyBullet, no pytest). For child processes: their
+environment (:func:`ros_child_env`) and their lifetime, which ``sim_node``
+ties to the process that started it (:func:`end_with_parent`).
 """
 
 import json
 import os
 from pathlib import Path
+import select
+import signal
 import sys
+import threading
 import time
 from typing import Any, Callable, NamedTuple, Optional
 
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 
+from r2d2_sim.errors import StartupError
 from r2d2_sim.model.timing import stamp_ns, stamp_of
 from r2d2_sim.model.transforms import quaternion_to_yaw
 
 __all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env',
            'numbers_alike', 'ros_arg', 'stamp_ns', 'twist_message', 'twist_stamped_message',
-           'UNKNOWN_NODE_NAME']
+           'UNKNOWN_NODE_NAME', 'PARENT_PID_ENV', 'end_with_parent']
 
 # What rmw reports as the node of an endpoint whose node it has not yet discovered.
 UNKNOWN_NODE_NAME = '_NODE_NAME_UNKNOWN_'
+# The process id of the process a child must not outlive (ChildProcess sets it).
+PARENT_PID_ENV = 'R2D2_SIM_PARENT_PID'
+# After that process has ended: SIGTERM (a clean stop) at once, SIGKILL this much later (s).
+ORPHAN_KILL_AFTER_S = 10.0
+# How often the watch checks the ancestry where the kernel has no pidfd (s).
+ANCESTRY_POLL_S = 0.5
 
 
 class Pose2D(NamedTuple):
@@ -143,3 +155,77 @@ def ros_arg(value: Any) -> str:
     a float among them is written all floats (rcl refuses mixed lists).
     """
     return json.dumps(numbers_alike(value))
+
+
+def end_with_parent() -> None:
+    """
+    End this process when the one named in ``R2D2_SIM_PARENT_PID`` ends; do nothing if unset.
+
+    A test process killed by a CI timeout (SIGKILL), or dying of an exception
+    outside ``with``, stops none of its children: ``sim_node`` calls this at
+    start-up so that it does not run on, in a domain whose lease it keeps
+    held. A daemon thread waits for that process (a pidfd, or where the kernel
+    has none, its place among our ancestors every 0.5 s), then sends this
+    process SIGTERM and, should that not end it, SIGKILL 10 s later. It
+    watches the process by id, not the thread that started us (which
+    ``PR_SET_PDEATHSIG`` would: a harness started from a short-lived thread
+    would lose its simulator with that thread). The variable is removed
+    from the environment. Raises :class:`~r2d2_sim.errors.StartupError` if
+    it is not a process id, or names no ancestor of ours: that process has
+    ended already (the race of a parent dying while we started).
+    """
+    text = os.environ.pop(PARENT_PID_ENV, '').strip()
+    if not text:
+        return
+    try:
+        pid = int(text)
+    except ValueError:
+        raise StartupError(f'{PARENT_PID_ENV} must be a process id, got {text!r}') from None
+    try:  # opened before the check: if the check passes, it is that process
+        pidfd = os.pidfd_open(pid)
+    except (AttributeError, OSError):  # gone, or no pidfds here (Linux < 5.3, not Linux)
+        pidfd = None
+    if not _has_ancestor(pid):
+        if pidfd is not None:
+            os.close(pidfd)
+        raise StartupError(f'the process that started this one ({PARENT_PID_ENV}={pid}) '
+                           'has ended: it is not among the ancestors of this process')
+    threading.Thread(target=_end_after, args=(pid, pidfd), name='end_with_parent',
+                     daemon=True).start()
+
+
+def _parent_of(pid: int) -> Optional[int]:
+    """Return the parent process id of ``pid`` from /proc (None if unknown)."""
+    try:
+        with open(f'/proc/{pid}/stat', 'rb') as stat_file:
+            text = stat_file.read()
+    except OSError:
+        return None
+    return int(text[text.rindex(b')') + 1:].split()[1])  # after "pid (comm)": state, ppid
+
+
+def _has_ancestor(pid: int) -> bool:
+    """Return True if ``pid`` is our parent or one of its ancestors (a wrapper between us)."""
+    ancestor: Optional[int] = os.getppid()
+    for _ in range(64):  # process trees are not that deep; a bound all the same
+        if ancestor == pid:
+            return True
+        if ancestor is None or ancestor <= 1:
+            return False
+        ancestor = _parent_of(ancestor)
+    return False
+
+
+def _end_after(pid: int, pidfd: Optional[int]) -> None:
+    """Wait for process ``pid`` to end, then stop this process (SIGTERM, later SIGKILL)."""
+    if pidfd is not None:
+        watch = select.poll()
+        watch.register(pidfd, select.POLLIN)
+        watch.poll()  # readable once that process has ended
+    else:
+        while _has_ancestor(pid):  # no event to wait for: once it ends, we are re-parented
+            time.sleep(ANCESTRY_POLL_S)
+    sys.stderr.write(f'the process that started this one (pid {pid}) has ended: stopping\n')
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(ORPHAN_KILL_AFTER_S)  # a grace period, not a wait for an event
+    os.kill(os.getpid(), signal.SIGKILL)

@@ -411,8 +411,9 @@ def test_sim_process_honours_ros_domain_id_unless_told_not_to(monkeypatch):
     assert not sim.lease.held and not other.lease.held
 
 
-@pytest.mark.parametrize('value, expected', [('230-232', 'range(230, 233)'),
+@pytest.mark.parametrize('value, expected', [('229-231', 'range(229, 232)'),
                                              ('5-1', 'R2D2_SIM_DOMAIN_IDS must lie'),
+                                             ('230-232', 'within 0-231'),
                                              ('lots', 'must be "first-last"')])
 def test_the_leased_domain_range_can_be_set_for_a_shared_machine(value, expected):
     """R2D2_SIM_DOMAIN_IDS keeps harnesses inside the ids a machine's users agreed on."""

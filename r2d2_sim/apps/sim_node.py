@@ -86,6 +86,8 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
     """
     Run the simulator node until SIGINT or SIGTERM, or until ``stop`` is set.
 
+    With ``R2D2_SIM_PARENT_PID`` set (``ChildProcess`` sets it), it also
+    stops when that process ends (:func:`r2d2_sim.client.end_with_parent`).
     Returns the exit status: 0 after a stop request or ``--help``, 2 when the
     node cannot start. ``args`` defaults to ``sys.argv``; ``stop`` to a new
     event set by SIGINT and SIGTERM (installed before rclpy and PyBullet are
@@ -97,7 +99,14 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
     if stop is None:
         stop = _import_stopping_at_once()
     import rclpy
+    from r2d2_sim.client import end_with_parent
     from r2d2_sim.ros.node import NODE_NAME, StartupError
+    try:
+        # Started by a harness (ChildProcess): end with it, even if it is killed.
+        end_with_parent()
+    except StartupError as exc:
+        print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
+        return 2
     status = _init_ros(argv)
     if status is not None:
         return status

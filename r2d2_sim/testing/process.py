@@ -4,16 +4,19 @@ Child processes: start one with its output in a file, watch it, stop it (SIGINT,
 One layer for everyone who runs ``sim_node`` or a helper in a process of its
 own: :class:`~r2d2_sim.testing.sim_process.SimProcess`, the ``demo``, the
 benchmarks and this project's tests. Output goes to a file, never a pipe:
-nobody reads while the child runs, and a full pipe would block it.
+nobody reads while the child runs, and a full pipe would block it. A child
+is told this process's id (``R2D2_SIM_PARENT_PID``): ``sim_node`` ends by
+itself when this process dies without stopping it (SIGKILL by a CI timeout).
 """
 
+import os
 import signal
 import subprocess
 import sys
 import tempfile
 from typing import Any, IO, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
-from r2d2_sim.client import ros_arg
+from r2d2_sim.client import PARENT_PID_ENV, ros_arg
 
 __all__ = ['ProcessResult', 'stop_process', 'ChildProcess', 'sim_node_command',
            'RosArgs', 'parse_ros_args']
@@ -54,16 +57,23 @@ class ChildProcess:
     :meth:`start` runs it, :meth:`exited` and :meth:`log_tail` watch it,
     :meth:`stop` ends it and returns a :class:`ProcessResult` (the same one on
     later calls). Use it as a context manager to stop it on the way out.
+
+    ``env`` (default: this process's) gets ``R2D2_SIM_PARENT_PID``, this
+    process's id: ``sim_node`` ends when this process does, however it dies.
+    ``pass_fds`` are descriptors the child inherits (only those): a domain
+    lease's :attr:`~r2d2_sim.testing.domains.DomainLease.fds` keep the
+    domain leased for as long as the child runs.
     """
 
     def __init__(self, command: Sequence[str], env: Optional[Mapping[str, str]] = None, *,
                  cwd: Optional[str] = None, log_path: Optional[str] = None,
-                 merge_output: bool = False) -> None:
+                 merge_output: bool = False, pass_fds: Sequence[int] = ()) -> None:
         self.command = list(command)
         self.env = None if env is None else dict(env)
         self.cwd = cwd
         self.log_path = log_path
         self.merge_output = merge_output or log_path is not None
+        self.pass_fds = tuple(pass_fds)
         self.process: Optional[subprocess.Popen] = None
         self.result: Optional[ProcessResult] = None
         self._files: Tuple[IO[str], Optional[IO[str]]] = (None, None)
@@ -77,9 +87,11 @@ class ChildProcess:
         err = None if self.merge_output else tempfile.TemporaryFile(
             'w+', encoding='utf-8', errors='replace')
         self._files = (out, err)
+        env = dict(os.environ if self.env is None else self.env)
+        env[PARENT_PID_ENV] = str(os.getpid())
         self.process = subprocess.Popen(
-            self.command, env=self.env, cwd=self.cwd, stdin=subprocess.DEVNULL, stdout=out,
-            stderr=subprocess.STDOUT if err is None else err)
+            self.command, env=env, cwd=self.cwd, stdin=subprocess.DEVNULL, stdout=out,
+            stderr=subprocess.STDOUT if err is None else err, pass_fds=self.pass_fds)
         return self
 
     @property

@@ -137,7 +137,10 @@ class SimProcess(ControlClient, TransformLookup, WorldVerbs):
     The domain: ``domain_id`` if given; else ``ROS_DOMAIN_ID`` if the
     environment sets it and ``use_env_domain`` is true (so your own ROS tools
     see the simulator), else a free one. Either way it is leased, so two
-    harnesses on this machine never share it: they take turns instead.
+    harnesses on this machine never share it: they take turns instead. The
+    simulator inherits the lease and ends with this process: should this
+    process die without ``stop()`` (SIGKILL), the domain stays leased until
+    the simulator has stopped too.
     ``timeout_s`` bounds start-up and every wait (wall clock).
     ``state_subscriptions=False`` leaves out the state subscriptions (a
     benchmark that must not add a subscriber); the state readers then refuse.
@@ -193,7 +196,11 @@ class SimProcess(ControlClient, TransformLookup, WorldVerbs):
             (['-r', f'__ns:={namespace}'] if namespace else [])
         self.command = sim_node_command(parameters, remaps + list(ros_args), command)
         try:
-            self.process = ChildProcess(self.command, ros_child_env(self.domain_id)).start()
+            # The simulator holds the lease too: should this process die without
+            # stop(), the domain stays leased until the simulator has ended as well.
+            inherited = self.lease.fds if self.lease is not None else ()
+            self.process = ChildProcess(self.command, ros_child_env(self.domain_id),
+                                        pass_fds=inherited).start()
             probe_args = [arg for rule in given.remaps for arg in ('-r', rule)]
             self.probe = RemoteProbe(self.domain_id, '_r2d2_sim_process_client',
                                      namespace=namespace or None, ros_args=probe_args)
