@@ -6,7 +6,7 @@ Spawn and delete a robot in a namespace, again and again: what it leaves behind.
 
 Each cycle spawns our R2D2 as a driven robot in a namespace of its own
 (``/cycle_<i>``, a new one every cycle; ``--same-namespace`` keeps ``/cycle``)
-and deletes it again. Two variants:
+and deletes it again. Four variants:
 
 - **process**: ``sim_node`` in a process of its own (``SimProcess``, default
   parameters, running at real time), driven through the simulation standard's
@@ -26,8 +26,11 @@ Printed at cycles 1, 50, 100... N: RSS and the spawn and delete times (medians
 of the 10 cycles up to there). Then the slope of RSS against the cycle (a line
 through every cycle after the first 10 %) and the ratio of late to early cycle
 times (medians of the last 10 % of cycles over those of the first 10 %, cycle 1
-left out). A leak shows as a slope of tens of kB per cycle and a ratio well
-above 1. Needs simulation_interfaces for the process variant.
+left out), and the slope of a line through the medians of 10 cycles at a time over
+the same cycles as RSS's (ms per 100 cycles; steadier than the ratio when other
+processes load the machine in bursts). A leak shows as an RSS slope of tens of kB per
+cycle, a slowdown as a time slope of a few ms per 100 cycles and a ratio well above 1.
+Needs simulation_interfaces for the process variant.
 
 Each variant runs in a fresh process of its own, so memory one of them freed
 cannot hide another's growth. Writes ``bench/spawn_cycles.json``. Numbers are
@@ -159,7 +162,23 @@ def summarise(samples):
         summary[key.replace('_ms', '_early_ms')] = early
         summary[key.replace('_ms', '_late_ms')] = late
         summary[key.replace('_ms', '_ratio')] = late / early
+        summary[key.replace('_ms', '_slope_ms_per_100')] = time_slope(samples[key], tenth)
     return summary
+
+
+def time_slope(times, first):
+    """
+    Return the slope (ms per 100 cycles) of a line through the medians of ``WINDOW`` cycles.
+
+    From cycle ``first`` on. A burst of load from other processes slows a few
+    cycles by tens of ms; the windows' medians leave those out, where a line
+    through every cycle (or the ratio of two windows) swings with them.
+    """
+    medians, centres = [], []
+    for start in range(first, len(times) - WINDOW + 1, WINDOW):
+        medians.append(statistics.median(times[start:start + WINDOW]))
+        centres.append(start + WINDOW / 2.0)
+    return 100.0 * fit_line(centres, medians)[1]
 
 
 def checkpoints(cycles):
@@ -183,7 +202,9 @@ def print_variant(name, result):
           f'late/early: spawn {summary["spawn_early_ms"]:.1f} -> '
           f'{summary["spawn_late_ms"]:.1f} ms ({summary["spawn_ratio"]:.2f}), delete '
           f'{summary["delete_early_ms"]:.1f} -> {summary["delete_late_ms"]:.1f} ms '
-          f'({summary["delete_ratio"]:.2f})')
+          f'({summary["delete_ratio"]:.2f}); time slope: spawn '
+          f'{summary["spawn_slope_ms_per_100"]:+.2f}, delete '
+          f'{summary["delete_slope_ms_per_100"]:+.2f} ms per 100 cycles')
 
 
 def run_child(variant, domain_id, cycles, same, workdir):
