@@ -20,6 +20,7 @@ from r2d2_sim.ros.cmd_vel import CmdVelInput, ThrottledLog
 from r2d2_sim.ros.joint_info import joint_info_json
 from r2d2_sim.ros.mirror import MirroringNode
 from r2d2_sim.ros.outputs import RobotOutputs
+from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE
 from r2d2_sim.sim.robot import Measurement, Robot
 from r2d2_sim.ros.tf_outputs import tf_topics
 
@@ -39,12 +40,18 @@ class RobotNode(MirroringNode):
     simulator; the robot's namespace is already resolved under it). Other
     global remaps (``-r /tf:=tf``) apply, as to every node. No parameter
     services: the robots' parameters are the simulator's (``robot_a.initial_pose``).
+    No ``~/get_type_description`` either: rclpy 7.1's ``destroy_node`` never
+    finalizes that service, so every deleted robot left its DDS reader and
+    writer (about 100 kB) in the process and the graph for good, and each
+    later delete got slower (issue 30, U3-2; docs/limits.md). The simulator's
+    node, which lives as long as the process, still serves it.
     """
 
     def __init__(self, simulator: MirroringNode, namespace: str) -> None:
         name = simulator.get_name()
         super().__init__(name, context=simulator.context, namespace=namespace,
                          start_parameter_services=False,
+                         parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE],
                          cli_args=['--ros-args', '-r', f'__node:={name}',
                                    '-r', f'__ns:={namespace}'])
         self.sink = simulator.sink
