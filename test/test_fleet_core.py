@@ -177,14 +177,11 @@ def test_a_state_reset_puts_every_robot_home_and_a_spawned_one_at_its_spawn_pose
     assert [r.name for r in simulation.robots] == ['a', 'b']
 
 
-def test_start_up_robots_cannot_be_deleted(make):
-    """Only spawned entities can be deleted: a listed robot stays, and so does its interface."""
-    from r2d2_sim.errors import RefusedError
+def test_start_up_robots_can_be_deleted(make):
+    """Any entity can be deleted, a listed robot too (more in test/sim/)."""
     simulation = make(**FACING)
-    with pytest.raises(RefusedError) as raised:
-        simulation.delete_entity('b')
-    assert raised.value.code == 'OPERATION_FAILED'
-    assert [r.name for r in simulation.robots] == ['a', 'b']
+    simulation.delete_entity('b')
+    assert [r.name for r in simulation.robots] == ['a']
 
 
 def test_a_robot_that_cannot_be_driven_is_refused_and_leaves_nothing(make):

@@ -6,7 +6,9 @@ No ROS here. The world owns its own physics client (never the module-global
 build and tear down their own. Every body in it is a
 :class:`~r2d2_sim.physics.body.Body` with a unique name; bodies are referred to
 through those objects, never through ids cached elsewhere (PyBullet reuses
-the ids of removed bodies), so bodies can be added and removed while it runs.
+the ids of removed bodies, and a rebuilt world gives every body a new one),
+so bodies can be added and removed while it runs, and the whole world can be
+built again from them (:meth:`SimWorld.reset`).
 """
 
 from functools import partial
@@ -18,7 +20,7 @@ from typing import Dict, Optional, Sequence, Tuple
 import numpy
 
 from r2d2_sim.model.transforms import yaw_of
-from r2d2_sim.physics.body import Body, WorldError
+from r2d2_sim.physics.body import Body, Loading, WorldError
 from r2d2_sim.physics import records
 from r2d2_sim.physics.raycast import cast_rays, RAY_EXCLUDED_GROUP, RAY_MASK, ray_mask
 from r2d2_sim.physics.records import Quat, Vec3
@@ -83,8 +85,9 @@ class SimWorld:
     It loads no robot of its own: :meth:`load_robot` places a driven robot
     standing on the ground, :meth:`load` any other description; every body
     is a :class:`~r2d2_sim.physics.body.Body` in :attr:`bodies`, by its unique
-    name, and :meth:`reset` puts each back where it started. Raises WorldError
-    (one line) when the time step or the GUI cannot be had.
+    name (in load order), and :meth:`reset` builds the world again with each
+    where it started. Raises WorldError (one line) when the time step or the
+    GUI cannot be had.
     """
 
     def __init__(self, *, gui: bool = False, time_step_s: float = 1.0 / 240.0,
@@ -93,6 +96,7 @@ class SimWorld:
             raise WorldError(f'time step must be a positive number of seconds, got {time_step_s}')
         self.time_step_s = time_step_s
         self.gui = gui
+        self.gravity_m_s2 = gravity_m_s2
         self.step_count = 0
         self.bodies: Dict[str, Body] = {}
         self._free_ray_groups = list(RAY_GROUPS)
@@ -158,7 +162,8 @@ class SimWorld:
             self._client.removeBody(body_id)
             raise WorldError(f'a body named {name!r} is already in the world')
         body = Body(self._client, body_id, name, source or path,
-                    body_yaw_offset_rad=body_yaw_offset_rad, spawned=spawned)
+                    body_yaw_offset_rad=body_yaw_offset_rad, spawned=spawned,
+                    loading=Loading(path, tuple(position), tuple(orientation), flags))
         self.bodies[name] = body
         return body
 
@@ -179,10 +184,9 @@ class SimWorld:
                          flags=self.robot_flags, body_yaw_offset_rad=body_yaw_offset_rad,
                          source=source)
         position, _ = client.getBasePositionAndOrientation(body.id)
-        client.resetBasePositionAndOrientation(
-            body.id, (position[0], position[1],
-                      position[2] - body.bounding_box().low[2] + SPAWN_CLEARANCE_M), orientation)
-        body.save_initial_state()
+        body.set_initial_pose((position[0], position[1],
+                               position[2] - body.bounding_box().low[2] + SPAWN_CLEARANCE_M),
+                              orientation)
         return body
 
     @property
@@ -231,14 +235,47 @@ class SimWorld:
             step_simulation()
         self.step_count += steps
 
-    def reset(self) -> None:
+    def clear(self) -> None:
         """
-        Put every body back in the state it was loaded in: initial pose, zero velocities.
+        Empty the physics world and set it up as at start (``resetSimulation``).
 
-        The step counter keeps counting: simulated time never goes backwards.
+        Every body is unloaded (its id gone) but kept, to be loaded again
+        with :meth:`reload`; the step counter and the ray groups taken stay.
         """
         for body in self.bodies.values():
-            body.reset()
+            body.unloaded()
+        self.bodies = {}
+        self._setup(self.gravity_m_s2)
+
+    def reload(self, body: Body) -> None:
+        """Load ``body`` again as it was loaded, in its initial state (see Body.reload)."""
+        if body.name in self.bodies:
+            raise WorldError(f'a body named {body.name!r} is already in the world')
+        body.reload()
+        self.bodies[body.name] = body
+
+    def reset(self) -> None:
+        """
+        Build the world again, every body loaded in its order as it was: initial pose, at rest.
+
+        Bullet keeps contact manifolds and the order of its overlapping pairs
+        from step to step, and a body put back in place leaves them behind:
+        a run after that does not repeat the first one bit for bit. Rebuilt,
+        the world is as it was after loading, and the bodies are the same
+        objects with new ids. The step counter keeps counting: simulated
+        time never goes backwards. WorldError if a body cannot be loaded again
+        (it is then left out).
+        """
+        bodies = list(self.bodies.values())
+        self.clear()
+        failed = []
+        for body in bodies:
+            try:
+                self.reload(body)
+            except WorldError as exc:
+                failed.append(str(exc))
+        if failed:
+            raise WorldError('; '.join(failed))
 
     def cast_rays(self, starts: numpy.ndarray, ends: numpy.ndarray,
                   mask: int = RAY_MASK) -> numpy.ndarray:

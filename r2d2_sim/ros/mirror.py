@@ -117,3 +117,12 @@ class MirroringNode(QuietNode):
         """Release this node's publishers from the sink (before the node is destroyed)."""
         for mirrored in self.__dict__.pop('_mirrored', []):
             mirrored.release()
+
+    def destroy_publisher(self, publisher) -> bool:
+        """Destroy a publisher, rclpy's or mirrored (which first stops feeding the sink)."""
+        inner = publisher.publisher if isinstance(publisher, MirroredPublisher) else publisher
+        mirrors = self.__dict__.get('_mirrored', [])
+        for mirrored in [m for m in mirrors if m.publisher is inner]:
+            mirrored.release()
+            mirrors.remove(mirrored)
+        return super().destroy_publisher(inner)

@@ -10,7 +10,7 @@ namespace is how one process serves several (they share one DDS participant).
 """
 
 import threading
-from typing import Callable
+from typing import Callable, List, Tuple
 
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
@@ -29,6 +29,16 @@ __all__ = ['RobotInterfaces', 'RobotNode', 'DESCRIPTION_QOS']
 # robot_description as robot_state_publisher offers it: latched for late joiners.
 DESCRIPTION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
+# What a robot may make on a node it shares, and how each is taken down again.
+ENTITY_KINDS = (('publishers', 'destroy_publisher'), ('subscriptions', 'destroy_subscription'),
+                ('services', 'destroy_service'), ('clients', 'destroy_client'),
+                ('timers', 'destroy_timer'))
+
+
+def _entities(node: MirroringNode) -> List[Tuple[str, object]]:
+    """Return every entity of ``node`` (publishers, subscriptions...) with its destroy method."""
+    return [(destroy, entity) for kind, destroy in ENTITY_KINDS
+            for entity in getattr(node, kind)]
 
 
 class RobotNode(MirroringNode):
@@ -73,7 +83,9 @@ class RobotInterfaces:
     ``lock`` is the simulator's (PyBullet is single-threaded); ``now_ns``
     gives the simulated time (a TwistStamped's age is judged by it),
     ``time_ns`` the time of the first static transforms. ``own_node``: the
-    node is this robot's alone, destroyed by :meth:`close`.
+    node is this robot's alone, destroyed by :meth:`close`; otherwise (the
+    one robot in the simulator's namespace) :meth:`close` destroys what the
+    robot made on it.
     """
 
     def __init__(self, node: MirroringNode, robot: Robot, lock: threading.RLock, *,
@@ -83,6 +95,7 @@ class RobotInterfaces:
         self.robot = robot
         self.own_node = own_node
         self._lock = lock
+        before = set(map(id, (entity for _, entity in _entities(node))))
         self.outputs = RobotOutputs(node, robot.config, robot, time_ns)
         self._description = node.create_publisher(String, 'robot_description', DESCRIPTION_QOS)
         self._description.publish(String(data=robot.description))
@@ -92,6 +105,8 @@ class RobotInterfaces:
                                                self._on_get_joint_info)
         # Where its transforms go (resolved): /tf and /tf_static, or its namespace's.
         self.tf_topics = tuple(node.resolve_topic_name(t) for t in tf_topics(robot.config))
+        self._made = [] if own_node else [(destroy, entity) for destroy, entity in _entities(node)
+                                          if id(entity) not in before]
 
     @property
     def name(self) -> str:
@@ -119,6 +134,9 @@ class RobotInterfaces:
         return response
 
     def close(self) -> None:
-        """Take the robot's interfaces down: destroy its node, when it has one of its own."""
+        """Take the robot's interfaces down: its node, or what it made on the simulator's."""
         if self.own_node:
             self.node.destroy_node()
+        for destroy, entity in reversed(self._made):
+            getattr(self.node, destroy)(entity)
+        self._made.clear()

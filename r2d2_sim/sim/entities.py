@@ -252,12 +252,12 @@ class Entities:
         return self._world.unique_name(wanted)
 
     def delete(self, name: str) -> None:
-        """Remove a spawned entity; start-up ones stay (a full reset could not bring them back)."""
-        body = self.body(name)
-        if not body.spawned:
-            raise RefusedError('OPERATION_FAILED', f'{name} was there at start-up: only spawned '
-                               'entities can be deleted')
-        self._world.remove(body)
+        """Remove an entity, spawned or there at start-up (a full reset brings those back)."""
+        self._world.remove(self.body(name))
+        self.dropped(name)
+
+    def dropped(self, name: str) -> None:
+        """Forget what an entity that left the world held (the file it was spawned from text)."""
         text_file = self._files.pop(name, None)
         if text_file is not None:
             text_file.close()

@@ -209,6 +209,12 @@ class Robot:
         if self.imu is not None:
             self.imu.reset()  # its time went back: no acceleration from the jump
 
+    def restart_noise(self) -> None:
+        """Start the laser's and the IMU's noise streams again from the seed (a full reset)."""
+        for sensor in (self.laser, self.imu):
+            if sensor is not None:
+                sensor.restart_noise()
+
     def teleported(self) -> None:
         """Forget the motion so far: the body was placed, and the IMU must not read the jump."""
         if self.imu is not None:
@@ -217,6 +223,15 @@ class Robot:
     def reset(self) -> None:
         """Put the robot back at its initial pose at rest, dropping the command and odometry."""
         self.body.reset()
+        self.reloaded()
+
+    def reloaded(self) -> None:
+        """
+        Start again as at start-up: the body is at its initial pose (a rebuilt world, a reset).
+
+        Drops the command and the IMU's last sample; odometry starts again
+        at the initial pose and the wheel motors stop, as when it was built.
+        """
         if self.imu is not None:
             self.imu.reset()
         if self.controller is not None:

@@ -120,7 +120,8 @@ class LaserScanner:
         _, ends = ray_endpoints(self.geometry, (0.0, 0.0, 0.0))
         self._rays_in_sensor = ends
         self._noise_std_m = config.scan_noise_std_m
-        self._rng = numpy.random.default_rng(config.noise_seed)
+        self._noise_seed = config.noise_seed
+        self._rng = numpy.random.default_rng(self._noise_seed)
         # The scan plane in the world now: the robot stands on the ground, or
         # (spawned in the air) is about to fall onto it.
         ground_z = body.world_state().position[2] - footprint_height_m
@@ -139,6 +140,10 @@ class LaserScanner:
         return ranges_from_hits(self._world.cast_rays(starts, ends, self._mask), self.geometry,
                                 self._noise_std_m, self._rng)
 
+    def restart_noise(self) -> None:
+        """Start the noise stream again from its seed, as at start-up (a full reset)."""
+        self._rng = numpy.random.default_rng(self._noise_seed)
+
     def close(self) -> None:
         """Give the robot's ray group back to the world (the robot left it)."""
         if self._group is not None:
@@ -151,13 +156,22 @@ class ImuSensor:
 
     def __init__(self, body: Body, config: SimConfig) -> None:
         self._body = body
+        self._config = config
+        self.model = self._new_model()
+
+    def _new_model(self) -> ImuModel:
+        config = self._config
         # Its own stream of noise, so turning the scanner on does not change it.
-        self.model = ImuModel(
+        return ImuModel(
             gravity_m_s2=config.gravity_m_s2,
             orientation_std_rad=config.imu_orientation_noise_std_rad,
             angular_velocity_std_rad_s=config.imu_angular_velocity_noise_std_rad_s,
             linear_acceleration_std_m_s2=config.imu_linear_acceleration_noise_std_m_s2,
             rng=numpy.random.default_rng([config.noise_seed, 1]))
+
+    def restart_noise(self) -> None:
+        """Start afresh as at start-up (a full reset): the noise stream from its seed."""
+        self.model = self._new_model()
 
     def read(self, time_s: float) -> ImuReading:
         """Return the reading for the body's true motion now (acceleration since the last)."""

@@ -13,7 +13,10 @@ robot's physics has blown up, and puts back one that has.
 The world changes through this class alone (spawn, delete, place, reset):
 it decides whether a spawned entity is a driven robot, and whoever follows
 the robots (the ROS node's fleet) is told of every change and may refuse one,
-which is then undone.
+which is then undone. Any entity can be deleted, start-up ones included; a
+reset of the state builds the physics world again (so a run after it repeats
+bit for bit), and a full reset builds it as it was at start-up, bringing back
+deleted start-up entities under their names.
 """
 
 from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
@@ -24,7 +27,7 @@ from r2d2_sim.model.transforms import BaseState, yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.description import (
     DescriptionError, resolve_description_path, RobotDescription)
-from r2d2_sim.physics.world import SimWorld
+from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
 from r2d2_sim.sim.entities import Category, Entities, SpawnRequest
 from r2d2_sim.sim.parameter_readers import namespace as read_namespace
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
@@ -55,6 +58,15 @@ def _ignore(text: str) -> None:
     pass
 
 
+class _StartUpEntity:
+    """One entity of the start-up world, in load order: its body, and a robot's load arguments."""
+
+    def __init__(self, body: Body, robot: Optional[tuple] = None, model: bool = False) -> None:
+        self.body = body    # the latest loaded for it (a robot loaded again has a new one)
+        self.robot = robot  # _load_robot's (name, config, namespace, listed), for a robot
+        self.model = model  # one of extra_models, or the world model
+
+
 class Simulation:
     """
     The world, its robots and the step schedule.
@@ -82,7 +94,9 @@ class Simulation:
         self.steps_per_gui_frame = max(1, round(rate / GUI_CAMERA_RATE_HZ))
         self.last_frame_step = 0
         self.robots: List[Robot] = []
-        self.models: List[Body] = []  # extra_models and the world model, as loaded at start-up
+        self.models: List[Body] = []  # extra_models and the world model loaded at start-up
+        # What a full reset builds again: every start-up entity, in load order.
+        self._start_up: List[_StartUpEntity] = []
         self._warn, self._error = warn, error
         self._watchers: List[RobotsWatcher] = []
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
@@ -109,8 +123,12 @@ class Simulation:
             starts = [(spec.name, spec.config, ns) for spec, ns in zip(specs, namespaces)]
         else:
             starts = [(None, config, self.namespace)]
+        starts = [(*start, bool(specs)) for start in starts]
+        plane = self.world.bodies.get(GROUND_PLANE_NAME)  # the world loaded it
+        if plane is not None:
+            self._start_up.append(_StartUpEntity(plane))
         # In the order PyBullet has always had them (body ids and solver order).
-        self._load_robot(*starts[0], listed=bool(specs))
+        self._start_robot(starts[0])
         models = [(name, position) for name, position in config.extra_models]
         models += [(config.world, (0.0, 0.0, 0.0))] if config.world else []
         for description, position in models:
@@ -121,14 +139,22 @@ class Simulation:
             model = self.world.load(path, position, source=description)
             model.drop_damping()  # as a spawned entity: no damping Gazebo would not have
             self.models.append(model)
+            self._start_up.append(_StartUpEntity(model, model=True))
         for start in starts[1:]:
-            self._load_robot(*start, listed=True)
+            self._start_robot(start)
         self._check_apart()
 
-    def _load_robot(self, name: Optional[str], config: SimConfig, namespace: str, *,
+    def _start_robot(self, start: tuple) -> Robot:
+        """Load a start-up robot from ``_load_robot``'s arguments and remember how; return it."""
+        robot = self._load_robot(*start)
+        self.robots.append(robot)
+        self._start_up.append(_StartUpEntity(robot.body, start))
+        return robot
+
+    def _load_robot(self, name: Optional[str], config: SimConfig, namespace: str,
                     listed: bool) -> Robot:
         """
-        Load a driven robot standing at ``config.initial_pose``; return it.
+        Load a driven robot standing at ``config.initial_pose``; return it (not yet a member).
 
         ``name`` None: the URDF's robot name, made unique. Its description,
         drive and sensors are ``config``'s. Raises a SetupError (WorldError,
@@ -156,7 +182,6 @@ class Simulation:
                 self.world.remove(body)
             description.close()
             raise
-        self.robots.append(robot)
         return robot
 
     def _check_apart(self) -> None:
@@ -304,14 +329,21 @@ class Simulation:
                                    'new robot otherwise')
 
     def delete_entity(self, name: str) -> None:
-        """Delete a spawned entity, and the robot it is if it is one (start-up ones stay)."""
+        """
+        Delete any entity, and the robot it is if it is one (its watchers are told).
+
+        Start-up entities too (the ground plane, a model, a start-up robot):
+        a full reset brings them back as they were loaded.
+        """
         self._delete(name)
         self._robots_changed()
 
     def _delete(self, name: str) -> None:
-        body = self.entities.body(name)
-        self.entities.delete(name)  # refuses a start-up entity before anything changes
+        body = self.entities.body(name)  # NOT_FOUND before anything changes
+        self.entities.delete(name)
         self._forget_robots([r for r in self.robots if r.body is body])
+        if body in self.models:
+            self.models.remove(body)
         self.pristine = False
 
     def _forget_robots(self, robots: Sequence[Robot]) -> None:
@@ -384,19 +416,23 @@ class Simulation:
         """
         Reset what is asked: ``~/reset`` is ``state`` alone, the standard's scopes these three.
 
-        ``spawned``: delete every entity spawned while running. ``state``: every
-        body back where it started (spawned ones at their spawn pose) and
-        every robot at rest, commands and odometry dropped. ``time``: the
-        step count and simulated time back to 0, every schedule from there.
+        ``spawned``: delete every entity spawned while running. ``state``: the
+        physics world built again, every body in it at its initial state
+        (spawned ones at their spawn pose) and every robot at rest, commands
+        and odometry dropped: the same commands then give the same run, bit
+        for bit, as after start-up. ``time``: the step count and simulated
+        time back to 0, every schedule from there. All three (the standard's
+        ALL, and STOPPED): the world as at start-up, "as if closed and
+        launched again": start-up entities deleted since come back, under
+        their names, in their places. No other scope brings them back.
         """
+        changed = False
         if spawned:
             self._forget_robots([r for r in self.robots if r.body.spawned])
             self.entities.delete_spawned()
-            self._robots_changed()
+            changed = True
         if state:
-            self.world.reset()
-            for robot in self.robots:
-                robot.reset()
+            changed = self._rebuild(as_started=time and spawned) or changed
         if time:
             steps_back = self.world.step_count
             self.world.step_count = 0
@@ -404,7 +440,69 @@ class Simulation:
             self.last_frame_step = 0
             for robot in self.robots:
                 robot.restart_time(steps_back)
+        if changed:
+            self._robots_changed()
         self.pristine = time and state and spawned
+
+    def _rebuild(self, as_started: bool) -> bool:
+        """
+        Build the physics world again, every body loaded in its order; return if robots changed.
+
+        Bullet's contact manifolds and the order of its overlapping pairs
+        survive a body put back in place, and change the next steps: a world
+        emptied (``resetSimulation``) and loaded again body by body, each
+        with the changes made to it at loading, is the world after start-up.
+        Each robot starts again right after its body is loaded, as it did.
+        ``as_started``: the start-up entities (a robot deleted since is
+        loaded again from its start-up arguments: a new Robot), else those in
+        the world now. A body that cannot be loaded again (its file gone)
+        leaves the world, with one error line.
+        """
+        robot_of = {id(robot.body): robot for robot in self.robots}
+        if as_started:
+            plan = [(entity.body, entity) for entity in self._start_up]
+        else:
+            plan = [(body, None) for body in self.world.bodies.values()]
+        self.world.clear()
+        robots: List[Robot] = []
+        changed = False
+        for body, entity in plan:
+            robot = robot_of.get(id(body))
+            if entity is not None and entity.robot is not None and robot is None:
+                changed = True  # a start-up robot deleted since: built again
+                robot = self._load_again(entity)
+                if robot is not None:
+                    robots.append(robot)
+                continue
+            try:
+                self.world.reload(body)
+            except WorldError as exc:
+                self._error(f'{body.name} left the world: {exc}')
+                self.entities.dropped(body.name)
+                if robot is not None:
+                    robot.close()
+                    changed = True
+                continue
+            if robot is not None:
+                robot.reloaded()
+                if as_started:
+                    robot.restart_noise()  # as launched: its readings repeat too
+                robots.append(robot)
+        self.robots = robots
+        if as_started:
+            self.models = [entity.body for entity in self._start_up if entity.model]
+        self.models = [model for model in self.models if model.alive]
+        return changed
+
+    def _load_again(self, entity: _StartUpEntity) -> Optional[Robot]:
+        """Load a deleted start-up robot as at start-up; None (one error line) if it cannot be."""
+        try:
+            robot = self._load_robot(*entity.robot)
+        except SetupError as exc:
+            self._error(f'robot {entity.body.name} cannot be loaded again: {exc}')
+            return None
+        entity.body = robot.body
+        return robot
 
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice."""

@@ -125,7 +125,7 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         if name is None:
             if not self._robots:
                 raise HarnessError('the world has no robot')
-            return next(iter(self._robots.values()))
+            return next(iter(self._robots.values()))  # kept in the simulator's order
         handle = self._robots.get(name)
         if handle is None:
             try:
@@ -338,6 +338,12 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         self._drop_departed()
         for handle in self._robots.values():
             handle.forget()
+        # A full reset builds deleted start-up robots again: every robot gets its
+        # handle before that publication, and the handles keep the simulator's order.
+        names = self.robot_names
+        for name in names:
+            self.robot(name)
+        self._robots = {name: self._robots[name] for name in names}
         self.advance()
 
     def call_service(self, srv_type, name: str, request):

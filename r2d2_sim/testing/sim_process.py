@@ -270,7 +270,7 @@ class SimProcess(ControlClient, TransformLookup, WorldVerbs):
         for a robot the world does not have.
         """
         robots = None
-        if name is None and self._robots:  # a start-up robot: never deleted
+        if name is None and self._robots:  # kept in the simulator's order
             return next(iter(self._robots.values()))
         if name is None:
             robots = self.status()['robots']
@@ -355,6 +355,13 @@ class SimProcess(ControlClient, TransformLookup, WorldVerbs):
             self._robots.pop(name).close()
         for robot in self._robots.values():
             robot.forget()
+        # A full reset builds deleted start-up robots again, maybe ahead of those
+        # with handles: keep the handles in the simulator's order, the first one first.
+        first = next(iter(facts['robots']), None)
+        if first is not None and first not in self._robots:
+            self.robot(first)
+        self._robots = {name: self._robots[name] for name in facts['robots']
+                        if name in self._robots}
 
     def step_physics(self, steps: int) -> Dict[str, Any]:
         """

@@ -157,7 +157,7 @@ class WorldVerbs:
                                                tuple(angular))
 
     def delete_entity(self, name: str) -> None:
-        """Delete a spawned entity (a robot with all its interfaces)."""
+        """Delete an entity, with a robot's interfaces; a full reset brings start-up ones back."""
         self._world_backend().delete(name)
         self._after_delete(name)
 

@@ -1,0 +1,72 @@
+"""
+A body loaded again in a rebuilt world: the same object, a new id, what was set on it kept.
+
+``SimWorld.reset`` empties the physics world (``resetSimulation``) and loads
+each body again in its order; what was set on a body at loading (its
+starting pose, damping, friction, ray groups) is set again, a teleport is not.
+"""
+
+import math
+
+import pytest
+
+from r2d2_sim.physics.body import BodyRemoved, WorldError
+from r2d2_sim.physics.description import default_urdf_path
+from r2d2_sim.physics.world import RAY_GROUPS, ray_mask, SimWorld
+
+
+@pytest.fixture
+def world():
+    """Provide a world with its ground plane; closed after the test."""
+    with SimWorld() as built:
+        yield built
+
+
+def speed_after_a_throw(world, body):
+    """Throw ``body`` up at 5 m/s, let it fly 0.5 s; return its speed (m/s)."""
+    body.set_base_state(position=(0.0, 3.0, 2.0), linear_velocity=(5.0, 0.0, 0.0))
+    world.step(120)
+    return math.hypot(*body.world_state().linear_velocity[:2])
+
+
+def test_a_reset_keeps_the_bodies_and_their_undamped_motion(world):
+    """A box without damping flies on at 5 m/s after the reset too; a teleport is undone."""
+    box = world.load('cube_small.urdf', (0.0, 3.0, 0.5))
+    box.drop_damping()
+    assert speed_after_a_throw(world, box) == pytest.approx(5.0, abs=1e-6)
+    plane = world.bodies['ground_plane']
+    world.reset()
+    assert world.bodies == {'ground_plane': plane, box.name: box}
+    assert box.world_state().position == pytest.approx((0.0, 3.0, 0.5))
+    assert speed_after_a_throw(world, box) == pytest.approx(5.0, abs=1e-6)
+    damped = world.load('cube_small.urdf', (0.0, 5.0, 0.5))
+    assert speed_after_a_throw(world, damped) < 4.8  # Bullet's default damping, for contrast
+
+
+def test_a_reset_keeps_a_robot_s_ray_group_and_its_starting_pose(world):
+    """Rays of the robot's group pass through it after the reset; it stands where it stood."""
+    robot = world.load_robot(default_urdf_path(), (0.0, 0.0, 0.0))
+    start = robot.world_state()
+    robot.exclude_from_rays(group=RAY_GROUPS[0])
+    through = ([[-1.0, 0.0, 0.3]], [[1.0, 0.0, 0.3]])
+    assert world.cast_rays(*through, mask=-1)[0] < 1.0  # a ray of every group hits it
+    assert world.cast_rays(*through, mask=ray_mask(RAY_GROUPS[0]))[0] == 1.0
+    robot.set_base_state(position=(2.0, 2.0, 0.8))
+    world.step(24)
+    world.reset()
+    assert robot.world_state() == start
+    assert world.cast_rays(*through, mask=ray_mask(RAY_GROUPS[0]))[0] == 1.0
+    assert world.cast_rays(*through, mask=-1)[0] < 1.0
+
+
+def test_a_body_in_the_world_cannot_be_loaded_twice_and_a_removed_one_comes_back(world):
+    """reload() of a loaded body: one line; of a removed one, it is back, usable."""
+    box = world.load('cube_small.urdf', (1.0, 0.0, 0.5))
+    with pytest.raises(WorldError, match='in the world already'):
+        box.reload()
+    world.remove(box)
+    with pytest.raises(BodyRemoved):
+        box.world_state()
+    world.reload(box)
+    assert world.bodies[box.name] is box
+    assert box.world_state().position == pytest.approx((1.0, 0.0, 0.5))
