@@ -4,10 +4,11 @@ Helpers of this project's own tests, on top of the public testing API.
 The harnesses, deadline waits, process helpers and ROS domain leases live in
 :mod:`r2d2_sim.testing` (the user-facing fixtures in :mod:`r2d2_sim.pytest_plugin`);
 what is left here records every message for exact-count checks, or knows this
-repository's layout. Test modules import from here, never from ``conftest``.
+repository's layout (what needs no ROS, such as ``REPO``, is in ``common``
+and re-exported here). Test modules import from here, never from ``conftest``;
+the fast tier (model/, physics/, sim/) never imports this module.
 """
 
-import os
 from pathlib import Path
 import subprocess
 
@@ -17,6 +18,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
+import common
+from common import RATE_HZ, REPO  # noqa: F401 (for the tests)
 from r2d2_sim import testing
 from r2d2_sim.client import ros_child_env as ros_env, wait_for  # noqa: F401 (for the tests)
 from r2d2_sim.ros.node import SimNode
@@ -24,17 +27,11 @@ from r2d2_sim.testing import (  # noqa: F401 (for the tests)
     RemoteProbe, sim_node_command, stop_process)
 from r2d2_sim.model.transforms import quaternion_to_yaw
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-RATE_HZ = 240
-
-# Leases taken by next_domain_id, released by conftest after each test.
-leases = []
-
 
 def next_domain_id() -> int:
     """Lease a ROS domain id that no other test on this machine uses, until this test ends."""
     lease = testing.lease_domain()
-    leases.append(lease)
+    common.leases.append(lease)
     return lease.domain_id
 
 
