@@ -17,10 +17,11 @@ import pybullet_data
 from pybullet_utils.bullet_client import BulletClient
 import pytest
 
+from common import REPO
 from r2d2_sim.physics.raycast import cast_rays, exclude_from_rays, MAX_BATCH_SIZE, RAY_MASK
 from r2d2_sim.model.sensors import linearize_depth, ranges_from_hits, ray_endpoints, ScanGeometry
 
-URDF_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'urdf')
+URDF_DIR = os.path.join(REPO, 'urdf')
 ROOM_URDF = os.path.join(URDF_DIR, 'room.urdf')
 ROBOT_URDF = os.path.join(URDF_DIR, 'r2d2.urdf')
 WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',

@@ -9,8 +9,9 @@ import pybullet_data
 from pybullet_utils.bullet_client import BulletClient
 import pytest
 
-URDF_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                         'urdf', 'r2d2.urdf')
+from common import REPO
+
+URDF_PATH = os.path.join(REPO, 'urdf', 'r2d2.urdf')
 WHEEL_JOINTS = {
     'left_front_wheel_joint': 'left',
     'left_back_wheel_joint': 'left',
