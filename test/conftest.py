@@ -56,7 +56,7 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
-    """In a fast-tier session (each xdist worker too), fail the test after which rclpy is loaded."""
+    """In a fast-tier session (in each xdist worker too), fail the test that loaded rclpy."""
     outcome = yield
     report = outcome.get_result()
     config = item.config

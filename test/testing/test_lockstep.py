@@ -124,7 +124,7 @@ def test_a_closed_loop_harness_polls_by_taking_and_a_client_brings_the_wait_back
     """The README's controller needs no wait set (sweep); a client in the harness does."""
     import importlib.util
     from pathlib import Path
-    example = Path(__file__).parent / 'examples' / 'test_closed_loop.py'
+    example = Path(__file__).parent.parent / 'examples' / 'test_closed_loop.py'
     spec = importlib.util.spec_from_file_location('closed_loop_example', example)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

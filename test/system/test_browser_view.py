@@ -27,10 +27,10 @@ import pytest
 from r2d2_sim.testing import SimProcess
 from sample_messages import ROBOT_RGB
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / 'browser'))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'browser'))
 import harness  # noqa: E402
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parent.parent.parent
 # Topic -> the rate the node publishes it at (Hz), with these parameters.
 RATES = {'/tf': 50.0, '/odom': 50.0, '/ground_truth': 50.0, '/scan': 10.0,
          '/camera/image_raw': 5.0}

@@ -24,7 +24,7 @@ from rclpy.executors import SingleThreadedExecutor
 
 from r2d2_sim import testing
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parent.parent.parent
 HASHES = REPO / 'tools' / 'interfaces' / 'simulation_interfaces_hashes.json'
 # Wall-clock limit for any one wait on the other process (s).
 TIMEOUT_S = 15.0
