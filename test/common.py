@@ -11,9 +11,44 @@ functions, so importing this module stays cheap (the top conftest does).
 
 import os
 
+import pytest
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TEST_DIR = os.path.join(REPO, 'test')
 RATE_HZ = 240
 
 # Leases taken by helpers.next_domain_id, released by conftest after each test.
 leases = []
+
+
+# -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
+
+PACKAGE_URDF = os.path.join(REPO, 'urdf', 'r2d2.urdf')
+
+
+def classic_urdf_path():
+    pybullet_data = pytest.importorskip('pybullet_data')
+    return os.path.join(pybullet_data.getDataPath(), 'r2d2.urdf')
+
+
+def read(path):
+    with open(path) as f:
+        return f.read()
+
+
+def matrix_of(q):
+    """Columns are the images of x, y and z, so the result reads as a rotation matrix."""
+    from r2d2_sim.model.transforms import rotate
+    columns = [rotate(q, axis) for axis in ((1, 0, 0), (0, 1, 0), (0, 0, 1))]
+    return [[columns[c][r] for c in range(3)] for r in range(3)]
+
+
+def assert_same_transform(actual, expected, tol=1e-12):
+    """Compare translations and rotation matrices (q and -q are the same rotation)."""
+    assert actual.translation == pytest.approx(expected.translation, abs=tol)
+    for row_a, row_e in zip(matrix_of(actual.rotation), matrix_of(expected.rotation)):
+        assert row_a == pytest.approx(row_e, abs=tol)
+
+
+def robot(*joints):
+    return '<robot name="r">' + ''.join(joints) + '</robot>'
