@@ -9,6 +9,7 @@ Imports of anything heavier than the standard library happen inside the
 functions, so importing this module stays cheap (the top conftest does).
 """
 
+import math
 import os
 
 import pytest
@@ -52,3 +53,15 @@ def assert_same_transform(actual, expected, tol=1e-12):
 
 def robot(*joints):
     return '<robot name="r">' + ''.join(joints) + '</robot>'
+
+
+# -- the transform buffer: model/test_tf_buffer.py and ros/test_tf_buffer_ros.py
+
+
+def yaw(angle_rad):
+    """Return the quaternion of a turn about z."""
+    return (0.0, 0.0, math.sin(angle_rad / 2.0), math.cos(angle_rad / 2.0))
+
+
+def approx(values, tol=1e-12):
+    return pytest.approx(values, abs=tol)

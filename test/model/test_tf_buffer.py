@@ -8,12 +8,11 @@ simple sum.
 """
 
 import math
-import subprocess
-import sys
 from types import SimpleNamespace
 
 import pytest
 
+from common import approx, yaw
 from r2d2_sim.model.tf_buffer import (
     ConnectivityException, DEFAULT_CACHE_TIME_NS, ExtrapolationException, from_tf_message,
     interpolate, InvalidArgumentException, LookupException, slerp, StampedTransform,
@@ -24,21 +23,12 @@ S = 10**9  # ns per second
 NO_TURN = (0.0, 0.0, 0.0, 1.0)
 
 
-def yaw(angle_rad):
-    """Return the quaternion of a turn about z."""
-    return (0.0, 0.0, math.sin(angle_rad / 2.0), math.cos(angle_rad / 2.0))
-
-
 def robot(buffer=None):
     """Return a buffer holding the static part of the robot: footprint -> base -> laser."""
     buffer = buffer or TransformBuffer()
     buffer.add('base_footprint', 'base_link', 0, (0.0, 0.0, 0.47), NO_TURN, static=True)
     buffer.add('base_link', 'base_scan', 0, (0.1, 0.0, 0.25), NO_TURN, static=True)
     return buffer
-
-
-def approx(values, tol=1e-12):
-    return pytest.approx(values, abs=tol)
 
 
 # -- the chain, at one time ----------------------------------------------------
@@ -330,29 +320,3 @@ def test_tf_messages_feed_the_buffer():
     assert found.stamp_ns == 1_500_000_000
     assert buffer.transform_point('odom', 'base_scan', (1.0, 0.0, 0.0)) == \
         approx((1.0, 3.1, 0.72))
-
-
-def test_a_real_tf2_msgs_message_feeds_the_buffer():
-    """tf2_msgs/msg/TFMessage itself (built by tools/build_tf2_msgs.sh on pip-only machines)."""
-    tf2_msgs = pytest.importorskip('tf2_msgs.msg')
-    from geometry_msgs.msg import TransformStamped
-    t = TransformStamped()
-    t.header.frame_id, t.child_frame_id = 'odom', 'base_footprint'
-    t.header.stamp.sec, t.header.stamp.nanosec = 2, 250_000_000
-    t.transform.translation.x = 1.5
-    t.transform.rotation.z, t.transform.rotation.w = yaw(math.pi)[2:]
-    buffer = TransformBuffer()
-    assert buffer.add_tf_message(tf2_msgs.TFMessage(transforms=[t])) == 1
-    assert buffer.transform_point('odom', 'base_footprint', (1.0, 0.0, 0.0)) == \
-        approx((0.5, 0.0, 0.0))
-    assert buffer.lookup_transform('odom', 'base_footprint').stamp_ns == 2_250_000_000
-
-
-def test_the_module_needs_no_ros():
-    """Importing it loads neither rclpy nor any message package."""
-    code = ('import sys, r2d2_sim.model.tf_buffer; '
-            'print(sorted(m for m in sys.modules if m.split(".")[0] in '
-            '("rclpy", "tf2_msgs", "geometry_msgs", "pybullet", "numpy")))')
-    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
-                            timeout=60, check=True)
-    assert result.stdout.strip().splitlines()[-1] == '[]'
