@@ -21,6 +21,17 @@ RATE_HZ = 240
 # Leases taken by helpers.next_domain_id, released by conftest after each test.
 leases = []
 
+# -- the classic R2D2: ros/test_robots.py, ros/test_camera_ros.py, system/test_robots_system.py
+
+CLASSIC_YAML = os.path.join(REPO, 'urdf', 'classic_r2d2.yaml')
+
+
+def classic_params():
+    """Return the parameters of urdf/classic_r2d2.yaml as a dict."""
+    import yaml
+    with open(CLASSIC_YAML, encoding='utf-8') as handle:
+        return yaml.safe_load(handle)['r2d2_sim']['ros__parameters']
+
 
 # -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
 

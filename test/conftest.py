@@ -77,6 +77,21 @@ def _release_domains():
 
 
 @pytest.fixture
+def fake_package(tmp_path, monkeypatch):
+    """Install a package 'fake_robots' with urdf/robot.urdf in a temporary ament prefix."""
+    from r2d2_sim.physics.description import default_urdf_path
+    index = tmp_path / 'share' / 'ament_index' / 'resource_index' / 'packages'
+    index.mkdir(parents=True)
+    (index / 'fake_robots').write_text('')
+    urdf_dir = tmp_path / 'share' / 'fake_robots' / 'urdf'
+    urdf_dir.mkdir(parents=True)
+    with open(default_urdf_path(), encoding='utf-8') as handle:
+        (urdf_dir / 'robot.urdf').write_text(handle.read())
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path))
+    return urdf_dir / 'robot.urdf'
+
+
+@pytest.fixture
 def ros():
     """Provide an isolated ROS harness, torn down after the test."""
     from r2d2_sim.testing import RosHarness
