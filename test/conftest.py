@@ -77,6 +77,14 @@ def _release_domains():
 
 
 @pytest.fixture
+def world():
+    """Provide a fresh world with the package's R2D2, closed afterwards."""
+    from r2d2_sim.physics.world import SimWorld
+    with SimWorld() as w:
+        yield w
+
+
+@pytest.fixture
 def fake_package(tmp_path, monkeypatch):
     """Install a package 'fake_robots' with urdf/robot.urdf in a temporary ament prefix."""
     from r2d2_sim.physics.description import default_urdf_path

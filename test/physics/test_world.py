@@ -1,4 +1,9 @@
-"""The PyBullet world headless: joints by name, frames, drive sign, time, joint info."""
+"""
+The PyBullet world headless: joints by name, frames, drive sign, time.
+
+The ``world`` fixture is the top conftest's; the joint info the node serves
+from it is checked in ros/test_world_ros.py.
+"""
 
 import math
 
@@ -13,13 +18,6 @@ WHEELS = ['left_front_wheel_joint', 'left_back_wheel_joint',
           'right_front_wheel_joint', 'right_back_wheel_joint']
 
 
-@pytest.fixture
-def world():
-    """Provide a fresh world with the package's R2D2, closed afterwards."""
-    with SimWorld() as w:
-        yield w
-
-
 def test_joints_are_looked_up_by_name(world):
     """All 15 joints are known by name; unknown names list the known ones."""
     assert len(world.robot.joints) == 15
@@ -30,19 +28,6 @@ def test_joints_are_looked_up_by_name(world):
     assert world.robot.joint('gripper_extension').type_name == 'prismatic'
     with pytest.raises(WorldError, match='head_swivel'):
         world.robot.joint('no_such_joint')
-
-
-def test_joint_info_has_17_attributes_per_joint(world):
-    """Each joint record carries the 17 getJointInfo attributes plus its link."""
-    from r2d2_sim.ros.joint_info import joint_info
-    info = joint_info(world.robot)
-    assert len(info) == 15
-    for entry in info:
-        assert len([k for k in entry if k not in ('link', 'type_code')]) == 17
-        raw = world.client.getJointInfo(world.robot_id, entry['index'])
-        assert entry['name'] == raw[1].decode() and entry['link_name'] == raw[12].decode()
-        assert entry['type_code'] == raw[2] and entry['max_force'] == raw[10]
-        assert entry['link']['mass'] > 0.0
 
 
 def test_240_steps_are_one_second(world):
