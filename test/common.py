@@ -11,6 +11,7 @@ functions, so importing this module stays cheap (the top conftest does).
 
 import math
 import os
+import re
 
 import pytest
 
@@ -32,6 +33,13 @@ def classic_params():
     with open(CLASSIC_YAML, encoding='utf-8') as handle:
         return yaml.safe_load(handle)['r2d2_sim']['ros__parameters']
 
+
+# -- what the demo prints and writes: apps/test_demo_apps.py and system/test_demo.py
+
+PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
+PROGRESS = re.compile(
+    r'^t=\s*(?P<t>[-+\d.]+) s\s+odom x=(?P<ox>\S+) y=(?P<oy>\S+) yaw=\s*(?P<oyaw>\S+) deg'
+    r' \| truth x=(?P<tx>\S+) y=(?P<ty>\S+) yaw=\s*(?P<tyaw>\S+) deg$')
 
 # -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
 

@@ -1,10 +1,9 @@
-"""Tests for the ``demo`` and ``drive`` executables: pure helpers, then real processes."""
+"""The ``demo`` and ``drive`` executables as real processes (their pure helpers: apps/)."""
 
 import itertools
 import math
 import os
 from pathlib import Path
-import re
 import select
 import signal
 import subprocess
@@ -15,18 +14,10 @@ from helpers import (
     RemoteProbe, ros_env, simulators_in_domain, start_sim_process, stop_process, wait_for)
 import pytest
 
-from r2d2_sim.client import Pose2D
-from r2d2_sim.apps.demo import (
-    ANOTHER_SIMULATOR, command_at, format_progress, manoeuvre_duration_s, MANOEUVRE, phase_at)
-from r2d2_sim.apps.plots import write_trajectory_plot
+from common import PNG_SIGNATURE, PROGRESS, REPO
+from r2d2_sim.apps.demo import ANOTHER_SIMULATOR, manoeuvre_duration_s
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
-TURN_END_S = 1.0 + math.pi / 2.0
-FORWARD_END_S = TURN_END_S + 3.0
-PROGRESS = re.compile(
-    r'^t=\s*(?P<t>[-+\d.]+) s\s+odom x=(?P<ox>\S+) y=(?P<oy>\S+) yaw=\s*(?P<oyaw>\S+) deg'
-    r' \| truth x=(?P<tx>\S+) y=(?P<ty>\S+) yaw=\s*(?P<tyaw>\S+) deg$')
+REPO_ROOT = Path(REPO)
 # Tests that start ROS processes take turns through this process's block of four
 # domain ids in 101..232, apart from conftest's 1..100, so concurrent test runs and
 # consecutive tests do not meet.
@@ -44,58 +35,6 @@ def demo_command(output_dir, domain_id, real_time_factor):
     return [sys.executable, '-m', 'r2d2_sim.apps.demo',
             '--real-time-factor', str(real_time_factor),
             '--output-dir', str(output_dir), '--domain-id', str(domain_id)]
-
-
-# --------------------------------------------------------------------------- pure helpers
-
-
-@pytest.mark.parametrize('t_s, expected', [
-    (-0.5, (0.0, 0.0)),              # before the start
-    (0.0, (0.0, 0.0)),               # settling
-    (0.99, (0.0, 0.0)),
-    (1.0, (0.0, 1.0)),               # turn starts exactly at 1 s
-    (TURN_END_S - 0.01, (0.0, 1.0)),
-    (TURN_END_S + 0.01, (0.3, 0.0)),  # then straight ahead
-    (FORWARD_END_S - 0.01, (0.3, 0.0)),
-    (FORWARD_END_S + 0.01, (0.0, 0.0)),  # stopped
-    (100.0, (0.0, 0.0)),             # after the end
-])
-def test_command_at_returns_the_phase_command(t_s, expected):
-    assert command_at(t_s) == pytest.approx(expected)
-
-
-def test_manoeuvre_turns_90_degrees_then_drives_0_9_m():
-    # Integrals of the open-loop schedule: 1 rad/s for pi/2 s, then 0.3 m/s for 3 s.
-    turned_rad = sum(p.angular_rad_s * p.duration_s for p in MANOEUVRE)
-    driven_m = sum(p.linear_m_s * p.duration_s for p in MANOEUVRE)
-    assert turned_rad == pytest.approx(math.pi / 2.0)
-    assert driven_m == pytest.approx(0.9)
-    assert manoeuvre_duration_s() == pytest.approx(FORWARD_END_S + 1.0)
-    assert [phase_at(t).name for t in (0.5, 2.0, 3.0, 6.0)] == [
-        'settle', 'turn', 'forward', 'stop']
-
-
-def test_format_progress_shows_both_poses_in_degrees():
-    line = format_progress(3.0, Pose2D(0.0, 0.412, -0.01, math.radians(88.1)),
-                           Pose2D(0.0, 0.405, -0.012, math.radians(87.0)))
-    assert line == ('t=  3.0 s  odom x=+0.412 y=-0.010 yaw= +88.1 deg | '
-                    'truth x=+0.405 y=-0.012 yaw= +87.0 deg')
-    assert PROGRESS.match(line)
-
-
-def test_trajectory_plot_is_a_real_png(tmp_path):
-    truth = [(0.01 * math.sin(i / 10.0), 0.01 * i) for i in range(100)]
-    odom = [(0.0, 0.0101 * i) for i in range(100)]
-    path = write_trajectory_plot(tmp_path / 'plot.png', odom, truth)
-    assert path == tmp_path / 'plot.png'
-    data = path.read_bytes()
-    assert data[:8] == PNG_SIGNATURE
-    assert len(data) > 10_000
-
-
-def test_trajectory_plot_copes_with_a_missing_trajectory(tmp_path):
-    path = write_trajectory_plot(tmp_path / 'plot.png', [], [(0.0, 0.0), (0.1, 0.2)])
-    assert path.read_bytes()[:8] == PNG_SIGNATURE
 
 
 # --------------------------------------------------------------------------- demo, end to end
@@ -177,37 +116,6 @@ def test_demo_in_lockstep_repeats_bit_for_bit_on_a_busy_machine(tmp_path, domain
     assert len(finals) == 2 and finals[0] == finals[1], finals
     yaw_deg = math.degrees(float(finals[0].rsplit('yaw=', 1)[1]))
     assert 85.0 < yaw_deg < 100.0, finals[0]
-
-
-def _odometry_at(stamp_s, x_m=0.0):
-    from nav_msgs.msg import Odometry
-    msg = Odometry()
-    msg.header.stamp.sec, nanosec = divmod(round(stamp_s * 1e9), 10**9)
-    msg.header.stamp.nanosec = nanosec
-    msg.pose.pose.position.x = x_m
-    msg.pose.pose.orientation.w = 1.0
-    return msg
-
-
-def test_driver_stops_timing_when_ground_truth_goes_back_in_time(ros):
-    """Two simulators interleave their stamps: the driver records it instead of crashing."""
-    import io
-
-    from r2d2_sim.apps.demo import ManoeuvreDriver
-
-    out = io.StringIO()
-    driver = ros.add_node(ManoeuvreDriver(out=out, context=ros.context), use_sim_time=False)
-    driver._on_odom(_odometry_at(15.0))
-    driver.begin()
-    driver._on_truth(_odometry_at(15.0))  # each step's odometry and truth: answered
-    driver._on_odom(_odometry_at(15.5))
-    driver._on_truth(_odometry_at(15.5, x_m=0.1))
-    assert driver.elapsed_s == 0.5 and driver.time_went_back is None
-    driver._on_truth(_odometry_at(0.1))  # before the start: no phase to follow
-    assert driver.time_went_back == (15.5, 0.1)
-    driver._on_odom(_odometry_at(15.6))
-    driver._on_truth(_odometry_at(15.6, x_m=0.2))  # nothing is timed from here on
-    assert driver.elapsed_s == 0.5 and driver.truth_xy[-1] == (0.1, 0.0)
 
 
 def _wait_until_under_way(demo: subprocess.Popen, line: bytes = b't=  1.0 s',
@@ -410,27 +318,3 @@ def _assert_camera_picture(path):
     assert pixels.shape[:2] == (240, 320)
     top, bottom = pixels[:40].mean(axis=(0, 1)), pixels[-40:].mean(axis=(0, 1))
     assert abs(top - bottom).sum() > 0.05
-
-
-def test_camera_snapshot_writer_round_trips(tmp_path):
-    """An rgb8 Image with a padded row stride becomes a PNG of the right size and colours."""
-    from matplotlib import pyplot
-    from sensor_msgs.msg import Image
-    from r2d2_sim.apps.plots import write_camera_snapshot
-    image = Image(height=2, width=3, encoding='rgb8', step=11)
-    image.data = bytes([255, 0, 0] * 3 + [0, 0]) + bytes([0, 0, 255] * 3 + [0, 0])
-    path = write_camera_snapshot(tmp_path / 'snap.png', image)
-    pixels = pyplot.imread(path)
-    assert pixels.shape[:2] == (2, 3)
-    assert tuple(pixels[0, 0, :3]) == (1.0, 0.0, 0.0)
-    assert tuple(pixels[1, 2, :3]) == (0.0, 0.0, 1.0)
-
-
-def test_scan_points_are_placed_in_the_world_from_the_pose():
-    """A robot at (1, 2) facing +y sees a return 1 m ahead at (1, 3); infinities are skipped."""
-    from sensor_msgs.msg import LaserScan
-    from r2d2_sim.apps.plots import scan_points_xy
-    scan = LaserScan(angle_min=-math.pi / 2, angle_increment=math.pi / 2,
-                     ranges=[2.0, 1.0, math.inf, -math.inf])
-    points = scan_points_xy(scan, Pose2D(0.0, 1.0, 2.0, math.pi / 2))
-    assert points == [pytest.approx((3.0, 2.0)), pytest.approx((1.0, 3.0))]
