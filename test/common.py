@@ -9,6 +9,7 @@ Imports of anything heavier than the standard library happen inside the
 functions, so importing this module stays cheap (the top conftest does).
 """
 
+import json
 import math
 import os
 import re
@@ -40,6 +41,26 @@ PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
 PROGRESS = re.compile(
     r'^t=\s*(?P<t>[-+\d.]+) s\s+odom x=(?P<ox>\S+) y=(?P<oy>\S+) yaw=\s*(?P<oyaw>\S+) deg'
     r' \| truth x=(?P<tx>\S+) y=(?P<ty>\S+) yaw=\s*(?P<tyaw>\S+) deg$')
+
+# -- sim_node --help: apps/test_cli_apps.py and system/test_cli.py
+
+
+def _check_help(text, prog):
+    """Check the help text: a usage line for ``prog``, then every parameter of the table."""
+    from r2d2_sim.sim.parameters import PARAMETERS
+    assert text.startswith(f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]...'), text[:200]
+    flat = ' '.join(text.split())  # the lines are wrapped to 79 columns
+    for spec in PARAMETERS:
+        assert f' {spec.name}: {spec.ros_type}; default {json.dumps(spec.default)}' in flat, \
+            spec.name
+        assert ' '.join(spec.description.split()) in flat, spec.name
+    assert 'physics_rate: double; default 240.0; range [10, 10000] Hz' in flat
+    assert 'publish_rate: double; default 0.0; range [0.001, 10000] Hz or 0 (every step)' in flat
+    assert 'noise_seed: integer; default 0; range [0, 2147483647]; per robot' in flat
+    assert 'robots: string_array; default []' in flat and '-p b.initial_pose:=' in flat
+    assert 'base_forward_axis: string; default "x"; one of x, y, -x, -y' in flat
+    assert max(len(line) for line in text.splitlines()) <= 90
+
 
 # -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
 

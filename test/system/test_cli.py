@@ -1,6 +1,9 @@
-"""The real sim_node executable in its own process, driven from this test process."""
+"""
+The real sim_node executable in its own process, driven from this test process.
 
-import json
+Its ``main`` called in this process is apps/test_cli_apps.py's.
+"""
+
 import signal
 import subprocess
 import sys
@@ -13,8 +16,7 @@ from nav_msgs.msg import Odometry
 import pytest
 from sensor_msgs.msg import JointState
 
-from r2d2_sim.sim.parameters import PARAMETERS
-from r2d2_sim.apps.sim_node import main
+from common import _check_help
 
 
 @pytest.fixture
@@ -97,22 +99,6 @@ def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     assert len(lines) == 1 and fragment in lines[0], err
 
 
-def _check_help(text, prog):
-    """Check the help text: a usage line for ``prog``, then every parameter of the table."""
-    assert text.startswith(f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]...'), text[:200]
-    flat = ' '.join(text.split())  # the lines are wrapped to 79 columns
-    for spec in PARAMETERS:
-        assert f' {spec.name}: {spec.ros_type}; default {json.dumps(spec.default)}' in flat, \
-            spec.name
-        assert ' '.join(spec.description.split()) in flat, spec.name
-    assert 'physics_rate: double; default 240.0; range [10, 10000] Hz' in flat
-    assert 'publish_rate: double; default 0.0; range [0.001, 10000] Hz or 0 (every step)' in flat
-    assert 'noise_seed: integer; default 0; range [0, 2147483647]; per robot' in flat
-    assert 'robots: string_array; default []' in flat and '-p b.initial_pose:=' in flat
-    assert 'base_forward_axis: string; default "x"; one of x, y, -x, -y' in flat
-    assert max(len(line) for line in text.splitlines()) <= 90
-
-
 @pytest.mark.parametrize('args', [
     ['--help'], ['-h'], ['--ros-args', '-p', 'physics_rate:=100.0', '--help']])
 def test_help_prints_usage_and_parameters_and_exits_0(args):
@@ -121,11 +107,3 @@ def test_help_prints_usage_and_parameters_and_exits_0(args):
                             text=True, timeout=60.0, env=ros_env(next_domain_id()))
     assert result.returncode == 0 and result.stderr == '', result.stderr
     _check_help(result.stdout, 'python -m r2d2_sim')
-
-
-def test_sim_node_help_names_the_executable(capsys):
-    """sim_node --help, as its console script calls main: no ROS started, usage names sim_node."""
-    assert main(['/usr/lib/r2d2_sim/sim_node', '--help']) == 0
-    out, err = capsys.readouterr()
-    assert err == ''
-    _check_help(out, 'sim_node')
