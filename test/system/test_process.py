@@ -6,7 +6,6 @@ import time
 
 from r2d2_sim.client import wait_for
 from r2d2_sim.testing import ChildProcess
-from r2d2_sim.testing.process import parse_ros_args, RosArgs
 
 
 def test_failure_message_names_status_and_output_tail():
@@ -50,11 +49,3 @@ def test_stop_twice_returns_the_first_result(tmp_path):
     assert child.stop() is first
     assert first.returncode == 0 and sorted(first.stdout.split()) == ['err', 'out']
     assert sorted(log.read_text().split()) == ['err', 'out']
-
-
-def test_remaps_for_the_node_are_read_and_others_left_out():
-    args = ['-p', 'x:=1', '-r', '__ns:=/a', '--remap', '/clock:=/a/clock',
-            '-r', 'other_node:/tf:=/x', '-r', 'r2d2_sim:scan:=front_scan', '-r', '__node:=sim']
-    assert parse_ros_args(args, 'r2d2_sim') == RosArgs(
-        'sim', '/a', ('/clock:=/a/clock', 'scan:=front_scan'))
-    assert parse_ros_args([], 'r2d2_sim') == RosArgs(None, None, ())
