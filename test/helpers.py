@@ -9,6 +9,7 @@ and re-exported here). Test modules import from here, never from ``conftest``;
 the fast tier (model/, physics/, sim/) never imports this module.
 """
 
+import math
 from pathlib import Path
 import subprocess
 
@@ -150,3 +151,32 @@ def latest_truth(sim):
     """Return the simulator's true (x, y, yaw) now."""
     base = sim.world.robot.base_state()
     return base.position[0], base.position[1], quaternion_to_yaw(*base.orientation)
+
+
+# -- the determinism schedule: ros/test_control.py and system/test_control_system.py
+
+# (step, linear, angular) commands of the determinism schedule; NaN is refused.
+SCHEDULE = [(0, 0.3, 0.0), (40, 0.2, 0.5), (90, 0.0, -0.6), (130, math.nan, 0.0),
+            (150, -0.2, 0.3)]
+SCHEDULE_STEPS = 200
+
+
+def _run_schedule_in_process(ros):
+    """Drive SCHEDULE through the in-process API; return per-step joint and truth states."""
+    sim = make_sim(ros)
+    probe = Probe(ros, sim)
+    commands = {step: (v, w) for step, v, w in SCHEDULE}
+    record = []
+    for step in range(SCHEDULE_STEPS):
+        if step in commands:
+            probe.send(*commands[step])
+        sim.advance(1)
+        record.append(_snapshot(sim))
+    return record
+
+
+def _snapshot(sim):
+    joints = sim.world.robot.joint_states([j.index for j in sim.world.robot.movable_joints()])
+    base = sim.world.robot.base_state()
+    return (tuple(joints.positions), tuple(joints.velocities), base.position,
+            base.orientation, base.linear_velocity, base.angular_velocity)

@@ -1,4 +1,9 @@
-"""Simulation control: ~/pause, ~/step, ~/reset, start_paused, and bit-for-bit determinism."""
+"""
+Simulation control: ~/pause, ~/step, ~/reset, start_paused, and bit-for-bit determinism.
+
+In this process; the same determinism schedule stepped across processes is
+system/test_control_system.py's.
+"""
 
 from fractions import Fraction
 import json
@@ -6,20 +11,11 @@ import math
 import threading
 import time
 
-from helpers import latest_truth, make_sim, Probe, wait_for
-from nav_msgs.msg import Odometry
+from helpers import _run_schedule_in_process, latest_truth, make_sim, Probe, wait_for
 import pytest
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.apps.sim_node import run_paced
-from r2d2_sim.testing import SimProcess
-
-# (step, linear, angular) commands of the determinism schedule; NaN is refused.
-SCHEDULE = [(0, 0.3, 0.0), (40, 0.2, 0.5), (90, 0.0, -0.6), (130, math.nan, 0.0),
-            (150, -0.2, 0.3)]
-SCHEDULE_STEPS = 200
 
 
 def pause(probe, value):
@@ -203,27 +199,6 @@ def test_reset_restores_robot_keeps_clock(ros, paused):
         assert all(b > a for a, b in zip(ns, ns[1:])), topic
 
 
-def _run_schedule_in_process(ros):
-    """Drive SCHEDULE through the in-process API; return per-step joint and truth states."""
-    sim = make_sim(ros)
-    probe = Probe(ros, sim)
-    commands = {step: (v, w) for step, v, w in SCHEDULE}
-    record = []
-    for step in range(SCHEDULE_STEPS):
-        if step in commands:
-            probe.send(*commands[step])
-        sim.advance(1)
-        record.append(_snapshot(sim))
-    return record
-
-
-def _snapshot(sim):
-    joints = sim.world.robot.joint_states([j.index for j in sim.world.robot.movable_joints()])
-    base = sim.world.robot.base_state()
-    return (tuple(joints.positions), tuple(joints.velocities), base.position,
-            base.orientation, base.linear_velocity, base.angular_velocity)
-
-
 def test_in_process_runs_are_bit_identical():
     """The same command schedule at the same steps gives identical states, twice."""
     from r2d2_sim.testing import RosHarness
@@ -236,39 +211,6 @@ def test_in_process_runs_are_bit_identical():
             harness.close()
     assert runs[0] == runs[1]
     assert runs[0][-1][2] != runs[0][0][2]  # and the robot did move
-
-
-@pytest.mark.parametrize('real_time_factor', ['1.0', '10.0', '0.0'])
-def test_cross_process_stepping_matches_in_process(ros, real_time_factor):
-    """~/step across processes reproduces the in-process run bit for bit, at any speed."""
-    expected = _run_schedule_in_process(ros)
-    sim = SimProcess(start_paused=True, ros_args=['-p', f'real_time_factor:={real_time_factor}'])
-    node = sim.probe.node
-    joints, truth, clocks = [], [], []
-    subscriptions = [node.create_subscription(JointState, 'joint_states', joints.append, 1000),
-                     node.create_subscription(Odometry, 'ground_truth', truth.append, 1000),
-                     node.create_subscription(Clock, '/clock', clocks.append, 1000)]
-    try:
-        assert sim.probe.spin_until(
-            lambda: all(s.get_publisher_count() > 0 for s in subscriptions), 10.0)
-        commands = {step: (v, w) for step, v, w in SCHEDULE}
-        for step in range(SCHEDULE_STEPS):
-            if step in commands:
-                sim.send_cmd_vel(*commands[step])  # returns once the node has counted it
-            assert sim.step()['steps'] == 1
-            assert sim.probe.spin_until(
-                lambda: len(joints) >= step + 1 and len(truth) >= step + 1, 10.0)
-    finally:
-        code, out, err = sim.stop()
-    assert code == 0, err
-    got = [(tuple(j.position), tuple(j.velocity)) for j in joints[-SCHEDULE_STEPS:]]
-    assert got == [(e[0], e[1]) for e in expected]
-    got_truth = [((t.pose.pose.position.x, t.pose.pose.position.y, t.pose.pose.position.z),
-                  (t.twist.twist.linear.x, t.twist.twist.linear.y, t.twist.twist.linear.z))
-                 for t in truth[-SCHEDULE_STEPS:]]
-    assert got_truth == [(e[2], e[4]) for e in expected]
-    assert clocks[-1].clock.sec * 10**9 + clocks[-1].clock.nanosec == \
-        SCHEDULE_STEPS * 10**9 // 240
 
 
 def test_start_paused_parameter_holds_time(ros):
