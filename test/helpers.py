@@ -21,9 +21,12 @@ from std_msgs.msg import String
 
 import common
 from common import RATE_HZ, REPO  # noqa: F401 (for the tests)
+import pytest
+
 from r2d2_sim import testing
 from r2d2_sim.client import ros_child_env as ros_env, wait_for  # noqa: F401 (for the tests)
 from r2d2_sim.ros.node import SimNode
+from r2d2_sim.ros.standard import server as sim_interfaces
 from r2d2_sim.testing import (  # noqa: F401 (for the tests)
     RemoteProbe, sim_node_command, stop_process)
 from r2d2_sim.model.transforms import quaternion_to_yaw
@@ -180,3 +183,15 @@ def _snapshot(sim):
     base = sim.world.robot.base_state()
     return (tuple(joints.positions), tuple(joints.velocities), base.position,
             base.orientation, base.linear_velocity, base.angular_velocity)
+
+
+# -- two robots facing each other: ros/test_fleet.py and system/test_fleet_system.py
+
+FACING = {'a': {}, 'b': {'initial_pose': [2.0, 0.0, math.pi]}}
+needs_standard = pytest.mark.skipif(not sim_interfaces.available(),
+                                    reason='simulation_interfaces is not built here')
+
+
+def x_of(odometry):
+    """Return an Odometry's x (m)."""
+    return odometry.pose.pose.position.x
