@@ -62,6 +62,20 @@ def _check_help(text, prog):
     assert max(len(line) for line in text.splitlines()) <= 90
 
 
+# -- MCAP files read back: recording/test_foxglove_sink.py, system/test_foxglove_sink_system.py
+
+
+def read_with_mcap(path):
+    """Return (header, summary, [(channel, schema, message)]) from mcap's reader."""
+    from mcap.reader import make_reader
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream)
+        header, summary = reader.get_header(), reader.get_summary()
+        messages = [(channel, schema, message)
+                    for schema, channel, message in reader.iter_messages(log_time_order=False)]
+    return header, summary, messages
+
+
 # -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
 
 PACKAGE_URDF = os.path.join(REPO, 'urdf', 'r2d2.urdf')

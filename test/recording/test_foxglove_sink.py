@@ -5,15 +5,11 @@ The viewer is the ``websockets`` package speaking the Foxglove protocol
 (subprotocol ``foxglove.sdk.v1``) to the SDK's server on loopback. The
 recordings are read with two independent readers: ``mcap``'s and rosbags'
 ``AnyReader`` (which also decodes every message from the definitions the
-file carries).
+file carries). A recorder in a process of its own, stopped by a signal, is
+system/test_foxglove_sink_system.py's.
 """
 
 from collections import defaultdict
-import os
-from pathlib import Path
-import signal
-import subprocess
-import sys
 import time
 
 from mcap.reader import make_reader
@@ -24,13 +20,11 @@ from rosbags.highlevel import AnyReader
 from rosbags.interfaces import QosDurability
 from std_msgs.msg import String
 
+from common import read_with_mcap
 from r2d2_sim.recording.sink import FoxgloveSink, SinkError
 from r2d2_sim.recording.message_definitions import message_definition, type_hash
-from r2d2_sim.testing import ProcessResult, ros_child_env, stop_process, wait_for
 from foxglove_viewer import Viewer
 from sample_messages import LATCHED, message_class, samples, TOPICS
-
-TEST_DIR = Path(__file__).resolve().parent
 
 
 def open_channels(sink):
@@ -156,16 +150,6 @@ def test_time_messages_carry_the_simulated_time():
             assert len(viewer.times) - 2 <= 1 + elapsed * 10.0, viewer.times
 
 
-def read_with_mcap(path):
-    """Return (header, summary, [(channel, schema, message)]) from mcap's reader."""
-    with open(path, 'rb') as stream:
-        reader = make_reader(stream)
-        header, summary = reader.get_header(), reader.get_summary()
-        messages = [(channel, schema, message)
-                    for schema, channel, message in reader.iter_messages(log_time_order=False)]
-    return header, summary, messages
-
-
 def decode_with_rosbags(reader, raw, msgtype):
     """
     Decode with the deserializer rosbags generated from the file's own definitions.
@@ -270,106 +254,3 @@ def test_bad_channels_and_sinks_are_one_line_errors(tmp_path):
     assert not (tmp_path / 'never.mcap').exists(), 'a sink that failed left a file'
     assert sink.port is None
     sink.close()  # again: nothing happens
-
-
-def test_foxglove_is_imported_only_for_a_sink():
-    """Without foxglove-sdk, an empty sink works and a real one says what to install."""
-    code = '\n'.join([
-        'import sys',
-        'sys.modules["foxglove"] = None',
-        'from rclpy.qos import QoSProfile',
-        'from r2d2_sim.recording.sink import FoxgloveSink, SinkError',
-        'sink = FoxgloveSink()',
-        'sink.channel("/scan", "sensor_msgs/msg/LaserScan", QoSProfile(depth=5)).log(b"x", 1)',
-        'sink.set_time(1); sink.close()',
-        'try:',
-        '    FoxgloveSink(port=0)',
-        'except SinkError as exc:',
-        '    print(exc)',
-    ])
-    result = subprocess.run([sys.executable, '-c', code], env=ros_child_env(),
-                            capture_output=True, text=True, timeout=60)
-    assert result.returncode == 0, result.stderr
-    assert 'pip install "r2d2_sim[foxglove]"' in result.stdout
-
-
-RECORDER = '''
-import sys, time
-mode, path, test_dir = sys.argv[1:4]
-if mode == 'handlers':
-    from r2d2_sim.apps.cli import stop_on_signals
-    stop = stop_on_signals()
-sys.path.insert(0, test_dir)
-from r2d2_sim.recording.sink import FoxgloveSink
-from sample_messages import samples, TOPICS
-batch = samples(0.5)
-sink = FoxgloveSink(record_path=path)
-channels = {t: sink.channel(t, *TOPICS[t]) for t in TOPICS}
-logged = 0
-
-def log_batch(offset_ns):
-    global logged
-    for sample in batch:
-        channels[sample.topic].log(sample.data, sample.time_ns + offset_ns)
-        logged += 1
-
-try:
-    for rounds in range(1, 10**6):
-        log_batch(rounds * 10**9)
-        if rounds == 3:
-            print('recording', flush=True)
-            if mode == 'forgotten':  # no close(): the finalizer (or the SDK's own) must finish
-                break
-        if mode == 'handlers':
-            if stop.wait(0.02):
-                break
-        else:
-            time.sleep(0.02)
-finally:
-    print(logged, flush=True)
-    if not mode.startswith('forgotten'):
-        sink.close()
-'''
-
-
-@pytest.mark.parametrize('mode, sig', [
-    ('handlers', signal.SIGINT), ('handlers', signal.SIGTERM),
-    ('keyboard_interrupt', signal.SIGINT), ('forgotten', None),
-    ('forgotten_keyboard_interrupt', signal.SIGINT)])
-def test_a_stopped_recorder_leaves_a_complete_file(tmp_path, mode, sig):
-    """
-    A process that records until SIGINT/SIGTERM leaves a file with every message and a summary.
-
-    ``handlers``: the owner turns both signals into an event (sim_node's
-    way) and closes in ``finally``. ``keyboard_interrupt``: Python's own
-    SIGINT handling, closed in ``finally``. ``forgotten``: never closed,
-    normal exit; ``forgotten_keyboard_interrupt``: never closed, Ctrl-C.
-    """
-    path = tmp_path / 'run.mcap'
-    process = subprocess.Popen([sys.executable, '-c', RECORDER, mode, str(path), str(TEST_DIR)],
-                               env=ros_child_env(), stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    try:
-        assert process.stdout.readline().strip() == 'recording', process.stderr.read()
-        if sig is None:
-            # Not communicate(): it reads the pipe's fd and would miss what
-            # readline() already buffered; the output is small.
-            process.wait(timeout=20.0)
-            result = ProcessResult(process.returncode, process.stdout.read(),
-                                   process.stderr.read())
-        else:
-            result = stop_process(process, sig, timeout_s=20.0)  # one signal only
-    finally:
-        if process.poll() is None:
-            process.kill()
-    logged = int(result.stdout.split()[-1])
-    if mode == 'handlers' or mode == 'forgotten':
-        assert result.returncode == 0, result.stderr
-    assert wait_for(lambda: path.stat().st_size > 0, 1.0)
-    header, summary, messages = read_with_mcap(path)
-    assert summary is not None, 'no summary: the file was not closed'
-    assert summary.statistics.message_count == logged == len(messages)
-    assert len(messages) >= 3 * len(TOPICS)
-    with AnyReader([path]) as reader:
-        assert sum(info.msgcount for info in reader.topics.values()) == logged
-    assert os.path.getsize(path) > 1000
