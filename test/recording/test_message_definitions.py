@@ -13,10 +13,12 @@ Definitions, type hashes and QoS YAML for recordings, checked against independen
 - QoS: parsed by rosbags' rosbag2 reader, and equal to the YAML of the
   profile that Fast DDS reports for a real publisher, except for history
   and depth, which the graph does not report.
+
+That all this needs no rclpy is proved in a fresh interpreter by
+system/test_message_definitions_system.py.
 """
 
 import importlib
-import os
 from pathlib import Path
 import sys
 
@@ -254,16 +256,3 @@ def test_qos_yaml_is_what_a_recorder_sees_in_the_graph():
             node.destroy_node()
         finally:
             rclpy.try_shutdown(context=context)
-
-
-def test_no_rclpy_needed():
-    """The module imports and builds definitions in an interpreter that has no rclpy."""
-    code = ('import sys; sys.modules["rclpy"] = None; '
-            'from r2d2_sim.recording.message_definitions import message_definition; '
-            'print(len(message_definition("sensor_msgs/msg/LaserScan")))')
-    import subprocess
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
-    result = subprocess.run([sys.executable, '-c', code], env=env, capture_output=True,
-                            text=True, timeout=60)
-    assert result.returncode == 0, result.stderr
-    assert int(result.stdout) == len(message_definition('sensor_msgs/msg/LaserScan'))
