@@ -24,7 +24,7 @@ from common import RATE_HZ, REPO  # noqa: F401 (for the tests)
 import pytest
 
 from r2d2_sim import testing
-from r2d2_sim.client import ros_child_env as ros_env, wait_for  # noqa: F401 (for the tests)
+from r2d2_sim.client import ros_child_env as ros_env, stamp_ns, wait_for  # noqa: F401
 from r2d2_sim.ros.node import SimNode
 from r2d2_sim.ros.standard import server as sim_interfaces
 from r2d2_sim.testing import (  # noqa: F401 (for the tests)
@@ -195,3 +195,29 @@ needs_standard = pytest.mark.skipif(not sim_interfaces.available(),
 def x_of(odometry):
     """Return an Odometry's x (m)."""
     return odometry.pose.pose.position.x
+
+
+# -- the node's outputs with sensors on: ros/test_live_view.py, system/test_live_view_system.py
+
+SENSORS = {'scan_rate': 10.0, 'imu_rate': 60.0, 'camera_rate': 10.0, 'camera_width': 32,
+           'camera_height': 24}
+# Every output the node has with these parameters, and its type.
+OUTPUTS = {
+    '/clock': 'rosgraph_msgs/msg/Clock', '/joint_states': 'sensor_msgs/msg/JointState',
+    '/odom': 'nav_msgs/msg/Odometry', '/ground_truth': 'nav_msgs/msg/Odometry',
+    '/tf': 'tf2_msgs/msg/TFMessage', '/tf_static': 'tf2_msgs/msg/TFMessage',
+    '/scan': 'sensor_msgs/msg/LaserScan', '/imu': 'sensor_msgs/msg/Imu',
+    '/robot_description': 'std_msgs/msg/String',
+    '/camera/image_raw': 'sensor_msgs/msg/Image',
+    '/camera/camera_info': 'sensor_msgs/msg/CameraInfo',
+}
+LATCHED = ('/robot_description', '/tf_static')
+
+
+def stamp_of(msg):
+    """Return the stamp (ns) of a message with a header, a Clock's time, a TFMessage's first."""
+    if hasattr(msg, 'clock'):
+        return stamp_ns(msg.clock)
+    if hasattr(msg, 'transforms'):
+        return stamp_ns(msg.transforms[0].header.stamp)
+    return stamp_ns(msg.header.stamp)
