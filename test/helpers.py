@@ -15,21 +15,26 @@ import subprocess
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+import pytest
+from rcl_interfaces.msg import ParameterType
+from rcl_interfaces.srv import (
+    DescribeParameters, GetParameters, GetParameterTypes, ListParameters)
+from rclpy.parameter import parameter_value_to_python
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 import common
 from common import RATE_HZ, REPO  # noqa: F401 (for the tests)
-import pytest
-
 from r2d2_sim import testing
 from r2d2_sim.client import ros_child_env as ros_env, stamp_ns, wait_for  # noqa: F401
 from r2d2_sim.ros.node import SimNode
+from r2d2_sim.ros.parameters import ROS_TYPES
 from r2d2_sim.ros.standard import server as sim_interfaces
 from r2d2_sim.testing import (  # noqa: F401 (for the tests)
     RemoteProbe, sim_node_command, stop_process)
 from r2d2_sim.model.transforms import quaternion_to_yaw
+from r2d2_sim.sim.parameters import PARAMETERS, PARAMETERS_BY_NAME
 
 
 def next_domain_id() -> int:
@@ -221,3 +226,68 @@ def stamp_of(msg):
     if hasattr(msg, 'transforms'):
         return stamp_ns(msg.transforms[0].header.stamp)
     return stamp_ns(msg.header.stamp)
+
+
+# -- the parameters as ros2 param reads them: ros/ and system/test_parameter_services*.py
+
+NODE = '/r2d2_sim'
+TIMEOUT_S = 20.0
+
+
+def _read_everything(probe):
+    """Return {name: (ParameterValue, ParameterDescriptor)} the way ros2 param dump gets it."""
+    listed = probe.call(ListParameters, f'{NODE}/list_parameters', ListParameters.Request(),
+                        TIMEOUT_S, resend_after_s=2.0)
+    names = list(listed.result.names)
+    values = probe.call(GetParameters, f'{NODE}/get_parameters',
+                        GetParameters.Request(names=names), TIMEOUT_S, resend_after_s=2.0)
+    assert len(values.values) == len(names), (
+        f'get_parameters returned {len(values.values)} values for {len(names)} names')
+    types = probe.call(GetParameterTypes, f'{NODE}/get_parameter_types',
+                       GetParameterTypes.Request(names=names), TIMEOUT_S, resend_after_s=2.0)
+    assert len(types.types) == len(names)
+    described = probe.call(DescribeParameters, f'{NODE}/describe_parameters',
+                           DescribeParameters.Request(names=names), TIMEOUT_S,
+                           resend_after_s=2.0)
+    assert len(described.descriptors) == len(names)
+    for name, value, type_ in zip(names, values.values, types.types):
+        assert value.type == type_, name
+    return {name: (value, descriptor)
+            for name, value, descriptor in zip(names, values.values, described.descriptors)}
+
+
+def _expected(name, overrides):
+    """Return the value the node should report: the override, else the table's default."""
+    spec = PARAMETERS_BY_NAME[name]
+    value = overrides.get(name, spec.default)
+    if spec.ros_type == 'double':
+        return float(value)
+    if spec.ros_type.endswith('_array'):
+        return list(value)
+    return value
+
+
+def _check_all(read, overrides=None):
+    overrides = overrides or {}
+    assert set(PARAMETERS_BY_NAME) <= set(read), set(PARAMETERS_BY_NAME) - set(read)
+    for spec in PARAMETERS:
+        value, descriptor = read[spec.name]
+        assert value.type == ROS_TYPES[spec.ros_type].value, (
+            f'{spec.name}: type {value.type}, expected {spec.ros_type}')
+        assert value.type != ParameterType.PARAMETER_NOT_SET, spec.name
+        got = parameter_value_to_python(value)
+        if spec.ros_type.endswith('_array'):
+            got = list(got)
+        assert got == _expected(spec.name, overrides), spec.name
+        assert descriptor.type == value.type, spec.name
+        assert descriptor.read_only, spec.name
+        assert descriptor.description == spec.description, spec.name
+        bounds = spec.bounds
+        if spec.ros_type == 'double' and bounds is not None and bounds.zero is None:
+            (fp,) = descriptor.floating_point_range
+            assert math.isclose(fp.from_value, bounds.low) and \
+                math.isclose(fp.to_value, bounds.high), spec.name
+        if spec.ros_type == 'integer' and bounds is not None and bounds.zero is None:
+            (ir,) = descriptor.integer_range
+            assert (ir.from_value, ir.to_value) == (bounds.low, bounds.high), spec.name
+    assert read['use_sim_time'][0].type == ParameterType.PARAMETER_BOOL
