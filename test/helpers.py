@@ -11,8 +11,12 @@ the fast tier (model/, physics/, sim/) never imports this module.
 
 import math
 from pathlib import Path
+import random
+import string
 import subprocess
+from typing import List, Tuple
 
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
@@ -22,7 +26,7 @@ from rcl_interfaces.srv import (
 from rclpy.parameter import parameter_value_to_python
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
+from std_msgs.msg import Header, String
 
 import common
 from common import RATE_HZ, REPO  # noqa: F401 (for the tests)
@@ -291,3 +295,34 @@ def _check_all(read, overrides=None):
             (ir,) = descriptor.integer_range
             assert (ir.from_value, ir.to_value) == (bounds.low, bounds.high), spec.name
     assert read['use_sim_time'][0].type == ParameterType.PARAMETER_BOOL
+
+
+# -- random message values: ros/test_serialization.py and system/test_serialization_system.py
+
+SPECIAL_STAMPS = [(0, 0), (0, 999_999_999), (2**31 - 1, 999_999_999), (-2**31, 0),
+                  (1_800_000_000, 1), (-1, 999_999_999)]
+SPECIAL_FLOAT64 = [0.0, -0.0, 1.0, -1.5, math.pi, 1e308, -1e308, 5e-324, -2.5e-310,
+                   math.inf, -math.inf, math.nan]
+
+
+def floats64(rng: random.Random, count: int) -> List[float]:
+    """Return ``count`` float64 values, a fifth of them special (NaN, inf, -0.0, tiny, huge)."""
+    return [rng.choice(SPECIAL_FLOAT64) if rng.random() < 0.2 else rng.uniform(-1e3, 1e3)
+            for _ in range(count)]
+
+
+def stamp(rng: random.Random) -> Tuple[int, int]:
+    """Return (sec, nanosec): the edge cases, or random in the whole int32/nanosecond range."""
+    if rng.random() < 0.3:
+        return rng.choice(SPECIAL_STAMPS)
+    return rng.randrange(-2**31, 2**31), rng.randrange(10**9)
+
+
+def text(rng: random.Random, length: int) -> str:
+    """Return a random ASCII identifier-like string of ``length`` characters."""
+    return ''.join(rng.choice(string.ascii_letters + '_/') for _ in range(length))
+
+
+def header(frame_id: str, sec: int, nanosec: int) -> Header:
+    """Return a std_msgs/Header."""
+    return Header(frame_id=frame_id, stamp=Time(sec=sec, nanosec=nanosec))

@@ -5,21 +5,21 @@ MessageTemplate: patched bytes equal the serializer's, byte for byte, and cross 
 at the end unwritten: they hold whatever was in memory, so two serializations
 of one message may differ there. The reference here is therefore the serializer
 itself run twice into buffers prefilled with 0x00 and 0xFF: bytes equal in both
-are the ones it writes, and every one of those must match the template's.
+are the ones it writes, and every one of those must match the template's. The
+patched bytes received by a typed subscriber in another process are
+system/test_serialization_system.py's; the random values both draw are in
+helpers.py.
 """
 
 import ctypes
-import json
 import math
 import os
 import random
-import string
 import struct
-import subprocess
-import sys
 from typing import Any, Callable, List, Sequence, Tuple
 
 from builtin_interfaces.msg import Time
+from helpers import floats64, header, stamp, text
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 import numpy as np
@@ -28,18 +28,12 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.type_support import check_for_type_support
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, LaserScan, Range
-from std_msgs.msg import Header
 
 from r2d2_sim.ros import serialization
 from r2d2_sim.ros.serialization import FieldError, MessageTemplate
-from r2d2_sim.testing import wait_for
 
 STATES = 200
 FRAME_ID_LENGTHS = range(10)    # every remainder of string padding, twice over
-SPECIAL_STAMPS = [(0, 0), (0, 999_999_999), (2**31 - 1, 999_999_999), (-2**31, 0),
-                  (1_800_000_000, 1), (-1, 999_999_999)]
-SPECIAL_FLOAT64 = [0.0, -0.0, 1.0, -1.5, math.pi, 1e308, -1e308, 5e-324, -2.5e-310,
-                   math.inf, -math.inf, math.nan]
 SPECIAL_FLOAT32 = [0.0, -0.0, 0.1, 1e-40, 1.4e-45, 3.4e38, -3.4e38, math.inf, -math.inf,
                    math.nan]
 
@@ -138,28 +132,10 @@ def canonical(value: Any) -> Any:
     return tuple(canonical(item) for item in value)
 
 
-def floats64(rng: random.Random, count: int) -> List[float]:
-    """Return ``count`` float64 values, a fifth of them special (NaN, inf, -0.0, tiny, huge)."""
-    return [rng.choice(SPECIAL_FLOAT64) if rng.random() < 0.2 else rng.uniform(-1e3, 1e3)
-            for _ in range(count)]
-
-
 def floats32(rng: random.Random, count: int) -> List[float]:
     """Return ``count`` values for float32 fields, some special, most needing rounding."""
     return [rng.choice(SPECIAL_FLOAT32) if rng.random() < 0.2 else rng.uniform(0.0, 30.0)
             for _ in range(count)]
-
-
-def stamp(rng: random.Random) -> Tuple[int, int]:
-    """Return (sec, nanosec): the edge cases, or random in the whole int32/nanosecond range."""
-    if rng.random() < 0.3:
-        return rng.choice(SPECIAL_STAMPS)
-    return rng.randrange(-2**31, 2**31), rng.randrange(10**9)
-
-
-def text(rng: random.Random, length: int) -> str:
-    """Return a random ASCII identifier-like string of ``length`` characters."""
-    return ''.join(rng.choice(string.ascii_letters + '_/') for _ in range(length))
 
 
 def as_given(rng: random.Random, values: List[float], dtype: str = 'float64') -> Sequence[float]:
@@ -170,11 +146,6 @@ def as_given(rng: random.Random, values: List[float], dtype: str = 'float64') ->
     if kind == 1:
         return tuple(values)
     return np.array(values, dtype=dtype)
-
-
-def header(frame_id: str, sec: int, nanosec: int) -> Header:
-    """Return a std_msgs/Header."""
-    return Header(frame_id=frame_id, stamp=Time(sec=sec, nanosec=nanosec))
 
 
 def check_states(reference, build: Callable, draw: Callable, patches: Callable,
@@ -543,146 +514,3 @@ def test_other_encodings_are_refused(monkeypatch, encapsulation, error):
     monkeypatch.setattr(serialization, 'serialize_message', other_encoding)
     with pytest.raises(ValueError, match=error):
         MessageTemplate(Clock())
-
-
-LISTENER = r'''
-import json, sys, time
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from nav_msgs.msg import Odometry
-from sensor_msgs.msg import JointState
-
-domain_id, expected, timeout_s = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
-context = Context()
-rclpy.init(context=context, domain_id=domain_id)
-node = rclpy.create_node('serialization_listener', context=context)
-qos = QoSProfile(depth=expected, reliability=ReliabilityPolicy.RELIABLE,
-                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
-counts = {'joint_states': 0, 'odom': 0}
-
-
-def report(topic, msg, **values):
-    counts[topic] += 1
-    stamp = [msg.header.stamp.sec, msg.header.stamp.nanosec]
-    print(json.dumps(dict(topic=topic, stamp=stamp, frame_id=msg.header.frame_id, **values)),
-          flush=True)
-
-
-def on_joints(msg):
-    report('joint_states', msg, name=list(msg.name), position=list(msg.position),
-           velocity=list(msg.velocity), effort=list(msg.effort))
-
-
-def on_odom(msg):
-    p, q = msg.pose.pose.position, msg.pose.pose.orientation
-    v, w = msg.twist.twist.linear, msg.twist.twist.angular
-    report('odom', msg, child_frame_id=msg.child_frame_id,
-           pose=[p.x, p.y, p.z, q.x, q.y, q.z, q.w], twist=[v.x, v.y, v.z, w.x, w.y, w.z],
-           covariance=list(msg.pose.covariance))
-
-
-node.create_subscription(JointState, 'joint_states', on_joints, qos)
-node.create_subscription(Odometry, 'odom', on_odom, qos)
-executor = SingleThreadedExecutor(context=context)
-executor.add_node(node)
-deadline = time.monotonic() + timeout_s
-try:
-    while min(counts.values()) < expected and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.05)
-finally:
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.try_shutdown(context=context)
-'''
-
-
-def bits(values: Sequence[float]) -> List[bytes]:
-    """Return the float64 bit patterns of ``values``: exact, and NaN equals NaN."""
-    return [struct.pack('<d', value) for value in values]
-
-
-def test_typed_subscriber_in_another_process_receives_patched_bytes(monkeypatch):
-    """publisher.publish(template.to_bytes()) reaches a typed subscription, value for value."""
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-    messages = 20
-    # Domains 170-199 are this project's share of the machine; discovery stays local.
-    domain_id = 170 + os.getpid() % 30
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED='1')
-    listener = subprocess.Popen([sys.executable, '-c', LISTENER, str(domain_id),
-                                 str(messages), '15'],
-                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                text=True)
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    node = None
-    try:
-        node = rclpy.create_node('serialization_talker', context=context)
-        # Transient local with room for every message: whatever is published before
-        # the listener's reader has matched this writer still reaches it.
-        qos = QoSProfile(depth=messages, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        joint_pub = node.create_publisher(JointState, 'joint_states', qos)
-        odom_pub = node.create_publisher(Odometry, 'odom', qos)
-
-        rng = random.Random(80)
-        names = [text(rng, length) for length in (3, 0, 7, 12, 1)]
-        joints = MessageTemplate(JointState(header=header('base', 0, 0), name=names,
-                                            position=[0.0] * 5, velocity=[0.0] * 5,
-                                            effort=[0.0] * 5))
-        joint_slots = [joints.stamp()] + [joints.field(f) for f in ('position', 'velocity',
-                                                                    'effort')]
-        covariance = floats64(rng, 36)
-        odom_msg = Odometry(header=header('odom', 0, 0), child_frame_id='base_footprint')
-        odom_msg.pose.covariance = covariance
-        odom = MessageTemplate(odom_msg)
-        odom_slots = [odom.stamp(), odom.field('pose.pose'), odom.field('twist.twist')]
-        assert wait_for(lambda: listener.poll() is not None or (
-            joint_pub.get_subscription_count() > 0 and odom_pub.get_subscription_count() > 0),
-            timeout_s=10.0), 'the listener never subscribed'
-        assert listener.poll() is None, listener.communicate()[1][-2000:]
-
-        sent = {'joint_states': [], 'odom': []}
-        for _ in range(messages):
-            state = [stamp(rng)] + [floats64(rng, 5) for _ in range(3)]
-            joint_slots[0].set(*state[0])
-            for slot, values in zip(joint_slots[1:], state[1:]):
-                slot.set(values)
-            sent['joint_states'].append(state)
-            joint_pub.publish(joints.to_bytes())
-            state = [stamp(rng), floats64(rng, 7), floats64(rng, 6)]
-            odom_slots[0].set(*state[0])
-            odom_slots[1].set(state[1])
-            odom_slots[2].set(state[2])
-            sent['odom'].append(state)
-            odom_pub.publish(odom.to_bytes())
-
-        out, err = listener.communicate(timeout=20)
-        received = {'joint_states': [], 'odom': []}
-        for line in out.splitlines():
-            report = json.loads(line)
-            received[report['topic']].append(report)
-        assert [len(received[t]) for t in received] == [messages, messages], err[-2000:]
-        for (stamp_value, *arrays), report in zip(sent['joint_states'], received['joint_states']):
-            assert report['stamp'] == list(stamp_value)
-            assert report['frame_id'] == 'base' and report['name'] == names
-            for key, values in zip(('position', 'velocity', 'effort'), arrays):
-                assert bits(report[key]) == bits(values), key
-        for (stamp_value, pose, twist), report in zip(sent['odom'], received['odom']):
-            assert report['stamp'] == list(stamp_value)
-            assert (report['frame_id'], report['child_frame_id']) == ('odom', 'base_footprint')
-            assert bits(report['pose']) == bits(pose)
-            assert bits(report['twist']) == bits(twist)
-            assert bits(report['covariance']) == bits(covariance)
-    finally:
-        if listener.poll() is None:
-            listener.kill()
-            listener.communicate()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown(context=context)
