@@ -76,6 +76,12 @@ def read_with_mcap(path):
     return header, summary, messages
 
 
+# -- a small box to spawn: ros/test_sim_interfaces.py and system/test_sim_interfaces_system.py
+
+BOX = ('<robot name="box"><link name="box"><inertial><mass value="1"/><inertia ixx="0.01" '
+       'iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial><collision><geometry>'
+       '<box size="0.2 0.2 0.2"/></geometry></collision></link></robot>')
+
 # -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
 
 PACKAGE_URDF = os.path.join(REPO, 'urdf', 'r2d2.urdf')
