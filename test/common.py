@@ -12,6 +12,7 @@ functions, so importing this module stays cheap (the top conftest does).
 import json
 import math
 import os
+from pathlib import Path
 import re
 
 import pytest
@@ -81,6 +82,13 @@ def read_with_mcap(path):
 BOX = ('<robot name="box"><link name="box"><inertial><mass value="1"/><inertia ixx="0.01" '
        'iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial><collision><geometry>'
        '<box size="0.2 0.2 0.2"/></geometry></collision></link></robot>')
+
+# -- the README's examples: testing/test_testing_api.py, system/test_testing_api_system.py
+
+EXAMPLES = Path(REPO) / 'test' / 'examples'
+# In README order.
+EXAMPLE_FILES = ['test_drive_forward.py', 'test_closed_loop.py', 'test_sim_process.py',
+                 'test_change_the_world.py', 'test_two_robots.py']
 
 # -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
 

@@ -100,6 +100,14 @@ def fake_package(tmp_path, monkeypatch):
 
 
 @pytest.fixture
+def lock_dir(tmp_path, monkeypatch):
+    """Lease domains in a directory of this test's own, away from concurrent test runs."""
+    from r2d2_sim import testing
+    monkeypatch.setenv(testing.DOMAIN_LOCK_DIR_ENV, str(tmp_path))
+    return tmp_path
+
+
+@pytest.fixture
 def ros():
     """Provide an isolated ROS harness, torn down after the test."""
     from r2d2_sim.testing import RosHarness
