@@ -6,7 +6,10 @@ The harnesses, deadline waits, process helpers and ROS domain leases live in
 what is left here records every message for exact-count checks, or knows this
 repository's layout (what needs no ROS, such as ``REPO``, is in ``common``
 and re-exported here). Test modules import from here, never from ``conftest``;
-the fast tier (model/, physics/, sim/) never imports this module.
+the fast tier (model/, physics/, sim/) never imports this module, which loads
+rclpy and the node. Below the general helpers: what an in-process test file
+and its system/ counterpart share since the tests were split by tier, each
+under the name its tests call it by.
 """
 
 import math
