@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One entry point for a fresh machine: ./run.sh demo | test | bench | sim [ROS args...]
+# One entry point for a fresh machine: ./run.sh demo | test [fast] | bench | sim [ROS args...]
 # Each command creates .venv (if needed), installs requirements.txt into it,
 # keeps ROS discovery on this host, then runs.
 set -euo pipefail
@@ -10,7 +10,7 @@ export PYTHONUNBUFFERED=1
 VENV=.venv
 PY="$VENV/bin/python"
 
-setup() {
+setup_venv() {
   if [ ! -x "$PY" ]; then
     python3 -m venv "$VENV"
   fi
@@ -18,6 +18,12 @@ setup() {
     "$PY" -m pip install --quiet --disable-pip-version-check -r requirements.txt
     touch "$VENV/.installed"
   fi
+  export PATH="$PWD/$VENV/bin:$PATH"
+  export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
+}
+
+setup() {
+  setup_venv
   # Interface packages that are not on PyPI (tf2_msgs, simulation_interfaces)
   # for pip-only installs: built once, then cached; ~0.5 s when installed.
   if ! tools/build_interfaces.sh "$VENV"; then
@@ -26,8 +32,6 @@ setup() {
     tools/build_interfaces.sh --check "$VENV" simulation_interfaces \
       || echo "run.sh: simulation_interfaces unavailable, the simulation_interfaces services are off" >&2
   fi
-  export PATH="$PWD/$VENV/bin:$PATH"
-  export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 }
 
 need_xvfb() {
@@ -47,11 +51,18 @@ case "$cmd" in
   demo)  setup; exec "$PY" -m r2d2_sim.apps.demo "$@" ;;
   sim)   setup; exec "$PY" -m r2d2_sim "$@" ;;
   # Two workers: every ROS test leases a domain of its own. Paths given replace test/.
-  test)  setup; need_xvfb
+  # 'test fast': the tiers without ROS (test/model, physics, sim) and the layering
+  # check, in seconds: only the venv, no interface build; two workers were faster.
+  test)  if [ "${1:-}" = fast ]; then
+           shift; setup_venv
+           exec "$PY" -m pytest -q -p no:cacheprovider -n 2 test/model test/physics test/sim \
+             test/lint/test_layers.py "$@"
+         fi
+         setup; need_xvfb
          paths=(test); for arg in "$@"; do [ -e "${arg%%::*}" ] && paths=(); done
          exec "$PY" -m pytest -q -p no:cacheprovider -n 2 "${paths[@]}" "$@" ;;
   # The main bench, then several robots in one world, then the test harness's speed.
   bench) setup; "$PY" bench/run.py "$@"; "$PY" bench/fleet.py "$@"
          exec "$PY" bench/lockstep.py "$@" ;;
-  *) echo "usage: ./run.sh demo|test|bench|sim [args...]" >&2; exit 2 ;;
+  *) echo "usage: ./run.sh demo|test [fast]|bench|sim [args...]" >&2; exit 2 ;;
 esac

@@ -1,39 +1,123 @@
 """
-Fixtures for this project's own tests; their helpers are in ``helpers.py``.
+Markers and fixtures for this project's own tests; this file imports no ROS.
 
-The user-facing fixtures of :mod:`r2d2_sim.pytest_plugin` are imported here
-for this suite too (rather than named in pytest_plugins: an installed
-r2d2_sim registers the plugin under another name).
+The folders are tiers. ``model/``, ``physics/`` and ``sim/`` are the fast tier
+(``./run.sh test fast``): they never load rclpy (``model/`` not even PyBullet),
+and a session of them alone fails if rclpy gets imported anyway. ``recording/``,
+``ros/``, ``testing/`` and ``apps/`` run ROS in this process; ``system/`` starts
+processes or builds things, and is marked ``system``; ``lint/`` checks style
+and the package's layering. Helpers are in ``common.py`` (no ROS) and
+``helpers.py`` (ROS); test modules import from those, never from a conftest.
+
+The fixtures below import what they need when they run, so collecting or
+running the fast tier loads no ROS. The user-facing fixtures of
+:mod:`r2d2_sim.pytest_plugin` (which imports neither rclpy nor PyBullet) are
+imported here for this suite too, rather than named in pytest_plugins: an
+installed r2d2_sim registers the plugin under another name.
 """
 
 import os
+from pathlib import Path
+import sys
 
 import pytest
 
-import helpers
-from helpers import make_sim, Probe
+import common
 from r2d2_sim.pytest_plugin import (  # noqa: F401
     r2d2_sim, r2d2_sim_factory, r2d2_sim_parameters, r2d2_sim_process)
-from r2d2_sim.testing import RosHarness
 
 # Discovery must stay on this host; set before any rclpy.init.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-# The README examples run in a subprocess (test_testing_api.py), as a user's
-# own test files would, not as part of this suite.
+# The README examples run in a subprocess (system/test_testing_api_system.py), as
+# a user's own test files would, not as part of this suite.
 collect_ignore = ['examples']
+
+TEST_DIR = Path(__file__).resolve().parent
+FAST_TIER = [TEST_DIR / 'model', TEST_DIR / 'physics', TEST_DIR / 'sim']
+# Fast-tier tests outside those folders: they start interpreters of their own, not ROS.
+FAST_FILES = [TEST_DIR / 'lint' / 'test_layers.py']
+SYSTEM = TEST_DIR / 'system'
+FAST_ONLY = pytest.StashKey[bool]()
+ROS_SEEN = pytest.StashKey[bool]()
+
+
+def in_fast_tier(path: Path) -> bool:
+    """Return True for a test file of the fast tier (no rclpy in this process)."""
+    return path in FAST_FILES or any(folder in path.parents for folder in FAST_TIER)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark everything under system/ as ``system``; note whether only the fast tier runs."""
+    for item in items:
+        if SYSTEM in item.path.parents:
+            item.add_marker(pytest.mark.system)
+    config.stash[FAST_ONLY] = bool(items) and all(in_fast_tier(item.path) for item in items)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """In a fast-tier session (in each xdist worker too), fail the test that loaded rclpy."""
+    outcome = yield
+    report = outcome.get_result()
+    config = item.config
+    if (call.when == 'teardown' and config.stash.get(FAST_ONLY, False)
+            and 'rclpy' in sys.modules and not config.stash.get(ROS_SEEN, False)):
+        config.stash[ROS_SEEN] = True
+        report.outcome = 'failed'
+        report.longrepr = ('fast tier: rclpy was imported in this session (model/, physics/ and '
+                           'sim/ must not load ROS); it was loaded by the end of this test')
 
 
 @pytest.fixture(autouse=True)
 def _release_domains():
     """Release the domains a test leased through helpers.next_domain_id, after all its fixtures."""
     yield
-    while helpers.leases:
-        helpers.leases.pop().release()
+    while common.leases:
+        common.leases.pop().release()
+
+
+@pytest.fixture
+def world():
+    """Provide a fresh world with the package's R2D2, closed afterwards."""
+    from r2d2_sim.physics.world import SimWorld
+    with SimWorld() as w:
+        common.load_r2d2(w)
+        yield w
+
+
+@pytest.fixture
+def robot(world):
+    """Provide the world's R2D2 (a Body)."""
+    return world.bodies['r2d2']
+
+
+@pytest.fixture
+def fake_package(tmp_path, monkeypatch):
+    """Install a package 'fake_robots' with urdf/robot.urdf in a temporary ament prefix."""
+    from r2d2_sim.physics.description import default_urdf_path
+    index = tmp_path / 'share' / 'ament_index' / 'resource_index' / 'packages'
+    index.mkdir(parents=True)
+    (index / 'fake_robots').write_text('')
+    urdf_dir = tmp_path / 'share' / 'fake_robots' / 'urdf'
+    urdf_dir.mkdir(parents=True)
+    with open(default_urdf_path(), encoding='utf-8') as handle:
+        (urdf_dir / 'robot.urdf').write_text(handle.read())
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path))
+    return urdf_dir / 'robot.urdf'
+
+
+@pytest.fixture
+def lock_dir(tmp_path, monkeypatch):
+    """Lease domains in a directory of this test's own, away from concurrent test runs."""
+    from r2d2_sim import testing
+    monkeypatch.setenv(testing.DOMAIN_LOCK_DIR_ENV, str(tmp_path))
+    return tmp_path
 
 
 @pytest.fixture
 def ros():
     """Provide an isolated ROS harness, torn down after the test."""
+    from r2d2_sim.testing import RosHarness
     with RosHarness() as harness:
         yield harness
 
@@ -41,10 +125,12 @@ def ros():
 @pytest.fixture
 def sim(ros):
     """Provide the default simulator."""
+    from helpers import make_sim
     return make_sim(ros)
 
 
 @pytest.fixture
 def probe(ros, sim):
     """Provide a probe node linked to the simulator."""
+    from helpers import Probe
     return Probe(ros, sim)

@@ -21,9 +21,23 @@ def main() -> int:
         from r2d2_sim.apps.replay import main as replay
         status = replay(['replay'] + sys.argv[2:])
     finally:
-        print(f'replay_child: maxrss_kib={resource.getrusage(resource.RUSAGE_SELF).ru_maxrss} '
+        print(f'replay_child: maxrss_kib={peak_rss_kib()} '
               f'this_imported={"this" in sys.modules}', flush=True)
     return status
+
+
+def peak_rss_kib() -> int:
+    """
+    Return this process's own peak resident memory (KiB): VmHWM of its address space.
+
+    Not getrusage's ru_maxrss: Linux keeps that across fork and exec, so a
+    child started from a big test worker reports the worker's peak as its own.
+    """
+    with open('/proc/self/status', encoding='ascii') as status:
+        for line in status:
+            if line.startswith('VmHWM:'):
+                return int(line.split()[1])
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 
 
 if __name__ == '__main__':

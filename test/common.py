@@ -1,0 +1,142 @@
+"""
+Helpers every tier of this project's tests may use: no ROS, no PyBullet.
+
+The fast tier (``test/model``, ``test/physics``, ``test/sim``) imports from
+here, never from ``helpers`` (which loads rclpy and the node). What several
+tiers share after a test file was split by tier lives here too, under the
+names the tests call it by; the ROS helpers shared that way are in ``helpers``.
+Imports of anything heavier than the standard library happen inside the
+functions, so importing this module stays cheap (the top conftest does).
+"""
+
+import json
+import math
+import os
+from pathlib import Path
+import re
+
+import pytest
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TEST_DIR = os.path.join(REPO, 'test')
+RATE_HZ = 240
+
+# Leases taken by helpers.next_domain_id, released by conftest after each test.
+leases = []
+
+
+def load_r2d2(world, pose=(0.0, 0.0, 0.0), urdf=None):
+    """Load R2D2 (the package's, or ``urdf``) standing at (x, y, yaw), as a robot is loaded."""
+    from r2d2_sim.physics.description import default_urdf_path
+    return world.load_robot(urdf or default_urdf_path(), pose)
+
+
+# -- the classic R2D2: ros/test_robots.py, ros/test_camera_ros.py, system/test_robots_system.py
+
+CLASSIC_YAML = os.path.join(REPO, 'urdf', 'classic_r2d2.yaml')
+
+
+def classic_params():
+    """Return the parameters of urdf/classic_r2d2.yaml as a dict."""
+    import yaml
+    with open(CLASSIC_YAML, encoding='utf-8') as handle:
+        return yaml.safe_load(handle)['r2d2_sim']['ros__parameters']
+
+
+# -- what the demo prints and writes: apps/test_demo_apps.py and system/test_demo.py
+
+PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
+PROGRESS = re.compile(
+    r'^t=\s*(?P<t>[-+\d.]+) s\s+odom x=(?P<ox>\S+) y=(?P<oy>\S+) yaw=\s*(?P<oyaw>\S+) deg'
+    r' \| truth x=(?P<tx>\S+) y=(?P<ty>\S+) yaw=\s*(?P<tyaw>\S+) deg$')
+
+# -- sim_node --help: apps/test_cli_apps.py and system/test_cli.py
+
+
+def _check_help(text, prog):
+    """Check the help text: a usage line for ``prog``, then every parameter of the table."""
+    from r2d2_sim.sim.parameters import PARAMETERS
+    assert text.startswith(f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]...'), text[:200]
+    flat = ' '.join(text.split())  # the lines are wrapped to 79 columns
+    for spec in PARAMETERS:
+        assert f' {spec.name}: {spec.ros_type}; default {json.dumps(spec.default)}' in flat, \
+            spec.name
+        assert ' '.join(spec.description.split()) in flat, spec.name
+    assert 'physics_rate: double; default 240.0; range [10, 10000] Hz' in flat
+    assert 'publish_rate: double; default 0.0; range [0.001, 10000] Hz or 0 (every step)' in flat
+    assert 'noise_seed: integer; default 0; range [0, 2147483647]; per robot' in flat
+    assert 'robots: string_array; default []' in flat and '-p b.initial_pose:=' in flat
+    assert 'base_forward_axis: string; default "x"; one of x, y, -x, -y' in flat
+    assert max(len(line) for line in text.splitlines()) <= 90
+
+
+# -- MCAP files read back: recording/test_foxglove_sink.py, system/test_foxglove_sink_system.py
+
+
+def read_with_mcap(path):
+    """Return (header, summary, [(channel, schema, message)]) from mcap's reader."""
+    from mcap.reader import make_reader
+    with open(path, 'rb') as stream:
+        reader = make_reader(stream)
+        header, summary = reader.get_header(), reader.get_summary()
+        messages = [(channel, schema, message)
+                    for schema, channel, message in reader.iter_messages(log_time_order=False)]
+    return header, summary, messages
+
+
+# -- a small box to spawn: ros/test_sim_interfaces.py and system/test_sim_interfaces_system.py
+
+BOX = ('<robot name="box"><link name="box"><inertial><mass value="1"/><inertia ixx="0.01" '
+       'iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial><collision><geometry>'
+       '<box size="0.2 0.2 0.2"/></geometry></collision></link></robot>')
+
+# -- the README's examples: testing/test_testing_api.py, system/test_testing_api_system.py
+
+EXAMPLES = Path(REPO) / 'test' / 'examples'
+# In README order.
+EXAMPLE_FILES = ['test_drive_forward.py', 'test_closed_loop.py', 'test_sim_process.py',
+                 'test_change_the_world.py', 'test_two_robots.py']
+
+# -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
+
+PACKAGE_URDF = os.path.join(REPO, 'urdf', 'r2d2.urdf')
+
+
+def classic_urdf_path():
+    pybullet_data = pytest.importorskip('pybullet_data')
+    return os.path.join(pybullet_data.getDataPath(), 'r2d2.urdf')
+
+
+def read(path):
+    with open(path) as f:
+        return f.read()
+
+
+def matrix_of(q):
+    """Columns are the images of x, y and z, so the result reads as a rotation matrix."""
+    from r2d2_sim.model.transforms import rotate
+    columns = [rotate(q, axis) for axis in ((1, 0, 0), (0, 1, 0), (0, 0, 1))]
+    return [[columns[c][r] for c in range(3)] for r in range(3)]
+
+
+def assert_same_transform(actual, expected, tol=1e-12):
+    """Compare translations and rotation matrices (q and -q are the same rotation)."""
+    assert actual.translation == pytest.approx(expected.translation, abs=tol)
+    for row_a, row_e in zip(matrix_of(actual.rotation), matrix_of(expected.rotation)):
+        assert row_a == pytest.approx(row_e, abs=tol)
+
+
+def robot(*joints):
+    return '<robot name="r">' + ''.join(joints) + '</robot>'
+
+
+# -- the transform buffer: model/test_tf_buffer.py and ros/test_tf_buffer_ros.py
+
+
+def yaw(angle_rad):
+    """Return the quaternion of a turn about z."""
+    return (0.0, 0.0, math.sin(angle_rad / 2.0), math.cos(angle_rad / 2.0))
+
+
+def approx(values, tol=1e-12):
+    return pytest.approx(values, abs=tol)

@@ -1,0 +1,267 @@
+"""
+ROS 2's simulation standard (simulation_interfaces, Jazzy 1.x) on the simulator node.
+
+Each result code, in process, and the action's server side. A client in
+another process that knows only the standard driving sim_node through the
+whole sequence of a test that changes its world, and what a long step leaves
+answered, are system/test_sim_interfaces_system.py's.
+"""
+
+import math
+
+from geometry_msgs.msg import Point
+import pytest
+from simulation_interfaces import msg, srv
+from simulation_interfaces.action import SimulateSteps
+
+from common import BOX
+from r2d2_sim.sim.entities import MAX_SPAWNED
+from r2d2_sim.sim.spawnables import MAX_LINKS
+
+ROOM = 'package://r2d2_sim/urdf/room.urdf'
+OK = msg.Result.RESULT_OK
+
+
+@pytest.fixture
+def standard(r2d2_sim):
+    """Return call(name, srv_type, request) on the in-process simulator's standard services."""
+    def call(name, srv_type, request):
+        return r2d2_sim.call_service(srv_type, '/' + name, request)
+    return call
+
+
+def spawn_request(**fields):
+    """Return a SpawnEntity request for the small box at (1, 0, 0.1), fields overriding."""
+    request = srv.SpawnEntity.Request(name='box', resource_string=BOX)
+    request.initial_pose.pose.position.x, request.initial_pose.pose.position.z = 1.0, 0.1
+    request.initial_pose.pose.orientation.w = 1.0
+    for name, value in fields.items():
+        setattr(request, name, value)
+    return request
+
+
+def code(response):
+    """Return a reply's result code."""
+    return response.result.result
+
+
+BAD_SPAWNS = {
+    'unknown file': ({'resource_string': '', 'uri': '/no/such/file.urdf'},
+                     srv.SpawnEntity.Response.NO_RESOURCE),
+    'nothing to spawn': ({'resource_string': ''}, srv.SpawnEntity.Response.NO_RESOURCE),
+    'not a URDF file': ({'resource_string': '', 'uri': '/etc/passwd'},
+                        srv.SpawnEntity.Response.UNSUPPORTED_FORMAT),
+    'not a robot': ({'resource_string': '<sdf version="1.6"/>'},
+                    srv.SpawnEntity.Response.UNSUPPORTED_FORMAT),
+    'does not parse': ({'resource_string': '<robot name="x"><link name="a"></robot'},
+                       srv.SpawnEntity.Response.RESOURCE_PARSE_ERROR),
+    'entity bomb': ({'resource_string': '<!DOCTYPE r [<!ENTITY a "aaaaaaaaaa">'
+                                        '<!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">]>'
+                                        '<robot name="b"><link name="&b;"/></robot>'},
+                    srv.SpawnEntity.Response.RESOURCE_PARSE_ERROR),
+    'huge': ({'resource_string': '<robot name="h">' + ' ' * 1_000_001 + '<link name="a"/>'
+                                 '</robot>'}, srv.SpawnEntity.Response.RESOURCE_PARSE_ERROR),
+    'too many links': ({'resource_string': '<robot name="l">' + ''.join(
+        f'<link name="l{i}"/>' for i in range(MAX_LINKS + 1)) + '</robot>'},
+        srv.SpawnEntity.Response.RESOURCE_PARSE_ERROR),
+    'mesh outside': ({'resource_string': '<robot name="m"><link name="a"><visual><geometry>'
+                                         '<mesh filename="/etc/passwd"/></geometry></visual>'
+                                         '</link></robot>'},
+                     srv.SpawnEntity.Response.UNSUPPORTED_ASSETS),
+    'mesh missing': ({'resource_string': '<robot name="m"><link name="a"><visual><geometry>'
+                                         '<mesh filename="package://r2d2_sim/no.stl"/>'
+                                         '</geometry></visual></link></robot>'},
+                     srv.SpawnEntity.Response.MISSING_ASSETS),
+    'invalid name': ({'name': 'a box/with slash'}, srv.SpawnEntity.Response.NAME_INVALID),
+    'duplicate name': ({'name': 'r2d2'}, srv.SpawnEntity.Response.NAME_NOT_UNIQUE),
+    'invalid namespace': ({'entity_namespace': '/bad//namespace'},
+                          srv.SpawnEntity.Response.NAMESPACE_INVALID),
+}
+
+
+@pytest.mark.parametrize('fields, expected', BAD_SPAWNS.values(), ids=BAD_SPAWNS.keys())
+def test_a_bad_spawn_gets_its_code_and_changes_nothing(r2d2_sim, standard, fields, expected):
+    """Refused with the standard's code, in one line that quotes no file; the world unchanged."""
+    reply = standard('spawn_entity', srv.SpawnEntity, spawn_request(**fields))
+    assert code(reply) == expected, reply.result.error_message
+    message = reply.result.error_message
+    assert message and '\n' not in message and 'root:' not in message and len(message) < 400
+    assert r2d2_sim.entities() == ['ground_plane', 'r2d2']
+    r2d2_sim.advance(24)
+    assert all(map(math.isfinite, (r2d2_sim.ground_truth().pose.pose.position.x,
+                                   r2d2_sim.ground_truth().pose.pose.position.z)))
+
+
+def test_a_bad_pose_is_invalid_pose(r2d2_sim, standard):
+    """NaN, a non-unit quaternion, 20 km out: INVALID_POSE for spawn and set_entity_state."""
+    for bad in ({'x': math.nan, 'w': 1.0}, {'x': 0.0, 'w': 2.0}, {'x': 2.0e4, 'w': 1.0}):
+        request = spawn_request()
+        request.initial_pose.pose.position.x = bad['x']
+        request.initial_pose.pose.orientation.w = bad['w']
+        reply = standard('spawn_entity', srv.SpawnEntity, request)
+        assert code(reply) == srv.SpawnEntity.Response.INVALID_POSE
+        place = srv.SetEntityState.Request(entity='r2d2')
+        place.state.pose.position.x = bad['x']
+        place.state.pose.orientation.w = bad['w']
+        reply = standard('set_entity_state', srv.SetEntityState, place)
+        assert code(reply) == srv.SetEntityState.Response.INVALID_POSE
+    assert r2d2_sim.entity_state('r2d2').position[0] == pytest.approx(0.0, abs=1e-3)
+
+
+def test_unknown_entities_are_not_found(standard):
+    """Every entity service says NOT_FOUND for a name the world does not have."""
+    for name, srv_type, request in (
+            ('get_entity_state', srv.GetEntityState, srv.GetEntityState.Request(entity='x')),
+            ('get_entity_info', srv.GetEntityInfo, srv.GetEntityInfo.Request(entity='x')),
+            ('delete_entity', srv.DeleteEntity, srv.DeleteEntity.Request(entity='x')),
+            ('set_entity_state', srv.SetEntityState, srv.SetEntityState.Request(entity='x'))):
+        reply = standard(name, srv_type, request)
+        assert code(reply) == msg.Result.RESULT_NOT_FOUND, name
+        assert 'r2d2' in reply.result.error_message  # it names the ones there are
+
+
+def test_a_static_body_takes_no_twist(standard):
+    """A twist for the ground plane: OPERATION_FAILED (deleting it: test_delete_and_reset_...)."""
+    place = srv.SetEntityState.Request(entity='ground_plane')
+    place.state.pose.orientation.w = 1.0
+    place.state.twist.linear.x = 1.0
+    assert code(standard('set_entity_state', srv.SetEntityState, place)) == \
+        msg.Result.RESULT_OPERATION_FAILED
+
+
+def test_entities_are_filtered_described_and_spawned_in_batches(standard):
+    """Filters (regex search, category, sphere); entity info; spawn_entities; get_spawnables."""
+    batch = srv.SpawnEntities.Request()
+    for name, x, rename in (('crate', 1.0, True), ('crate', 3.0, True),
+                            ('bad name!', 5.0, False)):
+        one = msg.SpawnEntity(name=name, allow_renaming=rename)
+        one.entity_resource.resource_string = BOX
+        one.initial_pose.pose.position.x, one.initial_pose.pose.position.z = x, 0.1
+        one.initial_pose.pose.orientation.w = 1.0
+        batch.spawn_requests.append(one)
+    reply = standard('spawn_entities', srv.SpawnEntities, batch)
+    assert code(reply) == srv.SpawnEntities.Response.ENTITIES_SPAWN_FAILED
+    assert [(r.result.result, r.entity_name) for r in reply.results][:2] == \
+        [(OK, 'crate'), (OK, 'crate_1')]
+    assert reply.results[2].result.result == msg.SpawnResult.NAME_INVALID
+
+    def entities(**filters):
+        request = srv.GetEntities.Request()
+        for field, value in filters.items():
+            setattr(request.filters, field, value)
+        reply = standard('get_entities', srv.GetEntities, request)
+        assert code(reply) == OK, reply.result.error_message
+        return sorted(reply.entities)
+    assert entities() == ['crate', 'crate_1', 'ground_plane', 'r2d2']
+    assert entities(filter='^crate') == ['crate', 'crate_1']
+    assert entities(filter='2d') == ['r2d2']  # a search: any part of the name
+    robot = msg.EntityCategory(category=msg.EntityCategory.CATEGORY_ROBOT)
+    assert entities(categories=[robot]) == ['r2d2']
+    sphere = msg.Bounds(type=msg.Bounds.TYPE_SPHERE)
+    sphere.points = [Point(x=3.0, y=0.0, z=0.1), Point(x=0.5)]  # centre, then radius in x
+    assert entities(bounds=sphere, filter='crate') == ['crate_1']
+    bad = srv.GetEntities.Request()
+    bad.filters.filter = '(unclosed'
+    assert code(standard('get_entities', srv.GetEntities, bad)) == \
+        msg.Result.RESULT_OPERATION_FAILED
+    info = standard('get_entity_info', srv.GetEntityInfo,
+                    srv.GetEntityInfo.Request(entity='crate_1'))
+    assert code(info) == OK
+    assert info.info.category.category == msg.EntityCategory.CATEGORY_DYNAMIC_OBJECT
+    every = standard('get_spawnables', srv.GetSpawnables, srv.GetSpawnables.Request())
+    uris = [s.uri for s in every.spawnables]
+    assert code(every) == OK and ROOM in uris and 'cube.urdf' in uris
+    ours = standard('get_spawnables', srv.GetSpawnables,
+                    srv.GetSpawnables.Request(sources=['package://r2d2_sim/urdf', 'elsewhere']))
+    assert code(ours) == OK and 'elsewhere' in ours.result.error_message
+    assert ROOM in [s.uri for s in ours.spawnables]
+    assert all(s.uri.startswith('package://r2d2_sim/') for s in ours.spawnables)
+
+
+def test_names_are_renamed_when_asked_and_spawning_is_bounded(r2d2_sim, standard):
+    """allow_renaming gives box, box_1; past MAX_SPAWNED a spawn is refused."""
+    names = [standard('spawn_entity', srv.SpawnEntity,
+                      spawn_request(allow_renaming=True)).entity_name for _ in range(2)]
+    assert names == ['box', 'box_1']
+    for _ in range(MAX_SPAWNED - 2):
+        assert code(standard('spawn_entity', srv.SpawnEntity,
+                             spawn_request(allow_renaming=True))) == OK
+    reply = standard('spawn_entity', srv.SpawnEntity, spawn_request(allow_renaming=True))
+    assert code(reply) == msg.Result.RESULT_OPERATION_FAILED
+    assert len(r2d2_sim.entities()) == 2 + MAX_SPAWNED
+
+
+def test_states_and_steps_follow_the_standard(r2d2_sim, standard):
+    """Same state: 101; STOPPED -> PAUSED: 103; unknown: 103; stepping while playing fails."""
+    state = msg.SimulationState
+    response = srv.SetSimulationState.Response
+
+    def set_state(value):
+        return code(standard('set_simulation_state', srv.SetSimulationState,
+                             srv.SetSimulationState.Request(state=state(state=value))))
+
+    def get_state():
+        return standard('get_simulation_state', srv.GetSimulationState,
+                        srv.GetSimulationState.Request()).state.state
+    assert get_state() == state.STATE_PLAYING  # the harness's simulator was not paused
+    assert set_state(state.STATE_PLAYING) == response.ALREADY_IN_TARGET_STATE
+    before = r2d2_sim.sim.step_count
+    assert code(standard('step_simulation', srv.StepSimulation,
+                         srv.StepSimulation.Request(steps=10))) == \
+        msg.Result.RESULT_OPERATION_FAILED
+    assert r2d2_sim.sim.step_count == before  # no step taken
+    assert set_state(state.STATE_STOPPED) == OK
+    assert get_state() == state.STATE_STOPPED and r2d2_sim.sim.step_count == 0
+    assert set_state(state.STATE_PAUSED) == response.INCORRECT_TRANSITION
+    assert set_state(200) == response.INCORRECT_TRANSITION
+    assert set_state(state.STATE_QUITTING) == msg.Result.RESULT_FEATURE_UNSUPPORTED
+    assert code(standard('step_simulation', srv.StepSimulation,
+                         srv.StepSimulation.Request(steps=24))) == OK
+    assert get_state() == state.STATE_PAUSED and r2d2_sim.sim.step_count == 24
+
+
+class FakeGoal:
+    """What _simulate_steps uses of a ServerGoalHandle; a cancel requested after N feedbacks."""
+
+    def __init__(self, steps, cancel_after=None):
+        self.request = SimulateSteps.Goal(steps=steps)
+        self.feedback, self.ended = [], None
+        self._cancel_after = cancel_after
+
+    @property
+    def is_cancel_requested(self):
+        return self._cancel_after is not None and len(self.feedback) >= self._cancel_after
+
+    def publish_feedback(self, feedback):
+        self.feedback.append((feedback.completed_steps, feedback.remaining_steps))
+
+    def succeed(self):
+        self.ended = 'succeeded'
+
+    def canceled(self):
+        self.ended = 'canceled'
+
+    def abort(self):
+        self.ended = 'aborted'
+
+
+def test_the_action_sends_every_feedback_and_ends_as_it_should(r2d2_sim):
+    """
+    The action's server side, in process: feedback after each step, exactly; the ending.
+
+    (A client cannot see all of it: rclpy's ActionClient drops feedback that arrives
+    after the result.) A cancel after the last step is a success; a cancel mid-way ends
+    it there; playing, it aborts without a step.
+    """
+    standard, sim = r2d2_sim.sim.standard, r2d2_sim.sim
+    playing = FakeGoal(5)
+    assert standard._simulate_steps(playing).result.result == msg.Result.RESULT_OPERATION_FAILED
+    assert playing.ended == 'aborted' and not playing.feedback
+    sim.set_paused(True)
+    for goal, ended, done in ((FakeGoal(5), 'succeeded', 5),
+                              (FakeGoal(5, cancel_after=5), 'succeeded', 5),
+                              (FakeGoal(5, cancel_after=3), 'canceled', 3)):
+        before = sim.step_count
+        assert standard._simulate_steps(goal).result.result == OK
+        assert goal.ended == ended and sim.step_count - before == done
+        assert goal.feedback == [(i, 5 - i) for i in range(1, done + 1)]

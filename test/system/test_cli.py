@@ -1,0 +1,109 @@
+"""
+The real sim_node executable in its own process, driven from this test process.
+
+Its ``main`` called in this process is apps/test_cli_apps.py's.
+"""
+
+import signal
+import subprocess
+import sys
+
+from helpers import (
+    drive_forward_until, next_domain_id, RemoteProbe, ros_env, start_sim_process,
+    stop_process)
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+import pytest
+from sensor_msgs.msg import JointState
+
+from common import _check_help
+
+
+@pytest.fixture
+def domain():
+    """Provide a fresh ROS domain id."""
+    return next_domain_id()
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_sim_node_process_drives_and_stops_cleanly(domain, sig):
+    """Start sim_node, drive it with cmd_vel from here, stop it: exit code 0, no traceback."""
+    process = start_sim_process(domain)
+    probe = RemoteProbe(domain, 'cli_probe')
+    node, spin_until = probe.node, probe.spin_until
+    try:
+        joints, truth = [], []
+        node.create_subscription(JointState, 'joint_states', joints.append, 10)
+        node.create_subscription(Odometry, 'ground_truth', truth.append, 10)
+        pub = node.create_publisher(Twist, 'cmd_vel', 10)
+        assert spin_until(lambda: joints and truth, 20.0), 'no state from sim_node'
+        assert 'left_front_wheel_joint' in joints[-1].name
+        assert drive_forward_until(spin_until, pub, truth, 0.1, 10.0), 'robot did not move'
+    finally:
+        code, out, err = stop_process(process, sig)
+        probe.close()
+    assert code == 0, err
+    assert 'Traceback' not in err + out
+
+
+def test_parameters_without_ros_args_are_refused_not_ignored(domain):
+    """A forgotten --ros-args would run on the defaults: one line naming it, exit 2."""
+    process = start_sim_process(domain, command=[sys.executable, '-m', 'r2d2_sim', '-p',
+                                                 'wheel_radius:=1e308'])
+    out, err = process.communicate(timeout=30.0)
+    assert process.returncode == 2 and 'Traceback' not in err
+    lines = [line for line in err.splitlines() if 'error' in line]
+    assert len(lines) == 1 and 'go after --ros-args' in lines[0], err
+
+
+@pytest.mark.parametrize('args, fragment', [
+    (['-p', 'physics_rate:=-5.0'], 'physics_rate must be > 0'),
+    (['-p', 'physics_rate:=0.0'], 'physics_rate must be > 0'),
+    (['-p', 'publish_rate:=-1.0'], 'publish_rate must be >= 0'),
+    (['-p', 'publish_rate:=480.0'], 'cannot exceed physics_rate'),
+    (['-p', 'camera_rate:=1000.0'], 'cannot exceed physics_rate'),
+    (['-p', 'real_time_factor:=-1.0'], 'real_time_factor must be >= 0'),
+    (['-p', 'cmd_vel_timeout:=fast'], 'cmd_vel_timeout must be a number'),
+    (['-p', 'max_linear_acceleration:=-1.0'], 'max_linear_acceleration must be >= 0'),
+    (['-p', 'urdf:=/nonexistent/robot.urdf'], 'not found'),
+    (['-p', 'urdf:=/etc/hostname'], 'not well-formed XML'),
+    (['-p', 'left_wheel_names:=[nope]'], 'wheel joint(s) nope not in the URDF'),
+    (['-p', 'right_wheel_names:=[base_to_right_leg]'], 'base_to_right_leg is fixed'),
+    (['-p', 'left_wheel_names:=[gripper_extension]'], 'gripper_extension is prismatic'),
+    (['-p', 'left_wheel_names:=[]', '-p', 'right_wheel_names:=[]'],
+     'list them as left and right wheels'),
+    (['-p', 'right_wheel_names:=[]'], 'both be empty'),
+    (['-p', 'initial_pose:=[1.0e5, 0.0, 0.0]'], 'base left the world'),
+    (['-p', 'gravity:=[0.0]'], 'gravity must be a list of 3 numbers'),
+    (['-p', 'wheel_radius:=1.0e308'], 'wheel_radius must be in [0.001, 10] m'),
+    (['-p', 'wheel_radius:=1.0e-9'], 'wheel_radius must be in [0.001, 10] m'),
+    (['-p', 'max_wheel_force:=1.0e308'], 'max_wheel_force must be in'),
+    (['-p', 'wheel_separation:=1.0e6'], 'wheel_separation must be in'),
+    (['-p', 'real_time_factor:=1.0e308'], 'real_time_factor must be in [0, 1000]'),
+    (['-p', 'odom_frame_id:=base_link'],
+     "parameters odom_frame_id and base_frame_id both name the frame 'base_link'"),
+    (['-p', 'footprint_frame_id:=base_link'], 'footprint_frame_id and base_frame_id'),
+    (['-p', 'world_frame_id:=odom', '-p', 'publish_ground_truth_tf:=true'],
+     'world_frame_id and odom_frame_id'),
+    (['-p', 'frame_prefix:=/robot1/'], "frame_prefix must not start with '/'"),
+    (['-p', 'base_frame_id:=base link'], 'base_frame_id must be a tf2 frame id'),
+])
+def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
+    """A wrong parameter stops start-up with one readable line and exit code 2."""
+    process = start_sim_process(domain, *args)
+    out, err = process.communicate(timeout=30.0)
+    code = process.returncode
+    assert code == 2
+    assert 'Traceback' not in err
+    lines = [line for line in err.splitlines() if 'error' in line]
+    assert len(lines) == 1 and fragment in lines[0], err
+
+
+@pytest.mark.parametrize('args', [
+    ['--help'], ['-h'], ['--ros-args', '-p', 'physics_rate:=100.0', '--help']])
+def test_help_prints_usage_and_parameters_and_exits_0(args):
+    """Print the usage and the parameter table on stdout for --help (or -h), status 0."""
+    result = subprocess.run([sys.executable, '-m', 'r2d2_sim'] + args, capture_output=True,
+                            text=True, timeout=60.0, env=ros_env(next_domain_id()))
+    assert result.returncode == 0 and result.stderr == '', result.stderr
+    _check_help(result.stdout, 'python -m r2d2_sim')

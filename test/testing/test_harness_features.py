@@ -1,0 +1,76 @@
+"""
+Every harness feature a user reaches for: stamped commands, remaps, gui, latched topics, TF.
+
+Each of these once failed for a new user of the public API (issue 21): the
+harness died or timed out where the simulator itself worked. Here in process
+(SimHarness); the same features of SimProcess and sim_node are
+system/test_harness_features_system.py's.
+"""
+
+import math
+
+from geometry_msgs.msg import TwistStamped
+import pytest
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_msgs.msg import String
+
+from r2d2_sim.testing import HarnessError, SimHarness, StartupError
+
+LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def test_stamped_cmd_vel_in_process():
+    """enable_stamped_cmd_vel: the harness sends TwistStamped (Nav2's cmd_vel on Jazzy)."""
+    with SimHarness(enable_stamped_cmd_vel=True, cmd_vel_timeout=0.0) as harness:
+        harness.send_cmd_vel(linear=0.3)
+        harness.advance(seconds=1.0)
+        assert harness.ground_truth().pose.pose.position.x > 0.1
+        assert harness.sim.commands_rejected == 0
+
+
+def test_stamped_cmd_vel_in_process_by_a_node_of_the_users(r2d2_sim_factory):
+    """A user's TwistStamped publisher in the harness context reaches the simulator."""
+    harness = r2d2_sim_factory(enable_stamped_cmd_vel=True, cmd_vel_timeout=0.0)
+    node = harness.create_node('nav2_like')
+    publisher = node.create_publisher(TwistStamped, 'cmd_vel', 10)
+    command = TwistStamped()
+    command.twist.linear.x = 0.3
+    publisher.publish(command)
+    harness.advance(seconds=1.0)
+    assert harness.ground_truth().pose.pose.position.x > 0.1
+
+
+def test_gui_without_a_display_is_a_startup_error_in_process(monkeypatch):
+    """SimHarness(gui=True) on a headless machine: StartupError, not the end of the interpreter."""
+    monkeypatch.delenv('DISPLAY', raising=False)
+    with pytest.raises(StartupError, match='gui needs a display'):
+        SimHarness(gui=True)
+
+
+@pytest.mark.parametrize('attempt', range(5))
+def test_latched_topics_reach_a_users_node_before_its_first_step(r2d2_sim, attempt):
+    """add_node returns once /tf_static and robot_description are in the node's callbacks."""
+    from rclpy.node import Node
+    from tf2_msgs.msg import TFMessage
+    got = {'/tf_static': [], 'robot_description': []}
+    node = Node('tf_consumer', context=r2d2_sim.context)
+    node.create_subscription(TFMessage, '/tf_static', got['/tf_static'].append, LATCHED_QOS)
+    node.create_subscription(String, 'robot_description', got['robot_description'].append,
+                             LATCHED_QOS)
+    r2d2_sim.add_node(node)
+    assert got['/tf_static'] and got['robot_description']  # before any advance()
+
+
+def test_seconds_must_be_finite(r2d2_sim):
+    """advance(seconds=inf) is a ValueError like NaN, not an OverflowError."""
+    for bad in (math.inf, math.nan, -1.0):
+        with pytest.raises(ValueError, match='finite number >= 0'):
+            r2d2_sim.advance(seconds=bad)
+
+
+def test_lookup_transform_says_why_it_cannot(r2d2_sim_factory):
+    """An unknown frame is a HarnessError naming it (tf2's reason), at the harness's deadline."""
+    harness = r2d2_sim_factory(timeout_s=1.0)
+    harness.advance(1)
+    with pytest.raises(HarnessError, match='no_such_frame'):
+        harness.lookup_transform('odom', 'no_such_frame')
