@@ -27,6 +27,10 @@ setup() {
   # Interface packages that are not on PyPI (tf2_msgs, simulation_interfaces)
   # for pip-only installs: built once, then cached; ~0.5 s when installed.
   if ! tools/build_interfaces.sh "$VENV"; then
+    if [ -n "${R2D2_SIM_CI:-}" ]; then  # CI tests everything: a missing part is a failure
+      echo "run.sh: error: the interface packages did not build; CI needs them" >&2
+      exit 1
+    fi
     tools/build_interfaces.sh --check "$VENV" tf2_msgs \
       || echo "run.sh: tf2_msgs unavailable, TF off" >&2
     tools/build_interfaces.sh --check "$VENV" simulation_interfaces \
@@ -60,7 +64,8 @@ case "$cmd" in
          fi
          setup; need_xvfb
          paths=(test); for arg in "$@"; do [ -e "${arg%%::*}" ] && paths=(); done
-         exec "$PY" -m pytest -q -p no:cacheprovider -n 2 "${paths[@]}" "$@" ;;
+         # -rs: every skip says why (under R2D2_SIM_CI, conftest makes a skip a failure).
+         exec "$PY" -m pytest -q -rs -p no:cacheprovider -n 2 "${paths[@]}" "$@" ;;
   # The main bench, then several robots in one world, then the test harness's speed.
   bench) setup; "$PY" bench/run.py "$@"; "$PY" bench/fleet.py "$@"
          exec "$PY" bench/lockstep.py "$@" ;;

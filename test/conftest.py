@@ -38,6 +38,8 @@ FAST_TIER = [TEST_DIR / 'model', TEST_DIR / 'physics', TEST_DIR / 'sim']
 FAST_FILES = [TEST_DIR / 'lint' / 'test_layers.py']
 SYSTEM = TEST_DIR / 'system'
 FAST_ONLY = pytest.StashKey[bool]()
+# Set by .ci/run: every test must run there, a skip is a failure.
+CI_ENV = 'R2D2_SIM_CI'
 ROS_SEEN = pytest.StashKey[bool]()
 
 
@@ -66,6 +68,19 @@ def pytest_runtest_makereport(item, call):
         report.outcome = 'failed'
         report.longrepr = ('fast tier: rclpy was imported in this session (model/, physics/ and '
                            'sim/ must not load ROS); it was loaded by the end of this test')
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Under R2D2_SIM_CI (.ci/run), a skipped test fails the run: CI has what every test needs."""
+    if not os.environ.get(CI_ENV):
+        return
+    reporter = session.config.pluginmanager.get_plugin('terminalreporter')
+    skipped = reporter.stats.get('skipped', []) if reporter is not None else []
+    if skipped and session.exitstatus == pytest.ExitCode.OK:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+        reporter.write_line(f'{CI_ENV}: {len(skipped)} test(s) skipped, which CI must not: it '
+                            'installs the browser, the display and the interface packages '
+                            '(reasons above, -rs)', red=True, bold=True)
 
 
 @pytest.fixture(autouse=True)
