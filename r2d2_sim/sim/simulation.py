@@ -21,14 +21,13 @@ deleted start-up entities under their names.
 
 from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
-from r2d2_sim.errors import RefusedError, SetupError, WorldError
+from r2d2_sim.errors import RefusedError, SetupError
 from r2d2_sim.model.timing import StepClock, StepSchedule
 from r2d2_sim.model.transforms import BaseState, yaw_of
 from r2d2_sim.physics.body import Body
-from r2d2_sim.physics.description import (
-    DescriptionError, resolve_description_path, RobotDescription)
-from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
+from r2d2_sim.physics.world import SimWorld
 from r2d2_sim.sim.entities import Category, Entities, SpawnRequest
+from r2d2_sim.sim.launch import Launch, robot_starts
 from r2d2_sim.sim.parameter_readers import namespace as read_namespace
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.robot import Frame, Measurement, Robot
@@ -56,15 +55,6 @@ class StepResult(NamedTuple):
 
 def _ignore(text: str) -> None:
     pass
-
-
-class _StartUpEntity:
-    """One entity of the start-up world, in load order: its body, and a robot's load arguments."""
-
-    def __init__(self, body: Body, robot: Optional[tuple] = None, model: bool = False) -> None:
-        self.body = body    # the latest loaded for it (a robot loaded again has a new one)
-        self.robot = robot  # _load_robot's (name, config, namespace, listed), for a robot
-        self.model = model  # one of extra_models, or the world model
 
 
 class Simulation:
@@ -95,104 +85,21 @@ class Simulation:
         self.last_frame_step = 0
         self.robots: List[Robot] = []
         self.models: List[Body] = []  # extra_models and the world model loaded at start-up
-        # What a full reset builds again: every start-up entity, in load order.
-        self._start_up: List[_StartUpEntity] = []
         self._warn, self._error = warn, error
         self._watchers: List[RobotsWatcher] = []
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
                               gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
         self.entities = Entities(self.world, config.world_frame_id)
+        # What a full reset builds again: every start-up entity, in load order.
+        self._launch = Launch(self.world, warn, error)
         try:
-            self._start(robots)
+            self.robots, self.models = self._launch.load(
+                config, robot_starts(config, robots, namespace))
         except Exception:
             self.close()
             raise
         # Nothing changed since start-up (or a full reset): with time at 0, 'stopped'.
         self.pristine = True
-
-    def _start(self, specs: Sequence[RobotSpec]) -> None:
-        """Load the robots and models at start-up: the first robot, the models, the others."""
-        config = self.config
-        if specs:
-            namespaces = [resolve_namespace(self.namespace, spec.namespace) for spec in specs]
-            for i, namespace in enumerate(namespaces):
-                if namespace in namespaces[:i]:
-                    other = specs[namespaces.index(namespace)].name
-                    raise ConfigError(f'robots {other} and {specs[i].name} both have the '
-                                      f'namespace {namespace}: each robot needs one of its own')
-            starts = [(spec.name, spec.config, ns) for spec, ns in zip(specs, namespaces)]
-        else:
-            starts = [(None, config, self.namespace)]
-        starts = [(*start, bool(specs)) for start in starts]
-        plane = self.world.bodies.get(GROUND_PLANE_NAME)  # the world loaded it
-        if plane is not None:
-            self._start_up.append(_StartUpEntity(plane))
-        # In the order PyBullet has always had them (body ids and solver order).
-        self._start_robot(starts[0])
-        models = [(name, position) for name, position in config.extra_models]
-        models += [(config.world, (0.0, 0.0, 0.0))] if config.world else []
-        for description, position in models:
-            try:
-                path = resolve_description_path(description)
-            except DescriptionError as exc:
-                raise WorldError(str(exc)) from None
-            model = self.world.load(path, position, source=description)
-            model.drop_damping()  # as a spawned entity: no damping Gazebo would not have
-            self.models.append(model)
-            self._start_up.append(_StartUpEntity(model, model=True))
-        for start in starts[1:]:
-            self._start_robot(start)
-        self._check_apart()
-
-    def _start_robot(self, start: tuple) -> Robot:
-        """Load a start-up robot from ``_load_robot``'s arguments and remember how; return it."""
-        robot = self._load_robot(*start)
-        self.robots.append(robot)
-        self._start_up.append(_StartUpEntity(robot.body, start))
-        return robot
-
-    def _load_robot(self, name: Optional[str], config: SimConfig, namespace: str,
-                    listed: bool) -> Robot:
-        """
-        Load a driven robot standing at ``config.initial_pose``; return it (not yet a member).
-
-        ``name`` None: the URDF's robot name, made unique. Its description,
-        drive and sensors are ``config``'s. Raises a SetupError (WorldError,
-        ConfigError) when it cannot be loaded or driven, naming the robot
-        when it is one of those ``robots`` lists; nothing of it then stays.
-        """
-        try:
-            description = RobotDescription.load(config.urdf, config.robot_description)
-        except DescriptionError as exc:
-            raise WorldError(f'robot {name}: {exc}' if listed else str(exc)) from None
-        body = None
-        try:
-            # The body's source is where PyBullet read it: the urdf parameter as given,
-            # or the temporary file robot_description's text was written to.
-            body = self.world.load_robot(
-                description.path, config.initial_pose, config.body_yaw_offset_rad, name=name,
-                source=description.path if config.robot_description else config.urdf or None)
-            source = ('the robot_description parameter' if config.robot_description
-                      else description.path)
-            robot = Robot(self.world, body, config, source, description.text,
-                          warn=self._named_warn(body.name) if listed else self._warn,
-                          error=self._error, resources=[description], namespace=namespace)
-        except Exception:
-            if body is not None:
-                self.world.remove(body)
-            description.close()
-            raise
-        return robot
-
-    def _check_apart(self) -> None:
-        """Refuse robots that start inside each other (two poses left alike, a name mistyped)."""
-        boxes = [(robot, robot.body.bounding_box()) for robot in self.robots]
-        for i, (robot, box) in enumerate(boxes):
-            for other, other_box in boxes[:i]:
-                if all(box[0][k] < other_box[1][k] and other_box[0][k] < box[1][k]
-                       for k in range(3)):
-                    raise ConfigError(f'robots {other.name} and {robot.name} overlap where they '
-                                      f'start: give {robot.name}.initial_pose a place of its own')
 
     def _named_warn(self, name: str) -> Callable[[str], None]:
         return lambda text: self._warn(f'robot {name}: {text}')
@@ -432,7 +339,14 @@ class Simulation:
             self.entities.delete_spawned()
             changed = True
         if state:
-            changed = self._rebuild(as_started=time and spawned) or changed
+            rebuilt = self._launch.rebuild(self.robots, as_launched=time and spawned)
+            for name in rebuilt.dropped:
+                self.entities.dropped(name)
+            self.robots = rebuilt.robots
+            if rebuilt.models is not None:
+                self.models = rebuilt.models
+            self.models = [model for model in self.models if model.alive]
+            changed = rebuilt.changed or changed
         if time:
             steps_back = self.world.step_count
             self.world.step_count = 0
@@ -443,66 +357,6 @@ class Simulation:
         if changed:
             self._robots_changed()
         self.pristine = time and state and spawned
-
-    def _rebuild(self, as_started: bool) -> bool:
-        """
-        Build the physics world again, every body loaded in its order; return if robots changed.
-
-        Bullet's contact manifolds and the order of its overlapping pairs
-        survive a body put back in place, and change the next steps: a world
-        emptied (``resetSimulation``) and loaded again body by body, each
-        with the changes made to it at loading, is the world after start-up.
-        Each robot starts again right after its body is loaded, as it did.
-        ``as_started``: the start-up entities (a robot deleted since is
-        loaded again from its start-up arguments: a new Robot), else those in
-        the world now. A body that cannot be loaded again (its file gone)
-        leaves the world, with one error line.
-        """
-        robot_of = {id(robot.body): robot for robot in self.robots}
-        if as_started:
-            plan = [(entity.body, entity) for entity in self._start_up]
-        else:
-            plan = [(body, None) for body in self.world.bodies.values()]
-        self.world.clear()
-        robots: List[Robot] = []
-        changed = False
-        for body, entity in plan:
-            robot = robot_of.get(id(body))
-            if entity is not None and entity.robot is not None and robot is None:
-                changed = True  # a start-up robot deleted since: built again
-                robot = self._load_again(entity)
-                if robot is not None:
-                    robots.append(robot)
-                continue
-            try:
-                self.world.reload(body)
-            except WorldError as exc:
-                self._error(f'{body.name} left the world: {exc}')
-                self.entities.dropped(body.name)
-                if robot is not None:
-                    robot.close()
-                    changed = True
-                continue
-            if robot is not None:
-                robot.reloaded()
-                if as_started:
-                    robot.restart_noise()  # as launched: its readings repeat too
-                robots.append(robot)
-        self.robots = robots
-        if as_started:
-            self.models = [entity.body for entity in self._start_up if entity.model]
-        self.models = [model for model in self.models if model.alive]
-        return changed
-
-    def _load_again(self, entity: _StartUpEntity) -> Optional[Robot]:
-        """Load a deleted start-up robot as at start-up; None (one error line) if it cannot be."""
-        try:
-            robot = self._load_robot(*entity.robot)
-        except SetupError as exc:
-            self._error(f'robot {entity.body.name} cannot be loaded again: {exc}')
-            return None
-        entity.body = robot.body
-        return robot
 
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice."""
