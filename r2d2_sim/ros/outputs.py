@@ -265,10 +265,9 @@ class RobotOutputs:
         self.scan = (ScanOutput(node, config, robot.laser.geometry)
                      if robot.laser is not None else None)
         self.imu = ImuOutput(node, config, robot.imu.model) if robot.imu is not None else None
-        if config.publish_tf:
-            tf = start_tf(node, config, robot, time_ns)
-            if tf is not None:
-                self.state.append(tf)
+        self.tf = start_tf(node, config, robot, time_ns) if config.publish_tf else None
+        if self.tf is not None:
+            self.state.append(self.tf)
 
     def publish(self, measurement: Measurement) -> None:
         """Publish what was measured: the frame to every state output, each reading to its own."""

@@ -75,6 +75,9 @@ class TfOutput:
         self._transforms = [self._template.field(f'transforms[{i}].transform')
                             for i in range(len(pairs))]
         self.empty = not pairs
+        # The latest /tf sent (serialized), for a listener in this process that starts
+        # later: a harness then reads it here rather than listen to every publication.
+        self.latest: Optional[bytes] = None
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's transforms."""
@@ -97,7 +100,9 @@ class TfOutput:
             positions = frame.joints.positions
             for joint in self._links.moving([positions[i] for i in self._joint_slots]):
                 next(slots).set(joint.transform.translation + joint.transform.rotation)
-        self._publisher.publish(self._template.to_bytes())
+        data = self._template.to_bytes()
+        self._publisher.publish(data)
+        self.latest = data
 
 
 def start_tf(node: Node, config: SimConfig, robot: Robot, time_ns: int) -> Optional[TfOutput]:

@@ -8,7 +8,7 @@ they run in lockstep with the simulator, so a run repeats bit for bit.
 
 import json
 import math
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -79,7 +79,6 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
                          parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE])
             link = self._link = QuietNode(LINK_NODE_NAME, **quiet)
             RosHarness.add_node(self, link, use_sim_time=False)
-            self._listen_tf_from_now()  # taken on demand: free in a lockstep period
             # The robots' state readers take the latest message when asked (a
             # callback group no executor runs), so a lockstep period spends
             # nothing on them. Subscribed before the simulator exists: it
@@ -299,6 +298,11 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
 
     def _tf_default_time_ns(self) -> int:
         return self.last_publication_ns()  # the current state, never one on its way
+
+    def _tf_sent_before(self) -> Tuple[bytes, ...]:
+        return tuple(interfaces.outputs.tf.latest for interfaces in self.sim.robots
+                     if interfaces.outputs.tf is not None and interfaces.outputs.tf.latest
+                     and interfaces.tf_topics[0] == self._tf_topics()[0])
 
     def _tf_wait(self, condition) -> bool:
         try:

@@ -155,7 +155,6 @@ class LocalRobot(_RobotHandle):
         self._harness._wait(lambda: self._cmd_vel.get_subscription_count() > 0 and all(
             s.get_publisher_count() > 0 for s in state),
             f'the robot {self.name} did not link its topics')
-        self._listen_tf_from_now()
         return self
 
     @property
@@ -220,6 +219,10 @@ class LocalRobot(_RobotHandle):
 
     def _tf_default_time_ns(self) -> int:
         return self._harness.last_publication_ns()  # the current state, never one on its way
+
+    def _tf_sent_before(self) -> Tuple[bytes, ...]:
+        tf = self._interfaces.outputs.tf if self._interfaces is not None else None
+        return (tf.latest,) if tf is not None and tf.latest else ()
 
     def _tf_wait(self, condition) -> bool:
         return self._harness._tf_wait(condition)

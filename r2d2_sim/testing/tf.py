@@ -5,11 +5,12 @@ tf2_ros is not on PyPI; :class:`TfListener` does what its ``Buffer`` and
 ``TransformListener`` do for a test, on top of the pure
 :class:`~r2d2_sim.model.tf_buffer.TransformBuffer`: it subscribes both topics on a
 node (``/tf_static`` transient local, as tf2 does) and adds every transform
-to the buffer. The harnesses make one as they start, taken on demand: the
-messages wait in the middleware until a lookup takes them, so a lookup finds
-what was published since the start and a lockstep period pays nothing for it
-(:meth:`SimHarness.lookup_transform <r2d2_sim.testing.harness.SimHarness.lookup_transform>`,
-:meth:`SimProcess.lookup_transform <r2d2_sim.testing.sim_process.SimProcess.lookup_transform>`).
+to the buffer, taken on demand: the messages wait in the middleware until a
+lookup takes them. :class:`~r2d2_sim.testing.sim_process.SimProcess` listens
+from its start; the in-process
+:class:`~r2d2_sim.testing.harness.SimHarness` from its first lookup (a
+subscriber on /tf from the start would cost every lockstep period a
+delivery), seeded with the latest /tf its simulator sent, which it knows.
 """
 
 from typing import Callable, Optional, Tuple
@@ -36,6 +37,7 @@ class TfListener:
     Fills a :class:`~r2d2_sim.model.tf_buffer.TransformBuffer` (``buffer``) from TF's topics.
 
     ``topics``: ``/tf`` and ``/tf_static``, or a robot's own (``/robot_a/tf``...).
+    :meth:`add_serialized` adds what was sent before it listened.
     The node's executor delivers the messages, or with ``on_demand`` they wait
     in the middleware until :meth:`take`, which reading ``buffer`` does (no
     executor runs them: a lockstep period costs nothing for them);
@@ -86,6 +88,12 @@ class TfListener:
         self._buffer.add_tf_message(msg, static=True)
         self._received[1] += 1
 
+    def add_serialized(self, data: bytes, static: bool = False) -> None:
+        """Add a serialized TFMessage as if it had arrived (what was sent before this listened)."""
+        from rclpy.serialization import deserialize_message
+        from tf2_msgs.msg import TFMessage
+        (self._on_tf_static if static else self._on_tf)(deserialize_message(data, TFMessage))
+
     def take(self) -> None:
         """Take what waits in the middleware into the buffer (only ``on_demand``)."""
         if not self._on_demand:
@@ -123,10 +131,16 @@ class TransformLookup:
     def _tf_topics(self) -> Tuple[str, str]:
         return '/tf', '/tf_static'
 
+    def _tf_sent_before(self) -> Tuple[bytes, ...]:
+        """Return the latest /tf messages sent before the listener started (in-process: known)."""
+        return ()
+
     def listen_tf(self) -> TfListener:
         """Start taking ``/tf`` and ``/tf_static`` into a transform buffer (once); return it."""
         if self._tf is None:
             self._tf = TfListener(self._tf_node(), topics=self._tf_topics(), on_demand=True)
+            for data in self._tf_sent_before():
+                self._tf.add_serialized(data)
         return self._tf
 
     def _listen_tf_from_now(self) -> None:
