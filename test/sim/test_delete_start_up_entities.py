@@ -10,29 +10,14 @@ spawned scope alone leaves them deleted.
 
 import math
 
-import pytest
-
 from r2d2_sim.physics.world import RAY_GROUPS
-from r2d2_sim.sim.robot_parameters import parse_world
-from r2d2_sim.sim.simulation import Simulation, SpawnRequest
+from r2d2_sim.sim.simulation import SpawnRequest
 
 BOX = 'cube_small.urdf 0.8 0.05 0.025'
 STEPS = 480  # 2 s at 240 Hz
 
 
-@pytest.fixture
-def make():
-    """Build simulations from parameter dicts (no timeout: commands hold); close them after."""
-    made = []
-
-    def build(**parameters):
-        config, robots = parse_world({'cmd_vel_timeout': 0.0, **parameters})
-        simulation = Simulation(config, robots)
-        made.append(simulation)
-        return simulation
-    yield build
-    for simulation in made:
-        simulation.close()
+SIMULATION_DEFAULTS = {'cmd_vel_timeout': 0.0}  # commands hold
 
 
 def run(simulation):

@@ -13,27 +13,14 @@ import pytest
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.sim.entities import MAX_FILTER_LENGTH, MAX_NAME_LENGTH, name_filter
-from r2d2_sim.sim.parameters import parse_config
-from r2d2_sim.sim.simulation import Simulation, SpawnRequest
+from r2d2_sim.sim.simulation import SpawnRequest
 
 BOX = ('<robot name="box"><link name="box"><inertial><mass value="1"/><inertia ixx="0.01" '
        'iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial><collision><geometry>'
        '<box size="0.2 0.2 0.2"/></geometry></collision></link></robot>')
-QUIET = {'scan_rate': 0.0, 'imu_rate': 0.0}
 
 
-@pytest.fixture
-def make():
-    """Build simulations from parameter dicts; close them after the test."""
-    made = []
-
-    def build(**parameters):
-        simulation = Simulation(parse_config({**QUIET, **parameters}))
-        made.append(simulation)
-        return simulation
-    yield build
-    for simulation in made:
-        simulation.close()
+SIMULATION_DEFAULTS = {'scan_rate': 0.0, 'imu_rate': 0.0}
 
 
 def spawn_box(simulation, position, name='box'):

@@ -21,21 +21,6 @@ FACING = {'robots': ['a', 'b'], 'b.initial_pose': [2.0, 0.0, math.pi],
 FORWARD_BEAM = 180  # of 360 from -pi: angle 0, straight ahead
 
 
-@pytest.fixture
-def make():
-    """Build simulations of several robots from parameter dicts; close them after the test."""
-    made = []
-
-    def build(**parameters):
-        config, robots = parse_world(parameters)
-        simulation = Simulation(config, robots)
-        made.append(simulation)
-        return simulation
-    yield build
-    for simulation in made:
-        simulation.close()
-
-
 def spawn_c(simulation, z):
     """Spawn our R2D2 as robot c in namespace c at (0, 2, z) through the core; return it."""
     name = simulation.spawn(SpawnRequest('c', uri='package://r2d2_sim/urdf/r2d2.urdf',

@@ -25,19 +25,7 @@ COMMANDS = {0: (1.0, 0.2), 240: (-0.5, 0.0), 360: (0.3, -1.0)}
 R2D2 = 'package://r2d2_sim/urdf/r2d2.urdf'
 
 
-@pytest.fixture
-def make():
-    """Build simulations from parameter dicts (no timeout: commands hold); close them after."""
-    made = []
-
-    def build(**parameters):
-        config, robots = parse_world({'cmd_vel_timeout': 0.0, **parameters})
-        simulation = Simulation(config, robots)
-        made.append(simulation)
-        return simulation
-    yield build
-    for simulation in made:
-        simulation.close()
+SIMULATION_DEFAULTS = {'cmd_vel_timeout': 0.0}  # commands hold
 
 
 def run(simulation):

@@ -9,25 +9,8 @@ import math
 
 import pytest
 
-from r2d2_sim.sim.parameters import parse_config
-from r2d2_sim.sim.simulation import Simulation
 
 QUIET = {'scan_rate': 0.0, 'imu_rate': 0.0, 'camera_rate': 0.0}
-
-
-@pytest.fixture
-def make():
-    """Build simulations from parameter dicts; close them after the test."""
-    made = []
-
-    def build(errors=None, **parameters):
-        error = errors.append if errors is not None else (lambda text: None)
-        simulation = Simulation(parse_config(parameters), error=error)
-        made.append(simulation)
-        return simulation
-    yield build
-    for simulation in made:
-        simulation.close()
 
 
 def test_nothing_is_returned_between_publications(make):

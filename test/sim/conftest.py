@@ -1,0 +1,32 @@
+"""
+The core's fixture for this folder: simulations built from parameter dicts, closed after.
+
+No ROS. A test module may set ``SIMULATION_DEFAULTS`` (a dict of parameters
+that its calls override), as its own defaults.
+"""
+
+import pytest
+
+
+@pytest.fixture
+def make(request):
+    """
+    Provide ``make(errors=None, **parameters) -> Simulation``, each closed after the test.
+
+    Parameters as ``sim_node`` takes them (``robots`` and ``NAME.parameter``
+    too); ``errors``, a list, receives the simulation's one-line error reports.
+    """
+    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.simulation import Simulation
+    defaults = getattr(request.module, 'SIMULATION_DEFAULTS', {})
+    made = []
+
+    def build(errors=None, **parameters):
+        config, robots = parse_world({**defaults, **parameters})
+        error = errors.append if errors is not None else (lambda text: None)
+        simulation = Simulation(config, robots, error=error)
+        made.append(simulation)
+        return simulation
+    yield build
+    for simulation in made:
+        simulation.close()
