@@ -19,8 +19,10 @@ repeat bit for bit), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
 :mod:`~r2d2_sim.testing.robots` (one robot's handle in either harness),
 :mod:`~r2d2_sim.testing.world_verbs` (spawn, place, read, delete, reset),
 :mod:`~r2d2_sim.testing.standard` (a client of ROS 2's simulation standard for
-any simulator) and :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
-``/tf``, as tf2 does). Every public name is importable from here.
+any simulator), :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
+``/tf``, as tf2 does) and :mod:`~r2d2_sim.testing.live_view` (a Foxglove
+WebSocket client of the live view, :class:`LiveViewClient`). Every public
+name is importable from here.
 """
 
 from r2d2_sim.client import (
@@ -34,6 +36,7 @@ from r2d2_sim.testing.domains import (
 from r2d2_sim.testing.executor import (
     CallbackError, HarnessError, parameter_overrides, RosHarness, SPIN_POLL_S)
 from r2d2_sim.testing.harness import LINK_NODE_NAME, SimHarness
+from r2d2_sim.testing.live_view import LiveMessage, LiveViewClient, LiveViewError
 from r2d2_sim.testing.process import (
     ChildProcess, ProcessResult, sim_node_command, stop_process)
 from r2d2_sim.testing.remote import RemoteProbe
@@ -49,7 +52,7 @@ __all__ = [
     'Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env', 'stamp_ns',
     'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S', 'TfListener', 'TransformBuffer',
     'StampedTransform', 'TransformException', 'StandardClient', 'StandardError', 'BaseState',
-    'RefusedError',
+    'RefusedError', 'LiveViewClient', 'LiveMessage', 'LiveViewError',
 ]
 
 
