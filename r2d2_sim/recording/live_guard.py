@@ -54,13 +54,14 @@ class _SdkLogRouter(logging.Handler):
 
     def __init__(self) -> None:
         super().__init__()
-        self.throttled = ThrottledLog(SDK_LOG_PERIOD_S)
-        self._owners: List[Tuple[object, Log]] = []  # (key, warn), newest last
+        # (key, warn, its own throttle), newest last: a new sink hears each kind afresh.
+        self._owners: List[Tuple[object, Log, ThrottledLog]] = []
         self._owners_lock = threading.Lock()
+        self._unowned = ThrottledLog(SDK_LOG_PERIOD_S)  # lines while no sink is open
 
     def add(self, key: object, warn: Log) -> None:
         with self._owners_lock:
-            self._owners.append((key, warn))
+            self._owners.append((key, warn, ThrottledLog(SDK_LOG_PERIOD_S)))
 
     def remove(self, key: object) -> None:
         with self._owners_lock:
@@ -72,7 +73,8 @@ class _SdkLogRouter(logging.Handler):
             logging.getLogger().handle(record)
             return
         with self._owners_lock:
-            warn = self._owners[-1][1] if self._owners else _stderr
+            owner = self._owners[-1] if self._owners else (None, _stderr, self._unowned)
+        _, warn, throttled = owner
         try:
             text = record.getMessage()
         except Exception:  # a malformed record must not break the SDK's thread
@@ -80,7 +82,7 @@ class _SdkLogRouter(logging.Handler):
         kind = re.sub(r'\d+', '#', text)[:100]  # addresses and counts vary within a kind
         # Warnings, whatever the SDK's level: its lines are about viewers (a bad
         # message, a failed handshake), not errors of the simulator.
-        self.throttled(kind, warn, f'foxglove-sdk: {text}')
+        throttled(kind, warn, f'foxglove-sdk: {text}')
 
 
 _router: Optional[_SdkLogRouter] = None
