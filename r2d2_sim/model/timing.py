@@ -1,14 +1,17 @@
 """
 Scheduling: wall-clock pacing with absolute deadlines, and events in step counts.
 
+Also :class:`ThrottledLog`, which lets each kind of message out at most once a period.
+
 Sleeping a fixed period after each step (``time.sleep(1/240)``) adds the step's
 own cost to every period and drifts (measured: 221 Hz instead of 240). Here the
 n-th tick is due at ``start + n * period``, so lateness is never accumulated.
 """
 
 from fractions import Fraction
+import threading
 import time
-from typing import Callable, Tuple
+from typing import Callable, Dict, Tuple
 
 NS_PER_S = 10**9
 
@@ -112,3 +115,27 @@ class StepClock:
     def time_ns(self, step: int) -> int:
         """Return the time after ``step`` steps, floored to the nanosecond (k * 10**9 // 240)."""
         return step * self._num // self._den
+
+
+class ThrottledLog:
+    """
+    Logs each kind of message at most once per ``period_s`` (wall clock), counting the rest.
+
+    Thread-safe: a callback thread and a library's own threads may share one.
+    """
+
+    def __init__(self, period_s: float = 5.0) -> None:
+        self.period_s = period_s
+        self._last: Dict[str, Tuple[float, int]] = {}  # kind -> (logged at, suppressed)
+        self._lock = threading.Lock()
+
+    def __call__(self, kind: str, log: Callable[[str], None], text: str) -> None:
+        """Log ``text`` with ``log`` unless a message of this kind went out recently."""
+        now = time.monotonic()
+        with self._lock:
+            last, suppressed = self._last.get(kind, (None, 0))
+            if last is not None and now - last < self.period_s:
+                self._last[kind] = (last, suppressed + 1)
+                return
+            self._last[kind] = (now, 0)
+        log(text + (f' ({suppressed} more since the last one)' if suppressed else ''))

@@ -21,8 +21,20 @@ How an owner (the node) uses it::
 - Topic names must be absolute: pass the publisher's resolved ``topic_name``.
 - Register a latched topic (``/robot_description``, ``/tf_static``) with the
   publisher's transient-local QoS: the sink keeps its last ``depth`` messages
-  and sends them again to the live view whenever a viewer subscribes (the
-  SDK has no latching); the file gets each message once.
+  and sends them again to the live view when a viewer subscribes (the SDK
+  has no latching); the file gets each message once. The SDK cannot send to
+  one viewer, so every viewer subscribed gets the copy: at most one re-send
+  per ``latched_resend_period_s`` (a viewer subscribing meanwhile gets the
+  next, at the period's end), however often viewers subscribe.
+- Release each handle when its publisher goes (a deleted robot): the
+  topic's last release closes its channels (viewers see it unadvertised)
+  and frees them. The MCAP file keeps the channel records it wrote, as
+  every MCAP file must (its summary lists them all): about 1.4 kB each.
+- A write error (a full disk) ends the recording, not the sink: one line to
+  ``error``, the file closed where it stopped, the live view going on
+  (:mod:`.mcap_file`). The SDK's own log lines, and the live view's health
+  (a listener gone, descriptors running out), go to ``warn`` and ``error``,
+  throttled (:mod:`.live_guard`).
 - Close it. An MCAP file is only readable once closed (its summary and
   footer come last: a file left open by a killed process made ``mcap``
   fail with "CHUNK record has length 18446744073709551615"). :meth:`close`
@@ -37,12 +49,16 @@ sink is made, so the package works without it.
 """
 
 from collections import deque
+from contextlib import nullcontext
 import os
+import sys
 import threading
 import time
 from typing import Callable, Deque, Dict, List, Optional, Tuple
 import weakref
 
+from r2d2_sim.recording.live_guard import ListenerWatch, route_sdk_log
+from r2d2_sim.recording.mcap_file import McapOutput
 from r2d2_sim.recording.message_definitions import (
     message_definition, offered_qos_profiles, type_hash, UnknownMessageType)
 
@@ -53,6 +69,10 @@ SUBPROTOCOL = 'foxglove.sdk.v1'
 # Time broadcasts per wall-clock second at most: the app redraws at about
 # 60 Hz, and a 240 Hz clock would otherwise be 240 messages per second per viewer.
 DEFAULT_TIME_RATE_HZ = 30.0
+# A latched topic's messages go to the live view again at most this often (wall
+# seconds): one viewer subscribing and unsubscribing 2,000 times pushed 1,387
+# copies of robot_description (21 MB) to another viewer without a bound.
+LATCHED_RESEND_PERIOD_S = 1.0
 
 
 class SinkError(RuntimeError):
@@ -78,6 +98,19 @@ def _nothing() -> None:
     """Release a handle no sink tracks."""
 
 
+def _to_stderr(text: str) -> None:
+    """Say something about the sink where nobody gave it a logger."""
+    print(f'r2d2_sim: {text}', file=sys.stderr, flush=True)
+
+
+def _locked(log: Callable, lock: threading.Lock) -> Callable:
+    """Return ``log`` holding ``lock`` (the recording file's: see :mod:`.mcap_file`)."""
+    def locked_log(data: bytes, time_ns: int) -> None:
+        with lock:
+            log(data, time_ns)
+    return locked_log
+
+
 class SinkChannel:
     """
     One topic of a :class:`FoxgloveSink`: ``log(data, time_ns)`` sends the bytes on.
@@ -86,12 +119,13 @@ class SinkChannel:
     ``bytearray`` or ``memoryview`` with TypeError: pass the object given to
     ``publish``), ``time_ns`` the simulated time in nanoseconds (>= 0), which
     becomes the MCAP log time and the WebSocket message time. ``log`` is
-    bound at construction to the cheapest call for the sinks that exist (the
-    SDK's own method when there is one).
+    bound to the cheapest call for the sinks that exist (the SDK's own
+    method when there is one), and bound again when one of them stops.
     """
 
     def __init__(self, topic: str, type_name: str, live_log: Optional[Callable],
-                 file_log: Optional[Callable], latched_depth: int = 0) -> None:
+                 file_log: Optional[Callable], latched_depth: int = 0,
+                 resend_period_s: float = LATCHED_RESEND_PERIOD_S) -> None:
         self.topic = topic
         self.type_name = type_name
         self._live_log = live_log or _ignore
@@ -99,14 +133,37 @@ class SinkChannel:
         self._latched: Optional[Deque[Tuple[bytes, int]]] = (
             deque(maxlen=latched_depth) if latched_depth > 0 else None)
         self._latched_version = 0
+        self._resend_period_s = resend_period_s
+        self._next_resend_s = 0.0
+        self._resend_timer: Optional[threading.Timer] = None
         self._lock = threading.Lock()
         self.release: Callable[[], None] = _nothing  # set by the sink that made it
+        self.log: Callable[[bytes, int], None] = _ignore
+        self._bind()
+
+    def _bind(self) -> None:
+        """Bind ``log`` to the cheapest call that reaches the sinks there are."""
+        live, file = self._live_log, self._file_log
         if self._latched is not None:
             self.log = self._log_latched
-        elif live_log is not None and file_log is not None:
+        elif live is not _ignore and file is not _ignore:
             self.log = self._log_both
         else:
-            self.log = live_log or file_log or _ignore
+            self.log = file if live is _ignore else live
+
+    def _stop_file(self) -> None:
+        """Send nothing more to the file (it failed, or the topic is gone)."""
+        self._file_log = _ignore
+        self._bind()
+
+    def _stop(self) -> None:
+        """Send nothing more anywhere, and no re-send either (the handle is released)."""
+        with self._lock:
+            timer, self._resend_timer = self._resend_timer, None
+            self._live_log = self._file_log = _ignore
+            self._bind()
+        if timer is not None:
+            timer.cancel()
 
     def _log_both(self, data: bytes, time_ns: int) -> None:
         self._live_log(data, time_ns)
@@ -119,20 +176,51 @@ class SinkChannel:
         self._live_log(data, time_ns)
         self._file_log(data, time_ns)
 
+    def _request_resend(self) -> None:
+        """
+        Send the kept messages again for a viewer that subscribed: now, or at the period's end.
+
+        Runs in a server thread. Every viewer subscribed gets the copy (the
+        SDK sends a channel's messages to all its subscribers), so re-sends
+        are at most one per ``resend_period_s``; a request meanwhile waits
+        for one re-send at the period's end, which serves every viewer that
+        subscribed in between.
+        """
+        with self._lock:
+            if self._resend_timer is not None:
+                return  # one is due already, and serves this viewer too
+            wait_s = self._next_resend_s - time.monotonic()
+            if wait_s > 0.0:
+                self._resend_timer = threading.Timer(wait_s, self._resend_due)
+                self._resend_timer.daemon = True
+                self._resend_timer.start()
+                return
+            self._next_resend_s = time.monotonic() + self._resend_period_s
+        self._send_latched()
+
+    def _resend_due(self) -> None:
+        with self._lock:
+            if self._resend_timer is None:
+                return  # released meanwhile
+            self._resend_timer = None
+            self._next_resend_s = time.monotonic() + self._resend_period_s
+        self._send_latched()
+
     def _send_latched(self) -> None:
         """
-        Send the kept messages to the live view again (called when a viewer subscribes).
+        Send the kept messages to the live view again.
 
-        Runs in a server thread. No lock is held while the SDK sends (it may
-        wait on the server); if a newer message came in meanwhile, the kept
-        ones go out again, so a viewer's last message is always the newest.
+        No lock is held while the SDK sends (it may wait on the server); if a
+        newer message came in meanwhile, the kept ones go out again, so a
+        viewer's last message is always the newest.
         """
         while True:
             with self._lock:
                 kept = list(self._latched)
                 version = self._latched_version
+                live_log = self._live_log
             for data, time_ns in kept:
-                self._live_log(data, time_ns)
+                live_log(data, time_ns)
             with self._lock:
                 if version == self._latched_version:
                     return
@@ -141,14 +229,62 @@ class SinkChannel:
         return f'SinkChannel({self.topic!r}, {self.type_name!r})'
 
 
-def _close(writer, server) -> None:
-    """Finish the file first (the part that matters), then stop the server."""
-    try:
-        if writer is not None:
-            writer.close()
-    finally:
-        if server is not None:
-            server.stop()
+class _Closer:
+    """
+    What a sink holds outside Python (a watch thread, the file, the server), and ends it.
+
+    The sink's finalizer calls it (close(), garbage collection, exit), so it
+    holds no reference to the sink. The file first (the part that matters),
+    then the server; never raises: a failure is one line to ``error``.
+    """
+
+    def __init__(self, foxglove, error: Callable[[str], None]) -> None:
+        self.foxglove = foxglove
+        self.error = error
+        self.watch: Optional[ListenerWatch] = None
+        self.file: Optional[McapOutput] = None
+        self.writer = None
+        self.server = None
+        self.handles: Dict[str, List[SinkChannel]] = {}
+        self.sdk_channels: Dict[str, list] = {}
+        self.unroute: Callable[[], None] = _nothing
+
+    def __call__(self) -> None:
+        if self.watch is not None:
+            self.watch.stop()
+        for handles in self.handles.values():
+            for handle in handles:
+                handle._stop()
+        try:
+            if self.writer is not None:
+                with self.file.lock:
+                    self.writer.close()
+        except Exception as exc:  # the SDK raises assorted types (RuntimeError, OSError...)
+            self.error(f'the recording {self.file.path} could not be finished: {exc}')
+        finally:
+            if self.file is not None:
+                self.file.close()
+            if self.server is not None:
+                self.server.stop()
+            with self.file.lock if self.file is not None else nullcontext():
+                for channels in self.sdk_channels.values():
+                    for channel in channels:
+                        _forget_channel(self.foxglove, channel)
+            self.unroute()
+
+
+def _forget_channel(foxglove, channel) -> None:
+    """
+    Close an SDK channel and let it go.
+
+    ``foxglove.Channel`` keeps every channel ever made in a module dict that
+    ``close()`` leaves alone: without this, each robot spawned and deleted
+    left its five or so channels behind (about 20 kB per robot, measured).
+    """
+    channel.close()
+    registry = getattr(getattr(foxglove, 'channel', None), '_channels_by_id', None)
+    if isinstance(registry, dict):
+        registry.pop(channel.id(), None)
 
 
 class FoxgloveSink:
@@ -159,25 +295,38 @@ class FoxgloveSink:
     ``host``: the address to bind, loopback by default (``0.0.0.0`` shows the
     robot to the whole network). ``record_path``: an MCAP file to write, or
     None; an existing file is refused unless ``overwrite``. ``name``: the
-    server name viewers show. Raises :class:`SinkError` (one line) when
+    server name viewers show. ``warn`` and ``error`` take one-line reports
+    while it runs (the recording stopped by a write error, the live view's
+    listener gone, the SDK's own lines, throttled); stderr by default.
+    ``latched_resend_period_s``: how often at most a latched topic goes to
+    the live view again. Raises :class:`SinkError` (one line) when
     foxglove-sdk is missing, the port is taken or the file cannot be made.
     """
 
     def __init__(self, port: Optional[int] = None, host: str = '127.0.0.1',
                  record_path: Optional[str] = None, name: str = 'r2d2_sim', *,
                  overwrite: bool = False,
-                 time_rate_hz: float = DEFAULT_TIME_RATE_HZ) -> None:
+                 time_rate_hz: float = DEFAULT_TIME_RATE_HZ,
+                 warn: Callable[[str], None] = _to_stderr,
+                 error: Callable[[str], None] = _to_stderr,
+                 latched_resend_period_s: float = LATCHED_RESEND_PERIOD_S) -> None:
         if port is not None and not 0 <= port <= 65535:
             raise SinkError(f'port must be 0-65535 (0: any free port), got {port}')
         if time_rate_hz <= 0.0:
             raise SinkError(f'time_rate_hz must be > 0, got {time_rate_hz}')
+        if not latched_resend_period_s >= 0.0:
+            raise SinkError(f'latched_resend_period_s must be >= 0, got {latched_resend_period_s}')
         self.host = host
         self.record_path = None if record_path is None else os.fspath(record_path)
+        self._warn, self._error = warn, error
+        self._resend_period_s = latched_resend_period_s
         self._foxglove = None
         self._live_context = None
         self._file_context = None
         self._server = None
-        self._writer = None
+        self._file: Optional[McapOutput] = None
+        # Why the recording stopped before close (a write error), or None.
+        self.record_error: Optional[OSError] = None
         self._channels: Dict[str, SinkChannel] = {}
         # Each publisher's handle of a latched topic, by the SDK's channel id.
         self._latched_by_id: Dict[int, List[SinkChannel]] = {}
@@ -192,12 +341,20 @@ class FoxgloveSink:
         if port is None and self.record_path is None:
             return  # nothing to feed: every channel ignores its messages
         self._foxglove = _import_foxglove()
-        self._open(port, host, name, overwrite)
-        self._finalizer = weakref.finalize(self, _close, self._writer, self._server)
+        closer = _Closer(self._foxglove, error)
+        closer.handles, closer.sdk_channels = self._handles, self._sdk_channels
+        try:
+            self._open(port, host, name, overwrite, closer)
+        except BaseException:
+            closer()
+            raise
+        self._finalizer = weakref.finalize(self, closer)
 
-    def _open(self, port: Optional[int], host: str, name: str, overwrite: bool) -> None:
-        """Start the server and open the file asked for (SinkError, leaving neither, if not)."""
+    def _open(self, port: Optional[int], host: str, name: str, overwrite: bool,
+              closer: _Closer) -> None:
+        """Start the server and open the file asked for (SinkError if not; closer undoes)."""
         foxglove = self._foxglove
+        closer.unroute = route_sdk_log(closer, self._warn)
         # Two contexts, so that messages sent again for a late viewer reach
         # the server but not the file (the SDK gives Python no per-sink log).
         # The server first: a taken port then leaves no file behind.
@@ -205,29 +362,55 @@ class FoxgloveSink:
         try:
             if port is not None:
                 self._live_context = foxglove.Context()
-                self._server = foxglove.start_server(
+                self._server = closer.server = foxglove.start_server(
                     name=name, host=host, port=port, context=self._live_context,
                     capabilities=[foxglove.websocket.Capability.Time],
                     server_listener=_make_listener(foxglove, self._latched_by_id))
+                closer.watch = ListenerWatch(self._server.port, self.url, self._warn,
+                                             self._error)
             if self.record_path is not None:
                 doing = f'cannot record to {self.record_path}'
-                if os.path.exists(self.record_path) and not overwrite:
-                    raise SinkError(f'{self.record_path} exists: choose another file name')
+                failed = weakref.WeakMethod(self._file_failed)
+                self._file = closer.file = McapOutput(
+                    self.record_path, overwrite, lambda exc: _call_if_alive(failed, exc))
                 self._file_context = foxglove.Context()
-                self._writer = foxglove.open_mcap(
-                    self.record_path, allow_overwrite=overwrite, context=self._file_context,
-                    writer_options=foxglove.mcap.MCAPWriteOptions(profile='ros2'))
+                with self._file.lock:
+                    closer.writer = foxglove.open_mcap(
+                        self._file, context=self._file_context,
+                        writer_options=foxglove.mcap.MCAPWriteOptions(profile='ros2'))
+                    closer.writer.flush()  # the header now: a full disk is a startup error
+                if self._file.error is not None:
+                    os.unlink(self.record_path)  # ours, and empty: leave nothing behind
+                    raise SinkError(f'{doing}: {self._file.error.strerror or self._file.error}')
         except SinkError:
-            _close(self._writer, self._server)
             raise
+        except FileExistsError:
+            raise SinkError(f'{self.record_path} exists: choose another file name') from None
         except Exception as exc:  # the SDK raises assorted types (RuntimeError, OSError...)
-            _close(self._writer, self._server)
             raise SinkError(f'{doing}: {exc}') from None
+
+    def _file_failed(self, exc: OSError) -> None:
+        """
+        Stop feeding the recording's file, which failed (a full disk), and say so once.
+
+        Called by the file inside the SDK's write, in whichever thread logged:
+        nothing here calls the SDK.
+        """
+        self.record_error = exc
+        if self._finalizer is None:
+            return  # still opening: _open raises it, a startup error
+        for handles in list(self._handles.values()):
+            for handle in handles:
+                handle._stop_file()
+        reason = exc.strerror or str(exc)
+        self._error(f'recording stopped: cannot write {self.record_path}: {reason}; it '
+                    'holds what was written before, unfinished (no summary). The simulation '
+                    'and the live view go on')
 
     @property
     def port(self) -> Optional[int]:
         """Return the port the server listens on (None without a server, or once closed)."""
-        if self._server is None or not self._finalizer.alive:
+        if self._server is None or (self._finalizer is not None and not self._finalizer.alive):
             return None
         return self._server.port
 
@@ -265,7 +448,7 @@ class FoxgloveSink:
         latched = qos.durability.name == 'TRANSIENT_LOCAL'
         live_log, file_log, live_id = self._open_channels(topic, type_name, qos)
         depth = max(qos.depth, 1) if latched else 0
-        handle = SinkChannel(topic, type_name, live_log, file_log, depth)
+        handle = SinkChannel(topic, type_name, live_log, file_log, depth, self._resend_period_s)
         self._channels[topic] = handle
         self._live_ids[topic] = live_id
         return self._track(handle, latched)
@@ -286,16 +469,18 @@ class FoxgloveSink:
             pass  # rosbag2 writes no hash either when it has none
         schema = self._foxglove.Schema(name=type_name, encoding='ros2msg',
                                        data=definition.encode('utf-8'))
-        for context in (self._live_context, self._file_context):
-            if context is None:
-                continue
+        channels = self._sdk_channels.setdefault(topic, [])
+        if self._live_context is not None:
             channel = self._foxglove.Channel(topic, schema=schema, message_encoding='cdr',
-                                             context=context, metadata=metadata)
-            self._sdk_channels.setdefault(topic, []).append(channel)
-            if context is self._live_context:
-                live_log, live_id = channel.base.log, channel.base.id()
-            else:
-                file_log = channel.base.log
+                                             context=self._live_context, metadata=metadata)
+            channels.append(channel)
+            live_log, live_id = channel.base.log, channel.base.id()
+        if self._file_context is not None and self.record_error is None:
+            with self._file.lock:
+                channel = self._foxglove.Channel(topic, schema=schema, message_encoding='cdr',
+                                                 context=self._file_context, metadata=metadata)
+            channels.append(channel)
+            file_log = _locked(channel.base.log, self._file.lock)
         return live_log, file_log, live_id
 
     def _track(self, handle: SinkChannel, latched: bool) -> SinkChannel:
@@ -313,7 +498,8 @@ class FoxgloveSink:
         Forget one publisher's handle (its node is gone: a deleted robot).
 
         Its latched messages are no longer re-sent to new viewers; with its
-        topic's last publisher the channel is closed, which unadvertises it.
+        topic's last publisher the channels are closed, which unadvertises
+        them, and let go (the file keeps the channel record it wrote).
         """
         topic = handle.topic
         handles = self._handles.get(topic, [])
@@ -321,14 +507,16 @@ class FoxgloveSink:
             return
         handles.remove(handle)
         handle.release = _nothing
+        handle._stop()
         live_id = self._live_ids.get(topic)
         latched = self._latched_by_id.get(live_id, [])
         if handle in latched:
             latched.remove(handle)
         if handles:
             return
-        for channel in self._sdk_channels.pop(topic, []):
-            channel.close()
+        with self._file.lock if self._file is not None else nullcontext():
+            for channel in self._sdk_channels.pop(topic, []):
+                _forget_channel(self._foxglove, channel)
         self._latched_by_id.pop(live_id, None)
         self._live_ids.pop(topic, None)
         self._channels.pop(topic, None)
@@ -340,8 +528,8 @@ class FoxgloveSink:
             raise SinkError(f'topic {first.topic} is registered as {first.type_name}, '
                             f'not {type_name}')
         latched = qos.durability.name == 'TRANSIENT_LOCAL'
-        logs = [None if log is _ignore else log for log in (first._live_log, first._file_log)]
-        handle = SinkChannel(first.topic, type_name, *logs, max(qos.depth, 1) if latched else 0)
+        handle = SinkChannel(first.topic, type_name, first._live_log, first._file_log,
+                             max(qos.depth, 1) if latched else 0, self._resend_period_s)
         return self._track(handle, latched)
 
     def set_time(self, time_ns: int) -> None:
@@ -359,7 +547,7 @@ class FoxgloveSink:
         self._last_time_ns = time_ns
 
     def close(self) -> None:
-        """Finish the MCAP file and stop the server; safe to call again."""
+        """Finish the MCAP file and stop the server; safe to call again; never raises."""
         if self._finalizer is not None:
             self._finalizer()
 
@@ -374,12 +562,19 @@ class FoxgloveSink:
                 f'topics={len(self._channels)})')
 
 
+def _call_if_alive(method: weakref.WeakMethod, *args) -> None:
+    """Call a weakly held method if its object still exists (a sink the file reports to)."""
+    bound = method()
+    if bound is not None:
+        bound(*args)
+
+
 def _make_listener(foxglove, latched_by_id: Dict[int, List[SinkChannel]]):
-    """Return a server listener that re-sends latched topics to a viewer that subscribes."""
+    """Return a server listener that re-sends latched topics when a viewer subscribes."""
     class LatchingListener(foxglove.websocket.ServerListener):
         # A subclass, not a plain class: the server calls every method of the
         # protocol, and a missing one fails ("AttributeError: on_unsubscribe").
         def on_subscribe(self, client, channel) -> None:
-            for handle in latched_by_id.get(channel.id, ()):
-                handle._send_latched()
+            for handle in list(latched_by_id.get(channel.id, ())):
+                handle._request_resend()
     return LatchingListener()

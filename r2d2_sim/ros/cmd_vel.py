@@ -9,8 +9,7 @@ throttled warning. Once a second it looks at the graph for ``cmd_vel``
 publishers of the other type, which the middleware never delivers.
 """
 
-import time
-from typing import Callable, Dict, Tuple
+from typing import Callable
 
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.clock import Clock as RclpyClock, ClockType
@@ -19,7 +18,7 @@ from rclpy.qos import ReliabilityPolicy
 
 from r2d2_sim.client import UNKNOWN_NODE_NAME
 from r2d2_sim.model.drive_controller import NO_WHEELS
-from r2d2_sim.model.timing import stamp_ns
+from r2d2_sim.model.timing import stamp_ns, ThrottledLog
 from r2d2_sim.ros.seams import Commandable
 from r2d2_sim.sim.parameters import SimConfig
 
@@ -29,25 +28,6 @@ WARNING_PERIOD_S = 5.0
 GRAPH_CHECK_PERIOD_S = 1.0
 CMD_VEL_TYPE = 'geometry_msgs/msg/Twist'
 CMD_VEL_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
-
-
-class ThrottledLog:
-    """Logs each kind of message at most once per ``period_s`` (wall clock), counting the rest."""
-
-    def __init__(self, period_s: float = WARNING_PERIOD_S) -> None:
-        self.period_s = period_s
-        self._last: Dict[str, Tuple[float, int]] = {}  # kind -> (logged at, suppressed)
-
-    def __call__(self, kind: str, log: Callable[[str], None], text: str) -> None:
-        """Log ``text`` with ``log`` unless a message of this kind went out recently."""
-        now = time.monotonic()
-        last, suppressed = self._last.get(kind, (None, 0))
-        if last is not None and now - last < self.period_s:
-            self._last[kind] = (last, suppressed + 1)
-            return
-        extra = f' ({suppressed} more since the last one)' if suppressed else ''
-        log(text + extra)
-        self._last[kind] = (now, 0)
 
 
 class CmdVelInput:

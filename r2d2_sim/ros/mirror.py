@@ -68,22 +68,26 @@ def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
     return MirroredPublisher(publisher, channel, time_ns)
 
 
-def start_sink(config, name: str, log: Callable[[str], None]) -> Optional[FoxgloveSink]:
+def start_sink(config, name: str, logger) -> Optional[FoxgloveSink]:
     """
     Start the live view and the recording a SimConfig asks for (None: neither); say where.
 
-    ``name`` is the server's name viewers show; ``log`` gets one line for each
-    (the view's address, the recording's file). SinkError when either cannot start.
+    ``name`` is the server's name viewers show; ``logger`` (the node's) gets
+    one info line for each (the view's address, the recording's file), and
+    later what goes wrong while they run: a recording stopped by a full disk,
+    the live view's listener gone, foxglove-sdk's own lines (throttled), so
+    ROS says them on ``/rosout``. SinkError when either cannot start.
     """
     port = config.foxglove_port or None
     record = config.record or None
     if port is None and record is None:
         return None
-    sink = FoxgloveSink(port, config.foxglove_host, record, name=name)
+    sink = FoxgloveSink(port, config.foxglove_host, record, name=name,
+                        warn=logger.warning, error=logger.error)
     if sink.url is not None:
-        log(f'Foxglove live view at {sink.url}')
+        logger.info(f'Foxglove live view at {sink.url}')
     if record is not None:
-        log(f'recording every output to {record}')
+        logger.info(f'recording every output to {record}')
     return sink
 
 

@@ -73,7 +73,7 @@ class SimNode(MirroringNode):
                            graph_check_period_s=graph_check_period_s)
         try:
             self.config, specs = declare_parameters(self)
-            self.sink = start_sink(self.config, self.get_name(), self.get_logger().info)
+            self.sink = start_sink(self.config, self.get_name(), self.get_logger())
             self.simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
                                          error=self._log_blow_up, namespace=self.get_namespace())
             self._clock_output = ClockOutput(self)

@@ -21,8 +21,10 @@ repeat bit for bit), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
 :mod:`~r2d2_sim.testing.scenery` (boxes to spawn, a scan's range at an angle),
 :mod:`~r2d2_sim.testing.standard` (a client of ROS 2's simulation standard for
 any simulator), :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
-``/tf``, as tf2 does) and :mod:`~r2d2_sim.testing.recordings` (a recording
-read into typed messages per topic). Every public name is importable from here.
+``/tf``, as tf2 does), :mod:`~r2d2_sim.testing.recordings` (a recording
+read into typed messages per topic) and :mod:`~r2d2_sim.testing.live_view` (a
+Foxglove WebSocket client of the live view). Every public name is importable
+from here.
 """
 
 from r2d2_sim.client import (
@@ -36,6 +38,7 @@ from r2d2_sim.testing.domains import (
 from r2d2_sim.testing.executor import (
     CallbackError, HarnessError, parameter_overrides, RosHarness, SPIN_POLL_S)
 from r2d2_sim.testing.harness import LINK_NODE_NAME, SimHarness
+from r2d2_sim.testing.live_view import LiveMessage, LiveViewClient, LiveViewError
 from r2d2_sim.testing.process import (
     ChildProcess, ProcessResult, sim_node_command, stop_process)
 from r2d2_sim.testing.recordings import read_recording, RecordedMessage, RecordingError
@@ -54,7 +57,7 @@ __all__ = [
     'LINK_NODE_NAME', 'SPIN_POLL_S', 'STATUS_RESEND_S', 'TfListener', 'TransformBuffer',
     'StampedTransform', 'TransformException', 'StandardClient', 'StandardError', 'BaseState',
     'RefusedError', 'box_urdf', 'scan_range', 'read_recording', 'RecordedMessage',
-    'RecordingError',
+    'RecordingError', 'LiveViewClient', 'LiveMessage', 'LiveViewError',
 ]
 
 

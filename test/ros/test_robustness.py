@@ -120,12 +120,12 @@ def test_negative_zero_is_a_plain_stop(sim, probe, capfd):
 
 def test_one_throttled_warning_per_kind_of_problem(ros, capfd, monkeypatch):
     """Twenty messages of each kind give one warning per kind, then a count of the rest."""
-    from r2d2_sim.ros import cmd_vel
+    from r2d2_sim.model import timing
     period_s = 0.5
     # The throttle's wall clock, stopped while the 80 commands go (a loaded machine
     # may take longer than the period to send them), then moved on by the period.
     clock = [1000.0]
-    monkeypatch.setattr(cmd_vel, 'time', SimpleNamespace(monotonic=lambda: clock[0]))
+    monkeypatch.setattr(timing, 'time', SimpleNamespace(monotonic=lambda: clock[0]))
     sim = make_sim(ros, node_kwargs={'warning_period_s': period_s})
     probe = Probe(ros, sim)
     kinds = {

@@ -43,11 +43,15 @@ def test_foxglove_is_imported_only_for_a_sink():
 
 
 RECORDER = '''
-import sys, time
+import signal, sys, time
 mode, path, test_dir = sys.argv[1:4]
 if mode == 'handlers':
     from r2d2_sim.apps.cli import stop_on_signals
     stop = stop_on_signals()
+elif mode.endswith('keyboard_interrupt'):
+    # Python's own Ctrl-C, as in a terminal. A CI job started in the background
+    # (cmd & in a script) passes SIGINT on ignored, and Python keeps it so.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 sys.path.insert(0, test_dir)
 from r2d2_sim.recording.sink import FoxgloveSink
 from sample_messages import samples, TOPICS
@@ -117,8 +121,12 @@ def test_a_stopped_recorder_leaves_a_complete_file(tmp_path, mode, sig):
     assert wait_for(lambda: path.stat().st_size > 0, 1.0)
     header, summary, messages = read_with_mcap(path)
     assert summary is not None, 'no summary: the file was not closed'
-    assert summary.statistics.message_count == logged == len(messages)
+    assert summary.statistics.message_count == len(messages)
+    if mode.endswith('keyboard_interrupt'):  # it may land between a log and its count
+        assert logged <= len(messages) <= logged + 1
+    else:
+        assert len(messages) == logged
     assert len(messages) >= 3 * len(TOPICS)
     with AnyReader([path]) as reader:
-        assert sum(info.msgcount for info in reader.topics.values()) == logged
+        assert sum(info.msgcount for info in reader.topics.values()) == len(messages)
     assert os.path.getsize(path) > 1000
