@@ -11,8 +11,9 @@ import pytest
 @pytest.fixture
 def make(request):
     """
-    Provide ``make(errors=None, **parameters) -> Simulation``, each closed after the test.
+    Provide a builder of simulations from parameters, each closed after the test.
 
+    ``make(errors=None, **parameters)`` returns a Simulation.
     Parameters as ``sim_node`` takes them (``robots`` and ``NAME.parameter``
     too); ``errors``, a list, receives the simulation's one-line error reports.
     """
