@@ -32,7 +32,7 @@ from common import REPO
 PACKAGE = 'r2d2_sim'
 # Each folder or top-level module of the package, by height; a module imports only
 # from its own height or below. The package's root __init__ sits below them all.
-RANK = {'errors': 0, 'recording': 1, 'model': 2, 'physics': 3, 'sim': 4, 'client': 5, 'ros': 6,
+RANK = {'errors': 0, 'model': 1, 'recording': 2, 'physics': 3, 'sim': 4, 'client': 5, 'ros': 6,
         'testing': 7, 'apps': 8, 'pytest_plugin': 9, '__main__': 9}
 ROOT_RANK = -1
 # What importing all of a ROS-free layer must not load.
