@@ -48,31 +48,27 @@ foxglove-sdk (``pip install "r2d2_sim[foxglove]"``) is imported only when a
 sink is made, so the package works without it.
 """
 
-from collections import deque
 from contextlib import nullcontext
 import os
 import sys
-import threading
 import time
-from typing import Callable, Deque, Dict, List, Optional, Tuple
+from typing import Callable, Dict, List, Optional
 import weakref
 
+from r2d2_sim.recording.channels import (
+    forget_channel, LATCHED_RESEND_PERIOD_S, locked, nothing, SinkChannel)
 from r2d2_sim.recording.live_guard import ListenerWatch, route_sdk_log
 from r2d2_sim.recording.mcap_file import McapOutput
 from r2d2_sim.recording.message_definitions import (
     message_definition, offered_qos_profiles, type_hash, UnknownMessageType)
 
-__all__ = ['FoxgloveSink', 'SinkChannel', 'SinkError']
+__all__ = ['FoxgloveSink', 'SinkError']
 
 # The subprotocol foxglove-sdk 0.30 speaks (it refuses the older foxglove.websocket.v1).
 SUBPROTOCOL = 'foxglove.sdk.v1'
 # Time broadcasts per wall-clock second at most: the app redraws at about
 # 60 Hz, and a 240 Hz clock would otherwise be 240 messages per second per viewer.
 DEFAULT_TIME_RATE_HZ = 30.0
-# A latched topic's messages go to the live view again at most this often (wall
-# seconds): one viewer subscribing and unsubscribing 2,000 times pushed 1,387
-# copies of robot_description (21 MB) to another viewer without a bound.
-LATCHED_RESEND_PERIOD_S = 1.0
 
 
 class SinkError(RuntimeError):
@@ -90,143 +86,9 @@ def _import_foxglove():
     return foxglove
 
 
-def _ignore(data: bytes, time_ns: int) -> None:
-    """Stand in for a sink that is not there."""
-
-
-def _nothing() -> None:
-    """Release a handle no sink tracks."""
-
-
 def _to_stderr(text: str) -> None:
     """Say something about the sink where nobody gave it a logger."""
     print(f'r2d2_sim: {text}', file=sys.stderr, flush=True)
-
-
-def _locked(log: Callable, lock: threading.Lock) -> Callable:
-    """Return ``log`` holding ``lock`` (the recording file's: see :mod:`.mcap_file`)."""
-    def locked_log(data: bytes, time_ns: int) -> None:
-        with lock:
-            log(data, time_ns)
-    return locked_log
-
-
-class SinkChannel:
-    """
-    One topic of a :class:`FoxgloveSink`: ``log(data, time_ns)`` sends the bytes on.
-
-    ``data`` is one serialized message as ``bytes`` (the SDK refuses a
-    ``bytearray`` or ``memoryview`` with TypeError: pass the object given to
-    ``publish``), ``time_ns`` the simulated time in nanoseconds (>= 0), which
-    becomes the MCAP log time and the WebSocket message time. ``log`` is
-    bound to the cheapest call for the sinks that exist (the SDK's own
-    method when there is one), and bound again when one of them stops.
-    """
-
-    def __init__(self, topic: str, type_name: str, live_log: Optional[Callable],
-                 file_log: Optional[Callable], latched_depth: int = 0,
-                 resend_period_s: float = LATCHED_RESEND_PERIOD_S) -> None:
-        self.topic = topic
-        self.type_name = type_name
-        self._live_log = live_log or _ignore
-        self._file_log = file_log or _ignore
-        self._latched: Optional[Deque[Tuple[bytes, int]]] = (
-            deque(maxlen=latched_depth) if latched_depth > 0 else None)
-        self._latched_version = 0
-        self._resend_period_s = resend_period_s
-        self._next_resend_s = 0.0
-        self._resend_timer: Optional[threading.Timer] = None
-        self._lock = threading.Lock()
-        self.release: Callable[[], None] = _nothing  # set by the sink that made it
-        self.log: Callable[[bytes, int], None] = _ignore
-        self._bind()
-
-    def _bind(self) -> None:
-        """Bind ``log`` to the cheapest call that reaches the sinks there are."""
-        live, file = self._live_log, self._file_log
-        if self._latched is not None:
-            self.log = self._log_latched
-        elif live is not _ignore and file is not _ignore:
-            self.log = self._log_both
-        else:
-            self.log = file if live is _ignore else live
-
-    def _stop_file(self) -> None:
-        """Send nothing more to the file (it failed, or the topic is gone)."""
-        self._file_log = _ignore
-        self._bind()
-
-    def _stop(self) -> None:
-        """Send nothing more anywhere, and no re-send either (the handle is released)."""
-        with self._lock:
-            timer, self._resend_timer = self._resend_timer, None
-            self._live_log = self._file_log = _ignore
-            self._bind()
-        if timer is not None:
-            timer.cancel()
-
-    def _log_both(self, data: bytes, time_ns: int) -> None:
-        self._live_log(data, time_ns)
-        self._file_log(data, time_ns)
-
-    def _log_latched(self, data: bytes, time_ns: int) -> None:
-        with self._lock:
-            self._latched.append((data, time_ns))
-            self._latched_version += 1
-        self._live_log(data, time_ns)
-        self._file_log(data, time_ns)
-
-    def _request_resend(self) -> None:
-        """
-        Send the kept messages again for a viewer that subscribed: now, or at the period's end.
-
-        Runs in a server thread. Every viewer subscribed gets the copy (the
-        SDK sends a channel's messages to all its subscribers), so re-sends
-        are at most one per ``resend_period_s``; a request meanwhile waits
-        for one re-send at the period's end, which serves every viewer that
-        subscribed in between.
-        """
-        with self._lock:
-            if self._resend_timer is not None:
-                return  # one is due already, and serves this viewer too
-            wait_s = self._next_resend_s - time.monotonic()
-            if wait_s > 0.0:
-                self._resend_timer = threading.Timer(wait_s, self._resend_due)
-                self._resend_timer.daemon = True
-                self._resend_timer.start()
-                return
-            self._next_resend_s = time.monotonic() + self._resend_period_s
-        self._send_latched()
-
-    def _resend_due(self) -> None:
-        with self._lock:
-            if self._resend_timer is None:
-                return  # released meanwhile
-            self._resend_timer = None
-            self._next_resend_s = time.monotonic() + self._resend_period_s
-        self._send_latched()
-
-    def _send_latched(self) -> None:
-        """
-        Send the kept messages to the live view again.
-
-        No lock is held while the SDK sends (it may wait on the server); if a
-        newer message came in meanwhile, the kept ones go out again, so a
-        viewer's last message is always the newest.
-        """
-        while True:
-            with self._lock:
-                kept = list(self._latched)
-                version = self._latched_version
-                live_log = self._live_log
-            for data, time_ns in kept:
-                live_log(data, time_ns)
-            with self._lock:
-                if version == self._latched_version:
-                    return
-
-    def __repr__(self) -> str:
-        return f'SinkChannel({self.topic!r}, {self.type_name!r})'
 
 
 class _Closer:
@@ -247,14 +109,14 @@ class _Closer:
         self.server = None
         self.handles: Dict[str, List[SinkChannel]] = {}
         self.sdk_channels: Dict[str, list] = {}
-        self.unroute: Callable[[], None] = _nothing
+        self.unroute: Callable[[], None] = nothing
 
     def __call__(self) -> None:
         if self.watch is not None:
             self.watch.stop()
         for handles in self.handles.values():
             for handle in handles:
-                handle._stop()
+                handle.stop()
         try:
             if self.writer is not None:
                 with self.file.lock:
@@ -269,22 +131,8 @@ class _Closer:
             with self.file.lock if self.file is not None else nullcontext():
                 for channels in self.sdk_channels.values():
                     for channel in channels:
-                        _forget_channel(self.foxglove, channel)
+                        forget_channel(self.foxglove, channel)
             self.unroute()
-
-
-def _forget_channel(foxglove, channel) -> None:
-    """
-    Close an SDK channel and let it go.
-
-    ``foxglove.Channel`` keeps every channel ever made in a module dict that
-    ``close()`` leaves alone: without this, each robot spawned and deleted
-    left its five or so channels behind (about 20 kB per robot, measured).
-    """
-    channel.close()
-    registry = getattr(getattr(foxglove, 'channel', None), '_channels_by_id', None)
-    if isinstance(registry, dict):
-        registry.pop(channel.id(), None)
 
 
 class FoxgloveSink:
@@ -401,7 +249,7 @@ class FoxgloveSink:
             return  # still opening: _open raises it, a startup error
         for handles in list(self._handles.values()):
             for handle in handles:
-                handle._stop_file()
+                handle.stop_file()
         reason = exc.strerror or str(exc)
         self._error(f'recording stopped: cannot write {self.record_path}: {reason}; it '
                     'holds what was written before, unfinished (no summary). The simulation '
@@ -480,7 +328,7 @@ class FoxgloveSink:
                 channel = self._foxglove.Channel(topic, schema=schema, message_encoding='cdr',
                                                  context=self._file_context, metadata=metadata)
             channels.append(channel)
-            file_log = _locked(channel.base.log, self._file.lock)
+            file_log = locked(channel.base.log, self._file.lock)
         return live_log, file_log, live_id
 
     def _track(self, handle: SinkChannel, latched: bool) -> SinkChannel:
@@ -506,8 +354,8 @@ class FoxgloveSink:
         if handle not in handles:
             return
         handles.remove(handle)
-        handle.release = _nothing
-        handle._stop()
+        handle.release = nothing
+        handle.stop()
         live_id = self._live_ids.get(topic)
         latched = self._latched_by_id.get(live_id, [])
         if handle in latched:
@@ -516,7 +364,7 @@ class FoxgloveSink:
             return
         with self._file.lock if self._file is not None else nullcontext():
             for channel in self._sdk_channels.pop(topic, []):
-                _forget_channel(self._foxglove, channel)
+                forget_channel(self._foxglove, channel)
         self._latched_by_id.pop(live_id, None)
         self._live_ids.pop(topic, None)
         self._channels.pop(topic, None)
@@ -528,9 +376,7 @@ class FoxgloveSink:
             raise SinkError(f'topic {first.topic} is registered as {first.type_name}, '
                             f'not {type_name}')
         latched = qos.durability.name == 'TRANSIENT_LOCAL'
-        handle = SinkChannel(first.topic, type_name, first._live_log, first._file_log,
-                             max(qos.depth, 1) if latched else 0, self._resend_period_s)
-        return self._track(handle, latched)
+        return self._track(first.sibling(max(qos.depth, 1) if latched else 0), latched)
 
     def set_time(self, time_ns: int) -> None:
         """
@@ -576,5 +422,5 @@ def _make_listener(foxglove, latched_by_id: Dict[int, List[SinkChannel]]):
         # protocol, and a missing one fails ("AttributeError: on_unsubscribe").
         def on_subscribe(self, client, channel) -> None:
             for handle in list(latched_by_id.get(channel.id, ())):
-                handle._request_resend()
+                handle.request_resend()
     return LatchingListener()

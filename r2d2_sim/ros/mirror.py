@@ -17,7 +17,8 @@ from typing import Callable, Optional
 from rclpy.publisher import Publisher
 from rclpy.serialization import serialize_message
 
-from r2d2_sim.recording.sink import FoxgloveSink, SinkChannel
+from r2d2_sim.recording.channels import SinkChannel
+from r2d2_sim.recording.sink import FoxgloveSink
 from r2d2_sim.ros.quiet_node import QuietNode
 
 __all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode', 'start_sink']
