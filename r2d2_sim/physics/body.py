@@ -27,7 +27,8 @@ from r2d2_sim.model.transforms import BaseState, rotate_inverse
 from r2d2_sim.physics import records
 from r2d2_sim.physics.raycast import exclude_from_rays, RAY_EXCLUDED_GROUP
 from r2d2_sim.physics.records import (
-    Aabb, CollisionShape, Dynamics, JointRecord, JointStates, LinkState, Pose, Quat, Vec3)
+    Aabb, ClosestPoints, CollisionShape, ContactPoint, Dynamics, JointRecord, JointStates,
+    LinkState, Pose, Quat, Vec3)
 from r2d2_sim.physics.stdio import silenced_output
 
 with silenced_output():  # PyBullet prints its build time on import
@@ -312,6 +313,15 @@ class Body:
         names = [self.base_link_name] + [j.link_name for j in self.joints.values()]
         raise WorldError(f'no link named {link_name!r}; the robot has: {", ".join(names)}')
 
+    def link_name(self, link: int) -> str:
+        """Return the name of link ``link`` (-1: the base link)."""
+        if link == -1:
+            return self.base_link_name
+        for joint in self.joints.values():
+            if joint.index == link:
+                return joint.link_name
+        raise WorldError(f'{self.name} has no link {link}')
+
     def link_state(self, link: int) -> LinkState:
         """Return a link's world centre of mass and frame (forward kinematics now)."""
         return records.link_state(self._client, self.id, link)
@@ -365,6 +375,14 @@ class Body:
     def collision_shapes(self, link: int) -> List[CollisionShape]:
         """Return a link's collision shapes (-1: the base)."""
         return records.collision_shapes(self._client, self.id, link)
+
+    def contacts(self) -> List[ContactPoint]:
+        """Return where this body touches others after the last step (it is ``body_a``)."""
+        return records.contact_points(self._client, self.id)
+
+    def closest_points(self, other: 'Body', range_m: float) -> Optional[ClosestPoints]:
+        """Return this body's nearest points to ``other`` within ``range_m`` (None: farther)."""
+        return records.closest_points(self._client, self.id, other.id, range_m)
 
     def exclude_from_rays(self, links: Optional[Sequence[int]] = None,
                           group: int = RAY_EXCLUDED_GROUP) -> None:

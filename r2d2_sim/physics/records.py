@@ -8,7 +8,7 @@ the link, so nothing else in the package indexes ``[4]`` or ``[12]``.
 """
 
 from dataclasses import dataclass
-from typing import List, NamedTuple, Sequence, Tuple
+from typing import List, NamedTuple, Optional, Sequence, Tuple
 
 from r2d2_sim.physics.stdio import silenced_output
 
@@ -18,7 +18,7 @@ with silenced_output():  # PyBullet prints its build time on import
 __all__ = ['Vec3', 'Quat', 'JOINT_TYPE_NAMES', 'JointRecord', 'JointStates', 'Pose',
            'LinkState', 'Aabb', 'Dynamics', 'CollisionShape', 'joint_records', 'link_state',
            'aabb', 'dynamics', 'collision_shapes', 'BodyInfo', 'body_info', 'ContactPoint',
-           'contact_points']
+           'contact_points', 'ClosestPoints', 'closest_points']
 
 Vec3 = Tuple[float, float, float]
 Quat = Tuple[float, float, float, float]
@@ -140,13 +140,24 @@ class BodyInfo(NamedTuple):
 
 
 class ContactPoint(NamedTuple):
-    """Where two bodies touch: the links and the normal force (N)."""
+    """Where two bodies touch: the links, the point on A (world), and the normal force (N)."""
 
     body_a: int
     body_b: int
     link_a: int
     link_b: int
+    position_on_a: Vec3
     normal_force_n: float
+
+
+class ClosestPoints(NamedTuple):
+    """The nearest points of two bodies within a range: their links and the distance (m)."""
+
+    link_a: int
+    link_b: int
+    position_on_a: Vec3
+    position_on_b: Vec3
+    distance_m: float     # negative: they overlap by that much
 
 
 def joint_records(client, body_id: int) -> List[JointRecord]:
@@ -189,4 +200,14 @@ def contact_points(client, body_a: int, body_b: int = -1) -> List[ContactPoint]:
     """Return the contacts of ``body_a`` (with ``body_b`` only, when given) after the last step."""
     points = (client.getContactPoints(body_a, body_b) if body_b >= 0
               else client.getContactPoints(body_a))
-    return [ContactPoint(p[1], p[2], p[3], p[4], p[9]) for p in points]
+    return [ContactPoint(p[1], p[2], p[3], p[4], tuple(p[5]), p[9]) for p in points]
+
+
+def closest_points(client, body_a: int, body_b: int, range_m: float) -> Optional[ClosestPoints]:
+    """Return the nearest points of two bodies if they are within ``range_m``; None if not."""
+    points = client.getClosestPoints(body_a, body_b, range_m)
+    if not points:
+        return None
+    nearest = min(points, key=lambda p: p[8])
+    return ClosestPoints(nearest[3], nearest[4], tuple(nearest[5]), tuple(nearest[6]),
+                         nearest[8])

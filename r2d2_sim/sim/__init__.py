@@ -6,6 +6,7 @@ The parameter table (:mod:`.parameters`), its readers and its reference
 a robot's drive train and sensors (:mod:`.drive_train`, :mod:`.sensor_mounts`,
 :mod:`.robot`), the standard's entities and what a spawn may load
 (:mod:`.entities`, :mod:`.spawnables`), the world as launched and built again
-(:mod:`.launch`), and :class:`~.simulation.Simulation`, whose ``step()``
-returns what every robot measured as plain data.
+(:mod:`.launch`), what a run did as the physics saw it (:mod:`.oracles`), and
+:class:`~.simulation.Simulation`, whose ``step()`` returns what every robot
+measured as plain data.
 """

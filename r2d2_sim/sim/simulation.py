@@ -87,6 +87,8 @@ class Simulation:
         self.models: List[Body] = []  # extra_models and the world model loaded at start-up
         self._warn, self._error = warn, error
         self._watchers: List[RobotsWatcher] = []
+        # Told the simulated time after each step (oracles.RunWatch): none by default.
+        self._step_watchers: List[Callable[[int], None]] = []
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
                               gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
         self.entities = Entities(self.world, config.world_frame_id)
@@ -115,6 +117,15 @@ class Simulation:
         """
         self._watchers.append(watcher)
         watcher(tuple(self.robots))
+
+    def watch_steps(self, watcher: Callable[[int], None]) -> Callable[[], None]:
+        """Call ``watcher(time_ns)`` after every step from now on; return what stops it."""
+        self._step_watchers.append(watcher)
+
+        def unwatch() -> None:
+            if watcher in self._step_watchers:
+                self._step_watchers.remove(watcher)
+        return unwatch
 
     def _robots_changed(self) -> None:
         for watcher in self._watchers:
@@ -304,6 +315,8 @@ class Simulation:
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = tuple(robot.measure(step, time_ns, state_due) for robot in robots)
+        for watcher in self._step_watchers:
+            watcher(time_ns)
         if state_due:
             self.last_frame_step = step
         elif not any(measurements):

@@ -10,9 +10,11 @@ one-line message that names neither a file's content nor more than the
 offending path.
 """
 
+import math
 import os
-from typing import List, Optional, Tuple
+from typing import List, Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
+from xml.sax.saxutils import quoteattr
 
 import pybullet_data
 
@@ -21,8 +23,8 @@ from r2d2_sim.physics.description import (
     DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
     resolve_description_path)
 
-__all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'MAX_DESCRIPTION_BYTES',
-           'MAX_LINKS']
+__all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'box_urdf',
+           'MAX_DESCRIPTION_BYTES', 'MAX_LINKS']
 
 # What one spawn request may cost (a URDF of R2D2 is 14 kB and 16 links).
 MAX_DESCRIPTION_BYTES = 1_000_000
@@ -135,3 +137,31 @@ def spawnable_uris() -> List[str]:
     data = pybullet_data.getDataPath()
     uris += sorted(name for name in os.listdir(data) if name.endswith('.urdf'))
     return uris
+
+
+def box_urdf(size_m: Sequence[float] = (0.2, 0.2, 0.2), *, mass_kg: float = 0.0,
+             name: str = 'box', rgba: Sequence[float] = (0.8, 0.5, 0.2, 1.0)) -> str:
+    """
+    Return the URDF text of a solid box, its base link at its centre.
+
+    ``mass_kg`` 0 (the default) makes it fixed: PyBullet gives a base link of
+    mass 0 a fixed base, so robots cannot push it (a wall, a dock, a pillar;
+    the standard's ``GetEntityInfo`` reports it as STATIC_OBJECT). A positive
+    mass makes it a pushable box with a uniform solid's inertia. ``rgba`` is
+    its colour in the camera and the live view.
+    """
+    x, y, z = (float(v) for v in size_m)
+    if not all(math.isfinite(v) and v > 0.0 for v in (x, y, z)):
+        raise ValueError(f'a box needs three positive sizes, got {tuple(size_m)}')
+    if not (math.isfinite(mass_kg) and mass_kg >= 0.0):
+        raise ValueError(f'a box needs a mass >= 0 kg, got {mass_kg}')
+    geometry = f'<geometry><box size="{x!r} {y!r} {z!r}"/></geometry>'
+    # PyBullet takes a link without <inertial> as 1 kg: a fixed box says mass 0.
+    m = mass_kg / 12.0
+    inertial = (f'<inertial><mass value="{mass_kg!r}"/><inertia ixx="{m * (y * y + z * z)!r}" '
+                f'iyy="{m * (x * x + z * z)!r}" izz="{m * (x * x + y * y)!r}" ixy="0" '
+                'ixz="0" iyz="0"/></inertial>')
+    colour = ' '.join(repr(float(c)) for c in rgba)
+    return (f'<robot name={quoteattr(name)}><link name={quoteattr(name)}>{inertial}'
+            f'<collision>{geometry}</collision><visual>{geometry}<material name="colour">'
+            f'<color rgba="{colour}"/></material></visual></link></robot>')

@@ -18,7 +18,8 @@ repeat bit for bit), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
 :mod:`~r2d2_sim.testing.sim_process` (:class:`SimProcess`),
 :mod:`~r2d2_sim.testing.robots` (one robot's handle in either harness),
 :mod:`~r2d2_sim.testing.world_verbs` (spawn, place, read, delete, reset),
-:mod:`~r2d2_sim.testing.scenery` (boxes to spawn, a scan's range at an angle),
+:mod:`~r2d2_sim.testing.scenery` (a scan's range at an angle; boxes to spawn are the
+core's :func:`~r2d2_sim.sim.spawnables.box_urdf`),
 :mod:`~r2d2_sim.testing.standard` (a client of ROS 2's simulation standard for
 any simulator), :mod:`~r2d2_sim.testing.tf` (``lookup_transform`` over
 ``/tf``, as tf2 does), :mod:`~r2d2_sim.testing.recordings` (a recording
@@ -32,6 +33,7 @@ from r2d2_sim.client import (
 from r2d2_sim.errors import RefusedError, StartupError
 from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
 from r2d2_sim.model.transforms import BaseState
+from r2d2_sim.sim.spawnables import box_urdf
 from r2d2_sim.testing import domains
 from r2d2_sim.testing.domains import (
     DOMAIN_LOCK_DIR_ENV, DomainLease, domain_lock_dir, DomainUnavailable, lease_domain)
@@ -43,7 +45,7 @@ from r2d2_sim.testing.process import (
     ChildProcess, ProcessResult, sim_node_command, stop_process)
 from r2d2_sim.testing.recordings import read_recording, RecordedMessage, RecordingError
 from r2d2_sim.testing.remote import RemoteProbe
-from r2d2_sim.testing.scenery import box_urdf, scan_range
+from r2d2_sim.testing.scenery import scan_range
 from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
 from r2d2_sim.testing.standard import StandardClient, StandardError
 from r2d2_sim.testing.tf import TfListener

@@ -1,45 +1,14 @@
 """
-What tests put in the world and read back: boxes (fixed walls or pushable), a scan's range.
+What tests read back from the world: a scan's range at an angle.
 
-Plain functions, no ROS: :func:`box_urdf` writes the URDF text a spawn takes
-(``harness.spawn(box_urdf(...))``, or ``SpawnEntity``'s ``resource_string``
-from any client), and :func:`scan_range` reads one beam of a
-``sensor_msgs/LaserScan`` by its angle.
+A plain function, no ROS: :func:`scan_range` reads one beam of a
+``sensor_msgs/LaserScan`` by its angle. (What tests put in the world, a box
+to spawn, is :func:`r2d2_sim.sim.spawnables.box_urdf`.)
 """
 
 import math
-from typing import Sequence
-from xml.sax.saxutils import quoteattr
 
-__all__ = ['box_urdf', 'scan_range']
-
-
-def box_urdf(size_m: Sequence[float] = (0.2, 0.2, 0.2), *, mass_kg: float = 0.0,
-             name: str = 'box', rgba: Sequence[float] = (0.8, 0.5, 0.2, 1.0)) -> str:
-    """
-    Return the URDF text of a solid box, its base link at its centre.
-
-    ``mass_kg`` 0 (the default) makes it fixed: PyBullet gives a base link of
-    mass 0 a fixed base, so robots cannot push it (a wall, a dock, a pillar;
-    the standard's ``GetEntityInfo`` reports it as STATIC_OBJECT). A positive
-    mass makes it a pushable box with a uniform solid's inertia. ``rgba`` is
-    its colour in the camera and the live view.
-    """
-    x, y, z = (float(v) for v in size_m)
-    if not all(math.isfinite(v) and v > 0.0 for v in (x, y, z)):
-        raise ValueError(f'a box needs three positive sizes, got {tuple(size_m)}')
-    if not (math.isfinite(mass_kg) and mass_kg >= 0.0):
-        raise ValueError(f'a box needs a mass >= 0 kg, got {mass_kg}')
-    geometry = f'<geometry><box size="{x!r} {y!r} {z!r}"/></geometry>'
-    # PyBullet takes a link without <inertial> as 1 kg: a fixed box says mass 0.
-    m = mass_kg / 12.0
-    inertial = (f'<inertial><mass value="{mass_kg!r}"/><inertia ixx="{m * (y * y + z * z)!r}" '
-                f'iyy="{m * (x * x + z * z)!r}" izz="{m * (x * x + y * y)!r}" ixy="0" '
-                'ixz="0" iyz="0"/></inertial>')
-    colour = ' '.join(repr(float(c)) for c in rgba)
-    return (f'<robot name={quoteattr(name)}><link name={quoteattr(name)}>{inertial}'
-            f'<collision>{geometry}</collision><visual>{geometry}<material name="colour">'
-            f'<color rgba="{colour}"/></material></visual></link></robot>')
+__all__ = ['scan_range']
 
 
 def scan_range(scan, angle_rad: float) -> float:
