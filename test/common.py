@@ -95,7 +95,7 @@ BOX = ('<robot name="box"><link name="box"><inertial><mass value="1"/><inertia i
 EXAMPLES = Path(REPO) / 'test' / 'examples'
 # In README order.
 EXAMPLE_FILES = ['test_drive_forward.py', 'test_closed_loop.py', 'test_sim_process.py',
-                 'test_change_the_world.py', 'test_two_robots.py']
+                 'test_change_the_world.py', 'test_stopper.py', 'test_two_robots.py']
 
 # -- rigid transforms: model/test_transforms.py and physics/test_transforms_physics.py
 

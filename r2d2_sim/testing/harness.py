@@ -8,7 +8,7 @@ they run in lockstep with the simulator, so a run repeats bit for bit.
 
 import json
 import math
-from typing import Any, Callable, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple, TYPE_CHECKING
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -22,6 +22,9 @@ from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarn
 from r2d2_sim.testing.robots import expected_namespaces, flatten_robots, LocalRobot
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import CoreWorld, WorldVerbs
+
+if TYPE_CHECKING:  # PyBullet is imported only when a simulator is made
+    from r2d2_sim.sim.oracles import RunWatch
 
 __all__ = ['SimHarness', 'LINK_NODE_NAME']
 
@@ -349,6 +352,21 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
             self.robot(name)
         self._robots = {name: self._robots[name] for name in names}
         self.advance()
+
+    def watch(self, entity: Optional[str] = None, **options) -> 'RunWatch':
+        """
+        Watch a robot's run from now on: contacts, clearance, regions reached, tipping.
+
+        Returns a :class:`~r2d2_sim.sim.oracles.RunWatch` the physics fills
+        step by step while the test advances (``entity``: a robot's or any
+        entity's name, default the first robot; ``regions``,
+        ``clearance_range_m``, ``tip_angle_rad`` as it takes them). Close it
+        (or use ``with``) to stop paying for it: about 10 us per other body
+        per step.
+        """
+        from r2d2_sim.sim.oracles import RunWatch
+        with self.sim.lock:
+            return RunWatch(self.sim.simulation, entity, **options)
 
     def call_service(self, srv_type, name: str, request):
         """Call a service (of the simulator or yours) from the harness's node; return the reply."""

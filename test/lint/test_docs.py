@@ -21,6 +21,7 @@ import time
 
 import pytest
 
+from common import EXAMPLE_FILES
 from r2d2_sim.sim.parameter_docs import render_parameter_reference
 from r2d2_sim.sim.parameters import PARAMETERS
 
@@ -29,8 +30,6 @@ DOCS = REPO / 'docs'
 README = REPO / 'README.md'
 EXAMPLES = REPO / 'test' / 'examples'
 # In the order docs/testing.md shows them.
-EXAMPLE_FILES = ['test_drive_forward.py', 'test_closed_loop.py', 'test_sim_process.py',
-                 'test_change_the_world.py', 'test_two_robots.py']
 PLUGIN = 'r2d2_sim.pytest_plugin'
 README_MAX_LINES = 300
 
