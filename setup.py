@@ -27,6 +27,8 @@ INSTALL_REQUIRES = [
     # one abi3 wheel with no dependencies. Under colcon: pip install foxglove-sdk mcap.
     'foxglove-sdk>=0.30,<0.31',
     'mcap>=1.2,<2',
+    # The scenario farm draws and shrinks scenarios with it (r2d2_sim.farm).
+    'hypothesis>=6.100,<7',
 ]
 
 setup(
