@@ -10,16 +10,14 @@ import json
 import math
 from typing import Any, Callable, Dict, List, Optional, Tuple, TYPE_CHECKING
 
-from geometry_msgs.msg import Twist
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
-from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarness
-from r2d2_sim.testing.robots import expected_namespaces, flatten_robots, LocalRobot
+from r2d2_sim.testing.robots import (
+    expected_namespaces, FirstRobot, flatten_robots, LocalRobot)
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import CoreWorld, WorldVerbs
 
@@ -33,7 +31,7 @@ __all__ = ['SimHarness', 'LINK_NODE_NAME']
 LINK_NODE_NAME = '_r2d2_sim_harness'
 
 
-class SimHarness(RosHarness, TransformLookup, WorldVerbs):
+class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
     """
     The simulator in this process, advanced only when told, plus nodes of your own.
 
@@ -203,19 +201,6 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
             for sub, callback in originals:
                 sub.callback = callback
 
-    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
-                     twist: Optional[Twist] = None) -> None:
-        """
-        Publish a command on the first robot's ``cmd_vel``; return once the simulator has it.
-
-        ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
-        ``twist``. A simulator with ``enable_stamped_cmd_vel`` gets a
-        TwistStamped stamped with the simulated time now. Raises HarnessError
-        if the command does not arrive in time. ``robot(name).send_cmd_vel``
-        commands another robot.
-        """
-        self.robot().send_cmd_vel(linear, angular, twist=twist)
-
     @property
     def physics_rate_hz(self) -> float:
         """Return physics steps per simulated second."""
@@ -283,18 +268,6 @@ class SimHarness(RosHarness, TransformLookup, WorldVerbs):
         if not 0.0 <= seconds < math.inf:
             raise ValueError(f'simulated time must be a finite number >= 0 s, got {seconds}')
         return round(seconds * self.physics_rate_hz)
-
-    def ground_truth(self) -> Odometry:
-        """Return the first robot's latest ``ground_truth`` (world pose, twist in the body)."""
-        return self.robot().ground_truth()
-
-    def odom(self) -> Odometry:
-        """Return the first robot's latest ``odom``; HarnessError for a robot without wheels."""
-        return self.robot().odom()
-
-    def joint_states(self) -> JointState:
-        """Return the first robot's latest ``joint_states`` (every movable joint)."""
-        return self.robot().joint_states()
 
     def _tf_node(self) -> Node:
         return self._link

@@ -68,6 +68,42 @@ def _topic(namespace: str, name: str) -> str:
     return f'{namespace.rstrip("/")}/{name}'
 
 
+class FirstRobot:
+    """
+    A harness's own verbs, its first robot's: ``robot()``'s, for a test of one robot.
+
+    In-process, the readers take the latest state publication; across
+    processes, paused, the one of the node's latest publication (see
+    :class:`LocalRobot` and :class:`RemoteRobot`).
+    """
+
+    def robot(self, name: Optional[str] = None):
+        raise NotImplementedError
+
+    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *, twist=None) -> None:
+        """
+        Publish a command on the first robot's ``cmd_vel``; return once the simulator has it.
+
+        ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
+        ``twist``. A simulator with ``enable_stamped_cmd_vel`` gets a
+        TwistStamped. Raises HarnessError if the command does not arrive in
+        time. ``robot(name).send_cmd_vel`` commands another robot.
+        """
+        self.robot().send_cmd_vel(linear, angular, twist=twist)
+
+    def ground_truth(self) -> Odometry:
+        """Return the first robot's latest ``ground_truth`` (world pose, twist in the body)."""
+        return self.robot().ground_truth()
+
+    def odom(self) -> Odometry:
+        """Return the first robot's latest ``odom``; HarnessError for a robot without wheels."""
+        return self.robot().odom()
+
+    def joint_states(self) -> JointState:
+        """Return the first robot's latest ``joint_states`` (every movable joint)."""
+        return self.robot().joint_states()
+
+
 class _RobotHandle(TransformLookup):
     """
     What both handles share: the robot's name and namespace, three state readers, TF.

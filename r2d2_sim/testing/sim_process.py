@@ -4,9 +4,7 @@ import json
 import signal
 from typing import Any, Dict, Optional, Sequence
 
-from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.client import ros_child_env, stamp_ns
@@ -14,7 +12,8 @@ from r2d2_sim.testing.domains import env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import RemoteProbe
-from r2d2_sim.testing.robots import expected_namespaces, flatten_robots, RemoteRobot
+from r2d2_sim.testing.robots import (
+    expected_namespaces, FirstRobot, flatten_robots, RemoteRobot)
 from r2d2_sim.testing.standard import StandardClient
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import StandardWorld, WorldVerbs
@@ -122,7 +121,7 @@ class ControlClient:
         return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S, client)
 
 
-class SimProcess(ControlClient, TransformLookup, WorldVerbs):
+class SimProcess(ControlClient, FirstRobot, TransformLookup, WorldVerbs):
     """
     The ``sim_node`` executable in a process of its own, driven through its services.
 
@@ -309,30 +308,6 @@ class SimProcess(ControlClient, TransformLookup, WorldVerbs):
             raise HarnessError(f'sim_node exited with status {result.returncode} while '
                                f'starting: {result.stderr.strip()[-2000:]}')
         raise HarnessError(f'sim_node {what} within {self.timeout_s:g} s')
-
-    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *, twist=None) -> None:
-        """
-        Publish a command on the first robot's ``cmd_vel``; return once the node has counted it.
-
-        ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
-        ``twist`` (a Twist, or a TwistStamped for a node that takes them). A
-        node with ``enable_stamped_cmd_vel`` gets a TwistStamped stamped 0
-        ("now"). Confirmed through the ``commands_received`` of its services.
-        ``robot(name).send_cmd_vel`` commands another robot.
-        """
-        self.robot().send_cmd_vel(linear, angular, twist=twist)
-
-    def ground_truth(self) -> Odometry:
-        """Return the first robot's latest ``ground_truth`` (paused: of the last reply's time)."""
-        return self.robot().ground_truth()
-
-    def odom(self) -> Odometry:
-        """Return the first robot's latest ``odom`` (paused: of the last reply's time)."""
-        return self.robot().odom()
-
-    def joint_states(self) -> JointState:
-        """Return the first robot's latest ``joint_states`` (paused: of the last reply's time)."""
-        return self.robot().joint_states()
 
     @property
     def standard(self) -> StandardClient:
