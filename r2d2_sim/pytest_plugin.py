@@ -39,14 +39,7 @@ def r2d2_sim_parameters() -> dict:
 def r2d2_sim_factory():
     """Provide ``make(**parameters) -> SimHarness``; each harness made closes after the test."""
     from r2d2_sim.testing import SimHarness
-    harnesses = []
-
-    def make(**parameters):
-        harness = SimHarness(**parameters)
-        harnesses.append(harness)
-        return harness
-    yield make
-    _close_all(harnesses, lambda harness: harness.close())
+    yield from _made_and_closed(SimHarness, SimHarness.close)
 
 
 @pytest.fixture
@@ -65,14 +58,19 @@ def r2d2_sim_process():
     stopped after the test (SIGINT, then SIGKILL after a deadline).
     """
     from r2d2_sim.testing import SimProcess
-    processes = []
+    yield from _made_and_closed(SimProcess, SimProcess.stop)
 
-    def start(**parameters):
-        process = SimProcess(**parameters)
-        processes.append(process)
-        return process
-    yield start
-    _close_all(processes, lambda process: process.stop())
+
+def _made_and_closed(build, close):
+    """Yield ``make(**parameters)`` that builds and keeps; close all it made afterwards."""
+    made = []
+
+    def make(**parameters):
+        thing = build(**parameters)
+        made.append(thing)
+        return thing
+    yield make
+    _close_all(made, close)
 
 
 def _close_all(harnesses, close) -> None:
