@@ -22,8 +22,9 @@ from r2d2_sim.sim.robot import Frame, Robot
 from r2d2_sim.sim.sensor_mounts import HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID
 from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.model.timing import stamp_of
+from r2d2_sim.model.link_tree import LinkTransforms
 from r2d2_sim.model.transforms import (
-    compose, IDENTITY, inverse, LinkTransforms, split_yaw, Transform, yaw_to_quaternion)
+    compose, IDENTITY, inverse, split_yaw, Transform, yaw_to_quaternion)
 
 __all__ = ['TF_QOS', 'TF_STATIC_QOS', 'TfOutput', 'start_tf', 'link_transforms',
            'static_transforms', 'publish_static_transforms', 'tf_topics']

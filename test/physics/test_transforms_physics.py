@@ -9,8 +9,9 @@ import pytest
 
 from common import (
     assert_same_transform, classic_urdf_path, PACKAGE_URDF, read, robot)
+from r2d2_sim.model.link_tree import LinkTransforms
 from r2d2_sim.model.transforms import (
-    compose, IDENTITY, inverse, LinkTransforms, quaternion_from_rpy, Transform)
+    compose, IDENTITY, inverse, quaternion_from_rpy, Transform)
 
 
 # Every convention at once: rotated origins, tilted and (for rotations) unnormalised
