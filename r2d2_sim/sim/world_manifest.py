@@ -136,7 +136,7 @@ class ModelEntry(NamedTuple):
 
 
 class Manifest(NamedTuple):
-    """What a manifest says, checked; ``ignored`` lists the keys it has that mean nothing here."""
+    """What a manifest says, checked; ``ignored`` says where it has keys that mean nothing here."""
 
     name: str
     description: str
@@ -158,7 +158,7 @@ def _mapping(value: Any, where: str, keys: Sequence[str], ignored: List[str]) ->
         if not isinstance(key, str):
             raise _fail(where, 'every key is a string')
         if key not in keys:
-            ignored.append(f'{where}.{key[:40]}' if where else key[:40])
+            ignored.append(where or 'the top level')  # where, never the key's text
     return value
 
 

@@ -237,11 +237,13 @@ class Places:
             return os.path.join(base_dir, uri), None
         if base_dir is None and os.path.isfile(uri):
             return os.path.abspath(uri), None
-        for directory in self.search():
+        search = self.search()
+        for directory in search:
             candidate = os.path.join(directory, uri)
             if os.path.isfile(candidate):
                 return candidate, None
-        return os.path.join(base_dir, uri) if base_dir else os.path.abspath(uri), None
+        # Nowhere: a name in the first place looked at, which says it is missing.
+        return os.path.join(base_dir or search[0], uri), None
 
     def allowed(self, path: str, *anchors: Optional[str]) -> bool:
         """Return True when ``path`` (links followed) lies in an allowed place or an anchor."""
@@ -279,13 +281,22 @@ class _Reading:
         self.notes: List[str] = []
         self.resources: List[DescriptionFile] = []
 
-    def unsupported(self, what: Sequence[str]) -> None:
-        """Note elements that mean nothing here, or refuse them (fail_on_unsupported_element)."""
-        if not what:
+    def unsupported(self, where: Sequence[str], what: str) -> None:
+        """
+        Note elements that mean nothing here, or refuse them (fail_on_unsupported_element).
+
+        ``where`` has one entry per element: where it is (never its text, which is
+        the file's); ``what`` says what they are (``unknown keys``).
+        """
+        if not where:
             return
-        listed = ', '.join(what[:10]) + (' ...' if len(what) > 10 else '')
+        counts = {}
+        for place in where:
+            counts[place] = counts.get(place, 0) + 1
+        places = [f'{count} at {place}' for place, count in counts.items()]
+        listed = f'{what}: ' + ', '.join(places[:10]) + (' ...' if len(places) > 10 else '')
         if self.options.fail_on_unsupported_element:
-            raise RefusedError('UNSUPPORTED_ELEMENTS', f'unsupported elements: {listed}')
+            raise RefusedError('UNSUPPORTED_ELEMENTS', listed)
         self.notes.append(f'ignored: {listed}')
 
     def urdf(self, text: str, base_dir: Optional[str], shown: str) -> str:
@@ -305,8 +316,8 @@ class _Reading:
         else:
             name = check_description(text, base_dir)  # size, DOCTYPE, links, meshes' places
             root = ElementTree.fromstring(text)
-        self.unsupported(sorted({f'<{child.tag}>' for child in root
-                                 if child.tag not in URDF_ELEMENTS}))
+        self.unsupported([shown for child in root if child.tag not in URDF_ELEMENTS],
+                         'elements PyBullet does not read')
         return root.get('name', '') if self.trusted else name
 
     def model(self, entry, base_dir: Optional[str], anchor: Optional[str]
@@ -380,7 +391,7 @@ def _read_manifest_world(text: str, path: Optional[str], uri: str, reading: _Rea
                          anchor: Optional[str]) -> World:
     data = load_yaml(text)
     manifest = read_manifest(data, _stem(path) if path else 'world')
-    reading.unsupported(list(manifest.ignored))
+    reading.unsupported(list(manifest.ignored), 'unknown keys')
     base_dir = os.path.dirname(path) if path else None
     models = []
     for entry in manifest.models:
