@@ -11,10 +11,11 @@ import pytest
 @pytest.fixture
 def make(request):
     """
-    Provide ``make(errors=None, **parameters) -> Simulation``, each closed after the test.
+    Provide a builder of Simulations from parameters, each closed after the test.
 
-    Parameters as ``sim_node`` takes them (``robots`` and ``NAME.parameter``
-    too); ``errors``, a list, receives the simulation's one-line error reports.
+    ``make(errors=None, **parameters)``: parameters as ``sim_node`` takes them
+    (``robots`` and ``NAME.parameter`` too); ``errors``, a list, receives the
+    simulation's one-line error reports.
     """
     from r2d2_sim.sim.robot_parameters import parse_world
     from r2d2_sim.sim.simulation import Simulation
