@@ -79,9 +79,11 @@ def test_a_bad_world_parameter_is_one_line(make):
 
 def test_the_start_pose_places_the_start_up_robots(make):
     """initial_pose is relative to the start pose: (1, 2) turned 90 degrees."""
-    simulation = make(world_paths=[], robots=['a', 'b'], **{'b.initial_pose': [1.0, 0.0, 0.0]})
+    simulation = make(world_paths=[], robots=['a', 'b'],
+                      **{'b.initial_pose': [1.0, 0.0, 0.0], 'b.tags': ['second']})
     a, b = simulation.robots
     simulation.load_world('', TURNED)
+    assert simulation.entity_info('b').tags == ('second',) and simulation.entity_tags('a') == ()
     # a at the pose itself; b 1 m along the pose's x, which is world +y: (1, 3), facing +y.
     assert simulation.entity_state('a').position[:2] == pytest.approx((1.0, 2.0), abs=1e-6)
     state = simulation.entity_state('b')
