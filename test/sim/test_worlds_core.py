@@ -94,6 +94,19 @@ def test_the_start_pose_places_the_start_up_robots(make):
     assert simulation.robots[0].config.initial_pose == pytest.approx((1.0, 2.0, math.pi / 2))
 
 
+def test_a_loaded_world_runs_as_one_started_with_it(make, tmp_path):
+    """LoadWorld builds what sim_node would start with world:= that world: the same run."""
+    path = tmp_path / 'turned.world.yaml'
+    path.write_text(TURNED)
+    robots = {'robots': ['a', 'b'], 'b.initial_pose': [1.0, 0.0, 0.0]}
+    started = make(world=str(path), **robots)
+    loaded = make(world_paths=[str(tmp_path)], **robots)
+    run(loaded, 50)
+    loaded.load_world(str(path))
+    assert loaded.entity_names() == started.entity_names() == ['ground_plane', 'a', 'shelf', 'b']
+    assert run(loaded) == run(started)  # bit for bit
+
+
 def test_load_world_replaces_the_world_and_stops_at_time_zero(make):
     """Old models and spawned entities leave; robots stay, a deleted one comes back; time 0."""
     simulation = make(world=ROOM)
