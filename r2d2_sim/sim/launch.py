@@ -360,4 +360,3 @@ def _check_apart(robots: Sequence[Robot]) -> None:
                    for k in range(3)):
                 raise ConfigError(f'robots {other.name} and {robot.name} overlap where they '
                                   f'start: give {robot.name}.initial_pose a place of its own')
-

@@ -95,7 +95,7 @@ def test_the_start_pose_places_the_start_up_robots(make):
 
 
 def test_a_loaded_world_runs_as_one_started_with_it(make, tmp_path):
-    """LoadWorld builds what sim_node would start with world:= that world: the same run."""
+    """Loading a world builds what sim_node would start with world:= that world: the same run."""
     path = tmp_path / 'turned.world.yaml'
     path.write_text(TURNED)
     robots = {'robots': ['a', 'b'], 'b.initial_pose': [1.0, 0.0, 0.0]}
