@@ -21,6 +21,9 @@ INSTALL_REQUIRES = [
     # The standard's entity filters are regular expressions from any peer: RE2
     # matches in linear time (Python's re backtracks, exponentially).
     'google-re2>=1.1,<2',
+    # World manifests (*.world.yaml), read with its safe loader. ros-jazzy-rclpy
+    # brings it already; declared because r2d2_sim imports it itself.
+    'PyYAML>=5.4',
     # The demo executable, installed with the package, writes its plot with it.
     'matplotlib>=3.6,<4',
     # The live view (foxglove_port), MCAP recording (record) and the replay tool;

@@ -373,7 +373,7 @@ class Body:
         return result
 
     def collision_shapes(self, link: int) -> List[CollisionShape]:
-        """Return a link's collision shapes (-1: the base)."""
+        """Return a link's collision shapes (-1: the base), each in the link's inertial frame."""
         return records.collision_shapes(self._client, self.id, link)
 
     def contacts(self) -> List[ContactPoint]:
@@ -383,6 +383,18 @@ class Body:
     def closest_points(self, other: 'Body', range_m: float) -> Optional[ClosestPoints]:
         """Return this body's nearest points to ``other`` within ``range_m`` (None: farther)."""
         return records.closest_points(self._client, self.id, other.id, range_m)
+
+    def inertial_pose(self, link: int) -> Tuple[Vec3, Quat]:
+        """Return the world pose of a link's inertial frame (-1: the base): its shapes' frame."""
+        if link < 0:
+            position, orientation = self._get_base_pose()
+            return tuple(position), tuple(orientation)
+        state = self.link_state(link)
+        return state.com_position, state.com_orientation
+
+    def mesh_vertices(self, link: int, shape_index: int) -> List[Vec3]:
+        """Return a collision mesh's vertices in its link's inertial frame (empty if none)."""
+        return records.mesh_vertices(self._client, self.id, link, shape_index)
 
     def exclude_from_rays(self, links: Optional[Sequence[int]] = None,
                           group: int = RAY_EXCLUDED_GROUP) -> None:

@@ -15,16 +15,25 @@ from r2d2_sim.physics.stdio import silenced_output
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 
-__all__ = ['Vec3', 'Quat', 'JOINT_TYPE_NAMES', 'JointRecord', 'JointStates', 'Pose',
-           'LinkState', 'Aabb', 'Dynamics', 'CollisionShape', 'joint_records', 'link_state',
-           'aabb', 'dynamics', 'collision_shapes', 'BodyInfo', 'body_info', 'ContactPoint',
-           'contact_points', 'ClosestPoints', 'closest_points']
+__all__ = ['Vec3', 'Quat', 'JOINT_TYPE_NAMES', 'GEOMETRY_KINDS', 'JointRecord', 'JointStates',
+           'Pose', 'LinkState', 'Aabb', 'Dynamics', 'CollisionShape', 'joint_records',
+           'link_state', 'aabb', 'dynamics', 'collision_shapes', 'mesh_vertices', 'BodyInfo',
+           'body_info', 'ContactPoint', 'contact_points', 'ClosestPoints', 'closest_points']
 
 Vec3 = Tuple[float, float, float]
 Quat = Tuple[float, float, float, float]
 
 GEOMETRY_CYLINDER = pybullet.GEOM_CYLINDER
 GEOMETRY_SPHERE = pybullet.GEOM_SPHERE
+# A collision shape's kind, as a word: what r2d2_sim.sim.entity_bounds builds shapes from.
+GEOMETRY_KINDS = {
+    pybullet.GEOM_SPHERE: 'sphere',
+    pybullet.GEOM_BOX: 'box',
+    pybullet.GEOM_CYLINDER: 'cylinder',
+    pybullet.GEOM_MESH: 'mesh',
+    pybullet.GEOM_PLANE: 'plane',
+    pybullet.GEOM_CAPSULE: 'capsule',
+}
 JOINT_TYPE_NAMES = {
     pybullet.JOINT_REVOLUTE: 'revolute',
     pybullet.JOINT_PRISMATIC: 'prismatic',
@@ -126,10 +135,25 @@ class Dynamics(NamedTuple):
 
 
 class CollisionShape(NamedTuple):
-    """One collision shape of a link: PyBullet's geometry type and its dimensions."""
+    """
+    One collision shape of a link: PyBullet's geometry type, its dimensions, where it sits.
+
+    ``dimensions`` are a box's full sizes, a sphere's radius first, a
+    cylinder's or capsule's length then radius, a mesh's scale. The local
+    frame is relative to the link's centre of mass (its inertial frame), not
+    to its URDF link frame: measured, a box at xyz 0 0.2 0 of a link whose
+    inertial origin is 0.1 0 0 reports about (-0.1, 0.2, 0).
+    """
 
     geometry: int
     dimensions: Vec3
+    local_position: Vec3 = (0.0, 0.0, 0.0)
+    local_orientation: Quat = (0.0, 0.0, 0.0, 1.0)
+
+    @property
+    def kind(self) -> str:
+        """Return the geometry as a word: box, sphere, cylinder, capsule, mesh, plane, other."""
+        return GEOMETRY_KINDS.get(self.geometry, 'other')
 
 
 class BodyInfo(NamedTuple):
@@ -185,9 +209,23 @@ def dynamics(client, body_id: int, link: int) -> Dynamics:
 
 
 def collision_shapes(client, body_id: int, link: int) -> List[CollisionShape]:
-    """Return a link's collision shapes."""
-    return [CollisionShape(shape[2], tuple(shape[3]))
+    """Return a link's collision shapes, each in its link's inertial frame."""
+    return [CollisionShape(shape[2], tuple(shape[3]), tuple(shape[5]), tuple(shape[6]))
             for shape in client.getCollisionShapeData(body_id, link)]
+
+
+def mesh_vertices(client, body_id: int, link: int, shape_index: int) -> List[Vec3]:
+    """
+    Return the vertices of a link's collision mesh, in the link's inertial frame, scaled.
+
+    ``getMeshData`` gives them with the shape's local frame already applied
+    (measured against the link's bounding box); empty when PyBullet has none.
+    """
+    try:
+        count, vertices = client.getMeshData(body_id, link, collisionShapeIndex=shape_index)
+    except client.error:
+        return []
+    return [tuple(v) for v in vertices[:count]]
 
 
 def body_info(client, body_id: int) -> BodyInfo:

@@ -13,6 +13,7 @@ import json
 from rclpy.node import Node
 from std_srvs.srv import SetBool, Trigger
 
+from r2d2_sim.errors import RefusedError
 from r2d2_sim.ros.fleet import Fleet
 from r2d2_sim.ros.seams import SimulatorControl
 
@@ -60,14 +61,30 @@ class ControlServices:
 
     def _on_pause(self, request, response):
         with self._simulator.lock:  # the reply's time is the state the pause landed on
-            self._simulator.set_paused(request.data)
+            try:
+                self._simulator.set_paused(request.data)
+            except RefusedError as exc:  # resuming with no world loaded
+                response.success = False
+                response.message = self.status(error=exc.message)
+                return response
             response.message = self.status()
         response.success = True
+        return response
+
+    def _no_world(self, response, **facts):
+        """Answer a request that needs a world while none is loaded; None when one is."""
+        if self._simulator.world_is_loaded:
+            return None
+        response.success = False
+        response.message = self.status(error='no world is loaded (UnloadWorld): load one '
+                                             '(LoadWorld) first', **facts)
         return response
 
     def _on_step(self, request, response):
         simulator = self._simulator
         with simulator.lock:
+            if self._no_world(response, steps=0) is not None:
+                return response
             if not simulator.paused:
                 response.success = False
                 response.message = self.status(
@@ -86,6 +103,8 @@ class ControlServices:
 
     def _on_reset(self, request, response):
         with self._simulator.lock:
+            if self._no_world(response) is not None:
+                return response
             self._simulator.reset_simulation()  # the robots; time goes on, spawned entities stay
             response.message = self.status()
         response.success = True

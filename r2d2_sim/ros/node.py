@@ -9,11 +9,11 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 """
 
 import threading
-from typing import Callable, Optional
+from typing import Callable, List, Optional, Sequence, Tuple
 
 from rclpy.node import Node
 
-from r2d2_sim.errors import SetupError, StartupError
+from r2d2_sim.errors import RefusedError, SetupError, StartupError
 from r2d2_sim.physics.world import SimWorld
 from r2d2_sim.recording.sink import FoxgloveSink, SinkError
 from r2d2_sim.ros.cmd_vel import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog, \
@@ -27,6 +27,9 @@ from r2d2_sim.ros.robot_interfaces import RobotInterfaces
 from r2d2_sim.ros.standard import server as standard
 from r2d2_sim.ros.standard.server import SimulationInterfaces
 from r2d2_sim.sim.simulation import Simulation, StepResult
+from r2d2_sim.sim.tags import TagsFilter
+from r2d2_sim.sim.world_manifest import NamedPose
+from r2d2_sim.sim.worlds import LoadOptions, World, WorldEntry
 
 NODE_NAME = 'r2d2_sim'
 __all__ = ['SimNode', 'StartupError', 'NODE_NAME']
@@ -84,7 +87,7 @@ class SimNode(MirroringNode):
         self._paused = self.config.start_paused
         self.control = ControlServices(self, self, self.fleet)
         if standard.available():
-            self.standard = SimulationInterfaces(self, self.simulation, self, on_quit)
+            self.standard = SimulationInterfaces(self, self.simulation, self, self, on_quit)
         else:
             self.get_logger().warning(
                 'simulation_interfaces is not installed: its services (spawn_entity, '
@@ -148,6 +151,57 @@ class SimNode(MirroringNode):
     def pristine(self) -> bool:
         """Return True when nothing changed since start-up or a full reset (time may run)."""
         return self.simulation.pristine
+
+    @property
+    def world_is_loaded(self) -> bool:
+        """Return False after UnloadWorld until a world is loaded: nothing may step then."""
+        return self.simulation.world_is_loaded
+
+    # -- the world around the robots (WorldControl) --------------------------------------
+
+    def available_worlds(self, additional_sources: Sequence[str] = (),
+                         tags: TagsFilter = TagsFilter(), offline_only: bool = False,
+                         continue_on_error: bool = False) -> Tuple[List[WorldEntry], str]:
+        """Return the worlds that can be loaded and a note of what was left out."""
+        return self.simulation.available_worlds(additional_sources, tags, offline_only,
+                                                continue_on_error)
+
+    def load_world(self, uri: str, resource_string: str = '',
+                   options: LoadOptions = LoadOptions()) -> World:
+        """
+        Load a world in place of the current one; return it. Stopped: paused, at time 0.
+
+        A refusal (RefusedError) leaves everything as it was, paused or not.
+        ``/clock`` says 0 at once; the robots are published at the next step.
+        """
+        with self.lock:
+            world = self.simulation.load_world(uri, resource_string, options)
+            self._stopped_at_zero()
+            return world
+
+    def unload_world(self) -> None:
+        """Unload the world: paused, time 0, and nothing steps until a world is loaded."""
+        with self.lock:
+            self.simulation.unload_world()
+            self._stopped_at_zero()
+
+    def current_world(self) -> Optional[World]:
+        """Return the world loaded now; None after UnloadWorld."""
+        return self.simulation.world_file
+
+    def named_poses(self, tags: TagsFilter = TagsFilter()) -> List[NamedPose]:
+        """Return the world's named poses whose tags pass the filter."""
+        return self.simulation.named_poses(tags)
+
+    def named_pose(self, name: str) -> NamedPose:
+        """Return one named pose (RefusedError NOT_FOUND)."""
+        return self.simulation.named_pose(name)
+
+    def _stopped_at_zero(self) -> None:
+        self._paused = True
+        self._clock_output.publish(self.simulation.time_ns)
+        if self.sink is not None:
+            self.sink.set_time(self.simulation.time_ns)
 
     @property
     def blow_ups(self) -> int:
@@ -240,8 +294,12 @@ class SimNode(MirroringNode):
         Pause lands where a client sees the state: physics finishes the
         control period up to the step that publishes, so the time is the
         last /clock and every ~/step after it is one whole period.
+        RefusedError INCORRECT_STATE for resuming with no world loaded.
         """
         with self.lock:  # no step runs between the change and the caller's reply
+            if not paused and not self.simulation.world_is_loaded:
+                raise RefusedError('INCORRECT_STATE', 'no world is loaded (UnloadWorld): load '
+                                                      'one (LoadWorld) to run the simulation')
             if paused and not self._paused:
                 if self.step_count != self.simulation.last_frame_step:
                     self.advance_to_next_publish()

@@ -4,21 +4,27 @@ What the ROS services use of the simulator, typed: the seams between translation
 The services get these at construction and reach nothing else: the
 standard's entity services an :class:`EntityWorld` (the core's
 :class:`~r2d2_sim.sim.simulation.Simulation` is one), the control services
-and the standard's simulation services a :class:`SimulatorControl` (the
-:class:`~r2d2_sim.ros.node.SimNode` is one), a robot's ``cmd_vel`` a
-:class:`Commandable` (its :class:`~r2d2_sim.sim.robot.Robot`). They are used
-under the simulator's lock, one thread in PyBullet at a time.
+and the standard's simulation services a :class:`SimulatorControl`, the
+standard's world services a :class:`WorldControl` (the
+:class:`~r2d2_sim.ros.node.SimNode` is both: loading a world pauses it and
+tells ``/clock``), a robot's ``cmd_vel`` a :class:`Commandable` (its
+:class:`~r2d2_sim.sim.robot.Robot`). They are used under the simulator's
+lock, one thread in PyBullet at a time.
 """
 
 import threading
-from typing import List, Protocol, Sequence
+from typing import List, Optional, Protocol, Sequence, Tuple
 
 from r2d2_sim.model.drive_controller import CommandVerdict
 from r2d2_sim.model.transforms import BaseState
-from r2d2_sim.sim.entities import SpawnRequest
+from r2d2_sim.sim.entities import EntityInfo, SpawnRequest
+from r2d2_sim.sim.entity_bounds import Region
 from r2d2_sim.sim.parameters import SimConfig
+from r2d2_sim.sim.tags import TagsFilter
+from r2d2_sim.sim.world_manifest import NamedPose
+from r2d2_sim.sim.worlds import LoadOptions, World, WorldEntry
 
-__all__ = ['EntityWorld', 'SimulatorControl', 'Commandable']
+__all__ = ['EntityWorld', 'SimulatorControl', 'WorldControl', 'Commandable']
 
 
 class EntityWorld(Protocol):
@@ -41,6 +47,19 @@ class EntityWorld(Protocol):
     def entity_source(self, name: str) -> str:
         """Return where an entity's description came from."""
 
+    def entity_info(self, name: str) -> EntityInfo:
+        """Return an entity's category, description and tags."""
+
+    def set_entity_info(self, name: str, category: int, description: str,
+                        tags: Sequence[str]) -> None:
+        """Set an entity's category, description and tags."""
+
+    def entity_tags(self, name: str) -> Tuple[str, ...]:
+        """Return an entity's tags."""
+
+    def entity_bounds(self, name: str) -> Region:
+        """Return the box around an entity's collision shape, in its base link's frame."""
+
     def entity_state(self, name: str) -> BaseState:
         """Return an entity's pose and twist in the world frame."""
 
@@ -49,8 +68,8 @@ class EntityWorld(Protocol):
                          angular: Sequence[float]) -> None:
         """Place an entity at a pose in ``frame_id`` with a world-frame twist."""
 
-    def entities_overlapping(self, centre: Sequence[float], radius_m: float) -> List[str]:
-        """Return the entities whose bounding boxes meet a sphere."""
+    def entities_overlapping(self, region: Region) -> List[str]:
+        """Return the entities whose collision shape meets a region (box, hull, sphere)."""
 
     def spawn(self, request: SpawnRequest) -> str:
         """Spawn an entity (a driven robot with a namespace); return its name."""
@@ -72,6 +91,10 @@ class SimulatorControl(Protocol):
     @property
     def pristine(self) -> bool:
         """Return True when nothing changed since start-up or a full reset."""
+
+    @property
+    def world_is_loaded(self) -> bool:
+        """Return False after UnloadWorld until a world is loaded (the standard's NO_WORLD)."""
 
     @property
     def step_count(self) -> int:
@@ -97,6 +120,32 @@ class SimulatorControl(Protocol):
     def reset_simulation(self, *, time: bool = False, state: bool = True,
                          spawned: bool = False) -> None:
         """Reset what is asked (the standard's scopes)."""
+
+
+class WorldControl(Protocol):
+    """The world around the robots: listed, loaded, unloaded; its named poses. Under ``lock``."""
+
+    lock: threading.RLock
+
+    def available_worlds(self, additional_sources: Sequence[str], tags: TagsFilter,
+                         offline_only: bool, continue_on_error: bool
+                         ) -> Tuple[List[WorldEntry], str]:
+        """Return the worlds that can be loaded and a note of what was left out."""
+
+    def load_world(self, uri: str, resource_string: str, options: LoadOptions) -> World:
+        """Load a world in place of the current one, stopped at time 0; return it."""
+
+    def unload_world(self) -> None:
+        """Unload the world (NO_WORLD until another is loaded)."""
+
+    def current_world(self) -> Optional[World]:
+        """Return the world loaded now; None after UnloadWorld."""
+
+    def named_poses(self, tags: TagsFilter) -> List[NamedPose]:
+        """Return the world's named poses whose tags pass the filter."""
+
+    def named_pose(self, name: str) -> NamedPose:
+        """Return one named pose (RefusedError NOT_FOUND)."""
 
 
 class Commandable(Protocol):

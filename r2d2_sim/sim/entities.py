@@ -14,7 +14,8 @@ that never quotes a file; what a spawn may load is checked in
 
 import math
 import re
-from typing import Callable, Dict, List, NamedTuple, Sequence, Tuple, TYPE_CHECKING
+from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple, \
+    TYPE_CHECKING
 
 from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.model.health import MAX_DISTANCE_M
@@ -22,13 +23,15 @@ from r2d2_sim.model.transforms import (
     BaseState, compose, quaternion_multiply, Quaternion as Quat, rotate, Transform,
     Vector3 as Vec3)
 from r2d2_sim.physics.description import DescriptionFile
+from r2d2_sim.sim.entity_bounds import body_box, body_meets, check_region, Region
 from r2d2_sim.sim.spawnables import read_spawnable
+from r2d2_sim.sim.tags import check_description_text, check_tags
 
 if TYPE_CHECKING:  # typing only: the testing API imports this module without PyBullet
     from r2d2_sim.physics.body import Body
 
-__all__ = ['Category', 'SpawnRequest', 'Entities', 'check_pose', 'name_filter',
-           'MAX_SPAWNED', 'MAX_NAME_LENGTH', 'MAX_FILTER_LENGTH']
+__all__ = ['Category', 'EntityInfo', 'SpawnRequest', 'Entities', 'check_pose', 'name_filter',
+           'MAX_SPAWNED', 'MAX_NAME_LENGTH', 'MAX_FILTER_LENGTH', 'NAME']
 
 MAX_SPAWNED = 100
 # An entity's name, and a name filter, as long as a request may make them: every
@@ -47,8 +50,25 @@ class Category:
 
     OBJECT = 0
     ROBOT = 1
+    HUMAN = 2
     DYNAMIC_OBJECT = 4
     STATIC_OBJECT = 5
+    ALL = (OBJECT, ROBOT, HUMAN, DYNAMIC_OBJECT, STATIC_OBJECT)
+
+
+class EntityInfo(NamedTuple):
+    """
+    What the standard's EntityInfo says of an entity, as set (None: what the entity is).
+
+    ``category`` None is the category the entity has by what it is (a driven
+    robot, a static or a moving body); ``description`` None is where it came
+    from. SetEntityInfo sets all three; a full reset gives a start-up entity
+    back the info it started with.
+    """
+
+    category: Optional[int] = None
+    description: Optional[str] = None
+    tags: Tuple[str, ...] = ()
 
 
 class SpawnRequest(NamedTuple):
@@ -141,6 +161,9 @@ class Entities:
         self._world = world
         self.world_frame_id = world_frame_id
         self._files: Dict[str, DescriptionFile] = {}  # spawned from text, by entity name
+        self._info: Dict[str, EntityInfo] = {}        # as set, by entity name
+        # Frames a request may name beside the entities: the world's named poses.
+        self.named_frames: Dict[str, Transform] = {}
 
     def names(self) -> List[str]:
         """Return every entity's name, in the order the world loaded them."""
@@ -163,14 +186,21 @@ class Entities:
                          moving.angular_velocity)
 
     def frame_pose(self, frame_id: str) -> Transform:
-        """Return the world pose of a frame a request names: '' or the world, or an entity."""
+        """
+        Return the world pose of a frame a request names: '' or the world, an entity, a named pose.
+
+        An entity's name wins over a named pose's (an entity may be named
+        after a named pose at any time; the world's poses are fixed).
+        """
         if frame_id in ('', 'world', self.world_frame_id):
             return Transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
-        if frame_id not in self._world.bodies:
-            raise RefusedError('INVALID_POSE', f'unknown frame {frame_id[:100]!r}: give world or '
-                                               'an entity\'s name')
-        state = self.state(frame_id)
-        return Transform(state.position, state.orientation)
+        if frame_id in self._world.bodies:
+            state = self.state(frame_id)
+            return Transform(state.position, state.orientation)
+        if frame_id in self.named_frames:
+            return self.named_frames[frame_id]
+        raise RefusedError('INVALID_POSE', f'unknown frame {frame_id[:100]!r}: give world, an '
+                                           'entity\'s name or a named pose\'s')
 
     def set_state(self, name: str, frame_id: str, position: Sequence[float],
                   orientation: Sequence[float], linear: Sequence[float],
@@ -257,28 +287,53 @@ class Entities:
         self.dropped(name)
 
     def dropped(self, name: str) -> None:
-        """Forget what an entity that left the world held (the file it was spawned from text)."""
+        """Forget what an entity that left the world held (its info, the file of its text)."""
+        self._info.pop(name, None)
         text_file = self._files.pop(name, None)
         if text_file is not None:
             text_file.close()
+
+    def info(self, name: str) -> EntityInfo:
+        """Return an entity's info as set (NOT_FOUND for no such entity)."""
+        self.body(name)
+        return self._info.get(name, EntityInfo())
+
+    def set_info(self, name: str, category: int, description: str,
+                 tags: Sequence[str]) -> None:
+        """
+        Set an entity's info, all of it (SetEntityInfo overrides the current values).
+
+        The category is a label: it changes what GetEntityInfo and the
+        category filter say, not how the entity moves. OPERATION_FAILED for
+        an unknown category, a description or tags beyond their bounds; the
+        info stays as it was then.
+        """
+        self.body(name)
+        if category not in Category.ALL:
+            raise RefusedError('OPERATION_FAILED', f'unknown entity category {category}: one of '
+                                                   f'{", ".join(map(str, Category.ALL))}')
+        description = check_description_text(description, 'the description')
+        self._info[name] = EntityInfo(category, description,
+                                      check_tags(tags, 'the entity\'s tags'))
+
+    def restore_info(self, infos: Mapping[str, EntityInfo]) -> None:
+        """Forget every info set; give the entities named in ``infos`` theirs (a full reset)."""
+        self._info = {name: info for name, info in infos.items() if name in self._world.bodies}
+
+    def overlapping(self, region: Region) -> List[str]:
+        """Return the entities whose collision shape meets a region (the standard's bounds)."""
+        region = check_region(region)
+        return [name for name, body in self._world.bodies.items() if body_meets(body, region)]
+
+    def bounds(self, name: str) -> Region:
+        """Return the box around an entity's collision shape, in its base link's frame."""
+        return Region.box(*body_box(self.body(name)))
 
     def delete_spawned(self) -> None:
         """Remove every spawned entity (ResetSimulation's SPAWNED scope)."""
         for name, body in list(self._world.bodies.items()):
             if body.spawned:
                 self.delete(name)
-
-    def overlapping(self, centre: Sequence[float], radius_m: float) -> List[str]:
-        """Return the entities whose bounding boxes meet a sphere (the standard's bounds)."""
-        result = []
-        for name, body in self._world.bodies.items():
-            for link in body.links():
-                low, high = body.aabb(link)
-                nearest = [min(max(c, lo), hi) for c, lo, hi in zip(centre, low, high)]
-                if math.dist(nearest, centre) <= radius_m:
-                    result.append(name)
-                    break
-        return result
 
     def close(self) -> None:
         """Delete the temporary files of entities spawned from text."""

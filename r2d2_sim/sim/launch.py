@@ -3,28 +3,37 @@ The world as launched: what start-up loads, in its order, and building the world
 
 No ROS here. :class:`Launch` loads the start-up world into a
 :class:`~r2d2_sim.physics.world.SimWorld` (the ground plane, the first robot,
-the ``extra_models`` and the ``world`` model, then the other robots: the order
-PyBullet has always had them in, which body ids and the solver's order
-follow), remembers each of those entities, and builds the physics world again
-on a reset: every body loaded anew in its order (Bullet's contact data and
-the order of its overlapping pairs survive a body put back in place, and
-change the next steps), or, for a full reset ("as if it was closed and
-launched again"), the start-up entities themselves, a robot deleted since
-loaded again from its start-up arguments.
+the ``extra_models`` and the models of the loaded world, then the other
+robots: the order PyBullet has always had them in, which body ids and the
+solver's order follow), remembers each of those entities, and builds the
+physics world again on a reset: every body loaded anew in its order
+(Bullet's contact data and the order of its overlapping pairs survive a body
+put back in place, and change the next steps), or, for a full reset ("as if
+it was closed and launched again"), the start-up entities themselves, a
+robot deleted since loaded again from its start-up arguments.
+
+Loading another world (:meth:`Launch.switch`) makes its launch the one a
+full reset builds: the same ground, robots and ``extra_models``, with that
+world's models, the robots standing at its start pose.
 """
 
-from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
+import dataclasses
+import math
+from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 from r2d2_sim.errors import SetupError, WorldError
+from r2d2_sim.model.transforms import yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.description import (
     DescriptionError, resolve_description_path, RobotDescription)
 from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
+from r2d2_sim.sim.entities import EntityInfo
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.robot import Robot
 from r2d2_sim.sim.robot_parameters import resolve_namespace, RobotSpec
+from r2d2_sim.sim.worlds import World, WorldModel
 
-__all__ = ['Launch', 'RobotStart', 'Rebuilt', 'robot_starts']
+__all__ = ['Launch', 'RobotStart', 'Rebuilt', 'robot_starts', 'placed']
 
 
 class RobotStart(NamedTuple):
@@ -46,13 +55,38 @@ class Rebuilt(NamedTuple):
 
 
 class _Entity:
-    """One entity of the start-up world, in load order: its body, and a robot's start."""
+    """One entity of the start-up world, in load order: its body, a robot's start, its info."""
 
-    def __init__(self, body: Body, robot: Optional[RobotStart] = None,
-                 model: bool = False) -> None:
+    def __init__(self, body: Body, robot: Optional[RobotStart] = None, model: bool = False,
+                 world_model: bool = False, info: EntityInfo = EntityInfo()) -> None:
         self.body = body    # the latest loaded for it (a robot loaded again has a new one)
-        self.robot = robot
-        self.model = model  # one of extra_models, or the world model
+        self.robot = robot  # placed in the world (its initial pose at the world's start)
+        self.model = model  # one of extra_models, or a model of the world
+        self.world_model = world_model  # the world's, which another world replaces
+        self.info = info    # what GetEntityInfo says of it at start-up
+
+
+def placed(start: RobotStart, world: World) -> RobotStart:
+    """
+    Return a start-up robot's start in ``world``: its initial pose from the world's start pose.
+
+    ``initial_pose`` [x, y, yaw] is relative to the world's start pose when
+    it names one (x, y and yaw of that pose: robots stand on the ground), else
+    to the world's origin.
+    """
+    pose = world.start_pose
+    if pose is None:
+        return start
+    x, y, yaw = start.config.initial_pose
+    yaw0 = yaw_of(pose.orientation)
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    initial = (pose.position[0] + c * x - s * y, pose.position[1] + s * x + c * y,
+               math.remainder(yaw0 + yaw, 2.0 * math.pi))
+    return start._replace(config=dataclasses.replace(start.config, initial_pose=initial))
+
+
+def _robot_info(start: RobotStart) -> EntityInfo:
+    return EntityInfo(tags=tuple(start.config.tags))
 
 
 def robot_starts(config: SimConfig, specs: Sequence[RobotSpec],
@@ -89,28 +123,32 @@ class Launch:
         self._world = world
         self._warn, self._error = warn, error
         self._entities: List[_Entity] = []
+        self._starts: List[RobotStart] = []  # as the parameters give them
+        self.world_file: Optional[World] = None
 
-    def load(self, config: SimConfig, starts: Sequence[RobotStart]
+    def load(self, config: SimConfig, starts: Sequence[RobotStart], world_file: World
              ) -> Tuple[List[Robot], List[Body]]:
         """
-        Load the start-up world: return its robots and its models, in load order.
+        Load the start-up world with ``world_file``'s models: return its robots and models.
 
         Raises a SetupError when a robot or a model cannot be loaded, or two
         robots start inside each other; the caller closes the world then.
         """
+        self._starts = list(starts)
+        self.world_file = world_file
         plane = self._world.bodies.get(GROUND_PLANE_NAME)  # the world loaded it
         if plane is not None:
             self._entities.append(_Entity(plane))
         robots: List[Robot] = []
         models: List[Body] = []
         try:
-            robots.append(self._start_robot(starts[0]))
-            extra = [(name, position) for name, position in config.extra_models]
-            extra += [(config.world, (0.0, 0.0, 0.0))] if config.world else []
-            for description, position in extra:
-                models.append(self._load_model(description, position))
+            robots.append(self._start_robot(placed(starts[0], world_file)))
+            for description, position in config.extra_models:
+                models.append(self._load_extra(description, position))
+            for model in world_file.models:
+                models.append(self._load_world_model(model))
             for start in starts[1:]:
-                robots.append(self._start_robot(start))
+                robots.append(self._start_robot(placed(start, world_file)))
             _check_apart(robots)
         except Exception:
             for robot in robots:  # their ray groups and temporary description files
@@ -118,7 +156,15 @@ class Launch:
             raise
         return robots, models
 
-    def _load_model(self, description: str, position) -> Body:
+    def infos(self) -> Dict[str, EntityInfo]:
+        """Return each start-up entity's info at start, by name (what a full reset restores)."""
+        return {entity.body.name: entity.info for entity in self._entities}
+
+    def names(self) -> List[str]:
+        """Return the names of the start-up entities that stay when another world is loaded."""
+        return [entity.body.name for entity in self._entities if not entity.world_model]
+
+    def _load_extra(self, description: str, position) -> Body:
         try:
             path = resolve_description_path(description)
         except DescriptionError as exc:
@@ -128,9 +174,17 @@ class Launch:
         self._entities.append(_Entity(model, model=True))
         return model
 
+    def _load_world_model(self, model: WorldModel) -> Body:
+        body = self._world.load(model.path, model.position, model.orientation, name=model.name,
+                                source=model.source)
+        body.drop_damping()
+        self._entities.append(_Entity(body, model=True, world_model=True, info=EntityInfo(
+            description=model.description, tags=model.tags)))
+        return body
+
     def _start_robot(self, start: RobotStart) -> Robot:
         robot = self.load_robot(start)
-        self._entities.append(_Entity(robot.body, start))
+        self._entities.append(_Entity(robot.body, start, info=_robot_info(start)))
         return robot
 
     def load_robot(self, start: RobotStart) -> Robot:
@@ -210,6 +264,77 @@ class Launch:
                 after.append(robot)
         models = [e.body for e in self._entities if e.model] if as_launched else None
         return Rebuilt(after, models, changed, dropped)
+
+    def switch(self, world_file: World, robots: Sequence[Robot]) -> Rebuilt:
+        """
+        Build the physics world again as launched with ``world_file`` instead of the old world.
+
+        The ground, the robots and ``extra_models`` stay (loaded again in
+        their order, the robots at the new world's start pose: a robot whose
+        start does not move is the same Robot, others are built anew); the
+        old world's models leave, the new world's take their place in the
+        order. ``robots`` are the simulation's now (spawned ones excluded).
+        Raises WorldError when a new model cannot be loaded (the caller
+        checked them first); a body of the old launch that cannot be loaded
+        again leaves the world, with one error line.
+        """
+        old, old_world = self._entities, self.world_file
+        try:
+            return self._switch(world_file, robots)
+        except BaseException:
+            self._entities, self.world_file = old, old_world  # for rebuild() to build it again
+            raise
+
+    def _switch(self, world_file: World, robots: Sequence[Robot]) -> Rebuilt:
+        robot_of = {id(robot.body): robot for robot in robots}
+        kept = [entity for entity in self._entities if not entity.world_model]
+        robot_places = [i for i, entity in enumerate(kept) if entity.robot is not None]
+        # The world's models load after the first robot and extra_models, before the others.
+        at = robot_places[1] if len(robot_places) > 1 else len(kept)
+        starts = iter(self._starts)
+        self._entities, self.world_file = [], world_file
+        self._world.clear()
+        after: List[Robot] = []
+        dropped: List[str] = []
+        changed = False
+        for entity in kept[:at] + [None] + kept[at:]:
+            if entity is None:
+                for model in world_file.models:
+                    self._load_world_model(model)
+                continue
+            if entity.robot is None:
+                if self._reload(entity.body, dropped):
+                    self._entities.append(entity)
+                continue
+            start = placed(next(starts), world_file)
+            entity = _Entity(entity.body, start, info=_robot_info(start))
+            self._entities.append(entity)
+            robot = robot_of.get(id(entity.body))
+            if robot is not None and robot.config == start.config:  # its start did not move
+                if self._reload(entity.body, dropped):
+                    robot.reloaded()
+                    robot.restart_noise()
+                    after.append(robot)
+                    continue
+                self._entities.remove(entity)
+            if robot is not None:
+                robot.close()
+            changed = True
+            if entity.body.name not in dropped:
+                robot = self._load_again(entity)  # at the new start, with new interfaces
+                if robot is not None:
+                    after.append(robot)
+        return Rebuilt(after, [e.body for e in self._entities if e.model], changed, dropped)
+
+    def _reload(self, body: Body, dropped: List[str]) -> bool:
+        """Load ``body`` again; False (one error line, its name in ``dropped``) if it cannot be."""
+        try:
+            self._world.reload(body)
+        except WorldError as exc:
+            self._error(f'{body.name} left the world: {exc}')
+            dropped.append(body.name)
+            return False
+        return True
 
     def _load_again(self, entity: _Entity) -> Optional[Robot]:
         """Load a deleted start-up robot as at start-up; None (one error line) if it cannot be."""

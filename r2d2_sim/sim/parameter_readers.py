@@ -12,12 +12,13 @@ import math
 import re
 from typing import Any, Callable, NamedTuple, Optional, Sequence, Tuple
 
-from r2d2_sim.errors import SetupError
+from r2d2_sim.errors import RefusedError, SetupError
+from r2d2_sim.sim.tags import check_tags
 
 __all__ = ['ConfigError', 'Bounds', 'number', 'positive', 'non_negative', 'limit',
            'field_of_view', 'ratio', 'boolean', 'string', 'frame', 'frame_prefix', 'joint_names',
            'integer', 'choice', 'numbers', 'variances', 'extra_models', 'robot_names',
-           'namespace', 'ROBOT_NAME', 'MAX_NAMESPACE_LENGTH']
+           'namespace', 'tags', 'directories', 'ROBOT_NAME', 'MAX_NAMESPACE_LENGTH']
 
 
 class ConfigError(SetupError, ValueError):
@@ -146,6 +147,22 @@ def joint_names(name: str, value: Any) -> Tuple[str, ...]:
     if len(set(names)) != len(names):
         raise ConfigError(f'parameter {name} lists a joint twice: {list(names)}')
     return names
+
+
+def tags(name: str, value: Any) -> Tuple[str, ...]:
+    if not _is_string_list(value):
+        raise ConfigError(f'parameter {name} must be a list of tags, got {value!r}')
+    try:
+        return check_tags(value, f'parameter {name}')
+    except RefusedError as exc:
+        raise ConfigError(exc.message) from None
+
+
+def directories(name: str, value: Any) -> Tuple[str, ...]:
+    if not _is_string_list(value) or not all(value):
+        raise ConfigError(f'parameter {name} must be a list of directories (paths, file:// or '
+                          f'package:// URIs), got {value!r}')
+    return tuple(value)
 
 
 def integer(name: str, value: Any) -> int:

@@ -178,8 +178,13 @@ PARAMETERS: List[Parameter] = [
     Parameter('world_frame_id', 'string', 'world', 'Frame of the ground_truth odometry.',
               'world_frame_id', read.frame),
     Parameter('initial_pose', 'double_array', [0.0, 0.0, 0.0],
-              'Spawn pose [x (m), y (m), yaw (rad)] in the world frame.',
+              'Spawn pose [x (m), y (m), yaw (rad)] in the world frame, or relative to the '
+              'world\'s start_pose when its manifest names one.',
               'initial_pose', read.numbers(3), per_robot=True),
+    Parameter('tags', 'string_array', [],
+              'Tags of the robot as an entity of the simulation standard (GetEntityInfo, the '
+              'tags filters), e.g. [astromech, test_subject]; at most 64.',
+              'tags', read.tags, per_robot=True),
     Parameter('pose_covariance_diagonal', 'double_array',
               [0.001, 0.001, 1.0e6, 1.0e6, 1.0e6, 0.01],
               'Diagonal of the odom pose covariance (x, y, z, roll, pitch, yaw).',
@@ -203,8 +208,16 @@ PARAMETERS: List[Parameter] = [
               'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
               'camera_depth', read.boolean, per_robot=True),
     Parameter('world', 'string', '',
-              'A world to load around the robot at the origin, resolved like urdf '
-              '(package://r2d2_sim/urdf/room.urdf); empty for none.', 'world', read.string),
+              'The world to load around the robots: a URDF or an r2d2_sim world manifest '
+              '(*.world.yaml), as a path, a file:// or package:// URI, or a name looked for in '
+              'the package\'s urdf/, world_paths and pybullet_data '
+              '(package://r2d2_sim/urdf/room.world.yaml, room.urdf); empty for the empty world '
+              '(empty.world.yaml). LoadWorld replaces it.', 'world', read.string),
+    Parameter('world_paths', 'string_array', [],
+              'Directories of worlds (paths, file:// or package:// URIs): GetAvailableWorlds '
+              'lists their *.world.yaml files, and a LoadWorld request may load from them, as '
+              'from the package\'s urdf/, pybullet_data and ROS packages.',
+              'world_paths', read.directories),
     Parameter('publish_tf', 'bool', True,
               'Publish odom -> base_footprint on /tf and the static frames on /tf_static '
               '(needs tf2_msgs).', 'publish_tf', read.boolean, per_robot=True),

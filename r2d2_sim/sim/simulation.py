@@ -17,24 +17,35 @@ which is then undone. Any entity can be deleted, start-up ones included; a
 reset of the state builds the physics world again (so a run after it repeats
 bit for bit), and a full reset builds it as it was at start-up, bringing back
 deleted start-up entities under their names.
+
+The world around the robots is a file (:mod:`r2d2_sim.sim.worlds`): the
+``world`` parameter's at start-up, another one loaded while running
+(:meth:`Simulation.load_world`), which a full reset then builds again, or
+none after :meth:`Simulation.unload_world`. Its named poses are frames a
+spawn or a teleport may be given in.
 """
 
 from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
-from r2d2_sim.errors import RefusedError, SetupError
+from r2d2_sim.errors import RefusedError, SetupError, WorldError
 from r2d2_sim.model.timing import StepClock, StepSchedule
-from r2d2_sim.model.transforms import BaseState, yaw_of
+from r2d2_sim.model.transforms import BaseState, Transform, yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.world import SimWorld
-from r2d2_sim.sim.entities import Category, Entities, SpawnRequest
+from r2d2_sim.sim.entities import Category, Entities, EntityInfo, SpawnRequest
+from r2d2_sim.sim.entity_bounds import Region
 from r2d2_sim.sim.launch import Launch, robot_starts
+from r2d2_sim.sim.tags import TagsFilter, tags_match
+from r2d2_sim.sim.world_manifest import NamedPose
+from r2d2_sim.sim.worlds import (
+    empty_world, list_worlds, LoadOptions, Places, read_world, World, WorldEntry)
 from r2d2_sim.sim.parameter_readers import namespace as read_namespace
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.robot import Frame, Measurement, Robot
 from r2d2_sim.sim.robot_parameters import resolve_namespace, robot_config, RobotSpec
 
 # Frame and Measurement are the core's data, defined beside the robot that measures them.
-__all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest',
+__all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest', 'EntityInfo',
            'GUI_CAMERA_RATE_HZ']
 
 # Follow the robot with the GUI camera this many times per simulated second.
@@ -89,19 +100,43 @@ class Simulation:
         self._watchers: List[RobotsWatcher] = []
         # Told the simulated time after each step (oracles.RunWatch): none by default.
         self._step_watchers: List[Callable[[int], None]] = []
+        self.places = Places(config.world_paths)
+        # The world file loaded (the empty world for world ''); None after unload_world.
+        self.world_file: Optional[World] = None
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
                               gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
         self.entities = Entities(self.world, config.world_frame_id)
         # What a full reset builds again: every start-up entity, in load order.
         self._launch = Launch(self.world, warn, error)
         try:
+            world_file = self._start_world(config.world)
             self.robots, self.models = self._launch.load(
-                config, robot_starts(config, robots, namespace))
+                config, robot_starts(config, robots, namespace), world_file)
+            self._world_loaded(world_file)
         except Exception:
             self.close()
             raise
         # Nothing changed since start-up (or a full reset): with time at 0, 'stopped'.
         self.pristine = True
+
+    def _start_world(self, uri: str) -> World:
+        """Read the ``world`` parameter's world (the operator's: any file); WorldError if bad."""
+        if not uri:
+            return empty_world()
+        try:
+            return read_world(uri, '', self.places, trusted=True)
+        except RefusedError as exc:
+            raise WorldError(f'world {uri}: {exc.message}') from None
+
+    def _world_loaded(self, world_file: Optional[World]) -> None:
+        """Take ``world_file`` as the world now: its named poses, each entity's start-up info."""
+        if self.world_file is not None and self.world_file is not world_file:
+            self.world_file.close()
+        self.world_file = world_file
+        poses = world_file.named_poses if world_file is not None else ()
+        self.entities.named_frames = {p.name: Transform(p.position, p.orientation)
+                                      for p in poses}
+        self.entities.restore_info(self._launch.infos())
 
     def _named_warn(self, name: str) -> Callable[[str], None]:
         return lambda text: self._warn(f'robot {name}: {text}')
@@ -143,7 +178,10 @@ class Simulation:
         return self.entities.names()
 
     def entity_category(self, name: str) -> int:
-        """Return the standard's category of an entity: ROBOT, STATIC_ or DYNAMIC_OBJECT."""
+        """Return an entity's category: as set, else ROBOT, STATIC_ or DYNAMIC_OBJECT."""
+        info = self.entities.info(name)
+        if info.category is not None:
+            return info.category
         body = self.entities.body(name)
         if any(robot.body is body for robot in self.robots):
             return Category.ROBOT
@@ -152,6 +190,26 @@ class Simulation:
     def entity_source(self, name: str) -> str:
         """Return where an entity's description came from (a path, a URI, 'resource_string')."""
         return self.entities.body(name).source
+
+    def entity_info(self, name: str) -> EntityInfo:
+        """Return GetEntityInfo's answer: category, description (as set, else the source), tags."""
+        info = self.entities.info(name)
+        description = info.description if info.description is not None else \
+            self.entity_source(name)
+        return EntityInfo(self.entity_category(name), description, info.tags)
+
+    def set_entity_info(self, name: str, category: int, description: str,
+                        tags: Sequence[str]) -> None:
+        """Set an entity's category (a label), description and tags (SetEntityInfo)."""
+        self.entities.set_info(name, category, description, tags)
+
+    def entity_tags(self, name: str) -> Tuple[str, ...]:
+        """Return an entity's tags."""
+        return self.entities.info(name).tags
+
+    def entity_bounds(self, name: str) -> Region:
+        """Return the box around an entity's collision shape, in its base link's frame."""
+        return self.entities.bounds(name)
 
     def entity_state(self, name: str) -> BaseState:
         """Return the pose of an entity's URDF base link and its origin's twist, in the world."""
@@ -167,9 +225,124 @@ class Simulation:
             if robot.body is body:
                 robot.teleported()  # its IMU must not take the jump for an acceleration
 
-    def entities_overlapping(self, centre: Sequence[float], radius_m: float) -> List[str]:
-        """Return the entities whose bounding boxes meet a sphere (the standard's bounds)."""
-        return self.entities.overlapping(centre, radius_m)
+    def entities_overlapping(self, region: Region) -> List[str]:
+        """Return the entities whose collision shape meets a region (box, hull, sphere)."""
+        return self.entities.overlapping(region)
+
+    # -- worlds and their named poses ---------------------------------------------------
+
+    @property
+    def world_is_loaded(self) -> bool:
+        """Return False after unload_world, until a world is loaded: the standard's NO_WORLD."""
+        return self.world_file is not None
+
+    def available_worlds(self, additional_sources: Sequence[str] = (),
+                         tags: TagsFilter = TagsFilter(), offline_only: bool = False,
+                         continue_on_error: bool = False) -> Tuple[List[WorldEntry], str]:
+        """Return the worlds that can be loaded and a note (see :func:`worlds.list_worlds`)."""
+        return list_worlds(self.places, additional_sources, tags, offline_only,
+                           continue_on_error)
+
+    def load_world(self, uri: str, resource_string: str = '',
+                   options: LoadOptions = LoadOptions()) -> World:
+        """
+        Load a world in place of the current one, as LoadWorld asks; return it.
+
+        Everything is read and checked first (the files, every model loaded
+        once in a physics world of its own, the models' names against the
+        robots'), so a refusal leaves the world exactly as it was. Then the
+        world is built as launched with the new world: spawned entities gone,
+        the start-up robots (deleted ones too) at its start pose, the ground
+        and ``extra_models`` as at start-up, time at 0 and nothing changed
+        since (STOPPED, once the caller pauses). RefusedError with LoadWorld's
+        codes (see :func:`~r2d2_sim.sim.worlds.read_world`); OPERATION_FAILED
+        for a model named like a robot or a start-up model.
+        """
+        world_file = read_world(uri, resource_string, self.places, options)
+        try:
+            self._check_world(world_file)
+        except BaseException:
+            world_file.close()
+            raise
+        self._switch(world_file)
+        return world_file
+
+    def unload_world(self) -> None:
+        """
+        Unload the world: its models and named poses leave, and every spawned entity.
+
+        The ground, the robots and ``extra_models`` stay, built again as
+        launched with no world, at time 0; :attr:`world_is_loaded` is False
+        until a world is loaded (the standard's NO_WORLD). RefusedError
+        NO_WORLD_LOADED when none is.
+        """
+        if self.world_file is None:
+            raise RefusedError('NO_WORLD_LOADED', 'no world is loaded')
+        self._switch(empty_world())
+        self._world_loaded(None)
+
+    def named_poses(self, tags: TagsFilter = TagsFilter()) -> List[NamedPose]:
+        """Return the world's named poses whose tags pass the filter, in the world file's order."""
+        poses = self.world_file.named_poses if self.world_file is not None else ()
+        return [pose for pose in poses if tags_match(pose.tags, tags)]
+
+    def named_pose(self, name: str) -> NamedPose:
+        """Return the named pose ``name``; RefusedError NOT_FOUND if the world has none such."""
+        if self.world_file is None:
+            raise RefusedError('NOT_FOUND', f'no named pose {name[:100]!r}: no world is loaded')
+        return self.world_file.named_pose(name)
+
+    def _check_world(self, world_file: World) -> None:
+        """Refuse a world whose models would take a start-up entity's name, or cannot load."""
+        taken = set(self._launch.names())
+        for model in world_file.models:
+            if model.name is not None and model.name in taken:
+                raise RefusedError('OPERATION_FAILED', f'the world\'s model {model.name!r} '
+                                   'would take the name of one of the simulator\'s own '
+                                   'entities (a robot, the ground plane, extra_models)')
+        paths = sorted({model.path for model in world_file.models})
+        if not paths:
+            return
+        try:
+            with SimWorld(ground_plane=False, time_step_s=self.time_step_s) as scratch:
+                for path in paths:
+                    scratch.load(path)
+        except WorldError as exc:
+            raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
+
+    def _switch(self, world_file: World) -> None:
+        """Build the world as launched with ``world_file``: spawned ones gone, time at 0."""
+        self._forget_robots([r for r in self.robots if r.body.spawned])
+        for name, body in list(self.world.bodies.items()):
+            if body.spawned:
+                self.entities.dropped(name)
+        for name in [n for n in self.world.bodies if n not in self._launch.names()]:
+            self.entities.dropped(name)  # the old world's models: their info goes with them
+        try:
+            rebuilt = self._launch.switch(world_file, self.robots)
+        except WorldError as exc:
+            # Only a file changed between the check and the load gets here.
+            self._error(f'the world {world_file.name} could not be built ({exc}): building the '
+                        'previous one again, as launched')
+            world_file.close()
+            self._take(self._launch.rebuild([], as_launched=True))
+            self.entities.restore_info(self._launch.infos())
+            raise RefusedError('OPERATION_FAILED', f'the world could not be built: {exc}; the '
+                                                   'previous world was built again as '
+                                                   'launched') from None
+        self._take(rebuilt)
+        self._world_loaded(world_file)
+
+    def _take(self, rebuilt) -> None:
+        """Take a rebuilt world's robots and models, time at 0, and tell the robots' watchers."""
+        for robot in self.robots:
+            if robot not in rebuilt.robots:
+                robot.close()  # a second close of a robot the launch closed does nothing
+        self.robots = rebuilt.robots
+        self.models = rebuilt.models
+        self._restart_time()
+        self.pristine = True
+        self._robots_changed()
 
     def spawn(self, request: SpawnRequest) -> str:
         """
@@ -361,19 +534,27 @@ class Simulation:
             self.models = [model for model in self.models if model.alive]
             changed = rebuilt.changed or changed
         if time:
-            steps_back = self.world.step_count
-            self.world.step_count = 0
-            self.publish_schedule.restart(0)
-            self.last_frame_step = 0
-            for robot in self.robots:
-                robot.restart_time(steps_back)
+            self._restart_time()
+        if time and state and spawned:
+            self.entities.restore_info(self._launch.infos())
         if changed:
             self._robots_changed()
         self.pristine = time and state and spawned
+
+    def _restart_time(self) -> None:
+        """Put the step count and simulated time back to 0, every schedule from there."""
+        steps_back = self.world.step_count
+        self.world.step_count = 0
+        self.publish_schedule.restart(0)
+        self.last_frame_step = 0
+        for robot in self.robots:
+            robot.restart_time(steps_back)
 
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice."""
         for robot in self.robots:
             robot.close()
         self.entities.close()
+        if self.world_file is not None:
+            self.world_file.close()
         self.world.close()

@@ -17,7 +17,8 @@ repeat bit for bit), :mod:`~r2d2_sim.testing.harness` (:class:`SimHarness`),
 :mod:`~r2d2_sim.testing.process` (child processes),
 :mod:`~r2d2_sim.testing.sim_process` (:class:`SimProcess`),
 :mod:`~r2d2_sim.testing.robots` (one robot's handle in either harness),
-:mod:`~r2d2_sim.testing.world_verbs` (spawn, place, read, delete, reset),
+:mod:`~r2d2_sim.testing.world_verbs` (spawn, place, read, delete, reset, load
+worlds, named poses, entity info and bounds, and the records they return),
 :mod:`~r2d2_sim.testing.scenery` (a scan's range at an angle; boxes to spawn are the
 core's :func:`~r2d2_sim.sim.spawnables.box_urdf`),
 :mod:`~r2d2_sim.testing.standard` (a client of ROS 2's simulation standard for
@@ -49,6 +50,7 @@ from r2d2_sim.testing.scenery import scan_range
 from r2d2_sim.testing.sim_process import SimProcess, STATUS_RESEND_S
 from r2d2_sim.testing.standard import StandardClient, StandardError
 from r2d2_sim.testing.tf import TfListener
+from r2d2_sim.testing.world_verbs import EntityInfo, NamedPose, Region, WorldEntry
 
 __all__ = [
     'SimHarness', 'SimProcess', 'RosHarness', 'RemoteProbe', 'ChildProcess',
@@ -60,6 +62,7 @@ __all__ = [
     'StampedTransform', 'TransformException', 'StandardClient', 'StandardError', 'BaseState',
     'RefusedError', 'box_urdf', 'scan_range', 'read_recording', 'RecordedMessage',
     'RecordingError', 'LiveViewClient', 'LiveMessage', 'LiveViewError',
+    'NamedPose', 'WorldEntry', 'EntityInfo', 'Region',
 ]
 
 

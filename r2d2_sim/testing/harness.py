@@ -56,8 +56,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
 
     The world verbs (:class:`~r2d2_sim.testing.world_verbs.WorldVerbs`:
     ``spawn``, ``entity_state``, ``set_entity_state``, ``delete_entity``,
-    ``reset_world``) act on the simulation directly; ``advance(steps=n)``
-    steps n physics steps.
+    ``reset_world``, ``load_world``, ``named_pose``...) act on the simulation
+    directly; ``advance(steps=n)`` steps n physics steps.
     """
 
     def __init__(self, node_name: str = 'r2d2_sim', *, namespace: str = '',
@@ -222,6 +222,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
             steps = self.sim.steps_to_next_publish()
         if steps < 0:
             raise ValueError(f'cannot advance by {steps} steps')
+        self._check_world()
         self.raise_callback_error()
         if not self._lockstep:
             self.sim.advance(steps)
@@ -240,10 +241,15 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         or ``assert not ...`` for something that must not happen.
         """
         limit = self._steps(timeout_s)
+        self._check_world()
         # Driven from this thread: each period's messages are handled before
         # the predicate looks, with no hand-over to the executor thread.
         with self._own_executor():
             return predicate() or self._run_periods(limit, predicate)
+
+    def _check_world(self) -> None:
+        if not self.sim.world_is_loaded:
+            raise HarnessError('no world is loaded (unload_world): load_world first')
 
     def _run_periods(self, steps: int,
                      predicate: Optional[Callable[[], bool]] = None) -> bool:
@@ -340,6 +346,15 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         from r2d2_sim.sim.oracles import RunWatch
         with self.sim.lock:
             return RunWatch(self.sim.simulation, entity, **options)
+
+    def _after_world(self, loaded: bool) -> None:
+        """After load_world as after a full reset; after unload_world nothing can step."""
+        if loaded:
+            self._after_reset()
+            return
+        self._drop_departed()
+        for handle in self._robots.values():
+            handle.forget()
 
     def call_service(self, srv_type, name: str, request):
         """Call a service (of the simulator or yours) from the harness's node; return the reply."""

@@ -87,9 +87,14 @@ class StandardClient:
                 'step_simulation': srv.StepSimulation, 'reset_simulation': srv.ResetSimulation,
                 'get_entities': srv.GetEntities, 'get_entities_states': srv.GetEntitiesStates,
                 'get_entity_state': srv.GetEntityState, 'set_entity_state': srv.SetEntityState,
-                'get_entity_info': srv.GetEntityInfo, 'spawn_entity': srv.SpawnEntity,
+                'get_entity_info': srv.GetEntityInfo, 'set_entity_info': srv.SetEntityInfo,
+                'get_entity_bounds': srv.GetEntityBounds, 'spawn_entity': srv.SpawnEntity,
                 'spawn_entities': srv.SpawnEntities, 'delete_entity': srv.DeleteEntity,
-                'get_spawnables': srv.GetSpawnables}
+                'get_spawnables': srv.GetSpawnables,
+                'get_available_worlds': srv.GetAvailableWorlds, 'load_world': srv.LoadWorld,
+                'unload_world': srv.UnloadWorld, 'get_current_world': srv.GetCurrentWorld,
+                'get_named_poses': srv.GetNamedPoses,
+                'get_named_pose_bounds': srv.GetNamedPoseBounds}
 
     def features(self) -> List[int]:
         """Return the feature codes the simulator declares."""
@@ -115,11 +120,85 @@ class StandardClient:
         """Reset with a ResetSimulation scope bitfield (0: all)."""
         self.call('reset_simulation', self.srv.ResetSimulation.Request(scope=scope))
 
-    def entities(self, pattern: str = '') -> List[str]:
-        """Return the names of the entities whose name matches ``pattern`` (a regex)."""
+    def entities(self, pattern: str = '', tags: Sequence[str] = (), match_all: bool = False,
+                 bounds=None) -> List[str]:
+        """
+        Return the names of the entities the filters pick.
+
+        ``pattern``: a regex a part of the name matches; ``tags``: any of them
+        (all, with ``match_all``); ``bounds``: a Bounds message they overlap.
+        """
         request = self.srv.GetEntities.Request()
         request.filters.filter = pattern
+        request.filters.tags.tags = list(tags)
+        request.filters.tags.filter_mode = 1 if match_all else 0
+        if bounds is not None:
+            request.filters.bounds = bounds
         return list(self.call('get_entities', request).entities)
+
+    def entity_info(self, name: str):
+        """Return an entity's EntityInfo (category, description, tags)."""
+        return self.call('get_entity_info', self.srv.GetEntityInfo.Request(entity=name)).info
+
+    def set_entity_info(self, name: str, category: int, description: str = '',
+                        tags: Sequence[str] = ()) -> None:
+        """Set an entity's category, description and tags (all three, as the standard does)."""
+        request = self.srv.SetEntityInfo.Request(entity=name)
+        request.info.category.category = category
+        request.info.description = description
+        request.info.tags = list(tags)
+        self.call('set_entity_info', request)
+
+    def entity_bounds(self, name: str):
+        """Return an entity's Bounds (a box in its base link's frame)."""
+        return self.call('get_entity_bounds',
+                         self.srv.GetEntityBounds.Request(entity=name)).bounds
+
+    def load_world(self, uri: str = '', resource_string: str = '',
+                   fail_on_unsupported_element: bool = False,
+                   ignore_missing_or_unsupported_assets: bool = False):
+        """Load a world (``uri`` or the file's text); return the LoadWorld response."""
+        return self.call('load_world', self.srv.LoadWorld.Request(
+            uri=uri, resource_string=resource_string,
+            fail_on_unsupported_element=fail_on_unsupported_element,
+            ignore_missing_or_unsupported_assets=ignore_missing_or_unsupported_assets))
+
+    def unload_world(self) -> None:
+        """Unload the world."""
+        self.call('unload_world', self.srv.UnloadWorld.Request())
+
+    def current_world(self):
+        """Return the WorldResource loaded now; None when no world is."""
+        response = self.call('get_current_world', self.srv.GetCurrentWorld.Request(),
+                             check=False)
+        if response.result.result == self.srv.GetCurrentWorld.Response.NO_WORLD_LOADED:
+            return None
+        if response.result.result != self.msg.Result.RESULT_OK:
+            code = _code_name(response, response.result.result)
+            raise StandardError('get_current_world', code, response.result.error_message)
+        return response.world
+
+    def available_worlds(self, tags: Sequence[str] = (), match_all: bool = False,
+                         additional_sources: Sequence[str] = (),
+                         continue_on_error: bool = False) -> list:
+        """Return the WorldResources GetAvailableWorlds lists."""
+        request = self.srv.GetAvailableWorlds.Request(
+            additional_sources=list(additional_sources), continue_on_error=continue_on_error)
+        request.filter.tags = list(tags)
+        request.filter.filter_mode = 1 if match_all else 0
+        return list(self.call('get_available_worlds', request).worlds)
+
+    def named_poses(self, tags: Sequence[str] = (), match_all: bool = False) -> list:
+        """Return the world's NamedPose messages whose tags pass the filter."""
+        request = self.srv.GetNamedPoses.Request()
+        request.tags.tags = list(tags)
+        request.tags.filter_mode = 1 if match_all else 0
+        return list(self.call('get_named_poses', request).poses)
+
+    def named_pose_bounds(self, name: str):
+        """Return a named pose's Bounds (relative to the pose)."""
+        return self.call('get_named_pose_bounds',
+                         self.srv.GetNamedPoseBounds.Request(name=name)).bounds
 
     def entity_state(self, name: str):
         """Return an entity's EntityState (pose and twist in the world frame)."""

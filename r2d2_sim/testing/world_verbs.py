@@ -1,5 +1,5 @@
 """
-Changing the world from a test: spawn, place, read, delete, reset with a scope, step physics.
+Changing the world from a test: spawn, place, read, delete, reset, load worlds, named poses.
 
 Both harnesses have these verbs: :class:`~r2d2_sim.testing.harness.SimHarness`
 calls the simulation core in its own process (no interface package needed),
@@ -7,16 +7,25 @@ calls the simulation core in its own process (no interface package needed),
 (``simulation_interfaces``). A refusal is a :class:`~r2d2_sim.errors.RefusedError`
 in both (a :class:`~r2d2_sim.testing.standard.StandardError` through the
 services), its ``code`` the standard's result name (``NOT_FOUND``,
-``NAME_NOT_UNIQUE``...).
+``NAME_NOT_UNIQUE``...). Both return the same plain records:
+:class:`~r2d2_sim.sim.world_manifest.NamedPose`,
+:class:`~r2d2_sim.sim.worlds.WorldEntry`, :class:`~r2d2_sim.sim.entities.EntityInfo`
+and :class:`~r2d2_sim.sim.entity_bounds.Region`.
 """
 
 import math
 from typing import List, Optional, Sequence
 
+from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import BaseState
-from r2d2_sim.sim.entities import SpawnRequest
+from r2d2_sim.sim.entities import EntityInfo, SpawnRequest
+from r2d2_sim.sim.entity_bounds import Region, REGION_KINDS
+from r2d2_sim.sim.tags import FILTER_MODE_ALL, FILTER_MODE_ANY, TagsFilter
+from r2d2_sim.sim.world_manifest import NamedPose
+from r2d2_sim.sim.worlds import WorldEntry
 
-__all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld']
+__all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'NamedPose', 'WorldEntry',
+           'EntityInfo', 'Region']
 
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
@@ -32,6 +41,23 @@ def _resource(urdf: str) -> tuple:
     return ('', urdf) if urdf.lstrip().startswith('<') else (urdf, '')
 
 
+def _world_resource(world: str) -> tuple:
+    """Return (uri, resource_string): a text of several lines or XML is the file's text."""
+    text = world.lstrip()
+    return ('', world) if text.startswith('<') or '\n' in text else (world, '')
+
+
+def _region(bounds) -> Region:
+    kind = REGION_KINDS[bounds.type] if bounds.type < len(REGION_KINDS) else str(bounds.type)
+    return Region(kind, tuple((p.x, p.y, p.z) for p in bounds.points))
+
+
+def _entry(world) -> WorldEntry:
+    resource = world.world_resource
+    return WorldEntry(world.name, resource.uri or resource.resource_string, world.description,
+                      tuple(world.tags))
+
+
 class CoreWorld:
     """The verbs on a SimNode in this process: its core's operations, under the node's lock."""
 
@@ -39,20 +65,56 @@ class CoreWorld:
         self._node = node
 
     def spawn(self, uri, resource_string, name, position, orientation, allow_renaming,
-              namespace='') -> str:
+              namespace='', frame_id='') -> str:
         with self._node.lock:
             return self._node.simulation.spawn(SpawnRequest(
-                name, allow_renaming, uri, resource_string, namespace, '', position,
+                name, allow_renaming, uri, resource_string, namespace, frame_id, position,
                 orientation))
 
     def entity_state(self, name: str) -> BaseState:
         with self._node.lock:
             return self._node.simulation.entity_state(name)
 
-    def set_entity_state(self, name, position, orientation, linear, angular) -> None:
+    def set_entity_state(self, name, position, orientation, linear, angular,
+                         frame_id='') -> None:
         with self._node.lock:
-            self._node.simulation.set_entity_state(name, '', position, orientation, linear,
-                                                   angular)
+            self._node.simulation.set_entity_state(name, frame_id, position, orientation,
+                                                   linear, angular)
+
+    def entity_info(self, name: str) -> EntityInfo:
+        with self._node.lock:
+            return self._node.simulation.entity_info(name)
+
+    def set_entity_info(self, name, category, description, tags) -> None:
+        with self._node.lock:
+            self._node.simulation.set_entity_info(name, category, description, tags)
+
+    def entity_bounds(self, name: str) -> Region:
+        with self._node.lock:
+            return self._node.simulation.entity_bounds(name)
+
+    def load_world(self, uri: str, resource_string: str) -> WorldEntry:
+        world = self._node.load_world(uri, resource_string)
+        return WorldEntry(world.name, world.uri or world.resource_string, world.description,
+                          world.tags)
+
+    def unload_world(self) -> None:
+        self._node.unload_world()
+
+    def current_world(self) -> Optional[WorldEntry]:
+        world = self._node.current_world()
+        if world is None:
+            return None
+        return WorldEntry(world.name, world.uri or world.resource_string, world.description,
+                          world.tags)
+
+    def available_worlds(self, tags: TagsFilter) -> List[WorldEntry]:
+        with self._node.lock:
+            return self._node.available_worlds(tags=tags)[0]
+
+    def named_poses(self, tags: TagsFilter) -> List[NamedPose]:
+        with self._node.lock:
+            return self._node.named_poses(tags)
 
     def delete(self, name: str) -> None:
         with self._node.lock:
@@ -63,6 +125,9 @@ class CoreWorld:
             return self._node.simulation.entity_names()
 
     def reset(self, time: bool, state: bool, spawned: bool) -> None:
+        if not self._node.world_is_loaded:  # as the standard's reset_simulation answers
+            raise RefusedError('INCORRECT_STATE', 'no world is loaded (unload_world): '
+                                                  'load_world first')
         self._node.reset_simulation(time=time, state=state, spawned=spawned)
 
 
@@ -73,9 +138,9 @@ class StandardWorld:
         self._client = client
 
     def spawn(self, uri, resource_string, name, position, orientation, allow_renaming,
-              namespace='') -> str:
+              namespace='', frame_id='') -> str:
         return self._client.spawn(uri, resource_string, name, position, orientation,
-                                  allow_renaming, namespace)
+                                  allow_renaming, namespace, frame_id)
 
     def entity_state(self, name: str) -> BaseState:
         msg = self._client.entity_state(name)
@@ -83,11 +148,45 @@ class StandardWorld:
         return BaseState((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), (v.x, v.y, v.z),
                          (w.x, w.y, w.z))
 
-    def set_entity_state(self, name, position, orientation, linear, angular) -> None:
-        self._client.set_entity_state(name, position, orientation, linear, angular)
+    def set_entity_state(self, name, position, orientation, linear, angular,
+                         frame_id='') -> None:
+        self._client.set_entity_state(name, position, orientation, linear, angular, frame_id)
 
     def delete(self, name: str) -> None:
         self._client.delete(name)
+
+    def entity_info(self, name: str) -> EntityInfo:
+        info = self._client.entity_info(name)
+        return EntityInfo(info.category.category, info.description, tuple(info.tags))
+
+    def set_entity_info(self, name, category, description, tags) -> None:
+        self._client.set_entity_info(name, category, description, tags)
+
+    def entity_bounds(self, name: str) -> Region:
+        return _region(self._client.entity_bounds(name))
+
+    def load_world(self, uri: str, resource_string: str) -> WorldEntry:
+        return _entry(self._client.load_world(uri, resource_string).world)
+
+    def unload_world(self) -> None:
+        self._client.unload_world()
+
+    def current_world(self) -> Optional[WorldEntry]:
+        world = self._client.current_world()
+        return None if world is None else _entry(world)
+
+    def available_worlds(self, tags: TagsFilter) -> List[WorldEntry]:
+        return [_entry(w) for w in self._client.available_worlds(
+            tags.tags, tags.mode == FILTER_MODE_ALL)]
+
+    def named_poses(self, tags: TagsFilter) -> List[NamedPose]:
+        poses = []
+        for msg in self._client.named_poses(tags.tags, tags.mode == FILTER_MODE_ALL):
+            p, q = msg.pose.position, msg.pose.orientation
+            poses.append(NamedPose(msg.name, msg.description, tuple(msg.tags), (p.x, p.y, p.z),
+                                   (q.x, q.y, q.z, q.w),
+                                   _region(self._client.named_pose_bounds(msg.name))))
+        return poses
 
     def entities(self) -> List[str]:
         return self._client.entities()
@@ -115,9 +214,14 @@ class WorldVerbs:
     def _after_delete(self, name: str) -> None:
         """Forget a deleted robot (a harness hook)."""
 
+    def _after_world(self, loaded: bool) -> None:
+        """Resync the state readers after load_world (True) or unload_world (a harness hook)."""
+        self._after_reset()
+
     def spawn(self, urdf: str, *, name: str = '', position: Sequence[float] = (0.0, 0.0, 0.0),
               yaw: float = 0.0, orientation: Optional[Sequence[float]] = None,
-              allow_renaming: Optional[bool] = None, namespace: str = '') -> str:
+              allow_renaming: Optional[bool] = None, namespace: str = '',
+              at: str = '') -> str:
         """
         Spawn a URDF and return the entity's name.
 
@@ -129,13 +233,15 @@ class WorldVerbs:
         made unique (``cube``, ``cube_1``...). ``allow_renaming`` overrides
         either default. With a ``namespace`` it is a driven robot with every
         interface a robot has, there (``robot(name)`` is its handle); our
-        R2D2's base link stands 0.47 m above the ground.
+        R2D2's base link stands 0.47 m above the ground. ``at``: a named pose
+        of the world (or an entity): ``position`` and ``yaw`` are then in its
+        frame, so ``at='spawn_area'`` alone is exactly that pose.
         """
         uri, text = _resource(urdf)
         renaming = not name if allow_renaming is None else allow_renaming
         spawned = self._world_backend().spawn(uri, text, name, tuple(position),
                                               _orientation(yaw, orientation), renaming,
-                                              namespace)
+                                              namespace, at)
         self._after_spawn(spawned, namespace)
         return spawned
 
@@ -147,14 +253,85 @@ class WorldVerbs:
         """Return an entity's pose (of its base link) and twist, both in the world frame."""
         return self._world_backend().entity_state(name)
 
-    def set_entity_state(self, name: str, position: Sequence[float], *, yaw: float = 0.0,
-                         orientation: Optional[Sequence[float]] = None,
+    def set_entity_state(self, name: str, position: Sequence[float] = (0.0, 0.0, 0.0), *,
+                         yaw: float = 0.0, orientation: Optional[Sequence[float]] = None,
                          linear: Sequence[float] = (0.0, 0.0, 0.0),
-                         angular: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
-        """Place an entity; its twist (world frame) is set too, so a pose alone stops it."""
+                         angular: Sequence[float] = (0.0, 0.0, 0.0), at: str = '') -> None:
+        """
+        Place an entity; its twist is set too, so a pose alone stops it.
+
+        In the world frame, or with ``at`` in a named pose's (or an entity's)
+        frame: ``set_entity_state('r2d2', (0, 0, 0.471), at='goal')`` stands
+        R2D2 at the goal, facing the way the pose does.
+        """
         self._world_backend().set_entity_state(name, tuple(position),
                                                _orientation(yaw, orientation), tuple(linear),
-                                               tuple(angular))
+                                               tuple(angular), at)
+
+    def entity_info(self, name: str) -> EntityInfo:
+        """Return an entity's ``EntityInfo(category, description, tags)``."""
+        return self._world_backend().entity_info(name)
+
+    def set_entity_info(self, name: str, *, category: Optional[int] = None,
+                        description: Optional[str] = None,
+                        tags: Optional[Sequence[str]] = None) -> None:
+        """Change an entity's category (a label), description or tags; the rest stays."""
+        now = self.entity_info(name)
+        self._world_backend().set_entity_info(
+            name, now.category if category is None else category,
+            now.description if description is None else description,
+            list(now.tags if tags is None else tags))
+
+    def entity_bounds(self, name: str) -> Region:
+        """Return the box around an entity's collision shape, in its base link's frame."""
+        return self._world_backend().entity_bounds(name)
+
+    def load_world(self, world: str) -> WorldEntry:
+        """
+        Load a world in place of the current one (LoadWorld); return its name, URI, tags.
+
+        ``world``: a URDF or a world manifest, as a path, a ``package://`` or
+        ``file://`` URI, a name in the package's ``urdf/`` (``room.world.yaml``),
+        or the file's text itself. Spawned entities leave, the robots stand at
+        the world's start pose, time goes back to 0; the harness then moves
+        one control period on, to publish the new world (as ``reset_world``).
+        """
+        entry = self._world_backend().load_world(*_world_resource(world))
+        self._after_world(True)
+        return entry
+
+    def unload_world(self) -> None:
+        """Unload the world (UnloadWorld): nothing steps until a world is loaded again."""
+        self._world_backend().unload_world()
+        self._after_world(False)
+
+    def current_world(self) -> Optional[WorldEntry]:
+        """Return the world loaded now (None after unload_world)."""
+        return self._world_backend().current_world()
+
+    def available_worlds(self, tags: Sequence[str] = (), match_all: bool = False
+                         ) -> List[WorldEntry]:
+        """Return the worlds load_world can load, with any (or all) of ``tags``."""
+        return self._world_backend().available_worlds(
+            TagsFilter(tuple(tags), FILTER_MODE_ALL if match_all else FILTER_MODE_ANY))
+
+    def named_poses(self, tags: Sequence[str] = (), match_all: bool = False
+                    ) -> List[NamedPose]:
+        """Return the world's named poses with any (or all) of ``tags``, bounds included."""
+        return self._world_backend().named_poses(
+            TagsFilter(tuple(tags), FILTER_MODE_ALL if match_all else FILTER_MODE_ANY))
+
+    def named_pose(self, name: str) -> NamedPose:
+        """
+        Return the named pose ``name``: its ``position``, ``orientation``, ``tags``, ``bounds``.
+
+        ``bounds`` are relative to the pose. RefusedError NOT_FOUND when the
+        world has no such pose.
+        """
+        for pose in self.named_poses():
+            if pose.name == name:
+                return pose
+        raise RefusedError('NOT_FOUND', f'no named pose {name[:100]!r} in the world')
 
     def delete_entity(self, name: str) -> None:
         """Delete an entity, with a robot's interfaces; a full reset brings start-up ones back."""

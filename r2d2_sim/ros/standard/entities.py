@@ -1,5 +1,5 @@
 """
-The simulation standard's entity services: list, read, place, describe, spawn, delete.
+The simulation standard's entity services: list, read, place, describe, bound, spawn, delete.
 
 They translate ``simulation_interfaces`` requests into the core's entity
 operations (an :class:`~r2d2_sim.ros.seams.EntityWorld`: the
@@ -11,15 +11,18 @@ its simulation control, on the same node.
 
 import threading
 
+from geometry_msgs.msg import Vector3
 from rclpy.node import Node
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.timing import stamp_of
 from r2d2_sim.ros.seams import EntityWorld
 from r2d2_sim.sim.entities import name_filter, SpawnRequest
+from r2d2_sim.sim.entity_bounds import Region, REGION_KINDS
 from r2d2_sim.sim.spawnables import spawnable_uris
+from r2d2_sim.sim.tags import check_filter, tags_match
 
-__all__ = ['EntityServices', 'Replies', 'SPAWNABLE_DIRECTORIES']
+__all__ = ['EntityServices', 'Replies', 'SPAWNABLE_DIRECTORIES', 'region_of', 'fill_bounds']
 
 SPAWNABLE_DIRECTORIES = ('package://r2d2_sim/urdf',)
 
@@ -65,6 +68,19 @@ class Replies:
         return self._fail(response, error.code, error.message, owner)
 
 
+def region_of(bounds) -> Region:
+    """Return a Bounds message as the core's Region (checked there); unknown types too."""
+    kind = REGION_KINDS[bounds.type] if bounds.type < len(REGION_KINDS) else str(bounds.type)
+    return Region(kind, tuple((p.x, p.y, p.z) for p in bounds.points))
+
+
+def fill_bounds(msg, region: Region):
+    """Fill a Bounds message from a Region; return it."""
+    msg.type = REGION_KINDS.index(region.kind)
+    msg.points = [Vector3(x=float(x), y=float(y), z=float(z)) for x, y, z in region.points]
+    return msg
+
+
 class EntityServices(Replies):
     """
     The standard's entity services: list, read, place, describe, spawn, delete.
@@ -84,6 +100,8 @@ class EntityServices(Replies):
             ('get_entity_state', srv.GetEntityState, self._entity_state),
             ('set_entity_state', srv.SetEntityState, self._set_entity_state),
             ('get_entity_info', srv.GetEntityInfo, self._entity_info),
+            ('set_entity_info', srv.SetEntityInfo, self._set_entity_info),
+            ('get_entity_bounds', srv.GetEntityBounds, self._entity_bounds),
             ('spawn_entity', srv.SpawnEntity, self._spawn),
             ('spawn_entities', srv.SpawnEntities, self._spawn_many),
             ('delete_entity', srv.DeleteEntity, self._delete),
@@ -93,22 +111,23 @@ class EntityServices(Replies):
             server.create_service(srv_type, name, self._guarded(callback))
 
     def _matching(self, filters):
-        """Return the names the filters pick: regex (search), categories, tags, a sphere."""
+        """Return the names the filters pick: regex (search), categories, tags, bounds (AND)."""
         world = self._world
         matches = name_filter(filters.filter)
+        tags = check_filter(filters.tags.tags, filters.tags.filter_mode)
+        bounds = filters.bounds
+        if bounds.type >= len(REGION_KINDS):
+            raise RefusedError('FEATURE_UNSUPPORTED', f'unknown bounds type {bounds.type}: '
+                                                      'empty, box, convex hull or sphere')
         names = [n for n in world.entity_names() if matches(n)]
         if filters.categories:
             wanted = {c.category for c in filters.categories}
             names = [n for n in names if world.entity_category(n) in wanted]
-        if filters.tags.tags:  # no entity has tags: ANY and ALL both match none
-            names = []
-        bounds = filters.bounds
-        if bounds.type == bounds.TYPE_SPHERE and len(bounds.points) >= 2:
-            centre = (bounds.points[0].x, bounds.points[0].y, bounds.points[0].z)
-            inside = set(world.entities_overlapping(centre, bounds.points[1].x))
+        if tags.tags:
+            names = [n for n in names if tags_match(world.entity_tags(n), tags)]
+        if bounds.type != bounds.TYPE_EMPTY:
+            inside = set(world.entities_overlapping(region_of(bounds)))
             names = [n for n in names if n in inside]
-        elif bounds.type != bounds.TYPE_EMPTY:
-            raise RefusedError('FEATURE_UNSUPPORTED', 'only sphere bounds filter entities here')
         return names
 
     def _entities(self, request, response):
@@ -167,10 +186,31 @@ class EntityServices(Replies):
     def _entity_info(self, request, response):
         try:
             with self._lock:
-                response.info.category.category = self._world.entity_category(request.entity)
-                response.info.description = self._world.entity_source(request.entity)
+                info = self._world.entity_info(request.entity)
         except RefusedError as exc:
             return self._fail_entity(response, exc)
+        response.info.category.category = info.category
+        response.info.description = info.description
+        response.info.tags = list(info.tags)
+        return self._ok(response)
+
+    def _set_entity_info(self, request, response):
+        info = request.info
+        try:
+            with self._lock:
+                self._world.set_entity_info(request.entity, info.category.category,
+                                            info.description, list(info.tags))
+        except RefusedError as exc:
+            return self._fail_entity(response, exc)
+        return self._ok(response)
+
+    def _entity_bounds(self, request, response):
+        try:
+            with self._lock:
+                region = self._world.entity_bounds(request.entity)
+        except RefusedError as exc:
+            return self._fail_entity(response, exc)
+        fill_bounds(response.bounds, region)
         return self._ok(response)
 
     def _spawn_one(self, name, allow_renaming, uri, resource_string, namespace, pose):

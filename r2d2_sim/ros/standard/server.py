@@ -20,7 +20,9 @@ set takes a ``cmd_vel`` flood 2-3 times faster.
 Where the big simulators disagree, the standard's own text decides: stepping
 while playing fails without a step; STOPPED is paused at time 0 in the initial
 world, and pausing from it is an incorrect transition; the reset scope is a
-bitfield; twists are in the world frame.
+bitfield; twists are in the world frame. After UnloadWorld the state is
+NO_WORLD ("inactive and cannot be started, stopped, or paused") until a
+LoadWorld, which leaves it STOPPED; while one runs, it is LOADING_WORLD.
 """
 
 import json
@@ -33,15 +35,28 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
-from r2d2_sim.ros.seams import EntityWorld, SimulatorControl
+from r2d2_sim.ros.seams import EntityWorld, SimulatorControl, WorldControl
 from r2d2_sim.ros.standard.entities import EntityServices, Replies
+from r2d2_sim.ros.standard.worlds import Activity, WorldServices
 from r2d2_sim.sim.entities import MAX_FILTER_LENGTH
+from r2d2_sim.sim.tags import MAX_TAG_LENGTH, MAX_TAGS
 
-__all__ = ['SimulationInterfaces', 'EntityServices', 'StandardNode', 'available', 'STEP_CHUNK']
+__all__ = ['SimulationInterfaces', 'EntityServices', 'WorldServices', 'StandardNode',
+           'available', 'STEP_CHUNK', 'FEATURES']
 
 # Physics steps taken per hold of the node's lock by step_simulation: 0.1 s of
 # simulated time, a few milliseconds of wall time.
 STEP_CHUNK = 24
+# Every feature of simulation_interfaces 1.5.1 (all 32): each is implemented.
+FEATURES = (
+    'SPAWNING', 'DELETING', 'NAMED_POSES', 'POSE_BOUNDS', 'ENTITY_TAGS', 'ENTITY_BOUNDS',
+    'ENTITY_BOUNDS_BOX', 'ENTITY_BOUNDS_CONVEX', 'ENTITY_CATEGORIES', 'SPAWNING_RESOURCE_STRING',
+    'ENTITY_STATE_GETTING', 'ENTITY_STATE_SETTING', 'ENTITY_INFO_GETTING', 'ENTITY_INFO_SETTING',
+    'SPAWNABLES', 'SIMULATION_RESET', 'SIMULATION_RESET_TIME', 'SIMULATION_RESET_STATE',
+    'SIMULATION_RESET_SPAWNED', 'SIMULATION_STATE_GETTING', 'SIMULATION_STATE_SETTING',
+    'SIMULATION_STATE_PAUSE', 'STEP_SIMULATION_SINGLE', 'STEP_SIMULATION_MULTIPLE',
+    'STEP_SIMULATION_ACTION', 'WORLD_LOADING', 'WORLD_RESOURCE_STRING', 'WORLD_TAGS',
+    'WORLD_UNLOADING', 'WORLD_INFO_GETTING', 'AVAILABLE_WORLDS', 'SPAWNING_ENTITIES')
 
 
 def available() -> bool:
@@ -81,22 +96,27 @@ class StandardNode(QuietNode):
 
 class SimulationInterfaces(Replies):
     """
-    The standard for a simulator: its control (``simulator``), its entities (``world``).
+    The standard for a simulator: its control, its entities, its worlds.
 
-    The services live on a node of their own beside ``simulator_node`` (the
-    simulator's: ``self.node``, in its context and namespace); the entity
-    services are :class:`~r2d2_sim.ros.standard.entities.EntityServices`.
+    ``simulator`` pauses, steps and resets; ``world`` is its entities;
+    ``worlds`` the world around them (the simulator node is both
+    ``simulator`` and ``worlds``). The services live on a node of their own
+    beside ``simulator_node`` (the simulator's: ``self.node``, in its context
+    and namespace); the entity services are
+    :class:`~r2d2_sim.ros.standard.entities.EntityServices`, the world
+    services :class:`~r2d2_sim.ros.standard.worlds.WorldServices`.
     ``close()`` (or destroying ``self.node``) takes the services down.
     """
 
-    def __init__(self, simulator: SimulatorControl, world: EntityWorld, simulator_node: Node,
-                 on_quit: Optional[Callable[[], None]] = None) -> None:
+    def __init__(self, simulator: SimulatorControl, world: EntityWorld, worlds: WorldControl,
+                 simulator_node: Node, on_quit: Optional[Callable[[], None]] = None) -> None:
         from simulation_interfaces import action, msg, srv
         self._simulator = simulator
         self._msg = msg
         self._log = simulator_node.get_logger()
         self._on_quit = on_quit
-        self._stepping = threading.Lock()  # one step request at a time
+        self.activity = Activity()  # one step request or world load at a time
+        self._stepping = self.activity.stepping
         self._closing = threading.Event()
         self._steps_action = action.SimulateSteps
         self.node = server = StandardNode(simulator_node)
@@ -115,6 +135,7 @@ class SimulationInterfaces(Replies):
             server, action.SimulateSteps, 'simulate_steps', self._simulate_steps,
             goal_callback=self._accept, cancel_callback=self._allow_cancel, callback_group=group)
         self.entities = EntityServices(world, simulator.lock, server, msg, srv)
+        self.worlds = WorldServices(worlds, self.activity, server, msg, srv, group)
 
     def stop(self, timeout_s: float = 2.0) -> None:
         """Refuse new steps and wait (up to ``timeout_s``) for a running one to end its chunk."""
@@ -131,26 +152,30 @@ class SimulationInterfaces(Replies):
 
     def _features(self, request, response):
         features = self._msg.SimulatorFeatures
-        response.features.features = [getattr(features, name) for name in (
-            'SPAWNING', 'DELETING', 'ENTITY_CATEGORIES', 'SPAWNING_RESOURCE_STRING',
-            'ENTITY_STATE_GETTING', 'ENTITY_STATE_SETTING', 'ENTITY_INFO_GETTING', 'SPAWNABLES',
-            'SIMULATION_RESET', 'SIMULATION_RESET_TIME', 'SIMULATION_RESET_STATE',
-            'SIMULATION_RESET_SPAWNED', 'SIMULATION_STATE_GETTING', 'SIMULATION_STATE_SETTING',
-            'SIMULATION_STATE_PAUSE', 'STEP_SIMULATION_SINGLE', 'STEP_SIMULATION_MULTIPLE',
-            'STEP_SIMULATION_ACTION', 'SPAWNING_ENTITIES')]
+        response.features.features = [getattr(features, name) for name in FEATURES]
         response.features.spawn_formats = ['urdf']
         config = self._simulator.config
         response.features.custom_info = json.dumps({
             'simulator': 'r2d2_sim', 'physics_rate_hz': config.physics_rate_hz,
             'step_s': 1.0 / config.physics_rate_hz, 'world_frame': config.world_frame_id,
             'entity_filter': 'RE2 search on names (a part of the name matches), at most '
-                             f'{MAX_FILTER_LENGTH} characters'})
+                             f'{MAX_FILTER_LENGTH} characters',
+            'world_formats': ['urdf', 'r2d2_sim world manifest (*.world.yaml)'],
+            'tags': f'at most {MAX_TAGS} per list, {MAX_TAG_LENGTH} characters each'})
         return response
 
     def state(self) -> int:
-        """Return the standard's state: PLAYING, or STOPPED (time 0, initial world), or PAUSED."""
+        """
+        Return the standard's state: PLAYING, STOPPED (time 0, initial world) or PAUSED.
+
+        LOADING_WORLD while a world loads or unloads, NO_WORLD after UnloadWorld.
+        """
         state = self._msg.SimulationState
         node = self._simulator
+        if self.activity.loading.is_set():
+            return state.STATE_LOADING_WORLD
+        if not node.world_is_loaded:
+            return state.STATE_NO_WORLD
         if not node.paused:
             return state.STATE_PLAYING
         if node.step_count == 0 and node.pristine:
@@ -158,6 +183,9 @@ class SimulationInterfaces(Replies):
         return state.STATE_PAUSED
 
     def _get_state(self, request, response):
+        if self.activity.loading.is_set():  # answered at once, not after the load
+            response.state.state = self._msg.SimulationState.STATE_LOADING_WORLD
+            return self._ok(response)
         with self._simulator.lock:
             response.state.state = self.state()
         return self._ok(response)
@@ -165,11 +193,21 @@ class SimulationInterfaces(Replies):
     def _set_state(self, request, response):
         state, node = self._msg.SimulationState, self._simulator
         wanted = request.state.state
+        if self.activity.loading.is_set() and wanted != state.STATE_QUITTING:
+            return self._fail(response, 'INCORRECT_TRANSITION', 'a world is loading: the '
+                              'simulation cannot be started, stopped or paused meanwhile')
         with node.lock:
             now = self.state()
             if wanted == now:
                 return self._fail(response, 'ALREADY_IN_TARGET_STATE',
                                   'the simulation is in that state already')
+            if now == state.STATE_NO_WORLD and wanted != state.STATE_QUITTING:
+                return self._fail(response, 'INCORRECT_TRANSITION', 'no world is loaded '
+                                  '(UnloadWorld): the simulation cannot be started, stopped or '
+                                  'paused; load one (LoadWorld)')
+            if wanted in (state.STATE_NO_WORLD, state.STATE_LOADING_WORLD):
+                return self._fail(response, 'INCORRECT_TRANSITION', 'NO_WORLD and '
+                                  'LOADING_WORLD are reached through UnloadWorld and LoadWorld')
             if wanted == state.STATE_PLAYING:
                 node.set_paused(False)
             elif wanted == state.STATE_PAUSED:
@@ -183,10 +221,9 @@ class SimulationInterfaces(Replies):
             elif wanted == state.STATE_QUITTING and self._on_quit is not None:
                 # After the reply has gone out: the process then stops as on SIGINT.
                 threading.Timer(0.2, self._on_quit).start()
-            elif wanted in (state.STATE_QUITTING, state.STATE_NO_WORLD,
-                            state.STATE_LOADING_WORLD):
-                return self._fail(response, 'FEATURE_UNSUPPORTED', 'this simulator has one '
-                                  'world, loaded at start-up')
+            elif wanted == state.STATE_QUITTING:
+                return self._fail(response, 'FEATURE_UNSUPPORTED', 'this simulator runs in '
+                                  'a process it does not own here: it cannot quit')
             else:
                 return self._fail(response, 'INCORRECT_TRANSITION', f'unknown state {wanted}')
         return self._ok(response)
@@ -206,13 +243,16 @@ class SimulationInterfaces(Replies):
         """
         node = self._simulator
         if not self._stepping.acquire(blocking=False):
-            return 'another step request is running', 0
+            return ('a world is loading' if self.activity.loading.is_set() else
+                    'another step request is running'), 0
         done = 0
         try:
             while done < steps:
                 if self._closing.is_set():
                     return f'the simulator is shutting down (after {done} steps)', done
                 with node.lock:
+                    if not node.world_is_loaded:
+                        return 'no world is loaded (UnloadWorld): load one to step', done
                     if not node.paused:
                         return ('the simulation is playing: pause it first' if done == 0 else
                                 f'the simulation was played after {done} steps'), done
@@ -258,7 +298,12 @@ class SimulationInterfaces(Replies):
         scope, reset = request.scope, type(request)
         if scope in (reset.SCOPE_DEFAULT, reset.SCOPE_ALL):
             scope = reset.SCOPE_TIME | reset.SCOPE_STATE | reset.SCOPE_SPAWNED
+        if self.activity.loading.is_set():
+            return self._fail(response, 'INCORRECT_STATE', 'a world is loading')
         with self._simulator.lock:
+            if not self._simulator.world_is_loaded:
+                return self._fail(response, 'INCORRECT_STATE', 'no world is loaded '
+                                  '(UnloadWorld): there is nothing to reset; load one')
             self._simulator.reset_simulation(time=bool(scope & reset.SCOPE_TIME),
                                              state=bool(scope & reset.SCOPE_STATE),
                                              spawned=bool(scope & reset.SCOPE_SPAWNED))

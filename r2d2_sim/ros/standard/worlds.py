@@ -1,0 +1,162 @@
+"""
+The simulation standard's world services: list, load, unload, tell the world; its named poses.
+
+They translate ``simulation_interfaces`` requests into a
+:class:`~r2d2_sim.ros.seams.WorldControl` (the simulator node, which loads
+through its core and pauses at time 0), under the simulator's lock, and every
+refusal into the standard's result code with a one-line message.
+:class:`~r2d2_sim.ros.standard.server.SimulationInterfaces` makes them beside
+its simulation control, on the same node. A load or an unload waits for no
+step: while a step request runs it is refused (INCORRECT_STATE), and while it
+runs the simulation state is LOADING_WORLD and step requests are refused.
+"""
+
+import threading
+
+from rclpy.callback_groups import CallbackGroup
+from rclpy.node import Node
+
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.ros.seams import WorldControl
+from r2d2_sim.ros.standard.entities import fill_bounds, Replies
+from r2d2_sim.sim.tags import check_filter
+from r2d2_sim.sim.worlds import LoadOptions
+
+__all__ = ['WorldServices', 'Activity']
+
+
+class Activity:
+    """What runs now that excludes the rest: a step request, a world being loaded."""
+
+    def __init__(self) -> None:
+        self.stepping = threading.Lock()  # held by a step request, a load or an unload
+        self.loading = threading.Event()  # set while a world loads or unloads
+
+    def busy(self) -> str:
+        """Return what the holder of ``stepping`` is doing, for a refusal's message."""
+        return 'a world is loading' if self.loading.is_set() else 'a step request is running'
+
+
+class WorldServices(Replies):
+    """
+    The standard's world and named pose services, served on ``server`` for ``worlds``.
+
+    ``activity`` is shared with the step requests; ``group`` is the callback
+    group the load and unload run in (beside the other requests).
+    """
+
+    def __init__(self, worlds: WorldControl, activity: Activity, server: Node, msg, srv,
+                 group: CallbackGroup) -> None:
+        self._worlds = worlds
+        self._activity = activity
+        self._msg = msg
+        self._log = server.get_logger()
+        services = (
+            ('get_available_worlds', srv.GetAvailableWorlds, self._available, None),
+            ('load_world', srv.LoadWorld, self._load, group),
+            ('unload_world', srv.UnloadWorld, self._unload, group),
+            ('get_current_world', srv.GetCurrentWorld, self._current, None),
+            ('get_named_poses', srv.GetNamedPoses, self._named_poses, None),
+            ('get_named_pose_bounds', srv.GetNamedPoseBounds, self._named_pose_bounds, None),
+        )
+        for name, srv_type, callback, callback_group in services:
+            server.create_service(srv_type, name, self._guarded(callback),
+                                  callback_group=callback_group)
+
+    def _world_resource(self, msg, world) -> None:
+        msg.name = world.name
+        msg.world_resource.uri = world.uri
+        msg.world_resource.resource_string = world.resource_string
+        msg.description = world.description
+        msg.tags = list(world.tags)
+
+    def _available(self, request, response):
+        try:
+            tags = check_filter(request.filter.tags, request.filter.filter_mode)
+            with self._worlds.lock:
+                worlds, note = self._worlds.available_worlds(
+                    list(request.additional_sources), tags, request.offline_only,
+                    request.continue_on_error)
+        except RefusedError as exc:
+            return self._fail_entity(response, exc)
+        for world in worlds:
+            resource = self._msg.WorldResource(name=world.name, description=world.description,
+                                               tags=list(world.tags))
+            resource.world_resource.uri = world.uri
+            response.worlds.append(resource)
+        self._ok(response)
+        response.result.error_message = note
+        return response
+
+    def _exclusive(self, response, what):
+        """Run ``what()`` with no step or load running; refuse (INCORRECT_STATE) if one is."""
+        activity = self._activity
+        if not activity.stepping.acquire(blocking=False):
+            return self._fail(response, 'INCORRECT_STATE', f'{activity.busy()}: try again once '
+                                                           'it has ended')
+        try:
+            with self._worlds.lock:  # the flag is set only while the lock is held here
+                activity.loading.set()
+                try:
+                    return what()
+                finally:
+                    activity.loading.clear()
+        finally:
+            activity.stepping.release()
+
+    def _load(self, request, response):
+        options = LoadOptions(request.fail_on_unsupported_element,
+                              request.ignore_missing_or_unsupported_assets)
+
+        def load():
+            try:
+                world = self._worlds.load_world(request.uri, request.resource_string, options)
+            except RefusedError as exc:
+                return self._fail_entity(response, exc)
+            self._world_resource(response.world, world)
+            self._ok(response)
+            response.result.error_message = '; '.join(world.notes)
+            return response
+        return self._exclusive(response, load)
+
+    def _unload(self, request, response):
+        def unload():
+            try:
+                self._worlds.unload_world()
+            except RefusedError as exc:
+                return self._fail_entity(response, exc)
+            return self._ok(response)
+        return self._exclusive(response, unload)
+
+    def _current(self, request, response):
+        with self._worlds.lock:
+            world = self._worlds.current_world()
+        if world is None:
+            return self._fail(response, 'NO_WORLD_LOADED', 'no world is loaded (UnloadWorld)')
+        self._world_resource(response.world, world)
+        return self._ok(response)
+
+    def _named_poses(self, request, response):
+        try:
+            tags = check_filter(request.tags.tags, request.tags.filter_mode)
+            with self._worlds.lock:
+                poses = self._worlds.named_poses(tags)
+        except RefusedError as exc:
+            return self._fail_entity(response, exc)
+        for pose in poses:
+            msg = self._msg.NamedPose(name=pose.name, description=pose.description,
+                                      tags=list(pose.tags))
+            p, q = msg.pose.position, msg.pose.orientation
+            p.x, p.y, p.z = pose.position
+            q.x, q.y, q.z, q.w = pose.orientation
+            response.poses.append(msg)
+        return self._ok(response)
+
+    def _named_pose_bounds(self, request, response):
+        try:
+            with self._worlds.lock:
+                pose = self._worlds.named_pose(request.name)
+        except RefusedError as exc:
+            return self._fail_entity(response, exc)
+        fill_bounds(response.bounds, pose.bounds)
+        return self._ok(response)
