@@ -96,14 +96,17 @@ def read_spawnable(uri: str, resource_string: str
 
     ``uri`` wins over ``resource_string`` (the standard's rule): a file path,
     ``file://``, ``package://`` or a pybullet_data name, resolved as the
-    ``urdf`` parameter is. RefusedError NO_RESOURCE, UNSUPPORTED_FORMAT...
+    ``urdf`` parameter is. RefusedError NOT_FOUND (no such file), NO_RESOURCE (nothing
+    named), UNSUPPORTED_FORMAT...
     """
     if uri:
         path = uri[len('file://'):] if uri.startswith('file://') else uri
         try:
             path = resolve_description_path(path)
         except DescriptionError as exc:
-            raise RefusedError('NO_RESOURCE', str(exc)) from None
+            # No match for the input: the generic NOT_FOUND, as LoadWorld answers; the
+            # standard keeps NO_RESOURCE for a request that names nothing at all.
+            raise RefusedError('NOT_FOUND', str(exc)) from None
         if not path.lower().endswith('.urdf'):
             raise RefusedError('UNSUPPORTED_FORMAT', f'{uri[:200]}: only .urdf files can be '
                                'spawned')

@@ -47,7 +47,7 @@ def code(response):
 
 BAD_SPAWNS = {
     'unknown file': ({'resource_string': '', 'uri': '/no/such/file.urdf'},
-                     srv.SpawnEntity.Response.NO_RESOURCE),
+                     msg.Result.RESULT_NOT_FOUND),
     'nothing to spawn': ({'resource_string': ''}, srv.SpawnEntity.Response.NO_RESOURCE),
     'not a URDF file': ({'resource_string': '', 'uri': '/etc/passwd'},
                         srv.SpawnEntity.Response.UNSUPPORTED_FORMAT),
