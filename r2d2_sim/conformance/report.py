@@ -110,11 +110,12 @@ def render_clause_reference(clauses: Sequence[Clause] = CLAUSES) -> str:
         parts += [f'### {group}', '', '| id | checks | needs | the standard says |',
                   '|---|---|---|---|']
         for c in members:
-            needs = feature_text(c.features) or '-'
+            needs = [feature_text(c.features)] if c.features else []
             if c.unless:
-                needs += f' (moot when {" and ".join(c.unless)} are declared)'
+                needs.append(f'moot when {" and ".join(c.unless)} are declared')
             if c.services:
-                needs += f'; {", ".join(c.services)} served'
+                needs.append(f'{", ".join(c.services)} served')
+            needs = '; '.join(needs) or '-'
             parts.append(f'| {c.id} | {_cell(c.title)} | {_cell(needs)} | '
                          f'`{c.source}`: "{_cell(c.quote)}" |')
         parts.append('')
