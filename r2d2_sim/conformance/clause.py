@@ -34,7 +34,8 @@ class Clause(NamedTuple):
     makes it moot (all of them declared: skipped); ``services``: interfaces
     it calls that no feature stands for (GetEntities), skipped when not
     served; ``source`` and ``quote``: the definition file and the sentence
-    of it the clause checks.
+    of it the clause checks; ``start``: False for a clause that only asks
+    (FEAT, RESULT), which runs wherever the simulator is instead of from STOPPED.
     """
 
     id: str
@@ -45,6 +46,7 @@ class Clause(NamedTuple):
     check: Callable
     unless: Tuple[str, ...] = ()
     services: Tuple[str, ...] = ()
+    start: bool = True
 
     @property
     def group(self) -> str:
@@ -67,10 +69,11 @@ def feature_text(features: Sequence[str]) -> str:
 
 
 def clause(registry: List[Clause], id: str, title: str, features: Sequence[str], source: str,
-           quote: str, *, unless: Sequence[str] = (), services: Sequence[str] = ()):
+           quote: str, *, unless: Sequence[str] = (), services: Sequence[str] = (),
+           start: bool = True):
     """Return a decorator that adds its function to ``registry`` as a clause."""
     def add(check: Callable) -> Callable:
         registry.append(Clause(id, title, tuple(features), source, quote, check,
-                               tuple(unless), tuple(services)))
+                               tuple(unless), tuple(services), start))
         return check
     return add

@@ -2,7 +2,8 @@
 Running clauses against one simulator: :class:`Kit`, and choosing clauses: :func:`select`.
 
 Each clause runs from the same start state (STOPPED, see
-:meth:`~r2d2_sim.conformance.target.Target.prepare`), is skipped when a
+:meth:`~r2d2_sim.conformance.target.Target.prepare`; those that only ask,
+FEAT and RESULT, wherever the simulator is), is skipped when a
 feature it needs is not declared (or an interface no feature stands for is
 not served), and is undone afterwards (what it spawned deleted, the world
 it loaded replaced). At the end the kit leaves the simulator in the state it
@@ -86,7 +87,7 @@ class Kit:
         if unserved:
             return SKIP, f'{", ".join(unserved)} not served'
         try:
-            t.prepare()
+            t.prepare(stop=clause.start)
         except (ClauseFailed, ClauseSkipped) as exc:
             return FAIL, f'could not reach the start state (STOPPED): {exc}'
         try:

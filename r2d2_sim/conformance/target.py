@@ -727,9 +727,9 @@ class Target:
         """Run ``undo`` after the clause, pass or fail (last registered first)."""
         self._cleanups.append(undo)
 
-    def prepare(self) -> None:
+    def prepare(self, stop: bool = True) -> None:
         """
-        Put the simulator in the clauses' start state: STOPPED.
+        Forget the last clause; with ``stop``, put the simulator in the start state: STOPPED.
 
         Through SetSimulationState where declared (STOPPED is "pausing and
         resetting with ALL"), else a full ResetSimulation where that is.
@@ -737,6 +737,8 @@ class Target:
         self._cleanups.clear()
         self.spawned.clear()
         self._feedback.clear()
+        if not stop:
+            return
         if self.declared('SIMULATION_STATE_SETTING'):
             self.stop()
         elif self.declared('SIMULATION_RESET'):
