@@ -149,6 +149,7 @@ class Target:
         self.spawned: List[str] = []  # names the kit spawned and has not deleted
         self.initial_state: Optional[int] = None
         self.initial_world = None  # the WorldResource current at connect, when told
+        self.initial_world_known = False  # GetCurrentWorld answered (a world, or none)
         self.world_changed = False
         self._clients: Dict[str, object] = {}
         self._action_client = None
@@ -203,8 +204,11 @@ class Target:
                 self.initial_state = reply.state.state
         if 'WORLD_INFO_GETTING' in self.features and 'GetCurrentWorld' in self.interfaces:
             reply = self.call('GetCurrentWorld', self.srv.GetCurrentWorld.Request(), check=False)
-            if reply is not None and reply.result.result == self.msg.Result.RESULT_OK:
-                self.initial_world = reply.world
+            no_world = self.srv.GetCurrentWorld.Response.NO_WORLD_LOADED
+            if reply is not None and reply.result.result in (self.msg.Result.RESULT_OK, no_world):
+                self.initial_world_known = True
+                if reply.result.result == self.msg.Result.RESULT_OK:
+                    self.initial_world = reply.world
 
     def read_features(self):
         """Ask GetSimulatorFeatures again; return its SimulatorFeatures (names in ``features``)."""
@@ -773,6 +777,30 @@ class Target:
         self.world_changed = True
         return self.ok('LoadWorld', request, doing)
 
+    def unload_world(self) -> None:
+        """UnloadWorld, OK expected."""
+        self.world_changed = True
+        self.ok('UnloadWorld', self.srv.UnloadWorld.Request(), 'UnloadWorld')
+
+    def put_world_back(self) -> None:
+        """
+        Load the world found at the start again (or unload, if there was none).
+
+        Without WORLD_INFO_GETTING the kit cannot know it: the last world it
+        loaded stays.
+        """
+        if not self.world_changed or not self.initial_world_known:
+            return
+        world = self.initial_world
+        resource = world.world_resource if world is not None else None
+        if resource is not None and (resource.uri or resource.resource_string):
+            self.load_world(resource, 'LoadWorld of the world found at the start')
+        elif world is None and self.declared('WORLD_UNLOADING'):
+            no_world = self.srv.UnloadWorld.Response.NO_WORLD_LOADED
+            self.expect('UnloadWorld', self.srv.UnloadWorld.Request(),
+                        (self.msg.Result.RESULT_OK, no_world), 'UnloadWorld, as at the start')
+        self.world_changed = False
+
     def restore(self) -> List[str]:
         """
         Leave the simulator as found: the world loaded again, the state it was in.
@@ -782,8 +810,7 @@ class Target:
         """
         problems = self.cleanup()
         try:
-            if self.world_changed and self.initial_world is not None:
-                self.load_world(self.initial_world.world_resource, 'loading the world back')
+            self.put_world_back()
             if self.initial_state is not None and self.declared('SIMULATION_STATE_SETTING'):
                 S = self.S
                 self.stop()

@@ -22,6 +22,8 @@ from toy_simulator import ToySimulator
 
 KIT = [sys.executable, '-m', 'r2d2_sim.conformance']
 RUN_S = 300
+# What the kit may spawn and load in r2d2_sim (the world is used once it serves LoadWorld).
+ASSET, WORLD = 'cube.urdf', 'package://r2d2_sim/urdf/room.urdf'
 
 
 def junit_cases(path: Path):
@@ -51,9 +53,10 @@ def test_sim_node_passes_every_clause_it_declares(r2d2_sim_process, tmp_path):
     """The kit from another process: exit 0, no failure, skips only for undeclared features."""
     sim = r2d2_sim_process(cmd_vel_timeout=0.0)
     out = tmp_path / 'conformance.xml'
-    result = subprocess.run(KIT + ['--domain', str(sim.domain_id), '--asset', 'cube.urdf',
-                                   '--junit', str(out)], env=ros_child_env(sim.domain_id),
-                            cwd=REPO, capture_output=True, text=True, timeout=RUN_S)
+    result = subprocess.run(KIT + ['--domain', str(sim.domain_id), '--asset', ASSET,
+                                   '--world', WORLD, '--junit', str(out)],
+                            env=ros_child_env(sim.domain_id), cwd=REPO, capture_output=True,
+                            text=True, timeout=RUN_S)
     assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
     assert result.stdout.strip().splitlines()[-1].startswith(f'{len(CLAUSES)} clauses: ')
     suite, cases = junit_cases(out)
@@ -82,8 +85,8 @@ def test_the_pytest_plugin_runs_one_test_per_clause(r2d2_sim_process, tmp_path):
     result = subprocess.run(
         [sys.executable, '-m', 'pytest', '-p', 'r2d2_sim.conformance.pytest_plugin',
          '-p', 'no:cacheprovider', '-p', 'no:xdist', '-q', '-rs', '--rootdir', str(tmp_path),
-         '--conformance-domain', str(sim.domain_id), '--conformance-asset', 'cube.urdf',
-         f'--junitxml={out}', str(tmp_path / 'test_standard.py')],
+         '--conformance-domain', str(sim.domain_id), '--conformance-asset', ASSET,
+         '--conformance-world', WORLD, f'--junitxml={out}', str(tmp_path / 'test_standard.py')],
         env=ros_child_env(sim.domain_id), cwd=tmp_path, capture_output=True, text=True,
         timeout=RUN_S)
     assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]

@@ -139,26 +139,17 @@ def _world_to_load(t: Target):
 
 
 def _load(t: Target, doing: str = 'LoadWorld'):
+    """Load a world (see _world_to_load), to be put back after the clause."""
     resource = _world_to_load(t)
+    t.on_cleanup(t.put_world_back)
     reply = t.load_world(resource, f'{doing} of {resource.uri or "a resource string"}')
-    t.on_cleanup(lambda: _put_world_back(t))
     return resource, reply
 
 
-def _put_world_back(t: Target) -> None:
-    if t.initial_world is not None and _resource_of(t.initial_world):
-        t.load_world(t.initial_world.world_resource, 'LoadWorld of the world found at the start')
-    elif t.options.world:
-        t.load_world(t.msg.Resource(uri=t.options.world), 'LoadWorld of --world')
-
-
 def _unload(t: Target) -> None:
-    if t.initial_world is None and not t.options.world:
-        raise ClauseSkipped('the kit could not load the world back after unloading it: needs '
-                            'WORLD_INFO_GETTING with a world loaded, or --world')
-    t.on_cleanup(lambda: _put_world_back(t))
-    t.world_changed = True
-    t.ok('UnloadWorld', t.srv.UnloadWorld.Request(), 'UnloadWorld')
+    """Load a world (so that there is one), then unload it; put back after the clause."""
+    _load(t)
+    t.unload_world()
 
 
 @clause(CLAUSES, 'WORLD-01', 'GetAvailableWorlds lists worlds LoadWorld can take',
@@ -274,6 +265,7 @@ def load_garbage(t: Target) -> None:
         after = _current(t)
         if (after.result.result, after.world.name) != (before.result.result, before.world.name):
             t.world_changed = True
+            t.on_cleanup(t.put_world_back)
             raise ClauseFailed(f'the refused LoadWorld changed the current world from '
                                f'{before.world.name!r} to {after.world.name!r}')
 
@@ -321,9 +313,10 @@ def no_world_no_play(t: Target) -> None:
         ('WORLD_UNLOADING', 'SPAWNING'), 'UnloadWorld.srv',
         'Any previously spawned entities will be removed.', services=('GetEntities',))
 def unload_despawns(t: Target) -> None:
-    """Spawn, unload: GetEntities no longer lists it (or answers with no world)."""
+    """Load a world, spawn, unload: GetEntities no longer lists it (or answers with no world)."""
+    _load(t)
     name = t.spawn(0)
-    _unload(t)
+    t.unload_world()
     reply = t.call('GetEntities', t.srv.GetEntities.Request())
     if reply.result.result == t.msg.Result.RESULT_OK and name in reply.entities:
         raise ClauseFailed(f'{name} is still listed after UnloadWorld')
