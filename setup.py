@@ -60,6 +60,7 @@ setup(
             'demo = r2d2_sim.apps.demo:main',
             'drive = r2d2_sim.apps.drive:main',
             'replay = r2d2_sim.apps.replay:main',
+            'sim_conformance = r2d2_sim.conformance.cli:main',
         ],
         'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin'],
     },

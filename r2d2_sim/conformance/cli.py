@@ -1,0 +1,155 @@
+"""
+``sim_conformance``: check any simulator against ROS 2's simulation standard, clause by clause.
+
+Also ``python -m r2d2_sim.conformance``. Prints a matrix (each clause PASS,
+FAIL with a one-line reason, or SKIP with what it needs), a summary line,
+and optionally JUnit XML and a Markdown table. Exit status: 0 when no
+clause failed, 1 when one did, 2 for a usage error (one line on stderr) or
+a kit that cannot start, 130 after Ctrl-C.
+"""
+
+import argparse
+import sys
+from typing import List, Optional, Tuple
+
+from r2d2_sim.apps.cli import domain_id_arg, EXIT_INTERRUPTED, finite_number, positive_number
+from r2d2_sim.conformance.clause import feature_text
+from r2d2_sim.conformance.clauses import CLAUSES
+from r2d2_sim.conformance.discovery import ACTION, normal_prefix
+from r2d2_sim.conformance.report import (
+    exit_status, markdown_matrix, matrix, summary, write_junit)
+from r2d2_sim.conformance.runner import Kit, select
+from r2d2_sim.conformance.target import KitError, KitOptions
+
+__all__ = ['main', 'build_parser']
+
+PROG = 'sim_conformance'
+EXAMPLES = """\
+examples:
+  sim_conformance                                   # at the root: O3DE, Isaac Sim 6, r2d2_sim
+  sim_conformance --prefix /gzserver --asset /models/box.sdf   # Gazebo (ros_gz)
+  sim_conformance --asset cube.urdf --junit conformance.xml    # r2d2_sim, for CI
+  sim_conformance --only STATE,STEP --skip STEP-07             # some groups, one clause less
+
+Every clause starts from STOPPED (SetSimulationState), so the kit resets the
+simulator many times: run it where nothing else uses that simulator.
+"""
+
+
+def point_arg(text: str) -> Tuple[float, float, float]:
+    """Parse ``X,Y,Z`` (three finite numbers; an argparse type)."""
+    parts = text.split(',')
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f'must be X,Y,Z, got {text!r}')
+    return tuple(finite_number(p) for p in parts)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command line of ``sim_conformance``."""
+    parser = argparse.ArgumentParser(
+        prog=PROG, formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXAMPLES,
+        description='Check a simulator against simulation_interfaces (ROS 2 Jazzy 1.5), clause '
+                    'by clause. Finds the services and the action by type under --prefix.')
+    parser.add_argument('--prefix', default='/', help='namespace of the simulator\'s services: '
+                        '/ (default), /gzserver, /isaacsim...')
+    parser.add_argument('--domain', type=domain_id_arg, default=None, metavar='ID',
+                        help='ROS domain id (default: ROS_DOMAIN_ID, else 0)')
+    parser.add_argument('--asset', default='', metavar='URI',
+                        help='something SpawnEntity takes by uri (cube.urdf, a .sdf or .usd file)')
+    parser.add_argument('--world', default='', metavar='URI',
+                        help='a world LoadWorld takes (default: one GetAvailableWorlds lists)')
+    parser.add_argument('--timeout', type=positive_number, default=10.0, metavar='S',
+                        help='longest wait for discovery or any one reply, in seconds (10)')
+    parser.add_argument('--only', action='append', default=[], metavar='IDS',
+                        help='clauses or groups to run, comma-separated (STATE,SPAWN-0*)')
+    parser.add_argument('--skip', action='append', default=[], metavar='IDS',
+                        help='clauses or groups to leave out, comma-separated')
+    parser.add_argument('--junit', metavar='FILE', help='also write JUnit XML here')
+    parser.add_argument('--markdown', metavar='FILE', help='also write the matrix as Markdown')
+    parser.add_argument('--free-space', type=point_arg, default=(20.0, 20.0, 5.0),
+                        metavar='X,Y,Z', help='a point with 20 m of free room along +x, where the '
+                        'kit puts what it spawns (default 20,20,5)')
+    parser.add_argument('--world-frame', default='world', metavar='NAME',
+                        help='the world frame\'s name, besides "" and world')
+    parser.add_argument('--clock-topic', default='/clock', metavar='TOPIC',
+                        help='where simulated time is published (default /clock)')
+    parser.add_argument('--list', action='store_true',
+                        help='list the clauses (id, needs, title) and exit')
+    return parser
+
+
+def _names(values: List[str]) -> List[str]:
+    return [n for value in values for n in value.split(',') if n.strip()]
+
+
+def _header(kit: Kit) -> str:
+    t = kit.target
+    served = sorted(k for k in t.interfaces if k != ACTION)
+    action = ' and the action' if ACTION in t.interfaces else ', no action'
+    lines = [f'{PROG}: prefix {t.prefix!r}, ROS domain {t.domain_id}']
+    if t.features is None:
+        lines.append(f'  {t.features_error}')
+    else:
+        lines.append(f'  {len(served)} of 22 services{action}; {len(t.features)} of 32 features '
+                     f'declared; spawn formats: {", ".join(t.spawn_formats) or "none"}; '
+                     f'{t.options.clock_topic}: {"yes" if t.has_clock else "none"}')
+        undeclared = sorted(set(f.split('|')[0] for c in CLAUSES for f in c.features)
+                            - set(t.features))
+        if undeclared:
+            lines.append(f'  not declared: {feature_text(undeclared)}')
+    for kind, names in sorted(t.several.items()):
+        lines.append(f'  note: several {kind} under the prefix ({", ".join(names)}); '
+                     f'using {t.interfaces[kind]}')
+    return '\n'.join(lines)
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Run the kit from the command line; return the exit status."""
+    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        clauses = select(_names(args.only), _names(args.skip))
+        if args.list:
+            for c in clauses:
+                print(f'{c.id:<14} {c.title}  [{feature_text(c.features) or "-"}]')
+            return 0
+        from rclpy.validate_namespace import validate_namespace
+        validate_namespace(normal_prefix(args.prefix))
+    except KitError as exc:
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        return 2
+    except Exception as exc:  # rclpy's InvalidNamespaceException
+        print(f'{PROG}: error: --prefix {args.prefix!r}: {str(exc).splitlines()[0]}',
+              file=sys.stderr)
+        return 2
+    options = KitOptions(prefix=args.prefix, domain_id=args.domain, asset=args.asset,
+                         world=args.world, timeout_s=args.timeout, free_space=args.free_space,
+                         world_frame=args.world_frame, clock_topic=args.clock_topic)
+    try:
+        kit = Kit(options)
+    except KitError as exc:
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        return 2
+    try:
+        kit.connect()
+        print(_header(kit), flush=True)
+        outcomes = kit.run(clauses, each=lambda o: print(matrix([o]), flush=True))
+    except KeyboardInterrupt:
+        kit.target.close()
+        print(f'{PROG}: interrupted', file=sys.stderr)
+        return EXIT_INTERRUPTED
+    problems = kit.close()
+    for problem in problems:
+        print(f'{PROG}: could not leave the simulator as found: {problem}', file=sys.stderr)
+    print(summary(outcomes, f'prefix {kit.target.prefix!r}'))
+    properties = {'prefix': kit.target.prefix, 'domain_id': str(kit.target.domain_id),
+                  'features': ' '.join(sorted(kit.target.features or ()))}
+    try:
+        if args.junit:
+            write_junit(outcomes, args.junit, properties)
+        if args.markdown:
+            with open(args.markdown, 'w', encoding='utf-8') as handle:
+                handle.write(markdown_matrix(outcomes))
+    except OSError as exc:
+        print(f'{PROG}: error: cannot write {exc.filename}: {exc.strerror}', file=sys.stderr)
+        return 2
+    return exit_status(outcomes)

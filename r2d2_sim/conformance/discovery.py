@@ -1,0 +1,122 @@
+"""
+Finding a simulator's services and action by type, as a generic client does.
+
+Names are free in the standard: Gazebo serves ``/gzserver/step_simulation``,
+O3DE and Isaac Sim 6 ``/step_simulation``, Isaac Sim 5 ``/isaacsim/StepSimulation``.
+So, as RobotecAI's RViz panel does, the kit lists the ROS graph's services
+(``get_service_names_and_types``) and keeps those whose type is one of
+``simulation_interfaces``' under the prefix it was given; the action is the
+``<name>/_action/send_goal`` service of type ``SimulateSteps_SendGoal``.
+Also here: which feature stands for which interface. No ROS imports.
+"""
+
+import re
+from typing import Dict, Iterable, List, Sequence, Tuple
+
+__all__ = ['SERVICES', 'ACTION', 'FEATURES', 'FEATURE_INTERFACES', 'SUB_FEATURES',
+           'find_interfaces', 'under_prefix', 'normal_prefix', 'snake_case']
+
+PACKAGE = 'simulation_interfaces'
+# The 22 services of Jazzy 1.5.1, in the order of the definition files' topics.
+SERVICES = (
+    'GetSimulatorFeatures', 'GetSimulationState', 'SetSimulationState', 'StepSimulation',
+    'ResetSimulation', 'GetEntities', 'GetEntitiesStates', 'GetEntityState', 'SetEntityState',
+    'GetEntityInfo', 'SetEntityInfo', 'GetEntityBounds', 'SpawnEntity', 'SpawnEntities',
+    'DeleteEntity', 'GetSpawnables', 'GetNamedPoses', 'GetNamedPoseBounds', 'LoadWorld',
+    'UnloadWorld', 'GetCurrentWorld', 'GetAvailableWorlds')
+ACTION = 'SimulateSteps'
+# SimulatorFeatures' constants, by name (values from the message at run time).
+FEATURES = (
+    'SPAWNING', 'DELETING', 'NAMED_POSES', 'POSE_BOUNDS', 'ENTITY_TAGS', 'ENTITY_BOUNDS',
+    'ENTITY_BOUNDS_BOX', 'ENTITY_BOUNDS_CONVEX', 'ENTITY_CATEGORIES', 'SPAWNING_RESOURCE_STRING',
+    'ENTITY_STATE_GETTING', 'ENTITY_STATE_SETTING', 'ENTITY_INFO_GETTING', 'ENTITY_INFO_SETTING',
+    'SPAWNABLES', 'SIMULATION_RESET', 'SIMULATION_RESET_TIME', 'SIMULATION_RESET_STATE',
+    'SIMULATION_RESET_SPAWNED', 'SIMULATION_STATE_GETTING', 'SIMULATION_STATE_SETTING',
+    'SIMULATION_STATE_PAUSE', 'STEP_SIMULATION_SINGLE', 'STEP_SIMULATION_MULTIPLE',
+    'STEP_SIMULATION_ACTION', 'WORLD_LOADING', 'WORLD_RESOURCE_STRING', 'WORLD_TAGS',
+    'WORLD_UNLOADING', 'WORLD_INFO_GETTING', 'AVAILABLE_WORLDS', 'SPAWNING_ENTITIES')
+# The interfaces whose support a feature declares ("Support for this interface is
+# indicated through the ... value"); any one of a tuple's will do.
+FEATURE_INTERFACES: Dict[str, Tuple[str, ...]] = {
+    'SPAWNING': ('SpawnEntity',), 'DELETING': ('DeleteEntity',),
+    'NAMED_POSES': ('GetNamedPoses',), 'POSE_BOUNDS': ('GetNamedPoseBounds',),
+    'ENTITY_BOUNDS': ('GetEntityBounds',),
+    'ENTITY_STATE_GETTING': ('GetEntityState', 'GetEntitiesStates'),
+    'ENTITY_STATE_SETTING': ('SetEntityState',), 'ENTITY_INFO_GETTING': ('GetEntityInfo',),
+    'ENTITY_INFO_SETTING': ('SetEntityInfo',), 'SPAWNABLES': ('GetSpawnables',),
+    'SIMULATION_RESET': ('ResetSimulation',),
+    'SIMULATION_STATE_GETTING': ('GetSimulationState',),
+    'SIMULATION_STATE_SETTING': ('SetSimulationState',),
+    'STEP_SIMULATION_SINGLE': ('StepSimulation',),
+    'STEP_SIMULATION_MULTIPLE': ('StepSimulation|SimulateSteps',),
+    'STEP_SIMULATION_ACTION': ('SimulateSteps',),
+    'WORLD_LOADING': ('LoadWorld',), 'WORLD_UNLOADING': ('UnloadWorld',),
+    'WORLD_INFO_GETTING': ('GetCurrentWorld',), 'AVAILABLE_WORLDS': ('GetAvailableWorlds',),
+    'SPAWNING_ENTITIES': ('SpawnEntities',),
+}
+# A feature about a part of an interface, and the features one of which that interface needs.
+SUB_FEATURES: Dict[str, Tuple[str, ...]] = {
+    'SIMULATION_RESET_TIME': ('SIMULATION_RESET',),
+    'SIMULATION_RESET_STATE': ('SIMULATION_RESET',),
+    'SIMULATION_RESET_SPAWNED': ('SIMULATION_RESET',),
+    'SIMULATION_STATE_PAUSE': ('SIMULATION_STATE_SETTING',),
+    'SPAWNING_RESOURCE_STRING': ('SPAWNING', 'SPAWNING_ENTITIES'),
+    'WORLD_RESOURCE_STRING': ('WORLD_LOADING',),
+    'WORLD_TAGS': ('AVAILABLE_WORLDS',),
+}
+_SEND_GOAL = '/_action/send_goal'
+
+
+def snake_case(name: str) -> str:
+    """Return an interface's usual service name: GetSimulatorFeatures -> get_simulator_features."""
+    return re.sub(r'(?<!^)(?=[A-Z])', '_', name).lower()
+
+
+def normal_prefix(prefix: str) -> str:
+    """Return a prefix as a namespace: '' and '/' are the root '/', others lose a trailing '/'."""
+    prefix = '/' + prefix.strip('/')
+    return prefix
+
+
+def under_prefix(name: str, prefix: str) -> bool:
+    """Return True for a fully qualified name in the namespace ``prefix`` (or below it)."""
+    prefix = normal_prefix(prefix)
+    return prefix == '/' or name.startswith(prefix + '/')
+
+
+def _preferred(candidates: Sequence[str], prefix: str, kind: str) -> str:
+    """Pick one name: ``<prefix>/<snake_case kind>`` if there, else the shortest, then sorted."""
+    usual = normal_prefix(prefix).rstrip('/') + '/' + snake_case(kind)
+    if usual in candidates:
+        return usual
+    return sorted(candidates, key=lambda n: (n.count('/'), len(n), n))[0]
+
+
+def find_interfaces(names_and_types: Iterable[Tuple[str, List[str]]], prefix: str
+                    ) -> Tuple[Dict[str, str], Dict[str, List[str]]]:
+    """
+    Return ({interface: service or action name}, {interface: every candidate when several}).
+
+    ``names_and_types`` is what ``Node.get_service_names_and_types()``
+    returns. Each standard service found under ``prefix`` is keyed by its
+    type's name (``SpawnEntity``); the action by ``SimulateSteps``, named
+    without ``/_action/send_goal``. Where several names carry one type (two
+    simulators on a domain), the usual name wins, else the shortest.
+    """
+    found: Dict[str, List[str]] = {}
+    for name, types in names_and_types:
+        if not under_prefix(name, prefix):
+            continue
+        for type_name in types:
+            package, _, rest = type_name.partition('/')
+            if package != PACKAGE:
+                continue
+            kind, _, short = rest.partition('/')
+            if kind == 'srv' and short in SERVICES:
+                found.setdefault(short, []).append(name)
+            elif (kind == 'action' and short == f'{ACTION}_SendGoal'
+                  and name.endswith(_SEND_GOAL)):
+                found.setdefault(ACTION, []).append(name[:-len(_SEND_GOAL)])
+    chosen = {kind: _preferred(names, prefix, kind) for kind, names in found.items()}
+    several = {kind: sorted(names) for kind, names in found.items() if len(names) > 1}
+    return chosen, several

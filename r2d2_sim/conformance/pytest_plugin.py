@@ -1,0 +1,85 @@
+"""
+The conformance kit under pytest: one test per clause, for a simulator's own CI (opt-in).
+
+Not loaded by default. Enable it with ``-p r2d2_sim.conformance.pytest_plugin``
+(or ``pytest_plugins = ['r2d2_sim.conformance.pytest_plugin']`` in the root
+``conftest.py``), and collect the ready-made test in one of your test files::
+
+    from r2d2_sim.conformance.pytest_plugin import test_simulation_standard  # noqa: F401
+
+Each clause is a test named by its id (``test_simulation_standard[STATE-03]``,
+so ``-k "STATE or STEP"`` picks groups), skipped when its feature is not
+declared and failed with the clause's reason and the sentence it checks.
+Where the simulator is comes from the options ``--conformance-prefix``,
+``--conformance-domain``, ``--conformance-asset``, ``--conformance-world``
+and ``--conformance-timeout``, or from your own session-scoped
+``conformance_options`` fixture returning a
+:class:`~r2d2_sim.conformance.target.KitOptions` (start the simulator there).
+The clauses reset the simulator: do not spread them over xdist workers.
+"""
+
+import pytest
+
+from r2d2_sim.conformance.clause import FAIL, SKIP
+from r2d2_sim.conformance.clauses import CLAUSES
+
+__all__ = ['test_simulation_standard', 'conformance_options', 'conformance_kit']
+
+
+def pytest_addoption(parser) -> None:
+    """Add the ``--conformance-*`` options: where the simulator is, what the kit may use."""
+    group = parser.getgroup('conformance', 'simulation_interfaces conformance kit')
+    group.addoption('--conformance-prefix', default='/', metavar='NS',
+                    help='namespace of the simulator\'s services (default /)')
+    group.addoption('--conformance-domain', type=int, default=None, metavar='ID',
+                    help='ROS domain id (default: ROS_DOMAIN_ID, else 0)')
+    group.addoption('--conformance-asset', default='', metavar='URI',
+                    help='something SpawnEntity takes by uri')
+    group.addoption('--conformance-world', default='', metavar='URI',
+                    help='a world LoadWorld takes')
+    group.addoption('--conformance-timeout', type=float, default=10.0, metavar='S',
+                    help='longest wait for discovery or one reply (s)')
+
+
+@pytest.fixture(scope='session')
+def conformance_options(request):
+    """Return the KitOptions of the command line (override to start a simulator first)."""
+    from r2d2_sim.conformance.target import KitOptions
+    option = request.config.getoption
+    return KitOptions(prefix=option('--conformance-prefix'),
+                      domain_id=option('--conformance-domain'),
+                      asset=option('--conformance-asset'), world=option('--conformance-world'),
+                      timeout_s=option('--conformance-timeout'))
+
+
+@pytest.fixture(scope='session')
+def conformance_kit(conformance_options):
+    """Provide one connected Kit for the session; it leaves the simulator as found at the end."""
+    from r2d2_sim.conformance.runner import Kit
+    from r2d2_sim.conformance.target import KitError
+    try:
+        kit = Kit(conformance_options)
+    except KitError as exc:
+        pytest.fail(str(exc), pytrace=False)
+    try:
+        kit.connect()
+        yield kit
+    finally:
+        kit.close()
+
+
+def pytest_generate_tests(metafunc) -> None:
+    """Give ``conformance_clause`` every clause, in the kit's order, named by its id."""
+    if 'conformance_clause' in metafunc.fixturenames:
+        metafunc.parametrize('conformance_clause', CLAUSES, ids=[c.id for c in CLAUSES])
+
+
+def test_simulation_standard(conformance_kit, conformance_clause) -> None:
+    """Check one clause of the standard (collect this in a test file of yours)."""
+    outcome = conformance_kit.run_clause(conformance_clause)
+    clause = conformance_clause
+    if outcome.status == SKIP:
+        pytest.skip(f'{clause.id}: {outcome.reason}')
+    if outcome.status == FAIL:
+        pytest.fail(f'{clause.id} {clause.title}: {outcome.reason}\n'
+                    f'  {clause.source}: "{clause.quote}"', pytrace=False)

@@ -1,0 +1,131 @@
+"""
+Running clauses against one simulator: :class:`Kit`, and choosing clauses: :func:`select`.
+
+Each clause runs from the same start state (STOPPED, see
+:meth:`~r2d2_sim.conformance.target.Target.prepare`; those that only ask,
+FEAT and RESULT, wherever the simulator is), is skipped when a
+feature it needs is not declared (or an interface no feature stands for is
+not served), and is undone afterwards (what it spawned deleted, the world
+it loaded replaced). At the end the kit leaves the simulator in the state it
+found it in, reset.
+"""
+
+import fnmatch
+import time
+from typing import List, Optional, Sequence
+
+from r2d2_sim.conformance.clause import (
+    Clause, ClauseFailed, ClauseSkipped, FAIL, feature_text, Outcome, PASS, SKIP)
+from r2d2_sim.conformance.clauses import CLAUSES, GROUPS
+from r2d2_sim.conformance.target import KitError, KitOptions, Target
+
+__all__ = ['Kit', 'select']
+
+
+def select(only: Sequence[str] = (), skip: Sequence[str] = (),
+           clauses: Sequence[Clause] = CLAUSES) -> List[Clause]:
+    """
+    Return the clauses ``only`` names (all when empty) but those ``skip`` names, in order.
+
+    Each name is a clause id (``STATE-03``), a group (``STATE``) or a
+    shell pattern (``SPAWN-1*``); a name that matches nothing is a KitError.
+    """
+    def matching(name: str) -> set:
+        pattern = name.strip().upper()
+        if pattern in GROUPS:
+            pattern += '-*'
+        found = {c.id for c in clauses if fnmatch.fnmatchcase(c.id, pattern)}
+        if not found:
+            raise KitError(f'{name!r} names no clause or group (groups: {", ".join(GROUPS)})')
+        return found
+    chosen = set().union(*(matching(n) for n in only)) if only else {c.id for c in clauses}
+    dropped = set().union(*(matching(n) for n in skip)) if skip else set()
+    return [c for c in clauses if c.id in chosen and c.id not in dropped]
+
+
+class Kit:
+    """
+    The conformance kit on one simulator: connect, run clauses, leave it as found.
+
+    ``Kit(KitOptions(prefix='/gzserver'))``; :meth:`run` (or
+    :meth:`run_clause`) connects on first use; :meth:`close` restores the
+    simulator and closes the kit's node. A context manager.
+    Raises KitError only for the kit's own setup (simulation_interfaces missing).
+    """
+
+    def __init__(self, options: Optional[KitOptions] = None) -> None:
+        self.options = options or KitOptions()
+        self.target = Target(self.options)
+        self.connected = False
+        self.restore_problems: List[str] = []
+
+    def connect(self) -> None:
+        """Find the simulator's interfaces and features (once)."""
+        if not self.connected:
+            self.connected = True
+            self.target.connect()
+
+    def run_clause(self, clause: Clause) -> Outcome:
+        """Run one clause from the start state; return its Outcome."""
+        self.connect()
+        started = time.monotonic()
+        status, reason = self._run(clause)
+        return Outcome(clause, status, reason, time.monotonic() - started)
+
+    def _run(self, clause: Clause):
+        t = self.target
+        if t.features is None:
+            if clause.id == 'FEAT-01':
+                return FAIL, t.features_error
+            return SKIP, 'the features are unknown (see FEAT-01)'
+        missing = [f for f in clause.features if not t.declared(f)]
+        if missing:
+            return SKIP, f'needs {feature_text(missing)} (not declared)'
+        if clause.unless and all(t.declared(f) for f in clause.unless):
+            return SKIP, f'moot: {feature_text(clause.unless)} declared'
+        unserved = [s for s in clause.services if s not in t.interfaces]
+        if unserved:
+            return SKIP, f'{", ".join(unserved)} not served'
+        try:
+            t.prepare(stop=clause.start)
+        except (ClauseFailed, ClauseSkipped) as exc:
+            return FAIL, f'could not reach the start state (STOPPED): {exc}'
+        try:
+            clause.check(t)
+            status, reason = PASS, ''
+        except ClauseFailed as exc:
+            status, reason = FAIL, str(exc)
+        except ClauseSkipped as exc:
+            status, reason = SKIP, str(exc)
+        except Exception as exc:  # a defect of the kit itself: shown, never a traceback
+            first = str(exc).splitlines()[0][:200] if str(exc) else ''
+            status, reason = FAIL, f'kit error ({type(exc).__name__}: {first})'
+        problems = t.cleanup()
+        if problems:
+            reason = '; '.join(filter(None, [reason, 'afterwards: ' + '; '.join(problems)]))
+        return status, reason
+
+    def run(self, clauses: Sequence[Clause] = CLAUSES, each=None) -> List[Outcome]:
+        """Run ``clauses`` in order; call ``each(outcome)`` after each; return the outcomes."""
+        outcomes = []
+        for clause in clauses:
+            outcome = self.run_clause(clause)
+            outcomes.append(outcome)
+            if each is not None:
+                each(outcome)
+        return outcomes
+
+    def close(self) -> List[str]:
+        """Leave the simulator as found (see Target.restore), close the node; return problems."""
+        try:
+            if self.connected and self.target.features is not None:
+                self.restore_problems = self.target.restore()
+        finally:
+            self.target.close()
+        return self.restore_problems
+
+    def __enter__(self) -> 'Kit':
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
