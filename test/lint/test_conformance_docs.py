@@ -5,6 +5,7 @@ docs/conformance.md against the kit: the clause list, the matrix, the example cl
   is the parameter table's), so the page cannot cite a sentence the kit no
   longer checks; the check fails for a changed clause.
 - r2d2_sim's matrix on the page names every clause, in order, and no failure.
+- The README's matrix by group (passed/clauses) is the page's matrix summed up.
 - The warehouse client shown is ``test/children/warehouse_client.py``, byte for byte.
 No ROS: the clause table is read without rclpy.
 """
@@ -17,6 +18,7 @@ from r2d2_sim.conformance.report import clause_block, render_clause_reference, u
 
 REPO = Path(__file__).resolve().parents[2]
 PAGE = REPO / 'docs' / 'conformance.md'
+README = REPO / 'README.md'
 CLIENT = REPO / 'test' / 'children' / 'warehouse_client.py'
 
 
@@ -46,6 +48,17 @@ def test_matrix_on_the_page_names_every_clause_without_a_failure():
     assert {status for _, status in rows} <= {'PASS', 'SKIP'}
     passed = sum(status == 'PASS' for _, status in rows)
     assert f'{len(CLAUSES)} clauses: {passed} passed, 0 failed' in _page()
+
+
+def test_readme_matrix_sums_the_page_matrix_by_group():
+    """Each group of the README's matrix reads passed/clauses as the page's rows give them."""
+    rows = re.findall(r'^\| ([A-Z]+)-\d\d \| (PASS|FAIL|SKIP) \|', _page(), re.M)
+    expected = {}
+    for group, status in rows:
+        passed, total = expected.get(group, (0, 0))
+        expected[group] = (passed + (status == 'PASS'), total + 1)
+    shown = re.findall(r'\| ([A-Z]+) (\d+)/(\d+) (?=\|)', README.read_text(encoding='utf-8'))
+    assert {group: (int(p), int(t)) for group, p, t in shown} == expected
 
 
 def test_the_example_client_is_the_tested_file():
