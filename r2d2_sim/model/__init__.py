@@ -4,6 +4,7 @@ Pure math, numpy at most: no PyBullet, no ROS (a test imports them all and check
 Differential-drive kinematics and odometry (:mod:`.kinematics`), the drive
 controller from command to wheel targets (:mod:`.drive_controller`), rigid
 transforms and a tf2-style buffer of them (:mod:`.transforms`, :mod:`.tf_buffer`),
-sensor models (:mod:`.sensors`, :mod:`.camera`), physics health checks
+sensor models (:mod:`.sensors`, :mod:`.camera`), Gazebo's sensor noise
+(:mod:`.noise`) and wheel encoders that err (:mod:`.encoders`), physics health checks
 (:mod:`.health`) and step timing (:mod:`.timing`).
 """

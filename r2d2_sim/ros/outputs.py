@@ -120,8 +120,16 @@ class OdometryOutput:
 
     The pose's z is the body frame's height at rest, as TF has it (odom ->
     base_footprint on the ground, base_footprint -> base_link above it), so
-    the message and the transform tree agree on where base_link is.
+    the message and the transform tree agree on where base_link is. The
+    covariances are the configured diagonals; when the encoders err
+    (``encoder_noise_*``), the entries of x, y and yaw (pose) and of the
+    linear and angular velocity (twist), their cross terms included, are
+    those the encoders' noise gives (:class:`~r2d2_sim.model.encoders.OdometryCovariance`).
     """
+
+    # Where (x, y, yaw) and (vx, wz) sit in a 6 x 6 covariance (x y z roll pitch yaw).
+    _POSE_AXES = (0, 1, 5)
+    _TWIST_AXES = (0, 5)
 
     def __init__(self, node: Node, config: SimConfig, footprint_height_m: float) -> None:
         self._publisher = node.create_publisher(Odometry, 'odom', STATE_QOS)
@@ -132,7 +140,11 @@ class OdometryOutput:
             msg.pose.covariance[7 * i] = variance
         for i, variance in enumerate(config.twist_covariance_diagonal):
             msg.twist.covariance[7 * i] = variance
+        self._pose_covariance = list(msg.pose.covariance)
+        self._twist_covariance = list(msg.twist.covariance)
         self._msg = _OdometryTemplate(msg)
+        self._covariances = (self._msg.template.field('pose.covariance'),
+                             self._msg.template.field('twist.covariance'))
         self._height_m = footprint_height_m
 
     def publish(self, frame: Frame) -> None:
@@ -142,7 +154,22 @@ class OdometryOutput:
         msg.pose.set((odometry.x_m, odometry.y_m, self._height_m)
                      + yaw_to_quaternion(odometry.yaw_rad))
         msg.twist.set((odometry.linear_m_s, 0.0, 0.0, 0.0, 0.0, odometry.angular_rad_s))
+        if odometry.pose_covariance is not None:
+            self._covariances[0].set(_embedded(self._pose_covariance, self._POSE_AXES,
+                                               odometry.pose_covariance))
+            self._covariances[1].set(_embedded(self._twist_covariance, self._TWIST_AXES,
+                                               odometry.twist_covariance))
         self._publisher.publish(msg.template.to_bytes())
+
+
+def _embedded(base: List[float], axes: Sequence[int], block: Sequence[float]) -> List[float]:
+    """Return a 6 x 6 covariance (row by row): ``base`` with the ``axes`` block set."""
+    full = list(base)
+    n = len(axes)
+    for i, row in enumerate(axes):
+        for j, column in enumerate(axes):
+            full[6 * row + column] = block[n * i + j]
+    return full
 
 
 class HeadCameraOutput:

@@ -14,6 +14,7 @@ from dataclasses import make_dataclass
 import math
 from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple
 
+from r2d2_sim.model.noise import NoiseSpec
 from r2d2_sim.sim import parameter_readers as read
 # ConfigError and Bounds are defined with the readers; the table's users import them here.
 from r2d2_sim.sim.parameter_readers import Bounds, ConfigError  # noqa: F401
@@ -77,6 +78,120 @@ class Parameter(NamedTuple):
     read: Callable[[str, Any], Any]
     bounds: Optional[Bounds] = None
     per_robot: bool = False  # each robot of several may set its own (robot_a.<name>)
+
+
+class NoiseFamily(NamedTuple):
+    """
+    The seven parameters of one sensor's Gazebo noise (see :mod:`r2d2_sim.model.noise`).
+
+    ``prefix`` names them (``scan`` -> ``scan_noise_mean``...); values are in
+    ``unit`` and within +-``magnitude``, the rounding step in
+    ``precision_unit`` up to ``precision_max``. ``std`` is the family's
+    standard deviation parameter when it existed before the rest (it keeps
+    its name, field and description).
+    """
+
+    prefix: str
+    what: str
+    unit: str
+    magnitude: float
+    precision_unit: str
+    precision_max: float
+    std: Optional[Parameter] = None
+
+    def name(self, part: str) -> str:
+        """Return the parameter name of one part (mean, std, bias_mean...)."""
+        return f'{self.prefix}_noise_{part}'
+
+    def field(self, part: str) -> str:
+        """Return the SimConfig field of one part."""
+        if part == 'std' and self.std is not None:
+            return self.std.field
+        return self.name(part)
+
+    def parameters(self) -> List[Parameter]:
+        """Return the family's seven table entries, in the order of a Gazebo <noise>."""
+        unit, what, magnitude = self.unit, self.what, self.magnitude
+        shown = unit or 'fraction'
+        spread = Bounds(0.0, magnitude, unit)
+        std = self.std or Parameter(
+            self.name('std'), 'double', 0.0,
+            f'{what}: white noise standard deviation ({shown}); 0 = none.',
+            self.name('std'), read.non_negative, spread, per_robot=True)
+        return [
+            Parameter(self.name('mean'), 'double', 0.0,
+                      f'{what}: mean of the white noise ({shown}), added to every reading.',
+                      self.name('mean'), read.number, Bounds(-magnitude, magnitude, unit),
+                      per_robot=True),
+            std,
+            Parameter(self.name('bias_mean'), 'double', 0.0,
+                      f'{what}: mean of the constant bias ({shown}), drawn once per robot '
+                      'and sensor (per axis) from the seed, its sign flipped with '
+                      'probability 0.5 (Gazebo\'s bias_mean).',
+                      self.name('bias_mean'), read.number, Bounds(-magnitude, magnitude, unit),
+                      per_robot=True),
+            Parameter(self.name('bias_std'), 'double', 0.0,
+                      f'{what}: standard deviation of the constant bias ({shown}).',
+                      self.name('bias_std'), read.non_negative, spread, per_robot=True),
+            Parameter(self.name('dynamic_bias_std'), 'double', 0.0,
+                      f'{what}: the drifting bias\'s random walk ({shown} per sqrt(s)): a '
+                      'Gauss-Markov process from 0 that settles at this times '
+                      'sqrt(correlation time / 2); 0 = none.',
+                      self.name('dynamic_bias_std'), read.non_negative,
+                      Bounds(0.0, magnitude, f'{unit}/sqrt(s)' if unit else '1/sqrt(s)'),
+                      per_robot=True),
+            Parameter(self.name('dynamic_bias_correlation_time'), 'double', 0.0,
+                      f'{what}: the drifting bias\'s correlation time in s (Gazebo suggests '
+                      'hours: 3600).',
+                      self.name('dynamic_bias_correlation_time'), read.non_negative,
+                      Bounds(0.001, 1.0e7, 's', 'no drifting bias'), per_robot=True),
+            Parameter(self.name('precision'), 'double', 0.0,
+                      f'{what}: readings are rounded to a multiple of this '
+                      f'({self.precision_unit}); 0 = no rounding.',
+                      self.name('precision'), read.non_negative,
+                      Bounds(0.0, self.precision_max, self.precision_unit), per_robot=True),
+        ]
+
+
+NOISE_PARTS = ('mean', 'std', 'bias_mean', 'bias_std', 'dynamic_bias_std',
+               'dynamic_bias_correlation_time', 'precision')
+
+NOISE_FAMILIES: Dict[str, NoiseFamily] = {family.prefix: family for family in (
+    NoiseFamily('scan', 'Laser range noise', 'm', 10.0, 'm', 10.0, Parameter(
+        'scan_noise_std', 'double', 0.0,
+        'Gaussian range noise standard deviation in m, clipped into the range so that '
+        'noise never fakes a miss; 0 = exact.',
+        'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm'), per_robot=True)),
+    NoiseFamily('imu_orientation', 'IMU orientation noise, a rotation about each world axis',
+                'rad', 1.0, 'rad', 1.0, Parameter(
+                    'imu_orientation_noise_std', 'double', 0.0,
+                    'IMU orientation noise standard deviation in rad (its covariance is the '
+                    'mean square error of all its noise parameters); 0 = exact.',
+                    'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad'),
+                    per_robot=True)),
+    NoiseFamily('imu_angular_velocity', 'IMU angular velocity noise, each axis', 'rad/s', 10.0,
+                'rad/s', 10.0, Parameter(
+                    'imu_angular_velocity_noise_std', 'double', 0.0,
+                    'IMU angular velocity noise standard deviation in rad/s (its covariance is '
+                    'the mean square error of all its noise parameters); 0 = exact.',
+                    'imu_angular_velocity_noise_std_rad_s', read.non_negative,
+                    Bounds(0.0, 10.0, 'rad/s'), per_robot=True)),
+    NoiseFamily('imu_linear_acceleration', 'IMU acceleration noise, each axis', 'm/s^2', 100.0,
+                'm/s^2', 100.0, Parameter(
+                    'imu_linear_acceleration_noise_std', 'double', 0.0,
+                    'IMU acceleration noise standard deviation in m/s^2 (its covariance is the '
+                    'mean square error of all its noise parameters); 0 = exact.',
+                    'imu_linear_acceleration_noise_std_m_s2', read.non_negative,
+                    Bounds(0.0, 100.0, 'm/s^2'), per_robot=True)),
+    NoiseFamily('encoder', 'Wheel encoder noise, relative to each side\'s rotation since the '
+                'last reading (0.01 = 1 %; a bias is a wheel radius off by that fraction)',
+                '', 1.0, 'rad: the encoder tick, 2 pi / ticks per turn', 2.0 * math.pi),
+    NoiseFamily('depth', 'Depth image noise, each pixel', 'm', 10.0, 'm', 10.0),
+)}
+
+
+def _noise_parameters(prefix: str) -> List[Parameter]:
+    return NOISE_FAMILIES[prefix].parameters()
 
 
 PARAMETERS: List[Parameter] = [
@@ -202,6 +317,7 @@ PARAMETERS: List[Parameter] = [
     Parameter('camera_depth', 'bool', False,
               'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
               'camera_depth', read.boolean, per_robot=True),
+    *_noise_parameters('depth'),
     Parameter('world', 'string', '',
               'A world to load around the robot at the origin, resolved like urdf '
               '(package://r2d2_sim/urdf/room.urdf); empty for none.', 'world', read.string),
@@ -235,30 +351,18 @@ PARAMETERS: List[Parameter] = [
               'scan_range_min_m', read.non_negative, Bounds(0.0, 100.0, 'm'), per_robot=True),
     Parameter('scan_range_max', 'double', 12.0, 'Farthest range in m; no return reads +inf.',
               'scan_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm'), per_robot=True),
-    Parameter('scan_noise_std', 'double', 0.0,
-              'Gaussian range noise standard deviation in m, clipped into the range so that '
-              'noise never fakes a miss; 0 = exact.',
-              'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm'), per_robot=True),
+    *_noise_parameters('scan'),
     Parameter('imu_rate', 'double', 100.0,
               'IMU messages per simulated second (Hz) on imu; 0 turns the IMU off.',
               'imu_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
               per_robot=True),
-    Parameter('imu_orientation_noise_std', 'double', 0.0,
-              'IMU orientation noise standard deviation in rad (its covariance is the '
-              'square); 0 = exact.',
-              'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad'),
-              per_robot=True),
-    Parameter('imu_angular_velocity_noise_std', 'double', 0.0,
-              'IMU angular velocity noise standard deviation in rad/s (its covariance is the '
-              'square); 0 = exact.',
-              'imu_angular_velocity_noise_std_rad_s', read.non_negative,
-              Bounds(0.0, 10.0, 'rad/s'), per_robot=True),
-    Parameter('imu_linear_acceleration_noise_std', 'double', 0.0,
-              'IMU acceleration noise standard deviation in m/s^2 (its covariance is the '
-              'square); 0 = exact.',
-              'imu_linear_acceleration_noise_std_m_s2', read.non_negative,
-              Bounds(0.0, 100.0, 'm/s^2'), per_robot=True),
-    Parameter('noise_seed', 'integer', 0, 'Seed of the scan and IMU noise (runs repeat).',
+    *_noise_parameters('imu_orientation'),
+    *_noise_parameters('imu_angular_velocity'),
+    *_noise_parameters('imu_linear_acceleration'),
+    *_noise_parameters('encoder'),
+    Parameter('noise_seed', 'integer', 0,
+              'Seed of every noise stream of the robot\'s sensors, each its own stream from this, '
+              'the robot\'s name and the sensor (runs and full resets repeat).',
               'noise_seed', read.integer, Bounds(0, 2**31 - 1), per_robot=True),
     Parameter('enable_stamped_cmd_vel', 'bool', False,
               'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name); a '
@@ -309,11 +413,19 @@ def _wheel_names_are_default(self) -> bool:
             and list(self.right_wheel_names) == PARAMETERS_BY_NAME['right_wheel_names'].default)
 
 
+def _noise(self, prefix: str) -> NoiseSpec:
+    """Return a sensor's noise (``scan``, ``imu_angular_velocity``...) as a NoiseSpec."""
+    family = NOISE_FAMILIES[prefix]
+    values = [getattr(self, family.field(part)) for part in NOISE_PARTS]
+    return NoiseSpec(*values)
+
+
 SimConfig = make_dataclass(
     'SimConfig', [(p.field, _FIELD_TYPES[p.ros_type]) for p in PARAMETERS], frozen=True,
     namespace={'__doc__': 'Validated simulator settings in SI units, one field per parameter.',
                'body_yaw_offset_rad': property(_body_yaw_offset_rad),
                'frame': _prefixed_frame,
+               'noise': _noise,
                'wheel_names_are_default': property(_wheel_names_are_default)})
 SimConfig.__module__ = __name__
 
@@ -365,6 +477,12 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     if not fields['scan_angle_min_rad'] < fields['scan_angle_max_rad']:
         raise ConfigError('parameter scan_angle_min must be below scan_angle_max, got '
                           f'{fields["scan_angle_min_rad"]} >= {fields["scan_angle_max_rad"]}')
+    for family in NOISE_FAMILIES.values():
+        drift, time = family.name('dynamic_bias_std'), family.name('dynamic_bias_correlation_time')
+        if fields[family.field('dynamic_bias_std')] > 0.0 and fields[family.field(
+                'dynamic_bias_correlation_time')] == 0.0:
+            raise ConfigError(f'parameter {drift} needs {time} > 0 (the drifting bias\'s '
+                              'correlation time), got 0')
     if not fields['scan_range_min_m'] < fields['scan_range_max_m']:
         raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
                           f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')

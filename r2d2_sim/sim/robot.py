@@ -19,6 +19,8 @@ from r2d2_sim.model.transforms import BaseState
 from r2d2_sim.physics.records import JointRecord, JointStates
 from r2d2_sim.model.drive_controller import (
     CommandVerdict, DriveController, NO_WHEELS, timeout_steps)
+from r2d2_sim.model.encoders import Encoders, OdometryCovariance
+from r2d2_sim.model.noise import noise_generator
 from r2d2_sim.sim.drive_train import DriveTrain, find_drive_train
 from r2d2_sim.model.kinematics import OdometryState
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
@@ -124,12 +126,25 @@ class Robot:
         self._wheel_forces = [drive.max_force_n_m] * len(drive.wheel_indices)
         slot = {index: i for i, index in enumerate(self.movable_indices)}
         self._wheel_slots = [slot[index] for index in drive.wheel_indices]
+        noise = config.noise('encoder')
+        covariance = None
+        if not noise.exact:
+            covariance = OdometryCovariance(noise, drive.geometry.wheel_radius_m,
+                                            drive.geometry.wheel_separation_m)
         self.controller = DriveController(
             drive.geometry, drive.limits, 1.0 / config.physics_rate_hz,
             timeout_steps(config.cmd_vel_timeout_s, config.physics_rate_hz),
             len(drive.left_indices), len(drive.right_indices),
-            config.wheel_velocity_sign, config.initial_pose)
+            config.wheel_velocity_sign, config.initial_pose, self._new_encoders(),
+            covariance)
         self._set_wheels(self.controller.reset(self.world.step_count, self._wheel_positions()))
+
+    def _new_encoders(self) -> Optional[Encoders]:
+        """Return the wheel encoders odometry reads through, None when they are exact."""
+        noise = self.config.noise('encoder')
+        if noise.exact:
+            return None
+        return Encoders(noise, noise_generator(self.config.noise_seed, self.name, 'encoders'))
 
     def command(self, linear_x: float, angular_z: float, **other_axes: float) -> CommandVerdict:
         """Hand a Twist's fields to the drive controller; NO_WHEELS for a robot without wheels."""
@@ -195,7 +210,7 @@ class Robot:
         if self.controller is not None:
             positions = joints.positions
             self.controller.update_odometry([positions[s] for s in self._wheel_slots], step)
-            odometry = self.controller.odometry.state()
+            odometry = self.controller.odometry_state()
         return Frame(step, time_ns, joints, base, odometry)
 
     def restart_time(self, steps_back: int) -> None:
@@ -210,10 +225,13 @@ class Robot:
             self.imu.reset()  # its time went back: no acceleration from the jump
 
     def restart_noise(self) -> None:
-        """Start the laser's and the IMU's noise streams again from the seed (a full reset)."""
-        for sensor in (self.laser, self.imu):
+        """Start every noise stream again from the seed, as at start-up (a full reset)."""
+        for sensor in (self.laser, self.imu, self.camera):
             if sensor is not None:
                 sensor.restart_noise()
+        if self.controller is not None:
+            # Fresh encoders: the next odometry reading takes a new baseline.
+            self.controller.encoders = self._new_encoders()
 
     def teleported(self) -> None:
         """Forget the motion so far: the body was placed, and the IMU must not read the jump."""

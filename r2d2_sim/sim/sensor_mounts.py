@@ -4,8 +4,12 @@ The robot's sensors and where they sit on it: head camera, planar laser, IMU.
 No ROS here. Each sensor measures the :class:`~r2d2_sim.physics.body.Body` it is
 mounted on, in the world it is in, when the simulation says it is due; the
 readings are plain data (bytes, arrays, tuples) that outputs only translate.
-The sensors' models (ray geometry, REP-117 ranges, IMU noise, depth) are
-pure math in :mod:`r2d2_sim.model.sensors` and :mod:`r2d2_sim.model.camera`.
+The sensors' models (ray geometry, REP-117 ranges, IMU, depth, Gazebo's noise)
+are pure math in :mod:`r2d2_sim.model.sensors`, :mod:`r2d2_sim.model.camera`
+and :mod:`r2d2_sim.model.noise`. Each sensor draws its noise from a stream of
+its own (:func:`~r2d2_sim.model.noise.noise_generator`: the robot's
+``noise_seed``, its name, the sensor), which :meth:`restart_noise` starts
+again as at start-up.
 """
 
 import math
@@ -19,9 +23,10 @@ from r2d2_sim.physics.body import Body, WorldError
 from r2d2_sim.sim.parameters import (
     ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID, SimConfig)
 from r2d2_sim.physics.raycast import ray_mask
+from r2d2_sim.model.noise import noise_generator, NoiseModel
 from r2d2_sim.model.sensors import (
-    ImuModel, ImuReading, linearize_depth, ranges_from_hits, ray_endpoints, ScanGeometry,
-    SensorConfigError)
+    ImuModel, ImuReading, linearize_depth, noisy_depth, ranges_from_hits, ray_endpoints,
+    ScanGeometry, SensorConfigError)
 from r2d2_sim.model.transforms import (
     apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotation_matrix,
     Transform)
@@ -72,13 +77,26 @@ class HeadCamera:
         self.intrinsics = camera.intrinsics(width, height, fov)
         self._projection = camera.projection_matrix(
             width, height, fov, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
+        self._config = config
+        self._depth_noise = self._new_depth_noise()
+
+    def _new_depth_noise(self) -> NoiseModel:
+        config = self._config
+        return NoiseModel(config.noise('depth'),
+                          noise_generator(config.noise_seed, self._body.name, 'depth'),
+                          period_s=1.0 / config.camera_rate_hz)
+
+    def restart_noise(self) -> None:
+        """Start the depth noise again from its seed, as at start-up (a full reset)."""
+        self._depth_noise = self._new_depth_noise()
 
     def render(self, depth: bool = False) -> CameraImage:
         """
         Render the camera's view now: rgb8 rows (top row first), and depth if asked.
 
         Depth is float32 metres along the optical axis (REP-118: +inf where
-        nothing is within the far plane), from the same render as the image.
+        nothing is within the far plane), from the same render as the image,
+        with ``depth_noise_*`` added.
         """
         position, orientation = self._body.link_pose(self._link)
         forward, up = camera.link_camera_axes(orientation, self._body.body_yaw_offset_rad)
@@ -90,8 +108,9 @@ class HeadCamera:
                                                self._projection)
         if not depth:
             return CameraImage(rgb, None)
-        return CameraImage(rgb, linearize_depth(depth_buffer, HEAD_CAMERA_NEAR_M,
-                                                HEAD_CAMERA_FAR_M).astype(numpy.float32))
+        depth_m = linearize_depth(depth_buffer, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
+        return CameraImage(rgb, noisy_depth(depth_m, self._depth_noise, HEAD_CAMERA_NEAR_M,
+                                            HEAD_CAMERA_FAR_M))
 
 
 class LaserScanner:
@@ -119,9 +138,8 @@ class LaserScanner:
         # Each beam's full-length ray in the sensor frame, computed once (69 us a scan).
         _, ends = ray_endpoints(self.geometry, (0.0, 0.0, 0.0))
         self._rays_in_sensor = ends
-        self._noise_std_m = config.scan_noise_std_m
-        self._noise_seed = config.noise_seed
-        self._rng = numpy.random.default_rng(self._noise_seed)
+        self._config = config
+        self._noise = self._new_noise()
         # The scan plane in the world now: the robot stands on the ground, or
         # (spawned in the air) is about to fall onto it.
         ground_z = body.world_state().position[2] - footprint_height_m
@@ -138,11 +156,17 @@ class LaserScanner:
         ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
         starts = numpy.broadcast_to(origin, ends.shape)
         return ranges_from_hits(self._world.cast_rays(starts, ends, self._mask), self.geometry,
-                                self._noise_std_m, self._rng)
+                                noise=self._noise)
+
+    def _new_noise(self) -> NoiseModel:
+        config = self._config
+        return NoiseModel(config.noise('scan'),
+                          noise_generator(config.noise_seed, self._body.name, 'scan'),
+                          period_s=1.0 / config.scan_rate_hz)
 
     def restart_noise(self) -> None:
         """Start the noise stream again from its seed, as at start-up (a full reset)."""
-        self._rng = numpy.random.default_rng(self._noise_seed)
+        self._noise = self._new_noise()
 
     def close(self) -> None:
         """Give the robot's ray group back to the world (the robot left it)."""
@@ -161,13 +185,13 @@ class ImuSensor:
 
     def _new_model(self) -> ImuModel:
         config = self._config
-        # Its own stream of noise, so turning the scanner on does not change it.
         return ImuModel(
             gravity_m_s2=config.gravity_m_s2,
-            orientation_std_rad=config.imu_orientation_noise_std_rad,
-            angular_velocity_std_rad_s=config.imu_angular_velocity_noise_std_rad_s,
-            linear_acceleration_std_m_s2=config.imu_linear_acceleration_noise_std_m_s2,
-            rng=numpy.random.default_rng([config.noise_seed, 1]))
+            orientation_noise=config.noise('imu_orientation'),
+            angular_velocity_noise=config.noise('imu_angular_velocity'),
+            linear_acceleration_noise=config.noise('imu_linear_acceleration'),
+            rng=noise_generator(config.noise_seed, self._body.name, 'imu'),
+            period_s=1.0 / config.imu_rate_hz)
 
     def restart_noise(self) -> None:
         """Start afresh as at start-up (a full reset): the noise stream from its seed."""

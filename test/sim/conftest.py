@@ -11,9 +11,10 @@ import pytest
 @pytest.fixture
 def make(request):
     """
-    Provide ``make(errors=None, **parameters) -> Simulation``, each closed after the test.
+    Provide a builder of simulations, each closed after the test.
 
-    Parameters as ``sim_node`` takes them (``robots`` and ``NAME.parameter``
+    ``make(errors=None, **parameters)`` returns a Simulation built from
+    parameters as ``sim_node`` takes them (``robots`` and ``NAME.parameter``
     too); ``errors``, a list, receives the simulation's one-line error reports.
     """
     from r2d2_sim.sim.robot_parameters import parse_world
