@@ -27,7 +27,9 @@ from pybullet_utils.bullet_client import BulletClient  # noqa: I100 (after the q
 __all__ = ['RAY_EXCLUDED_GROUP', 'RAY_MASK', 'ray_mask', 'exclude_from_rays', 'cast_rays']
 
 RAY_EXCLUDED_GROUP = 4
-MAX_BATCH_SIZE = pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE
+# PyBullet 3.2.7 names 16,384 its limit, but a batch of exactly that many
+# returns no results at all (and one more raises): 16,383 is the most a call takes.
+MAX_BATCH_SIZE = pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE - 1
 
 
 def ray_mask(group: int) -> int:
@@ -69,7 +71,7 @@ def cast_rays(client: BulletClient, starts: Sequence[Sequence[float]],
 
     A fraction f means the first hit is at start + f * (end - start); 1.0
     means no hit. Batches of at most ``batch_size`` rays keep within PyBullet's
-    limit (MAX_RAY_INTERSECTION_BATCH_SIZE).
+    limit (:data:`MAX_BATCH_SIZE`, one less than its MAX_RAY_INTERSECTION_BATCH_SIZE).
     """
     starts = numpy.asarray(starts, dtype=float)
     ends = numpy.asarray(ends, dtype=float)
@@ -83,6 +85,9 @@ def cast_rays(client: BulletClient, starts: Sequence[Sequence[float]],
         hits = client.rayTestBatch(starts[first:first + batch_size],
                                    ends[first:first + batch_size],
                                    collisionFilterMask=mask)
+        if len(hits) != len(starts[first:first + batch_size]):
+            raise RuntimeError(f'rayTestBatch answered {len(hits)} of '
+                               f'{len(starts[first:first + batch_size])} rays')
         fractions.extend(fraction if object_id != -1 else 1.0
                          for object_id, _, fraction, _, _ in hits)
     return numpy.array(fractions, dtype=float)
