@@ -74,7 +74,8 @@ class HeadCamera:
                                 quaternion_from_rpy(-math.pi / 2, 0.0, -math.pi / 2)))
         width, height, fov = (config.camera_width_px, config.camera_height_px,
                               config.camera_fov_deg)
-        self.intrinsics = camera.intrinsics(width, height, fov)
+        # As CameraInfo publishes them: where the renderer samples each pixel.
+        self.intrinsics = camera.image_intrinsics(width, height, fov)
         self._projection = camera.projection_matrix(
             width, height, fov, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
         self._config = config
