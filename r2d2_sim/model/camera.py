@@ -1,8 +1,8 @@
 """
 Pinhole camera math for the head camera: intrinsics, OpenGL matrices, depth to points.
 
-No ROS and no PyBullet here (numpy for the point cloud). The matrices are column-major 4x4 lists, the
-layout ``getCameraImage`` takes (and ``computeViewMatrix`` /
+No ROS and no PyBullet here (numpy for the point cloud). The matrices are
+column-major 4x4 lists, the layout ``getCameraImage`` takes (and ``computeViewMatrix`` /
 ``computeProjectionMatrixFOV`` return); the intrinsics are those a ROS
 ``CameraInfo`` carries for the same image, so both describe one camera.
 """

@@ -34,6 +34,9 @@ __all__ = [
     'ImuModel',
     'linearize_depth',
     'noisy_depth',
+    'LidarGeometry',
+    'lidar_directions',
+    'lidar_ranges',
 ]
 
 Vec3 = Tuple[float, float, float]
@@ -218,6 +221,93 @@ def ranges_from_hits(hit_fractions: Sequence[float], geometry: ScanGeometry,
     ranges_m[no_return] = math.inf
     ranges_m[too_close] = -math.inf
     return ranges_m.astype(numpy.float32)
+
+
+# --------------------------------------------------------------------------- 3D lidar
+
+
+@dataclass(frozen=True)
+class LidarGeometry:
+    """
+    A multi-ring lidar: ``rings`` cones of beams, each with ``samples`` beams around a full turn.
+
+    Ring 0 is the lowest (elevation ``angle_min_rad``, negative below the
+    sensor's x-y plane), the last the highest (``angle_max_rad``), evenly
+    apart; the rings are numbered as Velodyne drivers number them. Each
+    ring's beams start behind the sensor (azimuth -pi) and go round
+    counter-clockwise, 2 pi / samples apart, as a full-circle LaserScan's.
+    """
+
+    rings: int
+    angle_min_rad: float
+    angle_max_rad: float
+    samples: int
+    range_min_m: float
+    range_max_m: float
+
+    def __post_init__(self) -> None:
+        """Validate the fields; store the angles and ranges as floats."""
+        for name in ('rings', 'samples'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+                raise SensorConfigError(f'{name} must be an integer >= 1, got {value!r}')
+            object.__setattr__(self, name, int(value))
+        low = _require_number('angle_min_rad', self.angle_min_rad, minimum=-math.pi / 2)
+        high = _require_number('angle_max_rad', self.angle_max_rad, minimum=low)
+        if high > math.pi / 2:
+            raise SensorConfigError(f'angle_max_rad must be at most pi/2, got {high!r}')
+        if self.rings > 1 and high == low:
+            raise SensorConfigError('several rings need angle_max_rad above angle_min_rad, '
+                                    f'got both {low!r}')
+        range_min_m = _require_number('range_min_m', self.range_min_m, minimum=0.0)
+        range_max_m = _require_number('range_max_m', self.range_max_m, minimum=range_min_m,
+                                      strict=True)
+        object.__setattr__(self, 'angle_min_rad', low)
+        object.__setattr__(self, 'angle_max_rad', high)
+        object.__setattr__(self, 'range_min_m', range_min_m)
+        object.__setattr__(self, 'range_max_m', range_max_m)
+
+    @property
+    def elevations_rad(self) -> numpy.ndarray:
+        """Return each ring's elevation, lowest first."""
+        return numpy.linspace(self.angle_min_rad, self.angle_max_rad, self.rings)
+
+    @property
+    def azimuths_rad(self) -> numpy.ndarray:
+        """Return each beam's azimuth within a ring, from -pi counter-clockwise."""
+        return -math.pi + 2.0 * math.pi / self.samples * numpy.arange(self.samples)
+
+
+def lidar_directions(geometry: LidarGeometry) -> numpy.ndarray:
+    """Return the unit direction of every beam in the sensor frame, (rings, samples, 3)."""
+    elevation = geometry.elevations_rad[:, None]
+    azimuth = geometry.azimuths_rad[None, :]
+    return numpy.stack(numpy.broadcast_arrays(numpy.cos(elevation) * numpy.cos(azimuth),
+                                              numpy.cos(elevation) * numpy.sin(azimuth),
+                                              numpy.sin(elevation)), axis=-1)
+
+
+def lidar_ranges(hit_fractions: Sequence[float], geometry: LidarGeometry,
+                 noise: Optional[NoiseModel] = None) -> numpy.ndarray:
+    """
+    Turn hit fractions along rays of ``range_max_m`` into ranges, (rings, samples) float64.
+
+    As :func:`ranges_from_hits` does (noise drawn for every beam, rounded,
+    clipped into the range), except that a beam without a return within
+    range, or with one closer than ``range_min_m``, is NaN: a point cloud
+    has no place for REP-117's infinities, and an organised one keeps a NaN
+    point in the place of every beam that measured nothing.
+    """
+    fractions = numpy.asarray(hit_fractions, dtype=float)
+    shape = (geometry.rings, geometry.samples)
+    if fractions.size != geometry.rings * geometry.samples:
+        raise ValueError(f'expected {shape[0] * shape[1]} hit fractions, got {fractions.size}')
+    ranges_m = fractions.reshape(shape) * geometry.range_max_m
+    invalid = (fractions.reshape(shape) >= 1.0) | (ranges_m < geometry.range_min_m)
+    if noise is not None and not noise.exact:
+        ranges_m = numpy.clip(noise.apply(ranges_m), geometry.range_min_m, geometry.range_max_m)
+    ranges_m[invalid] = numpy.nan
+    return ranges_m
 
 
 # --------------------------------------------------------------------------- rotations

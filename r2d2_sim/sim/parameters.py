@@ -41,6 +41,7 @@ FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.p
 # The frames of the node's own sensors (with frame_prefix in front), and the
 # URDF link the head camera's frame hangs from; r2d2_sim.sim.sensor_mounts mounts them.
 LASER_FRAME_ID = 'base_scan'
+LIDAR3D_FRAME_ID = 'lidar_3d'
 IMU_FRAME_ID = 'imu_link'
 HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
 HEAD_CAMERA_LINK = 'head'
@@ -187,6 +188,7 @@ NOISE_FAMILIES: Dict[str, NoiseFamily] = {family.prefix: family for family in (
                 'last reading (0.01 = 1 %; a bias is a wheel radius off by that fraction)',
                 '', 1.0, 'rad: the encoder tick, 2 pi / ticks per turn', 2.0 * math.pi),
     NoiseFamily('depth', 'Depth image noise, each pixel', 'm', 10.0, 'm', 10.0),
+    NoiseFamily('lidar3d', '3D lidar range noise, each beam', 'm', 10.0, 'm', 10.0),
 )}
 
 
@@ -317,6 +319,11 @@ PARAMETERS: List[Parameter] = [
     Parameter('camera_depth', 'bool', False,
               'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
               'camera_depth', read.boolean, per_robot=True),
+    Parameter('camera_point_cloud', 'bool', False,
+              'With the camera on, also publish camera/depth/points: the depth as an organised '
+              'sensor_msgs/PointCloud2 (x y z float32 in the optical frame, NaN where the '
+              'depth is not finite), at camera_rate.',
+              'camera_point_cloud', read.boolean, per_robot=True),
     *_noise_parameters('depth'),
     Parameter('world', 'string', '',
               'A world to load around the robot at the origin, resolved like urdf '
@@ -356,6 +363,36 @@ PARAMETERS: List[Parameter] = [
               'IMU messages per simulated second (Hz) on imu; 0 turns the IMU off.',
               'imu_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
               per_robot=True),
+    Parameter('lidar3d_rate', 'double', 0.0,
+              'Multi-ring 3D lidar scans per simulated second (Hz) on points '
+              '(sensor_msgs/PointCloud2 as Velodyne drivers publish it); 0 turns it off.',
+              'lidar3d_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
+    Parameter('lidar3d_rings', 'integer', 16, 'Rings (beams stacked vertically) of the 3D lidar.',
+              'lidar3d_rings', read.integer, Bounds(1, 256), per_robot=True),
+    Parameter('lidar3d_samples', 'integer', 1800,
+              'Beams per ring around a full turn (1800: 0.2 degrees apart).',
+              'lidar3d_samples', read.integer, Bounds(1, 10000), per_robot=True),
+    Parameter('lidar3d_angle_min', 'double', -math.radians(15.0),
+              'Elevation of the lowest ring in rad (negative: below the horizon).',
+              'lidar3d_angle_min_rad', read.number, Bounds(-math.pi / 2, math.pi / 2, 'rad'),
+              per_robot=True),
+    Parameter('lidar3d_angle_max', 'double', math.radians(15.0),
+              'Elevation of the highest ring in rad.',
+              'lidar3d_angle_max_rad', read.number, Bounds(-math.pi / 2, math.pi / 2, 'rad'),
+              per_robot=True),
+    Parameter('lidar3d_range_min', 'double', 0.3,
+              '3D lidar: closest range in m; nearer returns are NaN points.',
+              'lidar3d_range_min_m', read.non_negative, Bounds(0.0, 100.0, 'm'), per_robot=True),
+    Parameter('lidar3d_range_max', 'double', 100.0,
+              '3D lidar: farthest range in m; beams without a return are NaN points.',
+              'lidar3d_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm'), per_robot=True),
+    Parameter('lidar3d_height', 'double', 0.0,
+              '3D lidar: height of its frame above the ground in m, on the body\'s axis; 0 puts '
+              'it 5 cm above the robot\'s highest point.',
+              'lidar3d_height_m', read.non_negative, Bounds(0.01, 100.0, 'm', 'on top'),
+              per_robot=True),
+    *_noise_parameters('lidar3d'),
     *_noise_parameters('imu_orientation'),
     *_noise_parameters('imu_angular_velocity'),
     *_noise_parameters('imu_linear_acceleration'),
@@ -462,7 +499,8 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     """Check what no single value shows: rates against physics, wheel lists, ranges, frames."""
     physics_rate = fields['physics_rate_hz']
     for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz'),
-                        ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz')):
+                        ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz'),
+                        ('lidar3d_rate', 'lidar3d_rate_hz')):
         if fields[field] > physics_rate:
             raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
                               f'physics_rate ({physics_rate} Hz)')
@@ -486,6 +524,13 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     if not fields['scan_range_min_m'] < fields['scan_range_max_m']:
         raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
                           f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')
+    if not fields['lidar3d_range_min_m'] < fields['lidar3d_range_max_m']:
+        raise ConfigError('parameter lidar3d_range_min must be below lidar3d_range_max, got '
+                          f'{fields["lidar3d_range_min_m"]} >= {fields["lidar3d_range_max_m"]}')
+    low, high = fields['lidar3d_angle_min_rad'], fields['lidar3d_angle_max_rad']
+    if not (low < high or (low == high and fields['lidar3d_rings'] == 1)):
+        raise ConfigError('parameter lidar3d_angle_min must be below lidar3d_angle_max (equal '
+                          f'only with one ring), got {low} and {high}')
     _check_frames(fields)
 
 
@@ -506,6 +551,7 @@ def _check_frames(fields: Mapping[str, Any]) -> None:
     sensors = []
     for rate, frames, what, switch in (
             ('scan_rate_hz', (LASER_FRAME_ID,), "the laser's frame", 'scan_rate > 0'),
+            ('lidar3d_rate_hz', (LIDAR3D_FRAME_ID,), "the 3D lidar's frame", 'lidar3d_rate > 0'),
             ('imu_rate_hz', (IMU_FRAME_ID,), "the IMU's frame", 'imu_rate > 0'),
             ('camera_rate_hz', (HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK),
              "a head camera frame", 'camera_rate > 0')):

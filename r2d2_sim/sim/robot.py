@@ -24,7 +24,7 @@ from r2d2_sim.model.noise import noise_generator
 from r2d2_sim.sim.drive_train import DriveTrain, find_drive_train
 from r2d2_sim.model.kinematics import OdometryState
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
-from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner
+from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner, Lidar3d
 from r2d2_sim.model.sensors import ImuReading
 from r2d2_sim.model.timing import stamp_of, StepSchedule
 from r2d2_sim.physics.world import SimWorld, SPAWN_CLEARANCE_M
@@ -55,6 +55,7 @@ class Measurement(NamedTuple):
     image: Optional[CameraImage]         # the head camera, at camera_rate
     scan: Optional[numpy.ndarray]        # REP-117 ranges (float32), at scan_rate
     imu: Optional[ImuReading]            # at imu_rate
+    lidar: Optional[numpy.ndarray] = None  # 3D lidar points (rings, samples, 3), lidar3d_rate
 
 
 def _ignore(text: str) -> None:
@@ -90,6 +91,8 @@ class Robot:
         self._error = error
         self._resources = list(resources)
         self.laser: Optional[LaserScanner] = None
+        self.lidar: Optional[Lidar3d] = None
+        self.ray_group: Optional[int] = None  # the world's collision bit its rays pass through
         problem = body.state_problem()
         if problem is not None:
             raise ConfigError(f'the robot cannot start there: {problem}')
@@ -111,11 +114,24 @@ class Robot:
             self._build_controller(self.drive)
         rate, step = config.physics_rate_hz, world.step_count
         self.camera = HeadCamera(world, body, config) if config.camera_rate_hz else None
-        self.laser = (LaserScanner(world, body, config, self.footprint_height_m)
-                      if config.scan_rate_hz else None)
+        self._camera_depth = config.camera_depth or config.camera_point_cloud
+        if config.scan_rate_hz or config.lidar3d_rate_hz:
+            self.ray_group = world.take_ray_group()
+            try:
+                if config.scan_rate_hz:
+                    self.laser = LaserScanner(world, body, config, self.footprint_height_m,
+                                              self.ray_group)
+                if config.lidar3d_rate_hz:
+                    self.lidar = Lidar3d(world, body, config, self.footprint_height_m,
+                                         self.ray_group)
+            except Exception:
+                world.release_ray_group(self.ray_group)
+                raise
         self.imu = ImuSensor(body, config) if config.imu_rate_hz else None
         self._camera_due = StepSchedule(rate, config.camera_rate_hz, step) if self.camera else None
         self._scan_due = StepSchedule(rate, config.scan_rate_hz, step) if self.laser else None
+        self._lidar_due = (StepSchedule(rate, config.lidar3d_rate_hz, step) if self.lidar
+                           else None)
         self._imu_due = StepSchedule(rate, config.imu_rate_hz, step) if self.imu else None
         self._time_step_s = 1.0 / rate
 
@@ -173,13 +189,15 @@ class Robot:
         """
         camera = self._camera_due is not None and self._camera_due.due(step)
         scan = self._scan_due is not None and self._scan_due.due(step)
+        lidar = self._lidar_due is not None and self._lidar_due.due(step)
         imu = self._imu_due is not None and self._imu_due.due(step)
+        sensing = camera or scan or lidar or imu
         frame = None
         if state_due:
             frame = self.read_frame(step, time_ns)
         else:
             body = self.body
-            if camera or scan or imu:
+            if sensing:
                 problem = body.state_problem()
                 if problem is None and camera:  # the camera rides on the head's joint
                     indices = self.movable_indices
@@ -188,13 +206,14 @@ class Robot:
                 problem = body.twist_problem()
             if problem is not None:
                 self._recover(problem, time_ns)
-            if not (camera or scan or imu):
+            if not sensing:
                 return None
         return Measurement(
             time_ns, frame,
-            self.camera.render(depth=self.config.camera_depth) if camera else None,
+            self.camera.render(depth=self._camera_depth) if camera else None,
             self.laser.scan() if scan else None,
-            self.imu.read(time_ns / 1e9) if imu else None)
+            self.imu.read(time_ns / 1e9) if imu else None,
+            self.lidar.scan() if lidar else None)
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""
@@ -216,7 +235,7 @@ class Robot:
     def restart_time(self, steps_back: int) -> None:
         """Start the sensor rates afresh: the step count went back ``steps_back`` (a reset)."""
         step = self.world.step_count
-        for schedule in (self._camera_due, self._scan_due, self._imu_due):
+        for schedule in (self._camera_due, self._scan_due, self._lidar_due, self._imu_due):
             if schedule is not None:
                 schedule.restart(step)
         if self.controller is not None:
@@ -226,7 +245,7 @@ class Robot:
 
     def restart_noise(self) -> None:
         """Start every noise stream again from the seed, as at start-up (a full reset)."""
-        for sensor in (self.laser, self.imu, self.camera):
+        for sensor in (self.laser, self.lidar, self.imu, self.camera):
             if sensor is not None:
                 sensor.restart_noise()
         if self.controller is not None:
@@ -258,8 +277,9 @@ class Robot:
 
     def close(self) -> None:
         """Give back what the robot holds in the world (its ray group) and close its files."""
-        if self.laser is not None:
-            self.laser.close()
+        if self.ray_group is not None:
+            self.world.release_ray_group(self.ray_group)
+            self.ray_group = None
         for resource in self._resources:
             resource.close()
         self._resources.clear()

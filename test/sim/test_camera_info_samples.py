@@ -14,25 +14,8 @@ each point's distance to the room's analytic surfaces.
 import numpy
 import pytest
 
+from common import distance_to_the_room, ROOM
 from r2d2_sim.model.transforms import apply, compose, Transform
-
-ROOM = 'package://r2d2_sim/urdf/room.urdf'
-# The room (urdf/room.urdf): four walls and three boxes, (low corner, high corner).
-SOLIDS = [((2.0, -2.6, 0.0), (2.1, 2.6, 1.0)), ((-3.1, -2.6, 0.0), (-3.0, 2.6, 1.0)),
-          ((-3.0, 2.5, 0.0), (2.0, 2.6, 1.0)), ((-3.0, -2.6, 0.0), (2.0, -2.5, 1.0)),
-          ((0.8, 1.0, 0.0), (1.2, 1.4, 0.4)), ((-1.7, -1.2, 0.0), (-1.3, -0.8, 0.4)),
-          ((-0.2, -1.7, 0.0), (0.2, -1.3, 0.4))]
-
-
-def distance_to_the_room(points):
-    """Return each point's distance to the nearest surface: the floor or a solid's face."""
-    distance = numpy.abs(points[:, 2])
-    for low, high in SOLIDS:
-        centre, half = (numpy.add(low, high) / 2.0, numpy.subtract(high, low) / 2.0)
-        q = numpy.abs(points - centre) - half
-        signed = numpy.linalg.norm(numpy.maximum(q, 0.0), axis=1) + numpy.minimum(q.max(1), 0.0)
-        distance = numpy.minimum(distance, numpy.abs(signed))
-    return distance
 
 
 def projected_as_ros_does(simulation):
