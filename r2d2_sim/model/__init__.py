@@ -5,6 +5,6 @@ Differential-drive kinematics and odometry (:mod:`.kinematics`), the drive
 controller from command to wheel targets (:mod:`.drive_controller`), rigid
 transforms and a tf2-style buffer of them (:mod:`.transforms`, :mod:`.tf_buffer`),
 sensor models (:mod:`.sensors`, :mod:`.camera`), Gazebo's sensor noise
-(:mod:`.noise`) and wheel encoders that err (:mod:`.encoders`), physics health checks
-(:mod:`.health`) and step timing (:mod:`.timing`).
+(:mod:`.noise`), wheel encoders that err (:mod:`.encoders`), a battery
+(:mod:`.battery`), physics health checks (:mod:`.health`) and step timing (:mod:`.timing`).
 """

@@ -133,6 +133,10 @@ class DriveController:
         self.ramped = ramp_twist(self.ramped, self.target, self.limits, self.time_step_s)
         return self._wheel_velocities(*twist_to_wheel_velocities(self.geometry, *self.ramped))
 
+    def joint_targets(self) -> List[float]:
+        """Return the wheel joint velocity targets now (left wheels, then right, joint space)."""
+        return self._wheel_velocities(*self.wheel_targets)
+
     def _wheel_velocities(self, left_rad_s: float, right_rad_s: float) -> List[float]:
         self.wheel_targets = (left_rad_s, right_rad_s)
         sign = self.wheel_velocity_sign

@@ -17,6 +17,7 @@ into the serialized bytes, which spares rclpy converting a million-element
 ``uint8[]`` each time.
 """
 
+import math
 from typing import List, Optional, Sequence
 
 import numpy
@@ -24,9 +25,10 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, PointCloud2, PointField
+from sensor_msgs.msg import (
+    BatteryState, CameraInfo, Image, Imu, JointState, LaserScan, PointCloud2, PointField)
 
-from r2d2_sim.model import camera
+from r2d2_sim.model import battery, camera
 from r2d2_sim.physics.records import JointRecord
 from r2d2_sim.model.camera import CameraIntrinsics
 from r2d2_sim.sim.parameters import SimConfig
@@ -42,7 +44,7 @@ from r2d2_sim.model.transforms import yaw_to_quaternion
 
 __all__ = ['STATE_QOS', 'CAMERA_QOS', 'SENSOR_QOS', 'ClockOutput', 'JointStateOutput',
            'GroundTruthOutput', 'OdometryOutput', 'HeadCameraOutput', 'ScanOutput', 'ImuOutput',
-           'Lidar3dOutput', 'PointCloudTemplate', 'RobotOutputs']
+           'Lidar3dOutput', 'PointCloudTemplate', 'BatteryOutput', 'RobotOutputs']
 
 # Reliable with a modest queue: default subscribers and sensor-data (best
 # effort) subscribers both match it.
@@ -348,6 +350,43 @@ class Lidar3dOutput:
         self._publisher.publish(cloud.template.to_bytes())
 
 
+class BatteryOutput:
+    """
+    ``battery_state`` (sensor_msgs/BatteryState) at ``battery_rate``, in the robot's base frame.
+
+    Voltage, current (negative discharging), charge, capacity and percentage
+    from :class:`~r2d2_sim.model.battery.Battery`; power_supply_status
+    CHARGING, DISCHARGING or FULL; no temperature (NaN), health GOOD,
+    technology LION, present. One template per status (a status is a single
+    byte, too short to locate): the reading's status picks the one to patch.
+    """
+
+    def __init__(self, node: Node, config: SimConfig, capacity_ah: float) -> None:
+        self._publisher = node.create_publisher(BatteryState, 'battery_state', SENSOR_QOS)
+        self._templates = {}
+        for status in (battery.CHARGING, battery.DISCHARGING, battery.FULL):
+            msg = BatteryState(temperature=math.nan, capacity=capacity_ah,
+                               design_capacity=capacity_ah, power_supply_status=status,
+                               power_supply_health=BatteryState.POWER_SUPPLY_HEALTH_GOOD,
+                               power_supply_technology=BatteryState.POWER_SUPPLY_TECHNOLOGY_LION,
+                               present=True)
+            msg.header.frame_id = config.frame(config.base_frame_id)
+            template = MessageTemplate(msg)
+            self._templates[status] = (template, template.stamp(), *(
+                template.field(name) for name in ('voltage', 'current', 'charge',
+                                                  'percentage')))
+
+    def publish(self, time_ns: int, reading: battery.BatteryReading) -> None:
+        """Publish the battery as read at ``time_ns``."""
+        template, stamp, voltage, current, charge, percentage = self._templates[reading.status]
+        stamp.set_nanoseconds(time_ns)
+        voltage.set((reading.voltage_v,))
+        current.set((reading.current_a,))
+        charge.set((reading.charge_ah,))
+        percentage.set((reading.percentage,))
+        self._publisher.publish(template.to_bytes())
+
+
 class RobotOutputs:
     """
     Everything one robot publishes, built from its configuration; hands each measurement out.
@@ -368,6 +407,8 @@ class RobotOutputs:
         self.imu = ImuOutput(node, config, robot.imu.model) if robot.imu is not None else None
         self.lidar = (Lidar3dOutput(node, config, robot.lidar.geometry)
                       if robot.lidar is not None else None)
+        self.battery = (BatteryOutput(node, config, robot.battery.spec.capacity_ah)
+                        if robot.battery is not None else None)
         self.tf = start_tf(node, config, robot, time_ns) if config.publish_tf else None
         if self.tf is not None:
             self.state.append(self.tf)
@@ -386,3 +427,5 @@ class RobotOutputs:
             self.imu.publish(measurement.time_ns, measurement.imu)
         if measurement.lidar is not None:
             self.lidar.publish(measurement.time_ns, measurement.lidar)
+        if measurement.battery is not None:
+            self.battery.publish(measurement.time_ns, measurement.battery)

@@ -401,6 +401,59 @@ PARAMETERS: List[Parameter] = [
               'Seed of every noise stream of the robot\'s sensors, each its own stream from this, '
               'the robot\'s name and the sensor (runs and full resets repeat).',
               'noise_seed', read.integer, Bounds(0, 2**31 - 1), per_robot=True),
+    Parameter('battery_rate', 'double', 0.0,
+              'sensor_msgs/BatteryState messages per simulated second (Hz) on battery_state '
+              '(Nav2 docking\'s topic); 0 turns the battery off (the robot never runs out).',
+              'battery_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
+    Parameter('battery_capacity', 'double', 2.0, 'Battery capacity in Ah.',
+              'battery_capacity_ah', read.positive, Bounds(1.0e-6, 10000.0, 'Ah'),
+              per_robot=True),
+    Parameter('battery_initial_charge', 'double', 1.0,
+              'Charge at start-up and after a reset, as a fraction of the capacity.',
+              'battery_initial_charge', read.non_negative, Bounds(0.0, 1.0), per_robot=True),
+    Parameter('battery_voltage_empty', 'double', 12.8,
+              'Battery voltage (V) when empty; it rises linearly with the charge.',
+              'battery_voltage_empty_v', read.non_negative, Bounds(0.0, 1000.0, 'V'),
+              per_robot=True),
+    Parameter('battery_voltage_full', 'double', 16.8, 'Battery voltage (V) when full.',
+              'battery_voltage_full_v', read.positive, Bounds(0.001, 1000.0, 'V'),
+              per_robot=True),
+    Parameter('battery_idle_current', 'double', 0.5,
+              'Current (A) the robot draws standing still (its electronics).',
+              'battery_idle_current_a', read.non_negative, Bounds(0.0, 1000.0, 'A'),
+              per_robot=True),
+    Parameter('battery_current_per_effort', 'double', 1.0,
+              'Current (A) drawn per N m of torque the wheel motors apply, summed over the '
+              'wheels.',
+              'battery_current_per_effort_a_n_m', read.non_negative,
+              Bounds(0.0, 1000.0, 'A/(N m)'), per_robot=True),
+    Parameter('battery_current_per_speed', 'double', 0.02,
+              'Current (A) drawn per rad/s of wheel speed, summed over the wheels.',
+              'battery_current_per_speed_a_rad_s', read.non_negative,
+              Bounds(0.0, 1000.0, 'A/(rad/s)'), per_robot=True),
+    Parameter('battery_charge_current', 'double', 2.0,
+              'Current (A) a dock feeds; above the robot\'s draw (and above Nav2\'s '
+              'charging_threshold, 0.5 A) the battery charges.',
+              'battery_charge_current_a', read.non_negative, Bounds(0.0, 1000.0, 'A'),
+              per_robot=True),
+    Parameter('battery_dock_pose', 'double_array', [],
+              'The dock: [x (m), y (m), yaw (rad)] in the world frame, where a robot resting '
+              '(base slower than 5 cm/s) charges; [] for none. A named pose of the world can '
+              'give it later.',
+              'battery_dock_pose', read.optional_numbers(3), per_robot=True),
+    Parameter('battery_dock_tolerance', 'double_array', [0.1, 0.2],
+              'How near the dock pose counts as on it: [position (m), yaw (rad)].',
+              'battery_dock_tolerance', read.numbers(2), Bounds(0.0, 100.0), per_robot=True),
+    Parameter('battery_empty_behaviour', 'string', 'stop',
+              'What an empty robot does: stop (its wheels brake), slow (at '
+              'battery_empty_speed of its commands) or continue.',
+              'battery_empty_behaviour', read.choice(['stop', 'slow', 'continue']),
+              per_robot=True),
+    Parameter('battery_empty_speed', 'double', 0.3,
+              'With battery_empty_behaviour slow: the fraction of its wheel speeds an empty '
+              'robot keeps.',
+              'battery_empty_speed', read.ratio, per_robot=True),
     Parameter('enable_stamped_cmd_vel', 'bool', False,
               'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name); a '
               'zero stamp means now, one older than cmd_vel_timeout is refused with a warning.',
@@ -500,7 +553,7 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     physics_rate = fields['physics_rate_hz']
     for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz'),
                         ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz'),
-                        ('lidar3d_rate', 'lidar3d_rate_hz')):
+                        ('lidar3d_rate', 'lidar3d_rate_hz'), ('battery_rate', 'battery_rate_hz')):
         if fields[field] > physics_rate:
             raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
                               f'physics_rate ({physics_rate} Hz)')
@@ -527,6 +580,10 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     if not fields['lidar3d_range_min_m'] < fields['lidar3d_range_max_m']:
         raise ConfigError('parameter lidar3d_range_min must be below lidar3d_range_max, got '
                           f'{fields["lidar3d_range_min_m"]} >= {fields["lidar3d_range_max_m"]}')
+    if not fields['battery_voltage_empty_v'] < fields['battery_voltage_full_v']:
+        raise ConfigError('parameter battery_voltage_empty must be below battery_voltage_full, '
+                          f'got {fields["battery_voltage_empty_v"]} >= '
+                          f'{fields["battery_voltage_full_v"]}')
     low, high = fields['lidar3d_angle_min_rad'], fields['lidar3d_angle_max_rad']
     if not (low < high or (low == high and fields['lidar3d_rings'] == 1)):
         raise ConfigError('parameter lidar3d_angle_min must be below lidar3d_angle_max (equal '

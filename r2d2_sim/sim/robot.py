@@ -10,15 +10,17 @@ odometry) and each sensor at its own rate. Measurements are plain data in a
 started, alone.
 """
 
+import math
 from typing import Callable, List, NamedTuple, Optional, Sequence
 
 import numpy
 
 from r2d2_sim.physics.body import Body
-from r2d2_sim.model.transforms import BaseState
+from r2d2_sim.model.transforms import BaseState, yaw_of
 from r2d2_sim.physics.records import JointRecord, JointStates
 from r2d2_sim.model.drive_controller import (
     CommandVerdict, DriveController, NO_WHEELS, timeout_steps)
+from r2d2_sim.model.battery import Battery, BatteryReading, BatterySpec, Dock
 from r2d2_sim.model.encoders import Encoders, OdometryCovariance
 from r2d2_sim.model.noise import noise_generator
 from r2d2_sim.sim.drive_train import DriveTrain, find_drive_train
@@ -56,10 +58,23 @@ class Measurement(NamedTuple):
     scan: Optional[numpy.ndarray]        # REP-117 ranges (float32), at scan_rate
     imu: Optional[ImuReading]            # at imu_rate
     lidar: Optional[numpy.ndarray] = None  # 3D lidar points (rings, samples, 3), lidar3d_rate
+    battery: Optional[BatteryReading] = None  # at battery_rate
 
 
 def _ignore(text: str) -> None:
     pass
+
+
+def _battery(config: SimConfig) -> Battery:
+    """Return the robot's battery as configured, on its dock if it has one."""
+    spec = BatterySpec(config.battery_capacity_ah, config.battery_initial_charge,
+                       config.battery_voltage_empty_v, config.battery_voltage_full_v,
+                       config.battery_idle_current_a, config.battery_current_per_effort_a_n_m,
+                       config.battery_current_per_speed_a_rad_s, config.battery_charge_current_a)
+    dock = None
+    if config.battery_dock_pose:
+        dock = Dock(*config.battery_dock_pose, *config.battery_dock_tolerance)
+    return Battery(spec, dock)
 
 
 class Robot:
@@ -128,11 +143,16 @@ class Robot:
                 world.release_ray_group(self.ray_group)
                 raise
         self.imu = ImuSensor(body, config) if config.imu_rate_hz else None
+        self.battery = _battery(config) if config.battery_rate_hz else None
+        self._battery_step = step
+        self._speed_factor = 1.0  # of the wheel targets: below 1 once the battery is empty
         self._camera_due = StepSchedule(rate, config.camera_rate_hz, step) if self.camera else None
         self._scan_due = StepSchedule(rate, config.scan_rate_hz, step) if self.laser else None
         self._lidar_due = (StepSchedule(rate, config.lidar3d_rate_hz, step) if self.lidar
                            else None)
         self._imu_due = StepSchedule(rate, config.imu_rate_hz, step) if self.imu else None
+        self._battery_due = (StepSchedule(rate, config.battery_rate_hz, step) if self.battery
+                             else None)
         self._time_step_s = 1.0 / rate
 
     def _build_controller(self, drive: DriveTrain) -> None:
@@ -173,8 +193,20 @@ class Robot:
         controller = self.controller
         if controller is not None:
             targets = controller.update(step)
+            factor = self._battery_speed_factor()
+            if factor != self._speed_factor:  # the battery ran out, or was charged again
+                self._speed_factor = factor
+                targets = controller.joint_targets()
             if targets is not None:
-                self._set_wheels(targets)
+                self._set_wheels(targets if factor == 1.0 else [factor * t for t in targets])
+
+    def _battery_speed_factor(self) -> float:
+        """Return the fraction of their targets the wheels get: 1 unless the battery is empty."""
+        battery = self.battery
+        if battery is None or not battery.empty:
+            return 1.0
+        behaviour = self.config.battery_empty_behaviour
+        return {'stop': 0.0, 'slow': self.config.battery_empty_speed}.get(behaviour, 1.0)
 
     def measure(self, step: int, time_ns: int, state_due: bool) -> Optional[Measurement]:
         """
@@ -191,6 +223,7 @@ class Robot:
         scan = self._scan_due is not None and self._scan_due.due(step)
         lidar = self._lidar_due is not None and self._lidar_due.due(step)
         imu = self._imu_due is not None and self._imu_due.due(step)
+        battery = self._battery_due is not None and self._battery_due.due(step)
         sensing = camera or scan or lidar or imu
         frame = None
         if state_due:
@@ -206,14 +239,15 @@ class Robot:
                 problem = body.twist_problem()
             if problem is not None:
                 self._recover(problem, time_ns)
-            if not sensing:
+            if not (sensing or battery):
                 return None
         return Measurement(
             time_ns, frame,
             self.camera.render(depth=self._camera_depth) if camera else None,
             self.laser.scan() if scan else None,
             self.imu.read(time_ns / 1e9) if imu else None,
-            self.lidar.scan() if lidar else None)
+            self.lidar.scan() if lidar else None,
+            self.battery.reading() if battery else None)
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""
@@ -230,12 +264,27 @@ class Robot:
             positions = joints.positions
             self.controller.update_odometry([positions[s] for s in self._wheel_slots], step)
             odometry = self.controller.odometry_state()
+        if self.battery is not None:
+            self._run_battery(step, joints, base)
         return Frame(step, time_ns, joints, base, odometry)
+
+    def _run_battery(self, step: int, joints: JointStates, base: BaseState) -> None:
+        """Drain or charge the battery over the steps since its last update, by the wheels now."""
+        slots = self._wheel_slots
+        dt_s = (step - self._battery_step) * self._time_step_s
+        self._battery_step = step
+        velocity = base.linear_velocity
+        self.battery.update(dt_s, [joints.efforts[s] for s in slots],
+                            [joints.velocities[s] for s in slots],
+                            (base.position[0], base.position[1], yaw_of(base.orientation)),
+                            math.hypot(velocity[0], velocity[1]))
 
     def restart_time(self, steps_back: int) -> None:
         """Start the sensor rates afresh: the step count went back ``steps_back`` (a reset)."""
         step = self.world.step_count
-        for schedule in (self._camera_due, self._scan_due, self._lidar_due, self._imu_due):
+        self._battery_step -= steps_back
+        for schedule in (self._camera_due, self._scan_due, self._lidar_due, self._imu_due,
+                         self._battery_due):
             if schedule is not None:
                 schedule.restart(step)
         if self.controller is not None:
@@ -271,6 +320,10 @@ class Robot:
         """
         if self.imu is not None:
             self.imu.reset()
+        if self.battery is not None:
+            self.battery.reset()
+            self._battery_step = self.world.step_count
+            self._speed_factor = 1.0
         if self.controller is not None:
             self._set_wheels(self.controller.reset(self.world.step_count,
                                                    self._wheel_positions()))
