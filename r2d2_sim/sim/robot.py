@@ -5,7 +5,10 @@ No ROS here. A :class:`Robot` takes commands (:meth:`Robot.command`), turns
 the latest into wheel motor targets before each physics step
 (:meth:`Robot.drive`), and after the step measures what is due
 (:meth:`Robot.measure`): its state for a publication (joints, base, wheel
-odometry) and each sensor at its own rate. Measurements are plain data in a
+odometry) and each sensor at its own rate. The laser's and the 3D lidar's
+rays are left pending (:meth:`Robot.pending_rays`), so that the simulation
+casts every robot's rays of a step together, then hands each robot its
+answers (:meth:`Robot.take_rays`). Measurements are plain data in a
 :class:`Measurement`; a robot whose physics blew up is put back where it
 started, alone.
 """
@@ -29,7 +32,7 @@ from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner, Lidar3d
 from r2d2_sim.model.sensors import ImuReading
 from r2d2_sim.model.timing import stamp_of, StepSchedule
-from r2d2_sim.physics.world import SimWorld, SPAWN_CLEARANCE_M
+from r2d2_sim.physics.world import RayRequest, SimWorld, SPAWN_CLEARANCE_M
 
 __all__ = ['Frame', 'Measurement', 'Robot', 'DriveTrain']
 
@@ -108,6 +111,8 @@ class Robot:
         self.laser: Optional[LaserScanner] = None
         self.lidar: Optional[Lidar3d] = None
         self.ray_group: Optional[int] = None  # the world's collision bit its rays pass through
+        self._ray_links: List[int] = []  # its links in that group
+        self._pending: List = []  # (sensor, its RayRequest) due at this step, to be cast
         problem = body.state_problem()
         if problem is not None:
             raise ConfigError(f'the robot cannot start there: {problem}')
@@ -142,6 +147,8 @@ class Robot:
             except Exception:
                 world.release_ray_group(self.ray_group)
                 raise
+            self._ray_links = sorted({link for sensor in (self.laser, self.lidar)
+                                      if sensor is not None for link in sensor.excluded_links})
         self.imu = ImuSensor(body, config) if config.imu_rate_hz else None
         self.battery = _battery(config) if config.battery_rate_hz else None
         self._battery_step = step
@@ -241,13 +248,48 @@ class Robot:
                 self._recover(problem, time_ns)
             if not (sensing or battery):
                 return None
+        self._pending = [(sensor, sensor.rays()) for sensor, due in (
+            (self.laser, scan), (self.lidar, lidar)) if due]
         return Measurement(
             time_ns, frame,
             self.camera.render(depth=self._camera_depth) if camera else None,
-            self.laser.scan() if scan else None,
+            None,  # the scan and the lidar's points: once its rays are cast (take_rays)
             self.imu.read(time_ns / 1e9) if imu else None,
-            self.lidar.scan() if lidar else None,
+            None,
             self.battery.reading() if battery else None)
+
+    def pending_rays(self, with_box: bool = False) -> List[RayRequest]:
+        """
+        Return the rays the last :meth:`measure` left to cast (laser, then 3D lidar).
+
+        ``with_box``: with the bounding box of the links they pass through, so
+        that robots out of reach of each other can share a call (a few
+        PyBullet queries: asked only when several robots cast).
+        """
+        if not with_box or not self._pending:
+            return [request for _, request in self._pending]
+        box = self.ray_links_box()
+        return [request._replace(links_box=box) for _, request in self._pending]
+
+    def take_rays(self, measurement: Measurement,
+                  fractions: Sequence[numpy.ndarray]) -> Measurement:
+        """Return ``measurement`` with the scan and the lidar's points from their rays' answers."""
+        readings = {}
+        for (sensor, _), answer in zip(self._pending, fractions):
+            if sensor is self.laser:
+                readings['scan'] = sensor.ranges(answer)
+            else:
+                readings['lidar'] = sensor.points(answer)
+        self._pending = []
+        return measurement._replace(**readings)
+
+    def ray_links_box(self):
+        """Return the bounding box of the links its rays pass through, now ((low), (high))."""
+        boxes = [self.body.aabb(link) for link in self._ray_links]
+        if not boxes:
+            return None
+        return (tuple(min(b.low[k] for b in boxes) for k in range(3)),
+                tuple(max(b.high[k] for b in boxes) for k in range(3)))
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""

@@ -23,7 +23,7 @@ from r2d2_sim.physics.body import Body, WorldError
 from r2d2_sim.sim.parameters import (
     ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID,
     LIDAR3D_FRAME_ID, SimConfig)
-from r2d2_sim.physics.raycast import ray_mask
+from r2d2_sim.physics.raycast import ray_mask, RayRequest
 from r2d2_sim.model.noise import noise_generator, NoiseModel
 from r2d2_sim.model.sensors import (
     ImuModel, ImuReading, lidar_directions, lidar_ranges, LidarGeometry, linearize_depth,
@@ -152,17 +152,28 @@ class LaserScanner:
         ground_z = body.world_state().position[2] - footprint_height_m
         self._group = ray_group
         self._mask = ray_mask(ray_group)
-        body.exclude_from_rays(body.links_spanning_height(ground_z + LASER_HEIGHT_M), ray_group)
+        self.excluded_links = body.links_spanning_height(ground_z + LASER_HEIGHT_M)
+        body.exclude_from_rays(self.excluded_links, ray_group)
 
     def scan(self) -> numpy.ndarray:
         """Cast the beams from where the laser is now; return REP-117 ranges (float32)."""
+        rays = self.rays()
+        return self.ranges(self._world.cast_rays(rays.starts, rays.ends, self._mask))
+
+    def rays(self, links_box=None) -> RayRequest:
+        """Return the beams from where the laser is now, to cast with other sensors' rays."""
         base = self._body.world_state()
         pose = Transform(base.position, base.orientation)
         origin = numpy.array(apply(pose, self.mount.translation))
         ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
         starts = numpy.broadcast_to(origin, ends.shape)
-        return ranges_from_hits(self._world.cast_rays(starts, ends, self._mask), self.geometry,
-                                noise=self._noise)
+        reach = self.geometry.range_max_m
+        return RayRequest(starts, ends, self._group, links_box,
+                          (tuple((origin - reach).tolist()), tuple((origin + reach).tolist())))
+
+    def ranges(self, fractions: numpy.ndarray) -> numpy.ndarray:
+        """Return the beams' REP-117 ranges, float32 with the noise added, from hit fractions."""
+        return ranges_from_hits(fractions, self.geometry, noise=self._noise)
 
     def _new_noise(self) -> NoiseModel:
         config = self._config
@@ -206,8 +217,10 @@ class Lidar3d:
         self.mount = Transform((0.0, 0.0, self.height_m - footprint_height_m), IDENTITY.rotation)
         self.directions = lidar_directions(self.geometry)  # (rings, samples, 3), unit
         self._rays_in_sensor = self.directions.reshape(-1, 3) * self.geometry.range_max_m
+        self._group = ray_group
         self._mask = ray_mask(ray_group)
-        body.exclude_from_rays(self._own_links_in_view(body, base.position, ground_z), ray_group)
+        self.excluded_links = self._own_links_in_view(body, base.position, ground_z)
+        body.exclude_from_rays(self.excluded_links, ray_group)
         self._noise = self._new_noise()
 
     def _own_links_in_view(self, body: Body, axis, ground_z: float):
@@ -241,13 +254,23 @@ class Lidar3d:
         float32 metres in the lidar's frame; NaN for a beam without a return
         within range or with one nearer than range_min.
         """
+        rays = self.rays()
+        return self.points(self._world.cast_rays(rays.starts, rays.ends, self._mask))
+
+    def rays(self, links_box=None) -> RayRequest:
+        """Return the beams from where the lidar is now, to cast with other sensors' rays."""
         base = self._body.world_state()
         pose = Transform(base.position, base.orientation)
         origin = numpy.array(apply(pose, self.mount.translation))
         ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
         starts = numpy.broadcast_to(origin, ends.shape)
-        ranges = lidar_ranges(self._world.cast_rays(starts, ends, self._mask), self.geometry,
-                              self._noise)
+        reach = self.geometry.range_max_m
+        return RayRequest(starts, ends, self._group, links_box,
+                          (tuple((origin - reach).tolist()), tuple((origin + reach).tolist())))
+
+    def points(self, fractions: numpy.ndarray) -> numpy.ndarray:
+        """Return the points of the beams' hit fractions: float32, NaN where none returned."""
+        ranges = lidar_ranges(fractions, self.geometry, self._noise)
         return (self.directions * ranges[:, :, None]).astype(numpy.float32)
 
 
