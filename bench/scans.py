@@ -8,15 +8,15 @@ N robots (1, 2, 4, 8, 16) stand in a row 2 m apart (as ``fleet.py``) with the
 default outputs, in the ROS-free core (no node, no executor). Per N:
 
 - **scan step**: every robot's 360-beam scan of one step, as the simulation
-  casts them (the code of the tree: one call per robot before, every robot's
-  rays together after), divided by N;
+  casts them (the code of the tree: each scan on its own before, every
+  robot's rays collected and cast together after), divided by N;
 - **one robot's own call**: ``LaserScanner.scan()`` of each robot alone;
 - **core step**: ``Simulation.step`` with the default outputs (state every
   step, scan 10 Hz, IMU 100 Hz) minus raw ``stepSimulation`` of the same
   world, per robot (thread CPU time, the best of three 240-step windows).
 
 Then the same for 16 robots 30 m apart (``16 spread``), out of each other's
-reach: there every robot's rays can go into one call.
+reach: what a scan costs without other robots in its way.
 
 With ``--before TREE`` (a checkout of another commit: ``git archive COMMIT |
 tar -x -C TREE``) each round runs that tree and this one in turn, each in a
@@ -70,11 +70,8 @@ def scan_step(simulation):
     if not hasattr(robots[0], 'pending_rays'):  # before batching: a call per robot
         return lambda: [robot.laser.scan() for robot in robots]
 
-    several = len(robots) > 1  # as Simulation.step: the boxes only when robots may share
-
     def batched():
-        requests = [robot.laser.rays(robot.ray_links_box() if several else None)
-                    for robot in robots]
+        requests = [robot.laser.rays() for robot in robots]
         answers = world.cast_requests(requests)
         return [robot.laser.ranges(answer) for robot, answer in zip(robots, answers)]
     return batched

@@ -13,20 +13,23 @@ either pair filter PyBullet offers (``collisionFilterMode``): the default
 (group A & mask B) or (group B & mask A), and the stricter "and", since
 the group & every other body's mask and their groups & -1 are all non-zero.
 
-The mask is one per ``rayTestBatch`` call, so rays that must pass through
-different robots go in different calls, unless they cannot reach each
-other's robot: :func:`cast_requests` casts every sensor's rays of a step in
-as few calls as that allows, each ray exactly as a call of its own would
-(PyBullet filters by mask after testing a shape, so a mask that also drops a
-robot a ray cannot reach changes nothing). Two things measured on PyBullet
-3.2.7's wheel bound what batching can save: rays still test every shape
-whose bounding box they cross, the caster's own robot included (about 0.3
-ms of a 360-beam scan: its laser sits inside its body), and
+The mask is one per ``rayTestBatch`` call, so each robot's rays go in a call
+of their own (:func:`cast_requests`: the simulation casts every robot's rays
+of a step there, a robot's laser and 3D lidar together). Measured on
+PyBullet 3.2.7's wheel, the calls are not what a scan costs: a call costs
+2.3 us, a ray 0.2-3 us, most of it testing every shape whose bounding box
+it crosses, the caster's own robot included (PyBullet applies the mask
+after the test; R2D2's laser sits inside its body: 0.3 ms of a 0.5 ms
+scan). Putting robots out of each other's reach into one call (exact, with
+a mask through both) was tried: finding them cost more than the calls
+saved. Starting rays where they leave the robot's own shapes made a scan
+slower (0.7 ms: rays that start on a surface cost more), starting them
+outside its bounding boxes would hide what lies within; and
 ``rayTestBatch``'s ``numThreads`` does nothing in this build (16,383 rays:
 29-31 ms of wall and CPU time alike at 1, 2, 4 or 0 threads).
 """
 
-from typing import List, NamedTuple, Optional, Sequence, Tuple
+from typing import Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy
 
@@ -106,76 +109,25 @@ def cast_rays(client: BulletClient, starts: Sequence[Sequence[float]],
     return numpy.array(fractions, dtype=float)
 
 
-Box = Tuple[Tuple[float, float, float], Tuple[float, float, float]]  # (low, high) corners
-
-
 class RayRequest(NamedTuple):
-    """
-    One sensor's rays for one step: where they go, and the robot they pass through.
-
-    ``group`` is the collision bit of the links the rays pass through (the
-    robot's ray group; 0: none), ``links_box`` those links' bounding box now
-    (None without a group): another robot's rays that cannot reach that box
-    may share a call with these. ``reach``: a box that holds every ray (None:
-    computed from them; a sensor's rays from one origin, at most R long,
-    give origin +- R for nothing).
-    """
+    """One sensor's rays for one step, and the collision bit of the links they pass through."""
 
     starts: numpy.ndarray  # N x 3, world
     ends: numpy.ndarray    # N x 3, world
-    group: int = 0
-    links_box: Optional[Box] = None
-    reach: Optional[Box] = None
-
-
-def _reach(request: RayRequest) -> Box:
-    """Return the box that holds every ray of a request (its segments lie within)."""
-    if request.reach is not None:
-        return request.reach
-    starts, ends = request.starts, request.ends
-    return (tuple(numpy.minimum(starts.min(axis=0), ends.min(axis=0)).tolist()),
-            tuple(numpy.maximum(starts.max(axis=0), ends.max(axis=0)).tolist()))
-
-
-def _meet(a: Optional[Box], b: Optional[Box], margin_m: float = 0.01) -> bool:
-    """Return True when two boxes overlap, or come within ``margin_m`` of each other."""
-    if a is None or b is None:
-        return False
-    return all(a[0][k] - margin_m <= b[1][k] and b[0][k] - margin_m <= a[1][k]
-               for k in range(3))
+    group: int = 0         # the robot's ray group (0: none; the rays then hit everything)
 
 
 def plan_calls(requests: Sequence[RayRequest]) -> List[Tuple[List[int], int]]:
     """
     Return the calls to cast ``requests`` in: (indices of the requests, mask), in order.
 
-    A call's mask passes through every group in it. A request joins the
-    first call where its rays cannot reach the links of any other group in
-    it and no other group's rays can reach its own (boxes apart by more than
-    a centimetre): there, passing through those links too changes nothing.
-    Requests of one group always share a call. Greedy, in request order.
+    One call per ray group (a robot's laser and 3D lidar share one), in the
+    order the groups first appear; its mask passes through that group only.
     """
-    if len({request.group for request in requests}) == 1:
-        return [(list(range(len(requests))), ray_mask(requests[0].group))] if requests else []
-    reaches = [_reach(request) for request in requests]
-    calls: List[Tuple[List[int], int]] = []
+    calls: Dict[int, List[int]] = {}
     for i, request in enumerate(requests):
-        for members, groups in calls:
-            if all(requests[j].group == request.group
-                   or not (_meet(reaches[i], requests[j].links_box)
-                           or _meet(reaches[j], request.links_box))
-                   for j in members):
-                members.append(i)
-                break
-        else:
-            calls.append(([i], 0))
-    result = []
-    for members, _ in calls:
-        groups = 0
-        for j in members:
-            groups |= requests[j].group
-        result.append((members, -1 ^ groups))
-    return result
+        calls.setdefault(request.group, []).append(i)
+    return [(members, ray_mask(group)) for group, members in calls.items()]
 
 
 def cast_requests(client: BulletClient, requests: Sequence[RayRequest]) -> List[numpy.ndarray]:

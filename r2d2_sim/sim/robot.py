@@ -111,7 +111,6 @@ class Robot:
         self.laser: Optional[LaserScanner] = None
         self.lidar: Optional[Lidar3d] = None
         self.ray_group: Optional[int] = None  # the world's collision bit its rays pass through
-        self._ray_links: List[int] = []  # its links in that group
         self._pending: List = []  # (sensor, its RayRequest) due at this step, to be cast
         problem = body.state_problem()
         if problem is not None:
@@ -147,8 +146,6 @@ class Robot:
             except Exception:
                 world.release_ray_group(self.ray_group)
                 raise
-            self._ray_links = sorted({link for sensor in (self.laser, self.lidar)
-                                      if sensor is not None for link in sensor.excluded_links})
         self.imu = ImuSensor(body, config) if config.imu_rate_hz else None
         self.battery = _battery(config) if config.battery_rate_hz else None
         self._battery_step = step
@@ -258,18 +255,9 @@ class Robot:
             None,
             self.battery.reading() if battery else None)
 
-    def pending_rays(self, with_box: bool = False) -> List[RayRequest]:
-        """
-        Return the rays the last :meth:`measure` left to cast (laser, then 3D lidar).
-
-        ``with_box``: with the bounding box of the links they pass through, so
-        that robots out of reach of each other can share a call (a few
-        PyBullet queries: asked only when several robots cast).
-        """
-        if not with_box or not self._pending:
-            return [request for _, request in self._pending]
-        box = self.ray_links_box()
-        return [request._replace(links_box=box) for _, request in self._pending]
+    def pending_rays(self) -> List[RayRequest]:
+        """Return the rays the last :meth:`measure` left to cast (laser, then 3D lidar)."""
+        return [request for _, request in self._pending]
 
     def take_rays(self, measurement: Measurement,
                   fractions: Sequence[numpy.ndarray]) -> Measurement:
@@ -282,14 +270,6 @@ class Robot:
                 readings['lidar'] = sensor.points(answer)
         self._pending = []
         return measurement._replace(**readings)
-
-    def ray_links_box(self):
-        """Return the bounding box of the links its rays pass through, now ((low), (high))."""
-        boxes = [self.body.aabb(link) for link in self._ray_links]
-        if not boxes:
-            return None
-        return (tuple(min(b.low[k] for b in boxes) for k in range(3)),
-                tuple(max(b.high[k] for b in boxes) for k in range(3)))
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""

@@ -160,16 +160,14 @@ class LaserScanner:
         rays = self.rays()
         return self.ranges(self._world.cast_rays(rays.starts, rays.ends, self._mask))
 
-    def rays(self, links_box=None) -> RayRequest:
+    def rays(self) -> RayRequest:
         """Return the beams from where the laser is now, to cast with other sensors' rays."""
         base = self._body.world_state()
         pose = Transform(base.position, base.orientation)
         origin = numpy.array(apply(pose, self.mount.translation))
         ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
         starts = numpy.broadcast_to(origin, ends.shape)
-        reach = self.geometry.range_max_m
-        return RayRequest(starts, ends, self._group, links_box,
-                          (tuple((origin - reach).tolist()), tuple((origin + reach).tolist())))
+        return RayRequest(starts, ends, self._group)
 
     def ranges(self, fractions: numpy.ndarray) -> numpy.ndarray:
         """Return the beams' REP-117 ranges, float32 with the noise added, from hit fractions."""
@@ -257,16 +255,14 @@ class Lidar3d:
         rays = self.rays()
         return self.points(self._world.cast_rays(rays.starts, rays.ends, self._mask))
 
-    def rays(self, links_box=None) -> RayRequest:
+    def rays(self) -> RayRequest:
         """Return the beams from where the lidar is now, to cast with other sensors' rays."""
         base = self._body.world_state()
         pose = Transform(base.position, base.orientation)
         origin = numpy.array(apply(pose, self.mount.translation))
         ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
         starts = numpy.broadcast_to(origin, ends.shape)
-        reach = self.geometry.range_max_m
-        return RayRequest(starts, ends, self._group, links_box,
-                          (tuple((origin - reach).tolist()), tuple((origin + reach).tolist())))
+        return RayRequest(starts, ends, self._group)
 
     def points(self, fractions: numpy.ndarray) -> numpy.ndarray:
         """Return the points of the beams' hit fractions: float32, NaN where none returned."""

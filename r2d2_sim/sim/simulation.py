@@ -305,13 +305,11 @@ class Simulation:
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
-        casting = [i for i, robot in enumerate(robots)
+        casting = [(i, robot.pending_rays()) for i, robot in enumerate(robots)
                    if measurements[i] is not None and robot.pending_rays()]
         if casting:
-            several = len(casting) > 1
-            casting = [(i, robots[i].pending_rays(with_box=several)) for i in casting]
-            # Every robot's rays of this step together, in as few calls as their
-            # robots allow (raycast.cast_requests); each robot then takes its answers.
+            # Every robot's rays of this step cast together (raycast.cast_requests: a
+            # call per robot, its mask's); each robot then takes its answers.
             answers = iter(world.cast_requests([r for _, rays in casting for r in rays]))
             for i, rays in casting:
                 measurements[i] = robots[i].take_rays(

@@ -1,17 +1,15 @@
 """
 Every robot's rays of a step cast together give each robot the scan it would get alone.
 
-The simulation now casts all robots' laser and 3D lidar rays of a step in as
-few PyBullet calls as their robots allow; before, each robot's scan was a
-call of its own (``LaserScanner.scan``, kept). On the same world, right
-after the step that measured them, the batched scans must equal the
-per-robot ones bit for bit: robots close enough to see each other (separate
-calls), and some far from the rest (sharing one).
+The simulation now collects all robots' laser and 3D lidar rays of a step
+and casts them together (a call per robot, its laser and lidar sharing it);
+before, each sensor's scan was a call of its own (``LaserScanner.scan``,
+kept). On the same world, right after the step that measured them, the
+batched scans must equal the per-sensor ones bit for bit: robots close
+enough to see each other, and some far from the rest.
 """
 
 import numpy
-
-from r2d2_sim.physics.raycast import plan_calls
 
 ROOM = 'package://r2d2_sim/urdf/room.urdf'
 POSES = {'a': [0.0, 0.0, 0.0], 'b': [1.0, 1.5, 2.0], 'c': [-1.5, -1.0, -0.5],
@@ -51,16 +49,3 @@ def test_batched_lidar_points_are_the_per_robot_points_bit_for_bit(make):
     measurements = scans_step(simulation)
     for robot, measurement in zip(simulation.robots, measurements):
         assert measurement.lidar.tobytes() == robot.lidar.scan().tobytes(), robot.name
-
-
-def test_robots_out_of_each_others_reach_share_calls(make):
-    """a, b, c see each other: a call each; d and f see each other; e sees nobody (greedy)."""
-    simulation = make(**fleet())
-    scans_step(simulation)
-    requests = []
-    for robot in simulation.robots:
-        robot.measure(simulation.step_count, simulation.time_ns, False)
-        requests += [robot.laser.rays(robot.ray_links_box())]
-    calls = plan_calls(requests)
-    names = [[simulation.robots[i].name for i in members] for members, _ in calls]
-    assert names == [['a', 'd', 'e'], ['b', 'f'], ['c']]
