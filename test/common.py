@@ -140,3 +140,25 @@ def yaw(angle_rad):
 
 def approx(values, tol=1e-12):
     return pytest.approx(values, abs=tol)
+
+
+# -- the room's surfaces: sim/test_camera_info_samples.py, sim/test_point_clouds_core.py
+
+ROOM = 'package://r2d2_sim/urdf/room.urdf'
+# urdf/room.urdf: four walls and three boxes, each (low corner, high corner), on the floor z = 0.
+ROOM_SOLIDS = [((2.0, -2.6, 0.0), (2.1, 2.6, 1.0)), ((-3.1, -2.6, 0.0), (-3.0, 2.6, 1.0)),
+               ((-3.0, 2.5, 0.0), (2.0, 2.6, 1.0)), ((-3.0, -2.6, 0.0), (2.0, -2.5, 1.0)),
+               ((0.8, 1.0, 0.0), (1.2, 1.4, 0.4)), ((-1.7, -1.2, 0.0), (-1.3, -0.8, 0.4)),
+               ((-0.2, -1.7, 0.0), (0.2, -1.3, 0.4))]
+
+
+def distance_to_the_room(points):
+    """Return each point's (N x 3, world) distance to the room's nearest surface or floor."""
+    import numpy
+    distance = numpy.abs(points[:, 2])
+    for low, high in ROOM_SOLIDS:
+        centre, half = numpy.add(low, high) / 2.0, numpy.subtract(high, low) / 2.0
+        q = numpy.abs(points - centre) - half
+        signed = numpy.linalg.norm(numpy.maximum(q, 0.0), axis=1) + numpy.minimum(q.max(1), 0.0)
+        distance = numpy.minimum(distance, numpy.abs(signed))
+    return distance

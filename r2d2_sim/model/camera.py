@@ -1,8 +1,8 @@
 """
-Pinhole camera math for the head camera: intrinsics and OpenGL matrices.
+Pinhole camera math for the head camera: intrinsics, OpenGL matrices, depth to points.
 
-No ROS and no PyBullet here. The matrices are column-major 4x4 lists, the
-layout ``getCameraImage`` takes (and ``computeViewMatrix`` /
+No ROS and no PyBullet here (numpy for the point cloud). The matrices are
+column-major 4x4 lists, the layout ``getCameraImage`` takes (and ``computeViewMatrix`` /
 ``computeProjectionMatrixFOV`` return); the intrinsics are those a ROS
 ``CameraInfo`` carries for the same image, so both describe one camera.
 """
@@ -10,6 +10,8 @@ layout ``getCameraImage`` takes (and ``computeViewMatrix`` /
 from dataclasses import dataclass
 import math
 from typing import List, Sequence, Tuple
+
+import numpy
 
 from r2d2_sim.model.transforms import rotate
 
@@ -40,6 +42,14 @@ class CameraIntrinsics:
 
 IDENTITY_3X3 = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
 
+# Where PyBullet's ER_TINY_RENDERER samples pixel (u, v) of the image it returns
+# (top row first), in the frustum's continuous coordinates (top-left corner 0,
+# pixels 1 wide): at (u + 0, v + 1), OpenGL's integer pixel coordinates with
+# the rows flipped. Measured: a depth image's cloud built on pixel centres
+# (u + 0.5, v + 0.5) lies 0.5-3 cm off the room's walls, boxes and floor; built
+# on these samples, within 0.1 mm (test/sim/test_camera_info_samples.py).
+TINY_RENDERER_SAMPLE_PX = (0.0, 1.0)
+
 
 def intrinsics(width_px: int, height_px: int, vertical_fov_deg: float) -> CameraIntrinsics:
     """
@@ -54,6 +64,22 @@ def intrinsics(width_px: int, height_px: int, vertical_fov_deg: float) -> Camera
     fy = (height_px / 2.0) / math.tan(math.radians(vertical_fov_deg) / 2.0)
     return CameraIntrinsics(width_px=width_px, height_px=height_px, fx=fy, fy=fy,
                             cx=width_px / 2.0, cy=height_px / 2.0)
+
+
+def image_intrinsics(width_px: int, height_px: int, vertical_fov_deg: float
+                     ) -> CameraIntrinsics:
+    """
+    Return the intrinsics of the images ER_TINY_RENDERER renders, in ROS's pixel convention.
+
+    ROS (CameraInfo, image_geometry, depth_image_proc) puts pixel (u, v)'s
+    ray at (u - cx) / fx, (v - cy) / fy; the renderer samples that pixel
+    :data:`TINY_RENDERER_SAMPLE_PX` from the corner, so the principal point
+    is the frustum's centre less that: (w / 2, h / 2 - 1).
+    """
+    k = intrinsics(width_px, height_px, vertical_fov_deg)
+    du, dv = TINY_RENDERER_SAMPLE_PX
+    return CameraIntrinsics(width_px=k.width_px, height_px=k.height_px, fx=k.fx, fy=k.fy,
+                            cx=k.cx - du, cy=k.cy - dv)
 
 
 def projection_matrix(width_px: int, height_px: int, vertical_fov_deg: float,
@@ -107,3 +133,34 @@ def link_camera_axes(link_orientation: Sequence[float],
     forward_in_link = (math.cos(yaw_offset_rad), math.sin(yaw_offset_rad), 0.0)
     return (rotate(link_orientation, forward_in_link),
             rotate(link_orientation, (0.0, 0.0, 1.0)))
+
+
+def pixel_rays(k: CameraIntrinsics) -> Tuple[numpy.ndarray, numpy.ndarray]:
+    """
+    Return each pixel's (x / z, y / z) in the optical frame, shaped (height, width), float64.
+
+    ``k`` in ROS's convention, as CameraInfo carries it (:func:`image_intrinsics`):
+    x / z = (u - cx) / fx, y / z = (v - cy) / fy (x right, y down, z forward),
+    as depth_image_proc projects a depth image.
+    """
+    u = (numpy.arange(k.width_px) - k.cx) / k.fx
+    v = (numpy.arange(k.height_px) - k.cy) / k.fy
+    return numpy.broadcast_to(u, (k.height_px, k.width_px)), \
+        numpy.broadcast_to(v[:, None], (k.height_px, k.width_px))
+
+
+def depth_points(depth_m: numpy.ndarray, rays: Tuple[numpy.ndarray, numpy.ndarray]
+                 ) -> numpy.ndarray:
+    """
+    Return the organised point cloud of a REP-118 depth image: (height, width, 3) float32.
+
+    Each pixel's point is its depth along the optical axis times its ray
+    (:func:`pixel_rays`), in the optical frame. A pixel without a finite
+    depth (+inf: nothing within range, -inf: too close, NaN) is a point of
+    NaNs, as depth_image_proc makes it, so the cloud keeps its rows and
+    columns.
+    """
+    z = numpy.asarray(depth_m, dtype=numpy.float64)
+    z = numpy.where(numpy.isfinite(z), z, numpy.nan)
+    x_over_z, y_over_z = rays
+    return numpy.stack([x_over_z * z, y_over_z * z, z], axis=-1).astype(numpy.float32)

@@ -7,15 +7,18 @@ plain object, tested with hand-computable numbers. Per command: refuse
 non-finite values, scale to the speed limits keeping the curvature, then, per
 physics step, brake after the timeout, ramp within the acceleration limits and
 fan the left/right wheel speeds out to every wheel joint with the URDF's sign.
-Wheel encoder angles come back in and are integrated into odometry.
+Wheel encoder angles come back in, are counted by the encoders (exact, or
+erring as :mod:`r2d2_sim.model.encoders` says) and integrated into odometry,
+with its covariance when the encoders err.
 """
 
 import math
 from typing import List, NamedTuple, Optional, Sequence, Tuple
 
+from r2d2_sim.model.encoders import Encoders, OdometryCovariance
 from r2d2_sim.model.kinematics import (
-    DiffDriveGeometry, DiffDriveOdometry, limit_twist, ramp_twist, twist_to_wheel_velocities,
-    Twist2D, TwistLimits)
+    DiffDriveGeometry, DiffDriveOdometry, limit_twist, OdometryState, ramp_twist,
+    twist_to_wheel_velocities, Twist2D, TwistLimits)
 
 STOP = Twist2D(0.0, 0.0)
 
@@ -52,13 +55,17 @@ class DriveController:
     negative velocity. :meth:`command` may be called from another thread than
     :meth:`update` (the ROS subscription and the physics loop): it only
     replaces one attribute, which the next update reads once and compares by
-    identity with the last one it took.
+    identity with the last one it took. ``encoders`` count the wheel angles
+    odometry integrates (None: exactly); with them, ``covariance`` follows
+    what their errors do to the odometry (None: none is computed).
     """
 
     def __init__(self, geometry: DiffDriveGeometry, limits: TwistLimits, time_step_s: float,
                  timeout_steps: int, left_count: int, right_count: int,
                  wheel_velocity_sign: int = 1,
-                 initial_pose: Tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+                 initial_pose: Tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 encoders: Optional[Encoders] = None,
+                 covariance: Optional[OdometryCovariance] = None) -> None:
         if left_count < 1 or right_count < 1:
             raise ValueError(f'need wheels on both sides, got {left_count} left and '
                              f'{right_count} right')
@@ -73,6 +80,8 @@ class DriveController:
         self.wheel_velocity_sign = wheel_velocity_sign
         self.initial_pose = initial_pose
         self.odometry = DiffDriveOdometry(geometry, *initial_pose)
+        self.encoders = encoders
+        self.covariance = covariance
         self.target = STOP          # the command being followed (after limits)
         self.ramped = STOP          # where the acceleration ramp has got to
         self.wheel_targets = (0.0, 0.0)  # left, right wheel speeds in rad/s (REP-103 sign)
@@ -124,6 +133,10 @@ class DriveController:
         self.ramped = ramp_twist(self.ramped, self.target, self.limits, self.time_step_s)
         return self._wheel_velocities(*twist_to_wheel_velocities(self.geometry, *self.ramped))
 
+    def joint_targets(self) -> List[float]:
+        """Return the wheel joint velocity targets now (left wheels, then right, joint space)."""
+        return self._wheel_velocities(*self.wheel_targets)
+
     def _wheel_velocities(self, left_rad_s: float, right_rad_s: float) -> List[float]:
         self.wheel_targets = (left_rad_s, right_rad_s)
         sign = self.wheel_velocity_sign
@@ -139,8 +152,24 @@ class DriveController:
         left = sign * sum(wheel_positions_rad[:n_left]) / n_left
         right = sign * sum(wheel_positions_rad[n_left:]) / self.right_count
         dt_s = (step - self._odometry_step) * self.time_step_s
-        self.odometry.update_from_positions(left, right, dt_s)
+        if self.encoders is not None:
+            left, right = self.encoders.read(left, right, dt_s)
+        odometry = self.odometry
+        before, yaw_rad = odometry.baseline, odometry.yaw_rad
+        if odometry.update_from_positions(left, right, dt_s) and self.covariance is not None:
+            radius_m = self.geometry.wheel_radius_m
+            self.covariance.update(yaw_rad, radius_m * (left - before[0]),
+                                   radius_m * (right - before[1]), dt_s)
         self._odometry_step = step
+
+    def odometry_state(self) -> OdometryState:
+        """Return the odometry now, with its covariances when the encoders err."""
+        state = self.odometry.state()
+        covariance = self.covariance
+        if covariance is None:
+            return state
+        return state._replace(pose_covariance=tuple(covariance.pose.ravel().tolist()),
+                              twist_covariance=tuple(covariance.twist.ravel().tolist()))
 
     def shift_time(self, steps: int) -> None:
         """Move the step anchors by ``steps`` when the step count is set back (a time reset)."""
@@ -152,6 +181,10 @@ class DriveController:
         self._taken = self._latest  # a command from before the reset is dropped
         self.target = self.ramped = STOP
         self.odometry.reset(*self.initial_pose)
+        if self.encoders is not None:
+            self.encoders.restart()
+        if self.covariance is not None:
+            self.covariance.reset()
         self._odometry_step = step
         self.update_odometry(wheel_positions_rad, step)  # the encoder baseline
         return self._wheel_velocities(0.0, 0.0)

@@ -22,7 +22,7 @@ carries its unit in its name (``_m``, ``_rad``, ``_m_s``, ``_rad_s``, ``_s``).
 
 from dataclasses import dataclass
 import math
-from typing import NamedTuple
+from typing import NamedTuple, Optional, Tuple
 
 from r2d2_sim.errors import SetupError
 # One home for rotations: re-exported here, where they used to live.
@@ -227,13 +227,21 @@ def wheel_velocities_to_twist(geometry: DiffDriveGeometry, left_rad_s: float,
 
 
 class OdometryState(NamedTuple):
-    """A snapshot of wheel odometry: the pose in the odom frame and the twist in the body."""
+    """
+    A snapshot of wheel odometry: the pose in the odom frame and the twist in the body.
+
+    The covariances are those the encoders' noise gives (None when they are
+    exact): of (x, y, yaw) as 9 numbers row by row, and of (linear, angular)
+    as 4.
+    """
 
     x_m: float
     y_m: float
     yaw_rad: float
     linear_m_s: float
     angular_rad_s: float
+    pose_covariance: Optional[Tuple[float, ...]] = None
+    twist_covariance: Optional[Tuple[float, ...]] = None
 
 
 class DiffDriveOdometry:
@@ -332,6 +340,13 @@ class DiffDriveOdometry:
         self._yaw_rad = _wrap_angle_rad(yaw_rad + angular_rad)
         self._distance_m += abs(linear_m)
         return linear_m, angular_rad
+
+    @property
+    def baseline(self) -> Optional[Tuple[float, float]]:
+        """Return the (left, right) encoder angles the next update measures from, if any."""
+        if self._left_baseline_rad is None or self._right_baseline_rad is None:
+            return None
+        return (self._left_baseline_rad, self._right_baseline_rad)
 
     @property
     def x_m(self) -> float:

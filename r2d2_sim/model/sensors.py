@@ -5,8 +5,9 @@ No ROS and no PyBullet here (numpy only): PyBullet's rays are cast in
 ``raycast.py`` and the messages are filled by the node. Frames follow REP-103
 (x forward, y left, z up; the world is ENU); laser ranges follow REP-117, IMU
 data REP-145 and depth images REP-118. Every quantity carries its unit in its
-name. Noise comes from a ``numpy.random.Generator`` the caller passes in, so a
-seeded generator gives the same readings on every run.
+name. Noise is Gazebo's (:mod:`r2d2_sim.model.noise`: white noise, a bias drawn
+once, a drifting bias, rounding) and draws from a ``numpy.random.Generator``
+the caller passes in, so a seeded generator gives the same readings on every run.
 """
 
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from typing import Optional, Sequence, Tuple
 import numpy
 
 from r2d2_sim.errors import SetupError
+from r2d2_sim.model.noise import NoiseModel, NoiseSpec
 from r2d2_sim.model.transforms import (
     quaternion_from_axis_angle, quaternion_multiply, rotate, rotate_inverse, rotation_matrix)
 
@@ -31,6 +33,10 @@ __all__ = [
     'ImuReading',
     'ImuModel',
     'linearize_depth',
+    'noisy_depth',
+    'LidarGeometry',
+    'lidar_directions',
+    'lidar_ranges',
 ]
 
 Vec3 = Tuple[float, float, float]
@@ -183,19 +189,26 @@ def ray_endpoints(geometry: ScanGeometry, origin_m: Sequence[float],
 
 def ranges_from_hits(hit_fractions: Sequence[float], geometry: ScanGeometry,
                      noise_std_m: float = 0.0,
-                     rng: Optional[numpy.random.Generator] = None) -> numpy.ndarray:
+                     rng: Optional[numpy.random.Generator] = None,
+                     noise: Optional[NoiseModel] = None) -> numpy.ndarray:
     """
     Turn hit fractions along rays of length ``range_max_m`` into REP-117 ranges (float32).
 
     Fraction 1.0 (or more) means no return within range_max: +inf. A hit
-    closer than range_min: -inf. Any other hit is fraction * range_max plus
-    Gaussian noise of standard deviation ``noise_std_m`` (0: exact), clipped
-    into [range_min, range_max] so that noise never turns a hit into a miss.
-    One noise value is drawn per beam whatever was hit, so a seeded ``rng``
-    gives the same noise sequence in any world.
+    closer than range_min: -inf. Any other hit is fraction * range_max with
+    the noise added (``noise``, a NoiseModel of one channel, or Gaussian noise
+    of standard deviation ``noise_std_m`` from ``rng``; 0 and None: exact),
+    rounded to its precision, then clipped into [range_min, range_max] so
+    that noise never turns a hit into a miss or a too-close reading. Noise
+    is drawn for every beam whatever was hit, so a seeded generator gives
+    the same noise sequence in any world.
     """
     std_m = _require_number('noise_std_m', noise_std_m, minimum=0.0)
     _require_generator(rng, std_m)
+    if noise is not None and std_m > 0.0:
+        raise SensorConfigError('give either noise or noise_std_m, not both')
+    if noise is None and std_m > 0.0:
+        noise = NoiseModel(NoiseSpec(stddev=std_m), rng)
     fractions = numpy.asarray(hit_fractions, dtype=float)
     if fractions.shape != (geometry.samples,):
         raise ValueError(f'expected {geometry.samples} hit fractions, got shape '
@@ -203,12 +216,98 @@ def ranges_from_hits(hit_fractions: Sequence[float], geometry: ScanGeometry,
     ranges_m = fractions * geometry.range_max_m
     no_return = fractions >= 1.0
     too_close = ~no_return & (ranges_m < geometry.range_min_m)
-    if std_m > 0.0:
-        ranges_m = numpy.clip(ranges_m + rng.normal(0.0, std_m, ranges_m.shape),
-                              geometry.range_min_m, geometry.range_max_m)
+    if noise is not None and not noise.exact:
+        ranges_m = numpy.clip(noise.apply(ranges_m), geometry.range_min_m, geometry.range_max_m)
     ranges_m[no_return] = math.inf
     ranges_m[too_close] = -math.inf
     return ranges_m.astype(numpy.float32)
+
+
+# --------------------------------------------------------------------------- 3D lidar
+
+
+@dataclass(frozen=True)
+class LidarGeometry:
+    """
+    A multi-ring lidar: ``rings`` cones of beams, each with ``samples`` beams around a full turn.
+
+    Ring 0 is the lowest (elevation ``angle_min_rad``, negative below the
+    sensor's x-y plane), the last the highest (``angle_max_rad``), evenly
+    apart; the rings are numbered as Velodyne drivers number them. Each
+    ring's beams start behind the sensor (azimuth -pi) and go round
+    counter-clockwise, 2 pi / samples apart, as a full-circle LaserScan's.
+    """
+
+    rings: int
+    angle_min_rad: float
+    angle_max_rad: float
+    samples: int
+    range_min_m: float
+    range_max_m: float
+
+    def __post_init__(self) -> None:
+        """Validate the fields; store the angles and ranges as floats."""
+        for name in ('rings', 'samples'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+                raise SensorConfigError(f'{name} must be an integer >= 1, got {value!r}')
+            object.__setattr__(self, name, int(value))
+        low = _require_number('angle_min_rad', self.angle_min_rad, minimum=-math.pi / 2)
+        high = _require_number('angle_max_rad', self.angle_max_rad, minimum=low)
+        if high > math.pi / 2:
+            raise SensorConfigError(f'angle_max_rad must be at most pi/2, got {high!r}')
+        if self.rings > 1 and high == low:
+            raise SensorConfigError('several rings need angle_max_rad above angle_min_rad, '
+                                    f'got both {low!r}')
+        range_min_m = _require_number('range_min_m', self.range_min_m, minimum=0.0)
+        range_max_m = _require_number('range_max_m', self.range_max_m, minimum=range_min_m,
+                                      strict=True)
+        object.__setattr__(self, 'angle_min_rad', low)
+        object.__setattr__(self, 'angle_max_rad', high)
+        object.__setattr__(self, 'range_min_m', range_min_m)
+        object.__setattr__(self, 'range_max_m', range_max_m)
+
+    @property
+    def elevations_rad(self) -> numpy.ndarray:
+        """Return each ring's elevation, lowest first."""
+        return numpy.linspace(self.angle_min_rad, self.angle_max_rad, self.rings)
+
+    @property
+    def azimuths_rad(self) -> numpy.ndarray:
+        """Return each beam's azimuth within a ring, from -pi counter-clockwise."""
+        return -math.pi + 2.0 * math.pi / self.samples * numpy.arange(self.samples)
+
+
+def lidar_directions(geometry: LidarGeometry) -> numpy.ndarray:
+    """Return the unit direction of every beam in the sensor frame, (rings, samples, 3)."""
+    elevation = geometry.elevations_rad[:, None]
+    azimuth = geometry.azimuths_rad[None, :]
+    return numpy.stack(numpy.broadcast_arrays(numpy.cos(elevation) * numpy.cos(azimuth),
+                                              numpy.cos(elevation) * numpy.sin(azimuth),
+                                              numpy.sin(elevation)), axis=-1)
+
+
+def lidar_ranges(hit_fractions: Sequence[float], geometry: LidarGeometry,
+                 noise: Optional[NoiseModel] = None) -> numpy.ndarray:
+    """
+    Turn hit fractions along rays of ``range_max_m`` into ranges, (rings, samples) float64.
+
+    As :func:`ranges_from_hits` does (noise drawn for every beam, rounded,
+    clipped into the range), except that a beam without a return within
+    range, or with one closer than ``range_min_m``, is NaN: a point cloud
+    has no place for REP-117's infinities, and an organised one keeps a NaN
+    point in the place of every beam that measured nothing.
+    """
+    fractions = numpy.asarray(hit_fractions, dtype=float)
+    shape = (geometry.rings, geometry.samples)
+    if fractions.size != geometry.rings * geometry.samples:
+        raise ValueError(f'expected {shape[0] * shape[1]} hit fractions, got {fractions.size}')
+    ranges_m = fractions.reshape(shape) * geometry.range_max_m
+    invalid = (fractions.reshape(shape) >= 1.0) | (ranges_m < geometry.range_min_m)
+    if noise is not None and not noise.exact:
+        ranges_m = numpy.clip(noise.apply(ranges_m), geometry.range_min_m, geometry.range_max_m)
+    ranges_m[invalid] = numpy.nan
+    return ranges_m
 
 
 # --------------------------------------------------------------------------- rotations
@@ -253,52 +352,74 @@ class ImuReading:
     linear_acceleration_m_s2: Vec3  # specific force in the sensor frame: +9.8 up at rest
 
 
-def _diagonal_covariance(std: float) -> Tuple[float, ...]:
-    variance = std * std
+def _diagonal_covariance(variance: float) -> Tuple[float, ...]:
     return (variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0, 0.0, variance)
+
+
+def _imu_noise(name: str, std: float, spec: Optional[NoiseSpec]) -> NoiseSpec:
+    """Return the spec of one IMU quantity, from its legacy std or its full spec (not both)."""
+    std = _require_number(name, std, minimum=0.0)
+    if spec is None:
+        return NoiseSpec(stddev=std)
+    if std > 0.0:
+        raise SensorConfigError(f'give either {name} or its noise spec, not both')
+    if not isinstance(spec, NoiseSpec):
+        raise SensorConfigError(f'the noise beside {name} must be a NoiseSpec, got {spec!r}')
+    return spec
 
 
 class ImuModel:
     """
-    An ideal IMU (plus optional white noise) fed with the true motion of its frame.
+    An ideal IMU plus Gazebo's noise, fed with the true motion of its frame.
 
     Each :meth:`update` takes the sensor frame's world orientation and the
     world-frame velocities of the sensor point. The orientation is reported
     as it is, relative to the fixed world frame (REP-145), not to the start
     pose. The acceleration is the specific force R^T (a - g), with a the
     backward difference of the world velocity since the previous update (0 on
-    the first), so a level IMU at rest reads +9.8 m/s^2 on z. Noise is
-    Gaussian per axis with the given standard deviations (0: exact); the
-    orientation noise is a small rotation about the world axes. All three
-    quantities are provided, so their covariances are diagonal std^2 (never
-    the -1 that marks a missing one).
+    the first), so a level IMU at rest reads +9.8 m/s^2 on z. Each quantity
+    has its :class:`~r2d2_sim.model.noise.NoiseSpec` (the ``*_std`` shorthands
+    give white noise alone), applied to each of its three axes independently
+    (each axis draws its own bias); the orientation noise is a small rotation
+    about the world axes. ``period_s`` (the IMU's period) steps the dynamic
+    biases. All three quantities are provided, so their covariances are
+    diagonal, each the spec's mean square error (never the -1 that marks a
+    missing one).
     """
 
     def __init__(self, *, gravity_m_s2: Sequence[float] = STANDARD_GRAVITY_M_S2,
                  orientation_std_rad: float = 0.0,
                  angular_velocity_std_rad_s: float = 0.0,
                  linear_acceleration_std_m_s2: float = 0.0,
-                 rng: Optional[numpy.random.Generator] = None) -> None:
+                 rng: Optional[numpy.random.Generator] = None,
+                 orientation_noise: Optional[NoiseSpec] = None,
+                 angular_velocity_noise: Optional[NoiseSpec] = None,
+                 linear_acceleration_noise: Optional[NoiseSpec] = None,
+                 period_s: float = 0.0) -> None:
         """Check the noise settings; the first update will have no previous sample."""
         if len(gravity_m_s2) != 3:
             raise SensorConfigError(f'gravity_m_s2 must have 3 components, got {gravity_m_s2!r}')
         self.gravity_m_s2 = numpy.array([_require_number(f'gravity_m_s2[{i}]', value)
                                          for i, value in enumerate(gravity_m_s2)])
         self._gravity = tuple(self.gravity_m_s2.tolist())
-        self.orientation_std_rad = _require_number(
-            'orientation_std_rad', orientation_std_rad, minimum=0.0)
-        self.angular_velocity_std_rad_s = _require_number(
-            'angular_velocity_std_rad_s', angular_velocity_std_rad_s, minimum=0.0)
-        self.linear_acceleration_std_m_s2 = _require_number(
-            'linear_acceleration_std_m_s2', linear_acceleration_std_m_s2, minimum=0.0)
-        _require_generator(rng, self.orientation_std_rad, self.angular_velocity_std_rad_s,
-                           self.linear_acceleration_std_m_s2)
-        self._rng = rng
-        self.orientation_covariance = _diagonal_covariance(self.orientation_std_rad)
-        self.angular_velocity_covariance = _diagonal_covariance(
-            self.angular_velocity_std_rad_s)
-        self.linear_acceleration_covariance = _diagonal_covariance(
-            self.linear_acceleration_std_m_s2)
+        specs = (_imu_noise('orientation_std_rad', orientation_std_rad, orientation_noise),
+                 _imu_noise('angular_velocity_std_rad_s', angular_velocity_std_rad_s,
+                            angular_velocity_noise),
+                 _imu_noise('linear_acceleration_std_m_s2', linear_acceleration_std_m_s2,
+                            linear_acceleration_noise))
+        if any(not spec.exact for spec in specs) and not isinstance(rng, numpy.random.Generator):
+            _require_generator(rng, 1.0)
+        period_s = _require_number('period_s', period_s, minimum=0.0)
+        # Drawn in this order at construction (each axis's bias) and per update.
+        self._orientation, self._angular, self._linear = (
+            NoiseModel(spec, rng, channels=3, period_s=period_s) for spec in specs)
+        self.orientation_std_rad = specs[0].stddev
+        self.angular_velocity_std_rad_s = specs[1].stddev
+        self.linear_acceleration_std_m_s2 = specs[2].stddev
+        self.orientation_covariance = _diagonal_covariance(specs[0].variance)
+        self.angular_velocity_covariance = _diagonal_covariance(specs[1].variance)
+        self.linear_acceleration_covariance = _diagonal_covariance(specs[2].variance)
+        self._exact = all(spec.exact for spec in specs)
         self._previous_time_s: Optional[float] = None
         self._previous_velocity_m_s: Optional[Tuple[float, float, float]] = None
 
@@ -357,16 +478,15 @@ class ImuModel:
         return acceleration_m_s2
 
     def _with_noise(self, q, angular_rad_s, specific_force_m_s2) -> ImuReading:
-        rng = self._rng
-        if self.orientation_std_rad > 0.0:
-            error_rad = rng.normal(0.0, self.orientation_std_rad, 3)
-            q = quaternion_multiply(_rotation_vector_quaternion(error_rad), q)
-        if self.angular_velocity_std_rad_s > 0.0:
-            angular_rad_s = tuple((numpy.array(angular_rad_s) + rng.normal(
-                0.0, self.angular_velocity_std_rad_s, 3)).tolist())
-        if self.linear_acceleration_std_m_s2 > 0.0:
-            specific_force_m_s2 = tuple((numpy.array(specific_force_m_s2) + rng.normal(
-                0.0, self.linear_acceleration_std_m_s2, 3)).tolist())
+        if not self._exact:
+            if not self._orientation.exact:
+                error_rad = self._orientation.apply(numpy.zeros(3))
+                q = quaternion_multiply(_rotation_vector_quaternion(error_rad), q)
+            if not self._angular.exact:
+                angular_rad_s = tuple(self._angular.apply(numpy.array(angular_rad_s)).tolist())
+            if not self._linear.exact:
+                specific_force_m_s2 = tuple(
+                    self._linear.apply(numpy.array(specific_force_m_s2)).tolist())
         return ImuReading(orientation_xyzw=q, angular_velocity_rad_s=angular_rad_s,
                           linear_acceleration_m_s2=specific_force_m_s2)
 
@@ -395,3 +515,21 @@ def linearize_depth(depth_buffer: numpy.ndarray, near_m: float, far_m: float) ->
     depth_m[d >= 1.0] = math.inf
     depth_m[d < 0.0] = -math.inf
     return depth_m.astype(numpy.float32)
+
+
+def noisy_depth(depth_m: numpy.ndarray, noise: NoiseModel, near_m: float, far_m: float
+                ) -> numpy.ndarray:
+    """
+    Return a REP-118 depth image (float32) with ``noise`` (one channel) on every finite pixel.
+
+    The noise is drawn for every pixel, finite or not (so the stream does
+    not depend on what is in view), and a noisy depth is clipped into
+    [near, far] so that noise never makes a miss or a negative depth; +inf
+    and -inf pixels stay as they are.
+    """
+    if noise.exact:
+        return depth_m
+    depth = numpy.asarray(depth_m, dtype=float)
+    finite = numpy.isfinite(depth)
+    noisy = numpy.clip(noise.apply(numpy.where(finite, depth, 0.0)), near_m, far_m)
+    return numpy.where(finite, noisy, depth).astype(numpy.float32)

@@ -15,14 +15,15 @@ from functools import partial
 import math
 import os
 import socket
-from typing import Dict, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy
 
 from r2d2_sim.model.transforms import yaw_of
 from r2d2_sim.physics.body import Body, Loading, WorldError
 from r2d2_sim.physics import records
-from r2d2_sim.physics.raycast import cast_rays, RAY_EXCLUDED_GROUP, RAY_MASK, ray_mask
+from r2d2_sim.physics.raycast import (
+    cast_rays, cast_requests, RAY_EXCLUDED_GROUP, RAY_MASK, ray_mask, RayRequest)
 from r2d2_sim.physics.records import Quat, Vec3
 from r2d2_sim.physics.stdio import silenced_output
 
@@ -32,7 +33,7 @@ import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
 from pybullet_utils.bullet_client import BulletClient
 
 __all__ = ['SimWorld', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
-           'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask']
+           'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask', 'RayRequest']
 
 # Gap left between the lowest point of the robot and the ground at spawn, so
 # that it starts just above the plane instead of interpenetrating it.
@@ -286,6 +287,10 @@ class SimWorld:
         through the links a robot put in its own ray group.
         """
         return cast_rays(self._client, starts, ends, mask)
+
+    def cast_requests(self, requests: Sequence[RayRequest]) -> List[numpy.ndarray]:
+        """Cast several sensors' rays in as few calls as their robots allow (see raycast)."""
+        return cast_requests(self._client, requests)
 
     def render(self, width_px: int, height_px: int, view: Sequence[float],
                projection: Sequence[float]) -> Tuple[bytes, numpy.ndarray]:

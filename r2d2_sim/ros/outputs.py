@@ -11,26 +11,31 @@ once (:class:`~r2d2_sim.ros.serialization.MessageTemplate`), patches only the
 bytes that move and publishes the bytes: rclpy then skips the Python-to-C
 conversion and serialization (an Odometry: 11-21 us typed, 2-9 us as bytes,
 measured here). The camera's images are typed messages: a render costs
-milliseconds, so the conversion does not matter there.
+milliseconds, so the conversion does not matter there. Point clouds (the
+depth camera's, the 3D lidar's) are templates too: their points are copied
+into the serialized bytes, which spares rclpy converting a million-element
+``uint8[]`` each time.
 """
 
-from typing import List, Sequence
+import math
+from typing import List, Optional, Sequence
 
 import numpy
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan
+from sensor_msgs.msg import (
+    BatteryState, CameraInfo, Image, Imu, JointState, LaserScan, PointCloud2, PointField)
 
-from r2d2_sim.model import camera
+from r2d2_sim.model import battery, camera
 from r2d2_sim.physics.records import JointRecord
 from r2d2_sim.model.camera import CameraIntrinsics
 from r2d2_sim.sim.parameters import SimConfig
 from r2d2_sim.sim.robot import Frame, Measurement, Robot
 from r2d2_sim.sim.sensor_mounts import (
-    CameraImage, HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID)
-from r2d2_sim.model.sensors import ImuModel, ImuReading, ScanGeometry
+    CameraImage, HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
+from r2d2_sim.model.sensors import ImuModel, ImuReading, LidarGeometry, ScanGeometry
 from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.ros.tf_outputs import (  # noqa: F401 (TF's QoS here too)
     start_tf, TF_QOS, TF_STATIC_QOS)
@@ -39,7 +44,7 @@ from r2d2_sim.model.transforms import yaw_to_quaternion
 
 __all__ = ['STATE_QOS', 'CAMERA_QOS', 'SENSOR_QOS', 'ClockOutput', 'JointStateOutput',
            'GroundTruthOutput', 'OdometryOutput', 'HeadCameraOutput', 'ScanOutput', 'ImuOutput',
-           'RobotOutputs']
+           'Lidar3dOutput', 'PointCloudTemplate', 'BatteryOutput', 'RobotOutputs']
 
 # Reliable with a modest queue: default subscribers and sensor-data (best
 # effort) subscribers both match it.
@@ -120,8 +125,16 @@ class OdometryOutput:
 
     The pose's z is the body frame's height at rest, as TF has it (odom ->
     base_footprint on the ground, base_footprint -> base_link above it), so
-    the message and the transform tree agree on where base_link is.
+    the message and the transform tree agree on where base_link is. The
+    covariances are the configured diagonals; when the encoders err
+    (``encoder_noise_*``), the entries of x, y and yaw (pose) and of the
+    linear and angular velocity (twist), their cross terms included, are
+    those the encoders' noise gives (:class:`~r2d2_sim.model.encoders.OdometryCovariance`).
     """
+
+    # Where (x, y, yaw) and (vx, wz) sit in a 6 x 6 covariance (x y z roll pitch yaw).
+    _POSE_AXES = (0, 1, 5)
+    _TWIST_AXES = (0, 5)
 
     def __init__(self, node: Node, config: SimConfig, footprint_height_m: float) -> None:
         self._publisher = node.create_publisher(Odometry, 'odom', STATE_QOS)
@@ -132,7 +145,11 @@ class OdometryOutput:
             msg.pose.covariance[7 * i] = variance
         for i, variance in enumerate(config.twist_covariance_diagonal):
             msg.twist.covariance[7 * i] = variance
+        self._pose_covariance = list(msg.pose.covariance)
+        self._twist_covariance = list(msg.twist.covariance)
         self._msg = _OdometryTemplate(msg)
+        self._covariances = (self._msg.template.field('pose.covariance'),
+                             self._msg.template.field('twist.covariance'))
         self._height_m = footprint_height_m
 
     def publish(self, frame: Frame) -> None:
@@ -142,7 +159,22 @@ class OdometryOutput:
         msg.pose.set((odometry.x_m, odometry.y_m, self._height_m)
                      + yaw_to_quaternion(odometry.yaw_rad))
         msg.twist.set((odometry.linear_m_s, 0.0, 0.0, 0.0, 0.0, odometry.angular_rad_s))
+        if odometry.pose_covariance is not None:
+            self._covariances[0].set(_embedded(self._pose_covariance, self._POSE_AXES,
+                                               odometry.pose_covariance))
+            self._covariances[1].set(_embedded(self._twist_covariance, self._TWIST_AXES,
+                                               odometry.twist_covariance))
         self._publisher.publish(msg.template.to_bytes())
+
+
+def _embedded(base: List[float], axes: Sequence[int], block: Sequence[float]) -> List[float]:
+    """Return a 6 x 6 covariance (row by row): ``base`` with the ``axes`` block set."""
+    full = list(base)
+    n = len(axes)
+    for i, row in enumerate(axes):
+        for j, column in enumerate(axes):
+            full[6 * row + column] = block[n * i + j]
+    return full
 
 
 class HeadCameraOutput:
@@ -163,6 +195,12 @@ class HeadCameraOutput:
         self._image.header.frame_id = frame_id
         self._info = _camera_info(k, frame_id)
         self._depth = self._depth_pub = self._depth_info_pub = None
+        self._cloud: Optional[PointCloudTemplate] = None
+        if config.camera_point_cloud:
+            self._cloud_pub = node.create_publisher(PointCloud2, 'camera/depth/points',
+                                                    CAMERA_QOS)
+            self._cloud = PointCloudTemplate(frame_id, k.height_px, k.width_px, XYZ)
+            self._rays = camera.pixel_rays(k)
         if config.camera_depth:
             self._depth_pub = node.create_publisher(Image, 'camera/depth/image_raw', CAMERA_QOS)
             self._depth_info_pub = node.create_publisher(
@@ -186,6 +224,11 @@ class HeadCameraOutput:
             image.data = data if isinstance(data, bytes) else data.astype('<f4').tobytes()
             publisher.publish(image)
             info_publisher.publish(info)
+        if self._cloud is not None:
+            cloud = self._cloud
+            cloud.stamp.set_nanoseconds(time_ns)
+            cloud.data.set(camera.depth_points(depth, self._rays))
+            self._cloud_pub.publish(cloud.template.to_bytes())
 
 
 def _camera_info(k: CameraIntrinsics, frame_id: str) -> CameraInfo:
@@ -247,6 +290,103 @@ class ImuOutput:
         self._publisher.publish(self._template.to_bytes())
 
 
+# PointField datatypes (sensor_msgs/PointField constants).
+_FLOAT32, _UINT16 = PointField.FLOAT32, PointField.UINT16
+# x y z float32: a depth camera's cloud, as depth_image_proc makes it (12 bytes a point).
+XYZ = numpy.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4')])
+# As Velodyne drivers publish (velodyne_pointcloud's XYZIRT): 22 bytes, packed.
+XYZIRT = numpy.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('intensity', '<f4'),
+                      ('ring', '<u2'), ('time', '<f4')])
+_DATATYPES = {'<f4': _FLOAT32, '<u2': _UINT16}
+
+
+class PointCloudTemplate:
+    """
+    An organised sensor_msgs/PointCloud2 of ``height`` x ``width`` points laid out as ``dtype``.
+
+    The fields follow the dtype (names, offsets, datatypes); only the stamp
+    and the point bytes change (:attr:`stamp`, :attr:`data`). Not dense: a
+    point that measured nothing is NaN.
+    """
+
+    def __init__(self, frame_id: str, height: int, width: int, dtype: numpy.dtype) -> None:
+        fields = [PointField(name=name, offset=dtype.fields[name][1],
+                             datatype=_DATATYPES[dtype.fields[name][0].str], count=1)
+                  for name in dtype.names]
+        msg = PointCloud2(height=height, width=width, fields=fields, is_bigendian=False,
+                          point_step=dtype.itemsize, row_step=dtype.itemsize * width,
+                          is_dense=False)
+        msg.header.frame_id = frame_id
+        msg.data = bytes(height * width * dtype.itemsize)
+        self.template = MessageTemplate(msg)
+        self.stamp = self.template.stamp()
+        self.data = self.template.bytes_field('data')
+
+
+class Lidar3dOutput:
+    """
+    ``points`` (sensor_msgs/PointCloud2) at ``lidar3d_rate``, in frame lidar_3d.
+
+    Organised as Velodyne drivers organise it: one row per ring (ring 0 the
+    lowest), one column per beam around the turn; fields x y z intensity
+    (float32) ring (uint16) time (float32), 22 bytes a point. Intensity is 0
+    (no reflectivity model) and time 0 (every beam at the scan's instant, as
+    the LaserScan's time_increment). A beam without a return is a NaN point.
+    """
+
+    def __init__(self, node: Node, config: SimConfig, geometry: LidarGeometry) -> None:
+        self._publisher = node.create_publisher(PointCloud2, 'points', CAMERA_QOS)
+        self._cloud = PointCloudTemplate(config.frame(LIDAR3D_FRAME_ID), geometry.rings,
+                                         geometry.samples, XYZIRT)
+        self._points = numpy.zeros((geometry.rings, geometry.samples), XYZIRT)
+        self._points['ring'] = numpy.arange(geometry.rings, dtype=numpy.uint16)[:, None]
+
+    def publish(self, time_ns: int, points: numpy.ndarray) -> None:
+        """Publish a scan's points, (rings, samples, 3), measured at ``time_ns``."""
+        cloud, packed = self._cloud, self._points
+        packed['x'], packed['y'], packed['z'] = points[..., 0], points[..., 1], points[..., 2]
+        cloud.stamp.set_nanoseconds(time_ns)
+        cloud.data.set(packed)
+        self._publisher.publish(cloud.template.to_bytes())
+
+
+class BatteryOutput:
+    """
+    ``battery_state`` (sensor_msgs/BatteryState) at ``battery_rate``, in the robot's base frame.
+
+    Voltage, current (negative discharging), charge, capacity and percentage
+    from :class:`~r2d2_sim.model.battery.Battery`; power_supply_status
+    CHARGING, DISCHARGING or FULL; no temperature (NaN), health GOOD,
+    technology LION, present. One template per status (a status is a single
+    byte, too short to locate): the reading's status picks the one to patch.
+    """
+
+    def __init__(self, node: Node, config: SimConfig, capacity_ah: float) -> None:
+        self._publisher = node.create_publisher(BatteryState, 'battery_state', SENSOR_QOS)
+        self._templates = {}
+        for status in (battery.CHARGING, battery.DISCHARGING, battery.FULL):
+            msg = BatteryState(temperature=math.nan, capacity=capacity_ah,
+                               design_capacity=capacity_ah, power_supply_status=status,
+                               power_supply_health=BatteryState.POWER_SUPPLY_HEALTH_GOOD,
+                               power_supply_technology=BatteryState.POWER_SUPPLY_TECHNOLOGY_LION,
+                               present=True)
+            msg.header.frame_id = config.frame(config.base_frame_id)
+            template = MessageTemplate(msg)
+            self._templates[status] = (template, template.stamp(), *(
+                template.field(name) for name in ('voltage', 'current', 'charge',
+                                                  'percentage')))
+
+    def publish(self, time_ns: int, reading: battery.BatteryReading) -> None:
+        """Publish the battery as read at ``time_ns``."""
+        template, stamp, voltage, current, charge, percentage = self._templates[reading.status]
+        stamp.set_nanoseconds(time_ns)
+        voltage.set((reading.voltage_v,))
+        current.set((reading.current_a,))
+        charge.set((reading.charge_ah,))
+        percentage.set((reading.percentage,))
+        self._publisher.publish(template.to_bytes())
+
+
 class RobotOutputs:
     """
     Everything one robot publishes, built from its configuration; hands each measurement out.
@@ -265,6 +405,10 @@ class RobotOutputs:
         self.scan = (ScanOutput(node, config, robot.laser.geometry)
                      if robot.laser is not None else None)
         self.imu = ImuOutput(node, config, robot.imu.model) if robot.imu is not None else None
+        self.lidar = (Lidar3dOutput(node, config, robot.lidar.geometry)
+                      if robot.lidar is not None else None)
+        self.battery = (BatteryOutput(node, config, robot.battery.spec.capacity_ah)
+                        if robot.battery is not None else None)
         self.tf = start_tf(node, config, robot, time_ns) if config.publish_tf else None
         if self.tf is not None:
             self.state.append(self.tf)
@@ -281,3 +425,7 @@ class RobotOutputs:
             self.scan.publish(measurement.time_ns, measurement.scan)
         if measurement.imu is not None:
             self.imu.publish(measurement.time_ns, measurement.imu)
+        if measurement.lidar is not None:
+            self.lidar.publish(measurement.time_ns, measurement.lidar)
+        if measurement.battery is not None:
+            self.battery.publish(measurement.time_ns, measurement.battery)

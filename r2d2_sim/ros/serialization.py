@@ -16,6 +16,7 @@ the field and locating them, and then proved: the template patched with the
 sentinels must deserialize to exactly the message holding them.
 """
 
+import array
 import importlib
 import random
 import struct
@@ -26,7 +27,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rosidl_parser.definition import (
     AbstractGenericString, AbstractNestedType, BasicType, NamespacedType)
 
-__all__ = ['FieldError', 'FieldSlot', 'MessageTemplate', 'StampSlot']
+__all__ = ['FieldError', 'FieldSlot', 'BytesSlot', 'MessageTemplate', 'StampSlot']
 
 # Numeric leaf types that can be patched, as little-endian struct codes. Types
 # narrower than 4 bytes are left out: a 1- or 2-byte sentinel cannot be located
@@ -43,6 +44,7 @@ _CDR_BE = b'\x00\x00'
 
 _NANOSECONDS_PER_SECOND = 1_000_000_000
 _LOCATE_ATTEMPTS = 4
+_MIN_BYTE_RUN = 16
 
 
 class FieldError(ValueError):
@@ -192,6 +194,8 @@ def _canonical(value: Any) -> Any:
         return value
     if isinstance(value, np.ndarray):
         return value.dtype.str, value.tobytes()
+    if isinstance(value, array.array):  # a uint8[] field: a point cloud's data
+        return value.typecode, value.tobytes()
     if hasattr(type(value), 'get_fields_and_field_types'):
         return tuple((name, _canonical(getattr(value, name)))
                      for name in type(value).get_fields_and_field_types())
@@ -286,6 +290,38 @@ class StampSlot:
         return f'StampSlot({self.path!r}, offset={self.offset})'
 
 
+class BytesSlot:
+    """
+    A byte array of a template (a point cloud's ``data``): :meth:`MessageTemplate.bytes_field`.
+
+    Its length is frozen with the template; :meth:`set` copies exactly
+    ``count`` bytes in. Not thread-safe (neither is the template).
+    """
+
+    __slots__ = ('path', 'offset', 'count', '_view')
+
+    def __init__(self, buffer: bytearray, path: str, offset: int, count: int) -> None:
+        self.path = path
+        self.offset = offset
+        self.count = count
+        self._view = np.frombuffer(buffer, np.uint8, count, offset)
+
+    def set(self, data: Union[bytes, bytearray, memoryview, np.ndarray]) -> None:
+        """Write exactly ``count`` bytes: bytes, or a contiguous numpy array of that many bytes."""
+        if isinstance(data, np.ndarray):
+            if not data.flags.c_contiguous:
+                raise ValueError(f'{self.path}: expected a contiguous array')
+            data = data.reshape(-1).view(np.uint8)
+        else:
+            data = np.frombuffer(data, np.uint8)
+        if len(data) != self.count:
+            raise ValueError(f'{self.path}: expected {self.count} bytes, got {len(data)}')
+        self._view[:] = data
+
+    def __repr__(self) -> str:
+        return f'BytesSlot({self.path!r}, offset={self.offset}, count={self.count})'
+
+
 class MessageTemplate:
     """
     A message serialized once, whose fixed-size numeric fields are patched in place.
@@ -346,6 +382,44 @@ class MessageTemplate:
                 and type_def.namespaced_name() == ('builtin_interfaces', 'msg', 'Time')):
             raise FieldError(f'{path!r} is not a builtin_interfaces/Time')
         return StampSlot(self._buffer, self._locate(path, _leaves(holder, key, type_def), None))
+
+    def bytes_field(self, path: str) -> BytesSlot:
+        """
+        Locate a ``uint8[]`` (or ``byte[]``) field of at least 16 elements by its path: ``'data'``.
+
+        Single bytes are too common to be found by a sentinel; a run of 16
+        random ones is not. Found and proved as :meth:`field` finds numbers.
+        """
+        holder, key, type_def = _resolve(self._message, path)
+        value_type = getattr(type_def, 'value_type', None)
+        if not (isinstance(type_def, AbstractNestedType) and isinstance(value_type, BasicType)
+                and value_type.typename in ('uint8', 'octet', 'int8', 'char')):
+            raise FieldError(f'{path!r} is not a byte array')
+        if not isinstance(key, str):
+            raise FieldError(f'{path!r}: name the byte array itself, not an element of a list')
+        original = _get(holder, key)
+        count = len(original)
+        if count < _MIN_BYTE_RUN:
+            raise FieldError(f'{path!r} has {count} bytes; at least {_MIN_BYTE_RUN} are needed '
+                             'to find them')
+        try:
+            for attempt in range(_LOCATE_ATTEMPTS):
+                rng = np.random.default_rng(attempt)  # seeded: the same layout every run
+                packed_a, packed_b = rng.bytes(count), rng.bytes(count)
+                setattr(holder, key, packed_b)
+                serialized_b = serialize_message(self._message)
+                setattr(holder, key, packed_a)
+                serialized_a = serialize_message(self._message)
+                offsets = [offset for offset in _occurrences(serialized_a, packed_a)
+                           if serialized_b[offset:offset + count] == packed_b]
+                if len(offsets) == 1:
+                    break
+            else:
+                raise FieldError(f'{path!r}: its {count} bytes were not found in one place')
+            self._prove(_Span(path, offsets[0], count, '', None), packed_a)
+        finally:
+            setattr(holder, key, original)
+        return BytesSlot(self._buffer, path, offsets[0], count)
 
     def to_bytes(self) -> bytes:
         """Return the message as it stands, for ``publisher.publish`` (which wants bytes)."""

@@ -19,7 +19,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.robot import Frame, Robot
-from r2d2_sim.sim.sensor_mounts import HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID
+from r2d2_sim.sim.sensor_mounts import (
+    HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
 from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.model.timing import stamp_of
 from r2d2_sim.model.link_tree import LinkTransforms
@@ -163,6 +164,8 @@ def static_transforms(config: SimConfig, robot: Robot,
                Transform((0.0, 0.0, robot.footprint_height_m), IDENTITY.rotation))]
     if robot.laser is not None:
         result.append((base, frame(LASER_FRAME_ID), robot.laser.mount))
+    if robot.lidar is not None:
+        result.append((base, frame(LIDAR3D_FRAME_ID), robot.lidar.mount))
     if robot.imu is not None:
         result.append((base, frame(IMU_FRAME_ID), IDENTITY))
     if links is not None:

@@ -258,9 +258,11 @@ class Launch:
                     changed = True
                 continue
             if robot is not None:
-                robot.reloaded()
                 if as_launched:
-                    robot.restart_noise()  # as launched: its readings repeat too
+                    # As launched: its readings repeat too. First, so that the encoders
+                    # take their baseline when the robot starts again, as at start-up.
+                    robot.restart_noise()
+                robot.reloaded()
                 after.append(robot)
         models = [e.body for e in self._entities if e.model] if as_launched else None
         return Rebuilt(after, models, changed, dropped)

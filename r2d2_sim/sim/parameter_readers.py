@@ -17,8 +17,9 @@ from r2d2_sim.sim.tags import check_tags
 
 __all__ = ['ConfigError', 'Bounds', 'number', 'positive', 'non_negative', 'limit',
            'field_of_view', 'ratio', 'boolean', 'string', 'frame', 'frame_prefix', 'joint_names',
-           'integer', 'choice', 'numbers', 'variances', 'extra_models', 'robot_names',
-           'namespace', 'tags', 'directories', 'ROBOT_NAME', 'MAX_NAMESPACE_LENGTH']
+           'integer', 'choice', 'numbers', 'optional_numbers', 'variances', 'extra_models',
+           'robot_names', 'namespace', 'tags', 'directories', 'ROBOT_NAME',
+           'MAX_NAMESPACE_LENGTH']
 
 
 class ConfigError(SetupError, ValueError):
@@ -191,6 +192,21 @@ def numbers(length: int) -> Callable[[str, Any], Tuple[float, ...]]:
             raise ConfigError(
                 f'parameter {name} must be a list of {length} numbers, got {value!r}')
         return tuple(number(name, v) for v in value)
+    return read
+
+
+def optional_numbers(length: int) -> Callable[[str, Any], Tuple[float, ...]]:
+    """Read an empty list (none) or a list of ``length`` numbers."""
+    exact = numbers(length)
+
+    def read(name: str, value: Any) -> Tuple[float, ...]:
+        if hasattr(value, '__len__') and not isinstance(value, (str, bytes)) and not len(value):
+            return ()
+        try:
+            return exact(name, value)
+        except ConfigError:
+            raise ConfigError(f'parameter {name} must be [] or a list of {length} numbers, '
+                              f'got {value!r}') from None
     return read
 
 

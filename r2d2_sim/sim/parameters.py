@@ -14,6 +14,7 @@ from dataclasses import make_dataclass
 import math
 from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple
 
+from r2d2_sim.model.noise import NoiseSpec
 from r2d2_sim.sim import parameter_readers as read
 # ConfigError and Bounds are defined with the readers; the table's users import them here.
 from r2d2_sim.sim.parameter_readers import Bounds, ConfigError  # noqa: F401
@@ -40,6 +41,7 @@ FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.p
 # The frames of the node's own sensors (with frame_prefix in front), and the
 # URDF link the head camera's frame hangs from; r2d2_sim.sim.sensor_mounts mounts them.
 LASER_FRAME_ID = 'base_scan'
+LIDAR3D_FRAME_ID = 'lidar_3d'
 IMU_FRAME_ID = 'imu_link'
 HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
 HEAD_CAMERA_LINK = 'head'
@@ -77,6 +79,121 @@ class Parameter(NamedTuple):
     read: Callable[[str, Any], Any]
     bounds: Optional[Bounds] = None
     per_robot: bool = False  # each robot of several may set its own (robot_a.<name>)
+
+
+class NoiseFamily(NamedTuple):
+    """
+    The seven parameters of one sensor's Gazebo noise (see :mod:`r2d2_sim.model.noise`).
+
+    ``prefix`` names them (``scan`` -> ``scan_noise_mean``...); values are in
+    ``unit`` and within +-``magnitude``, the rounding step in
+    ``precision_unit`` up to ``precision_max``. ``std`` is the family's
+    standard deviation parameter when it existed before the rest (it keeps
+    its name, field and description).
+    """
+
+    prefix: str
+    what: str
+    unit: str
+    magnitude: float
+    precision_unit: str
+    precision_max: float
+    std: Optional[Parameter] = None
+
+    def name(self, part: str) -> str:
+        """Return the parameter name of one part (mean, std, bias_mean...)."""
+        return f'{self.prefix}_noise_{part}'
+
+    def field(self, part: str) -> str:
+        """Return the SimConfig field of one part."""
+        if part == 'std' and self.std is not None:
+            return self.std.field
+        return self.name(part)
+
+    def parameters(self) -> List[Parameter]:
+        """Return the family's seven table entries, in the order of a Gazebo <noise>."""
+        unit, what, magnitude = self.unit, self.what, self.magnitude
+        shown = unit or 'fraction'
+        spread = Bounds(0.0, magnitude, unit)
+        std = self.std or Parameter(
+            self.name('std'), 'double', 0.0,
+            f'{what}: white noise standard deviation ({shown}); 0 = none.',
+            self.name('std'), read.non_negative, spread, per_robot=True)
+        return [
+            Parameter(self.name('mean'), 'double', 0.0,
+                      f'{what}: mean of the white noise ({shown}), added to every reading.',
+                      self.name('mean'), read.number, Bounds(-magnitude, magnitude, unit),
+                      per_robot=True),
+            std,
+            Parameter(self.name('bias_mean'), 'double', 0.0,
+                      f'{what}: mean of the constant bias ({shown}), drawn once per robot '
+                      'and sensor (per axis) from the seed, its sign flipped with '
+                      'probability 0.5 (Gazebo\'s bias_mean).',
+                      self.name('bias_mean'), read.number, Bounds(-magnitude, magnitude, unit),
+                      per_robot=True),
+            Parameter(self.name('bias_std'), 'double', 0.0,
+                      f'{what}: standard deviation of the constant bias ({shown}).',
+                      self.name('bias_std'), read.non_negative, spread, per_robot=True),
+            Parameter(self.name('dynamic_bias_std'), 'double', 0.0,
+                      f'{what}: the drifting bias\'s random walk ({shown} per sqrt(s)): a '
+                      'Gauss-Markov process from 0 that settles at this times '
+                      'sqrt(correlation time / 2); 0 = none.',
+                      self.name('dynamic_bias_std'), read.non_negative,
+                      Bounds(0.0, magnitude, f'{unit}/sqrt(s)' if unit else '1/sqrt(s)'),
+                      per_robot=True),
+            Parameter(self.name('dynamic_bias_correlation_time'), 'double', 0.0,
+                      f'{what}: the drifting bias\'s correlation time in s (Gazebo suggests '
+                      'hours: 3600).',
+                      self.name('dynamic_bias_correlation_time'), read.non_negative,
+                      Bounds(0.001, 1.0e7, 's', 'no drifting bias'), per_robot=True),
+            Parameter(self.name('precision'), 'double', 0.0,
+                      f'{what}: readings are rounded to a multiple of this '
+                      f'({self.precision_unit}); 0 = no rounding.',
+                      self.name('precision'), read.non_negative,
+                      Bounds(0.0, self.precision_max, self.precision_unit), per_robot=True),
+        ]
+
+
+NOISE_PARTS = ('mean', 'std', 'bias_mean', 'bias_std', 'dynamic_bias_std',
+               'dynamic_bias_correlation_time', 'precision')
+
+NOISE_FAMILIES: Dict[str, NoiseFamily] = {family.prefix: family for family in (
+    NoiseFamily('scan', 'Laser range noise', 'm', 10.0, 'm', 10.0, Parameter(
+        'scan_noise_std', 'double', 0.0,
+        'Gaussian range noise standard deviation in m, clipped into the range so that '
+        'noise never fakes a miss; 0 = exact.',
+        'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm'), per_robot=True)),
+    NoiseFamily('imu_orientation', 'IMU orientation noise, a rotation about each world axis',
+                'rad', 1.0, 'rad', 1.0, Parameter(
+                    'imu_orientation_noise_std', 'double', 0.0,
+                    'IMU orientation noise standard deviation in rad (its covariance is the '
+                    'mean square error of all its noise parameters); 0 = exact.',
+                    'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad'),
+                    per_robot=True)),
+    NoiseFamily('imu_angular_velocity', 'IMU angular velocity noise, each axis', 'rad/s', 10.0,
+                'rad/s', 10.0, Parameter(
+                    'imu_angular_velocity_noise_std', 'double', 0.0,
+                    'IMU angular velocity noise standard deviation in rad/s (its covariance is '
+                    'the mean square error of all its noise parameters); 0 = exact.',
+                    'imu_angular_velocity_noise_std_rad_s', read.non_negative,
+                    Bounds(0.0, 10.0, 'rad/s'), per_robot=True)),
+    NoiseFamily('imu_linear_acceleration', 'IMU acceleration noise, each axis', 'm/s^2', 100.0,
+                'm/s^2', 100.0, Parameter(
+                    'imu_linear_acceleration_noise_std', 'double', 0.0,
+                    'IMU acceleration noise standard deviation in m/s^2 (its covariance is the '
+                    'mean square error of all its noise parameters); 0 = exact.',
+                    'imu_linear_acceleration_noise_std_m_s2', read.non_negative,
+                    Bounds(0.0, 100.0, 'm/s^2'), per_robot=True)),
+    NoiseFamily('encoder', 'Wheel encoder noise, relative to each side\'s rotation since the '
+                'last reading (0.01 = 1 %; a bias is a wheel radius off by that fraction)',
+                '', 1.0, 'rad: the encoder tick, 2 pi / ticks per turn', 2.0 * math.pi),
+    NoiseFamily('depth', 'Depth image noise, each pixel', 'm', 10.0, 'm', 10.0),
+    NoiseFamily('lidar3d', '3D lidar range noise, each beam', 'm', 10.0, 'm', 10.0),
+)}
+
+
+def _noise_parameters(prefix: str) -> List[Parameter]:
+    return NOISE_FAMILIES[prefix].parameters()
 
 
 PARAMETERS: List[Parameter] = [
@@ -207,6 +324,12 @@ PARAMETERS: List[Parameter] = [
     Parameter('camera_depth', 'bool', False,
               'With the camera on, also publish a 32FC1 depth image in metres (REP-118).',
               'camera_depth', read.boolean, per_robot=True),
+    Parameter('camera_point_cloud', 'bool', False,
+              'With the camera on, also publish camera/depth/points: the depth as an organised '
+              'sensor_msgs/PointCloud2 (x y z float32 in the optical frame, NaN where the '
+              'depth is not finite), at camera_rate.',
+              'camera_point_cloud', read.boolean, per_robot=True),
+    *_noise_parameters('depth'),
     Parameter('world', 'string', '',
               'The world to load around the robots: a URDF or an r2d2_sim world manifest '
               '(*.world.yaml), as a path, a file:// or package:// URI, or a name looked for in '
@@ -248,31 +371,102 @@ PARAMETERS: List[Parameter] = [
               'scan_range_min_m', read.non_negative, Bounds(0.0, 100.0, 'm'), per_robot=True),
     Parameter('scan_range_max', 'double', 12.0, 'Farthest range in m; no return reads +inf.',
               'scan_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm'), per_robot=True),
-    Parameter('scan_noise_std', 'double', 0.0,
-              'Gaussian range noise standard deviation in m, clipped into the range so that '
-              'noise never fakes a miss; 0 = exact.',
-              'scan_noise_std_m', read.non_negative, Bounds(0.0, 10.0, 'm'), per_robot=True),
+    *_noise_parameters('scan'),
     Parameter('imu_rate', 'double', 100.0,
               'IMU messages per simulated second (Hz) on imu; 0 turns the IMU off.',
               'imu_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
               per_robot=True),
-    Parameter('imu_orientation_noise_std', 'double', 0.0,
-              'IMU orientation noise standard deviation in rad (its covariance is the '
-              'square); 0 = exact.',
-              'imu_orientation_noise_std_rad', read.non_negative, Bounds(0.0, 1.0, 'rad'),
+    Parameter('lidar3d_rate', 'double', 0.0,
+              'Multi-ring 3D lidar scans per simulated second (Hz) on points '
+              '(sensor_msgs/PointCloud2 as Velodyne drivers publish it); 0 turns it off.',
+              'lidar3d_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
               per_robot=True),
-    Parameter('imu_angular_velocity_noise_std', 'double', 0.0,
-              'IMU angular velocity noise standard deviation in rad/s (its covariance is the '
-              'square); 0 = exact.',
-              'imu_angular_velocity_noise_std_rad_s', read.non_negative,
-              Bounds(0.0, 10.0, 'rad/s'), per_robot=True),
-    Parameter('imu_linear_acceleration_noise_std', 'double', 0.0,
-              'IMU acceleration noise standard deviation in m/s^2 (its covariance is the '
-              'square); 0 = exact.',
-              'imu_linear_acceleration_noise_std_m_s2', read.non_negative,
-              Bounds(0.0, 100.0, 'm/s^2'), per_robot=True),
-    Parameter('noise_seed', 'integer', 0, 'Seed of the scan and IMU noise (runs repeat).',
+    Parameter('lidar3d_rings', 'integer', 16, 'Rings (beams stacked vertically) of the 3D lidar.',
+              'lidar3d_rings', read.integer, Bounds(1, 256), per_robot=True),
+    Parameter('lidar3d_samples', 'integer', 1800,
+              'Beams per ring around a full turn (1800: 0.2 degrees apart).',
+              'lidar3d_samples', read.integer, Bounds(1, 10000), per_robot=True),
+    Parameter('lidar3d_angle_min', 'double', -math.radians(15.0),
+              'Elevation of the lowest ring in rad (negative: below the horizon).',
+              'lidar3d_angle_min_rad', read.number, Bounds(-math.pi / 2, math.pi / 2, 'rad'),
+              per_robot=True),
+    Parameter('lidar3d_angle_max', 'double', math.radians(15.0),
+              'Elevation of the highest ring in rad.',
+              'lidar3d_angle_max_rad', read.number, Bounds(-math.pi / 2, math.pi / 2, 'rad'),
+              per_robot=True),
+    Parameter('lidar3d_range_min', 'double', 0.3,
+              '3D lidar: closest range in m; nearer returns are NaN points.',
+              'lidar3d_range_min_m', read.non_negative, Bounds(0.0, 100.0, 'm'), per_robot=True),
+    Parameter('lidar3d_range_max', 'double', 100.0,
+              '3D lidar: farthest range in m; beams without a return are NaN points.',
+              'lidar3d_range_max_m', read.positive, Bounds(0.01, 1000.0, 'm'), per_robot=True),
+    Parameter('lidar3d_height', 'double', 0.0,
+              '3D lidar: height of its frame above the ground in m, on the body\'s axis; 0 puts '
+              'it 5 cm above the robot\'s highest point.',
+              'lidar3d_height_m', read.non_negative, Bounds(0.01, 100.0, 'm', 'on top'),
+              per_robot=True),
+    *_noise_parameters('lidar3d'),
+    *_noise_parameters('imu_orientation'),
+    *_noise_parameters('imu_angular_velocity'),
+    *_noise_parameters('imu_linear_acceleration'),
+    *_noise_parameters('encoder'),
+    Parameter('noise_seed', 'integer', 0,
+              'Seed of every noise stream of the robot\'s sensors, each its own stream from this, '
+              'the robot\'s name and the sensor (runs and full resets repeat).',
               'noise_seed', read.integer, Bounds(0, 2**31 - 1), per_robot=True),
+    Parameter('battery_rate', 'double', 0.0,
+              'sensor_msgs/BatteryState messages per simulated second (Hz) on battery_state '
+              '(Nav2 docking\'s topic); 0 turns the battery off (the robot never runs out).',
+              'battery_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'off'),
+              per_robot=True),
+    Parameter('battery_capacity', 'double', 2.0, 'Battery capacity in Ah.',
+              'battery_capacity_ah', read.positive, Bounds(1.0e-6, 10000.0, 'Ah'),
+              per_robot=True),
+    Parameter('battery_initial_charge', 'double', 1.0,
+              'Charge at start-up and after a reset, as a fraction of the capacity.',
+              'battery_initial_charge', read.non_negative, Bounds(0.0, 1.0), per_robot=True),
+    Parameter('battery_voltage_empty', 'double', 12.8,
+              'Battery voltage (V) when empty; it rises linearly with the charge.',
+              'battery_voltage_empty_v', read.non_negative, Bounds(0.0, 1000.0, 'V'),
+              per_robot=True),
+    Parameter('battery_voltage_full', 'double', 16.8, 'Battery voltage (V) when full.',
+              'battery_voltage_full_v', read.positive, Bounds(0.001, 1000.0, 'V'),
+              per_robot=True),
+    Parameter('battery_idle_current', 'double', 0.5,
+              'Current (A) the robot draws standing still (its electronics).',
+              'battery_idle_current_a', read.non_negative, Bounds(0.0, 1000.0, 'A'),
+              per_robot=True),
+    Parameter('battery_current_per_effort', 'double', 1.0,
+              'Current (A) drawn per N m of torque the wheel motors apply, summed over the '
+              'wheels.',
+              'battery_current_per_effort_a_n_m', read.non_negative,
+              Bounds(0.0, 1000.0, 'A/(N m)'), per_robot=True),
+    Parameter('battery_current_per_speed', 'double', 0.02,
+              'Current (A) drawn per rad/s of wheel speed, summed over the wheels.',
+              'battery_current_per_speed_a_rad_s', read.non_negative,
+              Bounds(0.0, 1000.0, 'A/(rad/s)'), per_robot=True),
+    Parameter('battery_charge_current', 'double', 2.0,
+              'Current (A) a dock feeds; above the robot\'s draw (and above Nav2\'s '
+              'charging_threshold, 0.5 A) the battery charges.',
+              'battery_charge_current_a', read.non_negative, Bounds(0.0, 1000.0, 'A'),
+              per_robot=True),
+    Parameter('battery_dock_pose', 'double_array', [],
+              'The dock: [x (m), y (m), yaw (rad)] in the world frame, where a robot resting '
+              '(base slower than 5 cm/s) charges; [] for none. A named pose of the world can '
+              'give it later.',
+              'battery_dock_pose', read.optional_numbers(3), per_robot=True),
+    Parameter('battery_dock_tolerance', 'double_array', [0.1, 0.2],
+              'How near the dock pose counts as on it: [position (m), yaw (rad)].',
+              'battery_dock_tolerance', read.numbers(2), Bounds(0.0, 100.0), per_robot=True),
+    Parameter('battery_empty_behaviour', 'string', 'stop',
+              'What an empty robot does: stop (its wheels brake), slow (at '
+              'battery_empty_speed of its commands) or continue.',
+              'battery_empty_behaviour', read.choice(['stop', 'slow', 'continue']),
+              per_robot=True),
+    Parameter('battery_empty_speed', 'double', 0.3,
+              'With battery_empty_behaviour slow: the fraction of its wheel speeds an empty '
+              'robot keeps.',
+              'battery_empty_speed', read.ratio, per_robot=True),
     Parameter('enable_stamped_cmd_vel', 'bool', False,
               'Take geometry_msgs/TwistStamped on cmd_vel instead of Twist (Nav2\'s name); a '
               'zero stamp means now, one older than cmd_vel_timeout is refused with a warning.',
@@ -322,11 +516,19 @@ def _wheel_names_are_default(self) -> bool:
             and list(self.right_wheel_names) == PARAMETERS_BY_NAME['right_wheel_names'].default)
 
 
+def _noise(self, prefix: str) -> NoiseSpec:
+    """Return a sensor's noise (``scan``, ``imu_angular_velocity``...) as a NoiseSpec."""
+    family = NOISE_FAMILIES[prefix]
+    values = [getattr(self, family.field(part)) for part in NOISE_PARTS]
+    return NoiseSpec(*values)
+
+
 SimConfig = make_dataclass(
     'SimConfig', [(p.field, _FIELD_TYPES[p.ros_type]) for p in PARAMETERS], frozen=True,
     namespace={'__doc__': 'Validated simulator settings in SI units, one field per parameter.',
                'body_yaw_offset_rad': property(_body_yaw_offset_rad),
                'frame': _prefixed_frame,
+               'noise': _noise,
                'wheel_names_are_default': property(_wheel_names_are_default)})
 SimConfig.__module__ = __name__
 
@@ -363,7 +565,8 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     """Check what no single value shows: rates against physics, wheel lists, ranges, frames."""
     physics_rate = fields['physics_rate_hz']
     for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz'),
-                        ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz')):
+                        ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz'),
+                        ('lidar3d_rate', 'lidar3d_rate_hz'), ('battery_rate', 'battery_rate_hz')):
         if fields[field] > physics_rate:
             raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
                               f'physics_rate ({physics_rate} Hz)')
@@ -378,9 +581,26 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     if not fields['scan_angle_min_rad'] < fields['scan_angle_max_rad']:
         raise ConfigError('parameter scan_angle_min must be below scan_angle_max, got '
                           f'{fields["scan_angle_min_rad"]} >= {fields["scan_angle_max_rad"]}')
+    for family in NOISE_FAMILIES.values():
+        drift, time = family.name('dynamic_bias_std'), family.name('dynamic_bias_correlation_time')
+        if fields[family.field('dynamic_bias_std')] > 0.0 and fields[family.field(
+                'dynamic_bias_correlation_time')] == 0.0:
+            raise ConfigError(f'parameter {drift} needs {time} > 0 (the drifting bias\'s '
+                              'correlation time), got 0')
     if not fields['scan_range_min_m'] < fields['scan_range_max_m']:
         raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
                           f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')
+    if not fields['lidar3d_range_min_m'] < fields['lidar3d_range_max_m']:
+        raise ConfigError('parameter lidar3d_range_min must be below lidar3d_range_max, got '
+                          f'{fields["lidar3d_range_min_m"]} >= {fields["lidar3d_range_max_m"]}')
+    if not fields['battery_voltage_empty_v'] < fields['battery_voltage_full_v']:
+        raise ConfigError('parameter battery_voltage_empty must be below battery_voltage_full, '
+                          f'got {fields["battery_voltage_empty_v"]} >= '
+                          f'{fields["battery_voltage_full_v"]}')
+    low, high = fields['lidar3d_angle_min_rad'], fields['lidar3d_angle_max_rad']
+    if not (low < high or (low == high and fields['lidar3d_rings'] == 1)):
+        raise ConfigError('parameter lidar3d_angle_min must be below lidar3d_angle_max (equal '
+                          f'only with one ring), got {low} and {high}')
     _check_frames(fields)
 
 
@@ -401,6 +621,7 @@ def _check_frames(fields: Mapping[str, Any]) -> None:
     sensors = []
     for rate, frames, what, switch in (
             ('scan_rate_hz', (LASER_FRAME_ID,), "the laser's frame", 'scan_rate > 0'),
+            ('lidar3d_rate_hz', (LIDAR3D_FRAME_ID,), "the 3D lidar's frame", 'lidar3d_rate > 0'),
             ('imu_rate_hz', (IMU_FRAME_ID,), "the IMU's frame", 'imu_rate > 0'),
             ('camera_rate_hz', (HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK),
              "a head camera frame", 'camera_rate > 0')):

@@ -5,27 +5,34 @@ No ROS here. A :class:`Robot` takes commands (:meth:`Robot.command`), turns
 the latest into wheel motor targets before each physics step
 (:meth:`Robot.drive`), and after the step measures what is due
 (:meth:`Robot.measure`): its state for a publication (joints, base, wheel
-odometry) and each sensor at its own rate. Measurements are plain data in a
+odometry) and each sensor at its own rate. The laser's and the 3D lidar's
+rays are left pending (:meth:`Robot.pending_rays`), so that the simulation
+casts every robot's rays of a step together, then hands each robot its
+answers (:meth:`Robot.take_rays`). Measurements are plain data in a
 :class:`Measurement`; a robot whose physics blew up is put back where it
 started, alone.
 """
 
+import math
 from typing import Callable, List, NamedTuple, Optional, Sequence
 
 import numpy
 
 from r2d2_sim.physics.body import Body
-from r2d2_sim.model.transforms import BaseState
+from r2d2_sim.model.transforms import BaseState, yaw_of
 from r2d2_sim.physics.records import JointRecord, JointStates
 from r2d2_sim.model.drive_controller import (
     CommandVerdict, DriveController, NO_WHEELS, timeout_steps)
+from r2d2_sim.model.battery import Battery, BatteryReading, BatterySpec, Dock
+from r2d2_sim.model.encoders import Encoders, OdometryCovariance
+from r2d2_sim.model.noise import noise_generator
 from r2d2_sim.sim.drive_train import DriveTrain, find_drive_train
 from r2d2_sim.model.kinematics import OdometryState
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
-from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner
+from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner, Lidar3d
 from r2d2_sim.model.sensors import ImuReading
 from r2d2_sim.model.timing import stamp_of, StepSchedule
-from r2d2_sim.physics.world import SimWorld, SPAWN_CLEARANCE_M
+from r2d2_sim.physics.world import RayRequest, SimWorld, SPAWN_CLEARANCE_M
 
 __all__ = ['Frame', 'Measurement', 'Robot', 'DriveTrain']
 
@@ -53,10 +60,24 @@ class Measurement(NamedTuple):
     image: Optional[CameraImage]         # the head camera, at camera_rate
     scan: Optional[numpy.ndarray]        # REP-117 ranges (float32), at scan_rate
     imu: Optional[ImuReading]            # at imu_rate
+    lidar: Optional[numpy.ndarray] = None  # 3D lidar points (rings, samples, 3), lidar3d_rate
+    battery: Optional[BatteryReading] = None  # at battery_rate
 
 
 def _ignore(text: str) -> None:
     pass
+
+
+def _battery(config: SimConfig) -> Battery:
+    """Return the robot's battery as configured, on its dock if it has one."""
+    spec = BatterySpec(config.battery_capacity_ah, config.battery_initial_charge,
+                       config.battery_voltage_empty_v, config.battery_voltage_full_v,
+                       config.battery_idle_current_a, config.battery_current_per_effort_a_n_m,
+                       config.battery_current_per_speed_a_rad_s, config.battery_charge_current_a)
+    dock = None
+    if config.battery_dock_pose:
+        dock = Dock(*config.battery_dock_pose, *config.battery_dock_tolerance)
+    return Battery(spec, dock)
 
 
 class Robot:
@@ -88,6 +109,9 @@ class Robot:
         self._error = error
         self._resources = list(resources)
         self.laser: Optional[LaserScanner] = None
+        self.lidar: Optional[Lidar3d] = None
+        self.ray_group: Optional[int] = None  # the world's collision bit its rays pass through
+        self._pending: List = []  # (sensor, its RayRequest) due at this step, to be cast
         problem = body.state_problem()
         if problem is not None:
             raise ConfigError(f'the robot cannot start there: {problem}')
@@ -109,12 +133,30 @@ class Robot:
             self._build_controller(self.drive)
         rate, step = config.physics_rate_hz, world.step_count
         self.camera = HeadCamera(world, body, config) if config.camera_rate_hz else None
-        self.laser = (LaserScanner(world, body, config, self.footprint_height_m)
-                      if config.scan_rate_hz else None)
+        self._camera_depth = config.camera_depth or config.camera_point_cloud
+        if config.scan_rate_hz or config.lidar3d_rate_hz:
+            self.ray_group = world.take_ray_group()
+            try:
+                if config.scan_rate_hz:
+                    self.laser = LaserScanner(world, body, config, self.footprint_height_m,
+                                              self.ray_group)
+                if config.lidar3d_rate_hz:
+                    self.lidar = Lidar3d(world, body, config, self.footprint_height_m,
+                                         self.ray_group)
+            except Exception:
+                world.release_ray_group(self.ray_group)
+                raise
         self.imu = ImuSensor(body, config) if config.imu_rate_hz else None
+        self.battery = _battery(config) if config.battery_rate_hz else None
+        self._battery_step = step
+        self._speed_factor = 1.0  # of the wheel targets: below 1 once the battery is empty
         self._camera_due = StepSchedule(rate, config.camera_rate_hz, step) if self.camera else None
         self._scan_due = StepSchedule(rate, config.scan_rate_hz, step) if self.laser else None
+        self._lidar_due = (StepSchedule(rate, config.lidar3d_rate_hz, step) if self.lidar
+                           else None)
         self._imu_due = StepSchedule(rate, config.imu_rate_hz, step) if self.imu else None
+        self._battery_due = (StepSchedule(rate, config.battery_rate_hz, step) if self.battery
+                             else None)
         self._time_step_s = 1.0 / rate
 
     def _build_controller(self, drive: DriveTrain) -> None:
@@ -124,12 +166,25 @@ class Robot:
         self._wheel_forces = [drive.max_force_n_m] * len(drive.wheel_indices)
         slot = {index: i for i, index in enumerate(self.movable_indices)}
         self._wheel_slots = [slot[index] for index in drive.wheel_indices]
+        noise = config.noise('encoder')
+        covariance = None
+        if not noise.exact:
+            covariance = OdometryCovariance(noise, drive.geometry.wheel_radius_m,
+                                            drive.geometry.wheel_separation_m)
         self.controller = DriveController(
             drive.geometry, drive.limits, 1.0 / config.physics_rate_hz,
             timeout_steps(config.cmd_vel_timeout_s, config.physics_rate_hz),
             len(drive.left_indices), len(drive.right_indices),
-            config.wheel_velocity_sign, config.initial_pose)
+            config.wheel_velocity_sign, config.initial_pose, self._new_encoders(),
+            covariance)
         self._set_wheels(self.controller.reset(self.world.step_count, self._wheel_positions()))
+
+    def _new_encoders(self) -> Optional[Encoders]:
+        """Return the wheel encoders odometry reads through, None when they are exact."""
+        noise = self.config.noise('encoder')
+        if noise.exact:
+            return None
+        return Encoders(noise, noise_generator(self.config.noise_seed, self.name, 'encoders'))
 
     def command(self, linear_x: float, angular_z: float, **other_axes: float) -> CommandVerdict:
         """Hand a Twist's fields to the drive controller; NO_WHEELS for a robot without wheels."""
@@ -142,8 +197,20 @@ class Robot:
         controller = self.controller
         if controller is not None:
             targets = controller.update(step)
+            factor = self._battery_speed_factor()
+            if factor != self._speed_factor:  # the battery ran out, or was charged again
+                self._speed_factor = factor
+                targets = controller.joint_targets()
             if targets is not None:
-                self._set_wheels(targets)
+                self._set_wheels(targets if factor == 1.0 else [factor * t for t in targets])
+
+    def _battery_speed_factor(self) -> float:
+        """Return the fraction of their targets the wheels get: 1 unless the battery is empty."""
+        battery = self.battery
+        if battery is None or not battery.empty:
+            return 1.0
+        behaviour = self.config.battery_empty_behaviour
+        return {'stop': 0.0, 'slow': self.config.battery_empty_speed}.get(behaviour, 1.0)
 
     def measure(self, step: int, time_ns: int, state_due: bool) -> Optional[Measurement]:
         """
@@ -158,13 +225,16 @@ class Robot:
         """
         camera = self._camera_due is not None and self._camera_due.due(step)
         scan = self._scan_due is not None and self._scan_due.due(step)
+        lidar = self._lidar_due is not None and self._lidar_due.due(step)
         imu = self._imu_due is not None and self._imu_due.due(step)
+        battery = self._battery_due is not None and self._battery_due.due(step)
+        sensing = camera or scan or lidar or imu
         frame = None
         if state_due:
             frame = self.read_frame(step, time_ns)
         else:
             body = self.body
-            if camera or scan or imu:
+            if sensing:
                 problem = body.state_problem()
                 if problem is None and camera:  # the camera rides on the head's joint
                     indices = self.movable_indices
@@ -173,13 +243,33 @@ class Robot:
                 problem = body.twist_problem()
             if problem is not None:
                 self._recover(problem, time_ns)
-            if not (camera or scan or imu):
+            if not (sensing or battery):
                 return None
+        self._pending = [(sensor, sensor.rays()) for sensor, due in (
+            (self.laser, scan), (self.lidar, lidar)) if due]
         return Measurement(
             time_ns, frame,
-            self.camera.render(depth=self.config.camera_depth) if camera else None,
-            self.laser.scan() if scan else None,
-            self.imu.read(time_ns / 1e9) if imu else None)
+            self.camera.render(depth=self._camera_depth) if camera else None,
+            None,  # the scan and the lidar's points: once its rays are cast (take_rays)
+            self.imu.read(time_ns / 1e9) if imu else None,
+            None,
+            self.battery.reading() if battery else None)
+
+    def pending_rays(self) -> List[RayRequest]:
+        """Return the rays the last :meth:`measure` left to cast (laser, then 3D lidar)."""
+        return [request for _, request in self._pending]
+
+    def take_rays(self, measurement: Measurement,
+                  fractions: Sequence[numpy.ndarray]) -> Measurement:
+        """Return ``measurement`` with the scan and the lidar's points from their rays' answers."""
+        readings = {}
+        for (sensor, _), answer in zip(self._pending, fractions):
+            if sensor is self.laser:
+                readings['scan'] = sensor.ranges(answer)
+            else:
+                readings['lidar'] = sensor.points(answer)
+        self._pending = []
+        return measurement._replace(**readings)
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""
@@ -195,13 +285,28 @@ class Robot:
         if self.controller is not None:
             positions = joints.positions
             self.controller.update_odometry([positions[s] for s in self._wheel_slots], step)
-            odometry = self.controller.odometry.state()
+            odometry = self.controller.odometry_state()
+        if self.battery is not None:
+            self._run_battery(step, joints, base)
         return Frame(step, time_ns, joints, base, odometry)
+
+    def _run_battery(self, step: int, joints: JointStates, base: BaseState) -> None:
+        """Drain or charge the battery over the steps since its last update, by the wheels now."""
+        slots = self._wheel_slots
+        dt_s = (step - self._battery_step) * self._time_step_s
+        self._battery_step = step
+        velocity = base.linear_velocity
+        self.battery.update(dt_s, [joints.efforts[s] for s in slots],
+                            [joints.velocities[s] for s in slots],
+                            (base.position[0], base.position[1], yaw_of(base.orientation)),
+                            math.hypot(velocity[0], velocity[1]))
 
     def restart_time(self, steps_back: int) -> None:
         """Start the sensor rates afresh: the step count went back ``steps_back`` (a reset)."""
         step = self.world.step_count
-        for schedule in (self._camera_due, self._scan_due, self._imu_due):
+        self._battery_step -= steps_back
+        for schedule in (self._camera_due, self._scan_due, self._lidar_due, self._imu_due,
+                         self._battery_due):
             if schedule is not None:
                 schedule.restart(step)
         if self.controller is not None:
@@ -210,10 +315,13 @@ class Robot:
             self.imu.reset()  # its time went back: no acceleration from the jump
 
     def restart_noise(self) -> None:
-        """Start the laser's and the IMU's noise streams again from the seed (a full reset)."""
-        for sensor in (self.laser, self.imu):
+        """Start every noise stream again from the seed, as at start-up (a full reset)."""
+        for sensor in (self.laser, self.lidar, self.imu, self.camera):
             if sensor is not None:
                 sensor.restart_noise()
+        if self.controller is not None:
+            # Fresh encoders: the next odometry reading takes a new baseline.
+            self.controller.encoders = self._new_encoders()
 
     def teleported(self) -> None:
         """Forget the motion so far: the body was placed, and the IMU must not read the jump."""
@@ -234,14 +342,19 @@ class Robot:
         """
         if self.imu is not None:
             self.imu.reset()
+        if self.battery is not None:
+            self.battery.reset()
+            self._battery_step = self.world.step_count
+            self._speed_factor = 1.0
         if self.controller is not None:
             self._set_wheels(self.controller.reset(self.world.step_count,
                                                    self._wheel_positions()))
 
     def close(self) -> None:
         """Give back what the robot holds in the world (its ray group) and close its files."""
-        if self.laser is not None:
-            self.laser.close()
+        if self.ray_group is not None:
+            self.world.release_ray_group(self.ray_group)
+            self.ray_group = None
         for resource in self._resources:
             resource.close()
         self._resources.clear()

@@ -1,11 +1,15 @@
 """
-The robot's sensors and where they sit on it: head camera, planar laser, IMU.
+The robot's sensors and where they sit on it: head camera, planar laser, 3D lidar, IMU.
 
 No ROS here. Each sensor measures the :class:`~r2d2_sim.physics.body.Body` it is
 mounted on, in the world it is in, when the simulation says it is due; the
 readings are plain data (bytes, arrays, tuples) that outputs only translate.
-The sensors' models (ray geometry, REP-117 ranges, IMU noise, depth) are
-pure math in :mod:`r2d2_sim.model.sensors` and :mod:`r2d2_sim.model.camera`.
+The sensors' models (ray geometry, REP-117 ranges, IMU, depth, Gazebo's noise)
+are pure math in :mod:`r2d2_sim.model.sensors`, :mod:`r2d2_sim.model.camera`
+and :mod:`r2d2_sim.model.noise`. Each sensor draws its noise from a stream of
+its own (:func:`~r2d2_sim.model.noise.noise_generator`: the robot's
+``noise_seed``, its name, the sensor), which :meth:`restart_noise` starts
+again as at start-up.
 """
 
 import math
@@ -17,17 +21,20 @@ from r2d2_sim.model import camera
 from r2d2_sim.physics.body import Body, WorldError
 # The sensors' frame ids are the parameter table's, which checks them against the others.
 from r2d2_sim.sim.parameters import (
-    ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID, SimConfig)
-from r2d2_sim.physics.raycast import ray_mask
+    ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID,
+    LIDAR3D_FRAME_ID, SimConfig)
+from r2d2_sim.physics.raycast import ray_mask, RayRequest
+from r2d2_sim.model.noise import noise_generator, NoiseModel
 from r2d2_sim.model.sensors import (
-    ImuModel, ImuReading, linearize_depth, ranges_from_hits, ray_endpoints, ScanGeometry,
-    SensorConfigError)
+    ImuModel, ImuReading, lidar_directions, lidar_ranges, LidarGeometry, linearize_depth,
+    noisy_depth, ranges_from_hits, ray_endpoints, ScanGeometry, SensorConfigError)
 from r2d2_sim.model.transforms import (
     apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotation_matrix,
     Transform)
 
 __all__ = ['HEAD_CAMERA_LINK', 'HEAD_CAMERA_FRAME_ID', 'LASER_FRAME_ID', 'LASER_HEIGHT_M',
-           'IMU_FRAME_ID', 'CameraImage', 'HeadCamera', 'LaserScanner', 'ImuSensor']
+           'LIDAR3D_FRAME_ID', 'IMU_FRAME_ID', 'CameraImage', 'HeadCamera', 'LaserScanner',
+           'Lidar3d', 'ImuSensor']
 
 # The head camera's clipping planes, and the gap between its link's bounding
 # box and the lens (so the head itself is not in view).
@@ -38,6 +45,8 @@ HEAD_CAMERA_CLEARANCE_M = 0.01
 # ground: R2D2's body frame is 0.47 m up, and at 0.25 m the scan sees the
 # room's 0.4 m boxes and walls. The IMU (imu_link) is at the body frame.
 LASER_HEIGHT_M = 0.25
+# The 3D lidar sits this far above the robot's highest point unless its height is set.
+LIDAR3D_CLEARANCE_M = 0.05
 
 
 class CameraImage(NamedTuple):
@@ -69,16 +78,30 @@ class HeadCamera:
                                 quaternion_from_rpy(-math.pi / 2, 0.0, -math.pi / 2)))
         width, height, fov = (config.camera_width_px, config.camera_height_px,
                               config.camera_fov_deg)
-        self.intrinsics = camera.intrinsics(width, height, fov)
+        # As CameraInfo publishes them: where the renderer samples each pixel.
+        self.intrinsics = camera.image_intrinsics(width, height, fov)
         self._projection = camera.projection_matrix(
             width, height, fov, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
+        self._config = config
+        self._depth_noise = self._new_depth_noise()
+
+    def _new_depth_noise(self) -> NoiseModel:
+        config = self._config
+        return NoiseModel(config.noise('depth'),
+                          noise_generator(config.noise_seed, self._body.name, 'depth'),
+                          period_s=1.0 / config.camera_rate_hz)
+
+    def restart_noise(self) -> None:
+        """Start the depth noise again from its seed, as at start-up (a full reset)."""
+        self._depth_noise = self._new_depth_noise()
 
     def render(self, depth: bool = False) -> CameraImage:
         """
         Render the camera's view now: rgb8 rows (top row first), and depth if asked.
 
         Depth is float32 metres along the optical axis (REP-118: +inf where
-        nothing is within the far plane), from the same render as the image.
+        nothing is within the far plane), from the same render as the image,
+        with ``depth_noise_*`` added.
         """
         position, orientation = self._body.link_pose(self._link)
         forward, up = camera.link_camera_axes(orientation, self._body.body_yaw_offset_rad)
@@ -90,8 +113,9 @@ class HeadCamera:
                                                self._projection)
         if not depth:
             return CameraImage(rgb, None)
-        return CameraImage(rgb, linearize_depth(depth_buffer, HEAD_CAMERA_NEAR_M,
-                                                HEAD_CAMERA_FAR_M).astype(numpy.float32))
+        depth_m = linearize_depth(depth_buffer, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
+        return CameraImage(rgb, noisy_depth(depth_m, self._depth_noise, HEAD_CAMERA_NEAR_M,
+                                            HEAD_CAMERA_FAR_M))
 
 
 class LaserScanner:
@@ -103,10 +127,12 @@ class LaserScanner:
     legs), which go into a ray group of this robot's own; links below or
     above it (wheels, head) keep their broadphase entries, so the physics is
     the same with the scanner on or off. Every other robot's links stay
-    visible. :meth:`close` gives the group back.
+    visible. The group (``ray_group``, a bit of the world's) is the robot's:
+    it gives it back when it leaves.
     """
 
-    def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float) -> None:
+    def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float,
+                 ray_group: int) -> None:
         try:
             self.geometry = ScanGeometry(config.scan_angle_min_rad, config.scan_angle_max_rad,
                                          config.scan_samples, config.scan_range_min_m,
@@ -119,36 +145,129 @@ class LaserScanner:
         # Each beam's full-length ray in the sensor frame, computed once (69 us a scan).
         _, ends = ray_endpoints(self.geometry, (0.0, 0.0, 0.0))
         self._rays_in_sensor = ends
-        self._noise_std_m = config.scan_noise_std_m
-        self._noise_seed = config.noise_seed
-        self._rng = numpy.random.default_rng(self._noise_seed)
+        self._config = config
+        self._noise = self._new_noise()
         # The scan plane in the world now: the robot stands on the ground, or
         # (spawned in the air) is about to fall onto it.
         ground_z = body.world_state().position[2] - footprint_height_m
-        self._group = world.take_ray_group()
-        self._mask = ray_mask(self._group)
-        body.exclude_from_rays(body.links_spanning_height(ground_z + LASER_HEIGHT_M),
-                               self._group)
+        self._group = ray_group
+        self._mask = ray_mask(ray_group)
+        self.excluded_links = body.links_spanning_height(ground_z + LASER_HEIGHT_M)
+        body.exclude_from_rays(self.excluded_links, ray_group)
 
     def scan(self) -> numpy.ndarray:
         """Cast the beams from where the laser is now; return REP-117 ranges (float32)."""
+        rays = self.rays()
+        return self.ranges(self._world.cast_rays(rays.starts, rays.ends, self._mask))
+
+    def rays(self) -> RayRequest:
+        """Return the beams from where the laser is now, to cast with other sensors' rays."""
         base = self._body.world_state()
         pose = Transform(base.position, base.orientation)
         origin = numpy.array(apply(pose, self.mount.translation))
         ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
         starts = numpy.broadcast_to(origin, ends.shape)
-        return ranges_from_hits(self._world.cast_rays(starts, ends, self._mask), self.geometry,
-                                self._noise_std_m, self._rng)
+        return RayRequest(starts, ends, self._group)
+
+    def ranges(self, fractions: numpy.ndarray) -> numpy.ndarray:
+        """Return the beams' REP-117 ranges, float32 with the noise added, from hit fractions."""
+        return ranges_from_hits(fractions, self.geometry, noise=self._noise)
+
+    def _new_noise(self) -> NoiseModel:
+        config = self._config
+        return NoiseModel(config.noise('scan'),
+                          noise_generator(config.noise_seed, self._body.name, 'scan'),
+                          period_s=1.0 / config.scan_rate_hz)
 
     def restart_noise(self) -> None:
         """Start the noise stream again from its seed, as at start-up (a full reset)."""
-        self._rng = numpy.random.default_rng(self._noise_seed)
+        self._noise = self._new_noise()
 
-    def close(self) -> None:
-        """Give the robot's ray group back to the world (the robot left it)."""
-        if self._group is not None:
-            self._world.release_ray_group(self._group)
-            self._group = None
+
+class Lidar3d:
+    """
+    A multi-ring lidar on the body's axis: a point per beam, in its own frame ``lidar_3d``.
+
+    It stands ``lidar3d_height`` above the ground (by default 5 cm above the
+    robot's highest point). Its beams start at its origin and pass through
+    the robot's own links they could meet (those reaching into the band of
+    heights the rings sweep within the robot's horizontal extent, R2D2's head
+    from on top), put into the robot's ray group as the planar laser's are;
+    every other robot stays visible. Rays are cast in batches of at most
+    PyBullet's 16,384 per call (a 16 x 1800 lidar: two calls).
+    """
+
+    def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float,
+                 ray_group: int) -> None:
+        try:
+            self.geometry = LidarGeometry(config.lidar3d_rings, config.lidar3d_angle_min_rad,
+                                          config.lidar3d_angle_max_rad, config.lidar3d_samples,
+                                          config.lidar3d_range_min_m, config.lidar3d_range_max_m)
+        except SensorConfigError as exc:
+            raise ConfigError(f'3D lidar: {exc}') from None
+        self._world = world
+        self._body = body
+        self._config = config
+        base = body.world_state()
+        ground_z = base.position[2] - footprint_height_m
+        box = body.bounding_box()
+        self.height_m = config.lidar3d_height_m or (box.high[2] - ground_z + LIDAR3D_CLEARANCE_M)
+        self.mount = Transform((0.0, 0.0, self.height_m - footprint_height_m), IDENTITY.rotation)
+        self.directions = lidar_directions(self.geometry)  # (rings, samples, 3), unit
+        self._rays_in_sensor = self.directions.reshape(-1, 3) * self.geometry.range_max_m
+        self._group = ray_group
+        self._mask = ray_mask(ray_group)
+        self.excluded_links = self._own_links_in_view(body, base.position, ground_z)
+        body.exclude_from_rays(self.excluded_links, ray_group)
+        self._noise = self._new_noise()
+
+    def _own_links_in_view(self, body: Body, axis, ground_z: float):
+        """Return the links the beams could meet within the robot's horizontal extent."""
+        radius = 0.0
+        for link in body.links():
+            low, high = body.aabb(link)
+            for x in (low[0], high[0]):
+                for y in (low[1], high[1]):
+                    radius = max(radius, math.hypot(x - axis[0], y - axis[1]))
+        origin_z = ground_z + self.height_m
+        lowest = origin_z + radius * math.tan(min(self.geometry.angle_min_rad, 0.0))
+        highest = origin_z + radius * math.tan(max(self.geometry.angle_max_rad, 0.0))
+        return [link for link in body.links()
+                if body.aabb(link).low[2] <= highest and body.aabb(link).high[2] >= lowest]
+
+    def _new_noise(self) -> NoiseModel:
+        config = self._config
+        return NoiseModel(config.noise('lidar3d'),
+                          noise_generator(config.noise_seed, self._body.name, 'lidar3d'),
+                          period_s=1.0 / config.lidar3d_rate_hz)
+
+    def restart_noise(self) -> None:
+        """Start the noise stream again from its seed, as at start-up (a full reset)."""
+        self._noise = self._new_noise()
+
+    def scan(self) -> numpy.ndarray:
+        """
+        Cast every beam from where the lidar is now; return its points, (rings, samples, 3).
+
+        float32 metres in the lidar's frame; NaN for a beam without a return
+        within range or with one nearer than range_min.
+        """
+        rays = self.rays()
+        return self.points(self._world.cast_rays(rays.starts, rays.ends, self._mask))
+
+    def rays(self) -> RayRequest:
+        """Return the beams from where the lidar is now, to cast with other sensors' rays."""
+        base = self._body.world_state()
+        pose = Transform(base.position, base.orientation)
+        origin = numpy.array(apply(pose, self.mount.translation))
+        ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
+        starts = numpy.broadcast_to(origin, ends.shape)
+        return RayRequest(starts, ends, self._group)
+
+    def points(self, fractions: numpy.ndarray) -> numpy.ndarray:
+        """Return the points of the beams' hit fractions: float32, NaN where none returned."""
+        ranges = lidar_ranges(fractions, self.geometry, self._noise)
+        return (self.directions * ranges[:, :, None]).astype(numpy.float32)
 
 
 class ImuSensor:
@@ -161,13 +280,13 @@ class ImuSensor:
 
     def _new_model(self) -> ImuModel:
         config = self._config
-        # Its own stream of noise, so turning the scanner on does not change it.
         return ImuModel(
             gravity_m_s2=config.gravity_m_s2,
-            orientation_std_rad=config.imu_orientation_noise_std_rad,
-            angular_velocity_std_rad_s=config.imu_angular_velocity_noise_std_rad_s,
-            linear_acceleration_std_m_s2=config.imu_linear_acceleration_noise_std_m_s2,
-            rng=numpy.random.default_rng([config.noise_seed, 1]))
+            orientation_noise=config.noise('imu_orientation'),
+            angular_velocity_noise=config.noise('imu_angular_velocity'),
+            linear_acceleration_noise=config.noise('imu_linear_acceleration'),
+            rng=noise_generator(config.noise_seed, self._body.name, 'imu'),
+            period_s=1.0 / config.imu_rate_hz)
 
     def restart_noise(self) -> None:
         """Start afresh as at start-up (a full reset): the noise stream from its seed."""

@@ -5,8 +5,9 @@ The simulation core: one physics step for the whole world, read top to bottom, w
 and comes back as odometry: each robot's drive controller turns its latest
 command into wheel targets (limits, ramp, timeout), PyBullet steps, and each
 robot measures what is due at that step: its state when a publication is due
-(joints, base, wheel odometry, read once for every output), its camera, laser
-and IMU at their own rates. It returns the measurements as plain data;
+(joints, base, wheel odometry, read once for every output), its camera, laser,
+3D lidar, IMU and battery at their own rates; the rays of every robot's laser
+and lidar are cast together. It returns the measurements as plain data;
 outputs only translate them into messages. Every step also checks that no
 robot's physics has blown up, and puts back one that has.
 
@@ -487,7 +488,17 @@ class Simulation:
             world.follow_camera(robots[0].body)
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
-        measurements = tuple(robot.measure(step, time_ns, state_due) for robot in robots)
+        measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
+        casting = [(i, robot.pending_rays()) for i, robot in enumerate(robots)
+                   if measurements[i] is not None and robot.pending_rays()]
+        if casting:
+            # Every robot's rays of this step cast together (raycast.cast_requests: a
+            # call per robot, its mask's); each robot then takes its answers.
+            answers = iter(world.cast_requests([r for _, rays in casting for r in rays]))
+            for i, rays in casting:
+                measurements[i] = robots[i].take_rays(
+                    measurements[i], [next(answers) for _ in rays])
+        measurements = tuple(measurements)
         for watcher in self._step_watchers:
             watcher(time_ns)
         if state_due:

@@ -55,8 +55,9 @@ def test_images_and_camera_info_at_camera_rate(ros):
     assert image.header.frame_id == info.header.frame_id == 'head_camera_optical'
     assert info.header.stamp == image.header.stamp
     fy = 60.0 / math.tan(math.radians(25.0))
-    assert list(info.k) == pytest.approx([fy, 0, 80, 0, fy, 60, 0, 0, 1])
-    assert list(info.p) == pytest.approx([fy, 0, 80, 0, 0, fy, 60, 0, 0, 0, 1, 0])
+    # The principal point where the renderer samples (test/sim/test_camera_info_samples.py).
+    assert list(info.k) == pytest.approx([fy, 0, 80, 0, fy, 59, 0, 0, 1])
+    assert list(info.p) == pytest.approx([fy, 0, 80, 0, 0, fy, 59, 0, 0, 0, 1, 0])
     assert list(info.r) == [1, 0, 0, 0, 1, 0, 0, 0, 1]
     assert info.distortion_model == 'plumb_bob' and list(info.d) == [0.0] * 5
     pixels = _image_array(image, 160, 120).astype(int)

@@ -316,7 +316,7 @@ def test_depth_of_a_wall_at_a_known_distance(ros):
     assert pixels[24, 32] == pytest.approx(2.0 - lens_x, abs=5e-3)
     # Along the optical axis, not the ray: the whole row across the wall reads the same.
     assert pixels[24, 8] == pytest.approx(pixels[24, 32], abs=5e-3)
-    assert info.k[0] == info.k[4] and (info.k[2], info.k[5]) == (32.0, 24.0)
+    assert info.k[0] == info.k[4] and (info.k[2], info.k[5]) == (32.0, 23.0)
 
 
 def test_depth_without_anything_in_view_is_plus_inf(ros):

@@ -1,0 +1,174 @@
+"""
+Wheel encoders that err as real ones do, and the covariance of odometry built on them.
+
+No ROS and no PyBullet here (numpy only). :class:`Encoders` turns the true
+rotation of each side's wheels into what its encoder counts: every rotation
+since the last reading is scaled by (1 + e), e from a
+:class:`~r2d2_sim.model.noise.NoiseModel` (one channel per side), and the
+count is the accumulated angle rounded to the encoder's ``precision`` (its
+tick, 2 pi / ticks per revolution). The error is relative because wheel
+odometry errs in proportion to the distance rolled: a constant bias is a
+wheel radius off by that fraction (a robot whose left wheel reads 1 % long
+and right 1 % short drifts into a curve), the white noise jitters each
+reading's travel, the dynamic bias is a radius that changes slowly (load,
+tyre wear). A robot standing still reads no travel, as with real encoders;
+wheel slip stays the physics' (the wheels turn, the robot slides).
+
+:class:`OdometryCovariance` propagates what these errors do to the odometry's
+pose, linearised along the path odometry integrates (an error-state filter
+whose state is the pose error and each side's constant and dynamic bias), so
+that the published covariance grows as the drift can.
+"""
+
+import math
+from typing import Optional, Tuple
+
+import numpy
+
+from r2d2_sim.model.noise import NoiseModel, NoiseSpec, quantize
+
+__all__ = ['Encoders', 'OdometryCovariance']
+
+
+class Encoders:
+    """
+    The left and right encoders odometry reads, each counting its side's (signed) wheel angle.
+
+    ``noise`` is relative (a fraction of each reading's rotation) except its
+    ``precision``, the tick in rad. :meth:`read` returns what the encoders
+    count for the true angles now; the first reading after construction or
+    :meth:`restart` is the true angle rounded to a tick.
+    """
+
+    def __init__(self, noise: NoiseSpec, rng: Optional[numpy.random.Generator]) -> None:
+        self.spec = noise
+        # Rounding applies to the angle, not to the relative error.
+        self._model = NoiseModel(
+            NoiseSpec(noise.mean, noise.stddev, noise.bias_mean, noise.bias_stddev,
+                      noise.dynamic_bias_stddev, noise.dynamic_bias_correlation_time_s),
+            rng, channels=2)
+        self._true: Optional[numpy.ndarray] = None
+        self._counted: Optional[numpy.ndarray] = None
+
+    @property
+    def bias(self) -> numpy.ndarray:
+        """Return each side's constant relative bias, left then right, drawn once."""
+        return self._model.bias
+
+    def restart(self) -> None:
+        """Take the next reading as a new baseline (the robot was put back)."""
+        self._true = self._counted = None
+
+    def read(self, left_rad: float, right_rad: float, dt_s: float) -> Tuple[float, float]:
+        """Return the counted (left, right) angles for the true ones, ``dt_s`` after the last."""
+        true = numpy.array([left_rad, right_rad], dtype=float)
+        if self._true is None:
+            self._counted = true
+        else:
+            travel = true - self._true
+            if not self._model.exact:
+                travel = travel * (1.0 + self._model.error(2, dt_s))
+            self._counted = self._counted + travel
+        self._true = true
+        counted = quantize(self._counted, self.spec.precision)
+        return float(counted[0]), float(counted[1])
+
+
+# The state of the error filter: pose error (x, y, yaw), then each side's
+# constant bias (left, right) and dynamic bias (left, right).
+_POSE, _CONSTANT, _DYNAMIC = slice(0, 3), slice(3, 5), slice(5, 7)
+
+
+class OdometryCovariance:
+    """
+    The covariance of wheel odometry whose encoders err as ``noise`` says (see :class:`Encoders`).
+
+    Each :meth:`update` takes one odometry step as odometry integrated it:
+    the heading before, each side's travel in metres and the time it took.
+    The pose error moves as the odometry's midpoint integration linearised
+    (x += ds cos(yaw + dyaw/2)...); each side's travel error is its travel
+    times (constant bias + dynamic bias + white noise), plus the rounding of
+    two readings (r^2 precision^2 / 6 in m^2). The constant biases start with
+    variance bias_mean^2 + bias_stddev^2 + mean^2 (a white-noise mean is as
+    systematic as a bias), the dynamic ones at 0 and follow their
+    Gauss-Markov process; the pose starts known (0). The twist's covariance
+    is that of the last step's travel errors over its time.
+    """
+
+    def __init__(self, noise: NoiseSpec, wheel_radius_m: float, wheel_separation_m: float
+                 ) -> None:
+        self.spec = noise
+        self.wheel_radius_m = wheel_radius_m
+        self.wheel_separation_m = wheel_separation_m
+        self._to_twist = numpy.array([[0.5, 0.5],
+                                      [-1.0 / wheel_separation_m, 1.0 / wheel_separation_m]])
+        self.covariance = numpy.zeros((7, 7))
+        self.twist = numpy.zeros((2, 2))
+        self.reset()
+
+    def reset(self) -> None:
+        """Start again at a known pose: no pose error, the biases' prior variance."""
+        spec = self.spec
+        self.covariance = numpy.zeros((7, 7))
+        constant = spec.bias_mean ** 2 + spec.bias_stddev ** 2 + spec.mean ** 2
+        self.covariance[_CONSTANT, _CONSTANT] = constant * numpy.eye(2)
+        self.twist = numpy.zeros((2, 2))
+
+    @property
+    def pose(self) -> numpy.ndarray:
+        """Return the 3 x 3 covariance of (x, y, yaw) in m^2, m rad, rad^2."""
+        return self.covariance[_POSE, _POSE]
+
+    def update(self, yaw_rad: float, left_m: float, right_m: float, dt_s: float) -> None:
+        """Propagate one odometry step: heading before it, each side's travel, its time."""
+        spec = self.spec
+        ds = (left_m + right_m) / 2.0
+        dyaw = (right_m - left_m) / self.wheel_separation_m
+        mid = yaw_rad + dyaw / 2.0
+        cos, sin = math.cos(mid), math.sin(mid)
+        # d(pose)/d(travel error left, right), through d(pose)/d(ds, dyaw).
+        to_pose = numpy.array([[cos, -ds / 2.0 * sin], [sin, ds / 2.0 * cos], [0.0, 1.0]])
+        to_pose = to_pose @ self._to_twist
+        along = to_pose @ numpy.diag([left_m, right_m])  # d(pose)/d(relative error)
+        decay, dynamic_step = 1.0, 0.0
+        if spec.has_dynamic_bias and dt_s > 0.0:
+            tau = spec.dynamic_bias_correlation_time_s
+            decay = math.exp(-dt_s / tau)
+            dynamic_step = (-spec.dynamic_bias_stddev ** 2 * tau / 2.0
+                            * math.expm1(-2.0 * dt_s / tau))
+        # The reading's error is travel * (constant + dynamic after its step + white):
+        # the dynamic bias steps first (decay, then a fresh draw), as Encoders draws it.
+        a = numpy.eye(7)
+        a[0, 2] = -ds * sin
+        a[1, 2] = ds * cos
+        a[_POSE, _CONSTANT] = along
+        a[_POSE, _DYNAMIC] = decay * along
+        a[_DYNAMIC, _DYNAMIC] = decay * numpy.eye(2)
+        g = numpy.zeros((7, 4))  # fresh draws: white (left, right), dynamic step (left, right)
+        g[_POSE, 0:2] = along
+        g[_POSE, 2:4] = along
+        g[_DYNAMIC, 2:4] = numpy.eye(2)
+        fresh = numpy.diag([spec.stddev ** 2] * 2 + [dynamic_step] * 2)
+        # Each count is rounded to a tick: the difference of two roundings, r^2 p^2 / 6.
+        rounding = self.wheel_radius_m ** 2 * spec.precision ** 2 / 6.0 * numpy.eye(2)
+        before = self.covariance
+        covariance = (a @ before @ a.T + g @ fresh @ g.T
+                      + _embed_pose(to_pose @ rounding @ to_pose.T))
+        self.covariance = (covariance + covariance.T) / 2.0  # symmetric to the last bit
+        if dt_s > 0.0:
+            # This step's relative error per side: biases as known before it, its draws.
+            c, d = before[_CONSTANT, _CONSTANT], before[_DYNAMIC, _DYNAMIC]
+            cd = before[_CONSTANT, _DYNAMIC]
+            relative = (c + decay * (cd + cd.T) + decay * decay * d
+                        + (spec.stddev ** 2 + dynamic_step) * numpy.eye(2))
+            travel = numpy.diag([left_m, right_m])
+            step = travel @ relative @ travel + rounding
+            twist = self._to_twist @ step @ self._to_twist.T / (dt_s * dt_s)
+            self.twist = (twist + twist.T) / 2.0
+
+
+def _embed_pose(pose: numpy.ndarray) -> numpy.ndarray:
+    """Return a 7 x 7 matrix holding ``pose`` (3 x 3) in its pose block, zeros elsewhere."""
+    full = numpy.zeros((7, 7))
+    full[_POSE, _POSE] = pose
+    return full

@@ -1,0 +1,257 @@
+"""
+Each sensor's noise parameters reach its readings, and every stream follows the seed.
+
+No ROS: robots in the core, standing in the room (walls at known distances)
+or driving. Each family of noise parameters (laser, IMU per quantity, wheel
+encoders, depth) is checked on at least 10,000 readings against the exact
+readings of the same world; the streams are each a sensor's own (turning
+another sensor's noise on, or listing the robots in another order, leaves a
+robot's noise as it was), and a full reset starts all of them again.
+"""
+
+import math
+
+import numpy
+import pytest
+
+from r2d2_sim.sim.parameters import ConfigError, parse_config
+from r2d2_sim.sim.robot_parameters import parse_world
+
+ROOM = 'package://r2d2_sim/urdf/room.urdf'
+SCANS = 30  # x 360 beams
+
+
+def laser_errors(make, **noise):
+    """Return noisy minus exact ranges over SCANS scans of a robot standing in the room."""
+    exact = make(world=ROOM).robot.laser.scan()
+    laser = make(world=ROOM, **noise).robot.laser
+    assert numpy.isfinite(exact).all()
+    return numpy.concatenate([laser.scan().astype(float) - exact for _ in range(SCANS)]), laser
+
+
+def test_laser_noise_parameters_reach_the_ranges(make):
+    errors, laser = laser_errors(make, scan_noise_mean=0.02, scan_noise_std=0.01,
+                                 scan_noise_bias_mean=0.05, scan_noise_bias_std=0.001,
+                                 noise_seed=3)
+    bias = laser._noise.bias[0]
+    assert abs(bias) == pytest.approx(0.05, abs=0.004)
+    assert errors.mean() == pytest.approx(0.02 + bias, rel=0.02)
+    assert errors.std() == pytest.approx(0.01, rel=0.02)
+
+
+def test_laser_precision_rounds_every_range(make):
+    laser = make(world=ROOM, scan_noise_std=0.01, scan_noise_precision=0.01).robot.laser
+    ranges = laser.scan().astype(float)
+    assert numpy.allclose(ranges, numpy.round(ranges / 0.01) * 0.01, atol=1e-6)  # float32
+
+
+def test_the_laser_bias_takes_both_signs_over_seeds(make):
+    exact = make(world=ROOM).robot.laser.scan()
+    signs = set()
+    for seed in range(8):
+        ranges = make(world=ROOM, scan_noise_bias_mean=0.1, noise_seed=seed).robot.laser.scan()
+        error = float(numpy.mean(ranges - exact))
+        assert abs(error) == pytest.approx(0.1, abs=1e-5)
+        signs.add(error > 0)
+    assert signs == {True, False}
+
+
+def test_laser_drift_moves_between_scans(make):
+    laser = make(world=ROOM, scan_noise_dynamic_bias_std=0.05,
+                 scan_noise_dynamic_bias_correlation_time=100.0).robot.laser
+    exact = make(world=ROOM).robot.laser.scan()
+    offsets = [float(numpy.mean(laser.scan() - exact)) for _ in range(50)]
+    assert len(set(offsets)) == 50
+    assert offsets[0] != 0.0
+
+
+def imu_readings(robot, count):
+    """Return (orientations, angular, linear) of ``count`` readings of a robot at rest."""
+    robot.imu.reset()  # its own times from here on
+    readings = [robot.imu.read(0.01 * (k + 1)) for k in range(count)]
+    return tuple(numpy.array([getattr(r, name) for r in readings]) for name in (
+        'orientation_xyzw', 'angular_velocity_rad_s', 'linear_acceleration_m_s2'))
+
+
+@pytest.mark.parametrize('quantity, index, exact_value', [
+    ('imu_angular_velocity', 1, (0.0, 0.0, 0.0)),
+    ('imu_linear_acceleration', 2, (0.0, 0.0, 9.8)),
+])
+def test_imu_noise_parameters_reach_each_axis(make, quantity, index, exact_value):
+    """4,000 readings x 3 axes: each axis has its own bias, all the same spread."""
+    simulation = make(**{f'{quantity}_noise_std': 0.02, f'{quantity}_noise_bias_mean': 0.3,
+                         f'{quantity}_noise_precision': 0.0001, 'noise_seed': 5})
+    for _ in range(240):  # settle at rest
+        simulation.step()
+    values = imu_readings(simulation.robot, 4000)[index]
+    model = simulation.robot.imu.model
+    bias = {'imu_angular_velocity': model._angular, 'imu_linear_acceleration': model._linear}[
+        quantity].bias
+    errors = values - numpy.array(exact_value)
+    assert numpy.allclose(numpy.abs(bias), 0.3)
+    assert errors.mean(axis=0) == pytest.approx(bias, abs=0.02 * 0.3 + 0.002)
+    assert errors.std(axis=0) == pytest.approx([0.02] * 3, rel=0.02)
+    assert numpy.allclose(values, numpy.round(values / 0.0001) * 0.0001, atol=1e-12)
+
+
+def test_imu_orientation_noise_is_a_rotation_per_axis(make):
+    simulation = make(imu_orientation_noise_std=0.01, imu_orientation_noise_bias_mean=0.05)
+    for _ in range(240):
+        simulation.step()
+    orientations = imu_readings(simulation.robot, 4000)[0]
+    # Small rotations about the world axes of a level robot: x, y ~ half the angle.
+    angles = 2.0 * orientations[:, :3] / orientations[:, 3:4]
+    bias = simulation.robot.imu.model._orientation.bias
+    assert angles[:, :2].mean(axis=0) == pytest.approx(bias[:2], abs=0.002)
+    assert angles[:, :2].std(axis=0) == pytest.approx([0.01, 0.01], rel=0.03)
+
+
+def drive_straight(simulation, steps=720):
+    simulation.robot.command(0.4, 0.0)
+    for _ in range(steps):
+        simulation.step()
+    return simulation.robot.read_frame(simulation.step_count, simulation.time_ns).odometry
+
+
+def test_encoder_bias_scales_the_odometry_the_physics_left_alone(make):
+    """The same drive (bit for bit) with biased encoders: odometry travels (1 + bias) as far."""
+    exact = make(cmd_vel_timeout=0.0)
+    noisy = make(cmd_vel_timeout=0.0, encoder_noise_bias_mean=0.02, noise_seed=1)
+    left_bias, right_bias = noisy.robot.controller.encoders.bias
+    odometry = [drive_straight(simulation) for simulation in (exact, noisy)]
+    assert exact.robot.body.world_state() == noisy.robot.body.world_state()
+    assert abs(left_bias) == abs(right_bias) == pytest.approx(0.02)
+    travelled = [math.hypot(o.x_m, o.y_m) for o in odometry]
+    assert travelled[1] / travelled[0] == pytest.approx(1.0 + (left_bias + right_bias) / 2,
+                                                        abs=2e-3)
+    assert odometry[0].pose_covariance is None
+    assert odometry[1].pose_covariance[0] > 0.0 and odometry[1].twist_covariance[0] > 0.0
+
+
+def test_encoder_ticks_make_the_odometry_move_in_steps(make):
+    tick = 2.0 * math.pi / 64
+    simulation = make(cmd_vel_timeout=0.0, encoder_noise_precision=tick)
+    radius = simulation.robot.drive.geometry.wheel_radius_m
+    simulation.robot.command(0.05, 0.0)
+    seen = set()
+    for _ in range(240):
+        simulation.step()
+        seen.add(round(simulation.robot.controller.odometry.distance_m / (radius * tick), 6))
+    assert all(value == int(value) for value in seen) and len(seen) > 2
+
+
+def depth_errors(make, images=4, **noise):
+    parameters = dict(world=ROOM, camera_rate=10.0, camera_depth=True, camera_width=80,
+                      camera_height=60)
+    exact = make(**parameters).robot.camera.render(depth=True).depth
+    camera = make(**parameters, **noise).robot.camera
+    seen = numpy.isfinite(exact)  # the room has walls, no ceiling
+    assert seen.sum() > 1000
+    images = [camera.render(depth=True).depth for _ in range(images)]
+    assert all(numpy.array_equal(numpy.isfinite(image), seen) for image in images)
+    return numpy.concatenate([image[seen].astype(float) - exact[seen] for image in images]), camera
+
+
+def test_depth_noise_parameters_reach_every_pixel(make):
+    """4 images of 80 x 60, the pixels that see a wall: over 10,000; +inf stays +inf."""
+    errors, camera = depth_errors(make, depth_noise_std=0.01, depth_noise_bias_mean=0.04,
+                                  noise_seed=2)
+    assert len(errors) > 10_000
+    bias = camera._depth_noise.bias[0]
+    assert abs(bias) == pytest.approx(0.04)
+    assert errors.mean() == pytest.approx(bias, rel=0.02)
+    assert errors.std() == pytest.approx(0.01, rel=0.02)
+
+
+def test_each_sensor_has_a_stream_of_its_own(make):
+    """The laser's noise is the same with and without IMU and depth noise on."""
+    alone = make(world=ROOM, scan_noise_std=0.01).robot.laser.scan()
+    crowded = make(world=ROOM, scan_noise_std=0.01, imu_angular_velocity_noise_std=0.1,
+                   encoder_noise_std=0.01, camera_rate=10.0, camera_depth=True,
+                   depth_noise_std=0.1, camera_width=16, camera_height=12).robot
+    crowded.camera.render(depth=True)
+    crowded.imu.read(0.01)
+    assert numpy.array_equal(crowded.laser.scan(), alone)
+
+
+def test_a_robots_noise_does_not_depend_on_the_order_robots_are_listed_in(make):
+    """Robots a and b listed either way: each reads the same noisy scan, by its name."""
+    poses = {'a.initial_pose': [0.0, -0.8, 0.0], 'b.initial_pose': [0.0, 0.8, 0.0]}
+    scans = []
+    for order in (['a', 'b'], ['b', 'a']):
+        simulation = make(world=ROOM, robots=order, scan_noise_std=0.01, **poses)
+        scans.append({robot.name: robot.laser.scan() for robot in simulation.robots})
+    assert numpy.array_equal(scans[0]['a'], scans[1]['a'])
+    assert numpy.array_equal(scans[0]['b'], scans[1]['b'])
+    assert not numpy.array_equal(scans[0]['a'] - scans[0]['b'], 0.0)
+
+
+ALL_NOISE = {'scan_noise_std': 0.01, 'scan_noise_bias_mean': 0.01,
+             'scan_noise_dynamic_bias_std': 0.01, 'scan_noise_dynamic_bias_correlation_time': 10.0,
+             'imu_angular_velocity_noise_std': 0.01, 'imu_angular_velocity_noise_bias_std': 0.01,
+             'imu_linear_acceleration_noise_std': 0.1, 'imu_orientation_noise_std': 0.01,
+             'imu_linear_acceleration_noise_dynamic_bias_std': 0.01,
+             'imu_linear_acceleration_noise_dynamic_bias_correlation_time': 100.0,
+             'encoder_noise_std': 0.02, 'encoder_noise_bias_std': 0.01,
+             'encoder_noise_dynamic_bias_std': 0.01,
+             'encoder_noise_dynamic_bias_correlation_time': 60.0,
+             'encoder_noise_precision': 0.001,
+             'camera_rate': 24.0, 'camera_depth': True, 'camera_width': 16, 'camera_height': 12,
+             'depth_noise_std': 0.01, 'depth_noise_bias_mean': 0.01,
+             'depth_noise_precision': 0.001,
+             'world': ROOM, 'cmd_vel_timeout': 0.0, 'noise_seed': 7}
+
+
+def noisy_run(simulation, steps=240):
+    """Drive 1 s and record every noisy reading: scans, IMU, depth, odometry."""
+    simulation.robot.command(0.3, 0.4)
+    seen = []
+    for _ in range(steps):
+        result = simulation.step()
+        if result is None:
+            continue
+        m = result.measurements[0]
+        seen.append((result.step, None if m.scan is None else m.scan.tobytes(), m.imu,
+                     None if m.image is None else m.image.depth.tobytes(),
+                     None if m.frame is None else m.frame.odometry))
+    return seen
+
+
+def test_a_full_reset_repeats_every_noisy_reading(make):
+    simulation = make(**ALL_NOISE)
+    first = noisy_run(simulation)
+    assert all(any(entry[i] is not None for entry in first) for i in range(1, 5))
+    simulation.reset(time=True, state=True, spawned=True)
+    assert noisy_run(simulation) == first
+
+
+def test_a_state_reset_goes_on_with_the_streams(make):
+    simulation = make(**ALL_NOISE)
+    first = noisy_run(simulation)
+    simulation.reset(time=True, state=True)  # not as launched: the noise goes on
+    assert noisy_run(simulation) != first
+
+
+@pytest.mark.parametrize('parameters, message', [
+    ({'scan_noise_bias_std': -0.1}, 'parameter scan_noise_bias_std must be >= 0'),
+    ({'imu_angular_velocity_noise_mean': 11.0},
+     r'parameter imu_angular_velocity_noise_mean must be in \[-10, 10\] rad/s'),
+    ({'encoder_noise_dynamic_bias_std': 0.1},
+     'encoder_noise_dynamic_bias_std needs encoder_noise_dynamic_bias_correlation_time > 0'),
+    ({'depth_noise_precision': 'fine'}, 'parameter depth_noise_precision must be a number'),
+    ({'encoder_noise_precision': 7.0}, r'must be in \[0, 6.28319\] rad'),
+])
+def test_bad_noise_parameters_are_refused_in_one_line(parameters, message):
+    with pytest.raises(ConfigError, match=message) as info:
+        parse_config(parameters)
+    assert '\n' not in str(info.value)
+
+
+def test_noise_is_set_per_robot():
+    config, robots = parse_world({'robots': ['a', 'b'], 'b.initial_pose': [2.0, 0.0, 0.0],
+                                  'a.scan_noise_bias_mean': 0.2, 'scan_noise_std': 0.01})
+    a, b = (robot.config.noise('scan') for robot in robots)
+    assert (a.bias_mean, a.stddev) == (0.2, 0.01) and (b.bias_mean, b.stddev) == (0.0, 0.01)
+    with pytest.raises(ConfigError,
+                       match='robot b: parameter encoder_noise_dynamic_bias_std needs'):
+        parse_world({'robots': ['b'], 'b.encoder_noise_dynamic_bias_std': 0.1})
