@@ -33,7 +33,7 @@ from r2d2_sim.sim.robot import Robot
 from r2d2_sim.sim.robot_parameters import resolve_namespace, RobotSpec
 from r2d2_sim.sim.worlds import World, WorldModel
 
-__all__ = ['Launch', 'RobotStart', 'Rebuilt', 'robot_starts', 'placed']
+__all__ = ['Launch', 'RobotStart', 'Rebuilt', 'robot_starts', 'placed', 'docked']
 
 
 class RobotStart(NamedTuple):
@@ -66,14 +66,43 @@ class _Entity:
         self.info = info    # what GetEntityInfo says of it at start-up
 
 
-def placed(start: RobotStart, world: World) -> RobotStart:
+def docked(config: SimConfig, world: Optional[World],
+           warn: Optional[Callable[[str], None]] = None) -> SimConfig:
+    """
+    Return ``config`` with its ``battery_dock`` named pose of ``world`` as its dock pose.
+
+    Without ``battery_dock``, ``config`` as it is. A world without that pose
+    (or none loaded) is a ConfigError, or with ``warn`` one warning and no dock.
+    """
+    name = config.battery_dock
+    if not name:
+        return config
+    pose = next((p for p in world.named_poses if p.name == name), None) if world else None
+    if pose is None:
+        where = f'the world {world.name}' if world is not None else 'no world'
+        message = f'battery_dock {name[:100]!r} is not a named pose of {where}'
+        if warn is None:
+            raise ConfigError(message)
+        warn(message + ': no dock to charge on')
+        return dataclasses.replace(config, battery_dock_pose=())
+    dock = (pose.position[0], pose.position[1], yaw_of(pose.orientation))
+    return dataclasses.replace(config, battery_dock_pose=dock)
+
+
+def placed(start: RobotStart, world: World,
+           warn: Optional[Callable[[str], None]] = None) -> RobotStart:
     """
     Return a start-up robot's start in ``world``: its initial pose from the world's start pose.
 
     ``initial_pose`` [x, y, yaw] is relative to the world's start pose when
     it names one (x, y and yaw of that pose: robots stand on the ground), else
-    to the world's origin.
+    to the world's origin. Its dock is the world's (:func:`docked`, ``warn``
+    as it takes it).
     """
+    try:
+        start = start._replace(config=docked(start.config, world, warn))
+    except ConfigError as exc:
+        raise ConfigError(f'robot {start.name}: {exc}' if start.listed else str(exc)) from None
     pose = world.start_pose
     if pose is None:
         return start
@@ -308,7 +337,7 @@ class Launch:
                 if self._reload(entity.body, dropped):
                     self._entities.append(entity)
                 continue
-            start = placed(next(starts), world_file)
+            start = placed(next(starts), world_file, self._warn)
             entity = _Entity(entity.body, start, info=_robot_info(start))
             self._entities.append(entity)
             robot = robot_of.get(id(entity.body))

@@ -452,9 +452,13 @@ PARAMETERS: List[Parameter] = [
               per_robot=True),
     Parameter('battery_dock_pose', 'double_array', [],
               'The dock: [x (m), y (m), yaw (rad)] in the world frame, where a robot resting '
-              '(base slower than 5 cm/s) charges; [] for none. A named pose of the world can '
-              'give it later.',
+              '(base slower than 5 cm/s) charges; [] for none (or battery_dock\'s).',
               'battery_dock_pose', read.optional_numbers(3), per_robot=True),
+    Parameter('battery_dock', 'string', '',
+              'The dock as a named pose of the world (the room\'s is dock): its x, y and yaw, '
+              'taken again when another world loads (a world without it: no dock); \'\' for '
+              'battery_dock_pose\'s.',
+              'battery_dock', read.string, per_robot=True),
     Parameter('battery_dock_tolerance', 'double_array', [0.1, 0.2],
               'How near the dock pose counts as on it: [position (m), yaw (rad)].',
               'battery_dock_tolerance', read.numbers(2), Bounds(0.0, 100.0), per_robot=True),
@@ -597,6 +601,9 @@ def check_fields(fields: Mapping[str, Any]) -> None:
         raise ConfigError('parameter battery_voltage_empty must be below battery_voltage_full, '
                           f'got {fields["battery_voltage_empty_v"]} >= '
                           f'{fields["battery_voltage_full_v"]}')
+    if fields['battery_dock'] and fields['battery_dock_pose']:
+        raise ConfigError('parameters battery_dock and battery_dock_pose both give the dock: '
+                          'set one')
     low, high = fields['lidar3d_angle_min_rad'], fields['lidar3d_angle_max_rad']
     if not (low < high or (low == high and fields['lidar3d_rings'] == 1)):
         raise ConfigError('parameter lidar3d_angle_min must be below lidar3d_angle_max (equal '

@@ -35,7 +35,7 @@ from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.world import SimWorld
 from r2d2_sim.sim.entities import Category, Entities, EntityInfo, SpawnRequest
 from r2d2_sim.sim.entity_bounds import Region
-from r2d2_sim.sim.launch import Launch, robot_starts
+from r2d2_sim.sim.launch import docked, Launch, robot_starts
 from r2d2_sim.sim.tags import TagsFilter, tags_match
 from r2d2_sim.sim.world_manifest import NamedPose
 from r2d2_sim.sim.worlds import (
@@ -369,8 +369,9 @@ class Simulation:
             body_yaw_offset_rad=self.config.body_yaw_offset_rad)
         base = body.world_state()
         try:
-            config = robot_config(self.config, body.name, {
-                'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]})
+            config = docked(robot_config(self.config, body.name, {
+                'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]}),
+                self.world_file, self._named_warn(body.name))
             self._check_frames_free(body.name, config)
             robot = Robot(self.world, body, config, body.source, description,
                           warn=self._named_warn(body.name), error=self._error,
