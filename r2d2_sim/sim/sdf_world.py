@@ -48,7 +48,8 @@ def _build(text: str, path: Optional[str], shown: str, reading, anchor: Optional
     """
     Read and build an SDF file for a world; return its summary line, noted (or refused).
 
-    ``named``: the line names the file (one of a manifest's models).
+    ``shown`` names the file in messages ('': read_world names it in front
+    of them); ``named``: so does the summary line (one of a manifest's models).
     """
     settings, options = reading.sdf, reading.options
     ignore = options.ignore_missing_or_unsupported_assets
@@ -88,20 +89,21 @@ def _models(built: SdfBuilt, source: str, entry=None) -> List[WorldModel]:
 def read_sdf_world(text: str, path: Optional[str], uri: str, reading,
                    anchor: Optional[str]) -> World:
     """Return an SDF file as a World: its models as bodies, its frames as named poses."""
-    shown = uri[:200] if uri else 'the resource_string'
+    shown = '' if uri else 'the resource_string'  # read_world puts a file's name in front
     read, built, summary = _build(text, path, shown, reading, anchor)
+    at = f'{shown}: ' if shown else ''
     poses = []
     for frame in read.scene.frames:
         name = entity_name(frame.name)
         if not NAME.match(name) or len(name) > 255:
-            raise RefusedError('RESOURCE_PARSE_ERROR', f'{shown}: frame {frame.name[:100]!r} '
+            raise RefusedError('RESOURCE_PARSE_ERROR', f'{at}frame {frame.name[:100]!r} '
                                                        'cannot name a named pose')
         orientation = check_world_pose(frame.pose.translation, frame.pose.rotation,
-                                       f'{shown}: frame {name}')
+                                       f'{at}frame {name}')
         poses.append(NamedPose(name, 'a <frame> of the SDF world', ('frame',),
                                frame.pose.translation, orientation))
     if len({p.name for p in poses}) != len(poses):
-        raise RefusedError('RESOURCE_PARSE_ERROR', f'{shown}: two frames have one name')
+        raise RefusedError('RESOURCE_PARSE_ERROR', f'{at}two frames have one name')
     models = _models(built, uri or 'resource_string')
     name = read.scene.world or (os.path.splitext(os.path.basename(path))[0] if path else 'world')
     description = [f'SDF world {name[:100]}: {len(models)} bodies, {built.triangles} mesh '

@@ -289,3 +289,20 @@ def test_without_r2d2_sims_ground_plane_the_worlds_own_is_loaded(make, world_dir
     name = simulation.spawn(SpawnRequest(resource_string=sdf(box_model('b')),
                                          position=(-1.0, 1.0, 0.5)))
     assert fall(simulation, name, 480) == pytest.approx(0.2, abs=2e-3)  # on the SDF's plane
+
+
+def test_a_model_of_hundreds_of_shapes_loads(make, tmp_path):
+    """
+    PyBullet reads a URDF in lines of 8 kB: a URDF of one long line broke in an attribute.
+
+    (turtlebot3_house, one static model of 214 shapes, did so before.)
+    """
+    shapes = ''.join(f'<collision name="c{i}"><pose>{i * 0.1} 0 0.05 0 0 0</pose><geometry><box>'
+                     '<size>0.05 0.05 0.1</size></box></geometry></collision>'
+                     for i in range(300))
+    path = tmp_path / 'fence.sdf'
+    path.write_text(sdf(f'<world name="w"><model name="fence"><static>true</static><pose>0 2 0 '
+                        f'0 0 0</pose><link name="l">{shapes}</link></model></world>'))
+    simulation = make(world=str(path), scan_rate=0.0)
+    fence = simulation.world.bodies['fence']
+    assert len(fence.collision_shapes(-1)) == 300

@@ -30,7 +30,7 @@ from r2d2_sim.model.transforms import (
     compose, IDENTITY, inverse, rotate_inverse, Transform, Vector3)
 from r2d2_sim.sim.sdf.description import Inertial, JointLimits, Link, Model, Shape
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.sim.sdf.elements import PARSE
+from r2d2_sim.sim.sdf.elements import Place
 
 __all__ = ['BodyLink', 'BodyJoint', 'BodyPlan', 'plan_bodies', 'entity_name', 'MASSLESS']
 
@@ -110,8 +110,7 @@ class _Planner:
         self.links = {link.name: link for link in model.links}
 
     def fail(self, problem: str) -> RefusedError:
-        return RefusedError(PARSE, f'{self.model.source}: model {self.model.name[:100]}: '
-                                   f'{problem}')
+        return Place(self.model.source, (f'model {self.model.name[:100]}',)).fail(problem)
 
     def moving(self, name: str) -> bool:
         link = self.links.get(name)

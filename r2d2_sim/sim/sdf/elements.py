@@ -108,8 +108,9 @@ class Place:
     """
     Where an element is: its file (as shown) and the path of named elements down to it.
 
-    ``str(place)`` reads ``room.sdf: model wall, link base``; every reader
-    here raises RESOURCE_PARSE_ERROR naming the place and the child element.
+    ``str(place)`` reads ``room.sdf: model wall, link base`` (without the
+    file when ``shown`` is '': the caller names it); every reader here raises
+    RESOURCE_PARSE_ERROR naming the place and the child element.
     """
 
     def __init__(self, shown: str, path: Tuple[str, ...] = ()) -> None:
@@ -123,6 +124,8 @@ class Place:
         return Place(self.shown, self.path + (step,))
 
     def __str__(self) -> str:
+        if not self.shown:  # the file the caller names itself (a world read_world reads)
+            return ', '.join(self.path) or 'the file'
         return self.shown + (': ' + ', '.join(self.path) if self.path else '')
 
     def fail(self, problem: str, code: str = PARSE) -> RefusedError:

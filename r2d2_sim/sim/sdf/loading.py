@@ -21,6 +21,7 @@ from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import compose, rotate, Transform
 from r2d2_sim.sim.sdf.bodies import plan_bodies
 from r2d2_sim.sim.sdf.description import Geometry, Model, Scene
+from r2d2_sim.sim.sdf.elements import Place
 from r2d2_sim.sim.sdf.mesh_cache import Converted, MeshCache
 from r2d2_sim.sim.sdf.reader import Reader, ReadOptions
 from r2d2_sim.sim.sdf.resources import Resources
@@ -187,9 +188,9 @@ def build_bodies(scene: Scene, cache: MeshCache, ignore_missing: bool = False,
                 text, used = urdf_text(body, meshes, cache.hulls, notes)
                 triangles += used
                 if triangles > MAX_WORLD_TRIANGLES:
-                    raise RefusedError('UNSUPPORTED_ASSETS', f'{model.source}: the meshes have '
-                                                             f'more than {MAX_WORLD_TRIANGLES} '
-                                                             'triangles in all')
+                    raise Place(model.source, (f'model {model.name[:100]}',)).fail(
+                        f'the meshes have more than {MAX_WORLD_TRIANGLES} triangles in all',
+                        'UNSUPPORTED_ASSETS')
                 name, number = body.name, 1
                 while name in taken:
                     name, number = f'{body.name}_{number}', number + 1

@@ -183,6 +183,10 @@ def _surface(element: Optional[ElementTree.Element], place: Place, notes
     bounce = element.find('bounce')
     if bounce is not None:
         restitution = at.child(bounce).number(bounce, 'restitution_coefficient', None, 0.0, 1.0)
+    contact = element.find('contact')
+    if contact is not None and any(local_tag(c) for c in contact.iter() if c is not contact
+                                   and (c.text or '').strip()):
+        notes.note('surface contact settings')  # stiffness, bitmasks: Bullet's own apply
     _others(element, ('friction', 'bounce', 'contact'), notes)
     return friction, restitution
 
@@ -208,10 +212,12 @@ def _shape(element: ElementTree.Element, place: Place, notes, visual: bool
     return ShapeSpec(Shape(name, pose, geometry, friction, restitution), relative_to)
 
 
-def _inertial(element: Optional[ElementTree.Element], place: Place) -> Inertial:
+def _inertial(element: Optional[ElementTree.Element], place: Place, notes) -> Inertial:
     if element is None:
         return DEFAULT_INERTIAL
     at = place.child(element)
+    if element.get('auto', 'false').strip().lower() in ('true', '1'):
+        notes.note('automatic inertia (the file\'s mass and inertia, or 1 kg, are used)')
     mass = at.number(element, 'mass', 1.0, 0.0, 1e9)
     pose, _ = at.pose(element)
     inertia = element.find('inertia')
@@ -245,7 +251,7 @@ def read_link(element: ElementTree.Element, place: Place, notes) -> LinkSpec:
             notes.note(tag)
     if len(collisions) + len(visuals) > MAX_SHAPES_PER_LINK:
         raise at.fail(f'a link has more than {MAX_SHAPES_PER_LINK} collisions and visuals')
-    return LinkSpec(name, pose, relative_to, _inertial(element.find('inertial'), at),
+    return LinkSpec(name, pose, relative_to, _inertial(element.find('inertial'), at, notes),
                     tuple(collisions), tuple(visuals))
 
 

@@ -9,7 +9,9 @@ faces), on a moving one the convex hulls of its connected pieces; a visual
 mesh is drawn in the SDF's colour, else one piece per colour of the file.
 A plane, which PyBullet draws nothing for, gets a thin box as its visual.
 Friction and restitution are per link in Bullet: a link takes its first
-collision's. Numbers are written with ``repr``, so a pose survives exactly.
+collision's. Numbers are written with ``repr``, so a pose survives exactly;
+one element a line, as PyBullet reads a URDF line by line into 8 kB buffers
+(``BulletUrdfImporter.cpp``: a longer line breaks inside an attribute).
 """
 
 import math
@@ -141,7 +143,7 @@ class _Writer:
                          ('' if bounce is None else f'<restitution value="{bounce!r}"/>') +
                          '</contact>')
         parts.append('</link>')
-        return ''.join(parts)
+        return '\n'.join(parts)  # PyBullet reads a URDF in lines of at most 8 kB
 
 
 def _joint(joint: BodyJoint, names: Dict[str, str]) -> str:
