@@ -290,61 +290,54 @@ class Launch:
 
     def _switch(self, world_file: World, robots: Sequence[Robot]) -> Rebuilt:
         robot_of = {id(robot.body): robot for robot in robots}
-        world = self._world
-        old, self._entities = self._entities, []
-        self.world_file = world_file
-        world.clear()
+        kept = [entity for entity in self._entities if not entity.world_model]
+        robot_places = [i for i, entity in enumerate(kept) if entity.robot is not None]
+        # The world's models load after the first robot and extra_models, before the others.
+        at = robot_places[1] if len(robot_places) > 1 else len(kept)
+        starts = iter(self._starts)
+        self._entities, self.world_file = [], world_file
+        self._world.clear()
         after: List[Robot] = []
         dropped: List[str] = []
         changed = False
-        robot_starts = iter(self._starts)
-        new_models: List[Body] = []
-        world_models_done = False
-        for entity in old + [None]:
-            if entity is not None and entity.world_model:
-                continue
-            if not world_models_done and (entity is None or entity.robot is not None
-                                          and entity is not _first_robot(old)):
-                for model in world_file.models:  # where the old world's models were
-                    new_models.append(self._load_world_model(model))
-                world_models_done = True
+        for entity in kept[:at] + [None] + kept[at:]:
             if entity is None:
-                break
-            robot = robot_of.get(id(entity.body))
+                for model in world_file.models:
+                    self._load_world_model(model)
+                continue
             if entity.robot is None:
-                try:
-                    world.reload(entity.body)
-                except WorldError as exc:
-                    self._error(f'{entity.body.name} left the world: {exc}')
-                    dropped.append(entity.body.name)
-                    continue
-                self._entities.append(entity)
+                if self._reload(entity.body, dropped):
+                    self._entities.append(entity)
                 continue
-            start = placed(next(robot_starts), world_file)
+            start = placed(next(starts), world_file)
             entity = _Entity(entity.body, start, info=_robot_info(start))
-            if robot is not None and robot.config == start.config:
-                try:
-                    world.reload(entity.body)
-                except WorldError as exc:
-                    self._error(f'{entity.body.name} left the world: {exc}')
-                    dropped.append(entity.body.name)
-                    robot.close()
-                    changed = True
+            self._entities.append(entity)
+            robot = robot_of.get(id(entity.body))
+            if robot is not None and robot.config == start.config:  # its start did not move
+                if self._reload(entity.body, dropped):
+                    robot.reloaded()
+                    robot.restart_noise()
+                    after.append(robot)
                     continue
-                robot.reloaded()
-                robot.restart_noise()
-                after.append(robot)
-                self._entities.append(entity)
-                continue
+                self._entities.remove(entity)
             if robot is not None:
                 robot.close()
             changed = True
-            robot = self._load_again(entity)
-            self._entities.append(entity)
-            if robot is not None:
-                after.append(robot)
-        models = [e.body for e in self._entities if e.model]
-        return Rebuilt(after, models, changed, dropped)
+            if entity.body.name not in dropped:
+                robot = self._load_again(entity)  # at the new start, with new interfaces
+                if robot is not None:
+                    after.append(robot)
+        return Rebuilt(after, [e.body for e in self._entities if e.model], changed, dropped)
+
+    def _reload(self, body: Body, dropped: List[str]) -> bool:
+        """Load ``body`` again; False (one error line, its name in ``dropped``) if it cannot be."""
+        try:
+            self._world.reload(body)
+        except WorldError as exc:
+            self._error(f'{body.name} left the world: {exc}')
+            dropped.append(body.name)
+            return False
+        return True
 
     def _load_again(self, entity: _Entity) -> Optional[Robot]:
         """Load a deleted start-up robot as at start-up; None (one error line) if it cannot be."""
@@ -370,8 +363,3 @@ def _check_apart(robots: Sequence[Robot]) -> None:
                    for k in range(3)):
                 raise ConfigError(f'robots {other.name} and {robot.name} overlap where they '
                                   f'start: give {robot.name}.initial_pose a place of its own')
-
-
-def _first_robot(entities: Sequence[_Entity]) -> Optional[_Entity]:
-    """Return the first robot's entity: the world's models come after it and the extra models."""
-    return next((e for e in entities if e.robot is not None), None)

@@ -590,7 +590,8 @@ def list_worlds(places: Places, additional_sources: Sequence[str] = (),
     DEFAULT_SOURCES_FAILED for a default one, NOT_FOUND (or
     FEATURE_UNSUPPORTED, remote) for an additional one; with
     ``continue_on_error`` it is left out instead (named in the note), and the
-    call fails only when no source yielded any world.
+    call fails only when no source yielded any world. A world file that does
+    not read fails its source (OPERATION_FAILED for an additional one).
     """
     sources = [(PACKAGE_WORLDS, True)] + [(s, True) for s in places.world_paths] + \
         [(s, False) for s in additional_sources]
@@ -613,6 +614,8 @@ def list_worlds(places: Places, additional_sources: Sequence[str] = (),
         except RefusedError as exc:
             if default:
                 exc = RefusedError('DEFAULT_SOURCES_FAILED', exc.message)
+            elif exc.code not in ('NOT_FOUND', 'FEATURE_UNSUPPORTED'):
+                exc = RefusedError('OPERATION_FAILED', exc.message)  # a world file in it
             if not continue_on_error:
                 raise exc from None
             failures.append((default, exc))

@@ -125,6 +125,9 @@ class CoreWorld:
             return self._node.simulation.entity_names()
 
     def reset(self, time: bool, state: bool, spawned: bool) -> None:
+        if not self._node.world_is_loaded:  # as the standard's reset_simulation answers
+            raise RefusedError('INCORRECT_STATE', 'no world is loaded (unload_world): '
+                                                  'load_world first')
         self._node.reset_simulation(time=time, state=state, spawned=spawned)
 
 

@@ -254,3 +254,25 @@ def test_entity_bounds_and_the_box_and_hull_filters(call):
     assert entities(msg.Bounds.TYPE_CONVEX_HULL, hull[:2])[0] == \
         msg.Result.RESULT_OPERATION_FAILED  # two points are no hull
     assert entities(7, [])[0] == msg.Result.RESULT_FEATURE_UNSUPPORTED
+
+
+def test_sources_that_fail_have_the_standards_codes(r2d2_sim_factory, tmp_path):
+    broken = tmp_path / 'broken'
+    broken.mkdir()
+    (broken / 'bad.world.yaml').write_text('r2d2_sim_world: 1\nname: [unclosed\n')
+    sim = r2d2_sim_factory(world_paths=[str(broken)])
+    reply = sim.call_service(srv.GetAvailableWorlds, '/get_available_worlds',
+                             srv.GetAvailableWorlds.Request())
+    assert code(reply) == srv.GetAvailableWorlds.Response.DEFAULT_SOURCES_FAILED
+    assert 'bad.world.yaml' in reply.result.error_message and not reply.worlds
+    request = srv.GetAvailableWorlds.Request(continue_on_error=True)
+    reply = sim.call_service(srv.GetAvailableWorlds, '/get_available_worlds', request)
+    assert code(reply) == OK and 'room' in [w.name for w in reply.worlds]
+    other = r2d2_sim_factory()
+    request = srv.GetAvailableWorlds.Request(additional_sources=[str(broken)])
+    reply = other.call_service(srv.GetAvailableWorlds, '/get_available_worlds', request)
+    assert code(reply) == msg.Result.RESULT_NOT_FOUND  # outside the allowed places
+    inside = r2d2_sim_factory(world_paths=[str(tmp_path)])  # broken/ is within an allowed place
+    reply = inside.call_service(srv.GetAvailableWorlds, '/get_available_worlds', request)
+    assert code(reply) == msg.Result.RESULT_OPERATION_FAILED  # a world file there does not read
+    assert reply.result.error_message.startswith(f'{broken}/bad.world.yaml: ')  # not a defect

@@ -79,9 +79,11 @@ def test_a_bad_world_parameter_is_one_line(make):
 
 def test_the_start_pose_places_the_start_up_robots(make):
     """initial_pose is relative to the start pose: (1, 2) turned 90 degrees."""
-    simulation = make(world_paths=[], robots=['a', 'b'], **{'b.initial_pose': [1.0, 0.0, 0.0]})
+    simulation = make(world_paths=[], robots=['a', 'b'],
+                      **{'b.initial_pose': [1.0, 0.0, 0.0], 'b.tags': ['second']})
     a, b = simulation.robots
     simulation.load_world('', TURNED)
+    assert simulation.entity_info('b').tags == ('second',) and simulation.entity_tags('a') == ()
     # a at the pose itself; b 1 m along the pose's x, which is world +y: (1, 3), facing +y.
     assert simulation.entity_state('a').position[:2] == pytest.approx((1.0, 2.0), abs=1e-6)
     state = simulation.entity_state('b')
@@ -90,6 +92,19 @@ def test_the_start_pose_places_the_start_up_robots(make):
         math.pi / 2, abs=1e-6)
     assert simulation.robots[0] is not a  # moved: built anew at the new start
     assert simulation.robots[0].config.initial_pose == pytest.approx((1.0, 2.0, math.pi / 2))
+
+
+def test_a_loaded_world_runs_as_one_started_with_it(make, tmp_path):
+    """Loading a world builds what sim_node would start with world:= that world: the same run."""
+    path = tmp_path / 'turned.world.yaml'
+    path.write_text(TURNED)
+    robots = {'robots': ['a', 'b'], 'b.initial_pose': [1.0, 0.0, 0.0]}
+    started = make(world=str(path), **robots)
+    loaded = make(world_paths=[str(tmp_path)], **robots)
+    run(loaded, 50)
+    loaded.load_world(str(path))
+    assert loaded.entity_names() == started.entity_names() == ['ground_plane', 'a', 'shelf', 'b']
+    assert run(loaded) == run(started)  # bit for bit
 
 
 def test_load_world_replaces_the_world_and_stops_at_time_zero(make):

@@ -81,6 +81,8 @@ def test_unloaded_nothing_steps_until_a_world_is_loaded(r2d2_sim):
     assert r2d2_sim.current_world() is None
     with pytest.raises(HarnessError, match='no world is loaded'):
         r2d2_sim.advance(seconds=0.1)
+    with pytest.raises(RefusedError, match='^INCORRECT_STATE: no world is loaded'):
+        r2d2_sim.reset_world()
     r2d2_sim.load_world(ROOM)
     r2d2_sim.advance(seconds=0.1)
     assert r2d2_sim.entities() == ['ground_plane', 'r2d2', 'room']

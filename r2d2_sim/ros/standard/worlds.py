@@ -95,11 +95,13 @@ class WorldServices(Replies):
             return self._fail(response, 'INCORRECT_STATE', f'{activity.busy()}: try again once '
                                                            'it has ended')
         try:
-            activity.loading.set()
-            with self._worlds.lock:
-                return what()
+            with self._worlds.lock:  # the flag is set only while the lock is held here
+                activity.loading.set()
+                try:
+                    return what()
+                finally:
+                    activity.loading.clear()
         finally:
-            activity.loading.clear()
             activity.stepping.release()
 
     def _load(self, request, response):
