@@ -293,9 +293,10 @@ def test_without_r2d2_sims_ground_plane_the_worlds_own_is_loaded(make, world_dir
 
 def test_a_model_of_hundreds_of_shapes_loads(make, tmp_path):
     """
-    PyBullet reads a URDF in lines of 8 kB: a URDF of one long line broke in an attribute.
+    Load a static model of 300 shapes: each of its URDF elements on a line of its own.
 
-    (turtlebot3_house, one static model of 214 shapes, did so before.)
+    PyBullet reads a URDF in lines of 8 kB, so one long line broke in an
+    attribute (turtlebot3_house, a static model of 214 shapes, did so).
     """
     shapes = ''.join(f'<collision name="c{i}"><pose>{i * 0.1} 0 0.05 0 0 0</pose><geometry><box>'
                      '<size>0.05 0.05 0.1</size></box></geometry></collision>'
