@@ -84,6 +84,21 @@ def test_a_bad_mesh_gets_one_line_naming_it_never_its_bytes(tmp_path, name, data
     assert SECRET.decode() not in raised.value.message and '\n' not in raised.value.message
 
 
+def test_a_mesh_of_no_real_triangle_or_of_missing_corners_is_refused(tmp_path):
+    import trimesh
+    flat = trimesh.Trimesh([[0, 0, 0], [0, 0, 0], [0, 0, 0]], [[0, 1, 2]], process=False)
+    path = write_stl(tmp_path / 'point.stl', flat)
+    with pytest.raises(RefusedError, match='mesh point.stl has no triangle of three distinct'):
+        MeshCache(str(tmp_path / 'cache')).convert(path, 'point.stl')
+    text = open(write_dae(tmp_path / 'box.dae', box((1.0, 1.0, 1.0)))).read()
+    broken = tmp_path / 'broken.dae'
+    start = text.index('<p>') + 3
+    broken.write_text(text[:start] + '0 1 99 ' + text[start:].split(' ', 3)[3])
+    with pytest.raises(RefusedError) as raised:
+        read_mesh(str(broken), 'broken.dae')
+    assert raised.value.code == 'RESOURCE_PARSE_ERROR' and 'broken.dae' in raised.value.message
+
+
 @pytest.mark.parametrize('write', [write_stl, write_obj, write_dae])
 def test_a_mesh_over_the_triangle_budget_is_refused(tmp_path, monkeypatch, write):
     extension = {write_stl: 'stl', write_obj: 'obj', write_dae: 'dae'}[write]

@@ -243,6 +243,21 @@ def test_bad_sdf_gets_its_code_and_one_line_naming_the_place_not_the_text(tmp_pa
     assert SECRET not in raised.value.message and '\n' not in raised.value.message
 
 
+def test_models_nested_too_deep_are_one_line_not_a_recursion_error(tmp_path):
+    nested = '<link name="l"/>'
+    for i in range(200):
+        nested = f'<model name="m{i}">{nested}</model>'
+    with pytest.raises(RefusedError, match='models nest deeper than 32') as raised:
+        read(sdf(f'<world name="w">{nested}</world>'), tmp_path)
+    assert raised.value.code == 'RESOURCE_PARSE_ERROR'
+
+
+def test_a_pose_beyond_the_blow_up_bound_is_refused(tmp_path):
+    with pytest.raises(RefusedError, match=r'model m, link l: <pose> is more than 10000 m out'):
+        read(sdf('<model name="m"><link name="l"><pose>1e300 0 0 0 0 0</pose></link></model>'),
+             tmp_path)
+
+
 def test_a_model_that_includes_itself_stops_at_the_include_depth(tmp_path):
     model_dir(tmp_path / 'models', 'loop',
               '<model name="loop"><link name="l"/><include><uri>model://loop</uri>'

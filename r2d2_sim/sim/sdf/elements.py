@@ -20,6 +20,7 @@ from defusedxml import DefusedXmlException
 import defusedxml.ElementTree as SafeElementTree
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.model.health import MAX_DISTANCE_M
 from r2d2_sim.model.sdf_poses import FrameError, pose_from_values
 from r2d2_sim.model.transforms import IDENTITY, Transform
 
@@ -199,8 +200,11 @@ class Place:
                 degrees is None:
             raise self.fail('<pose> has a rotation_format or degrees it cannot have')
         try:
-            return pose_from_values([float(v) for v in text.split()], quaternion,
-                                    bool(degrees)), relative_to
+            transform = pose_from_values([float(v) for v in text.split()], quaternion,
+                                         bool(degrees))
         except (ValueError, FrameError) as exc:
             problem = str(exc) if isinstance(exc, FrameError) else 'a pose is numbers'
             raise self.fail(f'<pose>: {problem}') from None
+        if max(map(abs, transform.translation)) > MAX_DISTANCE_M:
+            raise self.fail(f'<pose> is more than {MAX_DISTANCE_M:g} m out')
+        return transform, relative_to

@@ -24,6 +24,7 @@ from typing import List, NamedTuple, Optional, Tuple
 
 import numpy
 
+from r2d2_sim.errors import RefusedError
 from r2d2_sim.sim.sdf.meshes import read_mesh, read_mesh_bytes, Triangles
 
 __all__ = ['MeshCache', 'Converted', 'cache_directory', 'CACHE_VARIABLE', 'CONVERTER_VERSION',
@@ -141,7 +142,7 @@ class MeshCache:
         cached = self._cached(directory)
         if cached is not None:
             return cached
-        return self._store(directory, read_mesh(path, shown, data))
+        return self._store(directory, read_mesh(path, shown, data), shown)
 
     @staticmethod
     def _cached(directory: str) -> Optional[Converted]:
@@ -158,9 +159,12 @@ class MeshCache:
         return None
 
     @staticmethod
-    def _store(directory: str, triangles: Triangles) -> Converted:
-        os.makedirs(directory, exist_ok=True)
+    def _store(directory: str, triangles: Triangles, shown: str) -> Converted:
         vertices, faces, kept = merged(triangles.vertices, triangles.faces)
+        if not len(faces):  # Bullet's triangle mesh of no triangle is not a shape
+            raise RefusedError('RESOURCE_PARSE_ERROR', f'mesh {shown} has no triangle of '
+                                                       'three distinct corners')
+        os.makedirs(directory, exist_ok=True)
         groups = triangles.groups[kept]
         mesh = os.path.join(directory, 'mesh.obj')
         _write(mesh, obj_text(vertices, faces))

@@ -31,6 +31,8 @@ MESH_FORMATS = ('.dae', '.stl', '.obj')
 MAX_MESH_BYTES = 64 << 20
 MAX_MESH_TRIANGLES = 1_000_000
 MAX_MTL_BYTES = 1 << 20
+# A vertex farther out is a broken file (a mesh in millimetres of a 1,000 km thing).
+MAX_COORDINATE = 1e9
 PARSE, UNSUPPORTED = 'RESOURCE_PARSE_ERROR', 'UNSUPPORTED_ASSETS'
 _XML_DECLARATIONS = re.compile(rb'<!\s*(DOCTYPE|ENTITY)', re.IGNORECASE)
 
@@ -75,10 +77,13 @@ def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], sho
         groups.append(numpy.full(len(faces[-1]), colours.index(colour)))
         offset += len(vertices[-1])
     joined = numpy.concatenate(vertices)
-    if not numpy.all(numpy.isfinite(joined)):
-        raise RefusedError(PARSE, f'mesh {shown} has a vertex that is not finite')
-    return Triangles(joined, numpy.concatenate(faces), tuple(colours),
-                     numpy.concatenate(groups))
+    if not numpy.all(numpy.isfinite(joined)) or numpy.abs(joined).max() > MAX_COORDINATE:
+        raise RefusedError(PARSE, f'mesh {shown} has a vertex that is not finite or more than '
+                                  f'{MAX_COORDINATE:g} from its origin')
+    joined_faces = numpy.concatenate(faces)
+    if joined_faces.min() < 0 or joined_faces.max() >= len(joined):
+        raise RefusedError(PARSE, f'mesh {shown} has a triangle of a vertex it does not have')
+    return Triangles(joined, joined_faces, tuple(colours), numpy.concatenate(groups))
 
 
 def _dae(data: bytes, shown: str) -> Triangles:

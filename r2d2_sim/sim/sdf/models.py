@@ -28,6 +28,8 @@ __all__ = ['ModelTree', 'Origin', 'read_model', 'place_model', 'flatten', 'MODEL
 MODEL_FRAME = '__model__'
 # Links of one top-level model, nested ones included (PyBullet's URDF limit is far above).
 MAX_LINKS_PER_MODEL = 1000
+# Models in models (a Gazebo world nests two or three deep).
+MAX_NESTING = 32
 
 
 @dataclasses.dataclass
@@ -78,14 +80,17 @@ def place_model(graph: PoseGraph, tree: ModelTree, place: Place) -> None:
 
 
 def read_model(element: ElementTree.Element, place: Place, origin: Origin, reader,
-               depth: int) -> ModelTree:
+               depth: int, nesting: int = 0) -> ModelTree:
     """
     Return a <model> read into a tree; ``reader`` reads includes and counts what it skips.
 
-    ``depth`` is how deeply includes nest here (the reader refuses too deep).
+    ``depth`` is how deeply includes nest here (the reader refuses too deep),
+    ``nesting`` how deeply models do (at most MAX_NESTING, includes counted).
     """
     reader.count_model(place)
     at = place.child(element)
+    if nesting > MAX_NESTING:
+        raise at.fail(f'models nest deeper than {MAX_NESTING}')
     name = place.name(element)
     if SCOPE_SEPARATOR in name:
         raise at.fail(f'a model\'s name cannot hold {SCOPE_SEPARATOR}')
@@ -106,8 +111,8 @@ def read_model(element: ElementTree.Element, place: Place, origin: Origin, reade
             _add(graph, at, joint.name, joint.relative_to or joint.child, joint.pose)
             tree.joints.append(joint)
         elif tag in ('model', 'include'):
-            nested = (read_model(child, at, origin, reader, depth) if tag == 'model'
-                      else reader.include(child, at, origin, depth + 1))
+            nested = (read_model(child, at, origin, reader, depth, nesting + 1) if tag == 'model'
+                      else reader.include(child, at, origin, depth + 1, nesting + 1))
             if nested is not None:
                 place_model(graph, nested, at)
                 tree.nested.append(nested)

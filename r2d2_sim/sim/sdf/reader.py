@@ -164,7 +164,7 @@ class Reader:
         return self._scene('', graph, trees, [], place)
 
     def include(self, element: ElementTree.Element, place: Place, origin: Origin,
-                depth: int) -> Optional[ModelTree]:
+                depth: int, nesting: int = 0) -> Optional[ModelTree]:
         """Return the model an <include> brings (its overrides applied); None for a light."""
         at = place.child(element)
         if depth > MAX_INCLUDE_DEPTH:
@@ -194,7 +194,7 @@ class Reader:
             self.note(local_tag(content[0]))
             return None
         included = Origin(source.shown, source.directory, source.directory, version)
-        tree = read_model(content[0], Place(source.shown), included, self, depth)
+        tree = read_model(content[0], Place(source.shown), included, self, depth, nesting)
         if element.get('merge', 'false').strip().lower() in ('true', '1'):
             self.note('merged include (read as a nested model)')
         tree.name = at.text(element, 'name') or tree.name
