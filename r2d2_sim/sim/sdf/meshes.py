@@ -72,8 +72,12 @@ def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], sho
     for v, f, colour in pieces:
         if colour not in colours:
             colours.append(colour)
-        vertices.append(numpy.asarray(v, dtype=float).reshape(-1, 3))
-        faces.append(numpy.asarray(f, dtype=numpy.int64).reshape(-1, 3) + offset)
+        try:
+            vertices.append(numpy.asarray(v, dtype=float).reshape(-1, 3))
+            faces.append(numpy.asarray(f, dtype=numpy.int64).reshape(-1, 3) + offset)
+        except (ValueError, TypeError):  # a parser's arrays of a broken file
+            raise RefusedError(PARSE, f'mesh {shown}: its vertices or triangles do not read as '
+                                      'points and triangles') from None
         groups.append(numpy.full(len(faces[-1]), colours.index(colour)))
         offset += len(vertices[-1])
     joined = numpy.concatenate(vertices)
