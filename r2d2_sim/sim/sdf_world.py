@@ -118,10 +118,18 @@ def read_sdf_world(text: str, path: Optional[str], uri: str, reading,
 
 
 def sdf_models(entry, path: str, reading, anchor: Optional[str]) -> List[WorldModel]:
-    """Return a manifest's model that is an SDF file: its bodies at the entry's pose."""
+    """
+    Return a manifest's model that is an SDF file: its bodies at the entry's pose.
+
+    The entry's name replaces the model's (its other bodies keep their
+    ``__`` suffixes); a file of several models takes no name.
+    """
     shown = f'model {entry.uri[:200]}'
     text = read_limited(path, shown, 'MISSING_ASSETS', MAX_SDF_BYTES)
     _, built, _ = _build(text, path, shown, reading, anchor, named=True)
+    if entry.name is not None and len({body.model for body in built.bodies}) > 1:
+        raise RefusedError('RESOURCE_PARSE_ERROR', f'{shown} holds several models: the entry '
+                                                   'cannot give them one name')
     return _models(built, entry.uri, entry)
 
 

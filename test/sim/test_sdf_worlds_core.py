@@ -340,3 +340,26 @@ def test_the_bounds_services_see_sdf_bodies(make, world_dir):
     assert simulation.entities_overlapping(near_post) == ['arena_wall', 'corner']
     beside_post = Region.box((x + 0.3, y - 0.1, 0.2), (x + 0.5, y, 0.4))
     assert simulation.entities_overlapping(beside_post) == ['arena_wall']
+
+
+def test_a_world_manifest_lists_an_sdf_model_at_its_pose_with_its_name_and_tags(make, world_dir):
+    (world_dir / 'shop.world.yaml').write_text(
+        'r2d2_sim_world: 1\nname: shop\nstart_pose: door\nmodels:\n'
+        '  - {uri: models/crate/model.sdf, name: stock, position: [1.5, 0.5, 0.0], yaw: 0.5,\n'
+        '     description: A crate of stock., tags: [goods]}\n'
+        '  - {uri: arena.sdf, tags: [arena]}\n'
+        'named_poses:\n  - {name: door, position: [-1.0, 0.0, 0.0], tags: [entry]}\n')
+    simulation = arena_simulation(make, world_dir, scan_rate=0.0, world_paths=[str(world_dir)])
+    simulation.load_world(str(world_dir / 'shop.world.yaml'))
+    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'stock', 'arena_wall', 'pillar',
+                                         'corner']
+    info = simulation.entity_info('stock')
+    assert (info.description, info.tags) == ('A crate of stock.', ('goods',))
+    assert simulation.entity_info('pillar').tags == ('arena',)
+    # The crate's link is 0.2 m above its model frame, which stands at the entry's pose.
+    assert simulation.entity_state('stock').position == pytest.approx((1.5, 0.5, 0.2))
+    assert simulation.world_file.start_pose.name == 'door'
+    (world_dir / 'named.world.yaml').write_text(
+        'r2d2_sim_world: 1\nmodels:\n  - {uri: arena.sdf, name: everything}\n')
+    with pytest.raises(RefusedError, match='holds several models: the entry cannot give them'):
+        simulation.load_world(str(world_dir / 'named.world.yaml'))
