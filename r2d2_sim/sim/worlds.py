@@ -430,14 +430,25 @@ def _read_manifest_world(text: str, path: Optional[str], uri: str, reading: _Rea
     manifest = read_manifest(data, _stem(path) if path else 'world')
     reading.unsupported(list(manifest.ignored), 'unknown keys')
     base_dir = os.path.dirname(path) if path else None
-    models = []
+    models: List[WorldModel] = []
     for entry in manifest.models:
-        models += reading.model(entry, base_dir, anchor)
+        for model in reading.model(entry, base_dir, anchor):
+            if model.sdf and model.name in {m.name for m in models}:  # two files' "crate"
+                model = model._replace(name=_unused_name(model.name, models))
+            models.append(model)
     start = None
     if manifest.start_pose is not None:
         start = next(p for p in manifest.named_poses if p.name == manifest.start_pose)
     return World(manifest.name, uri, '' if uri else text, manifest.description, manifest.tags,
                  tuple(models), manifest.named_poses, start)
+
+
+def _unused_name(wanted: str, models: Sequence[WorldModel]) -> str:
+    taken = {m.name for m in models}
+    number = 1
+    while f'{wanted}_{number}' in taken:
+        number += 1
+    return f'{wanted}_{number}'
 
 
 def _sniff_yaml(text: str) -> bool:

@@ -359,6 +359,11 @@ def test_a_world_manifest_lists_an_sdf_model_at_its_pose_with_its_name_and_tags(
     # The crate's link is 0.2 m above its model frame, which stands at the entry's pose.
     assert simulation.entity_state('stock').position == pytest.approx((1.5, 0.5, 0.2))
     assert simulation.world_file.start_pose.name == 'door'
+    (world_dir / 'twice.world.yaml').write_text(  # one model file twice: two crates
+        'r2d2_sim_world: 1\nmodels:\n  - {uri: models/crate/model.sdf}\n'
+        '  - {uri: models/crate/model.sdf, position: [1.0, 0.0, 0.0]}\n')
+    simulation.load_world(str(world_dir / 'twice.world.yaml'))
+    assert simulation.entity_names()[2:] == ['crate', 'crate_1']
     (world_dir / 'named.world.yaml').write_text(
         'r2d2_sim_world: 1\nmodels:\n  - {uri: arena.sdf, name: everything}\n')
     with pytest.raises(RefusedError, match='holds several models: the entry cannot give them'):
