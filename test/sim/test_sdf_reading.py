@@ -336,3 +336,14 @@ def test_world_frames_are_named_poses_and_start_is_the_start_pose(tmp_path):
     assert world.named_poses[1].position == approx((1.0, 4.0, 0.0))
     assert world.named_poses[1].orientation[2:] == approx(
         (math.sin(math.pi / 4), math.cos(math.pi / 4)))
+
+
+def test_the_default_fuel_caches_are_gazebos_and_ignitions_in_the_home(tmp_path, monkeypatch):
+    monkeypatch.setenv('HOME', str(tmp_path))
+    directory = tmp_path / '.ignition' / 'fuel' / 'fuel.ignitionrobotics.org' / 'openrobotics' \
+        / 'models' / 'crate' / '3'
+    directory.mkdir(parents=True)
+    (directory / 'model.sdf').write_text(sdf(box_model('old_crate', static=True)))
+    scene = read(sdf('<world name="w"><include><uri>https://fuel.gazebosim.org/1.0/OpenRobotics/'
+                     'models/crate</uri></include></world>'), tmp_path)
+    assert [m.name for m in scene.models] == ['old_crate']

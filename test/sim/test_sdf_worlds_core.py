@@ -368,3 +368,19 @@ def test_a_world_manifest_lists_an_sdf_model_at_its_pose_with_its_name_and_tags(
         'r2d2_sim_world: 1\nmodels:\n  - {uri: arena.sdf, name: everything}\n')
     with pytest.raises(RefusedError, match='holds several models: the entry cannot give them'):
         simulation.load_world(str(world_dir / 'named.world.yaml'))
+
+
+def test_strict_worlds_refuses_an_sdf_spawn_with_anything_not_simulated(make):
+    simulation = make(scan_rate=0.0, strict_worlds=True)
+    plain = sdf(box_model('plain'))
+    with_plugin = sdf(box_model('busy', extra='<plugin name="p" filename="f"/>'))
+    with pytest.raises(RefusedError) as raised:
+        simulation.spawn(SpawnRequest(resource_string=with_plugin))
+    assert raised.value.code == 'UNSUPPORTED_ASSETS'
+    assert raised.value.message == 'the resource_string: not simulated: plugin (strict_worlds)'
+    assert simulation.spawn(SpawnRequest(resource_string=plain)) == 'plain'
+    warned = []
+    relaxed = make(scan_rate=0.0)
+    relaxed._warn = warned.append
+    assert relaxed.spawn(SpawnRequest(resource_string=with_plugin)) == 'busy'
+    assert warned == ['busy: not simulated: plugin']
