@@ -99,6 +99,18 @@ def test_a_mesh_of_no_real_triangle_or_of_missing_corners_is_refused(tmp_path):
     assert raised.value.code == 'RESOURCE_PARSE_ERROR' and 'broken.dae' in raised.value.message
 
 
+@pytest.mark.parametrize('text, problem', [
+    ('v 0 0\nv 1 0\nv 0 1\nv 1 1\nf 1 2 3\n', 'do not read as points and triangles'),
+    ('v 0 0 0\nv 1 0\nv 0 1 0 0 0\nf 1 2 3\n', 'a triangle of a vertex it does not have'),
+])
+def test_an_obj_of_broken_points_is_one_line(tmp_path, text, problem):
+    """Cases a run of random mutations found (a traceback each, before)."""
+    (tmp_path / 'q.obj').write_text(text)
+    with pytest.raises(RefusedError, match=problem) as raised:
+        read_mesh(str(tmp_path / 'q.obj'), 'q.obj')
+    assert raised.value.code == 'RESOURCE_PARSE_ERROR'
+
+
 @pytest.mark.parametrize('write', [write_stl, write_obj, write_dae])
 def test_a_mesh_over_the_triangle_budget_is_refused(tmp_path, monkeypatch, write):
     extension = {write_stl: 'stl', write_obj: 'obj', write_dae: 'dae'}[write]
