@@ -26,10 +26,10 @@ model's name; others add ``__<root link>`` (``__static`` for the static part).
 import re
 from typing import Dict, List, NamedTuple, Tuple
 
+from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import (
     compose, IDENTITY, inverse, rotate_inverse, Transform, Vector3)
 from r2d2_sim.sim.sdf.description import Inertial, JointLimits, Link, Model, Shape
-from r2d2_sim.errors import RefusedError
 from r2d2_sim.sim.sdf.elements import Place
 
 __all__ = ['BodyLink', 'BodyJoint', 'BodyPlan', 'plan_bodies', 'entity_name', 'MASSLESS']
