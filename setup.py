@@ -24,6 +24,11 @@ INSTALL_REQUIRES = [
     # World manifests (*.world.yaml), read with its safe loader. ros-jazzy-rclpy
     # brings it already; declared because r2d2_sim imports it itself.
     'PyYAML>=5.4',
+    # SDF worlds and models (Gazebo's): XML from any peer read with defusedxml (no
+    # DOCTYPE, no entities); COLLADA meshes with pycollada, STL and OBJ with trimesh.
+    'defusedxml>=0.7,<0.8',
+    'pycollada>=0.9,<0.10',
+    'trimesh>=4,<6',
     # The demo executable, installed with the package, writes its plot with it.
     'matplotlib>=3.6,<4',
     # The live view (foxglove_port), MCAP recording (record) and the replay tool;

@@ -224,6 +224,25 @@ class Body:
         self._change('_change_dynamics', tuple(self.links()), linearDamping=0.0,
                      angularDamping=0.0)
 
+    def free_joints(self) -> None:
+        """
+        Let the joints move as Gazebo's do: held only by their own friction, not by a motor.
+
+        PyBullet gives every revolute and prismatic joint a velocity motor
+        holding it still (a door on a hinge would not swing); this sets each
+        motor's force to the joint's friction from the file (0 when none), so
+        a joint turns freely against its Coulomb friction.
+        """
+        joints = [j for j in self.joints.values() if j.movable]
+        self._change('_free_joints', tuple(j.index for j in joints),
+                     tuple(j.friction for j in joints))
+
+    def _free_joints(self, indices: Sequence[int], frictions: Sequence[float]) -> None:
+        if indices:
+            self._client.setJointMotorControlArray(
+                self.id, list(indices), pybullet.VELOCITY_CONTROL,
+                targetVelocities=[0.0] * len(indices), forces=list(frictions))
+
     def _change_dynamics(self, links: Sequence[int], **dynamics) -> None:
         for link in links:
             self._client.changeDynamics(self.id, link, **dynamics)

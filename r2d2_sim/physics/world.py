@@ -195,6 +195,11 @@ class SimWorld:
         """Return the loadURDF flags of a driven robot: inertias from the file, true cylinders."""
         return pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
 
+    @property
+    def model_flags(self) -> int:
+        """Return the loadURDF flags of a model made from SDF: its inertias, true cylinders."""
+        return pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
+
     def take_ray_group(self) -> int:
         """
         Return a collision group bit of its own for a robot's sensor rays to pass through.

@@ -24,14 +24,15 @@ from r2d2_sim.model.transforms import (
     Vector3 as Vec3)
 from r2d2_sim.physics.description import DescriptionFile
 from r2d2_sim.sim.entity_bounds import body_box, body_meets, check_region, Region
+from r2d2_sim.sim.sdf.loading import SdfSettings
 from r2d2_sim.sim.spawnables import read_spawnable
 from r2d2_sim.sim.tags import check_description_text, check_tags
 
 if TYPE_CHECKING:  # typing only: the testing API imports this module without PyBullet
     from r2d2_sim.physics.body import Body
 
-__all__ = ['Category', 'EntityInfo', 'SpawnRequest', 'Entities', 'check_pose', 'name_filter',
-           'MAX_SPAWNED', 'MAX_NAME_LENGTH', 'MAX_FILTER_LENGTH', 'NAME']
+__all__ = ['Category', 'EntityInfo', 'SpawnRequest', 'Spawned', 'Entities', 'check_pose',
+           'name_filter', 'MAX_SPAWNED', 'MAX_NAME_LENGTH', 'MAX_FILTER_LENGTH', 'NAME']
 
 MAX_SPAWNED = 100
 # An entity's name, and a name filter, as long as a request may make them: every
@@ -89,6 +90,14 @@ class SpawnRequest(NamedTuple):
     frame_id: str = ''
     position: Vec3 = (0.0, 0.0, 0.0)
     orientation: Quat = (0.0, 0.0, 0.0, 1.0)
+
+
+class Spawned(NamedTuple):
+    """A spawn's outcome: the body, the URDF text it was loaded from, what was not simulated."""
+
+    body: 'Body'
+    text: str
+    notes: str
 
 
 def _finite(*vectors: Sequence[float]) -> bool:
@@ -157,9 +166,10 @@ class Entities:
     entities are robots.
     """
 
-    def __init__(self, world, world_frame_id: str) -> None:
+    def __init__(self, world, world_frame_id: str, sdf: SdfSettings = SdfSettings()) -> None:
         self._world = world
         self.world_frame_id = world_frame_id
+        self.sdf = sdf  # where SDF models are found, what they are compared with
         self._files: Dict[str, DescriptionFile] = {}  # spawned from text, by entity name
         self._info: Dict[str, EntityInfo] = {}        # as set, by entity name
         # Frames a request may name beside the entities: the world's named poses.
@@ -231,11 +241,12 @@ class Entities:
         return body
 
     def spawn(self, request: SpawnRequest, *, flags: int = 0,
-              body_yaw_offset_rad: float = 0.0) -> Tuple['Body', str]:
+              body_yaw_offset_rad: float = 0.0) -> Spawned:
         """
-        Load a URDF at a pose (of its base link, exactly: no ground clearance).
+        Load a URDF or an SDF model at a pose (of its base link, or SDF model frame, exactly).
 
-        Returns the body and its description's text. Named ``request.name``,
+        Returns the body, its description's text and what an SDF model does
+        not simulate (no ground clearance added). Named ``request.name``,
         or the URDF's robot name when empty; a taken or invalid name is
         refused unless ``allow_renaming`` (then ``_1``, ``_2``...).
         ``flags`` go to loadURDF (a driven robot's: true cylinders, inertias
@@ -248,12 +259,19 @@ class Entities:
         orientation = check_pose(request.position, request.orientation)
         pose = compose(self.frame_pose(request.frame_id),
                        Transform(tuple(request.position), orientation))
-        path, text_file, urdf_name, text = read_spawnable(request.uri, request.resource_string)
+        spawnable = read_spawnable(request.uri, request.resource_string, self.sdf)
+        text_file = spawnable.file
+        if spawnable.sdf:
+            pose = compose(pose, spawnable.base)
         try:
-            name = self._name(request.name or urdf_name, request.allow_renaming)
-            body = self._world.load(path, pose.translation, pose.rotation, name=name,
-                                    spawned=True, source=request.uri or 'resource_string',
-                                    flags=flags, body_yaw_offset_rad=body_yaw_offset_rad)
+            name = self._name(request.name or spawnable.name, request.allow_renaming)
+            body = self._world.load(
+                spawnable.path, pose.translation, pose.rotation, name=name, spawned=True,
+                source=request.uri or 'resource_string',
+                flags=flags | (self._world.model_flags if spawnable.sdf else 0),
+                body_yaw_offset_rad=body_yaw_offset_rad)
+            if spawnable.sdf and not flags:
+                body.free_joints()  # a model's joints move as Gazebo's do; a robot drives its own
         except (RefusedError, WorldError) as exc:
             if text_file is not None:
                 text_file.close()
@@ -262,7 +280,7 @@ class Entities:
             raise
         if text_file is not None:
             self._files[name] = text_file
-        return body, text
+        return Spawned(body, spawnable.text, spawnable.notes)
 
     def _name(self, wanted: str, allow_renaming: bool) -> str:
         if len(wanted) > MAX_NAME_LENGTH:

@@ -205,8 +205,11 @@ class Launch:
 
     def _load_world_model(self, model: WorldModel) -> Body:
         body = self._world.load(model.path, model.position, model.orientation, name=model.name,
-                                source=model.source)
+                                source=model.source,
+                                flags=self._world.model_flags if model.sdf else 0)
         body.drop_damping()
+        if model.sdf:
+            body.free_joints()  # Gazebo's joints: held by their friction, not a motor
         self._entities.append(_Entity(body, model=True, world_model=True, info=EntityInfo(
             description=model.description, tags=model.tags)))
         return body

@@ -331,16 +331,28 @@ PARAMETERS: List[Parameter] = [
               'camera_point_cloud', read.boolean, per_robot=True),
     *_noise_parameters('depth'),
     Parameter('world', 'string', '',
-              'The world to load around the robots: a URDF or an r2d2_sim world manifest '
-              '(*.world.yaml), as a path, a file:// or package:// URI, or a name looked for in '
-              'the package\'s urdf/, world_paths and pybullet_data '
-              '(package://r2d2_sim/urdf/room.world.yaml, room.urdf); empty for the empty world '
-              '(empty.world.yaml). LoadWorld replaces it.', 'world', read.string),
+              'The world to load around the robots: a URDF, an SDF world (Gazebo\'s *.sdf, '
+              '*.world) or an r2d2_sim world manifest (*.world.yaml), as a path, a file:// or '
+              'package:// URI, or a name looked for in the package\'s urdf/, world_paths and '
+              'pybullet_data (package://r2d2_sim/urdf/room.world.yaml, room.urdf); empty for '
+              'the empty world (empty.world.yaml). LoadWorld replaces it.', 'world',
+              read.string),
     Parameter('world_paths', 'string_array', [],
               'Directories of worlds (paths, file:// or package:// URIs): GetAvailableWorlds '
-              'lists their *.world.yaml files, and a LoadWorld request may load from them, as '
-              'from the package\'s urdf/, pybullet_data and ROS packages.',
+              'lists their *.world.yaml files and SDF worlds (*.sdf, *.world), and a LoadWorld '
+              'request may load from them, as from the package\'s urdf/, pybullet_data and '
+              'ROS packages.',
               'world_paths', read.directories),
+    Parameter('model_paths', 'string_array', [],
+              'Directories searched for the model:// URIs of SDF worlds and models, before '
+              'GZ_SIM_RESOURCE_PATH, IGN_GAZEBO_RESOURCE_PATH, GAZEBO_MODEL_PATH and SDF_PATH; '
+              'a LoadWorld or SpawnEntity request may use their files.',
+              'model_paths', read.directories),
+    Parameter('strict_worlds', 'bool', False,
+              'Refuse a world (and an SDF spawn) with elements r2d2_sim does not simulate '
+              '(plugins, lights, sensors, physics settings...) instead of naming them in one '
+              'summary line; LoadWorld\'s fail_on_unsupported_element does so per request.',
+              'strict_worlds', read.boolean),
     Parameter('publish_tf', 'bool', True,
               'Publish odom -> base_footprint on /tf and the static frames on /tf_static '
               '(needs tf2_msgs).', 'publish_tf', read.boolean, per_robot=True),

@@ -36,6 +36,7 @@ from r2d2_sim.physics.world import SimWorld
 from r2d2_sim.sim.entities import Category, Entities, EntityInfo, SpawnRequest
 from r2d2_sim.sim.entity_bounds import Region
 from r2d2_sim.sim.launch import docked, Launch, robot_starts
+from r2d2_sim.sim.sdf.loading import SdfSettings
 from r2d2_sim.sim.tags import TagsFilter, tags_match
 from r2d2_sim.sim.world_manifest import NamedPose
 from r2d2_sim.sim.worlds import (
@@ -102,11 +103,15 @@ class Simulation:
         # Told the simulated time after each step (oracles.RunWatch): none by default.
         self._step_watchers: List[Callable[[int], None]] = []
         self.places = Places(config.world_paths)
+        # What SDF worlds and spawns are searched and compared with.
+        self.sdf = SdfSettings(tuple(config.model_paths), self.time_step_s,
+                               tuple(config.gravity_m_s2), config.ground_plane,
+                               config.strict_worlds)
         # The world file loaded (the empty world for world ''); None after unload_world.
         self.world_file: Optional[World] = None
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
                               gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
-        self.entities = Entities(self.world, config.world_frame_id)
+        self.entities = Entities(self.world, config.world_frame_id, self.sdf)
         # What a full reset builds again: every start-up entity, in load order.
         self._launch = Launch(self.world, warn, error)
         try:
@@ -125,14 +130,22 @@ class Simulation:
         if not uri:
             return empty_world()
         try:
-            return read_world(uri, '', self.places, trusted=True)
+            return read_world(uri, '', self.places, self._options(LoadOptions()), trusted=True,
+                              sdf=self.sdf)
         except RefusedError as exc:
             raise WorldError(f'world {uri}: {exc.message}') from None
+
+    def _options(self, options: LoadOptions) -> LoadOptions:
+        """Return a load's options with ``strict_worlds``: refuse what is not simulated."""
+        strict = options.fail_on_unsupported_element or self.config.strict_worlds
+        return options._replace(fail_on_unsupported_element=strict)
 
     def _world_loaded(self, world_file: Optional[World]) -> None:
         """Take ``world_file`` as the world now: its named poses, each entity's start-up info."""
         if self.world_file is not None and self.world_file is not world_file:
             self.world_file.close()
+        if world_file is not None and world_file is not self.world_file and world_file.notes:
+            self._warn(f'world {world_file.name}: {"; ".join(world_file.notes)}')
         self.world_file = world_file
         poses = world_file.named_poses if world_file is not None else ()
         self.entities.named_frames = {p.name: Transform(p.position, p.orientation)
@@ -259,7 +272,8 @@ class Simulation:
         codes (see :func:`~r2d2_sim.sim.worlds.read_world`); OPERATION_FAILED
         for a model named like a robot or a start-up model.
         """
-        world_file = read_world(uri, resource_string, self.places, options)
+        world_file = read_world(uri, resource_string, self.places, self._options(options),
+                                sdf=self.sdf)
         try:
             self._check_world(world_file)
         except BaseException:
@@ -301,7 +315,8 @@ class Simulation:
                 raise RefusedError('OPERATION_FAILED', f'the world\'s model {model.name!r} '
                                    'would take the name of one of the simulator\'s own '
                                    'entities (a robot, the ground plane, extra_models)')
-        paths = sorted({model.path for model in world_file.models})
+        # Models made from SDF were written here from checked parts: not loaded twice.
+        paths = sorted({model.path for model in world_file.models if not model.sdf})
         if not paths:
             return
         try:
@@ -359,14 +374,18 @@ class Simulation:
         as it was.
         """
         if not request.namespace:
-            body, _ = self.entities.spawn(request)
+            body, _, notes = self.entities.spawn(request)
             body.drop_damping()  # a free body keeps its speed, as in Gazebo and Isaac Sim
             self.pristine = False
+            if notes:
+                self._warn(f'{body.name}: {notes}')
             return body.name
         namespace = self._free_namespace(request.namespace)
-        body, description = self.entities.spawn(
+        body, description, notes = self.entities.spawn(
             request, flags=self.world.robot_flags,
             body_yaw_offset_rad=self.config.body_yaw_offset_rad)
+        if notes:
+            self._warn(f'{body.name}: {notes}')
         base = body.world_state()
         try:
             config = docked(robot_config(self.config, body.name, {

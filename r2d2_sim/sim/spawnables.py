@@ -1,5 +1,5 @@
 """
-What a spawn request may load, read safely: a URDF from a file, a package or text.
+What a spawn request may load, read safely: a URDF or an SDF model from a file, a package or text.
 
 No ROS here. Spawn requests come from anyone on the ROS domain, so what one
 may cost is bounded: the description's size, its links, no XML entities or
@@ -7,23 +7,28 @@ DOCTYPE (the billion-laughs bomb), and meshes only from the description's own
 directory, a ROS package or pybullet_data. Every refusal is a
 :class:`~r2d2_sim.errors.RefusedError` with the standard's result code and a
 one-line message that names neither a file's content nor more than the
-offending path.
+offending path. SDF models (a ``.sdf`` file, ``model://``, a Fuel URL from the
+local cache, ``<sdf>`` text) are read in :mod:`r2d2_sim.sim.sdf.spawning` and
+spawn as the URDF written from them.
 """
 
 import math
 import os
-from typing import List, Optional, Sequence, Tuple
+from typing import List, NamedTuple, Optional, Sequence
 import xml.etree.ElementTree as ElementTree
 from xml.sax.saxutils import quoteattr
 
 import pybullet_data
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.model.transforms import IDENTITY, Transform
 from r2d2_sim.physics.description import (
     DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
     resolve_description_path)
+from r2d2_sim.sim.sdf.loading import SdfSettings
+from r2d2_sim.sim.sdf.spawning import is_sdf_spawn, read_sdf_spawnable
 
-__all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'box_urdf',
+__all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'Spawnable', 'box_urdf',
            'MAX_DESCRIPTION_BYTES', 'MAX_LINKS']
 
 # What one spawn request may cost (a URDF of R2D2 is 14 kB and 16 links).
@@ -89,16 +94,39 @@ def _check_mesh(filename: str, base_dir: Optional[str]) -> None:
         raise RefusedError('MISSING_ASSETS', f'mesh {shown} does not exist')
 
 
-def read_spawnable(uri: str, resource_string: str
-                   ) -> Tuple[str, Optional[DescriptionFile], str, str]:
+class Spawnable(NamedTuple):
     """
-    Return (URDF path to load, a temporary file to close or None, robot name, text).
+    What a spawn loads: a URDF file and its text, a temporary file to close, the name it gives.
+
+    ``base`` is where the URDF's base link stands in the frame the request
+    places (an SDF model's frame; the identity for a URDF); ``sdf``: made from
+    SDF (loaded as Gazebo simulates it); ``notes``: what it does not simulate.
+    """
+
+    path: str
+    file: Optional[object]   # with close(): the temporary file(s), or None
+    name: str
+    text: str
+    base: Transform = IDENTITY
+    sdf: bool = False
+    notes: str = ''
+
+
+def read_spawnable(uri: str, resource_string: str, sdf: SdfSettings = SdfSettings()
+                   ) -> Spawnable:
+    """
+    Return what a spawn loads (see :class:`Spawnable`).
 
     ``uri`` wins over ``resource_string`` (the standard's rule): a file path,
     ``file://``, ``package://`` or a pybullet_data name, resolved as the
-    ``urdf`` parameter is. RefusedError NOT_FOUND (no such file), NO_RESOURCE (nothing
-    named), UNSUPPORTED_FORMAT...
+    ``urdf`` parameter is; an SDF model as ``sdf`` says where to look.
+    RefusedError NOT_FOUND (no such file), NO_RESOURCE (nothing named),
+    UNSUPPORTED_FORMAT...
     """
+    if is_sdf_spawn(uri, resource_string):
+        found = read_sdf_spawnable(uri, resource_string, sdf)
+        return Spawnable(found.path, found.files, found.name, found.text, found.base, True,
+                         found.notes)
     if uri:
         path = uri[len('file://'):] if uri.startswith('file://') else uri
         try:
@@ -108,8 +136,8 @@ def read_spawnable(uri: str, resource_string: str
             # standard keeps NO_RESOURCE for a request that names nothing at all.
             raise RefusedError('NOT_FOUND', str(exc)) from None
         if not path.lower().endswith('.urdf'):
-            raise RefusedError('UNSUPPORTED_FORMAT', f'{uri[:200]}: only .urdf files can be '
-                               'spawned')
+            raise RefusedError('UNSUPPORTED_FORMAT', f'{uri[:200]}: only .urdf and .sdf files '
+                               'can be spawned')
         if os.path.getsize(path) > MAX_DESCRIPTION_BYTES:
             raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} is larger than '
                                f'{MAX_DESCRIPTION_BYTES} bytes')
@@ -119,12 +147,12 @@ def read_spawnable(uri: str, resource_string: str
         except (OSError, UnicodeDecodeError):
             raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} cannot be read as '
                                'text') from None
-        return path, None, check_description(text, os.path.dirname(path)), text
+        return Spawnable(path, None, check_description(text, os.path.dirname(path)), text)
     if not resource_string:
         raise RefusedError('NO_RESOURCE', 'neither a uri nor a resource_string was given')
     name = check_description(resource_string, None)
     description = DescriptionFile(resource_string)
-    return description.path, description, name, resource_string
+    return Spawnable(description.path, description, name, resource_string)
 
 
 def spawnable_uris() -> List[str]:

@@ -4,18 +4,21 @@ Worlds: what one is, where they come from, and reading one as the simulation sta
 No ROS here. A :class:`World` is what the ``world`` parameter or a
 LoadWorld request names: its models (URDF files, each at a pose, with tags),
 its named poses (:class:`~r2d2_sim.sim.world_manifest.NamedPose`), a name,
-description and tags. Two formats are read today, behind one function
+description and tags. Three formats are read, behind one function
 (:func:`read_world`) that a new format joins by adding a :class:`WorldFormat`
 to :data:`FORMATS`: a URDF (the whole world is that one model, as
-``urdf/room.urdf``) and r2d2_sim's world manifest
-(:mod:`~r2d2_sim.sim.world_manifest`, ``*.world.yaml``).
+``urdf/room.urdf``), r2d2_sim's world manifest
+(:mod:`~r2d2_sim.sim.world_manifest`, ``*.world.yaml``) and SDF, Gazebo's
+worlds and models (:mod:`~r2d2_sim.sim.sdf_world`, ``*.sdf``, ``*.world``),
+whose models a manifest may list too.
 
 A request may load worlds only from allowed places (:class:`Places`): this
 package's ``urdf/``, the directories of the ``world_paths`` parameter,
-pybullet_data, and any ROS package's share directory through ``package://``.
-The ``world`` parameter is the operator's own and may name any file.
-:func:`list_worlds` is GetAvailableWorlds: the manifests of those places and
-of the request's ``additional_sources``. Every refusal is a
+pybullet_data, and any ROS package's share directory through ``package://``
+(an SDF world's includes and meshes the model search paths and the Fuel cache
+too). The ``world`` parameter is the operator's own and may name any file.
+:func:`list_worlds` is GetAvailableWorlds: the manifests and SDF worlds of
+those places and of the request's ``additional_sources``. Every refusal is a
 :class:`~r2d2_sim.errors.RefusedError` with LoadWorld's (or
 GetAvailableWorlds') code and a one-line message that names files, never
 their contents.
@@ -33,18 +36,21 @@ from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import (
     DescriptionError, DescriptionFile, PACKAGE_NAME, PACKAGE_SCHEME, package_share_directory,
     SOURCE_TREE)
+from r2d2_sim.sim.sdf.loading import SdfSettings
 from r2d2_sim.sim.spawnables import check_description, MAX_DESCRIPTION_BYTES
 from r2d2_sim.sim.tags import TagsFilter, tags_match
 from r2d2_sim.sim.world_manifest import (
     load_yaml, MAX_WORLD_BYTES, NamedPose, read_manifest)
 
 __all__ = ['World', 'WorldModel', 'WorldEntry', 'NamedPose', 'LoadOptions', 'Places',
-           'WorldFormat', 'FORMATS', 'read_world', 'list_worlds', 'empty_world',
-           'PACKAGE_WORLDS', 'EMPTY_WORLD_URI', 'WORLD_SUFFIX', 'MAX_WORLDS_PER_SOURCE']
+           'SdfSettings', 'WorldFormat', 'FORMATS', 'read_world', 'list_worlds', 'empty_world',
+           'PACKAGE_WORLDS', 'EMPTY_WORLD_URI', 'WORLD_SUFFIX', 'SDF_SUFFIXES',
+           'MAX_WORLDS_PER_SOURCE']
 
 PACKAGE_WORLDS = f'{PACKAGE_SCHEME}{PACKAGE_NAME}/urdf'
 EMPTY_WORLD_URI = f'{PACKAGE_WORLDS}/empty.world.yaml'
 WORLD_SUFFIX = '.world.yaml'
+SDF_SUFFIXES = ('.sdf', '.world')
 MAX_WORLDS_PER_SOURCE = 1000
 FILE_SCHEME = 'file://'
 # A URDF's top-level elements PyBullet reads; others (gazebo, transmission...) it ignores.
@@ -56,7 +62,12 @@ Quat = Tuple[float, float, float, float]
 
 
 class WorldModel(NamedTuple):
-    """One model of a world: a URDF file to load at a pose, and what the standard says of it."""
+    """
+    One model of a world: a URDF file to load at a pose, and what the standard says of it.
+
+    ``sdf``: made from SDF, so loaded as Gazebo would simulate it (the file's
+    inertias, true cylinders, joints free but for their friction).
+    """
 
     name: Optional[str]      # None: the URDF's robot name, made unique
     path: str                # the file PyBullet loads
@@ -65,6 +76,7 @@ class WorldModel(NamedTuple):
     orientation: Quat
     description: str
     tags: Tuple[str, ...]
+    sdf: bool = False
 
 
 class World(NamedTuple):
@@ -127,7 +139,7 @@ def empty_world() -> World:
 
 def _stem(path: str) -> str:
     name = os.path.basename(path)
-    for suffix in (WORLD_SUFFIX, '.yaml', '.yml', '.urdf'):
+    for suffix in (WORLD_SUFFIX, '.yaml', '.yml', '.urdf') + SDF_SUFFIXES:
         if name.endswith(suffix):
             return name[:-len(suffix)] or name
     return name
@@ -272,14 +284,27 @@ def _read_text(path: str, shown: str, code: str, limit: int) -> str:
 
 
 class _Reading:
-    """One world being read: where from, how trusted, the request's options, what was noted."""
+    """
+    One world being read: where from, how trusted, the request's options, what was noted.
 
-    def __init__(self, places: Places, options: LoadOptions, trusted: bool) -> None:
+    ``sdf``: what an SDF world is searched and compared with (model paths,
+    r2d2_sim's physics step, gravity and ground plane).
+    """
+
+    def __init__(self, places: Places, options: LoadOptions, trusted: bool,
+                 sdf: SdfSettings = SdfSettings()) -> None:
         self.places = places
         self.options = options
         self.trusted = trusted
+        self.sdf = sdf
         self.notes: List[str] = []
         self.resources: List[DescriptionFile] = []
+
+    def not_simulated(self, line: str) -> None:
+        """Note one summary line of what is not simulated, or refuse it (UNSUPPORTED_ELEMENTS)."""
+        if self.options.fail_on_unsupported_element:
+            raise RefusedError('UNSUPPORTED_ELEMENTS', line)
+        self.notes.append(line)
 
     def unsupported(self, where: Sequence[str], what: str) -> None:
         """
@@ -320,9 +345,13 @@ class _Reading:
                          'elements PyBullet does not read')
         return root.get('name', '') if self.trusted else name
 
-    def model(self, entry, base_dir: Optional[str], anchor: Optional[str]
-              ) -> Optional[WorldModel]:
-        """Return a manifest's model, its file found and checked (None: left out, as asked)."""
+    def model(self, entry, base_dir: Optional[str], anchor: Optional[str]) -> List[WorldModel]:
+        """
+        Return a manifest's model, its file found and checked (none: left out, as asked).
+
+        A URDF is one model; an SDF file is the bodies of its models (several
+        when no joint joins them), at the entry's pose, named after the entry.
+        """
         try:
             path, root = self.places.resolve(entry.uri, base_dir)
             shown = entry.uri[:200]
@@ -331,9 +360,17 @@ class _Reading:
                                                          'worlds are loaded from')
             if not os.path.isfile(path):
                 raise RefusedError('MISSING_ASSETS', f'model {shown}: no such file')
+            if path.lower().endswith(SDF_SUFFIXES):
+                from r2d2_sim.sim.sdf_world import sdf_models  # it reads with this class
+                try:
+                    return sdf_models(entry, path, self, anchor or os.path.dirname(path))
+                except RefusedError as exc:  # the world is a manifest: its asset is at fault
+                    if exc.code != 'UNSUPPORTED_FORMAT':
+                        raise
+                    raise RefusedError('UNSUPPORTED_ASSETS', exc.message) from None
             if not path.lower().endswith('.urdf'):
-                raise RefusedError('UNSUPPORTED_ASSETS', f'model {shown}: only URDF models '
-                                                         'are loaded')
+                raise RefusedError('UNSUPPORTED_ASSETS', f'model {shown}: only URDF and SDF '
+                                                         'models are loaded')
             text = _read_text(path, f'model {shown}', 'MISSING_ASSETS', MAX_DESCRIPTION_BYTES)
             try:
                 self.urdf(text, os.path.dirname(path), f'model {shown}')
@@ -345,12 +382,12 @@ class _Reading:
             if (self.options.ignore_missing_or_unsupported_assets
                     and exc.code in ('MISSING_ASSETS', 'UNSUPPORTED_ASSETS', 'NOT_FOUND')):
                 self.notes.append(f'left out: {exc.message}')
-                return None
+                return []
             if exc.code == 'NOT_FOUND':
                 raise RefusedError('MISSING_ASSETS', exc.message) from None
             raise
-        return WorldModel(entry.name, path, entry.uri, entry.position, entry.orientation,
-                          entry.description or entry.uri, entry.tags)
+        return [WorldModel(entry.name, path, entry.uri, entry.position, entry.orientation,
+                           entry.description or entry.uri, entry.tags)]
 
 
 class WorldFormat(NamedTuple):
@@ -393,16 +430,25 @@ def _read_manifest_world(text: str, path: Optional[str], uri: str, reading: _Rea
     manifest = read_manifest(data, _stem(path) if path else 'world')
     reading.unsupported(list(manifest.ignored), 'unknown keys')
     base_dir = os.path.dirname(path) if path else None
-    models = []
+    models: List[WorldModel] = []
     for entry in manifest.models:
-        model = reading.model(entry, base_dir, anchor)
-        if model is not None:
+        for model in reading.model(entry, base_dir, anchor):
+            if model.sdf and model.name in {m.name for m in models}:  # two files' "crate"
+                model = model._replace(name=_unused_name(model.name, models))
             models.append(model)
     start = None
     if manifest.start_pose is not None:
         start = next(p for p in manifest.named_poses if p.name == manifest.start_pose)
     return World(manifest.name, uri, '' if uri else text, manifest.description, manifest.tags,
                  tuple(models), manifest.named_poses, start)
+
+
+def _unused_name(wanted: str, models: Sequence[WorldModel]) -> str:
+    taken = {m.name for m in models}
+    number = 1
+    while f'{wanted}_{number}' in taken:
+        number += 1
+    return f'{wanted}_{number}'
 
 
 def _sniff_yaml(text: str) -> bool:
@@ -413,9 +459,20 @@ def _sniff_urdf(text: str) -> bool:
     return _xml_root(text) == 'robot'
 
 
+def _sniff_sdf(text: str) -> bool:
+    return _xml_root(text) == 'sdf'
+
+
+def _read_sdf_world(text: str, path: Optional[str], uri: str, reading: _Reading,
+                    anchor: Optional[str]) -> World:
+    from r2d2_sim.sim.sdf_world import read_sdf_world  # it builds this module's World
+    return read_sdf_world(text, path, uri, reading, anchor)
+
+
 # The formats read(), in the order a text given without a file name is tried in.
 FORMATS: List[WorldFormat] = [
     WorldFormat('urdf', ('.urdf',), _sniff_urdf, _read_urdf_world),
+    WorldFormat('sdf', SDF_SUFFIXES, _sniff_sdf, _read_sdf_world),
     WorldFormat('r2d2_sim world manifest', ('.yaml', '.yml'), _sniff_yaml,
                 _read_manifest_world),
 ]
@@ -426,8 +483,9 @@ def _format_of(path: Optional[str], text: str, shown: str) -> WorldFormat:
         for world_format in FORMATS:
             if path.lower().endswith(world_format.suffixes):
                 return world_format
-        raise RefusedError('UNSUPPORTED_FORMAT', f'{shown}: worlds are URDF files or r2d2_sim '
-                                                 'world manifests (*.world.yaml)')
+        raise RefusedError('UNSUPPORTED_FORMAT', f'{shown}: worlds are URDF files, SDF files '
+                                                 '(*.sdf, *.world) or r2d2_sim world manifests '
+                                                 '(*.world.yaml)')
     if '<!DOCTYPE' in text or '<!ENTITY' in text:
         raise RefusedError('RESOURCE_PARSE_ERROR', 'the resource_string declares a DOCTYPE or '
                                                    'entities, which a world does not need')
@@ -436,23 +494,25 @@ def _format_of(path: Optional[str], text: str, shown: str) -> WorldFormat:
             return world_format
     root = _xml_root(text)
     raise RefusedError('UNSUPPORTED_FORMAT', f'the resource_string is XML with the root '
-                                             f'<{(root or "")[:40]}>: worlds are URDF or r2d2_sim '
-                                             'world manifests')
+                                             f'<{(root or "")[:40]}>: worlds are URDF, SDF or '
+                                             'r2d2_sim world manifests')
 
 
 def read_world(uri: str, resource_string: str, places: Places,
-               options: LoadOptions = LoadOptions(), trusted: bool = False) -> World:
+               options: LoadOptions = LoadOptions(), trusted: bool = False,
+               sdf: SdfSettings = SdfSettings()) -> World:
     """
     Read and check a world as LoadWorld asks: ``uri`` wins over ``resource_string``.
 
     ``trusted`` (the ``world`` parameter) may name any file; a request may
     load only from ``places``. Every model file is found and checked (size,
-    XML, links, meshes' places) before anything is loaded. RefusedError with
+    XML, links, meshes' places) before anything is loaded; ``sdf`` says what
+    SDF worlds are searched and compared with. RefusedError with
     LoadWorld's codes: NO_RESOURCE (both empty), NOT_FOUND (no such world, or
     outside the allowed places), UNSUPPORTED_FORMAT, RESOURCE_PARSE_ERROR,
     MISSING_ASSETS, UNSUPPORTED_ASSETS, UNSUPPORTED_ELEMENTS.
     """
-    reading = _Reading(places, options, trusted)
+    reading = _Reading(places, options, trusted, sdf)
     try:
         if uri:
             path, root = places.resolve(uri)
@@ -490,10 +550,16 @@ def _is_remote(source: str) -> bool:
 
 
 def _scan(places: Places, source: str) -> List[WorldEntry]:
-    """Return the worlds of one source: its ``*.world.yaml`` files, read and checked."""
+    """
+    Return the worlds of one source: its ``*.world.yaml`` files, read and checked.
+
+    Its ``*.sdf`` and ``*.world`` files too, those that hold a ``<world>``
+    (model files are left out): named by the world, tagged ``sdf``.
+    """
     directory = places.directory(source)[0]
     try:
-        names = sorted(n for n in os.listdir(directory) if n.endswith(WORLD_SUFFIX))
+        names = sorted(n for n in os.listdir(directory)
+                       if n.endswith(WORLD_SUFFIX) or n.lower().endswith(SDF_SUFFIXES))
     except OSError:
         raise RefusedError('NOT_FOUND', f'{source[:200]} cannot be listed') from None
     prefix = source.rstrip('/') if source.startswith(PACKAGE_SCHEME) else \
@@ -505,8 +571,15 @@ def _scan(places: Places, source: str) -> List[WorldEntry]:
         if not os.path.isfile(path):
             continue
         try:
-            manifest = read_manifest(load_yaml(_read_text(path, shown, 'NOT_FOUND',
-                                                          MAX_WORLD_BYTES)), _stem(name))
+            text = _read_text(path, shown, 'NOT_FOUND', MAX_WORLD_BYTES)
+            if not name.endswith(WORLD_SUFFIX):
+                from r2d2_sim.sim.sdf_world import sdf_world_entry
+                world = sdf_world_entry(text, shown)
+                if world is not None:
+                    entries.append(WorldEntry(world or _stem(name), f'{prefix}/{name}',
+                                              'SDF world', ('sdf',)))
+                continue
+            manifest = read_manifest(load_yaml(text), _stem(name))
         except RefusedError as exc:
             raise RefusedError(exc.code, f'{shown}: {exc.message}') from None
         entries.append(WorldEntry(manifest.name, f'{prefix}/{name}', manifest.description,

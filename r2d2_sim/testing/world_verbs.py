@@ -223,12 +223,13 @@ class WorldVerbs:
               allow_renaming: Optional[bool] = None, namespace: str = '',
               at: str = '') -> str:
         """
-        Spawn a URDF and return the entity's name.
+        Spawn a URDF or an SDF model and return the entity's name.
 
-        ``urdf``: a pybullet_data name (``cube.urdf``), a path, a
-        ``package://`` URI, or the XML text itself. Its base link is placed at
-        ``position`` turned by ``yaw`` (or ``orientation``, x y z w), exactly.
-        ``name``: the entity's name; a taken or invalid one is refused
+        ``urdf``: a pybullet_data name (``cube.urdf``), a path (``.urdf`` or
+        ``.sdf``), a ``package://`` or ``model://`` URI, or the XML text itself
+        (a ``<robot>`` or an ``<sdf>``). Its base link (an SDF model: its
+        frame) is placed at ``position`` turned by ``yaw`` (or ``orientation``,
+        x y z w), exactly. ``name``: the entity's name; a taken or invalid one is refused
         (NAME_NOT_UNIQUE, NAME_INVALID). Without one, the URDF's robot name,
         made unique (``cube``, ``cube_1``...). ``allow_renaming`` overrides
         either default. With a ``namespace`` it is a driven robot with every
@@ -290,11 +291,12 @@ class WorldVerbs:
         """
         Load a world in place of the current one (LoadWorld); return its name, URI, tags.
 
-        ``world``: a URDF or a world manifest, as a path, a ``package://`` or
-        ``file://`` URI, a name in the package's ``urdf/`` (``room.world.yaml``),
-        or the file's text itself. Spawned entities leave, the robots stand at
-        the world's start pose, time goes back to 0; the harness then moves
-        one control period on, to publish the new world (as ``reset_world``).
+        ``world``: a URDF, an SDF world or a world manifest, as a path, a
+        ``package://`` or ``file://`` URI, a name in the package's ``urdf/``
+        (``room.world.yaml``), or the file's text itself. Spawned entities
+        leave, the robots stand at the world's start pose, time goes back to
+        0; the harness then moves one control period on, to publish the new
+        world (as ``reset_world``).
         """
         entry = self._world_backend().load_world(*_world_resource(world))
         self._after_world(True)

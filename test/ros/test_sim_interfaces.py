@@ -51,7 +51,7 @@ BAD_SPAWNS = {
     'nothing to spawn': ({'resource_string': ''}, srv.SpawnEntity.Response.NO_RESOURCE),
     'not a URDF file': ({'resource_string': '', 'uri': '/etc/passwd'},
                         srv.SpawnEntity.Response.UNSUPPORTED_FORMAT),
-    'not a robot': ({'resource_string': '<sdf version="1.6"/>'},
+    'not a robot': ({'resource_string': '<mujoco model="m"/>'},
                     srv.SpawnEntity.Response.UNSUPPORTED_FORMAT),
     'does not parse': ({'resource_string': '<robot name="x"><link name="a"></robot'},
                        srv.SpawnEntity.Response.RESOURCE_PARSE_ERROR),

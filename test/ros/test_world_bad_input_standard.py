@@ -27,8 +27,10 @@ BAD_LOADS = {
     'not YAML': ({'resource_string': f'r2d2_sim_world: 1\nname: [{MARK}\n'},
                  LOAD.RESOURCE_PARSE_ERROR),
     'not a world': ({'resource_string': f'{MARK}: 1\n'}, LOAD.UNSUPPORTED_FORMAT),
-    'SDF': ({'resource_string': f'<sdf version="1.9"><world name="{MARK}"/></sdf>'},
-            LOAD.UNSUPPORTED_FORMAT),
+    'MJCF': ({'resource_string': f'<mujoco model="{MARK}"><worldbody/></mujoco>'},
+             LOAD.UNSUPPORTED_FORMAT),
+    'SDF of another version': ({'resource_string': f'<sdf version="1.2"><world name="{MARK}"/>'
+                                                   '</sdf>'}, LOAD.UNSUPPORTED_FORMAT),
     'entity bomb': ({'resource_string': '<!DOCTYPE r [<!ENTITY a "' + MARK + '"><!ENTITY b '
                                         '"&a;&a;&a;&a;">]><robot name="b"><link name="&b;"/>'
                                         '</robot>'}, LOAD.RESOURCE_PARSE_ERROR),

@@ -63,6 +63,9 @@ def test_every_parameter_has_a_description():
     ('scan_rate', 1e-7, 'scan_rate must be in'),
     ('imu_rate', 1e-7, 'imu_rate must be in'),
     ('scan_samples', 1, 'scan_samples must be in [2, 10000]'),
+    ('model_paths', ['models', ''], 'model_paths must be a list of directories'),
+    ('model_paths', 'models', 'model_paths must be a list of directories'),
+    ('strict_worlds', 'yes', 'strict_worlds'),
 ])
 def test_bad_values_raise_one_line(name, value, fragment):
     """Each invalid value raises ConfigError naming the parameter or the problem."""

@@ -36,7 +36,9 @@ BAD_TEXTS = {
                                  'RESOURCE_PARSE_ERROR'),
     'not a manifest': (f'{MARK}: 1\nother: 2\n', 'UNSUPPORTED_FORMAT'),
     'another version': (f'r2d2_sim_world: 2\nname: {MARK}\n', 'UNSUPPORTED_FORMAT'),
-    'SDF': (f'<sdf version="1.9"><world name="{MARK}"/></sdf>', 'UNSUPPORTED_FORMAT'),
+    'MJCF': (f'<mujoco model="{MARK}"><worldbody/></mujoco>', 'UNSUPPORTED_FORMAT'),
+    'SDF of another version': (f'<sdf version="1.2"><world name="{MARK}"/></sdf>',
+                               'UNSUPPORTED_FORMAT'),
     'YAML alias bomb': (ALIAS_BOMB, 'RESOURCE_PARSE_ERROR'),
     'deep nesting': ('r2d2_sim_world: 1\nx: ' + '[' * (MAX_YAML_DEPTH + 5) + MARK
                      + ']' * (MAX_YAML_DEPTH + 5) + '\n', 'RESOURCE_PARSE_ERROR'),
@@ -53,7 +55,7 @@ BAD_TEXTS = {
         f't{i}' for i in range(MAX_TAGS + 1)) + ']\n', 'RESOURCE_PARSE_ERROR'),
     'a model outside': ('r2d2_sim_world: 1\nmodels:\n  - {uri: /etc/hostname.urdf}\n',
                         'UNSUPPORTED_ASSETS'),
-    'a model of another format': ('r2d2_sim_world: 1\nmodels:\n  - {uri: stadium.sdf}\n',
+    'a model of another format': ('r2d2_sim_world: 1\nmodels:\n  - {uri: mjcf/ant.xml}\n',
                                   'UNSUPPORTED_ASSETS'),
     'a mesh outside': ('<robot name="m"><link name="a"><visual><geometry><mesh '
                        'filename="/etc/passwd"/></geometry></visual></link></robot>',
@@ -93,6 +95,8 @@ def test_bad_world_files_are_refused_by_name_without_their_contents(make, tmp_pa
         suffix = '.urdf' if text.startswith('<') else '.world.yaml'
         (tmp_path / (name.replace(' ', '_') + suffix)).write_text(text)
     (tmp_path / 'stadium.sdf').write_text(f'<sdf>{MARK}</sdf>')
+    (tmp_path / 'lists_stadium.world.yaml').write_text(  # beside it: not pybullet_data's
+        'r2d2_sim_world: 1\nmodels:\n  - {uri: stadium.sdf}\n')
     (tmp_path / 'folder.world.yaml').mkdir()
     simulation = make(world_paths=[str(tmp_path)])
     expected = dict(BAD_TEXTS)
@@ -105,6 +109,7 @@ def test_bad_world_files_are_refused_by_name_without_their_contents(make, tmp_pa
         assert refused.value.code == code, (name, refused.value)
         assert MARK not in str(refused.value) and path in str(refused.value)
     for path, code in ((tmp_path / 'stadium.sdf', 'UNSUPPORTED_FORMAT'),
+                       (tmp_path / 'lists_stadium.world.yaml', 'UNSUPPORTED_ASSETS'),
                        (tmp_path / 'folder.world.yaml', 'NOT_FOUND'),
                        (tmp_path / 'no_such.world.yaml', 'NOT_FOUND')):
         with pytest.raises(RefusedError, match=f'^{code}:'):

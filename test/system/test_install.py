@@ -28,7 +28,7 @@ from sensor_msgs.msg import JointState
 USER_REQUIREMENTS = ['pytest']
 # Run-time dependencies that requirements.txt pins too: the installed package must agree.
 PINNED = ('ros-jazzy-rclpy', 'ros-jazzy-common-interfaces', 'pybullet', 'numpy', 'matplotlib',
-          'google-re2')
+          'google-re2', 'defusedxml', 'pycollada', 'trimesh')
 PYBULLET_CHATTER = ('pybullet build time', 'argv[0]=')
 
 

@@ -153,14 +153,14 @@ class SimulationInterfaces(Replies):
     def _features(self, request, response):
         features = self._msg.SimulatorFeatures
         response.features.features = [getattr(features, name) for name in FEATURES]
-        response.features.spawn_formats = ['urdf']
+        response.features.spawn_formats = ['urdf', 'sdf']
         config = self._simulator.config
         response.features.custom_info = json.dumps({
             'simulator': 'r2d2_sim', 'physics_rate_hz': config.physics_rate_hz,
             'step_s': 1.0 / config.physics_rate_hz, 'world_frame': config.world_frame_id,
             'entity_filter': 'RE2 search on names (a part of the name matches), at most '
                              f'{MAX_FILTER_LENGTH} characters',
-            'world_formats': ['urdf', 'r2d2_sim world manifest (*.world.yaml)'],
+            'world_formats': ['urdf', 'sdf', 'r2d2_sim world manifest (*.world.yaml)'],
             'tags': f'at most {MAX_TAGS} per list, {MAX_TAG_LENGTH} characters each'})
         return response
 

@@ -1,0 +1,219 @@
+"""
+Meshes converted once into the OBJ files PyBullet loads, kept on disk by their content.
+
+No ROS, no PyBullet. PyBullet reads OBJ most completely (a concave triangle
+mesh for a static collision, one convex hull per object for a moving one), and
+COLLADA's units and scene transforms only partly, so every mesh is converted
+(:mod:`.meshes`) into OBJ files in metres: the whole mesh (``mesh.obj``,
+vertices merged), one file per colour for the camera (``part_<i>.obj``), and,
+when a moving body needs it, its connected pieces as separate objects
+(``hulls.obj``: Bullet makes each a convex hull, a decomposition that keeps
+a table's legs apart). They live in ``$R2D2_SIM_CACHE_DIR``, else
+``$XDG_CACHE_HOME/r2d2_sim``, else ``~/.cache/r2d2_sim``, under ``meshes/``,
+keyed by a hash of the source file's bytes and this converter's version: a
+warm load reads no mesh file at all. Every file is written beside its final
+name and renamed into place, ``info.json`` last, so two processes converting
+the same mesh at once both end with whole files.
+"""
+
+import hashlib
+import json
+import os
+import tempfile
+from typing import List, NamedTuple, Optional, Tuple
+
+import numpy
+
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.sim.sdf.meshes import read_mesh, read_mesh_bytes, Triangles
+
+__all__ = ['MeshCache', 'Converted', 'cache_directory', 'CACHE_VARIABLE', 'CONVERTER_VERSION',
+           'MAX_PARTS', 'MAX_HULLS']
+
+CACHE_VARIABLE = 'R2D2_SIM_CACHE_DIR'
+CONVERTER_VERSION = 1
+# Visual pieces of one mesh (one per colour); beyond, the rest are drawn in one piece.
+MAX_PARTS = 32
+# Convex pieces of a moving mesh; a mesh of more (or larger) pieces is one convex hull.
+MAX_HULLS = 64
+MAX_HULL_TRIANGLES = 200_000
+
+Rgba = Tuple[float, float, float, float]
+
+
+def cache_directory(environ=None) -> str:
+    """Return r2d2_sim's cache directory: R2D2_SIM_CACHE_DIR, else XDG's, else ~/.cache."""
+    environ = os.environ if environ is None else environ
+    if environ.get(CACHE_VARIABLE):
+        return os.path.abspath(os.path.expanduser(environ[CACHE_VARIABLE]))
+    base = environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache')
+    return os.path.join(os.path.abspath(base), 'r2d2_sim')
+
+
+class Converted(NamedTuple):
+    """A converted mesh: its files, triangle count and visual pieces with their colours."""
+
+    directory: str
+    mesh: str                                    # the whole mesh (a concave collision)
+    triangles: int
+    parts: Tuple[Tuple[str, Optional[Rgba]], ...]
+
+
+def _write(path: str, text: str) -> None:
+    """Write ``text`` to ``path`` whole or not at all (a temporary file renamed into place)."""
+    handle, temporary = tempfile.mkstemp(dir=os.path.dirname(path), prefix='.writing_')
+    try:
+        with os.fdopen(handle, 'w', encoding='utf-8') as stream:
+            stream.write(text)
+        os.replace(temporary, path)
+    except BaseException:
+        try:
+            os.remove(temporary)
+        except OSError:
+            pass
+        raise
+
+
+def obj_text(vertices: numpy.ndarray, faces: numpy.ndarray,
+             objects: Optional[List[numpy.ndarray]] = None) -> str:
+    """Return OBJ text of vertices and faces; ``objects`` splits the faces into named objects."""
+    # One format string for all the lines: 4 times as fast as numpy.savetxt, the same text.
+    out = ['# written by r2d2_sim\n',
+           ('v %.9g %.9g %.9g\n' * len(vertices)) % tuple(vertices.ravel().tolist())]
+    for number, selected in enumerate(objects if objects is not None else [None]):
+        chosen = faces if selected is None else faces[selected]
+        if objects is not None:
+            out.append(f'o piece_{number}\n')
+        out.append(('f %d %d %d\n' * len(chosen)) % tuple((chosen + 1).ravel().tolist()))
+    return ''.join(out)
+
+
+def merged(vertices: numpy.ndarray, faces: numpy.ndarray
+           ) -> Tuple[numpy.ndarray, numpy.ndarray, numpy.ndarray]:
+    """Return vertices with repeats merged, faces on them, and which faces were kept."""
+    unique, inverse = numpy.unique(vertices, axis=0, return_inverse=True)
+    faces = inverse.reshape(-1)[faces]
+    kept = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & \
+        (faces[:, 0] != faces[:, 2])
+    return unique, faces[kept], kept
+
+
+def _used(vertices: numpy.ndarray, faces: numpy.ndarray
+          ) -> Tuple[numpy.ndarray, numpy.ndarray]:
+    """Return only the vertices ``faces`` use, and the faces renumbered onto them."""
+    used, inverse = numpy.unique(faces, return_inverse=True)
+    return vertices[used], inverse.reshape(faces.shape)
+
+
+def pieces(faces: numpy.ndarray, vertex_count: int) -> List[numpy.ndarray]:
+    """Return the faces of each connected piece (sharing vertices), largest first."""
+    parent = list(range(vertex_count))
+
+    def root(v: int) -> int:
+        while parent[v] != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+    for a, b, c in faces.tolist():
+        ra, rb, rc = root(a), root(b), root(c)
+        parent[rb] = ra
+        parent[root(rc)] = ra
+    labels = numpy.array([root(int(f)) for f in faces[:, 0]])
+    found = [numpy.flatnonzero(labels == label) for label in numpy.unique(labels)]
+    return sorted(found, key=lambda indices: (-len(indices), int(indices[0])))
+
+
+class MeshCache:
+    """Meshes converted into OBJ files under ``directory`` (default: :func:`cache_directory`)."""
+
+    def __init__(self, directory: Optional[str] = None) -> None:
+        self.directory = os.path.join(directory or cache_directory(), 'meshes')
+
+    def convert(self, path: str, shown: str) -> Converted:
+        """
+        Return ``path``'s mesh converted (from the cache when its content was converted before).
+
+        RefusedError (naming ``shown``) for a mesh that cannot be read or is too big.
+        """
+        data = read_mesh_bytes(path, shown)
+        key = hashlib.sha256(b'r2d2_sim mesh %d %s\0' % (
+            CONVERTER_VERSION, os.path.splitext(path)[1].lower().encode()) + data).hexdigest()
+        directory = os.path.join(self.directory, key[:2], key)
+        cached = self._cached(directory)
+        if cached is not None:
+            return cached
+        return self._store(directory, read_mesh(path, shown, data), shown)
+
+    @staticmethod
+    def _cached(directory: str) -> Optional[Converted]:
+        try:
+            with open(os.path.join(directory, 'info.json'), encoding='utf-8') as handle:
+                info = json.load(handle)
+            parts = tuple((os.path.join(directory, name), None if colour is None
+                           else tuple(colour)) for name, colour in info['parts'])
+            mesh = os.path.join(directory, 'mesh.obj')
+            if all(os.path.isfile(p) for p in [mesh] + [p for p, _ in parts]):
+                return Converted(directory, mesh, int(info['triangles']), parts)
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+        return None
+
+    @staticmethod
+    def _store(directory: str, triangles: Triangles, shown: str) -> Converted:
+        vertices, faces, kept = merged(triangles.vertices, triangles.faces)
+        if not len(faces):  # Bullet's triangle mesh of no triangle is not a shape
+            raise RefusedError('RESOURCE_PARSE_ERROR', f'mesh {shown} has no triangle of '
+                                                       'three distinct corners')
+        os.makedirs(directory, exist_ok=True)
+        groups = triangles.groups[kept]
+        mesh = os.path.join(directory, 'mesh.obj')
+        _write(mesh, obj_text(vertices, faces))
+        colours = list(triangles.colours)
+        if len(colours) > MAX_PARTS:  # the rest drawn in the last piece's colour
+            groups = numpy.minimum(groups, MAX_PARTS - 1)
+            colours = colours[:MAX_PARTS]
+        parts = []
+        for index, colour in enumerate(colours):
+            chosen = faces[groups == index]
+            if not len(chosen):
+                continue
+            name = f'part_{index}.obj'
+            _write(os.path.join(directory, name), obj_text(*_used(vertices, chosen)))
+            parts.append((name, colour))
+        _write(os.path.join(directory, 'info.json'), json.dumps(
+            {'version': CONVERTER_VERSION, 'triangles': int(len(faces)), 'parts': parts}))
+        return Converted(directory, mesh, int(len(faces)),
+                         tuple((os.path.join(directory, n), c) for n, c in parts))
+
+    @staticmethod
+    def hulls(converted: Converted) -> str:
+        """
+        Return an OBJ of the mesh's connected pieces, each an object Bullet makes a hull of.
+
+        A mesh of more than MAX_HULLS pieces, or too big to split quickly,
+        is one piece (one convex hull). Written beside the mesh once.
+        """
+        path = os.path.join(converted.directory, 'hulls.obj')
+        if os.path.isfile(path):
+            return path
+        vertices, faces = _read_obj(converted.mesh)
+        found = None
+        if len(faces) <= MAX_HULL_TRIANGLES:
+            found = pieces(faces, len(vertices))
+            if len(found) > MAX_HULLS:
+                found = None
+        _write(path, obj_text(vertices, faces, found))
+        return path
+
+
+def _read_obj(path: str) -> Tuple[numpy.ndarray, numpy.ndarray]:
+    """Read back an OBJ this module wrote (``v`` and ``f a b c`` lines only)."""
+    vertices, faces = [], []
+    with open(path, encoding='utf-8') as handle:
+        for line in handle:
+            if line.startswith('v '):
+                vertices.append([float(v) for v in line.split()[1:4]])
+            elif line.startswith('f '):
+                faces.append([int(v) - 1 for v in line.split()[1:4]])
+    return (numpy.array(vertices, dtype=float).reshape(-1, 3),
+            numpy.array(faces, dtype=numpy.int64).reshape(-1, 3))

@@ -1,0 +1,224 @@
+"""
+Mesh files as triangles in metres, with a colour per triangle where the file gives one.
+
+No ROS, no PyBullet. COLLADA (``.dae``) is read with pycollada, the way
+Gazebo reads it: the scene's node transforms applied and its ``<unit meter>``
+scale too (``<up_axis>`` ignored, as Gazebo does), each primitive's material
+colour kept (a texture counts as no colour). STL and OBJ (with its ``.mtl``
+colours, from the OBJ's own directory only) are read with trimesh's parsers.
+Every file is bounded before it is parsed: its size, no DOCTYPE or entities
+in a COLLADA file (pycollada's XML parser would expand them), and the
+triangle count (:data:`MAX_MESH_TRIANGLES`). Errors name the mesh as the SDF
+wrote it, never the file's contents.
+"""
+
+import io
+import logging
+import os
+import re
+import struct
+import warnings
+from typing import List, NamedTuple, Optional, Tuple
+
+import numpy
+
+from r2d2_sim.errors import RefusedError
+
+__all__ = ['Triangles', 'read_mesh', 'MESH_FORMATS', 'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
+
+MESH_FORMATS = ('.dae', '.stl', '.obj')
+# One mesh file (AWS's small house: 140 DAE files of 87 MB in all, the largest 6 MB).
+MAX_MESH_BYTES = 64 << 20
+MAX_MESH_TRIANGLES = 1_000_000
+MAX_MTL_BYTES = 1 << 20
+# A vertex farther out is a broken file (a mesh in millimetres of a 1,000 km thing).
+MAX_COORDINATE = 1e9
+PARSE, UNSUPPORTED = 'RESOURCE_PARSE_ERROR', 'UNSUPPORTED_ASSETS'
+_XML_DECLARATIONS = re.compile(rb'<!\s*(DOCTYPE|ENTITY)', re.IGNORECASE)
+
+Rgba = Tuple[float, float, float, float]
+
+
+class Triangles(NamedTuple):
+    """A mesh: vertices (N x 3, metres), triangles (M x 3 indices), each triangle's colour."""
+
+    vertices: numpy.ndarray
+    faces: numpy.ndarray
+    colours: Tuple[Optional[Rgba], ...]   # one per group of faces, in order
+    groups: numpy.ndarray                 # per face: its index in ``colours``
+
+
+def _quiet_trimesh() -> None:
+    # trimesh logs what it cannot do without scipy (which it does not need here).
+    logging.getLogger('trimesh').setLevel(logging.ERROR)
+
+
+def _check_triangles(count: int, shown: str) -> None:
+    if count > MAX_MESH_TRIANGLES:
+        raise RefusedError(UNSUPPORTED, f'mesh {shown} has {count} triangles, more than '
+                                        f'{MAX_MESH_TRIANGLES}')
+
+
+def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], shown: str
+          ) -> Triangles:
+    """Join (vertices, faces, colour) pieces into one mesh, faces grouped by colour."""
+    pieces = [(v, f, c) for v, f, c in pieces if len(f)]
+    if not pieces:
+        raise RefusedError(PARSE, f'mesh {shown} has no triangles')
+    _check_triangles(sum(len(f) for _, f, _ in pieces), shown)
+    colours: List[Optional[Rgba]] = []
+    vertices, faces, groups = [], [], []
+    offset = 0
+    for v, f, colour in pieces:
+        if colour not in colours:
+            colours.append(colour)
+        try:
+            vertices.append(numpy.asarray(v, dtype=float).reshape(-1, 3))
+            faces.append(numpy.asarray(f, dtype=numpy.int64).reshape(-1, 3) + offset)
+        except (ValueError, TypeError):  # a parser's arrays of a broken file
+            raise RefusedError(PARSE, f'mesh {shown}: its vertices or triangles do not read as '
+                                      'points and triangles') from None
+        groups.append(numpy.full(len(faces[-1]), colours.index(colour)))
+        offset += len(vertices[-1])
+    joined = numpy.concatenate(vertices)
+    if not numpy.all(numpy.isfinite(joined)) or numpy.abs(joined).max() > MAX_COORDINATE:
+        raise RefusedError(PARSE, f'mesh {shown} has a vertex that is not finite or more than '
+                                  f'{MAX_COORDINATE:g} from its origin')
+    joined_faces = numpy.concatenate(faces)
+    if joined_faces.min() < 0 or joined_faces.max() >= len(joined):
+        raise RefusedError(PARSE, f'mesh {shown} has a triangle of a vertex it does not have')
+    return Triangles(joined, joined_faces, tuple(colours), numpy.concatenate(groups))
+
+
+def _dae(data: bytes, shown: str) -> Triangles:
+    if _XML_DECLARATIONS.search(data):
+        raise RefusedError(PARSE, f'mesh {shown} declares a DOCTYPE or entities, which COLLADA '
+                                  'does not need')
+    import collada
+    import collada.polylist
+    import collada.triangleset
+    ignore = [collada.common.DaeUnsupportedError, collada.common.DaeBrokenRefError]
+    with warnings.catch_warnings():  # pycollada still uses numpy.matrix
+        warnings.simplefilter('ignore', PendingDeprecationWarning)
+        return _join(_dae_pieces(collada, data, ignore, shown), shown)
+
+
+def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
+    """Return a COLLADA file's triangle sets in metres, each with its material's colour."""
+    try:
+        document = collada.Collada(io.BytesIO(data), ignore=ignore)
+        scene = document.scene
+        if scene is None:
+            raise RefusedError(PARSE, f'mesh {shown}: the COLLADA file has no <scene>')
+        unit = document.assetInfo.unitmeter or 1.0
+        pieces = []
+        for geometry in scene.objects('geometry'):
+            for primitive in geometry.primitives():
+                if isinstance(primitive, collada.polylist.BoundPolylist):  # polygons too
+                    primitive = primitive.triangleset()
+                if not isinstance(primitive, collada.triangleset.BoundTriangleSet):
+                    continue  # lines: nothing to collide with or draw
+                if primitive.vertex is None or not len(primitive.vertex_index):
+                    continue
+                diffuse = getattr(getattr(primitive.material, 'effect', None), 'diffuse', None)
+                colour = (tuple(float(c) for c in diffuse[:4])
+                          if isinstance(diffuse, tuple) and len(diffuse) >= 3 else None)
+                if colour is not None and len(colour) == 3:
+                    colour += (1.0,)
+                pieces.append((primitive.vertex * unit, primitive.vertex_index, colour))
+                _check_triangles(sum(len(p[1]) for p in pieces), shown)
+    except RefusedError:
+        raise
+    except Exception as exc:  # pycollada raises many kinds on a malformed file
+        raise RefusedError(PARSE, f'mesh {shown} is not a COLLADA file r2d2_sim can read '
+                                  f'({type(exc).__name__})') from None
+    return pieces
+
+
+def _stl(data: bytes, shown: str) -> Triangles:
+    if len(data) >= 84 and not data[:5].lower() == b'solid':
+        _check_triangles(struct.unpack('<I', data[80:84])[0], shown)
+    else:
+        _check_triangles(data.count(b'facet'), shown)
+    from trimesh.exchange.stl import load_stl
+    try:
+        loaded = load_stl(io.BytesIO(data))
+        vertices, faces = loaded['vertices'], loaded['faces']
+    except Exception as exc:
+        raise RefusedError(PARSE, f'mesh {shown} is not an STL file r2d2_sim can read '
+                                  f'({type(exc).__name__})') from None
+    return _join([(vertices, faces, None)], shown)
+
+
+class _MaterialFiles:
+    """What an OBJ may read beside itself: its .mtl files in its own directory, bounded."""
+
+    def __init__(self, directory: str) -> None:
+        self._directory = os.path.realpath(directory)
+
+    def get(self, name: str) -> bytes:
+        path = os.path.realpath(os.path.join(self._directory, name))
+        if not name.lower().endswith('.mtl') or os.path.dirname(path) != self._directory or \
+                not os.path.isfile(path) or os.path.getsize(path) > MAX_MTL_BYTES:
+            raise OSError('not served')  # textures and anything elsewhere: no colour
+        with open(path, 'rb') as handle:
+            return handle.read()
+
+    __getitem__ = get
+
+
+def _obj(data: bytes, shown: str, directory: str) -> Triangles:
+    _check_triangles(data.count(b'\nf '), shown)
+    from trimesh.exchange.obj import load_obj
+    try:
+        loaded = load_obj(io.BytesIO(data), resolver=_MaterialFiles(directory),
+                          group_material=True, maintain_order=True)
+    except Exception as exc:
+        raise RefusedError(PARSE, f'mesh {shown} is not an OBJ file r2d2_sim can read '
+                                  f'({type(exc).__name__})') from None
+    geometries = loaded.get('geometry', {'': loaded}) if 'geometry' in loaded else {'': loaded}
+    pieces = []
+    for name in sorted(geometries):
+        geometry = geometries[name]
+        if 'faces' not in geometry:
+            continue
+        material = getattr(geometry.get('visual'), 'material', None)
+        diffuse = getattr(material, 'diffuse', None)
+        colour = None if diffuse is None else tuple(float(c) / 255.0 for c in diffuse[:4])
+        pieces.append((geometry['vertices'], geometry['faces'], colour))
+    return _join(pieces, shown)
+
+
+def read_mesh(path: str, shown: str, data: Optional[bytes] = None) -> Triangles:
+    """
+    Return a mesh file's triangles in metres; RefusedError (naming ``shown``) if it is bad.
+
+    UNSUPPORTED_ASSETS for a format other than DAE, STL and OBJ, a file over
+    MAX_MESH_BYTES or more than MAX_MESH_TRIANGLES triangles;
+    RESOURCE_PARSE_ERROR for one that does not read.
+    """
+    extension = os.path.splitext(path)[1].lower()
+    if extension not in MESH_FORMATS:
+        raise RefusedError(UNSUPPORTED, f'mesh {shown}: r2d2_sim reads DAE, STL and OBJ '
+                                        'meshes')
+    if data is None:
+        data = read_mesh_bytes(path, shown)
+    _quiet_trimesh()
+    if extension == '.dae':
+        return _dae(data, shown)
+    if extension == '.stl':
+        return _stl(data, shown)
+    return _obj(data, shown, os.path.dirname(path))
+
+
+def read_mesh_bytes(path: str, shown: str) -> bytes:
+    """Return a mesh file's bytes, at most MAX_MESH_BYTES; RefusedError if it cannot be had."""
+    try:
+        size = os.path.getsize(path)
+        if size > MAX_MESH_BYTES:
+            raise RefusedError(UNSUPPORTED, f'mesh {shown} is larger than {MAX_MESH_BYTES} '
+                                            'bytes')
+        with open(path, 'rb') as handle:
+            return handle.read(MAX_MESH_BYTES + 1)
+    except OSError:
+        raise RefusedError('MISSING_ASSETS', f'mesh {shown} cannot be read') from None

@@ -1,0 +1,142 @@
+"""
+SDF as one of the world formats of :mod:`r2d2_sim.sim.worlds`: a Gazebo world, or a model in one.
+
+No ROS, no PyBullet. :func:`read_sdf_world` is the SDF
+:class:`~r2d2_sim.sim.worlds.WorldFormat`'s reader: the file and its
+includes read (:mod:`r2d2_sim.sim.sdf`), one summary line of what is not
+simulated (refused as UNSUPPORTED_ELEMENTS with
+``fail_on_unsupported_element``), every body written as URDF, and the
+world's models and named poses as the other formats give them. Named poses
+are the world's own ``<frame>`` elements (``<world><frame name="goal">``),
+in the world frame; a frame named ``start`` is the start pose the start-up
+robots stand at. :func:`sdf_models` gives a world manifest's models from an
+SDF file; :func:`sdf_world_entry` is what GetAvailableWorlds lists of one.
+"""
+
+import os
+from typing import List, Optional, Tuple
+
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.model.transforms import compose, Transform
+from r2d2_sim.sim.entities import NAME
+from r2d2_sim.sim.sdf.bodies import entity_name
+from r2d2_sim.sim.sdf.elements import local_tag, parse_xml, read_limited
+from r2d2_sim.sim.sdf.loading import build_bodies, read_sdf, SdfBuilt, SdfRead, summary_line
+from r2d2_sim.sim.sdf.mesh_cache import MeshCache
+from r2d2_sim.sim.sdf.reader import MAX_SDF_BYTES
+from r2d2_sim.sim.sdf.resources import Resources
+from r2d2_sim.sim.world_manifest import check_world_pose, NamedPose
+from r2d2_sim.sim.worlds import World, WorldModel
+
+__all__ = ['read_sdf_world', 'sdf_models', 'sdf_world_entry', 'START_FRAME', 'SDF_SUFFIXES']
+
+START_FRAME = 'start'
+SDF_SUFFIXES = ('.sdf', '.world')
+SDF_TAG = 'sdf'
+
+
+def _resources(reading, anchor: Optional[str], path: Optional[str]) -> Resources:
+    """Return where the world's files may come from: anywhere if trusted, else allowed places."""
+    if reading.trusted:
+        return Resources(reading.sdf.model_paths)
+    roots = reading.places.roots() + [a for a in (anchor,) if a]
+    return Resources(reading.sdf.model_paths, roots)
+
+
+def _build(text: str, path: Optional[str], shown: str, reading, anchor: Optional[str],
+           named: bool = False) -> Tuple[SdfRead, SdfBuilt, str]:
+    """
+    Read and build an SDF file for a world; return its summary line, noted (or refused).
+
+    ``shown`` names the file in messages ('': read_world names it in front
+    of them); ``named``: so does the summary line (one of a manifest's models).
+    """
+    settings, options = reading.sdf, reading.options
+    ignore = options.ignore_missing_or_unsupported_assets
+    read = read_sdf(text, path, shown, _resources(reading, anchor, path),
+                    settings.read_options(ignore), settings.ground_plane)
+    if read.summary and options.fail_on_unsupported_element:
+        reading.not_simulated(read.summary)  # refused before any mesh is converted
+    built = build_bodies(read.scene, MeshCache(), ignore)
+    reading.resources.append(built.files)
+    counts = dict(read.scene.not_simulated)
+    for what, count in built.not_simulated:
+        counts[what] = counts.get(what, 0) + count
+    line = summary_line(counts.items())
+    if line:
+        reading.not_simulated(f'{shown}: {line}' if named else line)
+    reading.notes += [f'left out: {m}' for m in read.scene.left_out + built.left_out]
+    return read, built, line
+
+
+def _models(built: SdfBuilt, source: str, entry=None) -> List[WorldModel]:
+    models = []
+    for body in built.bodies:
+        pose = body.pose
+        name = body.name
+        if entry is not None:  # a manifest's model: its pose, name and tags over the file's
+            pose = compose(Transform(entry.position, entry.orientation), pose)
+            if entry.name is not None:
+                name = entry.name + body.name[len(entity_name(body.model)):]
+        models.append(WorldModel(
+            name, body.path, source, pose.translation, pose.rotation,
+            (entry.description if entry is not None and entry.description else
+             f'{body.model} from {source}'), entry.tags if entry is not None else (),
+            sdf=True))
+    return models
+
+
+def read_sdf_world(text: str, path: Optional[str], uri: str, reading,
+                   anchor: Optional[str]) -> World:
+    """Return an SDF file as a World: its models as bodies, its frames as named poses."""
+    shown = '' if uri else 'the resource_string'  # read_world puts a file's name in front
+    read, built, summary = _build(text, path, shown, reading, anchor)
+    at = f'{shown}: ' if shown else ''
+    poses = []
+    for frame in read.scene.frames:
+        name = entity_name(frame.name)
+        if not NAME.match(name) or len(name) > 255:
+            raise RefusedError('RESOURCE_PARSE_ERROR', f'{at}frame {frame.name[:100]!r} '
+                                                       'cannot name a named pose')
+        orientation = check_world_pose(frame.pose.translation, frame.pose.rotation,
+                                       f'{at}frame {name}')
+        poses.append(NamedPose(name, 'a <frame> of the SDF world', ('frame',),
+                               frame.pose.translation, orientation))
+    if len({p.name for p in poses}) != len(poses):
+        raise RefusedError('RESOURCE_PARSE_ERROR', f'{at}two frames have one name')
+    models = _models(built, uri or 'resource_string')
+    name = read.scene.world or (os.path.splitext(os.path.basename(path))[0] if path else 'world')
+    description = [f'SDF world {name[:100]}: {len(models)} bodies, {built.triangles} mesh '
+                   'triangles']
+    if read.merged_ground:
+        description.append('its ground plane is r2d2_sim\'s')
+    if summary:
+        description.append(summary)
+    start = next((p for p in poses if p.name == START_FRAME), None)
+    return World(name[:255], uri, '' if uri else text, '; '.join(description)[:4000],
+                 (SDF_TAG,), tuple(models), tuple(poses), start)
+
+
+def sdf_models(entry, path: str, reading, anchor: Optional[str]) -> List[WorldModel]:
+    """
+    Return a manifest's model that is an SDF file: its bodies at the entry's pose.
+
+    The entry's name replaces the model's (its other bodies keep their
+    ``__`` suffixes); a file of several models takes no name.
+    """
+    shown = f'model {entry.uri[:200]}'
+    text = read_limited(path, shown, 'MISSING_ASSETS', MAX_SDF_BYTES)
+    _, built, _ = _build(text, path, shown, reading, anchor, named=True)
+    if entry.name is not None and len({body.model for body in built.bodies}) > 1:
+        raise RefusedError('RESOURCE_PARSE_ERROR', f'{shown} holds several models: the entry '
+                                                   'cannot give them one name')
+    return _models(built, entry.uri, entry)
+
+
+def sdf_world_entry(text: str, shown: str) -> Optional[str]:
+    """Return the name of the world an SDF file holds (None: not an SDF world, a model file)."""
+    root = parse_xml(text, shown)
+    if local_tag(root) != 'sdf':
+        return None
+    worlds = [child for child in root if local_tag(child) == 'world']
+    return (worlds[0].get('name') or '') if worlds else None

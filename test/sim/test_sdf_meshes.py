@@ -1,0 +1,207 @@
+"""
+Meshes from SDF: DAE, STL and OBJ read in metres, bounded, converted once and kept by content.
+
+No ROS, no physics. The tests write meshes with mesh libraries (pycollada
+with a unit and a node transform, trimesh's STL and OBJ writers) and check
+what comes back against the shapes they wrote, then the cache: where it is,
+that a warm read converts nothing, and that two processes converting at
+once both end with whole files.
+"""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy
+import pytest
+
+from common import REPO
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.sim.sdf import mesh_cache, meshes
+from r2d2_sim.sim.sdf.mesh_cache import cache_directory, MeshCache
+from r2d2_sim.sim.sdf.meshes import read_mesh
+from sdf_files import box, write_dae, write_obj, write_stl
+
+SECRET = b'do-not-echo-7f3a'
+
+
+def bounds(triangles):
+    return [triangles.vertices.min(axis=0).tolist(), triangles.vertices.max(axis=0).tolist()]
+
+
+def test_a_collada_mesh_comes_back_in_metres_with_its_unit_and_node_transform(tmp_path):
+    """Written in centimetres and shifted by its node: read back, it is the 1 x 2 x 3 m box."""
+    path = write_dae(tmp_path / 'box.dae', box((1.0, 2.0, 3.0), (0.5, 1.0, 1.5)),
+                     rgba=(0.9, 0.1, 0.2, 1.0), unit_m=0.01, node_offset=(10.0, 0.0, 0.0))
+    triangles = read_mesh(path, 'model://x/box.dae')
+    assert bounds(triangles) == [pytest.approx([0.0, 0.0, 0.0], abs=1e-9),
+                                 pytest.approx([1.0, 2.0, 3.0], abs=1e-9)]
+    assert len(triangles.faces) == 12
+    assert triangles.colours == ((0.9, 0.1, 0.2, 1.0),)
+
+
+def test_stl_and_obj_come_back_as_written_obj_with_its_material_colour(tmp_path):
+    shape = box((0.4, 0.6, 0.8))
+    stl = read_mesh(write_stl(tmp_path / 'b.stl', shape), 'b.stl')
+    obj = read_mesh(write_obj(tmp_path / 'b.obj', shape, rgba=(0.0, 0.5, 1.0, 1.0)), 'b.obj')
+    for triangles in (stl, obj):
+        assert bounds(triangles) == [pytest.approx([-0.2, -0.3, -0.4], abs=1e-6),
+                                     pytest.approx([0.2, 0.3, 0.4], abs=1e-6)]  # STL: float32
+        assert len(triangles.faces) == 12
+    assert stl.colours == (None,)
+    assert obj.colours[0][:3] == pytest.approx((0.0, 0.5, 1.0), abs=0.01)
+
+
+def test_an_obj_reads_no_material_file_outside_its_own_directory(tmp_path):
+    (tmp_path / 'secret.mtl').write_text('newmtl paint\nKd 1 0 0\n')
+    inner = tmp_path / 'meshes'
+    inner.mkdir()
+    path = write_obj(inner / 'b.obj', box((1.0, 1.0, 1.0)))
+    text = open(path).read()
+    with open(path, 'w') as handle:
+        handle.write('mtllib ../secret.mtl\nusemtl paint\n' + text)
+    assert read_mesh(path, 'b.obj').colours == (None,)
+
+
+@pytest.mark.parametrize('name, data, code, problem', [
+    ('bomb.dae', b'<?xml version="1.0"?><!DOCTYPE c [<!ENTITY a "' + SECRET + b'">]><COLLADA/>',
+     'RESOURCE_PARSE_ERROR', 'declares a DOCTYPE or entities'),
+    ('junk.dae', b'<COLLADA>' + SECRET, 'RESOURCE_PARSE_ERROR',
+     'is not a COLLADA file r2d2_sim can read'),
+    ('junk.stl', b'solid x\nfacet normal ' + SECRET, 'RESOURCE_PARSE_ERROR',
+     'is not an STL file r2d2_sim can read'),
+    ('shape.ply', b'ply\n' + SECRET, 'UNSUPPORTED_ASSETS', 'r2d2_sim reads DAE, STL and OBJ'),
+])
+def test_a_bad_mesh_gets_one_line_naming_it_never_its_bytes(tmp_path, name, data, code,
+                                                            problem):
+    path = tmp_path / name
+    path.write_bytes(data)
+    with pytest.raises(RefusedError) as raised:
+        read_mesh(str(path), f'model://m/{name}')
+    assert raised.value.code == code
+    assert problem in raised.value.message and f'model://m/{name}' in raised.value.message
+    assert SECRET.decode() not in raised.value.message and '\n' not in raised.value.message
+
+
+def test_a_mesh_of_no_real_triangle_or_of_missing_corners_is_refused(tmp_path):
+    import trimesh
+    flat = trimesh.Trimesh([[0, 0, 0], [0, 0, 0], [0, 0, 0]], [[0, 1, 2]], process=False)
+    path = write_stl(tmp_path / 'point.stl', flat)
+    with pytest.raises(RefusedError, match='mesh point.stl has no triangle of three distinct'):
+        MeshCache(str(tmp_path / 'cache')).convert(path, 'point.stl')
+    text = open(write_dae(tmp_path / 'box.dae', box((1.0, 1.0, 1.0)))).read()
+    broken = tmp_path / 'broken.dae'
+    start = text.index('<p>') + 3
+    broken.write_text(text[:start] + '0 1 99 ' + text[start:].split(' ', 3)[3])
+    with pytest.raises(RefusedError) as raised:
+        read_mesh(str(broken), 'broken.dae')
+    assert raised.value.code == 'RESOURCE_PARSE_ERROR' and 'broken.dae' in raised.value.message
+
+
+@pytest.mark.parametrize('text, problem', [
+    ('v 0 0\nv 1 0\nv 0 1\nv 1 1\nf 1 2 3\n', 'do not read as points and triangles'),
+    ('v 0 0 0\nv 1 0\nv 0 1 0 0 0\nf 1 2 3\n', 'a triangle of a vertex it does not have'),
+])
+def test_an_obj_of_broken_points_is_one_line(tmp_path, text, problem):
+    """Cases a run of random mutations found (a traceback each, before)."""
+    (tmp_path / 'q.obj').write_text(text)
+    with pytest.raises(RefusedError, match=problem) as raised:
+        read_mesh(str(tmp_path / 'q.obj'), 'q.obj')
+    assert raised.value.code == 'RESOURCE_PARSE_ERROR'
+
+
+@pytest.mark.parametrize('write', [write_stl, write_obj, write_dae])
+def test_a_mesh_over_the_triangle_budget_is_refused(tmp_path, monkeypatch, write):
+    extension = {write_stl: 'stl', write_obj: 'obj', write_dae: 'dae'}[write]
+    path = write(tmp_path / f'b.{extension}', box((1.0, 1.0, 1.0)))  # 12 triangles
+    monkeypatch.setattr(meshes, 'MAX_MESH_TRIANGLES', 11)
+    with pytest.raises(RefusedError) as raised:
+        read_mesh(path, 'big')
+    assert raised.value.code == 'UNSUPPORTED_ASSETS'
+    assert 'mesh big has' in raised.value.message and 'more than 11' in raised.value.message
+    monkeypatch.setattr(meshes, 'MAX_MESH_TRIANGLES', 12)
+    assert len(read_mesh(path, 'big').faces) == 12
+
+
+def test_a_mesh_file_over_the_size_bound_is_refused_unread(tmp_path, monkeypatch):
+    path = write_stl(tmp_path / 'b.stl', box((1.0, 1.0, 1.0)))
+    monkeypatch.setattr(meshes, 'MAX_MESH_BYTES', 100)
+    with pytest.raises(RefusedError, match='larger than 100 bytes'):
+        MeshCache(str(tmp_path / 'cache')).convert(path, 'b.stl')
+
+
+def test_the_cache_directory_follows_the_override_then_xdg_then_home():
+    assert cache_directory({'R2D2_SIM_CACHE_DIR': '/a', 'XDG_CACHE_HOME': '/b'}) == '/a'
+    assert cache_directory({'XDG_CACHE_HOME': '/b'}) == '/b/r2d2_sim'
+    assert cache_directory({}) == os.path.join(os.path.expanduser('~'), '.cache', 'r2d2_sim')
+
+
+def test_a_mesh_is_converted_once_and_found_again_by_its_content(tmp_path, monkeypatch):
+    cache = MeshCache(str(tmp_path / 'cache'))
+    first = write_dae(tmp_path / 'a.dae', box((1.0, 1.0, 1.0)), rgba=(1.0, 0.0, 0.0, 1.0))
+    converted = cache.convert(first, 'a.dae')
+    assert converted.triangles == 12
+    assert converted.parts == ((os.path.join(converted.directory, 'part_0.obj'),
+                                (1.0, 0.0, 0.0, 1.0)),)
+    with open(converted.mesh) as handle:
+        text = handle.read()
+    assert text.count('\nv ') == 8 and text.count('\nf ') == 12  # corners merged
+    copy = tmp_path / 'elsewhere.dae'
+    copy.write_bytes(open(first, 'rb').read())
+
+    def no_reading(*args):
+        raise AssertionError('a warm load read the mesh again')
+    monkeypatch.setattr(mesh_cache, 'read_mesh', no_reading)
+    assert cache.convert(str(copy), 'elsewhere.dae') == converted
+    other = write_dae(tmp_path / 'b.dae', box((2.0, 1.0, 1.0)))
+    with pytest.raises(AssertionError, match='read the mesh again'):
+        cache.convert(other, 'b.dae')  # other content: converted anew
+
+
+def test_the_moving_collision_of_a_mesh_is_one_hull_per_piece(tmp_path):
+    """Two cubes 1 m apart: two convex pieces (one hull would fill the gap between them)."""
+    import trimesh
+    pair = trimesh.util.concatenate([box((0.2, 0.2, 0.2), (-0.5, 0, 0)),
+                                     box((0.2, 0.2, 0.2), (0.5, 0, 0))])
+    cache = MeshCache(str(tmp_path / 'cache'))
+    converted = cache.convert(write_stl(tmp_path / 'pair.stl', pair), 'pair.stl')
+    with open(cache.hulls(converted)) as handle:
+        assert handle.read().count('\no piece_') == 2
+    many = trimesh.util.concatenate([box((0.1, 0.1, 0.1), (i, 0, 0)) for i in range(70)])
+    converted = cache.convert(write_stl(tmp_path / 'many.stl', many), 'many.stl')
+    with open(cache.hulls(converted)) as handle:
+        assert '\no piece_' not in handle.read()  # more than MAX_HULLS pieces: one hull
+
+
+CONVERT = '''
+import sys
+sys.path.insert(0, sys.argv[1])
+from r2d2_sim.sim.sdf.mesh_cache import MeshCache
+cache = MeshCache(sys.argv[2])
+for path in sys.argv[3:]:
+    cache.convert(path, path)
+'''
+
+
+def test_two_processes_converting_at_once_both_leave_whole_files(tmp_path):
+    import trimesh
+    paths = []
+    for i in range(6):
+        sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.5 + i)
+        paths.append(write_stl(tmp_path / f's{i}.stl', sphere))
+    command = [sys.executable, '-c', CONVERT, REPO, str(tmp_path / 'cache')] + paths
+    children = [subprocess.Popen(command, stderr=subprocess.PIPE) for _ in range(2)]
+    for child in children:
+        _, errors = child.communicate(timeout=120)
+        assert child.returncode == 0, errors.decode()[-2000:]
+    cache = MeshCache(str(tmp_path / 'cache'))
+    for path in paths:
+        converted = cache.convert(path, path)
+        with open(os.path.join(converted.directory, 'info.json')) as handle:
+            assert json.load(handle)['triangles'] == converted.triangles == 5120
+        vertices = numpy.loadtxt(converted.mesh, comments=('#', 'f'), usecols=(1, 2, 3))
+        assert len(vertices) == 2562
+    leftovers = [n for d, _, names in os.walk(tmp_path / 'cache') for n in names
+                 if n.startswith('.writing_')]
+    assert leftovers == []
