@@ -5,12 +5,13 @@ No ROS here. A :class:`Robot` takes commands (:meth:`Robot.command`), turns
 the latest into wheel motor targets before each physics step
 (:meth:`Robot.drive`), and after the step measures what is due
 (:meth:`Robot.measure`): its state for a publication (joints, base, wheel
-odometry) and each sensor at its own rate. Measurements are plain data in a
+odometry, and with ``publish_contacts`` what it touches) and each sensor at
+its own rate. Measurements are plain data in a
 :class:`Measurement`; a robot whose physics blew up is put back where it
 started, alone.
 """
 
-from typing import Callable, List, NamedTuple, Optional, Sequence
+from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy
 
@@ -21,6 +22,7 @@ from r2d2_sim.model.drive_controller import (
     CommandVerdict, DriveController, NO_WHEELS, timeout_steps)
 from r2d2_sim.sim.drive_train import DriveTrain, find_drive_train
 from r2d2_sim.model.kinematics import OdometryState
+from r2d2_sim.sim.oracles import Touch, touching
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner
 from r2d2_sim.model.sensors import ImuReading
@@ -53,6 +55,8 @@ class Measurement(NamedTuple):
     image: Optional[CameraImage]         # the head camera, at camera_rate
     scan: Optional[numpy.ndarray]        # REP-117 ranges (float32), at scan_rate
     imu: Optional[ImuReading]            # at imu_rate
+    # With publish_contacts, what the robot touches, beside each frame (empty: nothing).
+    contacts: Optional[Tuple[Touch, ...]] = None
 
 
 def _ignore(text: str) -> None:
@@ -159,9 +163,11 @@ class Robot:
         camera = self._camera_due is not None and self._camera_due.due(step)
         scan = self._scan_due is not None and self._scan_due.due(step)
         imu = self._imu_due is not None and self._imu_due.due(step)
-        frame = None
+        frame = contacts = None
         if state_due:
             frame = self.read_frame(step, time_ns)
+            if self.config.publish_contacts:
+                contacts = tuple(touching(self.world, self.body))
         else:
             body = self.body
             if camera or scan or imu:
@@ -179,7 +185,7 @@ class Robot:
             time_ns, frame,
             self.camera.render(depth=self.config.camera_depth) if camera else None,
             self.laser.scan() if scan else None,
-            self.imu.read(time_ns / 1e9) if imu else None)
+            self.imu.read(time_ns / 1e9) if imu else None, contacts)
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""

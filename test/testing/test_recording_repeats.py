@@ -12,8 +12,8 @@ from r2d2_sim.testing import box_urdf, SimHarness
 
 
 def record(path):
-    """Drive into the room with a box spawned, everything recorded."""
-    with SimHarness(cmd_vel_timeout=0.0, record=str(path),
+    """Drive into the room and a box, contacts on, everything recorded."""
+    with SimHarness(cmd_vel_timeout=0.0, record=str(path), publish_contacts=True,
                     world='package://r2d2_sim/urdf/room.urdf', publish_link_tf=True) as harness:
         harness.spawn(box_urdf((0.3, 0.3, 0.5)), name='box', position=(1.0, 0.0, 0.25))
         harness.send_cmd_vel(linear=0.4, angular=0.1)
