@@ -58,6 +58,7 @@ setup(
             'drive = r2d2_sim.apps.drive:main',
             'replay = r2d2_sim.apps.replay:main',
         ],
-        'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin'],
+        'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin',
+                     'r2d2_sim.farm.pytest_plugin = r2d2_sim.farm.pytest_plugin'],
     },
 )

@@ -13,7 +13,9 @@ The folders are the layers, each importing only from those listed before it:
 - :mod:`r2d2_sim.ros`: the node, translation only (outputs, ``cmd_vel``, the
   control services, the simulation standard);
 - :mod:`r2d2_sim.testing`: the public testing API (harnesses, domain leases, clients);
-- :mod:`r2d2_sim.apps`: the executables (``sim_node``, ``demo``, ``drive``, ``replay``).
+- :mod:`r2d2_sim.apps`: the executables (``sim_node``, ``demo``, ``drive``, ``replay``);
+- :mod:`r2d2_sim.farm`: the scenario farm (seeded and Hypothesis-drawn variations,
+  verdicts with their evidence, reports), which nothing else imports.
 
 At the top: :mod:`~r2d2_sim.errors` (one-line errors every layer raises),
 :mod:`~r2d2_sim.client` (what any ROS client of the simulator needs) and the
