@@ -2,7 +2,8 @@
 The scenario farm as users run it: pytest in a subprocess, xdist workers, shards, reruns.
 
 - docs/farm.md's example farm (test/examples/farm/), a few variations, in two
-  pytest-split shards at once: each shard's report covers its own cases;
+  pytest-split shards at once: each shard's report covers its own cases, and
+  ``python -m r2d2_sim.farm report`` makes one of both;
 - a farm with failures run twice under ``-n 2``, the second time in the
   reverse order: the same verdicts and byte-identical failure recordings; a
   failure rerun from the report by ``python -m r2d2_sim.farm rerun`` gives the
@@ -132,6 +133,12 @@ def test_the_example_farm_in_two_shards_reports_each_shards_cases(tmp_path):
     seeded = {f'{FARM_EXAMPLE.name}::test_the_stopper_never_touches_anything[{seed}]'
               for seed in range(3)}
     assert not nodeids[0] & nodeids[1] and nodeids[0] | nodeids[1] == seeded
+    merged = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.farm', 'report', str(tmp_path / 'farm1'),
+         str(tmp_path / 'farm2'), '--out', str(tmp_path / 'all')], env=environment(),
+        capture_output=True, text=True, timeout=120)
+    assert merged.returncode == 0, merged.stderr
+    assert [c['nodeid'] for c in report(tmp_path / 'all')['cases']] == sorted(seeded)
 
 
 def test_a_farm_rerun_in_another_order_gives_the_same_verdicts_and_recordings(tmp_path):
