@@ -67,6 +67,7 @@ setup(
             'replay = r2d2_sim.apps.replay:main',
             'sim_conformance = r2d2_sim.conformance.cli:main',
         ],
-        'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin'],
+        'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin',
+                     'r2d2_sim.farm.pytest_plugin = r2d2_sim.farm.pytest_plugin'],
     },
 )

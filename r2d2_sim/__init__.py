@@ -14,6 +14,8 @@ The folders are the layers, each importing only from those listed before it:
   control services, the simulation standard);
 - :mod:`r2d2_sim.testing`: the public testing API (harnesses, domain leases, clients);
 - :mod:`r2d2_sim.apps`: the executables (``sim_node``, ``demo``, ``drive``, ``replay``);
+- :mod:`r2d2_sim.farm`: the scenario farm (seeded and Hypothesis-drawn variations,
+  verdicts with their evidence, reports), which nothing else imports.
 - :mod:`r2d2_sim.conformance`: on top, imported by nothing: a kit that checks any
   simulator against ROS 2's simulation standard (``sim_conformance``).
 

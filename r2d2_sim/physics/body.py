@@ -108,6 +108,9 @@ class Body:
                                       physicsClientId=cid)
         self._get_base_velocity = partial(pybullet.getBaseVelocity, body, physicsClientId=cid)
         self._multiply_transforms = partial(pybullet.multiplyTransforms, physicsClientId=cid)
+        # A run's watch asks these after every step (sim/oracles.py).
+        self._get_contact_points = partial(pybullet.getContactPoints, body, physicsClientId=cid)
+        self._get_closest_points = partial(pybullet.getClosestPoints, body, physicsClientId=cid)
 
     @property
     def id(self) -> int:
@@ -395,13 +398,14 @@ class Body:
         """Return a link's collision shapes (-1: the base), each in the link's inertial frame."""
         return records.collision_shapes(self._client, self.id, link)
 
-    def contacts(self) -> List[ContactPoint]:
+    def contacts(self, ignoring: Sequence['Body'] = ()) -> List[ContactPoint]:
         """Return where this body touches others after the last step (it is ``body_a``)."""
-        return records.contact_points(self._client, self.id)
+        return records.contact_records(self._get_contact_points(),
+                                       [body.id for body in ignoring if body.alive])
 
     def closest_points(self, other: 'Body', range_m: float) -> Optional[ClosestPoints]:
         """Return this body's nearest points to ``other`` within ``range_m`` (None: farther)."""
-        return records.closest_points(self._client, self.id, other.id, range_m)
+        return records.nearest_points(self._get_closest_points(other.id, range_m))
 
     def inertial_pose(self, link: int) -> Tuple[Vec3, Quat]:
         """Return the world pose of a link's inertial frame (-1: the base): its shapes' frame."""

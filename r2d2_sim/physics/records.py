@@ -7,6 +7,7 @@ into a named record here, by a reader that takes the client, the body id and
 the link, so nothing else in the package indexes ``[4]`` or ``[12]``.
 """
 
+import operator
 from dataclasses import dataclass
 from typing import List, NamedTuple, Optional, Sequence, Tuple
 
@@ -18,7 +19,7 @@ with silenced_output():  # PyBullet prints its build time on import
 __all__ = ['Vec3', 'Quat', 'JOINT_TYPE_NAMES', 'GEOMETRY_KINDS', 'JointRecord', 'JointStates',
            'Pose', 'LinkState', 'Aabb', 'Dynamics', 'CollisionShape', 'joint_records',
            'link_state', 'aabb', 'dynamics', 'collision_shapes', 'mesh_vertices', 'BodyInfo',
-           'body_info', 'ContactPoint', 'contact_points', 'ClosestPoints', 'closest_points']
+           'body_info', 'ContactPoint', 'contact_records', 'ClosestPoints', 'nearest_points']
 
 Vec3 = Tuple[float, float, float]
 Quat = Tuple[float, float, float, float]
@@ -234,18 +235,23 @@ def body_info(client, body_id: int) -> BodyInfo:
     return BodyInfo(base.decode('utf-8'), name.decode('utf-8'))
 
 
-def contact_points(client, body_a: int, body_b: int = -1) -> List[ContactPoint]:
-    """Return the contacts of ``body_a`` (with ``body_b`` only, when given) after the last step."""
-    points = (client.getContactPoints(body_a, body_b) if body_b >= 0
-              else client.getContactPoints(body_a))
-    return [ContactPoint(p[1], p[2], p[3], p[4], tuple(p[5]), p[9]) for p in points]
+def contact_records(points: Sequence, ignoring: Sequence[int] = ()) -> List[ContactPoint]:
+    """
+    Name what ``getContactPoints`` returned; contacts with the bodies ``ignoring`` are dropped.
+
+    Dropped before they are made records: a robot's wheels touch the ground at every step.
+    """
+    return [ContactPoint(p[1], p[2], p[3], p[4], tuple(p[5]), p[9]) for p in points
+            if p[2] not in ignoring]
 
 
-def closest_points(client, body_a: int, body_b: int, range_m: float) -> Optional[ClosestPoints]:
-    """Return the nearest points of two bodies if they are within ``range_m``; None if not."""
-    points = client.getClosestPoints(body_a, body_b, range_m)
+_DISTANCE = operator.itemgetter(8)  # a closest point's distance
+
+
+def nearest_points(points: Sequence) -> Optional[ClosestPoints]:
+    """Return the nearest of what ``getClosestPoints`` returned; None if it returned none."""
     if not points:
         return None
-    nearest = min(points, key=lambda p: p[8])
+    nearest = min(points, key=_DISTANCE)
     return ClosestPoints(nearest[3], nearest[4], tuple(nearest[5]), tuple(nearest[6]),
                          nearest[8])

@@ -15,7 +15,7 @@ publishers, so mirroring costs nothing when it is off.
 from typing import Callable, Optional
 
 from rclpy.publisher import Publisher
-from rclpy.serialization import serialize_message
+from r2d2_sim.ros.serialization import serialize
 
 from r2d2_sim.recording.channels import SinkChannel
 from r2d2_sim.recording.sink import FoxgloveSink
@@ -46,7 +46,7 @@ class MirroredPublisher:
         if type(msg) is bytes:
             data = msg
         elif isinstance(msg, self.publisher.msg_type):
-            data = serialize_message(msg)
+            data = serialize(msg)
         else:  # what rclpy's publish says, before anything goes out as bytes
             raise TypeError(f'Expected {self.publisher.msg_type}, got {type(msg)}')
         self.publisher.publish(data)

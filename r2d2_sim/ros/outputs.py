@@ -17,8 +17,9 @@ into the serialized bytes, which spares rclpy converting a million-element
 ``uint8[]`` each time.
 """
 
+from collections import OrderedDict
 import math
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 import numpy
 from nav_msgs.msg import Odometry
@@ -27,16 +28,18 @@ from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import (
     BatteryState, CameraInfo, Image, Imu, JointState, LaserScan, PointCloud2, PointField)
+from visualization_msgs.msg import Marker, MarkerArray
 
 from r2d2_sim.model import battery, camera
 from r2d2_sim.physics.records import JointRecord
 from r2d2_sim.model.camera import CameraIntrinsics
+from r2d2_sim.sim.oracles import Touch
 from r2d2_sim.sim.parameters import SimConfig
 from r2d2_sim.sim.robot import Frame, Measurement, Robot
 from r2d2_sim.sim.sensor_mounts import (
     CameraImage, HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
 from r2d2_sim.model.sensors import ImuModel, ImuReading, LidarGeometry, ScanGeometry
-from r2d2_sim.ros.serialization import MessageTemplate
+from r2d2_sim.ros.serialization import MessageTemplate, StampSlot
 from r2d2_sim.ros.tf_outputs import (  # noqa: F401 (TF's QoS here too)
     start_tf, TF_QOS, TF_STATIC_QOS)
 from r2d2_sim.model.timing import stamp_of
@@ -44,7 +47,8 @@ from r2d2_sim.model.transforms import yaw_to_quaternion
 
 __all__ = ['STATE_QOS', 'CAMERA_QOS', 'SENSOR_QOS', 'ClockOutput', 'JointStateOutput',
            'GroundTruthOutput', 'OdometryOutput', 'HeadCameraOutput', 'ScanOutput', 'ImuOutput',
-           'Lidar3dOutput', 'PointCloudTemplate', 'BatteryOutput', 'RobotOutputs']
+           'Lidar3dOutput', 'PointCloudTemplate', 'BatteryOutput', 'ContactsOutput',
+           'RobotOutputs']
 
 # Reliable with a modest queue: default subscribers and sensor-data (best
 # effort) subscribers both match it.
@@ -387,6 +391,68 @@ class BatteryOutput:
         self._publisher.publish(template.to_bytes())
 
 
+class ContactsOutput:
+    """
+    ``contacts`` (visualization_msgs/MarkerArray): where the robot touches other bodies.
+
+    With ``publish_contacts``, at each state publication while the robot
+    touches anything, and once more when it stops: a DELETEALL marker (so a
+    viewer drops the last contacts) and then, per touched body, a red sphere
+    at the strongest contact point, in ``world_frame_id``, ``ns`` the other
+    entity's name, ``text`` the two links ("robot link -> other link"). rviz
+    and Foxglove draw it as it is. A message per set of touching links is
+    serialized once and kept (the last ``TEMPLATES_KEPT`` sets); only its
+    stamps and points are patched.
+    """
+
+    TEMPLATES_KEPT = 32
+    SPHERE_M = 0.06
+
+    def __init__(self, node: Node, config: SimConfig) -> None:
+        self._publisher = node.create_publisher(MarkerArray, 'contacts', STATE_QOS)
+        self._frame_id = config.world_frame_id
+        self._templates: 'OrderedDict[Tuple, Tuple]' = OrderedDict()
+        self._touching = False
+
+    def publish(self, time_ns: int, touches: Sequence[Touch]) -> None:
+        """Publish what the robot touches at ``time_ns`` (nothing while it touched nothing)."""
+        if not touches and not self._touching:
+            return
+        self._touching = bool(touches)
+        key = tuple((t.other, t.link, t.other_link) for t in touches)
+        template, stamps, points = self._template(key)
+        for stamp in stamps:
+            stamp.set_nanoseconds(time_ns)
+        for point, touch in zip(points, touches):
+            point.set(touch.position)
+        self._publisher.publish(template.to_bytes())
+
+    def _template(self, key: Tuple) -> Tuple[MessageTemplate, List[StampSlot], List]:
+        found = self._templates.get(key)
+        if found is not None:
+            self._templates.move_to_end(key)
+            return found
+        markers = [Marker(action=Marker.DELETEALL)]
+        for index, (other, link, other_link) in enumerate(key):
+            marker = Marker(ns=other, id=index, type=Marker.SPHERE, action=Marker.ADD,
+                            text=f'{link} -> {other_link}')
+            marker.pose.orientation.w = 1.0
+            marker.scale.x = marker.scale.y = marker.scale.z = self.SPHERE_M
+            marker.color.r, marker.color.a = 1.0, 1.0
+            markers.append(marker)
+        for marker in markers:
+            marker.header.frame_id = self._frame_id
+        template = MessageTemplate(MarkerArray(markers=markers))
+        found = (template, [template.stamp(f'markers[{i}].header.stamp')
+                            for i in range(len(markers))],
+                 [template.field(f'markers[{i}].pose.position', count=3)
+                  for i in range(1, len(markers))])
+        self._templates[key] = found
+        if len(self._templates) > self.TEMPLATES_KEPT:
+            self._templates.popitem(last=False)
+        return found
+
+
 class RobotOutputs:
     """
     Everything one robot publishes, built from its configuration; hands each measurement out.
@@ -409,6 +475,8 @@ class RobotOutputs:
                       if robot.lidar is not None else None)
         self.battery = (BatteryOutput(node, config, robot.battery.spec.capacity_ah)
                         if robot.battery is not None else None)
+        self.contacts: Optional[ContactsOutput] = (ContactsOutput(node, config)
+                                                   if config.publish_contacts else None)
         self.tf = start_tf(node, config, robot, time_ns) if config.publish_tf else None
         if self.tf is not None:
             self.state.append(self.tf)
@@ -429,3 +497,5 @@ class RobotOutputs:
             self.lidar.publish(measurement.time_ns, measurement.lidar)
         if measurement.battery is not None:
             self.battery.publish(measurement.time_ns, measurement.battery)
+        if measurement.contacts is not None and self.contacts is not None:
+            self.contacts.publish(measurement.time_ns, measurement.contacts)

@@ -14,21 +14,29 @@ simulated time:
   range);
 - **regions**: when the robot's base first stood inside each region given
   (a box or a circle on the ground, see :mod:`r2d2_sim.model.regions`);
-- **tipping**: when the base first leaned further than the angle given.
+- **tipping**: when the base first leaned further than the angle given;
+- **trajectory**: with ``trajectory_period_s``, the base's x, y and yaw at
+  that period of simulated time (a farm's map draws it).
+
+:func:`touching` is the one contact reading: the watch keeps contacts from
+it, and a robot with ``publish_contacts`` measures its ``contacts`` topic
+with it.
 
 It costs nothing unless made (the simulation calls its watches after each
 step), and about 10 us per other body per step when made (closest points).
 """
 
 import math
-from typing import Dict, List, Mapping, NamedTuple, Optional, Tuple
+from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Tuple
 
 from r2d2_sim.model.regions import Region
+from r2d2_sim.model.transforms import yaw_of
 from r2d2_sim.physics.body import Body
+from r2d2_sim.physics.records import ContactPoint
 from r2d2_sim.physics.world import GROUND_PLANE_NAME
 
-__all__ = ['Contact', 'Clearance', 'RunWatch', 'DEFAULT_CLEARANCE_RANGE_M',
-           'DEFAULT_TIP_ANGLE_RAD']
+__all__ = ['Contact', 'Clearance', 'Touch', 'RunWatch', 'TrajectoryPoint', 'touching',
+           'DEFAULT_CLEARANCE_RANGE_M', 'DEFAULT_TIP_ANGLE_RAD']
 
 # Closest points are looked for within this distance (m): farther bodies count as this.
 DEFAULT_CLEARANCE_RANGE_M = 2.0
@@ -48,6 +56,54 @@ class Contact(NamedTuple):
     max_normal_force_n: float             # the hardest push while it lasted
 
 
+class Touch(NamedTuple):
+    """A body touching another now: the strongest of their contact points after a step."""
+
+    other: str                            # the other entity's name
+    link: str                             # the touching body's link
+    other_link: str                       # and the other body's
+    position: Tuple[float, float, float]  # the point on the touching body, in the world
+    normal_force_n: float
+
+
+class TrajectoryPoint(NamedTuple):
+    """Where the base was at ``time_ns``: x, y (m) and yaw (rad) in the world."""
+
+    time_ns: int
+    x_m: float
+    y_m: float
+    yaw_rad: float
+
+
+def touching(world, body: Body, others: Optional[Iterable[Tuple[str, Body]]] = None
+             ) -> List[Touch]:
+    """
+    Return what ``body`` touches after the last step of ``world`` (a SimWorld).
+
+    One :class:`Touch` per other body, its own links and the ground plane
+    aside: the contact point with the largest normal force. In the world's
+    order of bodies, so that two runs list them alike. ``others`` (name,
+    body) narrows the bodies looked at (those that can be near).
+    """
+    bodies = world.bodies
+    ground = bodies.get(GROUND_PLANE_NAME)
+    strongest: Dict[int, ContactPoint] = {}
+    for point in body.contacts(ignoring=() if ground is None else (ground,)):
+        best = strongest.get(point.body_b)
+        if best is None or point.normal_force_n > best.normal_force_n:
+            strongest[point.body_b] = point
+    touches = []
+    if not strongest:
+        return touches
+    for name, other in bodies.items() if others is None else others:
+        point = strongest.get(other.id) if other is not body else None
+        if point is not None:
+            touches.append(Touch(name, body.link_name(point.link_a),
+                                 other.link_name(point.link_b), point.position_on_a,
+                                 point.normal_force_n))
+    return touches
+
+
 class Clearance(NamedTuple):
     """The smallest distance between the robot and another body so far, and when and to what."""
 
@@ -64,18 +120,27 @@ class RunWatch:
     world after each step until :meth:`close`. ``entity`` names what is
     watched: a robot (default: the first) or any other entity. ``regions``
     maps names to :class:`~r2d2_sim.model.regions.Region` s whose first entry
-    time is kept in :attr:`reached`. ValueError for an unknown entity or a
-    range or angle that is no range or angle.
+    time is kept in :attr:`reached`. ``trajectory_period_s`` (simulated
+    seconds, rounded to whole steps; None: none kept) samples the base into
+    :attr:`trajectory`: where it is now, then every period. ValueError for an unknown
+    entity or a range, angle or period that is none.
     """
 
     def __init__(self, simulation, entity: Optional[str] = None, *,
                  regions: Optional[Mapping[str, Region]] = None,
                  clearance_range_m: float = DEFAULT_CLEARANCE_RANGE_M,
-                 tip_angle_rad: float = DEFAULT_TIP_ANGLE_RAD) -> None:
+                 tip_angle_rad: float = DEFAULT_TIP_ANGLE_RAD,
+                 trajectory_period_s: Optional[float] = None) -> None:
         if not (math.isfinite(clearance_range_m) and clearance_range_m > 0.0):
             raise ValueError(f'clearance_range_m must be > 0, got {clearance_range_m}')
         if not (math.isfinite(tip_angle_rad) and 0.0 < tip_angle_rad < math.pi):
             raise ValueError(f'tip_angle_rad must be in (0, pi), got {tip_angle_rad}')
+        self._sample_every = 0  # steps between trajectory samples; 0: none
+        if trajectory_period_s is not None:
+            if not (math.isfinite(trajectory_period_s) and trajectory_period_s > 0.0):
+                raise ValueError(f'trajectory_period_s must be > 0, got {trajectory_period_s}')
+            self._sample_every = max(1, round(trajectory_period_s * simulation.config
+                                              .physics_rate_hz))
         self._simulation = simulation
         bodies = simulation.world.bodies
         if entity is None and not simulation.robots:
@@ -91,9 +156,14 @@ class RunWatch:
         self.clearance = Clearance(clearance_range_m, None, None)
         self.reached: Dict[str, int] = {}
         self.tipped_ns: Optional[int] = None
+        self.trajectory: List[TrajectoryPoint] = []
         self.start_ns = simulation.time_ns
         self.steps = 0
         self._open: Dict[str, int] = {}  # other entity -> index of its contact still going
+        if self._sample_every:
+            base = self.body.world_state()
+            self.trajectory.append(TrajectoryPoint(self.start_ns, base.position[0],
+                                                   base.position[1], yaw_of(base.orientation)))
         self._unwatch = simulation.watch_steps(self.observe)
 
     def observe(self, time_ns: int) -> None:
@@ -102,8 +172,10 @@ class RunWatch:
         if not body.alive:
             return  # it left the world: nothing more to see
         self.steps += 1
-        self._contacts(body, time_ns)
-        self._clearance(body, time_ns)
+        others = [(name, other) for name, other in self._simulation.world.bodies.items()
+                  if other is not body and name != GROUND_PLANE_NAME]
+        self._contacts(body, time_ns, others)
+        self._clearance(body, time_ns, others)
         base = body.world_state()
         x, y = base.position[0], base.position[1]
         for name, region in self.regions.items():
@@ -111,42 +183,32 @@ class RunWatch:
                 self.reached[name] = time_ns
         if self.tipped_ns is None and _up_cos(base.orientation) < self.tip_cos:
             self.tipped_ns = time_ns
+        if self._sample_every and self.steps % self._sample_every == 0:
+            self.trajectory.append(TrajectoryPoint(time_ns, x, y, yaw_of(base.orientation)))
 
-    def _others(self, body: Body):
-        """Every body but the robot's and the ground plane, by name."""
-        for name, other in self._simulation.world.bodies.items():
-            if other is not body and name != GROUND_PLANE_NAME:
-                yield name, other
-
-    def _contacts(self, body: Body, time_ns: int) -> None:
-        touching: Dict[str, Tuple] = {}
-        bodies = {other.id: (name, other) for name, other in self._others(body)}
-        for point in body.contacts():
-            found = bodies.get(point.body_b)
-            if found is None:
-                continue
-            name, other = found
-            strongest = touching.get(name)
-            if strongest is None or point.normal_force_n > strongest[0].normal_force_n:
-                touching[name] = (point, other)
-        for name in [n for n in self._open if n not in touching]:
+    def _contacts(self, body: Body, time_ns: int, others: List[Tuple[str, Body]]) -> None:
+        touches = {touch.other: touch
+                   for touch in touching(self._simulation.world, body, others)}
+        for name in [n for n in self._open if n not in touches]:
             index = self._open.pop(name)
             self.contacts[index] = self.contacts[index]._replace(end_ns=time_ns)
-        for name, (point, other) in touching.items():
+        for name, touch in touches.items():
             index = self._open.get(name)
             if index is None:
                 self._open[name] = len(self.contacts)
-                self.contacts.append(Contact(
-                    name, body.link_name(point.link_a), other.link_name(point.link_b),
-                    time_ns, None, point.position_on_a, point.normal_force_n))
-            elif point.normal_force_n > self.contacts[index].max_normal_force_n:
+                self.contacts.append(Contact(name, touch.link, touch.other_link, time_ns, None,
+                                             touch.position, touch.normal_force_n))
+            elif touch.normal_force_n > self.contacts[index].max_normal_force_n:
                 self.contacts[index] = self.contacts[index]._replace(
-                    max_normal_force_n=point.normal_force_n)
+                    max_normal_force_n=touch.normal_force_n)
 
-    def _clearance(self, body: Body, time_ns: int) -> None:
+    def _clearance(self, body: Body, time_ns: int, others: List[Tuple[str, Body]]) -> None:
+        # Only what is nearer than the smallest distance so far can change it:
+        # asking for points within that (not the whole range) is as exact and
+        # much cheaper (PyBullet returns a point per pair of links in range).
         best = self.clearance
-        for name, other in self._others(body):
-            nearest = body.closest_points(other, self.clearance_range_m)
+        for name, other in others:
+            nearest = body.closest_points(other, max(best.distance_m, 0.0))
             if nearest is not None and nearest.distance_m < best.distance_m:
                 best = Clearance(nearest.distance_m, name, time_ns)
         self.clearance = best

@@ -362,6 +362,11 @@ PARAMETERS: List[Parameter] = [
     Parameter('publish_ground_truth_tf', 'bool', False,
               'Also publish world -> odom so that world -> base follows the true pose.',
               'publish_ground_truth_tf', read.boolean, per_robot=True),
+    Parameter('publish_contacts', 'bool', False,
+              'Publish what the robot touches (its own links and the ground aside) on contacts '
+              'as visualization_msgs/MarkerArray: a sphere at each touched body\'s strongest '
+              'contact point, in world_frame_id, at the state rate while any last and once '
+              'when they end.', 'publish_contacts', read.boolean, per_robot=True),
     Parameter('footprint_frame_id', 'string', 'base_footprint',
               'The base\'s projection on the ground, parent of base_frame_id in TF.',
               'footprint_frame_id', read.frame, per_robot=True),

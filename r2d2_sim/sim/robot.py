@@ -5,16 +5,17 @@ No ROS here. A :class:`Robot` takes commands (:meth:`Robot.command`), turns
 the latest into wheel motor targets before each physics step
 (:meth:`Robot.drive`), and after the step measures what is due
 (:meth:`Robot.measure`): its state for a publication (joints, base, wheel
-odometry) and each sensor at its own rate. The laser's and the 3D lidar's
-rays are left pending (:meth:`Robot.pending_rays`), so that the simulation
-casts every robot's rays of a step together, then hands each robot its
-answers (:meth:`Robot.take_rays`). Measurements are plain data in a
+odometry, and with ``publish_contacts`` what it touches) and each sensor at
+its own rate. The laser's and the 3D lidar's rays are left pending
+(:meth:`Robot.pending_rays`), so that the simulation casts every robot's rays
+of a step together, then hands each robot its answers
+(:meth:`Robot.take_rays`). Measurements are plain data in a
 :class:`Measurement`; a robot whose physics blew up is put back where it
 started, alone.
 """
 
 import math
-from typing import Callable, List, NamedTuple, Optional, Sequence
+from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy
 
@@ -28,6 +29,7 @@ from r2d2_sim.model.encoders import Encoders, OdometryCovariance
 from r2d2_sim.model.noise import noise_generator
 from r2d2_sim.sim.drive_train import DriveTrain, find_drive_train
 from r2d2_sim.model.kinematics import OdometryState
+from r2d2_sim.sim.oracles import Touch, touching
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner, Lidar3d
 from r2d2_sim.model.sensors import ImuReading
@@ -62,6 +64,8 @@ class Measurement(NamedTuple):
     imu: Optional[ImuReading]            # at imu_rate
     lidar: Optional[numpy.ndarray] = None  # 3D lidar points (rings, samples, 3), lidar3d_rate
     battery: Optional[BatteryReading] = None  # at battery_rate
+    # With publish_contacts, what the robot touches, beside each frame (empty: nothing).
+    contacts: Optional[Tuple[Touch, ...]] = None
 
 
 def _ignore(text: str) -> None:
@@ -229,9 +233,11 @@ class Robot:
         imu = self._imu_due is not None and self._imu_due.due(step)
         battery = self._battery_due is not None and self._battery_due.due(step)
         sensing = camera or scan or lidar or imu
-        frame = None
+        frame = contacts = None
         if state_due:
             frame = self.read_frame(step, time_ns)
+            if self.config.publish_contacts:
+                contacts = tuple(touching(self.world, self.body))
         else:
             body = self.body
             if sensing:
@@ -253,7 +259,8 @@ class Robot:
             None,  # the scan and the lidar's points: once its rays are cast (take_rays)
             self.imu.read(time_ns / 1e9) if imu else None,
             None,
-            self.battery.reading() if battery else None)
+            self.battery.reading() if battery else None,
+            contacts)
 
     def pending_rays(self) -> List[RayRequest]:
         """Return the rays the last :meth:`measure` left to cast (laser, then 3D lidar)."""

@@ -17,7 +17,6 @@ import pytest
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import yaw_of
-from r2d2_sim.physics import records
 from r2d2_sim.sim.entities import Category
 from r2d2_sim.sim.simulation import SpawnRequest
 from r2d2_sim.sim.worlds import LoadOptions
@@ -117,8 +116,8 @@ def test_the_robot_drives_inside_the_concave_wall_without_touching_it(make, worl
     for step in range(240 * 3):
         simulation.step()
         if step % 24 == 0:
-            touched += len(records.contact_points(world.client, robot.body.id,
-                                                  world.bodies['arena_wall'].id))
+            wall = world.bodies['arena_wall'].id
+            touched += sum(1 for point in robot.body.contacts() if point.body_b == wall)
     position = robot.body.world_state().position
     assert position[0] > 0.8  # about 1.1 m at 0.4 m/s after the ramp
     assert abs(position[1]) < 0.1 and max(abs(position[0]), abs(position[1])) < ARENA_HALF_M

@@ -1,0 +1,44 @@
+"""
+The scenario farm: many seeded variations of a world, each a verdict with its evidence.
+
+The top layer: it may import every layer below, and no module of the package
+imports it. What it holds, by role:
+
+- :mod:`~r2d2_sim.farm.scenario`: :class:`Scenario` (obstacles, start, goal,
+  seed, world, limits; JSON exactly) and :class:`ScenarioSpace`, whose
+  ``draw(seed)`` gives the same scenario for the same seed;
+- :mod:`~r2d2_sim.farm.strategies`: Hypothesis strategies of the same spaces
+  (``scenarios(space)``), shrinking to fewer boxes and rounder numbers, and
+  ``farm_settings()`` that make a property over runs deterministic;
+- :mod:`~r2d2_sim.farm.run`: ``run_scenario`` (a fresh in-process
+  simulator, the user's controller in lockstep, a
+  :class:`~r2d2_sim.sim.oracles.RunWatch`) and its :class:`Outcome`;
+  a failing run is run again to record it, and must repeat exactly;
+- :mod:`~r2d2_sim.farm.report`: report.md, report.json, trajectories.png;
+- :mod:`~r2d2_sim.farm.maps`: a world's walls and boxes for the picture;
+- :mod:`~r2d2_sim.farm.pytest_plugin`: the ``r2d2_farm`` fixture, outcomes
+  from every xdist worker, the report at the end (opt-in);
+- ``python -m r2d2_sim.farm``: rerun a case from its report, recording it.
+
+Importing this package imports no rclpy, PyBullet or Hypothesis; the names
+below load their modules when first used.
+"""
+
+import importlib
+
+__all__ = ['Box', 'Pose', 'Scenario', 'ScenarioSpace', 'ScenarioError', 'ROOM', 'LIMITS',
+           'scenarios', 'farm_settings', 'run_scenario', 'Outcome', 'reached_safely', 'safe',
+           'DeterminismError', 'world_boxes', 'write_report']
+
+_HOMES = {'Box': 'scenario', 'Pose': 'scenario', 'Scenario': 'scenario',
+          'ScenarioSpace': 'scenario', 'ScenarioError': 'scenario', 'ROOM': 'scenario',
+          'LIMITS': 'scenario', 'scenarios': 'strategies', 'farm_settings': 'strategies',
+          'run_scenario': 'run', 'Outcome': 'run', 'reached_safely': 'run', 'safe': 'run',
+          'DeterminismError': 'run', 'world_boxes': 'maps', 'write_report': 'report'}
+
+
+def __getattr__(name: str):
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    return getattr(importlib.import_module(f'{__name__}.{home}'), name)

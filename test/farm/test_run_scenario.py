@@ -1,0 +1,104 @@
+"""
+One scenario run: its measures worked out by hand, its verdicts, its evidence kept only on failure.
+
+ROS in this process (each run is a SimHarness). The controllers here command
+the robot once (open loop): at 0.3 m/s with the default 1 m/s^2 ramp, the
+base covers 0.045 m in the first 0.3 s and 0.3 m each second after.
+"""
+
+import json
+import math
+
+import pytest
+
+from r2d2_sim.farm.run import (
+    DeterminismError, Outcome, reached_safely, run_scenario, safe, TRAJECTORY_RATE_HZ)
+from r2d2_sim.farm.scenario import Box, Pose, Scenario
+from r2d2_sim.model.regions import circle_region
+from r2d2_sim.testing import read_recording
+
+QUIET = {'scan_rate': 0.0, 'imu_rate': 0.0, 'publish_tf': False, 'publish_rate': 20.0}
+
+
+def forward(harness, scenario):
+    """Drive straight ahead at 0.3 m/s, once."""
+    harness.send_cmd_vel(linear=0.3)
+
+
+def test_the_goal_is_reached_when_the_ramp_says():
+    """A goal circle of 0.1 m around x = 1.5: its edge at 1.4 m, reached at 4.8 s."""
+    scenario = Scenario(start=Pose(0.0, 0.0, 0.0), goal=circle_region(1.5, 0.0, 0.1), seed=3)
+    outcome = run_scenario(scenario, forward, seconds=10.0, parameters=QUIET)
+    expected_s = 0.3 + (1.4 - 0.045) / 0.3  # 4.817 s
+    assert outcome.passed and outcome.reason == ''
+    assert outcome.time_to_goal_s == pytest.approx(expected_s, abs=0.05)
+    # The run ends at the control period that saw the goal: 20 Hz publications.
+    assert outcome.steps == math.ceil(outcome.time_to_goal_s * 20) * 12
+    assert outcome.contacts == () and outcome.tipped_s is None
+    assert outcome.clearance_m == 2.0 and outcome.closest is None  # nothing but the ground
+    assert outcome.recording is None
+    times = [point.time_ns for point in outcome.trajectory]
+    assert times == [round(k * 1e9 / TRAJECTORY_RATE_HZ) for k in range(len(times))]
+    assert outcome.trajectory[-1].x_m == pytest.approx(1.4, abs=0.05)
+
+
+def test_a_box_in_the_way_fails_with_the_box_named_and_a_recording_kept(tmp_path):
+    """The robot drives into box_0: failed, touched box_0; rerun recorded, same outcome."""
+    scenario = Scenario(obstacles=(Box(1.2, 0.0, 0.3, (0.3, 1.0, 0.5)),),
+                        goal=circle_region(3.0, 0.0, 0.2), seed=11)
+    recording = tmp_path / 'failed.mcap'
+    outcome = run_scenario(scenario, forward, seconds=5.0, parameters=QUIET,
+                           record_failure=str(recording))
+    assert not outcome.passed and outcome.reason.startswith('touched box_0 at ')
+    assert outcome.contacts[0].other == 'box_0'
+    assert outcome.clearance_m <= 0.0 and outcome.closest == 'box_0'
+    assert outcome.time_to_goal_s is None
+    assert outcome.recording == str(recording)
+    recorded = read_recording(str(recording), topics=['/clock', '/ground_truth'])
+    assert recorded['/clock'][-1].log_time_ns == 5 * 10**9
+    # The same run judged by another verdict: the goal is not asked.
+    assert safe(outcome) == outcome.reason == reached_safely(outcome)
+
+
+def test_a_passing_run_records_nothing_and_a_failing_one_only_when_asked(tmp_path):
+    """record_failure costs nothing for a pass; without it, a failure keeps no file."""
+    scenario = Scenario(goal=circle_region(0.5, 0.0, 0.2))
+    passed = run_scenario(scenario, forward, seconds=4.0, parameters=QUIET,
+                          record_failure=str(tmp_path / 'never.mcap'))
+    assert passed.passed and not (tmp_path / 'never.mcap').exists()
+    far = Scenario(goal=circle_region(9.0, 0.0, 0.2))
+    failed = run_scenario(far, forward, seconds=1.0, parameters=QUIET)
+    assert failed.reason == 'goal not reached in 1 s' and failed.recording is None
+    assert safe(failed) == ''
+    assert run_scenario(far, forward, seconds=1.0, parameters=QUIET,
+                        verdict=safe).passed
+
+
+def test_an_outcome_is_the_same_after_json():
+    """to_json and from_dict give back an equal outcome, contacts and trajectory included."""
+    scenario = Scenario(obstacles=(Box(1.0, 0.1, 0.0, (0.2, 0.2, 0.5)),),
+                        goal=circle_region(3.0, 0.0, 0.2))
+    outcome = run_scenario(scenario, forward, seconds=4.0, parameters=QUIET)
+    assert outcome.contacts
+    again = Outcome.from_dict(json.loads(outcome.to_json()))
+    assert again == outcome
+    assert 'seed 0, failed: touched box_0' in repr(outcome)
+
+
+def test_a_run_that_does_not_repeat_is_a_determinism_error(tmp_path):
+    """A controller that changes between runs: the recorded rerun differs, and says so."""
+    speeds = [0.3, 0.25]
+
+    def drifting(harness, scenario):
+        harness.send_cmd_vel(linear=speeds.pop(0))
+    scenario = Scenario(goal=circle_region(9.0, 0.0, 0.2), seed=5)
+    with pytest.raises(DeterminismError, match='seed 5 run twice gave two outcomes; first '
+                       'difference in trajectory'):
+        run_scenario(scenario, drifting, seconds=1.0, parameters=QUIET,
+                     record_failure=str(tmp_path / 'rerun.mcap'))
+
+
+def test_bad_seconds_are_refused():
+    """A run needs a positive, finite time."""
+    with pytest.raises(ValueError, match='seconds'):
+        run_scenario(Scenario(), forward, seconds=0.0)
