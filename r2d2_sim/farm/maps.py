@@ -1,19 +1,23 @@
 """
 A world's map for a farm's picture: the boxes of its collision shapes, seen from above.
 
-A world model (``room.urdf``) is read as text: every ``<collision>`` whose
-geometry is a ``<box>`` becomes a :class:`~r2d2_sim.farm.scenario.Box` at
-its link's origin (worlds are loaded at the origin; joints and rotations
-other than yaw are not followed, which covers walls and boxes of one static
-link). Other shapes are left out of the map, not out of the physics.
+The world is read as the simulator reads its ``world`` parameter (a URDF,
+a world manifest, an SDF world: :func:`r2d2_sim.sim.worlds.read_world`),
+and each of its models' URDF as text: every ``<collision>`` whose geometry
+is a ``<box>`` becomes a :class:`~r2d2_sim.farm.scenario.Box` at its link's
+origin, placed by the model's pose (joints and rotations other than yaw are
+not followed, which covers walls and boxes of one static link). Other
+shapes are left out of the map, not out of the physics.
 """
 
 import math
-from typing import List
+from typing import List, Sequence
 import xml.etree.ElementTree as ElementTree
 
+from r2d2_sim.errors import RefusedError
 from r2d2_sim.farm.scenario import Box, ScenarioError
-from r2d2_sim.physics.description import DescriptionError, resolve_description_path
+from r2d2_sim.model.transforms import yaw_of
+from r2d2_sim.sim.worlds import Places, read_world
 
 __all__ = ['world_boxes']
 
@@ -24,14 +28,27 @@ def _numbers(text: str, count: int) -> List[float]:
 
 
 def world_boxes(world: str) -> List[Box]:
-    """Return the boxes of ``world`` (a URDF reference as the ``world`` parameter takes it)."""
+    """Return the boxes of ``world`` (as the ``world`` parameter takes it; '' none)."""
     if not world:
         return []
     try:
-        path = resolve_description_path(world)
+        read = read_world(world, '', Places(), trusted=True)
+    except RefusedError as exc:
+        raise ScenarioError(f'cannot read the world {world}: {exc.message}') from None
+    try:  # an SDF world's models are generated files, deleted with the world
+        return [box for model in read.models
+                for box in _model_boxes(model.path, model.position, yaw_of(model.orientation))]
+    finally:
+        read.close()
+
+
+def _model_boxes(path: str, position: Sequence[float], yaw: float) -> List[Box]:
+    """Return a model's box collisions, its origin at ``position`` turned by ``yaw``."""
+    try:
         root = ElementTree.parse(path).getroot()
-    except (DescriptionError, OSError, ElementTree.ParseError) as exc:
-        raise ScenarioError(f'cannot read the world {world}: {exc}') from None
+    except (OSError, ElementTree.ParseError) as exc:
+        raise ScenarioError(f'cannot read the world model {path}: {exc}') from None
+    c, s = math.cos(yaw), math.sin(yaw)
     boxes = []
     for collision in root.iter('collision'):
         box = collision.find('geometry/box')
@@ -42,5 +59,6 @@ def world_boxes(world: str) -> List[Box]:
         rpy = _numbers(origin.get('rpy') if origin is not None else '', 3)
         size = _numbers(box.get('size'), 3)
         if all(math.isfinite(v) and v > 0.0 for v in size):
-            boxes.append(Box(xyz[0], xyz[1], rpy[2], tuple(size)))
+            boxes.append(Box(position[0] + c * xyz[0] - s * xyz[1],
+                             position[1] + s * xyz[0] + c * xyz[1], yaw + rpy[2], tuple(size)))
     return boxes

@@ -13,10 +13,13 @@ Lengths are in metres, angles in radians, in the world frame. Drawn values
 are whole millimetres and milliradians: short in a report, and what
 Hypothesis shrinks toward round numbers.
 
-Poses are given by their numbers today. A start or goal named in a world's
-manifest (the simulation standard's named poses) would be one more kind of
-:class:`Pose` resolved where a run places the robot
-(:func:`r2d2_sim.farm.run.run_scenario`); nothing else would change.
+A start or a goal may be a named pose of the scenario's world (the
+simulation standard's: a manifest's ``named_poses``, an SDF world's
+``<frame>`` s): :meth:`Scenario.named` and the space's ``start_pose`` and
+``goal_pose`` take names. The scenario keeps the numbers the name stood for
+(its JSON replays without the world file) and the name beside them
+(``start_name``, ``goal_name``) for the report. Names are read from the
+world file by :mod:`r2d2_sim.farm.places`, imported only then.
 """
 
 from dataclasses import dataclass, field
@@ -111,7 +114,10 @@ class Scenario:
     - ``world``: a world model loaded around the origin (``ROOM``), '' none;
     - ``limits``: robot limits, (name, value) pairs of :data:`LIMITS`
       (simulator parameters), others left at the simulator's defaults;
-    - ``scan_noise_std``: the laser's range noise (m).
+    - ``scan_noise_std``: the laser's range noise (m);
+    - ``start_name``, ``goal_name``: the world's named poses the start and
+      the goal were taken from ('' none), for the reader only: the run uses
+      the numbers.
     """
 
     obstacles: Tuple[Box, ...] = ()
@@ -121,6 +127,29 @@ class Scenario:
     world: str = ''
     limits: Tuple[Tuple[str, float], ...] = ()
     scan_noise_std: float = 0.0
+    start_name: str = ''
+    goal_name: str = ''
+
+    @classmethod
+    def named(cls, world: str, start: str = '', goal: str = '', goal_tolerance: float = 0.3,
+              **others: Any) -> 'Scenario':
+        """
+        Return a scenario in ``world`` whose start and goal are its named poses.
+
+        ``start``: the robot stands at that pose, facing its way; ``goal``: a
+        circle of ``goal_tolerance`` (m) around that pose. Either may be left
+        out (``start`` then defaults to ``Pose()``, ``goal`` to the default
+        goal) or given as numbers in ``others``. ScenarioError (one line) for
+        a name the world does not have, listing those it has.
+        """
+        if start:
+            others['start'] = Pose(*_named(world, start))
+            others['start_name'] = start
+        if goal:
+            x, y, _ = _named(world, goal)
+            others['goal'] = circle_region(x, y, goal_tolerance)
+            others['goal_name'] = goal
+        return cls(world=world, **others)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'obstacles', tuple(self.obstacles))
@@ -139,6 +168,8 @@ class Scenario:
                                     '>= 0')
         object.__setattr__(self, 'limits', limits)
         _finite('scan_noise_std', self.scan_noise_std)
+        if not (isinstance(self.start_name, str) and isinstance(self.goal_name, str)):
+            raise ScenarioError('start_name and goal_name must be strings')
 
     @property
     def goal_point(self) -> Tuple[float, float]:
@@ -151,7 +182,7 @@ class Scenario:
     def parameters(self) -> Dict[str, Any]:
         """Return the simulator parameters this scenario sets (pose, seed, world, limits)."""
         parameters: Dict[str, Any] = {
-            'initial_pose': [self.start.x, self.start.y, self.start.yaw],
+            'initial_pose': _initial_pose(self.world, self.start),
             'noise_seed': self.seed, 'world': self.world,
             'scan_noise_std': self.scan_noise_std}
         parameters.update(self.limits)
@@ -166,7 +197,9 @@ class Scenario:
                 'goal': {'kind': self.goal.kind, 'values': list(self.goal.values)},
                 'obstacles': [{'x': b.x, 'y': b.y, 'yaw': b.yaw, 'size': list(b.size)}
                               for b in self.obstacles],
-                'limits': dict(self.limits), 'scan_noise_std': self.scan_noise_std}
+                'limits': dict(self.limits), 'scan_noise_std': self.scan_noise_std,
+                **{key: name for key, name in (('start_name', self.start_name),
+                                               ('goal_name', self.goal_name)) if name}}
 
     def to_json(self) -> str:
         """Return the scenario as one line of JSON; :meth:`from_json` reads it back equal."""
@@ -189,7 +222,8 @@ class Scenario:
                        start=Pose(float(start['x']), float(start['y']), float(start['yaw'])),
                        goal=region, seed=data['seed'], world=str(data['world']),
                        limits=tuple(dict(data['limits']).items()),
-                       scan_noise_std=float(data['scan_noise_std']))
+                       scan_noise_std=float(data['scan_noise_std']),
+                       start_name=data.get('start_name', ''), goal_name=data.get('goal_name', ''))
         except ScenarioError:
             raise
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
@@ -229,7 +263,12 @@ class ScenarioSpace:
     - ``keep_out``: no box's footprint comes nearer than this to the start or
       the goal's centre (the robot must fit, the goal must be reachable);
     - ``world``, ``limits`` ((name, (low, high)) pairs, drawn each),
-      ``scan_noise_std`` (low, high).
+      ``scan_noise_std`` (low, high);
+    - ``start_pose``, ``goal_pose``: named poses of ``world`` standing for
+      the drawn start (``start_area``, ``start_yaw``) and goal centre
+      (``goal_area``; the circle keeps ``goal_tolerance``). The areas are
+      still drawn from, and the draws dropped, so the other draws keep their
+      order; boxes keep out of the named poses.
     """
 
     obstacles: Tuple[int, int] = (0, 5)
@@ -245,8 +284,14 @@ class ScenarioSpace:
     world: str = ''
     limits: Tuple[Tuple[str, Tuple[float, float]], ...] = ()
     scan_noise_std: Tuple[float, float] = (0.0, 0.0)
+    start_pose: str = ''
+    goal_pose: str = ''
 
     def __post_init__(self) -> None:
+        if self.start_pose:
+            _named(self.world, self.start_pose)  # a wrong name fails here, once
+        if self.goal_pose:
+            _named(self.world, self.goal_pose)
         low, high = self.obstacles
         if not (isinstance(low, int) and isinstance(high, int) and 0 <= low <= high):
             raise ScenarioError(f'obstacles must be (fewest, most), 0 <= fewest <= most, got '
@@ -276,11 +321,26 @@ class ScenarioSpace:
     def scenario(self, obstacles: Sequence[Box], start: Pose, goal: Tuple[float, float],
                  seed: int, limits: Sequence[Tuple[str, float]] = (),
                  scan_noise_std: float = 0.0) -> Scenario:
-        """Return the scenario of these draws: the boxes that keep out of start and goal."""
+        """
+        Return the scenario of these draws: the boxes that keep out of start and goal.
+
+        A named ``start_pose`` or ``goal_pose`` stands for the drawn ``start`` or ``goal``.
+        """
+        start, goal = self._named_ends(start, goal)
         return Scenario(obstacles=tuple(b for b in obstacles if self.clear(b, start, goal)),
                         start=start, goal=circle_region(goal[0], goal[1], self.goal_tolerance),
                         seed=seed, world=self.world, limits=tuple(limits),
-                        scan_noise_std=scan_noise_std)
+                        scan_noise_std=scan_noise_std, start_name=self.start_pose,
+                        goal_name=self.goal_pose)
+
+    def _named_ends(self, start: Pose, goal: Tuple[float, float]
+                    ) -> Tuple[Pose, Tuple[float, float]]:
+        """Return the start and the goal's centre, the named poses standing for the drawn."""
+        if self.start_pose:
+            start = Pose(*_named(self.world, self.start_pose))
+        if self.goal_pose:
+            goal = _named(self.world, self.goal_pose)[:2]
+        return start, goal
 
     def draw(self, seed: int) -> Scenario:
         """
@@ -293,8 +353,9 @@ class ScenarioSpace:
         if not (isinstance(seed, int) and 0 <= seed <= 2**31 - 1):
             raise ScenarioError(f'seed must be an integer in 0..2**31-1, got {seed!r}')
         rng = numpy.random.default_rng(seed)
-        start = Pose(*_point(rng, self.start_area), _milli(rng, *self.start_yaw))
-        goal = _point(rng, self.goal_area)
+        start, goal = self._named_ends(Pose(*_point(rng, self.start_area),
+                                            _milli(rng, *self.start_yaw)),
+                                       _point(rng, self.goal_area))
         count = int(rng.integers(self.obstacles[0], self.obstacles[1] + 1))
         boxes = []
         for _ in range(count):
@@ -326,3 +387,23 @@ def _milli(rng: numpy.random.Generator, low: float, high: float) -> float:
 def _point(rng: numpy.random.Generator, area: Sequence[float]) -> Tuple[float, float]:
     x_min, y_min, x_max, y_max = area
     return _milli(rng, x_min, x_max), _milli(rng, y_min, y_max)
+
+
+def _named(world: str, name: str) -> Tuple[float, float, float]:
+    """Return the named pose ``name`` of ``world`` as (x, y, yaw); ScenarioError if none."""
+    from r2d2_sim.farm.places import world_poses  # reads world files: only when names are used
+    try:
+        return world_poses(world).pose(name)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
+def _initial_pose(world: str, start: Pose) -> list:
+    """Return the ``initial_pose`` parameter that stands the robot at ``start`` in ``world``."""
+    if not world:
+        return [start.x, start.y, start.yaw]
+    from r2d2_sim.farm.places import initial_pose  # the world's start pose moves the origin
+    try:
+        return initial_pose(world, start.x, start.y, start.yaw)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None

@@ -13,7 +13,8 @@ simulated time:
   collision shapes, not from the laser, within a range (farther counts as the
   range);
 - **regions**: when the robot's base first stood inside each region given
-  (a box or a circle on the ground, see :mod:`r2d2_sim.model.regions`);
+  (a box, circle or polygon on the ground, see :mod:`r2d2_sim.model.regions`),
+  or inside a named pose's bounds seen from above (:func:`ground_region`);
 - **tipping**: when the base first leaned further than the angle given;
 - **trajectory**: with ``trajectory_period_s``, the base's x, y and yaw at
   that period of simulated time (a farm's map draws it).
@@ -27,15 +28,18 @@ step), and about 10 us per other body per step when made (closest points).
 """
 
 import math
-from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Tuple
+from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Tuple, Union
 
-from r2d2_sim.model.regions import Region
-from r2d2_sim.model.transforms import yaw_of
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.model.convex import box_corners
+from r2d2_sim.model.regions import circle_region, polygon_region, Region
+from r2d2_sim.model.transforms import apply, Transform, yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.records import ContactPoint
 from r2d2_sim.physics.world import GROUND_PLANE_NAME
 
 __all__ = ['Contact', 'Clearance', 'Touch', 'RunWatch', 'TrajectoryPoint', 'touching',
+           'ground_region',
            'DEFAULT_CLEARANCE_RANGE_M', 'DEFAULT_TIP_ANGLE_RAD']
 
 # Closest points are looked for within this distance (m): farther bodies count as this.
@@ -119,15 +123,16 @@ class RunWatch:
     ``simulation`` is stepped by its owner as usual; the watch reads the
     world after each step until :meth:`close`. ``entity`` names what is
     watched: a robot (default: the first) or any other entity. ``regions``
-    maps names to :class:`~r2d2_sim.model.regions.Region` s whose first entry
-    time is kept in :attr:`reached`. ``trajectory_period_s`` (simulated
+    maps names to :class:`~r2d2_sim.model.regions.Region` s, or to the name
+    of a named pose of the world (its bounds, :func:`ground_region`), whose
+    first entry time is kept in :attr:`reached`. ``trajectory_period_s`` (simulated
     seconds, rounded to whole steps; None: none kept) samples the base into
     :attr:`trajectory`: where it is now, then every period. ValueError for an unknown
     entity or a range, angle or period that is none.
     """
 
     def __init__(self, simulation, entity: Optional[str] = None, *,
-                 regions: Optional[Mapping[str, Region]] = None,
+                 regions: Optional[Mapping[str, Union[Region, str]]] = None,
                  clearance_range_m: float = DEFAULT_CLEARANCE_RANGE_M,
                  tip_angle_rad: float = DEFAULT_TIP_ANGLE_RAD,
                  trajectory_period_s: Optional[float] = None) -> None:
@@ -149,7 +154,9 @@ class RunWatch:
         if self.body is None:
             raise ValueError(f'no entity named {entity!r}; the world has: {", ".join(bodies)}')
         self.name = self.body.name
-        self.regions: Dict[str, Region] = dict(regions or {})
+        self.regions: Dict[str, Region] = {
+            name: _named_region(simulation, region) if isinstance(region, str) else region
+            for name, region in (regions or {}).items()}
         self.clearance_range_m = clearance_range_m
         self.tip_cos = math.cos(tip_angle_rad)
         self.contacts: List[Contact] = []
@@ -236,3 +243,38 @@ def _up_cos(orientation) -> float:
     """Return the cosine of the angle between the body's z axis and the world's up."""
     x, y, _, _ = orientation
     return 1.0 - 2.0 * (x * x + y * y)
+
+
+def ground_region(pose) -> Region:
+    """
+    Return a named pose's bounds seen from above, in the world frame: where "at the pose" is.
+
+    ``pose``: a :class:`~r2d2_sim.sim.world_manifest.NamedPose` with bounds
+    (relative to the pose). A sphere is the circle of its radius around its
+    centre; a box or a convex hull the convex polygon of its corners.
+    ValueError (one line) for a pose without bounds: it has no area to reach.
+    """
+    bounds = pose.bounds
+    frame = Transform(tuple(pose.position), tuple(pose.orientation))
+    if bounds.kind == 'sphere':
+        centre = apply(frame, bounds.points[0])
+        return circle_region(centre[0], centre[1], bounds.points[1][0])
+    if bounds.kind == 'box':
+        return polygon_region([apply(frame, corner)
+                               for corner in box_corners(bounds.points[1], bounds.points[0])])
+    if bounds.kind == 'convex_hull':
+        return polygon_region([apply(frame, point) for point in bounds.points])
+    x, y = pose.position[0], pose.position[1]
+    raise ValueError(f'the named pose {pose.name!r} has no bounds to reach; give a region '
+                     f'around it instead, e.g. circle_region({x:g}, {y:g}, 0.2)')
+
+
+def _named_region(simulation, name: str) -> Region:
+    """Return the ground region of the current world's named pose ``name``; ValueError if none."""
+    world = simulation.world_file
+    if world is None:
+        raise ValueError(f'no world is loaded: no named pose {name!r}')
+    try:
+        return ground_region(world.named_pose(name))
+    except RefusedError as exc:
+        raise ValueError(exc.message) from None

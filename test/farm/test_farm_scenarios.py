@@ -146,3 +146,52 @@ def test_a_replayed_scenario_is_all_the_strategy_draws(tmp_path, monkeypatch):
     monkeypatch.setenv(REPLAY_ENV, str(tmp_path / 'missing.json'))
     with pytest.raises(ScenarioError, match='No such file'):
         scenarios(ScenarioSpace())
+
+
+ROOM_WORLD = 'package://r2d2_sim/urdf/room.world.yaml'  # its named poses: start, goal, dock...
+
+
+def test_start_and_goal_by_name_are_the_world_poses_numbers():
+    """room.world.yaml: start (0, 0, 0), dock (1.4, 0, 0); the names kept beside the numbers."""
+    scenario = Scenario.named(ROOM_WORLD, start='dock', goal='goal', goal_tolerance=0.25, seed=4)
+    assert scenario.start == Pose(1.4, 0.0, 0.0)
+    assert scenario.goal == circle_region(-2.0, 1.5, 0.25)
+    assert (scenario.start_name, scenario.goal_name) == ('dock', 'goal')
+    assert Scenario.from_json(scenario.to_json()) == scenario
+    # The world's start pose is the origin here: initial_pose is the start itself.
+    assert scenario.parameters()['initial_pose'] == [1.4, 0.0, 0.0]
+    with pytest.raises(ScenarioError, match=r"no named pose 'kitchen' in .*: it has|"
+                                            r"no named pose 'kitchen' .* it has: corner_ne"):
+        Scenario.named(ROOM_WORLD, goal='kitchen')
+
+
+def test_a_space_with_named_ends_draws_them_and_keeps_boxes_out_of_them():
+    """Every draw starts at 'start' and heads for 'goal'; no box within keep_out of either."""
+    space = ScenarioSpace(world=ROOM_WORLD, start_pose='start', goal_pose='goal',
+                          area=(-2.8, -2.3, 1.8, 2.3), obstacles=(3, 6), keep_out=0.7)
+    for scenario in space.seeds(20):
+        assert scenario.start == Pose(0.0, 0.0, 0.0) and scenario.goal_point == (-2.0, 1.5)
+        assert (scenario.start_name, scenario.goal_name) == ('start', 'goal')
+        for box in scenario.obstacles:
+            assert footprint_distance(box, 0.0, 0.0) >= 0.7
+            assert footprint_distance(box, -2.0, 1.5) >= 0.7
+    assert space.draw(3) == space.draw(3)
+    with pytest.raises(ScenarioError, match="no named pose 'nowhere'"):
+        ScenarioSpace(world=ROOM_WORLD, goal_pose='nowhere')
+    with pytest.raises(ScenarioError, match="no named pose 'start' in no world"):
+        ScenarioSpace(start_pose='start')
+
+
+def test_the_hypothesis_strategy_keeps_the_named_ends():
+    """scenarios(space) of a space with names: every example at the named start and goal."""
+    space = ScenarioSpace(world=ROOM_WORLD, start_pose='corner_sw', goal_pose='corner_ne',
+                          area=(-2.8, -2.3, 1.8, 2.3))
+
+    @settings(max_examples=15, derandomize=True, database=None)
+    @given(scenarios(space))
+    def check(scenario):
+        # The yaw comes back from the pose's quaternion: the same to the last bit or two.
+        assert scenario.start.yaw == pytest.approx(math.pi / 4, abs=1e-15)
+        assert (scenario.start.x, scenario.start.y) == (-2.5, -2.0)
+        assert scenario.goal_point == (1.5, 2.0)
+    check()

@@ -102,3 +102,34 @@ def test_bad_seconds_are_refused():
     """A run needs a positive, finite time."""
     with pytest.raises(ValueError, match='seconds'):
         run_scenario(Scenario(), forward, seconds=0.0)
+
+
+TURNED_START_WORLD = """\
+r2d2_sim_world: 1
+name: turned
+start_pose: start
+models: []
+named_poses:
+  - name: start
+    position: [1.0, -0.5, 0.0]
+    yaw: 1.5707963267948966
+  - name: goal
+    position: [1.0, 0.7, 0.0]
+"""
+
+
+def test_named_start_and_goal_stand_where_the_world_says(tmp_path):
+    """Start at (1, -0.5) facing +y in a world whose start pose it is; goal 1.2 m ahead."""
+    world = tmp_path / 'turned.world.yaml'
+    world.write_text(TURNED_START_WORLD)
+    scenario = Scenario.named(str(world), start='start', goal='goal', goal_tolerance=0.1,
+                              seed=5)
+    assert (scenario.start_name, scenario.goal_name) == ('start', 'goal')
+    outcome = run_scenario(scenario, forward, seconds=6.0, parameters=QUIET)
+    first = outcome.trajectory[0]
+    # initial_pose is relative to the world's start pose: the farm gives it so.
+    assert (first.x_m, first.y_m) == pytest.approx((1.0, -0.5), abs=0.002)
+    assert first.yaw_rad == pytest.approx(math.pi / 2, abs=0.002)
+    expected_s = 0.3 + (1.1 - 0.045) / 0.3  # the circle's edge 1.1 m ahead: 3.82 s
+    assert outcome.passed and outcome.time_to_goal_s == pytest.approx(expected_s, abs=0.05)
+    assert json.loads(outcome.to_json())['scenario']['goal_name'] == 'goal'

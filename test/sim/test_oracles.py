@@ -137,3 +137,38 @@ def test_a_closed_watch_sees_nothing_more_and_bad_arguments_are_refused(make):
                              ({'tip_angle_rad': 0.0}, 'tip_angle_rad')):
         with pytest.raises(ValueError, match=fragment):
             RunWatch(simulation, **kwargs)
+
+
+NAMED_POSES_WORLD = """\
+r2d2_sim_world: 1
+name: marks
+models: []
+named_poses:
+  - name: diamond
+    position: [1.0, 0.0, 0.0]
+    yaw: 0.7853981633974483
+    bounds:
+      box: [[0.3, 0.3, 1.0], [-0.3, -0.3, 0.0]]
+  - name: behind
+    position: [-1.0, 0.0, 0.0]
+    bounds:
+      sphere: {centre: [0.0, 0.0, 0.0], radius: 0.3}
+  - name: bare
+    position: [2.0, 0.0, 0.0]
+"""
+
+
+def test_a_named_pose_is_reached_where_its_turned_bounds_begin(make, tmp_path):
+    """A 0.6 m square turned 45 degrees at x = 1: its corner at 1 - 0.3 * sqrt(2), at 1.92 s."""
+    world = tmp_path / 'marks.world.yaml'
+    world.write_text(NAMED_POSES_WORLD)
+    simulation = make(world=str(world))
+    corner_x = 1.0 - 0.3 * math.sqrt(2.0)  # 0.576 m; the square unturned would begin at 0.7
+    with RunWatch(simulation, regions={'diamond': 'diamond', 'behind': 'behind'}) as watch:
+        simulation.robot.command(0.3, 0.0)
+        run(simulation, 3.0)
+    assert set(watch.reached) == {'diamond'}
+    assert watch.reached['diamond'] / 1e9 == pytest.approx(corner_x / 0.3, abs=0.05)
+    for name, fragment in (('bare', 'has no bounds'), ('kitchen', "no named pose 'kitchen'")):
+        with pytest.raises(ValueError, match=fragment):
+            RunWatch(simulation, regions={name: name})

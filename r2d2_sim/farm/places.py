@@ -1,0 +1,81 @@
+"""
+A world's named poses for scenarios: start and goal by name, and where a run places the robot.
+
+No ROS, no physics: the world file is read as the simulator reads its
+``world`` parameter (:func:`r2d2_sim.sim.worlds.read_world`, trusted, the
+default search paths), once per world and process. A scenario keeps the
+numbers a name stood for, so its JSON replays without the world file's
+help; the name is kept beside them for the report.
+
+The simulator reads ``initial_pose`` relative to the world's start pose
+when the world names one (a manifest's ``start_pose``, an SDF world's
+``start`` frame); a scenario's start is in the world frame, so
+:func:`initial_pose` turns it into what the simulator expects.
+"""
+
+import functools
+import math
+from typing import Dict, List, Optional, Tuple
+
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.model.transforms import yaw_of
+from r2d2_sim.sim.worlds import NamedPose, Places, read_world
+
+__all__ = ['WorldPoses', 'world_poses', 'initial_pose']
+
+
+class WorldPoses:
+    """A world's named poses (by name) and its start pose, as plain numbers."""
+
+    def __init__(self, world: str, poses: Dict[str, NamedPose],
+                 start: Optional[NamedPose]) -> None:
+        self.world = world
+        self.poses = poses
+        self.start = start
+
+    def pose(self, name: str) -> Tuple[float, float, float]:
+        """Return the named pose ``name`` as (x, y, yaw); ValueError (one line) if none."""
+        pose = self.poses.get(name)
+        if pose is None:
+            known = ', '.join(sorted(self.poses)) or 'none'
+            where = self.world or "no world (world '')"
+            raise ValueError(f'no named pose {name!r} in {where}; it has: {known}')
+        return pose.position[0], pose.position[1], yaw_of(pose.orientation)
+
+    def names(self) -> List[str]:
+        """Return the names of the world's named poses, sorted."""
+        return sorted(self.poses)
+
+
+@functools.lru_cache(maxsize=16)
+def world_poses(world: str) -> WorldPoses:
+    """
+    Return the named poses of ``world`` (a scenario's ``world``: '' for none).
+
+    ValueError (one line) when the world cannot be read: the simulator would
+    refuse it too.
+    """
+    if not world:
+        return WorldPoses(world, {}, None)
+    try:
+        read = read_world(world, '', Places(), trusted=True)
+    except RefusedError as exc:
+        raise ValueError(f'world {world}: {exc.message}') from None
+    read.close()
+    return WorldPoses(world, {pose.name: pose for pose in read.named_poses}, read.start_pose)
+
+
+def initial_pose(world: str, x: float, y: float, yaw: float) -> List[float]:
+    """
+    Return the simulator's ``initial_pose`` that stands the robot at (x, y, yaw) in the world.
+
+    Relative to the world's start pose when it names one, as the simulator
+    reads it; the world frame's own numbers otherwise.
+    """
+    start = world_poses(world).start
+    if start is None:
+        return [x, y, yaw]
+    yaw0 = yaw_of(start.orientation)
+    dx, dy = x - start.position[0], y - start.position[1]
+    c, s = math.cos(yaw0), math.sin(yaw0)
+    return [c * dx + s * dy, -s * dx + c * dy, math.remainder(yaw - yaw0, 2.0 * math.pi)]
