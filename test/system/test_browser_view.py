@@ -149,3 +149,30 @@ def test_studio_shows_topics_rates_and_the_robot(browser_tools, tmp_path):
             if part is not None:
                 part.close()
         sim.stop()
+
+
+def test_a_failing_farm_variations_recording_opens_in_studio(browser_tools, tmp_path):
+    """A farm run into a box: its recording, kept on failure, lists its topics in Studio."""
+    from r2d2_sim.farm import Box, run_scenario, Scenario
+    from r2d2_sim.model.regions import circle_region
+    chromium, studio, _ = browser_tools
+    scenario = Scenario(obstacles=(Box(1.2, 0.0, 0.3, (0.3, 1.0, 0.5)),),
+                        goal=circle_region(3.0, 0.0, 0.2), seed=11)
+    outcome = run_scenario(scenario, lambda harness, _: harness.send_cmd_vel(linear=0.3),
+                           seconds=5.0, record_failure=str(tmp_path / 'failed.mcap'))
+    assert not outcome.passed and outcome.recording == str(tmp_path / 'failed.mcap')
+    server = browser = None
+    try:
+        server = harness.StaticServer(studio, files_dir=tmp_path)
+        browser = harness.Chromium(chromium, server.url(
+            f'/index.html?ds=remote-file&ds.url={server.url("/files/failed.mcap")}'))
+        assert browser.wait_for('window.r2d2HostReady || window.r2d2HostError', 60) is True, \
+            browser.evaluate('window.r2d2HostError')
+        listed = browser.wait_for(
+            "[...document.querySelectorAll('[data-topic-stat=count]')]"
+            ".map(e => e.dataset.topic)", 60)
+        assert {'/clock', '/odom', '/scan', '/contacts'} <= set(listed or ()), listed
+    finally:
+        for part in (browser, server):
+            if part is not None:
+                part.close()
