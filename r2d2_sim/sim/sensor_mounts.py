@@ -118,7 +118,45 @@ class HeadCamera:
                                             HEAD_CAMERA_FAR_M))
 
 
-class LaserScanner:
+class _RaySensor:
+    """
+    What a ray-casting sensor on a body shares: its beams cast from its mount, its noise stream.
+
+    A subclass sets ``_world``, ``_body``, ``_config``, ``mount`` (in the
+    body frame), ``_rays_in_sensor`` (each beam's full-length end in the
+    sensor frame), ``_group`` and ``_mask`` (its robot's ray group), and
+    names its noise stream (``NOISE``) and rate (``RATE``, a config field).
+    """
+
+    NOISE = ''
+    RATE = ''
+
+    def rays(self) -> RayRequest:
+        """Return the beams from where the sensor is now, to cast with other sensors' rays."""
+        base = self._body.world_state()
+        pose = Transform(base.position, base.orientation)
+        origin = numpy.array(apply(pose, self.mount.translation))
+        ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
+        starts = numpy.broadcast_to(origin, ends.shape)
+        return RayRequest(starts, ends, self._group)
+
+    def _cast(self) -> numpy.ndarray:
+        """Cast every beam from where the sensor is now; return the hit fractions."""
+        rays = self.rays()
+        return self._world.cast_rays(rays.starts, rays.ends, self._mask)
+
+    def _new_noise(self) -> NoiseModel:
+        config = self._config
+        return NoiseModel(config.noise(self.NOISE),
+                          noise_generator(config.noise_seed, self._body.name, self.NOISE),
+                          period_s=1.0 / getattr(config, self.RATE))
+
+    def restart_noise(self) -> None:
+        """Start the noise stream again from its seed, as at start-up (a full reset)."""
+        self._noise = self._new_noise()
+
+
+class LaserScanner(_RaySensor):
     """
     A planar laser scanner on the body's axis, ``LASER_HEIGHT_M`` above the ground.
 
@@ -130,6 +168,8 @@ class LaserScanner:
     visible. The group (``ray_group``, a bit of the world's) is the robot's:
     it gives it back when it leaves.
     """
+
+    NOISE, RATE = 'scan', 'scan_rate_hz'
 
     def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float,
                  ray_group: int) -> None:
@@ -157,34 +197,15 @@ class LaserScanner:
 
     def scan(self) -> numpy.ndarray:
         """Cast the beams from where the laser is now; return REP-117 ranges (float32)."""
-        rays = self.rays()
-        return self.ranges(self._world.cast_rays(rays.starts, rays.ends, self._mask))
-
-    def rays(self) -> RayRequest:
-        """Return the beams from where the laser is now, to cast with other sensors' rays."""
-        base = self._body.world_state()
-        pose = Transform(base.position, base.orientation)
-        origin = numpy.array(apply(pose, self.mount.translation))
-        ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
-        starts = numpy.broadcast_to(origin, ends.shape)
-        return RayRequest(starts, ends, self._group)
+        return self.ranges(self._cast())
 
     def ranges(self, fractions: numpy.ndarray) -> numpy.ndarray:
         """Return the beams' REP-117 ranges, float32 with the noise added, from hit fractions."""
         return ranges_from_hits(fractions, self.geometry, noise=self._noise)
 
-    def _new_noise(self) -> NoiseModel:
-        config = self._config
-        return NoiseModel(config.noise('scan'),
-                          noise_generator(config.noise_seed, self._body.name, 'scan'),
-                          period_s=1.0 / config.scan_rate_hz)
-
-    def restart_noise(self) -> None:
-        """Start the noise stream again from its seed, as at start-up (a full reset)."""
-        self._noise = self._new_noise()
 
 
-class Lidar3d:
+class Lidar3d(_RaySensor):
     """
     A multi-ring lidar on the body's axis: a point per beam, in its own frame ``lidar_3d``.
 
@@ -196,6 +217,8 @@ class Lidar3d:
     every other robot stays visible. Rays are cast in batches of at most
     PyBullet's 16,384 per call (a 16 x 1800 lidar: two calls).
     """
+
+    NOISE, RATE = 'lidar3d', 'lidar3d_rate_hz'
 
     def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float,
                  ray_group: int) -> None:
@@ -235,15 +258,6 @@ class Lidar3d:
         return [link for link in body.links()
                 if body.aabb(link).low[2] <= highest and body.aabb(link).high[2] >= lowest]
 
-    def _new_noise(self) -> NoiseModel:
-        config = self._config
-        return NoiseModel(config.noise('lidar3d'),
-                          noise_generator(config.noise_seed, self._body.name, 'lidar3d'),
-                          period_s=1.0 / config.lidar3d_rate_hz)
-
-    def restart_noise(self) -> None:
-        """Start the noise stream again from its seed, as at start-up (a full reset)."""
-        self._noise = self._new_noise()
 
     def scan(self) -> numpy.ndarray:
         """
@@ -252,17 +266,7 @@ class Lidar3d:
         float32 metres in the lidar's frame; NaN for a beam without a return
         within range or with one nearer than range_min.
         """
-        rays = self.rays()
-        return self.points(self._world.cast_rays(rays.starts, rays.ends, self._mask))
-
-    def rays(self) -> RayRequest:
-        """Return the beams from where the lidar is now, to cast with other sensors' rays."""
-        base = self._body.world_state()
-        pose = Transform(base.position, base.orientation)
-        origin = numpy.array(apply(pose, self.mount.translation))
-        ends = origin + self._rays_in_sensor @ numpy.array(rotation_matrix(base.orientation)).T
-        starts = numpy.broadcast_to(origin, ends.shape)
-        return RayRequest(starts, ends, self._group)
+        return self.points(self._cast())
 
     def points(self, fractions: numpy.ndarray) -> numpy.ndarray:
         """Return the points of the beams' hit fractions: float32, NaN where none returned."""
