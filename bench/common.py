@@ -35,13 +35,8 @@ OUTPUTS_OFF = {'scan_rate': 0.0, 'imu_rate': 0.0, 'publish_tf': False, 'camera_r
 
 def percentile(values, q):
     """Interpolate linearly the value below which q % (0..100) of ``values`` fall."""
-    ordered = sorted(values)
-    if not ordered:
-        return math.nan
-    position = (len(ordered) - 1) * q / 100.0
-    low = math.floor(position)
-    high = min(low + 1, len(ordered) - 1)
-    return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
+    from r2d2_sim.farm.report import percentile as farm_percentile  # one definition
+    return farm_percentile(values, q)
 
 
 def fit_line(xs, ys):
