@@ -46,7 +46,8 @@ from r2d2_sim.sim.robot import Frame, Measurement, Robot
 from r2d2_sim.sim.robot_parameters import RobotSpec
 from r2d2_sim.sim.simulation_entities import SimulationEntities
 from r2d2_sim.sim.simulation_worlds import SimulationWorlds
-from r2d2_sim.sim.worlds import Places, World
+from r2d2_sim.sim.world_places import Places
+from r2d2_sim.sim.worlds import World
 
 # Frame and Measurement are the core's data, defined beside the robot that measures them.
 __all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest', 'EntityInfo',

@@ -16,8 +16,8 @@ from r2d2_sim.model.transforms import Transform
 from r2d2_sim.physics.world import SimWorld
 from r2d2_sim.sim.tags import TagsFilter, tags_match
 from r2d2_sim.sim.world_manifest import NamedPose
-from r2d2_sim.sim.worlds import (
-    empty_world, list_worlds, LoadOptions, read_world, World, WorldEntry)
+from r2d2_sim.sim.world_list import list_worlds, WorldEntry
+from r2d2_sim.sim.worlds import empty_world, LoadOptions, read_world, World
 
 
 class SimulationWorlds:
