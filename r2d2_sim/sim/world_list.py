@@ -15,6 +15,7 @@ from typing import List, NamedTuple, Sequence, Tuple
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import PACKAGE_SCHEME
+from r2d2_sim.sim.sdf_world import sdf_world_entry
 from r2d2_sim.sim.tags import TagsFilter, tags_match
 from r2d2_sim.sim.world_manifest import load_yaml, MAX_WORLD_BYTES, read_manifest
 from r2d2_sim.sim.world_places import (
@@ -59,7 +60,6 @@ def _scan(places: Places, source: str) -> List[WorldEntry]:
         try:
             text = read_text(path, shown, 'NOT_FOUND', MAX_WORLD_BYTES)
             if not name.endswith(WORLD_SUFFIX):
-                from r2d2_sim.sim.sdf_world import sdf_world_entry
                 world = sdf_world_entry(text, shown)
                 if world is not None:
                     entries.append(WorldEntry(world or file_stem(name), f'{prefix}/{name}',

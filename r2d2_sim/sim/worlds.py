@@ -1,10 +1,12 @@
 """
 Worlds: what one is, where they come from, and reading one as the simulation standard asks.
 
-No ROS here. A :class:`World` is what the ``world`` parameter or a
-LoadWorld request names: its models (URDF files, each at a pose, with tags),
-its named poses (:class:`~r2d2_sim.sim.world_manifest.NamedPose`), a name,
-description and tags. Three formats are read, behind one function
+No ROS here. A :class:`~r2d2_sim.sim.world_data.World` (plain data, in a
+module of its own that every format's reader builds from, exported here) is
+what the ``world`` parameter or a LoadWorld request names: its models (URDF
+files, each at a pose, with tags), its named poses
+(:class:`~r2d2_sim.sim.world_manifest.NamedPose`), a name, description and
+tags. Three formats are read, behind one function
 (:func:`read_world`) that a new format joins by adding a :class:`WorldFormat`
 to :data:`FORMATS`: a URDF (the whole world is that one model, as
 ``urdf/room.urdf``), r2d2_sim's world manifest
@@ -35,7 +37,9 @@ import xml.etree.ElementTree as ElementTree
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import DescriptionFile
 from r2d2_sim.sim.sdf.loading import SdfSettings
+from r2d2_sim.sim.sdf_world import read_sdf_world, sdf_models
 from r2d2_sim.sim.spawnables import check_description, MAX_DESCRIPTION_BYTES
+from r2d2_sim.sim.world_data import World, WorldModel
 from r2d2_sim.sim.world_list import list_worlds, MAX_WORLDS_PER_SOURCE, WorldEntry
 from r2d2_sim.sim.world_manifest import (
     load_yaml, MAX_WORLD_BYTES, NamedPose, read_manifest)
@@ -50,63 +54,6 @@ __all__ = ['World', 'WorldModel', 'WorldEntry', 'NamedPose', 'LoadOptions', 'Pla
 EMPTY_WORLD_URI = f'{PACKAGE_WORLDS}/empty.world.yaml'
 # A URDF's top-level elements PyBullet reads; others (gazebo, transmission...) it ignores.
 URDF_ELEMENTS = ('link', 'joint', 'material')
-
-Vec3 = Tuple[float, float, float]
-Quat = Tuple[float, float, float, float]
-
-
-class WorldModel(NamedTuple):
-    """
-    One model of a world: a URDF file to load at a pose, and what the standard says of it.
-
-    ``sdf``: made from SDF, so loaded as Gazebo would simulate it (the file's
-    inertias, true cylinders, joints free but for their friction).
-    """
-
-    name: Optional[str]      # None: the URDF's robot name, made unique
-    path: str                # the file PyBullet loads
-    source: str              # the URI as written ('resource_string' for text)
-    position: Vec3
-    orientation: Quat
-    description: str
-    tags: Tuple[str, ...]
-    sdf: bool = False
-
-
-class World(NamedTuple):
-    """
-    A world as read: its models, named poses and what GetCurrentWorld tells of it.
-
-    ``uri`` and ``resource_string`` are the request's (or the ``world``
-    parameter's); ``start_pose`` is the named pose the start-up robots stand
-    at (None: the world's origin); ``notes`` say what was left out or
-    ignored; ``resources`` are temporary files to close with the world.
-    """
-
-    name: str
-    uri: str
-    resource_string: str
-    description: str
-    tags: Tuple[str, ...]
-    models: Tuple[WorldModel, ...]
-    named_poses: Tuple[NamedPose, ...]
-    start_pose: Optional[NamedPose]
-    notes: Tuple[str, ...] = ()
-    resources: Tuple[DescriptionFile, ...] = ()
-
-    def named_pose(self, name: str) -> NamedPose:
-        """Return the named pose ``name``; RefusedError NOT_FOUND listing the others."""
-        for pose in self.named_poses:
-            if pose.name == name:
-                return pose
-        known = ', '.join(p.name for p in self.named_poses) or 'none'
-        raise RefusedError('NOT_FOUND', f'no named pose {name[:100]!r} in the world '
-                                        f'{self.name}; it has: {known}')
-
-    def close(self) -> None:
-        """Delete the temporary files of a world given as text; safe to call twice."""
-        for resource in self.resources:
-            resource.close()
 
 
 class LoadOptions(NamedTuple):
@@ -200,7 +147,6 @@ class _Reading:
             if not os.path.isfile(path):
                 raise RefusedError('MISSING_ASSETS', f'model {shown}: no such file')
             if path.lower().endswith(SDF_SUFFIXES):
-                from r2d2_sim.sim.sdf_world import sdf_models  # it reads with this class
                 try:
                     return sdf_models(entry, path, self, anchor or os.path.dirname(path))
                 except RefusedError as exc:  # the world is a manifest: its asset is at fault
@@ -304,7 +250,6 @@ def _sniff_sdf(text: str) -> bool:
 
 def _read_sdf_world(text: str, path: Optional[str], uri: str, reading: _Reading,
                     anchor: Optional[str]) -> World:
-    from r2d2_sim.sim.sdf_world import read_sdf_world  # it builds this module's World
     return read_sdf_world(text, path, uri, reading, anchor)
 
 
