@@ -117,6 +117,7 @@ def instrument(node, patches):
     """Wrap the parts of a step on this node, its simulation, world, robot and controller."""
     from r2d2_sim.ros import outputs
     from r2d2_sim.sim import sensor_mounts
+    from r2d2_sim.ros import sensor_outputs
     from r2d2_sim.ros import serialization
     from r2d2_sim.ros import tf_outputs
     simulation = node.simulation
@@ -141,7 +142,7 @@ def instrument(node, patches):
         patches.wrap(f'{name}.{method} (measure)', getattr(sensor_mounts, name), method)
     # Every output class, whichever the node has: class attributes, so also
     # outputs that hold a bound method would be timed.
-    for module in (outputs, tf_outputs):
+    for module in (outputs, sensor_outputs, tf_outputs):
         for name, cls in sorted(vars(module).items()):
             if (isinstance(cls, type) and cls.__module__ == module.__name__
                     and callable(cls.__dict__.get('publish'))):

@@ -209,6 +209,7 @@ def time_output_calls(node, message, steps):
     """
     from r2d2_sim.ros import outputs
     from r2d2_sim.sim import sensor_mounts
+    from r2d2_sim.ros import sensor_outputs
     from r2d2_sim.ros import tf_outputs
     perf_counter = time.perf_counter
     published, spent, saved = [], [0.0], []
@@ -233,7 +234,7 @@ def time_output_calls(node, message, steps):
             return result
         saved.append((cls, name, original))
         setattr(cls, name, timed)
-    for module in (outputs, tf_outputs):
+    for module in (outputs, sensor_outputs, tf_outputs):
         for cls in vars(module).values():
             if (isinstance(cls, type) and cls.__module__ == module.__name__
                     and callable(cls.__dict__.get('publish'))):

@@ -1,5 +1,5 @@
 """
-Sensor math for the laser scan, the IMU and the depth camera.
+Sensor math for the laser scan, the 3D lidar and the depth camera; the IMU's names too.
 
 No ROS and no PyBullet here (numpy only): PyBullet's rays are cast in
 ``raycast.py`` and the messages are filled by the node. Frames follow REP-103
@@ -8,6 +8,10 @@ data REP-145 and depth images REP-118. Every quantity carries its unit in its
 name. Noise is Gazebo's (:mod:`r2d2_sim.model.noise`: white noise, a bias drawn
 once, a drifting bias, rounding) and draws from a ``numpy.random.Generator``
 the caller passes in, so a seeded generator gives the same readings on every run.
+
+The IMU model, which keeps state between readings, is :mod:`r2d2_sim.model.imu`,
+and the checks every sensor's settings pass are
+:mod:`r2d2_sim.model.sensor_checks`; this module exports their public names.
 """
 
 from dataclasses import dataclass
@@ -17,10 +21,10 @@ from typing import Optional, Sequence, Tuple
 
 import numpy
 
-from r2d2_sim.errors import SetupError
+from r2d2_sim.model.imu import ImuModel, ImuReading
 from r2d2_sim.model.noise import NoiseModel, NoiseSpec
-from r2d2_sim.model.transforms import (
-    quaternion_from_axis_angle, quaternion_multiply, rotate, rotate_inverse, rotation_matrix)
+from r2d2_sim.model.sensor_checks import require_generator, require_number, SensorConfigError
+from r2d2_sim.model.transforms import rotate, rotate_inverse, rotation_matrix
 
 __all__ = [
     'SensorConfigError',
@@ -44,31 +48,6 @@ Quat = Tuple[float, float, float, float]
 
 # A scan whose span is 2 pi within this is a full circle (see ScanGeometry).
 FULL_CIRCLE_TOLERANCE_RAD = 1e-9
-STANDARD_GRAVITY_M_S2: Vec3 = (0.0, 0.0, -9.8)
-
-
-class SensorConfigError(SetupError, ValueError):
-    """Invalid sensor setting; the message names the field and its value."""
-
-
-def _require_number(name: str, value: float, *, minimum: float = -math.inf,
-                    strict: bool = False) -> float:
-    """Return ``value`` as a float, or raise SensorConfigError naming ``name``."""
-    ok = not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(value)
-    if ok:
-        ok = value > minimum if strict else value >= minimum
-    if not ok:
-        bound = '' if minimum == -math.inf else f' {">" if strict else ">="} {minimum}'
-        raise SensorConfigError(f'{name} must be a finite number{bound}, got {value!r}')
-    return float(value)
-
-
-def _require_generator(rng: Optional[numpy.random.Generator], *stds: float) -> None:
-    """Refuse noise without a generator: unseeded noise would not be reproducible."""
-    if any(std > 0.0 for std in stds) and not isinstance(rng, numpy.random.Generator):
-        raise SensorConfigError(
-            f'noise needs rng, a numpy.random.Generator (e.g. numpy.random.default_rng(seed)), '
-            f'got {rng!r}')
 
 
 # --------------------------------------------------------------------------- laser scan
@@ -97,8 +76,8 @@ class ScanGeometry:
 
     def __post_init__(self) -> None:
         """Validate the fields; store the angles and ranges as floats, samples as an int."""
-        angle_min_rad = _require_number('angle_min_rad', self.angle_min_rad)
-        angle_max_rad = _require_number('angle_max_rad', self.angle_max_rad)
+        angle_min_rad = require_number('angle_min_rad', self.angle_min_rad)
+        angle_max_rad = require_number('angle_max_rad', self.angle_max_rad)
         span_rad = angle_max_rad - angle_min_rad
         if not 0.0 < span_rad <= 2.0 * math.pi + FULL_CIRCLE_TOLERANCE_RAD:
             raise SensorConfigError(
@@ -107,9 +86,9 @@ class ScanGeometry:
         if isinstance(self.samples, bool) or not isinstance(self.samples, numbers.Integral) \
                 or self.samples < 2:
             raise SensorConfigError(f'samples must be an integer >= 2, got {self.samples!r}')
-        range_min_m = _require_number('range_min_m', self.range_min_m, minimum=0.0)
-        range_max_m = _require_number('range_max_m', self.range_max_m, minimum=range_min_m,
-                                      strict=True)
+        range_min_m = require_number('range_min_m', self.range_min_m, minimum=0.0)
+        range_max_m = require_number('range_max_m', self.range_max_m, minimum=range_min_m,
+                                     strict=True)
         object.__setattr__(self, 'angle_min_rad', angle_min_rad)
         object.__setattr__(self, 'angle_max_rad', angle_max_rad)
         object.__setattr__(self, 'range_min_m', range_min_m)
@@ -127,8 +106,8 @@ class ScanGeometry:
         a full circle; the increment is then adjusted so the beams fill the
         span exactly.
         """
-        increment_rad = _require_number('angle_increment_rad', angle_increment_rad,
-                                        minimum=0.0, strict=True)
+        increment_rad = require_number('angle_increment_rad', angle_increment_rad,
+                                       minimum=0.0, strict=True)
         span_rad = angle_max_rad - angle_min_rad
         if abs(span_rad - 2.0 * math.pi) <= FULL_CIRCLE_TOLERANCE_RAD:
             samples = round(2.0 * math.pi / increment_rad)
@@ -203,8 +182,8 @@ def ranges_from_hits(hit_fractions: Sequence[float], geometry: ScanGeometry,
     is drawn for every beam whatever was hit, so a seeded generator gives
     the same noise sequence in any world.
     """
-    std_m = _require_number('noise_std_m', noise_std_m, minimum=0.0)
-    _require_generator(rng, std_m)
+    std_m = require_number('noise_std_m', noise_std_m, minimum=0.0)
+    require_generator(rng, std_m)
     if noise is not None and std_m > 0.0:
         raise SensorConfigError('give either noise or noise_std_m, not both')
     if noise is None and std_m > 0.0:
@@ -252,16 +231,16 @@ class LidarGeometry:
             if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
                 raise SensorConfigError(f'{name} must be an integer >= 1, got {value!r}')
             object.__setattr__(self, name, int(value))
-        low = _require_number('angle_min_rad', self.angle_min_rad, minimum=-math.pi / 2)
-        high = _require_number('angle_max_rad', self.angle_max_rad, minimum=low)
+        low = require_number('angle_min_rad', self.angle_min_rad, minimum=-math.pi / 2)
+        high = require_number('angle_max_rad', self.angle_max_rad, minimum=low)
         if high > math.pi / 2:
             raise SensorConfigError(f'angle_max_rad must be at most pi/2, got {high!r}')
         if self.rings > 1 and high == low:
             raise SensorConfigError('several rings need angle_max_rad above angle_min_rad, '
                                     f'got both {low!r}')
-        range_min_m = _require_number('range_min_m', self.range_min_m, minimum=0.0)
-        range_max_m = _require_number('range_max_m', self.range_max_m, minimum=range_min_m,
-                                      strict=True)
+        range_min_m = require_number('range_min_m', self.range_min_m, minimum=0.0)
+        range_max_m = require_number('range_max_m', self.range_max_m, minimum=range_min_m,
+                                     strict=True)
         object.__setattr__(self, 'angle_min_rad', low)
         object.__setattr__(self, 'angle_max_rad', high)
         object.__setattr__(self, 'range_min_m', range_min_m)
@@ -332,165 +311,6 @@ def rotate_vector_inverse(q: Sequence[float], v: Sequence[float]) -> numpy.ndarr
     return numpy.array(rotate_inverse(_unit_quaternion(q), v))
 
 
-def _rotation_vector_quaternion(rotation_rad: numpy.ndarray) -> Tuple[float, ...]:
-    """Return the quaternion of a rotation by |r| about the axis r."""
-    angle_rad = float(numpy.linalg.norm(rotation_rad))
-    if angle_rad == 0.0:
-        return (0.0, 0.0, 0.0, 1.0)
-    return quaternion_from_axis_angle(rotation_rad.tolist(), angle_rad)
-
-
-# --------------------------------------------------------------------------- IMU
-
-
-@dataclass(frozen=True)
-class ImuReading:
-    """One IMU sample as sensor_msgs/Imu carries it (REP-145)."""
-
-    orientation_xyzw: Quat          # the sensor frame in the fixed world (ENU) frame
-    angular_velocity_rad_s: Vec3    # in the sensor frame
-    linear_acceleration_m_s2: Vec3  # specific force in the sensor frame: +9.8 up at rest
-
-
-def _diagonal_covariance(variance: float) -> Tuple[float, ...]:
-    return (variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0, 0.0, variance)
-
-
-def _imu_noise(name: str, std: float, spec: Optional[NoiseSpec]) -> NoiseSpec:
-    """Return the spec of one IMU quantity, from its legacy std or its full spec (not both)."""
-    std = _require_number(name, std, minimum=0.0)
-    if spec is None:
-        return NoiseSpec(stddev=std)
-    if std > 0.0:
-        raise SensorConfigError(f'give either {name} or its noise spec, not both')
-    if not isinstance(spec, NoiseSpec):
-        raise SensorConfigError(f'the noise beside {name} must be a NoiseSpec, got {spec!r}')
-    return spec
-
-
-class ImuModel:
-    """
-    An ideal IMU plus Gazebo's noise, fed with the true motion of its frame.
-
-    Each :meth:`update` takes the sensor frame's world orientation and the
-    world-frame velocities of the sensor point. The orientation is reported
-    as it is, relative to the fixed world frame (REP-145), not to the start
-    pose. The acceleration is the specific force R^T (a - g), with a the
-    backward difference of the world velocity since the previous update (0 on
-    the first), so a level IMU at rest reads +9.8 m/s^2 on z. Each quantity
-    has its :class:`~r2d2_sim.model.noise.NoiseSpec` (the ``*_std`` shorthands
-    give white noise alone), applied to each of its three axes independently
-    (each axis draws its own bias); the orientation noise is a small rotation
-    about the world axes. ``period_s`` (the IMU's period) steps the dynamic
-    biases. All three quantities are provided, so their covariances are
-    diagonal, each the spec's mean square error (never the -1 that marks a
-    missing one).
-    """
-
-    def __init__(self, *, gravity_m_s2: Sequence[float] = STANDARD_GRAVITY_M_S2,
-                 orientation_std_rad: float = 0.0,
-                 angular_velocity_std_rad_s: float = 0.0,
-                 linear_acceleration_std_m_s2: float = 0.0,
-                 rng: Optional[numpy.random.Generator] = None,
-                 orientation_noise: Optional[NoiseSpec] = None,
-                 angular_velocity_noise: Optional[NoiseSpec] = None,
-                 linear_acceleration_noise: Optional[NoiseSpec] = None,
-                 period_s: float = 0.0) -> None:
-        """Check the noise settings; the first update will have no previous sample."""
-        if len(gravity_m_s2) != 3:
-            raise SensorConfigError(f'gravity_m_s2 must have 3 components, got {gravity_m_s2!r}')
-        self.gravity_m_s2 = numpy.array([_require_number(f'gravity_m_s2[{i}]', value)
-                                         for i, value in enumerate(gravity_m_s2)])
-        self._gravity = tuple(self.gravity_m_s2.tolist())
-        specs = (_imu_noise('orientation_std_rad', orientation_std_rad, orientation_noise),
-                 _imu_noise('angular_velocity_std_rad_s', angular_velocity_std_rad_s,
-                            angular_velocity_noise),
-                 _imu_noise('linear_acceleration_std_m_s2', linear_acceleration_std_m_s2,
-                            linear_acceleration_noise))
-        if any(not spec.exact for spec in specs) and not isinstance(rng, numpy.random.Generator):
-            _require_generator(rng, 1.0)
-        period_s = _require_number('period_s', period_s, minimum=0.0)
-        # Drawn in this order at construction (each axis's bias) and per update.
-        self._orientation, self._angular, self._linear = (
-            NoiseModel(spec, rng, channels=3, period_s=period_s) for spec in specs)
-        self.orientation_std_rad = specs[0].stddev
-        self.angular_velocity_std_rad_s = specs[1].stddev
-        self.linear_acceleration_std_m_s2 = specs[2].stddev
-        self.orientation_covariance = _diagonal_covariance(specs[0].variance)
-        self.angular_velocity_covariance = _diagonal_covariance(specs[1].variance)
-        self.linear_acceleration_covariance = _diagonal_covariance(specs[2].variance)
-        self._exact = all(spec.exact for spec in specs)
-        self._previous_time_s: Optional[float] = None
-        self._previous_velocity_m_s: Optional[Tuple[float, float, float]] = None
-
-    def reset(self) -> None:
-        """Forget the previous sample (after a simulation reset, time restarts)."""
-        self._previous_time_s = None
-        self._previous_velocity_m_s = None
-
-    def update(self, time_s: float, orientation_xyzw: Sequence[float],
-               linear_velocity_m_s: Sequence[float],
-               angular_velocity_rad_s: Sequence[float]) -> ImuReading:
-        """
-        Return the reading for the sensor's true state at ``time_s``.
-
-        Velocities are in the world frame; ``linear_velocity_m_s`` is that of
-        the sensor point itself (not of a link's centre of mass). ``time_s``
-        must be later than the previous update's; ValueError otherwise.
-        """
-        # Plain float arithmetic on 3-vectors: numpy's per-call overhead made a
-        # reading cost 19 us, about 60 us a message with the rest of the output.
-        time_s = float(time_s)
-        qx, qy, qz, qw = (float(c) for c in orientation_xyzw)
-        norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-        if not (norm > 0.0 and math.isfinite(norm)):
-            raise ValueError(f'quaternion {tuple(orientation_xyzw)!r} has no orientation')
-        q = (qx / norm, qy / norm, qz / norm, qw / norm)
-        velocity_m_s = tuple(float(v) for v in linear_velocity_m_s)
-        angular_world_rad_s = tuple(float(v) for v in angular_velocity_rad_s)
-        if len(velocity_m_s) != 3 or len(angular_world_rad_s) != 3:
-            raise ValueError('IMU velocities must have 3 components')
-        if not math.isfinite(time_s + sum(velocity_m_s) + sum(angular_world_rad_s)):
-            raise ValueError('IMU time and velocities must be finite, got '
-                             f'{time_s!r}, {tuple(linear_velocity_m_s)!r}, '
-                             f'{tuple(angular_velocity_rad_s)!r}')
-        acceleration_m_s2 = self._acceleration(time_s, velocity_m_s)
-        gx, gy, gz = self._gravity
-        angular_rad_s = rotate_inverse(q, angular_world_rad_s)
-        specific_force_m_s2 = rotate_inverse(q, (acceleration_m_s2[0] - gx,
-                                                 acceleration_m_s2[1] - gy,
-                                                 acceleration_m_s2[2] - gz))
-        return self._with_noise(q, angular_rad_s, specific_force_m_s2)
-
-    def _acceleration(self, time_s: float, velocity_m_s: Tuple[float, ...]) -> Tuple[float, ...]:
-        """Difference the velocity with the previous update's (zero for the first)."""
-        if self._previous_time_s is None:
-            acceleration_m_s2 = (0.0, 0.0, 0.0)
-        else:
-            dt_s = time_s - self._previous_time_s
-            if not dt_s > 0.0:
-                raise ValueError(f'IMU time must increase: {time_s!r} s after '
-                                 f'{self._previous_time_s!r} s (reset() after a time jump)')
-            previous = self._previous_velocity_m_s
-            acceleration_m_s2 = tuple((v - p) / dt_s for v, p in zip(velocity_m_s, previous))
-        self._previous_time_s = time_s
-        self._previous_velocity_m_s = velocity_m_s
-        return acceleration_m_s2
-
-    def _with_noise(self, q, angular_rad_s, specific_force_m_s2) -> ImuReading:
-        if not self._exact:
-            if not self._orientation.exact:
-                error_rad = self._orientation.apply(numpy.zeros(3))
-                q = quaternion_multiply(_rotation_vector_quaternion(error_rad), q)
-            if not self._angular.exact:
-                angular_rad_s = tuple(self._angular.apply(numpy.array(angular_rad_s)).tolist())
-            if not self._linear.exact:
-                specific_force_m_s2 = tuple(
-                    self._linear.apply(numpy.array(specific_force_m_s2)).tolist())
-        return ImuReading(orientation_xyzw=q, angular_velocity_rad_s=angular_rad_s,
-                          linear_acceleration_m_s2=specific_force_m_s2)
-
-
 # --------------------------------------------------------------------------- depth image
 
 
@@ -505,8 +325,8 @@ def linearize_depth(depth_buffer: numpy.ndarray, near_m: float, far_m: float) ->
     ``depth_buffer`` must be shaped (height, width), as ``getCameraImage``
     returns it with numpy.
     """
-    near_m = _require_number('near_m', near_m, minimum=0.0, strict=True)
-    far_m = _require_number('far_m', far_m, minimum=near_m, strict=True)
+    near_m = require_number('near_m', near_m, minimum=0.0, strict=True)
+    far_m = require_number('far_m', far_m, minimum=near_m, strict=True)
     d = numpy.asarray(depth_buffer, dtype=float)
     if d.ndim != 2:
         raise ValueError(f'depth buffer must be shaped (height, width), got shape {d.shape}')

@@ -26,7 +26,7 @@ from r2d2_sim.sim.sdf.mesh_cache import MeshCache
 from r2d2_sim.sim.sdf.reader import MAX_SDF_BYTES
 from r2d2_sim.sim.sdf.resources import Resources
 from r2d2_sim.sim.world_manifest import check_world_pose, NamedPose
-from r2d2_sim.sim.worlds import World, WorldModel
+from r2d2_sim.sim.world_data import World, WorldModel
 
 __all__ = ['read_sdf_world', 'sdf_models', 'sdf_world_entry', 'START_FRAME', 'SDF_SUFFIXES']
 

@@ -24,27 +24,30 @@ The world around the robots is a file (:mod:`r2d2_sim.sim.worlds`): the
 (:meth:`Simulation.load_world`), which a full reset then builds again, or
 none after :meth:`Simulation.unload_world`. Its named poses are frames a
 spawn or a teleport may be given in.
+
+This module holds the step, the reset and the robots' watchers; the two
+other concepts of the class are mixed in from modules of their own: the
+entities, asked about, spawned and deleted
+(:mod:`~r2d2_sim.sim.simulation_entities`), and the world file, loaded and
+unloaded (:mod:`~r2d2_sim.sim.simulation_worlds`). Every attribute is set in
+``Simulation.__init__``.
 """
 
 from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 
-from r2d2_sim.errors import RefusedError, SetupError, WorldError
 from r2d2_sim.model.timing import StepClock, StepSchedule
-from r2d2_sim.model.transforms import BaseState, Transform, yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.world import SimWorld
-from r2d2_sim.sim.entities import Category, Entities, EntityInfo, SpawnRequest
-from r2d2_sim.sim.entity_bounds import Region
-from r2d2_sim.sim.launch import docked, Launch, robot_starts
+from r2d2_sim.sim.entities import Entities, EntityInfo, SpawnRequest
+from r2d2_sim.sim.launch import Launch, robot_starts
 from r2d2_sim.sim.sdf.loading import SdfSettings
-from r2d2_sim.sim.tags import TagsFilter, tags_match
-from r2d2_sim.sim.world_manifest import NamedPose
-from r2d2_sim.sim.worlds import (
-    empty_world, list_worlds, LoadOptions, Places, read_world, World, WorldEntry)
-from r2d2_sim.sim.parameter_readers import namespace as read_namespace
-from r2d2_sim.sim.parameters import ConfigError, SimConfig
+from r2d2_sim.sim.parameters import SimConfig
 from r2d2_sim.sim.robot import Frame, Measurement, Robot
-from r2d2_sim.sim.robot_parameters import resolve_namespace, robot_config, RobotSpec
+from r2d2_sim.sim.robot_parameters import RobotSpec
+from r2d2_sim.sim.simulation_entities import SimulationEntities
+from r2d2_sim.sim.simulation_worlds import SimulationWorlds
+from r2d2_sim.sim.world_places import Places
+from r2d2_sim.sim.worlds import World
 
 # Frame and Measurement are the core's data, defined beside the robot that measures them.
 __all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest', 'EntityInfo',
@@ -70,7 +73,7 @@ def _ignore(text: str) -> None:
     pass
 
 
-class Simulation:
+class Simulation(SimulationEntities, SimulationWorlds):
     """
     The world, its robots and the step schedule.
 
@@ -125,33 +128,6 @@ class Simulation:
         # Nothing changed since start-up (or a full reset): with time at 0, 'stopped'.
         self.pristine = True
 
-    def _start_world(self, uri: str) -> World:
-        """Read the ``world`` parameter's world (the operator's: any file); WorldError if bad."""
-        if not uri:
-            return empty_world()
-        try:
-            return read_world(uri, '', self.places, self._options(LoadOptions()), trusted=True,
-                              sdf=self.sdf)
-        except RefusedError as exc:
-            raise WorldError(f'world {uri}: {exc.message}') from None
-
-    def _options(self, options: LoadOptions) -> LoadOptions:
-        """Return a load's options with ``strict_worlds``: refuse what is not simulated."""
-        strict = options.fail_on_unsupported_element or self.config.strict_worlds
-        return options._replace(fail_on_unsupported_element=strict)
-
-    def _world_loaded(self, world_file: Optional[World]) -> None:
-        """Take ``world_file`` as the world now: its named poses, each entity's start-up info."""
-        if self.world_file is not None and self.world_file is not world_file:
-            self.world_file.close()
-        if world_file is not None and world_file is not self.world_file and world_file.notes:
-            self._warn(f'world {world_file.name}: {"; ".join(world_file.notes)}')
-        self.world_file = world_file
-        poses = world_file.named_poses if world_file is not None else ()
-        self.entities.named_frames = {p.name: Transform(p.position, p.orientation)
-                                      for p in poses}
-        self.entities.restore_info(self._launch.infos())
-
     def _named_warn(self, name: str) -> Callable[[str], None]:
         return lambda text: self._warn(f'robot {name}: {text}')
 
@@ -179,284 +155,6 @@ class Simulation:
     def _robots_changed(self) -> None:
         for watcher in self._watchers:
             watcher(tuple(self.robots))
-
-    # -- the entities, as the standard sees them -----------------------------------------
-
-    @property
-    def world_frame_id(self) -> str:
-        """Return the frame entity poses are given in."""
-        return self.entities.world_frame_id
-
-    def entity_names(self) -> List[str]:
-        """Return every entity's name, in the order the world loaded them."""
-        return self.entities.names()
-
-    def entity_category(self, name: str) -> int:
-        """Return an entity's category: as set, else ROBOT, STATIC_ or DYNAMIC_OBJECT."""
-        info = self.entities.info(name)
-        if info.category is not None:
-            return info.category
-        body = self.entities.body(name)
-        if any(robot.body is body for robot in self.robots):
-            return Category.ROBOT
-        return Category.STATIC_OBJECT if body.static else Category.DYNAMIC_OBJECT
-
-    def entity_source(self, name: str) -> str:
-        """Return where an entity's description came from (a path, a URI, 'resource_string')."""
-        return self.entities.body(name).source
-
-    def entity_info(self, name: str) -> EntityInfo:
-        """Return GetEntityInfo's answer: category, description (as set, else the source), tags."""
-        info = self.entities.info(name)
-        description = info.description if info.description is not None else \
-            self.entity_source(name)
-        return EntityInfo(self.entity_category(name), description, info.tags)
-
-    def set_entity_info(self, name: str, category: int, description: str,
-                        tags: Sequence[str]) -> None:
-        """Set an entity's category (a label), description and tags (SetEntityInfo)."""
-        self.entities.set_info(name, category, description, tags)
-
-    def entity_tags(self, name: str) -> Tuple[str, ...]:
-        """Return an entity's tags."""
-        return self.entities.info(name).tags
-
-    def entity_bounds(self, name: str) -> Region:
-        """Return the box around an entity's collision shape, in its base link's frame."""
-        return self.entities.bounds(name)
-
-    def entity_state(self, name: str) -> BaseState:
-        """Return the pose of an entity's URDF base link and its origin's twist, in the world."""
-        return self.entities.state(name)
-
-    def set_entity_state(self, name: str, frame_id: str, position: Sequence[float],
-                         orientation: Sequence[float], linear: Sequence[float],
-                         angular: Sequence[float]) -> None:
-        """Place an entity (see :meth:`Entities.set_state <r2d2_sim.sim.entities.Entities>`)."""
-        body = self.entities.set_state(name, frame_id, position, orientation, linear, angular)
-        self.pristine = False
-        for robot in self.robots:
-            if robot.body is body:
-                robot.teleported()  # its IMU must not take the jump for an acceleration
-
-    def entities_overlapping(self, region: Region) -> List[str]:
-        """Return the entities whose collision shape meets a region (box, hull, sphere)."""
-        return self.entities.overlapping(region)
-
-    # -- worlds and their named poses ---------------------------------------------------
-
-    @property
-    def world_is_loaded(self) -> bool:
-        """Return False after unload_world, until a world is loaded: the standard's NO_WORLD."""
-        return self.world_file is not None
-
-    def available_worlds(self, additional_sources: Sequence[str] = (),
-                         tags: TagsFilter = TagsFilter(), offline_only: bool = False,
-                         continue_on_error: bool = False) -> Tuple[List[WorldEntry], str]:
-        """Return the worlds that can be loaded and a note (see :func:`worlds.list_worlds`)."""
-        return list_worlds(self.places, additional_sources, tags, offline_only,
-                           continue_on_error)
-
-    def load_world(self, uri: str, resource_string: str = '',
-                   options: LoadOptions = LoadOptions()) -> World:
-        """
-        Load a world in place of the current one, as LoadWorld asks; return it.
-
-        Everything is read and checked first (the files, every model loaded
-        once in a physics world of its own, the models' names against the
-        robots'), so a refusal leaves the world exactly as it was. Then the
-        world is built as launched with the new world: spawned entities gone,
-        the start-up robots (deleted ones too) at its start pose, the ground
-        and ``extra_models`` as at start-up, time at 0 and nothing changed
-        since (STOPPED, once the caller pauses). RefusedError with LoadWorld's
-        codes (see :func:`~r2d2_sim.sim.worlds.read_world`); OPERATION_FAILED
-        for a model named like a robot or a start-up model.
-        """
-        world_file = read_world(uri, resource_string, self.places, self._options(options),
-                                sdf=self.sdf)
-        try:
-            self._check_world(world_file)
-        except BaseException:
-            world_file.close()
-            raise
-        self._switch(world_file)
-        return world_file
-
-    def unload_world(self) -> None:
-        """
-        Unload the world: its models and named poses leave, and every spawned entity.
-
-        The ground, the robots and ``extra_models`` stay, built again as
-        launched with no world, at time 0; :attr:`world_is_loaded` is False
-        until a world is loaded (the standard's NO_WORLD). RefusedError
-        NO_WORLD_LOADED when none is.
-        """
-        if self.world_file is None:
-            raise RefusedError('NO_WORLD_LOADED', 'no world is loaded')
-        self._switch(empty_world())
-        self._world_loaded(None)
-
-    def named_poses(self, tags: TagsFilter = TagsFilter()) -> List[NamedPose]:
-        """Return the world's named poses whose tags pass the filter, in the world file's order."""
-        poses = self.world_file.named_poses if self.world_file is not None else ()
-        return [pose for pose in poses if tags_match(pose.tags, tags)]
-
-    def named_pose(self, name: str) -> NamedPose:
-        """Return the named pose ``name``; RefusedError NOT_FOUND if the world has none such."""
-        if self.world_file is None:
-            raise RefusedError('NOT_FOUND', f'no named pose {name[:100]!r}: no world is loaded')
-        return self.world_file.named_pose(name)
-
-    def _check_world(self, world_file: World) -> None:
-        """Refuse a world whose models would take a start-up entity's name, or cannot load."""
-        taken = set(self._launch.names())
-        for model in world_file.models:
-            if model.name is not None and model.name in taken:
-                raise RefusedError('OPERATION_FAILED', f'the world\'s model {model.name!r} '
-                                   'would take the name of one of the simulator\'s own '
-                                   'entities (a robot, the ground plane, extra_models)')
-        # Models made from SDF were written here from checked parts: not loaded twice.
-        paths = sorted({model.path for model in world_file.models if not model.sdf})
-        if not paths:
-            return
-        try:
-            with SimWorld(ground_plane=False, time_step_s=self.time_step_s) as scratch:
-                for path in paths:
-                    scratch.load(path)
-        except WorldError as exc:
-            raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
-
-    def _switch(self, world_file: World) -> None:
-        """Build the world as launched with ``world_file``: spawned ones gone, time at 0."""
-        self._forget_robots([r for r in self.robots if r.body.spawned])
-        for name, body in list(self.world.bodies.items()):
-            if body.spawned:
-                self.entities.dropped(name)
-        for name in [n for n in self.world.bodies if n not in self._launch.names()]:
-            self.entities.dropped(name)  # the old world's models: their info goes with them
-        try:
-            rebuilt = self._launch.switch(world_file, self.robots)
-        except WorldError as exc:
-            # Only a file changed between the check and the load gets here.
-            self._error(f'the world {world_file.name} could not be built ({exc}): building the '
-                        'previous one again, as launched')
-            world_file.close()
-            self._take(self._launch.rebuild([], as_launched=True))
-            self.entities.restore_info(self._launch.infos())
-            raise RefusedError('OPERATION_FAILED', f'the world could not be built: {exc}; the '
-                                                   'previous world was built again as '
-                                                   'launched') from None
-        self._take(rebuilt)
-        self._world_loaded(world_file)
-
-    def _take(self, rebuilt) -> None:
-        """Take a rebuilt world's robots and models, time at 0, and tell the robots' watchers."""
-        for robot in self.robots:
-            if robot not in rebuilt.robots:
-                robot.close()  # a second close of a robot the launch closed does nothing
-        self.robots = rebuilt.robots
-        self.models = rebuilt.models
-        self._restart_time()
-        self.pristine = True
-        self._robots_changed()
-
-    def spawn(self, request: SpawnRequest) -> str:
-        """
-        Spawn an entity as the standard asks (:class:`SpawnRequest`); return its name.
-
-        With a ``namespace`` it is a driven robot with the world's robot
-        settings, its odometry starting at its pose: RefusedError
-        NAMESPACE_INVALID for a malformed or taken namespace (or the
-        simulator's own), NAME_NOT_UNIQUE when its frames would be another
-        robot's, OPERATION_FAILED when the world's settings cannot drive it or
-        a watcher refuses it. Without one, a plain entity, free of Bullet's
-        default damping as the start-up models are. Refusals leave the world
-        as it was.
-        """
-        if not request.namespace:
-            body, _, notes = self.entities.spawn(request)
-            body.drop_damping()  # a free body keeps its speed, as in Gazebo and Isaac Sim
-            self.pristine = False
-            if notes:
-                self._warn(f'{body.name}: {notes}')
-            return body.name
-        namespace = self._free_namespace(request.namespace)
-        body, description, notes = self.entities.spawn(
-            request, flags=self.world.robot_flags,
-            body_yaw_offset_rad=self.config.body_yaw_offset_rad)
-        if notes:
-            self._warn(f'{body.name}: {notes}')
-        base = body.world_state()
-        try:
-            config = docked(robot_config(self.config, body.name, {
-                'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]}),
-                self.world_file, self._named_warn(body.name))
-            self._check_frames_free(body.name, config)
-            robot = Robot(self.world, body, config, body.source, description,
-                          warn=self._named_warn(body.name), error=self._error,
-                          namespace=namespace)
-        except RefusedError:
-            self.entities.delete(body.name)
-            raise
-        except SetupError as exc:
-            self.entities.delete(body.name)
-            raise RefusedError('OPERATION_FAILED',
-                               f'{body.name} cannot be driven: {exc}') from None
-        self.robots.append(robot)
-        self.pristine = False
-        try:
-            self._robots_changed()
-        except Exception as exc:
-            self._delete(robot.name)
-            self._robots_changed()
-            if isinstance(exc, ConfigError):
-                raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
-            raise
-        return robot.name
-
-    def _free_namespace(self, namespace: str) -> str:
-        """Return a spawned robot's namespace, resolved; NAMESPACE_INVALID if it cannot be."""
-        try:
-            resolved = resolve_namespace(self.namespace,
-                                         read_namespace('entity_namespace', namespace))
-        except ConfigError as exc:
-            raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
-        if resolved == self.namespace:
-            raise RefusedError('NAMESPACE_INVALID', f'{resolved} is the simulator\'s own '
-                                                    'namespace: give the robot one of its own')
-        for robot in self.robots:
-            if robot.namespace == resolved:
-                raise RefusedError('NAMESPACE_INVALID', f'robot {robot.name} has the '
-                                                        f'namespace {resolved} already')
-        return resolved
-
-    def _check_frames_free(self, name: str, config: SimConfig) -> None:
-        """Refuse a robot whose frames would be another's on the shared /tf."""
-        if config.tf_layout != 'shared':
-            return
-        for robot in self.robots:
-            if robot.config.frame_prefix == config.frame_prefix:
-                raise RefusedError('NAME_NOT_UNIQUE', f'robot {robot.name} publishes its frames '
-                                   f'with the prefix {config.frame_prefix!r} already: name the '
-                                   'new robot otherwise')
-
-    def delete_entity(self, name: str) -> None:
-        """
-        Delete any entity, and the robot it is if it is one (its watchers are told).
-
-        Start-up entities too (the ground plane, a model, a start-up robot):
-        a full reset brings them back as they were loaded.
-        """
-        self._delete(name)
-        self._robots_changed()
-
-    def _delete(self, name: str) -> None:
-        body = self.entities.body(name)  # NOT_FOUND before anything changes
-        self.entities.delete(name)
-        self._forget_robots([r for r in self.robots if r.body is body])
-        if body in self.models:
-            self.models.remove(body)
-        self.pristine = False
 
     def _forget_robots(self, robots: Sequence[Robot]) -> None:
         for robot in robots:

@@ -4,8 +4,10 @@ import math
 from typing import List
 
 from r2d2_sim.conformance.clause import Clause, clause, ClauseFailed, ClauseSkipped
-from r2d2_sim.conformance.target import (
-    BOX_SIZE_M, close, fmt, quaternion, same_rotation, Target, vector, yaw_quaternion)
+from r2d2_sim.conformance.entity_verbs import BOX_SIZE_M
+from r2d2_sim.conformance.target import Target
+from r2d2_sim.conformance.values import (
+    close, fmt, quaternion, same_rotation, vector, yaw_quaternion)
 
 CLAUSES: List[Clause] = []
 

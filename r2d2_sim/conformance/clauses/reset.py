@@ -3,7 +3,8 @@
 from typing import List
 
 from r2d2_sim.conformance.clause import Clause, clause, ClauseFailed
-from r2d2_sim.conformance.target import close, fmt, Target, vector
+from r2d2_sim.conformance.target import Target
+from r2d2_sim.conformance.values import close, fmt, vector
 
 CLAUSES: List[Clause] = []
 

@@ -4,8 +4,8 @@ from typing import List
 
 from r2d2_sim.conformance.clause import Clause, clause, ClauseFailed, ClauseSkipped
 from r2d2_sim.conformance.clauses.entities import check_region
-from r2d2_sim.conformance.target import (
-    close, fmt, quaternion, same_rotation, Target, vector)
+from r2d2_sim.conformance.target import Target
+from r2d2_sim.conformance.values import close, fmt, quaternion, same_rotation, vector
 
 CLAUSES: List[Clause] = []
 

@@ -1,0 +1,75 @@
+"""
+What a world is, as read: :class:`World` and its :class:`WorldModel` entries, plain data.
+
+No ROS, no PyBullet. Every world format's reader returns a World
+(:mod:`r2d2_sim.sim.worlds` for URDF and the manifest,
+:mod:`r2d2_sim.sim.sdf_world` for SDF), and the Simulation and its Launch
+build from one. Kept apart from the readers so that the SDF reader can
+build a World without importing the module that calls it;
+:mod:`r2d2_sim.sim.worlds` exports both names.
+"""
+
+from typing import NamedTuple, Optional, Tuple
+
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.physics.description import DescriptionFile
+from r2d2_sim.sim.world_manifest import NamedPose
+
+__all__ = ['World', 'WorldModel']
+
+Vec3 = Tuple[float, float, float]
+Quat = Tuple[float, float, float, float]
+
+
+class WorldModel(NamedTuple):
+    """
+    One model of a world: a URDF file to load at a pose, and what the standard says of it.
+
+    ``sdf``: made from SDF, so loaded as Gazebo would simulate it (the file's
+    inertias, true cylinders, joints free but for their friction).
+    """
+
+    name: Optional[str]      # None: the URDF's robot name, made unique
+    path: str                # the file PyBullet loads
+    source: str              # the URI as written ('resource_string' for text)
+    position: Vec3
+    orientation: Quat
+    description: str
+    tags: Tuple[str, ...]
+    sdf: bool = False
+
+
+class World(NamedTuple):
+    """
+    A world as read: its models, named poses and what GetCurrentWorld tells of it.
+
+    ``uri`` and ``resource_string`` are the request's (or the ``world``
+    parameter's); ``start_pose`` is the named pose the start-up robots stand
+    at (None: the world's origin); ``notes`` say what was left out or
+    ignored; ``resources`` are temporary files to close with the world.
+    """
+
+    name: str
+    uri: str
+    resource_string: str
+    description: str
+    tags: Tuple[str, ...]
+    models: Tuple[WorldModel, ...]
+    named_poses: Tuple[NamedPose, ...]
+    start_pose: Optional[NamedPose]
+    notes: Tuple[str, ...] = ()
+    resources: Tuple[DescriptionFile, ...] = ()
+
+    def named_pose(self, name: str) -> NamedPose:
+        """Return the named pose ``name``; RefusedError NOT_FOUND listing the others."""
+        for pose in self.named_poses:
+            if pose.name == name:
+                return pose
+        known = ', '.join(p.name for p in self.named_poses) or 'none'
+        raise RefusedError('NOT_FOUND', f'no named pose {name[:100]!r} in the world '
+                                        f'{self.name}; it has: {known}')
+
+    def close(self) -> None:
+        """Delete the temporary files of a world given as text; safe to call twice."""
+        for resource in self.resources:
+            resource.close()
