@@ -204,7 +204,6 @@ class LaserScanner(_RaySensor):
         return ranges_from_hits(fractions, self.geometry, noise=self._noise)
 
 
-
 class Lidar3d(_RaySensor):
     """
     A multi-ring lidar on the body's axis: a point per beam, in its own frame ``lidar_3d``.
@@ -257,7 +256,6 @@ class Lidar3d(_RaySensor):
         highest = origin_z + radius * math.tan(max(self.geometry.angle_max_rad, 0.0))
         return [link for link in body.links()
                 if body.aabb(link).low[2] <= highest and body.aabb(link).high[2] >= lowest]
-
 
     def scan(self) -> numpy.ndarray:
         """
