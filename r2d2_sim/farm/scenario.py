@@ -111,7 +111,8 @@ class Scenario:
       with a position tolerance);
     - ``seed``: the simulator's ``noise_seed`` and the seed of anything random
       in the run (a controller may draw from it), 0 to 2**31 - 1;
-    - ``world``: a world model loaded around the origin (``ROOM``), '' none;
+    - ``world``: the simulator's ``world`` (a URDF such as ``ROOM``, a world
+      manifest, an SDF world), '' none;
     - ``limits``: robot limits, (name, value) pairs of :data:`LIMITS`
       (simulator parameters), others left at the simulator's defaults;
     - ``scan_noise_std``: the laser's range noise (m);
