@@ -15,7 +15,7 @@ publishers, so mirroring costs nothing when it is off.
 from typing import Callable, Optional
 
 from rclpy.publisher import Publisher
-from r2d2_sim.ros.serialization import serialize
+from r2d2_sim.ros.cdr import serialize
 
 from r2d2_sim.recording.channels import SinkChannel
 from r2d2_sim.recording.sink import FoxgloveSink

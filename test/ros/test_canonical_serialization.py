@@ -17,7 +17,8 @@ from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import Marker, MarkerArray
 
-from r2d2_sim.ros.serialization import MessageTemplate, serialize
+from r2d2_sim.ros.cdr import serialize
+from r2d2_sim.ros.serialization import MessageTemplate
 
 MESSAGES = [
     JointState(name=['a', 'bcd'], position=[1.0, 2.0], velocity=[], effort=[3.0]),

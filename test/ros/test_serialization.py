@@ -29,7 +29,7 @@ from rclpy.type_support import check_for_type_support
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, LaserScan, Range
 
-from r2d2_sim.ros import serialization
+from r2d2_sim.ros import cdr
 from r2d2_sim.ros.serialization import FieldError, MessageTemplate
 
 STATES = 200
@@ -511,6 +511,6 @@ def test_other_encodings_are_refused(monkeypatch, encapsulation, error):
     """Big-endian CDR (0x0000) or XCDR2 (0x0007) from the serializer get a clear error."""
     def other_encoding(msg):
         return encapsulation + serialize_message(msg)[2:]
-    monkeypatch.setattr(serialization, 'serialize_message', other_encoding)
+    monkeypatch.setattr(cdr, 'serialize_message', other_encoding)  # the template's first
     with pytest.raises(ValueError, match=error):
         MessageTemplate(Clock())
