@@ -34,7 +34,7 @@ def world_boxes(world: str) -> List[Box]:
     try:
         read = read_world(world, '', Places(), trusted=True)
     except RefusedError as exc:
-        raise ScenarioError(f'cannot read the world {world}: {exc.message}') from None
+        raise ScenarioError(f'cannot read the world {exc.message}') from None
     try:  # an SDF world's models are generated files, deleted with the world
         return [box for model in read.models
                 for box in _model_boxes(model.path, model.position, yaw_of(model.orientation))]

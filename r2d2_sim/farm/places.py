@@ -60,7 +60,7 @@ def world_poses(world: str) -> WorldPoses:
     try:
         read = read_world(world, '', Places(), trusted=True)
     except RefusedError as exc:
-        raise ValueError(f'world {world}: {exc.message}') from None
+        raise ValueError(f'world {exc.message}') from None  # the message names the file
     read.close()
     return WorldPoses(world, {pose.name: pose for pose in read.named_poses}, read.start_pose)
 

@@ -263,8 +263,9 @@ class ScenarioSpace:
       goal circle's radius;
     - ``keep_out``: no box's footprint comes nearer than this to the start or
       the goal's centre (the robot must fit, the goal must be reachable);
-    - ``world``, ``limits`` ((name, (low, high)) pairs, drawn each),
-      ``scan_noise_std`` (low, high);
+    - ``world`` (read when the space is made: a world the simulator would
+      refuse is a ScenarioError here), ``limits`` ((name, (low, high)) pairs,
+      drawn each), ``scan_noise_std`` (low, high);
     - ``start_pose``, ``goal_pose``: named poses of ``world`` standing for
       the drawn start (``start_area``, ``start_yaw``) and goal centre
       (``goal_area``; the circle keeps ``goal_tolerance``). The areas are
@@ -289,8 +290,10 @@ class ScenarioSpace:
     goal_pose: str = ''
 
     def __post_init__(self) -> None:
+        if self.world:
+            _check_world(self.world)  # a missing world fails here, once, not in every run
         if self.start_pose:
-            _named(self.world, self.start_pose)  # a wrong name fails here, once
+            _named(self.world, self.start_pose)  # and so does a wrong name
         if self.goal_pose:
             _named(self.world, self.goal_pose)
         low, high = self.obstacles
@@ -388,6 +391,15 @@ def _milli(rng: numpy.random.Generator, low: float, high: float) -> float:
 def _point(rng: numpy.random.Generator, area: Sequence[float]) -> Tuple[float, float]:
     x_min, y_min, x_max, y_max = area
     return _milli(rng, x_min, x_max), _milli(rng, y_min, y_max)
+
+
+def _check_world(world: str) -> None:
+    """Read ``world`` as the simulator would; ScenarioError (one line) if it cannot be."""
+    from r2d2_sim.farm.places import world_poses  # reads world files: only when one is named
+    try:
+        world_poses(world)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
 
 
 def _named(world: str, name: str) -> Tuple[float, float, float]:

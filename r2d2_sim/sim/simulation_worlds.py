@@ -31,7 +31,7 @@ class SimulationWorlds:
             return read_world(uri, '', self.places, self._options(LoadOptions()), trusted=True,
                               sdf=self.sdf)
         except RefusedError as exc:
-            raise WorldError(f'world {uri}: {exc.message}') from None
+            raise WorldError(f'world {exc.message}') from None  # the message names the file
 
     def _options(self, options: LoadOptions) -> LoadOptions:
         """Return a load's options with ``strict_worlds``: refuse what is not simulated."""

@@ -304,7 +304,8 @@ def read_world(uri: str, resource_string: str, places: Places,
             if not trusted and not places.allowed(path, root):
                 raise RefusedError('NOT_FOUND', f'{shown} lies outside the places worlds are '
                                                 'loaded from (this package\'s urdf/, world_paths, '
-                                                'pybullet_data, ROS packages)')
+                                                'pybullet_data, ROS packages): add its directory '
+                                                'to the world_paths parameter')
             if not os.path.isfile(path):
                 raise RefusedError('NOT_FOUND', f'{shown}: no such world file')
             world_format = _format_of(path, '', shown)

@@ -293,10 +293,12 @@ class WorldVerbs:
 
         ``world``: a URDF, an SDF world or a world manifest, as a path, a
         ``package://`` or ``file://`` URI, a name in the package's ``urdf/``
-        (``room.world.yaml``), or the file's text itself. Spawned entities
-        leave, the robots stand at the world's start pose, time goes back to
-        0; the harness then moves one control period on, to publish the new
-        world (as ``reset_world``).
+        (``room.world.yaml``), or the file's text itself. A file must lie in
+        a place LoadWorld searches: a test's own world goes in a directory of
+        the ``world_paths`` parameter (``SimHarness(world_paths=[dir])``).
+        Spawned entities leave, the robots stand at the world's start pose,
+        time goes back to 0; the harness then moves one control period on,
+        to publish the new world (as ``reset_world``).
         """
         entry = self._world_backend().load_world(*_world_resource(world))
         self._after_world(True)

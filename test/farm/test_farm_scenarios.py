@@ -195,3 +195,13 @@ def test_the_hypothesis_strategy_keeps_the_named_ends():
         assert (scenario.start.x, scenario.start.y) == (-2.5, -2.0)
         assert scenario.goal_point == (1.5, 2.0)
     check()
+
+
+def test_a_space_over_a_missing_world_fails_when_made_in_one_line(tmp_path):
+    """Not in every run: ScenarioSpace reads its world once; the message names the file once."""
+    missing = str(tmp_path / 'arena.sdf')
+    with pytest.raises(ScenarioError) as raised:
+        ScenarioSpace(world=missing)
+    message = str(raised.value)
+    assert message.count(missing) == 1 and 'no such world file' in message
+    assert '\n' not in message
