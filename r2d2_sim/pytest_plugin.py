@@ -44,8 +44,18 @@ def r2d2_sim_factory():
 
 @pytest.fixture
 def r2d2_sim(r2d2_sim_factory, r2d2_sim_parameters):
-    """Provide a ready in-process simulator harness (``SimHarness``) on a domain of its own."""
-    return r2d2_sim_factory(**r2d2_sim_parameters)
+    """
+    Provide a ready in-process simulator harness (``SimHarness``) on a domain of its own.
+
+    Parameters it cannot start with (``r2d2_sim_parameters``: a missing world,
+    a bad value) are the test's own mistake: the error is the simulator's one
+    line, without the library's traceback.
+    """
+    from r2d2_sim.errors import StartupError
+    try:
+        return r2d2_sim_factory(**r2d2_sim_parameters)
+    except StartupError as exc:
+        pytest.fail(f'r2d2_sim_parameters: {exc}', pytrace=False)
 
 
 @pytest.fixture

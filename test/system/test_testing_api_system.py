@@ -119,6 +119,37 @@ def test_the_pytest_plugins_line_also_works_where_r2d2_sim_is_installed(tmp_path
     assert '1 passed' in result.stdout
 
 
+MISTAKEN_PARAMETERS = """\
+import pytest
+
+pytest_plugins = ['r2d2_sim.pytest_plugin']
+
+
+@pytest.fixture
+def r2d2_sim_parameters():
+    return {'world': '/no/such/arena.sdf'}
+
+
+def test_never_runs(r2d2_sim):
+    pass
+"""
+
+
+def test_parameters_the_simulator_refuses_are_one_line_in_pytest(tmp_path):
+    """A missing world in r2d2_sim_parameters: the simulator's line, not its traceback."""
+    (tmp_path / 'test_mistake.py').write_text(MISTAKEN_PARAMETERS)
+    env = testing.ros_child_env()
+    env['PYTHONPATH'] = REPO
+    result = subprocess.run([sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
+                             'test_mistake.py'], cwd=tmp_path, env=env,
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1 and '1 error' in result.stdout, result.stdout[-800:]
+    assert ('r2d2_sim_parameters: world /no/such/arena.sdf: no such world file'
+            in result.stdout), result.stdout[-800:]
+    assert 'simulation_worlds.py' not in result.stdout  # no frame of the library shown
+    assert 'Traceback' not in result.stdout
+
+
 # -- import costs -------------------------------------------------------------------
 
 
