@@ -23,6 +23,7 @@ are mixed in from :mod:`~r2d2_sim.physics.body_geometry`.
 
 from functools import partial
 import math
+import os
 from typing import Any, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 from r2d2_sim.errors import WorldError
@@ -37,7 +38,7 @@ from r2d2_sim.physics.stdio import silenced_output
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 
-__all__ = ['Body', 'BodyRemoved', 'Loading', 'WorldError']
+__all__ = ['Body', 'BodyRemoved', 'Loading', 'WorldError', 'file_stamp']
 
 ZERO: Vec3 = (0.0, 0.0, 0.0)
 
@@ -53,6 +54,16 @@ class Loading(NamedTuple):
     position: Vec3
     orientation: Quat
     flags: int = 0
+    file: Optional[Tuple[str, int, int]] = None  # the file read, its size and mtime_ns then
+
+
+def file_stamp(path: str) -> Optional[Tuple[str, int, int]]:
+    """Return (path, size, mtime_ns) of a file, None if it is not there."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return None
+    return path, info.st_size, info.st_mtime_ns
 
 
 class Body(BodyGeometry):
@@ -79,6 +90,8 @@ class Body(BodyGeometry):
         self._loading = loading
         # Every lasting change since loading, in order: (method name, args, kwargs).
         self._changes: List[Tuple[str, tuple, Dict[str, Any]]] = []
+        # The velocity motor last set on each joint (target, force), for a rebuild in place.
+        self._motors: Dict[int, Tuple[float, float]] = {}
         info = records.body_info(client, body_id)
         self.base_link_name = info.base_link_name
         self.urdf_name = info.name
@@ -205,6 +218,7 @@ class Body(BodyGeometry):
         self._client.setJointMotorControlArray(
             self.id, list(indices), pybullet.VELOCITY_CONTROL,
             targetVelocities=list(velocities), forces=list(max_forces))
+        self._motors.update(zip(indices, zip(velocities, max_forces)))
 
     def set_wheel_lateral_friction(self, indices: Sequence[int], ratio: float) -> None:
         """
@@ -245,9 +259,7 @@ class Body(BodyGeometry):
 
     def _free_joints(self, indices: Sequence[int], frictions: Sequence[float]) -> None:
         if indices:
-            self._client.setJointMotorControlArray(
-                self.id, list(indices), pybullet.VELOCITY_CONTROL,
-                targetVelocities=[0.0] * len(indices), forces=list(frictions))
+            self.set_joint_velocities(indices, [0.0] * len(indices), frictions)
 
     def _change_dynamics(self, links: Sequence[int], **dynamics) -> None:
         for link in links:
@@ -321,7 +333,29 @@ class Body(BodyGeometry):
 
     def reset(self) -> None:
         """Put the body back in its initial state: base pose and twist, joints, at once."""
-        (position, orientation), (linear, angular), joints = self._initial
+        self._put(self._initial)
+
+    def moment(self) -> Tuple[Tuple[Pose, Tuple[Vec3, Vec3], JointStates], Dict[int, Any]]:
+        """Return the body's state now and its joints' motors, for :meth:`resume`."""
+        return self._read_state(), dict(self._motors)
+
+    def resume(self, moment) -> None:
+        """
+        After :meth:`reload`, put back the state and motors :meth:`moment` returned.
+
+        Exactly: the same base pose and twist, joint positions and
+        velocities, and velocity motors (those set since the changes
+        :meth:`reload` replays stay as they were last set).
+        """
+        state, motors = moment
+        self._put(state)
+        if motors:
+            indices = list(motors)
+            self.set_joint_velocities(indices, [motors[i][0] for i in indices],
+                                      [motors[i][1] for i in indices])
+
+    def _put(self, state) -> None:
+        (position, orientation), (linear, angular), joints = state
         client, body = self._client, self.id
         client.resetBasePositionAndOrientation(body, position, orientation)
         client.resetBaseVelocity(body, linear, angular)
@@ -382,6 +416,12 @@ class Body(BodyGeometry):
         self._bind_hot_path()
         for method, args, kwargs in self._changes:
             getattr(self, method)(*args, **kwargs)
+
+    def reloadable(self) -> bool:
+        """Return True when :meth:`reload` can load the body as it was: its file unchanged."""
+        loading = self._loading
+        return (loading is not None and loading.file is not None
+                and file_stamp(loading.file[0]) == loading.file)
 
     def _removed(self, *args, **kwargs):
         raise BodyRemoved(f'body {self.name!r} was removed from the world')

@@ -19,8 +19,9 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy
 
+from r2d2_sim.memory import malloc_trim
 from r2d2_sim.model.transforms import yaw_of
-from r2d2_sim.physics.body import Body, Loading, WorldError
+from r2d2_sim.physics.body import Body, file_stamp, Loading, WorldError
 from r2d2_sim.physics import records
 from r2d2_sim.physics.raycast import (
     cast_rays, cast_requests, RAY_EXCLUDED_GROUP, RAY_MASK, ray_mask, RayRequest)
@@ -33,7 +34,8 @@ import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
 from pybullet_utils.bullet_client import BulletClient
 
 __all__ = ['SimWorld', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
-           'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask', 'RayRequest']
+           'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask', 'RayRequest',
+           'COMPACT_AFTER_REMOVALS']
 
 # Gap left between the lowest point of the robot and the ground at spawn, so
 # that it starts just above the plane instead of interpenetrating it.
@@ -44,6 +46,17 @@ IDENTITY_QUATERNION: Quat = (0.0, 0.0, 0.0, 1.0)
 # of that robot's (one bit each), and sees every other robot. Bits 0 and 1
 # are Bullet's default groups (dynamic, static); the group is a C int.
 RAY_GROUPS = tuple(RAY_EXCLUDED_GROUP << bit for bit in range(29))  # 4 ... 2**30
+# PyBullet 3.2.7 keeps a loaded URDF's shapes after removeBody (14-17 kB for our
+# R2D2) until resetSimulation: after this many removals the world is built again
+# in place (SimWorld.compact), so spawning and deleting for hours stays bounded.
+COMPACT_AFTER_REMOVALS = 64
+
+
+def _found(path: str) -> str:
+    """Return the file loadURDF reads for ``path``: as given, else in pybullet_data."""
+    if os.path.isfile(path):
+        return path
+    return os.path.join(pybullet_data.getDataPath(), path)
 
 
 def display_problem(environ=os.environ) -> Optional[str]:
@@ -100,6 +113,7 @@ class SimWorld:
         self.gravity_m_s2 = gravity_m_s2
         self.step_count = 0
         self.bodies: Dict[str, Body] = {}
+        self.removed_since_built = 0  # bodies removed since the world was last built
         self._free_ray_groups = list(RAY_GROUPS)
         self._client: Optional[BulletClient] = None
         problem = display_problem() if gui else None
@@ -122,6 +136,7 @@ class SimWorld:
     def _setup(self, gravity: Vec3) -> None:
         client = self._client
         client.resetSimulation()
+        self.removed_since_built = 0
         client.setAdditionalSearchPath(pybullet_data.getDataPath())
         client.setTimeStep(self.time_step_s)
         client.setGravity(*gravity)
@@ -164,7 +179,8 @@ class SimWorld:
             raise WorldError(f'a body named {name!r} is already in the world')
         body = Body(self._client, body_id, name, source or path,
                     body_yaw_offset_rad=body_yaw_offset_rad, spawned=spawned,
-                    loading=Loading(path, tuple(position), tuple(orientation), flags))
+                    loading=Loading(path, tuple(position), tuple(orientation), flags,
+                                    file_stamp(_found(path))))
         self.bodies[name] = body
         return body
 
@@ -219,10 +235,37 @@ class SimWorld:
             self._free_ray_groups.sort()
 
     def remove(self, body: Body) -> None:
-        """Take ``body`` out of the world."""
+        """Take ``body`` out of the world (every COMPACT_AFTER_REMOVALS, compacting it)."""
         if self.bodies.get(body.name) is body:
             del self.bodies[body.name]
-        body.remove()
+        if body.alive:
+            body.remove()
+            self.removed_since_built += 1
+            if self.removed_since_built >= COMPACT_AFTER_REMOVALS:
+                self.compact()
+
+    def compact(self) -> bool:
+        """
+        Build the world again, every body as it is now: PyBullet frees what removed ones left.
+
+        Each body is loaded again in its order, with its lasting changes
+        (:meth:`Body.reload`), and put back exactly as it was: base pose and
+        twist, joints, motors (:meth:`Body.resume`). Contact manifolds start
+        afresh, as after a reset: a run goes on a little differently than
+        without, and the same way every time, since compaction comes after
+        the same removals. Nothing is done (False) when a body's file is
+        gone or changed since it was loaded: it could not come back.
+        """
+        bodies = list(self.bodies.values())
+        if not all(body.reloadable() for body in bodies):
+            return False
+        moments = [body.moment() for body in bodies]
+        self.clear()
+        for body, moment in zip(bodies, moments):
+            self.reload(body)
+            body.resume(moment)
+        malloc_trim()  # else the freed shapes stay in the arena of the thread that removed
+        return True
 
     @property
     def client(self) -> BulletClient:

@@ -20,7 +20,6 @@ bad client message (20,000 lines in 2 s). What can be done from outside is here:
 Linux only (``/proc``); elsewhere the watch does nothing.
 """
 
-import ctypes
 import logging
 import os
 import re
@@ -29,6 +28,7 @@ import sys
 import threading
 from typing import Callable, List, Optional, Tuple
 
+from r2d2_sim.memory import malloc_trim
 from r2d2_sim.model.timing import ThrottledLog
 
 __all__ = ['route_sdk_log', 'ListenerWatch', 'SDK_LOG_PERIOD_S']
@@ -141,16 +141,6 @@ def _descriptors() -> List[str]:
         return []
 
 
-def _malloc_trim() -> Callable[[], None]:
-    """Return glibc's ``malloc_trim(0)``, or a no-op where there is none."""
-    try:
-        trim = ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
-        return lambda: None
-    trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
-    return lambda: trim(0)
-
-
 class ListenerWatch:
     """
     Watch the live view's listener on ``port`` from a thread; report to ``warn``/``error``.
@@ -166,7 +156,7 @@ class ListenerWatch:
         self._warn, self._error = warn, error
         self._listener = _listening_socket(port)
         self.listening = True
-        self._trim = _malloc_trim()
+        self._trim = malloc_trim
         self._peak = 0
         self._warned = False
         self._stop = threading.Event()

@@ -34,9 +34,9 @@ from common import REPO
 PACKAGE = 'r2d2_sim'
 # Each folder or top-level module of the package, by height; a module imports only
 # from its own height or below. The package's root __init__ sits below them all.
-RANK = {'errors': 0, 'model': 1, 'recording': 2, 'physics': 3, 'sim': 4, 'client': 5, 'ros': 6,
-        'testing': 7, 'apps': 8, 'farm': 9, 'pytest_plugin': 10, '__main__': 10,
-        'conformance': 11}
+RANK = {'errors': 0, 'memory': 0, 'model': 1, 'recording': 2, 'physics': 3, 'sim': 4,
+        'client': 5, 'ros': 6, 'testing': 7, 'apps': 8, 'farm': 9, 'pytest_plugin': 10,
+        '__main__': 10, 'conformance': 11}
 ROOT_RANK = -1
 # What importing all of a ROS-free layer must not load.
 MUST_NOT_LOAD = {'model': ['rclpy', 'pybullet'], 'physics': ['rclpy'], 'sim': ['rclpy'],
