@@ -173,33 +173,38 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         that depends on the machine's load.
         """
         self._lockstep = True
-        super().add_node(node, use_sim_time=use_sim_time)
-        self._wait_for_latched(node)
-        return node
-
-    def _wait_for_latched(self, node: Node) -> None:
-        publishers = list(self.sim.publishers) + [
-            p for robot in self.sim.robots if robot.own_node for p in robot.publishers]
-        latched = {publisher.topic_name for publisher in publishers
-                   if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL}
-        pending = [sub for sub in node.subscriptions if sub.topic_name in latched
-                   and sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL]
-        if not pending:
-            return
-        delivered = set()
+        pending = self._latched_subscriptions(node)
+        delivered: set = set()
         originals = [(sub, sub.callback) for sub in pending]
+        # Noted before the node is spun: the spinning thread may take a latched
+        # message as soon as the node is in the executor.
         for sub, callback in originals:
             def noted(msg, sub=sub, callback=callback):
                 delivered.add(sub)
                 return callback(msg)
             sub.callback = noted
         try:
-            with self._own_executor():
-                self._wait(lambda: len(delivered) == len(pending),
-                           f'the latched topics did not reach {node.get_name()}')
+            super().add_node(node, use_sim_time=use_sim_time)
+            if pending:
+                with self._own_executor():
+                    self._wait(lambda: len(delivered) == len(pending),
+                               f'the latched topics did not reach {node.get_name()}')
+        except HarnessError as exc:
+            missing = ', '.join(sub.topic_name for sub in pending if sub not in delivered)
+            raise HarnessError(f'{exc} (still missing: {missing})') from None
         finally:
             for sub, callback in originals:
                 sub.callback = callback
+        return node
+
+    def _latched_subscriptions(self, node: Node) -> list:
+        """Return the node's transient-local subscriptions to the simulator's latched topics."""
+        publishers = list(self.sim.publishers) + [
+            p for robot in self.sim.robots if robot.own_node for p in robot.publishers]
+        latched = {publisher.topic_name for publisher in publishers
+                   if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL}
+        return [sub for sub in node.subscriptions if sub.topic_name in latched
+                and sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL]
 
     @property
     def physics_rate_hz(self) -> float:

@@ -8,6 +8,7 @@ system/test_harness_features_system.py's.
 """
 
 import math
+import time
 
 from geometry_msgs.msg import TwistStamped
 import pytest
@@ -59,6 +60,27 @@ def test_latched_topics_reach_a_users_node_before_its_first_step(r2d2_sim, attem
                              LATCHED_QOS)
     r2d2_sim.add_node(node)
     assert got['/tf_static'] and got['robot_description']  # before any advance()
+
+
+def test_a_latched_message_taken_while_the_node_is_added_still_counts(r2d2_sim, monkeypatch):
+    """The spinning thread delivers robot_description before add_node waits: no timeout."""
+    from rclpy.node import Node
+    from r2d2_sim.testing.executor import RosHarness
+    got = []
+    spin_first = RosHarness.add_node
+
+    def add_and_let_it_spin(harness, node, **options):
+        added = spin_first(harness, node, **options)
+        deadline = time.monotonic() + 5.0
+        while not got and time.monotonic() < deadline:  # the spinning thread takes it
+            time.sleep(0.005)
+        assert got, 'the spinning thread did not deliver within 5 s'
+        return added
+    monkeypatch.setattr(RosHarness, 'add_node', add_and_let_it_spin)
+    node = Node('early_consumer', context=r2d2_sim.context)
+    node.create_subscription(String, 'robot_description', got.append, LATCHED_QOS)
+    r2d2_sim.add_node(node)  # before: HarnessError, the message gone before it was watched
+    assert len(got) == 1
 
 
 def test_seconds_must_be_finite(r2d2_sim):
