@@ -9,7 +9,10 @@ point (the robot's base) is inside.
 import math
 from typing import NamedTuple, Sequence
 
-__all__ = ['Region', 'box_region', 'circle_region', 'polygon_region']
+__all__ = ['Region', 'box_region', 'circle_region', 'polygon_region', 'MIN_WIDTH_M']
+
+# A polygon narrower than this (m) spans no area: seen from above, a flat box on its side.
+MIN_WIDTH_M = 1e-9
 
 
 class Region(NamedTuple):
@@ -74,6 +77,9 @@ def polygon_region(points: Sequence[Sequence[float]]) -> Region:
         return half[:-1]
 
     hull = chain(unique) + chain(reversed(unique))
-    if len(hull) < 3:
+    area = sum(ax * by - bx * ay for (ax, ay), (bx, by) in zip(hull, hull[1:] + hull[:1])) / 2
+    span = max(max(x for x, _ in unique) - min(x for x, _ in unique),
+               max(y for _, y in unique) - min(y for _, y in unique))
+    if len(hull) < 3 or area <= MIN_WIDTH_M * span:  # a sliver no base could stand in
         raise ValueError(f'a polygon needs corners that span an area, got {unique[:8]}')
     return Region('polygon', tuple(v for point in hull for v in point))

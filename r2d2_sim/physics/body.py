@@ -414,6 +414,7 @@ class Body(BodyGeometry):
             raise WorldError(f'{self.source} changed since {self.name} was loaded from it')
         self._id = body_id
         self._bind_hot_path()
+        self._motors = {}  # a fresh load has no motors but those its changes set again
         for method, args, kwargs in self._changes:
             getattr(self, method)(*args, **kwargs)
 

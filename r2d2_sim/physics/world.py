@@ -254,17 +254,26 @@ class SimWorld:
         afresh, as after a reset: a run goes on a little differently than
         without, and the same way every time, since compaction comes after
         the same removals. Nothing is done (False) when a body's file is
-        gone or changed since it was loaded: it could not come back.
+        gone or changed since it was loaded (its size or mtime): it could not
+        come back, and memory then grows as without compaction. WorldError
+        (one line) if a body fails to load all the same (the others are back).
         """
         bodies = list(self.bodies.values())
         if not all(body.reloadable() for body in bodies):
             return False
         moments = [body.moment() for body in bodies]
         self.clear()
+        failed = []
         for body, moment in zip(bodies, moments):
-            self.reload(body)
+            try:
+                self.reload(body)
+            except WorldError as exc:  # the others still come back, as in reset()
+                failed.append(str(exc))
+                continue
             body.resume(moment)
         malloc_trim()  # else the freed shapes stay in the arena of the thread that removed
+        if failed:
+            raise WorldError('; '.join(failed))
         return True
 
     @property

@@ -259,11 +259,14 @@ def ground_region(pose) -> Region:
     if bounds.kind == 'sphere':
         centre = apply(frame, bounds.points[0])
         return circle_region(centre[0], centre[1], bounds.points[1][0])
-    if bounds.kind == 'box':
-        return polygon_region([apply(frame, corner)
-                               for corner in box_corners(bounds.points[1], bounds.points[0])])
-    if bounds.kind == 'convex_hull':
-        return polygon_region([apply(frame, point) for point in bounds.points])
+    points = (box_corners(bounds.points[1], bounds.points[0]) if bounds.kind == 'box'
+              else bounds.points if bounds.kind == 'convex_hull' else None)
+    if points is not None:
+        try:
+            return polygon_region([apply(frame, point) for point in points])
+        except ValueError:
+            raise ValueError(f'the named pose {pose.name!r}: its bounds seen from above cover '
+                             'no area (turned on their side?)') from None
     x, y = pose.position[0], pose.position[1]
     raise ValueError(f'the named pose {pose.name!r} has no bounds to reach; give a region '
                      f'around it instead, e.g. circle_region({x:g}, {y:g}, 0.2)')

@@ -15,7 +15,8 @@ from rclpy.qos import DurabilityPolicy
 from std_srvs.srv import Trigger
 
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
-from r2d2_sim.testing.executor import HarnessError, parameter_overrides, RosHarness
+from r2d2_sim.testing.executor import (
+    CallbackError, HarnessError, parameter_overrides, RosHarness)
 from r2d2_sim.testing.robots import (
     expected_namespaces, FirstRobot, flatten_robots, LocalRobot)
 from r2d2_sim.testing.tf import TransformLookup
@@ -189,8 +190,12 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                 with self._own_executor():
                     self._wait(lambda: len(delivered) == len(pending),
                                f'the latched topics did not reach {node.get_name()}')
+        except CallbackError:
+            raise  # a callback of the user's raised: that error, its cause kept
         except HarnessError as exc:
             missing = ', '.join(sub.topic_name for sub in pending if sub not in delivered)
+            if not missing:
+                raise
             raise HarnessError(f'{exc} (still missing: {missing})') from None
         finally:
             for sub, callback in originals:

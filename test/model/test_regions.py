@@ -26,8 +26,9 @@ def test_a_turned_square_is_a_diamond():
 
 
 @pytest.mark.parametrize('points', [[(0, 0), (1, 1), (2, 2)], [(0, 0)],
-                                    [(0, 0), (math.nan, 1), (1, 0)]])
+                                    [(0, 0), (math.nan, 1), (1, 0)],
+                                    [(0, 0), (1, 0), (1, 2e-16), (0, 2e-16)]])
 def test_points_that_span_no_area_are_no_polygon(points):
-    """Points on a line, a single point, a NaN: ValueError."""
+    """Points on a line, a single point, a NaN, a sliver (a flat box on its side): ValueError."""
     with pytest.raises(ValueError, match='polygon'):
         polygon_region(points)

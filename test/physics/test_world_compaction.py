@@ -94,3 +94,16 @@ def test_a_body_whose_file_is_gone_stops_compaction_and_stays(world, tmp_path):
     assert world.removed_since_built == COMPACT_AFTER_REMOVALS  # not rebuilt
     assert kept.alive and not kept.reloadable()
     assert world.compact() is False
+
+
+def test_motors_a_reset_dropped_are_not_brought_back_by_compaction(world):
+    """Wheels at 5 rad/s, then a reset (no motors but the file's): compaction keeps it parked."""
+    robot = driving_robot(world)
+    world.step(24)
+    world.reset()
+    parked = robot.world_state().position
+    churn(world, COMPACT_AFTER_REMOVALS)
+    assert world.removed_since_built == 0  # compacted
+    world.step(240)
+    moved = max(abs(a - b) for a, b in zip(robot.world_state().position, parked))
+    assert moved < 0.005, f'moved {moved:.3f} m'

@@ -83,6 +83,21 @@ def test_a_latched_message_taken_while_the_node_is_added_still_counts(r2d2_sim, 
     assert len(got) == 1
 
 
+def test_a_latched_callback_that_raises_is_the_error_add_node_raises(r2d2_sim):
+    """Your callback's exception, as a CallbackError with it as the cause, not a timeout."""
+    from rclpy.node import Node
+    from r2d2_sim.testing.executor import CallbackError
+
+    def broken(msg):
+        raise RuntimeError('my callback broke')
+    node = Node('broken_consumer', context=r2d2_sim.context)
+    node.create_subscription(String, 'robot_description', broken, LATCHED_QOS)
+    with pytest.raises(CallbackError) as raised:
+        r2d2_sim.add_node(node)
+    assert isinstance(raised.value.__cause__, RuntimeError)
+    assert 'still missing' not in str(raised.value)
+
+
 def test_seconds_must_be_finite(r2d2_sim):
     """advance(seconds=inf) is a ValueError like NaN, not an OverflowError."""
     for bad in (math.inf, math.nan, -1.0):
