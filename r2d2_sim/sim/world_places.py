@@ -14,7 +14,6 @@ worlds by :func:`file_stem`. Refusals are
 
 import os
 import re
-import stat
 from typing import List, Optional, Sequence, Tuple
 
 import pybullet_data
@@ -22,6 +21,7 @@ import pybullet_data
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import (
     DescriptionError, PACKAGE_NAME, PACKAGE_SCHEME, package_share_directory, SOURCE_TREE)
+from r2d2_sim.sim.sdf.elements import read_limited as read_text  # one reader for both
 
 __all__ = ['Places', 'read_text', 'file_stem', 'PACKAGE_WORLDS', 'WORLD_SUFFIX',
            'SDF_SUFFIXES', 'FILE_SCHEME', 'is_remote']
@@ -40,26 +40,6 @@ def file_stem(path: str) -> str:
         if name.endswith(suffix):
             return name[:-len(suffix)] or name
     return name
-
-
-def read_text(path: str, shown: str, code: str, limit: int) -> str:
-    """Read a regular file of at most ``limit`` bytes as UTF-8 text; ``code`` if it cannot be."""
-    try:
-        info = os.stat(path)
-    except OSError:
-        raise RefusedError(code, f'{shown}: no such file') from None
-    if not stat.S_ISREG(info.st_mode):
-        raise RefusedError(code, f'{shown} is not a regular file')
-    if info.st_size > limit:
-        raise RefusedError('RESOURCE_PARSE_ERROR', f'{shown} is larger than {limit} bytes')
-    try:
-        with open(path, 'rb') as handle:
-            data = handle.read(limit + 1)
-        return data.decode('utf-8')
-    except OSError:
-        raise RefusedError(code, f'{shown} cannot be read') from None
-    except UnicodeDecodeError:
-        raise RefusedError('RESOURCE_PARSE_ERROR', f'{shown} is not UTF-8 text') from None
 
 
 def _inside(path: str, root: str) -> bool:
