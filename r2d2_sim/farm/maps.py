@@ -2,7 +2,7 @@
 A world's map for a farm's picture: the boxes of its collision shapes, seen from above.
 
 The world is read as the simulator reads its ``world`` parameter (a URDF,
-a world manifest, an SDF world: :func:`r2d2_sim.sim.worlds.read_world`),
+a world manifest, an SDF world: :func:`r2d2_sim.farm.places.read`),
 and each of its models' URDF as text: every ``<collision>`` whose geometry
 is a ``<box>`` becomes a :class:`~r2d2_sim.farm.scenario.Box` at its link's
 origin, placed by the model's pose (joints and rotations other than yaw are
@@ -14,10 +14,9 @@ import math
 from typing import List, Sequence
 import xml.etree.ElementTree as ElementTree
 
-from r2d2_sim.errors import RefusedError
+from r2d2_sim.farm.places import read
 from r2d2_sim.farm.scenario import Box, ScenarioError
 from r2d2_sim.model.transforms import yaw_of
-from r2d2_sim.sim.worlds import Places, read_world
 
 __all__ = ['world_boxes']
 
@@ -32,14 +31,14 @@ def world_boxes(world: str) -> List[Box]:
     if not world:
         return []
     try:
-        read = read_world(world, '', Places(), trusted=True)
-    except RefusedError as exc:
-        raise ScenarioError(f'cannot read the world {exc.message}') from None
+        read_back = read(world)
+    except ScenarioError as exc:  # 'world X: ...', as the simulator says it
+        raise ScenarioError(f'cannot read the {exc}') from None
     try:  # an SDF world's models are generated files, deleted with the world
-        return [box for model in read.models
+        return [box for model in read_back.models
                 for box in _model_boxes(model.path, model.position, yaw_of(model.orientation))]
     finally:
-        read.close()
+        read_back.close()
 
 
 def _model_boxes(path: str, position: Sequence[float], yaw: float) -> List[Box]:

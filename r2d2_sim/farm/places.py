@@ -18,10 +18,11 @@ import math
 from typing import Dict, List, Optional, Tuple
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.farm.scenario import ScenarioError
 from r2d2_sim.model.transforms import yaw_of
-from r2d2_sim.sim.worlds import NamedPose, Places, read_world
+from r2d2_sim.sim.worlds import NamedPose, Places, read_world, World
 
-__all__ = ['WorldPoses', 'world_poses', 'initial_pose']
+__all__ = ['WorldPoses', 'world_poses', 'initial_pose', 'read']
 
 
 class WorldPoses:
@@ -34,12 +35,12 @@ class WorldPoses:
         self.start = start
 
     def pose(self, name: str) -> Tuple[float, float, float]:
-        """Return the named pose ``name`` as (x, y, yaw); ValueError (one line) if none."""
+        """Return the named pose ``name`` as (x, y, yaw); ScenarioError (one line) if none."""
         pose = self.poses.get(name)
         if pose is None:
             known = ', '.join(sorted(self.poses)) or 'none'
             where = self.world or "no world (world '')"
-            raise ValueError(f'no named pose {name!r} in {where}; it has: {known}')
+            raise ScenarioError(f'no named pose {name!r} in {where}; it has: {known}')
         return pose.position[0], pose.position[1], yaw_of(pose.orientation)
 
     def names(self) -> List[str]:
@@ -52,17 +53,27 @@ def world_poses(world: str) -> WorldPoses:
     """
     Return the named poses of ``world`` (a scenario's ``world``: '' for none).
 
-    ValueError (one line) when the world cannot be read: the simulator would
-    refuse it too.
+    ScenarioError (one line) when the world cannot be read: the simulator
+    would refuse it too.
     """
     if not world:
         return WorldPoses(world, {}, None)
+    read_back = read(world)
+    read_back.close()
+    return WorldPoses(world, {pose.name: pose for pose in read_back.named_poses},
+                      read_back.start_pose)
+
+
+def read(world: str) -> World:
+    """
+    Read ``world`` as the simulator reads its ``world`` parameter; close what it returns.
+
+    ScenarioError (one line, naming the file) when the simulator would refuse it.
+    """
     try:
-        read = read_world(world, '', Places(), trusted=True)
+        return read_world(world, '', Places(), trusted=True)
     except RefusedError as exc:
-        raise ValueError(f'world {exc.message}') from None  # the message names the file
-    read.close()
-    return WorldPoses(world, {pose.name: pose for pose in read.named_poses}, read.start_pose)
+        raise ScenarioError(f'world {exc.message}') from None  # the message names the file
 
 
 def initial_pose(world: str, x: float, y: float, yaw: float) -> List[float]:

@@ -393,30 +393,21 @@ def _point(rng: numpy.random.Generator, area: Sequence[float]) -> Tuple[float, f
     return _milli(rng, x_min, x_max), _milli(rng, y_min, y_max)
 
 
+# Worlds are read (by r2d2_sim.farm.places, imported only then) when a scenario names one;
+# each raises ScenarioError (one line) for a world or a name the simulator would refuse.
+
 def _check_world(world: str) -> None:
-    """Read ``world`` as the simulator would; ScenarioError (one line) if it cannot be."""
-    from r2d2_sim.farm.places import world_poses  # reads world files: only when one is named
-    try:
-        world_poses(world)
-    except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
+    from r2d2_sim.farm.places import world_poses
+    world_poses(world)
 
 
 def _named(world: str, name: str) -> Tuple[float, float, float]:
-    """Return the named pose ``name`` of ``world`` as (x, y, yaw); ScenarioError if none."""
-    from r2d2_sim.farm.places import world_poses  # reads world files: only when names are used
-    try:
-        return world_poses(world).pose(name)
-    except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
+    from r2d2_sim.farm.places import world_poses
+    return world_poses(world).pose(name)
 
 
 def _initial_pose(world: str, start: Pose) -> list:
-    """Return the ``initial_pose`` parameter that stands the robot at ``start`` in ``world``."""
     if not world:
         return [start.x, start.y, start.yaw]
     from r2d2_sim.farm.places import initial_pose  # the world's start pose moves the origin
-    try:
-        return initial_pose(world, start.x, start.y, start.yaw)
-    except ValueError as exc:
-        raise ScenarioError(str(exc)) from None
+    return initial_pose(world, start.x, start.y, start.yaw)
