@@ -250,7 +250,7 @@ def existing_parameters(params):
     A parameter the node does not declare would only be warned about and
     ignored, so a measurement that needs one checks ``missing_parameters``.
     """
-    from r2d2_sim.sim.parameters import PARAMETERS_BY_NAME
+    from r2d2_sim.sim.settings.table import PARAMETERS_BY_NAME
     convert = {'double': float, 'integer': int, 'bool': bool, 'string': str}
     kept = {}
     for name, value in params.items():
@@ -262,7 +262,7 @@ def existing_parameters(params):
 
 def missing_parameters(names):
     """Return those of ``names`` that this r2d2_sim does not declare."""
-    from r2d2_sim.sim.parameters import PARAMETERS_BY_NAME
+    from r2d2_sim.sim.settings.table import PARAMETERS_BY_NAME
     return [name for name in names if name not in PARAMETERS_BY_NAME]
 
 

@@ -116,7 +116,7 @@ class Patches:
 def instrument(node, patches):
     """Wrap the parts of a step on this node, its simulation, world, robot and controller."""
     from r2d2_sim.ros import outputs
-    from r2d2_sim.sim import sensor_mounts
+    from r2d2_sim.sim.robots import sensors as sensor_mounts
     from r2d2_sim.ros import sensor_outputs
     from r2d2_sim.ros import serialization
     from r2d2_sim.ros import tf_outputs

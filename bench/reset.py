@@ -43,7 +43,7 @@ def fleet(count):
 
 def build(count):
     """Return a new Simulation of ``count`` robots (default outputs)."""
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     from r2d2_sim.sim.simulation import Simulation
     return Simulation(*parse_world(fleet(count)))
 

@@ -208,7 +208,7 @@ def time_output_calls(node, message, steps):
     throughputs does.
     """
     from r2d2_sim.ros import outputs
-    from r2d2_sim.sim import sensor_mounts
+    from r2d2_sim.sim.robots import sensors as sensor_mounts
     from r2d2_sim.ros import sensor_outputs
     from r2d2_sim.ros import tf_outputs
     perf_counter = time.perf_counter
@@ -365,7 +365,7 @@ def measure_throughput(work, domain_id, subprocess_domain, plan, params):
     import rclpy
     from rclpy.context import Context
     from r2d2_sim.ros.node import StartupError
-    from r2d2_sim.sim.parameters import PARAMETERS_BY_NAME
+    from r2d2_sim.sim.settings.table import PARAMETERS_BY_NAME
 
     context = Context()
     init_ros(domain_id, context)

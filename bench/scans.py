@@ -79,7 +79,7 @@ def scan_step(simulation):
 
 def measure_tree():
     """Measure this interpreter's r2d2_sim (the tree on sys.path); return results by N."""
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     from r2d2_sim.sim.simulation import Simulation
     import pybullet
     results = {}

@@ -241,7 +241,7 @@ def main():
     cold_samples, warm_samples = (2, 4) if args.quick else (5, 10)
     logging.getLogger('trimesh').setLevel(logging.ERROR)
     warnings.simplefilter('ignore', PendingDeprecationWarning)
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     from r2d2_sim.sim.simulation import Simulation
     with tempfile.TemporaryDirectory() as root:
         path = write_world(root)
@@ -253,7 +253,7 @@ def main():
             time_load(simulation, path, os.path.join(root, 'warm'))  # fills the cache
             warm = [time_load(simulation, path, os.path.join(root, 'warm'))
                     for _ in range(warm_samples)]
-            world = simulation.world_file
+            world = simulation.worlds.current
             bodies = len(world.models)
             triangles = int(world.description.split(' mesh triangles')[0].split()[-1])
             models = 1 + path_count(path)

@@ -112,7 +112,7 @@ def measure_harness(domain_id, cycles, same):
 
 def measure_core(domain_id, cycles, same):
     """Run the cycles through the simulation core alone, no ROS (``domain_id`` unused)."""
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     from r2d2_sim.sim.simulation import Simulation, SpawnRequest
     config, robots = parse_world({})
     simulation = Simulation(config, robots)

@@ -65,7 +65,7 @@ def time_loads(simulation, uri, samples):
         simulation.load_world(EMPTY)
         drive(simulation)
         start = time.perf_counter()
-        world = read_world(uri, '', simulation.places)
+        world = read_world(uri, '', simulation.worlds.places)
         simulation._check_world(world)  # what load_world does before it builds
         check.append((time.perf_counter() - start) * 1e3)
         world.close()
@@ -87,7 +87,7 @@ def main():
     parser.add_argument('--quick', action='store_true', help='fewer samples (~15 s)')
     args = parser.parse_args()
     samples = 8 if args.quick else 30
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     from r2d2_sim.sim.simulation import Simulation
     results = {}
     with tempfile.TemporaryDirectory() as directory:
@@ -100,7 +100,7 @@ def main():
                 time_loads(simulation, uri, 1)  # warm-up
                 whole, check = time_loads(simulation, uri, count)
                 results[label] = {'load': summary(whole), 'read and check': summary(check),
-                                  'entities': len(simulation.entity_names())}
+                                  'entities': len(simulation.entities.names())}
         finally:
             simulation.close()
     print(f'{"ms per LoadWorld, median (p90)":34} {"whole load":>18} {"read and check":>18}')

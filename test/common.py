@@ -55,7 +55,7 @@ PROGRESS = re.compile(
 
 def _check_help(text, prog):
     """Check the help text: a usage line for ``prog``, then every parameter of the table."""
-    from r2d2_sim.sim.parameters import PARAMETERS
+    from r2d2_sim.sim.settings.table import PARAMETERS
     assert text.startswith(f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]...'), text[:200]
     flat = ' '.join(text.split())  # the lines are wrapped to 79 columns
     for spec in PARAMETERS:

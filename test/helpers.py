@@ -41,7 +41,7 @@ from r2d2_sim.ros.standard import server as sim_interfaces
 from r2d2_sim.testing import (  # noqa: F401 (for the tests)
     RemoteProbe, sim_node_command, stop_process)
 from r2d2_sim.model.transforms import quaternion_to_yaw
-from r2d2_sim.sim.parameters import PARAMETERS, PARAMETERS_BY_NAME
+from r2d2_sim.sim.settings.table import PARAMETERS, PARAMETERS_BY_NAME
 
 
 def next_domain_id() -> int:

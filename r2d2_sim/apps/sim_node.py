@@ -68,7 +68,7 @@ def wants_help(argv: Sequence[str]) -> bool:
 
 def usage(argv0: str) -> str:
     """Return the ``--help`` text: usage, what the node does, and every parameter."""
-    from r2d2_sim.sim.parameter_docs import parameter_help  # standard library only
+    from r2d2_sim.sim.settings.reference import parameter_help  # standard library only
     prog = 'python -m r2d2_sim' if argv0.endswith('__main__.py') else os.path.basename(argv0)
     return (f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... [--params-file FILE]]\n\n'
             'Run the ROS 2 node r2d2_sim, R2D2 simulated in PyBullet, until SIGINT or\n'

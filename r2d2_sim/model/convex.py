@@ -14,7 +14,7 @@ along an axis: a bounding box in any frame, exactly.
 
 The simulation standard's bounds filters (a box, a convex hull, a sphere)
 and its entity bounds are computed with these; the entities' shapes come
-from their collision geometry (:mod:`r2d2_sim.sim.entity_bounds`).
+from their collision geometry (:mod:`r2d2_sim.sim.bounds`).
 """
 
 import math

@@ -26,7 +26,7 @@ Quat = Tuple[float, float, float, float]
 
 GEOMETRY_CYLINDER = pybullet.GEOM_CYLINDER
 GEOMETRY_SPHERE = pybullet.GEOM_SPHERE
-# A collision shape's kind, as a word: what r2d2_sim.sim.entity_bounds builds shapes from.
+# A collision shape's kind, as a word: what r2d2_sim.sim.bounds builds shapes from.
 GEOMETRY_KINDS = {
     pybullet.GEOM_SPHERE: 'sphere',
     pybullet.GEOM_BOX: 'box',

@@ -20,7 +20,7 @@ from r2d2_sim.client import UNKNOWN_NODE_NAME
 from r2d2_sim.model.drive_controller import NO_WHEELS
 from r2d2_sim.model.timing import stamp_ns, ThrottledLog
 from r2d2_sim.ros.seams import Commandable
-from r2d2_sim.sim.parameters import SimConfig
+from r2d2_sim.sim.settings.config import SimConfig
 
 # Warnings about rejected commands repeat at most this often per kind of problem.
 WARNING_PERIOD_S = 5.0

@@ -18,8 +18,8 @@ from rclpy.node import Node
 
 from r2d2_sim.ros.mirror import MirroringNode
 from r2d2_sim.ros.robot_interfaces import RobotInterfaces, RobotNode
-from r2d2_sim.sim.parameter_readers import ConfigError
-from r2d2_sim.sim.robot import Robot
+from r2d2_sim.sim.settings.readers import ConfigError
+from r2d2_sim.sim.robots.robot import Robot
 
 __all__ = ['Fleet']
 

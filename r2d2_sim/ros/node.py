@@ -9,7 +9,7 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 """
 
 import threading
-from typing import Callable, List, Optional, Sequence, Tuple
+from typing import Callable, Optional, Union
 
 from rclpy.node import Node
 
@@ -27,9 +27,7 @@ from r2d2_sim.ros.robot_interfaces import RobotInterfaces
 from r2d2_sim.ros.standard import server as standard
 from r2d2_sim.ros.standard.server import SimulationInterfaces
 from r2d2_sim.sim.simulation import Simulation, StepResult
-from r2d2_sim.sim.tags import TagsFilter
-from r2d2_sim.sim.world_manifest import NamedPose
-from r2d2_sim.sim.worlds import LoadOptions, World, WorldEntry
+from r2d2_sim.sim.worlds import LoadOptions, World
 
 NODE_NAME = 'r2d2_sim'
 __all__ = ['SimNode', 'StartupError', 'NODE_NAME']
@@ -87,7 +85,9 @@ class SimNode(MirroringNode):
         self._paused = self.config.start_paused
         self.control = ControlServices(self, self, self.fleet)
         if standard.available():
-            self.standard = SimulationInterfaces(self, self.simulation, self, self, on_quit)
+            simulation = self.simulation
+            self.standard = SimulationInterfaces(self, simulation.entities, simulation,
+                                                 simulation.worlds, self, self, on_quit)
         else:
             self.get_logger().warning(
                 'simulation_interfaces is not installed: its services (spawn_entity, '
@@ -155,47 +155,32 @@ class SimNode(MirroringNode):
     @property
     def world_is_loaded(self) -> bool:
         """Return False after UnloadWorld until a world is loaded: nothing may step then."""
-        return self.simulation.world_is_loaded
+        return self.simulation.worlds.is_loaded
 
-    # -- the world around the robots (WorldControl) --------------------------------------
+    # -- the world around the robots (WorldChanges; its reads are simulation.worlds) ------
 
-    def available_worlds(self, additional_sources: Sequence[str] = (),
-                         tags: TagsFilter = TagsFilter(), offline_only: bool = False,
-                         continue_on_error: bool = False) -> Tuple[List[WorldEntry], str]:
-        """Return the worlds that can be loaded and a note of what was left out."""
-        return self.simulation.available_worlds(additional_sources, tags, offline_only,
-                                                continue_on_error)
-
-    def load_world(self, uri: str, resource_string: str = '',
+    def load_world(self, world: Union[str, World], resource_string: str = '',
                    options: LoadOptions = LoadOptions()) -> World:
         """
         Load a world in place of the current one; return it. Stopped: paused, at time 0.
 
-        A refusal (RefusedError) leaves everything as it was, paused or not.
-        ``/clock`` says 0 at once; the robots are published at the next step.
+        ``world`` is a URI, or a world read beforehand (``simulation.worlds.read``,
+        without the lock: the physics keeps its rate while the files are
+        read). A refusal (RefusedError) leaves everything as it was, paused or
+        not. ``/clock`` says 0 at once; the robots are published at the next step.
         """
+        if isinstance(world, str):
+            world = self.simulation.worlds.read(world, resource_string, options)
         with self.lock:
-            world = self.simulation.load_world(uri, resource_string, options)
+            loaded = self.simulation.load_world(world)
             self._stopped_at_zero()
-            return world
+            return loaded
 
     def unload_world(self) -> None:
         """Unload the world: paused, time 0, and nothing steps until a world is loaded."""
         with self.lock:
             self.simulation.unload_world()
             self._stopped_at_zero()
-
-    def current_world(self) -> Optional[World]:
-        """Return the world loaded now; None after UnloadWorld."""
-        return self.simulation.world_file
-
-    def named_poses(self, tags: TagsFilter = TagsFilter()) -> List[NamedPose]:
-        """Return the world's named poses whose tags pass the filter."""
-        return self.simulation.named_poses(tags)
-
-    def named_pose(self, name: str) -> NamedPose:
-        """Return one named pose (RefusedError NOT_FOUND)."""
-        return self.simulation.named_pose(name)
 
     def _stopped_at_zero(self) -> None:
         self._paused = True
@@ -297,7 +282,7 @@ class SimNode(MirroringNode):
         RefusedError INCORRECT_STATE for resuming with no world loaded.
         """
         with self.lock:  # no step runs between the change and the caller's reply
-            if not paused and not self.simulation.world_is_loaded:
+            if not paused and not self.simulation.worlds.is_loaded:
                 raise RefusedError('INCORRECT_STATE', 'no world is loaded (UnloadWorld): load '
                                                       'one (LoadWorld) to run the simulation')
             if paused and not self._paused:

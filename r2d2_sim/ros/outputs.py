@@ -4,12 +4,12 @@ The node's published outputs: one small class per published thing, translating m
 Every output turns plain data the simulation measured into a message and
 publishes it; none of them measures. State outputs (joint states, odometry,
 ground truth, and TF in :mod:`r2d2_sim.ros.tf_outputs`) publish a robot's
-:class:`~r2d2_sim.sim.robot.Frame`, and the contacts what it touched at the
+:class:`~r2d2_sim.sim.robots.robot.Frame`, and the contacts what it touched at the
 same steps: they are here. Sensor outputs
 (camera, scan, IMU, 3D lidar, battery) publish a reading and its time and
 are in :mod:`r2d2_sim.ros.sensor_outputs` (this module exports their names
 too). :class:`RobotOutputs` holds one robot's outputs and hands each
-:class:`~r2d2_sim.sim.robot.Measurement` out. Each keeps its message serialized
+:class:`~r2d2_sim.sim.robots.robot.Measurement` out. Each keeps its message serialized
 once (:class:`~r2d2_sim.ros.serialization.MessageTemplate`), patches only the
 bytes that move and publishes the bytes: rclpy then skips the Python-to-C
 conversion and serialization (an Odometry: 11-21 us typed, 2-9 us as bytes,
@@ -28,8 +28,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from r2d2_sim.physics.records import JointRecord
 from r2d2_sim.sim.oracles import Touch
-from r2d2_sim.sim.parameters import SimConfig
-from r2d2_sim.sim.robot import Frame, Measurement, Robot
+from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.robots.robot import Frame, Measurement, Robot
 from r2d2_sim.ros.sensor_outputs import (
     BatteryOutput, CAMERA_QOS, HeadCameraOutput, ImuOutput, Lidar3dOutput, PointCloudTemplate,
     ScanOutput, SENSOR_QOS)

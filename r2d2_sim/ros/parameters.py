@@ -1,7 +1,7 @@
 """
 The node's parameters on the ROS side: typed declarations from the one table.
 
-:mod:`r2d2_sim.sim.parameters` holds the table and the validation without ROS;
+:mod:`r2d2_sim.sim.settings.table` holds the table and the validation without ROS;
 this declares every entry on a node with its type, description and range, so
 ``ros2 param describe`` shows them, and names overrides that nothing reads.
 Each robot listed in ``robots`` has the parameters it sets as
@@ -15,9 +15,9 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from r2d2_sim.sim.parameters import (
-    Parameter as ParameterSpec, PARAMETERS, PARAMETERS_BY_NAME, SimConfig)
-from r2d2_sim.sim.robot_parameters import parse_world, RobotSpec
+from r2d2_sim.sim.settings.table import Parameter as ParameterSpec, PARAMETERS, PARAMETERS_BY_NAME
+from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.settings.robots import parse_world, RobotSpec
 
 NAMESPACE_SPEC = ParameterSpec(
     'namespace', 'string', '', 'The robot\'s namespace: absolute, or relative to the '

@@ -21,7 +21,7 @@ from r2d2_sim.ros.joint_info import joint_info_json
 from r2d2_sim.ros.mirror import MirroringNode
 from r2d2_sim.ros.outputs import RobotOutputs
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE
-from r2d2_sim.sim.robot import Measurement, Robot
+from r2d2_sim.sim.robots.robot import Measurement, Robot
 from r2d2_sim.ros.tf_outputs import tf_topics
 
 __all__ = ['RobotInterfaces', 'RobotNode', 'DESCRIPTION_QOS']

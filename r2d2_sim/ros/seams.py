@@ -1,78 +1,90 @@
 """
 What the ROS services use of the simulator, typed: the seams between translation and the core.
 
-The services get these at construction and reach nothing else: the
-standard's entity services an :class:`EntityWorld` (the core's
-:class:`~r2d2_sim.sim.simulation.Simulation` is one), the control services
-and the standard's simulation services a :class:`SimulatorControl`, the
-standard's world services a :class:`WorldControl` (the
-:class:`~r2d2_sim.ros.node.SimNode` is both: loading a world pauses it and
-tells ``/clock``), a robot's ``cmd_vel`` a :class:`Commandable` (its
-:class:`~r2d2_sim.sim.robot.Robot`). They are used under the simulator's
-lock, one thread in PyBullet at a time.
+The services get these at construction and reach nothing else. Reads and
+changes are apart, as the core keeps them: the standard's entity services
+read an :class:`EntityReads` (the core's
+:class:`~r2d2_sim.sim.entities.Entities`) and change an
+:class:`EntityChanges` (the core's :class:`~r2d2_sim.sim.simulation.Simulation`);
+its world services read a :class:`WorldReads` (the core's
+:class:`~r2d2_sim.sim.worlds.files.WorldFiles`) and change a
+:class:`WorldChanges` (the :class:`~r2d2_sim.ros.node.SimNode`: loading a
+world pauses it and tells ``/clock``); the control services and the
+standard's simulation services a :class:`SimulatorControl` (the node); a
+robot's ``cmd_vel`` a :class:`Commandable` (its
+:class:`~r2d2_sim.sim.robots.robot.Robot`). They are used under the
+simulator's lock, one thread in PyBullet at a time, except the reads of
+files that change nothing (:meth:`WorldReads.read`, :meth:`EntityReads.read`),
+which a service does before it takes the lock. The core's types are imported
+for the checker only, so that ``cmd_vel`` does not load the world reader.
 """
 
 import threading
-from typing import List, Optional, Protocol, Sequence, Tuple
+from typing import List, Optional, Protocol, Sequence, Tuple, TYPE_CHECKING
 
 from r2d2_sim.model.drive_controller import CommandVerdict
-from r2d2_sim.model.transforms import BaseState
-from r2d2_sim.sim.entities import EntityInfo, SpawnRequest
-from r2d2_sim.sim.entity_bounds import Region
-from r2d2_sim.sim.parameters import SimConfig
-from r2d2_sim.sim.tags import TagsFilter
-from r2d2_sim.sim.world_manifest import NamedPose
-from r2d2_sim.sim.worlds import LoadOptions, World, WorldEntry
 
-__all__ = ['EntityWorld', 'SimulatorControl', 'WorldControl', 'Commandable']
+if TYPE_CHECKING:
+    from r2d2_sim.model.transforms import BaseState
+    from r2d2_sim.sim.bounds import Region
+    from r2d2_sim.sim.entities import EntityInfo, SpawnRequest
+    from r2d2_sim.sim.settings.config import SimConfig
+    from r2d2_sim.sim.spawnables import Spawnable
+    from r2d2_sim.sim.tags import TagsFilter
+    from r2d2_sim.sim.worlds import LoadOptions, NamedPose, World, WorldEntry
+
+__all__ = ['EntityReads', 'EntityChanges', 'SimulatorControl', 'WorldReads', 'WorldChanges',
+           'Commandable']
 
 
-class EntityWorld(Protocol):
-    """The world's entities as the standard sees them: list, read, place, spawn, delete."""
+class EntityReads(Protocol):
+    """The world's entities as the standard reads them: list, state, info, bounds; no change."""
 
-    @property
-    def world_frame_id(self) -> str:
-        """Return the frame entity poses are given in."""
+    world_frame_id: str
+
+    def names(self) -> List[str]:
+        """Return every entity's name."""
+
+    def category(self, name: str) -> int:
+        """Return the standard's EntityCategory of an entity."""
+
+    def info(self, name: str) -> 'EntityInfo':
+        """Return an entity's category, description and tags."""
+
+    def tags(self, name: str) -> Tuple[str, ...]:
+        """Return an entity's tags."""
+
+    def bounds(self, name: str) -> 'Region':
+        """Return the box around an entity's collision shape, in its base link's frame."""
+
+    def state(self, name: str) -> 'BaseState':
+        """Return an entity's pose and twist in the world frame."""
+
+    def overlapping(self, region: 'Region') -> List[str]:
+        """Return the entities whose collision shape meets a region (box, hull, sphere)."""
+
+    def read(self, request: 'SpawnRequest') -> 'Spawnable':
+        """Read what a spawn loads (files, SDF, meshes) without touching the physics."""
+
+
+class EntityChanges(Protocol):
+    """The changes of the world's entities: place, describe, spawn, delete; and time now."""
 
     @property
     def time_ns(self) -> int:
         """Return the simulated time now (ns): the stamp of the states read."""
 
-    def entity_names(self) -> List[str]:
-        """Return every entity's name."""
-
-    def entity_category(self, name: str) -> int:
-        """Return the standard's EntityCategory of an entity."""
-
-    def entity_source(self, name: str) -> str:
-        """Return where an entity's description came from."""
-
-    def entity_info(self, name: str) -> EntityInfo:
-        """Return an entity's category, description and tags."""
-
     def set_entity_info(self, name: str, category: int, description: str,
                         tags: Sequence[str]) -> None:
         """Set an entity's category, description and tags."""
-
-    def entity_tags(self, name: str) -> Tuple[str, ...]:
-        """Return an entity's tags."""
-
-    def entity_bounds(self, name: str) -> Region:
-        """Return the box around an entity's collision shape, in its base link's frame."""
-
-    def entity_state(self, name: str) -> BaseState:
-        """Return an entity's pose and twist in the world frame."""
 
     def set_entity_state(self, name: str, frame_id: str, position: Sequence[float],
                          orientation: Sequence[float], linear: Sequence[float],
                          angular: Sequence[float]) -> None:
         """Place an entity at a pose in ``frame_id`` with a world-frame twist."""
 
-    def entities_overlapping(self, region: Region) -> List[str]:
-        """Return the entities whose collision shape meets a region (box, hull, sphere)."""
-
-    def spawn(self, request: SpawnRequest) -> str:
-        """Spawn an entity (a driven robot with a namespace); return its name."""
+    def spawn(self, request: 'SpawnRequest', spawnable: 'Optional[Spawnable]' = None) -> str:
+        """Spawn an entity (a driven robot with a namespace), read beforehand; return its name."""
 
     def delete_entity(self, name: str) -> None:
         """Delete an entity, and the robot it is if it is one."""
@@ -82,7 +94,7 @@ class SimulatorControl(Protocol):
     """Pausing, stepping and resetting the simulation, under ``lock``."""
 
     lock: threading.RLock
-    config: SimConfig
+    config: 'SimConfig'
 
     @property
     def paused(self) -> bool:
@@ -122,30 +134,38 @@ class SimulatorControl(Protocol):
         """Reset what is asked (the standard's scopes)."""
 
 
-class WorldControl(Protocol):
-    """The world around the robots: listed, loaded, unloaded; its named poses. Under ``lock``."""
+class WorldReads(Protocol):
+    """The world files: which is loaded, which can be, named poses; reading one changes nothing."""
+
+    @property
+    def current(self) -> 'Optional[World]':
+        """Return the world loaded now; None after UnloadWorld."""
+
+    def available(self, additional_sources: Sequence[str], tags: 'TagsFilter',
+                  offline_only: bool, continue_on_error: bool
+                  ) -> 'Tuple[List[WorldEntry], str]':
+        """Return the worlds that can be loaded and a note of what was left out."""
+
+    def named_poses(self, tags: 'TagsFilter') -> 'List[NamedPose]':
+        """Return the world's named poses whose tags pass the filter."""
+
+    def named_pose(self, name: str) -> 'NamedPose':
+        """Return one named pose (RefusedError NOT_FOUND)."""
+
+    def read(self, uri: str, resource_string: str, options: 'LoadOptions') -> 'World':
+        """Read and check a world LoadWorld names, without changing anything."""
+
+
+class WorldChanges(Protocol):
+    """Loading and unloading the world around the robots, under ``lock``."""
 
     lock: threading.RLock
 
-    def available_worlds(self, additional_sources: Sequence[str], tags: TagsFilter,
-                         offline_only: bool, continue_on_error: bool
-                         ) -> Tuple[List[WorldEntry], str]:
-        """Return the worlds that can be loaded and a note of what was left out."""
-
-    def load_world(self, uri: str, resource_string: str, options: LoadOptions) -> World:
-        """Load a world in place of the current one, stopped at time 0; return it."""
+    def load_world(self, world: 'World') -> 'World':
+        """Load a world read beforehand in place of the current one, stopped at time 0."""
 
     def unload_world(self) -> None:
         """Unload the world (NO_WORLD until another is loaded)."""
-
-    def current_world(self) -> Optional[World]:
-        """Return the world loaded now; None after UnloadWorld."""
-
-    def named_poses(self, tags: TagsFilter) -> List[NamedPose]:
-        """Return the world's named poses whose tags pass the filter."""
-
-    def named_pose(self, name: str) -> NamedPose:
-        """Return one named pose (RefusedError NOT_FOUND)."""
 
 
 class Commandable(Protocol):

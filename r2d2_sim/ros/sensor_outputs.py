@@ -29,8 +29,8 @@ from r2d2_sim.model.camera import CameraIntrinsics
 from r2d2_sim.model.sensors import ImuModel, ImuReading, LidarGeometry, ScanGeometry
 from r2d2_sim.model.timing import stamp_of
 from r2d2_sim.ros.serialization import MessageTemplate
-from r2d2_sim.sim.parameters import SimConfig
-from r2d2_sim.sim.sensor_mounts import (
+from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.robots.sensors import (
     CameraImage, HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
 
 __all__ = ['CAMERA_QOS', 'SENSOR_QOS', 'HeadCameraOutput', 'ScanOutput', 'ImuOutput',

@@ -4,7 +4,7 @@ TF for one robot: ``/tf`` every state publication, ``/tf_static`` once (transien
 With ``tf_layout`` namespaced, ``tf`` and ``tf_static`` in the robot's
 namespace instead (:func:`tf_topics`), as Nav2's multi-robot launch remaps them.
 
-Like the other outputs, these only translate a :class:`~r2d2_sim.sim.robot.Frame`
+Like the other outputs, these only translate a :class:`~r2d2_sim.sim.robots.robot.Frame`
 into bytes: odom -> base_footprint from wheel odometry, optionally world ->
 odom (the truth) and the URDF's moving joints; the static frames (footprint,
 sensor mounts, fixed joints, the camera's optical frame) once at start-up.
@@ -17,9 +17,10 @@ from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
-from r2d2_sim.sim.parameters import ConfigError, SimConfig
-from r2d2_sim.sim.robot import Frame, Robot
-from r2d2_sim.sim.sensor_mounts import (
+from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.robots.robot import Frame, Robot
+from r2d2_sim.sim.robots.sensors import (
     HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
 from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.model.timing import stamp_of

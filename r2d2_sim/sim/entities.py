@@ -23,9 +23,10 @@ from r2d2_sim.model.transforms import (
     BaseState, compose, quaternion_multiply, Quaternion as Quat, rotate, Transform,
     Vector3 as Vec3)
 from r2d2_sim.physics.description import DescriptionFile
-from r2d2_sim.sim.entity_bounds import body_box, body_meets, check_region, Region
+from r2d2_sim.sim.names import MAX_NAME_LENGTH, NAME
+from r2d2_sim.sim.bounds import body_box, body_meets, check_region, Region
 from r2d2_sim.sim.sdf.loading import SdfSettings
-from r2d2_sim.sim.spawnables import read_spawnable
+from r2d2_sim.sim.spawnables import read_spawnable, Spawnable
 from r2d2_sim.sim.tags import check_description_text, check_tags
 
 if TYPE_CHECKING:  # typing only: the testing API imports this module without PyBullet
@@ -35,15 +36,13 @@ __all__ = ['Category', 'EntityInfo', 'SpawnRequest', 'Spawned', 'Entities', 'che
            'name_filter', 'MAX_SPAWNED', 'MAX_NAME_LENGTH', 'MAX_FILTER_LENGTH', 'NAME']
 
 MAX_SPAWNED = 100
-# An entity's name, and a name filter, as long as a request may make them: every
-# name is matched against every filter a peer sends.
-MAX_NAME_LENGTH = 255
+# A name filter as long as a request may make it: every name is matched against
+# every filter a peer sends (names are at most names.MAX_NAME_LENGTH).
 MAX_FILTER_LENGTH = 1000
 # What RE2 may take to compile one filter (bytes); a bigger program is refused.
 FILTER_MEMORY_BYTES = 8 << 20
 # A unit quaternion, give or take rounding in a client's arithmetic.
 QUATERNION_NORM_TOLERANCE = 1e-3
-NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_\-]*\Z')
 
 
 class Category:
@@ -240,8 +239,20 @@ class Entities:
                              rotate(frame.rotation, linear), rotate(frame.rotation, angular))
         return body
 
+    def read(self, request: SpawnRequest) -> Spawnable:
+        """
+        Read what a spawn request loads, checked, without touching the physics: a Spawnable.
+
+        The slow part of a spawn (files, an SDF model's includes and meshes
+        converted, a URDF written): a caller may do it outside the simulator's
+        lock and hand the result to :meth:`spawn`, which closes it. RefusedError
+        with the standard's codes (see :func:`~r2d2_sim.sim.spawnables.read_spawnable`).
+        """
+        return read_spawnable(request.uri, request.resource_string, self.sdf)
+
     def spawn(self, request: SpawnRequest, *, flags: int = 0,
-              body_yaw_offset_rad: float = 0.0) -> Spawned:
+              body_yaw_offset_rad: float = 0.0,
+              spawnable: Optional[Spawnable] = None) -> Spawned:
         """
         Load a URDF or an SDF model at a pose (of its base link, or SDF model frame, exactly).
 
@@ -251,15 +262,23 @@ class Entities:
         refused unless ``allow_renaming`` (then ``_1``, ``_2``...).
         ``flags`` go to loadURDF (a driven robot's: true cylinders, inertias
         from the file); ``body_yaw_offset_rad`` turns its body frame from the
-        URDF base (a robot that drives along its base y).
+        URDF base (a robot that drives along its base y). ``spawnable`` is
+        the request read beforehand (:meth:`read`), else it is read here; it
+        is closed when the spawn is refused.
         """
-        if sum(body.spawned for body in self._world.bodies.values()) >= MAX_SPAWNED:
-            raise RefusedError('OPERATION_FAILED', f'{MAX_SPAWNED} entities are spawned '
-                                                   'already: delete some first')
-        orientation = check_pose(request.position, request.orientation)
-        pose = compose(self.frame_pose(request.frame_id),
-                       Transform(tuple(request.position), orientation))
-        spawnable = read_spawnable(request.uri, request.resource_string, self.sdf)
+        try:
+            if sum(body.spawned for body in self._world.bodies.values()) >= MAX_SPAWNED:
+                raise RefusedError('OPERATION_FAILED', f'{MAX_SPAWNED} entities are spawned '
+                                                       'already: delete some first')
+            orientation = check_pose(request.position, request.orientation)
+            pose = compose(self.frame_pose(request.frame_id),
+                           Transform(tuple(request.position), orientation))
+        except RefusedError:
+            if spawnable is not None and spawnable.file is not None:
+                spawnable.file.close()
+            raise
+        if spawnable is None:
+            spawnable = self.read(request)
         text_file = spawnable.file
         if spawnable.sdf:
             pose = compose(pose, spawnable.base)
@@ -311,10 +330,33 @@ class Entities:
         if text_file is not None:
             text_file.close()
 
+    def source(self, name: str) -> str:
+        """Return where an entity's description came from (a path, a URI, 'resource_string')."""
+        return self.body(name).source
+
+    def category(self, name: str) -> int:
+        """Return an entity's category: as set (a robot: ROBOT), else STATIC_ or DYNAMIC_OBJECT."""
+        info = self._info.get(name)
+        body = self.body(name)
+        if info is not None and info.category is not None:
+            return info.category
+        return Category.STATIC_OBJECT if body.static else Category.DYNAMIC_OBJECT
+
     def info(self, name: str) -> EntityInfo:
-        """Return an entity's info as set (NOT_FOUND for no such entity)."""
+        """Return GetEntityInfo's answer: category, description (as set, else the source), tags."""
+        info = self._info.get(name, EntityInfo())
+        description = info.description if info.description is not None else self.source(name)
+        return EntityInfo(self.category(name), description, info.tags)
+
+    def tags(self, name: str) -> Tuple[str, ...]:
+        """Return an entity's tags."""
         self.body(name)
-        return self._info.get(name, EntityInfo())
+        return self._info.get(name, EntityInfo()).tags
+
+    def mark(self, name: str, info: EntityInfo) -> None:
+        """Give an entity the info it starts with (a robot's category, its tags)."""
+        self.body(name)
+        self._info[name] = info
 
     def set_info(self, name: str, category: int, description: str,
                  tags: Sequence[str]) -> None:

@@ -249,7 +249,7 @@ def ground_region(pose) -> Region:
     """
     Return a named pose's bounds seen from above, in the world frame: where "at the pose" is.
 
-    ``pose``: a :class:`~r2d2_sim.sim.world_manifest.NamedPose` with bounds
+    ``pose``: a :class:`~r2d2_sim.sim.worlds.manifest.NamedPose` with bounds
     (relative to the pose). A sphere is the circle of its radius around its
     centre; a box or a convex hull the convex polygon of its corners.
     ValueError (one line) for a pose without bounds: it has no area to reach.
@@ -274,7 +274,7 @@ def ground_region(pose) -> Region:
 
 def _named_region(simulation, name: str) -> Region:
     """Return the ground region of the current world's named pose ``name``; ValueError if none."""
-    world = simulation.world_file
+    world = simulation.worlds.current
     if world is None:
         raise ValueError(f'no world is loaded: no named pose {name!r}')
     try:

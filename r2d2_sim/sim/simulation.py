@@ -25,29 +25,33 @@ The world around the robots is a file (:mod:`r2d2_sim.sim.worlds`): the
 none after :meth:`Simulation.unload_world`. Its named poses are frames a
 spawn or a teleport may be given in.
 
-This module holds the step, the reset and the robots' watchers; the two
-other concepts of the class are mixed in from modules of their own: the
-entities, asked about, spawned and deleted
-(:mod:`~r2d2_sim.sim.simulation_entities`), and the world file, loaded and
-unloaded (:mod:`~r2d2_sim.sim.simulation_worlds`). Every attribute is set in
+Questions that change nothing go to the parts that own the data, which the
+Simulation composes: :attr:`Simulation.entities` (the standard's entities:
+names, states, info, bounds; :class:`~r2d2_sim.sim.entities.Entities`) and
+:attr:`Simulation.worlds` (the world loaded, the worlds available, named
+poses; :class:`~r2d2_sim.sim.worlds.files.WorldFiles`). Both also read a
+spawn's or a world's files without changing anything, so that a caller can
+do that slow part outside the simulator's lock. Every attribute is set in
 ``Simulation.__init__``.
 """
 
-from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
+from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple, Union
 
+from r2d2_sim.errors import RefusedError, SetupError, WorldError
 from r2d2_sim.model.timing import StepClock, StepSchedule
+from r2d2_sim.model.transforms import Transform, yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.world import SimWorld
-from r2d2_sim.sim.entities import Entities, EntityInfo, SpawnRequest
-from r2d2_sim.sim.launch import Launch, robot_starts
+from r2d2_sim.sim.entities import Category, Entities, EntityInfo, SpawnRequest
+from r2d2_sim.sim.robots.robot import Frame, Measurement, Robot
 from r2d2_sim.sim.sdf.loading import SdfSettings
-from r2d2_sim.sim.parameters import SimConfig
-from r2d2_sim.sim.robot import Frame, Measurement, Robot
-from r2d2_sim.sim.robot_parameters import RobotSpec
-from r2d2_sim.sim.simulation_entities import SimulationEntities
-from r2d2_sim.sim.simulation_worlds import SimulationWorlds
-from r2d2_sim.sim.world_places import Places
-from r2d2_sim.sim.worlds import World
+from r2d2_sim.sim.settings.readers import namespace as read_namespace
+from r2d2_sim.sim.settings.robots import resolve_namespace, robot_config, RobotSpec
+from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.spawnables import Spawnable
+from r2d2_sim.sim.startup import docked, Rebuilt, robot_starts, Startup
+from r2d2_sim.sim.worlds import empty_world, LoadOptions, Places, World, WorldFiles
 
 # Frame and Measurement are the core's data, defined beside the robot that measures them.
 __all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest', 'EntityInfo',
@@ -73,7 +77,7 @@ def _ignore(text: str) -> None:
     pass
 
 
-class Simulation(SimulationEntities, SimulationWorlds):
+class Simulation:
     """
     The world, its robots and the step schedule.
 
@@ -82,10 +86,11 @@ class Simulation(SimulationEntities, SimulationWorlds):
     (resolved under ``namespace``, the simulator's own). Without them the
     world has one robot, named after its URDF, with ``config``'s settings, in
     ``namespace`` itself. More robots join through :meth:`spawn` and leave
-    through :meth:`delete_entity`. ``warn`` and ``error`` receive one-line
-    reports (the node logs them, throttled); they default to silence. Raises a
-    SetupError subclass (ConfigError, WorldError...) when the configuration
-    cannot be simulated.
+    through :meth:`delete_entity`. ``entities`` and ``worlds`` answer what
+    changes nothing. ``warn`` and ``error`` receive one-line reports (the
+    node logs them, throttled); they default to silence. Raises a SetupError
+    subclass (ConfigError, WorldError...) when the configuration cannot be
+    simulated.
     """
 
     def __init__(self, config: SimConfig, robots: Sequence[RobotSpec] = (),
@@ -105,21 +110,19 @@ class Simulation(SimulationEntities, SimulationWorlds):
         self._watchers: List[RobotsWatcher] = []
         # Told the simulated time after each step (oracles.RunWatch): none by default.
         self._step_watchers: List[Callable[[int], None]] = []
-        self.places = Places(config.world_paths)
         # What SDF worlds and spawns are searched and compared with.
-        self.sdf = SdfSettings(tuple(config.model_paths), self.time_step_s,
-                               tuple(config.gravity_m_s2), config.ground_plane,
-                               config.strict_worlds)
-        # The world file loaded (the empty world for world ''); None after unload_world.
-        self.world_file: Optional[World] = None
+        sdf = SdfSettings(tuple(config.model_paths), self.time_step_s,
+                          tuple(config.gravity_m_s2), config.ground_plane, config.strict_worlds)
+        # The world file loaded (the empty world for world ''), the ones that can be.
+        self.worlds = WorldFiles(Places(config.world_paths), sdf, self.time_step_s)
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
                               gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
-        self.entities = Entities(self.world, config.world_frame_id, self.sdf)
+        self.entities = Entities(self.world, config.world_frame_id, sdf)
         # What a full reset builds again: every start-up entity, in load order.
-        self._launch = Launch(self.world, warn, error)
+        self._startup = Startup(self.world, warn, error)
         try:
-            world_file = self._start_world(config.world)
-            self.robots, self.models = self._launch.load(
+            world_file = self.worlds.read_start(config.world)
+            self.robots, self.models = self._startup.load(
                 config, robot_starts(config, robots, namespace), world_file)
             self._world_loaded(world_file)
         except Exception:
@@ -254,7 +257,7 @@ class Simulation(SimulationEntities, SimulationWorlds):
             self.entities.delete_spawned()
             changed = True
         if state:
-            rebuilt = self._launch.rebuild(self.robots, as_launched=time and spawned)
+            rebuilt = self._startup.rebuild(self.robots, as_launched=time and spawned)
             for name in rebuilt.dropped:
                 self.entities.dropped(name)
             self.robots = rebuilt.robots
@@ -265,7 +268,7 @@ class Simulation(SimulationEntities, SimulationWorlds):
         if time:
             self._restart_time()
         if time and state and spawned:
-            self.entities.restore_info(self._launch.infos())
+            self.entities.restore_info(self._startup.infos())
         if changed:
             self._robots_changed()
         self.pristine = time and state and spawned
@@ -279,11 +282,227 @@ class Simulation(SimulationEntities, SimulationWorlds):
         for robot in self.robots:
             robot.restart_time(steps_back)
 
+    # -- the entities: placed, described, spawned, deleted ---------------------------------
+
+    def set_entity_state(self, name: str, frame_id: str, position: Sequence[float],
+                         orientation: Sequence[float], linear: Sequence[float],
+                         angular: Sequence[float]) -> None:
+        """Place an entity (see :meth:`Entities.set_state <r2d2_sim.sim.entities.Entities>`)."""
+        body = self.entities.set_state(name, frame_id, position, orientation, linear, angular)
+        self.pristine = False
+        for robot in self.robots:
+            if robot.body is body:
+                robot.teleported()  # its IMU must not take the jump for an acceleration
+
+    def set_entity_info(self, name: str, category: int, description: str,
+                        tags: Sequence[str]) -> None:
+        """Set an entity's category (a label), description and tags (SetEntityInfo)."""
+        self.entities.set_info(name, category, description, tags)
+
+    def spawn(self, request: SpawnRequest, spawnable: Optional[Spawnable] = None) -> str:
+        """
+        Spawn an entity as the standard asks (:class:`SpawnRequest`); return its name.
+
+        With a ``namespace`` it is a driven robot with the world's robot
+        settings, its odometry starting at its pose: RefusedError
+        NAMESPACE_INVALID for a malformed or taken namespace (or the
+        simulator's own), NAME_NOT_UNIQUE when its frames would be another
+        robot's, OPERATION_FAILED when the world's settings cannot drive it or
+        a watcher refuses it. Without one, a plain entity, free of Bullet's
+        default damping as the start-up models are. Refusals leave the world
+        as it was. ``spawnable``: the request's files read beforehand
+        (``simulation.entities.read(request)``, which needs no lock).
+        """
+        if not request.namespace:
+            body, _, notes = self.entities.spawn(request, spawnable=spawnable)
+            body.drop_damping()  # a free body keeps its speed, as in Gazebo and Isaac Sim
+            self.pristine = False
+            if notes:
+                self._warn(f'{body.name}: {notes}')
+            return body.name
+        try:
+            namespace = self._free_namespace(request.namespace)
+        except RefusedError:
+            if spawnable is not None and spawnable.file is not None:
+                spawnable.file.close()
+            raise
+        body, description, notes = self.entities.spawn(
+            request, flags=self.world.robot_flags,
+            body_yaw_offset_rad=self.config.body_yaw_offset_rad, spawnable=spawnable)
+        if notes:
+            self._warn(f'{body.name}: {notes}')
+        base = body.world_state()
+        try:
+            config = docked(robot_config(self.config, body.name, {
+                'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]}),
+                self.worlds.current, self._named_warn(body.name))
+            self._check_frames_free(body.name, config)
+            robot = Robot(self.world, body, config, body.source, description,
+                          warn=self._named_warn(body.name), error=self._error,
+                          namespace=namespace)
+        except RefusedError:
+            self.entities.delete(body.name)
+            raise
+        except SetupError as exc:
+            self.entities.delete(body.name)
+            raise RefusedError('OPERATION_FAILED',
+                               f'{body.name} cannot be driven: {exc}') from None
+        self.entities.mark(body.name, EntityInfo(Category.ROBOT))
+        self.robots.append(robot)
+        self.pristine = False
+        try:
+            self._robots_changed()
+        except Exception as exc:
+            self._delete(robot.name)
+            self._robots_changed()
+            if isinstance(exc, ConfigError):
+                raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
+            raise
+        return robot.name
+
+    def _free_namespace(self, namespace: str) -> str:
+        """Return a spawned robot's namespace, resolved; NAMESPACE_INVALID if it cannot be."""
+        try:
+            resolved = resolve_namespace(self.namespace,
+                                         read_namespace('entity_namespace', namespace))
+        except ConfigError as exc:
+            raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
+        if resolved == self.namespace:
+            raise RefusedError('NAMESPACE_INVALID', f'{resolved} is the simulator\'s own '
+                                                    'namespace: give the robot one of its own')
+        for robot in self.robots:
+            if robot.namespace == resolved:
+                raise RefusedError('NAMESPACE_INVALID', f'robot {robot.name} has the '
+                                                        f'namespace {resolved} already')
+        return resolved
+
+    def _check_frames_free(self, name: str, config: SimConfig) -> None:
+        """Refuse a robot whose frames would be another's on the shared /tf."""
+        if config.tf_layout != 'shared':
+            return
+        for robot in self.robots:
+            if robot.config.frame_prefix == config.frame_prefix:
+                raise RefusedError('NAME_NOT_UNIQUE', f'robot {robot.name} publishes its frames '
+                                   f'with the prefix {config.frame_prefix!r} already: name the '
+                                   'new robot otherwise')
+
+    def delete_entity(self, name: str) -> None:
+        """
+        Delete any entity, and the robot it is if it is one (its watchers are told).
+
+        Start-up entities too (the ground plane, a model, a start-up robot):
+        a full reset brings them back as they were loaded.
+        """
+        self._delete(name)
+        self._robots_changed()
+
+    def _delete(self, name: str) -> None:
+        body = self.entities.body(name)  # NOT_FOUND before anything changes
+        self.entities.delete(name)
+        self._forget_robots([r for r in self.robots if r.body is body])
+        if body in self.models:
+            self.models.remove(body)
+        self.pristine = False
+
+    # -- the world file: loaded, unloaded --------------------------------------------------
+
+    def load_world(self, world: Union[str, World], resource_string: str = '',
+                   options: LoadOptions = LoadOptions()) -> World:
+        """
+        Load a world in place of the current one, as LoadWorld asks; return it.
+
+        ``world`` is a URI (read here with ``resource_string`` and
+        ``options``: :meth:`WorldFiles.read <r2d2_sim.sim.worlds.files.WorldFiles.read>`)
+        or a world read beforehand with ``simulation.worlds.read``, which
+        touches no physics and needs no lock. Everything is read and checked
+        first, so a refusal leaves the world exactly as it was. Then the world
+        is built as launched with the new world: spawned entities gone, the
+        start-up robots (deleted ones too) at its start pose, the ground and
+        ``extra_models`` as at start-up, time at 0 and nothing changed since
+        (STOPPED, once the caller pauses). RefusedError with LoadWorld's codes;
+        OPERATION_FAILED for a model named like a robot or a start-up model.
+        """
+        world_file = self.worlds.read(world, resource_string, options) \
+            if isinstance(world, str) else world
+        try:
+            self._check_names(world_file)
+        except BaseException:
+            world_file.close()
+            raise
+        self._switch(world_file)
+        return world_file
+
+    def unload_world(self) -> None:
+        """
+        Unload the world: its models and named poses leave, and every spawned entity.
+
+        The ground, the robots and ``extra_models`` stay, built again as
+        launched with no world, at time 0; ``worlds.is_loaded`` is False
+        until a world is loaded (the standard's NO_WORLD). RefusedError
+        NO_WORLD_LOADED when none is.
+        """
+        if not self.worlds.is_loaded:
+            raise RefusedError('NO_WORLD_LOADED', 'no world is loaded')
+        self._switch(empty_world())
+        self._world_loaded(None)
+
+    def _world_loaded(self, world_file: Optional[World]) -> None:
+        """Take ``world_file`` as the world now: its named poses, each entity's start-up info."""
+        if world_file is not None and world_file is not self.worlds.current and world_file.notes:
+            self._warn(f'world {world_file.name}: {"; ".join(world_file.notes)}')
+        self.worlds.take(world_file)
+        poses = world_file.named_poses if world_file is not None else ()
+        self.entities.named_frames = {p.name: Transform(p.position, p.orientation)
+                                      for p in poses}
+        self.entities.restore_info(self._startup.infos())
+
+    def _check_names(self, world_file: World) -> None:
+        """Refuse a world whose models would take a start-up entity's name."""
+        taken = set(self._startup.names())
+        for model in world_file.models:
+            if model.name is not None and model.name in taken:
+                raise RefusedError('OPERATION_FAILED', f'the world\'s model {model.name!r} '
+                                   'would take the name of one of the simulator\'s own '
+                                   'entities (a robot, the ground plane, extra_models)')
+
+    def _switch(self, world_file: World) -> None:
+        """Build the world as launched with ``world_file``: spawned ones gone, time at 0."""
+        self._forget_robots([r for r in self.robots if r.body.spawned])
+        for name, body in list(self.world.bodies.items()):
+            if body.spawned:
+                self.entities.dropped(name)
+        for name in [n for n in self.world.bodies if n not in self._startup.names()]:
+            self.entities.dropped(name)  # the old world's models: their info goes with them
+        try:
+            rebuilt = self._startup.switch(world_file, self.robots)
+        except WorldError as exc:
+            # Only a file changed between the check and the load gets here.
+            self._error(f'the world {world_file.name} could not be built ({exc}): building the '
+                        'previous one again, as launched')
+            world_file.close()
+            self._take(self._startup.rebuild([], as_launched=True))
+            self.entities.restore_info(self._startup.infos())
+            raise RefusedError('OPERATION_FAILED', f'the world could not be built: {exc}; the '
+                                                   'previous world was built again as '
+                                                   'launched') from None
+        self._take(rebuilt)
+        self._world_loaded(world_file)
+
+    def _take(self, rebuilt: Rebuilt) -> None:
+        """Take a rebuilt world's robots and models, time at 0, and tell the robots' watchers."""
+        for robot in self.robots:
+            if robot not in rebuilt.robots:
+                robot.close()  # a second close of a robot the start-up closed does nothing
+        self.robots = rebuilt.robots
+        self.models = rebuilt.models if rebuilt.models is not None else self.models
+        self._restart_time()
+        self.pristine = True
+        self._robots_changed()
+
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice."""
         for robot in self.robots:
             robot.close()
         self.entities.close()
-        if self.world_file is not None:
-            self.world_file.close()
+        self.worlds.close()
         self.world.close()

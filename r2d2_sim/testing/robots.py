@@ -20,7 +20,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
-from r2d2_sim.sim.robot_parameters import robot_namespaces
+from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.lockstep import TakenOnDemand
 from r2d2_sim.testing.tf import TransformLookup

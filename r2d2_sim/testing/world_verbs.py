@@ -8,9 +8,9 @@ calls the simulation core in its own process (no interface package needed),
 in both (a :class:`~r2d2_sim.testing.standard.StandardError` through the
 services), its ``code`` the standard's result name (``NOT_FOUND``,
 ``NAME_NOT_UNIQUE``...). Both return the same plain records:
-:class:`~r2d2_sim.sim.world_manifest.NamedPose`,
+:class:`~r2d2_sim.sim.worlds.manifest.NamedPose`,
 :class:`~r2d2_sim.sim.worlds.WorldEntry`, :class:`~r2d2_sim.sim.entities.EntityInfo`
-and :class:`~r2d2_sim.sim.entity_bounds.Region`.
+and :class:`~r2d2_sim.sim.bounds.Region`.
 """
 
 import math
@@ -19,9 +19,9 @@ from typing import List, Optional, Sequence
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import BaseState
 from r2d2_sim.sim.entities import EntityInfo, SpawnRequest
-from r2d2_sim.sim.entity_bounds import Region, REGION_KINDS
+from r2d2_sim.sim.bounds import Region, REGION_KINDS
 from r2d2_sim.sim.tags import FILTER_MODE_ALL, FILTER_MODE_ANY, TagsFilter
-from r2d2_sim.sim.world_manifest import NamedPose
+from r2d2_sim.sim.worlds import NamedPose
 from r2d2_sim.sim.worlds import WorldEntry
 
 __all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'NamedPose', 'WorldEntry',
@@ -66,14 +66,16 @@ class CoreWorld:
 
     def spawn(self, uri, resource_string, name, position, orientation, allow_renaming,
               namespace='', frame_id='') -> str:
+        simulation = self._node.simulation
+        request = SpawnRequest(name, allow_renaming, uri, resource_string, namespace, frame_id,
+                               position, orientation)
+        spawnable = simulation.entities.read(request)  # files first, without the lock
         with self._node.lock:
-            return self._node.simulation.spawn(SpawnRequest(
-                name, allow_renaming, uri, resource_string, namespace, frame_id, position,
-                orientation))
+            return simulation.spawn(request, spawnable)
 
     def entity_state(self, name: str) -> BaseState:
         with self._node.lock:
-            return self._node.simulation.entity_state(name)
+            return self._node.simulation.entities.state(name)
 
     def set_entity_state(self, name, position, orientation, linear, angular,
                          frame_id='') -> None:
@@ -83,7 +85,7 @@ class CoreWorld:
 
     def entity_info(self, name: str) -> EntityInfo:
         with self._node.lock:
-            return self._node.simulation.entity_info(name)
+            return self._node.simulation.entities.info(name)
 
     def set_entity_info(self, name, category, description, tags) -> None:
         with self._node.lock:
@@ -91,7 +93,7 @@ class CoreWorld:
 
     def entity_bounds(self, name: str) -> Region:
         with self._node.lock:
-            return self._node.simulation.entity_bounds(name)
+            return self._node.simulation.entities.bounds(name)
 
     def load_world(self, uri: str, resource_string: str) -> WorldEntry:
         world = self._node.load_world(uri, resource_string)
@@ -102,7 +104,7 @@ class CoreWorld:
         self._node.unload_world()
 
     def current_world(self) -> Optional[WorldEntry]:
-        world = self._node.current_world()
+        world = self._node.simulation.worlds.current
         if world is None:
             return None
         return WorldEntry(world.name, world.uri or world.resource_string, world.description,
@@ -110,11 +112,11 @@ class CoreWorld:
 
     def available_worlds(self, tags: TagsFilter) -> List[WorldEntry]:
         with self._node.lock:
-            return self._node.available_worlds(tags=tags)[0]
+            return self._node.simulation.worlds.available(tags=tags)[0]
 
     def named_poses(self, tags: TagsFilter) -> List[NamedPose]:
         with self._node.lock:
-            return self._node.named_poses(tags)
+            return self._node.simulation.worlds.named_poses(tags)
 
     def delete(self, name: str) -> None:
         with self._node.lock:
@@ -122,7 +124,7 @@ class CoreWorld:
 
     def entities(self) -> List[str]:
         with self._node.lock:
-            return self._node.simulation.entity_names()
+            return self._node.simulation.entities.names()
 
     def reset(self, time: bool, state: bool, spawned: bool) -> None:
         if not self._node.world_is_loaded:  # as the standard's reset_simulation answers

@@ -16,7 +16,8 @@ import pytest
 import yaml
 
 from helpers import REPO
-from r2d2_sim.sim.parameters import parse_config, PARAMETERS_BY_NAME
+from r2d2_sim.sim.settings.table import PARAMETERS_BY_NAME
+from r2d2_sim.sim.settings.config import parse_config
 from r2d2_sim.testing import SimHarness
 
 LAUNCH = Path(REPO) / 'launch' / 'sim.launch.xml'

@@ -22,8 +22,8 @@ import time
 import pytest
 
 from common import EXAMPLE_FILES
-from r2d2_sim.sim.parameter_docs import render_parameter_reference
-from r2d2_sim.sim.parameters import PARAMETERS
+from r2d2_sim.sim.settings.reference import render_parameter_reference
+from r2d2_sim.sim.settings.table import PARAMETERS
 
 REPO = Path(__file__).resolve().parents[2]
 DOCS = REPO / 'docs'
@@ -49,7 +49,8 @@ def test_parameter_reference_is_the_table_rendered():
     """docs/parameters.md is render_parameter_reference() of today's table."""
     page = (DOCS / 'parameters.md').read_text(encoding='utf-8')
     assert page == render_parameter_reference(), (
-        'docs/parameters.md is stale: python -m r2d2_sim.sim.parameter_docs docs/parameters.md')
+        'docs/parameters.md is stale: '
+        'python -m r2d2_sim.sim.settings.reference docs/parameters.md')
 
 
 @pytest.mark.parametrize('change', [

@@ -12,7 +12,10 @@ nothing of it. Two checks:
   PyBullet either);
 - every import of the package in every module of it (at the top or inside a
   function, absolute or relative) names a module of the same layer or a lower
-  one: read with ``ast``, nothing is imported.
+  one: read with ``ast``, nothing is imported;
+- no modules import each other in a circle, through imports at the top or
+  inside functions (a circle through a function-level import is still two
+  modules that cannot be understood apart).
 
 Both checkers are also run on a small package written for the purpose, with a
 module of each kind of fault, to prove that they find what they look for.
@@ -26,6 +29,7 @@ from pathlib import Path
 import subprocess
 import sys
 import textwrap
+from typing import Dict, List, Set, Tuple
 
 import pytest
 
@@ -118,6 +122,76 @@ def layer_violations(root: Path, package: str) -> list:
     return found
 
 
+def _module_of(path: Path, root: Path) -> Tuple[str, bool]:
+    parts = path.relative_to(root).with_suffix('').parts
+    is_package = parts[-1] == '__init__'
+    return '.'.join(parts[:-1] if is_package else parts), is_package
+
+
+def import_graph(root: Path, package: str) -> Dict[str, Set[str]]:
+    """
+    Return each module of ``package`` with the modules of it that it imports, anywhere in it.
+
+    ``from a.b import c`` imports the module ``a.b.c`` when there is one, else ``a.b``.
+    """
+    paths = sorted((root / package).rglob('*.py'))
+    modules = {_module_of(path, root)[0] for path in paths}
+    graph: Dict[str, Set[str]] = {}
+    for path in paths:
+        module, is_package = _module_of(path, root)
+        targets = graph.setdefault(module, set())
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = imported_modules(node, module, is_package)
+                base_name = base[0] if base else ''
+                if node.level == 0 and node.module:
+                    base_name = node.module
+                names = [f'{base_name}.{alias.name}' if f'{base_name}.{alias.name}' in modules
+                         else base_name for alias in node.names]
+            else:
+                continue
+            targets.update(name for name in names if name in modules and name != module)
+    return graph
+
+
+def import_circles(root: Path, package: str) -> List[List[str]]:
+    """Return every circle of modules that import each other (Tarjan's components), sorted."""
+    graph = import_graph(root, package)
+    index: Dict[str, int] = {}
+    low: Dict[str, int] = {}
+    stack: List[str] = []
+    on_stack: Set[str] = set()
+    circles: List[List[str]] = []
+
+    def visit(module: str) -> None:
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        on_stack.add(module)
+        for target in sorted(graph[module]):
+            if target not in index:
+                visit(target)
+                low[module] = min(low[module], low[target])
+            elif target in on_stack:
+                low[module] = min(low[module], index[target])
+        if low[module] == index[module]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == module:
+                    break
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    for module in sorted(graph):
+        if module not in index:
+            visit(module)
+    return sorted(circles)
+
+
 # -- the package itself ----------------------------------------------------------------
 
 
@@ -136,6 +210,11 @@ def test_every_import_goes_to_the_same_layer_or_a_lower_one():
     A module outside every layer (a new folder or top-level module) is reported too.
     """
     assert layer_violations(Path(REPO), PACKAGE) == []
+
+
+def test_no_modules_import_each_other_in_a_circle():
+    """No circle of imports in the package, function-level imports included."""
+    assert import_circles(Path(REPO), PACKAGE) == []
 
 
 # -- each check can fail ---------------------------------------------------------------
@@ -165,6 +244,28 @@ FAULTY = {
     'fakepkg/ros/__init__.py': '',
     'fakepkg/ros/node.py': 'import rclpy\nthing = 1\n',
     'fakepkg/apps/__init__.py': '',
+    # A circle through a function-level import, and one through a package's face.
+    'fakepkg/apps/scenario.py': textwrap.dedent('''\
+        from fakepkg.apps.places import where
+
+
+        def read():
+            return where
+        '''),
+    'fakepkg/apps/places.py': textwrap.dedent('''\
+        def where():
+            from fakepkg.apps import scenario
+            return scenario
+        '''),
+    'fakepkg/farm/__init__.py': 'from fakepkg.farm.face import thing\n',
+    'fakepkg/farm/face.py': textwrap.dedent('''\
+        thing = 1
+
+
+        def again():
+            from fakepkg.farm import thing
+            return thing
+        '''),
     'fakepkg/gadgets.py': '',
     # Stand-ins, so that the fresh interpreter finds these names without loading the real ones.
     'rclpy.py': '',
@@ -188,6 +289,13 @@ def test_the_import_check_names_each_layer_that_loads_what_it_must_not(faulty):
     assert loaded_by_importing(faulty, 'fakepkg', 'recording', ['rclpy']) == ['rclpy']
     assert loaded_by_importing(faulty, 'fakepkg', 'sim', ['pybullet']) == ['pybullet']
     assert loaded_by_importing(faulty, 'fakepkg', 'errors', ['rclpy', 'pybullet']) == []
+
+
+def test_the_circle_check_finds_circles_through_functions_and_faces(faulty):
+    """apps/scenario <-> apps/places (one import in a function); farm's face <-> farm/face.py."""
+    assert import_circles(faulty, 'fakepkg') == [
+        ['fakepkg.apps.places', 'fakepkg.apps.scenario'],
+        ['fakepkg.farm', 'fakepkg.farm.face']]
 
 
 def test_the_static_check_names_each_import_that_goes_up(faulty):

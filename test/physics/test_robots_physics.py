@@ -14,7 +14,7 @@ import pytest
 from r2d2_sim.physics.description import (
     default_urdf_path, DescriptionError, resolve_description_path)
 from r2d2_sim.physics.world import SimWorld, WorldError
-from r2d2_sim.sim.parameters import parse_config
+from r2d2_sim.sim.settings.config import parse_config
 from r2d2_sim.sim.simulation import Simulation
 
 

@@ -126,7 +126,7 @@ def test_sanity_check_detects_non_finite_and_far_states(world, robot):
 def test_missing_urdf_is_a_world_error():
     """An unknown file gives a WorldError naming it."""
     from r2d2_sim.sim.simulation import Simulation
-    from r2d2_sim.sim.parameters import parse_config
+    from r2d2_sim.sim.settings.config import parse_config
     with pytest.raises(WorldError, match='not found'):
         Simulation(parse_config({'urdf': '/no/such/robot.urdf'}))
 
@@ -141,7 +141,7 @@ def test_malformed_urdf_is_a_world_error(tmp_path):
 
 def test_wheel_radius_from_collision_shape(world, robot):
     """The wheel radius is read from the wheel's cylinder: 0.035 m."""
-    from r2d2_sim.sim.drive_train import _wheel_radius_m
+    from r2d2_sim.sim.robots.drive_train import _wheel_radius_m
     wheel = robot.joint('left_front_wheel_joint').index
     assert _wheel_radius_m(robot, wheel) == pytest.approx(0.035)
     assert pybullet.GEOM_CYLINDER != pybullet.GEOM_MESH

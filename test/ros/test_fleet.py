@@ -301,7 +301,7 @@ def _free_port():
 def test_a_name_ros_refuses_is_one_line_and_leaves_no_node(r2d2_sim_factory):
     """The fleet turns rclpy's refusal of a robot's namespace into ConfigError."""
     import copy
-    from r2d2_sim.sim.parameters import ConfigError
+    from r2d2_sim.sim.settings.table import ConfigError
     sim = r2d2_sim_factory(robots=FACING)
     nodes_before = len(sim._link.get_node_names())
     robots = sim.sim.simulation.robots

@@ -22,8 +22,8 @@ from r2d2_sim.model.kinematics import OdometryState
 from r2d2_sim.model.transforms import BaseState
 from r2d2_sim.physics.records import JointStates
 from r2d2_sim.ros.outputs import OdometryOutput
-from r2d2_sim.sim.parameters import parse_config
-from r2d2_sim.sim.robot import Frame
+from r2d2_sim.sim.settings.config import parse_config
+from r2d2_sim.sim.robots.robot import Frame
 from r2d2_sim.testing import wait_for
 
 

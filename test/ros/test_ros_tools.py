@@ -21,7 +21,7 @@ from sensor_msgs.msg import CameraInfo, Image, Imu, LaserScan
 from tf2_msgs.msg import TFMessage
 
 from r2d2_sim.model.kinematics import quaternion_to_yaw
-from r2d2_sim.sim.sensor_mounts import LASER_HEIGHT_M
+from r2d2_sim.sim.robots.sensors import LASER_HEIGHT_M
 from r2d2_sim.testing import stamp_ns
 from r2d2_sim.model.transforms import apply, Transform
 

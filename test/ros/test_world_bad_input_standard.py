@@ -14,7 +14,7 @@ import pytest
 from simulation_interfaces import msg, srv
 
 from r2d2_sim.sim.tags import MAX_TAG_LENGTH, MAX_TAGS
-from r2d2_sim.sim.world_manifest import MAX_WORLD_BYTES
+from r2d2_sim.sim.worlds.manifest import MAX_WORLD_BYTES
 
 ROOM = 'package://r2d2_sim/urdf/room.world.yaml'
 MARK = 'SECRET_CONTENT_42'

@@ -17,7 +17,7 @@ def make(request):
     Parameters as ``sim_node`` takes them (``robots`` and ``NAME.parameter``
     too); ``errors``, a list, receives the simulation's one-line error reports.
     """
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     from r2d2_sim.sim.simulation import Simulation
     defaults = getattr(request.module, 'SIMULATION_DEFAULTS', {})
     made = []

@@ -12,8 +12,8 @@ import pytest
 
 from r2d2_sim.model.battery import CHARGING, DISCHARGING
 from r2d2_sim.sim.entities import SpawnRequest
-from r2d2_sim.sim.parameters import ConfigError
-from r2d2_sim.sim.robot_parameters import parse_world
+from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.settings.robots import parse_world
 from r2d2_sim.sim.simulation import Simulation
 
 ROOM = 'package://r2d2_sim/urdf/room.world.yaml'

@@ -2,7 +2,8 @@
 
 import pytest
 
-from r2d2_sim.sim.parameters import ConfigError, parse_config
+from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.settings.config import parse_config
 
 
 @pytest.mark.parametrize('name, value, fragment', [

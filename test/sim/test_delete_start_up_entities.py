@@ -38,18 +38,18 @@ def test_the_ground_a_model_and_the_robot_are_deleted_and_a_full_reset_brings_th
     fresh = run(make(extra_models=[BOX]))
     seen = []
     simulation.watch_robots(lambda robots: seen.append([robot.name for robot in robots]))
-    start_up = simulation.entity_names()
+    start_up = simulation.entities.names()
     box = simulation.models[0].name
     assert start_up == ['ground_plane', 'r2d2', box]
     run(simulation)
     for name in ('ground_plane', box, 'r2d2'):
         simulation.delete_entity(name)
-    assert simulation.entity_names() == [] and simulation.robots == []
+    assert simulation.entities.names() == [] and simulation.robots == []
     assert simulation.models == [] and seen[-1] == []  # the robot's watchers were told
     simulation.spawn(SpawnRequest('r2d2', uri='cube_small.urdf', position=(3.0, 0.0, 0.5)))
     simulation.step()  # falls: no ground under it
     simulation.reset(time=True, state=True, spawned=True)
-    assert simulation.entity_names() == start_up
+    assert simulation.entities.names() == start_up
     assert [robot.name for robot in simulation.robots] == ['r2d2'] and seen[-1] == ['r2d2']
     assert [model.name for model in simulation.models] == [box]
     assert simulation.pristine and simulation.step_count == 0
@@ -65,9 +65,9 @@ def test_only_a_full_reset_brings_deleted_start_up_entities_back(make):
     for scope in ({'state': True}, {'spawned': True}, {'state': True, 'spawned': True},
                   {'time': True, 'state': True}):
         simulation.reset(**scope)
-        assert simulation.entity_names() == ['ground_plane'], scope
+        assert simulation.entities.names() == ['ground_plane'], scope
     simulation.reset(time=True, state=True, spawned=True)
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', box]
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', box]
 
 
 def test_a_deleted_listed_robot_comes_back_in_its_place_with_its_own_settings(make):
@@ -87,5 +87,5 @@ def test_a_deleted_listed_robot_comes_back_in_its_place_with_its_own_settings(ma
     assert (new_a.name, new_a is not a, same_b is b) == ('a', True, True)
     assert new_a.config.max_linear_velocity_m_s == 0.2
     assert (new_a.laser._group, b.laser._group) == RAY_GROUPS[:2]
-    assert simulation.entity_names() == ['ground_plane', 'a', 'b']
+    assert simulation.entities.names() == ['ground_plane', 'a', 'b']
     assert run(simulation) == fresh

@@ -34,15 +34,15 @@ def test_a_twist_in_an_entity_frame_is_turned_into_the_world(make):
     box = spawn_box(simulation, (3.0, 0.0, 5.0))
     simulation.set_entity_state(box, 'r2d2', (2.0, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0),
                                 linear=(1.0, 0.0, 0.0), angular=(0.0, 0.5, 0.0))
-    state = simulation.entity_state(box)
-    base = simulation.entity_state('r2d2').position
+    state = simulation.entities.state(box)
+    base = simulation.entities.state('r2d2').position
     # Pose: 2 m along the robot's x (world +y) and 1 m up, turned 90 degrees with it.
     assert state.position == pytest.approx((base[0], base[1] + 2.0, base[2] + 1.0), abs=1e-5)
     assert state.linear_velocity == pytest.approx((0.0, 1.0, 0.0), abs=1e-6)
     assert state.angular_velocity == pytest.approx((-0.5, 0.0, 0.0), abs=1e-6)
     simulation.set_entity_state(box, '', (3.0, 0.0, 5.0), (0.0, 0.0, 0.0, 1.0),
                                 linear=(1.0, 0.0, 0.0), angular=(0.0, 0.0, 0.0))
-    velocity = simulation.entity_state(box).linear_velocity
+    velocity = simulation.entities.state(box).linear_velocity
     assert velocity == pytest.approx((1.0, 0.0, 0.0), abs=1e-6)
 
 
@@ -56,7 +56,7 @@ def test_a_spawned_body_keeps_its_speed_in_free_fall(make):
     model.set_base_state(linear_velocity=(5.0, 0.0, 0.0))
     for _ in range(240):
         simulation.step()
-    for velocity in (simulation.entity_state(box).linear_velocity,
+    for velocity in (simulation.entities.state(box).linear_velocity,
                      model.world_state().linear_velocity):
         assert velocity[0] == pytest.approx(5.0, abs=1e-6)
         assert velocity[2] == pytest.approx(-9.8, abs=1e-3)  # g for 1 s, undamped too
@@ -71,7 +71,7 @@ def test_entity_names_are_bounded(make):
     name = simulation.spawn(SpawnRequest('b' * 100_000, allow_renaming=True,
                                          resource_string=BOX, position=(1.0, 0.0, 0.1)))
     assert len(name) <= MAX_NAME_LENGTH and name.startswith('bbb')
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', name]
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', name]
 
 
 def test_name_filters_search_a_part_of_the_name():

@@ -13,7 +13,7 @@ import math
 import pytest
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.sim.entity_bounds import Region
+from r2d2_sim.sim.bounds import Region
 from r2d2_sim.sim.simulation import SpawnRequest
 
 SIMULATION_DEFAULTS = {'scan_rate': 0.0, 'imu_rate': 0.0}
@@ -34,30 +34,30 @@ def spawn(simulation, name, text, position, orientation=(0.0, 0.0, 0.0, 1.0)):
 def test_the_room_and_the_robot_are_boxes_in_their_base_link_frame(make):
     simulation = make(world='package://r2d2_sim/urdf/room.urdf')
     # The room's walls: x -3.1 .. 2.1, y -2.6 .. 2.6, 1 m high (urdf/room.urdf's comment).
-    upper, lower = simulation.entity_bounds('room').points
+    upper, lower = simulation.entities.bounds('room').points
     assert upper == pytest.approx((2.1, 2.6, 1.0)) and lower == pytest.approx((-3.1, -2.6, 0.0))
     # R2D2: legs and wheels at y +-0.22, 0.1 wide: +-0.27. Wheel centres at 0.25 - 0.6 - 0.085
     # = -0.435 under the base link, radius 0.035: its floor at -0.47. Its foot bars are 0.4
     # long: its back at x -0.2.
-    upper, lower = simulation.entity_bounds('r2d2').points
+    upper, lower = simulation.entities.bounds('r2d2').points
     assert (lower[0], lower[1], lower[2], upper[1]) == pytest.approx((-0.2, -0.27, -0.47, 0.27))
 
 
 def test_a_turned_box_keeps_its_own_sizes(make):
     simulation = make()
     spawn(simulation, 'slab', SLAB, (1.0, 1.0, 0.05), TURN_45)
-    upper, lower = simulation.entity_bounds('slab').points
+    upper, lower = simulation.entities.bounds('slab').points
     assert upper == pytest.approx((0.2, 0.1, 0.05)) and lower == pytest.approx((-0.2, -0.1, -0.05))
 
 
 def test_bounds_of_no_such_entity_are_not_found(make):
     with pytest.raises(RefusedError, match='^NOT_FOUND'):
-        make().entity_bounds('kitchen_table')
+        make().entities.bounds('kitchen_table')
 
 
 def crates(simulation, region):
     """Return the names of the crates and slabs that a region picks, sorted."""
-    return sorted(n for n in simulation.entities_overlapping(region) if n != 'ground_plane'
+    return sorted(n for n in simulation.entities.overlapping(region) if n != 'ground_plane'
                   and n != 'r2d2')
 
 
@@ -116,8 +116,8 @@ def test_the_filters_follow_an_entity_that_moves(yard):
 ], ids=['box of one point', 'negative radius', 'collinear hull', 'hull of two', 'NaN'])
 def test_a_malformed_region_is_refused(yard, region):
     with pytest.raises(RefusedError, match='^OPERATION_FAILED: bounds: '):
-        yard.entities_overlapping(region)
+        yard.entities.overlapping(region)
 
 
 def test_an_empty_region_picks_every_entity(yard):
-    assert yard.entities_overlapping(Region()) == yard.entity_names()
+    assert yard.entities.overlapping(Region()) == yard.entities.names()

@@ -11,8 +11,8 @@ import math
 
 import pytest
 
-from r2d2_sim.sim.parameters import ConfigError
-from r2d2_sim.sim.robot_parameters import parse_world
+from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.settings.robots import parse_world
 from r2d2_sim.sim.simulation import Simulation, SpawnRequest
 from r2d2_sim.physics.world import RAY_GROUPS, SimWorld
 

@@ -4,7 +4,8 @@ import math
 
 import pytest
 
-from r2d2_sim.sim.parameters import ConfigError, PARAMETERS, parse_config
+from r2d2_sim.sim.settings.table import ConfigError, PARAMETERS
+from r2d2_sim.sim.settings.config import parse_config
 
 
 def test_defaults_are_valid():
@@ -199,16 +200,16 @@ def test_frame_ids_tf2_refuses_are_refused(name, value, fragment):
 
 
 def test_sensor_frame_names_match_what_the_robot_publishes():
-    """The frames checked here are the ones r2d2_sim.sim.sensor_mounts puts on the sensors."""
-    from r2d2_sim.sim import parameters
-    from r2d2_sim.sim import sensor_mounts  # needs PyBullet, not ROS
+    """The frames checked here are the ones r2d2_sim.sim.robots.sensors puts on the sensors."""
+    from r2d2_sim.sim.settings import table as parameters
+    from r2d2_sim.sim.robots import sensors as sensor_mounts  # needs PyBullet, not ROS
     for name in ('LASER_FRAME_ID', 'IMU_FRAME_ID', 'HEAD_CAMERA_FRAME_ID', 'HEAD_CAMERA_LINK'):
         assert getattr(parameters, name) == getattr(sensor_mounts, name), name
 
 
 def test_robots_get_the_world_settings_with_their_own_on_top():
     """NAME.parameter overrides one robot's; the frames of each get NAME/ (shared TF)."""
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     config, robots = parse_world({
         'robots': ['a', 'b'], 'max_linear_velocity': 0.5, 'scan_rate': 5.0,
         'b.initial_pose': [2, 0, 3], 'b.max_linear_velocity': 0.2, 'b.namespace': '/fleet/b'})
@@ -223,7 +224,7 @@ def test_robots_get_the_world_settings_with_their_own_on_top():
 
 def test_namespaced_tf_leaves_frames_unprefixed_and_a_robot_may_set_its_prefix():
     """tf_layout namespaced: frames as the world's prefix has them; NAME.frame_prefix wins."""
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     _, robots = parse_world({'robots': ['a', 'b'], 'tf_layout': 'namespaced',
                              'b.frame_prefix': 'bee/'})
     assert [r.config.frame_prefix for r in robots] == ['', 'bee/']
@@ -245,7 +246,31 @@ def test_namespaced_tf_leaves_frames_unprefixed_and_a_robot_may_set_its_prefix()
 ])
 def test_bad_robot_parameters_are_one_line_naming_them(values, fragment):
     """Each mistake names the robot's parameter as the user wrote it."""
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     with pytest.raises(ConfigError) as raised:
         parse_world(values)
     assert fragment in str(raised.value) and '\n' not in str(raised.value)
+
+
+def test_the_config_fields_are_the_table_rendered():
+    """The generated field block of SimConfig is today's table: its fields, in order, typed."""
+    import dataclasses
+    from r2d2_sim.sim.settings import config
+    assert config.main([]) == 0, ('SimConfig is stale: '
+                                  'python -m r2d2_sim.sim.settings.config --write')
+    fields = dataclasses.fields(config.SimConfig)
+    assert [f.name for f in fields] == [p.field for p in PARAMETERS]
+    types = {'double': float, 'integer': int, 'bool': bool, 'string': str}
+    for spec, field in zip(PARAMETERS, fields):
+        if spec.ros_type in types and not spec.python_type:
+            assert field.type == types[spec.ros_type], spec.name
+
+
+def test_a_table_that_changed_makes_the_config_check_fail(monkeypatch, capsys):
+    """A parameter added to the table (and not to SimConfig) fails the check, in one line."""
+    from r2d2_sim.sim.settings import config
+    extra = PARAMETERS[0]._replace(name='brand_new', field='brand_new_m')
+    monkeypatch.setattr(config, 'PARAMETERS', PARAMETERS + [extra])
+    assert 'brand_new_m: str' in config.render_fields()
+    assert config.main([]) == 1
+    assert capsys.readouterr().err.count('\n') == 1

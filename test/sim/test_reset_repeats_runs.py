@@ -13,7 +13,7 @@ import math
 
 import pytest
 
-from r2d2_sim.sim.robot_parameters import parse_world
+from r2d2_sim.sim.settings.robots import parse_world
 from r2d2_sim.sim.simulation import Simulation, SpawnRequest
 
 STEPS = 480  # 2 s at 240 Hz
@@ -174,7 +174,7 @@ def test_a_body_that_cannot_be_loaded_again_leaves_the_world_with_one_line(make)
             raise WorldError('PyBullet cannot load it again')
         b.reload = refuse  # PyBullet keeps every file it read: a removed file still loads
         simulation.reset(state=True)
-        assert simulation.entity_names() == ['ground_plane', 'a']
+        assert simulation.entities.names() == ['ground_plane', 'a']
         assert errors == ['b left the world: PyBullet cannot load it again']
         assert seen[-1] == ['a']
         simulation.step()

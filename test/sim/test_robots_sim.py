@@ -11,7 +11,8 @@ import pytest
 ])
 def test_bad_extra_models_are_one_line(value, fragment):
     """Each malformed extra_models entry is one ConfigError line quoting it."""
-    from r2d2_sim.sim.parameters import ConfigError, parse_config
+    from r2d2_sim.sim.settings.table import ConfigError
+    from r2d2_sim.sim.settings.config import parse_config
     with pytest.raises(ConfigError, match=fragment) as info:
         parse_config({'extra_models': value})
     assert '\n' not in str(info.value)

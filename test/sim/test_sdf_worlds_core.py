@@ -45,9 +45,9 @@ def test_a_gazebo_world_loads_from_the_world_parameter(make, world_dir):
     warnings = []
     simulation = arena_simulation(make, world_dir)
     simulation._warn = warnings.append
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'arena_wall', 'pillar',
-                                         'corner']
-    world = simulation.world_file
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'arena_wall', 'pillar',
+                                           'corner']
+    world = simulation.worlds.current
     assert (world.name, world.tags) == ('arena', ('sdf',))
     assert [(p.name, p.position) for p in world.named_poses] == [
         ('start', pytest.approx((0.0, 0.0, 0.0))),
@@ -58,12 +58,12 @@ def test_a_gazebo_world_loads_from_the_world_parameter(make, world_dir):
         'physics_rate), plugin, light',)
     assert "its ground plane is r2d2_sim's" in world.description
     for name in ('arena_wall', 'pillar', 'corner'):
-        assert simulation.entity_category(name) == Category.STATIC_OBJECT
-    assert simulation.entity_state('pillar').position == pytest.approx((*PILLAR[:2], 0.0))
+        assert simulation.entities.category(name) == Category.STATIC_OBJECT
+    assert simulation.entities.state('pillar').position == pytest.approx((*PILLAR[:2], 0.0))
 
 
 def test_the_one_summary_line_is_warned_once_at_start_up(make, world_dir):
-    from r2d2_sim.sim.robot_parameters import parse_world
+    from r2d2_sim.sim.settings.robots import parse_world
     from r2d2_sim.sim.simulation import Simulation
     config, robots = parse_world({'world': str(world_dir / 'arena.sdf'),
                                   'model_paths': [str(world_dir / 'models')]})
@@ -128,7 +128,7 @@ def test_the_robot_drives_inside_the_concave_wall_without_touching_it(make, worl
 def fall(simulation, name, steps):
     for _ in range(steps):
         simulation.step()
-    return simulation.entity_state(name).position[2]
+    return simulation.entities.state(name).position[2]
 
 
 def test_a_spawned_sdf_model_falls_as_gravity_says_and_rests_on_the_ground(make, world_dir):
@@ -141,14 +141,14 @@ def test_a_spawned_sdf_model_falls_as_gravity_says_and_rests_on_the_ground(make,
     assert fall(simulation, name, n) == pytest.approx(
         2.0 - GRAVITY * STEP_S ** 2 * n * (n + 1) / 2.0, abs=1e-5)
     assert fall(simulation, name, 480) == pytest.approx(0.3, abs=2e-3)  # half its height
-    assert simulation.entity_category(name) == Category.DYNAMIC_OBJECT
+    assert simulation.entities.category(name) == Category.DYNAMIC_OBJECT
 
 
 def test_a_spawned_mesh_model_from_the_model_path_rests_on_its_hull(make, world_dir):
     """The crate's link is 0.2 m above its model frame: it rests with the frame on the ground."""
     simulation = arena_simulation(make, world_dir, scan_rate=0.0)
     name = simulation.spawn(SpawnRequest(uri='model://crate', position=(1.0, -1.0, 1.0)))
-    assert simulation.entity_state(name).position[2] == pytest.approx(1.2)  # its link
+    assert simulation.entities.state(name).position[2] == pytest.approx(1.2)  # its link
     assert fall(simulation, name, 480) == pytest.approx(CRATE_SIZE_M / 2.0, abs=2e-3)
 
 
@@ -234,7 +234,7 @@ def test_links_no_joint_joins_are_bodies_of_their_own_and_cannot_be_one_spawn(ma
     path = tmp_path / 'pair.sdf'
     path.write_text(apart)
     simulation = make(world=str(path), scan_rate=0.0)
-    assert simulation.entity_names()[-2:] == ['pair', 'pair__b']
+    assert simulation.entities.names()[-2:] == ['pair', 'pair__b']
     model = apart.replace('<world name="w">', '').replace('</world>', '')
     with pytest.raises(RefusedError) as raised:
         simulation.spawn(SpawnRequest(resource_string=model))
@@ -263,17 +263,17 @@ def test_load_world_takes_an_sdf_world_and_a_full_reset_builds_it_again(make, wo
     simulation = make(scan_rate=0.0, model_paths=[str(world_dir / 'models')],
                       world_paths=[str(world_dir)])
     world = simulation.load_world(str(world_dir / 'arena.sdf'))
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'arena_wall', 'pillar',
-                                         'corner']
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'arena_wall', 'pillar',
+                                           'corner']
     assert world.notes and world.notes[0].startswith('not simulated:')
     simulation.delete_entity('pillar')
     simulation.reset(time=True, state=True, spawned=True)
-    assert 'pillar' in simulation.entity_names()
+    assert 'pillar' in simulation.entities.names()
     with pytest.raises(RefusedError) as raised:
         simulation.load_world(str(world_dir / 'arena.sdf'),
                               options=LoadOptions(fail_on_unsupported_element=True))
     assert raised.value.code == 'UNSUPPORTED_ELEMENTS'
-    assert simulation.world_file is world  # refused: the world as it was
+    assert simulation.worlds.current is world  # refused: the world as it was
 
 
 def test_strict_worlds_refuses_at_start_up_in_one_line(make, world_dir):
@@ -284,7 +284,7 @@ def test_strict_worlds_refuses_at_start_up_in_one_line(make, world_dir):
 
 def test_without_r2d2_sims_ground_plane_the_worlds_own_is_loaded(make, world_dir):
     simulation = arena_simulation(make, world_dir, ground_plane=False, scan_rate=0.0)
-    assert simulation.entity_names()[:2] == ['r2d2', 'ground_plane']
+    assert simulation.entities.names()[:2] == ['r2d2', 'ground_plane']
     name = simulation.spawn(SpawnRequest(resource_string=sdf(box_model('b')),
                                          position=(-1.0, 1.0, 0.5)))
     assert fall(simulation, name, 480) == pytest.approx(0.2, abs=2e-3)  # on the SDF's plane
@@ -327,18 +327,18 @@ def test_a_state_reset_repeats_a_run_among_sdf_bodies_bit_for_bit(make, world_di
 
 
 def test_the_bounds_services_see_sdf_bodies(make, world_dir):
-    from r2d2_sim.sim.entity_bounds import Region
+    from r2d2_sim.sim.bounds import Region
     simulation = arena_simulation(make, world_dir, scan_rate=0.0)
-    low, high = sorted(simulation.entity_bounds('pillar').points, key=sum)
+    low, high = sorted(simulation.entities.bounds('pillar').points, key=sum)
     radius = PILLAR[2]
     assert low == pytest.approx((-radius, -radius, 0.0), abs=0.01)
     assert high == pytest.approx((radius, radius, 1.0), abs=0.01)
     x, y = POST[:2]
     near_post = Region.box((x - 0.3, y - 0.3, 0.2), (x + 0.3, y + 0.3, 0.4))
     # A static concave mesh counts as its bounding box (docs/limits.md): the wall's holds all.
-    assert simulation.entities_overlapping(near_post) == ['arena_wall', 'corner']
+    assert simulation.entities.overlapping(near_post) == ['arena_wall', 'corner']
     beside_post = Region.box((x + 0.3, y - 0.1, 0.2), (x + 0.5, y, 0.4))
-    assert simulation.entities_overlapping(beside_post) == ['arena_wall']
+    assert simulation.entities.overlapping(beside_post) == ['arena_wall']
 
 
 def test_a_world_manifest_lists_an_sdf_model_at_its_pose_with_its_name_and_tags(make, world_dir):
@@ -350,19 +350,19 @@ def test_a_world_manifest_lists_an_sdf_model_at_its_pose_with_its_name_and_tags(
         'named_poses:\n  - {name: door, position: [-1.0, 0.0, 0.0], tags: [entry]}\n')
     simulation = arena_simulation(make, world_dir, scan_rate=0.0, world_paths=[str(world_dir)])
     simulation.load_world(str(world_dir / 'shop.world.yaml'))
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'stock', 'arena_wall', 'pillar',
-                                         'corner']
-    info = simulation.entity_info('stock')
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'stock', 'arena_wall',
+                                           'pillar', 'corner']
+    info = simulation.entities.info('stock')
     assert (info.description, info.tags) == ('A crate of stock.', ('goods',))
-    assert simulation.entity_info('pillar').tags == ('arena',)
+    assert simulation.entities.info('pillar').tags == ('arena',)
     # The crate's link is 0.2 m above its model frame, which stands at the entry's pose.
-    assert simulation.entity_state('stock').position == pytest.approx((1.5, 0.5, 0.2))
-    assert simulation.world_file.start_pose.name == 'door'
+    assert simulation.entities.state('stock').position == pytest.approx((1.5, 0.5, 0.2))
+    assert simulation.worlds.current.start_pose.name == 'door'
     (world_dir / 'twice.world.yaml').write_text(  # one model file twice: two crates
         'r2d2_sim_world: 1\nmodels:\n  - {uri: models/crate/model.sdf}\n'
         '  - {uri: models/crate/model.sdf, position: [1.0, 0.0, 0.0]}\n')
     simulation.load_world(str(world_dir / 'twice.world.yaml'))
-    assert simulation.entity_names()[2:] == ['crate', 'crate_1']
+    assert simulation.entities.names()[2:] == ['crate', 'crate_1']
     (world_dir / 'named.world.yaml').write_text(
         'r2d2_sim_world: 1\nmodels:\n  - {uri: arena.sdf, name: everything}\n')
     with pytest.raises(RefusedError, match='holds several models: the entry cannot give them'):

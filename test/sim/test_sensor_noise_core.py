@@ -14,8 +14,9 @@ import math
 import numpy
 import pytest
 
-from r2d2_sim.sim.parameters import ConfigError, parse_config
-from r2d2_sim.sim.robot_parameters import parse_world
+from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.settings.config import parse_config
+from r2d2_sim.sim.settings.robots import parse_world
 
 ROOM = 'package://r2d2_sim/urdf/room.urdf'
 SCANS = 30  # x 360 beams

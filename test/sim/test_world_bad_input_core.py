@@ -14,7 +14,7 @@ import pytest
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.sim.entities import Category
 from r2d2_sim.sim.tags import check_filter, MAX_TAG_LENGTH, MAX_TAGS
-from r2d2_sim.sim.world_manifest import MAX_WORLD_BYTES, MAX_YAML_DEPTH
+from r2d2_sim.sim.worlds.manifest import MAX_WORLD_BYTES, MAX_YAML_DEPTH
 
 ROOM = 'package://r2d2_sim/urdf/room.world.yaml'
 SIMULATION_DEFAULTS = {'cmd_vel_timeout': 0.0, 'scan_rate': 0.0, 'imu_rate': 0.0,
@@ -86,7 +86,7 @@ def test_a_bad_world_text_is_refused_and_the_world_runs_on_as_it_was(make, text,
         simulation.load_world('', text)
     assert refused.value.code == code, refused.value
     assert MARK not in str(refused.value) and '\n' not in str(refused.value)
-    assert simulation.world_file.name == 'room' and simulation.step_count == 60
+    assert simulation.worlds.current.name == 'room' and simulation.step_count == 60
     assert run(simulation) == run(twin)  # exactly as it was: the same run, bit for bit
 
 
@@ -114,7 +114,7 @@ def test_bad_world_files_are_refused_by_name_without_their_contents(make, tmp_pa
                        (tmp_path / 'no_such.world.yaml', 'NOT_FOUND')):
         with pytest.raises(RefusedError, match=f'^{code}:'):
             simulation.load_world(str(path))
-    assert simulation.world_file.name == 'room'
+    assert simulation.worlds.current.name == 'room'
 
 
 def test_outside_the_allowed_places_only_the_operator_may_load(make, tmp_path):
@@ -126,13 +126,13 @@ def test_outside_the_allowed_places_only_the_operator_may_load(make, tmp_path):
         simulation.load_world('file:///etc/passwd')
     with pytest.raises(RefusedError, match='^NOT_FOUND: .*only local files'):
         simulation.load_world('https://example.com/world.world.yaml')
-    assert make(world=str(tmp_path / 'mine.world.yaml')).world_file.name == 'mine'
+    assert make(world=str(tmp_path / 'mine.world.yaml')).worlds.current.name == 'mine'
 
 
 def test_an_unknown_named_pose_is_not_found(make):
     simulation = make()
     with pytest.raises(RefusedError, match=r"^NOT_FOUND: no named pose 'kitchen_door'"):
-        simulation.named_pose('kitchen_door')
+        simulation.worlds.named_pose('kitchen_door')
 
 
 @pytest.mark.parametrize('tags', [
@@ -143,8 +143,8 @@ def test_a_tag_flood_is_refused_and_the_info_stays(make, tags):
     simulation.set_entity_info('room', Category.STATIC_OBJECT, 'the room', ['walls'])
     with pytest.raises(RefusedError, match='^OPERATION_FAILED: .*tag'):
         simulation.set_entity_info('room', Category.STATIC_OBJECT, 'flooded', tags)
-    assert simulation.entity_info('room').tags == ('walls',)
-    assert simulation.entity_info('room').description == 'the room'
+    assert simulation.entities.info('room').tags == ('walls',)
+    assert simulation.entities.info('room').description == 'the room'
     with pytest.raises(RefusedError, match='^OPERATION_FAILED: .*tag'):
         check_filter(tags, 0)
 

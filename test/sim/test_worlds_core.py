@@ -47,29 +47,30 @@ def run(simulation, steps=240):
 
 def test_the_world_parameter_takes_a_manifest_with_models_named_poses_and_tags(make):
     simulation = make(world=ROOM, tags=['astromech', 'test'])
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'room']
-    world = simulation.world_file
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'room']
+    world = simulation.worlds.current
     assert (world.name, world.uri, world.start_pose.name) == ('room', ROOM, 'start')
     assert 'indoor' in world.tags
-    assert [pose.name for pose in simulation.named_poses(TagsFilter(('corner',)))] == \
+    assert [pose.name for pose in simulation.worlds.named_poses(TagsFilter(('corner',)))] == \
         ['corner_ne', 'corner_nw', 'corner_sw', 'corner_se']
-    room = simulation.entity_info('room')
+    room = simulation.entities.info('room')
     assert (room.category, room.tags) == (Category.STATIC_OBJECT, ('walls', 'static'))
     assert room.description.startswith('The walls')
-    assert simulation.entity_info('r2d2').tags == ('astromech', 'test')
-    assert simulation.entity_state('r2d2').position[:2] == pytest.approx((0.0, 0.0), abs=1e-9)
+    assert simulation.entities.info('r2d2').tags == ('astromech', 'test')
+    assert simulation.entities.state('r2d2').position[:2] == pytest.approx((0.0, 0.0), abs=1e-9)
 
 
 def test_an_empty_world_parameter_is_the_empty_world(make):
     simulation = make()
-    assert simulation.world_file.name == 'empty' and simulation.world_file.uri == EMPTY_WORLD_URI
-    assert simulation.named_poses() == [] and simulation.world_is_loaded
+    world = simulation.worlds.current
+    assert world.name == 'empty' and world.uri == EMPTY_WORLD_URI
+    assert simulation.worlds.named_poses() == [] and simulation.worlds.is_loaded
 
 
 def test_a_world_urdf_is_one_model_as_before(make):
     simulation = make(world='package://r2d2_sim/urdf/room.urdf')
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'room']
-    assert simulation.world_file.name == 'room' and simulation.named_poses() == []
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'room']
+    assert simulation.worlds.current.name == 'room' and simulation.worlds.named_poses() == []
 
 
 def test_a_bad_world_parameter_is_one_line(make):
@@ -83,10 +84,11 @@ def test_the_start_pose_places_the_start_up_robots(make):
                       **{'b.initial_pose': [1.0, 0.0, 0.0], 'b.tags': ['second']})
     a, b = simulation.robots
     simulation.load_world('', TURNED)
-    assert simulation.entity_info('b').tags == ('second',) and simulation.entity_tags('a') == ()
+    entities = simulation.entities
+    assert entities.info('b').tags == ('second',) and entities.tags('a') == ()
     # a at the pose itself; b 1 m along the pose's x, which is world +y: (1, 3), facing +y.
-    assert simulation.entity_state('a').position[:2] == pytest.approx((1.0, 2.0), abs=1e-6)
-    state = simulation.entity_state('b')
+    assert simulation.entities.state('a').position[:2] == pytest.approx((1.0, 2.0), abs=1e-6)
+    state = simulation.entities.state('b')
     assert state.position[:2] == pytest.approx((1.0, 3.0), abs=1e-6)
     assert 2 * math.atan2(state.orientation[2], state.orientation[3]) == pytest.approx(
         math.pi / 2, abs=1e-6)
@@ -103,7 +105,8 @@ def test_a_loaded_world_runs_as_one_started_with_it(make, tmp_path):
     loaded = make(world_paths=[str(tmp_path)], **robots)
     run(loaded, 50)
     loaded.load_world(str(path))
-    assert loaded.entity_names() == started.entity_names() == ['ground_plane', 'a', 'shelf', 'b']
+    assert loaded.entities.names() == started.entities.names() == [
+        'ground_plane', 'a', 'shelf', 'b']
     assert run(loaded) == run(started)  # bit for bit
 
 
@@ -114,14 +117,14 @@ def test_load_world_replaces_the_world_and_stops_at_time_zero(make):
     simulation.spawn(SpawnRequest('box', uri='cube_small.urdf', position=(0.5, 0.5, 0.025)))
     run(simulation, 48)
     world = simulation.load_world('', TURNED)
-    assert world.name == 'turned' and simulation.world_file is world
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'shelf']
-    assert [pose.name for pose in simulation.named_poses()] == ['entry', 'far']
+    assert world.name == 'turned' and simulation.worlds.current is world
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'shelf']
+    assert [pose.name for pose in simulation.worlds.named_poses()] == ['entry', 'far']
     assert simulation.step_count == 0 and simulation.pristine
-    assert simulation.entity_info('shelf').tags == ('shelf', 'small')
+    assert simulation.entities.info('shelf').tags == ('shelf', 'small')
     simulation.delete_entity('r2d2')
     simulation.load_world(ROOM)  # the room's start is the origin, as at start-up
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'room']
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'room']
     assert simulation.robot is not robot  # deleted, so built again
     simulation.load_world(ROOM)
     assert simulation.robots  # the same robot now: its start did not move
@@ -141,13 +144,13 @@ def test_a_full_reset_builds_the_world_loaded_last_as_it_was_loaded(make):
                                 (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     simulation.set_entity_info('shelf', Category.HUMAN, 'a person now', ['person'])
     simulation.reset(time=False, state=True, spawned=False)
-    assert simulation.entity_info('shelf').tags == ('person',)  # a state reset keeps the info
+    assert simulation.entities.info('shelf').tags == ('person',)  # a state reset keeps the info
     simulation.delete_entity('shelf')
     simulation.reset(time=True, state=True, spawned=True)
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'shelf']
-    info = simulation.entity_info('shelf')
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'shelf']
+    info = simulation.entities.info('shelf')
     assert (info.category, info.tags) == (Category.DYNAMIC_OBJECT, ('shelf', 'small'))
-    assert simulation.entity_state('shelf').position[0] == pytest.approx(3.0, abs=1e-6)
+    assert simulation.entities.state('shelf').position[0] == pytest.approx(3.0, abs=1e-6)
     assert run(simulation) == fresh
 
 
@@ -155,15 +158,15 @@ def test_unload_world_leaves_the_robots_and_no_world(make):
     simulation = make(world=ROOM)
     simulation.spawn(SpawnRequest('box', uri='cube_small.urdf', position=(0.5, 0.5, 0.025)))
     simulation.unload_world()
-    assert not simulation.world_is_loaded and simulation.world_file is None
-    assert simulation.entity_names() == ['ground_plane', 'r2d2']
-    assert simulation.named_poses() == [] and simulation.step_count == 0
+    assert not simulation.worlds.is_loaded and simulation.worlds.current is None
+    assert simulation.entities.names() == ['ground_plane', 'r2d2']
+    assert simulation.worlds.named_poses() == [] and simulation.step_count == 0
     with pytest.raises(RefusedError, match='^NO_WORLD_LOADED'):
         simulation.unload_world()
     with pytest.raises(RefusedError, match='^NOT_FOUND'):
-        simulation.named_pose('start')
+        simulation.worlds.named_pose('start')
     simulation.load_world(ROOM)
-    assert simulation.world_is_loaded and simulation.entity_names()[-1] == 'room'
+    assert simulation.worlds.is_loaded and simulation.entities.names()[-1] == 'room'
 
 
 def test_named_poses_are_frames_for_spawns_and_teleports(make):
@@ -172,10 +175,10 @@ def test_named_poses_are_frames_for_spawns_and_teleports(make):
     # 0.5 m along the entry's x (world +y), 0.1 m up: (1, 2.5, 0.1).
     box = simulation.spawn(SpawnRequest('crate', uri='cube_small.urdf', frame_id='entry',
                                         position=(0.5, 0.0, 0.1)))
-    assert simulation.entity_state(box).position == pytest.approx((1.0, 2.5, 0.1), abs=1e-6)
+    assert simulation.entities.state(box).position == pytest.approx((1.0, 2.5, 0.1), abs=1e-6)
     simulation.set_entity_state('r2d2', 'far', (0.0, 0.0, 0.471), (0.0, 0.0, 0.0, 1.0),
                                 (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-    placed = simulation.entity_state('r2d2').position
+    placed = simulation.entities.state('r2d2').position
     assert placed == pytest.approx((-4.0, 0.0, 0.471), abs=1e-6)
     with pytest.raises(RefusedError, match='^INVALID_POSE'):
         simulation.spawn(SpawnRequest('x', uri='cube_small.urdf', frame_id='kitchen_door'))
@@ -183,11 +186,11 @@ def test_named_poses_are_frames_for_spawns_and_teleports(make):
 
 def test_named_poses_filter_by_tags_any_or_all(make):
     simulation = make(world=ROOM)
-    names = [p.name for p in simulation.named_poses(TagsFilter(('spawn', 'goal')))]
+    names = [p.name for p in simulation.worlds.named_poses(TagsFilter(('spawn', 'goal')))]
     assert names == ['start', 'goal', 'spawn_area']
     both = TagsFilter(('spawn', 'area'), FILTER_MODE_ALL)
-    assert [p.name for p in simulation.named_poses(both)] == ['spawn_area']
-    area = simulation.named_pose('spawn_area')
+    assert [p.name for p in simulation.worlds.named_poses(both)] == ['spawn_area']
+    area = simulation.worlds.named_pose('spawn_area')
     # The bounds, relative to the pose, listed as the standard does: upper corner, then lower.
     assert area.bounds.kind == 'box'
     assert area.bounds.points == ((0.7, 0.6, 1.0), (-0.7, -0.6, 0.0))
@@ -202,19 +205,19 @@ def test_worlds_are_listed_from_the_package_and_world_paths(make, tmp_path):
         '</geometry></collision></link></robot>')
     (tmp_path / 'notes.txt').write_text('not a world')
     simulation = make(world_paths=[str(tmp_path)])
-    worlds, note = simulation.available_worlds()
+    worlds, note = simulation.worlds.available()
     assert note == ''
     assert [w.name for w in worlds] == ['empty', 'room', 'samurai', 'lab']
     lab = worlds[-1]
     assert lab.uri == 'file://' + str(tmp_path / 'lab.world.yaml')
-    assert [w.name for w in simulation.available_worlds(tags=TagsFilter(('indoor',)))[0]] == \
+    assert [w.name for w in simulation.worlds.available(tags=TagsFilter(('indoor',)))[0]] == \
         ['room', 'lab']
     both = TagsFilter(('indoor', 'lab'), FILTER_MODE_ALL)
-    assert [w.name for w in simulation.available_worlds(tags=both)[0]] == ['lab']
+    assert [w.name for w in simulation.worlds.available(tags=both)[0]] == ['lab']
     simulation.load_world(lab.uri)  # a listed world loads
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'crate']
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'crate']
     simulation.load_world('lab.world.yaml')  # a name is looked for in world_paths too
-    assert simulation.world_file.name == 'lab'
+    assert simulation.worlds.current.name == 'lab'
 
 
 def test_available_worlds_sources_fail_as_the_standard_says(make, tmp_path):
@@ -223,18 +226,18 @@ def test_available_worlds_sources_fail_as_the_standard_says(make, tmp_path):
     (broken / 'bad.world.yaml').write_text('r2d2_sim_world: 1\nname: [unclosed\n')
     simulation = make(world_paths=[str(broken)])
     with pytest.raises(RefusedError, match='^DEFAULT_SOURCES_FAILED: .*bad.world.yaml'):
-        simulation.available_worlds()
-    worlds, note = simulation.available_worlds(continue_on_error=True)
+        simulation.worlds.available()
+    worlds, note = simulation.worlds.available(continue_on_error=True)
     assert [w.name for w in worlds] == ['empty', 'room', 'samurai']
     assert 'bad.world.yaml' in note and '[unclosed' not in note  # no file contents
     with pytest.raises(RefusedError, match='^NOT_FOUND: /etc lies outside'):
-        make().available_worlds(['/etc'])
+        make().worlds.available(['/etc'])
     with pytest.raises(RefusedError, match='^FEATURE_UNSUPPORTED: https://'):
-        make().available_worlds(['https://fuel.gazebosim.org/worlds'])
-    worlds, note = make().available_worlds(['https://fuel.gazebosim.org/worlds'],
+        make().worlds.available(['https://fuel.gazebosim.org/worlds'])
+    worlds, note = make().worlds.available(['https://fuel.gazebosim.org/worlds'],
                                            offline_only=True)
     assert len(worlds) == 3 and 'offline_only' in note
-    package = make().available_worlds(['package://r2d2_sim/urdf'])[0]  # listed twice: fine
+    package = make().worlds.available(['package://r2d2_sim/urdf'])[0]  # listed twice: fine
     assert [w.name for w in package] == ['empty', 'room', 'samurai'] * 2
 
 
@@ -244,14 +247,14 @@ def test_load_options_of_the_standard(make, tmp_path):
             '  - {uri: missing.urdf}\n  - {uri: cube_small.urdf, name: cube}\n')
     simulation = make(world_paths=[str(tmp_path)])
     (tmp_path / 'odd.world.yaml').write_text(text)
-    before = simulation.entity_names()
+    before = simulation.entities.names()
     with pytest.raises(RefusedError, match='^MISSING_ASSETS: odd.world.yaml: model missing'):
         simulation.load_world('odd.world.yaml')
     with pytest.raises(RefusedError, match='^UNSUPPORTED_ELEMENTS: odd.world.yaml: unknown keys'):
         simulation.load_world('odd.world.yaml', options=LoadOptions(True, True))
-    assert simulation.entity_names() == before
+    assert simulation.entities.names() == before
     world = simulation.load_world('odd.world.yaml', options=LoadOptions(False, True))
-    assert simulation.entity_names() == ['ground_plane', 'r2d2', 'cube']
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'cube']
     assert any('unknown keys' in n and 'weather' not in n for n in world.notes)
     assert any('left out' in n and 'missing.urdf' in n for n in world.notes)
 
@@ -261,7 +264,7 @@ def test_a_model_named_like_a_robot_is_refused_and_nothing_changes(make):
     text = 'r2d2_sim_world: 1\nname: x\nmodels:\n  - {uri: cube_small.urdf, name: r2d2}\n'
     with pytest.raises(RefusedError, match='^OPERATION_FAILED: .*r2d2'):
         simulation.load_world('', text)
-    assert simulation.world_file.name == 'empty'
+    assert simulation.worlds.current.name == 'empty'
 
 
 def test_a_link_out_of_the_allowed_places_is_refused(make, tmp_path):

@@ -17,7 +17,7 @@ from common import REPO
 
 READINGS = '''
 import hashlib, sys
-from r2d2_sim.sim.robot_parameters import parse_world
+from r2d2_sim.sim.settings.robots import parse_world
 from r2d2_sim.sim.simulation import Simulation
 
 NOISE = {

@@ -6,7 +6,7 @@ import pytest
 from sensor_msgs.msg import LaserScan
 
 from r2d2_sim.sim.entities import Category
-from r2d2_sim.sim.parameters import parse_config
+from r2d2_sim.sim.settings.config import parse_config
 from r2d2_sim.sim.simulation import Simulation, SpawnRequest
 from r2d2_sim.testing import box_urdf, scan_range
 
@@ -21,12 +21,12 @@ def test_a_massless_box_is_a_wall_a_heavy_one_is_pushed(mass_kg, category):
         name = simulation.spawn(SpawnRequest(
             'obstacle', resource_string=box_urdf((0.4, 1.0, 0.4), mass_kg=mass_kg),
             position=(1.0, 0.0, 0.2)))
-        assert simulation.entity_category(name) == category
+        assert simulation.entities.category(name) == category
         simulation.robot.command(1.5, 0.0)
         for _ in range(3 * 240):
             simulation.step()
-        box_x = simulation.entity_state(name).position[0]
-        robot_x = simulation.entity_state('r2d2').position[0]
+        box_x = simulation.entities.state(name).position[0]
+        robot_x = simulation.entities.state('r2d2').position[0]
         if mass_kg:
             assert box_x > 1.2  # shoved along
         else:

@@ -2,9 +2,14 @@
 The simulation standard's entity services: list, read, place, describe, bound, spawn, delete.
 
 They translate ``simulation_interfaces`` requests into the core's entity
-operations (an :class:`~r2d2_sim.ros.seams.EntityWorld`: the
-:class:`~r2d2_sim.sim.simulation.Simulation`), under the simulator's lock,
-and every refusal into the standard's result code with a one-line message.
+operations, under the simulator's lock: reads of an
+:class:`~r2d2_sim.ros.seams.EntityReads` (the core's
+:class:`~r2d2_sim.sim.entities.Entities`), changes of an
+:class:`~r2d2_sim.ros.seams.EntityChanges` (the core's
+:class:`~r2d2_sim.sim.simulation.Simulation`). A spawn's files (an SDF
+model's includes and meshes among them) are read before the lock is taken:
+only the body's creation holds the physics. Every refusal becomes the
+standard's result code with a one-line message.
 :class:`~r2d2_sim.ros.standard.server.SimulationInterfaces` makes them beside
 its simulation control, on the same node.
 """
@@ -16,9 +21,9 @@ from rclpy.node import Node
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.timing import stamp_of
-from r2d2_sim.ros.seams import EntityWorld
+from r2d2_sim.ros.seams import EntityChanges, EntityReads
 from r2d2_sim.sim.entities import name_filter, SpawnRequest
-from r2d2_sim.sim.entity_bounds import Region, REGION_KINDS
+from r2d2_sim.sim.bounds import Region, REGION_KINDS
 from r2d2_sim.sim.spawnables import spawnable_uris
 from r2d2_sim.sim.tags import check_filter, tags_match
 
@@ -85,12 +90,14 @@ class EntityServices(Replies):
     """
     The standard's entity services: list, read, place, describe, spawn, delete.
 
-    Served on ``server`` for ``world``, each under ``lock`` (the simulator's).
+    Served on ``server``: reads of ``reads``, changes of ``changes``, each
+    under ``lock`` (the simulator's).
     """
 
-    def __init__(self, world: EntityWorld, lock: threading.RLock, server: Node, msg,
-                 srv) -> None:
-        self._world = world
+    def __init__(self, reads: EntityReads, changes: EntityChanges, lock: threading.RLock,
+                 server: Node, msg, srv) -> None:
+        self._reads = reads
+        self._changes = changes
         self._lock = lock
         self._msg = msg
         self._log = server.get_logger()
@@ -112,21 +119,21 @@ class EntityServices(Replies):
 
     def _matching(self, filters):
         """Return the names the filters pick: regex (search), categories, tags, bounds (AND)."""
-        world = self._world
+        reads = self._reads
         matches = name_filter(filters.filter)
         tags = check_filter(filters.tags.tags, filters.tags.filter_mode)
         bounds = filters.bounds
         if bounds.type >= len(REGION_KINDS):
             raise RefusedError('FEATURE_UNSUPPORTED', f'unknown bounds type {bounds.type}: '
                                                       'empty, box, convex hull or sphere')
-        names = [n for n in world.entity_names() if matches(n)]
+        names = [n for n in reads.names() if matches(n)]
         if filters.categories:
             wanted = {c.category for c in filters.categories}
-            names = [n for n in names if world.entity_category(n) in wanted]
+            names = [n for n in names if reads.category(n) in wanted]
         if tags.tags:
-            names = [n for n in names if tags_match(world.entity_tags(n), tags)]
+            names = [n for n in names if tags_match(reads.tags(n), tags)]
         if bounds.type != bounds.TYPE_EMPTY:
-            inside = set(world.entities_overlapping(region_of(bounds)))
+            inside = set(reads.overlapping(region_of(bounds)))
             names = [n for n in names if n in inside]
         return names
 
@@ -149,11 +156,10 @@ class EntityServices(Replies):
         return self._ok(response)
 
     def _state_message(self, name: str):
-        world = self._world
-        state = world.entity_state(name)
+        state = self._reads.state(name)
         msg = self._msg.EntityState()
-        msg.header.frame_id = world.world_frame_id
-        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp_of(world.time_ns)
+        msg.header.frame_id = self._reads.world_frame_id
+        msg.header.stamp.sec, msg.header.stamp.nanosec = stamp_of(self._changes.time_ns)
         p, q = msg.pose.position, msg.pose.orientation
         p.x, p.y, p.z = state.position
         q.x, q.y, q.z, q.w = state.orientation
@@ -176,7 +182,7 @@ class EntityServices(Replies):
         v, w = state.twist.linear, state.twist.angular
         try:
             with self._lock:
-                self._world.set_entity_state(
+                self._changes.set_entity_state(
                     request.entity, state.header.frame_id, (p.x, p.y, p.z),
                     (q.x, q.y, q.z, q.w), (v.x, v.y, v.z), (w.x, w.y, w.z))
         except RefusedError as exc:
@@ -186,7 +192,7 @@ class EntityServices(Replies):
     def _entity_info(self, request, response):
         try:
             with self._lock:
-                info = self._world.entity_info(request.entity)
+                info = self._reads.info(request.entity)
         except RefusedError as exc:
             return self._fail_entity(response, exc)
         response.info.category.category = info.category
@@ -198,8 +204,8 @@ class EntityServices(Replies):
         info = request.info
         try:
             with self._lock:
-                self._world.set_entity_info(request.entity, info.category.category,
-                                            info.description, list(info.tags))
+                self._changes.set_entity_info(request.entity, info.category.category,
+                                              info.description, list(info.tags))
         except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)
@@ -207,19 +213,25 @@ class EntityServices(Replies):
     def _entity_bounds(self, request, response):
         try:
             with self._lock:
-                region = self._world.entity_bounds(request.entity)
+                region = self._reads.bounds(request.entity)
         except RefusedError as exc:
             return self._fail_entity(response, exc)
         fill_bounds(response.bounds, region)
         return self._ok(response)
 
     def _spawn_one(self, name, allow_renaming, uri, resource_string, namespace, pose):
-        """Spawn in the core (a driven robot with a namespace); return the entity name."""
+        """
+        Spawn in the core (a driven robot with a namespace); return the entity name.
+
+        The files are read first, outside the lock (the physics keeps its rate
+        while an SDF model's meshes convert); the lock is held for the body.
+        """
         p, q = pose.pose.position, pose.pose.orientation
+        request = SpawnRequest(name, allow_renaming, uri, resource_string, namespace,
+                               pose.header.frame_id, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+        spawnable = self._reads.read(request)
         with self._lock:
-            return self._world.spawn(SpawnRequest(
-                name, allow_renaming, uri, resource_string, namespace, pose.header.frame_id,
-                (p.x, p.y, p.z), (q.x, q.y, q.z, q.w)))
+            return self._changes.spawn(request, spawnable)
 
     def _spawn(self, request, response):
         try:
@@ -252,7 +264,7 @@ class EntityServices(Replies):
     def _delete(self, request, response):
         try:
             with self._lock:
-                self._world.delete_entity(request.entity)
+                self._changes.delete_entity(request.entity)
         except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)

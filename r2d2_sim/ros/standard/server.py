@@ -35,7 +35,8 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
-from r2d2_sim.ros.seams import EntityWorld, SimulatorControl, WorldControl
+from r2d2_sim.ros.seams import (
+    EntityChanges, EntityReads, SimulatorControl, WorldChanges, WorldReads)
 from r2d2_sim.ros.standard.entities import EntityServices, Replies
 from r2d2_sim.ros.standard.worlds import Activity, WorldServices
 from r2d2_sim.sim.entities import MAX_FILTER_LENGTH
@@ -98,9 +99,10 @@ class SimulationInterfaces(Replies):
     """
     The standard for a simulator: its control, its entities, its worlds.
 
-    ``simulator`` pauses, steps and resets; ``world`` is its entities;
-    ``worlds`` the world around them (the simulator node is both
-    ``simulator`` and ``worlds``). The services live on a node of their own
+    ``simulator`` pauses, steps and resets; ``entity_reads`` and
+    ``entity_changes`` are its entities read and changed, ``world_reads``
+    and ``world_changes`` the world around them (the simulator node is both
+    ``simulator`` and ``world_changes``). The services live on a node of their own
     beside ``simulator_node`` (the simulator's: ``self.node``, in its context
     and namespace); the entity services are
     :class:`~r2d2_sim.ros.standard.entities.EntityServices`, the world
@@ -108,8 +110,10 @@ class SimulationInterfaces(Replies):
     ``close()`` (or destroying ``self.node``) takes the services down.
     """
 
-    def __init__(self, simulator: SimulatorControl, world: EntityWorld, worlds: WorldControl,
-                 simulator_node: Node, on_quit: Optional[Callable[[], None]] = None) -> None:
+    def __init__(self, simulator: SimulatorControl, entity_reads: EntityReads,
+                 entity_changes: EntityChanges, world_reads: WorldReads,
+                 world_changes: WorldChanges, simulator_node: Node,
+                 on_quit: Optional[Callable[[], None]] = None) -> None:
         from simulation_interfaces import action, msg, srv
         self._simulator = simulator
         self._msg = msg
@@ -134,8 +138,10 @@ class SimulationInterfaces(Replies):
         server.action_server = ActionServer(
             server, action.SimulateSteps, 'simulate_steps', self._simulate_steps,
             goal_callback=self._accept, cancel_callback=self._allow_cancel, callback_group=group)
-        self.entities = EntityServices(world, simulator.lock, server, msg, srv)
-        self.worlds = WorldServices(worlds, self.activity, server, msg, srv, group)
+        self.entities = EntityServices(entity_reads, entity_changes, simulator.lock, server,
+                                       msg, srv)
+        self.worlds = WorldServices(world_reads, world_changes, self.activity, server, msg, srv,
+                                    group)
 
     def stop(self, timeout_s: float = 2.0) -> None:
         """Refuse new steps and wait (up to ``timeout_s``) for a running one to end its chunk."""

@@ -1,14 +1,19 @@
 """
 The simulation standard's world services: list, load, unload, tell the world; its named poses.
 
-They translate ``simulation_interfaces`` requests into a
-:class:`~r2d2_sim.ros.seams.WorldControl` (the simulator node, which loads
-through its core and pauses at time 0), under the simulator's lock, and every
-refusal into the standard's result code with a one-line message.
+They translate ``simulation_interfaces`` requests into reads of a
+:class:`~r2d2_sim.ros.seams.WorldReads` (the core's
+:class:`~r2d2_sim.sim.worlds.files.WorldFiles`) and changes of a
+:class:`~r2d2_sim.ros.seams.WorldChanges` (the simulator node, which loads
+through its core and pauses at time 0), and every refusal into the
+standard's result code with a one-line message.
 :class:`~r2d2_sim.ros.standard.server.SimulationInterfaces` makes them beside
 its simulation control, on the same node. A load or an unload waits for no
 step: while a step request runs it is refused (INCORRECT_STATE), and while it
-runs the simulation state is LOADING_WORLD and step requests are refused.
+runs the simulation state is LOADING_WORLD and step requests are refused. A
+load reads its world (the files, an SDF world's includes, its meshes
+converted) before it takes the simulator's lock, so the physics keeps its
+rate meanwhile; only building the bodies holds it.
 """
 
 import threading
@@ -17,7 +22,7 @@ from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.ros.seams import WorldControl
+from r2d2_sim.ros.seams import WorldChanges, WorldReads
 from r2d2_sim.ros.standard.entities import fill_bounds, Replies
 from r2d2_sim.sim.tags import check_filter
 from r2d2_sim.sim.worlds import LoadOptions
@@ -39,15 +44,19 @@ class Activity:
 
 class WorldServices(Replies):
     """
-    The standard's world and named pose services, served on ``server`` for ``worlds``.
+    The standard's world and named pose services, served on ``server``.
 
-    ``activity`` is shared with the step requests; ``group`` is the callback
-    group the load and unload run in (beside the other requests).
+    ``reads`` answers what changes nothing (and reads a world to load),
+    ``changes`` loads and unloads under its ``lock``; ``activity`` is shared
+    with the step requests; ``group`` is the callback group the load and
+    unload run in (beside the other requests).
     """
 
-    def __init__(self, worlds: WorldControl, activity: Activity, server: Node, msg, srv,
-                 group: CallbackGroup) -> None:
-        self._worlds = worlds
+    def __init__(self, reads: WorldReads, changes: WorldChanges, activity: Activity,
+                 server: Node, msg, srv, group: CallbackGroup) -> None:
+        self._reads = reads
+        self._changes = changes
+        self._lock = changes.lock
         self._activity = activity
         self._msg = msg
         self._log = server.get_logger()
@@ -73,8 +82,8 @@ class WorldServices(Replies):
     def _available(self, request, response):
         try:
             tags = check_filter(request.filter.tags, request.filter.filter_mode)
-            with self._worlds.lock:
-                worlds, note = self._worlds.available_worlds(
+            with self._lock:
+                worlds, note = self._reads.available(
                     list(request.additional_sources), tags, request.offline_only,
                     request.continue_on_error)
         except RefusedError as exc:
@@ -89,18 +98,21 @@ class WorldServices(Replies):
         return response
 
     def _exclusive(self, response, what):
-        """Run ``what()`` with no step or load running; refuse (INCORRECT_STATE) if one is."""
+        """
+        Run ``what()`` with no step or load running; refuse (INCORRECT_STATE) if one is.
+
+        LOADING_WORLD from here on: ``what`` reads first, then takes the lock.
+        """
         activity = self._activity
         if not activity.stepping.acquire(blocking=False):
             return self._fail(response, 'INCORRECT_STATE', f'{activity.busy()}: try again once '
                                                            'it has ended')
         try:
-            with self._worlds.lock:  # the flag is set only while the lock is held here
-                activity.loading.set()
-                try:
-                    return what()
-                finally:
-                    activity.loading.clear()
+            activity.loading.set()
+            try:
+                return what()
+            finally:
+                activity.loading.clear()
         finally:
             activity.stepping.release()
 
@@ -110,7 +122,10 @@ class WorldServices(Replies):
 
         def load():
             try:
-                world = self._worlds.load_world(request.uri, request.resource_string, options)
+                # No lock: the files, SDF and meshes touch no physics.
+                world = self._reads.read(request.uri, request.resource_string, options)
+                with self._lock:
+                    self._changes.load_world(world)
             except RefusedError as exc:
                 return self._fail_entity(response, exc)
             self._world_resource(response.world, world)
@@ -122,15 +137,16 @@ class WorldServices(Replies):
     def _unload(self, request, response):
         def unload():
             try:
-                self._worlds.unload_world()
+                with self._lock:
+                    self._changes.unload_world()
             except RefusedError as exc:
                 return self._fail_entity(response, exc)
             return self._ok(response)
         return self._exclusive(response, unload)
 
     def _current(self, request, response):
-        with self._worlds.lock:
-            world = self._worlds.current_world()
+        with self._lock:
+            world = self._reads.current
         if world is None:
             return self._fail(response, 'NO_WORLD_LOADED', 'no world is loaded (UnloadWorld)')
         self._world_resource(response.world, world)
@@ -139,8 +155,8 @@ class WorldServices(Replies):
     def _named_poses(self, request, response):
         try:
             tags = check_filter(request.tags.tags, request.tags.filter_mode)
-            with self._worlds.lock:
-                poses = self._worlds.named_poses(tags)
+            with self._lock:
+                poses = self._reads.named_poses(tags)
         except RefusedError as exc:
             return self._fail_entity(response, exc)
         for pose in poses:
@@ -154,8 +170,8 @@ class WorldServices(Replies):
 
     def _named_pose_bounds(self, request, response):
         try:
-            with self._worlds.lock:
-                pose = self._worlds.named_pose(request.name)
+            with self._lock:
+                pose = self._reads.named_pose(request.name)
         except RefusedError as exc:
             return self._fail_entity(response, exc)
         fill_bounds(response.bounds, pose.bounds)

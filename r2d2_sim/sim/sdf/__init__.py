@@ -11,5 +11,5 @@ with :mod:`.models` and :mod:`.parts` (the file and its includes into a
 :mod:`.meshes` and :mod:`.mesh_cache` (DAE, STL, OBJ converted once into
 OBJ files kept by content), :mod:`.urdf` (the text), and :mod:`.loading`
 (the steps in order). :mod:`.spawning` reads a model a spawn request brings;
-:mod:`r2d2_sim.sim.sdf_world` makes SDF one of the world formats.
+:mod:`r2d2_sim.sim.worlds.sdf_format` makes SDF one of the world formats.
 """

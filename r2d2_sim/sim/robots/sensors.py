@@ -20,9 +20,10 @@ import numpy
 from r2d2_sim.model import camera
 from r2d2_sim.physics.body import Body, WorldError
 # The sensors' frame ids are the parameter table's, which checks them against the others.
-from r2d2_sim.sim.parameters import (
+from r2d2_sim.sim.settings.table import (
     ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID,
-    LIDAR3D_FRAME_ID, SimConfig)
+    LIDAR3D_FRAME_ID)
+from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.physics.raycast import ray_mask, RayRequest
 from r2d2_sim.model.noise import noise_generator, NoiseModel
 from r2d2_sim.model.sensors import (

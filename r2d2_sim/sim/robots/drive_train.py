@@ -5,7 +5,7 @@ No ROS here. The drive train is found by joint name in the URDF: which
 joints are the left and right wheels, their radius, the track between them
 and their limits, each from a parameter or else derived from the URDF (and
 held to the parameter's bounds either way). Problems are one-line
-:class:`~r2d2_sim.sim.parameters.ConfigError` messages naming what to set.
+:class:`~r2d2_sim.sim.settings.table.ConfigError` messages naming what to set.
 """
 
 from dataclasses import dataclass
@@ -14,9 +14,9 @@ from typing import Callable, List, Optional, Tuple
 from r2d2_sim.physics.body import Body, WorldError
 from r2d2_sim.physics.records import GEOMETRY_CYLINDER, GEOMETRY_SPHERE, JointRecord
 from r2d2_sim.model.kinematics import DiffDriveGeometry, TwistLimits
-from r2d2_sim.sim.parameters import (
-    Bounds, ConfigError, SimConfig, WHEEL_FORCE, WHEEL_RADIUS, WHEEL_SEPARATION,
-    WHEEL_VELOCITY)
+from r2d2_sim.sim.settings.table import (
+    Bounds, ConfigError, WHEEL_FORCE, WHEEL_RADIUS, WHEEL_SEPARATION, WHEEL_VELOCITY)
+from r2d2_sim.sim.settings.config import SimConfig
 
 __all__ = ['DriveTrain', 'find_drive_train']
 

@@ -3,7 +3,7 @@ Readers for the parameter table: a raw ROS value in, a valid value out, or one C
 
 No ROS here. Each reader takes the parameter's name (for the message) and
 the raw value as ROS hands it over, and returns the value in the type and
-units of :class:`~r2d2_sim.sim.parameters.SimConfig`; :class:`Bounds` then holds
+units of :class:`~r2d2_sim.sim.settings.table.SimConfig`; :class:`Bounds` then holds
 a number to its plausible range. Frame ids are held to what tf2 and REP-105
 accept.
 """

@@ -5,7 +5,7 @@ No ROS. :func:`list_worlds` scans the default sources (this package's
 ``urdf/`` and the ``world_paths``) and a request's ``additional_sources``
 for world manifests (``*.world.yaml``) and SDF files that hold a
 ``<world>``, each read and checked, and filters them by tags; which sources
-may be searched is :class:`~r2d2_sim.sim.world_places.Places`' answer.
+may be searched is :class:`~r2d2_sim.sim.worlds.places.Places`' answer.
 Refusals are :class:`~r2d2_sim.errors.RefusedError` with GetAvailableWorlds'
 codes.
 """
@@ -15,10 +15,10 @@ from typing import List, NamedTuple, Sequence, Tuple
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import PACKAGE_SCHEME
-from r2d2_sim.sim.sdf_world import sdf_world_entry
+from r2d2_sim.sim.worlds.sdf_format import sdf_world_entry
 from r2d2_sim.sim.tags import TagsFilter, tags_match
-from r2d2_sim.sim.world_manifest import load_yaml, MAX_WORLD_BYTES, read_manifest
-from r2d2_sim.sim.world_places import (
+from r2d2_sim.sim.worlds.manifest import load_yaml, MAX_WORLD_BYTES, read_manifest
+from r2d2_sim.sim.worlds.places import (
     FILE_SCHEME, file_stem, is_remote, PACKAGE_WORLDS, Places, read_text, SDF_SUFFIXES,
     WORLD_SUFFIX)
 

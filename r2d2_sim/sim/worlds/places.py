@@ -6,7 +6,7 @@ this package's ``urdf/``, the directories of the ``world_paths`` parameter,
 pybullet_data, and any ROS package's share directory through ``package://``;
 a relative name is looked for beside the world file first. Reading a world
 (:func:`~r2d2_sim.sim.worlds.read_world`) and listing the worlds
-(:func:`~r2d2_sim.sim.world_list.list_worlds`) both ask it, and both read
+(:func:`~r2d2_sim.sim.worlds.listing.list_worlds`) both ask it, and both read
 files through :func:`read_text` (a regular file, bounded, UTF-8) and name
 worlds by :func:`file_stem`. Refusals are
 :class:`~r2d2_sim.errors.RefusedError` with LoadWorld's codes.

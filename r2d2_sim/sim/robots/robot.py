@@ -27,11 +27,12 @@ from r2d2_sim.model.drive_controller import (
 from r2d2_sim.model.battery import Battery, BatteryReading, BatterySpec, Dock
 from r2d2_sim.model.encoders import Encoders, OdometryCovariance
 from r2d2_sim.model.noise import noise_generator
-from r2d2_sim.sim.drive_train import DriveTrain, find_drive_train
+from r2d2_sim.sim.robots.drive_train import DriveTrain, find_drive_train
 from r2d2_sim.model.kinematics import OdometryState
 from r2d2_sim.sim.oracles import Touch, touching
-from r2d2_sim.sim.parameters import ConfigError, SimConfig
-from r2d2_sim.sim.sensor_mounts import CameraImage, HeadCamera, ImuSensor, LaserScanner, Lidar3d
+from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.robots.sensors import CameraImage, HeadCamera, ImuSensor, LaserScanner, Lidar3d
 from r2d2_sim.model.sensors import ImuReading
 from r2d2_sim.model.timing import stamp_of, StepSchedule
 from r2d2_sim.physics.world import RayRequest, SimWorld, SPAWN_CLEARANCE_M

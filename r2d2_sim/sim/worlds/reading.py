@@ -1,32 +1,23 @@
 """
-Worlds: what one is, where they come from, and reading one as the simulation standard asks.
+Reading a world as the simulation standard asks: :func:`read_world`, one function for every format.
 
-No ROS here. A :class:`~r2d2_sim.sim.world_data.World` (plain data, in a
-module of its own that every format's reader builds from, exported here) is
-what the ``world`` parameter or a LoadWorld request names: its models (URDF
-files, each at a pose, with tags), its named poses
-(:class:`~r2d2_sim.sim.world_manifest.NamedPose`), a name, description and
-tags. Three formats are read, behind one function
-(:func:`read_world`) that a new format joins by adding a :class:`WorldFormat`
-to :data:`FORMATS`: a URDF (the whole world is that one model, as
-``urdf/room.urdf``), r2d2_sim's world manifest
-(:mod:`~r2d2_sim.sim.world_manifest`, ``*.world.yaml``) and SDF, Gazebo's
-worlds and models (:mod:`~r2d2_sim.sim.sdf_world`, ``*.sdf``, ``*.world``),
-whose models a manifest may list too.
+No ROS, no PyBullet. A :class:`~r2d2_sim.sim.worlds.world.World` is what the
+``world`` parameter or a LoadWorld request names. Three formats are read,
+and a new format joins by adding a :class:`WorldFormat` to :data:`FORMATS`:
+a URDF (the whole world is that one model, as ``urdf/room.urdf``),
+r2d2_sim's world manifest (:mod:`~r2d2_sim.sim.worlds.manifest`,
+``*.world.yaml``) and SDF, Gazebo's worlds and models
+(:mod:`~r2d2_sim.sim.worlds.sdf_format`, ``*.sdf``, ``*.world``), whose
+models a manifest may list too.
 
 A request may load worlds only from allowed places
-(:class:`~r2d2_sim.sim.world_places.Places`, in a module of its own): this
-package's ``urdf/``, the directories of the ``world_paths`` parameter,
-pybullet_data, and any ROS package's share directory through ``package://``
-(an SDF world's includes and meshes the model search paths and the Fuel cache
-too). The ``world`` parameter is the operator's own and may name any file.
-:func:`~r2d2_sim.sim.world_list.list_worlds` is GetAvailableWorlds: the
-manifests and SDF worlds of those places and of the request's
-``additional_sources``; it lives in :mod:`~r2d2_sim.sim.world_list`, and this
-module exports it with the rest of the worlds' names. Every refusal is a
-:class:`~r2d2_sim.errors.RefusedError` with LoadWorld's (or
-GetAvailableWorlds') code and a one-line message that names files, never
-their contents.
+(:class:`~r2d2_sim.sim.worlds.places.Places`): this package's ``urdf/``, the
+directories of the ``world_paths`` parameter, pybullet_data, and any ROS
+package's share directory through ``package://`` (an SDF world's includes
+and meshes the model search paths and the Fuel cache too). The ``world``
+parameter is the operator's own and may name any file. Every refusal is a
+:class:`~r2d2_sim.errors.RefusedError` with LoadWorld's code and a one-line
+message that names files, never their contents.
 """
 
 import os
@@ -37,19 +28,15 @@ import xml.etree.ElementTree as ElementTree
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import DescriptionFile
 from r2d2_sim.sim.sdf.loading import SdfSettings
-from r2d2_sim.sim.sdf_world import read_sdf_world, sdf_models
+from r2d2_sim.sim.worlds.sdf_format import read_sdf_world, sdf_models
 from r2d2_sim.sim.spawnables import check_description, MAX_DESCRIPTION_BYTES
-from r2d2_sim.sim.world_data import World, WorldModel
-from r2d2_sim.sim.world_list import list_worlds, MAX_WORLDS_PER_SOURCE, WorldEntry
-from r2d2_sim.sim.world_manifest import (
-    load_yaml, MAX_WORLD_BYTES, NamedPose, read_manifest)
-from r2d2_sim.sim.world_places import (
-    file_stem, PACKAGE_WORLDS, Places, read_text, SDF_SUFFIXES, WORLD_SUFFIX)
+from r2d2_sim.sim.worlds.manifest import load_yaml, MAX_WORLD_BYTES, read_manifest
+from r2d2_sim.sim.worlds.world import World, WorldModel
+from r2d2_sim.sim.worlds.places import (
+    file_stem, PACKAGE_WORLDS, Places, read_text, SDF_SUFFIXES)
 
-__all__ = ['World', 'WorldModel', 'WorldEntry', 'NamedPose', 'LoadOptions', 'Places',
-           'SdfSettings', 'WorldFormat', 'FORMATS', 'read_world', 'list_worlds', 'empty_world',
-           'PACKAGE_WORLDS', 'EMPTY_WORLD_URI', 'WORLD_SUFFIX', 'SDF_SUFFIXES',
-           'MAX_WORLDS_PER_SOURCE']
+__all__ = ['LoadOptions', 'WorldFormat', 'FORMATS', 'read_world', 'empty_world',
+           'EMPTY_WORLD_URI']
 
 EMPTY_WORLD_URI = f'{PACKAGE_WORLDS}/empty.world.yaml'
 # A URDF's top-level elements PyBullet reads; others (gazebo, transmission...) it ignores.

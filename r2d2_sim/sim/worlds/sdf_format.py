@@ -18,20 +18,19 @@ from typing import List, Optional, Tuple
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import compose, Transform
-from r2d2_sim.sim.entities import NAME
+from r2d2_sim.sim.names import is_name
 from r2d2_sim.sim.sdf.bodies import entity_name
 from r2d2_sim.sim.sdf.elements import local_tag, parse_xml, read_limited
 from r2d2_sim.sim.sdf.loading import build_bodies, read_sdf, SdfBuilt, SdfRead, summary_line
 from r2d2_sim.sim.sdf.mesh_cache import MeshCache
 from r2d2_sim.sim.sdf.reader import MAX_SDF_BYTES
 from r2d2_sim.sim.sdf.resources import Resources
-from r2d2_sim.sim.world_manifest import check_world_pose, NamedPose
-from r2d2_sim.sim.world_data import World, WorldModel
+from r2d2_sim.sim.worlds.manifest import check_world_pose
+from r2d2_sim.sim.worlds.world import NamedPose, World, WorldModel
 
-__all__ = ['read_sdf_world', 'sdf_models', 'sdf_world_entry', 'START_FRAME', 'SDF_SUFFIXES']
+__all__ = ['read_sdf_world', 'sdf_models', 'sdf_world_entry', 'START_FRAME']
 
 START_FRAME = 'start'
-SDF_SUFFIXES = ('.sdf', '.world')
 SDF_TAG = 'sdf'
 
 
@@ -95,7 +94,7 @@ def read_sdf_world(text: str, path: Optional[str], uri: str, reading,
     poses = []
     for frame in read.scene.frames:
         name = entity_name(frame.name)
-        if not NAME.match(name) or len(name) > 255:
+        if not is_name(name):
             raise RefusedError('RESOURCE_PARSE_ERROR', f'{at}frame {frame.name[:100]!r} '
                                                        'cannot name a named pose')
         orientation = check_world_pose(frame.pose.translation, frame.pose.rotation,

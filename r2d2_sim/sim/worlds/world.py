@@ -1,24 +1,39 @@
 """
-What a world is, as read: :class:`World` and its :class:`WorldModel` entries, plain data.
+What a world is, as read: a :class:`World`, its :class:`WorldModel` entries, its named poses.
 
-No ROS, no PyBullet. Every world format's reader returns a World
-(:mod:`r2d2_sim.sim.worlds` for URDF and the manifest,
-:mod:`r2d2_sim.sim.sdf_world` for SDF), and the Simulation and its Launch
-build from one. Kept apart from the readers so that the SDF reader can
-build a World without importing the module that calls it;
-:mod:`r2d2_sim.sim.worlds` exports both names.
+Plain data: no ROS, no PyBullet. Every world format's reader returns a World
+(:mod:`~r2d2_sim.sim.worlds.reading` for URDF and the manifest,
+:mod:`~r2d2_sim.sim.worlds.sdf_format` for SDF), and the Simulation and its
+start-up build from one.
 """
 
 from typing import NamedTuple, Optional, Tuple
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import DescriptionFile
-from r2d2_sim.sim.world_manifest import NamedPose
+from r2d2_sim.sim.bounds import EMPTY, Region
 
-__all__ = ['World', 'WorldModel']
+__all__ = ['World', 'WorldModel', 'NamedPose']
 
 Vec3 = Tuple[float, float, float]
 Quat = Tuple[float, float, float, float]
+
+
+class NamedPose(NamedTuple):
+    """
+    A pose with a name, as the standard's NamedPose, and its bounds.
+
+    The pose is in the world frame; ``bounds`` (a checked
+    :class:`~r2d2_sim.sim.bounds.Region`, or empty) are relative to
+    the pose, as an entity's bounds are relative to the entity.
+    """
+
+    name: str
+    description: str
+    tags: Tuple[str, ...]
+    position: Tuple[float, float, float]
+    orientation: Tuple[float, float, float, float]
+    bounds: Region = EMPTY
 
 
 class WorldModel(NamedTuple):

@@ -2,12 +2,12 @@
 The parameter table written out for people: ``sim_node --help`` and ``docs/parameters.md``.
 
 No ROS here, only the standard library. Both come from
-:data:`~r2d2_sim.sim.parameters.PARAMETERS`, as the validation and the ROS
+:data:`~r2d2_sim.sim.settings.table.PARAMETERS`, as the validation and the ROS
 declarations do, so neither can drift from the table: ``--help`` is built at
 each call, and a test compares ``docs/parameters.md`` with
 :func:`render_parameter_reference`. To write the page after changing the table::
 
-    python -m r2d2_sim.sim.parameter_docs docs/parameters.md
+    python -m r2d2_sim.sim.settings.reference docs/parameters.md
 """
 
 import json
@@ -15,7 +15,7 @@ import sys
 import textwrap
 from typing import List, Optional, Sequence
 
-from r2d2_sim.sim.parameters import Parameter, PARAMETERS
+from r2d2_sim.sim.settings.table import Parameter, PARAMETERS
 
 __all__ = ['parameter_help', 'render_parameter_reference', 'main']
 
@@ -67,15 +67,15 @@ def parameter_help(width: int = 79) -> str:
 
 
 _REFERENCE_HEAD = """\
-<!-- Generated from PARAMETERS in r2d2_sim/sim/parameters.py by
-     python -m r2d2_sim.sim.parameter_docs docs/parameters.md
+<!-- Generated from PARAMETERS in r2d2_sim/sim/settings/table.py by
+     python -m r2d2_sim.sim.settings.reference docs/parameters.md
      Edit the table, not this page: a test fails when the two differ. -->
 
 # Parameters
 
 Every parameter of `sim_node`, from the one table that the node's validation, its typed
 ROS declarations and `sim_node --help` also come from
-([`r2d2_sim/sim/parameters.py`](../r2d2_sim/sim/parameters.py)).
+([`r2d2_sim/sim/settings/table.py`](../r2d2_sim/sim/settings/table.py)).
 
 All are read-only after start-up and declared with their type (and most numbers with their
 range), so `ros2 param describe` shows them, and `ros2 param dump` or rqt read them all at

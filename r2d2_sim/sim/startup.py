@@ -1,7 +1,7 @@
 """
 The world as launched: what start-up loads, in its order, and building the world again.
 
-No ROS here. :class:`Launch` loads the start-up world into a
+No ROS here. :class:`Startup` loads the start-up world into a
 :class:`~r2d2_sim.physics.world.SimWorld` (the ground plane, the first robot,
 the ``extra_models`` and the models of the loaded world, then the other
 robots: the order PyBullet has always had them in, which body ids and the
@@ -12,7 +12,7 @@ put back in place, and change the next steps), or, for a full reset ("as if
 it was closed and launched again"), the start-up entities themselves, a
 robot deleted since loaded again from its start-up arguments.
 
-Loading another world (:meth:`Launch.switch`) makes its launch the one a
+Loading another world (:meth:`Startup.switch`) makes its launch the one a
 full reset builds: the same ground, robots and ``extra_models``, with that
 world's models, the robots standing at its start pose.
 """
@@ -27,13 +27,14 @@ from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.description import (
     DescriptionError, resolve_description_path, RobotDescription)
 from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
-from r2d2_sim.sim.entities import EntityInfo
-from r2d2_sim.sim.parameters import ConfigError, SimConfig
-from r2d2_sim.sim.robot import Robot
-from r2d2_sim.sim.robot_parameters import resolve_namespace, RobotSpec
+from r2d2_sim.sim.entities import Category, EntityInfo
+from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.robots.robot import Robot
+from r2d2_sim.sim.settings.robots import resolve_namespace, RobotSpec
 from r2d2_sim.sim.worlds import World, WorldModel
 
-__all__ = ['Launch', 'RobotStart', 'Rebuilt', 'robot_starts', 'placed', 'docked']
+__all__ = ['Startup', 'RobotStart', 'Rebuilt', 'robot_starts', 'placed', 'docked']
 
 
 class RobotStart(NamedTuple):
@@ -46,7 +47,7 @@ class RobotStart(NamedTuple):
 
 
 class Rebuilt(NamedTuple):
-    """The world after :meth:`Launch.rebuild`: what the simulation keeps of it."""
+    """The world after :meth:`Startup.rebuild`: what the simulation keeps of it."""
 
     robots: List[Robot]            # in load order
     models: Optional[List[Body]]   # the start-up models (as launched), else None: the same
@@ -115,7 +116,8 @@ def placed(start: RobotStart, world: World,
 
 
 def _robot_info(start: RobotStart) -> EntityInfo:
-    return EntityInfo(tags=tuple(start.config.tags))
+    """Return a start-up robot's info: a ROBOT, with the ``tags`` parameter's tags."""
+    return EntityInfo(Category.ROBOT, tags=tuple(start.config.tags))
 
 
 def robot_starts(config: SimConfig, specs: Sequence[RobotSpec],
@@ -138,7 +140,7 @@ def robot_starts(config: SimConfig, specs: Sequence[RobotSpec],
             for spec, resolved in zip(specs, namespaces)]
 
 
-class Launch:
+class Startup:
     """
     Load the start-up world into ``world`` and build it again when asked.
 

@@ -37,11 +37,13 @@ from typing import Any, List, NamedTuple, Optional, Sequence, Tuple
 import yaml
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.sim.entity_bounds import check_region, EMPTY, Region
+from r2d2_sim.sim.bounds import check_region, EMPTY, Region
+from r2d2_sim.sim.names import is_name, MAX_NAME_LENGTH
 from r2d2_sim.sim.tags import check_description_text, check_tags
+from r2d2_sim.sim.worlds.world import NamedPose
 
 __all__ = ['MANIFEST_KEY', 'MANIFEST_VERSION', 'MAX_WORLD_BYTES', 'MAX_YAML_DEPTH',
-           'MAX_YAML_NODES', 'MAX_MODELS', 'MAX_NAMED_POSES', 'MAX_NAME_LENGTH', 'NamedPose',
+           'MAX_YAML_NODES', 'MAX_MODELS', 'MAX_NAMED_POSES', 'MAX_NAME_LENGTH',
            'ModelEntry', 'Manifest', 'load_yaml', 'looks_like_manifest', 'read_manifest',
            'check_world_pose']
 
@@ -53,7 +55,6 @@ MAX_YAML_DEPTH = 32
 MAX_YAML_NODES = 200_000
 MAX_MODELS = 1000
 MAX_NAMED_POSES = 1000
-MAX_NAME_LENGTH = 255
 # As far out as a pose may be: the robots' blow-up bound.
 MAX_DISTANCE_M = 10_000.0
 QUATERNION_NORM_TOLERANCE = 1e-3
@@ -105,23 +106,6 @@ def load_yaml(text: str) -> Any:
 def looks_like_manifest(data: Any) -> bool:
     """Return True for YAML data that says it is an r2d2_sim world manifest."""
     return isinstance(data, dict) and MANIFEST_KEY in data
-
-
-class NamedPose(NamedTuple):
-    """
-    A pose with a name, as the standard's NamedPose, and its bounds.
-
-    The pose is in the world frame; ``bounds`` (a checked
-    :class:`~r2d2_sim.sim.entity_bounds.Region`, or empty) are relative to
-    the pose, as an entity's bounds are relative to the entity.
-    """
-
-    name: str
-    description: str
-    tags: Tuple[str, ...]
-    position: Tuple[float, float, float]
-    orientation: Tuple[float, float, float, float]
-    bounds: Region = EMPTY
 
 
 class ModelEntry(NamedTuple):
@@ -181,9 +165,8 @@ def _text(value: Any, where: str, default: Optional[str] = None) -> str:
 
 
 def _name(value: Any, where: str) -> str:
-    from r2d2_sim.sim.entities import NAME  # the entities' naming rule
     name = _text(value, where)
-    if len(name) > MAX_NAME_LENGTH or not NAME.match(name):
+    if not is_name(name):
         raise _fail(where, f'a name is letters, digits, _ and - (at most {MAX_NAME_LENGTH}), '
                            'starting with a letter or _')
     return name

@@ -2,22 +2,22 @@
 The node's parameters in one table: name, ROS type, default, unit, bounds, description.
 
 No ROS here. Everything else is derived from :data:`PARAMETERS`: the
-:class:`SimConfig` fields, the validation in :func:`parse_config` (one readable
+:class:`~r2d2_sim.sim.settings.config.SimConfig` fields (generated, and checked
+against the table) and the validation in
+:func:`~r2d2_sim.sim.settings.config.parse_config` (one readable
 :class:`ConfigError` line per bad value, so a bad parameter is a clear start-up
 error rather than a traceback; frame ids that would break the TF tree
 included), the node's typed ROS declarations, and ``sim_node --help`` and
-``docs/parameters.md`` (:mod:`r2d2_sim.sim.parameter_docs`). Several robots'
-settings come from it in :mod:`r2d2_sim.sim.robot_parameters`.
+``docs/parameters.md`` (:mod:`r2d2_sim.sim.settings.reference`). Several robots'
+settings come from it in :mod:`r2d2_sim.sim.settings.robots`.
 """
 
-from dataclasses import make_dataclass
 import math
-from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Tuple
+from typing import Any, Callable, Dict, List, NamedTuple, Optional
 
-from r2d2_sim.model.noise import NoiseSpec
-from r2d2_sim.sim import parameter_readers as read
+from r2d2_sim.sim.settings import readers as read
 # ConfigError and Bounds are defined with the readers; the table's users import them here.
-from r2d2_sim.sim.parameter_readers import Bounds, ConfigError  # noqa: F401
+from r2d2_sim.sim.settings.readers import Bounds, ConfigError  # noqa: F401
 
 
 # Measured on the package's own R2D2 (four wheels skid-steering, lateral
@@ -39,7 +39,7 @@ FORWARD_AXIS_YAW_RAD = {'x': 0.0, 'y': math.pi / 2, '-x': math.pi, '-y': -math.p
 
 
 # The frames of the node's own sensors (with frame_prefix in front), and the
-# URDF link the head camera's frame hangs from; r2d2_sim.sim.sensor_mounts mounts them.
+# URDF link the head camera's frame hangs from; r2d2_sim.sim.robots.sensors mounts them.
 LASER_FRAME_ID = 'base_scan'
 LIDAR3D_FRAME_ID = 'lidar_3d'
 IMU_FRAME_ID = 'imu_link'
@@ -68,7 +68,8 @@ class Parameter(NamedTuple):
     ``bounds`` then holds numbers (or each element of a number list) to a range.
     ``per_robot``: a robot's own setting (its description, drive, frames,
     sensors), which each robot listed in ``robots`` may override; the others
-    are the world's (physics, time, the ground, the live view).
+    are the world's (physics, time, the ground, the live view). ``python_type``
+    is the field's type when ``read`` gives more than the ROS type says.
     """
 
     name: str
@@ -79,6 +80,7 @@ class Parameter(NamedTuple):
     read: Callable[[str, Any], Any]
     bounds: Optional[Bounds] = None
     per_robot: bool = False  # each robot of several may set its own (robot_a.<name>)
+    python_type: str = ''    # the SimConfig field's type, when not the ROS type's
 
 
 class NoiseFamily(NamedTuple):
@@ -218,7 +220,8 @@ PARAMETERS: List[Parameter] = [
     Parameter('extra_models', 'string_array', [],
               'Other bodies, each "description x y z" (description resolved like urdf), '
               'e.g. the tutorial\'s cube: ["cube.urdf 0 0 1"]. They collide with the robot.',
-              'extra_models', read.extra_models),
+              'extra_models', read.extra_models,
+              python_type='Tuple[Tuple[str, Tuple[float, float, float]], ...]'),
     Parameter('gui', 'bool', False,
               'Open the PyBullet window (needs a display); same paced rate, the camera '
               'follows the robot.',
@@ -515,162 +518,3 @@ PARAMETERS: List[Parameter] = [
 ]
 
 PARAMETERS_BY_NAME: Dict[str, Parameter] = {p.name: p for p in PARAMETERS}
-
-# Python types of the SimConfig fields, by ROS type.
-_FIELD_TYPES = {'double': float, 'integer': int, 'bool': bool, 'string': str,
-                'double_array': Tuple[float, ...], 'string_array': Tuple[str, ...]}
-
-
-def _body_yaw_offset_rad(self) -> float:
-    """Return the yaw from the URDF base frame to the REP-103 body frame."""
-    return FORWARD_AXIS_YAW_RAD[self.base_forward_axis]
-
-
-def _prefixed_frame(self, name: str) -> str:
-    """Return a frame id of this robot with ``frame_prefix`` in front."""
-    return self.frame_prefix + name
-
-
-def _wheel_names_are_default(self) -> bool:
-    """Return True when the wheel joint names were left at their defaults."""
-    return (list(self.left_wheel_names) == PARAMETERS_BY_NAME['left_wheel_names'].default
-            and list(self.right_wheel_names) == PARAMETERS_BY_NAME['right_wheel_names'].default)
-
-
-def _noise(self, prefix: str) -> NoiseSpec:
-    """Return a sensor's noise (``scan``, ``imu_angular_velocity``...) as a NoiseSpec."""
-    family = NOISE_FAMILIES[prefix]
-    values = [getattr(self, family.field(part)) for part in NOISE_PARTS]
-    return NoiseSpec(*values)
-
-
-SimConfig = make_dataclass(
-    'SimConfig', [(p.field, _FIELD_TYPES[p.ros_type]) for p in PARAMETERS], frozen=True,
-    namespace={'__doc__': 'Validated simulator settings in SI units, one field per parameter.',
-               'body_yaw_offset_rad': property(_body_yaw_offset_rad),
-               'frame': _prefixed_frame,
-               'noise': _noise,
-               'wheel_names_are_default': property(_wheel_names_are_default)})
-SimConfig.__module__ = __name__
-
-
-def read_value(spec: Parameter, value: Any, label: Optional[str] = None) -> Any:
-    """Read one raw value; ``label`` names it in messages (default: the parameter's name)."""
-    label = label or spec.name
-    # ROS cannot tell the type of an empty list (-p names:=[]): it arrives as None.
-    if value is None and spec.ros_type.endswith('_array'):
-        value = []
-    result = spec.read(label, value)
-    if spec.bounds is not None:
-        values = result if isinstance(result, tuple) else (result,)
-        for v in values:
-            if math.isfinite(v):  # inf is how read.limit says "none"
-                spec.bounds.check(label, v)
-    return result
-
-
-def parse_config(values: Mapping[str, Any]) -> 'SimConfig':
-    """Validate raw parameter values (defaults filled in) into a SimConfig."""
-    unknown = set(values) - set(PARAMETERS_BY_NAME)
-    if unknown:
-        raise ConfigError(f'unknown parameter(s): {", ".join(sorted(unknown))}')
-    fields = {}
-    for spec in PARAMETERS:
-        fields[spec.field] = read_value(spec, values.get(spec.name, spec.default))
-    check_fields(fields)
-    fields['publish_rate_hz'] = fields['publish_rate_hz'] or fields['physics_rate_hz']
-    return SimConfig(**fields)
-
-
-def check_fields(fields: Mapping[str, Any]) -> None:
-    """Check what no single value shows: rates against physics, wheel lists, ranges, frames."""
-    physics_rate = fields['physics_rate_hz']
-    for name, field in (('publish_rate', 'publish_rate_hz'), ('camera_rate', 'camera_rate_hz'),
-                        ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz'),
-                        ('lidar3d_rate', 'lidar3d_rate_hz'), ('battery_rate', 'battery_rate_hz')):
-        if fields[field] > physics_rate:
-            raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
-                              f'physics_rate ({physics_rate} Hz)')
-    left, right = fields['left_wheel_names'], fields['right_wheel_names']
-    if bool(left) != bool(right):
-        raise ConfigError('left_wheel_names and right_wheel_names must both list wheels '
-                          'or both be empty')
-    both = set(left) & set(right)
-    if both:
-        raise ConfigError(
-            f'joint(s) {", ".join(sorted(both))} listed as both left and right wheels')
-    if not fields['scan_angle_min_rad'] < fields['scan_angle_max_rad']:
-        raise ConfigError('parameter scan_angle_min must be below scan_angle_max, got '
-                          f'{fields["scan_angle_min_rad"]} >= {fields["scan_angle_max_rad"]}')
-    for family in NOISE_FAMILIES.values():
-        drift, time = family.name('dynamic_bias_std'), family.name('dynamic_bias_correlation_time')
-        if fields[family.field('dynamic_bias_std')] > 0.0 and fields[family.field(
-                'dynamic_bias_correlation_time')] == 0.0:
-            raise ConfigError(f'parameter {drift} needs {time} > 0 (the drifting bias\'s '
-                              'correlation time), got 0')
-    if not fields['scan_range_min_m'] < fields['scan_range_max_m']:
-        raise ConfigError('parameter scan_range_min must be below scan_range_max, got '
-                          f'{fields["scan_range_min_m"]} >= {fields["scan_range_max_m"]}')
-    if not fields['lidar3d_range_min_m'] < fields['lidar3d_range_max_m']:
-        raise ConfigError('parameter lidar3d_range_min must be below lidar3d_range_max, got '
-                          f'{fields["lidar3d_range_min_m"]} >= {fields["lidar3d_range_max_m"]}')
-    if not fields['battery_voltage_empty_v'] < fields['battery_voltage_full_v']:
-        raise ConfigError('parameter battery_voltage_empty must be below battery_voltage_full, '
-                          f'got {fields["battery_voltage_empty_v"]} >= '
-                          f'{fields["battery_voltage_full_v"]}')
-    if fields['battery_dock'] and fields['battery_dock_pose']:
-        raise ConfigError('parameters battery_dock and battery_dock_pose both give the dock: '
-                          'set one')
-    low, high = fields['lidar3d_angle_min_rad'], fields['lidar3d_angle_max_rad']
-    if not (low < high or (low == high and fields['lidar3d_rings'] == 1)):
-        raise ConfigError('parameter lidar3d_angle_min must be below lidar3d_angle_max (equal '
-                          f'only with one ring), got {low} and {high}')
-    _check_frames(fields)
-
-
-def _check_frames(fields: Mapping[str, Any]) -> None:
-    """
-    Refuse frame ids that would break the TF tree: any two of the robot's frames alike.
-
-    TF is one tree: odom -> footprint -> base -> sensors, under world when
-    publish_ground_truth_tf is on. Two roles given one frame make a cycle
-    (odom_frame_id base_link) or a transform from a frame to itself
-    (footprint_frame_id base_link), which tf2 refuses. frame_prefix goes in
-    front of every robot frame but not of world_frame_id, so world is
-    compared with the prefixed names.
-    """
-    prefix = fields['frame_prefix']
-    parameters = [(name, fields[name])
-                  for name in ('odom_frame_id', 'footprint_frame_id', 'base_frame_id')]
-    sensors = []
-    for rate, frames, what, switch in (
-            ('scan_rate_hz', (LASER_FRAME_ID,), "the laser's frame", 'scan_rate > 0'),
-            ('lidar3d_rate_hz', (LIDAR3D_FRAME_ID,), "the 3D lidar's frame", 'lidar3d_rate > 0'),
-            ('imu_rate_hz', (IMU_FRAME_ID,), "the IMU's frame", 'imu_rate > 0'),
-            ('camera_rate_hz', (HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK),
-             "a head camera frame", 'camera_rate > 0')):
-        if fields[rate] > 0.0:
-            sensors += [(frame, what, switch) for frame in frames]
-    distinct = ': TF needs a distinct frame for each'
-    seen: Dict[str, str] = {}
-    for name, frame in parameters:
-        if frame in seen:
-            raise ConfigError(f'parameters {seen[frame]} and {name} both name the frame '
-                              f'{prefix + frame!r}{distinct}')
-        seen[frame] = name
-    for frame, what, switch in sensors:
-        if frame in seen:
-            raise ConfigError(f'parameter {seen[frame]} names {what} {prefix + frame!r} '
-                              f'({switch}){distinct}')
-    world = fields['world_frame_id']
-    if not world.startswith(prefix):
-        return
-    local = world[len(prefix):]
-    with_prefix = f' (with frame_prefix {prefix!r})' if prefix else ''
-    if local in seen:
-        raise ConfigError(f'parameters world_frame_id and {seen[local]}{with_prefix} both name '
-                          f'the frame {world!r}{distinct}')
-    for frame, what, switch in sensors:
-        if frame == local:
-            raise ConfigError(f'parameter world_frame_id names {what} {world!r} '
-                              f'({switch}){distinct}')

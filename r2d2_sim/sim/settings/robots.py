@@ -2,7 +2,7 @@
 Several robots' parameters: each robot's settings are the world's, with its own on top.
 
 No ROS here. ``robots`` lists robots by name; each may set any per-robot
-parameter of the table (:mod:`r2d2_sim.sim.parameters`) as ``NAME.parameter``
+parameter of the table (:mod:`r2d2_sim.sim.settings.table`) as ``NAME.parameter``
 and its namespace as ``NAME.namespace``. :func:`parse_world` validates them
 all into one :class:`RobotSpec` per robot, :func:`robot_config` makes the
 settings of one robot (a spawned one too), and namespaces resolve as ROS
@@ -11,10 +11,9 @@ resolves a node's.
 
 from typing import Any, Dict, List, Mapping, NamedTuple, Optional, Tuple
 
-from r2d2_sim.sim import parameter_readers as read
-from r2d2_sim.sim.parameters import (
-    check_fields, ConfigError, parse_config, PARAMETERS, PARAMETERS_BY_NAME, read_value,
-    SimConfig)
+from r2d2_sim.sim.settings import readers as read
+from r2d2_sim.sim.settings.table import ConfigError, PARAMETERS, PARAMETERS_BY_NAME
+from r2d2_sim.sim.settings.config import check_fields, parse_config, read_value, SimConfig
 
 __all__ = ['RobotSpec', 'robot_config', 'parse_world', 'resolve_namespace', 'robot_namespaces']
 
