@@ -174,6 +174,36 @@ def test_the_moving_collision_of_a_mesh_is_one_hull_per_piece(tmp_path):
         assert '\no piece_' not in handle.read()  # more than MAX_HULLS pieces: one hull
 
 
+def test_a_piece_of_many_points_is_hulled_from_its_extremes():
+    """A sphere of 10,242 vertices: at most HULL_POINTS of them, each the farthest one way."""
+    import trimesh
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=1.0)
+    points = numpy.asarray(sphere.vertices)
+    chosen = mesh_cache.hull_points(points)
+    assert 100 < len(chosen) <= mesh_cache.HULL_POINTS
+    assert {tuple(p) for p in chosen} <= {tuple(p) for p in points}
+    # Every direction still reaches (almost) the whole radius: the hull did not shrink.
+    directions = numpy.random.default_rng(7).normal(size=(2000, 3))
+    directions /= numpy.linalg.norm(directions, axis=1)[:, None]
+    assert (chosen @ directions.T).max(axis=0).min() > 0.97
+    assert numpy.array_equal(mesh_cache.hull_points(points[:50]), points[:50])  # few: as they are
+
+
+def test_a_big_moving_mesh_loads_as_a_small_hull_and_a_small_one_as_it_was(tmp_path):
+    """hulls.obj keeps a box's points (bytes as before) and cuts a sphere's to HULL_POINTS."""
+    import trimesh
+    cache = MeshCache(str(tmp_path / 'cache'))
+    converted = cache.convert(write_stl(tmp_path / 'cube.stl', box((0.2, 0.2, 0.2))), 'cube.stl')
+    vertices, faces = mesh_cache._read_obj(converted.mesh)
+    with open(cache.hulls(converted)) as handle:
+        assert handle.read() == mesh_cache.obj_text(vertices, faces, [numpy.arange(len(faces))])
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.3)
+    converted = cache.convert(write_stl(tmp_path / 'ball.stl', sphere), 'ball.stl')
+    with open(cache.hulls(converted)) as handle:
+        text = handle.read()
+    assert text.count('\nv ') <= mesh_cache.HULL_POINTS and text.count('\nf ') < 300
+
+
 CONVERT = '''
 import sys
 sys.path.insert(0, sys.argv[1])

@@ -8,7 +8,11 @@ COLLADA's units and scene transforms only partly, so every mesh is converted
 vertices merged), one file per colour for the camera (``part_<i>.obj``), and,
 when a moving body needs it, its connected pieces as separate objects
 (``hulls.obj``: Bullet makes each a convex hull, a decomposition that keeps
-a table's legs apart). They live in ``$R2D2_SIM_CACHE_DIR``, else
+a table's legs apart; a piece of more than :data:`HULL_POINTS` vertices is
+given by its farthest points in that many fixed directions, since Bullet's
+time to load a hull, and to collide with it, grows with its points: a sphere
+of 10,242 vertices took PyBullet 0.8 s to load, under the simulator's lock).
+They live in ``$R2D2_SIM_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/r2d2_sim``, else ``~/.cache/r2d2_sim``, under ``meshes/``,
 keyed by a hash of the source file's bytes and this converter's version: a
 warm load reads no mesh file at all. Every file is written beside its final
@@ -28,15 +32,18 @@ from r2d2_sim.errors import RefusedError
 from r2d2_sim.sim.sdf.meshes import read_mesh, read_mesh_bytes, Triangles
 
 __all__ = ['MeshCache', 'Converted', 'cache_directory', 'CACHE_VARIABLE', 'CONVERTER_VERSION',
-           'MAX_PARTS', 'MAX_HULLS']
+           'MAX_PARTS', 'MAX_HULLS', 'HULL_POINTS', 'hull_points']
 
 CACHE_VARIABLE = 'R2D2_SIM_CACHE_DIR'
-CONVERTER_VERSION = 1
+CONVERTER_VERSION = 2
 # Visual pieces of one mesh (one per colour); beyond, the rest are drawn in one piece.
 MAX_PARTS = 32
 # Convex pieces of a moving mesh; a mesh of more (or larger) pieces is one convex hull.
 MAX_HULLS = 64
 MAX_HULL_TRIANGLES = 200_000
+# Points a moving piece's convex hull is made of, at most (Bullet advises fewer
+# than 100 for speed; 256 keep a sphere round to 0.4 % of its radius).
+HULL_POINTS = 256
 
 Rgba = Tuple[float, float, float, float]
 
@@ -103,6 +110,45 @@ def _used(vertices: numpy.ndarray, faces: numpy.ndarray
     """Return only the vertices ``faces`` use, and the faces renumbered onto them."""
     used, inverse = numpy.unique(faces, return_inverse=True)
     return vertices[used], inverse.reshape(faces.shape)
+
+
+def _directions(count: int) -> numpy.ndarray:
+    """Return ``count`` unit vectors spread evenly over the sphere (a Fibonacci lattice)."""
+    i = numpy.arange(count, dtype=float) + 0.5
+    z = 1.0 - 2.0 * i / count
+    radius = numpy.sqrt(1.0 - z * z)
+    angle = numpy.pi * (3.0 - numpy.sqrt(5.0)) * i
+    return numpy.stack([radius * numpy.cos(angle), radius * numpy.sin(angle), z], axis=1)
+
+
+def hull_points(points: numpy.ndarray, count: int = HULL_POINTS) -> numpy.ndarray:
+    """
+    Return ``points`` as they are when at most ``count``, else their extremes in ``count`` ways.
+
+    Each chosen point is the farthest along one fixed direction, so it is a
+    vertex of the true convex hull: the hull of the chosen points lies inside
+    it and touches it in every direction. Deterministic, in the points' order.
+    """
+    if len(points) <= count:
+        return points
+    chosen = numpy.unique(numpy.argmax(points @ _directions(count).T, axis=0))
+    return points[chosen]
+
+
+def hull_text(vertices: numpy.ndarray, faces: numpy.ndarray,
+              objects: Optional[List[numpy.ndarray]] = None) -> str:
+    """Return OBJ text of each object's hull points (fans of triangles Bullet hulls)."""
+    out = ['# written by r2d2_sim\n']
+    offset = 1
+    for number, selected in enumerate(objects if objects is not None else [None]):
+        points = hull_points(_used(vertices, faces if selected is None else faces[selected])[0])
+        if objects is not None:
+            out.append(f'o piece_{number}\n')
+        out.append(('v %.9g %.9g %.9g\n' * len(points)) % tuple(points.ravel().tolist()))
+        fan = [(offset, offset + k, offset + k + 1) for k in range(1, len(points) - 1)]
+        out.append(''.join('f %d %d %d\n' % corners for corners in fan))
+        offset += len(points)
+    return ''.join(out)
 
 
 def pieces(faces: numpy.ndarray, vertex_count: int) -> List[numpy.ndarray]:
@@ -202,7 +248,11 @@ class MeshCache:
             found = pieces(faces, len(vertices))
             if len(found) > MAX_HULLS:
                 found = None
-        _write(path, obj_text(vertices, faces, found))
+        if all(len(_used(vertices, faces if piece is None else faces[piece])[0]) <= HULL_POINTS
+               for piece in (found if found is not None else [None])):
+            _write(path, obj_text(vertices, faces, found))  # every piece as it is
+        else:
+            _write(path, hull_text(vertices, faces, found))
         return path
 
 
