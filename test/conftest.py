@@ -34,8 +34,9 @@ collect_ignore = ['examples']
 
 TEST_DIR = Path(__file__).resolve().parent
 FAST_TIER = [TEST_DIR / 'model', TEST_DIR / 'physics', TEST_DIR / 'sim']
-# Fast-tier tests outside those folders: they start interpreters of their own, not ROS.
-FAST_FILES = [TEST_DIR / 'lint' / 'test_layers.py']
+# Fast-tier tests outside those folders: they start interpreters of their own (the
+# layering and the type check), not ROS.
+FAST_FILES = [TEST_DIR / 'lint' / 'test_layers.py', TEST_DIR / 'lint' / 'test_types.py']
 SYSTEM = TEST_DIR / 'system'
 FAST_ONLY = pytest.StashKey[bool]()
 # Set by .ci/run: every test must run there, a skip is a failure.

@@ -39,6 +39,7 @@ def test_a_mean_alone_is_added_exactly_without_a_draw():
     assert generator.bit_generator.state == state
 
 
+@pytest.mark.slow
 def test_the_constant_bias_takes_both_signs_over_seeds_and_keeps_its_size():
     """|bias| ~ |N(bias_mean, bias_std)|; its sign is flipped with probability 0.5."""
     spec = NoiseSpec(bias_mean=1.0, bias_stddev=0.05)
@@ -102,6 +103,7 @@ def autocorrelation(values, lags):
                         for lag in lags])
 
 
+@pytest.mark.slow
 def test_the_dynamic_bias_has_its_correlation_time_and_settled_spread():
     """rho(lag) = exp(-lag dt / tau): tau fitted over lags up to tau, and sigma sqrt(tau/2)."""
     sigma, tau_s, dt_s = 0.2, 0.5, 0.01
@@ -115,6 +117,7 @@ def test_the_dynamic_bias_has_its_correlation_time_and_settled_spread():
         .dynamic_bias_steady_stddev == pytest.approx(sigma * math.sqrt(tau_s / 2.0))
 
 
+@pytest.mark.slow
 def test_the_dynamic_bias_walks_as_sigma_sqrt_t_while_t_is_short_of_tau():
     """From 0, over t << tau the bias spreads as a random walk of density sigma."""
     sigma, tau_s, dt_s, steps = 0.1, 3600.0, 0.01, 100

@@ -25,6 +25,7 @@ def resident_mb() -> float:
         return int(statm.read().split()[1]) * os.sysconf('SC_PAGE_SIZE') / 2**20
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists('/proc/self/statm'), reason='needs Linux /proc')
 def test_robots_spawned_and_deleted_for_long_leave_memory_flat(make):
     simulation = make(scan_rate=0.0, imu_rate=0.0)
