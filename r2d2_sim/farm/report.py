@@ -25,6 +25,8 @@ import re
 import shlex
 from typing import Any, Dict, List, Optional, Sequence
 
+import numpy
+
 from r2d2_sim.farm.scenario import Box, Scenario
 
 __all__ = ['write_report', 'percentile', 'case_key', 'REPORT_JSON', 'REPORT_MD',
@@ -38,14 +40,15 @@ LISTED = 5
 
 
 def percentile(values: Sequence[float], q: float) -> float:
-    """Return the value below which q % (0..100) of ``values`` fall, interpolated linearly."""
-    ordered = sorted(values)
-    if not ordered:
+    """
+    Return the value below which q % (0..100) of ``values`` fall; NaN for no values.
+
+    numpy's default (linear) definition: between the two nearest of the sorted
+    values, at (n - 1) * q / 100.
+    """
+    if len(values) == 0:
         return math.nan
-    position = (len(ordered) - 1) * q / 100.0
-    low = math.floor(position)
-    high = min(low + 1, len(ordered) - 1)
-    return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
+    return float(numpy.percentile(values, q))
 
 
 def case_key(record: Dict[str, Any]):
