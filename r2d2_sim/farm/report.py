@@ -2,8 +2,9 @@
 A farm's report from its outcomes: report.md, report.json and trajectories.png.
 
 Each run of a farm is a record (one JSON line a worker wrote: the test's
-node id, the run's number in that test, whether it was a Hypothesis
-property's final example, and the :class:`~r2d2_sim.farm.run.Outcome`).
+node id and the rootdir it is relative to, the run's number in that test,
+whether it was a Hypothesis property's final example, and the
+:class:`~r2d2_sim.farm.run.Outcome`).
 :func:`write_report` numbers them in node id order (so a case keeps its
 number however the workers were ordered) and writes:
 
@@ -76,7 +77,8 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
     Write report.json, report.md and (with ``picture``) trajectories.png into ``directory``.
 
     ``records`` are the farm's JSON lines, in any order; ``invocation_dir``
-    and ``rootdir`` are where pytest ran and its root (a rerun runs there).
+    and ``rootdir`` are where pytest's main process ran and its root (a
+    record's own rootdir comes first: its node id is relative to that).
     Returns the paths written, by file name.
     """
     directory.mkdir(parents=True, exist_ok=True)
@@ -84,7 +86,8 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
     cases = []
     for number, record in enumerate(sorted(records, key=case_key)):
         outcome = record['outcome']
-        cases.append({'case': number, 'nodeid': record['nodeid'], 'run': record.get('run', 0),
+        cases.append({'case': number, 'nodeid': record['nodeid'],
+                      'rootdir': record.get('rootdir') or rootdir, 'run': record.get('run', 0),
                       'property': record.get('property', False),
                       'worker': record.get('worker', ''), 'passed': outcome['passed'],
                       'reason': outcome['reason'], 'seed': outcome['scenario']['seed'],

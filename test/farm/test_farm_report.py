@@ -17,7 +17,7 @@ from r2d2_sim.farm.scenario import Scenario
 
 
 def record(nodeid, run=0, time_to_goal_s=None, clearance_m=1.0, seed=0):
-    """Return one farm record (a JSON line of the farm) of a run that passed."""
+    """Make what the farm writes of a passed run: one JSON line, as data."""
     outcome = Outcome(scenario=Scenario(seed=seed), passed=True, reason='', seconds=20.0,
                       time_to_goal_s=time_to_goal_s, clearance_m=clearance_m, closest=None,
                       closest_s=None, contacts=(), tipped_s=None, trajectory=(), steps=240)
