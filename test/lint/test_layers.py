@@ -81,15 +81,21 @@ def layer_of(module: str, package: str):
     return RANK.get(parts[1])
 
 
-def imported_modules(node: ast.AST, module: str, is_package: bool) -> list:
-    """Return the absolute names one Import or ImportFrom node imports (relative ones resolved)."""
-    if isinstance(node, ast.Import):
-        return [alias.name for alias in node.names]
+def from_module(node: ast.ImportFrom, module: str, is_package: bool) -> str:
+    """Return the absolute name of the module a ``from ... import`` in ``module`` names."""
     base = node.module or ''
     if node.level:
         parts = module.split('.') if is_package else module.split('.')[:-1]
         parts = parts[:len(parts) - (node.level - 1)]
         base = '.'.join(parts + ([base] if base else []))
+    return base
+
+
+def imported_modules(node: ast.AST, module: str, is_package: bool) -> list:
+    """Return the absolute names one Import or ImportFrom node imports (relative ones resolved)."""
+    if isinstance(node, ast.Import):
+        return [alias.name for alias in node.names]
+    base = from_module(node, module, is_package)
     # "from pkg import name": name may be a module of pkg; its layer is pkg's, or lower.
     return [f'{base}.{alias.name}' if base.count('.') == 0 else base for alias in node.names]
 
@@ -118,6 +124,45 @@ def layer_violations(root: Path, package: str) -> list:
     return found
 
 
+def import_graph(root: Path, package: str) -> dict:
+    """Return each module of ``package`` and the modules of it that it imports, anywhere in it."""
+    paths = {}
+    for path in sorted((root / package).rglob('*.py')):
+        parts = path.relative_to(root).with_suffix('').parts
+        paths['.'.join(parts[:-1] if parts[-1] == '__init__' else parts)] = path
+    graph = {}
+    for module, path in paths.items():
+        is_package = path.name == '__init__.py'
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'), str(path))):
+            if isinstance(node, ast.Import):
+                targets.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = from_module(node, module, is_package)
+                # "from pkg import name": the module pkg.name when there is one, else pkg.
+                targets.update(f'{base}.{alias.name}' if f'{base}.{alias.name}' in paths
+                               else base for alias in node.names)
+        graph[module] = sorted(t for t in targets if t in paths and t != module)
+    return graph
+
+
+def import_circles(root: Path, package: str) -> list:
+    """Return each set of modules of ``package`` that import one another round (sorted names)."""
+    graph = import_graph(root, package)
+    reaches = {}
+    for start in graph:
+        seen, todo = set(), list(graph[start])
+        while todo:
+            module = todo.pop()
+            if module not in seen:
+                seen.add(module)
+                todo.extend(graph[module])
+        reaches[start] = seen
+    circles = {tuple(sorted(m for m in graph if m == start or (
+        m in reaches[start] and start in reaches[m]))) for start in graph if start in reaches[start]}
+    return sorted(list(circle) for circle in circles)
+
+
 # -- the package itself ----------------------------------------------------------------
 
 
@@ -136,6 +181,15 @@ def test_every_import_goes_to_the_same_layer_or_a_lower_one():
     A module outside every layer (a new folder or top-level module) is reported too.
     """
     assert layer_violations(Path(REPO), PACKAGE) == []
+
+
+def test_no_modules_import_one_another_round():
+    """
+    No import circle, top-level or in a function (a function's import hides one, not ends it).
+
+    The farm's places and scenario were one: each needed ScenarioError of the other.
+    """
+    assert import_circles(Path(REPO), PACKAGE) == []
 
 
 # -- each check can fail ---------------------------------------------------------------
@@ -166,6 +220,10 @@ FAULTY = {
     'fakepkg/ros/node.py': 'import rclpy\nthing = 1\n',
     'fakepkg/apps/__init__.py': '',
     'fakepkg/gadgets.py': '',
+    # A circle of three in one layer: absolute, relative, and inside a function.
+    'fakepkg/apps/one.py': 'from fakepkg.apps import two\n',
+    'fakepkg/apps/two.py': 'from .three import thing\n',
+    'fakepkg/apps/three.py': 'thing = 1\n\n\ndef later():\n    import fakepkg.apps.one\n',
     # Stand-ins, so that the fresh interpreter finds these names without loading the real ones.
     'rclpy.py': '',
     'pybullet.py': '',
@@ -198,3 +256,9 @@ def test_the_static_check_names_each_import_that_goes_up(faulty):
         'fakepkg/physics/relative.py:1: fakepkg.physics.relative imports fakepkg.ros.node',
         'fakepkg/sim/core.py:5: fakepkg.sim.core imports fakepkg.apps',
     ]
+
+
+def test_the_circle_check_names_modules_that_import_one_another_round(faulty):
+    """apps' one, two and three import one another round; nothing else does."""
+    assert import_circles(faulty, 'fakepkg') == [
+        ['fakepkg.apps.one', 'fakepkg.apps.three', 'fakepkg.apps.two']]
