@@ -158,8 +158,9 @@ def import_circles(root: Path, package: str) -> list:
                 seen.add(module)
                 todo.extend(graph[module])
         reaches[start] = seen
-    circles = {tuple(sorted(m for m in graph if m == start or (
-        m in reaches[start] and start in reaches[m]))) for start in graph if start in reaches[start]}
+    # A module on a circle reaches itself; its circle is every module it reaches that reaches it.
+    circles = {tuple(sorted({start} | {m for m in reaches[start] if start in reaches[m]}))
+               for start in graph if start in reaches[start]}
     return sorted(list(circle) for circle in circles)
 
 
