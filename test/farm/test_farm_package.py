@@ -33,7 +33,8 @@ def test_importing_the_farm_loads_none_of_its_modules():
 
 
 def test_every_name_is_where_the_package_says():
-    """Each name of __all__ is its module's own, and dir() lists it."""
+    """Each name of __all__ is its module's own, and dir() lists it; each lazy name is in it."""
+    assert sorted(r2d2_sim.farm.__all__) == sorted(r2d2_sim.farm._HOMES)
     for name in r2d2_sim.farm.__all__:
         value = getattr(r2d2_sim.farm, name)
         assert value is getattr(sys.modules[f'r2d2_sim.farm.{r2d2_sim.farm._HOMES[name]}'],

@@ -21,6 +21,7 @@ import sys
 
 import pytest
 
+from r2d2_sim.farm.__main__ import main
 from r2d2_sim.farm.rerun import load_case, locate, ReportError, same_run
 from r2d2_sim.farm.report import write_report
 from r2d2_sim.farm.run import Outcome
@@ -105,6 +106,15 @@ def test_the_project_may_be_named(received, tmp_path):
     result = rerun(report, tmp_path, '--project', str(project))
     assert not mark.exists()
     assert f'conftest.py: {project / "conftest.py"}' in result.stdout
+
+
+def test_a_project_that_is_no_directory_is_one_line(received, tmp_path, capsys):
+    """--project naming nothing: exit 2, said as such, nothing run."""
+    project, report, mark = received
+    assert main(['rerun', str(report), '--case', '0', '--project', str(tmp_path / 'no')]) == 2
+    assert capsys.readouterr().err == f'r2d2_sim.farm: error: --project {tmp_path / "no"}: ' \
+        'not a directory\n'
+    assert not mark.exists()
 
 
 def test_the_test_found_is_the_projects_most_specific_file_or_none(tmp_path):
