@@ -260,6 +260,6 @@ def test_the_static_check_names_each_import_that_goes_up(faulty):
 
 
 def test_the_circle_check_names_modules_that_import_one_another_round(faulty):
-    """apps' one, two and three import one another round; nothing else does."""
+    """The faulty apps' one, two and three import one another round; nothing else does."""
     assert import_circles(faulty, 'fakepkg') == [
         ['fakepkg.apps.one', 'fakepkg.apps.three', 'fakepkg.apps.two']]
