@@ -9,10 +9,12 @@ catches them in one place and turns them into :class:`StartupError`, which
 A request to a running simulator that the simulation standard's rules refuse
 is a :class:`RefusedError` with the standard's result code, raised by the
 core, answered by the ROS services and raised again by the testing API.
+A farm's scenario, space or world that cannot be is a :class:`ScenarioError`
+(:mod:`r2d2_sim.farm` gives it with its scenarios).
 No imports: the pure layers and the testing API use it without rclpy or PyBullet.
 """
 
-__all__ = ['SetupError', 'StartupError', 'WorldError', 'RefusedError']
+__all__ = ['SetupError', 'StartupError', 'WorldError', 'RefusedError', 'ScenarioError']
 
 
 class SetupError(Exception):
@@ -41,3 +43,7 @@ class RefusedError(RuntimeError):
         super().__init__(f'{code}: {message}')
         self.code = code
         self.message = message
+
+
+class ScenarioError(ValueError):
+    """A farm's scenario or space that cannot be, or a world it cannot read: one line."""

@@ -17,8 +17,7 @@ import functools
 import math
 from typing import Dict, List, Optional, Tuple
 
-from r2d2_sim.errors import RefusedError
-from r2d2_sim.farm.scenario import ScenarioError
+from r2d2_sim.errors import RefusedError, ScenarioError
 from r2d2_sim.model.transforms import yaw_of
 from r2d2_sim.sim.worlds import NamedPose, Places, read_world, World
 

@@ -145,8 +145,11 @@ class Farm:
             if not outcome.passed:
                 self._first_failures.setdefault(nodeid, outcome.scenario)
             return outcome
-        line = {'nodeid': nodeid, 'run': run, 'worker': self.worker or '',
-                'property': final is True, 'outcome': outcome.to_dict()}
+        # The node id is relative to this process's rootdir, which may not be the main
+        # process's: pytest chose it from the command line before it knew --farm-dir.
+        line = {'nodeid': nodeid, 'rootdir': str(self.config.rootpath), 'run': run,
+                'worker': self.worker or '', 'property': final is True,
+                'outcome': outcome.to_dict()}
         first = self._first_failures.get(nodeid)
         if final and first is not None:
             line['first_failure'] = first.to_dict()

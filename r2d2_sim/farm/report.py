@@ -2,8 +2,9 @@
 A farm's report from its outcomes: report.md, report.json and trajectories.png.
 
 Each run of a farm is a record (one JSON line a worker wrote: the test's
-node id, the run's number in that test, whether it was a Hypothesis
-property's final example, and the :class:`~r2d2_sim.farm.run.Outcome`).
+node id and the rootdir it is relative to, the run's number in that test,
+whether it was a Hypothesis property's final example, and the
+:class:`~r2d2_sim.farm.run.Outcome`).
 :func:`write_report` numbers them in node id order (so a case keeps its
 number however the workers were ordered) and writes:
 
@@ -25,6 +26,8 @@ import re
 import shlex
 from typing import Any, Dict, List, Optional, Sequence
 
+import numpy
+
 from r2d2_sim.farm.scenario import Box, Scenario
 
 __all__ = ['write_report', 'percentile', 'case_key', 'REPORT_JSON', 'REPORT_MD',
@@ -38,14 +41,15 @@ LISTED = 5
 
 
 def percentile(values: Sequence[float], q: float) -> float:
-    """Return the value below which q % (0..100) of ``values`` fall, interpolated linearly."""
-    ordered = sorted(values)
-    if not ordered:
+    """
+    Return the value below which q % (0..100) of ``values`` fall; NaN for no values.
+
+    numpy's default (linear) definition: between the two nearest of the sorted
+    values, at (n - 1) * q / 100.
+    """
+    if len(values) == 0:
         return math.nan
-    position = (len(ordered) - 1) * q / 100.0
-    low = math.floor(position)
-    high = min(low + 1, len(ordered) - 1)
-    return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
+    return float(numpy.percentile(values, q))
 
 
 def case_key(record: Dict[str, Any]):
@@ -73,7 +77,8 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
     Write report.json, report.md and (with ``picture``) trajectories.png into ``directory``.
 
     ``records`` are the farm's JSON lines, in any order; ``invocation_dir``
-    and ``rootdir`` are where pytest ran and its root (a rerun runs there).
+    and ``rootdir`` are where pytest's main process ran and its root (a
+    record's own rootdir comes first: its node id is relative to that).
     Returns the paths written, by file name.
     """
     directory.mkdir(parents=True, exist_ok=True)
@@ -81,7 +86,8 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
     cases = []
     for number, record in enumerate(sorted(records, key=case_key)):
         outcome = record['outcome']
-        cases.append({'case': number, 'nodeid': record['nodeid'], 'run': record.get('run', 0),
+        cases.append({'case': number, 'nodeid': record['nodeid'],
+                      'rootdir': record.get('rootdir') or rootdir, 'run': record.get('run', 0),
                       'property': record.get('property', False),
                       'worker': record.get('worker', ''), 'passed': outcome['passed'],
                       'reason': outcome['reason'], 'seed': outcome['scenario']['seed'],

@@ -15,6 +15,7 @@ from r2d2_sim.farm.run import (
     DeterminismError, Outcome, reached_safely, run_scenario, safe, TRAJECTORY_RATE_HZ)
 from r2d2_sim.farm.scenario import Box, Pose, Scenario
 from r2d2_sim.model.regions import circle_region
+from r2d2_sim.sim.oracles import Contact
 from r2d2_sim.testing import read_recording
 
 QUIET = {'scan_rate': 0.0, 'imu_rate': 0.0, 'publish_tf': False, 'publish_rate': 20.0}
@@ -72,6 +73,30 @@ def test_a_passing_run_records_nothing_and_a_failing_one_only_when_asked(tmp_pat
     assert safe(failed) == ''
     assert run_scenario(far, forward, seconds=1.0, parameters=QUIET,
                         verdict=safe).passed
+
+
+def judged(**measures):
+    """Return an outcome of the default scenario with ``measures``, not yet judged."""
+    values = dict(scenario=Scenario(), passed=True, reason='', seconds=10.0, time_to_goal_s=None,
+                  clearance_m=1.0, closest=None, closest_s=None, contacts=(), tipped_s=None,
+                  trajectory=(), steps=2400)
+    values.update(measures)
+    return Outcome(**values)
+
+
+BUMP = Contact('box_0', 'left_tip', 'box_0', 1_500_000_000, None, (1.0, 0.0, 0.3), 12.0)
+
+
+@pytest.mark.parametrize('measures, reason', [
+    ({'time_to_goal_s': 4.0}, ''),
+    ({}, 'goal not reached in 10 s'),
+    ({'time_to_goal_s': 4.0, 'contacts': (BUMP,)}, 'touched box_0 at 1.500 s (left_tip, 12 N)'),
+    ({'time_to_goal_s': 4.0, 'tipped_s': 2.25}, 'tipped over at 2.250 s'),
+    ({'contacts': (BUMP,), 'tipped_s': 2.25}, 'touched box_0 at 1.500 s (left_tip, 12 N)')],
+    ids=['goal', 'no-goal', 'goal-contact', 'goal-tipped', 'contact-tipped'])
+def test_the_default_verdict_never_lets_the_goal_excuse_a_contact_or_a_fall(measures, reason):
+    """reached_safely: the goal, and no contact, and never tipped; the first fault named."""
+    assert reached_safely(judged(**measures)) == reason
 
 
 def test_an_outcome_is_the_same_after_json():

@@ -12,10 +12,7 @@ nothing of it. Two checks:
   PyBullet either);
 - every import of the package in every module of it (at the top or inside a
   function, absolute or relative) names a module of the same layer or a lower
-  one: read with ``ast``, nothing is imported;
-- no modules import each other in a circle, through imports at the top or
-  inside functions (a circle through a function-level import is still two
-  modules that cannot be understood apart).
+  one: read with ``ast``, nothing is imported.
 
 Both checkers are also run on a small package written for the purpose, with a
 module of each kind of fault, to prove that they find what they look for.
@@ -29,7 +26,6 @@ from pathlib import Path
 import subprocess
 import sys
 import textwrap
-from typing import Dict, List, Set, Tuple
 
 import pytest
 
@@ -85,15 +81,21 @@ def layer_of(module: str, package: str):
     return RANK.get(parts[1])
 
 
-def imported_modules(node: ast.AST, module: str, is_package: bool) -> list:
-    """Return the absolute names one Import or ImportFrom node imports (relative ones resolved)."""
-    if isinstance(node, ast.Import):
-        return [alias.name for alias in node.names]
+def from_module(node: ast.ImportFrom, module: str, is_package: bool) -> str:
+    """Return the absolute name of the module a ``from ... import`` in ``module`` names."""
     base = node.module or ''
     if node.level:
         parts = module.split('.') if is_package else module.split('.')[:-1]
         parts = parts[:len(parts) - (node.level - 1)]
         base = '.'.join(parts + ([base] if base else []))
+    return base
+
+
+def imported_modules(node: ast.AST, module: str, is_package: bool) -> list:
+    """Return the absolute names one Import or ImportFrom node imports (relative ones resolved)."""
+    if isinstance(node, ast.Import):
+        return [alias.name for alias in node.names]
+    base = from_module(node, module, is_package)
     # "from pkg import name": name may be a module of pkg; its layer is pkg's, or lower.
     return [f'{base}.{alias.name}' if base.count('.') == 0 else base for alias in node.names]
 
@@ -122,74 +124,44 @@ def layer_violations(root: Path, package: str) -> list:
     return found
 
 
-def _module_of(path: Path, root: Path) -> Tuple[str, bool]:
-    parts = path.relative_to(root).with_suffix('').parts
-    is_package = parts[-1] == '__init__'
-    return '.'.join(parts[:-1] if is_package else parts), is_package
-
-
-def import_graph(root: Path, package: str) -> Dict[str, Set[str]]:
-    """
-    Return each module of ``package`` with the modules of it that it imports, anywhere in it.
-
-    ``from a.b import c`` imports the module ``a.b.c`` when there is one, else ``a.b``.
-    """
-    paths = sorted((root / package).rglob('*.py'))
-    modules = {_module_of(path, root)[0] for path in paths}
-    graph: Dict[str, Set[str]] = {}
-    for path in paths:
-        module, is_package = _module_of(path, root)
-        targets = graph.setdefault(module, set())
+def import_graph(root: Path, package: str) -> dict:
+    """Return each module of ``package`` and the modules of it that it imports, anywhere in it."""
+    paths = {}
+    for path in sorted((root / package).rglob('*.py')):
+        parts = path.relative_to(root).with_suffix('').parts
+        paths['.'.join(parts[:-1] if parts[-1] == '__init__' else parts)] = path
+    graph = {}
+    for module, path in paths.items():
+        is_package = path.name == '__init__.py'
+        targets = set()
         for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'), str(path))):
             if isinstance(node, ast.Import):
-                names = [alias.name for alias in node.names]
+                targets.update(alias.name for alias in node.names)
             elif isinstance(node, ast.ImportFrom):
-                base = imported_modules(node, module, is_package)
-                base_name = base[0] if base else ''
-                if node.level == 0 and node.module:
-                    base_name = node.module
-                names = [f'{base_name}.{alias.name}' if f'{base_name}.{alias.name}' in modules
-                         else base_name for alias in node.names]
-            else:
-                continue
-            targets.update(name for name in names if name in modules and name != module)
+                base = from_module(node, module, is_package)
+                # "from pkg import name": the module pkg.name when there is one, else pkg.
+                targets.update(f'{base}.{alias.name}' if f'{base}.{alias.name}' in paths
+                               else base for alias in node.names)
+        graph[module] = sorted(t for t in targets if t in paths and t != module)
     return graph
 
 
-def import_circles(root: Path, package: str) -> List[List[str]]:
-    """Return every circle of modules that import each other (Tarjan's components), sorted."""
+def import_circles(root: Path, package: str) -> list:
+    """Return each set of modules of ``package`` that import one another round (sorted names)."""
     graph = import_graph(root, package)
-    index: Dict[str, int] = {}
-    low: Dict[str, int] = {}
-    stack: List[str] = []
-    on_stack: Set[str] = set()
-    circles: List[List[str]] = []
-
-    def visit(module: str) -> None:
-        index[module] = low[module] = len(index)
-        stack.append(module)
-        on_stack.add(module)
-        for target in sorted(graph[module]):
-            if target not in index:
-                visit(target)
-                low[module] = min(low[module], low[target])
-            elif target in on_stack:
-                low[module] = min(low[module], index[target])
-        if low[module] == index[module]:
-            component = []
-            while True:
-                member = stack.pop()
-                on_stack.discard(member)
-                component.append(member)
-                if member == module:
-                    break
-            if len(component) > 1:
-                circles.append(sorted(component))
-
-    for module in sorted(graph):
-        if module not in index:
-            visit(module)
-    return sorted(circles)
+    reaches = {}
+    for start in graph:
+        seen, todo = set(), list(graph[start])
+        while todo:
+            module = todo.pop()
+            if module not in seen:
+                seen.add(module)
+                todo.extend(graph[module])
+        reaches[start] = seen
+    # A module on a circle reaches itself; its circle is every module it reaches that reaches it.
+    circles = {tuple(sorted({start} | {m for m in reaches[start] if start in reaches[m]}))
+               for start in graph if start in reaches[start]}
+    return sorted(list(circle) for circle in circles)
 
 
 # -- the package itself ----------------------------------------------------------------
@@ -212,8 +184,12 @@ def test_every_import_goes_to_the_same_layer_or_a_lower_one():
     assert layer_violations(Path(REPO), PACKAGE) == []
 
 
-def test_no_modules_import_each_other_in_a_circle():
-    """No circle of imports in the package, function-level imports included."""
+def test_no_modules_import_one_another_round():
+    """
+    No import circle, top-level or in a function (a function's import hides one, not ends it).
+
+    The farm's places and scenario were one: each needed ScenarioError of the other.
+    """
     assert import_circles(Path(REPO), PACKAGE) == []
 
 
@@ -244,29 +220,11 @@ FAULTY = {
     'fakepkg/ros/__init__.py': '',
     'fakepkg/ros/node.py': 'import rclpy\nthing = 1\n',
     'fakepkg/apps/__init__.py': '',
-    # A circle through a function-level import, and one through a package's face.
-    'fakepkg/apps/scenario.py': textwrap.dedent('''\
-        from fakepkg.apps.places import where
-
-
-        def read():
-            return where
-        '''),
-    'fakepkg/apps/places.py': textwrap.dedent('''\
-        def where():
-            from fakepkg.apps import scenario
-            return scenario
-        '''),
-    'fakepkg/farm/__init__.py': 'from fakepkg.farm.face import thing\n',
-    'fakepkg/farm/face.py': textwrap.dedent('''\
-        thing = 1
-
-
-        def again():
-            from fakepkg.farm import thing
-            return thing
-        '''),
     'fakepkg/gadgets.py': '',
+    # A circle of three in one layer: absolute, relative, and inside a function.
+    'fakepkg/apps/one.py': 'from fakepkg.apps import two\n',
+    'fakepkg/apps/two.py': 'from .three import thing\n',
+    'fakepkg/apps/three.py': 'thing = 1\n\n\ndef later():\n    import fakepkg.apps.one\n',
     # Stand-ins, so that the fresh interpreter finds these names without loading the real ones.
     'rclpy.py': '',
     'pybullet.py': '',
@@ -291,13 +249,6 @@ def test_the_import_check_names_each_layer_that_loads_what_it_must_not(faulty):
     assert loaded_by_importing(faulty, 'fakepkg', 'errors', ['rclpy', 'pybullet']) == []
 
 
-def test_the_circle_check_finds_circles_through_functions_and_faces(faulty):
-    """apps/scenario <-> apps/places (one import in a function); farm's face <-> farm/face.py."""
-    assert import_circles(faulty, 'fakepkg') == [
-        ['fakepkg.apps.places', 'fakepkg.apps.scenario'],
-        ['fakepkg.farm', 'fakepkg.farm.face']]
-
-
 def test_the_static_check_names_each_import_that_goes_up(faulty):
     """Absolute, relative and in-function imports of a higher layer; a module of no layer."""
     assert layer_violations(faulty, 'fakepkg') == [
@@ -306,3 +257,9 @@ def test_the_static_check_names_each_import_that_goes_up(faulty):
         'fakepkg/physics/relative.py:1: fakepkg.physics.relative imports fakepkg.ros.node',
         'fakepkg/sim/core.py:5: fakepkg.sim.core imports fakepkg.apps',
     ]
+
+
+def test_the_circle_check_names_modules_that_import_one_another_round(faulty):
+    """The faulty apps' one, two and three import one another round; nothing else does."""
+    assert import_circles(faulty, 'fakepkg') == [
+        ['fakepkg.apps.one', 'fakepkg.apps.three', 'fakepkg.apps.two']]

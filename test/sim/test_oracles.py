@@ -123,6 +123,23 @@ def test_tipping_is_when_the_base_leans_past_the_angle(make):
     assert fallen.tipped_ns == fallen.start_ns + simulation.clock.time_ns(1)
 
 
+@pytest.mark.parametrize('degrees, tipped', [(30.0, False), (44.0, False), (46.0, True),
+                                             (60.0, True)])
+def test_the_default_tip_angle_is_45_degrees(make, degrees, tipped):
+    """Leaning 44 degrees is standing, 46 is tipped (docs/testing.md: 45 degrees by default)."""
+    simulation = make()
+    # Held in the air for the one step watched: the lean is what was set, untouched by the
+    # ground; rolled and pitched alike, as a robot falls over a corner.
+    half = math.radians(degrees) / 2.0
+    axis = (math.sqrt(0.5), math.sqrt(0.5))
+    lean = (axis[0] * math.sin(half), axis[1] * math.sin(half), 0.0, math.cos(half))
+    simulation.set_entity_state('r2d2', '', (0.0, 0.0, 2.0), lean, (0.0, 0.0, 0.0),
+                                (0.0, 0.0, 0.0))
+    with RunWatch(simulation) as watch:
+        simulation.step()
+    assert (watch.tipped_ns is not None) == tipped
+
+
 def test_a_closed_watch_sees_nothing_more_and_bad_arguments_are_refused(make):
     """close() stops it; an unknown entity, a range of 0 and an angle of 0 are ValueErrors."""
     simulation = make()

@@ -10,7 +10,9 @@ The scenario farm as users run it: pytest in a subprocess, xdist workers, shards
   same outcome and the same file, which ``replay`` plays;
 - a Hypothesis property over a stopper that stops too late: it fails, its
   shrunk scenario (smaller than the first failing one) is in the failure's
-  notes and the report with its recording, and replays from its JSON.
+  notes and the report with its recording, and replays from its JSON;
+- a farm whose directory and reruns' recordings lie beside the checkout (CI
+  artifacts: ``--farm-dir ../shard1``), each case rerun from the test's folder.
 """
 
 import hashlib
@@ -216,6 +218,55 @@ def test_a_failing_property_is_shrunk_reported_recorded_and_replayed(tmp_path):
     assert 'the same outcome as in the report' in rerun.stdout
     (recorded,) = (farm / 'rerun-0').glob('*.mcap')
     assert sha256(recorded) == sha256(case['recording'])
+
+
+# Two runs in each test: the first reaches its goal (it stands in it), the second cannot.
+TWO_RUNS = '''
+import pytest
+
+from r2d2_sim.farm import Scenario
+from r2d2_sim.model.regions import circle_region
+
+QUIET = {'scan_rate': 0.0, 'imu_rate': 0.0, 'publish_tf': False, 'publish_rate': 20.0}
+
+
+def stand(harness, scenario):
+    pass
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+def test_two_runs(r2d2_farm, seed):
+    here = r2d2_farm.run(Scenario(goal=circle_region(0.0, 0.0, 0.5), seed=seed), stand,
+                         seconds=0.5, parameters=QUIET)
+    far = r2d2_farm.run(Scenario(goal=circle_region(9.0, 0.0, 0.2), seed=seed), stand,
+                        seconds=0.3, parameters=QUIET)
+    assert here.passed and far.passed, far
+'''
+
+
+def test_a_farm_beside_the_checkout_reruns_each_case_from_the_tests_folder(tmp_path):
+    """--farm-dir ../shard1 (made by the farm) and --record ../../artifacts: each case again."""
+    suite = tmp_path / 'ci' / 'checkout' / 'suite'
+    suite.mkdir(parents=True)
+    (suite / 'test_two_runs.py').write_text(TWO_RUNS)
+    # Two separate arguments, as users write them: pytest takes '../shard1' for a path
+    # when it chooses its rootdir, and xdist's workers find it made by then.
+    farm = pytest_run(suite, '-n', '2', '--farm-dir', '../shard1', 'test_two_runs.py')
+    shard = tmp_path / 'ci' / 'checkout' / 'shard1'
+    cases = report(shard)['cases']
+    assert [(c['run'], c['passed']) for c in cases] == [(0, True), (1, False)] * 2, \
+        farm.stdout[-3000:]
+    for case in cases:
+        record = tmp_path / 'ci' / 'artifacts' / f'rerun-{case["case"]}'
+        rerun = subprocess.run(
+            [sys.executable, '-m', 'r2d2_sim.farm', 'rerun', '../shard1/report.json',
+             '--case', str(case['case']), '--record', f'../../artifacts/{record.name}'],
+            cwd=suite, env=environment(), capture_output=True, text=True, timeout=300)
+        assert rerun.returncode == 0, rerun.stdout[-2000:] + rerun.stderr[-2000:]
+        verdict = 'passed' if case['passed'] else 'failed: goal not reached in 0.3 s'
+        assert f'the same outcome as in the report ({verdict})' in rerun.stdout
+        assert f'the test: {suite / "test_two_runs.py"}::' in rerun.stdout
+        assert len(list(record.glob('*.mcap'))) == 2  # both runs of the test, recorded
 
 
 def _size(scenario: Scenario) -> tuple:
