@@ -83,8 +83,9 @@ class ScanGeometry:
             raise SensorConfigError(
                 f'angle_max_rad must be above angle_min_rad by at most 2 pi, got '
                 f'angle_min_rad={self.angle_min_rad!r}, angle_max_rad={self.angle_max_rad!r}')
-        if isinstance(self.samples, bool) or not isinstance(self.samples, numbers.Integral) \
-                or self.samples < 2:
+        samples: object = self.samples  # any object: typeshed's int is no numbers.Integral
+        if isinstance(samples, bool) or not isinstance(samples, numbers.Integral) \
+                or samples < 2:
             raise SensorConfigError(f'samples must be an integer >= 2, got {self.samples!r}')
         range_min_m = require_number('range_min_m', self.range_min_m, minimum=0.0)
         range_max_m = require_number('range_max_m', self.range_max_m, minimum=range_min_m,

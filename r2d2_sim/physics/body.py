@@ -26,7 +26,7 @@ entities' bounds and a run's watch ask.
 from functools import partial
 import math
 import os
-from typing import Any, Dict, List, NamedTuple, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 from r2d2_sim.errors import WorldError
 from r2d2_sim.model.health import base_problem, joint_problem, joints_finite, twist_problem
@@ -122,10 +122,13 @@ class Body:
         # published step. Bind the per-step queries once instead.
         cid = self._client._client
         body = self._id
-        self._get_joint_states = partial(pybullet.getJointStates, body, physicsClientId=cid)
-        self._get_base_pose = partial(pybullet.getBasePositionAndOrientation, body,
-                                      physicsClientId=cid)
-        self._get_base_velocity = partial(pybullet.getBaseVelocity, body, physicsClientId=cid)
+        # Callables, not partials: once the body is removed they are _removed.
+        self._get_joint_states: Callable[..., Any] = partial(
+            pybullet.getJointStates, body, physicsClientId=cid)
+        self._get_base_pose: Callable[..., Any] = partial(
+            pybullet.getBasePositionAndOrientation, body, physicsClientId=cid)
+        self._get_base_velocity: Callable[..., Any] = partial(
+            pybullet.getBaseVelocity, body, physicsClientId=cid)
         self._multiply_transforms = partial(pybullet.multiplyTransforms, physicsClientId=cid)
         # A run's watch asks these after every step (sim/oracles.py).
         self._get_contact_points = partial(pybullet.getContactPoints, body, physicsClientId=cid)
