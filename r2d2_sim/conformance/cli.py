@@ -41,7 +41,8 @@ def point_arg(text: str) -> Tuple[float, float, float]:
     parts = text.split(',')
     if len(parts) != 3:
         raise argparse.ArgumentTypeError(f'must be X,Y,Z, got {text!r}')
-    return tuple(finite_number(p) for p in parts)
+    x, y, z = (finite_number(p) for p in parts)
+    return x, y, z
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -92,7 +93,7 @@ def _header(kit: Kit) -> str:
     else:
         lines.append(f'  {len(served)} of 22 services{action}; {len(t.features)} of 32 features '
                      f'declared; spawn formats: {", ".join(t.spawn_formats) or "none"}; '
-                     f'{t.options.clock_topic}: {"yes" if t.has_clock else "none"}')
+                     f'{t.clock.topic}: {"yes" if t.clock.present else "none"}')
         undeclared = sorted(set(f.split('|')[0] for c in CLAUSES for f in c.features)
                             - set(t.features))
         if undeclared:

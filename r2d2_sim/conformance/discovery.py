@@ -10,11 +10,10 @@ So, as RobotecAI's RViz panel does, the kit lists the ROS graph's services
 Also here: which feature stands for which interface. No ROS imports.
 """
 
-import re
-from typing import Dict, Iterable, List, Sequence, Tuple
+from typing import Any, Dict, Iterable, List, Sequence, Tuple
 
 __all__ = ['SERVICES', 'ACTION', 'FEATURES', 'FEATURE_INTERFACES', 'SUB_FEATURES',
-           'find_interfaces', 'under_prefix', 'normal_prefix', 'snake_case']
+           'find_interfaces', 'under_prefix', 'normal_prefix']
 
 PACKAGE = 'simulation_interfaces'
 # The 22 services of Jazzy 1.5.1, in the order of the definition files' topics.
@@ -67,9 +66,13 @@ SUB_FEATURES: Dict[str, Tuple[str, ...]] = {
 _SEND_GOAL = '/_action/send_goal'
 
 
-def snake_case(name: str) -> str:
-    """Return an interface's usual service name: GetSimulatorFeatures -> get_simulator_features."""
-    return re.sub(r'(?<!^)(?=[A-Z])', '_', name).lower()
+def __getattr__(name: str) -> Any:
+    # snake_case is the standard client's usual_name: one rule, loaded with rclpy only when used,
+    # so that the clause table reads without it.
+    if name == 'snake_case':
+        from r2d2_sim.testing.standard import usual_name
+        return usual_name
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
 
 
 def normal_prefix(prefix: str) -> str:
@@ -86,7 +89,8 @@ def under_prefix(name: str, prefix: str) -> bool:
 
 def _preferred(candidates: Sequence[str], prefix: str, kind: str) -> str:
     """Pick one name: ``<prefix>/<snake_case kind>`` if there, else the shortest, then sorted."""
-    usual = normal_prefix(prefix).rstrip('/') + '/' + snake_case(kind)
+    from r2d2_sim.testing.standard import usual_name
+    usual = normal_prefix(prefix).rstrip('/') + '/' + usual_name(kind)
     if usual in candidates:
         return usual
     return sorted(candidates, key=lambda n: (n.count('/'), len(n), n))[0]

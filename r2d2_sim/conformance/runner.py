@@ -2,7 +2,7 @@
 Running clauses against one simulator: :class:`Kit`, and choosing clauses: :func:`select`.
 
 Each clause runs from the same start state (STOPPED, see
-:meth:`~r2d2_sim.conformance.target.Target.prepare`; those that only ask,
+:meth:`~r2d2_sim.conformance.undo.TargetUndo.prepare`; those that only ask,
 FEAT and RESULT, wherever the simulator is), is skipped when a
 feature it needs is not declared (or an interface no feature stands for is
 not served), and is undone afterwards (what it spawned deleted, the world
@@ -87,7 +87,7 @@ class Kit:
         if unserved:
             return SKIP, f'{", ".join(unserved)} not served'
         try:
-            t.prepare(stop=clause.start)
+            t.undo.prepare(stop=clause.start)
         except (ClauseFailed, ClauseSkipped) as exc:
             return FAIL, f'could not reach the start state (STOPPED): {exc}'
         try:
@@ -100,7 +100,7 @@ class Kit:
         except Exception as exc:  # a defect of the kit itself: shown, never a traceback
             first = str(exc).splitlines()[0][:200] if str(exc) else ''
             status, reason = FAIL, f'kit error ({type(exc).__name__}: {first})'
-        problems = t.cleanup()
+        problems = t.undo.cleanup()
         if problems:
             reason = '; '.join(filter(None, [reason, 'afterwards: ' + '; '.join(problems)]))
         return status, reason
@@ -116,10 +116,10 @@ class Kit:
         return outcomes
 
     def close(self) -> List[str]:
-        """Leave the simulator as found (see Target.restore), close the node; return problems."""
+        """Leave the simulator as found (TargetUndo.restore), close the node; return problems."""
         try:
             if self.connected and self.target.features is not None:
-                self.restore_problems = self.target.restore()
+                self.restore_problems = self.target.undo.restore()
         finally:
             self.target.close()
         return self.restore_problems

@@ -90,13 +90,13 @@ def spawn_at_named_pose(t: Target) -> None:
     if not poses:
         raise ClauseSkipped('GetNamedPoses lists no pose')
     pose = poses[0]
-    t.pause()
-    t.on_cleanup(t.stop)
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
     position, orientation = vector(pose.pose.position), quaternion(pose.pose.orientation)
-    name = t.new_name()
-    t.spawn_call(t.spawn_request(name, position, orientation),
-                 doing=f'SpawnEntity at the named pose {pose.name}')
-    state = t.entity_state(name).pose
+    name = t.entities.new_name()
+    t.entities.spawn_call(t.entities.spawn_request(name, position, orientation),
+                          doing=f'SpawnEntity at the named pose {pose.name}')
+    state = t.entities.state(name).pose
     got_p, got_q = vector(state.position), quaternion(state.orientation)
     if not close(got_p, position) or not same_rotation(got_q, orientation):
         raise ClauseFailed(f'{name} spawned at the named pose {pose.name} reads {fmt(got_p)} '
@@ -127,7 +127,7 @@ def _world_to_load(t: Target):
     """Return a Resource to load: --world, else an available world other than the current."""
     if t.options.world:
         return t.msg.Resource(uri=t.options.world)
-    current = t.initial_world
+    current = t.world.initial
     if t.declared('AVAILABLE_WORLDS'):
         worlds = [w for w in _available(t) if _resource_of(w)]
         others = [w for w in worlds if current is None or _resource_of(w) != _resource_of(current)]
@@ -141,15 +141,15 @@ def _world_to_load(t: Target):
 def _load(t: Target, doing: str = 'LoadWorld'):
     """Load a world (see _world_to_load), to be put back after the clause."""
     resource = _world_to_load(t)
-    t.on_cleanup(t.put_world_back)
-    reply = t.load_world(resource, f'{doing} of {resource.uri or "a resource string"}')
+    t.undo.on_cleanup(t.world.put_back)
+    reply = t.world.load(resource, f'{doing} of {resource.uri or "a resource string"}')
     return resource, reply
 
 
 def _unload(t: Target) -> None:
     """Load a world (so that there is one), then unload it; put back after the clause."""
     _load(t)
-    t.unload_world()
+    t.world.unload()
 
 
 @clause(CLAUSES, 'WORLD-01', 'GetAvailableWorlds lists worlds LoadWorld can take',
@@ -187,10 +187,10 @@ def current_world(t: Target) -> None:
     """OK with a world, or 101; 101 exactly when the state reads NO_WORLD (if readable)."""
     reply = _current(t)
     if t.declared(GET):
-        no_world = t.state() == t.S.STATE_NO_WORLD
+        no_world = t.sim.state() == t.sim.S.STATE_NO_WORLD
         if no_world != (reply.result.result != t.msg.Result.RESULT_OK):
             raise ClauseFailed(f'GetCurrentWorld {t.describe("GetCurrentWorld", reply)} while '
-                               f'the state reads {t.state_name(t.state())}')
+                               f'the state reads {t.sim.state_name(t.sim.state())}')
     elif reply.result.result == t.msg.Result.RESULT_OK and not _resource_of(reply.world):
         raise ClauseFailed('GetCurrentWorld answered OK with a world of no resource')
 
@@ -210,9 +210,9 @@ def load_world(t: Target) -> None:
         'left in a Stopped state.')
 def loaded_stopped(t: Target) -> None:
     """Play, load a world: the state reads STOPPED."""
-    t.play()
+    t.sim.play()
     _load(t)
-    t.expect_state(t.S.STATE_STOPPED, 'LoadWorld')
+    t.sim.expect_state(t.sim.S.STATE_STOPPED, 'LoadWorld')
 
 
 @clause(CLAUSES, 'WORLD-06', 'LoadWorld removes spawned entities', ('WORLD_LOADING', 'SPAWNING'),
@@ -220,9 +220,9 @@ def loaded_stopped(t: Target) -> None:
         services=('GetEntities',))
 def load_despawns(t: Target) -> None:
     """Spawn, load a world: the spawned entity is gone."""
-    name = t.spawn(0)
+    name = t.entities.spawn(0)
     _load(t)
-    if name in t.names():
+    if name in t.entities.names():
         raise ClauseFailed(f'{name} is still listed after LoadWorld')
 
 
@@ -264,8 +264,8 @@ def load_garbage(t: Target) -> None:
     if before is not None:
         after = _current(t)
         if (after.result.result, after.world.name) != (before.result.result, before.world.name):
-            t.world_changed = True
-            t.on_cleanup(t.put_world_back)
+            t.world.changed = True
+            t.undo.on_cleanup(t.world.put_back)
             raise ClauseFailed(f'the refused LoadWorld changed the current world from '
                                f'{before.world.name!r} to {after.world.name!r}')
 
@@ -294,7 +294,7 @@ def unload_twice(t: Target) -> None:
 def no_world_state(t: Target) -> None:
     """Unload: the state reads NO_WORLD."""
     _unload(t)
-    t.expect_state(t.S.STATE_NO_WORLD, 'UnloadWorld')
+    t.sim.expect_state(t.sim.S.STATE_NO_WORLD, 'UnloadWorld')
 
 
 @clause(CLAUSES, 'WORLD-13', 'with no world the simulation cannot be played',
@@ -303,7 +303,7 @@ def no_world_state(t: Target) -> None:
 def no_world_no_play(t: Target) -> None:
     """Unload, ask for PLAYING: refused (not OK, not 0)."""
     _unload(t)
-    reply = t.request_state(t.S.STATE_PLAYING)
+    reply = t.sim.request_state(t.sim.S.STATE_PLAYING)
     if reply.result.result in (t.msg.Result.RESULT_OK, t.msg.Result.RESULT_FEATURE_UNSUPPORTED):
         raise ClauseFailed(f'PLAYING with no world answered '
                            f'{t.describe("SetSimulationState", reply)}')
@@ -315,10 +315,10 @@ def no_world_no_play(t: Target) -> None:
 def unload_despawns(t: Target) -> None:
     """Load a world, spawn, unload: GetEntities no longer lists it (or answers with no world)."""
     _load(t)
-    name = t.spawn(0)
-    t.unload_world()
+    name = t.entities.spawn(0)
+    t.world.unload()
     reply = t.call('GetEntities', t.srv.GetEntities.Request())
     if reply.result.result == t.msg.Result.RESULT_OK and name in reply.entities:
         raise ClauseFailed(f'{name} is still listed after UnloadWorld')
-    if name in t.spawned:
-        t.spawned.remove(name)
+    if name in t.entities.spawned:
+        t.entities.spawned.remove(name)
