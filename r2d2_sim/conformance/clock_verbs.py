@@ -118,9 +118,23 @@ class TargetClock:
                                f'{expected_ns} ns')
         return got
 
-    def expect_back(self, before_ns: int, doing: str) -> None:
-        """Raise ClauseFailed unless a step from here reads a time before ``before_ns``."""
-        got = self.after(lambda: self.sim.advance(1), f'{doing} and one step')
-        if got >= before_ns:
-            raise ClauseFailed(f'after {doing}, one step reads {got} ns on {self.topic}: time '
-                               f'did not go back from {before_ns} ns')
+    def expect_start(self, step_ns: int, doing: str, slack_steps: int) -> None:
+        """
+        Pause, step once: raise ClauseFailed unless the clock reads one step from the start.
+
+        The start is time 0, where a simulator starts (as it is launched)
+        and where a reset of the time puts it back ("Reset simulation time
+        to start"). Where the kit must play to pause (from STOPPED), the
+        simulator may run meanwhile: up to ``slack_steps`` more are allowed.
+        """
+        sim = self.sim
+        paused = (self.target.declared('SIMULATION_STATE_GETTING')
+                  and sim.state() == sim.S.STATE_PAUSED)
+        sim.pause()
+        got = self.after(lambda: sim.advance(1), f'{doing} and one step')
+        extra = 0 if paused else slack_steps
+        if got > (1 + extra) * step_ns + 1 + extra:  # a ns a step of rounding
+            most = f' (or up to {extra} more, run while the kit played to pause)' if extra else ''
+            raise ClauseFailed(f'after {doing}, one step reads {got} ns on {self.topic}: the time '
+                               f'is not back at the start (0), where one step reads {step_ns} ns'
+                               f'{most}')

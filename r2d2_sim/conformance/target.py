@@ -22,13 +22,14 @@ the start and put back (:mod:`~r2d2_sim.conformance.world_verbs`) and
 """
 
 import os
+import time
 from typing import (
     Any, Callable, Dict, FrozenSet, List, NamedTuple, Optional, Sequence, Tuple)
 
-from r2d2_sim.conformance.clause import ClauseFailed
+from r2d2_sim.conformance.clause import ClauseFailed, one_line
 from r2d2_sim.conformance.clock_verbs import TargetClock
 from r2d2_sim.conformance.discovery import (
-    ACTION, FEATURE_INTERFACES, FEATURES, find_interfaces, normal_prefix)
+    ACTION, FEATURE_INTERFACES, FEATURES, find_interfaces, normal_prefix, simulator_levels)
 from r2d2_sim.conformance.entity_verbs import BOX_SIZE_M, TargetEntities
 from r2d2_sim.conformance.simulation_verbs import TargetSimulation
 from r2d2_sim.conformance.undo import TargetUndo
@@ -42,6 +43,9 @@ UNKNOWN_NAME = 'conformance_no_such_entity'
 # An idempotent query is sent again after this long without a reply (s): a reply
 # can be lost for good while the server has not yet discovered a new client's reader.
 RESEND_S = 1.0
+# Before its first change the kit watches the ROS graph until it has stood still this long
+# (s): a second simulator, discovered a little later than the first, shows by then.
+SETTLE_S = 0.25
 
 
 class KitError(SetupError):
@@ -59,7 +63,9 @@ class KitOptions(NamedTuple):
     for any one reply or discovery; ``free_space``: a point with free room
     around it (20 m along x) where the kit puts what it spawns;
     ``world_frame``: the world frame's name besides '' and ``world``;
-    ``clock_topic``: where simulated time is published.
+    ``clock_topic``: where simulated time is published; ``total_timeout_s``:
+    the longest the whole run may take, connecting included (None: 30
+    timeouts; see :class:`~r2d2_sim.conformance.runner.Kit`).
     """
 
     prefix: str = '/'
@@ -70,6 +76,7 @@ class KitOptions(NamedTuple):
     free_space: Tuple[float, float, float] = (20.0, 20.0, 5.0)
     world_frame: str = 'world'
     clock_topic: str = '/clock'
+    total_timeout_s: Optional[float] = None
 
 
 def default_domain_id() -> int:
@@ -121,6 +128,8 @@ class Target:
         self.feature_values: List[int] = []
         self.spawn_formats: List[str] = []
         self.features_error = ''
+        self.others: List[str] = []  # namespaces of the other simulators seen on the domain
+        self.refusal = ''  # why the kit checks no simulator here ('' when it checks this one)
         self.sim = TargetSimulation(self)
         self.entities = TargetEntities(self)
         self.clock = TargetClock(self, self.sim)
@@ -140,16 +149,29 @@ class Target:
         """
         Find the interfaces, read the features, find ``/clock``; never raises for the simulator.
 
-        Waits up to the timeout for GetSimulatorFeatures, then (up to the
-        timeout again) for every interface the features declare, so that a
-        slow discovery is not taken for a missing service. Then remembers
-        the state and the world it found, to leave them so.
+        Waits up to the timeout for GetSimulatorFeatures at the prefix, then
+        (up to the timeout again) for every interface the features declare,
+        so that a slow discovery is not taken for a missing service. Then
+        remembers the state and the world it found, to leave them so. When
+        it cannot tell which simulator the user meant (none at the prefix
+        but some elsewhere, or several at the prefix), ``refusal`` says why
+        in one line and nothing is asked of any simulator but its features.
         """
         timeout = self.timeout_s
         if not self.wait(lambda: 'GetSimulatorFeatures' in self.scan(), timeout):
+            levels = self.simulator_levels()
+            if levels:
+                self.refusal = one_line(
+                    f'no simulator at {self.prefix!r} (its own level) within {timeout:g} s, but '
+                    f'{len(levels)} on ROS domain {self.domain_id} under {", ".join(levels)}: '
+                    f'give --prefix {levels[0]} to check {"it" if len(levels) == 1 else "one"}')
+                return
             seen = ', '.join(sorted(self.interfaces)) or 'none of the standard\'s services'
             self.features_error = (f'no service of type GetSimulatorFeatures under '
                                    f'{self.prefix!r} within {timeout:g} s (found: {seen})')
+            return
+        self.refusal = self.rivals()
+        if self.refusal:
             return
         try:
             features = self.read_features()
@@ -163,10 +185,53 @@ class Target:
             found = self.scan()
             return all(any(kind in found for kind in alt.split('|')) for alt in wanted)
         self.wait(all_found, timeout)
+        self._settle()
+        self.refusal = self.rivals()  # the last look before a change
+        if self.refusal:
+            return
+        self.others = [level for level in self.simulator_levels() if level != self.prefix]
         self._make_clients()
         self.clock.listen()
         self.undo.remember()
         self.world.remember()
+
+    def _settle(self) -> None:
+        """Watch the graph's nodes and services until they stand still for SETTLE_S."""
+        seen: List[Any] = [None, 0.0]  # the graph last seen, and since when
+
+        def still() -> bool:
+            graph = (sorted(self.node.get_node_names_and_namespaces()),
+                     sorted(name for name, _ in self.node.get_service_names_and_types()))
+            now = time.monotonic()
+            if graph != seen[0]:
+                seen[:] = [graph, now]
+            return now - seen[1] >= SETTLE_S
+        self.wait(still, self.timeout_s)
+
+    def simulator_levels(self) -> List[str]:
+        """Return the namespaces on the domain that serve GetSimulatorFeatures (simulators)."""
+        return simulator_levels(self.node.get_service_names_and_types())
+
+    def rivals(self) -> str:
+        """
+        Return why a request to the prefix may reach another simulator ('' when none can).
+
+        Two names of one interface at the prefix are two simulators; so are
+        two servers of one name (simulators in the same namespace): a
+        request reaches every server of its name.
+        """
+        found, several = find_interfaces(self.node.get_service_names_and_types(), self.prefix)
+        advice = 'run each on a ROS domain (or in a namespace) of its own'
+        for kind, names in sorted(several.items()):
+            return one_line(f'several simulators at {self.prefix!r}: {kind} is served as '
+                            f'{", ".join(names)}; the kit checks one at a time: {advice}')
+        for kind, name in sorted(found.items()):
+            service = f'{name}/_action/send_goal' if kind == ACTION else name
+            count = self.node.count_services(service)
+            if count > 1:
+                return one_line(f'several simulators at {self.prefix!r}: {count} serve {service}, '
+                                f'and a request would reach them all: {advice}')
+        return ''
 
     def read_features(self) -> FrozenSet[str]:
         """Ask GetSimulatorFeatures again; return the names of the features it declares."""

@@ -69,11 +69,23 @@ def state_in_world(t: Target) -> None:
 @clause(CLAUSES, 'ENTITY-04', 'GetEntityState and GetEntitiesStates agree', (GETTING, SET, PAUSE),
         'GetEntitiesStates.srv', 'EntityState[] states # States for these entities.')
 def states_agree(t: Target) -> None:
-    """Paused, each entity's pose (up to 20) is the same from both services."""
+    """
+    Paused, each entity's pose is the same from both services: the kit's own first.
+
+    Where it may spawn, the kit puts three boxes at distinct places, so that
+    a state given to the wrong entity shows (start-up entities often share
+    one place); then up to 20 of the others.
+    """
     t.sim.pause()
     t.undo.on_cleanup(t.sim.stop)
+    own = [t.entities.spawn(i, yaw=0.3 * i) for i in range(3)] if t.declared('SPAWNING') else []
     reply = t.ok('GetEntitiesStates', t.srv.GetEntitiesStates.Request(), 'GetEntitiesStates')
-    for name, state in list(zip(reply.entities, reply.states))[:SAMPLE]:
+    pairs = list(zip(reply.entities, reply.states))
+    mine = [(name, state) for name, state in pairs if name in own]
+    if len(mine) != len(own):
+        raise ClauseFailed(f'GetEntitiesStates lists {len(mine)} of the {len(own)} entities the '
+                           f'kit spawned ({", ".join(own)})')
+    for name, state in mine + [(n, s) for n, s in pairs if n not in own][:SAMPLE]:
         one = t.entities.state(name)
         a = vector(one.pose.position) + quaternion(one.pose.orientation)
         b = vector(state.pose.position) + quaternion(state.pose.orientation)
@@ -295,26 +307,50 @@ def bounds_relative(t: Target) -> None:
                            f'{[fmt(p) for p in a][:4]} -> {after.type} {[fmt(p) for p in b][:4]}')
 
 
-@clause(CLAUSES, 'BOUNDS-03', 'the bounds of the kit\'s box enclose it',
-        ('ENTITY_BOUNDS', 'SPAWNING'), 'GetEntityBounds.srv', 'Get geometrical bounds for entity.')
-def bounds_enclose(t: Target) -> None:
-    """Ask the kit's 0.2 m cube's bounds: the region holds its 8 corners."""
-    t.entities.need_resource_string()
-    name = t.entities.spawn(0)
-    bounds = _bounds(t, name)
-    check_region(t, bounds, f'GetEntityBounds of {name}')
-    B, half, slack = t.msg.Bounds, BOX_SIZE_M / 2.0, 1e-3
+def _holds(t: Target, bounds, size: float) -> bool:
+    """Return True when Bounds (not empty) hold a cube ``size`` wide centred on the link."""
+    B, half, slack = t.msg.Bounds, size / 2.0, 1e-3
     points = [vector(p) for p in bounds.points]
-    if bounds.type == B.TYPE_EMPTY:
-        raise ClauseFailed(f'{name}, a {BOX_SIZE_M} m box, has empty bounds')
     if bounds.type == B.TYPE_SPHERE:
         reach = math.dist(points[0], (0.0, 0.0, 0.0)) + half * math.sqrt(3.0)
-        inside = reach <= points[1][0] + slack
-    else:  # a box, or a hull judged by the box around it
-        low = [min(p[i] for p in points) for i in range(3)]
-        high = [max(p[i] for p in points) for i in range(3)]
-        inside = all(lo <= -half + slack and hi >= half - slack for lo, hi in zip(low, high))
-    if not inside:
+        return reach <= points[1][0] + slack
+    # A box, or a hull judged by the box around it.
+    low = [min(p[i] for p in points) for i in range(3)]
+    high = [max(p[i] for p in points) for i in range(3)]
+    return all(lo <= -half + slack and hi >= half - slack for lo, hi in zip(low, high))
+
+
+def _enclosing_bounds(t: Target, name: str, size: float):
+    """Return the Bounds of ``name``, a cube ``size`` wide; ClauseFailed unless they hold it."""
+    bounds = _bounds(t, name)
+    check_region(t, bounds, f'GetEntityBounds of {name}')
+    if bounds.type == t.msg.Bounds.TYPE_EMPTY:
+        raise ClauseFailed(f'{name}, a {size:g} m box, has empty bounds')
+    if not _holds(t, bounds, size):
         raise ClauseFailed(f'the bounds of {name} (type {bounds.type}, '
-                           f'{[fmt(p) for p in points][:4]}) do not hold a {BOX_SIZE_M} m cube '
-                           'centred on its link')
+                           f'{[fmt(vector(p)) for p in bounds.points][:4]}) do not hold a '
+                           f'{size:g} m cube centred on its link')
+    return bounds
+
+
+@clause(CLAUSES, 'BOUNDS-03', 'the bounds of each of the kit\'s boxes hold it, and fit it',
+        ('ENTITY_BOUNDS', 'SPAWNING'), 'GetEntityBounds.srv', 'Get geometrical bounds for entity.')
+def bounds_enclose(t: Target) -> None:
+    """
+    Spawn a 0.2 m cube and a 0.6 m one: the bounds of each hold it; the small one's, not the big.
+
+    So a region that is the same for every entity (or no bound at all, a
+    huge box) fails: an entity's geometrical bounds are its own.
+    """
+    t.entities.need_resource_string()
+    small = t.entities.spawn(0)
+    big = t.entities.new_name('big_box')
+    big_size = 3 * BOX_SIZE_M
+    t.entities.spawn_call(t.entities.spawn_request(
+        big, t.entities.slot(1), resource=t.entities.box_text(big, size=big_size)))
+    bounds = _enclosing_bounds(t, small, BOX_SIZE_M)
+    _enclosing_bounds(t, big, big_size)
+    if _holds(t, bounds, big_size):
+        raise ClauseFailed(f'the bounds of {small}, a {BOX_SIZE_M:g} m cube, would hold a '
+                           f'{big_size:g} m one (type {bounds.type}, '
+                           f'{[fmt(vector(p)) for p in bounds.points][:4]}): they are not its own')

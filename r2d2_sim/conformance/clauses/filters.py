@@ -157,11 +157,16 @@ def unsupported_bounds(t: Target) -> None:
 def _tagged(t: Target):
     """Spawn a (tags red, big) and b (red); return their names."""
     a, b = t.entities.spawn(0), t.entities.spawn(1)
-    for name, tags in ((a, [RED, BIG]), (b, [RED])):
+    _tag(t, ((a, [RED, BIG]), (b, [RED])))
+    return a, b
+
+
+def _tag(t: Target, tagging) -> None:
+    """Give each (name, tags) of ``tagging`` those tags with SetEntityInfo."""
+    for name, tags in tagging:
         info = t.msg.EntityInfo(description='tagged by the conformance kit', tags=tags)
         t.ok('SetEntityInfo', t.srv.SetEntityInfo.Request(entity=name, info=info),
              f'SetEntityInfo of {name}')
-    return a, b
 
 
 @clause(CLAUSES, 'FILTER-10', 'a tags filter in ANY mode picks entities with any of the tags',
@@ -190,12 +195,20 @@ def tags_all(t: Target) -> None:
                 f'ALL [{RED}]')
 
 
-@clause(CLAUSES, 'FILTER-12', 'filters combine with AND', (SPAWNING,), 'EntityFilters.msg',
+@clause(CLAUSES, 'FILTER-12', 'the name filter applies together with a tags filter (AND)', TAGS,
+        'EntityFilters.msg',
         'string filter # ... Applies together with other filters (categories, tags).',
         services=LISTED)
 def filters_and(t: Target) -> None:
-    """Boxes a and b; the name filter ^(a|b)$ with a sphere around a gives a alone."""
-    a, b = t.entities.spawn(0), t.entities.spawn(1)
-    filters = t.entities.filters(f'^({a}|{b})$', bounds=(
-        t.msg.Bounds.TYPE_SPHERE, [t.entities.slot(0), (0.5, 0.0, 0.0)]))
-    _expect_set(_picked(t, filters, 'GetEntities'), {a}, 'a name filter and a sphere')
+    """
+    Tag boxes a and b red, not c; the name filter ^(a|c)$ with ANY [red] gives a alone.
+
+    The filters the sentence names, so that neither may be ignored: the name
+    filter alone gives a and c, the tags alone a and b.
+    """
+    a, b, c = t.entities.spawn(0), t.entities.spawn(1), t.entities.spawn(2)
+    _tag(t, ((a, [RED]), (b, [RED])))
+    filters = t.entities.filters(f'^({a}|{c})$', tags=[RED],
+                                 mode=t.msg.TagsFilter.FILTER_MODE_ANY)
+    _expect_set(_picked(t, filters, 'GetEntities'), {a}, f'the name filter ^({a}|{c})$ with ANY '
+                f'[{RED}]')

@@ -17,6 +17,9 @@ PAUSED_QUOTE = ('STATE_PAUSED = 2 # Simulation is paused, can be either stopped 
 ALREADY_QUOTE = ('ALREADY_IN_TARGET_STATE = 101 # Additional result type for this call, which '
                  'means simulation was already in the target state (e.g. was already stopped '
                  'when STATE_STOPPED was requested).')
+# The steps run before STOPPED, and how many may run while the kit plays to pause after it.
+RUN = 480
+SLACK = RUN // 10
 STOPPED_QUOTE = ('STATE_STOPPED = 0 # Simulation is stopped, which is equivalent to pausing and '
                  'resetting with ALL_PAUSED.')
 
@@ -144,9 +147,15 @@ def stopped_to_paused(t: Target) -> None:
 
 
 @clause(CLAUSES, 'STATE-12', 'an undefined state is refused and changes nothing', (SET, GET),
-        'SetSimulationState.srv', 'INCORRECT_TRANSITION = 103 # Incorrect transition')
+        'SetSimulationState.srv',
+        'INCORRECT_TRANSITION = 103 # Incorrect transition (pausing when in stopped state).')
 def undefined_state(t: Target) -> None:
-    """State 200 is no state: any refusal but 0, and the state still reads STOPPED."""
+    """
+    State 200 is no state: any refusal but 0, and the state still reads STOPPED.
+
+    The sentence names one incorrect transition (pausing a stopped
+    simulation), so 103 is not required here: any refusal will do.
+    """
     reply = t.call('SetSimulationState', t.sim.state_request(200))
     code = reply.result.result
     if code in (t.msg.Result.RESULT_OK, t.msg.Result.RESULT_FEATURE_UNSUPPORTED):
@@ -169,11 +178,11 @@ def stopped_despawns(t: Target) -> None:
 @clause(CLAUSES, 'STATE-14', 'STOPPED puts the time back to the start', (SET, PAUSE, STEP),
         'SimulationState.msg', STOPPED_QUOTE)
 def stopped_resets_time(t: Target) -> None:
-    """Paused, step 240; stop, pause, step once: /clock reads less than before the stop."""
+    """Paused, step 480; stop, pause, step once: /clock reads one step from 0."""
     t.clock.need()
     t.sim.pause()
-    before = t.clock.after(lambda: t.sim.advance(240), '240 steps')
-    t.sim.stop()
-    t.sim.pause()
     t.undo.on_cleanup(t.sim.stop)
-    t.clock.expect_back(before, 'STOPPED')
+    _, step_ns = t.clock.step_ns()
+    t.clock.after(lambda: t.sim.advance(RUN), f'{RUN} steps')
+    t.sim.stop()
+    t.clock.expect_start(step_ns, 'STOPPED', SLACK)

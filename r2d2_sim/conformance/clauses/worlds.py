@@ -14,6 +14,8 @@ SET, PAUSE, GET = ('SIMULATION_STATE_SETTING', 'SIMULATION_STATE_PAUSE',
                    'SIMULATION_STATE_GETTING')
 TAGS_QUOTE = ('TagsFilter tags # Tags filter to apply. Only named poses with matching tags field '
               'will be returned.')
+# At most this many worlds are loaded to find one whose named poses show.
+MOST_WORLDS = 3
 
 
 def _poses(t: Target, tags=(), mode: int = 0):
@@ -21,11 +23,55 @@ def _poses(t: Target, tags=(), mode: int = 0):
     return list(t.ok('GetNamedPoses', request, 'GetNamedPoses').poses)
 
 
+def _shown_poses(t: Target) -> list:
+    """
+    Return the named poses of a world that has some: the one loaded, else one the kit loads.
+
+    NAMED_POSES is declared: a world that has named poses must show them.
+    When the world loaded shows none, the kit loads up to three others
+    (``--world``, then the available ones) and looks again (the world is put
+    back after the clause); none showing any fails (a GetNamedPoses that
+    always answers an empty list). Skipped only where the kit can load no world.
+    """
+    poses = _poses(t)
+    if poses:
+        return poses
+    candidates = _other_worlds(t) if t.declared('WORLD_LOADING') else []
+    if not candidates:
+        raise ClauseSkipped('GetNamedPoses lists no pose in the world loaded, and the kit has no '
+                            'other world to load (give --world a world with named poses)')
+    t.undo.on_cleanup(t.world.put_back)
+    tried = []
+    for resource in candidates:
+        tried.append(resource.uri or 'a resource string')
+        t.world.load(resource, f'LoadWorld of {tried[-1]}, to find named poses')
+        poses = _poses(t)
+        if poses:
+            return poses
+    raise ClauseFailed(f'NAMED_POSES is declared, yet GetNamedPoses lists no pose in the world '
+                       f'loaded nor in the {len(tried)} the kit loaded ({", ".join(tried)})')
+
+
+def _other_worlds(t: Target) -> list:
+    """Return up to MOST_WORLDS Resources to load: --world, then available ones not loaded now."""
+    now = _current(t).world if t.declared('WORLD_INFO_GETTING') else t.world.initial
+    loaded = _resource_of(now) if now is not None else None
+    found = [t.msg.Resource(uri=t.options.world)] if t.options.world else []
+    if t.declared('AVAILABLE_WORLDS'):
+        found += [w.world_resource for w in _available(t) if _resource_of(w)]
+    chosen: list = []
+    for resource in found:
+        key = resource.uri or resource.resource_string[:60]
+        if key != loaded and key not in [r.uri or r.resource_string[:60] for r in chosen]:
+            chosen.append(resource)
+    return chosen[:MOST_WORLDS]
+
+
 @clause(CLAUSES, 'NAMED-01', 'GetNamedPoses lists poses by unique names', (NAMED,),
         'NamedPose.msg', 'string name # Unique name.')
 def unique_pose_names(t: Target) -> None:
-    """No name twice, none empty, every orientation a unit quaternion."""
-    poses = _poses(t)
+    """Read a world's poses (see _shown_poses): no name twice, none empty, unit quaternions."""
+    poses = _shown_poses(t)
     names = [p.name for p in poses]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice or '' in names:
@@ -37,7 +83,7 @@ def unique_pose_names(t: Target) -> None:
 
 
 def _tag_check(t: Target, mode: int, label: str) -> None:
-    poses = _poses(t)
+    poses = _shown_poses(t)
     tags = sorted({tag for p in poses for tag in p.tags})
     if not tags:
         raise ClauseSkipped('no named pose has tags')
@@ -70,10 +116,8 @@ def poses_all(t: Target) -> None:
 @clause(CLAUSES, 'NAMED-04', 'every named pose has bounds the standard defines',
         (NAMED, 'POSE_BOUNDS'), 'GetNamedPoseBounds.srv', 'Get bounds for the named pose.')
 def pose_bounds(t: Target) -> None:
-    """Ask the bounds of each listed pose: OK, a defined type (EMPTY allowed)."""
-    poses = _poses(t)
-    if not poses:
-        raise ClauseSkipped('GetNamedPoses lists no pose')
+    """Ask the bounds of each pose of a world's (see _shown_poses): OK, a defined type."""
+    poses = _shown_poses(t)
     for pose in poses[:20]:
         bounds = t.ok('GetNamedPoseBounds', t.srv.GetNamedPoseBounds.Request(name=pose.name),
                       f'GetNamedPoseBounds of {pose.name}').bounds
@@ -85,11 +129,8 @@ def pose_bounds(t: Target) -> None:
         'geometry_msgs/Pose pose # Pose relative to world, which can be used with '
         'SpawnEntity.srv.')
 def spawn_at_named_pose(t: Target) -> None:
-    """Paused: the kit's box spawned at the first named pose (as it is) reads exactly there."""
-    poses = _poses(t)
-    if not poses:
-        raise ClauseSkipped('GetNamedPoses lists no pose')
-    pose = poses[0]
+    """Paused: the kit's box spawned at a world's first named pose reads exactly there."""
+    pose = _shown_poses(t)[0]
     t.sim.pause()
     t.undo.on_cleanup(t.sim.stop)
     position, orientation = vector(pose.pose.position), quaternion(pose.pose.orientation)
@@ -297,16 +338,26 @@ def no_world_state(t: Target) -> None:
     t.sim.expect_state(t.sim.S.STATE_NO_WORLD, 'UnloadWorld')
 
 
-@clause(CLAUSES, 'WORLD-13', 'with no world the simulation cannot be played',
+@clause(CLAUSES, 'WORLD-13', 'with no world the simulation cannot be played, stopped or paused',
         ('WORLD_UNLOADING', SET), 'SimulationState.msg', 'The simulation is inactive and cannot '
         'be started, stopped, or paused.')
 def no_world_no_play(t: Target) -> None:
-    """Unload, ask for PLAYING: refused (not OK, not 0)."""
+    """
+    Unload, ask for PLAYING, STOPPED and PAUSED: each refused (not OK, not 0).
+
+    PAUSED only where SIMULATION_STATE_PAUSE is declared (elsewhere 0 is its
+    right answer).
+    """
     _unload(t)
-    reply = t.sim.request_state(t.sim.S.STATE_PLAYING)
-    if reply.result.result in (t.msg.Result.RESULT_OK, t.msg.Result.RESULT_FEATURE_UNSUPPORTED):
-        raise ClauseFailed(f'PLAYING with no world answered '
-                           f'{t.describe("SetSimulationState", reply)}')
+    S = t.sim.S
+    states = [S.STATE_PLAYING, S.STATE_STOPPED] + (
+        [S.STATE_PAUSED] if t.declared(PAUSE) else [])
+    for state in states:
+        reply = t.sim.request_state(state)
+        if reply.result.result in (t.msg.Result.RESULT_OK,
+                                   t.msg.Result.RESULT_FEATURE_UNSUPPORTED):
+            raise ClauseFailed(f'{t.sim.state_name(state)} with no world answered '
+                               f'{t.describe("SetSimulationState", reply)}')
 
 
 @clause(CLAUSES, 'WORLD-14', 'UnloadWorld removes spawned entities',
