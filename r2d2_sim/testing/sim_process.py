@@ -314,8 +314,9 @@ class SimProcess(ControlClient, FirstRobot, TransformLookup, WorldVerbs):
         """Return the client of the node's simulation_interfaces services (made on first use)."""
         if self._standard is None:
             namespace = self.node_path.rsplit('/', 1)[0]
+            # Queries sent again, as ~/get_status is: a reply can be lost on a busy machine.
             self._standard = StandardClient(self.probe.node, self.probe.spin_until, namespace,
-                                            self.timeout_s)
+                                            self.timeout_s, resend_s=STATUS_RESEND_S)
         return self._standard
 
     def _world_backend(self) -> StandardWorld:
