@@ -31,11 +31,14 @@ def single_host_mixins(package: Path) -> List[str]:
     """
     Return 'Base (file) mixed only into Host (file)' for each single-host mixin.
 
-    A class of the package counts as mixed in when a class of the package has it
-    among two or more bases; it is a single-host mixin when no other class of the
-    package derives from it. Exceptions and typing Protocols are not mixins.
+    A class of the package with no ``__init__`` of its own (it works on its host's
+    state) counts as mixed in when a class of the package has it among two or more
+    bases; it is a single-host mixin when no other class of the package derives from
+    it. A base that builds its own state (``RosHarness``, used on its own too),
+    exceptions and typing Protocols are not mixins.
     """
     classes: Dict[str, str] = {}
+    constructs: Dict[str, bool] = {}
     bases_of: Dict[Tuple[str, str], List[str]] = {}
     for path in sorted(package.rglob('*.py')):
         tree = ast.parse(path.read_text(encoding='utf-8'), str(path))
@@ -43,6 +46,9 @@ def single_host_mixins(package: Path) -> List[str]:
             if isinstance(node, ast.ClassDef):
                 where = str(path.relative_to(package.parent))
                 classes.setdefault(node.name, where)
+                constructs[node.name] = constructs.get(node.name, False) or any(
+                    isinstance(item, ast.FunctionDef) and item.name == '__init__'
+                    for item in node.body)
                 bases_of[(node.name, where)] = [_base_name(b) for b in node.bases]
     hosts: Dict[str, List[Tuple[str, str, int]]] = defaultdict(list)
     for (name, where), bases in bases_of.items():
@@ -51,8 +57,8 @@ def single_host_mixins(package: Path) -> List[str]:
             hosts[base].append((name, where, len(bases)))
     found = []
     for base, derived in sorted(hosts.items()):
-        if base.endswith(('Error', 'Exception')) or 'Protocol' in bases_of.get(
-                (base, classes[base]), []):
+        if base.endswith(('Error', 'Exception')) or constructs[base] or 'Protocol' in \
+                bases_of.get((base, classes[base]), []):
             continue
         if len(derived) == 1 and derived[0][2] > 1:
             host, where, _ = derived[0]
@@ -66,18 +72,18 @@ def test_no_class_is_mixed_into_a_single_host():
 
 
 def test_the_check_finds_a_single_host_mixin(tmp_path):
-    """Verbs mixed into one Target are found; a mixin of two hosts, errors, a shared base not."""
+    """Verbs mixed into one Target are found; a mixin of two hosts, errors, a built base not."""
     package = tmp_path / 'fakepkg'
     package.mkdir()
     (package / 'verbs.py').write_text(
         'class EntityVerbs:\n    pass\n\n\nclass Shared:\n    pass\n')
     (package / 'target.py').write_text(
         'from fakepkg.verbs import EntityVerbs, Shared\n\n\n'
-        'class Base:\n    pass\n\n\n'
+        'class Base:\n    def __init__(self):\n        self.x = 1\n\n\n'
         'class FakeError(Exception):\n    pass\n\n\n'
         'class OtherError(FakeError, ValueError):\n    pass\n\n\n'
         'class Target(Base, EntityVerbs, Shared):\n    pass\n\n\n'
-        'class Other(Shared):\n    pass\n\n\n'
-        'class Child(Base):\n    pass\n')
+
+        'class Child(Shared):\n    pass\n')
     assert single_host_mixins(package) == [
         'EntityVerbs (fakepkg/verbs.py) mixed only into Target (fakepkg/target.py)']

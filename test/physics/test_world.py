@@ -197,7 +197,7 @@ def test_gui_without_a_display_is_one_line_not_the_end_of_the_process(monkeypatc
 
 
 def test_a_closed_world_refuses_use_in_one_line():
-    """After close(): WorldError saying so, not an AttributeError on None; close() twice is fine."""
+    """After close(): WorldError saying so, not an AttributeError on None; close() twice too."""
     world = SimWorld()
     world.close()
     world.close()
