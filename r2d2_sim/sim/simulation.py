@@ -112,7 +112,7 @@ class Simulation:
         self._step_watchers: List[Callable[[int], None]] = []
         # What SDF worlds and spawns are searched and compared with.
         sdf = SdfSettings(tuple(config.model_paths), self.time_step_s,
-                          tuple(config.gravity_m_s2), config.ground_plane, config.strict_worlds)
+                          config.gravity_m_s2, config.ground_plane, config.strict_worlds)
         # The world file loaded (the empty world for world ''), the ones that can be.
         self.worlds = WorldFiles(Places(config.world_paths), sdf, self.time_step_s)
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
