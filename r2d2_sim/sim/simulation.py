@@ -112,7 +112,7 @@ class Simulation:
         self._step_watchers: List[Callable[[int], None]] = []
         # What SDF worlds and spawns are searched and compared with.
         sdf = SdfSettings(tuple(config.model_paths), self.time_step_s,
-                          tuple(config.gravity_m_s2), config.ground_plane, config.strict_worlds)
+                          config.gravity_m_s2, config.ground_plane, config.strict_worlds)
         # The world file loaded (the empty world for world ''), the ones that can be.
         self.worlds = WorldFiles(Places(config.world_paths), sdf, self.time_step_s)
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
@@ -210,23 +210,23 @@ class Simulation:
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
-        casting = [(i, robot.pending_rays()) for i, robot in enumerate(robots)
-                   if measurements[i] is not None and robot.pending_rays()]
+        casting = [(i, measurement, robots[i].pending_rays())
+                   for i, measurement in enumerate(measurements)
+                   if measurement is not None and robots[i].pending_rays()]
         if casting:
             # Every robot's rays of this step cast together (raycast.cast_requests: a
             # call per robot, its mask's); each robot then takes its answers.
-            answers = iter(world.cast_requests([r for _, rays in casting for r in rays]))
-            for i, rays in casting:
+            answers = iter(world.cast_requests([r for _, _, rays in casting for r in rays]))
+            for i, measurement, rays in casting:
                 measurements[i] = robots[i].take_rays(
-                    measurements[i], [next(answers) for _ in rays])
-        measurements = tuple(measurements)
+                    measurement, [next(answers) for _ in rays])
         for watcher in self._step_watchers:
             watcher(time_ns)
         if state_due:
             self.last_frame_step = step
         elif not any(measurements):
             return None
-        return StepResult(step, time_ns, state_due, measurements)
+        return StepResult(step, time_ns, state_due, tuple(measurements))
 
     def read_states(self) -> StepResult:
         """Read every robot's state now, as a state publication at the current step would."""

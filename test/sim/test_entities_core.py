@@ -74,6 +74,24 @@ def test_entity_names_are_bounded(make):
     assert simulation.entities.names() == ['ground_plane', 'r2d2', name]
 
 
+@pytest.mark.parametrize('position, orientation', [
+    ((1.0, 0.0), (0.0, 0.0, 0.0, 1.0)), ((1.0, 0.0, 0.1, 0.0), (0.0, 0.0, 0.0, 1.0)),
+    ((1.0, 0.0, 0.1), (0.0, 0.0, 1.0)), ((1.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0, 0.0))])
+def test_a_pose_of_the_wrong_length_is_refused_in_one_line(make, position, orientation):
+    """A Python caller may give any sequence: 3 numbers and 4, or INVALID_POSE, nothing moved."""
+    simulation = make()
+    box = spawn_box(simulation, (1.0, 0.0, 0.1))
+    before = simulation.entities.state(box)
+    with pytest.raises(RefusedError, match='^INVALID_POSE'):
+        simulation.set_entity_state(box, '', position, orientation, (0.0, 0.0, 0.0),
+                                    (0.0, 0.0, 0.0))
+    with pytest.raises(RefusedError, match='^INVALID_POSE'):
+        simulation.spawn(SpawnRequest('other', resource_string=BOX, position=position,
+                                      orientation=orientation))
+    assert simulation.entities.state(box) == before
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', box]
+
+
 def test_name_filters_search_a_part_of_the_name():
     """The standard's filter: a regular expression that matches a part of the name."""
     assert name_filter('')('anything')

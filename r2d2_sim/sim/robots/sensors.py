@@ -13,7 +13,7 @@ again as at start-up.
 """
 
 import math
-from typing import NamedTuple, Optional
+from typing import NamedTuple, Optional, TYPE_CHECKING
 
 import numpy
 
@@ -32,6 +32,9 @@ from r2d2_sim.model.sensors import (
 from r2d2_sim.model.transforms import (
     apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotation_matrix,
     Transform)
+
+if TYPE_CHECKING:  # typing only
+    from r2d2_sim.physics.world import SimWorld
 
 __all__ = ['HEAD_CAMERA_LINK', 'HEAD_CAMERA_FRAME_ID', 'LASER_FRAME_ID', 'LASER_HEIGHT_M',
            'LIDAR3D_FRAME_ID', 'IMU_FRAME_ID', 'CameraImage', 'HeadCamera', 'LaserScanner',
@@ -131,6 +134,14 @@ class _RaySensor:
 
     NOISE = ''
     RATE = ''
+    _world: 'SimWorld'
+    _body: Body
+    _config: SimConfig
+    mount: Transform
+    _rays_in_sensor: numpy.ndarray
+    _group: int
+    _mask: int
+    _noise: NoiseModel
 
     def rays(self) -> RayRequest:
         """Return the beams from where the sensor is now, to cast with other sensors' rays."""

@@ -214,7 +214,8 @@ PARAMETERS: List[Parameter] = [
               '1, or -1 when a negative wheel velocity drives the robot forward.',
               'wheel_velocity_sign', read.choice([1, -1]), per_robot=True),
     Parameter('gravity', 'double_array', [0.0, 0.0, -9.8], 'Gravity [x, y, z] in m/s^2.',
-              'gravity_m_s2', read.numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis')),
+              'gravity_m_s2', read.numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis'),
+              python_type='Tuple[float, float, float]'),
     Parameter('ground_plane', 'bool', True, 'Load pybullet_data\'s plane.urdf as the ground.',
               'ground_plane', read.boolean),
     Parameter('extra_models', 'string_array', [],
@@ -300,7 +301,8 @@ PARAMETERS: List[Parameter] = [
     Parameter('initial_pose', 'double_array', [0.0, 0.0, 0.0],
               'Spawn pose [x (m), y (m), yaw (rad)] in the world frame, or relative to the '
               'world\'s start_pose when its manifest names one.',
-              'initial_pose', read.numbers(3), per_robot=True),
+              'initial_pose', read.numbers(3), per_robot=True,
+              python_type='Tuple[float, float, float]'),
     Parameter('tags', 'string_array', [],
               'Tags of the robot as an entity of the simulation standard (GetEntityInfo, the '
               'tags filters), e.g. [astromech, test_subject]; at most 64.',
