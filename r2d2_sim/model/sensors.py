@@ -20,6 +20,7 @@ import numbers
 from typing import Optional, Sequence, Tuple
 
 import numpy
+from numpy.typing import ArrayLike
 
 from r2d2_sim.model.imu import ImuModel, ImuReading
 from r2d2_sim.model.noise import NoiseModel, NoiseSpec
@@ -167,7 +168,7 @@ def ray_endpoints(geometry: ScanGeometry, origin_m: Sequence[float],
     return starts, origin + geometry.range_max_m * directions
 
 
-def ranges_from_hits(hit_fractions: Sequence[float], geometry: ScanGeometry,
+def ranges_from_hits(hit_fractions: ArrayLike, geometry: ScanGeometry,
                      noise_std_m: float = 0.0,
                      rng: Optional[numpy.random.Generator] = None,
                      noise: Optional[NoiseModel] = None) -> numpy.ndarray:
@@ -267,7 +268,7 @@ def lidar_directions(geometry: LidarGeometry) -> numpy.ndarray:
                                               numpy.sin(elevation)), axis=-1)
 
 
-def lidar_ranges(hit_fractions: Sequence[float], geometry: LidarGeometry,
+def lidar_ranges(hit_fractions: ArrayLike, geometry: LidarGeometry,
                  noise: Optional[NoiseModel] = None) -> numpy.ndarray:
     """
     Turn hit fractions along rays of ``range_max_m`` into ranges, (rings, samples) float64.
