@@ -57,10 +57,11 @@ case "$cmd" in
   # Two workers: every ROS test leases a domain of its own. Paths given replace test/.
   # 'test fast': the tiers without ROS (test/model, physics, sim) and the layering
   # check, in seconds: only the venv, no interface build; two workers were faster.
+  # Tests marked slow (long simulated runs) are left to the full run.
   test)  if [ "${1:-}" = fast ]; then
            shift; setup_venv
-           exec "$PY" -m pytest -q -p no:cacheprovider -n 2 test/model test/physics test/sim \
-             test/lint/test_layers.py "$@"
+           exec "$PY" -m pytest -q -p no:cacheprovider -n 2 -m 'not slow' test/model \
+             test/physics test/sim test/lint/test_layers.py "$@"
          fi
          setup; need_xvfb
          paths=(test); for arg in "$@"; do [ -e "${arg%%::*}" ] && paths=(); done
