@@ -14,6 +14,7 @@ from typing import List, Sequence, Tuple
 
 from r2d2_sim.errors import RefusedError, SetupError
 from r2d2_sim.model.transforms import BaseState, yaw_of
+from r2d2_sim.physics.body import Body
 from r2d2_sim.sim.entities import Category, EntityInfo, SpawnRequest
 from r2d2_sim.sim.entity_bounds import Region
 from r2d2_sim.sim.launch import docked
@@ -21,6 +22,9 @@ from r2d2_sim.sim.parameter_readers import namespace as read_namespace
 from r2d2_sim.sim.parameters import ConfigError, SimConfig
 from r2d2_sim.sim.robot import Robot
 from r2d2_sim.sim.robot_parameters import resolve_namespace, robot_config
+
+# A spawn overlapping a robot deeper than resting contacts sink (about 0.01 mm) is a shove.
+SHOVE_DEPTH_M = 0.001
 
 
 class SimulationEntities:
@@ -106,6 +110,7 @@ class SimulationEntities:
             self.pristine = False
             if notes:
                 self._warn(f'{body.name}: {notes}')
+            self._warn_of_overlaps(body)
             return body.name
         namespace = self._free_namespace(request.namespace)
         body, description, notes = self.entities.spawn(
@@ -139,7 +144,20 @@ class SimulationEntities:
             if isinstance(exc, ConfigError):
                 raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
             raise
+        self._warn_of_overlaps(body)
         return robot.name
+
+    def _warn_of_overlaps(self, body: Body) -> None:
+        """Say in one line which robots a spawned body overlaps: the next step shoves them."""
+        met = []
+        for robot in self.robots:
+            if robot.body is not body:
+                nearest = body.closest_points(robot.body, 0.0)
+                if nearest is not None and nearest.distance_m < -SHOVE_DEPTH_M:
+                    met.append(f'robot {robot.name} by {-nearest.distance_m * 1e3:.0f} mm')
+        if met:
+            self._warn(f'{body.name} overlaps {", ".join(met)}: the next step pushes them '
+                       'apart (spawn clear of robots)')
 
     def _free_namespace(self, namespace: str) -> str:
         """Return a spawned robot's namespace, resolved; NAMESPACE_INVALID if it cannot be."""
