@@ -38,7 +38,7 @@ from r2d2_sim.physics.stdio import silenced_output
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 
-__all__ = ['Body', 'BodyRemoved', 'Loading', 'WorldError', 'file_stamp']
+__all__ = ['Body', 'BodyRemoved', 'Loading', 'Motor', 'WorldError', 'file_stamp']
 
 ZERO: Vec3 = (0.0, 0.0, 0.0)
 
