@@ -371,11 +371,32 @@ class SimWorld:
         same pixels in GUI mode, so tests and headless runs see what users see.
         The depth buffer is OpenGL's non-linear d in [0, 1], shaped (height, width).
         """
-        _, _, rgba, depth, _ = self._live_client.getCameraImage(
+        rgb, depth, _ = self._render(width_px, height_px, view, projection,
+                                     pybullet.ER_NO_SEGMENTATION_MASK)
+        return rgb, depth
+
+    def render_seeing(self, body: Body, width_px: int, height_px: int, view: Sequence[float],
+                      projection: Sequence[float]) -> Tuple[bytes, numpy.ndarray, numpy.ndarray]:
+        """
+        Render as :meth:`render` does, and say where ``body`` is seen: a bool per pixel.
+
+        The same pixels as :meth:`render` (the renderer's segmentation mask
+        is drawn beside them); the mask is (height, width), True where the
+        nearest surface is one of the body's links.
+        """
+        rgb, depth, segmentation = self._render(width_px, height_px, view, projection, 0)
+        # Without ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX each pixel is the body's id, -1 none.
+        return rgb, depth, segmentation.reshape(height_px, width_px) == body.id
+
+    def _render(self, width_px: int, height_px: int, view: Sequence[float],
+                projection: Sequence[float], flags: int
+                ) -> Tuple[bytes, numpy.ndarray, numpy.ndarray]:
+        _, _, rgba, depth, segmentation = self._live_client.getCameraImage(
             width_px, height_px, viewMatrix=list(view), projectionMatrix=list(projection),
-            renderer=pybullet.ER_TINY_RENDERER, flags=pybullet.ER_NO_SEGMENTATION_MASK)
+            renderer=pybullet.ER_TINY_RENDERER, flags=flags)
         rgb = numpy.asarray(rgba, dtype=numpy.uint8).reshape(height_px, width_px, 4)[:, :, :3]
-        return rgb.tobytes(), numpy.asarray(depth, dtype=float).reshape(height_px, width_px)
+        return (rgb.tobytes(), numpy.asarray(depth, dtype=float).reshape(height_px, width_px),
+                numpy.asarray(segmentation))
 
     def follow_camera(self, body: Body, distance_m: float = 2.0) -> None:
         """Point the GUI camera at a body; no-op without a window."""

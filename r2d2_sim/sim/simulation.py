@@ -59,6 +59,8 @@ __all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest', '
 
 # Follow the robot with the GUI camera this many times per simulated second.
 GUI_CAMERA_RATE_HZ = 30.0
+# A spawn overlapping a robot deeper than resting contacts sink (about 0.01 mm) is a shove.
+SHOVE_DEPTH_M = 0.001
 
 # Told the robots after every change of the set (start-up, spawn, delete, reset).
 RobotsWatcher = Callable[[Sequence[Robot]], None]
@@ -319,6 +321,7 @@ class Simulation:
             self.pristine = False
             if notes:
                 self._warn(f'{body.name}: {notes}')
+            self._warn_of_overlaps(body)
             return body.name
         try:
             namespace = self._free_namespace(request.namespace)
@@ -358,7 +361,20 @@ class Simulation:
             if isinstance(exc, ConfigError):
                 raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
             raise
+        self._warn_of_overlaps(body)
         return robot.name
+
+    def _warn_of_overlaps(self, body: Body) -> None:
+        """Say in one line which robots a spawned body overlaps: the next step shoves them."""
+        met = []
+        for robot in self.robots:
+            if robot.body is not body:
+                nearest = body.closest_points(robot.body, 0.0)
+                if nearest is not None and nearest.distance_m < -SHOVE_DEPTH_M:
+                    met.append(f'robot {robot.name} by {-nearest.distance_m * 1e3:.0f} mm')
+        if met:
+            self._warn(f'{body.name} overlaps {", ".join(met)}: the next step pushes them '
+                       'apart (spawn clear of robots)')
 
     def _free_namespace(self, namespace: str) -> str:
         """Return a spawned robot's namespace, resolved; NAMESPACE_INVALID if it cannot be."""

@@ -378,7 +378,12 @@ class Robot:
         self.reset()
 
     def _set_wheels(self, velocities: Sequence[float]) -> None:
-        self.body.set_joint_velocities(self._wheel_indices, velocities, self._wheel_forces)
+        # Stopped, the wheels are braked: a velocity motor at 0 let R2D2 roll away slowly.
+        if any(velocities):
+            self.body.set_joint_velocities(self._wheel_indices, velocities,
+                                           self._wheel_forces)
+        else:
+            self.body.hold_joints(self._wheel_indices, self._wheel_forces)
 
     def _wheel_positions(self) -> List[float]:
         return list(self.body.joint_states(self._wheel_indices).positions)

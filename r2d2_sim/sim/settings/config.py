@@ -86,6 +86,7 @@ class SimConfig:
     camera_fov_deg: float                                   # camera_fov
     camera_depth: bool
     camera_point_cloud: bool
+    camera_self_filter: bool
     depth_noise_mean: float
     depth_noise_std: float
     depth_noise_bias_mean: float

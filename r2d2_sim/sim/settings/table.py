@@ -334,6 +334,12 @@ PARAMETERS: List[Parameter] = [
               'sensor_msgs/PointCloud2 (x y z float32 in the optical frame, NaN where the '
               'depth is not finite), at camera_rate.',
               'camera_point_cloud', read.boolean, per_robot=True),
+    Parameter('camera_self_filter', 'bool', False,
+              'With depth on (camera_depth or camera_point_cloud), the pixels that see the robot '
+              'itself (R2D2\'s gripper: 4.7 % of the default view) read NaN in the depth image '
+              'and the cloud, as robot_self_filter leaves them; the colour image still shows '
+              'them.',
+              'camera_self_filter', read.boolean, per_robot=True),
     *_noise_parameters('depth'),
     Parameter('world', 'string', '',
               'The world to load around the robots: a URDF, an SDF world (Gazebo\'s *.sdf, '
