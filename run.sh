@@ -55,12 +55,13 @@ case "$cmd" in
   demo)  setup; exec "$PY" -m r2d2_sim.apps.demo "$@" ;;
   sim)   setup; exec "$PY" -m r2d2_sim "$@" ;;
   # Two workers: every ROS test leases a domain of its own. Paths given replace test/.
-  # 'test fast': the tiers without ROS (test/model, physics, sim) and the layering
-  # check, in seconds: only the venv, no interface build; two workers were faster.
+  # 'test fast': the tiers without ROS (test/model, physics, sim), the layering check,
+  # the old names and the version, in seconds: only the venv, no interface build; two
+  # workers were faster.
   test)  if [ "${1:-}" = fast ]; then
            shift; setup_venv
            exec "$PY" -m pytest -q -p no:cacheprovider -n 2 test/model test/physics test/sim \
-             test/lint/test_layers.py "$@"
+             test/lint/test_layers.py test/lint/test_deprecations.py test/lint/test_changelog.py "$@"
          fi
          setup; need_xvfb
          paths=(test); for arg in "$@"; do [ -e "${arg%%::*}" ] && paths=(); done

@@ -34,8 +34,10 @@ collect_ignore = ['examples']
 
 TEST_DIR = Path(__file__).resolve().parent
 FAST_TIER = [TEST_DIR / 'model', TEST_DIR / 'physics', TEST_DIR / 'sim']
-# Fast-tier tests outside those folders: they start interpreters of their own, not ROS.
-FAST_FILES = [TEST_DIR / 'lint' / 'test_layers.py']
+# Fast-tier tests outside those folders: what they import of ROS, if anything, loads in
+# interpreters of their own (the old module paths of the ROS layer, for one).
+FAST_FILES = [TEST_DIR / 'lint' / 'test_layers.py', TEST_DIR / 'lint' / 'test_deprecations.py',
+              TEST_DIR / 'lint' / 'test_changelog.py']
 SYSTEM = TEST_DIR / 'system'
 FAST_ONLY = pytest.StashKey[bool]()
 # Set by .ci/run: every test must run there, a skip is a failure.
