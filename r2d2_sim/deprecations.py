@@ -89,6 +89,19 @@ MOVED = {
     'r2d2_sim.robot_parameters': 'r2d2_sim.sim.settings.robots',
     'r2d2_sim.sensor_mounts': 'r2d2_sim.sim.robots.sensors',
     'r2d2_sim.simulation': 'r2d2_sim.sim.simulation',
+    # Names that left those modules later in 0.1.0 (one name per concept, 0cb9102; the
+    # link tree out of transforms, c1f749b; what a spawn may load, out of entities).
+    'r2d2_sim.bullet_records:BaseState': 'r2d2_sim.model.transforms:BaseState',
+    'r2d2_sim.timing:ns_of': 'r2d2_sim.model.timing:stamp_ns',
+    'r2d2_sim.sim_node:raise_if_stopped': 'r2d2_sim.apps.cli:raise_if_stopped',
+    'r2d2_sim.entities:MAX_DESCRIPTION_BYTES': 'r2d2_sim.sim.spawnables:MAX_DESCRIPTION_BYTES',
+    'r2d2_sim.entities:MAX_LINKS': 'r2d2_sim.sim.spawnables:MAX_LINKS',
+    'r2d2_sim.transforms:JointModel': 'r2d2_sim.model.link_tree:JointModel',
+    'r2d2_sim.transforms:JointTransform': 'r2d2_sim.model.link_tree:JointTransform',
+    'r2d2_sim.transforms:LinkTransforms': 'r2d2_sim.model.link_tree:LinkTransforms',
+    'r2d2_sim.transforms:parse_joints': 'r2d2_sim.model.link_tree:parse_joints',
+    'r2d2_sim.transforms:root_link': 'r2d2_sim.model.link_tree:root_link',
+    'r2d2_sim.transforms:joint_transform': 'r2d2_sim.model.link_tree:joint_transform',
 
     # sim/ by concept (0.2.0): settings/, worlds/, robots/ beside sdf/.
     'r2d2_sim.sim.parameters': 'r2d2_sim.sim.settings.table',
