@@ -147,7 +147,8 @@ def renamed(module: str, name: str) -> 'Any':
     found = getattr(importlib.import_module(new_module), new_name)
     # For 'from package import name' the import system asks hasattr() first, then
     # the statement takes the name: warn for the statement only.
-    if sys._getframe(2).f_code.co_name != '_handle_fromlist':
+    asker = sys._getframe(1).f_back  # whoever asked the __getattr__ that called this
+    if asker is None or asker.f_code.co_name != '_handle_fromlist':
         _warn(f'{module}:{name}', new)
     return found
 
