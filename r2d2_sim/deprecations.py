@@ -153,8 +153,9 @@ def renamed(module: str, name: str) -> 'Any':
     return found
 
 
-def _dotted(path: str) -> str:
-    return path.replace(':', '.')
+def _message(old: str, new: str) -> str:
+    dotted = [path.replace(':', '.') for path in (old, new)]
+    return f'{dotted[0]} is deprecated and goes in r2d2_sim {REMOVED_IN}: use {dotted[1]}'
 
 
 def _warn(old: str, new: str) -> None:
@@ -167,12 +168,12 @@ def _warn(old: str, new: str) -> None:
     # frames of importlib's frozen bootstrap are not counted: warn() skips them itself.
     while frame.f_back is not None and (
             frame.f_globals.get('__name__', '').startswith(('importlib', __name__))
-            or frame.f_code.co_name == '__getattr__'):
+            or (frame.f_code.co_name == '__getattr__'
+                and frame.f_globals.get('__name__', '').startswith('r2d2_sim'))):
         frame = frame.f_back
         if not frame.f_code.co_filename.startswith('<frozen importlib._bootstrap'):
             level += 1
-    warnings.warn(f'{_dotted(old)} is deprecated and goes in r2d2_sim {REMOVED_IN}: use '
-                  f'{_dotted(new)}', DeprecationWarning, stacklevel=level)
+    warnings.warn(_message(old, new), DeprecationWarning, stacklevel=level)
 
 
 class _OldPaths:
@@ -205,14 +206,13 @@ class _OldPaths:
         old = module.__name__
         new = MOVED[old]
         target = importlib.import_module(new)
-        moved = {key.partition(':')[2]: value for key, value in MOVED.items()
-                 if key.startswith(old + ':')}
+        moved = {key.partition(':')[2] for key in MOVED if key.startswith(old + ':')}
         if moved:
             vars(module).update(
                 __doc__=f'Deprecated: {old} is now {new}, and some of its names moved.',
                 __all__=list(getattr(target, '__all__', ())),
                 __getattr__=_view(old, target, moved),
-                __dir__=lambda: sorted(set(dir(target)) | set(moved)))
+                __dir__=lambda: sorted(set(dir(target)) | moved))
         else:
             # The import system hands out what sys.modules holds after exec_module.
             sys.modules[old] = target
@@ -228,13 +228,12 @@ class _OldPaths:
         if spec is None or get_code is None:
             return None
         # The code runs as __main__: said from there, the default filter shows it.
-        warnings.warn_explicit(
-            f'{fullname} is deprecated and goes in r2d2_sim {REMOVED_IN}: use {new}',
-            DeprecationWarning, filename=spec.origin or new, lineno=0, module='__main__')
+        warnings.warn_explicit(_message(fullname, new), DeprecationWarning,
+                               filename=spec.origin or new, lineno=0, module='__main__')
         return get_code(new)
 
 
-def _view(old: str, target: types.ModuleType, moved: 'dict[str, str]') -> 'Any':
+def _view(old: str, target: types.ModuleType, moved: 'set[str]') -> 'Any':
     """Return the ``__getattr__`` of a view: a moved name where it went, the rest from target."""
     def __getattr__(name: str) -> 'Any':
         if name in moved:
