@@ -41,7 +41,7 @@ INSTALL_REQUIRES = [
 
 setup(
     name=package_name,
-    version='0.1.0',
+    version='0.2.0',
     packages=find_packages(exclude=['test']),
     # PEP 561: the marker tells type checkers that r2d2_sim's own hints are to be read.
     package_data={package_name: ['py.typed']},

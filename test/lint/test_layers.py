@@ -5,7 +5,8 @@ From the lowest up: ``errors``, ``recording``, ``model``, ``physics``, ``sim``,
 ``client``, ``ros``, ``testing``, ``apps``, ``farm`` (above the executables: none of
 them imports it), then ``pytest_plugin`` and ``__main__``, and on top
 ``conformance``, which nothing imports; the package's own ``__init__`` imports
-nothing of it. Two checks:
+nothing of it but ``deprecations``, the table of old names, which imports nothing of
+the package (it imports a new module by name when an old name is used). Two checks:
 
 - in a fresh interpreter, importing every module of ``model``, ``physics``,
   ``sim`` and ``recording`` loads no rclpy (and ``model`` and ``recording`` no
@@ -33,11 +34,12 @@ from common import REPO
 
 PACKAGE = 'r2d2_sim'
 # Each folder or top-level module of the package, by height; a module imports only
-# from its own height or below. The package's root __init__ sits below them all.
-RANK = {'errors': 0, 'memory': 0, 'model': 1, 'recording': 2, 'physics': 3, 'sim': 4,
-        'client': 5, 'ros': 6, 'testing': 7, 'apps': 8, 'farm': 9, 'pytest_plugin': 10,
-        '__main__': 10, 'conformance': 11}
+# from its own height or below. The package's root __init__ sits below them all, with
+# the table of old names it installs.
 ROOT_RANK = -1
+RANK = {'deprecations': ROOT_RANK, 'errors': 0, 'memory': 0, 'model': 1, 'recording': 2,
+        'physics': 3, 'sim': 4, 'client': 5, 'ros': 6, 'testing': 7, 'apps': 8, 'farm': 9,
+        'pytest_plugin': 10, '__main__': 10, 'conformance': 11}
 # What importing all of a ROS-free layer must not load.
 MUST_NOT_LOAD = {'model': ['rclpy', 'pybullet'], 'physics': ['rclpy'], 'sim': ['rclpy'],
                  'recording': ['rclpy', 'pybullet']}
