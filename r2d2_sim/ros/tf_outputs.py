@@ -90,6 +90,7 @@ class TfOutput:
         slots = iter(self._transforms)
         if self._odometry:
             odometry = frame.odometry
+            assert odometry is not None, 'a robot with wheels measures odometry'
             odom = Transform((odometry.x_m, odometry.y_m, 0.0),
                              yaw_to_quaternion(odometry.yaw_rad))
             next(slots).set(odom.translation + odom.rotation)
