@@ -15,6 +15,7 @@ its simulation control, on the same node.
 """
 
 import threading
+from typing import Any
 
 from geometry_msgs.msg import Vector3
 from rclpy.node import Node
@@ -35,7 +36,7 @@ SPAWNABLE_DIRECTORIES = ('package://r2d2_sim/urdf',)
 class Replies:
     """Setting a reply's result: OK on every success (a default Result reads as unsupported)."""
 
-    _msg = None
+    _msg: Any = None  # simulation_interfaces.msg (no stubs), set by each service
     _log = None  # the node's logger, for what no request should cause
 
     def _guarded(self, callback):
