@@ -15,9 +15,10 @@ its simulation control, on the same node.
 """
 
 import threading
-from typing import Any
+from typing import Any, Optional
 
 from geometry_msgs.msg import Vector3
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 
 from r2d2_sim.errors import RefusedError
@@ -37,7 +38,7 @@ class Replies:
     """Setting a reply's result: OK on every success (a default Result reads as unsupported)."""
 
     _msg: Any = None  # simulation_interfaces.msg (no stubs), set by each service
-    _log = None  # the node's logger, for what no request should cause
+    _log: Optional[RcutilsLogger] = None  # the node's, for what no request should cause
 
     def _guarded(self, callback):
         """
