@@ -41,8 +41,10 @@ INSTALL_REQUIRES = [
 
 setup(
     name=package_name,
-    version='0.1.0',
+    version='0.2.0',
     packages=find_packages(exclude=['test']),
+    # PEP 561: the marker tells type checkers that r2d2_sim's own hints are to be read.
+    package_data={package_name: ['py.typed']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -53,7 +55,8 @@ setup(
     ],
     install_requires=INSTALL_REQUIRES,
     python_requires='>=3.10',
-    zip_safe=True,
+    # A zipped egg would hide py.typed from type checkers (PEP 561).
+    zip_safe=False,
     maintainer='r2d2_sim maintainers',
     maintainer_email='maintainers@r2d2-sim.dev',
     description='A ROS 2 node that simulates R2D2 in PyBullet.',

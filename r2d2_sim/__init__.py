@@ -22,4 +22,11 @@ The folders are the layers, each importing only from those listed before it:
 At the top: :mod:`~r2d2_sim.errors` (one-line errors every layer raises),
 :mod:`~r2d2_sim.client` (what any ROS client of the simulator needs) and the
 pytest plugin. ``docs/design.md`` follows one ``cmd_vel`` and one spawn through them.
+Public names that moved keep their old paths for one minor version, with a
+``DeprecationWarning``: :mod:`~r2d2_sim.deprecations` holds the table, whose finder
+is installed here (it imports nothing until an old name is used).
 """
+
+from r2d2_sim.deprecations import install
+
+install()

@@ -34,9 +34,12 @@ collect_ignore = ['examples']
 
 TEST_DIR = Path(__file__).resolve().parent
 FAST_TIER = [TEST_DIR / 'model', TEST_DIR / 'physics', TEST_DIR / 'sim']
-# Fast-tier tests outside those folders: they start interpreters of their own (the
-# layering and the type check), not ROS.
-FAST_FILES = [TEST_DIR / 'lint' / 'test_layers.py', TEST_DIR / 'lint' / 'test_types.py']
+# Fast-tier tests outside those folders: what they import of ROS, if anything, loads in
+# interpreters of their own (the layering, the type check, the old module paths of the
+# ROS layer), or they read files only (mixins, the changelog).
+FAST_FILES = [TEST_DIR / 'lint' / name for name in (
+    'test_layers.py', 'test_types.py', 'test_mixins.py', 'test_deprecations.py',
+    'test_changelog.py')]
 SYSTEM = TEST_DIR / 'system'
 FAST_ONLY = pytest.StashKey[bool]()
 # Set by .ci/run: every test must run there, a skip is a failure.

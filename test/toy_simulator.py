@@ -16,13 +16,21 @@ playing as Gazebo does, the twist in the entity's frame as O3DE does,
 ``steps=1`` taken as 2 as Isaac Sim 5 did, the requested name returned after
 a rename as Gazebo does...). :data:`DEFECTS` says, for each clause id, what
 its defect is. Everything else stays right, so the kit's clause fails and,
-with no defect, every clause passes.
+with no defect, every clause passes. :data:`MORE_DEFECTS` are violations an
+audit of the kit injected that a clause's own defect does not cover, each
+with the clauses that must fail on it; :data:`HOSTILE` are a simulator that
+answers slowly or hugely, which the kit must outlast.
+
+``prefix`` is the namespace the toy serves in (``/`` is the root): two toys on
+one domain are two simulators, and ``changes`` counts the requests that
+would change a toy (the kit must never send one to a toy it was not meant for).
 """
 
 import math
 import re
 import threading
-from typing import Dict, List, Optional, Sequence
+import time
+from typing import Dict, List, Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from action_msgs.msg import GoalStatus  # noqa: F401 (documents the statuses used)
@@ -182,6 +190,32 @@ DEFECTS: Dict[str, str] = {
     'WORLD-14': 'UnloadWorld keeps spawned entities',
 }
 
+# Violations beyond each clause's own defect, with the clauses that must fail on each.
+MORE_DEFECTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
+    'NAMED-empty': ('GetNamedPoses always answers an empty list',
+                    ('NAMED-01', 'NAMED-02', 'NAMED-03', 'NAMED-04', 'NAMED-05')),
+    'ENTITY-04-order': ('GetEntitiesStates gives the spawned entities\' states in reverse order',
+                        ('ENTITY-04',)),
+    'TIME-half': ('a reset of the time takes it back by half, not to the start',
+                  ('STATE-14', 'RESET-04', 'RESET-05', 'RESET-13')),
+    'BOUNDS-constant': ('GetEntityBounds gives every entity the same 1 m box', ('BOUNDS-03',)),
+    'FILTER-12-name': ('the name filter is ignored when another filter is given',
+                       ('FILTER-12',)),
+    'WORLD-13-others': ('with no world, STOPPED and PAUSED answer OK (only PLAYING is refused)',
+                        ('WORLD-13',)),
+}
+# A hostile simulator: what the kit must bound (its time, what it prints).
+HOSTILE: Dict[str, str] = {
+    'SLOW': 'every reply comes after 0.5 s',
+    'HUGE': 'replies of megabytes: a spawn format, an entity name, a frame, error messages',
+}
+HUGE_TEXT = 2_000_000  # characters of each huge string
+SLOW_S = 0.5
+# The requests that change a simulator.
+CHANGES = {'SetSimulationState', 'StepSimulation', 'ResetSimulation', 'SetEntityState',
+           'SetEntityInfo', 'SpawnEntity', 'SpawnEntities', 'DeleteEntity', 'LoadWorld',
+           'UnloadWorld'}
+
 INVALID_POSE_SET = srv.SetEntityState.Response.INVALID_POSE
 # A handler returns this to leave its reply's Result at 0 ("unsupported").
 LEAVE_ZERO = object()
@@ -253,9 +287,11 @@ class ToySimulator:
     """
 
     def __init__(self, domain_id: int, defect: Optional[str] = None,
-                 without: Sequence[str] = ()) -> None:
-        if defect is not None and defect not in DEFECTS:
+                 without: Sequence[str] = (), prefix: str = PREFIX) -> None:
+        if defect is not None and not (defect in DEFECTS or defect in MORE_DEFECTS
+                                       or defect in HOSTILE):
             raise ValueError(f'no defect for {defect!r}')
+        self.changes = 0  # requests received that change the simulation
         self.defect = defect
         # Features left undeclared, and refused as FEATURE_UNSUPPORTED where they are parts.
         self.without = set(without) | ({UNDECLARED[defect]} if defect in UNDECLARED else set())
@@ -269,7 +305,7 @@ class ToySimulator:
         self.generation = 0  # a reset or a stop ends a running goal
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
-        self.node = Node('toy_simulator', namespace=PREFIX, context=self.context,
+        self.node = Node('toy_simulator', namespace=prefix, context=self.context,
                          start_parameter_services=False)
         self.clock = self.node.create_publisher(Clock, '/clock', 10)
         group = ReentrantCallbackGroup()
@@ -283,7 +319,7 @@ class ToySimulator:
                                   ('GetEntityBounds', 'FEAT-03')):
                 continue
             self.node.create_service(getattr(srv, kind), kind,
-                                     self._answer(getattr(self, '_' + kind)),
+                                     self._answer(getattr(self, '_' + kind), kind),
                                      callback_group=group)
         self.action_server = ActionServer(
             self.node, action.SimulateSteps, 'SimulateSteps', self._simulate_steps,
@@ -383,7 +419,11 @@ class ToySimulator:
                     if not self.broken('RESET-08'):
                         entity.linear, entity.angular = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
             if time:
-                self.step_count, self.time_offset_ns = 0, 0
+                if self.broken('TIME-half'):
+                    self.step_count, self.time_offset_ns = (self.step_count // 2,
+                                                            self.time_offset_ns // 2)
+                else:
+                    self.step_count, self.time_offset_ns = 0, 0
                 self._publish_clock()
 
     def _stop(self) -> None:
@@ -396,10 +436,14 @@ class ToySimulator:
 
     # -- replies -----------------------------------------------------------------------
 
-    def _answer(self, handler):
+    def _answer(self, handler, kind: str):
         """Wrap a handler: a Refused becomes its code; every other reply is OK."""
         def answer(request, response):
+            if self.broken('SLOW'):
+                time.sleep(SLOW_S)  # outside the lock: the other threads answer meanwhile
             with self.lock:
+                if kind in CHANGES:
+                    self.changes += 1
                 try:
                     leave_zero = handler(request, response) is LEAVE_ZERO
                     if hasattr(response, 'result') and response.result.result == 0 and \
@@ -407,7 +451,8 @@ class ToySimulator:
                         response.result.result = R.RESULT_OK
                 except Refused as exc:
                     response.result.result = exc.code
-                    response.result.error_message = str(exc)
+                    response.result.error_message = str(exc) + (
+                        ' ' + 'x' * HUGE_TEXT if self.broken('HUGE') else '')
             return response
         return answer
 
@@ -423,7 +468,8 @@ class ToySimulator:
         if self.broken('FEAT-02'):
             features.append(99)
         response.features.features = features
-        response.features.spawn_formats = ['urdf', 'sdf']
+        response.features.spawn_formats = ['urdf', 'sdf'] + (
+            ['f' * HUGE_TEXT] if self.broken('HUGE') else [])
         response.features.custom_info = 'a toy of the conformance kit\'s tests'
 
     def _state_value(self) -> int:
@@ -443,7 +489,8 @@ class ToySimulator:
     def _SetSimulationState(self, request, response):
         wanted, now = request.state.state, self.state
         transition = srv.SetSimulationState.Response
-        if now == S.STATE_NO_WORLD and not self.broken('WORLD-13'):
+        if now == S.STATE_NO_WORLD and not (self.broken('WORLD-13') or (
+                self.broken('WORLD-13-others') and wanted != S.STATE_PLAYING)):
             raise Refused(transition.INCORRECT_TRANSITION, 'there is no world: load one')
         if wanted == now:
             if self.broken({S.STATE_STOPPED: 'STATE-08', S.STATE_PLAYING: 'STATE-09',
@@ -580,8 +627,10 @@ class ToySimulator:
         if self.broken('FILTER-10') or self.broken('FILTER-11'):
             all_mode = not all_mode
         names = []
+        others = bool(wanted or tags or bounds.type != B.TYPE_EMPTY)
         for name, entity in self.entities.items():
-            tests = [self._matches(filters.filter, name)]
+            tests = [(others and self.broken('FILTER-12-name'))
+                     or self._matches(filters.filter, name)]
             if wanted and not self.broken('FILTER-04'):
                 tests.append(entity.category in wanted and not (
                     self.broken('FILTER-05') and len(wanted) > 1))
@@ -598,12 +647,16 @@ class ToySimulator:
         response.entities = self._filtered(request.filters)
         if self.broken('ENTITY-01'):
             response.entities.append('ground')
+        if self.broken('HUGE'):
+            response.entities += ['n' * HUGE_TEXT] * 2
         if self.broken('RESULT-02'):
             return LEAVE_ZERO
 
     def _state_message(self, name: str, entity: Entity, lift: float = 0.0):
         state = msg.EntityState()
         state.header.frame_id = 'map' if self.broken('ENTITY-03') else 'world'
+        if self.broken('HUGE'):
+            state.header.frame_id = 'm' * HUGE_TEXT
         state.header.stamp.sec, state.header.stamp.nanosec = divmod(self.time_ns, 10**9)
         p, q = state.pose.position, state.pose.orientation
         p.x, p.y, p.z = entity.position[0], entity.position[1], entity.position[2] + lift
@@ -624,6 +677,11 @@ class ToySimulator:
         lift = 0.05 if self.broken('ENTITY-04') else 0.0
         response.states = [self._state_message(n, self.entities[n], lift) for n in names
                            if not (self.broken('ENTITY-02') and self.entities[n].static)]
+        if self.broken('ENTITY-04-order'):
+            spawned = [i for i, n in enumerate(names) if self.entities[n].spawned]
+            reordered = [response.states[i] for i in reversed(spawned)]
+            for i, state in zip(spawned, reordered):
+                response.states[i] = state
         if self.broken('RESULT-03'):
             return LEAVE_ZERO
 
@@ -707,7 +765,7 @@ class ToySimulator:
         if request.entity not in self.entities and self.broken('RESULT-09'):
             return
         entity = self._entity(request.entity)
-        half = entity.half
+        half = (0.5, 0.5, 0.5) if self.broken('BOUNDS-constant') else entity.half
         if self.broken('BOUNDS-03'):
             half = tuple(h / 2.0 for h in half)
         low, high = tuple(-h for h in half), half
@@ -858,6 +916,8 @@ class ToySimulator:
 
     def _named(self):
         poses = []
+        if self.broken('NAMED-empty'):
+            return poses
         for name, position, yaw, tags in WORLDS.get(self.world, {}).get('poses', []):
             pose = msg.NamedPose(name=name, description=f'the {name}', tags=list(tags))
             x, y, z = position

@@ -11,12 +11,16 @@ clause from STOPPED and undoes what it did. Run it as ``sim_conformance``
 or under pytest (:mod:`.pytest_plugin`, opt-in).
 
 The layer above all the others: it uses the testing API's
-:class:`~r2d2_sim.testing.RemoteProbe`, and nothing imports it. By role:
+:class:`~r2d2_sim.testing.RemoteProbe` and the package's one client of the
+standard, :class:`~r2d2_sim.testing.StandardClient` (never the server), and
+nothing imports it. By role:
 :mod:`.clause` (what a clause is), :mod:`.clauses` (the clauses, one module
 per part of the standard), :mod:`.discovery` (interfaces by type, which
 feature stands for which), :mod:`.target` (the simulator as the clauses see
-it), :mod:`.runner` (:class:`Kit`, :func:`select`), :mod:`.report` (matrix,
-JUnit XML, the docs' clause list). ``docs/conformance.md`` is its manual.
+it, composed of parts: :mod:`.simulation_verbs`, :mod:`.entity_verbs`,
+:mod:`.clock_verbs`, :mod:`.world_verbs`, :mod:`.undo`), :mod:`.runner`
+(:class:`Kit`, :func:`select`), :mod:`.report` (matrix, JUnit XML, the docs'
+clause list). ``docs/conformance.md`` is its manual.
 """
 
 from r2d2_sim.conformance.clause import (

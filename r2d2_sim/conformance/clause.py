@@ -12,9 +12,11 @@ missing (no ``/clock``, nothing to spawn).
 from typing import Callable, List, NamedTuple, Sequence, Tuple
 
 __all__ = ['Clause', 'ClauseFailed', 'ClauseSkipped', 'Outcome', 'PASS', 'FAIL', 'SKIP',
-           'clause', 'feature_text']
+           'clause', 'feature_text', 'one_line', 'LINE_LIMIT']
 
 PASS, FAIL, SKIP = 'PASS', 'FAIL', 'SKIP'
+# The most characters of a simulator's text the kit prints in one reason or header line.
+LINE_LIMIT = 400
 
 
 class ClauseFailed(Exception):
@@ -66,6 +68,18 @@ class Outcome(NamedTuple):
 def feature_text(features: Sequence[str]) -> str:
     """Return features as people read them: ``A, B or C`` for ``('A', 'B|C')``."""
     return ', '.join(f.replace('|', ' or ') for f in features)
+
+
+def one_line(text: str, limit: int = LINE_LIMIT) -> str:
+    """
+    Return ``text`` as one printable line: ``limit`` characters at most, and a count of the rest.
+
+    A reason quotes what the simulator sent (names, frames, messages), which
+    may hold line breaks or megabytes: the kit never prints either.
+    """
+    head = ''.join(c if c.isprintable() else ' ' for c in text[:limit])
+    rest = len(text) - limit
+    return head + (f'... ({rest} more characters)' if rest > 0 else '')
 
 
 def clause(registry: List[Clause], id: str, title: str, features: Sequence[str], source: str,

@@ -4,8 +4,10 @@
 Also ``python -m r2d2_sim.conformance``. Prints a matrix (each clause PASS,
 FAIL with a one-line reason, or SKIP with what it needs), a summary line,
 and optionally JUnit XML and a Markdown table. Exit status: 0 when no
-clause failed, 1 when one did, 2 for a usage error (one line on stderr) or
-a kit that cannot start, 130 after Ctrl-C.
+clause failed, 1 when one did, 2 for a usage error (one line on stderr), a
+kit that cannot start or cannot tell which simulator to check (none at the
+prefix but some elsewhere, or several there: it touches none), 130 after
+Ctrl-C. Every line it prints is short, whatever the simulator sends.
 """
 
 import argparse
@@ -13,7 +15,7 @@ import sys
 from typing import List, Optional, Tuple
 
 from r2d2_sim.apps.cli import domain_id_arg, EXIT_INTERRUPTED, finite_number, positive_number
-from r2d2_sim.conformance.clause import feature_text
+from r2d2_sim.conformance.clause import feature_text, one_line
 from r2d2_sim.conformance.clauses import CLAUSES
 from r2d2_sim.conformance.discovery import ACTION, normal_prefix
 from r2d2_sim.conformance.report import (
@@ -41,7 +43,8 @@ def point_arg(text: str) -> Tuple[float, float, float]:
     parts = text.split(',')
     if len(parts) != 3:
         raise argparse.ArgumentTypeError(f'must be X,Y,Z, got {text!r}')
-    return tuple(finite_number(p) for p in parts)
+    x, y, z = (finite_number(p) for p in parts)
+    return x, y, z
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -60,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help='a world LoadWorld takes (default: one GetAvailableWorlds lists)')
     parser.add_argument('--timeout', type=positive_number, default=10.0, metavar='S',
                         help='longest wait for discovery or any one reply, in seconds (10)')
+    parser.add_argument('--total-timeout', type=positive_number, default=None, metavar='S',
+                        help='longest the whole run may take, in seconds (default: 30 '
+                        'timeouts); the clauses past it are not run')
     parser.add_argument('--only', action='append', default=[], metavar='IDS',
                         help='clauses or groups to run, comma-separated (STATE,SPAWN-0*)')
     parser.add_argument('--skip', action='append', default=[], metavar='IDS',
@@ -92,15 +98,15 @@ def _header(kit: Kit) -> str:
     else:
         lines.append(f'  {len(served)} of 22 services{action}; {len(t.features)} of 32 features '
                      f'declared; spawn formats: {", ".join(t.spawn_formats) or "none"}; '
-                     f'{t.options.clock_topic}: {"yes" if t.has_clock else "none"}')
+                     f'{t.clock.topic}: {"yes" if t.clock.present else "none"}')
         undeclared = sorted(set(f.split('|')[0] for c in CLAUSES for f in c.features)
                             - set(t.features))
         if undeclared:
             lines.append(f'  not declared: {feature_text(undeclared)}')
-    for kind, names in sorted(t.several.items()):
-        lines.append(f'  note: several {kind} under the prefix ({", ".join(names)}); '
-                     f'using {t.interfaces[kind]}')
-    return '\n'.join(lines)
+    if t.others:
+        lines.append(f'  note: not checked, other simulators on this domain: '
+                     f'{", ".join(t.others)} (--prefix NS checks one)')
+    return '\n'.join(one_line(line) for line in lines)
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -123,7 +129,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 2
     options = KitOptions(prefix=args.prefix, domain_id=args.domain, asset=args.asset,
                          world=args.world, timeout_s=args.timeout, free_space=args.free_space,
-                         world_frame=args.world_frame, clock_topic=args.clock_topic)
+                         world_frame=args.world_frame, clock_topic=args.clock_topic,
+                         total_timeout_s=args.total_timeout)
     try:
         kit = Kit(options)
     except KitError as exc:
@@ -133,6 +140,10 @@ def main(argv: Optional[List[str]] = None) -> int:
         kit.connect()
         print(_header(kit), flush=True)
         outcomes = kit.run(clauses, each=lambda o: print(matrix([o]), flush=True))
+    except KitError as exc:  # which simulator to check is not clear: none is touched
+        kit.close()
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         kit.target.close()
         print(f'{PROG}: interrupted', file=sys.stderr)

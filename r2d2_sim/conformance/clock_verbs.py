@@ -1,16 +1,21 @@
 """
 Simulated time as the kit sees it: ``/clock``, listened to, drained and waited for.
 
-:class:`ClockVerbs` is mixed into :class:`~r2d2_sim.conformance.target.Target`:
-it subscribes to the clock topic with its publisher's reliability once one
-is there, takes every message already in after a round trip to the
-simulator, and waits (by deadline) for the clock to move, to reach a time or
-to go back. The stepping itself is :class:`SimulationVerbs`'s ``advance``.
+:class:`TargetClock` is a part of :class:`~r2d2_sim.conformance.target.Target`
+(``t.clock``): it subscribes to the clock topic with its publisher's
+reliability once one is there, takes every message already in after a round
+trip to the simulator, and waits (by deadline) for the clock to move, to
+reach a time or to go back. It owns the subscription and the latest time;
+the stepping itself is the simulation part's ``advance``.
 """
 
-from typing import Callable, Optional, Tuple
+from typing import Any, Callable, Optional, Tuple, TYPE_CHECKING
 
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
+
+if TYPE_CHECKING:
+    from r2d2_sim.conformance.simulation_verbs import TargetSimulation
+    from r2d2_sim.conformance.target import Target
 
 # How long the kit waits for a /clock publisher once the services are found (s).
 CLOCK_WAIT_S = 2.0
@@ -18,67 +23,79 @@ CLOCK_WAIT_S = 2.0
 DRAIN_SPINS = 1000
 
 
-class ClockVerbs:
-    """The Target's clock: its subscription, the latest time, and waits for it to move."""
+class TargetClock:
+    """The clock of ``target``: its subscription, the latest time, and waits for it to move."""
 
-    def _listen_to_clock(self) -> None:
+    def __init__(self, target: 'Target', sim: 'TargetSimulation') -> None:
+        self.target = target
+        self.sim = sim
+        self.topic = target.options.clock_topic
+        self.present = False  # someone publishes the clock topic, and we are linked to it
+        self._ns: Optional[int] = None  # the latest time received
+        self._count = 0  # messages received
+        self._subscription: Any = None
+
+    def listen(self) -> None:
         """Subscribe to the clock with the publisher's reliability, once one is there."""
         from rclpy.qos import QoSProfile, ReliabilityPolicy
         from rosgraph_msgs.msg import Clock
-        topic = self.options.clock_topic
-        if not self.probe.spin_until(lambda: self.node.count_publishers(topic) > 0,
-                                     min(CLOCK_WAIT_S, self.timeout_s)):
+        t, topic = self.target, self.topic
+        if not t.wait(lambda: t.node.count_publishers(topic) > 0,
+                      min(CLOCK_WAIT_S, t.timeout_s)):
             return
         reliable = any(info.qos_profile.reliability == ReliabilityPolicy.RELIABLE
-                       for info in self.node.get_publishers_info_by_topic(topic))
+                       for info in t.node.get_publishers_info_by_topic(topic))
         # Depth 1: only the newest time is of use, and a burst (a fast SimulateSteps
         # goal publishes one per step) must not queue up ahead of it.
         qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE if reliable
                          else ReliabilityPolicy.BEST_EFFORT)
 
-        def keep(msg) -> None:
-            self._clock_ns = msg.clock.sec * 10**9 + msg.clock.nanosec
-            self._clock_count += 1
-        self._clock_subscription = self.node.create_subscription(Clock, topic, keep, qos)
-        self.has_clock = self.probe.spin_until(
-            lambda: self._clock_subscription.get_publisher_count() > 0, self.timeout_s)
+        def keep(msg: Any) -> None:
+            self._ns = msg.clock.sec * 10**9 + msg.clock.nanosec
+            self._count += 1
+        subscription = self._subscription = t.node.create_subscription(Clock, topic, keep, qos)
+        self.present = t.wait(lambda: subscription.get_publisher_count() > 0)
 
-    def need_clock(self) -> None:
+    def need(self) -> None:
         """Raise ClauseSkipped when nobody publishes the clock topic."""
-        if not self.has_clock:
-            raise ClauseSkipped(f'no {self.options.clock_topic} publisher')
+        if not self.present:
+            raise ClauseSkipped(f'no {self.topic} publisher')
 
-    def clock_settled(self) -> Optional[int]:
+    def settled(self) -> Optional[int]:
         """
         Return the latest clock after one round trip to the simulator.
 
         A /clock published before a reply may arrive after it (another
         writer): the round trip gives it the time to come.
         """
-        self.call('GetSimulatorFeatures', self.srv.GetSimulatorFeatures.Request())
-        self._drain_clock()
-        return self._clock_ns
+        t = self.target
+        t.call('GetSimulatorFeatures', t.srv.GetSimulatorFeatures.Request())
+        self._drain()
+        return self._ns
 
-    def _drain_clock(self) -> None:
+    def _drain(self) -> None:
         """Take every /clock message already received: one spin_once runs one callback."""
+        executor = self.target.probe.executor
         for _ in range(DRAIN_SPINS):
-            seen = self._clock_count
-            self.probe.executor.spin_once(timeout_sec=0.0)
-            if self._clock_count == seen:
-                self.probe.executor.spin_once(timeout_sec=0.0)  # another callback ran first?
-                if self._clock_count == seen:
+            seen = self._count
+            executor.spin_once(timeout_sec=0.0)
+            if self._count == seen:
+                executor.spin_once(timeout_sec=0.0)  # another callback ran first?
+                if self._count == seen:
                     return
 
-    def clock_after(self, action: Callable[[], None], doing: str) -> int:
+    def after(self, action: Callable[[], None], doing: str) -> int:
         """Run ``action``, then wait for a clock newer than before it; return the clock after."""
-        before = self.clock_settled()
+        before = self.settled()
         action()
-        if not self.probe.spin_until(
-                lambda: self._clock_ns is not None and (before is None or self._clock_ns > before),
-                self.timeout_s):
-            raise ClauseFailed(f'{self.options.clock_topic} did not move within '
-                               f'{self.timeout_s:g} s after {doing} (it read {before} ns)')
-        return self.clock_settled()
+        if not self.target.wait(lambda: self._ns is not None
+                                and (before is None or self._ns > before)):
+            raise ClauseFailed(f'{self.topic} did not move within {self.target.timeout_s:g} s '
+                               f'after {doing} (it read {before} ns)')
+        got = self.settled()
+        if got is None:  # cannot be: it moved
+            raise ClauseFailed(f'{self.topic} read nothing after {doing}')
+        return got
 
     def step_ns(self) -> Tuple[int, int]:
         """
@@ -86,26 +103,38 @@ class ClockVerbs:
 
         The first step lets /clock messages from before it arrive.
         """
-        self.clock_after(lambda: self.advance(1), 'one step')
-        t0 = self.clock_after(lambda: self.advance(1), 'one step')
-        t1 = self.clock_after(lambda: self.advance(1), 'one step')
+        self.after(lambda: self.sim.advance(1), 'one step')
+        t0 = self.after(lambda: self.sim.advance(1), 'one step')
+        t1 = self.after(lambda: self.sim.advance(1), 'one step')
         return t1, t1 - t0
 
-    def expect_clock(self, expected_ns: int, steps: int, doing: str) -> int:
+    def expect(self, expected_ns: int, steps: int, doing: str) -> int:
         """Raise ClauseFailed unless the clock comes to ``expected_ns`` (a ns a step)."""
         tolerance = steps + 1
-        self.probe.spin_until(lambda: self._clock_ns is not None
-                              and self._clock_ns >= expected_ns - tolerance, self.timeout_s)
-        got = self.clock_settled()
+        self.target.wait(lambda: self._ns is not None and self._ns >= expected_ns - tolerance)
+        got = self.settled()
         if got is None or abs(got - expected_ns) > tolerance:
-            raise ClauseFailed(f'after {doing}, {self.options.clock_topic} reads {got} ns, '
-                               f'expected {expected_ns} ns')
+            raise ClauseFailed(f'after {doing}, {self.topic} reads {got} ns, expected '
+                               f'{expected_ns} ns')
         return got
 
-    def expect_time_back(self, before_ns: int, doing: str) -> None:
-        """Raise ClauseFailed unless a step from here reads a time before ``before_ns``."""
-        got = self.clock_after(lambda: self.advance(1), f'{doing} and one step')
-        if got >= before_ns:
-            raise ClauseFailed(f'after {doing}, one step reads {got} ns on '
-                               f'{self.options.clock_topic}: time did not go back from '
-                               f'{before_ns} ns')
+    def expect_start(self, step_ns: int, doing: str, slack_steps: int) -> None:
+        """
+        Pause, step once: raise ClauseFailed unless the clock reads one step from the start.
+
+        The start is time 0, where a simulator starts (as it is launched)
+        and where a reset of the time puts it back ("Reset simulation time
+        to start"). Where the kit must play to pause (from STOPPED), the
+        simulator may run meanwhile: up to ``slack_steps`` more are allowed.
+        """
+        sim = self.sim
+        paused = (self.target.declared('SIMULATION_STATE_GETTING')
+                  and sim.state() == sim.S.STATE_PAUSED)
+        sim.pause()
+        got = self.after(lambda: sim.advance(1), f'{doing} and one step')
+        extra = 0 if paused else slack_steps
+        if got > (1 + extra) * step_ns + 1 + extra:  # a ns a step of rounding
+            most = f' (or up to {extra} more, run while the kit played to pause)' if extra else ''
+            raise ClauseFailed(f'after {doing}, one step reads {got} ns on {self.topic}: the time '
+                               f'is not back at the start (0), where one step reads {step_ns} ns'
+                               f'{most}')

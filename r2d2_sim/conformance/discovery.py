@@ -5,16 +5,17 @@ Names are free in the standard: Gazebo serves ``/gzserver/step_simulation``,
 O3DE and Isaac Sim 6 ``/step_simulation``, Isaac Sim 5 ``/isaacsim/StepSimulation``.
 So, as RobotecAI's RViz panel does, the kit lists the ROS graph's services
 (``get_service_names_and_types``) and keeps those whose type is one of
-``simulation_interfaces``' under the prefix it was given; the action is the
-``<name>/_action/send_goal`` service of type ``SimulateSteps_SendGoal``.
-Also here: which feature stands for which interface. No ROS imports.
+``simulation_interfaces``' right in the namespace it was given (the root's
+own level by default: a simulator in another namespace is another user's,
+named but never taken); the action is the ``<name>/_action/send_goal``
+service of type ``SimulateSteps_SendGoal``. Also here: which feature stands
+for which interface. No ROS imports.
 """
 
-import re
-from typing import Dict, Iterable, List, Sequence, Tuple
+from typing import Any, Dict, Iterable, List, Sequence, Tuple
 
 __all__ = ['SERVICES', 'ACTION', 'FEATURES', 'FEATURE_INTERFACES', 'SUB_FEATURES',
-           'find_interfaces', 'under_prefix', 'normal_prefix', 'snake_case']
+           'find_interfaces', 'simulator_levels', 'at_prefix', 'namespace_of', 'normal_prefix']
 
 PACKAGE = 'simulation_interfaces'
 # The 22 services of Jazzy 1.5.1, in the order of the definition files' topics.
@@ -67,9 +68,13 @@ SUB_FEATURES: Dict[str, Tuple[str, ...]] = {
 _SEND_GOAL = '/_action/send_goal'
 
 
-def snake_case(name: str) -> str:
-    """Return an interface's usual service name: GetSimulatorFeatures -> get_simulator_features."""
-    return re.sub(r'(?<!^)(?=[A-Z])', '_', name).lower()
+def __getattr__(name: str) -> Any:
+    # snake_case is the standard client's usual_name: one rule, loaded with rclpy only when used,
+    # so that the clause table reads without it.
+    if name == 'snake_case':
+        from r2d2_sim.testing.standard import usual_name
+        return usual_name
+    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
 
 
 def normal_prefix(prefix: str) -> str:
@@ -78,18 +83,43 @@ def normal_prefix(prefix: str) -> str:
     return prefix
 
 
-def under_prefix(name: str, prefix: str) -> bool:
-    """Return True for a fully qualified name in the namespace ``prefix`` (or below it)."""
-    prefix = normal_prefix(prefix)
-    return prefix == '/' or name.startswith(prefix + '/')
+def namespace_of(name: str) -> str:
+    """Return the namespace a fully qualified name is in: '/gz/spawn' -> '/gz', '/spawn' -> '/'."""
+    return normal_prefix(name.rsplit('/', 1)[0])
+
+
+def at_prefix(name: str, prefix: str) -> bool:
+    """Return True for a fully qualified name right in the namespace ``prefix``, not below it."""
+    return namespace_of(name) == normal_prefix(prefix)
 
 
 def _preferred(candidates: Sequence[str], prefix: str, kind: str) -> str:
-    """Pick one name: ``<prefix>/<snake_case kind>`` if there, else the shortest, then sorted."""
-    usual = normal_prefix(prefix).rstrip('/') + '/' + snake_case(kind)
-    if usual in candidates:
-        return usual
-    return sorted(candidates, key=lambda n: (n.count('/'), len(n), n))[0]
+    """Pick one name: ``<prefix>/<usual name>`` if there, else the first in order."""
+    from r2d2_sim.testing.standard import usual_name
+    usual = normal_prefix(prefix).rstrip('/') + '/' + usual_name(kind)
+    return usual if usual in candidates else sorted(candidates)[0]
+
+
+def _standard_names(names_and_types: Iterable[Tuple[str, List[str]]]
+                    ) -> Iterable[Tuple[str, str]]:
+    """Yield (interface, name) for each service of the standard's types, the action by its name."""
+    for name, types in names_and_types:
+        for type_name in types:
+            package, _, rest = type_name.partition('/')
+            if package != PACKAGE:
+                continue
+            kind, _, short = rest.partition('/')
+            if kind == 'srv' and short in SERVICES:
+                yield short, name
+            elif (kind == 'action' and short == f'{ACTION}_SendGoal'
+                  and name.endswith(_SEND_GOAL)):
+                yield ACTION, name[:-len(_SEND_GOAL)]
+
+
+def simulator_levels(names_and_types: Iterable[Tuple[str, List[str]]]) -> List[str]:
+    """Return the namespaces that serve GetSimulatorFeatures: a simulator in each, sorted."""
+    return sorted({namespace_of(name) for kind, name in _standard_names(names_and_types)
+                   if kind == 'GetSimulatorFeatures'})
 
 
 def find_interfaces(names_and_types: Iterable[Tuple[str, List[str]]], prefix: str
@@ -98,25 +128,17 @@ def find_interfaces(names_and_types: Iterable[Tuple[str, List[str]]], prefix: st
     Return ({interface: service or action name}, {interface: every candidate when several}).
 
     ``names_and_types`` is what ``Node.get_service_names_and_types()``
-    returns. Each standard service found under ``prefix`` is keyed by its
-    type's name (``SpawnEntity``); the action by ``SimulateSteps``, named
-    without ``/_action/send_goal``. Where several names carry one type (two
-    simulators on a domain), the usual name wins, else the shortest.
+    returns. Each standard service right in the namespace ``prefix`` (not
+    below it: ``/`` is the root's own level, and a simulator under
+    ``/victim`` is only found with that prefix) is keyed by its type's name
+    (``SpawnEntity``); the action by ``SimulateSteps``, named without
+    ``/_action/send_goal``. Several names of one type there are two
+    simulators: every one is named, and the usual name is kept, else the first.
     """
     found: Dict[str, List[str]] = {}
-    for name, types in names_and_types:
-        if not under_prefix(name, prefix):
-            continue
-        for type_name in types:
-            package, _, rest = type_name.partition('/')
-            if package != PACKAGE:
-                continue
-            kind, _, short = rest.partition('/')
-            if kind == 'srv' and short in SERVICES:
-                found.setdefault(short, []).append(name)
-            elif (kind == 'action' and short == f'{ACTION}_SendGoal'
-                  and name.endswith(_SEND_GOAL)):
-                found.setdefault(ACTION, []).append(name[:-len(_SEND_GOAL)])
+    for kind, name in _standard_names(names_and_types):
+        if at_prefix(name, prefix):
+            found.setdefault(kind, []).append(name)
     chosen = {kind: _preferred(names, prefix, kind) for kind, names in found.items()}
     several = {kind: sorted(names) for kind, names in found.items() if len(names) > 1}
     return chosen, several

@@ -1,33 +1,47 @@
 """
 The entities of the simulation under test: asking about them, placing, spawning, deleting.
 
-:class:`EntityVerbs` is mixed into :class:`~r2d2_sim.conformance.target.Target`:
-filters and bounds as the standard writes them, GetEntities, GetEntityState,
-SetEntityState and GetEntityInfo in one call each, and the kit's own box
-(URDF or SDF text, or ``--asset``) spawned at slots in free space, its name
-kept so that the clause can be undone. They call through the Target's typed
-calls (``ok``, ``expect``, ``declared``) and read what its ``__init__`` sets.
+:class:`TargetEntities` is a part of :class:`~r2d2_sim.conformance.target.Target`
+(``t.entities``): filters and bounds as the standard writes them,
+GetEntities, GetEntityState, SetEntityState and GetEntityInfo in one call
+each, and the kit's own box (URDF or SDF text, or ``--asset``) spawned at
+slots in free space. It owns the names of what the kit spawned and has not
+deleted, so that a clause can be undone. Requests are built by the
+Target's client; the calls go through the Target's (``ok``, ``expect``).
 """
 
-from typing import List, Optional, Sequence, Tuple
+import itertools
+from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING
 
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
-from r2d2_sim.conformance.values import fill_pose, fill_vector, vector, yaw_quaternion
+from r2d2_sim.conformance.values import vector, yaw_quaternion
+
+if TYPE_CHECKING:
+    from r2d2_sim.conformance.target import Target
 
 # The kit's own box: a cube this wide, 1 kg, from a resource string.
 BOX_SIZE_M = 0.2
 
+Point = Sequence[float]
+IDENTITY = (0.0, 0.0, 0.0, 1.0)
+STILL = (0.0, 0.0, 0.0)
 
-class EntityVerbs:
-    """The Target's verbs for entities: queries, placing, the kit's box spawned and deleted."""
 
-    # -- entities ----------------------------------------------------------------------
+class TargetEntities:
+    """The entities of ``target``: queries, placing, the kit's box spawned and deleted."""
+
+    def __init__(self, target: 'Target') -> None:
+        self.target = target
+        self.spawned: List[str] = []  # names the kit spawned and has not deleted
+        self._names = itertools.count(1)
+
+    # -- asking and placing ------------------------------------------------------------
 
     def filters(self, pattern: str = '', categories: Sequence[int] = (),
                 tags: Sequence[str] = (), mode: int = 0,
-                bounds: Optional[Tuple[int, list]] = None):
+                bounds: Optional[Tuple[int, Sequence[Point]]] = None) -> Any:
         """Return EntityFilters: a name regex, categories, tags (ANY 0 / ALL 1), (type, points)."""
-        msg = self.msg
+        msg = self.target.msg
         filters = msg.EntityFilters(filter=pattern)
         filters.categories = [msg.EntityCategory(category=c) for c in categories]
         filters.tags = msg.TagsFilter(tags=list(tags), filter_mode=mode)
@@ -36,53 +50,49 @@ class EntityVerbs:
             filters.bounds = self.bounds(kind, points)
         return filters
 
-    def bounds(self, kind: int, points: Sequence[Sequence[float]]):
+    def bounds(self, kind: int, points: Sequence[Point]) -> Any:
         """Return a Bounds message of ``kind`` through ``points``."""
         from geometry_msgs.msg import Vector3
-        return self.msg.Bounds(type=kind, points=[Vector3(x=float(p[0]), y=float(p[1]),
-                                                          z=float(p[2])) for p in points])
+        return self.target.msg.Bounds(type=kind, points=[
+            Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])) for p in points])
 
-    def names(self, filters=None, doing: str = 'GetEntities') -> List[str]:
+    def names(self, filters: Any = None, doing: str = 'GetEntities') -> List[str]:
         """Return GetEntities' names for ``filters`` (default: all)."""
-        request = self.srv.GetEntities.Request()
+        t = self.target
+        request = t.srv.GetEntities.Request()
         if filters is not None:
             request.filters = filters
-        return list(self.ok('GetEntities', request, doing).entities)
+        return list(t.ok('GetEntities', request, doing).entities)
 
-    def entity_state(self, name: str):
+    def state(self, name: str) -> Any:
         """Return GetEntityState's EntityState of ``name``."""
-        return self.ok('GetEntityState', self.srv.GetEntityState.Request(entity=name),
-                       f'GetEntityState of {name}').state
+        t = self.target
+        return t.ok('GetEntityState', t.srv.GetEntityState.Request(entity=name),
+                    f'GetEntityState of {name}').state
 
     def position(self, name: str) -> Tuple[float, float, float]:
         """Return the position GetEntityState gives ``name``."""
-        return vector(self.entity_state(name).pose.position)
+        return vector(self.state(name).pose.position)
 
-    def set_request(self, name: str, position: Sequence[float],
-                    orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0),
-                    linear: Sequence[float] = (0.0, 0.0, 0.0),
-                    angular: Sequence[float] = (0.0, 0.0, 0.0), frame: str = '',
-                    stamp: Tuple[int, int] = (0, 0)):
+    def set_request(self, name: str, position: Point, orientation: Sequence[float] = IDENTITY,
+                    linear: Point = STILL, angular: Point = STILL, frame: str = '',
+                    stamp: Tuple[int, int] = (0, 0)) -> Any:
         """Return a SetEntityState request: a pose and a twist in ``frame``."""
-        request = self.srv.SetEntityState.Request(entity=name)
-        state = request.state
-        state.header.frame_id = frame
-        state.header.stamp.sec, state.header.stamp.nanosec = stamp
-        fill_pose(state.pose, position, orientation)
-        fill_vector(state.twist.linear, linear)
-        fill_vector(state.twist.angular, angular)
-        return request
+        return self.target.client.entity_state_request(name, position, orientation, linear,
+                                                       angular, frame, stamp)
 
-    def place(self, name: str, position: Sequence[float], orientation=(0.0, 0.0, 0.0, 1.0),
-              linear=(0.0, 0.0, 0.0), angular=(0.0, 0.0, 0.0), frame: str = '') -> None:
+    def place(self, name: str, position: Point, orientation: Sequence[float] = IDENTITY,
+              linear: Point = STILL, angular: Point = STILL, frame: str = '') -> None:
         """Place ``name`` with SetEntityState (OK expected)."""
-        self.ok('SetEntityState', self.set_request(name, position, orientation, linear, angular,
-                                                   frame), f'SetEntityState of {name}')
+        self.target.ok('SetEntityState', self.set_request(name, position, orientation, linear,
+                                                          angular, frame),
+                       f'SetEntityState of {name}')
 
-    def info(self, name: str):
+    def info(self, name: str) -> Any:
         """Return GetEntityInfo's EntityInfo of ``name``."""
-        return self.ok('GetEntityInfo', self.srv.GetEntityInfo.Request(entity=name),
-                       f'GetEntityInfo of {name}').info
+        t = self.target
+        return t.ok('GetEntityInfo', t.srv.GetEntityInfo.Request(entity=name),
+                    f'GetEntityInfo of {name}').info
 
     # -- spawning ----------------------------------------------------------------------
 
@@ -92,15 +102,16 @@ class EntityVerbs:
 
     def slot(self, index: int, z_offset: float = 0.0) -> Tuple[float, float, float]:
         """Return the ``index``-th place for the kit's entities: 3 m apart along x, in the air."""
-        x, y, z = self.options.free_space
+        x, y, z = self.target.options.free_space
         return (x + 3.0 * index, y, z + z_offset)
 
     def resource_format(self) -> Optional[str]:
         """Return 'urdf' or 'sdf' when the kit may spawn from a resource string, else None."""
-        if not self.declared('SPAWNING_RESOURCE_STRING'):
+        t = self.target
+        if not t.declared('SPAWNING_RESOURCE_STRING'):
             return None
         for fmt in ('urdf', 'sdf'):
-            if fmt in self.spawn_formats:
+            if fmt in t.spawn_formats:
                 return fmt
         return None
 
@@ -133,39 +144,35 @@ class EntityVerbs:
         """Return (uri, resource_string) for a spawn: the kit's box, else ``--asset``."""
         if self.resource_format() is not None:
             return '', self.box_text(name)
-        if self.options.asset:
-            return self.options.asset, ''
+        if self.target.options.asset:
+            return self.target.options.asset, ''
         raise ClauseSkipped('nothing to spawn: give --asset URI (or declare '
                             'SPAWNING_RESOURCE_STRING with urdf or sdf in spawn_formats)')
 
-    def spawn_request(self, name: str, position: Sequence[float],
-                      orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0), *,
-                      uri: Optional[str] = None, resource: Optional[str] = None,
+    def spawn_request(self, name: str, position: Point, orientation: Sequence[float] = IDENTITY,
+                      *, uri: Optional[str] = None, resource: Optional[str] = None,
                       frame: str = '', allow_renaming: bool = False, namespace: str = '',
-                      stamp: Tuple[int, int] = (0, 0)):
+                      stamp: Tuple[int, int] = (0, 0)) -> Any:
         """Return a SpawnEntity request; without ``uri`` and ``resource``, from :meth:`source`."""
         if uri is None and resource is None:
             uri, resource = self.source(name)
-        request = self.srv.SpawnEntity.Request(
-            name=name, allow_renaming=allow_renaming, uri=uri or '',
-            resource_string=resource or '', entity_namespace=namespace)
-        pose = request.initial_pose
-        pose.header.frame_id = frame
-        pose.header.stamp.sec, pose.header.stamp.nanosec = stamp
-        fill_pose(pose.pose, position, orientation)
-        return request
+        return self.target.client.spawn_request(uri or '', resource or '', name, position,
+                                                orientation, allow_renaming, namespace, frame,
+                                                stamp)
 
-    def spawn_call(self, request, codes: Optional[Sequence[int]] = None, doing: str = ''):
+    def spawn_call(self, request: Any, codes: Optional[Sequence[int]] = None,
+                   doing: str = '') -> Any:
         """Send a SpawnEntity request; keep the name if it spawned; return the reply."""
-        codes = codes or (self.msg.Result.RESULT_OK,)
-        reply = self.expect('SpawnEntity', request, codes,
-                            doing or f'SpawnEntity of {request.name or "(no name)"}')
-        if reply.result.result == self.msg.Result.RESULT_OK and reply.entity_name:
+        t = self.target
+        codes = codes or (t.msg.Result.RESULT_OK,)
+        reply = t.expect('SpawnEntity', request, codes,
+                         doing or f'SpawnEntity of {request.name or "(no name)"}')
+        if reply.result.result == t.msg.Result.RESULT_OK and reply.entity_name:
             self.spawned.append(reply.entity_name)
         return reply
 
     def spawn(self, index: int = 0, *, name: Optional[str] = None, yaw: float = 0.0,
-              position: Optional[Sequence[float]] = None, frame: str = '') -> str:
+              position: Optional[Point] = None, frame: str = '') -> str:
         """
         Spawn the kit's box (or ``--asset``) at slot ``index``; return its name.
 
@@ -182,7 +189,7 @@ class EntityVerbs:
 
     def delete(self, name: str) -> None:
         """Delete ``name`` (OK expected)."""
-        self.ok('DeleteEntity', self.srv.DeleteEntity.Request(entity=name),
-                f'DeleteEntity of {name}')
+        t = self.target
+        t.ok('DeleteEntity', t.srv.DeleteEntity.Request(entity=name), f'DeleteEntity of {name}')
         if name in self.spawned:
             self.spawned.remove(name)

@@ -11,9 +11,9 @@ Each clause is a test named by its id (``test_simulation_standard[STATE-03]``,
 so ``-k "STATE or STEP"`` picks groups), skipped when its feature is not
 declared and failed with the clause's reason and the sentence it checks.
 Where the simulator is comes from the options ``--conformance-prefix``,
-``--conformance-domain``, ``--conformance-asset``, ``--conformance-world``
-and ``--conformance-timeout``, or from your own session-scoped
-``conformance_options`` fixture returning a
+``--conformance-domain``, ``--conformance-asset``, ``--conformance-world``,
+``--conformance-timeout`` and ``--conformance-total-timeout``, or from your
+own session-scoped ``conformance_options`` fixture returning a
 :class:`~r2d2_sim.conformance.target.KitOptions` (start the simulator there).
 The clauses reset the simulator: do not spread them over xdist workers.
 """
@@ -39,6 +39,8 @@ def pytest_addoption(parser) -> None:
                     help='a world LoadWorld takes')
     group.addoption('--conformance-timeout', type=float, default=10.0, metavar='S',
                     help='longest wait for discovery or one reply (s)')
+    group.addoption('--conformance-total-timeout', type=float, default=None, metavar='S',
+                    help='longest the whole run may take (s; default: 30 timeouts)')
 
 
 @pytest.fixture(scope='session')
@@ -49,7 +51,8 @@ def conformance_options(request):
     return KitOptions(prefix=option('--conformance-prefix'),
                       domain_id=option('--conformance-domain'),
                       asset=option('--conformance-asset'), world=option('--conformance-world'),
-                      timeout_s=option('--conformance-timeout'))
+                      timeout_s=option('--conformance-timeout'),
+                      total_timeout_s=option('--conformance-total-timeout'))
 
 
 @pytest.fixture(scope='session')
@@ -62,7 +65,10 @@ def conformance_kit(conformance_options):
     except KitError as exc:
         pytest.fail(str(exc), pytrace=False)
     try:
-        kit.connect()
+        try:
+            kit.connect()
+        except KitError as exc:  # which simulator to check is not clear: none is touched
+            pytest.fail(str(exc), pytrace=False)
         yield kit
     finally:
         kit.close()
@@ -76,7 +82,11 @@ def pytest_generate_tests(metafunc) -> None:
 
 def test_simulation_standard(conformance_kit, conformance_clause) -> None:
     """Check one clause of the standard (collect this in a test file of yours)."""
-    outcome = conformance_kit.run_clause(conformance_clause)
+    from r2d2_sim.conformance.target import KitError
+    try:
+        outcome = conformance_kit.run_clause(conformance_clause)
+    except KitError as exc:  # another simulator came up at the prefix
+        pytest.fail(str(exc), pytrace=False)
     clause = conformance_clause
     if outcome.status == SKIP:
         pytest.skip(f'{clause.id}: {outcome.reason}')

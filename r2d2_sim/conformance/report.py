@@ -79,8 +79,9 @@ def write_junit(outcomes: Sequence[Outcome], path: str,
             failure.text = f'{clause.source}: {clause.quote}\n{outcome.reason}'
         elif outcome.status == SKIP:
             ElementTree.SubElement(case, 'skipped', {'message': outcome.reason})
-    tree = ElementTree.ElementTree(ElementTree.Element('testsuites'))
-    tree.getroot().append(suite)
+    root = ElementTree.Element('testsuites')
+    root.append(suite)
+    tree = ElementTree.ElementTree(root)
     ElementTree.indent(tree)
     tree.write(path, encoding='utf-8', xml_declaration=True)
 
@@ -115,8 +116,7 @@ def render_clause_reference(clauses: Sequence[Clause] = CLAUSES) -> str:
                 needs.append(f'moot when {" and ".join(c.unless)} are declared')
             if c.services:
                 needs.append(f'{", ".join(c.services)} served')
-            needs = '; '.join(needs) or '-'
-            parts.append(f'| {c.id} | {_cell(c.title)} | {_cell(needs)} | '
+            parts.append(f'| {c.id} | {_cell(c.title)} | {_cell("; ".join(needs) or "-")} | '
                          f'`{c.source}`: "{_cell(c.quote)}" |')
         parts.append('')
     parts.append(CLAUSES_END)

@@ -2,24 +2,33 @@
 Running clauses against one simulator: :class:`Kit`, and choosing clauses: :func:`select`.
 
 Each clause runs from the same start state (STOPPED, see
-:meth:`~r2d2_sim.conformance.target.Target.prepare`; those that only ask,
+:meth:`~r2d2_sim.conformance.undo.TargetUndo.prepare`; those that only ask,
 FEAT and RESULT, wherever the simulator is), is skipped when a
 feature it needs is not declared (or an interface no feature stands for is
 not served), and is undone afterwards (what it spawned deleted, the world
 it loaded replaced). At the end the kit leaves the simulator in the state it
-found it in, reset.
+found it in, reset. The whole run has a time limit (``total_timeout_s``):
+past it the clause under way fails, the rest are not run, and the kit takes
+a little more time (:data:`RESTORE_TIMEOUTS` timeouts) to leave the simulator
+as found. A reason is one line, however much the simulator sent.
 """
 
 import fnmatch
 import time
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 from r2d2_sim.conformance.clause import (
-    Clause, ClauseFailed, ClauseSkipped, FAIL, feature_text, Outcome, PASS, SKIP)
+    Clause, ClauseFailed, ClauseSkipped, FAIL, feature_text, one_line, Outcome, PASS, SKIP)
 from r2d2_sim.conformance.clauses import CLAUSES, GROUPS
 from r2d2_sim.conformance.target import KitError, KitOptions, Target
 
-__all__ = ['Kit', 'select']
+__all__ = ['Kit', 'select', 'TOTAL_TIMEOUTS', 'RESTORE_TIMEOUTS']
+
+# Without total_timeout_s, a run may take this many timeouts (a whole run of
+# r2d2_sim takes about one: 131 clauses in 7 s against a 10 s timeout).
+TOTAL_TIMEOUTS = 30
+# After the run, leaving the simulator as found may take this many timeouts more.
+RESTORE_TIMEOUTS = 3
 
 
 def select(only: Sequence[str] = (), skip: Sequence[str] = (),
@@ -50,7 +59,9 @@ class Kit:
     ``Kit(KitOptions(prefix='/gzserver'))``; :meth:`run` (or
     :meth:`run_clause`) connects on first use; :meth:`close` restores the
     simulator and closes the kit's node. A context manager.
-    Raises KitError only for the kit's own setup (simulation_interfaces missing).
+    Raises KitError for the kit's own setup (simulation_interfaces missing)
+    and when it cannot tell which simulator to check (none at the prefix but
+    some elsewhere, or several there): then it touches none.
     """
 
     def __init__(self, options: Optional[KitOptions] = None) -> None:
@@ -58,22 +69,35 @@ class Kit:
         self.target = Target(self.options)
         self.connected = False
         self.restore_problems: List[str] = []
+        self.total_s = self.options.total_timeout_s or TOTAL_TIMEOUTS * self.options.timeout_s
+        self.deadline: Optional[float] = None  # time.monotonic() when the run's time is up
 
     def connect(self) -> None:
-        """Find the simulator's interfaces and features (once)."""
+        """Find the simulator's interfaces and features (once); KitError if it cannot choose."""
         if not self.connected:
             self.connected = True
+            self.deadline = time.monotonic() + self.total_s
+            self.target.client.deadline = self.deadline
             self.target.connect()
+        if self.target.refusal:
+            raise KitError(self.target.refusal)
+
+    def out_of_time(self) -> bool:
+        """Return True once the run's time limit has passed."""
+        return self.deadline is not None and time.monotonic() >= self.deadline
 
     def run_clause(self, clause: Clause) -> Outcome:
         """Run one clause from the start state; return its Outcome."""
         self.connect()
         started = time.monotonic()
         status, reason = self._run(clause)
-        return Outcome(clause, status, reason, time.monotonic() - started)
+        return Outcome(clause, status, one_line(reason), time.monotonic() - started)
 
-    def _run(self, clause: Clause):
+    def _run(self, clause: Clause) -> Tuple[str, str]:
         t = self.target
+        limit = f'the run\'s time limit ({self.total_s:g} s) was reached'
+        if self.out_of_time():
+            return SKIP, f'not run: {limit}'
         if t.features is None:
             if clause.id == 'FEAT-01':
                 return FAIL, t.features_error
@@ -86,10 +110,15 @@ class Kit:
         unserved = [s for s in clause.services if s not in t.interfaces]
         if unserved:
             return SKIP, f'{", ".join(unserved)} not served'
+        rival = t.rivals()  # another simulator came up where requests would reach it too
+        if rival:
+            t.refusal = rival
+            raise KitError(rival)
         try:
-            t.prepare(stop=clause.start)
+            t.undo.prepare(stop=clause.start)
         except (ClauseFailed, ClauseSkipped) as exc:
-            return FAIL, f'could not reach the start state (STOPPED): {exc}'
+            late = f' ({limit})' if self.out_of_time() else ''
+            return FAIL, f'could not reach the start state (STOPPED): {exc}{late}'
         try:
             clause.check(t)
             status, reason = PASS, ''
@@ -100,7 +129,9 @@ class Kit:
         except Exception as exc:  # a defect of the kit itself: shown, never a traceback
             first = str(exc).splitlines()[0][:200] if str(exc) else ''
             status, reason = FAIL, f'kit error ({type(exc).__name__}: {first})'
-        problems = t.cleanup()
+        if self.out_of_time():  # what it left is undone by close(), given time of its own
+            return status, reason if status == PASS else '; '.join(filter(None, [reason, limit]))
+        problems = t.undo.cleanup()
         if problems:
             reason = '; '.join(filter(None, [reason, 'afterwards: ' + '; '.join(problems)]))
         return status, reason
@@ -116,10 +147,13 @@ class Kit:
         return outcomes
 
     def close(self) -> List[str]:
-        """Leave the simulator as found (see Target.restore), close the node; return problems."""
+        """Leave the simulator as found (TargetUndo.restore), close the node; return problems."""
+        t = self.target
         try:
-            if self.connected and self.target.features is not None:
-                self.restore_problems = self.target.restore()
+            if self.connected and t.features is not None and not t.refusal:
+                t.client.deadline = (time.monotonic()
+                                     + RESTORE_TIMEOUTS * self.options.timeout_s)
+                self.restore_problems = [one_line(p) for p in t.undo.restore()]
         finally:
             self.target.close()
         return self.restore_problems

@@ -1,29 +1,39 @@
 """
 Driving the simulation under test: its state, stepping (by service or action), reset.
 
-:class:`SimulationVerbs` is mixed into :class:`~r2d2_sim.conformance.target.Target`:
-the verbs that change the simulation's state (SetSimulationState, with the
-route to PAUSED that every simulator takes), step it (StepSimulation, or the
-SimulateSteps action where only that is declared, with its feedback kept per
-goal) and reset it. They call through the Target's typed calls (``ok``,
-``expect``, ``call``, ``declared``) and read what its ``__init__`` sets.
+:class:`TargetSimulation` is a part of :class:`~r2d2_sim.conformance.target.Target`
+(``t.sim``): changing the simulation's state (SetSimulationState, with the
+route to PAUSED that every simulator takes), stepping it (StepSimulation, or
+the SimulateSteps action where only that is declared) and resetting it. It
+owns the action's feedback, kept per goal; the calls go through the
+Target's (``ok``, ``expect``, ``call``) and its client's action.
 """
 
-from typing import List, Optional, Tuple
+from typing import Any, List, Optional, Tuple, TYPE_CHECKING
 
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
-from r2d2_sim.conformance.discovery import ACTION
+
+if TYPE_CHECKING:
+    from rclpy.action.client import ClientGoalHandle
+
+    from r2d2_sim.conformance.target import Target
 
 
-class SimulationVerbs:
-    """The Target's verbs for the simulation's state, its steps and the SimulateSteps action."""
+class TargetSimulation:
+    """The simulation's state, its steps and the SimulateSteps action, on ``target``."""
+
+    def __init__(self, target: 'Target') -> None:
+        from action_msgs.msg import GoalStatus
+        self.target = target
+        self.GoalStatus = GoalStatus
+        self._feedback: List[Tuple[bytes, int, int]] = []  # (goal id, completed, remaining)
 
     # -- the simulation's state ---------------------------------------------------------
 
     @property
-    def S(self):
+    def S(self) -> Any:
         """Return SimulationState (its ``STATE_*`` constants)."""
-        return self.msg.SimulationState
+        return self.target.msg.SimulationState
 
     def state_name(self, value: int) -> str:
         """Name a SimulationState value: PLAYING (1)."""
@@ -34,27 +44,28 @@ class SimulationVerbs:
 
     def state(self) -> int:
         """Return the simulation state GetSimulationState gives."""
-        return self.ok('GetSimulationState', self.srv.GetSimulationState.Request(),
-                       'GetSimulationState').state.state
+        t = self.target
+        return t.ok('GetSimulationState', t.srv.GetSimulationState.Request(),
+                    'GetSimulationState').state.state
 
-    def request_state(self, state: int):
+    def state_request(self, state: int) -> Any:
+        """Return a SetSimulationState request for ``state``."""
+        return self.target.client.state_request(state)
+
+    def request_state(self, state: int) -> Any:
         """Ask SetSimulationState for ``state``; return the reply, whatever its result."""
-        request = self.srv.SetSimulationState.Request()
-        request.state.state = state
-        return self.call('SetSimulationState', request)
+        return self.target.call('SetSimulationState', self.state_request(state))
 
     def set_state(self, state: int) -> None:
         """Go to ``state``: OK or ALREADY_IN_TARGET_STATE, else ClauseFailed."""
-        codes = (self.msg.Result.RESULT_OK,
-                 self.srv.SetSimulationState.Response.ALREADY_IN_TARGET_STATE)
-        request = self.srv.SetSimulationState.Request()
-        request.state.state = state
-        self.expect('SetSimulationState', request, codes,
-                    f'SetSimulationState {self.state_name(state)}')
+        t = self.target
+        codes = (t.msg.Result.RESULT_OK, t.srv.SetSimulationState.Response.ALREADY_IN_TARGET_STATE)
+        t.expect('SetSimulationState', self.state_request(state), codes,
+                 f'SetSimulationState {self.state_name(state)}')
 
     def expect_state(self, state: int, after: str) -> None:
         """Raise ClauseFailed unless the state reads ``state`` (unchecked if not declared)."""
-        if not self.declared('SIMULATION_STATE_GETTING'):
+        if not self.target.declared('SIMULATION_STATE_GETTING'):
             return
         now = self.state()
         if now != state:
@@ -78,7 +89,7 @@ class SimulationVerbs:
         incorrect transition), so the kit plays first.
         """
         S = self.S
-        if self.declared('SIMULATION_STATE_GETTING'):
+        if self.target.declared('SIMULATION_STATE_GETTING'):
             now = self.state()
             if now == S.STATE_PAUSED:
                 return
@@ -88,77 +99,68 @@ class SimulationVerbs:
             self.play()
         self.set_state(S.STATE_PAUSED)
 
+    # -- steps and resets ---------------------------------------------------------------
+
     def step(self, steps: int) -> None:
         """Step ``steps`` times through StepSimulation (OK expected)."""
-        self.ok('StepSimulation', self.srv.StepSimulation.Request(steps=steps),
-                f'StepSimulation of {steps}')
+        t = self.target
+        t.ok('StepSimulation', t.srv.StepSimulation.Request(steps=steps),
+             f'StepSimulation of {steps}')
 
     def advance(self, steps: int) -> None:
         """Step a paused simulation: StepSimulation where declared, else the action."""
-        single = steps == 1 and self.declared('STEP_SIMULATION_SINGLE')
-        multiple = steps > 1 and self.declared('STEP_SIMULATION_MULTIPLE')
-        if (single or multiple) and 'StepSimulation' in self.interfaces:
-            return self.step(steps)
-        if self.declared('STEP_SIMULATION_ACTION'):
-            status, result = self.run_goal(steps)
-            if result.result.result != self.msg.Result.RESULT_OK:
-                raise ClauseFailed(f'SimulateSteps of {steps}: {self.describe(None, result)}')
-            return None
+        t = self.target
+        single = steps == 1 and t.declared('STEP_SIMULATION_SINGLE')
+        multiple = steps > 1 and t.declared('STEP_SIMULATION_MULTIPLE')
+        if (single or multiple) and 'StepSimulation' in t.interfaces:
+            self.step(steps)
+            return
+        if t.declared('STEP_SIMULATION_ACTION'):
+            _, result = self.run_goal(steps)
+            if result.result.result != t.msg.Result.RESULT_OK:
+                raise ClauseFailed(f'SimulateSteps of {steps}: {t.describe(None, result)}')
+            return
         raise ClauseSkipped('the simulator declares no way to step this many steps')
 
     def reset(self, scope: int) -> None:
         """Reset with ``scope`` (OK expected)."""
-        self.ok('ResetSimulation', self.srv.ResetSimulation.Request(scope=scope),
-                f'ResetSimulation scope {scope}')
+        t = self.target
+        t.ok('ResetSimulation', t.srv.ResetSimulation.Request(scope=scope),
+             f'ResetSimulation scope {scope}')
 
     # -- the action --------------------------------------------------------------------
 
-    def action_client(self):
-        """Return a ready client of the SimulateSteps action, with feedback kept."""
-        from rclpy.action import ActionClient
-        if self._action_client is None:
-            name = self.interfaces.get(ACTION)
-            if name is None:
-                raise ClauseFailed(f'no SimulateSteps action under {self.prefix!r}')
-            self._action_client = ActionClient(self.node, self.action.SimulateSteps, name)
-            feedback = self.action.SimulateSteps.Impl.FeedbackMessage
-            self._feedback_subscription = self.node.create_subscription(
-                feedback, f'{name}/_action/feedback', self._keep_feedback, 1000)
-        client = self._action_client
-        if not self.probe.spin_until(
-                lambda: client.server_is_ready()
-                and self._feedback_subscription.get_publisher_count() > 0, self.timeout_s):
-            raise ClauseFailed(f'the SimulateSteps action was not ready within '
-                               f'{self.timeout_s:g} s')
-        return client
-
-    def _keep_feedback(self, message) -> None:
+    def _keep_feedback(self, message: Any) -> None:
         self._feedback.append((bytes(message.goal_id.uuid), message.feedback.completed_steps,
                                message.feedback.remaining_steps))
 
-    def feedback_of(self, handle) -> List[Tuple[int, int]]:
+    def forget_feedback(self) -> None:
+        """Forget the feedback of earlier goals (a new clause begins)."""
+        self._feedback.clear()
+
+    def feedback_of(self, handle: 'ClientGoalHandle') -> List[Tuple[int, int]]:
         """Return the (completed, remaining) feedback seen for a goal, in order."""
         uuid = bytes(handle.goal_id.uuid)
         return [(done, left) for goal, done, left in self._feedback if goal == uuid]
 
-    def send_goal(self, steps: int):
+    def send_goal(self, steps: int) -> 'ClientGoalHandle':
         """Send a SimulateSteps goal; return its handle (``accepted`` says whether it was)."""
-        client = self.action_client()
-        sent = client.send_goal_async(self.action.SimulateSteps.Goal(steps=steps))
-        if not self.probe.spin_until(sent.done, self.timeout_s):
-            raise ClauseFailed('a SimulateSteps goal was not answered within '
-                               f'{self.timeout_s:g} s')
-        return sent.result()
+        from r2d2_sim.testing.standard import StandardError
+        try:
+            return self.target.client.send_goal(steps, self._keep_feedback)
+        except StandardError as exc:
+            raise ClauseFailed(exc.message) from None
 
-    def goal_result(self, handle, timeout_s: Optional[float] = None):
+    def goal_result(self, handle: 'ClientGoalHandle', timeout_s: Optional[float] = None
+                    ) -> Tuple[int, Any]:
         """Wait for a goal's end; return (status, SimulateSteps.Result)."""
-        future = handle.get_result_async()
-        timeout = timeout_s or self.timeout_s
-        if not self.probe.spin_until(future.done, timeout):
-            raise ClauseFailed(f'a SimulateSteps goal did not end within {timeout:g} s')
-        return future.result().status, future.result().result
+        from r2d2_sim.testing.standard import StandardError
+        try:
+            return self.target.client.goal_result(handle, timeout_s)
+        except StandardError as exc:
+            raise ClauseFailed(exc.message) from None
 
-    def run_goal(self, steps: int):
+    def run_goal(self, steps: int) -> Tuple[int, Any]:
         """Run a SimulateSteps goal to its end; return (status, result); a refusal fails."""
         handle = self.send_goal(steps)
         if not handle.accepted:

@@ -4,44 +4,48 @@ The simulator under test, as the kit's clauses see it: :class:`Target`.
 A node of the kit's own (a :class:`~r2d2_sim.testing.RemoteProbe`: its
 context on the simulator's ROS domain, spun in the caller's thread) finds the
 services and the action by type under a prefix, reads the declared features
-once, listens to ``/clock`` if someone publishes it, and offers the clauses
-typed calls: a reply that is not what a clause expects becomes a
-:class:`~r2d2_sim.conformance.clause.ClauseFailed` with a one-line reason,
-never a traceback. It also keeps what the kit changed (entities it spawned,
-the world it loaded) so that each clause can be undone.
+once, and calls them through the package's one client of the standard, a
+:class:`~r2d2_sim.testing.StandardClient` given the names found, a resend for
+idempotent queries and the kit's timeout. A reply that is not what a clause
+expects becomes a :class:`~r2d2_sim.conformance.clause.ClauseFailed` with a
+one-line reason, never a traceback.
 
-This module holds the connection (discovery, features, the typed calls);
-the verbs the clauses use are mixed in, one module per concept: the
-simulation's state and steps (:mod:`~r2d2_sim.conformance.simulation_verbs`),
-entities (:mod:`~r2d2_sim.conformance.entity_verbs`), the clock
-(:mod:`~r2d2_sim.conformance.clock_verbs`) and the undoing of a clause
-(:mod:`~r2d2_sim.conformance.undo`). Every attribute is set in
-``Target.__init__``.
+The Target is the connection (discovery, features, the typed calls
+``call``, ``ok``, ``expect``) composed with parts that own their data:
+``t.sim`` the simulation's state, steps and action
+(:mod:`~r2d2_sim.conformance.simulation_verbs`), ``t.entities`` the
+entities and what the kit spawned (:mod:`~r2d2_sim.conformance.entity_verbs`),
+``t.clock`` simulated time on ``/clock``
+(:mod:`~r2d2_sim.conformance.clock_verbs`), ``t.world`` the world found at
+the start and put back (:mod:`~r2d2_sim.conformance.world_verbs`) and
+``t.undo`` the undoing of a clause (:mod:`~r2d2_sim.conformance.undo`).
 """
 
-import itertools
 import os
-from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
+import time
+from typing import (
+    Any, Callable, Dict, FrozenSet, List, NamedTuple, Optional, Sequence, Tuple)
 
-from r2d2_sim.conformance.clause import ClauseFailed
-from r2d2_sim.conformance.clock_verbs import ClockVerbs
+from r2d2_sim.conformance.clause import ClauseFailed, one_line
+from r2d2_sim.conformance.clock_verbs import TargetClock
 from r2d2_sim.conformance.discovery import (
-    ACTION, FEATURE_INTERFACES, FEATURES, find_interfaces, normal_prefix)
-from r2d2_sim.conformance.entity_verbs import BOX_SIZE_M, EntityVerbs
-from r2d2_sim.conformance.simulation_verbs import SimulationVerbs
-from r2d2_sim.conformance.undo import UndoVerbs
+    ACTION, FEATURE_INTERFACES, FEATURES, find_interfaces, normal_prefix, simulator_levels)
+from r2d2_sim.conformance.entity_verbs import BOX_SIZE_M, TargetEntities
+from r2d2_sim.conformance.simulation_verbs import TargetSimulation
+from r2d2_sim.conformance.undo import TargetUndo
+from r2d2_sim.conformance.world_verbs import TargetWorld
 from r2d2_sim.errors import SetupError
 
 __all__ = ['KitOptions', 'KitError', 'Target', 'BOX_SIZE_M', 'UNKNOWN_NAME']
 
 # A name no simulator has an entity (or named pose) of.
 UNKNOWN_NAME = 'conformance_no_such_entity'
-# Queries that may be sent again when a reply is slow (a reply can be lost
-# for good while the server has not yet discovered a new client's reader).
-IDEMPOTENT = {'GetSimulatorFeatures', 'GetSimulationState', 'GetEntities', 'GetEntitiesStates',
-              'GetEntityState', 'GetEntityInfo', 'GetEntityBounds', 'GetSpawnables',
-              'GetNamedPoses', 'GetNamedPoseBounds', 'GetCurrentWorld', 'GetAvailableWorlds'}
+# An idempotent query is sent again after this long without a reply (s): a reply
+# can be lost for good while the server has not yet discovered a new client's reader.
 RESEND_S = 1.0
+# Before its first change the kit watches the ROS graph until it has stood still this long
+# (s): a second simulator, discovered a little later than the first, shows by then.
+SETTLE_S = 0.25
 
 
 class KitError(SetupError):
@@ -59,7 +63,9 @@ class KitOptions(NamedTuple):
     for any one reply or discovery; ``free_space``: a point with free room
     around it (20 m along x) where the kit puts what it spawns;
     ``world_frame``: the world frame's name besides '' and ``world``;
-    ``clock_topic``: where simulated time is published.
+    ``clock_topic``: where simulated time is published; ``total_timeout_s``:
+    the longest the whole run may take, connecting included (None: 30
+    timeouts; see :class:`~r2d2_sim.conformance.runner.Kit`).
     """
 
     prefix: str = '/'
@@ -70,6 +76,7 @@ class KitOptions(NamedTuple):
     free_space: Tuple[float, float, float] = (20.0, 20.0, 5.0)
     world_frame: str = 'world'
     clock_topic: str = '/clock'
+    total_timeout_s: Optional[float] = None
 
 
 def default_domain_id() -> int:
@@ -81,14 +88,16 @@ def default_domain_id() -> int:
         raise KitError(f'ROS_DOMAIN_ID is not a number: {text[:20]!r}') from None
 
 
-class Target(SimulationVerbs, EntityVerbs, ClockVerbs, UndoVerbs):
+class Target:
     """
-    The simulator under test: its interfaces found by type, its features, its clock.
+    The simulator under test: its interfaces found by type, its features, the calls; its parts.
 
     Made by :meth:`connect` (which never raises for what the simulator does:
     ``features_error`` says why its features are unknown); closed by
-    :meth:`close`. The clauses use the verbs of its mixins; each raises
-    ClauseFailed with a reason when the simulator does not answer as asked.
+    :meth:`close`. The clauses call through ``call``, ``ok`` and
+    ``expect`` and use the parts ``sim``, ``entities``, ``clock``,
+    ``world`` and ``undo``; each raises ClauseFailed with a reason when
+    the simulator does not answer as asked.
     """
 
     def __init__(self, options: KitOptions) -> None:
@@ -99,38 +108,33 @@ class Target(SimulationVerbs, EntityVerbs, ClockVerbs, UndoVerbs):
             raise KitError('simulation_interfaces (Jazzy 1.5) cannot be imported '
                            f'({type(exc).__name__}): source a ROS install that has it, or '
                            'build it with tools/build_interfaces.sh') from None
-        from action_msgs.msg import GoalStatus
         from r2d2_sim.testing.remote import RemoteProbe
+        from r2d2_sim.testing.standard import StandardClient
         self.options = options
         self.msg, self.srv, self.action = msg, srv, action
-        self.GoalStatus = GoalStatus
         self.prefix = normal_prefix(options.prefix)
         self.domain_id = (options.domain_id if options.domain_id is not None
                           else default_domain_id())
         self.timeout_s = options.timeout_s
         self.probe = RemoteProbe(self.domain_id, '_sim_conformance')
         self.node = self.probe.node
+        # The one client of the standard, on the names discovery finds (none yet).
+        self.client = StandardClient(
+            self.node, self.probe.spin_until, self.prefix, self.timeout_s, names={},
+            resend_s=RESEND_S)
         self.interfaces: Dict[str, str] = {}  # interface -> service (or action) name
         self.several: Dict[str, List[str]] = {}  # interface -> every name seen, when several
-        self.features: Optional[frozenset] = None  # declared feature names; None: unknown
+        self.features: Optional[FrozenSet[str]] = None  # declared feature names; None: unknown
         self.feature_values: List[int] = []
         self.spawn_formats: List[str] = []
         self.features_error = ''
-        self.has_clock = False
-        self.spawned: List[str] = []  # names the kit spawned and has not deleted
-        self.initial_state: Optional[int] = None
-        self.initial_world = None  # the WorldResource current at connect, when told
-        self.initial_world_known = False  # GetCurrentWorld answered (a world, or none)
-        self.world_changed = False
-        self._clients: Dict[str, object] = {}
-        self._action_client = None
-        self._feedback: List[Tuple[bytes, int, int]] = []
-        self._feedback_subscription = None
-        self._clock_ns: Optional[int] = None
-        self._clock_count = 0
-        self._clock_subscription = None
-        self._cleanups: List[Callable[[], None]] = []
-        self._names = itertools.count(1)
+        self.others: List[str] = []  # namespaces of the other simulators seen on the domain
+        self.refusal = ''  # why the kit checks no simulator here ('' when it checks this one)
+        self.sim = TargetSimulation(self)
+        self.entities = TargetEntities(self)
+        self.clock = TargetClock(self, self.sim)
+        self.world = TargetWorld(self)
+        self.undo = TargetUndo(self, self.sim, self.entities, self.world)
 
     # -- connecting --------------------------------------------------------------------
 
@@ -138,69 +142,115 @@ class Target(SimulationVerbs, EntityVerbs, ClockVerbs, UndoVerbs):
         """Look at the ROS graph again; return {interface: name} of those under the prefix."""
         self.interfaces, self.several = find_interfaces(
             self.node.get_service_names_and_types(), self.prefix)
+        self.client.use_names(self.interfaces)
         return self.interfaces
 
     def connect(self) -> None:
         """
         Find the interfaces, read the features, find ``/clock``; never raises for the simulator.
 
-        Waits up to the timeout for GetSimulatorFeatures, then (up to the
-        timeout again) for every interface the features declare, so that a
-        slow discovery is not taken for a missing service.
+        Waits up to the timeout for GetSimulatorFeatures at the prefix, then
+        (up to the timeout again) for every interface the features declare,
+        so that a slow discovery is not taken for a missing service. Then
+        remembers the state and the world it found, to leave them so. When
+        it cannot tell which simulator the user meant (none at the prefix
+        but some elsewhere, or several at the prefix), ``refusal`` says why
+        in one line and nothing is asked of any simulator but its features.
         """
         timeout = self.timeout_s
-        if not self.probe.spin_until(lambda: 'GetSimulatorFeatures' in self.scan(), timeout):
+        if not self.wait(lambda: 'GetSimulatorFeatures' in self.scan(), timeout):
+            levels = self.simulator_levels()
+            if levels:
+                self.refusal = one_line(
+                    f'no simulator at {self.prefix!r} (its own level) within {timeout:g} s, but '
+                    f'{len(levels)} on ROS domain {self.domain_id} under {", ".join(levels)}: '
+                    f'give --prefix {levels[0]} to check {"it" if len(levels) == 1 else "one"}')
+                return
             seen = ', '.join(sorted(self.interfaces)) or 'none of the standard\'s services'
             self.features_error = (f'no service of type GetSimulatorFeatures under '
                                    f'{self.prefix!r} within {timeout:g} s (found: {seen})')
             return
+        self.refusal = self.rivals()
+        if self.refusal:
+            return
         try:
-            self.read_features()
+            features = self.read_features()
         except ClauseFailed as exc:
             self.features_error = str(exc)
             return
-        wanted = [alternatives for feature in self.features
+        wanted = [alternatives for feature in features
                   for alternatives in FEATURE_INTERFACES.get(feature, ())]
 
         def all_found() -> bool:
             found = self.scan()
             return all(any(kind in found for kind in alt.split('|')) for alt in wanted)
-        self.probe.spin_until(all_found, timeout)
+        self.wait(all_found, timeout)
+        self._settle()
+        self.refusal = self.rivals()  # the last look before a change
+        if self.refusal:
+            return
+        self.others = [level for level in self.simulator_levels() if level != self.prefix]
         self._make_clients()
-        self._listen_to_clock()
-        if 'SIMULATION_STATE_GETTING' in self.features and 'GetSimulationState' in self.interfaces:
-            reply = self.call('GetSimulationState', self.srv.GetSimulationState.Request(),
-                              check=False)
-            if reply is not None and reply.result.result == self.msg.Result.RESULT_OK:
-                self.initial_state = reply.state.state
-        if 'WORLD_INFO_GETTING' in self.features and 'GetCurrentWorld' in self.interfaces:
-            reply = self.call('GetCurrentWorld', self.srv.GetCurrentWorld.Request(), check=False)
-            no_world = self.srv.GetCurrentWorld.Response.NO_WORLD_LOADED
-            if reply is not None and reply.result.result in (self.msg.Result.RESULT_OK, no_world):
-                self.initial_world_known = True
-                if reply.result.result == self.msg.Result.RESULT_OK:
-                    self.initial_world = reply.world
+        self.clock.listen()
+        self.undo.remember()
+        self.world.remember()
 
-    def read_features(self):
-        """Ask GetSimulatorFeatures again; return its SimulatorFeatures (names in ``features``)."""
+    def _settle(self) -> None:
+        """Watch the graph's nodes and services until they stand still for SETTLE_S."""
+        seen: List[Any] = [None, 0.0]  # the graph last seen, and since when
+
+        def still() -> bool:
+            graph = (sorted(self.node.get_node_names_and_namespaces()),
+                     sorted(name for name, _ in self.node.get_service_names_and_types()))
+            now = time.monotonic()
+            if graph != seen[0]:
+                seen[:] = [graph, now]
+            return now - seen[1] >= SETTLE_S
+        self.wait(still, self.timeout_s)
+
+    def simulator_levels(self) -> List[str]:
+        """Return the namespaces on the domain that serve GetSimulatorFeatures (simulators)."""
+        return simulator_levels(self.node.get_service_names_and_types())
+
+    def rivals(self) -> str:
+        """
+        Return why a request to the prefix may reach another simulator ('' when none can).
+
+        Two names of one interface at the prefix are two simulators; so are
+        two servers of one name (simulators in the same namespace): a
+        request reaches every server of its name.
+        """
+        found, several = find_interfaces(self.node.get_service_names_and_types(), self.prefix)
+        advice = 'run each on a ROS domain (or in a namespace) of its own'
+        for kind, names in sorted(several.items()):
+            return one_line(f'several simulators at {self.prefix!r}: {kind} is served as '
+                            f'{", ".join(names)}; the kit checks one at a time: {advice}')
+        for kind, name in sorted(found.items()):
+            service = f'{name}/_action/send_goal' if kind == ACTION else name
+            count = self.node.count_services(service)
+            if count > 1:
+                return one_line(f'several simulators at {self.prefix!r}: {count} serve {service}, '
+                                f'and a request would reach them all: {advice}')
+        return ''
+
+    def read_features(self) -> FrozenSet[str]:
+        """Ask GetSimulatorFeatures again; return the names of the features it declares."""
         features = self.call('GetSimulatorFeatures',
                              self.srv.GetSimulatorFeatures.Request()).features
         by_value = {getattr(self.msg.SimulatorFeatures, name): name for name in FEATURES}
         self.feature_values = list(features.features)
         self.features = frozenset(by_value[v] for v in features.features if v in by_value)
         self.spawn_formats = [f.strip().lower() for f in features.spawn_formats]
-        return features
+        return self.features
 
     def _make_clients(self) -> None:
         """Make a client for every service found, GetSimulatorFeatures' again last."""
         for kind in self.interfaces:
             if kind != ACTION:
-                self._client(kind)
+                self.client.client(kind)
         # Servers learn of our reply readers in the order we made them: once the
         # last one made gets its answer, every client can (see RemoteProbe).
-        old = self._clients.pop('GetSimulatorFeatures', None)
-        if old is not None:
-            self.node.destroy_client(old)
+        self.client.forget('GetSimulatorFeatures')
         try:
             self.read_features()
         except ClauseFailed:
@@ -217,51 +267,32 @@ class Target(SimulationVerbs, EntityVerbs, ClockVerbs, UndoVerbs):
         have = self.features or frozenset()
         return all(any(f in have for f in wanted.split('|')) for wanted in features)
 
-    def _client(self, kind: str):
-        client = self._clients.get(kind)
-        if client is None:
-            name = self.interfaces.get(kind)
-            if name is None:
-                raise ClauseFailed(f'no {kind} service under {self.prefix!r}')
-            client = self._clients[kind] = self.node.create_client(getattr(self.srv, kind), name)
-        return client
+    def wait(self, condition: Callable[[], bool], timeout_s: Optional[float] = None) -> bool:
+        """Spin the kit's node until ``condition()`` holds (True) or the timeout passes."""
+        return self.client.wait(condition, timeout_s)
 
-    def call(self, kind: str, request, check: bool = True):
+    def call(self, kind: str, request: Any, check: bool = True) -> Any:
         """
         Call the service of interface ``kind`` (``'SpawnEntity'``); return its reply.
 
         ClauseFailed when it is not found, not ready or silent within the
         timeout (with ``check=False``: None instead).
         """
+        from r2d2_sim.testing.standard import StandardError
         try:
-            client = self._client(kind)
-        except ClauseFailed:
+            return self.client.send(kind, request)
+        except StandardError as exc:
             if check:
-                raise
+                raise ClauseFailed(exc.message) from None
             return None
-        timeout = self.timeout_s
-        if not self.probe.spin_until(client.service_is_ready, timeout):
-            if check:
-                raise ClauseFailed(f'{client.srv_name} was not ready within {timeout:g} s')
-            return None
-        resend = RESEND_S if kind in IDEMPOTENT else None
-        reply = self.probe.call_client(client, request, timeout, resend)
-        if reply is None and check:
-            raise ClauseFailed(f'{client.srv_name} did not answer within {timeout:g} s')
-        return reply
 
-    def code_name(self, kind: str, value: int) -> str:
-        """Name a result value: RESULT_* first, then the service's own constants."""
-        owners = [self.msg.Result]
-        if kind is not None:
-            owners.append(getattr(self.srv, kind).Response)
-        for owner in owners:
-            for name in dir(owner):
-                if name.isupper() and getattr(owner, name) == value:
-                    return f'{name.replace("RESULT_", "")} ({value})'
-        return f'code {value}'
+    def code_name(self, kind: Optional[str], value: int) -> str:
+        """Name a result value: RESULT_* first, then the service's own: ``NOT_FOUND (2)``."""
+        from r2d2_sim.testing.standard import code_name
+        name = code_name(value, kind)
+        return f'{name} ({value})' if name is not None else f'code {value}'
 
-    def describe(self, kind: str, reply) -> str:
+    def describe(self, kind: Optional[str], reply: Any) -> str:
         """Return a reply's result for a reason: ``NAME_NOT_UNIQUE (101): 'taken'``."""
         result = reply.result
         text = self.code_name(kind, result.result)
@@ -269,7 +300,7 @@ class Target(SimulationVerbs, EntityVerbs, ClockVerbs, UndoVerbs):
             text += f': {result.error_message.splitlines()[0][:120]!r}'
         return text
 
-    def expect(self, kind: str, request, codes: Sequence[int], doing: str):
+    def expect(self, kind: str, request: Any, codes: Sequence[int], doing: str) -> Any:
         """Call and return the reply if its result is one of ``codes``; else ClauseFailed."""
         reply = self.call(kind, request)
         if reply.result.result not in codes:
@@ -280,6 +311,6 @@ class Target(SimulationVerbs, EntityVerbs, ClockVerbs, UndoVerbs):
                                f'{self.describe(kind, reply)}{unsupported}')
         return reply
 
-    def ok(self, kind: str, request, doing: str):
+    def ok(self, kind: str, request: Any, doing: str) -> Any:
         """Call and return the reply if its result is OK; else ClauseFailed."""
         return self.expect(kind, request, (self.msg.Result.RESULT_OK,), doing)

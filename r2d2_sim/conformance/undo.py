@@ -1,20 +1,43 @@
 """
-Before and after each clause: the start state, the undo list, the world put back.
+Before and after each clause: the start state, the undo list, the simulator left as found.
 
-:class:`UndoVerbs` is mixed into :class:`~r2d2_sim.conformance.target.Target`:
-``prepare`` puts the simulator in STOPPED before a clause, ``cleanup`` runs
-what the clause registered and deletes what it spawned, and ``restore``
-leaves the simulator as the kit found it (its world, its state). Loading and
-unloading a world live here because the kit must remember that it did.
+:class:`TargetUndo` is a part of :class:`~r2d2_sim.conformance.target.Target`
+(``t.undo``): ``prepare`` puts the simulator in STOPPED before a clause,
+``cleanup`` runs what the clause registered and deletes what it spawned,
+and ``restore`` leaves the simulator as the kit found it (its world, its
+state). It owns the undo list and the state found at the start, and is
+given the parts whose changes it undoes.
 """
 
-from typing import Callable, List
+from typing import Callable, List, Optional, TYPE_CHECKING
 
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
 
+if TYPE_CHECKING:
+    from r2d2_sim.conformance.entity_verbs import TargetEntities
+    from r2d2_sim.conformance.simulation_verbs import TargetSimulation
+    from r2d2_sim.conformance.target import Target
+    from r2d2_sim.conformance.world_verbs import TargetWorld
 
-class UndoVerbs:
-    """The Target's bookkeeping of what a clause changed, and its undoing."""
+
+class TargetUndo:
+    """What a clause changed on ``target``, and its undoing; the simulator's state at the start."""
+
+    def __init__(self, target: 'Target', sim: 'TargetSimulation', entities: 'TargetEntities',
+                 world: 'TargetWorld') -> None:
+        self.target = target
+        self.sim, self.entities, self.world = sim, entities, world
+        self.initial_state: Optional[int] = None  # the state when the kit connected
+        self._cleanups: List[Callable[[], None]] = []
+
+    def remember(self) -> None:
+        """Read the simulation state now (where GetSimulationState is declared and served)."""
+        t = self.target
+        if not (t.declared('SIMULATION_STATE_GETTING') and 'GetSimulationState' in t.interfaces):
+            return
+        reply = t.call('GetSimulationState', t.srv.GetSimulationState.Request(), check=False)
+        if reply is not None and reply.result.result == t.msg.Result.RESULT_OK:
+            self.initial_state = reply.state.state
 
     def on_cleanup(self, undo: Callable[[], None]) -> None:
         """Run ``undo`` after the clause, pass or fail (last registered first)."""
@@ -28,14 +51,14 @@ class UndoVerbs:
         resetting with ALL"), else a full ResetSimulation where that is.
         """
         self._cleanups.clear()
-        self.spawned.clear()
-        self._feedback.clear()
+        self.entities.spawned.clear()
+        self.sim.forget_feedback()
         if not stop:
             return
-        if self.declared('SIMULATION_STATE_SETTING'):
-            self.stop()
-        elif self.declared('SIMULATION_RESET'):
-            self.reset(0)
+        if self.target.declared('SIMULATION_STATE_SETTING'):
+            self.sim.stop()
+        elif self.target.declared('SIMULATION_RESET'):
+            self.sim.reset(0)
 
     def cleanup(self) -> List[str]:
         """Undo what the clause did; return what could not be undone (one line each)."""
@@ -45,50 +68,20 @@ class UndoVerbs:
                 self._cleanups.pop()()
             except (ClauseFailed, ClauseSkipped) as exc:
                 problems.append(str(exc))
-        if self.spawned and self.declared('DELETING'):
+        spawned = self.entities.spawned
+        if spawned and self.target.declared('DELETING'):
             try:
-                present = set(self.names())
+                present = set(self.entities.names())
             except ClauseFailed as exc:
                 return problems + [str(exc)]
-            for name in list(self.spawned):
+            for name in list(spawned):
                 if name in present:
                     try:
-                        self.delete(name)
+                        self.entities.delete(name)
                     except ClauseFailed as exc:
                         problems.append(str(exc))
-        self.spawned.clear()
+        spawned.clear()
         return problems
-
-    def load_world(self, resource, doing: str):
-        """Load the world of a Resource (uri or resource_string), OK expected; return the reply."""
-        request = self.srv.LoadWorld.Request(uri=resource.uri,
-                                             resource_string=resource.resource_string)
-        self.world_changed = True
-        return self.ok('LoadWorld', request, doing)
-
-    def unload_world(self) -> None:
-        """UnloadWorld, OK expected."""
-        self.world_changed = True
-        self.ok('UnloadWorld', self.srv.UnloadWorld.Request(), 'UnloadWorld')
-
-    def put_world_back(self) -> None:
-        """
-        Load the world found at the start again (or unload, if there was none).
-
-        Without WORLD_INFO_GETTING the kit cannot know it: the last world it
-        loaded stays.
-        """
-        if not self.world_changed or not self.initial_world_known:
-            return
-        world = self.initial_world
-        resource = world.world_resource if world is not None else None
-        if resource is not None and (resource.uri or resource.resource_string):
-            self.load_world(resource, 'LoadWorld of the world found at the start')
-        elif world is None and self.declared('WORLD_UNLOADING'):
-            no_world = self.srv.UnloadWorld.Response.NO_WORLD_LOADED
-            self.expect('UnloadWorld', self.srv.UnloadWorld.Request(),
-                        (self.msg.Result.RESULT_OK, no_world), 'UnloadWorld, as at the start')
-        self.world_changed = False
 
     def restore(self) -> List[str]:
         """
@@ -99,15 +92,15 @@ class UndoVerbs:
         """
         problems = self.cleanup()
         try:
-            self.put_world_back()
-            if self.initial_state is not None and self.declared('SIMULATION_STATE_SETTING'):
-                S = self.S
-                self.stop()
+            self.world.put_back()
+            if self.initial_state is not None and self.target.declared('SIMULATION_STATE_SETTING'):
+                S = self.sim.S
+                self.sim.stop()
                 if self.initial_state == S.STATE_PLAYING:
-                    self.play()
+                    self.sim.play()
                 elif (self.initial_state == S.STATE_PAUSED
-                      and self.declared('SIMULATION_STATE_PAUSE')):
-                    self.pause()
+                      and self.target.declared('SIMULATION_STATE_PAUSE')):
+                    self.sim.pause()
         except (ClauseFailed, ClauseSkipped) as exc:
             problems.append(str(exc))
         return problems

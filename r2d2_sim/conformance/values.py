@@ -1,10 +1,10 @@
 """
-Numbers into and out of geometry_msgs, and compared: what the clauses and the Target share.
+Numbers out of geometry_msgs, and compared: what the clauses and the Target's parts share.
 
 The clauses read positions and orientations as tuples and compare them with
-a tolerance (a quaternion and its negative are one rotation); the Target's
-verbs write tuples into requests. Both sides use these few helpers, kept
-apart from the Target so that a clause can use them without it.
+a tolerance (a quaternion and its negative are one rotation); requests are
+written by the standard's client. These few helpers are kept apart from the
+Target so that a clause can use them without it.
 """
 
 import math
@@ -43,15 +43,3 @@ def close(a: Sequence[float], b: Sequence[float], tolerance: float = 1e-3) -> bo
 def fmt(values: Iterable[float]) -> str:
     """Return numbers as a short tuple for a reason: (1.0, 2.5, 0.0)."""
     return '(' + ', '.join(f'{v:.4g}' for v in values) + ')'
-
-
-def fill_pose(pose, position: Sequence[float], orientation: Sequence[float]) -> None:
-    """Write a position and an (x, y, z, w) orientation into a geometry_msgs Pose."""
-    fill_vector(pose.position, position)
-    (pose.orientation.x, pose.orientation.y, pose.orientation.z,
-     pose.orientation.w) = (float(v) for v in orientation)
-
-
-def fill_vector(target, values: Sequence[float]) -> None:
-    """Write three numbers into a Vector3 or Point."""
-    target.x, target.y, target.z = (float(v) for v in values)

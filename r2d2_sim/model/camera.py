@@ -13,7 +13,7 @@ from typing import List, Sequence, Tuple
 
 import numpy
 
-from r2d2_sim.model.transforms import rotate
+from r2d2_sim.model.transforms import Quaternion, rotate
 
 Vec3 = Tuple[float, float, float]
 
@@ -121,7 +121,7 @@ def view_matrix(eye: Sequence[float], forward: Sequence[float],
             -_dot(s, eye), -_dot(u, eye), _dot(f, eye), 1.0]
 
 
-def link_camera_axes(link_orientation: Sequence[float],
+def link_camera_axes(link_orientation: Quaternion,
                      yaw_offset_rad: float) -> Tuple[Vec3, Vec3]:
     """
     Return the world (forward, up) directions of a camera fixed to a link.

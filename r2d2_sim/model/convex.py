@@ -150,8 +150,8 @@ def collinear(points: Sequence[Sequence[float]], tolerance_m: float = 1e-9) -> b
 
 def extent(shape: Convex, axis: Sequence[float]) -> Tuple[float, float]:
     """Return the lowest and highest projection of ``shape`` on the unit ``axis``."""
-    negative = tuple(-a for a in axis)
-    return _dot(shape.support(negative), axis), _dot(shape.support(tuple(axis)), axis)
+    x, y, z = axis
+    return _dot(shape.support((-x, -y, -z)), axis), _dot(shape.support((x, y, z)), axis)
 
 
 # -- the closest point of a simplex to the origin (Ericson, Real-Time Collision Detection 5.1)

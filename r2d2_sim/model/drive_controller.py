@@ -121,7 +121,8 @@ class DriveController:
         right, in joint space) when they changed, else None.
         """
         latest = self._latest
-        if latest is not self._taken:
+        # None only before the first command, and then nothing was taken either.
+        if latest is not None and latest is not self._taken:
             self._taken = latest
             self._command_step = step
             self.target = latest
@@ -156,7 +157,9 @@ class DriveController:
             left, right = self.encoders.read(left, right, dt_s)
         odometry = self.odometry
         before, yaw_rad = odometry.baseline, odometry.yaw_rad
-        if odometry.update_from_positions(left, right, dt_s) and self.covariance is not None:
+        # Integrated (True) only from a baseline, so then ``before`` is one.
+        integrated = odometry.update_from_positions(left, right, dt_s)
+        if integrated and before is not None and self.covariance is not None:
             radius_m = self.geometry.wheel_radius_m
             self.covariance.update(yaw_rad, radius_m * (left - before[0]),
                                    radius_m * (right - before[1]), dt_s)

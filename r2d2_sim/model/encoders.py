@@ -60,13 +60,19 @@ class Encoders:
         self._true = self._counted = None
 
     def read(self, left_rad: float, right_rad: float, dt_s: float) -> Tuple[float, float]:
-        """Return the counted (left, right) angles for the true ones, ``dt_s`` after the last."""
+        """
+        Return the counted (left, right) angles for the true ones, ``dt_s`` after the last.
+
+        A reading at no interval (the same instant read again: the node
+        publishes the state once built, at t = 0) draws nothing, so the
+        stream does not depend on how often an instant is read.
+        """
         true = numpy.array([left_rad, right_rad], dtype=float)
         if self._true is None:
             self._counted = true
         else:
             travel = true - self._true
-            if not self._model.exact:
+            if not self._model.exact and dt_s > 0.0:
                 travel = travel * (1.0 + self._model.error(2, dt_s))
             self._counted = self._counted + travel
         self._true = true

@@ -30,7 +30,7 @@ Quat = Tuple[float, float, float, float]
 STANDARD_GRAVITY_M_S2: Vec3 = (0.0, 0.0, -9.8)
 
 
-def _rotation_vector_quaternion(rotation_rad: numpy.ndarray) -> Tuple[float, ...]:
+def _rotation_vector_quaternion(rotation_rad: numpy.ndarray) -> Quat:
     """Return the quaternion of a rotation by |r| about the axis r."""
     angle_rad = float(numpy.linalg.norm(rotation_rad))
     if angle_rad == 0.0:
@@ -157,7 +157,7 @@ class ImuModel:
                                                  acceleration_m_s2[2] - gz))
         return self._with_noise(q, angular_rad_s, specific_force_m_s2)
 
-    def _acceleration(self, time_s: float, velocity_m_s: Tuple[float, ...]) -> Tuple[float, ...]:
+    def _acceleration(self, time_s: float, velocity_m_s: Vec3) -> Vec3:
         """Difference the velocity with the previous update's (zero for the first)."""
         if self._previous_time_s is None:
             acceleration_m_s2 = (0.0, 0.0, 0.0)
@@ -167,7 +167,9 @@ class ImuModel:
                 raise ValueError(f'IMU time must increase: {time_s!r} s after '
                                  f'{self._previous_time_s!r} s (reset() after a time jump)')
             previous = self._previous_velocity_m_s
-            acceleration_m_s2 = tuple((v - p) / dt_s for v, p in zip(velocity_m_s, previous))
+            assert previous is not None  # set and cleared with _previous_time_s
+            (vx, vy, vz), (px, py, pz) = velocity_m_s, previous
+            acceleration_m_s2 = ((vx - px) / dt_s, (vy - py) / dt_s, (vz - pz) / dt_s)
         self._previous_time_s = time_s
         self._previous_velocity_m_s = velocity_m_s
         return acceleration_m_s2

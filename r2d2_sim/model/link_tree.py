@@ -118,7 +118,7 @@ def root_link(joints: Sequence[JointModel]) -> str:
     """
     if not joints:
         raise ValueError('no joints: the root link cannot be found from joints alone')
-    children = {}
+    children: dict[str, str] = {}  # child link -> its joint
     names = set()
     for joint in joints:
         if joint.name in names:
@@ -158,7 +158,8 @@ def joint_transform(joint: JointModel, position: float) -> Transform:
     if joint.type in _ROTATING:
         motion = Transform((0.0, 0.0, 0.0), quaternion_from_axis_angle(joint.axis, position))
     elif joint.type == 'prismatic':
-        motion = Transform(tuple(position * a for a in joint.axis), (0.0, 0.0, 0.0, 1.0))
+        ax, ay, az = joint.axis
+        motion = Transform((position * ax, position * ay, position * az), (0.0, 0.0, 0.0, 1.0))
     else:
         return joint.origin
     return compose(joint.origin, motion)
@@ -206,7 +207,7 @@ class LinkTransforms:
         by_parent: dict[str, list[str]] = {}
         for joint in joints:
             by_parent.setdefault(joint.parent_link, []).append(joint.child_link)
-        frontier = [self.root_link] if joints else []
+        frontier = [self.root_link] if self.root_link is not None else []
         while frontier:
             children = by_parent.get(frontier.pop(), [])
             self._tree_order.extend(children)
@@ -232,7 +233,7 @@ class LinkTransforms:
         if len(positions) != len(self._moving):
             raise ValueError(f'expected {len(self._moving)} joint positions '
                              f'{list(self.moving_joint_names)!r}, got {len(positions)}')
-        result = []
+        result: list[JointTransform] = []
         append = result.append
         sin, cos = math.sin, math.cos
         for (kind, parent, child, translation, rotation, extra), position in zip(

@@ -31,7 +31,7 @@ from dataclasses import dataclass, fields
 import math
 import numbers
 import zlib
-from typing import Optional, Union
+from typing import Optional, overload, Union
 
 import numpy
 
@@ -122,6 +122,12 @@ class NoiseSpec:
 EXACT = NoiseSpec()
 
 
+@overload
+def quantize(values: float, precision: float) -> float: ...
+@overload
+def quantize(values: numpy.ndarray, precision: float) -> numpy.ndarray: ...
+
+
 def quantize(values: Union[float, numpy.ndarray], precision: float
              ) -> Union[float, numpy.ndarray]:
     """Round to a multiple of ``precision`` as std::round does (halves away from 0); 0: as is."""
@@ -165,8 +171,10 @@ class NoiseModel:
             raise NoiseConfigError(
                 'noise needs rng, a numpy.random.Generator (e.g. numpy.random.default_rng(seed)), '
                 f'got {rng!r}')
-        if isinstance(channels, bool) or not isinstance(channels, numbers.Integral) \
-                or channels < 1:
+        # Checked as any object (a setting may come from a file): typeshed's int is no
+        # numbers.Integral, so on ``channels`` itself the rest would be unreachable to mypy.
+        count: object = channels
+        if isinstance(count, bool) or not isinstance(count, numbers.Integral) or count < 1:
             raise NoiseConfigError(f'channels must be an integer >= 1, got {channels!r}')
         self.spec = spec
         self.channels = int(channels)
@@ -174,6 +182,7 @@ class NoiseModel:
         self._rng = rng
         self.bias = numpy.zeros(self.channels)
         if spec.has_bias:
+            assert rng is not None  # the spec is not exact: checked above
             self.bias = rng.normal(spec.bias_mean, spec.bias_stddev, self.channels)
             flip = rng.uniform(0.0, 1.0, self.channels) < 0.5
             self.bias[flip] = -self.bias[flip]
@@ -192,8 +201,10 @@ class NoiseModel:
         tau = spec.dynamic_bias_correlation_time_s
         sigma = spec.dynamic_bias_stddev
         step_stddev = math.sqrt(-sigma * sigma * tau / 2.0 * math.expm1(-2.0 * dt_s / tau))
+        rng = self._rng
+        assert rng is not None  # a dynamic bias is no exact spec: the constructor had one
         self.dynamic_bias = (math.exp(-dt_s / tau) * self.dynamic_bias
-                             + self._rng.normal(0.0, step_stddev, self.channels))
+                             + rng.normal(0.0, step_stddev, self.channels))
 
     def error(self, shape, dt_s: Optional[float] = None) -> numpy.ndarray:
         """
@@ -204,15 +215,24 @@ class NoiseModel:
         """
         spec = self.spec
         if spec.stddev > 0.0:
-            white = self._rng.normal(spec.mean, spec.stddev, shape)
+            rng = self._rng
+            assert rng is not None  # white noise is no exact spec: the constructor had one
+            white = rng.normal(spec.mean, spec.stddev, shape)
         else:
             white = numpy.full(shape, spec.mean)
         self.step_dynamic_bias(self.period_s if dt_s is None else dt_s)
         bias = self.bias + self.dynamic_bias
         return white + (bias[0] if self.channels == 1 else bias)
 
+    @overload
+    def apply(self, values: numpy.ndarray, dt_s: Optional[float] = None) -> numpy.ndarray: ...
+
+    @overload
+    def apply(self, values: float, dt_s: Optional[float] = None
+              ) -> Union[float, numpy.ndarray]: ...
+
     def apply(self, values: Union[float, numpy.ndarray], dt_s: Optional[float] = None
-              ) -> numpy.ndarray:
+              ) -> Union[float, numpy.ndarray]:
         """
         Return ``values`` with the noise added and rounded (float64); exact: as given.
 

@@ -47,11 +47,11 @@ def pose_from_values(values: Sequence[float], quaternion: bool = False,
         raise FrameError(f'a pose is {count} finite numbers')
     translation = (float(values[0]), float(values[1]), float(values[2]))
     if quaternion:
-        q = tuple(float(v) for v in values[3:])
-        norm = math.sqrt(sum(c * c for c in q))
+        qx, qy, qz, qw = (float(v) for v in values[3:])
+        norm = math.sqrt(sum(c * c for c in (qx, qy, qz, qw)))
         if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
             raise FrameError(f'the quaternion of a pose is not a unit one (norm {norm:.6g})')
-        return Transform(translation, tuple(c / norm for c in q))
+        return Transform(translation, (qx / norm, qy / norm, qz / norm, qw / norm))
     angles = [math.radians(v) if degrees else float(v) for v in values[3:]]
     return Transform(translation, quaternion_from_rpy(*angles))
 

@@ -22,16 +22,18 @@ class SensorConfigError(SetupError, ValueError):
     """Invalid sensor setting; the message names the field and its value."""
 
 
-def require_number(name: str, value: float, *, minimum: float = -math.inf,
+def require_number(name: str, value: object, *, minimum: float = -math.inf,
                    strict: bool = False) -> float:
     """Return ``value`` as a float, or raise SensorConfigError naming ``name``."""
-    ok = not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(value)
-    if ok:
-        ok = value > minimum if strict else value >= minimum
-    if not ok:
+    # The float returned is the one compared: for floats the same, and no other Real
+    # (an int past 2**53, a Fraction) can round onto the wrong side of the bound.
+    number = math.nan
+    if not isinstance(value, bool) and isinstance(value, numbers.Real):
+        number = float(value)
+    if not (math.isfinite(number) and (number > minimum if strict else number >= minimum)):
         bound = '' if minimum == -math.inf else f' {">" if strict else ">="} {minimum}'
         raise SensorConfigError(f'{name} must be a finite number{bound}, got {value!r}')
-    return float(value)
+    return number
 
 
 def require_generator(rng: Optional[numpy.random.Generator], *stds: float) -> None:

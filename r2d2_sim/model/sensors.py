@@ -20,6 +20,7 @@ import numbers
 from typing import Optional, Sequence, Tuple
 
 import numpy
+from numpy.typing import ArrayLike
 
 from r2d2_sim.model.imu import ImuModel, ImuReading
 from r2d2_sim.model.noise import NoiseModel, NoiseSpec
@@ -83,8 +84,9 @@ class ScanGeometry:
             raise SensorConfigError(
                 f'angle_max_rad must be above angle_min_rad by at most 2 pi, got '
                 f'angle_min_rad={self.angle_min_rad!r}, angle_max_rad={self.angle_max_rad!r}')
-        if isinstance(self.samples, bool) or not isinstance(self.samples, numbers.Integral) \
-                or self.samples < 2:
+        samples: object = self.samples  # any object: typeshed's int is no numbers.Integral
+        if isinstance(samples, bool) or not isinstance(samples, numbers.Integral) \
+                or samples < 2:
             raise SensorConfigError(f'samples must be an integer >= 2, got {self.samples!r}')
         range_min_m = require_number('range_min_m', self.range_min_m, minimum=0.0)
         range_max_m = require_number('range_max_m', self.range_max_m, minimum=range_min_m,
@@ -166,7 +168,7 @@ def ray_endpoints(geometry: ScanGeometry, origin_m: Sequence[float],
     return starts, origin + geometry.range_max_m * directions
 
 
-def ranges_from_hits(hit_fractions: Sequence[float], geometry: ScanGeometry,
+def ranges_from_hits(hit_fractions: ArrayLike, geometry: ScanGeometry,
                      noise_std_m: float = 0.0,
                      rng: Optional[numpy.random.Generator] = None,
                      noise: Optional[NoiseModel] = None) -> numpy.ndarray:
@@ -266,7 +268,7 @@ def lidar_directions(geometry: LidarGeometry) -> numpy.ndarray:
                                               numpy.sin(elevation)), axis=-1)
 
 
-def lidar_ranges(hit_fractions: Sequence[float], geometry: LidarGeometry,
+def lidar_ranges(hit_fractions: ArrayLike, geometry: LidarGeometry,
                  noise: Optional[NoiseModel] = None) -> numpy.ndarray:
     """
     Turn hit fractions along rays of ``range_max_m`` into ranges, (rings, samples) float64.

@@ -26,7 +26,7 @@ entities' bounds and a run's watch ask.
 from functools import partial
 import math
 import os
-from typing import Any, Dict, List, NamedTuple, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Set, Tuple
 
 from r2d2_sim.errors import WorldError
 from r2d2_sim.model.health import base_problem, joint_problem, joints_finite, twist_problem
@@ -41,13 +41,21 @@ from r2d2_sim.physics.stdio import silenced_output
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 
-__all__ = ['Body', 'BodyRemoved', 'Loading', 'WorldError', 'file_stamp']
+__all__ = ['Body', 'BodyRemoved', 'Loading', 'Motor', 'WorldError', 'file_stamp']
 
 ZERO: Vec3 = (0.0, 0.0, 0.0)
 
 
 class BodyRemoved(RuntimeError):
     """The body was removed from its world; its PyBullet id may now name another body."""
+
+
+class Motor(NamedTuple):
+    """The motor last set on a joint: a velocity motor, or a brake holding an angle."""
+
+    velocity: float                # target, rad/s or m/s (0 for a brake)
+    force: float                   # limit, N m or N
+    held: Optional[float] = None   # the angle (rad) or position (m) a brake holds
 
 
 class Loading(NamedTuple):
@@ -93,8 +101,10 @@ class Body:
         self._loading = loading
         # Every lasting change since loading, in order: (method name, args, kwargs).
         self._changes: List[Tuple[str, tuple, Dict[str, Any]]] = []
-        # The velocity motor last set on each joint (target, force), for a rebuild in place.
-        self._motors: Dict[int, Tuple[float, float]] = {}
+        # The motor last set on each joint, for a rebuild in place: (target velocity, force,
+        # the angle it holds, or None for a velocity motor).
+        self._motors: Dict[int, Motor] = {}
+        self._anchored: Set[int] = set()  # links whose contacts hold_joints anchored
         info = records.body_info(client, body_id)
         self.base_link_name = info.base_link_name
         self.urdf_name = info.name
@@ -122,10 +132,13 @@ class Body:
         # published step. Bind the per-step queries once instead.
         cid = self._client._client
         body = self._id
-        self._get_joint_states = partial(pybullet.getJointStates, body, physicsClientId=cid)
-        self._get_base_pose = partial(pybullet.getBasePositionAndOrientation, body,
-                                      physicsClientId=cid)
-        self._get_base_velocity = partial(pybullet.getBaseVelocity, body, physicsClientId=cid)
+        # Callables, not partials: once the body is removed they are _removed.
+        self._get_joint_states: Callable[..., Any] = partial(
+            pybullet.getJointStates, body, physicsClientId=cid)
+        self._get_base_pose: Callable[..., Any] = partial(
+            pybullet.getBasePositionAndOrientation, body, physicsClientId=cid)
+        self._get_base_velocity: Callable[..., Any] = partial(
+            pybullet.getBaseVelocity, body, physicsClientId=cid)
         self._multiply_transforms = partial(pybullet.multiplyTransforms, physicsClientId=cid)
         # A run's watch asks these after every step (sim/oracles.py).
         self._get_contact_points = partial(pybullet.getContactPoints, body, physicsClientId=cid)
@@ -218,10 +231,43 @@ class Body:
     def set_joint_velocities(self, indices: Sequence[int], velocities: Sequence[float],
                              max_forces: Sequence[float]) -> None:
         """Drive joints with velocity motors (target rad/s or m/s, force limit N or N m)."""
+        self._anchor(indices, False)
         self._client.setJointMotorControlArray(
             self.id, list(indices), pybullet.VELOCITY_CONTROL,
             targetVelocities=list(velocities), forces=list(max_forces))
-        self._motors.update(zip(indices, zip(velocities, max_forces)))
+        self._motors.update((index, Motor(velocity, force))
+                            for index, velocity, force in zip(indices, velocities, max_forces))
+
+    def hold_joints(self, indices: Sequence[int], max_forces: Sequence[float],
+                    positions: Optional[Sequence[float]] = None) -> None:
+        """
+        Brake joints: position motors hold their angles now (or ``positions``), within the forces.
+
+        Bullet's velocity motor keeps a speed, never an angle: at target 0 it
+        lets a joint turn by what its sequential solver leaves over each
+        step, in the order of the links (R2D2's parked wheels rolled backwards
+        at 0.2 mm/s, its first-listed front wheels' way, whatever the weight,
+        friction, ERP or wheel geometry). A position motor takes that back.
+        The held links' contacts are anchored too (Bullet's friction anchors),
+        so they do not slip either: friction alone, a constraint on speeds,
+        let the braked robot turn by 5e-6 rad/s. :meth:`set_joint_velocities`
+        lets them go.
+        """
+        if positions is None:
+            positions = self.joint_states(indices).positions
+        self._client.setJointMotorControlArray(
+            self.id, list(indices), pybullet.POSITION_CONTROL, targetPositions=list(positions),
+            targetVelocities=[0.0] * len(indices), forces=list(max_forces))
+        self._anchor(indices, True)
+        self._motors.update((index, Motor(0.0, force, position))
+                            for index, force, position in zip(indices, max_forces, positions))
+
+    def _anchor(self, links: Sequence[int], anchored: bool) -> None:
+        """Anchor the friction of the links' contacts (positional, as a brake's), or free it."""
+        for link in links:
+            if (link in self._anchored) != anchored:
+                self._client.changeDynamics(self.id, link, frictionAnchor=int(anchored))
+                (self._anchored.add if anchored else self._anchored.discard)(link)
 
     def set_wheel_lateral_friction(self, indices: Sequence[int], ratio: float) -> None:
         """
@@ -338,7 +384,7 @@ class Body:
         """Put the body back in its initial state: base pose and twist, joints, at once."""
         self._put(self._initial)
 
-    def moment(self) -> Tuple[Tuple[Pose, Tuple[Vec3, Vec3], JointStates], Dict[int, Any]]:
+    def moment(self) -> Tuple[Tuple[Pose, Tuple[Vec3, Vec3], JointStates], Dict[int, Motor]]:
         """Return the body's state now and its joints' motors, for :meth:`resume`."""
         return self._read_state(), dict(self._motors)
 
@@ -347,15 +393,20 @@ class Body:
         After :meth:`reload`, put back the state and motors :meth:`moment` returned.
 
         Exactly: the same base pose and twist, joint positions and
-        velocities, and velocity motors (those set since the changes
-        :meth:`reload` replays stay as they were last set).
+        velocities, and motors, held joints at the angles they held (those
+        set since the changes :meth:`reload` replays stay as they were last
+        set).
         """
         state, motors = moment
         self._put(state)
-        if motors:
-            indices = list(motors)
-            self.set_joint_velocities(indices, [motors[i][0] for i in indices],
-                                      [motors[i][1] for i in indices])
+        driven = [i for i, motor in motors.items() if motor.held is None]
+        held = [i for i, motor in motors.items() if motor.held is not None]
+        if driven:
+            self.set_joint_velocities(driven, [motors[i].velocity for i in driven],
+                                      [motors[i].force for i in driven])
+        if held:
+            self.hold_joints(held, [motors[i].force for i in held],
+                             [motors[i].held for i in held])
 
     def _put(self, state) -> None:
         (position, orientation), (linear, angular), joints = state
@@ -418,6 +469,7 @@ class Body:
         self._id = body_id
         self._bind_hot_path()
         self._motors = {}  # a fresh load has no motors but those its changes set again
+        self._anchored = set()
         for method, args, kwargs in self._changes:
             getattr(self, method)(*args, **kwargs)
 

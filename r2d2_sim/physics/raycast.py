@@ -32,6 +32,7 @@ outside its bounding boxes would hide what lies within; and
 from typing import Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy
+from numpy.typing import ArrayLike
 
 from r2d2_sim.physics.stdio import silenced_output
 
@@ -79,8 +80,7 @@ def exclude_from_rays(client: BulletClient, body_id: int,
         client.setCollisionFilterGroupMask(body_id, link, group, -1)
 
 
-def cast_rays(client: BulletClient, starts: Sequence[Sequence[float]],
-              ends: Sequence[Sequence[float]], mask: int = RAY_MASK, *,
+def cast_rays(client: BulletClient, starts: ArrayLike, ends: ArrayLike, mask: int = RAY_MASK, *,
               batch_size: int = MAX_BATCH_SIZE) -> numpy.ndarray:
     """
     Cast rays from ``starts`` to ``ends`` (N x 3, world) and return the hit fractions.
@@ -89,21 +89,21 @@ def cast_rays(client: BulletClient, starts: Sequence[Sequence[float]],
     means no hit. Batches of at most ``batch_size`` rays keep within PyBullet's
     limit (:data:`MAX_BATCH_SIZE`, one less than its MAX_RAY_INTERSECTION_BATCH_SIZE).
     """
-    starts = numpy.asarray(starts, dtype=float)
-    ends = numpy.asarray(ends, dtype=float)
-    if starts.ndim != 2 or starts.shape[1] != 3 or starts.shape != ends.shape:
+    starts_m = numpy.asarray(starts, dtype=float)
+    ends_m = numpy.asarray(ends, dtype=float)
+    if starts_m.ndim != 2 or starts_m.shape[1] != 3 or starts_m.shape != ends_m.shape:
         raise ValueError(f'starts and ends must both be N x 3, got shapes '
-                         f'{starts.shape} and {ends.shape}')
+                         f'{starts_m.shape} and {ends_m.shape}')
     if not 1 <= batch_size <= MAX_BATCH_SIZE:
         raise ValueError(f'batch_size must be in [1, {MAX_BATCH_SIZE}], got {batch_size}')
-    fractions = []
-    for first in range(0, len(starts), batch_size):
-        hits = client.rayTestBatch(starts[first:first + batch_size],
-                                   ends[first:first + batch_size],
+    fractions: List[float] = []
+    for first in range(0, len(starts_m), batch_size):
+        hits = client.rayTestBatch(starts_m[first:first + batch_size],
+                                   ends_m[first:first + batch_size],
                                    collisionFilterMask=mask)
-        if len(hits) != len(starts[first:first + batch_size]):
+        if len(hits) != len(starts_m[first:first + batch_size]):
             raise RuntimeError(f'rayTestBatch answered {len(hits)} of '
-                               f'{len(starts[first:first + batch_size])} rays')
+                               f'{len(starts_m[first:first + batch_size])} rays')
         fractions.extend(fraction if object_id != -1 else 1.0
                          for object_id, _, fraction, _, _ in hits)
     return numpy.array(fractions, dtype=float)
@@ -137,7 +137,7 @@ def cast_requests(client: BulletClient, requests: Sequence[RayRequest]) -> List[
     Each ray's answer is the one a call of its own with ``ray_mask(group)``
     would give, bit for bit.
     """
-    results: List[Optional[numpy.ndarray]] = [None] * len(requests)
+    results: Dict[int, numpy.ndarray] = {}  # by request: plan_calls puts each in one call
     for members, mask in plan_calls(requests):
         if len(members) == 1:
             starts, ends = requests[members[0]].starts, requests[members[0]].ends
@@ -150,4 +150,4 @@ def cast_requests(client: BulletClient, requests: Sequence[RayRequest]) -> List[
             count = len(requests[j].starts)
             results[j] = fractions[first:first + count]
             first += count
-    return results
+    return [results[i] for i in range(len(requests))]

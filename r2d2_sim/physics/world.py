@@ -15,7 +15,7 @@ from functools import partial
 import math
 import os
 import socket
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy
 
@@ -73,6 +73,7 @@ def display_problem(environ=os.environ) -> Optional[str]:
                 'under Xvfb: xvfb-run -a sim_node --ros-args -p gui:=true)')
     host, _, number = display.rpartition(':')
     number = number.split('.')[0]
+    address: Union[str, Tuple[str, int]]  # AF_UNIX: a path; AF_INET: (host, port)
     try:
         if host in ('', 'unix'):
             sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -133,8 +134,16 @@ class SimWorld:
             self.close()
             raise
 
-    def _setup(self, gravity: Vec3) -> None:
+    @property
+    def _live_client(self) -> BulletClient:
+        """Return the physics client; WorldError once the world is closed."""
         client = self._client
+        if client is None:
+            raise WorldError('the physics world is closed')
+        return client
+
+    def _setup(self, gravity: Vec3) -> None:
+        client = self._live_client
         client.resetSimulation()
         self.removed_since_built = 0
         client.setAdditionalSearchPath(pybullet_data.getDataPath())
@@ -166,20 +175,24 @@ class SimWorld:
         ``name`` (default: the URDF's ``<robot name>``, made unique) must not
         be taken. ``orientation`` is that of the URDF base frame.
         """
+        client = self._live_client
         try:
-            body_id = self._client.loadURDF(path, basePosition=position,
-                                            baseOrientation=orientation, flags=flags)
-        except self._client.error as exc:
+            body_id = client.loadURDF(path, basePosition=position,
+                                      baseOrientation=orientation, flags=flags)
+        except client.error as exc:
             raise WorldError(f'PyBullet cannot load {path}: {exc}') from None
         if name is None:
-            urdf_name = records.body_info(self._client, body_id).name
+            urdf_name = records.body_info(client, body_id).name
             name = self.unique_name(urdf_name or os.path.splitext(os.path.basename(path))[0])
         elif name in self.bodies:
-            self._client.removeBody(body_id)
+            client.removeBody(body_id)
             raise WorldError(f'a body named {name!r} is already in the world')
-        body = Body(self._client, body_id, name, source or path,
+        # Copied as tuples (a caller may pass lists), as loadURDF took them: 3 and 4 numbers.
+        x, y, z = position
+        qx, qy, qz, qw = orientation
+        body = Body(client, body_id, name, source or path,
                     body_yaw_offset_rad=body_yaw_offset_rad, spawned=spawned,
-                    loading=Loading(path, tuple(position), tuple(orientation), flags,
+                    loading=Loading(path, (x, y, z), (qx, qy, qz, qw), flags,
                                     file_stamp(_found(path))))
         self.bodies[name] = body
         return body
@@ -195,7 +208,7 @@ class SimWorld:
         from the file.
         """
         x, y, yaw = pose
-        client = self._client
+        client = self._live_client
         orientation = client.getQuaternionFromEuler((0.0, 0.0, yaw - body_yaw_offset_rad))
         body = self.load(path, (x, y, 0.0), orientation, name=name, spawned=spawned,
                          flags=self.robot_flags, body_yaw_offset_rad=body_yaw_offset_rad,
@@ -343,11 +356,11 @@ class SimWorld:
         ``mask``: the groups the rays can hit; ``ray_mask(group)`` passes
         through the links a robot put in its own ray group.
         """
-        return cast_rays(self._client, starts, ends, mask)
+        return cast_rays(self._live_client, starts, ends, mask)
 
     def cast_requests(self, requests: Sequence[RayRequest]) -> List[numpy.ndarray]:
         """Cast several sensors' rays in as few calls as their robots allow (see raycast)."""
-        return cast_requests(self._client, requests)
+        return cast_requests(self._live_client, requests)
 
     def render(self, width_px: int, height_px: int, view: Sequence[float],
                projection: Sequence[float]) -> Tuple[bytes, numpy.ndarray]:
@@ -358,11 +371,32 @@ class SimWorld:
         same pixels in GUI mode, so tests and headless runs see what users see.
         The depth buffer is OpenGL's non-linear d in [0, 1], shaped (height, width).
         """
-        _, _, rgba, depth, _ = self._client.getCameraImage(
+        rgb, depth, _ = self._render(width_px, height_px, view, projection,
+                                     pybullet.ER_NO_SEGMENTATION_MASK)
+        return rgb, depth
+
+    def render_seeing(self, body: Body, width_px: int, height_px: int, view: Sequence[float],
+                      projection: Sequence[float]) -> Tuple[bytes, numpy.ndarray, numpy.ndarray]:
+        """
+        Render as :meth:`render` does, and say where ``body`` is seen: a bool per pixel.
+
+        The same pixels as :meth:`render` (the renderer's segmentation mask
+        is drawn beside them); the mask is (height, width), True where the
+        nearest surface is one of the body's links.
+        """
+        rgb, depth, segmentation = self._render(width_px, height_px, view, projection, 0)
+        # Without ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX each pixel is the body's id, -1 none.
+        return rgb, depth, segmentation.reshape(height_px, width_px) == body.id
+
+    def _render(self, width_px: int, height_px: int, view: Sequence[float],
+                projection: Sequence[float], flags: int
+                ) -> Tuple[bytes, numpy.ndarray, numpy.ndarray]:
+        _, _, rgba, depth, segmentation = self._live_client.getCameraImage(
             width_px, height_px, viewMatrix=list(view), projectionMatrix=list(projection),
-            renderer=pybullet.ER_TINY_RENDERER, flags=pybullet.ER_NO_SEGMENTATION_MASK)
+            renderer=pybullet.ER_TINY_RENDERER, flags=flags)
         rgb = numpy.asarray(rgba, dtype=numpy.uint8).reshape(height_px, width_px, 4)[:, :, :3]
-        return rgb.tobytes(), numpy.asarray(depth, dtype=float).reshape(height_px, width_px)
+        return (rgb.tobytes(), numpy.asarray(depth, dtype=float).reshape(height_px, width_px),
+                numpy.asarray(segmentation))
 
     def follow_camera(self, body: Body, distance_m: float = 2.0) -> None:
         """Point the GUI camera at a body; no-op without a window."""
@@ -370,7 +404,8 @@ class SimWorld:
             return
         base = body.world_state()
         yaw = math.degrees(yaw_of(base.orientation))
-        self._client.resetDebugVisualizerCamera(distance_m, yaw - 90.0, -30.0, base.position)
+        self._live_client.resetDebugVisualizerCamera(distance_m, yaw - 90.0, -30.0,
+                                                     base.position)
 
     def close(self) -> None:
         """Disconnect the physics client; safe to call twice."""

@@ -12,7 +12,7 @@ around its shape in its base link's frame (GetEntityBounds).
 """
 
 import math
-from typing import List, NamedTuple, Optional, Sequence, Tuple, TYPE_CHECKING
+from typing import Iterable, List, NamedTuple, Optional, Sequence, Tuple, TYPE_CHECKING
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.convex import (
@@ -35,6 +35,12 @@ MAX_HULL_POINTS = 1000
 MAX_COORDINATE_M = 1.0e6
 
 
+def _vec3(values: Iterable[float]) -> Vec3:
+    """Return three numbers (a point, a corner) as a tuple of three floats."""
+    x, y, z = values
+    return float(x), float(y), float(z)
+
+
 class Region(NamedTuple):
     """
     A region as the standard's Bounds gives it: ``kind`` and its ``points``.
@@ -50,14 +56,14 @@ class Region(NamedTuple):
     @staticmethod
     def box(low: Sequence[float], high: Sequence[float]) -> 'Region':
         """Return the box between two corners, listed as the standard does: upper, then lower."""
-        upper = tuple(float(max(a, b)) for a, b in zip(low, high))
-        lower = tuple(float(min(a, b)) for a, b in zip(low, high))
+        upper = _vec3(max(a, b) for a, b in zip(low, high))
+        lower = _vec3(min(a, b) for a, b in zip(low, high))
         return Region('box', (upper, lower))
 
     @staticmethod
     def sphere(centre: Sequence[float], radius_m: float) -> 'Region':
         """Return the ball of ``radius_m`` around ``centre``."""
-        return Region('sphere', (tuple(map(float, centre)), (float(radius_m), 0.0, 0.0)))
+        return Region('sphere', (_vec3(centre), (float(radius_m), 0.0, 0.0)))
 
 
 EMPTY = Region()
@@ -82,7 +88,7 @@ def check_region(region: Region, what: str = 'bounds', code: str = 'OPERATION_FA
                for p in points):
         raise RefusedError(code, f'{what}: every point needs three finite numbers within '
                                  f'{MAX_COORDINATE_M:g} m')
-    points = tuple(tuple(float(v) for v in p) for p in points)
+    points = tuple(_vec3(p) for p in points)
     if region.kind == 'box':
         if len(points) != 2:
             raise RefusedError(code, f'{what}: a box has two corner points, not {len(points)}')
@@ -113,7 +119,7 @@ def region_box(region: Region) -> Tuple[Vec3, Vec3]:
     """Return the axis-aligned box around a checked, non-empty region: (low, high)."""
     shape = region_shape(region)
     spans = [extent(shape, axis) for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))]
-    return tuple(s[0] for s in spans), tuple(s[1] for s in spans)
+    return _vec3(s[0] for s in spans), _vec3(s[1] for s in spans)
 
 
 def _shape(kind: str, dimensions: Sequence[float], pose: Transform,
@@ -199,4 +205,4 @@ def body_box(body: 'Body') -> Tuple[Vec3, Vec3]:
     for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
         ends = [extent(convex, axis) for convex in shapes]
         spans.append((min(e[0] for e in ends), max(e[1] for e in ends)))
-    return tuple(s[0] for s in spans), tuple(s[1] for s in spans)
+    return _vec3(s[0] for s in spans), _vec3(s[1] for s in spans)

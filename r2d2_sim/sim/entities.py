@@ -22,11 +22,10 @@ from r2d2_sim.model.health import MAX_DISTANCE_M
 from r2d2_sim.model.transforms import (
     BaseState, compose, quaternion_multiply, Quaternion as Quat, rotate, Transform,
     Vector3 as Vec3)
-from r2d2_sim.physics.description import DescriptionFile
 from r2d2_sim.sim.names import MAX_NAME_LENGTH, NAME
 from r2d2_sim.sim.bounds import body_box, body_meets, check_region, Region
 from r2d2_sim.sim.sdf.loading import SdfSettings
-from r2d2_sim.sim.spawnables import read_spawnable, Spawnable
+from r2d2_sim.sim.spawnables import Closable, read_spawnable, Spawnable
 from r2d2_sim.sim.tags import check_description_text, check_tags
 
 if TYPE_CHECKING:  # typing only: the testing API imports this module without PyBullet
@@ -136,13 +135,17 @@ def name_filter(pattern: str) -> Callable[[str], bool]:
     return lambda name: compiled.search(name) is not None
 
 
-def check_pose(position: Sequence[float], orientation: Sequence[float]) -> Quat:
+def check_pose(position: Sequence[float], orientation: Sequence[float]) -> Transform:
     """
-    Return the orientation normalised; INVALID_POSE for a NaN or a non-unit quaternion.
+    Return the pose, its orientation normalised; INVALID_POSE for a NaN or a non-unit quaternion.
 
     Also for a position beyond the blow-up check's bound (10 km): a robot put
-    there would be reset as blown up at its next measurement.
+    there would be reset as blown up at its next measurement; and for other
+    than 3 numbers and 4 (a caller in Python may give any sequence).
     """
+    if len(position) != 3 or len(orientation) != 4:
+        raise RefusedError('INVALID_POSE', f'a pose is 3 numbers of position and 4 of '
+                           f'orientation, not {len(position)} and {len(orientation)}')
     if not _finite(position, orientation):
         raise RefusedError('INVALID_POSE', 'the pose has a value that is not finite')
     if max(map(abs, position)) > MAX_DISTANCE_M:
@@ -152,7 +155,9 @@ def check_pose(position: Sequence[float], orientation: Sequence[float]) -> Quat:
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise RefusedError('INVALID_POSE', f'the orientation is not a unit quaternion '
                            f'(norm {norm:.6g})')
-    return tuple(q / norm for q in orientation)
+    x, y, z = position
+    qx, qy, qz, qw = orientation
+    return Transform((x, y, z), (qx / norm, qy / norm, qz / norm, qw / norm))
 
 
 class Entities:
@@ -169,7 +174,7 @@ class Entities:
         self._world = world
         self.world_frame_id = world_frame_id
         self.sdf = sdf  # where SDF models are found, what they are compared with
-        self._files: Dict[str, DescriptionFile] = {}  # spawned from text, by entity name
+        self._files: Dict[str, Closable] = {}  # spawned from text, by entity name
         self._info: Dict[str, EntityInfo] = {}        # as set, by entity name
         # Frames a request may name beside the entities: the world's named poses.
         self.named_frames: Dict[str, Transform] = {}
@@ -191,7 +196,7 @@ class Entities:
         body = self.body(name)
         position, orientation = body.link_pose(-1)
         moving = body.world_state()  # the same origin: the body frame only turns by a yaw
-        return BaseState(tuple(position), tuple(orientation), moving.linear_velocity,
+        return BaseState(position, orientation, moving.linear_velocity,
                          moving.angular_velocity)
 
     def frame_pose(self, frame_id: str) -> Transform:
@@ -225,14 +230,14 @@ class Entities:
         the body. A static body may not move. Returns the body placed.
         """
         body = self.body(name)
-        orientation = check_pose(position, orientation)
+        placed = check_pose(position, orientation)
         if not _finite(linear, angular):
             raise RefusedError('INVALID_POSE', 'the twist has a value that is not finite')
         if body.static and any(v != 0.0 for v in (*linear, *angular)):
             raise RefusedError('OPERATION_FAILED', f'{name} is static: it takes a pose, '
                                                    'not a twist')
         frame = self.frame_pose(frame_id)
-        pose = compose(frame, Transform(tuple(position), orientation))
+        pose = compose(frame, placed)
         yaw = body.body_yaw_offset_rad
         turn = (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
         body.set_world_state(pose.translation, quaternion_multiply(pose.rotation, turn),
@@ -270,9 +275,8 @@ class Entities:
             if sum(body.spawned for body in self._world.bodies.values()) >= MAX_SPAWNED:
                 raise RefusedError('OPERATION_FAILED', f'{MAX_SPAWNED} entities are spawned '
                                                        'already: delete some first')
-            orientation = check_pose(request.position, request.orientation)
             pose = compose(self.frame_pose(request.frame_id),
-                           Transform(tuple(request.position), orientation))
+                           check_pose(request.position, request.orientation))
         except RefusedError:
             if spawnable is not None and spawnable.file is not None:
                 spawnable.file.close()

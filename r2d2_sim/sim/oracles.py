@@ -96,15 +96,15 @@ def touching(world, body: Body, others: Optional[Iterable[Tuple[str, Body]]] = N
         best = strongest.get(point.body_b)
         if best is None or point.normal_force_n > best.normal_force_n:
             strongest[point.body_b] = point
-    touches = []
+    touches: List[Touch] = []
     if not strongest:
         return touches
     for name, other in bodies.items() if others is None else others:
-        point = strongest.get(other.id) if other is not body else None
-        if point is not None:
-            touches.append(Touch(name, body.link_name(point.link_a),
-                                 other.link_name(point.link_b), point.position_on_a,
-                                 point.normal_force_n))
+        best = strongest.get(other.id) if other is not body else None
+        if best is not None:
+            touches.append(Touch(name, body.link_name(best.link_a),
+                                 other.link_name(best.link_b), best.position_on_a,
+                                 best.normal_force_n))
     return touches
 
 
@@ -197,8 +197,8 @@ class RunWatch:
         touches = {touch.other: touch
                    for touch in touching(self._simulation.world, body, others)}
         for name in [n for n in self._open if n not in touches]:
-            index = self._open.pop(name)
-            self.contacts[index] = self.contacts[index]._replace(end_ns=time_ns)
+            ended = self._open.pop(name)
+            self.contacts[ended] = self.contacts[ended]._replace(end_ns=time_ns)
         for name, touch in touches.items():
             index = self._open.get(name)
             if index is None:

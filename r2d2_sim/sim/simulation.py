@@ -59,6 +59,8 @@ __all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest', '
 
 # Follow the robot with the GUI camera this many times per simulated second.
 GUI_CAMERA_RATE_HZ = 30.0
+# A spawn overlapping a robot deeper than resting contacts sink (about 0.01 mm) is a shove.
+SHOVE_DEPTH_M = 0.001
 
 # Told the robots after every change of the set (start-up, spawn, delete, reset).
 RobotsWatcher = Callable[[Sequence[Robot]], None]
@@ -112,7 +114,7 @@ class Simulation:
         self._step_watchers: List[Callable[[int], None]] = []
         # What SDF worlds and spawns are searched and compared with.
         sdf = SdfSettings(tuple(config.model_paths), self.time_step_s,
-                          tuple(config.gravity_m_s2), config.ground_plane, config.strict_worlds)
+                          config.gravity_m_s2, config.ground_plane, config.strict_worlds)
         # The world file loaded (the empty world for world ''), the ones that can be.
         self.worlds = WorldFiles(Places(config.world_paths), sdf, self.time_step_s)
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
@@ -210,23 +212,23 @@ class Simulation:
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
-        casting = [(i, robot.pending_rays()) for i, robot in enumerate(robots)
-                   if measurements[i] is not None and robot.pending_rays()]
+        casting = [(i, measurement, robots[i].pending_rays())
+                   for i, measurement in enumerate(measurements)
+                   if measurement is not None and robots[i].pending_rays()]
         if casting:
             # Every robot's rays of this step cast together (raycast.cast_requests: a
             # call per robot, its mask's); each robot then takes its answers.
-            answers = iter(world.cast_requests([r for _, rays in casting for r in rays]))
-            for i, rays in casting:
+            answers = iter(world.cast_requests([r for _, _, rays in casting for r in rays]))
+            for i, measurement, rays in casting:
                 measurements[i] = robots[i].take_rays(
-                    measurements[i], [next(answers) for _ in rays])
-        measurements = tuple(measurements)
+                    measurement, [next(answers) for _ in rays])
         for watcher in self._step_watchers:
             watcher(time_ns)
         if state_due:
             self.last_frame_step = step
         elif not any(measurements):
             return None
-        return StepResult(step, time_ns, state_due, measurements)
+        return StepResult(step, time_ns, state_due, tuple(measurements))
 
     def read_states(self) -> StepResult:
         """Read every robot's state now, as a state publication at the current step would."""
@@ -319,6 +321,7 @@ class Simulation:
             self.pristine = False
             if notes:
                 self._warn(f'{body.name}: {notes}')
+            self._warn_of_overlaps(body)
             return body.name
         try:
             namespace = self._free_namespace(request.namespace)
@@ -358,7 +361,20 @@ class Simulation:
             if isinstance(exc, ConfigError):
                 raise RefusedError('NAMESPACE_INVALID', str(exc)) from None
             raise
+        self._warn_of_overlaps(body)
         return robot.name
+
+    def _warn_of_overlaps(self, body: Body) -> None:
+        """Say in one line which robots a spawned body overlaps: the next step shoves them."""
+        met = []
+        for robot in self.robots:
+            if robot.body is not body:
+                nearest = body.closest_points(robot.body, 0.0)
+                if nearest is not None and nearest.distance_m < -SHOVE_DEPTH_M:
+                    met.append(f'robot {robot.name} by {-nearest.distance_m * 1e3:.0f} mm')
+        if met:
+            self._warn(f'{body.name} overlaps {", ".join(met)}: the next step pushes them '
+                       'apart (spawn clear of robots)')
 
     def _free_namespace(self, namespace: str) -> str:
         """Return a spawned robot's namespace, resolved; NAMESPACE_INVALID if it cannot be."""

@@ -14,7 +14,7 @@ spawn as the URDF written from them.
 
 import math
 import os
-from typing import List, NamedTuple, Optional, Sequence
+from typing import List, NamedTuple, Optional, Protocol, Sequence
 import xml.etree.ElementTree as ElementTree
 from xml.sax.saxutils import quoteattr
 
@@ -28,8 +28,8 @@ from r2d2_sim.physics.description import (
 from r2d2_sim.sim.sdf.loading import SdfSettings
 from r2d2_sim.sim.sdf.spawning import is_sdf_spawn, read_sdf_spawnable
 
-__all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'Spawnable', 'box_urdf',
-           'MAX_DESCRIPTION_BYTES', 'MAX_LINKS']
+__all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'Spawnable', 'Closable',
+           'box_urdf', 'MAX_DESCRIPTION_BYTES', 'MAX_LINKS']
 
 # What one spawn request may cost (a URDF of R2D2 is 14 kB and 16 links).
 MAX_DESCRIPTION_BYTES = 1_000_000
@@ -94,6 +94,13 @@ def _check_mesh(filename: str, base_dir: Optional[str]) -> None:
         raise RefusedError('MISSING_ASSETS', f'mesh {shown} does not exist')
 
 
+class Closable(Protocol):
+    """What a spawn keeps open while its body lives (a temporary file, an SDF model's files)."""
+
+    def close(self) -> None:
+        """Remove what was written; closing twice does nothing."""
+
+
 class Spawnable(NamedTuple):
     """
     What a spawn loads: a URDF file and its text, a temporary file to close, the name it gives.
@@ -104,7 +111,7 @@ class Spawnable(NamedTuple):
     """
 
     path: str
-    file: Optional[object]   # with close(): the temporary file(s), or None
+    file: Optional[Closable]   # the temporary file(s), or None
     name: str
     text: str
     base: Transform = IDENTITY

@@ -266,6 +266,7 @@ class Startup:
         """
         robot_of = {id(robot.body): robot for robot in robots}
         world = self._world
+        plan: List[Tuple[Body, Optional[_Entity]]]
         if as_launched:
             plan = [(entity.body, entity) for entity in self._entities]
         else:
@@ -374,6 +375,7 @@ class Startup:
 
     def _load_again(self, entity: _Entity) -> Optional[Robot]:
         """Load a deleted start-up robot as at start-up; None (one error line) if it cannot be."""
+        assert entity.robot is not None  # asked only of a robot's entity
         try:
             robot = self.load_robot(entity.robot)
         except SetupError as exc:

@@ -29,6 +29,7 @@ Foxglove WebSocket client of the live view). Every public name is importable
 from here.
 """
 
+from r2d2_sim import deprecations
 from r2d2_sim.client import (
     Pose2D, pose_from_odometry, ros_child_env, spin_until, stamp_ns, wait_for)
 from r2d2_sim.errors import RefusedError, StartupError
@@ -70,4 +71,5 @@ def __getattr__(name: str):
     # DOMAIN_IDS follows R2D2_SIM_DOMAIN_IDS as it is when asked, not at import.
     if name == 'DOMAIN_IDS':
         return domains.domain_ids()
-    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    # A name renamed here (WorldError...) works, warning, until deprecations.REMOVED_IN.
+    return deprecations.renamed(__name__, name)

@@ -7,9 +7,10 @@ and service clients are the caller's, and every wait has a deadline.
 
 import os
 import time
-from typing import Callable, Optional, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 import rclpy
+from rclpy.client import Client
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -17,7 +18,38 @@ from rclpy.node import Node
 from r2d2_sim.client import spin_until
 from r2d2_sim.testing.executor import HarnessError
 
-__all__ = ['RemoteProbe']
+__all__ = ['RemoteProbe', 'send_request', 'Wait']
+
+# How a caller waits: spin until condition() holds (True) or timeout_s passes (False).
+Wait = Callable[[Callable[[], bool], float], bool]
+
+
+def send_request(client: Client, request: Any, wait: Wait, timeout_s: float,
+                 resend_after_s: Optional[float] = None,
+                 abort: Optional[Callable[[], bool]] = None) -> Any:
+    """
+    Send ``request`` through ``client``; return the reply (None: the deadline, or ``abort()``).
+
+    ``wait`` spins the client's executor (``RemoteProbe.spin_until``).
+    ``resend_after_s``, for idempotent requests only: send the request
+    again if no reply came in that long. A reply can be lost for good:
+    rmw_fastrtps drops it when, 100 ms after the request came in, the
+    server has still not discovered the client's reply reader, which a
+    busy machine does (seen once with one core kept busy beside the test
+    suite). A late reply to an earlier send is dropped.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        future = client.call_async(request)
+        wait_s = deadline - time.monotonic()
+        if resend_after_s is not None:
+            wait_s = min(wait_s, resend_after_s)
+        wait(lambda: future.done() or (abort is not None and abort()), max(wait_s, 0.0))
+        if future.done():
+            return future.result()
+        client.remove_pending_request(future)
+        if (abort is not None and abort()) or time.monotonic() >= deadline:
+            return None
 
 
 class RemoteProbe:
@@ -71,29 +103,8 @@ class RemoteProbe:
     def call_client(self, client, request, timeout_s: float,
                     resend_after_s: Optional[float] = None,
                     abort: Optional[Callable[[], bool]] = None):
-        """
-        Send ``request`` through ``client`` and spin for the reply (None: deadline or abort()).
-
-        ``resend_after_s``, for idempotent requests only: send the request
-        again if no reply came in that long. A reply can be lost for good:
-        rmw_fastrtps drops it when, 100 ms after the request came in, the
-        server has still not discovered the client's reply reader, which a
-        busy machine does (seen once with one core kept busy beside the test
-        suite). A late reply to an earlier send is dropped.
-        """
-        deadline = time.monotonic() + timeout_s
-        while True:
-            future = client.call_async(request)
-            wait_s = deadline - time.monotonic()
-            if resend_after_s is not None:
-                wait_s = min(wait_s, resend_after_s)
-            spin_until(self.executor, lambda: future.done() or (abort is not None and abort()),
-                       max(wait_s, 0.0))
-            if future.done():
-                return future.result()
-            client.remove_pending_request(future)
-            if (abort is not None and abort()) or time.monotonic() >= deadline:
-                return None
+        """Send ``request`` through ``client`` and spin for the reply: :func:`send_request`."""
+        return send_request(client, request, self.spin_until, timeout_s, resend_after_s, abort)
 
     def close(self) -> None:
         """Shut the executor down, destroy the node, shut the context down; safe twice."""

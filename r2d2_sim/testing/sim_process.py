@@ -27,101 +27,7 @@ STATUS_RESEND_S = 1.0
 SERVICES = (('pause', SetBool), ('step', Trigger), ('reset', Trigger), ('get_status', Trigger))
 
 
-class ControlClient:
-    """
-    The node's own control services (``~/pause``, ``~/step``, ``~/reset``, ``~/get_status``...).
-
-    Each reply is the node's JSON state; ``last_status`` and ``paused`` follow
-    the replies. The owner gives ``probe``, ``process``, ``node_path``,
-    ``timeout_s``, ``_clients`` and ``_not_before_ns``.
-    """
-
-    paused = False
-    last_status: Dict[str, Any] = {}
-
-    def _request(self, name: str, request, resend_after_s: Optional[float] = None,
-                 client=None) -> Dict[str, Any]:
-        if self._exited():
-            raise HarnessError(f'sim_node has exited (status {self.process.returncode})')
-        client = client or self._clients[name]
-        reply = self.probe.call_client(client, request, self.timeout_s,
-                                       resend_after_s, abort=self._exited)
-        if reply is None:
-            raise HarnessError(f'{client.srv_name} did not answer within {self.timeout_s:g} s')
-        facts = json.loads(reply.message)
-        if name != 'get_joint_info':
-            self.last_status = facts
-            self.paused = facts['paused']
-        if not reply.success:
-            raise HarnessError(f'~/{name} failed: {facts.get("error", reply.message)}')
-        return facts
-
-    def pause(self, paused: bool = True) -> Dict[str, Any]:
-        """Pause (or with False resume) through ``~/pause``; return the reply's JSON state."""
-        request = SetBool.Request()
-        request.data = paused
-        return self._request('pause', request)
-
-    def resume(self) -> Dict[str, Any]:
-        """Let simulated time run again; return the reply's JSON state."""
-        return self.pause(False)
-
-    def status(self) -> Dict[str, Any]:
-        """
-        Return the simulator's state without changing it.
-
-        Asks ``~/get_status`` and returns its JSON reply: ``paused``, ``step``,
-        ``sim_time_ns``, ``sim_time``, ``commands_received``.
-        """
-        return self._request('get_status', Trigger.Request(), STATUS_RESEND_S)
-
-    def step(self, count: int = 1) -> Dict[str, Any]:
-        """
-        Advance a paused simulator ``count`` control periods through ``~/step``.
-
-        Returns the last reply with ``steps``, the physics steps of all the
-        calls. Raises HarnessError if it is running (pause it first).
-        """
-        total = 0
-        facts: Dict[str, Any] = {}
-        for _ in range(count):
-            facts = self._request('step', Trigger.Request())
-            total += facts['steps']
-        facts['steps'] = total
-        return facts
-
-    def reset(self) -> Dict[str, Any]:
-        """
-        Put the robot back at its initial pose through ``~/reset``; return the reply's JSON.
-
-        The node publishes the reset robot at its next publication: the state
-        readers wait for one after the reply's time (while paused, step() first).
-        """
-        facts = self._request('reset', Trigger.Request())
-        self._not_before_ns = facts['sim_time_ns'] + 1
-        return facts
-
-    def joint_info(self, robot: Optional[str] = None) -> Dict[str, Any]:
-        """
-        Return a robot's ``~/get_joint_info`` JSON: ``robot``, ``urdf`` and ``joints``.
-
-        ``robot``: its name (default: the first robot). Its service is on the
-        robot's node: the simulator's for the one default robot, else
-        ``<robot namespace>/<node name>/get_joint_info``.
-        """
-        handle = self.robot(robot)
-        path = f'{handle.namespace.rstrip("/")}/{self.node_path.rsplit("/", 1)[1]}'
-        client = self._clients.get(path)
-        if client is None:
-            client = self._clients[path] = self.probe.node.create_client(
-                Trigger, f'{path}/get_joint_info')
-            if not self.probe.spin_until(client.service_is_ready, self.timeout_s):
-                raise HarnessError(f'{path}/get_joint_info was not available within '
-                                   f'{self.timeout_s:g} s')
-        return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S, client)
-
-
-class SimProcess(ControlClient, FirstRobot, TransformLookup, WorldVerbs):
+class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
     """
     The ``sim_node`` executable in a process of its own, driven through its services.
 
@@ -208,6 +114,89 @@ class SimProcess(ControlClient, FirstRobot, TransformLookup, WorldVerbs):
         except BaseException:
             self.stop()
             raise
+
+    # -- the node's own control services (~/pause, ~/step, ~/reset, ~/get_status) ------
+
+    def _request(self, name: str, request, resend_after_s: Optional[float] = None,
+                 client=None) -> Dict[str, Any]:
+        if self._exited():
+            raise HarnessError(f'sim_node has exited (status {self.process.returncode})')
+        client = client or self._clients[name]
+        reply = self.probe.call_client(client, request, self.timeout_s,
+                                       resend_after_s, abort=self._exited)
+        if reply is None:
+            raise HarnessError(f'{client.srv_name} did not answer within {self.timeout_s:g} s')
+        facts = json.loads(reply.message)
+        if name != 'get_joint_info':
+            self.last_status = facts
+            self.paused = facts['paused']
+        if not reply.success:
+            raise HarnessError(f'~/{name} failed: {facts.get("error", reply.message)}')
+        return facts
+
+    def pause(self, paused: bool = True) -> Dict[str, Any]:
+        """Pause (or with False resume) through ``~/pause``; return the reply's JSON state."""
+        request = SetBool.Request()
+        request.data = paused
+        return self._request('pause', request)
+
+    def resume(self) -> Dict[str, Any]:
+        """Let simulated time run again; return the reply's JSON state."""
+        return self.pause(False)
+
+    def status(self) -> Dict[str, Any]:
+        """
+        Return the simulator's state without changing it.
+
+        Asks ``~/get_status`` and returns its JSON reply: ``paused``, ``step``,
+        ``sim_time_ns``, ``sim_time``, ``commands_received``.
+        """
+        return self._request('get_status', Trigger.Request(), STATUS_RESEND_S)
+
+    def step(self, count: int = 1) -> Dict[str, Any]:
+        """
+        Advance a paused simulator ``count`` control periods through ``~/step``.
+
+        Returns the last reply with ``steps``, the physics steps of all the
+        calls. Raises HarnessError if it is running (pause it first).
+        """
+        total = 0
+        facts: Dict[str, Any] = {}
+        for _ in range(count):
+            facts = self._request('step', Trigger.Request())
+            total += facts['steps']
+        facts['steps'] = total
+        return facts
+
+    def reset(self) -> Dict[str, Any]:
+        """
+        Put the robot back at its initial pose through ``~/reset``; return the reply's JSON.
+
+        The node publishes the reset robot at its next publication: the state
+        readers wait for one after the reply's time (while paused, step() first).
+        """
+        facts = self._request('reset', Trigger.Request())
+        self._not_before_ns = facts['sim_time_ns'] + 1
+        return facts
+
+    def joint_info(self, robot: Optional[str] = None) -> Dict[str, Any]:
+        """
+        Return a robot's ``~/get_joint_info`` JSON: ``robot``, ``urdf`` and ``joints``.
+
+        ``robot``: its name (default: the first robot). Its service is on the
+        robot's node: the simulator's for the one default robot, else
+        ``<robot namespace>/<node name>/get_joint_info``.
+        """
+        handle = self.robot(robot)
+        path = f'{handle.namespace.rstrip("/")}/{self.node_path.rsplit("/", 1)[1]}'
+        client = self._clients.get(path)
+        if client is None:
+            client = self._clients[path] = self.probe.node.create_client(
+                Trigger, f'{path}/get_joint_info')
+            if not self.probe.spin_until(client.service_is_ready, self.timeout_s):
+                raise HarnessError(f'{path}/get_joint_info was not available within '
+                                   f'{self.timeout_s:g} s')
+        return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S, client)
 
     def _connect(self, namespaces) -> None:
         """Create the clients, ``/clock`` and the subscriptions of robots in ``namespaces``."""
@@ -314,8 +303,9 @@ class SimProcess(ControlClient, FirstRobot, TransformLookup, WorldVerbs):
         """Return the client of the node's simulation_interfaces services (made on first use)."""
         if self._standard is None:
             namespace = self.node_path.rsplit('/', 1)[0]
+            # Queries sent again, as ~/get_status is: a reply can be lost on a busy machine.
             self._standard = StandardClient(self.probe.node, self.probe.spin_until, namespace,
-                                            self.timeout_s)
+                                            self.timeout_s, resend_s=STATUS_RESEND_S)
         return self._standard
 
     def _world_backend(self) -> StandardWorld:

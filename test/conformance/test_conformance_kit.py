@@ -17,7 +17,8 @@ from common import REPO
 from r2d2_sim.conformance import BY_ID, CLAUSES, FAIL, GROUPS, KitError, Outcome, PASS, select
 from r2d2_sim.conformance.cli import main
 from r2d2_sim.conformance.discovery import (
-    FEATURE_INTERFACES, FEATURES, find_interfaces, SERVICES, snake_case, SUB_FEATURES)
+    FEATURE_INTERFACES, FEATURES, find_interfaces, SERVICES, simulator_levels, snake_case,
+    SUB_FEATURES)
 from r2d2_sim.conformance.report import (
     exit_status, markdown_matrix, matrix, SKIP, summary, write_junit)
 
@@ -60,34 +61,53 @@ def test_the_feature_tables_cover_every_feature_and_interface():
     assert set(SERVICES) - owned == {'GetSimulatorFeatures', 'GetEntities'}
 
 
+def test_state_12_quotes_incorrect_transition_with_what_limits_it():
+    """The sentence is not cut before its limit: 103 is for pausing a stopped simulation."""
+    assert BY_ID['STATE-12'].quote.endswith(
+        'INCORRECT_TRANSITION = 103 # Incorrect transition (pausing when in stopped state).')
+
+
 # -- discovery by type ------------------------------------------------------------------
 
 def _graph(*pairs):
     return [(name, [f'simulation_interfaces/{kind}']) for name, kind in pairs]
 
 
-def test_discovery_finds_services_and_the_action_by_type_under_the_prefix():
-    """Any name will do; the prefix bounds the search; the action is its send_goal service."""
+def test_discovery_finds_services_and_the_action_by_type_at_the_prefix():
+    """Any name will do; only the prefix's own level counts; the action is its send_goal."""
     graph = _graph(('/gz/step', 'srv/StepSimulation'), ('/gz/Spawn', 'srv/SpawnEntity'),
                    ('/gz/steps/_action/send_goal', 'action/SimulateSteps_SendGoal'),
                    ('/gz/steps/_action/get_result', 'action/SimulateSteps_GetResult'),
-                   ('/other/spawn_entity', 'srv/SpawnEntity'))
+                   ('/other/spawn_entity', 'srv/SpawnEntity'),
+                   ('/gz/deeper/step_simulation', 'srv/StepSimulation'))
     graph.append(('/gz/describe_parameters', ['rcl_interfaces/srv/DescribeParameters']))
     found, several = find_interfaces(graph, '/gz/')
     assert found == {'StepSimulation': '/gz/step', 'SpawnEntity': '/gz/Spawn',
                      'SimulateSteps': '/gz/steps'}
     assert several == {}
-    found, several = find_interfaces(graph, '/')
-    assert several == {'SpawnEntity': ['/gz/Spawn', '/other/spawn_entity']}
+    # The root's own level holds none of them: a simulator in a namespace is not taken.
+    assert find_interfaces(graph, '/') == ({}, {})
+    assert find_interfaces(graph, '/gz/deeper') == (
+        {'StepSimulation': '/gz/deeper/step_simulation'}, {})
 
 
-def test_discovery_prefers_the_usual_name_then_the_shortest():
-    """Several of one type: <prefix>/<snake_case> wins, else the fewest segments."""
+def test_discovery_names_several_of_one_type_at_one_level():
+    """Two names of one type at the prefix's level are two simulators: both named."""
     graph = _graph(('/a/b/spawn', 'srv/SpawnEntity'), ('/spawn_entity', 'srv/SpawnEntity'),
-                   ('/x/y/z/delete', 'srv/DeleteEntity'), ('/x/delete', 'srv/DeleteEntity'))
-    found, _ = find_interfaces(graph, '')
-    assert found['SpawnEntity'] == '/spawn_entity' and found['DeleteEntity'] == '/x/delete'
+                   ('/SpawnEntity', 'srv/SpawnEntity'), ('/x/delete', 'srv/DeleteEntity'))
+    found, several = find_interfaces(graph, '')
+    assert found == {'SpawnEntity': '/spawn_entity'}
+    assert several == {'SpawnEntity': ['/SpawnEntity', '/spawn_entity']}
     assert snake_case('GetSimulatorFeatures') == 'get_simulator_features'
+
+
+def test_simulators_are_found_at_every_level():
+    """Each namespace that serves GetSimulatorFeatures is a simulator the kit can name."""
+    graph = _graph(('/get_simulator_features', 'srv/GetSimulatorFeatures'),
+                   ('/victim/GetSimulatorFeatures', 'srv/GetSimulatorFeatures'),
+                   ('/a/b/features', 'srv/GetSimulatorFeatures'),
+                   ('/x/delete', 'srv/DeleteEntity'))
+    assert simulator_levels(graph) == ['/', '/a/b', '/victim']
 
 
 # -- choosing clauses -----------------------------------------------------------------------

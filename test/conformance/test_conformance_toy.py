@@ -6,14 +6,17 @@ registry here carries them), so the second implementation is
 ``test/toy_simulator.py``: every service and the action under ``/toy``,
 named its own way, found by type. Right, it passes every clause; with the
 defect of one clause (:data:`toy_simulator.DEFECTS`), that clause fails:
-each clause can fail.
+each clause can fail. So can the kit on the further violations an audit of it
+injected (:data:`toy_simulator.MORE_DEFECTS`), each failing the clauses that
+check it. Two toys on one domain are two simulators: the kit checks the one it
+is pointed at and never touches the other.
 """
 
 import pytest
 
 from helpers import next_domain_id
-from r2d2_sim.conformance import BY_ID, CLAUSES, FAIL, Kit, KitOptions, PASS, SKIP
-from toy_simulator import DEFECTS, ToySimulator
+from r2d2_sim.conformance import BY_ID, CLAUSES, FAIL, Kit, KitError, KitOptions, PASS, SKIP
+from toy_simulator import DEFECTS, MORE_DEFECTS, ToySimulator
 
 # Replies come in milliseconds; FEAT-01's defect makes the kit wait this long for nothing.
 TIMEOUT_S = 3.0
@@ -59,3 +62,59 @@ def test_each_clause_fails_on_its_defect(clause_id):
     outcome = run([clause_id], defect=clause_id)[clause_id]
     assert outcome.status == FAIL, (DEFECTS[clause_id], outcome)
     assert outcome.reason and '\n' not in outcome.reason
+
+
+@pytest.mark.parametrize('defect', sorted(MORE_DEFECTS))
+def test_each_further_violation_fails_the_clauses_that_check_it(defect):
+    """An empty GetNamedPoses, states out of order, time half back: the checking clauses fail."""
+    what, clause_ids = MORE_DEFECTS[defect]
+    outcomes = run(clause_ids, defect=defect)
+    passed = {i: (o.status, o.reason) for i, o in outcomes.items() if o.status != FAIL}
+    assert not passed, (what, passed)
+    assert all(o.reason and '\n' not in o.reason for o in outcomes.values())
+
+
+def test_a_simulator_in_a_namespace_is_not_taken_by_the_default_prefix():
+    """The default prefix / is the root's own level: a toy under /victim is refused, untouched."""
+    domain = next_domain_id()
+    with ToySimulator(domain, prefix='/victim') as victim:
+        with Kit(KitOptions(domain_id=domain, timeout_s=TIMEOUT_S)) as kit:
+            with pytest.raises(KitError, match="--prefix /victim") as refused:
+                kit.connect()
+        assert '\n' not in str(refused.value)
+        assert victim.changes == 0
+
+
+def test_two_simulators_at_one_level_are_refused_and_neither_touched():
+    """Two toys serving the same names: the kit would reach both, so it refuses in one line."""
+    domain = next_domain_id()
+    with ToySimulator(domain, prefix='/') as one, ToySimulator(domain, prefix='/') as two:
+        with Kit(KitOptions(domain_id=domain, timeout_s=TIMEOUT_S)) as kit:
+            with pytest.raises(KitError, match='several simulators') as refused:
+                kit.connect()
+        assert '\n' not in str(refused.value)
+        assert one.changes == 0 and two.changes == 0
+
+
+def test_the_kit_checks_the_simulator_at_its_prefix_and_names_the_others():
+    """A toy at / and one under /victim: the root's is checked, the other named and untouched."""
+    domain = next_domain_id()
+    with ToySimulator(domain, prefix='/') as mine, ToySimulator(domain, prefix='/victim') as other:
+        with Kit(KitOptions(domain_id=domain, timeout_s=TIMEOUT_S)) as kit:
+            kit.connect()
+            assert kit.target.others == ['/victim']
+            outcomes = kit.run([BY_ID['STATE-03'], BY_ID['STATE-05']])
+        assert [o.status for o in outcomes] == [PASS, PASS], outcomes
+        assert mine.changes > 0 and other.changes == 0
+
+
+def test_a_slow_simulator_cannot_hold_the_kit_past_its_total_time():
+    """Replies of 0.5 s within a 2 s timeout: past the run's time limit, the rest is not run."""
+    domain = next_domain_id()
+    options = kit_options(domain)._replace(timeout_s=2.0, total_timeout_s=4.0)
+    with ToySimulator(domain, defect='SLOW'):
+        with Kit(options) as kit:
+            outcomes = kit.run([c for c in CLAUSES if c.group == 'STATE'])
+    late = [o for o in outcomes if 'time limit' in o.reason]
+    assert late and outcomes[-1] in late, [(o.clause.id, o.status, o.reason) for o in outcomes]
+    assert all(o.status != PASS for o in late)

@@ -5,7 +5,8 @@ From the lowest up: ``errors``, ``recording``, ``model``, ``physics``, ``sim``,
 ``client``, ``ros``, ``testing``, ``apps``, ``farm`` (above the executables: none of
 them imports it), then ``pytest_plugin`` and ``__main__``, and on top
 ``conformance``, which nothing imports; the package's own ``__init__`` imports
-nothing of it. Two checks:
+nothing of it but ``deprecations``, the table of old names, which imports nothing of
+the package (it imports a new module by name when an old name is used). Two checks:
 
 - in a fresh interpreter, importing every module of ``model``, ``physics``,
   ``sim`` and ``recording`` loads no rclpy (and ``model`` and ``recording`` no
@@ -33,11 +34,12 @@ from common import REPO
 
 PACKAGE = 'r2d2_sim'
 # Each folder or top-level module of the package, by height; a module imports only
-# from its own height or below. The package's root __init__ sits below them all.
-RANK = {'errors': 0, 'memory': 0, 'model': 1, 'recording': 2, 'physics': 3, 'sim': 4,
-        'client': 5, 'ros': 6, 'testing': 7, 'apps': 8, 'farm': 9, 'pytest_plugin': 10,
-        '__main__': 10, 'conformance': 11}
+# from its own height or below. The package's root __init__ sits below them all, with
+# the table of old names it installs.
 ROOT_RANK = -1
+RANK = {'deprecations': ROOT_RANK, 'errors': 0, 'memory': 0, 'model': 1, 'recording': 2,
+        'physics': 3, 'sim': 4, 'client': 5, 'ros': 6, 'testing': 7, 'apps': 8, 'farm': 9,
+        'pytest_plugin': 10, '__main__': 10, 'conformance': 11}
 # What importing all of a ROS-free layer must not load.
 MUST_NOT_LOAD = {'model': ['rclpy', 'pybullet'], 'physics': ['rclpy'], 'sim': ['rclpy'],
                  'recording': ['rclpy', 'pybullet']}
@@ -124,8 +126,24 @@ def layer_violations(root: Path, package: str) -> list:
     return found
 
 
+def _type_only(tree: ast.AST) -> set:
+    """Return the import nodes under ``if TYPE_CHECKING:``: read by a checker, never run."""
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and (
+                (isinstance(node.test, ast.Name) and node.test.id == 'TYPE_CHECKING') or
+                (isinstance(node.test, ast.Attribute) and node.test.attr == 'TYPE_CHECKING')):
+            found.update(id(inner) for statement in node.body for inner in ast.walk(statement))
+    return found
+
+
 def import_graph(root: Path, package: str) -> dict:
-    """Return each module of ``package`` and the modules of it that it imports, anywhere in it."""
+    """
+    Return each module of ``package`` and the modules of it that it imports, anywhere in it.
+
+    Imports under ``if TYPE_CHECKING:`` are left out: they name a type for the
+    checker (a part naming the whole that composes it) and are never run.
+    """
     paths = {}
     for path in sorted((root / package).rglob('*.py')):
         parts = path.relative_to(root).with_suffix('').parts
@@ -134,7 +152,11 @@ def import_graph(root: Path, package: str) -> dict:
     for module, path in paths.items():
         is_package = path.name == '__init__.py'
         targets = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'), str(path))):
+        tree = ast.parse(path.read_text(encoding='utf-8'), str(path))
+        type_only = _type_only(tree)
+        for node in ast.walk(tree):
+            if id(node) in type_only:
+                continue
             if isinstance(node, ast.Import):
                 targets.update(alias.name for alias in node.names)
             elif isinstance(node, ast.ImportFrom):
@@ -225,6 +247,10 @@ FAULTY = {
     'fakepkg/apps/one.py': 'from fakepkg.apps import two\n',
     'fakepkg/apps/two.py': 'from .three import thing\n',
     'fakepkg/apps/three.py': 'thing = 1\n\n\ndef later():\n    import fakepkg.apps.one\n',
+    # A part that names the whole it belongs to for the checker only: no circle.
+    'fakepkg/apps/whole.py': 'from fakepkg.apps.part import Part\n',
+    'fakepkg/apps/part.py': ('from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n'
+                             '    from fakepkg.apps.whole import Whole\nPart = 1\n'),
     # Stand-ins, so that the fresh interpreter finds these names without loading the real ones.
     'rclpy.py': '',
     'pybullet.py': '',

@@ -67,6 +67,18 @@ def test_a_standing_robot_reads_no_travel_whatever_the_noise():
     assert readings == {(0.3, 0.7)}
 
 
+def test_a_reading_at_no_interval_draws_nothing():
+    """The same instant read twice (a start-up publication) leaves the stream where it was."""
+    noise = {'stddev': 0.02, 'dynamic_bias_stddev': 0.01, 'dynamic_bias_correlation_time_s': 60.0}
+    once, twice = encoders(seed=3, **noise), encoders(seed=3, **noise)
+    once.read(0.5, -0.5, 0.0)
+    twice.read(0.5, -0.5, 0.0)
+    assert twice.read(0.5, -0.5, 0.0) == (0.5, -0.5)
+    for k in range(1, 50):
+        angles = (0.5 + 0.01 * k, -0.5 + 0.02 * k)
+        assert once.read(*angles, DT_S) == twice.read(*angles, DT_S)
+
+
 def test_counts_are_whole_ticks():
     tick = 2.0 * math.pi / 4096
     enc = encoders(3, stddev=0.01, precision=tick)

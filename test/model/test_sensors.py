@@ -331,3 +331,12 @@ def test_depth_checks_its_planes_and_shape():
         linearize_depth(numpy.zeros((2, 2)), 0.0, 10.0)
     with pytest.raises(ValueError, match='height, width'):
         linearize_depth(numpy.zeros(4), 0.1, 10.0)
+
+
+def test_a_number_is_compared_as_the_float_returned():
+    """A Fraction just above 0 is 0.0 as a float: a strict bound at 0 refuses it."""
+    from fractions import Fraction
+    from r2d2_sim.model.sensor_checks import require_number, SensorConfigError
+    assert require_number('x', Fraction(1, 4), minimum=0.0, strict=True) == 0.25
+    with pytest.raises(SensorConfigError, match='x'):
+        require_number('x', Fraction(1, 10**400), minimum=0.0, strict=True)

@@ -194,3 +194,12 @@ def test_gui_without_a_display_is_one_line_not_the_end_of_the_process(monkeypatc
         SimWorld(gui=True)
     assert 'none answers' in display_problem({'DISPLAY': ':987'})
     assert 'is not one' in display_problem({'DISPLAY': 'nonsense'})
+
+
+def test_a_closed_world_refuses_use_in_one_line():
+    """After close(): WorldError saying so, not an AttributeError on None; close() twice too."""
+    world = SimWorld()
+    world.close()
+    world.close()
+    with pytest.raises(WorldError, match='closed'):
+        world.load('plane.urdf')

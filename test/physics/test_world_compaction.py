@@ -107,3 +107,21 @@ def test_motors_a_reset_dropped_are_not_brought_back_by_compaction(world):
     world.step(240)
     moved = max(abs(a - b) for a, b in zip(robot.world_state().position, parked))
     assert moved < 0.005, f'moved {moved:.3f} m'
+
+
+def test_braked_wheels_are_braked_again_at_the_angles_they_held(world):
+    """A brake (hold_joints) comes back from compaction as it was: the same angles held."""
+    robot = driving_robot(world)
+    wheels = [j.index for j in robot.joints.values() if 'wheel' in j.name]
+    world.step(120)
+    robot.hold_joints(wheels, [100.0] * len(wheels))
+    world.step(240)
+    _, before = robot.moment()
+    parked = robot.world_state().position
+    churn(world, COMPACT_AFTER_REMOVALS)
+    assert world.removed_since_built == 0  # compacted
+    _, motors = robot.moment()
+    assert motors == before and all(motors[i].held is not None for i in wheels)
+    world.step(240)
+    moved = max(abs(a - b) for a, b in zip(robot.world_state().position, parked))
+    assert moved < 1e-4, f'moved {moved * 1e3:.3f} mm'

@@ -62,6 +62,20 @@ def test_a_spawned_body_keeps_its_speed_in_free_fall(make):
         assert velocity[2] == pytest.approx(-9.8, abs=1e-3)  # g for 1 s, undamped too
 
 
+def test_a_spawn_into_a_robot_says_in_one_line_that_it_will_shove_it(make):
+    """A box in R2D2's body, a robot in another: one warning each; a box beside it, none."""
+    warnings = []
+    simulation = make(warnings=warnings)
+    spawn_box(simulation, (1.0, 0.0, 0.1), name='beside')  # on the floor, 1 m ahead
+    assert warnings == []
+    spawn_box(simulation, (0.0, 0.0, 0.5), name='inside')  # in the body
+    simulation.spawn(SpawnRequest('c', uri='package://r2d2_sim/urdf/r2d2.urdf', namespace='c',
+                                  position=(0.2, 0.0, 0.48)))
+    assert len(warnings) == 2 and not any('\n' in line for line in warnings)
+    assert warnings[0].startswith('inside overlaps robot r2d2 by ')
+    assert warnings[1].startswith('c overlaps robot r2d2 by ')
+
+
 def test_entity_names_are_bounded(make):
     """A 100,000-character name is refused; with renaming it is cut to a name that fits."""
     simulation = make()
@@ -72,6 +86,24 @@ def test_entity_names_are_bounded(make):
                                          resource_string=BOX, position=(1.0, 0.0, 0.1)))
     assert len(name) <= MAX_NAME_LENGTH and name.startswith('bbb')
     assert simulation.entities.names() == ['ground_plane', 'r2d2', name]
+
+
+@pytest.mark.parametrize('position, orientation', [
+    ((1.0, 0.0), (0.0, 0.0, 0.0, 1.0)), ((1.0, 0.0, 0.1, 0.0), (0.0, 0.0, 0.0, 1.0)),
+    ((1.0, 0.0, 0.1), (0.0, 0.0, 1.0)), ((1.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0, 0.0))])
+def test_a_pose_of_the_wrong_length_is_refused_in_one_line(make, position, orientation):
+    """A Python caller may give any sequence: 3 numbers and 4, or INVALID_POSE, nothing moved."""
+    simulation = make()
+    box = spawn_box(simulation, (1.0, 0.0, 0.1))
+    before = simulation.entities.state(box)
+    with pytest.raises(RefusedError, match='^INVALID_POSE'):
+        simulation.set_entity_state(box, '', position, orientation, (0.0, 0.0, 0.0),
+                                    (0.0, 0.0, 0.0))
+    with pytest.raises(RefusedError, match='^INVALID_POSE'):
+        simulation.spawn(SpawnRequest('other', resource_string=BOX, position=position,
+                                      orientation=orientation))
+    assert simulation.entities.state(box) == before
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', box]
 
 
 def test_name_filters_search_a_part_of_the_name():

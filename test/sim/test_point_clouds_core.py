@@ -53,6 +53,20 @@ def test_the_depth_cloud_puts_the_wall_and_the_floor_where_they_are(make):
     assert wall[:, 2].max() == pytest.approx(1.0, abs=2 * CM)  # up to the wall's top edge
 
 
+def test_the_self_filter_leaves_the_robots_own_pixels_without_depth(make):
+    """camera_self_filter: the gripper's pixels (4.7 % of the view) read NaN, the rest alike."""
+    parameters = {'world': ROOM, 'camera_rate': 10.0, 'camera_point_cloud': True}
+    seen = make(**parameters).robot.camera.render(depth=True).depth
+    filtered = make(camera_self_filter=True, **parameters)
+    depth = filtered.robot.camera.render(depth=True).depth
+    own = numpy.isnan(depth)
+    assert own.mean() == pytest.approx(0.047, abs=0.002)
+    assert numpy.isfinite(seen[own]).all()  # the gripper was in view, near
+    assert (depth[~own] == seen[~own]).all()
+    world, _, _ = camera_cloud_in_world(filtered)
+    assert ((numpy.abs(world[:, 0] - 2.0) < CM) | (numpy.abs(world[:, 2]) < CM)).all()
+
+
 def test_the_depth_cloud_follows_the_head_as_it_turns(make):
     """Head turned 0.3 rad: every point still on the room (a box now in view), to the left."""
     simulation = make(world=ROOM, camera_rate=10.0, camera_point_cloud=True, camera_width=96,

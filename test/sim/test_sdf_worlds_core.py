@@ -381,5 +381,7 @@ def test_strict_worlds_refuses_an_sdf_spawn_with_anything_not_simulated(make):
     warned = []
     relaxed = make(scan_rate=0.0)
     relaxed._warn = warned.append
-    assert relaxed.spawn(SpawnRequest(resource_string=with_plugin)) == 'busy'
+    # Clear of the robot, which a spawn at the origin would overlap (another warning).
+    assert relaxed.spawn(SpawnRequest(resource_string=with_plugin,
+                                      position=(2.0, 0.0, 0.2))) == 'busy'
     assert warned == ['busy: not simulated: plugin']

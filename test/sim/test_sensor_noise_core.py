@@ -226,6 +226,15 @@ def test_a_full_reset_repeats_every_noisy_reading(make):
     assert noisy_run(simulation) == first
 
 
+def test_a_full_reset_repeats_the_run_of_a_fresh_start_that_published_at_time_0(make):
+    """The node publishes the state at start-up (a read at t = 0), not after a reset: alike."""
+    simulation = make(**ALL_NOISE)
+    simulation.read_states()  # as SimNode does once built
+    first = noisy_run(simulation)
+    simulation.reset(time=True, state=True, spawned=True)
+    assert noisy_run(simulation) == first
+
+
 def test_a_state_reset_goes_on_with_the_streams(make):
     simulation = make(**ALL_NOISE)
     first = noisy_run(simulation)

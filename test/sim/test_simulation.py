@@ -57,6 +57,19 @@ def test_readings_are_plain_data(make):
     assert measurement.imu.linear_acceleration_m_s2[2] == pytest.approx(9.8, abs=0.5)
 
 
+def test_the_imu_sees_the_robot_land_then_rest_as_limits_md_says(make):
+    """Set down 1 mm up: the second 100 Hz sample is the landing; from 0.05 s on, 9.8 +- 0.005."""
+    simulation = make(scan_rate=0.0, imu_rate=100.0, camera_rate=0.0)
+    samples = []
+    for _ in range(240):
+        result = simulation.step()
+        if result is not None and result.measurements[0].imu is not None:
+            samples.append((result.time_ns / 1e9, result.measurements[0].imu))
+    z = [(time_s, imu.linear_acceleration_m_s2[2]) for time_s, imu in samples]
+    assert z[0][1] == pytest.approx(9.8, abs=1e-9) and z[1][1] == pytest.approx(24.5, abs=0.1)
+    assert all(value == pytest.approx(9.8, abs=0.005) for time_s, value in z if time_s >= 0.05)
+
+
 def test_a_kept_frame_does_not_change_afterwards(make):
     """Frame.odometry is a snapshot, not the live odometry object."""
     simulation = make(cmd_vel_timeout=0.0, **QUIET)

@@ -5,7 +5,8 @@ Against ``sim_node`` in a process of its own (r2d2_sim passes every clause
 whose features it declares; the others skip, and say which feature they
 need), and against the toy simulator of ``test/toy_simulator.py`` from
 another process (a clause it gets wrong fails the run: exit status 1, a
-JUnit failure).
+JUnit failure), a hostile one (huge or slow replies: the kit's lines and its
+time stay bounded) and two of them on one domain (the kit refuses in one line).
 """
 
 from pathlib import Path
@@ -122,3 +123,44 @@ def test_a_clause_the_simulator_gets_wrong_fails_the_run(tmp_path):
     assert cases['STATE-08'][0] == 'FAIL' and 'ALREADY_IN_TARGET_STATE' in cases['STATE-08'][1]
     assert {i for i, (s, _) in cases.items() if s == 'FAIL'} == {'STATE-08'}
     assert sorted(cases) == [c.id for c in CLAUSES if c.group == 'STATE']
+
+
+def test_huge_replies_print_no_huge_line(tmp_path):
+    """Megabytes in a spawn format, a name, a frame, error messages: every line stays short."""
+    domain = next_domain_id()
+    out = tmp_path / 'conformance.xml'
+    with ToySimulator(domain, defect='HUGE'):
+        result = subprocess.run(KIT + ['--prefix', '/toy', '--asset', 'toy://box', '--only',
+                                       'FEAT-01,RESULT-05,ENTITY-01,ENTITY-03', '--junit',
+                                       str(out)],
+                                env=ros_child_env(domain), cwd=REPO, capture_output=True,
+                                text=True, timeout=RUN_S)
+    assert result.returncode == 1, result.stdout[-3000:] + result.stderr[-2000:]
+    lines = (result.stdout + result.stderr).splitlines()
+    assert max(len(line) for line in lines) <= 1000, [len(line) for line in lines]
+    assert re.search(r'^ENTITY-01 +FAIL ', result.stdout, re.M), result.stdout[:3000]
+    _, cases = junit_cases(out)
+    assert max(len(message or '') for _, message in cases.values()) <= 1000
+
+
+def test_a_slow_simulator_is_checked_within_the_total_time(tmp_path):
+    """--total-timeout bounds the run: the clauses past it are not run, and say so."""
+    domain = next_domain_id()
+    with ToySimulator(domain, defect='SLOW'):
+        result = subprocess.run(KIT + ['--prefix', '/toy', '--asset', 'toy://box', '--only',
+                                       'STATE', '--timeout', '2', '--total-timeout', '4'],
+                                env=ros_child_env(domain), cwd=REPO, capture_output=True,
+                                text=True, timeout=RUN_S)
+    assert result.returncode == 1, result.stdout[-3000:] + result.stderr[-2000:]
+    assert 'time limit' in result.stdout.splitlines()[-2], result.stdout[-3000:]
+
+
+def test_a_simulator_under_a_namespace_is_refused_in_one_line():
+    """The default prefix takes no simulator below the root: one line asks for --prefix."""
+    domain = next_domain_id()
+    with ToySimulator(domain, prefix='/victim') as victim:
+        result = subprocess.run(KIT + ['--only', 'STATE'], env=ros_child_env(domain), cwd=REPO,
+                                capture_output=True, text=True, timeout=RUN_S)
+        assert victim.changes == 0
+    assert result.returncode == 2, result.stdout[-3000:] + result.stderr[-2000:]
+    assert result.stderr.count('\n') == 1 and '--prefix /victim' in result.stderr, result.stderr

@@ -78,11 +78,12 @@ def _requirement(line):
 
 
 def test_pip_install_alone_brings_the_pinned_dependencies(pip_venv, tmp_path):
-    """Declare ROS Jazzy, PyBullet, numpy and matplotlib at the pins of requirements.txt."""
+    """Install package.xml's version, declaring ROS, PyBullet, numpy... at their pins."""
     script = textwrap.dedent('''
         import json
         from importlib import metadata
         print(json.dumps({
+            'version': metadata.version('r2d2_sim'),
             'requires': metadata.requires('r2d2_sim'),
             'versions': {name: metadata.version(name) for name in (
                 'ros-jazzy-rclpy', 'ros-jazzy-common-interfaces', 'ros-jazzy-rosidl-parser',
@@ -91,6 +92,9 @@ def test_pip_install_alone_brings_the_pinned_dependencies(pip_venv, tmp_path):
     result = _run([str(pip_venv / 'bin' / 'python'), '-c', script], cwd=tmp_path,
                   env=user_env())
     facts = json.loads(result.stdout.strip().splitlines()[-1])
+    # The version installed is package.xml's (test_changelog.py keeps setup.py's the same).
+    package_xml = (Path(REPO) / 'package.xml').read_text()
+    assert f"<version>{facts['version']}</version>" in package_xml, facts['version']
     declared = dict(_requirement(line) for line in facts['requires'])
     lines = (Path(REPO) / 'requirements.txt').read_text().splitlines()
     pinned = dict(_requirement(line) for line in lines if line and not line.startswith('#'))

@@ -34,7 +34,7 @@ def _world_frames(t: Target):
         'string[] entities # Unique names of all entities matching the filters.', services=LISTED)
 def unique_names(t: Target) -> None:
     """No name twice, none empty."""
-    names = t.names()
+    names = t.entities.names()
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice or '' in names:
         raise ClauseFailed(f'GetEntities lists {twice[:5] or "an empty name"} more than once'
@@ -46,7 +46,7 @@ def unique_names(t: Target) -> None:
         services=LISTED)
 def states_aligned(t: Target) -> None:
     """Compare the arrays: as long as each other, naming what GetEntities names."""
-    names = t.names()
+    names = t.entities.names()
     reply = t.ok('GetEntitiesStates', t.srv.GetEntitiesStates.Request(), 'GetEntitiesStates')
     if len(reply.entities) != len(reply.states):
         raise ClauseFailed(f'{len(reply.entities)} entities but {len(reply.states)} states')
@@ -59,8 +59,8 @@ def states_aligned(t: Target) -> None:
         'EntityState.msg', FRAME_QUOTE, services=LISTED)
 def state_in_world(t: Target) -> None:
     """Every entity's state (up to 20) has frame_id '' or the world's."""
-    for name in t.names()[:SAMPLE]:
-        frame = t.entity_state(name).header.frame_id
+    for name in t.entities.names()[:SAMPLE]:
+        frame = t.entities.state(name).header.frame_id
         if frame not in _world_frames(t):
             raise ClauseFailed(f'the state of {name} is in frame {frame!r}, not the world '
                                '(give --world-frame if the world frame has another name)')
@@ -69,12 +69,24 @@ def state_in_world(t: Target) -> None:
 @clause(CLAUSES, 'ENTITY-04', 'GetEntityState and GetEntitiesStates agree', (GETTING, SET, PAUSE),
         'GetEntitiesStates.srv', 'EntityState[] states # States for these entities.')
 def states_agree(t: Target) -> None:
-    """Paused, each entity's pose (up to 20) is the same from both services."""
-    t.pause()
-    t.on_cleanup(t.stop)
+    """
+    Paused, each entity's pose is the same from both services: the kit's own first.
+
+    Where it may spawn, the kit puts three boxes at distinct places, so that
+    a state given to the wrong entity shows (start-up entities often share
+    one place); then up to 20 of the others.
+    """
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
+    own = [t.entities.spawn(i, yaw=0.3 * i) for i in range(3)] if t.declared('SPAWNING') else []
     reply = t.ok('GetEntitiesStates', t.srv.GetEntitiesStates.Request(), 'GetEntitiesStates')
-    for name, state in list(zip(reply.entities, reply.states))[:SAMPLE]:
-        one = t.entity_state(name)
+    pairs = list(zip(reply.entities, reply.states))
+    mine = [(name, state) for name, state in pairs if name in own]
+    if len(mine) != len(own):
+        raise ClauseFailed(f'GetEntitiesStates lists {len(mine)} of the {len(own)} entities the '
+                           f'kit spawned ({", ".join(own)})')
+    for name, state in mine + [(n, s) for n, s in pairs if n not in own][:SAMPLE]:
+        one = t.entities.state(name)
         a = vector(one.pose.position) + quaternion(one.pose.orientation)
         b = vector(state.pose.position) + quaternion(state.pose.orientation)
         if not close(a, b, 1e-6):
@@ -82,7 +94,7 @@ def states_agree(t: Target) -> None:
 
 
 def _expect_pose(t: Target, name: str, position, orientation, doing: str) -> None:
-    state = t.entity_state(name)
+    state = t.entities.state(name)
     got_p, got_q = vector(state.pose.position), quaternion(state.pose.orientation)
     if state.header.frame_id not in _world_frames(t):
         raise ClauseFailed(f'after {doing}, {name} is read in frame {state.header.frame_id!r}')
@@ -92,7 +104,7 @@ def _expect_pose(t: Target, name: str, position, orientation, doing: str) -> Non
 
 
 def _expect_twist(t: Target, name: str, linear, angular, doing: str) -> None:
-    twist = t.entity_state(name).twist
+    twist = t.entities.state(name).twist
     got = vector(twist.linear) + vector(twist.angular)
     if not close(got, tuple(linear) + tuple(angular)):
         raise ClauseFailed(f'after {doing}, {name} moves at {fmt(got)} (linear, angular), '
@@ -100,9 +112,9 @@ def _expect_twist(t: Target, name: str, linear, angular, doing: str) -> None:
 
 
 def _paused_box(t: Target, index: int = 0, yaw: float = 0.0) -> str:
-    t.pause()
-    t.on_cleanup(t.stop)
-    return t.spawn(index, yaw=yaw)
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
+    return t.entities.spawn(index, yaw=yaw)
 
 
 @clause(CLAUSES, 'ENTITY-05', 'SetEntityState places an entity; GetEntityState reads it there',
@@ -111,9 +123,9 @@ def _paused_box(t: Target, index: int = 0, yaw: float = 0.0) -> str:
 def place_and_read(t: Target) -> None:
     """Paused: move the kit's box and turn it; its state reads that pose."""
     name = _paused_box(t)
-    x, y, z = t.slot(0)
+    x, y, z = t.entities.slot(0)
     position, orientation = (x + 0.5, y - 0.7, z + 0.3), yaw_quaternion(0.6)
-    t.place(name, position, orientation)
+    t.entities.place(name, position, orientation)
     _expect_pose(t, name, position, orientation, 'SetEntityState')
 
 
@@ -122,8 +134,8 @@ def place_and_read(t: Target) -> None:
 def twist_in_world(t: Target) -> None:
     """Give a box turned 90 degrees 1 m/s along world x: its twist reads x, not its own -y."""
     name = _paused_box(t, yaw=math.pi / 2)
-    t.place(name, t.slot(0), yaw_quaternion(math.pi / 2), linear=(1.0, 0.0, 0.0),
-            angular=(0.0, 0.0, 0.5))
+    t.entities.place(name, t.entities.slot(0), yaw_quaternion(math.pi / 2),
+                     linear=(1.0, 0.0, 0.0), angular=(0.0, 0.0, 0.5))
     _expect_twist(t, name, (1.0, 0.0, 0.0), (0.0, 0.0, 0.5), 'a world-frame SetEntityState')
 
 
@@ -132,9 +144,9 @@ def twist_in_world(t: Target) -> None:
 def pose_in_entity_frame(t: Target) -> None:
     """B placed 1 m along x of A, which is turned 90 degrees: B is 1 m along world y of A."""
     a = _paused_box(t, 0, yaw=math.pi / 2)
-    b = t.spawn(1)
-    t.place(b, (1.0, 0.0, 0.0), frame=a)
-    x, y, z = t.slot(0)
+    b = t.entities.spawn(1)
+    t.entities.place(b, (1.0, 0.0, 0.0), frame=a)
+    x, y, z = t.entities.slot(0)
     _expect_pose(t, b, (x, y + 1.0, z), yaw_quaternion(math.pi / 2),
                  f'SetEntityState in the frame of {a}')
 
@@ -144,8 +156,8 @@ def pose_in_entity_frame(t: Target) -> None:
 def twist_in_entity_frame(t: Target) -> None:
     """1 m/s along x of A (turned 90 degrees) reads as 1 m/s along world y."""
     a = _paused_box(t, 0, yaw=math.pi / 2)
-    b = t.spawn(1)
-    t.place(b, (1.0, 0.0, 0.0), linear=(1.0, 0.0, 0.0), frame=a)
+    b = t.entities.spawn(1)
+    t.entities.place(b, (1.0, 0.0, 0.0), linear=(1.0, 0.0, 0.0), frame=a)
     _expect_twist(t, b, (0.0, 1.0, 0.0), (0.0, 0.0, 0.0), f'SetEntityState in the frame of {a}')
 
 
@@ -154,17 +166,17 @@ def twist_in_entity_frame(t: Target) -> None:
 def zero_twist_stops(t: Target) -> None:
     """Given 1 m/s, then a pose with a zero twist: it no longer moves."""
     name = _paused_box(t)
-    t.place(name, t.slot(0), linear=(1.0, 0.0, 0.0))
-    t.place(name, t.slot(0))
+    t.entities.place(name, t.entities.slot(0), linear=(1.0, 0.0, 0.0))
+    t.entities.place(name, t.entities.slot(0))
     _expect_twist(t, name, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 'a SetEntityState of zero twist')
 
 
 def _invalid_pose(t: Target, position, orientation, what: str) -> None:
     name = _paused_box(t)
-    before = t.position(name)
-    t.expect('SetEntityState', t.set_request(name, position, orientation),
+    before = t.entities.position(name)
+    t.expect('SetEntityState', t.entities.set_request(name, position, orientation),
              (t.srv.SetEntityState.Response.INVALID_POSE,), f'SetEntityState with {what}')
-    after = t.position(name)
+    after = t.entities.position(name)
     if not close(before, after):
         raise ClauseFailed(f'the refused SetEntityState moved {name} to {fmt(after)}')
 
@@ -173,14 +185,14 @@ def _invalid_pose(t: Target, position, orientation, what: str) -> None:
         'SetEntityState.srv', INVALID_POSE_QUOTE)
 def zero_quaternion(t: Target) -> None:
     """Orientation (0, 0, 0, 0): 101, and the entity is where it was."""
-    _invalid_pose(t, t.slot(0), (0.0, 0.0, 0.0, 0.0), 'a zero quaternion')
+    _invalid_pose(t, t.entities.slot(0), (0.0, 0.0, 0.0, 0.0), 'a zero quaternion')
 
 
 @clause(CLAUSES, 'ENTITY-11', 'a NaN position is INVALID_POSE and moves nothing', MOVE,
         'SetEntityState.srv', INVALID_POSE_QUOTE)
 def nan_position(t: Target) -> None:
     """Position (NaN, y, z): 101, and the entity is where it was."""
-    x, y, z = t.slot(0)
+    x, y, z = t.entities.slot(0)
     _invalid_pose(t, (math.nan, y, z), (0.0, 0.0, 0.0, 1.0), 'a NaN position')
 
 
@@ -191,13 +203,14 @@ def nan_position(t: Target) -> None:
 def static_twist(t: Target) -> None:
     """Give the first STATIC_OBJECT its own pose and 1 m/s: refused."""
     static = t.msg.EntityCategory.CATEGORY_STATIC_OBJECT
-    name = next((n for n in t.names()[:SAMPLE] if t.info(n).category.category == static), None)
+    name = next((n for n in t.entities.names()[:SAMPLE]
+                 if t.entities.info(n).category.category == static), None)
     if name is None:
         raise ClauseSkipped('no entity of category STATIC_OBJECT among the first '
                             f'{SAMPLE} listed')
-    pose = t.entity_state(name).pose
-    request = t.set_request(name, vector(pose.position), quaternion(pose.orientation),
-                            linear=(1.0, 0.0, 0.0))
+    pose = t.entities.state(name).pose
+    request = t.entities.set_request(name, vector(pose.position),
+                                     quaternion(pose.orientation), linear=(1.0, 0.0, 0.0))
     t.expect('SetEntityState', request, (t.msg.Result.RESULT_OPERATION_FAILED,),
              f'SetEntityState of the static {name} with a twist')
 
@@ -207,8 +220,8 @@ def static_twist(t: Target) -> None:
         'EntityCategory category # Major category for the entity.', services=LISTED)
 def defined_categories(t: Target) -> None:
     """Each category (up to 20 entities) is one of EntityCategory's five."""
-    for name in t.names()[:SAMPLE]:
-        category = t.info(name).category.category
+    for name in t.entities.names()[:SAMPLE]:
+        category = t.entities.info(name).category.category
         if category not in CATEGORIES:
             raise ClauseFailed(f'{name} has category {category}, no EntityCategory constant')
 
@@ -219,9 +232,9 @@ def defined_categories(t: Target) -> None:
 def stamp_ignored(t: Target) -> None:
     """Place with a stamp a day ahead: OK, and the entity is placed."""
     name = _paused_box(t)
-    x, y, z = t.slot(0)
+    x, y, z = t.entities.slot(0)
     target = (x, y + 0.5, z)
-    t.ok('SetEntityState', t.set_request(name, target, stamp=(86_400, 5)),
+    t.ok('SetEntityState', t.entities.set_request(name, target, stamp=(86_400, 5)),
          'SetEntityState stamped a day ahead')
     _expect_pose(t, name, target, (0.0, 0.0, 0.0, 1.0), 'a SetEntityState stamped a day ahead')
 
@@ -232,13 +245,13 @@ def stamp_ignored(t: Target) -> None:
         'values.')
 def info_round_trip(t: Target) -> None:
     """Set DYNAMIC_OBJECT, a description and two tags on the kit's box; read the same."""
-    name = t.spawn(0)
+    name = t.entities.spawn(0)
     info = t.msg.EntityInfo(description='set by the conformance kit',
                             tags=['conformance_a', 'conformance_b'])
     info.category.category = t.msg.EntityCategory.CATEGORY_DYNAMIC_OBJECT
     t.ok('SetEntityInfo', t.srv.SetEntityInfo.Request(entity=name, info=info),
          f'SetEntityInfo of {name}')
-    got = t.info(name)
+    got = t.entities.info(name)
     wanted = (info.category.category, info.description, sorted(info.tags))
     seen = (got.category.category, got.description, sorted(got.tags))
     if seen != wanted:
@@ -273,7 +286,7 @@ def check_region(t: Target, bounds, what: str) -> None:
         '(sphere or box, depending on type field), and 3 or more (convex hull).')
 def valid_bounds(t: Target) -> None:
     """Ask the kit's box's bounds: a defined type with as many points as that type has."""
-    name = t.spawn(0)
+    name = t.entities.spawn(0)
     check_region(t, _bounds(t, name), f'GetEntityBounds of {name}')
 
 
@@ -284,7 +297,7 @@ def bounds_relative(t: Target) -> None:
     """Move the box 3 m and turn it: the same bounds (a world-aligned box would change)."""
     name = _paused_box(t)
     before = _bounds(t, name)
-    t.place(name, t.slot(1), yaw_quaternion(0.7))
+    t.entities.place(name, t.entities.slot(1), yaw_quaternion(0.7))
     after = _bounds(t, name)
     a = sorted(vector(p) for p in before.points)
     b = sorted(vector(p) for p in after.points)
@@ -294,26 +307,50 @@ def bounds_relative(t: Target) -> None:
                            f'{[fmt(p) for p in a][:4]} -> {after.type} {[fmt(p) for p in b][:4]}')
 
 
-@clause(CLAUSES, 'BOUNDS-03', 'the bounds of the kit\'s box enclose it',
-        ('ENTITY_BOUNDS', 'SPAWNING'), 'GetEntityBounds.srv', 'Get geometrical bounds for entity.')
-def bounds_enclose(t: Target) -> None:
-    """Ask the kit's 0.2 m cube's bounds: the region holds its 8 corners."""
-    t.need_resource_string()
-    name = t.spawn(0)
-    bounds = _bounds(t, name)
-    check_region(t, bounds, f'GetEntityBounds of {name}')
-    B, half, slack = t.msg.Bounds, BOX_SIZE_M / 2.0, 1e-3
+def _holds(t: Target, bounds, size: float) -> bool:
+    """Return True when Bounds (not empty) hold a cube ``size`` wide centred on the link."""
+    B, half, slack = t.msg.Bounds, size / 2.0, 1e-3
     points = [vector(p) for p in bounds.points]
-    if bounds.type == B.TYPE_EMPTY:
-        raise ClauseFailed(f'{name}, a {BOX_SIZE_M} m box, has empty bounds')
     if bounds.type == B.TYPE_SPHERE:
         reach = math.dist(points[0], (0.0, 0.0, 0.0)) + half * math.sqrt(3.0)
-        inside = reach <= points[1][0] + slack
-    else:  # a box, or a hull judged by the box around it
-        low = [min(p[i] for p in points) for i in range(3)]
-        high = [max(p[i] for p in points) for i in range(3)]
-        inside = all(lo <= -half + slack and hi >= half - slack for lo, hi in zip(low, high))
-    if not inside:
+        return reach <= points[1][0] + slack
+    # A box, or a hull judged by the box around it.
+    low = [min(p[i] for p in points) for i in range(3)]
+    high = [max(p[i] for p in points) for i in range(3)]
+    return all(lo <= -half + slack and hi >= half - slack for lo, hi in zip(low, high))
+
+
+def _enclosing_bounds(t: Target, name: str, size: float):
+    """Return the Bounds of ``name``, a cube ``size`` wide; ClauseFailed unless they hold it."""
+    bounds = _bounds(t, name)
+    check_region(t, bounds, f'GetEntityBounds of {name}')
+    if bounds.type == t.msg.Bounds.TYPE_EMPTY:
+        raise ClauseFailed(f'{name}, a {size:g} m box, has empty bounds')
+    if not _holds(t, bounds, size):
         raise ClauseFailed(f'the bounds of {name} (type {bounds.type}, '
-                           f'{[fmt(p) for p in points][:4]}) do not hold a {BOX_SIZE_M} m cube '
-                           'centred on its link')
+                           f'{[fmt(vector(p)) for p in bounds.points][:4]}) do not hold a '
+                           f'{size:g} m cube centred on its link')
+    return bounds
+
+
+@clause(CLAUSES, 'BOUNDS-03', 'the bounds of each of the kit\'s boxes hold it, and fit it',
+        ('ENTITY_BOUNDS', 'SPAWNING'), 'GetEntityBounds.srv', 'Get geometrical bounds for entity.')
+def bounds_enclose(t: Target) -> None:
+    """
+    Spawn a 0.2 m cube and a 0.6 m one: the bounds of each hold it; the small one's, not the big.
+
+    So a region that is the same for every entity (or no bound at all, a
+    huge box) fails: an entity's geometrical bounds are its own.
+    """
+    t.entities.need_resource_string()
+    small = t.entities.spawn(0)
+    big = t.entities.new_name('big_box')
+    big_size = 3 * BOX_SIZE_M
+    t.entities.spawn_call(t.entities.spawn_request(
+        big, t.entities.slot(1), resource=t.entities.box_text(big, size=big_size)))
+    bounds = _enclosing_bounds(t, small, BOX_SIZE_M)
+    _enclosing_bounds(t, big, big_size)
+    if _holds(t, bounds, big_size):
+        raise ClauseFailed(f'the bounds of {small}, a {BOX_SIZE_M:g} m cube, would hold a '
+                           f'{big_size:g} m one (type {bounds.type}, '
+                           f'{[fmt(vector(p)) for p in bounds.points][:4]}): they are not its own')

@@ -41,7 +41,7 @@ def declared_are_served(t: Target) -> None:
     """Fail a declared interface feature whose service (or action) is not found."""
     found = t.scan()
     missing = []
-    for feature in sorted(t.features):
+    for feature in sorted(t.features or ()):
         for alternatives in FEATURE_INTERFACES.get(feature, ()):
             if not any(kind in found for kind in alternatives.split('|')):
                 missing.append(f'{feature} ({alternatives.replace("|", " or ")})')
@@ -60,7 +60,7 @@ def served_are_declared(t: Target) -> None:
     for kind in list(SERVICES) + [ACTION]:
         owners = [f for f, kinds in FEATURE_INTERFACES.items()
                   if any(kind in alt.split('|') for alt in kinds)]
-        if kind in found and owners and not any(f in t.features for f in owners):
+        if kind in found and owners and not any(f in (t.features or ()) for f in owners):
             undeclared.append(f'{kind} ({" or ".join(owners)})')
     if undeclared:
         raise ClauseFailed(f'served but not declared: {", ".join(undeclared)}')
@@ -72,8 +72,9 @@ def served_are_declared(t: Target) -> None:
         'SetSimulationState interface.')
 def sub_features_have_parents(t: Target) -> None:
     """SIMULATION_RESET_TIME without SIMULATION_RESET, and the like, fail."""
+    declared = t.features or frozenset()
     orphans = [f'{sub} without {" or ".join(parents)}' for sub, parents in SUB_FEATURES.items()
-               if sub in t.features and not any(p in t.features for p in parents)]
+               if sub in declared and not any(p in declared for p in parents)]
     if orphans:
         raise ClauseFailed('; '.join(orphans))
 
@@ -129,7 +130,7 @@ def state_not_found(t: Target) -> None:
         ('ENTITY_STATE_SETTING',), *NOT_FOUND)
 def set_state_not_found(t: Target) -> None:
     """Place an entity nobody has at a valid pose: NOT_FOUND."""
-    t.expect('SetEntityState', t.set_request(UNKNOWN_NAME, t.slot(0)),
+    t.expect('SetEntityState', t.entities.set_request(UNKNOWN_NAME, t.entities.slot(0)),
              (t.msg.Result.RESULT_NOT_FOUND,), f'SetEntityState of {UNKNOWN_NAME!r}')
 
 

@@ -19,7 +19,7 @@ RED, BIG = 'conformance_red', 'conformance_big'
 
 
 def _picked(t: Target, filters, doing: str) -> set:
-    return set(t.names(filters, doing))
+    return set(t.entities.names(filters, doing))
 
 
 def _expect_set(got: set, wanted: set, doing: str) -> None:
@@ -31,21 +31,22 @@ def _expect_set(got: set, wanted: set, doing: str) -> None:
         'EntityFilters.msg', REGEX_QUOTE, services=LISTED)
 def whole_name(t: Target) -> None:
     """Two boxes: ^a$ gives a alone."""
-    a = t.spawn(0)
-    t.spawn(1)
-    _expect_set(_picked(t, t.filters(f'^{a}$'), 'GetEntities'), {a}, f'the filter ^{a}$')
+    a = t.entities.spawn(0)
+    t.entities.spawn(1)
+    _expect_set(_picked(t, t.entities.filters(f'^{a}$'), 'GetEntities'), {a}, f'the filter ^{a}$')
 
 
 @clause(CLAUSES, 'FILTER-02', 'filters are POSIX extended: alternation, brackets, +', (SPAWNING,),
         'EntityFilters.msg', REGEX_QUOTE, services=LISTED)
 def extended_syntax(t: Target) -> None:
     """Three boxes: ^(a|b)$ gives a and b; ^conformance_b[a-z]x_[0-9]+$ gives all the kit's."""
-    a, b, _ = t.spawn(0), t.spawn(1), t.spawn(2)
-    _expect_set(_picked(t, t.filters(f'^({a}|{b})$'), 'GetEntities'), {a, b},
+    a, b, _ = t.entities.spawn(0), t.entities.spawn(1), t.entities.spawn(2)
+    _expect_set(_picked(t, t.entities.filters(f'^({a}|{b})$'), 'GetEntities'), {a, b},
                 f'the filter ^({a}|{b})$')
     pattern = '^conformance_b[a-z]x_[0-9]+$'
-    wanted = {n for n in t.names() if re.fullmatch(pattern[1:-1], n)}
-    _expect_set(_picked(t, t.filters(pattern), 'GetEntities'), wanted, f'the filter {pattern}')
+    wanted = {n for n in t.entities.names() if re.fullmatch(pattern[1:-1], n)}
+    _expect_set(_picked(t, t.entities.filters(pattern), 'GetEntities'), wanted,
+                f'the filter {pattern}')
 
 
 @clause(CLAUSES, 'FILTER-03', 'GetEntitiesStates applies the filter too',
@@ -53,9 +54,9 @@ def extended_syntax(t: Target) -> None:
         'Optional filters for the query, including name, category, tags, and overlap filters.')
 def states_filtered(t: Target) -> None:
     """Two boxes: GetEntitiesStates with ^a$ gives a and one state."""
-    a = t.spawn(0)
-    t.spawn(1)
-    request = t.srv.GetEntitiesStates.Request(filters=t.filters(f'^{a}$'))
+    a = t.entities.spawn(0)
+    t.entities.spawn(1)
+    request = t.srv.GetEntitiesStates.Request(filters=t.entities.filters(f'^{a}$'))
     reply = t.ok('GetEntitiesStates', request, 'GetEntitiesStates')
     if list(reply.entities) != [a] or len(reply.states) != 1:
         raise ClauseFailed(f'GetEntitiesStates with ^{a}$ gave {list(reply.entities)[:5]} and '
@@ -63,11 +64,11 @@ def states_filtered(t: Target) -> None:
 
 
 def _categories(t: Target) -> dict:
-    names = t.names()
+    names = t.entities.names()
     if len(names) > MOST_ENTITIES:
         raise ClauseSkipped(f'{len(names)} entities: more than the {MOST_ENTITIES} whose '
                             'categories the kit reads')
-    return {n: t.info(n).category.category for n in names}
+    return {n: t.entities.info(n).category.category for n in names}
 
 
 CATEGORIES_QUOTE = ('EntityCategory[] categories # ... Entities matching any of the categories '
@@ -82,7 +83,7 @@ def one_category(t: Target) -> None:
     categories = _categories(t)
     for category in sorted(set(categories.values())):
         wanted = {n for n, c in categories.items() if c == category}
-        _expect_set(_picked(t, t.filters(categories=[category]), 'GetEntities'), wanted,
+        _expect_set(_picked(t, t.entities.filters(categories=[category]), 'GetEntities'), wanted,
                     f'the category filter [{category}]')
 
 
@@ -94,21 +95,21 @@ def two_categories(t: Target) -> None:
     categories = _categories(t)
     pair = (t.msg.EntityCategory.CATEGORY_ROBOT, t.msg.EntityCategory.CATEGORY_STATIC_OBJECT)
     wanted = {n for n, c in categories.items() if c in pair}
-    _expect_set(_picked(t, t.filters(categories=list(pair)), 'GetEntities'), wanted,
+    _expect_set(_picked(t, t.entities.filters(categories=list(pair)), 'GetEntities'), wanted,
                 f'the category filter {list(pair)}')
 
 
 def _near_and_far(t: Target, bounds, doing: str) -> None:
     """Box a at slot 0 must be picked by ``bounds``, box b 3 m away must not."""
-    a, b = t.spawn(0), t.spawn(1)
-    got = _picked(t, t.filters(bounds=bounds), 'GetEntities')
+    a, b = t.entities.spawn(0), t.entities.spawn(1)
+    got = _picked(t, t.entities.filters(bounds=bounds), 'GetEntities')
     if a not in got or b in got:
         raise ClauseFailed(f'{doing} around {a} gave {sorted(got)[:6]}: it must hold {a}, '
                            f'not {b} 3 m away')
 
 
 def _cube(t: Target, half: float = 0.5):
-    x, y, z = t.slot(0)
+    x, y, z = t.entities.slot(0)
     return [(x + dx, y + dy, z + dz) for dx in (-half, half) for dy in (-half, half)
             for dz in (-half, half)]
 
@@ -118,7 +119,7 @@ def _cube(t: Target, half: float = 0.5):
         'supported.', services=LISTED)
 def sphere_filter(t: Target) -> None:
     """Filter by a sphere of 0.5 m around box a: a, not box b 3 m away."""
-    _near_and_far(t, (t.msg.Bounds.TYPE_SPHERE, [t.slot(0), (0.5, 0.0, 0.0)]), 'a sphere')
+    _near_and_far(t, (t.msg.Bounds.TYPE_SPHERE, [t.entities.slot(0), (0.5, 0.0, 0.0)]), 'a sphere')
 
 
 @clause(CLAUSES, 'FILTER-07', 'a box picks the entities that overlap it',
@@ -148,19 +149,24 @@ def unsupported_bounds(t: Target) -> None:
     corners = _cube(t)
     kind, points = ((B.TYPE_BOX, [corners[0], corners[-1]])
                     if not t.declared('ENTITY_BOUNDS_BOX') else (B.TYPE_CONVEX_HULL, corners))
-    request = t.srv.GetEntities.Request(filters=t.filters(bounds=(kind, points)))
+    request = t.srv.GetEntities.Request(filters=t.entities.filters(bounds=(kind, points)))
     t.expect('GetEntities', request, (t.msg.Result.RESULT_FEATURE_UNSUPPORTED,),
              f'GetEntities with bounds of the undeclared type {kind}')
 
 
 def _tagged(t: Target):
     """Spawn a (tags red, big) and b (red); return their names."""
-    a, b = t.spawn(0), t.spawn(1)
-    for name, tags in ((a, [RED, BIG]), (b, [RED])):
+    a, b = t.entities.spawn(0), t.entities.spawn(1)
+    _tag(t, ((a, [RED, BIG]), (b, [RED])))
+    return a, b
+
+
+def _tag(t: Target, tagging) -> None:
+    """Give each (name, tags) of ``tagging`` those tags with SetEntityInfo."""
+    for name, tags in tagging:
         info = t.msg.EntityInfo(description='tagged by the conformance kit', tags=tags)
         t.ok('SetEntityInfo', t.srv.SetEntityInfo.Request(entity=name, info=info),
              f'SetEntityInfo of {name}')
-    return a, b
 
 
 @clause(CLAUSES, 'FILTER-10', 'a tags filter in ANY mode picks entities with any of the tags',
@@ -170,9 +176,9 @@ def tags_any(t: Target) -> None:
     """Tag a red and big, b red: ANY [big, x] gives a; ANY [red] gives a and b."""
     a, b = _tagged(t)
     any_mode = t.msg.TagsFilter.FILTER_MODE_ANY
-    _expect_set(_picked(t, t.filters(tags=[BIG, 'conformance_x'], mode=any_mode), 'GetEntities'),
-                {a}, f'ANY [{BIG}, conformance_x]')
-    _expect_set(_picked(t, t.filters(tags=[RED], mode=any_mode), 'GetEntities'), {a, b},
+    _expect_set(_picked(t, t.entities.filters(tags=[BIG, 'conformance_x'], mode=any_mode),
+                        'GetEntities'), {a}, f'ANY [{BIG}, conformance_x]')
+    _expect_set(_picked(t, t.entities.filters(tags=[RED], mode=any_mode), 'GetEntities'), {a, b},
                 f'ANY [{RED}]')
 
 
@@ -183,18 +189,26 @@ def tags_all(t: Target) -> None:
     """Tag a red and big, b red: ALL [red, big] gives a; ALL [red] gives a and b."""
     a, b = _tagged(t)
     all_mode = t.msg.TagsFilter.FILTER_MODE_ALL
-    _expect_set(_picked(t, t.filters(tags=[RED, BIG], mode=all_mode), 'GetEntities'), {a},
+    _expect_set(_picked(t, t.entities.filters(tags=[RED, BIG], mode=all_mode), 'GetEntities'), {a},
                 f'ALL [{RED}, {BIG}]')
-    _expect_set(_picked(t, t.filters(tags=[RED], mode=all_mode), 'GetEntities'), {a, b},
+    _expect_set(_picked(t, t.entities.filters(tags=[RED], mode=all_mode), 'GetEntities'), {a, b},
                 f'ALL [{RED}]')
 
 
-@clause(CLAUSES, 'FILTER-12', 'filters combine with AND', (SPAWNING,), 'EntityFilters.msg',
+@clause(CLAUSES, 'FILTER-12', 'the name filter applies together with a tags filter (AND)', TAGS,
+        'EntityFilters.msg',
         'string filter # ... Applies together with other filters (categories, tags).',
         services=LISTED)
 def filters_and(t: Target) -> None:
-    """Boxes a and b; the name filter ^(a|b)$ with a sphere around a gives a alone."""
-    a, b = t.spawn(0), t.spawn(1)
-    filters = t.filters(f'^({a}|{b})$', bounds=(t.msg.Bounds.TYPE_SPHERE,
-                                                [t.slot(0), (0.5, 0.0, 0.0)]))
-    _expect_set(_picked(t, filters, 'GetEntities'), {a}, 'a name filter and a sphere')
+    """
+    Tag boxes a and b red, not c; the name filter ^(a|c)$ with ANY [red] gives a alone.
+
+    The filters the sentence names, so that neither may be ignored: the name
+    filter alone gives a and c, the tags alone a and b.
+    """
+    a, b, c = t.entities.spawn(0), t.entities.spawn(1), t.entities.spawn(2)
+    _tag(t, ((a, [RED]), (b, [RED])))
+    filters = t.entities.filters(f'^({a}|{c})$', tags=[RED],
+                                 mode=t.msg.TagsFilter.FILTER_MODE_ANY)
+    _expect_set(_picked(t, filters, 'GetEntities'), {a}, f'the name filter ^({a}|{c})$ with ANY '
+                f'[{RED}]')

@@ -20,6 +20,10 @@ BITS = ('uint8 scope # ... This is a bit field which may be checked for each sco
         'scope & SCOPE_TIME.')
 STATE_QUOTE = 'SCOPE_STATE = 2 # Reset state such as poses and velocities.'
 SPAWNED_QUOTE = 'SCOPE_SPAWNED = 4 # De-spawns all spawned entities.'
+# The steps run before a reset of the time, and how many of them may run while the kit
+# plays to pause afterwards (from STOPPED): back at the start is back within a tenth.
+RUN = 480
+SLACK = RUN // 10
 
 
 def _scope(t: Target, name: str) -> int:
@@ -27,30 +31,31 @@ def _scope(t: Target, name: str) -> int:
 
 
 def _despawns(t: Target, scope: int) -> None:
-    name = t.spawn(0)
-    t.reset(scope)
-    if name in t.names():
+    name = t.entities.spawn(0)
+    t.sim.reset(scope)
+    if name in t.entities.names():
         raise ClauseFailed(f'{name} is still listed after ResetSimulation scope {scope}')
 
 
 def _time_back(t: Target, scope: int) -> None:
-    t.need_clock()
-    t.pause()
-    before = t.clock_after(lambda: t.advance(240), '240 steps')
-    t.reset(scope)
-    t.pause()
-    t.on_cleanup(t.stop)
-    t.expect_time_back(before, f'ResetSimulation scope {scope}')
+    """Paused, RUN steps on, reset with ``scope``, one step: one step from the start (0)."""
+    t.clock.need()
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
+    _, step_ns = t.clock.step_ns()
+    t.clock.after(lambda: t.sim.advance(RUN), f'{RUN} steps')
+    t.sim.reset(scope)
+    t.clock.expect_start(step_ns, f'ResetSimulation scope {scope}', SLACK)
 
 
 def _moved(t: Target, linear=(0.0, 0.0, 0.0)):
     """Pause, spawn at slot 0, move 1 m along y (with ``linear``); return (name, start, moved)."""
-    t.pause()
-    t.on_cleanup(t.stop)
-    name = t.spawn(0)
-    start = t.slot(0)
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
+    name = t.entities.spawn(0)
+    start = t.entities.slot(0)
     moved = (start[0], start[1] + 1.0, start[2])
-    t.place(name, moved, linear=linear)
+    t.entities.place(name, moved, linear=linear)
     return name, start, moved
 
 
@@ -58,7 +63,7 @@ def _moved(t: Target, linear=(0.0, 0.0, 0.0)):
         DEFAULT_QUOTE)
 def default_ok(t: Target) -> None:
     """Reset with scope 0: OK."""
-    t.reset(0)
+    t.sim.reset(0)
 
 
 @clause(CLAUSES, 'RESET-02', 'SCOPE_DEFAULT removes spawned entities', (RESET, 'SPAWNING'),
@@ -80,7 +85,7 @@ def all_despawns(t: Target) -> None:
         (RESET, SET, PAUSE, STEP), 'ResetSimulation.srv',
         'Reset the simulation to the start, including the entire scene and the simulation time.')
 def default_resets_time(t: Target) -> None:
-    """Paused, 240 steps, reset with 0, one step: /clock reads less than before."""
+    """Paused, 480 steps, reset with 0, one step: /clock reads one step from 0."""
     _time_back(t, 0)
 
 
@@ -88,7 +93,7 @@ def default_resets_time(t: Target) -> None:
         (TIME, SET, PAUSE, STEP), 'ResetSimulation.srv',
         'SCOPE_TIME = 1 # Reset simulation time to start.')
 def time_resets_time(t: Target) -> None:
-    """Paused, 240 steps, reset with TIME, one step: /clock reads less than before."""
+    """Paused, 480 steps, reset with TIME, one step: /clock reads one step from 0."""
     _time_back(t, _scope(t, 'TIME'))
 
 
@@ -97,10 +102,10 @@ def time_resets_time(t: Target) -> None:
 def time_keeps_entities(t: Target) -> None:
     """Reset TIME: a spawned, moved entity is still listed, still where it was moved."""
     name, _, moved = _moved(t)
-    t.reset(_scope(t, 'TIME'))
-    if name not in t.names():
+    t.sim.reset(_scope(t, 'TIME'))
+    if name not in t.entities.names():
         raise ClauseFailed(f'{name} is gone after ResetSimulation SCOPE_TIME')
-    position = t.position(name)
+    position = t.entities.position(name)
     if not close(position, moved):
         raise ClauseFailed(f'{name} is at {fmt(position)} after SCOPE_TIME, moved to {fmt(moved)}')
 
@@ -110,8 +115,8 @@ def time_keeps_entities(t: Target) -> None:
 def state_puts_back(t: Target) -> None:
     """Move a spawned entity 1 m, reset STATE: it is at its spawn pose again."""
     name, start, _ = _moved(t)
-    t.reset(_scope(t, 'STATE'))
-    position = t.position(name)
+    t.sim.reset(_scope(t, 'STATE'))
+    position = t.entities.position(name)
     if not close(position, start):
         raise ClauseFailed(f'{name} is at {fmt(position)} after SCOPE_STATE, spawned at '
                            f'{fmt(start)}')
@@ -122,8 +127,8 @@ def state_puts_back(t: Target) -> None:
 def state_stops(t: Target) -> None:
     """Give a spawned entity 1 m/s, reset STATE: its twist is zero."""
     name, _, _ = _moved(t, linear=(1.0, 0.0, 0.0))
-    t.reset(_scope(t, 'STATE'))
-    twist = t.entity_state(name).twist
+    t.sim.reset(_scope(t, 'STATE'))
+    twist = t.entities.state(name).twist
     speeds = vector(twist.linear) + vector(twist.angular)
     if not close(speeds, (0.0,) * 6):
         raise ClauseFailed(f'{name} moves at {fmt(speeds)} (linear, angular) after SCOPE_STATE')
@@ -133,9 +138,9 @@ def state_stops(t: Target) -> None:
         'ResetSimulation.srv', BITS)
 def state_keeps_spawned(t: Target) -> None:
     """Spawn, reset with STATE: still listed (RobotecAI's example then moves its cubes)."""
-    name = t.spawn(0)
-    t.reset(_scope(t, 'STATE'))
-    if name not in t.names():
+    name = t.entities.spawn(0)
+    t.sim.reset(_scope(t, 'STATE'))
+    if name not in t.entities.names():
         raise ClauseFailed(f'{name} is gone after ResetSimulation SCOPE_STATE')
 
 
@@ -143,13 +148,13 @@ def state_keeps_spawned(t: Target) -> None:
         'ResetSimulation.srv', BITS)
 def state_keeps_time(t: Target) -> None:
     """Paused at T, reset with STATE, one step: /clock reads T plus a step, not less."""
-    t.need_clock()
-    t.pause()
-    t.on_cleanup(t.stop)
-    now, step_ns = t.step_ns()
-    t.reset(_scope(t, 'STATE'))
-    t.pause()
-    after = t.clock_after(lambda: t.advance(1), 'SCOPE_STATE and one step')
+    t.clock.need()
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
+    now, step_ns = t.clock.step_ns()
+    t.sim.reset(_scope(t, 'STATE'))
+    t.sim.pause()
+    after = t.clock.after(lambda: t.sim.advance(1), 'SCOPE_STATE and one step')
     if after < now + step_ns - 1:
         raise ClauseFailed(f'SCOPE_STATE took the clock back: {now} ns before, {after} ns after '
                            'one more step')
@@ -166,10 +171,10 @@ def spawned_despawns(t: Target) -> None:
         'ResetSimulation.srv', SPAWNED_QUOTE)
 def spawned_keeps_others(t: Target) -> None:
     """Spawn, reset SPAWNED: the entities there before are all still listed."""
-    before = set(t.names())
-    t.spawn(0)
-    t.reset(_scope(t, 'SPAWNED'))
-    lost = sorted(before - set(t.names()))
+    before = set(t.entities.names())
+    t.entities.spawn(0)
+    t.sim.reset(_scope(t, 'SPAWNED'))
+    lost = sorted(before - set(t.entities.names()))
     if lost:
         raise ClauseFailed(f'SCOPE_SPAWNED removed entities nobody spawned: {lost[:5]}')
 
@@ -177,14 +182,14 @@ def spawned_keeps_others(t: Target) -> None:
 @clause(CLAUSES, 'RESET-13', 'TIME | STATE (3) does both', (TIME, STATE, STEP) + MOVE,
         'ResetSimulation.srv', BITS)
 def time_and_state(t: Target) -> None:
-    """Spawn, step 240, move; reset with 3: back at its spawn pose, time back."""
-    t.need_clock()
+    """Spawn, step 480, move; reset with 3: back at its spawn pose, one step reads one from 0."""
+    t.clock.need()
     name, start, moved = _moved(t)
-    before = t.clock_after(lambda: t.advance(240), '240 steps')
-    t.place(name, moved)
-    t.reset(_scope(t, 'TIME') | _scope(t, 'STATE'))
-    position = t.position(name)
+    _, step_ns = t.clock.step_ns()
+    t.clock.after(lambda: t.sim.advance(RUN), f'{RUN} steps')
+    t.entities.place(name, moved)
+    t.sim.reset(_scope(t, 'TIME') | _scope(t, 'STATE'))
+    position = t.entities.position(name)
     if not close(position, start):
         raise ClauseFailed(f'{name} is at {fmt(position)} after scope 3, spawned at {fmt(start)}')
-    t.pause()
-    t.expect_time_back(before, 'ResetSimulation scope 3')
+    t.clock.expect_start(step_ns, 'ResetSimulation scope 3', SLACK)

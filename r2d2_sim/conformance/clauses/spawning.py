@@ -24,16 +24,16 @@ INVALID_POSE_QUOTE = ('INVALID_POSE = 109 # initial_pose is invalid, such as whe
 
 
 def _listed(t: Target, name: str, doing: str) -> None:
-    if name not in t.names():
+    if name not in t.entities.names():
         raise ClauseFailed(f'{doing} returned {name!r}, which GetEntities does not list')
 
 
 def _refused(t: Target, request, codes, doing: str) -> None:
     """Send a spawn that must be refused with one of ``codes``; nothing may appear."""
-    before = set(t.names())
-    t.spawn_call(request, codes, doing)
-    new = sorted(set(t.names()) - before)
-    t.spawned.extend(n for n in new if n not in t.spawned)
+    before = set(t.entities.names())
+    t.entities.spawn_call(request, codes, doing)
+    new = sorted(set(t.entities.names()) - before)
+    t.entities.spawned.extend(n for n in new if n not in t.entities.spawned)
     if new:
         raise ClauseFailed(f'the refused spawn ({doing}) left new entities: {new[:5]}')
 
@@ -44,8 +44,9 @@ def spawn_uri(t: Target) -> None:
     """Spawn the --asset URI by a fresh name, no renaming: that name back, and listed."""
     if not t.options.asset:
         raise ClauseSkipped('no --asset URI given')
-    name = t.new_name('asset')
-    got = t.spawn_call(t.spawn_request(name, t.slot(0), uri=t.options.asset)).entity_name
+    name = t.entities.new_name('asset')
+    request = t.entities.spawn_request(name, t.entities.slot(0), uri=t.options.asset)
+    got = t.entities.spawn_call(request).entity_name
     if got != name:
         raise ClauseFailed(f'spawned {name!r} and got back {got!r}')
     _listed(t, got, 'SpawnEntity')
@@ -57,8 +58,8 @@ def spawn_uri(t: Target) -> None:
         'file passed as a string.', services=LISTED)
 def spawn_resource(t: Target) -> None:
     """Spawn the kit's box as URDF or SDF text: that name back, and listed."""
-    t.need_resource_string()
-    name = t.spawn(0)
+    t.entities.need_resource_string()
+    name = t.entities.spawn(0)
     _listed(t, name, 'SpawnEntity')
 
 
@@ -72,12 +73,12 @@ def name_from_file(t: Target) -> None:
     "if supported": a simulator that reads no names from files refuses the
     empty name (NAME_INVALID) rather than making one up.
     """
-    t.need_resource_string()
-    inner = t.new_name('named_in_file')
-    request = t.spawn_request('', t.slot(0), resource=t.box_text(inner))
-    reply = t.spawn_call(request, (t.msg.Result.RESULT_OK,
-                                   t.srv.SpawnEntity.Response.NAME_INVALID),
-                         'SpawnEntity with an empty name')
+    t.entities.need_resource_string()
+    inner = t.entities.new_name('named_in_file')
+    request = t.entities.spawn_request('', t.entities.slot(0), resource=t.entities.box_text(inner))
+    reply = t.entities.spawn_call(request, (t.msg.Result.RESULT_OK,
+                                            t.srv.SpawnEntity.Response.NAME_INVALID),
+                                  'SpawnEntity with an empty name')
     if reply.result.result == t.msg.Result.RESULT_OK and reply.entity_name != inner:
         raise ClauseFailed(f'an empty name with {inner!r} in the file gave {reply.entity_name!r}')
 
@@ -87,8 +88,9 @@ def name_from_file(t: Target) -> None:
         'allow_renaming is false.', services=LISTED)
 def name_taken(t: Target) -> None:
     """Spawn A; spawn A again without renaming: 101, nothing new."""
-    name = t.spawn(0)
-    _refused(t, t.spawn_request(name, t.slot(1)), (t.srv.SpawnEntity.Response.NAME_NOT_UNIQUE,),
+    name = t.entities.spawn(0)
+    _refused(t, t.entities.spawn_request(name, t.entities.slot(1)),
+             (t.srv.SpawnEntity.Response.NAME_NOT_UNIQUE,),
              f'a second {name} without allow_renaming')
 
 
@@ -97,12 +99,12 @@ def name_taken(t: Target) -> None:
         'response field if the allow_renaming field is set to true.', services=LISTED)
 def renamed(t: Target) -> None:
     """Spawn A; spawn A again with renaming: OK, another name, listed beside A."""
-    name = t.spawn(0)
-    request = t.spawn_request(name, t.slot(1), allow_renaming=True)
-    got = t.spawn_call(request, doing=f'a second {name} with allow_renaming').entity_name
+    name = t.entities.spawn(0)
+    request = t.entities.spawn_request(name, t.entities.slot(1), allow_renaming=True)
+    got = t.entities.spawn_call(request, doing=f'a second {name} with allow_renaming').entity_name
     if got == name or not got:
         raise ClauseFailed(f'a second {name} with allow_renaming came back as {got!r}')
-    names = t.names()
+    names = t.entities.names()
     if name not in names or got not in names:
         raise ClauseFailed(f'after renaming, GetEntities lists {sorted(names)[:6]}: not both '
                            f'{name} and {got}')
@@ -113,8 +115,8 @@ def renamed(t: Target) -> None:
         'if name is empty and allow_renaming is false.', services=LISTED)
 def no_name_at_all(t: Target) -> None:
     """Spawn as '' a box of empty name: 102 (or 106: that file is no URDF)."""
-    t.need_resource_string()
-    request = t.spawn_request('', t.slot(0), resource=t.box_text(''))
+    t.entities.need_resource_string()
+    request = t.entities.spawn_request('', t.entities.slot(0), resource=t.entities.box_text(''))
     response = t.srv.SpawnEntity.Response
     _refused(t, request, (response.NAME_INVALID, response.RESOURCE_PARSE_ERROR),
              'SpawnEntity with no name anywhere')
@@ -126,9 +128,9 @@ def uri_wins(t: Target) -> None:
     """Spawn --asset with a resource string that is no model: OK (the string is ignored)."""
     if not t.options.asset:
         raise ClauseSkipped('no --asset URI given')
-    request = t.spawn_request(t.new_name('asset'), t.slot(0), uri=t.options.asset,
-                              resource='this is not a model')
-    t.spawn_call(request, doing='SpawnEntity with a uri and a broken resource_string')
+    request = t.entities.spawn_request(t.entities.new_name('asset'), t.entities.slot(0),
+                                       uri=t.options.asset, resource='this is not a model')
+    t.entities.spawn_call(request, doing='SpawnEntity with a uri and a broken resource_string')
 
 
 @clause(CLAUSES, 'SPAWN-08', 'neither uri nor resource_string is NO_RESOURCE', (SPAWNING,),
@@ -136,7 +138,8 @@ def uri_wins(t: Target) -> None:
         services=LISTED)
 def no_resource(t: Target) -> None:
     """Both empty: 104, nothing new."""
-    request = t.spawn_request(t.new_name(), t.slot(0), uri='', resource='')
+    request = t.entities.spawn_request(t.entities.new_name(), t.entities.slot(0), uri='',
+                                       resource='')
     _refused(t, request, (t.srv.SpawnEntity.Response.NO_RESOURCE,), 'SpawnEntity of nothing')
 
 
@@ -144,8 +147,8 @@ def no_resource(t: Target) -> None:
         INVALID_POSE_QUOTE, services=LISTED)
 def spawn_zero_quaternion(t: Target) -> None:
     """Orientation (0, 0, 0, 0): 109, nothing new."""
-    name = t.new_name()
-    request = t.spawn_request(name, t.slot(0), (0.0, 0.0, 0.0, 0.0))
+    name = t.entities.new_name()
+    request = t.entities.spawn_request(name, t.entities.slot(0), (0.0, 0.0, 0.0, 0.0))
     _refused(t, request, (t.srv.SpawnEntity.Response.INVALID_POSE,),
              'SpawnEntity with a zero quaternion')
 
@@ -154,14 +157,14 @@ def spawn_zero_quaternion(t: Target) -> None:
         INVALID_POSE_QUOTE, services=LISTED)
 def spawn_nan(t: Target) -> None:
     """Position (NaN, y, z): 109, nothing new."""
-    x, y, z = t.slot(0)
-    request = t.spawn_request(t.new_name(), (math.nan, y, z))
+    x, y, z = t.entities.slot(0)
+    request = t.entities.spawn_request(t.entities.new_name(), (math.nan, y, z))
     _refused(t, request, (t.srv.SpawnEntity.Response.INVALID_POSE,),
              'SpawnEntity at a NaN position')
 
 
 def _expect_at(t: Target, name: str, position, orientation, doing: str) -> None:
-    pose = t.entity_state(name).pose
+    pose = t.entities.state(name).pose
     got_p, got_q = vector(pose.position), quaternion(pose.orientation)
     if not close(got_p, position) or not same_rotation(got_q, orientation):
         raise ClauseFailed(f'{doing}: {name} is at {fmt(got_p)} {fmt(got_q)}, asked for '
@@ -172,21 +175,21 @@ def _expect_at(t: Target, name: str, position, orientation, doing: str) -> None:
         (SPAWNING, GETTING, SET, PAUSE), 'SpawnEntity.srv', POSE_QUOTE)
 def spawn_at_pose(t: Target) -> None:
     """Paused: a box spawned turned by 0.8 rad, in the air, reads exactly there."""
-    t.pause()
-    t.on_cleanup(t.stop)
-    name = t.spawn(0, yaw=0.8)
-    _expect_at(t, name, t.slot(0), yaw_quaternion(0.8), 'SpawnEntity')
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
+    name = t.entities.spawn(0, yaw=0.8)
+    _expect_at(t, name, t.entities.slot(0), yaw_quaternion(0.8), 'SpawnEntity')
 
 
 @clause(CLAUSES, 'SPAWN-12', 'an initial_pose in another entity\'s frame is relative to it',
         (SPAWNING, GETTING, SET, PAUSE), 'SpawnEntity.srv', POSE_QUOTE)
 def spawn_in_entity_frame(t: Target) -> None:
     """Turn A 90 degrees, spawn B 1 m along A's x: B is 1 m along world y of A."""
-    t.pause()
-    t.on_cleanup(t.stop)
-    a = t.spawn(0, yaw=math.pi / 2)
-    b = t.spawn(name=t.new_name(), position=(1.0, 0.0, 0.0), frame=a)
-    x, y, z = t.slot(0)
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
+    a = t.entities.spawn(0, yaw=math.pi / 2)
+    b = t.entities.spawn(name=t.entities.new_name(), position=(1.0, 0.0, 0.0), frame=a)
+    x, y, z = t.entities.slot(0)
     _expect_at(t, b, (x, y + 1.0, z), yaw_quaternion(math.pi / 2),
                f'SpawnEntity in the frame of {a}')
 
@@ -196,17 +199,18 @@ def spawn_in_entity_frame(t: Target) -> None:
         'earlier.', services=LISTED)
 def spawn_unknown_frame(t: Target) -> None:
     """Frame 'conformance_no_such_frame': any refusal but 0, nothing new."""
-    request = t.spawn_request(t.new_name(), t.slot(0), frame='conformance_no_such_frame')
-    before = set(t.names())
+    request = t.entities.spawn_request(t.entities.new_name(), t.entities.slot(0),
+                                       frame='conformance_no_such_frame')
+    before = set(t.entities.names())
     reply = t.call('SpawnEntity', request)
     if reply.result.result == t.msg.Result.RESULT_OK:
-        t.spawned.append(reply.entity_name)
+        t.entities.spawned.append(reply.entity_name)
     if reply.result.result in (t.msg.Result.RESULT_OK, t.msg.Result.RESULT_FEATURE_UNSUPPORTED):
         raise ClauseFailed(f'SpawnEntity in an unknown frame answered '
                            f'{t.describe("SpawnEntity", reply)}')
-    new = sorted(set(t.names()) - before)
+    new = sorted(set(t.entities.names()) - before)
     if new:
-        t.spawned.extend(new)
+        t.entities.spawned.extend(new)
         raise ClauseFailed(f'the refused spawn left new entities: {new[:5]}')
 
 
@@ -215,7 +219,8 @@ def spawn_unknown_frame(t: Target) -> None:
         'standards.', services=LISTED)
 def bad_namespace(t: Target) -> None:
     """Namespace '/bad namespace!' (a space and a '!': no ROS namespace): 105, nothing new."""
-    request = t.spawn_request(t.new_name(), t.slot(0), namespace='/bad namespace!')
+    request = t.entities.spawn_request(t.entities.new_name(), t.entities.slot(0),
+                                       namespace='/bad namespace!')
     _refused(t, request, (t.srv.SpawnEntity.Response.NAMESPACE_INVALID,),
              'SpawnEntity with namespace /bad namespace!')
 
@@ -225,10 +230,10 @@ def bad_namespace(t: Target) -> None:
         'string failed to parse.', services=LISTED)
 def parse_error(t: Target) -> None:
     """Spawn the kit's box text cut in half: 106, nothing new."""
-    t.need_resource_string()
-    name = t.new_name()
-    text = t.box_text(name)
-    request = t.spawn_request(name, t.slot(0), resource=text[:len(text) // 2])
+    t.entities.need_resource_string()
+    name = t.entities.new_name()
+    text = t.entities.box_text(name)
+    request = t.entities.spawn_request(name, t.entities.slot(0), resource=text[:len(text) // 2])
     _refused(t, request, (t.srv.SpawnEntity.Response.RESOURCE_PARSE_ERROR,),
              'SpawnEntity of a truncated description')
 
@@ -239,9 +244,10 @@ def parse_error(t: Target) -> None:
         services=LISTED)
 def specific_code(t: Target) -> None:
     """Plain text: UNSUPPORTED_FORMAT (103) or RESOURCE_PARSE_ERROR (106), nothing new."""
-    t.need_resource_string()
+    t.entities.need_resource_string()
     response = t.srv.SpawnEntity.Response
-    request = t.spawn_request(t.new_name(), t.slot(0), resource='hello, this is no model')
+    request = t.entities.spawn_request(t.entities.new_name(), t.entities.slot(0),
+                                       resource='hello, this is no model')
     _refused(t, request, (response.UNSUPPORTED_FORMAT, response.RESOURCE_PARSE_ERROR),
              'SpawnEntity of plain text')
 
@@ -250,9 +256,9 @@ def specific_code(t: Target) -> None:
         'SpawnEntity.srv', 'The timestamp field in the header is ignored.', services=LISTED)
 def spawn_stamp_ignored(t: Target) -> None:
     """Stamped a day ahead: OK and listed."""
-    name = t.new_name()
-    got = t.spawn_call(t.spawn_request(name, t.slot(0), stamp=(86_400, 5)),
-                       doing='SpawnEntity stamped a day ahead').entity_name
+    name = t.entities.new_name()
+    request = t.entities.spawn_request(name, t.entities.slot(0), stamp=(86_400, 5))
+    got = t.entities.spawn_call(request, doing='SpawnEntity stamped a day ahead').entity_name
     _listed(t, got, 'SpawnEntity stamped a day ahead')
 
 
@@ -261,9 +267,9 @@ def spawn_stamp_ignored(t: Target) -> None:
 def _member(t: Target, name: str, index: int, empty: bool = False):
     msg = t.msg.SpawnEntity(name=name, allow_renaming=False)
     if not empty:
-        uri, resource = t.source(name)
+        uri, resource = t.entities.source(name)
         msg.entity_resource = t.msg.Resource(uri=uri, resource_string=resource)
-    x, y, z = t.slot(index)
+    x, y, z = t.entities.slot(index)
     position = msg.initial_pose.pose.position
     position.x, position.y, position.z = x, y, z
     msg.initial_pose.pose.orientation.w = 1.0
@@ -274,7 +280,7 @@ def _batch(t: Target, members, doing: str):
     reply = t.call('SpawnEntities', t.srv.SpawnEntities.Request(spawn_requests=members))
     for result in reply.results:
         if result.result.result == t.msg.Result.RESULT_OK and result.entity_name:
-            t.spawned.append(result.entity_name)
+            t.entities.spawned.append(result.entity_name)
     if len(reply.results) != len(members):
         raise ClauseFailed(f'{doing}: {len(reply.results)} results for {len(members)} requests')
     return reply
@@ -293,7 +299,7 @@ BATCH_QUOTE = ('ENTITIES_SPAWN_FAILED = 150 # There was at least one failed spaw
         'SpawnResult[] results # List of results for each spawn request.', services=LISTED)
 def batch_ok(t: Target) -> None:
     """Two boxes: OK, two OK results naming them in order, both in GetEntities."""
-    a, b = t.new_name(), t.new_name()
+    a, b = t.entities.new_name(), t.entities.new_name()
     reply = _batch(t, [_member(t, a, 0), _member(t, b, 1)], 'SpawnEntities of two')
     if reply.result.result != t.msg.Result.RESULT_OK:
         raise ClauseFailed(f'SpawnEntities of two good requests: '
@@ -301,7 +307,7 @@ def batch_ok(t: Target) -> None:
     names = [r.entity_name for r in reply.results]
     if names != [a, b] or any(r.result.result != t.msg.Result.RESULT_OK for r in reply.results):
         raise ClauseFailed(f'results {list(zip(names, _codes(t, reply)))} for {[a, b]}')
-    listed = t.names()
+    listed = t.entities.names()
     if a not in listed or b not in listed:
         raise ClauseFailed(f'{a} and {b} are not both listed after SpawnEntities')
 
@@ -310,7 +316,7 @@ def batch_ok(t: Target) -> None:
         ('SPAWNING_ENTITIES',), 'SpawnEntities.srv', BATCH_QUOTE)
 def batch_failed(t: Target) -> None:
     """Spawn a good box and one of no resource: 150, results OK and NO_RESOURCE."""
-    good, bad = t.new_name(), t.new_name()
+    good, bad = t.entities.new_name(), t.entities.new_name()
     reply = _batch(t, [_member(t, good, 0), _member(t, bad, 1, empty=True)],
                    'SpawnEntities with a bad request')
     if reply.result.result != t.srv.SpawnEntities.Response.ENTITIES_SPAWN_FAILED:
@@ -326,9 +332,9 @@ def batch_failed(t: Target) -> None:
         ('SPAWNING_ENTITIES',), 'SpawnEntities.srv', BATCH_QUOTE, services=LISTED)
 def batch_keeps_good(t: Target) -> None:
     """Spawn a bad request, then a good box: the good one is listed afterwards."""
-    bad, good = t.new_name(), t.new_name()
+    bad, good = t.entities.new_name(), t.entities.new_name()
     _batch(t, [_member(t, bad, 0, empty=True), _member(t, good, 1)], 'SpawnEntities')
-    if good not in t.names():
+    if good not in t.entities.names():
         raise ClauseFailed(f'{good}, a good request beside a bad one, was not spawned')
 
 
@@ -337,7 +343,7 @@ def batch_keeps_good(t: Target) -> None:
         'taken by entity and allow_renaming is false.')
 def batch_same_name(t: Target) -> None:
     """Two requests for one name without renaming: OK, then NAME_NOT_UNIQUE."""
-    name = t.new_name()
+    name = t.entities.new_name()
     reply = _batch(t, [_member(t, name, 0), _member(t, name, 1)],
                    'SpawnEntities of one name twice')
     codes = [r.result.result for r in reply.results]
@@ -352,9 +358,9 @@ def batch_same_name(t: Target) -> None:
         services=LISTED)
 def deleted_gone(t: Target) -> None:
     """Spawn, delete: OK, and GetEntities no longer lists it."""
-    name = t.spawn(0)
-    t.delete(name)
-    if name in t.names():
+    name = t.entities.spawn(0)
+    t.entities.delete(name)
+    if name in t.entities.names():
         raise ClauseFailed(f'{name} is still listed after DeleteEntity')
 
 
@@ -363,10 +369,10 @@ def deleted_gone(t: Target) -> None:
         'namespace, as returned by SpawnEntity or GetEntities.', services=LISTED)
 def delete_one(t: Target) -> None:
     """Spawn A and B, delete A: B and everything else still listed."""
-    before = set(t.names())
-    a, b = t.spawn(0), t.spawn(1)
-    t.delete(a)
-    lost = sorted((before | {b}) - set(t.names()))
+    before = set(t.entities.names())
+    a, b = t.entities.spawn(0), t.entities.spawn(1)
+    t.entities.delete(a)
+    lost = sorted((before | {b}) - set(t.entities.names()))
     if lost:
         raise ClauseFailed(f'deleting {a} also removed {lost[:5]}')
 
@@ -412,7 +418,7 @@ def spawnable_spawns(t: Target) -> None:
         raise ClauseSkipped('GetSpawnables lists nothing')
     boxes = [u for u in uris if 'box' in u.lower() or 'cube' in u.lower()]
     uri = t.options.asset if t.options.asset in uris else (boxes or uris)[0]
-    name = t.new_name('spawnable')
-    got = t.spawn_call(t.spawn_request(name, t.slot(0), uri=uri),
-                       doing=f'SpawnEntity of the listed {uri}').entity_name
+    name = t.entities.new_name('spawnable')
+    got = t.entities.spawn_call(t.entities.spawn_request(name, t.entities.slot(0), uri=uri),
+                                doing=f'SpawnEntity of the listed {uri}').entity_name
     _listed(t, got, f'SpawnEntity of {uri}')

@@ -28,33 +28,33 @@ def _some_steps(t: Target) -> int:
         'StepSimulation.srv', PAUSED_STEPS)
 def one_step(t: Target) -> None:
     """Pause, step 1: OK."""
-    t.pause()
-    t.step(1)
+    t.sim.pause()
+    t.sim.step(1)
 
 
 @clause(CLAUSES, 'STEP-02', 'several steps of a paused simulation answer OK',
         (MULTIPLE, SET, PAUSE), 'StepSimulation.srv', PAUSED_STEPS, services=SERVICE)
 def several_steps(t: Target) -> None:
     """Pause, step 5: OK."""
-    t.pause()
-    t.step(5)
+    t.sim.pause()
+    t.sim.step(5)
 
 
 @clause(CLAUSES, 'STEP-03', 'after stepping the simulation is still PAUSED',
         (EITHER, SET, PAUSE, GET), 'StepSimulation.srv', PAUSED_STEPS, services=SERVICE)
 def paused_after_steps(t: Target) -> None:
     """Pause, step: the state reads PAUSED."""
-    t.pause()
-    t.step(_some_steps(t))
-    t.expect_state(t.S.STATE_PAUSED, 'StepSimulation')
+    t.sim.pause()
+    t.sim.step(_some_steps(t))
+    t.sim.expect_state(t.sim.S.STATE_PAUSED, 'StepSimulation')
 
 
 @clause(CLAUSES, 'STEP-04', 'stepping while PLAYING is OPERATION_FAILED with a message',
         (EITHER, SET), 'StepSimulation.srv', NOT_PAUSED, services=SERVICE)
 def step_while_playing(t: Target) -> None:
     """Play, step: OPERATION_FAILED (not OK, not INCORRECT_STATE) and an error_message."""
-    t.play()
-    t.on_cleanup(t.stop)
+    t.sim.play()
+    t.undo.on_cleanup(t.sim.stop)
     reply = t.expect('StepSimulation', t.srv.StepSimulation.Request(steps=_some_steps(t)),
                      (t.msg.Result.RESULT_OPERATION_FAILED,), 'StepSimulation while PLAYING')
     if not reply.result.error_message.strip():
@@ -66,34 +66,34 @@ def step_while_playing(t: Target) -> None:
         'StepSimulation.srv', NOT_PAUSED, services=SERVICE)
 def refused_step_keeps_playing(t: Target) -> None:
     """Play, step (refused): the state still reads PLAYING, not PAUSED."""
-    t.play()
-    t.on_cleanup(t.stop)
+    t.sim.play()
+    t.undo.on_cleanup(t.sim.stop)
     t.call('StepSimulation', t.srv.StepSimulation.Request(steps=_some_steps(t)))
-    t.expect_state(t.S.STATE_PLAYING, 'a StepSimulation while PLAYING')
+    t.sim.expect_state(t.sim.S.STATE_PLAYING, 'a StepSimulation while PLAYING')
 
 
 @clause(CLAUSES, 'STEP-06', 'each single step advances /clock by the same step',
         (SINGLE, SET, PAUSE), 'StepSimulation.srv', LOOP)
 def single_steps_on_clock(t: Target) -> None:
     """Paused: single steps move /clock forward, each by the same length."""
-    t.need_clock()
-    t.pause()
-    now, step_ns = t.step_ns()
+    t.clock.need()
+    t.sim.pause()
+    now, step_ns = t.clock.step_ns()
     if step_ns <= 0:
         raise ClauseFailed(f'one step moved the clock by {step_ns} ns')
-    t.step(1)
-    t.expect_clock(now + step_ns, 1, 'one more step')
+    t.sim.step(1)
+    t.clock.expect(now + step_ns, 1, 'one more step')
 
 
 @clause(CLAUSES, 'STEP-07', 'N steps advance /clock by N steps', (MULTIPLE, SET, PAUSE),
         'StepSimulation.srv', LOOP, services=SERVICE)
 def many_steps_on_clock(t: Target) -> None:
     """Paused: StepSimulation(10) moves /clock by ten single steps, exactly."""
-    t.need_clock()
-    t.pause()
-    now, step_ns = t.step_ns()
-    t.step(10)
-    t.expect_clock(now + 10 * step_ns, 10, 'StepSimulation of 10')
+    t.clock.need()
+    t.sim.pause()
+    now, step_ns = t.clock.step_ns()
+    t.sim.step(10)
+    t.clock.expect(now + 10 * step_ns, 10, 'StepSimulation of 10')
 
 
 # -- ACTION -----------------------------------------------------------------------------
@@ -106,10 +106,11 @@ ACTION_PAUSED = ('Assuming the simulation is paused, simulate a finite number of
         (ACTION, SET, PAUSE), 'SimulateSteps.action', ACTION_PAUSED)
 def goal_succeeds(t: Target) -> None:
     """Pause, a goal of 5: SUCCEEDED with RESULT_OK."""
-    t.pause()
-    status, result = t.run_goal(5)
-    if status != t.GoalStatus.STATUS_SUCCEEDED or result.result.result != t.msg.Result.RESULT_OK:
-        raise ClauseFailed(f'a goal of 5 ended {t.status_name(status)} with '
+    t.sim.pause()
+    status, result = t.sim.run_goal(5)
+    succeeded = status == t.sim.GoalStatus.STATUS_SUCCEEDED
+    if not succeeded or result.result.result != t.msg.Result.RESULT_OK:
+        raise ClauseFailed(f'a goal of 5 ended {t.sim.status_name(status)} with '
                            f'{t.describe(None, result)}')
 
 
@@ -123,14 +124,14 @@ def feedback_counts(t: Target) -> None:
     Not every message is required: feedback is a topic whose history the
     server keeps short.
     """
-    t.pause()
+    t.sim.pause()
     steps = 20
-    handle = t.send_goal(steps)
+    handle = t.sim.send_goal(steps)
     if not handle.accepted:
         raise ClauseFailed('a goal of 20 steps of a paused simulation was rejected')
-    t.goal_result(handle)
-    t.clock_settled()  # a round trip: feedback sent before the result has come
-    seen = t.feedback_of(handle)
+    t.sim.goal_result(handle)
+    t.clock.settled()  # a round trip: feedback sent before the result has come
+    seen = t.sim.feedback_of(handle)
     if not seen:
         raise ClauseFailed('a goal of 20 steps gave no feedback')
     done = [d for d, _ in seen]
@@ -147,15 +148,15 @@ def feedback_counts(t: Target) -> None:
         'error message.')
 def goal_while_playing(t: Target) -> None:
     """Play, a goal: its Result is OPERATION_FAILED (a rejected goal has no Result)."""
-    t.play()
-    t.on_cleanup(t.stop)
-    handle = t.send_goal(5)
+    t.sim.play()
+    t.undo.on_cleanup(t.sim.stop)
+    handle = t.sim.send_goal(5)
     if not handle.accepted:
         raise ClauseFailed('the goal was rejected: a rejected goal carries no Result, the '
                            'standard wants OPERATION_FAILED in it')
-    status, result = t.goal_result(handle)
+    status, result = t.sim.goal_result(handle)
     if result.result.result != t.msg.Result.RESULT_OPERATION_FAILED:
-        raise ClauseFailed(f'a goal while PLAYING ended {t.status_name(status)} with '
+        raise ClauseFailed(f'a goal while PLAYING ended {t.sim.status_name(status)} with '
                            f'{t.describe(None, result)}, not OPERATION_FAILED')
     if not result.result.error_message.strip():
         raise ClauseFailed('OPERATION_FAILED without an error_message')
@@ -166,27 +167,27 @@ def goal_while_playing(t: Target) -> None:
         'uint64 remaining_steps # number of steps remaining to be completed in this action.')
 def goal_cancelled(t: Target) -> None:
     """Pause, a goal of 100,000 steps, cancel at once: the cancel is taken, status CANCELED."""
-    t.pause()
-    handle = t.send_goal(100_000)
+    t.sim.pause()
+    handle = t.sim.send_goal(100_000)
     if not handle.accepted:
         raise ClauseFailed('a goal of 100000 steps of a paused simulation was rejected')
     cancel = handle.cancel_goal_async()
-    if not t.probe.spin_until(cancel.done, t.timeout_s):
+    if not t.wait(cancel.done):
         raise ClauseFailed(f'the cancel request was not answered within {t.timeout_s:g} s')
     if not cancel.result().goals_canceling:
         raise ClauseFailed('the cancel request was refused')
-    status, _ = t.goal_result(handle)
-    if status != t.GoalStatus.STATUS_CANCELED:
-        raise ClauseFailed(f'the cancelled goal ended {t.status_name(status)}')
+    status, _ = t.sim.goal_result(handle)
+    if status != t.sim.GoalStatus.STATUS_CANCELED:
+        raise ClauseFailed(f'the cancelled goal ended {t.sim.status_name(status)}')
 
 
 @clause(CLAUSES, 'ACTION-05', 'after a goal the simulation is still PAUSED',
         (ACTION, SET, PAUSE, GET), 'SimulateSteps.action', ACTION_PAUSED)
 def paused_after_goal(t: Target) -> None:
     """Pause, a goal of 5: the state reads PAUSED."""
-    t.pause()
-    t.run_goal(5)
-    t.expect_state(t.S.STATE_PAUSED, 'a SimulateSteps goal')
+    t.sim.pause()
+    t.sim.run_goal(5)
+    t.sim.expect_state(t.sim.S.STATE_PAUSED, 'a SimulateSteps goal')
 
 
 @clause(CLAUSES, 'ACTION-06', 'a goal of N steps advances /clock by N steps',
@@ -194,8 +195,8 @@ def paused_after_goal(t: Target) -> None:
         'uint64 steps # Action goal: step through the simulation loop this many times.')
 def goal_on_clock(t: Target) -> None:
     """Paused: a goal of 10 moves /clock by ten single steps, exactly."""
-    t.need_clock()
-    t.pause()
-    now, step_ns = t.step_ns()
-    t.run_goal(10)
-    t.expect_clock(now + 10 * step_ns, 10, 'a SimulateSteps goal of 10')
+    t.clock.need()
+    t.sim.pause()
+    now, step_ns = t.clock.step_ns()
+    t.sim.run_goal(10)
+    t.clock.expect(now + 10 * step_ns, 10, 'a SimulateSteps goal of 10')

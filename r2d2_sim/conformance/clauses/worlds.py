@@ -14,6 +14,8 @@ SET, PAUSE, GET = ('SIMULATION_STATE_SETTING', 'SIMULATION_STATE_PAUSE',
                    'SIMULATION_STATE_GETTING')
 TAGS_QUOTE = ('TagsFilter tags # Tags filter to apply. Only named poses with matching tags field '
               'will be returned.')
+# At most this many worlds are loaded to find one whose named poses show.
+MOST_WORLDS = 3
 
 
 def _poses(t: Target, tags=(), mode: int = 0):
@@ -21,11 +23,55 @@ def _poses(t: Target, tags=(), mode: int = 0):
     return list(t.ok('GetNamedPoses', request, 'GetNamedPoses').poses)
 
 
+def _shown_poses(t: Target) -> list:
+    """
+    Return the named poses of a world that has some: the one loaded, else one the kit loads.
+
+    NAMED_POSES is declared: a world that has named poses must show them.
+    When the world loaded shows none, the kit loads up to three others
+    (``--world``, then the available ones) and looks again (the world is put
+    back after the clause); none showing any fails (a GetNamedPoses that
+    always answers an empty list). Skipped only where the kit can load no world.
+    """
+    poses = _poses(t)
+    if poses:
+        return poses
+    candidates = _other_worlds(t) if t.declared('WORLD_LOADING') else []
+    if not candidates:
+        raise ClauseSkipped('GetNamedPoses lists no pose in the world loaded, and the kit has no '
+                            'other world to load (give --world a world with named poses)')
+    t.undo.on_cleanup(t.world.put_back)
+    tried = []
+    for resource in candidates:
+        tried.append(resource.uri or 'a resource string')
+        t.world.load(resource, f'LoadWorld of {tried[-1]}, to find named poses')
+        poses = _poses(t)
+        if poses:
+            return poses
+    raise ClauseFailed(f'NAMED_POSES is declared, yet GetNamedPoses lists no pose in the world '
+                       f'loaded nor in the {len(tried)} the kit loaded ({", ".join(tried)})')
+
+
+def _other_worlds(t: Target) -> list:
+    """Return up to MOST_WORLDS Resources to load: --world, then available ones not loaded now."""
+    now = _current(t).world if t.declared('WORLD_INFO_GETTING') else t.world.initial
+    loaded = _resource_of(now) if now is not None else None
+    found = [t.msg.Resource(uri=t.options.world)] if t.options.world else []
+    if t.declared('AVAILABLE_WORLDS'):
+        found += [w.world_resource for w in _available(t) if _resource_of(w)]
+    chosen: list = []
+    for resource in found:
+        key = resource.uri or resource.resource_string[:60]
+        if key != loaded and key not in [r.uri or r.resource_string[:60] for r in chosen]:
+            chosen.append(resource)
+    return chosen[:MOST_WORLDS]
+
+
 @clause(CLAUSES, 'NAMED-01', 'GetNamedPoses lists poses by unique names', (NAMED,),
         'NamedPose.msg', 'string name # Unique name.')
 def unique_pose_names(t: Target) -> None:
-    """No name twice, none empty, every orientation a unit quaternion."""
-    poses = _poses(t)
+    """Read a world's poses (see _shown_poses): no name twice, none empty, unit quaternions."""
+    poses = _shown_poses(t)
     names = [p.name for p in poses]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice or '' in names:
@@ -37,7 +83,7 @@ def unique_pose_names(t: Target) -> None:
 
 
 def _tag_check(t: Target, mode: int, label: str) -> None:
-    poses = _poses(t)
+    poses = _shown_poses(t)
     tags = sorted({tag for p in poses for tag in p.tags})
     if not tags:
         raise ClauseSkipped('no named pose has tags')
@@ -70,10 +116,8 @@ def poses_all(t: Target) -> None:
 @clause(CLAUSES, 'NAMED-04', 'every named pose has bounds the standard defines',
         (NAMED, 'POSE_BOUNDS'), 'GetNamedPoseBounds.srv', 'Get bounds for the named pose.')
 def pose_bounds(t: Target) -> None:
-    """Ask the bounds of each listed pose: OK, a defined type (EMPTY allowed)."""
-    poses = _poses(t)
-    if not poses:
-        raise ClauseSkipped('GetNamedPoses lists no pose')
+    """Ask the bounds of each pose of a world's (see _shown_poses): OK, a defined type."""
+    poses = _shown_poses(t)
     for pose in poses[:20]:
         bounds = t.ok('GetNamedPoseBounds', t.srv.GetNamedPoseBounds.Request(name=pose.name),
                       f'GetNamedPoseBounds of {pose.name}').bounds
@@ -85,18 +129,15 @@ def pose_bounds(t: Target) -> None:
         'geometry_msgs/Pose pose # Pose relative to world, which can be used with '
         'SpawnEntity.srv.')
 def spawn_at_named_pose(t: Target) -> None:
-    """Paused: the kit's box spawned at the first named pose (as it is) reads exactly there."""
-    poses = _poses(t)
-    if not poses:
-        raise ClauseSkipped('GetNamedPoses lists no pose')
-    pose = poses[0]
-    t.pause()
-    t.on_cleanup(t.stop)
+    """Paused: the kit's box spawned at a world's first named pose reads exactly there."""
+    pose = _shown_poses(t)[0]
+    t.sim.pause()
+    t.undo.on_cleanup(t.sim.stop)
     position, orientation = vector(pose.pose.position), quaternion(pose.pose.orientation)
-    name = t.new_name()
-    t.spawn_call(t.spawn_request(name, position, orientation),
-                 doing=f'SpawnEntity at the named pose {pose.name}')
-    state = t.entity_state(name).pose
+    name = t.entities.new_name()
+    t.entities.spawn_call(t.entities.spawn_request(name, position, orientation),
+                          doing=f'SpawnEntity at the named pose {pose.name}')
+    state = t.entities.state(name).pose
     got_p, got_q = vector(state.position), quaternion(state.orientation)
     if not close(got_p, position) or not same_rotation(got_q, orientation):
         raise ClauseFailed(f'{name} spawned at the named pose {pose.name} reads {fmt(got_p)} '
@@ -127,7 +168,7 @@ def _world_to_load(t: Target):
     """Return a Resource to load: --world, else an available world other than the current."""
     if t.options.world:
         return t.msg.Resource(uri=t.options.world)
-    current = t.initial_world
+    current = t.world.initial
     if t.declared('AVAILABLE_WORLDS'):
         worlds = [w for w in _available(t) if _resource_of(w)]
         others = [w for w in worlds if current is None or _resource_of(w) != _resource_of(current)]
@@ -141,15 +182,15 @@ def _world_to_load(t: Target):
 def _load(t: Target, doing: str = 'LoadWorld'):
     """Load a world (see _world_to_load), to be put back after the clause."""
     resource = _world_to_load(t)
-    t.on_cleanup(t.put_world_back)
-    reply = t.load_world(resource, f'{doing} of {resource.uri or "a resource string"}')
+    t.undo.on_cleanup(t.world.put_back)
+    reply = t.world.load(resource, f'{doing} of {resource.uri or "a resource string"}')
     return resource, reply
 
 
 def _unload(t: Target) -> None:
     """Load a world (so that there is one), then unload it; put back after the clause."""
     _load(t)
-    t.unload_world()
+    t.world.unload()
 
 
 @clause(CLAUSES, 'WORLD-01', 'GetAvailableWorlds lists worlds LoadWorld can take',
@@ -187,10 +228,10 @@ def current_world(t: Target) -> None:
     """OK with a world, or 101; 101 exactly when the state reads NO_WORLD (if readable)."""
     reply = _current(t)
     if t.declared(GET):
-        no_world = t.state() == t.S.STATE_NO_WORLD
+        no_world = t.sim.state() == t.sim.S.STATE_NO_WORLD
         if no_world != (reply.result.result != t.msg.Result.RESULT_OK):
             raise ClauseFailed(f'GetCurrentWorld {t.describe("GetCurrentWorld", reply)} while '
-                               f'the state reads {t.state_name(t.state())}')
+                               f'the state reads {t.sim.state_name(t.sim.state())}')
     elif reply.result.result == t.msg.Result.RESULT_OK and not _resource_of(reply.world):
         raise ClauseFailed('GetCurrentWorld answered OK with a world of no resource')
 
@@ -210,9 +251,9 @@ def load_world(t: Target) -> None:
         'left in a Stopped state.')
 def loaded_stopped(t: Target) -> None:
     """Play, load a world: the state reads STOPPED."""
-    t.play()
+    t.sim.play()
     _load(t)
-    t.expect_state(t.S.STATE_STOPPED, 'LoadWorld')
+    t.sim.expect_state(t.sim.S.STATE_STOPPED, 'LoadWorld')
 
 
 @clause(CLAUSES, 'WORLD-06', 'LoadWorld removes spawned entities', ('WORLD_LOADING', 'SPAWNING'),
@@ -220,9 +261,9 @@ def loaded_stopped(t: Target) -> None:
         services=('GetEntities',))
 def load_despawns(t: Target) -> None:
     """Spawn, load a world: the spawned entity is gone."""
-    name = t.spawn(0)
+    name = t.entities.spawn(0)
     _load(t)
-    if name in t.names():
+    if name in t.entities.names():
         raise ClauseFailed(f'{name} is still listed after LoadWorld')
 
 
@@ -264,8 +305,8 @@ def load_garbage(t: Target) -> None:
     if before is not None:
         after = _current(t)
         if (after.result.result, after.world.name) != (before.result.result, before.world.name):
-            t.world_changed = True
-            t.on_cleanup(t.put_world_back)
+            t.world.changed = True
+            t.undo.on_cleanup(t.world.put_back)
             raise ClauseFailed(f'the refused LoadWorld changed the current world from '
                                f'{before.world.name!r} to {after.world.name!r}')
 
@@ -294,19 +335,29 @@ def unload_twice(t: Target) -> None:
 def no_world_state(t: Target) -> None:
     """Unload: the state reads NO_WORLD."""
     _unload(t)
-    t.expect_state(t.S.STATE_NO_WORLD, 'UnloadWorld')
+    t.sim.expect_state(t.sim.S.STATE_NO_WORLD, 'UnloadWorld')
 
 
-@clause(CLAUSES, 'WORLD-13', 'with no world the simulation cannot be played',
+@clause(CLAUSES, 'WORLD-13', 'with no world the simulation cannot be played, stopped or paused',
         ('WORLD_UNLOADING', SET), 'SimulationState.msg', 'The simulation is inactive and cannot '
         'be started, stopped, or paused.')
 def no_world_no_play(t: Target) -> None:
-    """Unload, ask for PLAYING: refused (not OK, not 0)."""
+    """
+    Unload, ask for PLAYING, STOPPED and PAUSED: each refused (not OK, not 0).
+
+    PAUSED only where SIMULATION_STATE_PAUSE is declared (elsewhere 0 is its
+    right answer).
+    """
     _unload(t)
-    reply = t.request_state(t.S.STATE_PLAYING)
-    if reply.result.result in (t.msg.Result.RESULT_OK, t.msg.Result.RESULT_FEATURE_UNSUPPORTED):
-        raise ClauseFailed(f'PLAYING with no world answered '
-                           f'{t.describe("SetSimulationState", reply)}')
+    S = t.sim.S
+    states = [S.STATE_PLAYING, S.STATE_STOPPED] + (
+        [S.STATE_PAUSED] if t.declared(PAUSE) else [])
+    for state in states:
+        reply = t.sim.request_state(state)
+        if reply.result.result in (t.msg.Result.RESULT_OK,
+                                   t.msg.Result.RESULT_FEATURE_UNSUPPORTED):
+            raise ClauseFailed(f'{t.sim.state_name(state)} with no world answered '
+                               f'{t.describe("SetSimulationState", reply)}')
 
 
 @clause(CLAUSES, 'WORLD-14', 'UnloadWorld removes spawned entities',
@@ -315,10 +366,10 @@ def no_world_no_play(t: Target) -> None:
 def unload_despawns(t: Target) -> None:
     """Load a world, spawn, unload: GetEntities no longer lists it (or answers with no world)."""
     _load(t)
-    name = t.spawn(0)
-    t.unload_world()
+    name = t.entities.spawn(0)
+    t.world.unload()
     reply = t.call('GetEntities', t.srv.GetEntities.Request())
     if reply.result.result == t.msg.Result.RESULT_OK and name in reply.entities:
         raise ClauseFailed(f'{name} is still listed after UnloadWorld')
-    if name in t.spawned:
-        t.spawned.remove(name)
+    if name in t.entities.spawned:
+        t.entities.spawned.remove(name)

@@ -97,12 +97,12 @@ def _wheel_joints(body: Body, config: SimConfig, source: str,
             f'wheel joint(s) {", ".join(missing)} not in the URDF; it has: '
             f'{", ".join(body.joints)}')
     if not names:
-        wheels = [j.name for j in body.joints.values()
-                  if j.type_name == 'revolute' and 'wheel' in j.name.lower()]
-        if wheels:
+        wheel_names = [j.name for j in body.joints.values()
+                       if j.type_name == 'revolute' and 'wheel' in j.name.lower()]
+        if wheel_names:
             raise ConfigError(
                 'left_wheel_names and right_wheel_names are empty, but the robot drives '
-                f'on wheel joints {", ".join(wheels)}: list them as left and right wheels')
+                f'on wheel joints {", ".join(wheel_names)}: list them as left and right wheels')
         return None
     wheels = [body.joint(n) for n in names]
     for wheel in wheels:

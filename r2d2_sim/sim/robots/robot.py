@@ -15,7 +15,7 @@ started, alone.
 """
 
 import math
-from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
+from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy
 
@@ -116,7 +116,8 @@ class Robot:
         self.laser: Optional[LaserScanner] = None
         self.lidar: Optional[Lidar3d] = None
         self.ray_group: Optional[int] = None  # the world's collision bit its rays pass through
-        self._pending: List = []  # (sensor, its RayRequest) due at this step, to be cast
+        # (sensor, its RayRequest) due at this step, to be cast
+        self._pending: List[Tuple[Union[LaserScanner, Lidar3d], RayRequest]] = []
         problem = body.state_problem()
         if problem is not None:
             raise ConfigError(f'the robot cannot start there: {problem}')
@@ -132,6 +133,7 @@ class Robot:
         self.movable_indices = [j.index for j in self.movable]
         self.drive: Optional[DriveTrain] = find_drive_train(body, config, source, warn)
         self.controller: Optional[DriveController] = None
+        self._wheel_indices: Tuple[int, ...] = ()  # the drive train's, when it has one
         self._wheel_forces: List[float] = []
         self._wheel_slots: List[int] = []  # where the wheels sit in the joint readout
         if self.drive is not None:
@@ -168,6 +170,7 @@ class Robot:
         config = self.config
         self.body.set_wheel_lateral_friction(drive.wheel_indices,
                                              config.wheel_lateral_friction_ratio)
+        self._wheel_indices = drive.wheel_indices
         self._wheel_forces = [drive.max_force_n_m] * len(drive.wheel_indices)
         slot = {index: i for i, index in enumerate(self.movable_indices)}
         self._wheel_slots = [slot[index] for index in drive.wheel_indices]
@@ -253,14 +256,14 @@ class Robot:
             if not (sensing or battery):
                 return None
         self._pending = [(sensor, sensor.rays()) for sensor, due in (
-            (self.laser, scan), (self.lidar, lidar)) if due]
+            (self.laser, scan), (self.lidar, lidar)) if due and sensor is not None]
         return Measurement(
             time_ns, frame,
-            self.camera.render(depth=self._camera_depth) if camera else None,
+            self.camera.render(depth=self._camera_depth) if camera and self.camera else None,
             None,  # the scan and the lidar's points: once its rays are cast (take_rays)
-            self.imu.read(time_ns / 1e9) if imu else None,
+            self.imu.read(time_ns / 1e9) if imu and self.imu else None,
             None,
-            self.battery.reading() if battery else None,
+            self.battery.reading() if battery and self.battery else None,
             contacts)
 
     def pending_rays(self) -> List[RayRequest]:
@@ -270,14 +273,14 @@ class Robot:
     def take_rays(self, measurement: Measurement,
                   fractions: Sequence[numpy.ndarray]) -> Measurement:
         """Return ``measurement`` with the scan and the lidar's points from their rays' answers."""
-        readings = {}
+        scan, lidar = measurement.scan, measurement.lidar
         for (sensor, _), answer in zip(self._pending, fractions):
-            if sensor is self.laser:
-                readings['scan'] = sensor.ranges(answer)
+            if isinstance(sensor, LaserScanner):
+                scan = sensor.ranges(answer)
             else:
-                readings['lidar'] = sensor.points(answer)
+                lidar = sensor.points(answer)
         self._pending = []
-        return measurement._replace(**readings)
+        return measurement._replace(scan=scan, lidar=lidar)
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""
@@ -295,19 +298,20 @@ class Robot:
             self.controller.update_odometry([positions[s] for s in self._wheel_slots], step)
             odometry = self.controller.odometry_state()
         if self.battery is not None:
-            self._run_battery(step, joints, base)
+            self._run_battery(self.battery, step, joints, base)
         return Frame(step, time_ns, joints, base, odometry)
 
-    def _run_battery(self, step: int, joints: JointStates, base: BaseState) -> None:
+    def _run_battery(self, battery: Battery, step: int, joints: JointStates,
+                     base: BaseState) -> None:
         """Drain or charge the battery over the steps since its last update, by the wheels now."""
         slots = self._wheel_slots
         dt_s = (step - self._battery_step) * self._time_step_s
         self._battery_step = step
         velocity = base.linear_velocity
-        self.battery.update(dt_s, [joints.efforts[s] for s in slots],
-                            [joints.velocities[s] for s in slots],
-                            (base.position[0], base.position[1], yaw_of(base.orientation)),
-                            math.hypot(velocity[0], velocity[1]))
+        battery.update(dt_s, [joints.efforts[s] for s in slots],
+                       [joints.velocities[s] for s in slots],
+                       (base.position[0], base.position[1], yaw_of(base.orientation)),
+                       math.hypot(velocity[0], velocity[1]))
 
     def restart_time(self, steps_back: int) -> None:
         """Start the sensor rates afresh: the step count went back ``steps_back`` (a reset)."""
@@ -374,7 +378,12 @@ class Robot:
         self.reset()
 
     def _set_wheels(self, velocities: Sequence[float]) -> None:
-        self.body.set_joint_velocities(self.drive.wheel_indices, velocities, self._wheel_forces)
+        # Stopped, the wheels are braked: a velocity motor at 0 let R2D2 roll away slowly.
+        if any(velocities):
+            self.body.set_joint_velocities(self._wheel_indices, velocities,
+                                           self._wheel_forces)
+        else:
+            self.body.hold_joints(self._wheel_indices, self._wheel_forces)
 
     def _wheel_positions(self) -> List[float]:
-        return list(self.body.joint_states(self.drive.wheel_indices).positions)
+        return list(self.body.joint_states(self._wheel_indices).positions)

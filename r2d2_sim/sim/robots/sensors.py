@@ -13,7 +13,7 @@ again as at start-up.
 """
 
 import math
-from typing import NamedTuple, Optional
+from typing import NamedTuple, Optional, TYPE_CHECKING
 
 import numpy
 
@@ -32,6 +32,9 @@ from r2d2_sim.model.sensors import (
 from r2d2_sim.model.transforms import (
     apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotation_matrix,
     Transform)
+
+if TYPE_CHECKING:  # typing only
+    from r2d2_sim.physics.world import SimWorld
 
 __all__ = ['HEAD_CAMERA_LINK', 'HEAD_CAMERA_FRAME_ID', 'LASER_FRAME_ID', 'LASER_HEIGHT_M',
            'LIDAR3D_FRAME_ID', 'IMU_FRAME_ID', 'CameraImage', 'HeadCamera', 'LaserScanner',
@@ -102,21 +105,30 @@ class HeadCamera:
 
         Depth is float32 metres along the optical axis (REP-118: +inf where
         nothing is within the far plane), from the same render as the image,
-        with ``depth_noise_*`` added.
+        with ``depth_noise_*`` added; with ``camera_self_filter``, NaN where
+        the robot sees itself (noise is drawn for those pixels all the same).
         """
         position, orientation = self._body.link_pose(self._link)
         forward, up = camera.link_camera_axes(orientation, self._body.body_yaw_offset_rad)
         offset = self._lens_offset_m
         eye = [position[i] + offset * forward[i] for i in range(3)]
         k = self.intrinsics
-        rgb, depth_buffer = self._world.render(k.width_px, k.height_px,
-                                               camera.view_matrix(eye, forward, up),
-                                               self._projection)
+        view = camera.view_matrix(eye, forward, up)
         if not depth:
+            rgb, _ = self._world.render(k.width_px, k.height_px, view, self._projection)
             return CameraImage(rgb, None)
-        depth_m = linearize_depth(depth_buffer, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
-        return CameraImage(rgb, noisy_depth(depth_m, self._depth_noise, HEAD_CAMERA_NEAR_M,
-                                            HEAD_CAMERA_FAR_M))
+        itself = None
+        if self._config.camera_self_filter:
+            rgb, depth_buffer, itself = self._world.render_seeing(
+                self._body, k.width_px, k.height_px, view, self._projection)
+        else:
+            rgb, depth_buffer = self._world.render(k.width_px, k.height_px, view,
+                                                   self._projection)
+        depth_m = noisy_depth(linearize_depth(depth_buffer, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M),
+                              self._depth_noise, HEAD_CAMERA_NEAR_M, HEAD_CAMERA_FAR_M)
+        if itself is not None:
+            depth_m[itself] = numpy.nan
+        return CameraImage(rgb, depth_m)
 
 
 class _RaySensor:
@@ -131,6 +143,14 @@ class _RaySensor:
 
     NOISE = ''
     RATE = ''
+    _world: 'SimWorld'
+    _body: Body
+    _config: SimConfig
+    mount: Transform
+    _rays_in_sensor: numpy.ndarray
+    _group: int
+    _mask: int
+    _noise: NoiseModel
 
     def rays(self) -> RayRequest:
         """Return the beams from where the sensor is now, to cast with other sensors' rays."""

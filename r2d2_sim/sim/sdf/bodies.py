@@ -92,7 +92,8 @@ def _moved(link: Link, frame: Transform, static: bool) -> BodyLink:
 
 def _static_body(name: str, links: List[Link]) -> BodyPlan:
     """Return one massless link holding every shape of ``links``, at the model's frame."""
-    collisions, visuals = [], []
+    collisions: List[Shape] = []
+    visuals: List[Shape] = []
     for link in links:
         moved = _moved(link, IDENTITY, True)
         collisions += moved.collisions

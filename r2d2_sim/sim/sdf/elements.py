@@ -13,7 +13,7 @@ import math
 import os
 import re
 import stat
-from typing import Optional, Sequence, Tuple
+from typing import Optional, overload, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from defusedxml import DefusedXmlException
@@ -140,11 +140,30 @@ class Place:
             raise self.fail(f'a <{local_tag(element)}> needs a name of 1 to 255 characters')
         return name
 
+    @overload
+    def text(self, element: ElementTree.Element, tag: str, default: str) -> str:
+        ...
+
+    @overload
+    def text(self, element: ElementTree.Element, tag: str, default: None = None
+             ) -> Optional[str]:
+        ...
+
     def text(self, element: ElementTree.Element, tag: str, default: Optional[str] = None
              ) -> Optional[str]:
         """Return the stripped text of child ``tag`` (``default`` when it is absent)."""
         child = element.find(tag)
         return default if child is None else (child.text or '').strip()
+
+    @overload
+    def numbers(self, element: ElementTree.Element, tag: str, count: int,
+                default: Sequence[float]) -> Tuple[float, ...]:
+        ...
+
+    @overload
+    def numbers(self, element: ElementTree.Element, tag: str, count: int,
+                default: None = None) -> Optional[Tuple[float, ...]]:
+        ...
 
     def numbers(self, element: ElementTree.Element, tag: str, count: int,
                 default: Optional[Sequence[float]] = None) -> Optional[Tuple[float, ...]]:
@@ -159,6 +178,16 @@ class Place:
         if len(values) != count or not all(math.isfinite(v) for v in values):
             raise self.fail(f'<{tag}> must be {count} finite number{"s" * (count > 1)}')
         return values
+
+    @overload
+    def number(self, element: ElementTree.Element, tag: str, default: float,
+               low: float = -math.inf, high: float = math.inf) -> float:
+        ...
+
+    @overload
+    def number(self, element: ElementTree.Element, tag: str, default: None = None,
+               low: float = -math.inf, high: float = math.inf) -> Optional[float]:
+        ...
 
     def number(self, element: ElementTree.Element, tag: str, default: Optional[float] = None,
                low: float = -math.inf, high: float = math.inf) -> Optional[float]:

@@ -15,7 +15,7 @@ import hashlib
 import os
 import shutil
 import tempfile
-from typing import List, NamedTuple, Optional, Tuple
+from typing import Dict, List, NamedTuple, Optional, Tuple
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import compose, rotate, Transform
@@ -66,6 +66,7 @@ class GeneratedFiles:
     def write(self, text: str) -> str:
         """Write ``text`` (once per distinct text) and return its file's path."""
         name = hashlib.sha256(text.encode('utf-8')).hexdigest()[:32] + '.urdf'
+        assert self.directory is not None, 'URDF written after close'
         path = os.path.join(self.directory, name)
         if not os.path.exists(path):
             with open(path, 'w', encoding='utf-8') as handle:
@@ -151,7 +152,7 @@ class _Notes:
     """What the body planning and URDF writing skip, counted by what it is."""
 
     def __init__(self) -> None:
-        self.counts = {}
+        self.counts: Dict[str, int] = {}
 
     def note(self, what: str) -> None:
         self.counts[what] = self.counts.get(what, 0) + 1
@@ -173,8 +174,10 @@ def build_bodies(scene: Scene, cache: MeshCache, ignore_missing: bool = False,
     left_out: List[str] = []
 
     def meshes(geometry: Geometry) -> Optional[Converted]:
+        path = geometry.mesh
+        assert path is not None  # asked only of a mesh, whose file was found
         try:
-            return cache.convert(geometry.mesh, geometry.uri or os.path.basename(geometry.mesh))
+            return cache.convert(path, geometry.uri or os.path.basename(path))
         except RefusedError as exc:
             if ignore_missing and exc.code in ('MISSING_ASSETS', 'UNSUPPORTED_ASSETS'):
                 left_out.append(exc.message)

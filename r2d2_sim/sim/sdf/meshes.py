@@ -171,20 +171,25 @@ def _obj(data: bytes, shown: str, directory: str) -> Triangles:
     _check_triangles(data.count(b'\nf '), shown)
     from trimesh.exchange.obj import load_obj
     try:
-        loaded = load_obj(io.BytesIO(data), resolver=_MaterialFiles(directory),
+        loaded = load_obj(io.BytesIO(data),
+                          # trimesh reads a resolver by [] and get(); its hint names its classes
+                          resolver=_MaterialFiles(directory),  # type: ignore[arg-type]
                           group_material=True, maintain_order=True)
     except Exception as exc:
         raise RefusedError(PARSE, f'mesh {shown} is not an OBJ file r2d2_sim can read '
                                   f'({type(exc).__name__})') from None
     geometries = loaded.get('geometry', {'': loaded}) if 'geometry' in loaded else {'': loaded}
-    pieces = []
+    pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]] = []
     for name in sorted(geometries):
         geometry = geometries[name]
         if 'faces' not in geometry:
             continue
         material = getattr(geometry.get('visual'), 'material', None)
         diffuse = getattr(material, 'diffuse', None)
-        colour = None if diffuse is None else tuple(float(c) / 255.0 for c in diffuse[:4])
+        colour: Optional[Rgba] = None
+        if diffuse is not None:  # trimesh's materials hold RGBA
+            red, green, blue, alpha = (float(c) / 255.0 for c in diffuse[:4])
+            colour = (red, green, blue, alpha)
         pieces.append((geometry['vertices'], geometry['faces'], colour))
     return _join(pieces, shown)
 

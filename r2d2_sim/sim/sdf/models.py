@@ -153,8 +153,8 @@ class _Flattening:
                     prefix + spec.name, link_pose, static, spec.inertial,
                     tuple(self._shape(s, graph, spec.name) for s in spec.collisions),
                     tuple(self._shape(s, graph, spec.name) for s in spec.visuals)))
-            for spec in tree.joints:
-                self.joints.append(self._joint(spec, tree, frame, prefix))
+            for joint in tree.joints:
+                self.joints.append(self._joint(joint, tree, frame, prefix))
             for nested in tree.nested:
                 self.add(nested, compose(frame, graph.pose(nested.name)),
                          f'{prefix}{nested.name}{SCOPE_SEPARATOR}', static)

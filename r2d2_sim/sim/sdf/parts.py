@@ -10,10 +10,10 @@ simulate, and asks it for mesh files. Poses stay as written (with their
 """
 
 import math
-from typing import NamedTuple, Optional, Tuple
+from typing import List, NamedTuple, Optional, Tuple
 import xml.etree.ElementTree as ElementTree
 
-from r2d2_sim.model.transforms import Transform
+from r2d2_sim.model.transforms import Transform, Vector3
 from r2d2_sim.sim.sdf.description import (
     DEFAULT_INERTIAL, Geometry, Inertial, JOINT_TYPES, JointLimits, Shape)
 from r2d2_sim.sim.sdf.elements import local_tag, Place
@@ -97,6 +97,12 @@ def _others(element: ElementTree.Element, known, notes) -> None:
             notes.note(tag)
 
 
+def _vector3(values: Tuple[float, ...]) -> Vector3:
+    """Return the three numbers :meth:`Place.numbers` read with a count of 3."""
+    x, y, z = values
+    return x, y, z
+
+
 def _positive(place: Place, element, tag: str, default: Optional[float] = None) -> float:
     value = place.number(element, tag, default, 0.0, MAX_SIZE_M)
     if value is None or not value > 0.0:
@@ -134,7 +140,7 @@ def read_geometry(element: ElementTree.Element, place: Place, notes) -> Optional
         uri = at.text(shape, 'uri', '')
         if not uri:
             raise at.fail('a <mesh> needs a <uri>')
-        scale = at.numbers(shape, 'scale', 3, (1.0, 1.0, 1.0))
+        scale = _vector3(at.numbers(shape, 'scale', 3, (1.0, 1.0, 1.0)))
         if not all(0.0 < abs(v) <= MAX_SIZE_M for v in scale):
             raise at.fail('<scale> must be 3 numbers, none of them 0')
         _others(shape, ('uri', 'scale'), notes)
@@ -157,8 +163,9 @@ def _colour(material: Optional[ElementTree.Element], place: Place, notes
             continue
         count = len(text.split())
         values = at.numbers(material, tag, 4 if count == 4 else 3)
-        rgba = tuple(min(1.0, max(0.0, v)) for v in values) + ((1.0,) if count == 3 else ())
-        return rgba
+        assert values is not None  # the element is there: its text was read above
+        red, green, blue, *alpha = (min(1.0, max(0.0, v)) for v in values)
+        return red, green, blue, alpha[0] if alpha else 1.0
     script = material.find('script')
     if script is not None:
         name = (at.text(script, 'name', '') or '').lower()
@@ -224,8 +231,10 @@ def _inertial(element: Optional[ElementTree.Element], place: Place, notes) -> In
     values = DEFAULT_INERTIAL.inertia
     if inertia is not None:
         within = at.child(inertia)
-        values = tuple(within.number(inertia, tag, default, -1e9, 1e9) for tag, default in
-                       zip(('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'), values))
+        ixx, ixy, ixz, iyy, iyz, izz = (
+            within.number(inertia, tag, default, -1e9, 1e9) for tag, default in
+            zip(('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'), values))
+        values = (ixx, ixy, ixz, iyy, iyz, izz)
         if not all(values[i] >= 0.0 for i in (0, 3, 5)):
             raise within.fail('the moments ixx, iyy and izz cannot be negative')
     return Inertial(mass, pose, values)
@@ -236,7 +245,8 @@ def read_link(element: ElementTree.Element, place: Place, notes) -> LinkSpec:
     at = place.child(element)
     name = place.name(element)
     pose, relative_to = at.pose(element)
-    collisions, visuals = [], []
+    collisions: List[ShapeSpec] = []
+    visuals: List[ShapeSpec] = []
     for child in element:
         tag = local_tag(child)
         if tag in ('collision', 'visual'):
@@ -261,7 +271,7 @@ def _axis(element: Optional[ElementTree.Element], place: Place, notes
     if element is None:
         return _NO_AXIS, False
     at = place.child(element)
-    xyz = at.numbers(element, 'xyz', 3, (0.0, 0.0, 1.0))
+    xyz = _vector3(at.numbers(element, 'xyz', 3, (0.0, 0.0, 1.0)))
     if not any(xyz):
         raise at.fail('<xyz> must not be zero')
     xyz_element = element.find('xyz')

@@ -69,7 +69,8 @@ class _Notes:
         try:
             return self._reader.resources.file(uri, origin.directory, 'mesh', origin.model_dir)
         except RefusedError as exc:
-            return self._reader.missing(exc, place)
+            self._reader.missing(exc, place)
+            return None
 
 
 class Reader:
@@ -177,14 +178,18 @@ class Reader:
             source = self.resources.model(uri, origin.directory, origin.model_dir)
             key = source.path or source.shown
             if key not in self._files:
-                text = source.text if source.text is not None else read_limited(
-                    source.path, source.shown, 'MISSING_ASSETS', MAX_SDF_BYTES)
+                text = source.text
+                if text is None:
+                    assert source.path is not None  # a model not built in is a file
+                    text = read_limited(source.path, source.shown, 'MISSING_ASSETS',
+                                        MAX_SDF_BYTES)
                 root = parse_xml(text, source.shown)
                 self._files[key] = (root, self._version(root, source.shown))
         except RefusedError as exc:
             if exc.code == 'UNSUPPORTED_FORMAT':  # the world is SDF; this asset is not
                 exc = RefusedError('UNSUPPORTED_ASSETS', exc.message)
-            return self.missing(exc, at)
+            self.missing(exc, at)
+            return None
         root, version = self._files[key]
         self.budget.take(root, source.shown)
         content = [child for child in root if local_tag(child) in ('model', 'light', 'actor')]
@@ -228,11 +233,12 @@ class Reader:
             elif tag == 'frame':
                 within = at.child(child)
                 pose, relative_to = within.pose(child)
+                name = at.name(child)
                 try:
-                    graph.add(at.name(child), relative_to or child.get('attached_to', ''), pose)
+                    graph.add(name, relative_to or child.get('attached_to', ''), pose)
                 except FrameError as exc:
                     raise within.fail(str(exc)) from None
-                frames.append(child.get('name'))
+                frames.append(name)
             elif tag == 'physics':
                 self._physics(child, at.child(child))
             elif tag == 'gravity':
@@ -257,6 +263,7 @@ class Reader:
 
     def _gravity(self, element: ElementTree.Element, place: Place) -> None:
         gravity = place.numbers(element, 'gravity', 3)
+        assert gravity is not None  # read only where a <gravity> is
         ours = self.options.gravity_m_s2
         if ours is not None and any(abs(a - b) > 1e-9 for a, b in zip(gravity, ours)):
             shown = ' '.join(f'{v:g}' for v in gravity)

@@ -25,7 +25,7 @@ file (``roots`` None).
 """
 
 import os
-from typing import List, NamedTuple, Optional, Sequence
+from typing import List, NamedTuple, Optional, Sequence, Tuple
 from urllib.parse import unquote, urlsplit
 
 from r2d2_sim.errors import RefusedError
@@ -300,7 +300,8 @@ def _config_sdf(directory: str) -> Optional[str]:
             root = parse_xml(handle.read(), path)
     except (OSError, UnicodeDecodeError, RefusedError):
         return None
-    best, best_version = None, (-1,)
+    best: Optional[str] = None
+    best_version: Tuple[int, ...] = (-1,)
     for element in root.findall('sdf'):
         name = (element.text or '').strip()
         try:

@@ -68,6 +68,7 @@ def read_sdf_spawnable(uri: str, resource_string: str, settings: SdfSettings
             text = source.text
         else:
             path = os.path.abspath(uri) if source is None else source.path
+            assert path is not None  # a model not built in is a file
             text = read_limited(path, shown, 'NOT_FOUND', MAX_SDF_BYTES)
         if path is not None:
             resources.allow(os.path.dirname(path))

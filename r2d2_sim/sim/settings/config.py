@@ -52,7 +52,7 @@ class SimConfig:
     robot_description: str
     base_forward_axis: str
     wheel_velocity_sign: int
-    gravity_m_s2: Tuple[float, ...]                         # gravity
+    gravity_m_s2: Tuple[float, float, float]                # gravity
     ground_plane: bool
     extra_models: Tuple[Tuple[str, Tuple[float, float, float]], ...]
     gui: bool
@@ -76,7 +76,7 @@ class SimConfig:
     odom_frame_id: str
     base_frame_id: str
     world_frame_id: str
-    initial_pose: Tuple[float, ...]
+    initial_pose: Tuple[float, float, float]
     tags: Tuple[str, ...]
     pose_covariance_diagonal: Tuple[float, ...]
     twist_covariance_diagonal: Tuple[float, ...]
@@ -86,6 +86,7 @@ class SimConfig:
     camera_fov_deg: float                                   # camera_fov
     camera_depth: bool
     camera_point_cloud: bool
+    camera_self_filter: bool
     depth_noise_mean: float
     depth_noise_std: float
     depth_noise_bias_mean: float

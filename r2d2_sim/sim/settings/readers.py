@@ -173,16 +173,23 @@ def integer(name: str, value: Any) -> int:
     return int(value)
 
 
-def choice(choices: Sequence[Any]) -> Callable[[str, Any], Any]:
-    def read(name: str, value: Any) -> Any:
-        if isinstance(value, bool) or value not in choices:
+class _Choice:
+    """Read one of ``choices``, which it shows to --help and docs/parameters.md (reference)."""
+
+    def __init__(self, choices: Sequence[Any]) -> None:
+        self.choices = tuple(choices)
+
+    def __call__(self, name: str, value: Any) -> Any:
+        if isinstance(value, bool) or value not in self.choices:
             # ROS parameter files read a bare y, n, yes, on... as booleans.
             hint = ' (quote the value in YAML files)' if isinstance(value, bool) else ''
             raise ConfigError(f'parameter {name} must be one of '
-                              f'{", ".join(str(c) for c in choices)}; got {value!r}{hint}')
+                              f'{", ".join(str(c) for c in self.choices)}; got {value!r}{hint}')
         return value
-    read.choices = tuple(choices)  # for --help and docs/parameters.md (parameter_docs)
-    return read
+
+
+def choice(choices: Sequence[Any]) -> Callable[[str, Any], Any]:
+    return _Choice(choices)
 
 
 def numbers(length: int) -> Callable[[str, Any], Tuple[float, ...]]:
@@ -226,7 +233,7 @@ def extra_models(name: str, value: Any) -> Tuple[Tuple[str, Tuple[float, float, 
         try:
             if len(parts) != 4:
                 raise ValueError
-            position = tuple(float(p) for p in parts[1:])
+            position = (float(parts[1]), float(parts[2]), float(parts[3]))
         except ValueError:
             raise ConfigError(f'parameter {name}: entry {entry!r} is not '
                               '"description x y z"') from None

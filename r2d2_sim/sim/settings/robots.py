@@ -99,7 +99,7 @@ def parse_world(values: Mapping[str, Any]) -> Tuple['SimConfig', List[RobotSpec]
         namespace = read.namespace(f'{name}.namespace', own[name].pop('namespace', ''))
         specs.append(RobotSpec(name, namespace or name, robot_config(config, name, own[name])))
     if config.tf_layout == 'shared':  # one /tf: each robot's frames must be its own
-        prefixes = {}
+        prefixes: Dict[str, str] = {}
         for spec in specs:
             other = prefixes.setdefault(spec.config.frame_prefix, spec.name)
             if other != spec.name:

@@ -214,7 +214,8 @@ PARAMETERS: List[Parameter] = [
               '1, or -1 when a negative wheel velocity drives the robot forward.',
               'wheel_velocity_sign', read.choice([1, -1]), per_robot=True),
     Parameter('gravity', 'double_array', [0.0, 0.0, -9.8], 'Gravity [x, y, z] in m/s^2.',
-              'gravity_m_s2', read.numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis')),
+              'gravity_m_s2', read.numbers(3), Bounds(-1000.0, 1000.0, 'm/s^2 on each axis'),
+              python_type='Tuple[float, float, float]'),
     Parameter('ground_plane', 'bool', True, 'Load pybullet_data\'s plane.urdf as the ground.',
               'ground_plane', read.boolean),
     Parameter('extra_models', 'string_array', [],
@@ -300,7 +301,8 @@ PARAMETERS: List[Parameter] = [
     Parameter('initial_pose', 'double_array', [0.0, 0.0, 0.0],
               'Spawn pose [x (m), y (m), yaw (rad)] in the world frame, or relative to the '
               'world\'s start_pose when its manifest names one.',
-              'initial_pose', read.numbers(3), per_robot=True),
+              'initial_pose', read.numbers(3), per_robot=True,
+              python_type='Tuple[float, float, float]'),
     Parameter('tags', 'string_array', [],
               'Tags of the robot as an entity of the simulation standard (GetEntityInfo, the '
               'tags filters), e.g. [astromech, test_subject]; at most 64.',
@@ -332,6 +334,12 @@ PARAMETERS: List[Parameter] = [
               'sensor_msgs/PointCloud2 (x y z float32 in the optical frame, NaN where the '
               'depth is not finite), at camera_rate.',
               'camera_point_cloud', read.boolean, per_robot=True),
+    Parameter('camera_self_filter', 'bool', False,
+              'With depth on (camera_depth or camera_point_cloud), the pixels that see the robot '
+              'itself (R2D2\'s gripper: 4.7 % of the default view) read NaN in the depth image '
+              'and the cloud, as robot_self_filter leaves them; the colour image still shows '
+              'them.',
+              'camera_self_filter', read.boolean, per_robot=True),
     *_noise_parameters('depth'),
     Parameter('world', 'string', '',
               'The world to load around the robots: a URDF, an SDF world (Gazebo\'s *.sdf, '

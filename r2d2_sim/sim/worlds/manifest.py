@@ -37,6 +37,7 @@ from typing import Any, List, NamedTuple, Optional, Sequence, Tuple
 import yaml
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.model.transforms import Quaternion, Vector3
 from r2d2_sim.sim.bounds import check_region, EMPTY, Region
 from r2d2_sim.sim.names import is_name, MAX_NAME_LENGTH
 from r2d2_sim.sim.tags import check_description_text, check_tags
@@ -184,19 +185,25 @@ def _numbers(value: Any, where: str, count: int) -> Tuple[float, ...]:
     return tuple(_number(v, f'{where}[{i}]') for i, v in enumerate(value))
 
 
+def _point(value: Any, where: str) -> Vector3:
+    x, y, z = _numbers(value, where, 3)
+    return x, y, z
+
+
 def check_world_pose(position: Sequence[float], orientation: Sequence[float],
-                     where: str) -> Tuple[float, float, float, float]:
+                     where: str) -> Quaternion:
     """Return the unit orientation; RESOURCE_PARSE_ERROR for a pose beyond 10 km or not unit."""
     if max(map(abs, position)) > MAX_DISTANCE_M:
         raise _fail(where, f'the position is more than {MAX_DISTANCE_M:g} m from the origin')
     norm = math.sqrt(sum(q * q for q in orientation))
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise _fail(where, f'the orientation is not a unit quaternion (norm {norm:.6g})')
-    return tuple(q / norm for q in orientation)
+    x, y, z, w = orientation
+    return x / norm, y / norm, z / norm, w / norm
 
 
-def _pose(entry: dict, where: str) -> Tuple[Tuple[float, ...], Tuple[float, ...]]:
-    position = (_numbers(entry['position'], f'{where}.position', 3)
+def _pose(entry: dict, where: str) -> Tuple[Vector3, Quaternion]:
+    position = (_point(entry['position'], f'{where}.position')
                 if 'position' in entry else (0.0, 0.0, 0.0))
     if 'yaw' in entry and 'orientation' in entry:
         raise _fail(where, 'give yaw or orientation, not both')
@@ -219,12 +226,12 @@ def _bounds(value: Any, where: str, ignored: List[str]) -> Region:
     if kind == 'sphere':
         sphere = _mapping(bounds['sphere'], f'{where}.sphere', _SPHERE, ignored)
         centre = sphere.get('centre', sphere.get('center', [0.0, 0.0, 0.0]))
-        region = Region('sphere', (_numbers(centre, f'{where}.sphere.centre', 3),
+        region = Region('sphere', (_point(centre, f'{where}.sphere.centre'),
                                    (_number(sphere.get('radius'), f'{where}.sphere.radius'),
                                     0.0, 0.0)))
     else:
         points = _list(bounds[kind], f'{where}.{kind}', 1000)
-        region = Region(kind, tuple(_numbers(p, f'{where}.{kind}[{i}]', 3)
+        region = Region(kind, tuple(_point(p, f'{where}.{kind}[{i}]')
                                     for i, p in enumerate(points)))
     return check_region(region, where, PARSE)
 

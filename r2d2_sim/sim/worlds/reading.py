@@ -22,7 +22,7 @@ message that names files, never their contents.
 
 import os
 import re
-from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.errors import RefusedError
@@ -88,7 +88,7 @@ class _Reading:
         """
         if not where:
             return
-        counts = {}
+        counts: Dict[str, int] = {}
         for place in where:
             counts[place] = counts.get(place, 0) + 1
         places = [f'{count} at {place}' for place, count in counts.items()]
@@ -205,7 +205,8 @@ def _read_manifest_world(text: str, path: Optional[str], uri: str, reading: _Rea
     models: List[WorldModel] = []
     for entry in manifest.models:
         for model in reading.model(entry, base_dir, anchor):
-            if model.sdf and model.name in {m.name for m in models}:  # two files' "crate"
+            # two files' "crate" (an SDF model always has its name)
+            if model.sdf and model.name is not None and model.name in {m.name for m in models}:
                 model = model._replace(name=_unused_name(model.name, models))
             models.append(model)
     start = None
