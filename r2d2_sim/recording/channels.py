@@ -57,8 +57,8 @@ class SinkChannel:
         self.type_name = type_name
         self._live_log = live_log or _ignore
         self._file_log = file_log or _ignore
-        self._latched: Optional[Deque[Tuple[bytes, int]]] = (
-            deque(maxlen=latched_depth) if latched_depth > 0 else None)
+        # The messages kept for viewers that subscribe later (none: not latched).
+        self._latched: Deque[Tuple[bytes, int]] = deque(maxlen=max(latched_depth, 0))
         self._latched_version = 0
         self._resend_period_s = resend_period_s
         self._next_resend_s = 0.0
@@ -71,7 +71,7 @@ class SinkChannel:
     def _bind(self) -> None:
         """Bind ``log`` to the cheapest call that reaches the sinks there are."""
         live, file = self._live_log, self._file_log
-        if self._latched is not None:
+        if self._latched.maxlen:
             self.log = self._log_latched
         elif live is not _ignore and file is not _ignore:
             self.log = self._log_both

@@ -197,6 +197,8 @@ class ListenerWatch:
             self._peak = open_now
 
     def _alive(self) -> bool:
+        if self._listener is None:  # none found (no /proc): nothing says it is gone
+            return True
         fd, link = self._listener
         try:
             return os.readlink(f'/proc/self/fd/{fd}') == link

@@ -62,9 +62,11 @@ class McapOutput:
         view = memoryview(data).cast('B')
         size = view.nbytes
         if self.error is None:
+            fd = self._fd
+            assert fd is not None, 'the recording was written after it was closed'
             try:
                 while view:
-                    view = view[os.write(self._fd, view):]
+                    view = view[os.write(fd, view):]
             except OSError as exc:
                 self._fail(exc)
         self._position += size
@@ -76,8 +78,10 @@ class McapOutput:
         base = {os.SEEK_SET: 0, os.SEEK_CUR: self._position, os.SEEK_END: self._end}[whence]
         target = base + offset
         if self.error is None:
+            fd = self._fd
+            assert fd is not None, 'the recording was sought after it was closed'
             try:
-                os.lseek(self._fd, target, os.SEEK_SET)
+                os.lseek(fd, target, os.SEEK_SET)
             except OSError as exc:
                 self._fail(exc)
         self._position = target

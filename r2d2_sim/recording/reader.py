@@ -273,8 +273,8 @@ class RecordingFile:
 
     def describe_cut(self) -> str:
         """Return one line on what a cut-short file still held (for the user)."""
-        seconds = 0.0 if self.first_time_ns is None else \
-            (self.last_time_ns - self.first_time_ns) * 1e-9
+        first, last = self.first_time_ns, self.last_time_ns  # both None without messages
+        seconds = 0.0 if first is None or last is None else (last - first) * 1e-9
         why = f'damaged at byte {self.readable_bytes} ({self.damage})' if self.damage else \
             'its recorder did not close it (killed, or out of disk space?)'
         return (f'{self.path} was cut short: {why}; recovered {self.message_count} messages '

@@ -52,7 +52,8 @@ from contextlib import nullcontext
 import os
 import sys
 import time
-from typing import Callable, Dict, List, Optional
+from types import ModuleType
+from typing import Callable, Dict, List, Optional, TYPE_CHECKING
 import weakref
 
 from r2d2_sim.recording.channels import (
@@ -61,6 +62,11 @@ from r2d2_sim.recording.live_guard import ListenerWatch, route_sdk_log
 from r2d2_sim.recording.mcap_file import McapOutput
 from r2d2_sim.recording.message_definitions import (
     message_definition, offered_qos_profiles, type_hash, UnknownMessageType)
+
+if TYPE_CHECKING:  # an optional dependency: imported for the checker only
+    from foxglove import Context
+    from foxglove.mcap import MCAPWriter
+    from foxglove.websocket import WebSocketServer
 
 __all__ = ['FoxgloveSink', 'SinkError']
 
@@ -75,7 +81,7 @@ class SinkError(RuntimeError):
     """The sink cannot start or cannot take a channel (one line, for a startup error)."""
 
 
-def _import_foxglove():
+def _import_foxglove() -> ModuleType:
     try:
         import foxglove
         import foxglove.mcap
@@ -105,8 +111,8 @@ class _Closer:
         self.error = error
         self.watch: Optional[ListenerWatch] = None
         self.file: Optional[McapOutput] = None
-        self.writer = None
-        self.server = None
+        self.writer: Optional['MCAPWriter'] = None  # writes to file, made after it
+        self.server: Optional['WebSocketServer'] = None
         self.handles: Dict[str, List[SinkChannel]] = {}
         self.sdk_channels: Dict[str, list] = {}
         self.unroute: Callable[[], None] = nothing
@@ -117,12 +123,14 @@ class _Closer:
         for handles in self.handles.values():
             for handle in handles:
                 handle.stop()
+        file, writer = self.file, self.writer
         try:
-            if self.writer is not None:
-                with self.file.lock:
-                    self.writer.close()
-        except Exception as exc:  # the SDK raises assorted types (RuntimeError, OSError...)
-            self.error(f'the recording {self.file.path} could not be finished: {exc}')
+            if writer is not None and file is not None:
+                try:
+                    with file.lock:
+                        writer.close()
+                except Exception as exc:  # the SDK raises assorted types (RuntimeError...)
+                    self.error(f'the recording {file.path} could not be finished: {exc}')
         finally:
             if self.file is not None:
                 self.file.close()
@@ -168,10 +176,10 @@ class FoxgloveSink:
         self.record_path = None if record_path is None else os.fspath(record_path)
         self._warn, self._error = warn, error
         self._resend_period_s = latched_resend_period_s
-        self._foxglove = None
-        self._live_context = None
-        self._file_context = None
-        self._server = None
+        self._foxglove: Optional[ModuleType] = None
+        self._live_context: Optional['Context'] = None
+        self._file_context: Optional['Context'] = None
+        self._server: Optional['WebSocketServer'] = None
         self._file: Optional[McapOutput] = None
         # Why the recording stopped before close (a write error), or None.
         self.record_error: Optional[OSError] = None
@@ -185,23 +193,22 @@ class FoxgloveSink:
         self._time_period_s = 1.0 / time_rate_hz
         self._next_time_s = 0.0
         self._last_time_ns = -1
-        self._finalizer = None
+        self._finalizer: Optional[weakref.finalize] = None
         if port is None and self.record_path is None:
             return  # nothing to feed: every channel ignores its messages
-        self._foxglove = _import_foxglove()
-        closer = _Closer(self._foxglove, error)
+        foxglove = self._foxglove = _import_foxglove()
+        closer = _Closer(foxglove, error)
         closer.handles, closer.sdk_channels = self._handles, self._sdk_channels
         try:
-            self._open(port, host, name, overwrite, closer)
+            self._open(foxglove, port, host, name, overwrite, closer)
         except BaseException:
             closer()
             raise
         self._finalizer = weakref.finalize(self, closer)
 
-    def _open(self, port: Optional[int], host: str, name: str, overwrite: bool,
-              closer: _Closer) -> None:
+    def _open(self, foxglove: ModuleType, port: Optional[int], host: str, name: str,
+              overwrite: bool, closer: _Closer) -> None:
         """Start the server and open the file asked for (SinkError if not; closer undoes)."""
-        foxglove = self._foxglove
         closer.unroute = route_sdk_log(closer, self._warn)
         # Two contexts, so that messages sent again for a late viewer reach
         # the server but not the file (the SDK gives Python no per-sink log).
@@ -210,12 +217,13 @@ class FoxgloveSink:
         try:
             if port is not None:
                 self._live_context = foxglove.Context()
-                self._server = closer.server = foxglove.start_server(
+                server = foxglove.start_server(
                     name=name, host=host, port=port, context=self._live_context,
                     capabilities=[foxglove.websocket.Capability.Time],
                     server_listener=_make_listener(foxglove, self._latched_by_id))
-                closer.watch = ListenerWatch(self._server.port, self.url, self._warn,
-                                             self._error)
+                self._server = closer.server = server
+                closer.watch = ListenerWatch(server.port, _address(host, server.port),
+                                             self._warn, self._error)
             if self.record_path is not None:
                 doing = f'cannot record to {self.record_path}'
                 failed = weakref.WeakMethod(self._file_failed)
@@ -266,7 +274,7 @@ class FoxgloveSink:
     def url(self) -> Optional[str]:
         """Return the WebSocket address viewers connect to (``ws://host:port``), or None."""
         port = self.port
-        return None if port is None else f'ws://{self.host}:{port}'
+        return None if port is None else _address(self.host, port)
 
     @property
     def topics(self) -> List[str]:
@@ -323,12 +331,13 @@ class FoxgloveSink:
                                              context=self._live_context, metadata=metadata)
             channels.append(channel)
             live_log, live_id = channel.base.log, channel.base.id()
-        if self._file_context is not None and self.record_error is None:
-            with self._file.lock:
+        file = self._file  # there is a file context only with a file
+        if self._file_context is not None and file is not None and self.record_error is None:
+            with file.lock:
                 channel = self._foxglove.Channel(topic, schema=schema, message_encoding='cdr',
                                                  context=self._file_context, metadata=metadata)
             channels.append(channel)
-            file_log = locked(channel.base.log, self._file.lock)
+            file_log = locked(channel.base.log, file.lock)
         return live_log, file_log, live_id
 
     def _track(self, handle: SinkChannel, latched: bool) -> SinkChannel:
@@ -357,7 +366,7 @@ class FoxgloveSink:
         handle.release = nothing
         handle.stop()
         live_id = self._live_ids.get(topic)
-        latched = self._latched_by_id.get(live_id, [])
+        latched = [] if live_id is None else self._latched_by_id.get(live_id, [])
         if handle in latched:
             latched.remove(handle)
         if handles:
@@ -365,7 +374,8 @@ class FoxgloveSink:
         with self._file.lock if self._file is not None else nullcontext():
             for channel in self._sdk_channels.pop(topic, []):
                 forget_channel(self._foxglove, channel)
-        self._latched_by_id.pop(live_id, None)
+        if live_id is not None:
+            self._latched_by_id.pop(live_id, None)
         self._live_ids.pop(topic, None)
         self._channels.pop(topic, None)
         self._handles.pop(topic, None)
@@ -406,6 +416,11 @@ class FoxgloveSink:
     def __repr__(self) -> str:
         return (f'FoxgloveSink(url={self.url!r}, record_path={self.record_path!r}, '
                 f'topics={len(self._channels)})')
+
+
+def _address(host: str, port: int) -> str:
+    """Return the WebSocket address viewers connect to."""
+    return f'ws://{host}:{port}'
 
 
 def _call_if_alive(method: weakref.WeakMethod, *args) -> None:

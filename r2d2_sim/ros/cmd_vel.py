@@ -98,6 +98,8 @@ class CmdVelInput:
             self._warn(f'cmd_vel {verdict.problem}', f'rejected cmd_vel with {verdict.problem}; '
                        'keeping the last valid command')
             return
+        accepted = verdict.accepted
+        assert accepted is not None, 'a command without a problem was accepted'
         if verdict.ignored_axes:
             self._warn('cmd_vel ignored axes',
                        f'cmd_vel {", ".join(verdict.ignored_axes)} ignored: a differential '
@@ -105,8 +107,8 @@ class CmdVelInput:
         if verdict.clamped:
             self._warn('cmd_vel clamped',
                        f'cmd_vel (linear.x {linear.x:.4g}, angular.z {angular.z:.4g}) exceeds '
-                       f'the speed limits: scaled to ({verdict.accepted.linear_m_s:.4g}, '
-                       f'{verdict.accepted.angular_rad_s:.4g})')
+                       f'the speed limits: scaled to ({accepted.linear_m_s:.4g}, '
+                       f'{accepted.angular_rad_s:.4g})')
 
     def check_publishers(self) -> None:
         """Warn about ``cmd_vel`` publishers ROS does not deliver here: wrong type, best effort."""

@@ -33,9 +33,11 @@ def ros_type_name(msg_type: type) -> str:
 class MirroredPublisher:
     """An rclpy publisher whose messages also go, as bytes, to a sink channel; else the same."""
 
-    def __init__(self, publisher: Publisher, channel: SinkChannel,
+    def __init__(self, publisher: Publisher, msg_type: type, channel: SinkChannel,
                  time_ns: Callable[[], int]) -> None:
         self.publisher = publisher
+        # The publisher's own msg_type is typed by rclpy as a TypeVar of no generic class.
+        self.msg_type = msg_type
         self.channel = channel
         self._time_ns = time_ns
 
@@ -45,10 +47,10 @@ class MirroredPublisher:
         # camera image (230-300 kB) is not serialized a second time by rclpy.
         if type(msg) is bytes:
             data = msg
-        elif isinstance(msg, self.publisher.msg_type):
+        elif isinstance(msg, self.msg_type):
             data = serialize(msg)
         else:  # what rclpy's publish says, before anything goes out as bytes
-            raise TypeError(f'Expected {self.publisher.msg_type}, got {type(msg)}')
+            raise TypeError(f'Expected {self.msg_type}, got {type(msg)}')
         self.publisher.publish(data)
         self.channel.log(data, self._time_ns())
 
@@ -66,7 +68,7 @@ def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
     """Register ``publisher``'s topic with ``sink`` and return the mirrored publisher."""
     channel = sink.channel(publisher.topic_name, ros_type_name(msg_type),
                            publisher.qos_profile)
-    return MirroredPublisher(publisher, channel, time_ns)
+    return MirroredPublisher(publisher, msg_type, channel, time_ns)
 
 
 def start_sink(config, name: str, logger) -> Optional[FoxgloveSink]:

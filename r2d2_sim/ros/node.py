@@ -65,27 +65,29 @@ class SimNode(MirroringNode):
         super().__init__(node_name, **node_kwargs)
         self.lock = threading.RLock()  # one thread in PyBullet at a time (public: the services')
         self._throttled = ThrottledLog(warning_period_s)
-        self.simulation: Optional[Simulation] = None
         self.standard: Optional[SimulationInterfaces] = None
-        self._clock_output: Optional[ClockOutput] = None
         # One per robot, in the order of simulation.robots (their measurements').
         self.fleet = Fleet(self, self.lock, now_ns=lambda: self.simulation.time_ns,
                            warning_period_s=warning_period_s,
                            graph_check_period_s=graph_check_period_s)
+        # Built in a local: self.simulation is set once the simulation exists, and
+        # nothing reads it before (the fleet's clock and the mirrored publishers
+        # first run from watch_robots on), so it is never None.
+        simulation: Optional[Simulation] = None
         try:
             self.config, specs = declare_parameters(self)
             self.sink = start_sink(self.config, self.get_name(), self.get_logger())
-            self.simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
-                                         error=self._log_blow_up, namespace=self.get_namespace())
+            simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
+                                    error=self._log_blow_up, namespace=self.get_namespace())
+            self.simulation: Simulation = simulation
             self._clock_output = ClockOutput(self)
-            self.simulation.watch_robots(self.fleet.follow)
+            simulation.watch_robots(self.fleet.follow)
         except (SetupError, SinkError) as exc:
-            self._close()
+            self._close(simulation)
             raise StartupError(str(exc)) from exc
         self._paused = self.config.start_paused
         self.control = ControlServices(self, self, self.fleet)
         if standard.available():
-            simulation = self.simulation
             self.standard = SimulationInterfaces(self, simulation.entities, simulation,
                                                  simulation.worlds, self, self, on_quit)
         else:
@@ -96,8 +98,8 @@ class SimNode(MirroringNode):
         self._publish(self.simulation.read_states())
 
     def sink_time_ns(self) -> int:
-        """Return the simulated time that mirrored messages are logged at (0 before physics)."""
-        return 0 if self.simulation is None else self.simulation.time_ns
+        """Return the simulated time that mirrored messages are logged at."""
+        return self.simulation.time_ns
 
     # -- robots and their interfaces ---------------------------------------------------
 
@@ -312,10 +314,11 @@ class SimNode(MirroringNode):
                 if self.sink is not None:
                     self.sink.set_time(self.simulation.time_ns)
 
-    def _close(self) -> None:
+    def _close(self, simulation: Optional[Simulation]) -> None:
+        """Close the robots' interfaces, ``simulation`` (None: not built) and the sink."""
         self.fleet.close()
-        if self.simulation is not None:
-            self.simulation.close()
+        if simulation is not None:
+            simulation.close()
         if self.sink is not None:
             self.sink.close()  # an MCAP file is readable only once closed
 
@@ -324,5 +327,5 @@ class SimNode(MirroringNode):
         if self.standard is not None:
             self.standard.close()
         with self.lock:
-            self._close()
+            self._close(self.simulation)
         super().destroy_node()

@@ -150,6 +150,7 @@ class OdometryOutput:
     def publish(self, frame: Frame) -> None:
         """Publish the frame's wheel odometry."""
         msg, odometry = self._msg, frame.odometry
+        assert odometry is not None, 'a robot with wheels (this output) measures odometry'
         msg.stamp.set(*frame.stamp)
         msg.pose.set((odometry.x_m, odometry.y_m, self._height_m)
                      + yaw_to_quaternion(odometry.yaw_rad))
@@ -157,6 +158,7 @@ class OdometryOutput:
         if odometry.pose_covariance is not None:
             self._covariances[0].set(_embedded(self._pose_covariance, self._POSE_AXES,
                                                odometry.pose_covariance))
+        if odometry.twist_covariance is not None:
             self._covariances[1].set(_embedded(self._twist_covariance, self._TWIST_AXES,
                                                odometry.twist_covariance))
         self._publisher.publish(msg.template.to_bytes())
@@ -268,15 +270,16 @@ class RobotOutputs:
         if frame is not None:
             for output in self.state:
                 output.publish(frame)
-        if measurement.image is not None:
+        # A reading comes only from a sensor the robot has, which has its output.
+        if measurement.image is not None and self.camera is not None:
             self.camera.publish(measurement.time_ns, measurement.image)
-        if measurement.scan is not None:
+        if measurement.scan is not None and self.scan is not None:
             self.scan.publish(measurement.time_ns, measurement.scan)
-        if measurement.imu is not None:
+        if measurement.imu is not None and self.imu is not None:
             self.imu.publish(measurement.time_ns, measurement.imu)
-        if measurement.lidar is not None:
+        if measurement.lidar is not None and self.lidar is not None:
             self.lidar.publish(measurement.time_ns, measurement.lidar)
-        if measurement.battery is not None:
+        if measurement.battery is not None and self.battery is not None:
             self.battery.publish(measurement.time_ns, measurement.battery)
         if measurement.contacts is not None and self.contacts is not None:
             self.contacts.publish(measurement.time_ns, measurement.contacts)

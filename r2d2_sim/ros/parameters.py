@@ -9,7 +9,7 @@ Each robot listed in ``robots`` has the parameters it sets as
 """
 
 import difflib
-from typing import Any, List, Tuple
+from typing import Any, Callable, Dict, List, Tuple
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
@@ -68,9 +68,11 @@ def _declare_typed(node: Node, spec: ParameterSpec, value: Any) -> None:
             descriptor.integer_range = [IntegerRange(
                 from_value=int(bounds.low), to_value=int(bounds.high))]
     # The raw value passed validation: only its Python type may differ.
-    convert = {'double': float, 'integer': int,
-               'double_array': lambda v: [float(x) for x in v],
-               'string_array': lambda v: list(v or [])}.get(spec.ros_type)
+    conversions: Dict[str, Callable[[Any], Any]] = {
+        'double': float, 'integer': int,
+        'double_array': lambda v: [float(x) for x in v],
+        'string_array': lambda v: list(v or [])}
+    convert = conversions.get(spec.ros_type)
     if convert is not None:
         value = convert(value)
     if isinstance(value, list) and not value:

@@ -10,8 +10,9 @@ namespace is how one process serves several (they share one DDS participant).
 """
 
 import threading
-from typing import Callable, List, Tuple
+from typing import Callable, Iterator, List, Tuple
 
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
@@ -65,8 +66,12 @@ class RobotNode(MirroringNode):
                          cli_args=['--ros-args', '-r', f'__node:={name}',
                                    '-r', f'__ns:={namespace}'])
         self.sink = simulator.sink
-        self.sink_time_ns = simulator.sink_time_ns
+        self._simulator_time_ns = simulator.sink_time_ns
         self._destroyed = False
+
+    def sink_time_ns(self) -> int:
+        """Return the simulator's time: the robot's mirrored messages are logged at it."""
+        return self._simulator_time_ns()
 
     def destroy_node(self) -> None:
         """Destroy the node once (the simulator and a harness may both ask), sink first."""
@@ -119,7 +124,7 @@ class RobotInterfaces:
         return self.node.get_namespace()
 
     @property
-    def publishers(self) -> list:
+    def publishers(self) -> Iterator[Publisher]:
         """Return every publisher of the robot's node (the simulator's, for the default robot)."""
         return self.node.publishers
 

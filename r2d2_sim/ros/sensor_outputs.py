@@ -16,10 +16,11 @@ into the serialized bytes, which spares rclpy converting a million-element
 """
 
 import math
-from typing import Optional
+from typing import Any, Dict, Optional, Tuple
 
 import numpy
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import (
     BatteryState, CameraInfo, Image, Imu, LaserScan, PointCloud2, PointField)
@@ -28,7 +29,7 @@ from r2d2_sim.model import battery, camera
 from r2d2_sim.model.camera import CameraIntrinsics
 from r2d2_sim.model.sensors import ImuModel, ImuReading, LidarGeometry, ScanGeometry
 from r2d2_sim.model.timing import stamp_of
-from r2d2_sim.ros.serialization import MessageTemplate
+from r2d2_sim.ros.serialization import FieldSlot, MessageTemplate, StampSlot
 from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.robots.sensors import (
     CameraImage, HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
@@ -57,7 +58,8 @@ class HeadCameraOutput:
                             is_bigendian=0, step=3 * k.width_px)
         self._image.header.frame_id = frame_id
         self._info = _camera_info(k, frame_id)
-        self._depth = self._depth_pub = self._depth_info_pub = None
+        # The depth image, its publisher and its CameraInfo's, with camera_depth.
+        self._depth: Optional[Tuple[Any, Publisher, Publisher]] = None
         self._cloud: Optional[PointCloudTemplate] = None
         if config.camera_point_cloud:
             self._cloud_pub = node.create_publisher(PointCloud2, 'camera/depth/points',
@@ -65,33 +67,43 @@ class HeadCameraOutput:
             self._cloud = PointCloudTemplate(frame_id, k.height_px, k.width_px, XYZ)
             self._rays = camera.pixel_rays(k)
         if config.camera_depth:
-            self._depth_pub = node.create_publisher(Image, 'camera/depth/image_raw', CAMERA_QOS)
-            self._depth_info_pub = node.create_publisher(
+            depth_pub = node.create_publisher(Image, 'camera/depth/image_raw', CAMERA_QOS)
+            depth_info_pub = node.create_publisher(
                 CameraInfo, 'camera/depth/camera_info', CAMERA_QOS)
-            self._depth = Image(height=k.height_px, width=k.width_px, encoding='32FC1',
+            depth_image = Image(height=k.height_px, width=k.width_px, encoding='32FC1',
                                 is_bigendian=0, step=4 * k.width_px)
-            self._depth.header.frame_id = frame_id
+            depth_image.header.frame_id = frame_id
+            self._depth = depth_image, depth_pub, depth_info_pub
 
     def publish(self, time_ns: int, image: CameraImage) -> None:
         """Publish an image and its CameraInfo (and depth), stamped ``time_ns``."""
         stamp = stamp_of(time_ns)
-        rgb, depth = image
         info = self._info
         info.header.stamp.sec, info.header.stamp.nanosec = stamp
-        for image, data, publisher, info_publisher in (
-                (self._image, rgb, self._image_pub, self._info_pub),
-                (self._depth, depth, self._depth_pub, self._depth_info_pub)):
-            if image is None:
-                continue
-            image.header.stamp.sec, image.header.stamp.nanosec = stamp
-            image.data = data if isinstance(data, bytes) else data.astype('<f4').tobytes()
-            publisher.publish(image)
-            info_publisher.publish(info)
+        _publish_image(self._image, image.rgb, stamp, self._image_pub, info, self._info_pub)
+        if self._depth is None and self._cloud is None:
+            return
+        depth = image.depth
+        # The robot renders depth when either is on (camera_depth or camera_point_cloud).
+        assert depth is not None, 'the camera publishes depth but rendered none'
+        if self._depth is not None:
+            depth_image, depth_pub, depth_info_pub = self._depth
+            _publish_image(depth_image, depth.astype('<f4').tobytes(), stamp, depth_pub,
+                           info, depth_info_pub)
         if self._cloud is not None:
             cloud = self._cloud
             cloud.stamp.set_nanoseconds(time_ns)
             cloud.data.set(camera.depth_points(depth, self._rays))
             self._cloud_pub.publish(cloud.template.to_bytes())
+
+
+def _publish_image(image: Any, data: bytes, stamp: Tuple[int, int], publisher: Publisher,
+                   info: Any, info_publisher: Publisher) -> None:
+    """Publish an Image of ``data`` and its (stamped) CameraInfo, the image stamped ``stamp``."""
+    image.header.stamp.sec, image.header.stamp.nanosec = stamp
+    image.data = data
+    publisher.publish(image)
+    info_publisher.publish(info)
 
 
 def _camera_info(k: CameraIntrinsics, frame_id: str) -> CameraInfo:
@@ -173,9 +185,12 @@ class PointCloudTemplate:
     """
 
     def __init__(self, frame_id: str, height: int, width: int, dtype: numpy.dtype) -> None:
-        fields = [PointField(name=name, offset=dtype.fields[name][1],
-                             datatype=_DATATYPES[dtype.fields[name][0].str], count=1)
-                  for name in dtype.names]
+        layout, names = dtype.fields, dtype.names
+        if layout is None or names is None:
+            raise ValueError(f'a point cloud is laid out as a structured dtype, not {dtype}')
+        fields = [PointField(name=name, offset=layout[name][1],
+                             datatype=_DATATYPES[layout[name][0].str], count=1)
+                  for name in names]
         msg = PointCloud2(height=height, width=width, fields=fields, is_bigendian=False,
                           point_step=dtype.itemsize, row_step=dtype.itemsize * width,
                           is_dense=False)
@@ -226,7 +241,9 @@ class BatteryOutput:
 
     def __init__(self, node: Node, config: SimConfig, capacity_ah: float) -> None:
         self._publisher = node.create_publisher(BatteryState, 'battery_state', SENSOR_QOS)
-        self._templates = {}
+        # Per status: the template, its stamp, voltage, current, charge, percentage.
+        self._templates: Dict[int, Tuple[MessageTemplate, StampSlot, FieldSlot, FieldSlot,
+                                         FieldSlot, FieldSlot]] = {}
         for status in (battery.CHARGING, battery.DISCHARGING, battery.FULL):
             msg = BatteryState(temperature=math.nan, capacity=capacity_ah,
                                design_capacity=capacity_ah, power_supply_status=status,
@@ -235,9 +252,9 @@ class BatteryOutput:
                                present=True)
             msg.header.frame_id = config.frame(config.base_frame_id)
             template = MessageTemplate(msg)
-            self._templates[status] = (template, template.stamp(), *(
-                template.field(name) for name in ('voltage', 'current', 'charge',
-                                                  'percentage')))
+            self._templates[status] = (
+                template, template.stamp(), template.field('voltage'), template.field('current'),
+                template.field('charge'), template.field('percentage'))
 
     def publish(self, time_ns: int, reading: battery.BatteryReading) -> None:
         """Publish the battery as read at ``time_ns``."""

@@ -118,7 +118,7 @@ def _resolve(message: Any, path: str) -> Tuple[Any, Union[str, int], Any]:
     return holder, key, type_def
 
 
-def _message_class(type_def: NamespacedType) -> type:
+def _message_class(type_def: NamespacedType) -> Any:
     """Return the Python class of a nested message type (e.g. geometry_msgs.msg.Pose)."""
     return getattr(importlib.import_module('.'.join(type_def.namespaces)), type_def.name)
 
@@ -207,7 +207,7 @@ class _Span(NamedTuple):
 
     path: str
     offset: int
-    count: int
+    length: int             # how many values (bytes for a BytesSlot); 'count' is tuple's
     codes: str              # struct codes of the run, one per value
     dtype: Optional[str]    # 'float64', 'float32', ... when all values share one type
 
@@ -225,16 +225,16 @@ class FieldSlot:
     def __init__(self, buffer: bytearray, span: _Span) -> None:
         self.path = span.path
         self.offset = span.offset
-        self.count = span.count
+        self.count = span.length
         self.dtype = span.dtype
         self._buffer = buffer
         self._pack_into = struct.Struct('<' + span.codes).pack_into
         self._view: Optional[np.ndarray] = None
-        if span.count and span.dtype in ('float64', 'float32'):
+        if span.length and span.dtype in ('float64', 'float32'):
             # A numpy array handed to set() is copied in through this view: much
             # faster than unpacking it into struct.pack_into (360 ranges: see bench).
             self._view = np.frombuffer(buffer, np.dtype(span.dtype).newbyteorder('<'),
-                                       span.count, span.offset)
+                                       span.length, span.offset)
 
     def set(self, values: Union[Sequence[float], np.ndarray]) -> None:
         """

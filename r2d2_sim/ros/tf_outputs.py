@@ -90,6 +90,7 @@ class TfOutput:
         slots = iter(self._transforms)
         if self._odometry:
             odometry = frame.odometry
+            assert odometry is not None, 'a robot with wheels measures odometry'
             odom = Transform((odometry.x_m, odometry.y_m, 0.0),
                              yaw_to_quaternion(odometry.yaw_rad))
             next(slots).set(odom.translation + odom.rotation)
@@ -170,7 +171,8 @@ def static_transforms(config: SimConfig, robot: Robot,
     if robot.imu is not None:
         result.append((base, frame(IMU_FRAME_ID), IDENTITY))
     if links is not None:
-        if links.root_link != config.base_frame_id:  # the URDF base, turned from the body
+        # The URDF base, turned from the body; a URDF without joints names none.
+        if links.root_link is not None and links.root_link != config.base_frame_id:
             result.append((base, frame(links.root_link), Transform(
                 (0.0, 0.0, 0.0), yaw_to_quaternion(-config.body_yaw_offset_rad))))
         result += [(frame(j.parent_link), frame(j.child_link), j.transform) for j in links.fixed()]

@@ -204,6 +204,27 @@ def test_tf_output_publishes_exactly_the_typed_transforms():
     simulation.close()
 
 
+def test_a_robot_of_one_link_has_no_urdf_root_below_its_base():
+    """
+    With link transforms, a URDF without joints (one link, its name unread) adds no frame.
+
+    Such a URDF has no root link to hang below the base (nothing to publish,
+    as robot_state_publisher publishes nothing for it); it once gave a None
+    frame and a TypeError at start-up.
+    """
+    from r2d2_sim.ros.tf_outputs import link_transforms, static_transforms
+    config = parse_config({**ROBOTS['robot without wheels'], 'publish_link_tf': True})
+    simulation = Simulation(config)
+    try:
+        links = link_transforms(config, simulation.robot)
+        with_links = static_transforms(config, simulation.robot, links)
+        without = static_transforms(config, simulation.robot, None)
+    finally:
+        simulation.close()
+    assert links.root_link is None
+    assert with_links == without
+
+
 def test_scan_and_imu_outputs_publish_exactly_the_readings_given():
     """Put scan ranges (float32) and IMU fields where the typed messages have them."""
     import numpy

@@ -15,8 +15,10 @@ its simulation control, on the same node.
 """
 
 import threading
+from typing import Any, Optional
 
 from geometry_msgs.msg import Vector3
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 
 from r2d2_sim.errors import RefusedError
@@ -35,8 +37,8 @@ SPAWNABLE_DIRECTORIES = ('package://r2d2_sim/urdf',)
 class Replies:
     """Setting a reply's result: OK on every success (a default Result reads as unsupported)."""
 
-    _msg = None
-    _log = None  # the node's logger, for what no request should cause
+    _msg: Any = None  # simulation_interfaces.msg (no stubs), set by each service
+    _log: Optional[RcutilsLogger] = None  # the node's, for what no request should cause
 
     def _guarded(self, callback):
         """
