@@ -30,12 +30,12 @@ their contents.
 """
 
 import os
-import re
 from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import DescriptionFile
+from r2d2_sim.sim.sdf.elements import root_tag
 from r2d2_sim.sim.sdf.loading import SdfSettings
 from r2d2_sim.sim.sdf_world import read_sdf_world, sdf_models
 from r2d2_sim.sim.spawnables import check_description, MAX_DESCRIPTION_BYTES
@@ -190,9 +190,7 @@ class WorldFormat(NamedTuple):
 
 
 def _xml_root(text: str) -> Optional[str]:
-    match = re.match(r'\s*(?:<\?xml[^>]*\?>\s*)?(?:<!--.*?-->\s*)*<([A-Za-z_][\w.-]*)', text,
-                     re.S)
-    return match.group(1) if match else None
+    return root_tag(text) or None  # a linear scan: no pattern that backtracks over comments
 
 
 def _read_urdf_world(text: str, path: Optional[str], uri: str, reading: _Reading,
