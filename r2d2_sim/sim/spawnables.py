@@ -12,6 +12,7 @@ local cache, ``<sdf>`` text) are read in :mod:`r2d2_sim.sim.sdf.spawning` and
 spawn as the URDF written from them.
 """
 
+import errno
 import math
 import os
 from typing import List, NamedTuple, Optional, Sequence
@@ -21,6 +22,7 @@ from xml.sax.saxutils import quoteattr
 import pybullet_data
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.files import read_regular, UnsafeFile
 from r2d2_sim.model.transforms import IDENTITY, Transform
 from r2d2_sim.physics.description import (
     DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
@@ -138,12 +140,12 @@ def read_spawnable(uri: str, resource_string: str, sdf: SdfSettings = SdfSetting
         if not path.lower().endswith('.urdf'):
             raise RefusedError('UNSUPPORTED_FORMAT', f'{uri[:200]}: only .urdf and .sdf files '
                                'can be spawned')
-        if os.path.getsize(path) > MAX_DESCRIPTION_BYTES:
-            raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} is larger than '
-                               f'{MAX_DESCRIPTION_BYTES} bytes')
         try:
-            with open(path, encoding='utf-8') as handle:
-                text = handle.read()
+            text = read_regular(path, MAX_DESCRIPTION_BYTES).decode('utf-8')
+        except UnsafeFile as exc:  # too large, or not a regular file (a FIFO would hang)
+            problem = (f'is larger than {MAX_DESCRIPTION_BYTES} bytes'
+                       if exc.errno == errno.EFBIG else 'is not a regular file')
+            raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} {problem}') from None
         except (OSError, UnicodeDecodeError):
             raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} cannot be read as '
                                'text') from None

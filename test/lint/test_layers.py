@@ -1,10 +1,10 @@
 """
 The package's folders are its layers: each imports from its own layer or lower ones only.
 
-From the lowest up: ``errors``, ``recording``, ``model``, ``physics``, ``sim``,
-``client``, ``ros``, ``testing``, ``apps``, ``farm`` (above the executables: none of
-them imports it), then ``pytest_plugin`` and ``__main__``, and on top
-``conformance``, which nothing imports; the package's own ``__init__`` imports
+From the lowest up: ``errors`` (with ``memory`` and ``files``), ``recording``, ``model``,
+``physics``, ``sim``, ``client``, ``ros``, ``testing``, ``apps``, ``farm`` (above the
+executables: none of them imports it), then ``pytest_plugin`` and ``__main__``, and on
+top ``conformance``, which nothing imports; the package's own ``__init__`` imports
 nothing of it. Two checks:
 
 - in a fresh interpreter, importing every module of ``model``, ``physics``,
@@ -34,8 +34,8 @@ from common import REPO
 PACKAGE = 'r2d2_sim'
 # Each folder or top-level module of the package, by height; a module imports only
 # from its own height or below. The package's root __init__ sits below them all.
-RANK = {'errors': 0, 'memory': 0, 'model': 1, 'recording': 2, 'physics': 3, 'sim': 4,
-        'client': 5, 'ros': 6, 'testing': 7, 'apps': 8, 'farm': 9, 'pytest_plugin': 10,
+RANK = {'errors': 0, 'memory': 0, 'files': 0, 'model': 1, 'recording': 2, 'physics': 3,
+        'sim': 4, 'client': 5, 'ros': 6, 'testing': 7, 'apps': 8, 'farm': 9, 'pytest_plugin': 10,
         '__main__': 10, 'conformance': 11}
 ROOT_RANK = -1
 # What importing all of a ROS-free layer must not load.

@@ -9,9 +9,12 @@ status -9). The node runs in a process of its own so that a frozen node
 fails the test instead of freezing the test run.
 """
 
+import os
+
 from simulation_interfaces import srv
 
 from r2d2_sim.client import wait_for
+from sdf_files import sdf
 
 LOAD, SPAWN = srv.LoadWorld.Response, srv.SpawnEntity.Response
 # How long a call may go unanswered: a frozen node never answers.
@@ -40,5 +43,23 @@ def test_comment_floods_to_load_world_and_spawn_entity_are_answered_at_once(
     spawned = sim.standard.call('spawn_entity', srv.SpawnEntity.Request(
         resource_string=flood), check=False)
     assert spawned.result.result == SPAWN.RESOURCE_PARSE_ERROR, spawned.result.error_message
+    assert clock_runs(sim)
+    assert stops_on_sigint(sim)
+
+
+def test_a_world_whose_mesh_is_a_fifo_is_refused_and_sigint_still_stops_the_node(
+        r2d2_sim_process, tmp_path, monkeypatch):
+    monkeypatch.setenv('R2D2_SIM_CACHE_DIR', str(tmp_path / 'cache'))
+    os.mkfifo(tmp_path / 'wall.stl')  # opened the usual way, it waits for a writer forever
+    (tmp_path / 'fifo.sdf').write_text(sdf(
+        '<world name="fifo"><model name="wall"><static>true</static><link name="l">'
+        '<collision name="c"><geometry><mesh><uri>wall.stl</uri></mesh></geometry>'
+        '</collision></link></model></world>'))
+    sim = r2d2_sim_process(scan_rate=0.0, cmd_vel_timeout=0.0, timeout_s=CALL_TIMEOUT_S,
+                           world_paths=[str(tmp_path)])
+    loaded = sim.standard.call('load_world', srv.LoadWorld.Request(
+        uri=str(tmp_path / 'fifo.sdf')), check=False)
+    assert loaded.result.result == LOAD.UNSUPPORTED_ASSETS, loaded.result.error_message
+    assert 'not a regular file' in loaded.result.error_message
     assert clock_runs(sim)
     assert stops_on_sigint(sim)

@@ -9,10 +9,9 @@ read through a :class:`Place`, which names the file and the element in the
 one-line RESOURCE_PARSE_ERROR a bad value gets, never the file's text.
 """
 
+import errno
 import math
-import os
 import re
-import stat
 from typing import Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
@@ -20,6 +19,7 @@ from defusedxml import DefusedXmlException
 import defusedxml.ElementTree as SafeElementTree
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.files import read_regular, UnsafeFile
 from r2d2_sim.model.health import MAX_DISTANCE_M
 from r2d2_sim.model.sdf_poses import FrameError, pose_from_values
 from r2d2_sim.model.transforms import IDENTITY, Transform
@@ -62,20 +62,24 @@ class Budget:
 
 
 def read_limited(path: str, shown: str, code: str, limit: int) -> str:
-    """Read a regular file of at most ``limit`` bytes as UTF-8; ``code`` if it is not there."""
+    """
+    Read a regular file of at most ``limit`` bytes as UTF-8; ``code`` if it is not there.
+
+    Read by :func:`r2d2_sim.files.read_regular`: a FIFO or a device is
+    refused at once (opened the usual way, a FIFO waits for a writer forever).
+    """
     try:
-        info = os.stat(path)
-    except OSError:
+        data = read_regular(path, limit)
+    except UnsafeFile as exc:
+        if exc.errno == errno.EFBIG:
+            raise RefusedError(PARSE, f'{shown} is larger than {limit} bytes') from None
+        raise RefusedError(code, f'{shown} is not a regular file') from None
+    except (FileNotFoundError, NotADirectoryError):
         raise RefusedError(code, f'{shown}: no such file') from None
-    if not stat.S_ISREG(info.st_mode):
-        raise RefusedError(code, f'{shown} is not a regular file')
-    if info.st_size > limit:
-        raise RefusedError(PARSE, f'{shown} is larger than {limit} bytes')
-    try:
-        with open(path, 'rb') as handle:
-            return handle.read(limit + 1).decode('utf-8')
     except OSError:
         raise RefusedError(code, f'{shown} cannot be read') from None
+    try:
+        return data.decode('utf-8')
     except UnicodeDecodeError:
         raise RefusedError(PARSE, f'{shown} is not UTF-8 text') from None
 

@@ -12,6 +12,7 @@ triangle count (:data:`MAX_MESH_TRIANGLES`). Errors name the mesh as the SDF
 wrote it, never the file's contents.
 """
 
+import errno
 import io
 import logging
 import os
@@ -23,6 +24,7 @@ from typing import List, NamedTuple, Optional, Tuple
 import numpy
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.files import read_regular, UnsafeFile
 
 __all__ = ['Triangles', 'read_mesh', 'MESH_FORMATS', 'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
 
@@ -158,11 +160,9 @@ class _MaterialFiles:
 
     def get(self, name: str) -> bytes:
         path = os.path.realpath(os.path.join(self._directory, name))
-        if not name.lower().endswith('.mtl') or os.path.dirname(path) != self._directory or \
-                not os.path.isfile(path) or os.path.getsize(path) > MAX_MTL_BYTES:
+        if not name.lower().endswith('.mtl') or os.path.dirname(path) != self._directory:
             raise OSError('not served')  # textures and anything elsewhere: no colour
-        with open(path, 'rb') as handle:
-            return handle.read()
+        return read_regular(path, MAX_MTL_BYTES)  # OSError: no colour, as trimesh takes it
 
     __getitem__ = get
 
@@ -212,13 +212,19 @@ def read_mesh(path: str, shown: str, data: Optional[bytes] = None) -> Triangles:
 
 
 def read_mesh_bytes(path: str, shown: str) -> bytes:
-    """Return a mesh file's bytes, at most MAX_MESH_BYTES; RefusedError if it cannot be had."""
+    """
+    Return a mesh file's bytes, at most MAX_MESH_BYTES; RefusedError if it cannot be had.
+
+    A regular file only (a FIFO would hold the load, and SIGINT, forever):
+    UNSUPPORTED_ASSETS for anything else or a file too large, MISSING_ASSETS
+    for one that cannot be opened.
+    """
     try:
-        size = os.path.getsize(path)
-        if size > MAX_MESH_BYTES:
+        return read_regular(path, MAX_MESH_BYTES)
+    except UnsafeFile as exc:
+        if exc.errno == errno.EFBIG:
             raise RefusedError(UNSUPPORTED, f'mesh {shown} is larger than {MAX_MESH_BYTES} '
-                                            'bytes')
-        with open(path, 'rb') as handle:
-            return handle.read(MAX_MESH_BYTES + 1)
+                                            'bytes') from None
+        raise RefusedError(UNSUPPORTED, f'mesh {shown} is not a regular file') from None
     except OSError:
         raise RefusedError('MISSING_ASSETS', f'mesh {shown} cannot be read') from None
