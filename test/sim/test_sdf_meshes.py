@@ -8,10 +8,12 @@ that a warm read converts nothing, and that two processes converting at
 once both end with whole files.
 """
 
+import io
 import json
 import os
 import subprocess
 import sys
+import zipfile
 
 import numpy
 import pytest
@@ -81,6 +83,45 @@ def test_a_bad_mesh_gets_one_line_naming_it_never_its_bytes(tmp_path, name, data
         read_mesh(str(path), f'model://m/{name}')
     assert raised.value.code == code
     assert problem in raised.value.message and f'model://m/{name}' in raised.value.message
+    assert SECRET.decode() not in raised.value.message and '\n' not in raised.value.message
+
+
+def _zipped(name, data):
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, 'w', zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr(name, data)
+    return buffer.getvalue()
+
+
+def _bomb(encoding):
+    """A COLLADA file that is valid but for its DOCTYPE, written in ``encoding``."""
+    return (f'<?xml version="1.0" encoding="{encoding}"?><!DOCTYPE c [<!ENTITY a "'
+            f'{SECRET.decode()}">]><COLLADA/>').encode(encoding)
+
+
+@pytest.mark.parametrize('data, problem', [
+    (_zipped('m.dae', b'<COLLADA>' + b' ' * 1_000_000 + b'</COLLADA>'), 'a zip archive'),
+    (_zipped('m.dae', _bomb('utf-8')), 'a zip archive'),
+    (b'<COLLADA/>' + _zipped('m.dae', _bomb('utf-8')), 'a zip archive'),  # read from its end
+    (_bomb('utf-16'), 'is not UTF-8'),
+    (_bomb('utf-32'), 'is not UTF-8'),
+    (_bomb('cp037'), 'is not UTF-8'),
+], ids=['zipped', 'zipped DOCTYPE', 'zip after XML', 'UTF-16 DOCTYPE', 'UTF-32 DOCTYPE',
+        'EBCDIC DOCTYPE'])
+def test_collada_that_pycollada_would_unzip_or_decode_past_the_checks_is_refused(
+        tmp_path, data, problem):
+    """
+    Zipped (pycollada unpacks any data with a zip directory at its end) or not UTF-8.
+
+    Both passed the size bound and the DOCTYPE check unseen: 40 kB of zip became
+    ~950 MB, and a DOCTYPE in UTF-16 loaded. Gazebo reads no zipped COLLADA either.
+    """
+    path = tmp_path / 'm.dae'
+    path.write_bytes(data)
+    with pytest.raises(RefusedError) as raised:
+        read_mesh(str(path), 'model://m/m.dae')
+    assert raised.value.code == 'UNSUPPORTED_ASSETS', raised.value
+    assert problem in raised.value.message and 'model://m/m.dae' in raised.value.message
     assert SECRET.decode() not in raised.value.message and '\n' not in raised.value.message
 
 

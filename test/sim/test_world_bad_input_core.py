@@ -167,9 +167,10 @@ def test_comments_before_the_root_element_are_read_past_in_one_pass():
     Read '<!---->' * n before the root in one pass, never 2^n tries.
 
     A regular expression with ``.*?`` across comments tries about 2^n ways
-    (27 held LoadWorld and every service 47 s); a scan reads each once. The sniffers of LoadWorld and SpawnEntity run in a process of their own, under a
-    deadline that only a stuck sniffer (hours at n = 40) meets, not a measure of speed;
-    9,000 comments (99 kB) show the scan is linear.
+    (27 held LoadWorld and every service 47 s); a scan reads each once. The
+    sniffers of LoadWorld and SpawnEntity run in a process of their own, under
+    a deadline that only a stuck sniffer (hours at n = 40) meets, not a
+    measure of speed; 9,000 comments (99 kB) show the scan is linear.
     """
     code = '\n'.join([
         'from r2d2_sim.errors import RefusedError',

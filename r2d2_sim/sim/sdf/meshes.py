@@ -19,6 +19,7 @@ import os
 import re
 import struct
 import warnings
+import zipfile
 from typing import List, NamedTuple, Optional, Tuple
 
 import numpy
@@ -37,6 +38,11 @@ MAX_MTL_BYTES = 1 << 20
 MAX_COORDINATE = 1e9
 PARSE, UNSUPPORTED = 'RESOURCE_PARSE_ERROR', 'UNSUPPORTED_ASSETS'
 _XML_DECLARATIONS = re.compile(rb'<!\s*(DOCTYPE|ENTITY)', re.IGNORECASE)
+# The encoding an XML declaration names, read from its first 1 kB (bounded, linear).
+_DECLARED_ENCODING = re.compile(rb'<\?xml[^>]{0,1000}?encoding\s*=\s*["\']([A-Za-z0-9._-]{1,40})')
+# Encodings in which markup is ASCII, byte for byte, so the DOCTYPE check reads it as the
+# parser does; another (UTF-16, UTF-32, EBCDIC, UTF-7 with lxml) could hide a DOCTYPE.
+_ASCII_MARKUP = ('utf-8', 'utf8', 'us-ascii', 'ascii', 'iso-8859-1', 'latin-1', 'latin1')
 
 Rgba = Tuple[float, float, float, float]
 
@@ -92,7 +98,29 @@ def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], sho
     return Triangles(joined, joined_faces, tuple(colours), numpy.concatenate(groups))
 
 
+def _check_collada_bytes(data: bytes, shown: str) -> None:
+    """
+    Refuse COLLADA that pycollada would unzip, or read in an encoding that hides markup.
+
+    pycollada opens any data with a zip directory at its end as an archive
+    and parses the .dae inside, past the size bound and the DOCTYPE check
+    (40 kB became 950 MB); Gazebo reads no zipped COLLADA either. The DOCTYPE
+    check reads bytes, so the markup must be ASCII: UTF-8 (or ASCII, Latin-1).
+    """
+    if data.startswith(b'PK\x03\x04') or zipfile.is_zipfile(io.BytesIO(data)):
+        raise RefusedError(UNSUPPORTED, f'mesh {shown} is a zip archive: r2d2_sim reads '
+                                        'COLLADA (.dae) files unzipped, as Gazebo does')
+    text = data[3:] if data.startswith(b'\xef\xbb\xbf') else data
+    text = text[:1024].lstrip(b' \t\r\n')
+    declared = _DECLARED_ENCODING.match(text)
+    if not text.startswith(b'<') or (declared is not None and declared.group(1).decode(
+            'ascii').lower() not in _ASCII_MARKUP):
+        raise RefusedError(UNSUPPORTED, f'mesh {shown} is not UTF-8 text: r2d2_sim reads '
+                                        'COLLADA in UTF-8')
+
+
 def _dae(data: bytes, shown: str) -> Triangles:
+    _check_collada_bytes(data, shown)
     if _XML_DECLARATIONS.search(data):
         raise RefusedError(PARSE, f'mesh {shown} declares a DOCTYPE or entities, which COLLADA '
                                   'does not need')
