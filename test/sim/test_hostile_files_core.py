@@ -83,3 +83,54 @@ def test_a_mesh_that_is_a_fifo_is_refused_at_once_not_waited_for(make, tmp_path,
     assert refused.code == 'UNSUPPORTED_ASSETS'
     assert 'wall.stl is not a regular file' in refused.message
     assert simulation.world_file.name == 'empty'
+
+
+def urdf_with_mesh(directory, mesh, uses=1, name='meshy'):
+    """Write a URDF beside ``mesh`` (a file name in ``directory``) that uses it ``uses`` times."""
+    visuals = ''.join(f'<visual><geometry><mesh filename="{mesh}"/></geometry></visual>'
+                      for _ in range(uses))
+    path = directory / f'{name}.urdf'
+    path.write_text(f'<robot name="{name}"><link name="base"><inertial><mass value="1"/>'
+                    '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/>'
+                    f'</inertial>{visuals}</link></robot>')
+    return str(path)
+
+
+@pytest.mark.parametrize('bound, value, problem', [
+    ('MAX_MESH_TRIANGLES', 11, 'has 12 triangles, more than 11'),
+    ('MAX_MESH_BYTES', 100, 'larger than 100 bytes'),
+], ids=['triangles', 'bytes'])
+def test_a_urdfs_meshes_have_the_bounds_of_an_sdf_worlds_before_pybullet_sees_them(
+        make, tmp_path, cache, monkeypatch, bound, value, problem):
+    """A URDF beside a sparse 2 GB STL aborted the node (SIGABRT) when a peer spawned it."""
+    from r2d2_sim.sim.sdf import meshes
+    from r2d2_sim.sim.simulation import SpawnRequest
+    from sdf_files import box, write_stl
+    write_stl(tmp_path / 'box.stl', box((0.2, 0.2, 0.2)))  # 12 triangles, 684 bytes
+    path = urdf_with_mesh(tmp_path, 'box.stl')
+    simulation = make()
+    assert simulation.spawn(SpawnRequest('fine', uri=path, position=(1.0, 0.0, 0.5))) == 'fine'
+    monkeypatch.setattr(meshes, bound, value)
+    with pytest.raises(RefusedError) as refused:
+        simulation.spawn(SpawnRequest('big', uri=path, position=(-1.0, 0.0, 0.5)))
+    assert refused.value.code == 'UNSUPPORTED_ASSETS' and problem in refused.value.message
+    assert 'mesh box.stl' in refused.value.message
+    assert 'big' not in simulation.entity_names()
+
+
+def test_every_use_of_a_urdf_mesh_counts_against_the_triangles_of_a_world(
+        make, tmp_path, cache, monkeypatch):
+    from r2d2_sim.sim.sdf import loading
+    from sdf_files import box, write_stl
+    write_stl(tmp_path / 'box.stl', box((0.2, 0.2, 0.2)))
+    urdf_with_mesh(tmp_path, 'box.stl', uses=2)
+    (tmp_path / 'two.world.yaml').write_text(
+        'r2d2_sim_world: 1\nmodels:\n  - {uri: meshy.urdf, name: a, position: [1, 0, 0]}\n'
+        '  - {uri: meshy.urdf, name: b, position: [-1, 0, 0]}\n')
+    simulation = make(world_paths=[str(tmp_path)])
+    monkeypatch.setattr(loading, 'MAX_WORLD_TRIANGLES', 48)  # 2 models x 2 uses x 12
+    assert simulation.load_world(str(tmp_path / 'two.world.yaml')).name == 'two'
+    monkeypatch.setattr(loading, 'MAX_WORLD_TRIANGLES', 47)
+    with pytest.raises(RefusedError, match='^UNSUPPORTED_ASSETS: .*more than 47 triangles in all'):
+        simulation.load_world(str(tmp_path / 'two.world.yaml'))
+    assert simulation.world_file.name == 'two'

@@ -10,6 +10,7 @@ fails the test instead of freezing the test run.
 """
 
 import os
+import struct
 
 from simulation_interfaces import srv
 
@@ -61,5 +62,24 @@ def test_a_world_whose_mesh_is_a_fifo_is_refused_and_sigint_still_stops_the_node
         uri=str(tmp_path / 'fifo.sdf')), check=False)
     assert loaded.result.result == LOAD.UNSUPPORTED_ASSETS, loaded.result.error_message
     assert 'not a regular file' in loaded.result.error_message
+    assert clock_runs(sim)
+    assert stops_on_sigint(sim)
+
+
+def test_a_urdf_beside_a_sparse_2_gb_mesh_is_refused_and_the_node_lives_on(
+        r2d2_sim_process, tmp_path, monkeypatch):
+    monkeypatch.setenv('R2D2_SIM_CACHE_DIR', str(tmp_path / 'cache'))
+    size = 2 << 30
+    with open(tmp_path / 'huge.stl', 'wb') as handle:  # a binary STL header, then holes
+        handle.write(b'\0' * 80 + struct.pack('<I', (size - 84) // 50))
+        handle.truncate(size)
+    (tmp_path / 'huge.urdf').write_text(
+        '<robot name="huge"><link name="base"><visual><geometry><mesh filename="huge.stl"/>'
+        '</geometry></visual></link></robot>')
+    sim = r2d2_sim_process(scan_rate=0.0, cmd_vel_timeout=0.0, timeout_s=CALL_TIMEOUT_S)
+    spawned = sim.standard.call('spawn_entity', srv.SpawnEntity.Request(
+        uri=str(tmp_path / 'huge.urdf')), check=False)
+    assert spawned.result.result == SPAWN.UNSUPPORTED_ASSETS, spawned.result.error_message
+    assert 'huge.stl is larger than' in spawned.result.error_message
     assert clock_runs(sim)
     assert stops_on_sigint(sim)

@@ -25,7 +25,7 @@ from typing import List, NamedTuple, Optional, Tuple
 import numpy
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.sim.sdf.meshes import read_mesh, read_mesh_bytes, Triangles
+from r2d2_sim.sim.sdf.meshes import check_triangles, read_mesh, read_mesh_bytes, Triangles
 
 __all__ = ['MeshCache', 'Converted', 'cache_directory', 'CACHE_VARIABLE', 'CONVERTER_VERSION',
            'MAX_PARTS', 'MAX_HULLS']
@@ -141,6 +141,7 @@ class MeshCache:
         directory = os.path.join(self.directory, key[:2], key)
         cached = self._cached(directory)
         if cached is not None:
+            check_triangles(cached.triangles, shown)  # the bound of today, not the writer's
             return cached
         return self._store(directory, read_mesh(path, shown, data), shown)
 

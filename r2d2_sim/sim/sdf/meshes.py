@@ -27,7 +27,8 @@ import numpy
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import read_regular, UnsafeFile
 
-__all__ = ['Triangles', 'read_mesh', 'MESH_FORMATS', 'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
+__all__ = ['Triangles', 'read_mesh', 'read_mesh_bytes', 'check_triangles', 'MESH_FORMATS',
+           'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
 
 MESH_FORMATS = ('.dae', '.stl', '.obj')
 # One mesh file (AWS's small house: 140 DAE files of 87 MB in all, the largest 6 MB).
@@ -61,7 +62,8 @@ def _quiet_trimesh() -> None:
     logging.getLogger('trimesh').setLevel(logging.ERROR)
 
 
-def _check_triangles(count: int, shown: str) -> None:
+def check_triangles(count: int, shown: str) -> None:
+    """Refuse a mesh of more than MAX_MESH_TRIANGLES triangles (UNSUPPORTED_ASSETS)."""
     if count > MAX_MESH_TRIANGLES:
         raise RefusedError(UNSUPPORTED, f'mesh {shown} has {count} triangles, more than '
                                         f'{MAX_MESH_TRIANGLES}')
@@ -73,7 +75,7 @@ def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], sho
     pieces = [(v, f, c) for v, f, c in pieces if len(f)]
     if not pieces:
         raise RefusedError(PARSE, f'mesh {shown} has no triangles')
-    _check_triangles(sum(len(f) for _, f, _ in pieces), shown)
+    check_triangles(sum(len(f) for _, f, _ in pieces), shown)
     colours: List[Optional[Rgba]] = []
     vertices, faces, groups = [], [], []
     offset = 0
@@ -156,7 +158,7 @@ def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
                 if colour is not None and len(colour) == 3:
                     colour += (1.0,)
                 pieces.append((primitive.vertex * unit, primitive.vertex_index, colour))
-                _check_triangles(sum(len(p[1]) for p in pieces), shown)
+                check_triangles(sum(len(p[1]) for p in pieces), shown)
     except RefusedError:
         raise
     except Exception as exc:  # pycollada raises many kinds on a malformed file
@@ -167,9 +169,9 @@ def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
 
 def _stl(data: bytes, shown: str) -> Triangles:
     if len(data) >= 84 and not data[:5].lower() == b'solid':
-        _check_triangles(struct.unpack('<I', data[80:84])[0], shown)
+        check_triangles(struct.unpack('<I', data[80:84])[0], shown)
     else:
-        _check_triangles(data.count(b'facet'), shown)
+        check_triangles(data.count(b'facet'), shown)
     from trimesh.exchange.stl import load_stl
     try:
         loaded = load_stl(io.BytesIO(data))
@@ -196,7 +198,7 @@ class _MaterialFiles:
 
 
 def _obj(data: bytes, shown: str, directory: str) -> Triangles:
-    _check_triangles(data.count(b'\nf '), shown)
+    check_triangles(data.count(b'\nf '), shown)
     from trimesh.exchange.obj import load_obj
     try:
         loaded = load_obj(io.BytesIO(data), resolver=_MaterialFiles(directory),
