@@ -109,7 +109,7 @@ class Simulation(SimulationEntities, SimulationWorlds):
         # What SDF worlds and spawns are searched and compared with.
         self.sdf = SdfSettings(tuple(config.model_paths), self.time_step_s,
                                tuple(config.gravity_m_s2), config.ground_plane,
-                               config.strict_worlds)
+                               config.strict_worlds, tuple(self.places.roots()))
         # The world file loaded (the empty world for world ''); None after unload_world.
         self.world_file: Optional[World] = None
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,

@@ -134,3 +134,29 @@ def test_every_use_of_a_urdf_mesh_counts_against_the_triangles_of_a_world(
     with pytest.raises(RefusedError, match='^UNSUPPORTED_ASSETS: .*more than 47 triangles in all'):
         simulation.load_world(str(tmp_path / 'two.world.yaml'))
     assert simulation.world_file.name == 'two'
+
+
+def test_an_sdf_model_spawns_only_from_where_load_world_may_read_it(make, tmp_path, cache,
+                                                                    monkeypatch):
+    """By path, file://, a relative path or a link: outside the places it is NOT_FOUND."""
+    from r2d2_sim.sim.simulation import SpawnRequest
+    from sdf_files import box_model
+    outside, allowed = tmp_path / 'outside', tmp_path / 'worlds'
+    outside.mkdir()
+    allowed.mkdir()
+    (outside / 'crate.sdf').write_text(sdf(box_model('crate')))
+    (allowed / 'crate.sdf').write_text(sdf(box_model('crate')))
+    (allowed / 'link.sdf').symlink_to(outside / 'crate.sdf')
+    simulation = make(world_paths=[str(allowed)])
+    monkeypatch.chdir(outside)
+    for uri in (str(outside / 'crate.sdf'), f'file://{outside}/crate.sdf', 'crate.sdf',
+                str(allowed / 'link.sdf')):
+        with pytest.raises(RefusedError) as refused:
+            simulation.spawn(SpawnRequest('crate', uri=uri, position=(1.0, 0.0, 0.5)))
+        assert refused.value.code == 'NOT_FOUND', (uri, refused.value)
+        assert 'lies outside the places' in refused.value.message, uri
+    assert simulation.spawn(SpawnRequest('crate', uri=str(allowed / 'crate.sdf'),
+                                         position=(1.0, 0.0, 0.5))) == 'crate'
+    beside = make(model_paths=[str(outside)])  # or among the model paths
+    assert beside.spawn(SpawnRequest('crate', uri=str(outside / 'crate.sdf'),
+                                     position=(1.0, 0.0, 0.5))) == 'crate'

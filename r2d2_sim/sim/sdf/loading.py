@@ -64,7 +64,10 @@ class SdfSettings(NamedTuple):
     ``model_paths`` come before the Gazebo variables; ``time_step_s`` and
     ``gravity_m_s2`` are r2d2_sim's (a world's that differ are noted);
     ``ground_plane``: r2d2_sim loads its own; ``strict``: a spawn refuses a
-    model with anything not simulated (LoadWorld has its own flag).
+    model with anything not simulated (LoadWorld has its own flag);
+    ``places``: the directories worlds load from (``world_paths``, this
+    package's ``urdf/``, pybullet_data), where a spawn's model file may lie
+    too, beside the search paths and the Fuel caches.
     """
 
     model_paths: Tuple[str, ...] = ()
@@ -72,6 +75,7 @@ class SdfSettings(NamedTuple):
     gravity_m_s2: Optional[Tuple[float, float, float]] = None
     ground_plane: bool = False
     strict: bool = False
+    places: Tuple[str, ...] = ()
 
     def read_options(self, ignore_missing: bool = False) -> ReadOptions:
         """Return the reader's options for a load with these settings."""

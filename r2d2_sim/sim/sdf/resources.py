@@ -147,8 +147,8 @@ class Resources:
             if not any(_inside(real, root) for root in self._roots):
                 raise RefusedError(UNSUPPORTED, f'{what} {shown} lies outside the places an '
                                                 'SDF may use (its own directory, model_paths, '
-                                                'the Gazebo search paths, the Fuel cache, ROS '
-                                                'packages)')
+                                                'the Gazebo search paths, the Fuel cache, '
+                                                'world_paths, ROS packages)')
         return path
 
     # -- models -------------------------------------------------------------------------
