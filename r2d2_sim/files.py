@@ -106,14 +106,47 @@ def check_private(path: str, directory: bool = True) -> None:
         raise UnsafeFile(errno.EPERM, f'{path} {problem}', path)
 
 
-def open_private_directory(path: str) -> int:
+def _checked(fd: int, path: str, tighten: bool) -> int:
+    """
+    Return ``fd`` (a directory's) when it is private; UnsafeFile (``fd`` closed) otherwise.
+
+    ``tighten``: a directory of ours that group or others may write is made 0700 first.
+    """
+    facts = os.fstat(fd)
+    if tighten and stat.S_ISDIR(facts.st_mode) and facts.st_uid == os.getuid() and \
+            facts.st_mode & 0o022:
+        os.fchmod(fd, 0o700)
+        facts = os.fstat(fd)
+    problem = _problem(facts, True)
+    if problem is not None:
+        os.close(fd)
+        raise UnsafeFile(errno.EPERM, f'{path} {problem}', path)
+    return fd
+
+
+def _open_directory(name: str, path: str, dir_fd: Optional[int] = None) -> int:
+    """Open the directory ``name`` (relative to ``dir_fd``) without following a link."""
+    try:
+        return os.open(name, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC,
+                       dir_fd=dir_fd)
+    except OSError as exc:
+        try:
+            what = describe(os.lstat(name, dir_fd=dir_fd))
+        except OSError:
+            what = exc.strerror
+        raise UnsafeFile(errno.ENOTDIR, f'{path} is {what}, not a directory', path) from None
+
+
+def open_private_directory(path: str, tighten: bool = False) -> int:
     """
     Create (0700) or find the directory ``path``, check it, and return a descriptor of it.
 
     The directory must be a real directory (not a link), owned by this user
     and writable by nobody else; files are then best opened relative to the
     descriptor, so the path cannot be swapped under them. Its parent is
-    created as needed. UnsafeFile (one line naming the path) otherwise.
+    created as needed. ``tighten``: a directory of ours that group or others
+    may write is made 0700 (one we made before with a looser umask) instead
+    of refused. UnsafeFile (one line naming the path) otherwise.
     """
     try:
         os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
@@ -123,39 +156,35 @@ def open_private_directory(path: str) -> int:
     except OSError as exc:
         raise UnsafeFile(exc.errno, f'{path} cannot be created ({exc.strerror})',
                          path) from None
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
-    except OSError as exc:
-        try:
-            what = describe(os.lstat(path))
-        except OSError:
-            what = exc.strerror
-        raise UnsafeFile(errno.ENOTDIR, f'{path} is {what}, not a directory', path) from None
-    problem = _problem(os.fstat(fd), True)
-    if problem is not None:
-        os.close(fd)
-        raise UnsafeFile(errno.EPERM, f'{path} {problem}', path)
-    return fd
+    return _checked(_open_directory(path, path), path, tighten)
 
 
-def make_private_directories(root: str, *names: str) -> str:
+def make_private_directories(root: str, *names: str, tighten: bool = False) -> str:
     """
     Return ``root/names...``, each level created 0700 where missing and each checked private.
 
-    ``root`` itself is created and checked as :func:`open_private_directory`
-    does; a level that is a link, another's, or writable by others is
-    UnsafeFile. Returns the deepest path.
+    ``root`` is created and checked as :func:`open_private_directory` does;
+    every level below is opened relative to the one above, never through a
+    link, and held to the same: ours, writable by nobody else (``tighten``:
+    made so, when ours). UnsafeFile otherwise. Returns the deepest path.
     """
-    os.close(open_private_directory(root))
+    fd = open_private_directory(root, tighten)
     path = root
-    for name in names:
-        path = os.path.join(path, name)
-        try:
-            os.mkdir(path, 0o700)
-        except FileExistsError:
-            pass
-        except OSError as exc:
-            raise UnsafeFile(exc.errno, f'{path} cannot be created ({exc.strerror})',
-                             path) from None
-        check_private(path)
+    try:
+        for name in names:
+            path = os.path.join(path, name)
+            try:
+                os.mkdir(name, 0o700, dir_fd=fd)
+            except FileExistsError:
+                pass
+            except OSError as exc:
+                raise UnsafeFile(exc.errno, f'{path} cannot be created ({exc.strerror})',
+                                 path) from None
+            child = _open_directory(name, path, fd)
+            os.close(fd)
+            fd = -1
+            fd = _checked(child, path, tighten)
+    finally:
+        if fd >= 0:
+            os.close(fd)
     return path
