@@ -94,7 +94,7 @@ def _zipped(name, data):
 
 
 def _bomb(encoding):
-    """A COLLADA file that is valid but for its DOCTYPE, written in ``encoding``."""
+    """Return a COLLADA file that is valid but for its DOCTYPE, written in ``encoding``."""
     return (f'<?xml version="1.0" encoding="{encoding}"?><!DOCTYPE c [<!ENTITY a "'
             f'{SECRET.decode()}">]><COLLADA/>').encode(encoding)
 
