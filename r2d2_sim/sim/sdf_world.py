@@ -82,7 +82,7 @@ def _models(built: SdfBuilt, source: str, entry=None) -> List[WorldModel]:
             name, body.path, source, pose.translation, pose.rotation,
             (entry.description if entry is not None and entry.description else
              f'{body.model} from {source}'), entry.tags if entry is not None else (),
-            sdf=True))
+            sdf=True, static=body.static))
     return models
 
 

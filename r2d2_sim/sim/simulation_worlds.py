@@ -13,6 +13,7 @@ from typing import List, Optional, Sequence, Tuple
 
 from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.model.transforms import Transform
+from r2d2_sim.physics.crowding import check_placements, moving_links, Placement
 from r2d2_sim.physics.world import SimWorld
 from r2d2_sim.sim.tags import TagsFilter, tags_match
 from r2d2_sim.sim.world_manifest import NamedPose
@@ -113,21 +114,35 @@ class SimulationWorlds:
         return self.world_file.named_pose(name)
 
     def _check_world(self, world_file: World) -> None:
-        """Refuse a world whose models would take a start-up entity's name, or cannot load."""
+        """
+        Refuse a world whose models take a start-up entity's name, cannot load, or crowd.
+
+        Crowded: its moving bodies, loaded at their poses in a scratch world,
+        have too many moving links or too many of them touching at once
+        (:mod:`r2d2_sim.physics.crowding`: the first step would last minutes).
+        """
         taken = set(self._launch.names())
         for model in world_file.models:
             if model.name is not None and model.name in taken:
                 raise RefusedError('OPERATION_FAILED', f'the world\'s model {model.name!r} '
                                    'would take the name of one of the simulator\'s own '
                                    'entities (a robot, the ground plane, extra_models)')
-        # Models made from SDF were written here from checked parts: not loaded twice.
+        # Models made from SDF were written here from checked parts: not loaded twice
+        # to be checked, only (when they move) to see how crowded they are.
         paths = sorted({model.path for model in world_file.models if not model.sdf})
-        if not paths:
-            return
         try:
+            moving = set()
             with SimWorld(ground_plane=False, time_step_s=self.time_step_s) as scratch:
+                sdf_flags = scratch.model_flags
                 for path in paths:
-                    scratch.load(path)
+                    if moving_links(scratch.load(path)):
+                        moving.add(path)
+            check_placements(
+                [Placement(model.path, model.position, model.orientation,
+                           sdf_flags if model.sdf else 0)
+                 for model in world_file.models
+                 if (model.sdf and not model.static) or model.path in moving],
+                self.time_step_s, 'RESOURCE_PARSE_ERROR', 'the world')
         except WorldError as exc:
             raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
 

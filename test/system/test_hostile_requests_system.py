@@ -83,3 +83,19 @@ def test_a_urdf_beside_a_sparse_2_gb_mesh_is_refused_and_the_node_lives_on(
     assert 'huge.stl is larger than' in spawned.result.error_message
     assert clock_runs(sim)
     assert stops_on_sigint(sim)
+
+
+def test_a_world_of_200_links_at_one_point_is_refused_and_the_clock_runs_on(
+        r2d2_sim_process, tmp_path, monkeypatch):
+    """30 kB that passed every budget: the next step ran for minutes (180 bodies, 25 s)."""
+    monkeypatch.setenv('R2D2_SIM_CACHE_DIR', str(tmp_path / 'cache'))
+    links = ''.join(
+        f'<link name="l{i}"><pose>0 0 0.5 0 0 0</pose><inertial><mass>1</mass><inertia><ixx>0.01'
+        '</ixx><iyy>0.01</iyy><izz>0.01</izz></inertia></inertial><collision name="c"><geometry>'
+        '<box><size>0.3 0.3 0.3</size></box></geometry></collision></link>' for i in range(200))
+    sim = r2d2_sim_process(scan_rate=0.0, cmd_vel_timeout=0.0, timeout_s=CALL_TIMEOUT_S)
+    loaded = sim.standard.call('load_world', srv.LoadWorld.Request(resource_string=sdf(
+        f'<world name="pile"><model name="m">{links}</model></world>')), check=False)
+    assert loaded.result.result == LOAD.RESOURCE_PARSE_ERROR, loaded.result.error_message
+    assert clock_runs(sim)
+    assert stops_on_sigint(sim)
