@@ -55,6 +55,18 @@ WHEEL_VELOCITY = Bounds(0.001, 10000.0, 'rad/s', 'take the URDF velocity limit')
 WHEEL_FORCE = Bounds(0.001, 100000.0, 'N m', 'take the URDF effort limit')
 
 
+# What one robot's sensors may cost, by what their rays and pixels cost here (CPU of
+# our 2-core machine, idle: a ray 1.5-2 us, a pixel of the head camera 0.15 us; under
+# load, up to 3 times as much). PyBullet holds the interpreter while it casts or
+# renders, so one scan or image is as long as the node answers nothing, SIGINT
+# included (a 256 x 10,000 lidar: 12 s a scan; a 4096^2 camera ran at 1 % of real
+# time); the per-second bounds keep a robot above about a fifth of real time.
+MAX_LIDAR3D_RAYS_PER_SCAN = 64 * 2048           # about 0.25 s a scan
+MAX_RAYS_PER_SECOND = 1_500_000  # a 64 x 2048 lidar at 10 Hz and a laser: about 2.5 s of CPU
+MAX_CAMERA_PIXELS = 1920 * 1080                 # about 0.3 s an image
+MAX_CAMERA_PIXELS_PER_SECOND = 1920 * 1080 * 15  # about 5 s of CPU a simulated second
+
+
 # -- readers: raw parameter value -> validated value (one ConfigError line) ---
 
 # -- the table -----------------------------------------------------------------
@@ -625,7 +637,36 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     if not (low < high or (low == high and fields['lidar3d_rings'] == 1)):
         raise ConfigError('parameter lidar3d_angle_min must be below lidar3d_angle_max (equal '
                           f'only with one ring), got {low} and {high}')
+    _check_sensor_costs(fields)
     _check_frames(fields)
+
+
+def _check_sensor_costs(fields: Mapping[str, Any]) -> None:
+    """Refuse sensors whose rays or pixels would stall the node (see MAX_RAYS_PER_SECOND)."""
+    lidar = fields['lidar3d_rings'] * fields['lidar3d_samples']
+    lidar_rate, scan_rate = fields['lidar3d_rate_hz'], fields['scan_rate_hz']
+    if lidar_rate > 0.0 and lidar > MAX_LIDAR3D_RAYS_PER_SCAN:
+        raise ConfigError(f'parameters lidar3d_rings x lidar3d_samples: {lidar:,} rays a scan, '
+                          f'more than {MAX_LIDAR3D_RAYS_PER_SCAN:,} (about 0.25 s each, with '
+                          'nothing else answered meanwhile)')
+    rays = lidar * lidar_rate + fields['scan_samples'] * scan_rate
+    if rays > MAX_RAYS_PER_SECOND:
+        raise ConfigError(f'parameters scan_samples x scan_rate + lidar3d_rings x '
+                          f'lidar3d_samples x lidar3d_rate: {rays:,.0f} rays a simulated '
+                          f'second, more than {MAX_RAYS_PER_SECOND:,} (about 2.5 s of '
+                          'casting each): lower a rate or the beams')
+    if fields['camera_rate_hz'] <= 0.0:
+        return
+    pixels = fields['camera_width_px'] * fields['camera_height_px']
+    if pixels > MAX_CAMERA_PIXELS:
+        raise ConfigError(f'parameters camera_width x camera_height: {pixels:,} pixels an '
+                          f'image, more than {MAX_CAMERA_PIXELS:,} (1920 x 1080: about 0.3 s '
+                          'each, with nothing else answered meanwhile)')
+    if pixels * fields['camera_rate_hz'] > MAX_CAMERA_PIXELS_PER_SECOND:
+        raise ConfigError(f'parameters camera_width x camera_height x camera_rate: '
+                          f'{pixels * fields["camera_rate_hz"]:,.0f} pixels a simulated '
+                          f'second, more than {MAX_CAMERA_PIXELS_PER_SECOND:,} (about 5 s of '
+                          'rendering each): lower the rate or the size')
 
 
 def _check_frames(fields: Mapping[str, Any]) -> None:
