@@ -133,7 +133,7 @@ def _open_directory(name: str, path: str, dir_fd: Optional[int] = None) -> int:
         try:
             what = describe(os.lstat(name, dir_fd=dir_fd))
         except OSError:
-            what = exc.strerror
+            what = exc.strerror or 'not there'
         raise UnsafeFile(errno.ENOTDIR, f'{path} is {what}, not a directory', path) from None
 
 

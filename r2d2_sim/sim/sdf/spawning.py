@@ -65,8 +65,8 @@ def read_sdf_spawnable(uri: str, resource_string: str, settings: SdfSettings
             source = resources.model(uri, os.getcwd(), None)
         except RefusedError as exc:  # outside too: NOT_FOUND, as LoadWorld answers
             raise RefusedError('NOT_FOUND', exc.message) from None
-        if source.text is not None:
-            text = source.text
+        if source.path is None:  # a built-in model (the ground plane, the sun)
+            text = source.text or ''
         else:
             path = source.path
             text = read_limited(path, shown, 'NOT_FOUND', MAX_SDF_BYTES)
