@@ -179,7 +179,7 @@ def test_entities_are_filtered_described_and_spawned_in_batches(standard):
 
 
 def apart(number):
-    """Return a spawn request for box ``number``, on a grid 0.5 m apart (not in a pile)."""
+    """Return a spawn request for box number ``number``: a grid 0.5 m apart, not a pile."""
     request = spawn_request(allow_renaming=True)
     request.initial_pose.pose.position.x = 1.0 + 0.5 * (number % 10)
     request.initial_pose.pose.position.y = 0.5 * (number // 10)
