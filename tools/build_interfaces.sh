@@ -249,11 +249,32 @@ EOF
   vpy - "$IFACES" "$pkg" <<<"$CHECK_PY" 2>/dev/null | grep -q "^$pkg 1 "
 }
 
+# The cache holds what install_tarball unpacks into the venv (code that rclpy then
+# runs): use it only when the directory and the tarball are ours and nobody else may
+# write them, as r2d2_sim's mesh cache is held (r2d2_sim/files.py): on a shared
+# machine another user could have planted either. A directory of ours that a looser
+# umask left group-writable is made 0700; a tarball that is not private is not used
+# (built again, and replaced by one that is).
+private() { # DIRECTORY [TARBALL]: exit 0 when private to us, else one line on stderr
+  PYTHONPATH="$HERE/.." vpy -c '
+import os, sys
+from r2d2_sim.files import check_private, open_private_directory, UnsafeFile
+try:
+    os.close(open_private_directory(sys.argv[1], tighten=True))
+    for path in sys.argv[2:]:
+        check_private(path, directory=False)
+except UnsafeFile as exc:
+    sys.exit(exc.strerror)
+' "$@"
+}
+
 FAILED=()
 BUILD=()
 for pkg in "${TODO[@]}"; do
   tarball="$CACHE/${STEM[$pkg]}.tar.gz"
-  if [ -f "$tarball" ]; then
+  if [ -f "$tarball" ] && ! why="$(private "$CACHE" "$tarball" 2>&1)"; then
+    echo "$ME: $pkg: not using the cached $tarball: $why; building" >&2
+  elif [ -f "$tarball" ]; then
     if install_tarball "$pkg" "$tarball"; then
       echo "$pkg: installed into $VENV from cache ($(basename "$tarball"))"
       continue
@@ -357,7 +378,9 @@ EOF
   fi
   # Cache it (atomically: a concurrent run sees the old tarball or the new one).
   final="$CACHE/${STEM[$pkg]}.tar.gz"
-  if mkdir -p "$CACHE" 2>/dev/null && cp "$tarball" "$final.part.$$" 2>/dev/null \
+  if ! why="$(private "$CACHE" 2>&1)"; then
+    cached="not cached: $why"
+  elif (umask 077 && cp "$tarball" "$final.part.$$") 2>/dev/null \
     && mv -f "$final.part.$$" "$final"; then
     cached="cached as $final"
   else

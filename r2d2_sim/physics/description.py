@@ -15,9 +15,12 @@ import xml.etree.ElementTree as ElementTree
 import pybullet_data
 
 from r2d2_sim.errors import SetupError
+from r2d2_sim.files import read_regular
 
 PACKAGE_SCHEME = 'package://'
 PACKAGE_NAME = 'r2d2_sim'
+# A description file the operator names (a URDF of R2D2 is 14 kB).
+MAX_READ_BYTES = 64 << 20
 # The checkout this module sits in (urdf/ and package.xml beside r2d2_sim/), if any.
 SOURCE_TREE = str(Path(__file__).resolve().parents[2])
 
@@ -101,9 +104,8 @@ def default_urdf_path() -> str:
 
 def read_description(path: str) -> str:
     """Return the text of a description file, with a one-line error if unreadable."""
-    try:
-        with open(path, encoding='utf-8') as handle:
-            return handle.read()
+    try:  # a regular file only: a FIFO would hold start-up (and SIGINT) forever
+        return read_regular(path, MAX_READ_BYTES).decode('utf-8')
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise DescriptionError(f'cannot read {path}: {reason}') from None

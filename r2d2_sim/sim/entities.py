@@ -240,8 +240,16 @@ class Entities:
         pose = compose(frame, placed)
         yaw = body.body_yaw_offset_rad
         turn = (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
+        from r2d2_sim.physics.crowding import check_crowding  # PyBullet: imported when used
+        before = body.moment()
         body.set_world_state(pose.translation, quaternion_multiply(pose.rotation, turn),
                              rotate(frame.rotation, linear), rotate(frame.rotation, angular))
+        try:  # into a crowd of moving bodies: put back where it was, and refused
+            check_crowding(self._world.client, list(self._world.bodies.values()), [body],
+                           'INVALID_POSE', f'{name} at that pose')
+        except RefusedError:
+            body.resume(before)
+            raise
         return body
 
     def read(self, request: SpawnRequest) -> Spawnable:
@@ -295,6 +303,13 @@ class Entities:
                 body_yaw_offset_rad=body_yaw_offset_rad)
             if spawnable.sdf and not flags:
                 body.free_joints()  # a model's joints move as Gazebo's do; a robot drives its own
+            from r2d2_sim.physics.crowding import check_crowding  # PyBullet, when used
+            try:  # too many moving links, or into a crowd of moving bodies: taken out again
+                check_crowding(self._world.client, list(self._world.bodies.values()), [body],
+                               'INVALID_POSE', f'{name} at that pose')
+            except RefusedError:
+                self._world.remove(body)
+                raise
         except (RefusedError, WorldError) as exc:
             if text_file is not None:
                 text_file.close()

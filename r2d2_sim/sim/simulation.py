@@ -113,10 +113,11 @@ class Simulation:
         # Told the simulated time after each step (oracles.RunWatch): none by default.
         self._step_watchers: List[Callable[[int], None]] = []
         # What SDF worlds and spawns are searched and compared with.
-        sdf = SdfSettings(tuple(config.model_paths), self.time_step_s,
-                          config.gravity_m_s2, config.ground_plane, config.strict_worlds)
+        places = Places(config.world_paths)
+        sdf = SdfSettings(tuple(config.model_paths), self.time_step_s, config.gravity_m_s2,
+                          config.ground_plane, config.strict_worlds, tuple(places.roots()))
         # The world file loaded (the empty world for world ''), the ones that can be.
-        self.worlds = WorldFiles(Places(config.world_paths), sdf, self.time_step_s)
+        self.worlds = WorldFiles(places, sdf, self.time_step_s)
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
                               gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
         self.entities = Entities(self.world, config.world_frame_id, sdf)

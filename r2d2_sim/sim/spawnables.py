@@ -12,6 +12,7 @@ local cache, ``<sdf>`` text) are read in :mod:`r2d2_sim.sim.sdf.spawning` and
 spawn as the URDF written from them.
 """
 
+import errno
 import math
 import os
 from typing import List, NamedTuple, Optional, Protocol, Sequence
@@ -21,11 +22,13 @@ from xml.sax.saxutils import quoteattr
 import pybullet_data
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.files import read_regular, UnsafeFile
 from r2d2_sim.model.transforms import IDENTITY, Transform
 from r2d2_sim.physics.description import (
     DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
     resolve_description_path)
-from r2d2_sim.sim.sdf.loading import SdfSettings
+from r2d2_sim.sim.sdf.loading import SdfSettings, TriangleBudget
+from r2d2_sim.sim.sdf.mesh_cache import MeshCache
 from r2d2_sim.sim.sdf.spawning import is_sdf_spawn, read_sdf_spawnable
 
 __all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'Spawnable', 'Closable',
@@ -36,12 +39,17 @@ MAX_DESCRIPTION_BYTES = 1_000_000
 MAX_LINKS = 200
 
 
-def check_description(text: str, base_dir: Optional[str]) -> str:
+def check_description(text: str, base_dir: Optional[str],
+                      triangles: Optional[TriangleBudget] = None) -> str:
     """
     Return the URDF's robot name if ``text`` is one a domain peer may have us load.
 
     ``base_dir`` is the description file's directory (None for text sent in
-    a request). RefusedError otherwise: RESOURCE_PARSE_ERROR, UNSUPPORTED_FORMAT,
+    a request). Its meshes are held to the bounds of an SDF world's before
+    PyBullet sees them (a regular file, size, triangles: read and converted
+    through the mesh cache), every use counted against ``triangles`` (a
+    world's, shared by its models; by default this description's own).
+    RefusedError otherwise: RESOURCE_PARSE_ERROR, UNSUPPORTED_FORMAT,
     MISSING_ASSETS or UNSUPPORTED_ASSETS, naming neither a file's content nor
     more than the offending path.
     """
@@ -64,13 +72,17 @@ def check_description(text: str, base_dir: Optional[str]) -> str:
     if len(links) > MAX_LINKS:
         raise RefusedError('RESOURCE_PARSE_ERROR', f'the URDF has {len(links)} links, more '
                            f'than {MAX_LINKS}')
+    budget = triangles if triangles is not None else TriangleBudget()
+    cache = MeshCache()
     for mesh in root.iter('mesh'):
-        _check_mesh(mesh.get('filename', ''), base_dir)
+        filename = mesh.get('filename', '')
+        path = _check_mesh(filename, base_dir)
+        budget.take(cache.convert(path, filename[:200]).triangles, f'mesh {filename[:200]}')
     return root.get('name', '')
 
 
-def _check_mesh(filename: str, base_dir: Optional[str]) -> None:
-    """Allow a mesh from the description's directory, a ROS package or pybullet_data."""
+def _check_mesh(filename: str, base_dir: Optional[str]) -> str:
+    """Return a mesh's path: from the description's directory, a ROS package or pybullet_data."""
     shown = filename[:200]
     if filename.startswith(PACKAGE_SCHEME):
         package, _, relative = filename[len(PACKAGE_SCHEME):].partition('/')
@@ -90,8 +102,9 @@ def _check_mesh(filename: str, base_dir: Optional[str]) -> None:
     if not any(real == r or real.startswith(r + os.sep) for r in roots):
         raise RefusedError('UNSUPPORTED_ASSETS', f'mesh {shown} lies outside the URDF\'s '
                            'directory and package')
-    if not os.path.isfile(real):
+    if not os.path.lexists(real):
         raise RefusedError('MISSING_ASSETS', f'mesh {shown} does not exist')
+    return real
 
 
 class Closable(Protocol):
@@ -145,12 +158,12 @@ def read_spawnable(uri: str, resource_string: str, sdf: SdfSettings = SdfSetting
         if not path.lower().endswith('.urdf'):
             raise RefusedError('UNSUPPORTED_FORMAT', f'{uri[:200]}: only .urdf and .sdf files '
                                'can be spawned')
-        if os.path.getsize(path) > MAX_DESCRIPTION_BYTES:
-            raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} is larger than '
-                               f'{MAX_DESCRIPTION_BYTES} bytes')
         try:
-            with open(path, encoding='utf-8') as handle:
-                text = handle.read()
+            text = read_regular(path, MAX_DESCRIPTION_BYTES).decode('utf-8')
+        except UnsafeFile as exc:  # too large, or not a regular file (a FIFO would hang)
+            problem = (f'is larger than {MAX_DESCRIPTION_BYTES} bytes'
+                       if exc.errno == errno.EFBIG else 'is not a regular file')
+            raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} {problem}') from None
         except (OSError, UnicodeDecodeError):
             raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} cannot be read as '
                                'text') from None

@@ -40,6 +40,8 @@ import tempfile
 import time
 from typing import Dict, Optional, Tuple
 
+from r2d2_sim.files import describe, open_private_directory, UnsafeFile
+
 __all__ = ['DOMAIN_LOCK_DIR_ENV', 'DOMAIN_IDS_ENV', 'COORDINATOR_PORT_BASE',
            'DomainUnavailable', 'DomainLease', 'domain_ids', 'domain_lock_dir',
            'lease_domain', 'env_domain_id']
@@ -147,55 +149,21 @@ def _lock_dir_path() -> Path:
     return Path(tempfile.gettempdir()) / f'r2d2_sim-domains-{os.getuid()}'
 
 
-def _kind(facts: os.stat_result) -> str:
-    """Name what a path is, for a message: a symbolic link, a directory, a plain file..."""
-    mode = facts.st_mode
-    if stat.S_ISLNK(mode):
-        return 'a symbolic link'
-    if stat.S_ISDIR(mode):
-        return 'a directory'
-    if stat.S_ISREG(mode):
-        return 'a plain file'
-    return 'a special file (a FIFO, socket or device)'
-
-
 def _open_lock_dir() -> Tuple[Path, int]:
     """
     Create (0700) or find the lock directory, check it and return it with an open descriptor.
 
     The directory must be a real directory (not a link), owned by this user
-    and writable by nobody else; the lock files are then opened relative to
-    the descriptor, so the path cannot be swapped under us.
+    and writable by nobody else (:func:`r2d2_sim.files.open_private_directory`,
+    which the mesh cache holds its directory to as well); the lock files are
+    then opened relative to the descriptor, so the path cannot be swapped under us.
     """
     path = _lock_dir_path()
-    remedy = f'remove it or set {DOMAIN_LOCK_DIR_ENV} to a directory of your own'
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        os.mkdir(path, 0o700)
-    except FileExistsError:
-        pass
-    except OSError as exc:
-        raise DomainUnavailable(f'cannot create the domain lock directory {path}: '
-                                f'{exc.strerror}') from None
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
-    except OSError as exc:
-        try:
-            what = _kind(os.lstat(path))
-        except OSError:
-            what = exc.strerror
-        raise DomainUnavailable(f'the domain lock directory {path} is {what}, not a directory: '
-                                f'{remedy}') from None
-    facts = os.fstat(fd)
-    problem = None
-    if facts.st_uid != os.getuid():
-        problem = f'belongs to user id {facts.st_uid}, not to us ({os.getuid()})'
-    elif facts.st_mode & 0o022:
-        problem = f'is writable by others (mode {stat.S_IMODE(facts.st_mode):o})'
-    if problem is not None:
-        os.close(fd)
-        raise DomainUnavailable(f'the domain lock directory {path} {problem}: {remedy}')
-    return path, fd
+        return path, open_private_directory(str(path))
+    except UnsafeFile as exc:
+        raise DomainUnavailable(f'the domain lock directory {exc.strerror}: remove it or set '
+                                f'{DOMAIN_LOCK_DIR_ENV} to a directory of your own') from None
 
 
 def domain_lock_dir() -> Path:
@@ -228,7 +196,7 @@ def _try_lock(dir_fd: int, domain_id: int) -> Optional[int]:
                      dir_fd=dir_fd)
     except OSError as exc:
         try:
-            what = f'{name} is {_kind(os.lstat(name, dir_fd=dir_fd))}'
+            what = f'{name} is {describe(os.lstat(name, dir_fd=dir_fd))}'
         except OSError:
             what = f'{name}: {exc.strerror}'
         raise _Unusable(what) from None
@@ -236,7 +204,7 @@ def _try_lock(dir_fd: int, domain_id: int) -> Optional[int]:
     if not stat.S_ISREG(facts.st_mode) or facts.st_uid != os.getuid():
         os.close(fd)
         owner = '' if facts.st_uid == os.getuid() else f' of user id {facts.st_uid}'
-        raise _Unusable(f'{name} is {_kind(facts)}{owner}')
+        raise _Unusable(f'{name} is {describe(facts)}{owner}')
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:

@@ -178,15 +178,21 @@ def test_entities_are_filtered_described_and_spawned_in_batches(standard):
     assert all(s.uri.startswith('package://r2d2_sim/') for s in ours.spawnables)
 
 
+def apart(number):
+    """Return a spawn request for box number ``number``: a grid 0.5 m apart, not a pile."""
+    request = spawn_request(allow_renaming=True)
+    request.initial_pose.pose.position.x = 1.0 + 0.5 * (number % 10)
+    request.initial_pose.pose.position.y = 0.5 * (number // 10)
+    return request
+
+
 def test_names_are_renamed_when_asked_and_spawning_is_bounded(r2d2_sim, standard):
     """allow_renaming gives box, box_1; past MAX_SPAWNED a spawn is refused."""
-    names = [standard('spawn_entity', srv.SpawnEntity,
-                      spawn_request(allow_renaming=True)).entity_name for _ in range(2)]
+    names = [standard('spawn_entity', srv.SpawnEntity, apart(i)).entity_name for i in range(2)]
     assert names == ['box', 'box_1']
-    for _ in range(MAX_SPAWNED - 2):
-        assert code(standard('spawn_entity', srv.SpawnEntity,
-                             spawn_request(allow_renaming=True))) == OK
-    reply = standard('spawn_entity', srv.SpawnEntity, spawn_request(allow_renaming=True))
+    for i in range(2, MAX_SPAWNED):
+        assert code(standard('spawn_entity', srv.SpawnEntity, apart(i))) == OK
+    reply = standard('spawn_entity', srv.SpawnEntity, apart(MAX_SPAWNED))
     assert code(reply) == msg.Result.RESULT_OPERATION_FAILED
     assert len(r2d2_sim.entities()) == 2 + MAX_SPAWNED
 

@@ -274,3 +274,36 @@ def test_a_table_that_changed_makes_the_config_check_fail(monkeypatch, capsys):
     assert 'brand_new_m: str' in config.render_fields()
     assert config.main([]) == 1
     assert capsys.readouterr().err.count('\n') == 1
+
+
+@pytest.mark.parametrize('values, fragment', [
+    ({'lidar3d_rate': 1.0, 'lidar3d_rings': 256, 'lidar3d_samples': 10000},
+     '2,560,000 rays a scan, more than 131,072'),  # 12 s a scan
+    ({'lidar3d_rate': 20.0, 'lidar3d_rings': 64, 'lidar3d_samples': 2048},
+     '2,625,040 rays a simulated second'),  # with the default laser's 3,600
+    ({'scan_rate': 240.0, 'scan_samples': 10000}, '2,400,000 rays a simulated second'),
+    ({'camera_rate': 1.0, 'camera_width': 4096, 'camera_height': 4096},
+     '16,777,216 pixels an image'),  # 1 % of real time
+    ({'camera_rate': 30.0, 'camera_width': 1920, 'camera_height': 1080},
+     '62,208,000 pixels a simulated second'),
+], ids=['lidar scan', 'lidar rate', 'laser rate', 'camera image', 'camera rate'])
+def test_sensors_that_would_stall_the_node_are_refused_by_their_cost(values, fragment):
+    """A 256 x 10,000 lidar cost 12 s a scan, a 4096^2 camera ran at 1 % of real time."""
+    with pytest.raises(ConfigError) as info:
+        parse_config(values)
+    assert fragment in str(info.value) and '\n' not in str(info.value)
+
+
+@pytest.mark.parametrize('values', [
+    {'lidar3d_rate': 10.0},  # 16 x 1800, sensors.md's
+    {'lidar3d_rate': 10.0, 'lidar3d_rings': 64, 'lidar3d_samples': 2048},
+    {'scan_rate': 240.0},  # 360 beams each physics step
+    {'scan_rate': 60.0, 'scan_samples': 10000, 'lidar3d_rate': 10.0},
+    {'camera_rate': 100.0},  # node.md's camera table: 320 x 240 up to 100 Hz
+    {'camera_rate': 15.0, 'camera_width': 1920, 'camera_height': 1080},
+    {'camera_rate': 30.0, 'camera_width': 1280, 'camera_height': 720},
+    {'camera_rate': 0.0, 'camera_width': 4096, 'camera_height': 4096},  # off: costs nothing
+], ids=['lidar default', 'lidar 64x2048', 'laser each step', 'laser and lidar',
+        'camera 100 Hz', 'camera 1080p', 'camera 720p', 'camera off'])
+def test_sensors_the_docs_and_tests_use_are_accepted(values):
+    parse_config(values)

@@ -8,10 +8,12 @@ that a warm read converts nothing, and that two processes converting at
 once both end with whole files.
 """
 
+import io
 import json
 import os
 import subprocess
 import sys
+import zipfile
 
 import numpy
 import pytest
@@ -81,6 +83,45 @@ def test_a_bad_mesh_gets_one_line_naming_it_never_its_bytes(tmp_path, name, data
         read_mesh(str(path), f'model://m/{name}')
     assert raised.value.code == code
     assert problem in raised.value.message and f'model://m/{name}' in raised.value.message
+    assert SECRET.decode() not in raised.value.message and '\n' not in raised.value.message
+
+
+def _zipped(name, data):
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, 'w', zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr(name, data)
+    return buffer.getvalue()
+
+
+def _bomb(encoding):
+    """Return a COLLADA file that is valid but for its DOCTYPE, written in ``encoding``."""
+    return (f'<?xml version="1.0" encoding="{encoding}"?><!DOCTYPE c [<!ENTITY a "'
+            f'{SECRET.decode()}">]><COLLADA/>').encode(encoding)
+
+
+@pytest.mark.parametrize('data, problem', [
+    (_zipped('m.dae', b'<COLLADA>' + b' ' * 1_000_000 + b'</COLLADA>'), 'a zip archive'),
+    (_zipped('m.dae', _bomb('utf-8')), 'a zip archive'),
+    (b'<COLLADA/>' + _zipped('m.dae', _bomb('utf-8')), 'a zip archive'),  # read from its end
+    (_bomb('utf-16'), 'is not UTF-8'),
+    (_bomb('utf-32'), 'is not UTF-8'),
+    (_bomb('cp037'), 'is not UTF-8'),
+], ids=['zipped', 'zipped DOCTYPE', 'zip after XML', 'UTF-16 DOCTYPE', 'UTF-32 DOCTYPE',
+        'EBCDIC DOCTYPE'])
+def test_collada_that_pycollada_would_unzip_or_decode_past_the_checks_is_refused(
+        tmp_path, data, problem):
+    """
+    Zipped (pycollada unpacks any data with a zip directory at its end) or not UTF-8.
+
+    Both passed the size bound and the DOCTYPE check unseen: 40 kB of zip became
+    ~950 MB, and a DOCTYPE in UTF-16 loaded. Gazebo reads no zipped COLLADA either.
+    """
+    path = tmp_path / 'm.dae'
+    path.write_bytes(data)
+    with pytest.raises(RefusedError) as raised:
+        read_mesh(str(path), 'model://m/m.dae')
+    assert raised.value.code == 'UNSUPPORTED_ASSETS', raised.value
+    assert problem in raised.value.message and 'model://m/m.dae' in raised.value.message
     assert SECRET.decode() not in raised.value.message and '\n' not in raised.value.message
 
 
@@ -235,3 +276,65 @@ def test_two_processes_converting_at_once_both_leave_whole_files(tmp_path):
     leftovers = [n for d, _, names in os.walk(tmp_path / 'cache') for n in names
                  if n.startswith('.writing_')]
     assert leftovers == []
+
+
+def _plant(converted, tmp_path, how):
+    """Change a cached entry as another user of the machine could have; return the bait."""
+    info_path = os.path.join(converted.directory, 'info.json')
+    info = json.load(open(info_path))
+    bait = tmp_path / 'bait.obj'
+    bait.write_text('v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n')
+    if how == 'parts elsewhere':  # PyBullet would load any file named here
+        info['parts'] = [[str(bait), None]]
+    else:
+        info['triangles'] = 3
+    with open(info_path, 'w') as handle:
+        json.dump(info, handle)
+    if how == "another user's file":
+        if os.getuid() == 0:
+            os.chown(info_path, 65534, 65534)
+        else:  # only root can give a file away: one others may write is as untrusted
+            os.chmod(info_path, 0o666)
+    elif how == 'writable by others':
+        os.chmod(info_path, 0o666)
+    return str(bait)
+
+
+@pytest.mark.parametrize('how', ["another user's file", 'writable by others', 'parts elsewhere'])
+def test_a_cache_entry_someone_else_could_have_written_is_converted_again(tmp_path, how):
+    """A planted entry changed a mesh's triangle count, or had PyBullet load any file."""
+    cache = MeshCache(str(tmp_path / 'cache'))
+    mesh = write_dae(tmp_path / 'a.dae', box((1.0, 1.0, 1.0)))
+    converted = cache.convert(mesh, 'a.dae')
+    bait = _plant(converted, tmp_path, how)
+    again = cache.convert(mesh, 'a.dae')
+    assert again == converted and again.triangles == 12
+    assert all(os.path.dirname(path) == converted.directory for path, _ in again.parts)
+    assert bait not in open(os.path.join(converted.directory, 'info.json')).read()
+    facts = os.lstat(os.path.join(converted.directory, 'info.json'))
+    assert facts.st_uid == os.getuid() and facts.st_mode & 0o022 == 0
+
+
+def test_the_cache_is_private_and_one_others_own_or_reach_through_a_link_is_refused(
+        tmp_path, monkeypatch):
+    mesh = write_stl(tmp_path / 'b.stl', box((1.0, 1.0, 1.0)))
+    root = tmp_path / 'cache'
+    converted = MeshCache(str(root)).convert(mesh, 'b.stl')
+    for level in (root, root / 'meshes', os.path.dirname(converted.directory),
+                  converted.directory):
+        assert os.stat(level).st_mode & 0o077 == 0, level  # 0700 each
+    os.chmod(root, 0o777)  # ours, made with a loose umask: tightened, not refused
+    assert MeshCache(str(root)).convert(mesh, 'b.stl') == converted
+    assert os.stat(root).st_mode & 0o077 == 0
+    link = tmp_path / 'link'
+    link.symlink_to(root)
+    with pytest.raises(RefusedError) as refused:
+        MeshCache(str(link)).convert(mesh, 'b.stl')
+    assert refused.value.code == 'OPERATION_FAILED' and 'symbolic link' in refused.value.message
+    real_uid = os.getuid()
+    monkeypatch.setattr(os, 'getuid', lambda: real_uid + 1)  # the cache is now another's
+    with pytest.raises(RefusedError) as refused:
+        MeshCache(str(root)).convert(mesh, 'b.stl')
+    assert refused.value.code == 'OPERATION_FAILED'
+    assert f'belongs to user id {real_uid}' in refused.value.message
+    assert 'R2D2_SIM_CACHE_DIR' in refused.value.message and '\n' not in refused.value.message

@@ -28,12 +28,33 @@ from r2d2_sim.sim.sdf.resources import Resources
 from r2d2_sim.sim.sdf.urdf import urdf_text
 
 __all__ = ['GeneratedFiles', 'SdfSettings', 'SdfBody', 'SdfRead', 'SdfBuilt', 'read_sdf',
-           'build_bodies', 'summary_line', 'is_ground_plane', 'MAX_WORLD_TRIANGLES']
+           'build_bodies', 'summary_line', 'is_ground_plane', 'TriangleBudget',
+           'MAX_WORLD_TRIANGLES']
 
 # Triangles of all the meshes of one world, each use counted (a concave mesh's
 # bounding-volume tree is built per use): some 10 s of a cold load on our 2 cores,
 # going by the warehouse's 0.4 s for 153,000 (bench/sdf_world.py).
 MAX_WORLD_TRIANGLES = 4_000_000
+
+
+class TriangleBudget:
+    """
+    The mesh triangles one world or one spawn may load, each use of a mesh counted.
+
+    For the meshes of URDF descriptions, which PyBullet loads itself; an SDF
+    world's are counted as its bodies are built (:func:`build_bodies`).
+    """
+
+    def __init__(self, limit: Optional[int] = None) -> None:
+        self.limit = MAX_WORLD_TRIANGLES if limit is None else limit
+        self.left = self.limit
+
+    def take(self, triangles: int, shown: str) -> None:
+        """Count a mesh's triangles; UNSUPPORTED_ASSETS (naming ``shown``) past the budget."""
+        self.left -= triangles
+        if self.left < 0:
+            raise RefusedError('UNSUPPORTED_ASSETS', f'{shown}: the meshes have more than '
+                                                     f'{self.limit} triangles in all')
 
 
 class SdfSettings(NamedTuple):
@@ -43,7 +64,10 @@ class SdfSettings(NamedTuple):
     ``model_paths`` come before the Gazebo variables; ``time_step_s`` and
     ``gravity_m_s2`` are r2d2_sim's (a world's that differ are noted);
     ``ground_plane``: r2d2_sim loads its own; ``strict``: a spawn refuses a
-    model with anything not simulated (LoadWorld has its own flag).
+    model with anything not simulated (LoadWorld has its own flag);
+    ``places``: the directories worlds load from (``world_paths``, this
+    package's ``urdf/``, pybullet_data), where a spawn's model file may lie
+    too, beside the search paths and the Fuel caches.
     """
 
     model_paths: Tuple[str, ...] = ()
@@ -51,6 +75,7 @@ class SdfSettings(NamedTuple):
     gravity_m_s2: Optional[Tuple[float, float, float]] = None
     ground_plane: bool = False
     strict: bool = False
+    places: Tuple[str, ...] = ()
 
     def read_options(self, ignore_missing: bool = False) -> ReadOptions:
         """Return the reader's options for a load with these settings."""
@@ -159,16 +184,19 @@ class _Notes:
 
 
 def build_bodies(scene: Scene, cache: MeshCache, ignore_missing: bool = False,
-                 relative: bool = False) -> SdfBuilt:
+                 relative: bool = False, budget: Optional[TriangleBudget] = None
+                 ) -> SdfBuilt:
     """
     Plan, convert and write every body of ``scene``'s models, names unique in the world.
 
     ``relative``: poses in the model's frame (a spawn), else in the world.
     ``ignore_missing``: a mesh that cannot be used is left out (noted), not
-    refused. RefusedError: UNSUPPORTED_ASSETS past MAX_WORLD_TRIANGLES, or for a
-    mesh that is too big or unreadable; RESOURCE_PARSE_ERROR for a moving link
-    of mass 0.
+    refused. ``budget``: the world's triangles, when the scene is one of its
+    files (a manifest's model), else the scene's own. RefusedError:
+    UNSUPPORTED_ASSETS past MAX_WORLD_TRIANGLES, or for a mesh that is too
+    big or unreadable; RESOURCE_PARSE_ERROR for a moving link of mass 0.
     """
+    budget = budget if budget is not None else TriangleBudget()
     files = GeneratedFiles()
     notes = _Notes()
     left_out: List[str] = []
@@ -191,10 +219,7 @@ def build_bodies(scene: Scene, cache: MeshCache, ignore_missing: bool = False,
             for body in plan_bodies(model, notes):
                 text, used = urdf_text(body, meshes, cache.hulls, notes)
                 triangles += used
-                if triangles > MAX_WORLD_TRIANGLES:
-                    raise Place(model.source, (f'model {model.name[:100]}',)).fail(
-                        f'the meshes have more than {MAX_WORLD_TRIANGLES} triangles in all',
-                        'UNSUPPORTED_ASSETS')
+                budget.take(used, str(Place(model.source, (f'model {model.name[:100]}',))))
                 name, number = body.name, 1
                 while name in taken:
                     name, number = f'{body.name}_{number}', number + 1

@@ -17,19 +17,24 @@ They live in ``$R2D2_SIM_CACHE_DIR``, else
 keyed by a hash of the source file's bytes and this converter's version: a
 warm load reads no mesh file at all. Every file is written beside its final
 name and renamed into place, ``info.json`` last, so two processes converting
-the same mesh at once both end with whole files.
+the same mesh at once both end with whole files. What is cached becomes what
+PyBullet loads, so the cache is held private, as the domain leases' lock
+directory is (:mod:`r2d2_sim.files`): an entry another user could have
+written is never used.
 """
 
 import hashlib
 import json
 import os
+import re
 import tempfile
-from typing import List, NamedTuple, Optional, Tuple
+from typing import Any, List, NamedTuple, Optional, Tuple
 
 import numpy
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.sim.sdf.meshes import read_mesh, read_mesh_bytes, Triangles
+from r2d2_sim.files import check_private, make_private_directories, read_regular, UnsafeFile
+from r2d2_sim.sim.sdf.meshes import check_triangles, read_mesh, read_mesh_bytes, Triangles
 
 __all__ = ['MeshCache', 'Converted', 'cache_directory', 'CACHE_VARIABLE', 'CONVERTER_VERSION',
            'MAX_PARTS', 'MAX_HULLS', 'HULL_POINTS', 'hull_points']
@@ -44,6 +49,10 @@ MAX_HULL_TRIANGLES = 200_000
 # Points a moving piece's convex hull is made of, at most (Bullet advises fewer
 # than 100 for speed; 256 keep a sphere round to 0.4 % of its radius).
 HULL_POINTS = 256
+# An entry's info.json, and a converted mesh.obj read back (1,000,000 triangles: ~90 MB).
+MAX_INFO_BYTES = 1 << 20
+MAX_OBJ_BYTES = 256 << 20
+_PART = re.compile(r'part_[0-9]{1,3}\.obj')
 
 Rgba = Tuple[float, float, float, float]
 
@@ -170,36 +179,65 @@ def pieces(faces: numpy.ndarray, vertex_count: int) -> List[numpy.ndarray]:
 
 
 class MeshCache:
-    """Meshes converted into OBJ files under ``directory`` (default: :func:`cache_directory`)."""
+    """
+    Meshes converted into OBJ files under ``directory`` (default: :func:`cache_directory`).
+
+    Its files become what PyBullet loads, so the cache is private: every
+    directory down to an entry must be a real directory of ours that nobody
+    else may write (made 0700; one of ours a looser umask made is tightened),
+    else the conversion is refused in one line (OPERATION_FAILED); an entry
+    is used only when its files are plain files of ours that nobody else may
+    write and its ``info.json`` names only files of the entry, else it is
+    converted again over them.
+    """
 
     def __init__(self, directory: Optional[str] = None) -> None:
-        self.directory = os.path.join(directory or cache_directory(), 'meshes')
+        self.root = directory or cache_directory()
+        self.directory = os.path.join(self.root, 'meshes')
 
     def convert(self, path: str, shown: str) -> Converted:
         """
         Return ``path``'s mesh converted (from the cache when its content was converted before).
 
-        RefusedError (naming ``shown``) for a mesh that cannot be read or is too big.
+        RefusedError (naming ``shown``) for a mesh that cannot be read or is too
+        big; OPERATION_FAILED when the cache is not a private directory.
         """
         data = read_mesh_bytes(path, shown)
         key = hashlib.sha256(b'r2d2_sim mesh %d %s\0' % (
             CONVERTER_VERSION, os.path.splitext(path)[1].lower().encode()) + data).hexdigest()
-        directory = os.path.join(self.directory, key[:2], key)
+        directory = self._private(key[:2], key)
         cached = self._cached(directory)
         if cached is not None:
+            check_triangles(cached.triangles, shown)  # the bound of today, not the writer's
             return cached
         return self._store(directory, read_mesh(path, shown, data), shown)
 
+    def _private(self, *names: str) -> str:
+        """Return ``meshes/names...`` in the cache, every level a private directory."""
+        try:
+            return make_private_directories(self.root, 'meshes', *names, tighten=True)
+        except UnsafeFile as exc:
+            raise RefusedError('OPERATION_FAILED', f'the mesh cache: {exc.strerror}: remove it '
+                                                   f'or set {CACHE_VARIABLE} to a directory of '
+                                                   'your own') from None
+
     @staticmethod
     def _cached(directory: str) -> Optional[Converted]:
+        """Return the entry in ``directory`` if it is whole and only we could have written it."""
         try:
-            with open(os.path.join(directory, 'info.json'), encoding='utf-8') as handle:
-                info = json.load(handle)
+            check_private(os.path.join(directory, 'info.json'), directory=False)
+            info = json.loads(read_regular(os.path.join(directory, 'info.json'), MAX_INFO_BYTES))
+            names = [name for name, _ in info['parts']]
+            if not all(isinstance(n, str) and _PART.fullmatch(n) for n in names):
+                return None  # another's entry: parts elsewhere would have PyBullet load them
             parts = tuple((os.path.join(directory, name), None if colour is None
-                           else tuple(colour)) for name, colour in info['parts'])
+                           else _colour(colour)) for name, colour in info['parts'])
             mesh = os.path.join(directory, 'mesh.obj')
-            if all(os.path.isfile(p) for p in [mesh] + [p for p, _ in parts]):
-                return Converted(directory, mesh, int(info['triangles']), parts)
+            for file in [mesh] + [p for p, _ in parts]:
+                check_private(file, directory=False)
+            triangles = info['triangles']
+            if isinstance(triangles, int) and triangles > 0:
+                return Converted(directory, mesh, triangles, parts)
         except (OSError, ValueError, KeyError, TypeError):
             pass
         return None
@@ -210,7 +248,6 @@ class MeshCache:
         if not len(faces):  # Bullet's triangle mesh of no triangle is not a shape
             raise RefusedError('RESOURCE_PARSE_ERROR', f'mesh {shown} has no triangle of '
                                                        'three distinct corners')
-        os.makedirs(directory, exist_ok=True)
         groups = triangles.groups[kept]
         mesh = os.path.join(directory, 'mesh.obj')
         _write(mesh, obj_text(vertices, faces))
@@ -240,8 +277,11 @@ class MeshCache:
         is one piece (one convex hull). Written beside the mesh once.
         """
         path = os.path.join(converted.directory, 'hulls.obj')
-        if os.path.isfile(path):
+        try:
+            check_private(path, directory=False)
             return path
+        except UnsafeFile:
+            pass  # not written yet (or not by us): written now, over it
         vertices, faces = _read_obj(converted.mesh)
         found = None
         if len(faces) <= MAX_HULL_TRIANGLES:
@@ -256,14 +296,21 @@ class MeshCache:
         return path
 
 
+def _colour(colour: Any) -> Rgba:
+    """Return an info.json colour as four numbers in [0, 1]; ValueError if it is not one."""
+    r, g, b, a = (float(c) for c in colour)  # ValueError unless exactly four
+    if not all(0.0 <= c <= 1.0 for c in (r, g, b, a)):
+        raise ValueError('not a colour')
+    return r, g, b, a
+
+
 def _read_obj(path: str) -> Tuple[numpy.ndarray, numpy.ndarray]:
     """Read back an OBJ this module wrote (``v`` and ``f a b c`` lines only)."""
     vertices, faces = [], []
-    with open(path, encoding='utf-8') as handle:
-        for line in handle:
-            if line.startswith('v '):
-                vertices.append([float(v) for v in line.split()[1:4]])
-            elif line.startswith('f '):
-                faces.append([int(v) - 1 for v in line.split()[1:4]])
+    for line in read_regular(path, MAX_OBJ_BYTES).decode('utf-8').splitlines():
+        if line.startswith('v '):
+            vertices.append([float(v) for v in line.split()[1:4]])
+        elif line.startswith('f '):
+            faces.append([int(v) - 1 for v in line.split()[1:4]])
     return (numpy.array(vertices, dtype=float).reshape(-1, 3),
             numpy.array(faces, dtype=numpy.int64).reshape(-1, 3))

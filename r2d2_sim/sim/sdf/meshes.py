@@ -12,19 +12,23 @@ triangle count (:data:`MAX_MESH_TRIANGLES`). Errors name the mesh as the SDF
 wrote it, never the file's contents.
 """
 
+import errno
 import io
 import logging
 import os
 import re
 import struct
 import warnings
+import zipfile
 from typing import List, NamedTuple, Optional, Tuple
 
 import numpy
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.files import read_regular, UnsafeFile
 
-__all__ = ['Triangles', 'read_mesh', 'MESH_FORMATS', 'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
+__all__ = ['Triangles', 'read_mesh', 'read_mesh_bytes', 'check_triangles', 'MESH_FORMATS',
+           'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
 
 MESH_FORMATS = ('.dae', '.stl', '.obj')
 # One mesh file (AWS's small house: 140 DAE files of 87 MB in all, the largest 6 MB).
@@ -35,6 +39,11 @@ MAX_MTL_BYTES = 1 << 20
 MAX_COORDINATE = 1e9
 PARSE, UNSUPPORTED = 'RESOURCE_PARSE_ERROR', 'UNSUPPORTED_ASSETS'
 _XML_DECLARATIONS = re.compile(rb'<!\s*(DOCTYPE|ENTITY)', re.IGNORECASE)
+# The encoding an XML declaration names, read from its first 1 kB (bounded, linear).
+_DECLARED_ENCODING = re.compile(rb'<\?xml[^>]{0,1000}?encoding\s*=\s*["\']([A-Za-z0-9._-]{1,40})')
+# Encodings in which markup is ASCII, byte for byte, so the DOCTYPE check reads it as the
+# parser does; another (UTF-16, UTF-32, EBCDIC, UTF-7 with lxml) could hide a DOCTYPE.
+_ASCII_MARKUP = ('utf-8', 'utf8', 'us-ascii', 'ascii', 'iso-8859-1', 'latin-1', 'latin1')
 
 Rgba = Tuple[float, float, float, float]
 
@@ -53,7 +62,8 @@ def _quiet_trimesh() -> None:
     logging.getLogger('trimesh').setLevel(logging.ERROR)
 
 
-def _check_triangles(count: int, shown: str) -> None:
+def check_triangles(count: int, shown: str) -> None:
+    """Refuse a mesh of more than MAX_MESH_TRIANGLES triangles (UNSUPPORTED_ASSETS)."""
     if count > MAX_MESH_TRIANGLES:
         raise RefusedError(UNSUPPORTED, f'mesh {shown} has {count} triangles, more than '
                                         f'{MAX_MESH_TRIANGLES}')
@@ -65,7 +75,7 @@ def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], sho
     pieces = [(v, f, c) for v, f, c in pieces if len(f)]
     if not pieces:
         raise RefusedError(PARSE, f'mesh {shown} has no triangles')
-    _check_triangles(sum(len(f) for _, f, _ in pieces), shown)
+    check_triangles(sum(len(f) for _, f, _ in pieces), shown)
     colours: List[Optional[Rgba]] = []
     vertices, faces, groups = [], [], []
     offset = 0
@@ -90,7 +100,29 @@ def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], sho
     return Triangles(joined, joined_faces, tuple(colours), numpy.concatenate(groups))
 
 
+def _check_collada_bytes(data: bytes, shown: str) -> None:
+    """
+    Refuse COLLADA that pycollada would unzip, or read in an encoding that hides markup.
+
+    pycollada opens any data with a zip directory at its end as an archive
+    and parses the .dae inside, past the size bound and the DOCTYPE check
+    (40 kB became 950 MB); Gazebo reads no zipped COLLADA either. The DOCTYPE
+    check reads bytes, so the markup must be ASCII: UTF-8 (or ASCII, Latin-1).
+    """
+    if data.startswith(b'PK\x03\x04') or zipfile.is_zipfile(io.BytesIO(data)):
+        raise RefusedError(UNSUPPORTED, f'mesh {shown} is a zip archive: r2d2_sim reads '
+                                        'COLLADA (.dae) files unzipped, as Gazebo does')
+    text = data[3:] if data.startswith(b'\xef\xbb\xbf') else data
+    text = text[:1024].lstrip(b' \t\r\n')
+    declared = _DECLARED_ENCODING.match(text)
+    if not text.startswith(b'<') or (declared is not None and declared.group(1).decode(
+            'ascii').lower() not in _ASCII_MARKUP):
+        raise RefusedError(UNSUPPORTED, f'mesh {shown} is not UTF-8 text: r2d2_sim reads '
+                                        'COLLADA in UTF-8')
+
+
 def _dae(data: bytes, shown: str) -> Triangles:
+    _check_collada_bytes(data, shown)
     if _XML_DECLARATIONS.search(data):
         raise RefusedError(PARSE, f'mesh {shown} declares a DOCTYPE or entities, which COLLADA '
                                   'does not need')
@@ -126,7 +158,7 @@ def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
                 if colour is not None and len(colour) == 3:
                     colour += (1.0,)
                 pieces.append((primitive.vertex * unit, primitive.vertex_index, colour))
-                _check_triangles(sum(len(p[1]) for p in pieces), shown)
+                check_triangles(sum(len(p[1]) for p in pieces), shown)
     except RefusedError:
         raise
     except Exception as exc:  # pycollada raises many kinds on a malformed file
@@ -137,9 +169,9 @@ def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
 
 def _stl(data: bytes, shown: str) -> Triangles:
     if len(data) >= 84 and not data[:5].lower() == b'solid':
-        _check_triangles(struct.unpack('<I', data[80:84])[0], shown)
+        check_triangles(struct.unpack('<I', data[80:84])[0], shown)
     else:
-        _check_triangles(data.count(b'facet'), shown)
+        check_triangles(data.count(b'facet'), shown)
     from trimesh.exchange.stl import load_stl
     try:
         loaded = load_stl(io.BytesIO(data))
@@ -158,17 +190,15 @@ class _MaterialFiles:
 
     def get(self, name: str) -> bytes:
         path = os.path.realpath(os.path.join(self._directory, name))
-        if not name.lower().endswith('.mtl') or os.path.dirname(path) != self._directory or \
-                not os.path.isfile(path) or os.path.getsize(path) > MAX_MTL_BYTES:
+        if not name.lower().endswith('.mtl') or os.path.dirname(path) != self._directory:
             raise OSError('not served')  # textures and anything elsewhere: no colour
-        with open(path, 'rb') as handle:
-            return handle.read()
+        return read_regular(path, MAX_MTL_BYTES)  # OSError: no colour, as trimesh takes it
 
     __getitem__ = get
 
 
 def _obj(data: bytes, shown: str, directory: str) -> Triangles:
-    _check_triangles(data.count(b'\nf '), shown)
+    check_triangles(data.count(b'\nf '), shown)
     from trimesh.exchange.obj import load_obj
     try:
         loaded = load_obj(io.BytesIO(data),
@@ -217,13 +247,19 @@ def read_mesh(path: str, shown: str, data: Optional[bytes] = None) -> Triangles:
 
 
 def read_mesh_bytes(path: str, shown: str) -> bytes:
-    """Return a mesh file's bytes, at most MAX_MESH_BYTES; RefusedError if it cannot be had."""
+    """
+    Return a mesh file's bytes, at most MAX_MESH_BYTES; RefusedError if it cannot be had.
+
+    A regular file only (a FIFO would hold the load, and SIGINT, forever):
+    UNSUPPORTED_ASSETS for anything else or a file too large, MISSING_ASSETS
+    for one that cannot be opened.
+    """
     try:
-        size = os.path.getsize(path)
-        if size > MAX_MESH_BYTES:
+        return read_regular(path, MAX_MESH_BYTES)
+    except UnsafeFile as exc:
+        if exc.errno == errno.EFBIG:
             raise RefusedError(UNSUPPORTED, f'mesh {shown} is larger than {MAX_MESH_BYTES} '
-                                            'bytes')
-        with open(path, 'rb') as handle:
-            return handle.read(MAX_MESH_BYTES + 1)
+                                            'bytes') from None
+        raise RefusedError(UNSUPPORTED, f'mesh {shown} is not a regular file') from None
     except OSError:
         raise RefusedError('MISSING_ASSETS', f'mesh {shown} cannot be read') from None

@@ -29,6 +29,7 @@ from typing import List, NamedTuple, Optional, Sequence, Tuple
 from urllib.parse import unquote, urlsplit
 
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.files import read_regular
 from r2d2_sim.physics.description import DescriptionError, package_share_directory
 from r2d2_sim.sim.sdf.elements import parse_xml
 
@@ -146,8 +147,8 @@ class Resources:
             if not any(_inside(real, root) for root in self._roots):
                 raise RefusedError(UNSUPPORTED, f'{what} {shown} lies outside the places an '
                                                 'SDF may use (its own directory, model_paths, '
-                                                'the Gazebo search paths, the Fuel cache, ROS '
-                                                'packages)')
+                                                'the Gazebo search paths, the Fuel cache, '
+                                                'world_paths, ROS packages)')
         return path
 
     # -- models -------------------------------------------------------------------------
@@ -294,11 +295,8 @@ def _config_sdf(directory: str) -> Optional[str]:
     """Return the SDF file a model.config names (the newest version), if it can be read."""
     path = os.path.join(directory, 'model.config')
     try:
-        if not os.path.isfile(path) or os.path.getsize(path) > 100_000:
-            return None
-        with open(path, encoding='utf-8') as handle:
-            root = parse_xml(handle.read(), path)
-    except (OSError, UnicodeDecodeError, RefusedError):
+        root = parse_xml(read_regular(path, 100_000).decode('utf-8'), path)
+    except (OSError, UnicodeDecodeError, RefusedError):  # a FIFO too: model.sdf, not a wait
         return None
     best: Optional[str] = None
     best_version: Tuple[int, ...] = (-1,)

@@ -7,8 +7,10 @@ No ROS, no PyBullet. SpawnEntity's ``uri`` may be an ``.sdf`` file, a
 world's would be (includes, nested models, meshes, the same bounds), then
 must be one body: an entity is one body, so a model whose links no joint
 joins is refused, as is a file of several models or a world. Its own
-``<pose>`` gives way to the request's. Files come from the model's own
-directory, the search paths, the Fuel cache and ROS packages.
+``<pose>`` gives way to the request's. The model's file must lie where a
+LoadWorld's may (the search paths, the Fuel cache, the places worlds load
+from, ROS packages: ``SdfSettings.places``); its other files come from
+there too and from the model's own directory.
 """
 
 import os
@@ -56,21 +58,18 @@ def read_sdf_spawnable(uri: str, resource_string: str, settings: SdfSettings
     several bodies, or with anything not simulated when ``settings.strict``.
     """
     shown = uri[:200] if uri else 'the resource_string'
-    resources = Resources(settings.model_paths, roots=[])
+    resources = Resources(settings.model_paths, roots=list(settings.places))
     path = None
     if uri:
-        try:
-            source = resources.model(uri, os.getcwd(), None) if not os.path.isfile(uri) \
-                else None
-        except RefusedError as exc:
+        try:  # found, and checked to lie in an allowed place, as LoadWorld's files are
+            source = resources.model(uri, os.getcwd(), None)
+        except RefusedError as exc:  # outside too: NOT_FOUND, as LoadWorld answers
             raise RefusedError('NOT_FOUND', exc.message) from None
-        if source is not None and source.text is not None:
-            text = source.text
+        if source.path is None:  # a built-in model (the ground plane, the sun)
+            text = source.text or ''
         else:
-            path = os.path.abspath(uri) if source is None else source.path
-            assert path is not None  # a model not built in is a file
+            path = source.path
             text = read_limited(path, shown, 'NOT_FOUND', MAX_SDF_BYTES)
-        if path is not None:
             resources.allow(os.path.dirname(path))
     else:
         text = resource_string

@@ -20,7 +20,8 @@ from r2d2_sim.model.noise import NoiseSpec
 from r2d2_sim.sim.settings.readers import ConfigError
 from r2d2_sim.sim.settings.table import (
     FORWARD_AXIS_YAW_RAD, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID,
-    LIDAR3D_FRAME_ID, NOISE_FAMILIES, NOISE_PARTS, Parameter, PARAMETERS, PARAMETERS_BY_NAME)
+    LIDAR3D_FRAME_ID, MAX_CAMERA_PIXELS, MAX_CAMERA_PIXELS_PER_SECOND, MAX_LIDAR3D_RAYS_PER_SCAN,
+    MAX_RAYS_PER_SECOND, NOISE_FAMILIES, NOISE_PARTS, Parameter, PARAMETERS, PARAMETERS_BY_NAME)
 
 __all__ = ['SimConfig', 'parse_config', 'read_value', 'check_fields', 'render_fields',
            'ConfigError']
@@ -278,7 +279,36 @@ def check_fields(fields: Mapping[str, Any]) -> None:
     if not (low < high or (low == high and fields['lidar3d_rings'] == 1)):
         raise ConfigError('parameter lidar3d_angle_min must be below lidar3d_angle_max (equal '
                           f'only with one ring), got {low} and {high}')
+    _check_sensor_costs(fields)
     _check_frames(fields)
+
+
+def _check_sensor_costs(fields: Mapping[str, Any]) -> None:
+    """Refuse sensors whose rays or pixels would stall the node (see MAX_RAYS_PER_SECOND)."""
+    lidar = fields['lidar3d_rings'] * fields['lidar3d_samples']
+    lidar_rate, scan_rate = fields['lidar3d_rate_hz'], fields['scan_rate_hz']
+    if lidar_rate > 0.0 and lidar > MAX_LIDAR3D_RAYS_PER_SCAN:
+        raise ConfigError(f'parameters lidar3d_rings x lidar3d_samples: {lidar:,} rays a scan, '
+                          f'more than {MAX_LIDAR3D_RAYS_PER_SCAN:,} (about 0.25 s each, with '
+                          'nothing else answered meanwhile)')
+    rays = lidar * lidar_rate + fields['scan_samples'] * scan_rate
+    if rays > MAX_RAYS_PER_SECOND:
+        raise ConfigError(f'parameters scan_samples x scan_rate + lidar3d_rings x '
+                          f'lidar3d_samples x lidar3d_rate: {rays:,.0f} rays a simulated '
+                          f'second, more than {MAX_RAYS_PER_SECOND:,} (about 2.5 s of '
+                          'casting each): lower a rate or the beams')
+    if fields['camera_rate_hz'] <= 0.0:
+        return
+    pixels = fields['camera_width_px'] * fields['camera_height_px']
+    if pixels > MAX_CAMERA_PIXELS:
+        raise ConfigError(f'parameters camera_width x camera_height: {pixels:,} pixels an '
+                          f'image, more than {MAX_CAMERA_PIXELS:,} (1920 x 1080: about 0.3 s '
+                          'each, with nothing else answered meanwhile)')
+    if pixels * fields['camera_rate_hz'] > MAX_CAMERA_PIXELS_PER_SECOND:
+        raise ConfigError(f'parameters camera_width x camera_height x camera_rate: '
+                          f'{pixels * fields["camera_rate_hz"]:,.0f} pixels a simulated '
+                          f'second, more than {MAX_CAMERA_PIXELS_PER_SECOND:,} (about 5 s of '
+                          'rendering each): lower the rate or the size')
 
 
 def _check_frames(fields: Mapping[str, Any]) -> None:

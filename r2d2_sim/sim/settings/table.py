@@ -55,6 +55,18 @@ WHEEL_VELOCITY = Bounds(0.001, 10000.0, 'rad/s', 'take the URDF velocity limit')
 WHEEL_FORCE = Bounds(0.001, 100000.0, 'N m', 'take the URDF effort limit')
 
 
+# What one robot's sensors may cost, by what their rays and pixels cost here (CPU of
+# our 2-core machine, idle: a ray 1.5-2 us, a pixel of the head camera 0.15 us; under
+# load, up to 3 times as much). PyBullet holds the interpreter while it casts or
+# renders, so one scan or image is as long as the node answers nothing, SIGINT
+# included (a 256 x 10,000 lidar: 12 s a scan; a 4096^2 camera ran at 1 % of real
+# time); the per-second bounds keep a robot above about a fifth of real time.
+MAX_LIDAR3D_RAYS_PER_SCAN = 64 * 2048           # about 0.25 s a scan
+MAX_RAYS_PER_SECOND = 1_500_000  # a 64 x 2048 lidar at 10 Hz and a laser: about 2.5 s of CPU
+MAX_CAMERA_PIXELS = 1920 * 1080                 # about 0.3 s an image
+MAX_CAMERA_PIXELS_PER_SECOND = 1920 * 1080 * 15  # about 5 s of CPU a simulated second
+
+
 # -- readers: raw parameter value -> validated value (one ConfigError line) ---
 
 # -- the table -----------------------------------------------------------------

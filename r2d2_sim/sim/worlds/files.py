@@ -83,17 +83,33 @@ class WorldFiles:
             fail_on_unsupported_element=options.fail_on_unsupported_element or self.sdf.strict)
 
     def _check_models(self, world: World) -> None:
-        """Load each URDF model once in a physics world of its own: RESOURCE_PARSE_ERROR if bad."""
-        # Models made from SDF were written here from checked parts: not loaded twice.
-        paths = sorted({model.path for model in world.models if not model.sdf})
-        if not paths:
-            return
+        """
+        Refuse a world whose models cannot load or crowd: RESOURCE_PARSE_ERROR.
+
+        Each URDF model is loaded once in a physics world of its own. Crowded:
+        its moving bodies, loaded at their poses in a scratch world, have too
+        many moving links or too many of them touching at once
+        (:mod:`r2d2_sim.physics.crowding`: the first step would last minutes).
+        """
         # PyBullet only here: the testing API imports the worlds' names without it.
+        from r2d2_sim.physics.crowding import check_placements, moving_links, Placement
         from r2d2_sim.physics.world import SimWorld
+        # Models made from SDF were written here from checked parts: not loaded twice
+        # to be checked, only (when they move) to see how crowded they are.
+        paths = sorted({model.path for model in world.models if not model.sdf})
         try:
+            moving = set()
             with SimWorld(ground_plane=False, time_step_s=self.time_step_s) as scratch:
+                sdf_flags = scratch.model_flags
                 for path in paths:
-                    scratch.load(path)
+                    if moving_links(scratch.load(path)):
+                        moving.add(path)
+            check_placements(
+                [Placement(model.path, model.position, model.orientation,
+                           sdf_flags if model.sdf else 0)
+                 for model in world.models
+                 if (model.sdf and not model.static) or model.path in moving],
+                self.time_step_s, 'RESOURCE_PARSE_ERROR', 'the world')
         except WorldError as exc:
             raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
 

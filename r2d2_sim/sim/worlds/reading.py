@@ -21,13 +21,13 @@ message that names files, never their contents.
 """
 
 import os
-import re
 from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import DescriptionFile
-from r2d2_sim.sim.sdf.loading import SdfSettings
+from r2d2_sim.sim.sdf.elements import root_tag
+from r2d2_sim.sim.sdf.loading import SdfSettings, TriangleBudget
 from r2d2_sim.sim.worlds.sdf_format import read_sdf_world, sdf_models
 from r2d2_sim.sim.spawnables import check_description, MAX_DESCRIPTION_BYTES
 from r2d2_sim.sim.worlds.manifest import load_yaml, MAX_WORLD_BYTES, read_manifest
@@ -72,6 +72,8 @@ class _Reading:
         self.sdf = sdf
         self.notes: List[str] = []
         self.resources: List[DescriptionFile] = []
+        # The mesh triangles of all its models together, URDF and SDF, each use counted.
+        self.triangles = TriangleBudget()
 
     def not_simulated(self, line: str) -> None:
         """Note one summary line of what is not simulated, or refuse it (UNSUPPORTED_ELEMENTS)."""
@@ -112,7 +114,8 @@ class _Reading:
                 raise RefusedError('UNSUPPORTED_FORMAT', f'{shown}: the root element is '
                                                          f'<{root.tag[:40]}>, not <robot>')
         else:
-            name = check_description(text, base_dir)  # size, DOCTYPE, links, meshes' places
+            # size, DOCTYPE, links, meshes' places and bounds
+            name = check_description(text, base_dir, self.triangles)
             root = ElementTree.fromstring(text)
         self.unsupported([shown for child in root if child.tag not in URDF_ELEMENTS],
                          'elements PyBullet does not read')
@@ -177,9 +180,7 @@ class WorldFormat(NamedTuple):
 
 
 def _xml_root(text: str) -> Optional[str]:
-    match = re.match(r'\s*(?:<\?xml[^>]*\?>\s*)?(?:<!--.*?-->\s*)*<([A-Za-z_][\w.-]*)', text,
-                     re.S)
-    return match.group(1) if match else None
+    return root_tag(text) or None  # a linear scan: no pattern that backtracks over comments
 
 
 def _read_urdf_world(text: str, path: Optional[str], uri: str, reading: _Reading,

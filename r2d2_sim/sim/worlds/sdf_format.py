@@ -56,7 +56,7 @@ def _build(text: str, path: Optional[str], shown: str, reading, anchor: Optional
                     settings.read_options(ignore), settings.ground_plane)
     if read.summary and options.fail_on_unsupported_element:
         reading.not_simulated(read.summary)  # refused before any mesh is converted
-    built = build_bodies(read.scene, MeshCache(), ignore)
+    built = build_bodies(read.scene, MeshCache(), ignore, budget=reading.triangles)
     reading.resources.append(built.files)
     counts = dict(read.scene.not_simulated)
     for what, count in built.not_simulated:
@@ -81,7 +81,7 @@ def _models(built: SdfBuilt, source: str, entry=None) -> List[WorldModel]:
             name, body.path, source, pose.translation, pose.rotation,
             (entry.description if entry is not None and entry.description else
              f'{body.model} from {source}'), entry.tags if entry is not None else (),
-            sdf=True))
+            sdf=True, static=body.static))
     return models
 
 

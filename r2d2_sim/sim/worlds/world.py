@@ -41,7 +41,8 @@ class WorldModel(NamedTuple):
     One model of a world: a URDF file to load at a pose, and what the standard says of it.
 
     ``sdf``: made from SDF, so loaded as Gazebo would simulate it (the file's
-    inertias, true cylinders, joints free but for their friction).
+    inertias, true cylinders, joints free but for their friction); ``static``:
+    made from SDF and nothing of it moves (the checks of a load skip it).
     """
 
     name: Optional[str]      # None: the URDF's robot name, made unique
@@ -52,6 +53,7 @@ class WorldModel(NamedTuple):
     description: str
     tags: Tuple[str, ...]
     sdf: bool = False
+    static: bool = False
 
 
 class World(NamedTuple):
