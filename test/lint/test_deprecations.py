@@ -213,13 +213,13 @@ def test_an_old_path_gives_the_new_object_and_warns_once(resolved, old):
 
 def test_python_dash_m_on_an_old_path_runs_the_new_module():
     """`python -m` on the old path of the parameter reference runs the new one, and says so."""
-    old = _run(['-m', 'r2d2_sim.sim.settings.reference'])
-    new = _run(['-m', MOVED['r2d2_sim.sim.settings.reference']])
+    old = _run(['-m', 'r2d2_sim.sim.parameter_docs'])
+    new = _run(['-m', MOVED['r2d2_sim.sim.parameter_docs']])
     assert old.returncode == new.returncode == 0, old.stderr[-2000:]
     assert old.stdout == new.stdout and old.stdout.startswith('<!--')
     assert new.stderr == ''
     assert old.stderr.count('DeprecationWarning') == 1, old.stderr
-    assert ('r2d2_sim.sim.settings.reference is deprecated and goes in r2d2_sim '
+    assert ('r2d2_sim.sim.parameter_docs is deprecated and goes in r2d2_sim '
             f'{REMOVED_IN}: use r2d2_sim.sim.settings.reference') in old.stderr
 
 
