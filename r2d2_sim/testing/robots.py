@@ -278,6 +278,7 @@ class LocalRobot(_RobotHandle):
         for subscription in self._subscriptions:
             self._link.destroy_subscription(subscription)
         self._subscriptions = []
+        self._stop_tf()
         if self._cmd_vel is not None:
             self._link.destroy_publisher(self._cmd_vel)
             self._cmd_vel = None
@@ -416,6 +417,7 @@ class RemoteRobot(_RobotHandle):
         for subscription in self._subscriptions.values():
             self._node.destroy_subscription(subscription)
         self._subscriptions = {}
+        self._stop_tf()
         if self._cmd_vel is not None:
             self._node.destroy_publisher(self._cmd_vel)
             self._cmd_vel = None
