@@ -27,6 +27,23 @@ def test_a_process_robot_handle_takes_its_subscriptions_along(r2d2_sim_process):
     sim = r2d2_sim_process(start_paused=True)
     before = topics_subscribed(sim.probe.node)
     sim.spawn(URDF, name='c', namespace='/c', position=(0.0, 2.0, 0.48))
-    assert sim.robot('c')._tf is not None  # listening from the spawn on
+    assert '/c/odom' in topics_subscribed(sim.probe.node)  # its handle listens
+    sim.delete_entity('c')
+    assert topics_subscribed(sim.probe.node) == before
+
+
+@pytest.mark.skipif(not available(), reason='simulation_interfaces is needed')
+@pytest.mark.parametrize('layout, odom, base', [('shared', 'c/odom', 'c/base_link'),
+                                                ('namespaced', 'odom', 'base_link')])
+def test_a_process_robot_handle_looks_its_tf_up_then_lets_go(r2d2_sim_process, layout, odom,
+                                                             base):
+    """A spawned robot's lookup_transform works in both layouts; its delete leaves nothing."""
+    pytest.importorskip('tf2_msgs.msg')
+    sim = r2d2_sim_process(start_paused=True, tf_layout=layout)
+    before = topics_subscribed(sim.probe.node)
+    sim.spawn(URDF, name='c', namespace='/c', position=(0.0, 2.0, 0.48))
+    sim.step()
+    transform = sim.robot('c').lookup_transform(odom, base)
+    assert transform.transform.translation[1] == pytest.approx(2.0, abs=0.01)
     sim.delete_entity('c')
     assert topics_subscribed(sim.probe.node) == before
