@@ -17,6 +17,7 @@ from typing import Callable, Optional, Tuple
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.subscription import Subscription
 
 from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
 from r2d2_sim.testing.executor import HarnessError
@@ -54,7 +55,7 @@ class TfListener:
         self._received = [0, 0]  # dynamic, static
         self.topics = topics
         group = TakenOnDemand() if on_demand else None
-        self._subscriptions = (
+        self._subscriptions: Tuple[Subscription, ...] = (
             node.create_subscription(TFMessage, topics[0], self._on_tf,
                                      TF_ON_DEMAND_QOS if on_demand else TF_QOS,
                                      callback_group=group),
