@@ -3,16 +3,23 @@
 Spawn and delete a robot in a namespace, again and again: what it leaves behind.
 
     .venv/bin/python bench/spawn_cycles.py [--quick] [--cycles 300] [--domain 84]
+        [--variants process,handles,harness,core,pybullet]
 
 Each cycle spawns our R2D2 as a driven robot in a namespace of its own
 (``/cycle_<i>``, a new one every cycle; ``--same-namespace`` keeps ``/cycle``)
-and deletes it again. Four variants:
+and deletes it again. Five variants:
 
 - **process**: ``sim_node`` in a process of its own (``SimProcess``, default
   parameters, running at real time), driven through the simulation standard's
   ``spawn_entity`` and ``delete_entity`` from this process, as a client of the
   standard would; RSS is the simulator process's (``/proc/PID/status`` VmRSS)
   and the times are each call's wall time here, reply included.
+- **handles**: the same ``sim_node`` process through ``SimProcess``'s own
+  ``spawn`` and ``delete_entity``, its state subscriptions on (its default): each
+  robot gets its handle, which subscribes the robot's state topics and TF
+  from the spawn on and stops at the delete. What a test that spawns and
+  deletes robots costs the simulator (issue 39: a handle's TF listener
+  outlived its robot, 44 kB a cycle and slower every cycle).
 - **harness**: ``SimHarness`` in this process: ``spawn`` and ``delete_entity``
   through the core, one control period advanced in between; RSS is this
   process's.
@@ -24,7 +31,8 @@ and deletes it again. Four variants:
 
 Printed at cycles 1, 50, 100... N: RSS and the spawn and delete times (medians
 of the 10 cycles up to there). Then the slope of RSS against the cycle (a line
-through every cycle after the first 10 %) and the ratio of late to early cycle
+through every cycle after the first 10 %, and one through the second half, where
+the warm-up is over) and the ratio of late to early cycle
 times (medians of the last 10 % of cycles over those of the first 10 %, cycle 1
 left out), and the slope of a line through the medians of 10 cycles at a time over
 the same cycles as RSS's (ms per 100 cycles; steadier than the ratio when other
@@ -52,7 +60,7 @@ RESULTS_PATH = os.path.join(BENCH_DIR, 'spawn_cycles.json')
 URDF = 'package://r2d2_sim/urdf/r2d2.urdf'
 POSITION = (0.0, 2.0, 0.48)  # beside the default robot, R2D2's base link above the ground
 WINDOW = 10                   # cycles per printed median
-VARIANTS = ('process', 'harness', 'core', 'pybullet')
+VARIANTS = ('process', 'handles', 'harness', 'core', 'pybullet')
 
 
 def rss_mb(pid):
@@ -96,6 +104,18 @@ def measure_process(domain_id, cycles, same):
             standard.spawn(uri=URDF, name=name, position=POSITION, allow_renaming=False,
                            namespace='/' + name)
         return run_cycles(spawn, standard.delete, lambda: rss_mb(pid), cycles, same)
+
+
+def measure_handles(domain_id, cycles, same):
+    """Run the cycles through SimProcess's own spawn and delete, a handle for each robot."""
+    from r2d2_sim.testing import SimProcess
+    with SimProcess(domain_id=domain_id, timeout_s=60.0) as sim:
+        pid = sim.process.process.pid
+
+        def spawn(name):
+            sim.spawn(URDF, name=name, position=POSITION, allow_renaming=False,
+                      namespace='/' + name)
+        return run_cycles(spawn, sim.delete_entity, lambda: rss_mb(pid), cycles, same)
 
 
 def measure_harness(domain_id, cycles, same):
@@ -153,9 +173,12 @@ def summarise(samples):
     tenth = max(1, cycles // 10)
     xs = list(range(tenth + 1, cycles + 1))
     _, slope_mb = fit_line(xs, samples['rss_mb'][tenth:])
+    half = cycles // 2
+    _, late_slope_mb = fit_line(list(range(half + 1, cycles + 1)), samples['rss_mb'][half:])
     summary = {'cycles': cycles, 'rss_first_mb': samples['rss_mb'][0],
                'rss_last_mb': samples['rss_mb'][-1],
-               'rss_slope_kb_per_cycle': slope_mb * 1024.0}
+               'rss_slope_kb_per_cycle': slope_mb * 1024.0,
+               'rss_late_slope_kb_per_cycle': late_slope_mb * 1024.0}
     for key in ('spawn_ms', 'delete_ms'):
         early = statistics.median(samples[key][1:tenth + 1])
         late = statistics.median(samples[key][-tenth:])
@@ -198,7 +221,8 @@ def print_variant(name, result):
               f'{statistics.median(samples["spawn_ms"][window]):>10.1f} | '
               f'{statistics.median(samples["delete_ms"][window]):>11.1f}')
     print(f'RSS slope {summary["rss_slope_kb_per_cycle"]:.1f} kB/cycle '
-          f'({summary["rss_first_mb"]:.1f} -> {summary["rss_last_mb"]:.1f} MB); '
+          f'({summary["rss_first_mb"]:.1f} -> {summary["rss_last_mb"]:.1f} MB), '
+          f'{summary["rss_late_slope_kb_per_cycle"]:.1f} over the second half; '
           f'late/early: spawn {summary["spawn_early_ms"]:.1f} -> '
           f'{summary["spawn_late_ms"]:.1f} ms ({summary["spawn_ratio"]:.2f}), delete '
           f'{summary["delete_early_ms"]:.1f} -> {summary["delete_late_ms"]:.1f} ms '
@@ -224,7 +248,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help='100 cycles instead of 300')
     parser.add_argument('--cycles', type=int, default=None, help='cycles per variant')
-    parser.add_argument('--domain', type=int, default=84, help='ROS domain id (and the next)')
+    parser.add_argument('--domain', type=int, default=84,
+                        help='ROS domain id of the first variant (the next: +1 each)')
     parser.add_argument('--same-namespace', action='store_true',
                         help='spawn every robot in /cycle (default: a new namespace each)')
     parser.add_argument('--variants', default=','.join(VARIANTS),
@@ -234,7 +259,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     cycles = args.cycles or (100 if args.quick else 300)
     if args.child:  # one variant, in this fresh process: its samples to --out
-        measures = {'process': measure_process, 'harness': measure_harness,
+        measures = {'process': measure_process, 'handles': measure_handles,
+                    'harness': measure_harness,
                     'core': measure_core, 'pybullet': measure_pybullet}
         write_json(args.out, measures[args.child](args.domain, cycles, args.same_namespace))
         return 0

@@ -16,6 +16,7 @@ import threading
 from typing import Callable, Optional, Sequence
 
 from r2d2_sim.apps.cli import stop_on_signals
+from r2d2_sim.memory import keep_large_blocks_mapped
 
 # The executor thread checks for a stop request at least this often (s).
 SPIN_POLL_S = 0.1
@@ -96,6 +97,9 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
     argv = sys.argv if args is None else list(args)
     if wants_help(argv):
         return _print_usage(argv)
+    # Before PyBullet and Fast DDS allocate: spawns and deletes for hours must not
+    # fragment the arenas with worlds built again (r2d2_sim/memory.py).
+    keep_large_blocks_mapped()
     if stop is None:
         stop = _import_stopping_at_once()
     import rclpy

@@ -23,7 +23,7 @@ from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
 from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.lockstep import TakenOnDemand
-from r2d2_sim.testing.tf import TransformLookup
+from r2d2_sim.testing.tf import TfListener, TransformLookup
 
 __all__ = ['LocalRobot', 'RemoteRobot', 'STATE_TYPES', 'flatten_robots',
            'expected_namespaces']
@@ -278,6 +278,7 @@ class LocalRobot(_RobotHandle):
         for subscription in self._subscriptions:
             self._link.destroy_subscription(subscription)
         self._subscriptions = []
+        self._stop_tf()
         if self._cmd_vel is not None:
             self._link.destroy_publisher(self._cmd_vel)
             self._cmd_vel = None
@@ -400,6 +401,20 @@ class RemoteRobot(_RobotHandle):
         return self._process._wait_latest(topic, self._latest,
                                           _topic(self.namespace, topic))
 
+    def listen_tf(self) -> TfListener:
+        """
+        Start taking the robot's TF (once); return the listener.
+
+        On the simulator's own TF topics (``tf_layout`` shared) it is the
+        process's listener, which has listened since the start: a listener per
+        robot would add two readers a robot to every ``/tf`` writer of the
+        simulator, and each spawn and delete would make and unmake them.
+        """
+        process = self._process
+        if self.tf_topics == tuple(map(self._node.resolve_topic_name, process._tf_topics())):
+            return process.listen_tf()
+        return super().listen_tf()
+
     def _tf_node(self) -> Node:
         return self._node
 
@@ -416,6 +431,7 @@ class RemoteRobot(_RobotHandle):
         for subscription in self._subscriptions.values():
             self._node.destroy_subscription(subscription)
         self._subscriptions = {}
+        self._stop_tf()
         if self._cmd_vel is not None:
             self._node.destroy_publisher(self._cmd_vel)
             self._cmd_vel = None

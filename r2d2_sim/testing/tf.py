@@ -17,6 +17,7 @@ from typing import Callable, Optional, Tuple
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.subscription import Subscription
 
 from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
 from r2d2_sim.testing.executor import HarnessError
@@ -54,12 +55,13 @@ class TfListener:
         self._received = [0, 0]  # dynamic, static
         self.topics = topics
         group = TakenOnDemand() if on_demand else None
-        self._subscriptions = (
+        self._subscriptions: Tuple[Subscription, ...] = (
             node.create_subscription(TFMessage, topics[0], self._on_tf,
                                      TF_ON_DEMAND_QOS if on_demand else TF_QOS,
                                      callback_group=group),
             node.create_subscription(TFMessage, topics[1], self._on_tf_static, TF_STATIC_QOS,
                                      callback_group=group))
+        self._node = node
         self._on_demand = on_demand
 
     @property
@@ -93,6 +95,12 @@ class TfListener:
         from rclpy.serialization import deserialize_message
         from tf2_msgs.msg import TFMessage
         (self._on_tf_static if static else self._on_tf)(deserialize_message(data, TFMessage))
+
+    def close(self) -> None:
+        """Destroy both subscriptions (a robot's handle closing with its robot); safe twice."""
+        for subscription in self._subscriptions:
+            self._node.destroy_subscription(subscription)
+        self._subscriptions = ()
 
     def take(self) -> None:
         """Take what waits in the middleware into the buffer (only ``on_demand``)."""
@@ -142,6 +150,12 @@ class TransformLookup:
             for data in self._tf_sent_before():
                 self._tf.add_serialized(data)
         return self._tf
+
+    def _stop_tf(self) -> None:
+        """Close the listener, if any: its subscriptions must not outlive the robot's handle."""
+        if self._tf is not None:
+            self._tf.close()
+            self._tf = None
 
     def _listen_tf_from_now(self) -> None:
         """Listen from the harness's start when tf2_msgs is there (a first lookup then works)."""
