@@ -38,7 +38,7 @@ import socket
 import stat
 import tempfile
 import time
-from typing import Dict, Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 __all__ = ['DOMAIN_LOCK_DIR_ENV', 'DOMAIN_IDS_ENV', 'COORDINATOR_PORT_BASE',
            'DomainUnavailable', 'DomainLease', 'domain_ids', 'domain_lock_dir',
@@ -70,7 +70,7 @@ def domain_ids() -> range:
     return range(first, last + 1)
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     # DOMAIN_IDS reads the environment when asked, not once at import.
     if name == 'DOMAIN_IDS':
         return domain_ids()
@@ -127,7 +127,7 @@ class DomainLease:
     def __enter__(self) -> 'DomainLease':
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: Any) -> None:
         self.release()
 
     def __repr__(self) -> str:
@@ -183,7 +183,7 @@ def _open_lock_dir() -> Tuple[Path, int]:
         try:
             what = _kind(os.lstat(path))
         except OSError:
-            what = exc.strerror
+            what = exc.strerror or str(exc)
         raise DomainUnavailable(f'the domain lock directory {path} is {what}, not a directory: '
                                 f'{remedy}') from None
     facts = os.fstat(fd)
