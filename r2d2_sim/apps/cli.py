@@ -11,6 +11,7 @@ import math
 import signal
 import sys
 import threading
+from types import FrameType
 from typing import List, Optional, Sequence
 
 # Exit status after Ctrl-C, as a shell reports a process ended by SIGINT.
@@ -94,7 +95,7 @@ def stop_on_signals(stop: Optional[threading.Event] = None) -> threading.Event:
     """Return an event (``stop``, or a new one) that SIGINT and SIGTERM set from now on."""
     stop = threading.Event() if stop is None else stop
 
-    def handler(signum, frame):
+    def handler(signum: int, frame: Optional[FrameType]) -> None:
         stop.set()
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)

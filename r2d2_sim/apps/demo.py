@@ -21,12 +21,13 @@ import os
 from pathlib import Path
 import signal
 import sys
+import threading
 import time
-from typing import Callable, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence, TYPE_CHECKING
 
 from geometry_msgs.msg import Twist
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 
 from r2d2_sim.apps.cli import (
     domain_id_arg, EXIT_INTERRUPTED, init_ros, non_negative_number, non_ros_args,
@@ -36,6 +37,9 @@ from r2d2_sim.apps.manoeuvre import (  # noqa: F401 (the model's names, importab
     phase_at)
 from r2d2_sim.apps.plots import write_camera_snapshot, write_trajectory_plot
 from r2d2_sim.client import spin_until, UNKNOWN_NODE_NAME
+
+if TYPE_CHECKING:  # the testing API is imported only when a simulator is started
+    from r2d2_sim.testing import SimProcess
 
 # Wall-clock seconds for the simulator to start and for its topics to reach the driver.
 STARTUP_TIMEOUT_S = 10.0
@@ -131,13 +135,15 @@ def _interrupt_on_signals() -> None:
     signal.signal(signal.SIGTERM, signal.default_int_handler)
 
 
-def _start_simulator(real_time_factor: float, domain_id: int, recording: Path):
+def _start_simulator(real_time_factor: float, domain_id: int, recording: Path
+                     ) -> 'SimProcess':
     """Start sim_node in the room, recording (paused for lockstep at 0); DemoError if not."""
     from r2d2_sim.testing import HarnessError, SimProcess
     # Lockstep: paused, one ~/step per period of LOCKSTEP_PUBLISH_RATE_HZ, and
     # commands held until the next (sent on change only, so a few round trips).
-    lockstep = {'start_paused': True, 'publish_rate': LOCKSTEP_PUBLISH_RATE_HZ,
-                'cmd_vel_timeout': 0.0} if real_time_factor == 0.0 else {}
+    lockstep: Dict[str, Any] = {
+        'start_paused': True, 'publish_rate': LOCKSTEP_PUBLISH_RATE_HZ,
+        'cmd_vel_timeout': 0.0} if real_time_factor == 0.0 else {}
     try:
         return SimProcess(node_name=SIMULATOR_NODE_NAME, domain_id=domain_id, lease=False,
                           timeout_s=STARTUP_TIMEOUT_S, world=DEMO_WORLD,
@@ -147,8 +153,9 @@ def _start_simulator(real_time_factor: float, domain_id: int, recording: Path):
         raise DemoError(str(exc)) from None
 
 
-def _spin_or_fail(executor, condition: Callable[[], bool], what: str, simulator, guard,
-                  stop, timeout_s: float) -> None:
+def _spin_or_fail(executor: Executor, condition: Callable[[], bool], what: str,
+                  simulator: 'SimProcess', guard: OtherSimulatorGuard, stop: threading.Event,
+                  timeout_s: float) -> None:
     """Spin until ``condition``; DemoError (another simulator, exit, deadline) otherwise."""
     done = spin_until(executor, condition, timeout_s,
                       abort=lambda: stop.is_set() or simulator.process.exited() or guard.found())
@@ -160,7 +167,8 @@ def _spin_or_fail(executor, condition: Callable[[], bool], what: str, simulator,
         raise DemoError(simulator.process.failure_message(f'no {what} within {timeout_s:g} s'))
 
 
-def _run_real_time(driver: ManoeuvreDriver, executor, simulator, guard, stop) -> None:
+def _run_real_time(driver: ManoeuvreDriver, executor: Executor, simulator: 'SimProcess',
+                   guard: OtherSimulatorGuard, stop: threading.Event) -> None:
     """Let the simulator run on its clock; the driver answers each ground_truth."""
     _spin_or_fail(executor, driver.connected, 'ground_truth/odom or cmd_vel subscriber',
                   simulator, guard, stop, STARTUP_TIMEOUT_S)
@@ -174,7 +182,8 @@ def _run_real_time(driver: ManoeuvreDriver, executor, simulator, guard, stop) ->
                 f'no ground_truth for {STALL_TIMEOUT_S:g} s: the simulator seems stuck'))
 
 
-def _run_lockstep(driver: ManoeuvreDriver, executor, simulator, guard, stop,
+def _run_lockstep(driver: ManoeuvreDriver, executor: Executor, simulator: 'SimProcess',
+                  guard: OtherSimulatorGuard, stop: threading.Event,
                   commands: List[Twist]) -> None:
     """
     Step the paused simulator one control period at a time; answer each state before the next.
@@ -215,7 +224,7 @@ def _write_pictures(driver: ManoeuvreDriver, output_dir: Path) -> None:
         print('head camera snapshot: none received', flush=True)
 
 
-def _run(options, stop) -> int:
+def _run(options: argparse.Namespace, stop: threading.Event) -> int:
     """Drive the manoeuvre against a simulator of the demo's own; return the exit status."""
     lockstep = options.real_time_factor == 0.0
     commands: List[Twist] = []
@@ -248,6 +257,7 @@ def _run(options, stop) -> int:
         print(f'simulated {driver.elapsed_s:.1f} s in {time.monotonic() - started_s:.1f} s '
               'of wall time')
         truth = driver.truth
+        assert truth is not None  # done: the driver answered a state, the last one here
         print(f'final ground truth: x={truth.x_m!r} y={truth.y_m!r} yaw={truth.yaw_rad!r}')
         _write_pictures(driver, options.output_dir)
         # Finished only once the simulator closes it, after the manoeuvre.

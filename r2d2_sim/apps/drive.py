@@ -12,13 +12,15 @@ after 0.5 s without one. The duration runs on the node's clock, so
 
 import argparse
 import sys
-from typing import Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 from geometry_msgs.msg import Twist
 import rclpy
 from rclpy.duration import Duration
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.time import Time
+from rclpy.timer import Timer
 
 from r2d2_sim.apps.cli import (
     EXIT_INTERRUPTED, finite_number, init_ros, non_negative_number, non_ros_args,
@@ -65,16 +67,18 @@ class DriveCommand(Node):
         self._duration = Duration(nanoseconds=round(duration_s * 1e9))
         self._period_s = 1.0 / rate_hz
         self._publisher = self.create_publisher(Twist, topic, 10)
-        self._start = None
-        self._timer = None
+        self._start: Optional[Time] = None  # both from start() on
+        self._timer: Optional[Timer] = None
         self.done = False
 
-    def wait_for_subscriber(self, executor, timeout_s: float, abort=None) -> bool:
+    def wait_for_subscriber(self, executor: Executor, timeout_s: float,
+                            abort: Optional[Callable[[], bool]] = None) -> bool:
         """Spin until something subscribes to the topic; False at the deadline or on abort()."""
         return spin_until(executor, lambda: self._publisher.get_subscription_count() > 0,
                           timeout_s, abort)
 
-    def wait_for_clock(self, executor, timeout_s: float, abort=None) -> bool:
+    def wait_for_clock(self, executor: Executor, timeout_s: float,
+                       abort: Optional[Callable[[], bool]] = None) -> bool:
         """Spin until the clock runs (with use_sim_time it reads 0 until /clock arrives)."""
         return spin_until(executor, lambda: self.get_clock().now().nanoseconds > 0, timeout_s,
                           abort)
@@ -88,6 +92,7 @@ class DriveCommand(Node):
     def _on_timer(self) -> None:
         if self.done:
             return
+        assert self._start is not None  # start() sets it before it makes this timer
         if self.get_clock().now() - self._start >= self._duration:
             self.stop()
         else:

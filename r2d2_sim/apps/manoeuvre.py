@@ -10,10 +10,11 @@ simulated time.
 import math
 import sys
 import time
-from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple
+from typing import Callable, List, NamedTuple, Optional, Sequence, TextIO, Tuple
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from rclpy.context import Context
 from rclpy.node import Node
 from sensor_msgs.msg import Image, LaserScan
 
@@ -91,8 +92,8 @@ class ManoeuvreDriver(Node):
     simulator brakes 0.5 s after the last one; inf: on change only).
     """
 
-    def __init__(self, phases: Sequence[Phase] = MANOEUVRE, out=sys.stdout,
-                 context=None, send: Optional[Callable[[Twist], None]] = None,
+    def __init__(self, phases: Sequence[Phase] = MANOEUVRE, out: TextIO = sys.stdout,
+                 context: Optional[Context] = None, send: Optional[Callable[[Twist], None]] = None,
                  resend_period_s: float = 1.0 / COMMAND_RATE_HZ) -> None:
         super().__init__(NODE_NAME, context=context)
         self.phases = tuple(phases)
@@ -179,34 +180,38 @@ class ManoeuvreDriver(Node):
 
     def _step_if_both(self) -> None:
         """Follow the manoeuvre once per step, when its truth and its odometry are both in."""
-        if (self._recording and not self.done and self.truth_ns == self.odom_ns
-                and self.truth_ns > self.handled_ns):
+        odom, truth = self.odom, self.truth
+        if (odom is not None and truth is not None and self._recording and not self.done
+                and self.truth_ns == self.odom_ns and self.truth_ns > self.handled_ns):
             self.handled_ns = self.truth_ns
-            self._follow_manoeuvre()
+            self._follow_manoeuvre(odom, truth)
 
-    def _follow_manoeuvre(self) -> None:
+    def _follow_manoeuvre(self, odom: Pose2D, truth: Pose2D) -> None:
         if self._start_s is None:
-            self._start_s = self.truth.stamp_s
-        if not self.truth_xy and self.odom is not None:
-            self.odom_xy.append((self.odom.x_m, self.odom.y_m))
-        self.truth_xy.append((self.truth.x_m, self.truth.y_m))
+            self._start_s = truth.stamp_s
+        if not self.truth_xy:
+            self.odom_xy.append((odom.x_m, odom.y_m))
+        self.truth_xy.append((truth.x_m, truth.y_m))
         t_s = self.elapsed_s
-        self._report(t_s)
+        self._report(t_s, odom, truth)
         if t_s >= self.total_s:
             self._send((0.0, 0.0), t_s)
-            self._print(format_progress(t_s, self.odom, self.truth))
+            self._print(format_progress(t_s, odom, truth))
             self.done = True
             return
         phase = phase_at(t_s, self.phases)
+        if phase is None:  # begun for a later time: hold the robot until then
+            self._send((0.0, 0.0), t_s)
+            return
         if phase is not self._phase:
             self._phase = phase
             self._print(f'-- {phase.name}: linear.x {phase.linear_m_s:+.2f} m/s, angular.z '
                         f'{phase.angular_rad_s:+.2f} rad/s for {phase.duration_s:.2f} s')
         self._send((phase.linear_m_s, phase.angular_rad_s), t_s)
 
-    def _report(self, t_s: float) -> None:
+    def _report(self, t_s: float, odom: Pose2D, truth: Pose2D) -> None:
         if t_s >= self._next_report_s:
-            self._print(format_progress(t_s, self.odom, self.truth))
+            self._print(format_progress(t_s, odom, truth))
             self._next_report_s = math.floor(t_s) + 1.0
 
     def _send(self, command: Tuple[float, float], t_s: float) -> None:

@@ -7,17 +7,22 @@ only when a picture is drawn.
 """
 
 import math
+import os
 from pathlib import Path
-from typing import List, Sequence, Tuple
+from typing import Any, List, Sequence, Tuple, TYPE_CHECKING, Union
 
 from r2d2_sim.client import Pose2D
+
+if TYPE_CHECKING:  # matplotlib is imported only when a picture is drawn
+    from matplotlib.figure import Figure
 
 __all__ = ['scan_points_xy', 'write_trajectory_plot', 'write_camera_snapshot']
 
 Point = Tuple[float, float]
 
 
-def scan_points_xy(scan, pose: Pose2D, laser_offset_xy: Point = (0.0, 0.0)) -> List[Point]:
+def scan_points_xy(scan: Any, pose: Pose2D, laser_offset_xy: Point = (0.0, 0.0)
+                   ) -> List[Point]:
     """
     Return a LaserScan's finite returns as world x-y points, seen from ``pose`` (the base's).
 
@@ -35,7 +40,7 @@ def scan_points_xy(scan, pose: Pose2D, laser_offset_xy: Point = (0.0, 0.0)) -> L
     return points
 
 
-def _figure(**kwargs):
+def _figure(**kwargs: Any) -> 'Figure':
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     figure = Figure(**kwargs)
@@ -43,8 +48,8 @@ def _figure(**kwargs):
     return figure
 
 
-def write_trajectory_plot(path, odom_xy: Sequence[Point], truth_xy: Sequence[Point],
-                          scan_xy: Sequence[Point] = ()) -> Path:
+def write_trajectory_plot(path: Union[str, os.PathLike[str]], odom_xy: Sequence[Point],
+                          truth_xy: Sequence[Point], scan_xy: Sequence[Point] = ()) -> Path:
     """
     Plot odometry against ground truth in the x-y plane as a PNG; return its path.
 
@@ -78,7 +83,7 @@ def write_trajectory_plot(path, odom_xy: Sequence[Point], truth_xy: Sequence[Poi
     return path
 
 
-def write_camera_snapshot(path, image) -> Path:
+def write_camera_snapshot(path: Union[str, os.PathLike[str]], image: Any) -> Path:
     """Write an rgb8 ``sensor_msgs/Image`` as a PNG of its own size and return its path."""
     from matplotlib.image import imsave  # draws on its own Agg Figure, no pyplot
     import numpy

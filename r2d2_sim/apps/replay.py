@@ -21,13 +21,21 @@ skipped with one line. Needs the ``mcap`` package's dependencies
 """
 
 import argparse
+import enum
 import sys
+import threading
 import time
-from typing import Dict, NamedTuple, Optional, Sequence
+from typing import Any, Dict, NamedTuple, Optional, Sequence, Type, TYPE_CHECKING
 
 from r2d2_sim.apps.cli import non_ros_args, positive_number, raise_if_stopped, stop_on_signals
 from r2d2_sim.recording.message_definitions import UnknownMessageType
-from r2d2_sim.recording.reader import message_class, RecordingError, RecordingFile
+from r2d2_sim.recording.reader import (
+    message_class, RecordedChannel, RecordingError, RecordingFile)
+
+if TYPE_CHECKING:  # rclpy is imported once the file has been read
+    from rclpy.node import Node
+    from rclpy.publisher import Publisher
+    from rclpy.qos import QoSProfile
 
 NODE_NAME = 'replay'
 # Exit status after Ctrl-C or SIGTERM, as a shell reports a process ended by SIGINT.
@@ -55,7 +63,7 @@ class Topic(NamedTuple):
     name: str
     type_name: str
     message_class: type
-    qos: object
+    qos: 'QoSProfile'
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -75,7 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def qos_from_metadata(text: Optional[str]):
+def qos_from_metadata(text: Optional[str]) -> 'QoSProfile':
     """
     Return the rclpy QoSProfile for a topic from its ``offered_qos_profiles`` YAML.
 
@@ -104,19 +112,19 @@ def qos_from_metadata(text: Optional[str]):
         raise ValueError('offered_qos_profiles is not a list of QoS profiles')
     profile = profiles[0]
 
-    def policy(enum, key):
+    def policy(policies: Type[enum.Enum], key: str) -> Optional[enum.Enum]:
         value = profile.get(key)
-        if isinstance(value, str) and value.upper() in enum.__members__ and \
+        if isinstance(value, str) and value.upper() in policies.__members__ and \
                 value.upper() not in ('UNKNOWN', 'SYSTEM_DEFAULT'):
-            return enum[value.upper()]
+            return policies[value.upper()]
         return None
 
-    def integer(value, key):
+    def integer(value: Any, key: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f'{key} {str(value)[:40]!r} is not an integer')
         return value
 
-    def duration(key):
+    def duration(key: str) -> Optional[Duration]:
         value = profile.get(key) or {}
         if not isinstance(value, dict):
             raise ValueError(f'{key} is not a duration')
@@ -136,16 +144,16 @@ def qos_from_metadata(text: Optional[str]):
             raise ValueError(f'depth {str(depth)[:40]} is out of range 0..{MAX_DEPTH}')
         if depth > 0:
             qos.depth = depth
-    for attribute, enum in (('reliability', ReliabilityPolicy),
-                            ('durability', DurabilityPolicy),
-                            ('liveliness', LivelinessPolicy)):
-        value = policy(enum, attribute)
-        if value is not None:
-            setattr(qos, attribute, value)
+    for attribute, policies in (('reliability', ReliabilityPolicy),
+                                ('durability', DurabilityPolicy),
+                                ('liveliness', LivelinessPolicy)):
+        chosen = policy(policies, attribute)
+        if chosen is not None:
+            setattr(qos, attribute, chosen)
     for attribute in ('deadline', 'lifespan', 'liveliness_lease_duration'):
-        value = duration(attribute)
-        if value is not None:
-            setattr(qos, attribute, value)
+        span = duration(attribute)
+        if span is not None:
+            setattr(qos, attribute, span)
     qos.avoid_ros_namespace_conventions = bool(profile.get('avoid_ros_namespace_conventions'))
     return qos
 
@@ -174,7 +182,7 @@ class Recording:
         if self.message_count == 0:
             raise RecordingError(nothing_playable(self))
 
-    def _add(self, channel) -> None:
+    def _add(self, channel: RecordedChannel) -> None:
         if channel.message_encoding != 'cdr':
             self.skipped[channel.topic] = \
                 f'encoding {channel.message_encoding[:40]!r}, not cdr'
@@ -200,7 +208,8 @@ def _one_line(exc: BaseException) -> str:
     return f'{type(exc).__name__}: {text}' if text else type(exc).__name__
 
 
-def play(recording: Recording, publishers: Dict[int, object], rate: float, stop) -> int:
+def play(recording: Recording, publishers: Dict[int, 'Publisher'], rate: float,
+         stop: threading.Event) -> int:
     """
     Publish one pass of the recording, paced by log time over ``rate``; return the count.
 
@@ -231,7 +240,7 @@ def nothing_playable(recording: Recording) -> str:
     return f'{recording.path}: nothing to replay: no topic can be played ({"; ".join(reasons)})'
 
 
-def create_publishers(node, recording: Recording) -> Dict[int, object]:
+def create_publishers(node: 'Node', recording: Recording) -> Dict[int, 'Publisher']:
     """
     Return a publisher per replayable channel, by channel id.
 
@@ -239,7 +248,7 @@ def create_publishers(node, recording: Recording) -> Dict[int, object]:
     with another topic's of the same name) is moved to ``recording.skipped``.
     """
     from rclpy.exceptions import NameValidationException
-    publishers = {}
+    publishers: Dict[int, Publisher] = {}
     for channel_id, topic in recording.topics.items():
         try:
             publishers[channel_id] = node.create_publisher(

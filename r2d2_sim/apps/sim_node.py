@@ -13,16 +13,22 @@ import os
 import signal
 import sys
 import threading
-from typing import Callable, Optional, Sequence
+from types import FrameType
+from typing import Callable, List, Optional, Sequence, TYPE_CHECKING
 
 from r2d2_sim.apps.cli import stop_on_signals
 from r2d2_sim.memory import keep_large_blocks_mapped
+
+if TYPE_CHECKING:  # only the standard library is imported here (see the module)
+    from rclpy.executors import Executor
+    from r2d2_sim.model.timing import DeadlinePacer
+    from r2d2_sim.ros.node import SimNode
 
 # The executor thread checks for a stop request at least this often (s).
 SPIN_POLL_S = 0.1
 
 
-def run_paced(node, stop: threading.Event, pacer=None,
+def run_paced(node: 'SimNode', stop: threading.Event, pacer: Optional['DeadlinePacer'] = None,
               advance: Optional[Callable[[Optional[int]], bool]] = None) -> None:
     """
     Step a :class:`~r2d2_sim.ros.node.SimNode` against the wall clock until ``stop`` is set.
@@ -143,7 +149,7 @@ def _import_stopping_at_once() -> threading.Event:
     """
     stop = threading.Event()
 
-    def exit_at_once(signum, frame):
+    def exit_at_once(signum: int, frame: Optional[FrameType]) -> None:
         stop.set()  # should anything on the way out swallow the SystemExit, main stops anyway
         raise SystemExit(0)
     signal.signal(signal.SIGINT, exit_at_once)
@@ -167,8 +173,8 @@ def _run_node(stop: threading.Event) -> None:
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
     from r2d2_sim.ros.node import SimNode
     node = None
-    executors = []
-    spinners = []
+    executors: List[Executor] = []
+    spinners: List[threading.Thread] = []
     try:
         node = SimNode(on_quit=stop.set)
         executors.append(SingleThreadedExecutor())
@@ -211,7 +217,7 @@ def _run_node(stop: threading.Event) -> None:
             node.destroy_node()
 
 
-def _init_ros(argv: Sequence[str]) -> Optional[int]:
+def _init_ros(argv: List[str]) -> Optional[int]:
     """Initialise rclpy without its signal handlers; an exit status (2) on a one-line error."""
     import rclpy
     from rclpy.signals import SignalHandlerOptions
@@ -234,7 +240,7 @@ def _init_ros(argv: Sequence[str]) -> Optional[int]:
     return None
 
 
-def _spin(executor, stop: threading.Event) -> None:
+def _spin(executor: 'Executor', stop: threading.Event) -> None:
     """Serve callbacks until ``stop`` is set (checked at least every SPIN_POLL_S)."""
     from rclpy.executors import ExternalShutdownException
     try:

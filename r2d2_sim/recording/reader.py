@@ -32,7 +32,7 @@ import importlib
 import os
 import stat
 import struct
-from typing import Dict, Iterable, Iterator, List, NamedTuple, Optional, Tuple
+from typing import Dict, Iterable, Iterator, List, NamedTuple, Optional, Tuple, Union
 
 from r2d2_sim.recording.message_definitions import known_message_type, UnknownMessageType
 
@@ -204,7 +204,8 @@ class RecordingFile:
     default bound). Raises :class:`RecordingError`.
     """
 
-    def __init__(self, path: os.PathLike, max_bytes: Optional[int] = None) -> None:
+    def __init__(self, path: Union[str, os.PathLike[str]],
+                 max_bytes: Optional[int] = None) -> None:
         self.path = os.fspath(path)
         try:
             if not stat.S_ISREG(os.stat(self.path).st_mode):  # a FIFO would block open()

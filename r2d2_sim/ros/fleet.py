@@ -23,7 +23,7 @@ from r2d2_sim.sim.robots.robot import Robot
 
 __all__ = ['Fleet']
 
-NodeWatcher = Tuple[Callable[[Node], None], Callable[[Node], None]]
+NodeWatcher = Tuple[Callable[[Node], object], Callable[[Node], object]]
 
 
 class Fleet:
@@ -120,7 +120,7 @@ class Fleet:
                 removed(interfaces.node)
         interfaces.close()
 
-    def watch(self, added: Callable[[Node], None], removed: Callable[[Node], None]) -> None:
+    def watch(self, added: Callable[[Node], object], removed: Callable[[Node], object]) -> None:
         """Call ``added`` for each robot's own node, now and later; ``removed`` for leavers."""
         self._watchers.append((added, removed))
         for interfaces in self._interfaces:

@@ -108,8 +108,8 @@ class SimNode(MirroringNode):
         """Return every robot's interfaces, in the simulation's order (iterable, indexable)."""
         return self.fleet
 
-    def watch_robot_nodes(self, added: Callable[[Node], None],
-                          removed: Callable[[Node], None]) -> None:
+    def watch_robot_nodes(self, added: Callable[[Node], object],
+                          removed: Callable[[Node], object]) -> None:
         """
         Follow the robots' own nodes: ``added`` for each, now and later; ``removed`` for leavers.
 

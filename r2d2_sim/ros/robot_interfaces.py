@@ -109,7 +109,8 @@ class RobotInterfaces:
         self._joint_info = node.create_service(Trigger, '~/get_joint_info',
                                                self._on_get_joint_info)
         # Where its transforms go (resolved): /tf and /tf_static, or its namespace's.
-        self.tf_topics = tuple(node.resolve_topic_name(t) for t in tf_topics(robot.config))
+        tf, tf_static = tf_topics(robot.config)
+        self.tf_topics = (node.resolve_topic_name(tf), node.resolve_topic_name(tf_static))
         self._made = [] if own_node else [(destroy, entity) for destroy, entity in _entities(node)
                                           if id(entity) not in before]
 

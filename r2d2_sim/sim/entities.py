@@ -19,9 +19,7 @@ from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence
 
 from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.model.health import MAX_DISTANCE_M
-from r2d2_sim.model.transforms import (
-    BaseState, compose, quaternion_multiply, Quaternion as Quat, rotate, Transform,
-    Vector3 as Vec3)
+from r2d2_sim.model.transforms import BaseState, compose, quaternion_multiply, rotate, Transform
 from r2d2_sim.sim.names import MAX_NAME_LENGTH, NAME
 from r2d2_sim.sim.bounds import body_box, body_meets, check_region, Region
 from r2d2_sim.sim.sdf.loading import SdfSettings
@@ -86,8 +84,9 @@ class SpawnRequest(NamedTuple):
     resource_string: str = ''
     namespace: str = ''
     frame_id: str = ''
-    position: Vec3 = (0.0, 0.0, 0.0)
-    orientation: Quat = (0.0, 0.0, 0.0, 1.0)
+    # Any sequences, as a caller in Python gives them: check_pose takes 3 and 4 numbers or refuses.
+    position: Sequence[float] = (0.0, 0.0, 0.0)
+    orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0)
 
 
 class Spawned(NamedTuple):

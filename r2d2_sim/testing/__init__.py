@@ -29,6 +29,8 @@ Foxglove WebSocket client of the live view). Every public name is importable
 from here.
 """
 
+from typing import Any
+
 from r2d2_sim import deprecations
 from r2d2_sim.client import (
     Pose2D, pose_from_odometry, ros_child_env, spin_until, stamp_ns, wait_for)
@@ -67,7 +69,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     # DOMAIN_IDS follows R2D2_SIM_DOMAIN_IDS as it is when asked, not at import.
     if name == 'DOMAIN_IDS':
         return domains.domain_ids()

@@ -38,7 +38,7 @@ import socket
 import stat
 import tempfile
 import time
-from typing import Dict, Optional, Tuple
+from typing import Any, Dict, Optional, Tuple
 
 from r2d2_sim.files import describe, open_private_directory, UnsafeFile
 
@@ -72,7 +72,7 @@ def domain_ids() -> range:
     return range(first, last + 1)
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     # DOMAIN_IDS reads the environment when asked, not once at import.
     if name == 'DOMAIN_IDS':
         return domain_ids()
@@ -129,7 +129,7 @@ class DomainLease:
     def __enter__(self) -> 'DomainLease':
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: Any) -> None:
         self.release()
 
     def __repr__(self) -> str:

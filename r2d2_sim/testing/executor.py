@@ -12,7 +12,8 @@ from contextlib import contextmanager
 import os
 import threading
 import time
-from typing import Any, Callable, Iterator, List, Mapping, Optional
+from types import TracebackType
+from typing import Any, Callable, Iterator, List, Mapping, Optional, Type
 
 import rclpy
 from rclpy.context import Context
@@ -23,7 +24,7 @@ from rclpy.parameter import Parameter
 
 from r2d2_sim.client import numbers_alike, wait_for
 from r2d2_sim.testing.domains import lease_domain
-from r2d2_sim.testing.lockstep import LockstepExecutor
+from r2d2_sim.testing.lockstep import Handler, LockstepExecutor
 
 __all__ = ['HarnessError', 'CallbackError', 'parameter_overrides', 'RosHarness']
 
@@ -93,7 +94,7 @@ class RosHarness:
                                         name=f'ros-harness-{self.domain_id}')
         self._thread.start()
 
-    def create_node(self, name: str, *, use_sim_time: bool = True, **node_kwargs) -> Node:
+    def create_node(self, name: str, *, use_sim_time: bool = True, **node_kwargs: Any) -> Node:
         """
         Create an rclpy Node in this context, spun by the harness's executor.
 
@@ -190,7 +191,7 @@ class RosHarness:
             worked = True
             self._run(handler)
 
-    def _run(self, handler) -> None:
+    def _run(self, handler: Handler) -> None:
         handler()
         error = handler.exception()
         if error is not None:
@@ -201,7 +202,7 @@ class RosHarness:
     def _wait(self, condition: Callable[[], Any], what: str) -> Any:
         """Wait for ``condition`` (by deadline) while callbacks run; HarnessError with ``what``."""
         if self._owned:
-            def check():
+            def check() -> Any:
                 self._run_until_idle(self.timeout_s)
                 return condition()
         else:
@@ -280,7 +281,8 @@ class RosHarness:
     def __enter__(self) -> 'RosHarness':
         return self
 
-    def __exit__(self, exc_type, exc_value, traceback) -> None:
+    def __exit__(self, exc_type: Optional[Type[BaseException]],
+                 exc_value: Optional[BaseException], traceback: Optional[TracebackType]) -> None:
         try:
             self.close()
         except CallbackError:

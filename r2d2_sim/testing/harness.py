@@ -8,10 +8,11 @@ they run in lockstep with the simulator, so a run repeats bit for bit.
 
 import json
 import math
-from typing import Any, Callable, Dict, List, Optional, Tuple, TYPE_CHECKING
+from typing import Any, Callable, Dict, List, Optional, Set, Tuple, Type, TYPE_CHECKING
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
+from rclpy.subscription import Subscription
 from std_srvs.srv import Trigger
 
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
@@ -23,6 +24,7 @@ from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import CoreWorld, WorldVerbs
 
 if TYPE_CHECKING:  # PyBullet is imported only when a simulator is made
+    from r2d2_sim.ros.node import SimNode
     from r2d2_sim.sim.oracles import RunWatch
 
 __all__ = ['SimHarness', 'LINK_NODE_NAME']
@@ -66,8 +68,9 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                  **parameters: Any) -> None:
         super().__init__(domain_id=domain_id, timeout_s=timeout_s)
         self.namespace = namespace
-        self.sim = None  # the SimNode
-        self._link: Optional[Node] = None
+        # The simulator and the harness's own node: both made below, or the constructor raises.
+        self.sim: SimNode
+        self._link: Node
         self._lockstep = False
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
         parameters = flatten_robots(parameters)
@@ -76,10 +79,10 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
             # Without parameter services, rosout, type descriptions or QoS
             # event handlers: fewer entities for the executor to gather on every
             # wait of a lockstep run.
-            quiet = dict(context=self.context, namespace=namespace or None,
-                         start_parameter_services=False, enable_rosout=False,
-                         parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE])
-            link = self._link = QuietNode(LINK_NODE_NAME, **quiet)
+            link = self._link = QuietNode(
+                LINK_NODE_NAME, context=self.context, namespace=namespace or None,
+                start_parameter_services=False, enable_rosout=False,
+                parameter_overrides=[NO_TYPE_DESCRIPTION_SERVICE])
             RosHarness.add_node(self, link, use_sim_time=False)
             # The robots' state readers take the latest message when asked (a
             # callback group no executor runs), so a lockstep period spends
@@ -157,7 +160,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
     def _after_delete(self, name: str) -> None:
         self._drop_departed()
 
-    def create_node(self, name: str, *, use_sim_time: bool = True, **node_kwargs) -> Node:
+    def create_node(self, name: str, *, use_sim_time: bool = True, **node_kwargs: Any) -> Node:
         """Create a node of yours (in the simulator's namespace unless given one); see add_node."""
         node_kwargs.setdefault('namespace', self.namespace or None)
         return super().create_node(name, use_sim_time=use_sim_time, **node_kwargs)
@@ -175,12 +178,12 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         """
         self._lockstep = True
         pending = self._latched_subscriptions(node)
-        delivered: set = set()
+        delivered: Set[Subscription] = set()
         originals = [(sub, sub.callback) for sub in pending]
         # Noted before the node is spun: the spinning thread may take a latched
         # message as soon as the node is in the executor.
         for sub, callback in originals:
-            def noted(msg, sub=sub, callback=callback):
+            def noted(msg: Any, sub: Subscription = sub, callback: Callable = callback) -> Any:
                 delivered.add(sub)
                 return callback(msg)
             sub.callback = noted
@@ -202,7 +205,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                 sub.callback = callback
         return node
 
-    def _latched_subscriptions(self, node: Node) -> list:
+    def _latched_subscriptions(self, node: Node) -> List[Subscription]:
         """Return the node's transient-local subscriptions to the simulator's latched topics."""
         publishers = list(self.sim.publishers) + [
             p for robot in self.sim.robots if robot.own_node for p in robot.publishers]
@@ -296,7 +299,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                      if interfaces.outputs.tf is not None and interfaces.outputs.tf.latest
                      and interfaces.tf_topics[0] == self._tf_topics()[0])
 
-    def _tf_wait(self, condition) -> bool:
+    def _tf_wait(self, condition: Callable[[], bool]) -> bool:
         try:
             self._wait(condition, 'no transform')
         except HarnessError:
@@ -342,7 +345,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         self._robots = {name: self._robots[name] for name in names}
         self.advance()
 
-    def watch(self, entity: Optional[str] = None, **options) -> 'RunWatch':
+    def watch(self, entity: Optional[str] = None, **options: Any) -> 'RunWatch':
         """
         Watch a robot's run from now on: contacts, clearance, regions reached, tipping.
 
@@ -366,7 +369,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         for handle in self._robots.values():
             handle.forget()
 
-    def call_service(self, srv_type, name: str, request):
+    def call_service(self, srv_type: Type, name: str, request: Any) -> Any:
         """Call a service (of the simulator or yours) from the harness's node; return the reply."""
         client = self._link.create_client(srv_type, name)
         try:

@@ -22,7 +22,7 @@ from contextlib import ExitStack
 import json
 import struct
 import time
-from typing import Callable, Dict, Iterable, List, NamedTuple, Optional, Union
+from typing import Any, Callable, Dict, Iterable, List, NamedTuple, Optional, Union
 
 __all__ = ['LiveViewClient', 'LiveMessage', 'LiveViewError', 'SUBPROTOCOL']
 
@@ -62,6 +62,7 @@ class LiveViewClient:
                  subprotocol: str = SUBPROTOCOL) -> None:
         try:
             from websockets.sync.client import connect
+            from websockets.typing import Subprotocol
         except ImportError:
             raise LiveViewError('LiveViewClient needs the websockets package '
                                 '(pip install websockets)') from None
@@ -77,7 +78,8 @@ class LiveViewClient:
         self._stack = ExitStack()  # websockets wants its connection used as a context
         try:
             self._ws = self._stack.enter_context(connect(
-                self.url, subprotocols=[subprotocol], max_size=None, open_timeout=timeout_s))
+                self.url, subprotocols=[Subprotocol(subprotocol)], max_size=None,
+                open_timeout=timeout_s))
         except Exception as exc:  # websockets and the OS raise assorted types
             raise LiveViewError(f'cannot connect to the live view at {self.url}: {exc}') from None
 
@@ -145,7 +147,7 @@ class LiveViewClient:
                                 f'from the live view at {self.url} before the deadline')
         return list(self.messages[topic])
 
-    def _take(self, frame) -> None:
+    def _take(self, frame: Union[str, bytes]) -> None:
         if isinstance(frame, str):
             message = json.loads(frame)
             op = message.get('op')
@@ -156,9 +158,9 @@ class LiveViewClient:
                     self.channels[channel['topic']] = channel
             elif op == 'unadvertise':
                 gone = set(message['channelIds'])
-                for topic in [t for t, c in self.channels.items() if c['id'] in gone]:
-                    del self.channels[topic]
-                    self._subscription_of_topic.pop(topic, None)
+                for name in [t for t, c in self.channels.items() if c['id'] in gone]:
+                    del self.channels[name]
+                    self._subscription_of_topic.pop(name, None)
             return
         if frame[0] == _MESSAGE_DATA:  # op, subscription id, log time, payload
             subscription, log_time = struct.unpack_from('<IQ', frame, 1)
@@ -175,7 +177,7 @@ class LiveViewClient:
     def __enter__(self) -> 'LiveViewClient':
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: Any) -> None:
         self.close()
 
     def __repr__(self) -> str:

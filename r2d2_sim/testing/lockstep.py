@@ -32,19 +32,39 @@ code, as do waits with a timeout and any poll while rclpy tasks are pending.
 """
 
 import inspect
-from typing import Callable, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, NamedTuple, Optional, Protocol, Set, Tuple, Union
 
 from rclpy.action import ActionServer
 from rclpy.callback_groups import CallbackGroup
+from rclpy.client import Client
+from rclpy.context import Context
 from rclpy.event_handler import EventHandler
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import ExternalShutdownException, ShutdownException, \
-    SingleThreadedExecutor, TimeoutException
+    SingleThreadedExecutor, TimeoutException, TimeoutObject
+from rclpy.guard_condition import GuardCondition
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.service import Service
 from rclpy.subscription import Subscription
-from rclpy.waitable import NumberOfEntities
+from rclpy.timer import Timer
+from rclpy.waitable import NumberOfEntities, Waitable
 
-__all__ = ['LockstepExecutor', 'TakenOnDemand']
+__all__ = ['LockstepExecutor', 'TakenOnDemand', 'Handler']
+
+
+class Handler(Protocol):
+    """What a poll gives to run: rclpy's Task, or a ready subscription's callback run at once."""
+
+    def __call__(self) -> None:
+        """Run the callback (a Task: one step of its coroutine)."""
+
+    def exception(self) -> Optional[BaseException]:
+        """Return what the callback raised (None if nothing)."""
+
+
+# One piece of ready work, as rclpy's executor yields it: (handler, entity, its node).
+Work = Tuple[Handler, Any, Node]
 
 
 class TakenOnDemand(CallbackGroup):
@@ -56,15 +76,15 @@ class TakenOnDemand(CallbackGroup):
     its own node, and cost a lockstep period nothing.
     """
 
-    def can_execute(self, entity) -> bool:
+    def can_execute(self, entity: Any) -> bool:
         """Return False: nothing here runs from an executor."""
         return False
 
-    def beginning_execution(self, entity) -> bool:
+    def beginning_execution(self, entity: Any) -> bool:
         """Return False: nothing here runs from an executor."""
         return False
 
-    def ending_execution(self, entity) -> None:
+    def ending_execution(self, entity: Any) -> None:
         """Do nothing: nothing here ran."""
 
 
@@ -79,7 +99,8 @@ class _DirectCallback:
 
     __slots__ = ('_subscription', '_taken', '_exception')
 
-    def __init__(self, subscription: Subscription, taken=None) -> None:
+    def __init__(self, subscription: Subscription, taken: Optional[Tuple[Any, ...]] = None
+                 ) -> None:
         self._subscription = subscription
         self._taken = taken
         self._exception: Optional[BaseException] = None
@@ -121,6 +142,20 @@ class _DirectCallback:
         return True
 
 
+class _NodeEntities(NamedTuple):
+    """One node's entities a poll looks at, in rclpy's order."""
+
+    timers: List[Timer]
+    subscriptions: List[Subscription]
+    guards: List[GuardCondition]
+    clients: List[Client]
+    services: List[Service]
+
+
+# The kinds of _NodeEntities, as a wait set names its ready entities.
+KINDS = ('timer', 'subscription', 'guard_condition', 'client', 'service')
+
+
 class _Gathered:
     """The entities of a set of nodes, their handles, and one wait set sized for them."""
 
@@ -131,15 +166,18 @@ class _Gathered:
         # between advances, by rclpy's own waits). The simulator's and the
         # standard's 21 services would otherwise be most of each poll's wait.
         called = {c.handle.service_name for n in self.nodes for c in n.clients}
-        # Per node, in rclpy's order: timers, subscriptions, guards, clients, services.
-        self.by_node = [(n, (list(n.timers),
-                             [s for s in n.subscriptions
-                              if not isinstance(s.callback_group, TakenOnDemand)],
-                             list(n.guards), list(n.clients),
-                             [s for s in n.services if s.handle.name in called]))
-                        for n in self.nodes]
-        self.timers, self.subscriptions, self.guards, self.clients, self.services = (
-            [entity for _, kinds in self.by_node for entity in kinds[kind]] for kind in range(5))
+        self.by_node = [(n, _NodeEntities(
+            list(n.timers),
+            [s for s in n.subscriptions if not isinstance(s.callback_group, TakenOnDemand)],
+            list(n.guards), list(n.clients),
+            [s for s in n.services if s.handle.name in called]))
+            for n in self.nodes]
+        entities = [e for _, e in self.by_node]
+        self.timers = [t for e in entities for t in e.timers]
+        self.subscriptions = [s for e in entities for s in e.subscriptions]
+        self.guards = [g for e in entities for g in e.guards]
+        self.clients = [c for e in entities for c in e.clients]
+        self.services = [s for e in entities for s in e.services]
         self.waitables = [w for n in self.nodes for w in n.waitables]
         self.owner = {id(w): n for n in self.nodes for w in n.waitables}
         self.direct = {id(s) for s in self.subscriptions
@@ -157,7 +195,7 @@ class _Gathered:
                         + self.timers + guards]
         self.wait_set = self._wait_set(executor, guards)
 
-    def _wait_set(self, executor: 'LockstepExecutor', guards: list):
+    def _wait_set(self, executor: 'LockstepExecutor', guards: List[GuardCondition]) -> Any:
         """Make the wait set for these entities and keep how to fill it (``adders``)."""
         count = NumberOfEntities(len(self.subscriptions), len(guards), len(self.timers),
                                  len(self.clients), len(self.services))
@@ -183,7 +221,7 @@ class LockstepExecutor(SingleThreadedExecutor):
     waits and anything unusual take rclpy's path; see the module.
     """
 
-    def __init__(self, *, context=None) -> None:
+    def __init__(self, *, context: Optional[Context] = None) -> None:
         super().__init__(context=context)
         self._gathered: Optional[_Gathered] = None
 
@@ -192,17 +230,20 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._gathered = None
         super().wake()
 
-    def add_node(self, node) -> bool:
+    def add_node(self, node: Node) -> bool:
         """Add a node, as rclpy does."""
         self._gathered = None
         return super().add_node(node)
 
-    def remove_node(self, node) -> None:
+    def remove_node(self, node: Node) -> None:
         """Remove a node, as rclpy does."""
         self._gathered = None
         super().remove_node(node)
 
-    def _wait_for_ready_callbacks(self, timeout_sec=None, nodes=None,
+    # No return type: rclpy's says Tasks, and a poll yields _DirectCallbacks among them (they
+    # run as a Task does: called, then exception(), result(), done()).
+    def _wait_for_ready_callbacks(self, timeout_sec: Optional[Union[float, TimeoutObject]] = None,
+                                  nodes: Optional[List[Node]] = None,
                                   condition: Callable[[], bool] = lambda: False):
         if self._tasks:  # rclpy keeps finished Tasks until its next wait: drop them here
             with self._tasks_lock:
@@ -221,7 +262,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         yield from ready
         raise TimeoutException()
 
-    def _poll(self):
+    def _poll(self) -> Optional[List[Work]]:
         """Poll once; return the ready work in rclpy's order (None: gather anew first)."""
         gathered = self._gathered
         if gathered is None:
@@ -233,7 +274,8 @@ class LockstepExecutor(SingleThreadedExecutor):
             return None
         return self._ready_work(gathered, *ready)
 
-    def _wait_once(self, gathered: _Gathered):
+    def _wait_once(self, gathered: _Gathered
+                   ) -> Optional[Tuple[List[Waitable], Dict[str, Set[Any]]]]:
         """Wait on the kept wait set with timeout 0; return what is ready (None: stale handle)."""
         for guard in gathered.guards:  # triggered, not handled yet: keep it so (as rclpy)
             if guard._executor_triggered:
@@ -267,9 +309,10 @@ class LockstepExecutor(SingleThreadedExecutor):
             for item in reversed(entered):
                 item.__exit__(None, None, None)
 
-    def _ready_work(self, gathered: _Gathered, waitables: list, ready: dict) -> list:
+    def _ready_work(self, gathered: _Gathered, waitables: List[Waitable],
+                    ready: Dict[str, Set[Any]]) -> List[Work]:
         """Return handlers for what is ready: waitables first, then per node in rclpy's order."""
-        work = []
+        work: List[Work] = []
         for waitable in waitables:
             if waitable.callback_group.can_execute(waitable):
                 node = gathered.owner[id(waitable)]
@@ -280,25 +323,24 @@ class LockstepExecutor(SingleThreadedExecutor):
             return work  # the usual idle poll: nothing but the executor's own guards
         takes = (self._take_timer, self._take_subscription, self._take_guard_condition,
                  self._take_client, self._take_service)
-        kinds = ('timer', 'subscription', 'guard_condition', 'client', 'service')
         for node, entities in gathered.by_node:
-            for kind, take, of_kind in zip(kinds, takes, entities):
-                pointers = ready[kind]
-                for entity in of_kind:
-                    if kind == 'guard_condition':
+            for index, kind in enumerate(KINDS):
+                pointers, take = ready[kind], takes[index]
+                for entity in entities[index]:
+                    if isinstance(entity, GuardCondition):
                         if not entity._executor_triggered:
                             continue
                     elif entity.handle.pointer not in pointers:
                         continue
-                    elif kind == 'timer' and not entity.handle.is_timer_ready():
+                    elif isinstance(entity, Timer) and not entity.handle.is_timer_ready():
                         continue
-                    if kind == 'subscription' and id(entity) in gathered.direct:
+                    if isinstance(entity, Subscription) and id(entity) in gathered.direct:
                         work.append((_DirectCallback(entity), entity, node))
                     elif entity.callback_group.can_execute(entity):
                         work.append((self._make_handler(entity, node, take), entity, node))
         return work
 
-    def _sweep(self, gathered: _Gathered):
+    def _sweep(self, gathered: _Gathered) -> Optional[List[Work]]:
         """
         Take what is ready without a wait set: each due timer, each subscription's next message.
 
@@ -311,7 +353,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         """
         if not self._context.ok():
             raise ExternalShutdownException()
-        work = []
+        work: List[Work] = []
         try:
             for node, (timers, subscriptions, _, _, _) in gathered.by_node:
                 for timer in timers:

@@ -76,7 +76,7 @@ class ChildProcess:
         self.pass_fds = tuple(pass_fds)
         self.process: Optional[subprocess.Popen] = None
         self.result: Optional[ProcessResult] = None
-        self._files: Tuple[IO[str], Optional[IO[str]]] = (None, None)
+        self._files: Tuple[Optional[IO[str]], Optional[IO[str]]] = (None, None)  # from start()
 
     def start(self) -> 'ChildProcess':
         """Start the process; return self."""
@@ -141,8 +141,9 @@ class ChildProcess:
 
     def failure_message(self, what: str, lines: int = 10) -> str:
         """Return a readable error: ``what``, the exit status if any, and the output tail."""
-        if self.exited():
-            what += f' (it exited with status {self.process.returncode})'
+        code = self.returncode
+        if code is not None:
+            what += f' (it exited with status {code})'
         tail = self.log_tail(lines)
         if tail:
             name = self.command[2] if self.command[1:2] == ['-m'] else self.command[0]
@@ -166,7 +167,7 @@ class ChildProcess:
     def __enter__(self) -> 'ChildProcess':
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: Any) -> None:
         self.stop()
 
 

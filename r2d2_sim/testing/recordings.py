@@ -1,10 +1,11 @@
 """Reading a recording into typed messages per topic: :func:`read_recording`."""
 
 import os
-from typing import Any, Dict, Iterable, List, NamedTuple, Optional
+from typing import Any, Dict, Iterable, List, NamedTuple, Optional, Tuple, Union
 
 from r2d2_sim.recording.message_definitions import UnknownMessageType
-from r2d2_sim.recording.reader import message_class, RecordingError, RecordingFile
+from r2d2_sim.recording.reader import (
+    message_class, RecordedChannel, RecordingError, RecordingFile)
 
 __all__ = ['RecordedMessage', 'RecordingError', 'read_recording', 'MAX_MESSAGES']
 
@@ -20,7 +21,8 @@ class RecordedMessage(NamedTuple):
     message: Any
 
 
-def read_recording(path: os.PathLike, topics: Optional[Iterable[str]] = None, *,
+def read_recording(path: Union[str, os.PathLike[str]],
+                   topics: Optional[Iterable[str]] = None, *,
                    max_messages: int = MAX_MESSAGES,
                    max_bytes: Optional[int] = None) -> Dict[str, List[RecordedMessage]]:
     """
@@ -40,11 +42,12 @@ def read_recording(path: os.PathLike, topics: Optional[Iterable[str]] = None, *,
     """
     recording = RecordingFile(path, max_bytes)
     wanted = None if topics is None else list(topics)
-    by_topic = {}
+    by_topic: Dict[str, List[RecordedChannel]] = {}
     for channel in recording.channels.values():
         if channel.message_encoding == 'cdr' and (wanted is None or channel.topic in wanted):
             by_topic.setdefault(channel.topic, []).append(channel)
-    classes, refused = {}, {}
+    classes: Dict[int, Tuple[str, type]] = {}
+    refused: Dict[str, str] = {}
     for topic, channels in by_topic.items():
         for channel in channels:
             try:

@@ -7,7 +7,7 @@ and service clients are the caller's, and every wait has a deadline.
 
 import os
 import time
-from typing import Any, Callable, Optional, Sequence
+from typing import Any, Callable, Optional, Sequence, Type
 
 import rclpy
 from rclpy.client import Client
@@ -82,8 +82,8 @@ class RemoteProbe:
         """Spin until ``condition()`` holds (True) or the deadline passes (False)."""
         return spin_until(self.executor, condition, timeout_s)
 
-    def call(self, srv_type, name: str, request, timeout_s: float = 10.0,
-             resend_after_s: Optional[float] = None):
+    def call(self, srv_type: Type, name: str, request: Any, timeout_s: float = 10.0,
+             resend_after_s: Optional[float] = None) -> Any:
         """
         Call service ``name`` and return its response; HarnessError at the deadline.
 
@@ -100,9 +100,9 @@ class RemoteProbe:
         finally:
             self.node.destroy_client(client)
 
-    def call_client(self, client, request, timeout_s: float,
+    def call_client(self, client: Client, request: Any, timeout_s: float,
                     resend_after_s: Optional[float] = None,
-                    abort: Optional[Callable[[], bool]] = None):
+                    abort: Optional[Callable[[], bool]] = None) -> Any:
         """Send ``request`` through ``client`` and spin for the reply: :func:`send_request`."""
         return send_request(client, request, self.spin_until, timeout_s, resend_after_s, abort)
 
@@ -116,5 +116,5 @@ class RemoteProbe:
     def __enter__(self) -> 'RemoteProbe':
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: Any) -> None:
         self.close()

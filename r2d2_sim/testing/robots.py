@@ -11,12 +11,14 @@ of their first robot (the one robot, by default).
 """
 
 import time
-from typing import Any, Callable, Dict, Mapping, Optional, Tuple
+from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, TYPE_CHECKING
 
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.serialization import deserialize_message
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
 from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
@@ -24,6 +26,11 @@ from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.lockstep import TakenOnDemand
 from r2d2_sim.testing.tf import TfListener, TransformLookup
+
+if TYPE_CHECKING:  # the harnesses import this module; the interfaces need PyBullet
+    from r2d2_sim.ros.robot_interfaces import RobotInterfaces
+    from r2d2_sim.testing.harness import SimHarness
+    from r2d2_sim.testing.sim_process import SimProcess
 
 __all__ = ['LocalRobot', 'RemoteRobot', 'STATE_TYPES', 'flatten_robots',
            'expected_namespaces']
@@ -50,7 +57,7 @@ def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:
     return flat
 
 
-def expected_namespaces(parameters: Mapping[str, Any], namespace: str) -> list:
+def expected_namespaces(parameters: Mapping[str, Any], namespace: str) -> List[str]:
     """Return the namespaces of the robots the parameters ask for (default: ``namespace``)."""
     base = '/' + namespace.strip('/') if namespace.strip('/') else '/'
     try:
@@ -60,7 +67,7 @@ def expected_namespaces(parameters: Mapping[str, Any], namespace: str) -> list:
     return list(listed.values()) or [base]
 
 
-def _unused(msg) -> None:
+def _unused(msg: Any) -> None:
     """Stand in as the readers' callback, never called: no executor runs their group."""
 
 
@@ -77,10 +84,11 @@ class FirstRobot:
     :class:`LocalRobot` and :class:`RemoteRobot`).
     """
 
-    def robot(self, name: Optional[str] = None):
+    def robot(self, name: Optional[str] = None) -> '_RobotHandle':
         raise NotImplementedError
 
-    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *, twist=None) -> None:
+    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
+                     twist: Optional[Any] = None) -> None:
         """
         Publish a command on the first robot's ``cmd_vel``; return once the simulator has it.
 
@@ -120,6 +128,11 @@ class _RobotHandle(TransformLookup):
     def _tf_topics(self) -> Tuple[str, str]:
         return self.tf_topics
 
+    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
+                     twist: Optional[Any] = None) -> None:
+        """Publish a command (``linear`` m/s, ``angular`` rad/s, or a whole ``twist``)."""
+        raise NotImplementedError
+
     def ground_truth(self) -> Odometry:
         """Return the robot's latest ``ground_truth`` (world pose, twist in the body frame)."""
         return self._wait_latest('ground_truth')
@@ -132,7 +145,7 @@ class _RobotHandle(TransformLookup):
         """Return the robot's latest ``joint_states`` (every movable joint)."""
         return self._wait_latest('joint_states')
 
-    def _wait_latest(self, topic: str):
+    def _wait_latest(self, topic: str) -> Any:
         raise NotImplementedError
 
     def __repr__(self) -> str:
@@ -151,12 +164,12 @@ class LocalRobot(_RobotHandle):
     to the simulator's robot once that exists.
     """
 
-    def __init__(self, harness, link: Node, namespace: str) -> None:
+    def __init__(self, harness: 'SimHarness', link: Node, namespace: str) -> None:
         self.namespace = namespace
         self._harness = harness
         self._link = link
-        self._interfaces = None
-        self._cmd_vel = None
+        self._interfaces: Optional[RobotInterfaces] = None  # attach() binds it
+        self._cmd_vel: Optional[Publisher] = None  # from attach() to close()
         self._stamped = False
         self._latest: Dict[str, Optional[bytes]] = dict.fromkeys(STATE_TYPES)
         on_demand = TakenOnDemand()
@@ -175,7 +188,7 @@ class LocalRobot(_RobotHandle):
                     return self._latest[topic]
                 self._latest[topic] = taken[0]
 
-    def attach(self, interfaces) -> 'LocalRobot':
+    def attach(self, interfaces: 'RobotInterfaces') -> 'LocalRobot':
         """Bind to the simulator's robot ``interfaces``: its name, and cmd_vel of its type."""
         self._interfaces = interfaces
         self.name = interfaces.name
@@ -184,24 +197,30 @@ class LocalRobot(_RobotHandle):
         # publisher and a TwistStamped subscription on one topic ("invalid
         # allocator"), and the middleware would not deliver it anyway.
         self._stamped = interfaces.robot.config.enable_stamped_cmd_vel
-        self._cmd_vel = self._link.create_publisher(
+        cmd_vel = self._cmd_vel = self._link.create_publisher(
             TwistStamped if self._stamped else Twist, _topic(self.namespace, 'cmd_vel'), 10)
         state = [s for topic, s in zip(STATE_TYPES, self._subscriptions)
                  if topic != 'odom' or self.has_wheels]
-        self._harness._wait(lambda: self._cmd_vel.get_subscription_count() > 0 and all(
+        self._harness._wait(lambda: cmd_vel.get_subscription_count() > 0 and all(
             s.get_publisher_count() > 0 for s in state),
             f'the robot {self.name} did not link its topics')
         return self
 
+    def _bound(self) -> 'RobotInterfaces':
+        """Return the simulator's robot this handle is bound to; HarnessError before attach."""
+        if self._interfaces is None:
+            raise HarnessError(f'{self!r} is not bound to a robot of the simulator yet')
+        return self._interfaces
+
     @property
     def has_wheels(self) -> bool:
         """Return True when cmd_vel drives the robot's wheels."""
-        return self._interfaces.robot.controller is not None
+        return self._bound().robot.controller is not None
 
     @property
     def commands_received(self) -> int:
         """Return the number of cmd_vel messages the robot took, refused ones included."""
-        return self._interfaces.cmd_vel.received
+        return self._bound().cmd_vel.received
 
     def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
                      twist: Optional[Twist] = None) -> None:
@@ -211,15 +230,18 @@ class LocalRobot(_RobotHandle):
         ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
         ``twist``. A robot with ``enable_stamped_cmd_vel`` gets a
         TwistStamped stamped with the simulated time now. Raises HarnessError
-        if the command does not arrive in time.
+        if the command does not arrive in time, or the robot left the world.
         """
+        publisher = self._cmd_vel
+        if publisher is None:  # closed: the robot was deleted, or a reset left it out
+            raise HarnessError(f'the robot {self.name} is not in the world any more')
         if twist is None:
             twist = twist_message(linear, angular)
         if self._stamped and not isinstance(twist, TwistStamped):
             twist = twist_stamped_message(twist=twist,
                                           stamp_ns=self._harness.sim.sim_time_ns)
         before = self.commands_received
-        self._cmd_vel.publish(twist)
+        publisher.publish(twist)
         self._harness._wait(lambda: self.commands_received > before,
                             f'the robot {self.name} did not take cmd_vel')
 
@@ -230,16 +252,16 @@ class LocalRobot(_RobotHandle):
                                'publishes no odom')
         return self._wait_latest('odom')
 
-    def _wait_latest(self, topic: str):
+    def _wait_latest(self, topic: str) -> Any:
         """Wait until the message of the latest publication has been delivered; return it."""
         harness = self._harness
         if self._interfaces is None or not harness.sim.simulation.robots.count(
                 self._interfaces.robot):
             raise HarnessError(f'the robot {self.name} is not in the world any more')
         wanted = harness.last_publication_ns()
-        found = []
+        found: List[Any] = []
 
-        def arrived():
+        def arrived() -> bool:
             raw = self._take(topic)
             if raw is None:
                 return False
@@ -260,10 +282,10 @@ class LocalRobot(_RobotHandle):
         tf = self._interfaces.outputs.tf if self._interfaces is not None else None
         return (tf.latest,) if tf is not None and tf.latest else ()
 
-    def _tf_wait(self, condition) -> bool:
+    def _tf_wait(self, condition: Callable[[], bool]) -> bool:
         return self._harness._tf_wait(condition)
 
-    def bound_to(self, interfaces) -> bool:
+    def bound_to(self, interfaces: Optional['RobotInterfaces']) -> bool:
         """Return True if this handle is of the robot ``interfaces`` (the very same robot)."""
         return interfaces is not None and interfaces is self._interfaces
 
@@ -293,26 +315,26 @@ class RemoteRobot(_RobotHandle):
     :meth:`attach` then makes the ``cmd_vel`` publisher of the type the node takes.
     """
 
-    def __init__(self, process, namespace: str, name: Optional[str] = None,
+    def __init__(self, process: 'SimProcess', namespace: str, name: Optional[str] = None,
                  facts: Optional[Mapping[str, Any]] = None, *, subscribe: bool = True) -> None:
         self.namespace = namespace
         self.name = name
-        if name is not None:
+        if name is not None and facts is not None:
             self.bind(name, facts)
         self._process = process
         node = process.probe.node
         self._node = node
-        self._cmd_vel = None
+        self._cmd_vel: Optional[Publisher] = None  # from attach() to close()
         self._stamped = False
         self._latest: Dict[str, Any] = dict.fromkeys(STATE_TYPES)
         # subscribe=False: no state subscriptions (a benchmark must not add a subscriber).
-        self._subscriptions = {
+        self._subscriptions: Dict[str, Subscription] = {
             topic: node.create_subscription(msg_type, _topic(namespace, topic),
                                             self._keeper(topic), 1)
             for topic, msg_type in STATE_TYPES.items()} if subscribe else {}
 
     def _keeper(self, topic: str) -> Callable[[Any], None]:
-        def keep(msg) -> None:
+        def keep(msg: Any) -> None:
             self._latest[topic] = msg
         return keep
 
@@ -375,7 +397,8 @@ class RemoteRobot(_RobotHandle):
             raise HarnessError(f'the robot {self.name} is not in the world any more')
         return robots[self.name]['commands_received']
 
-    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *, twist=None) -> None:
+    def send_cmd_vel(self, linear: float = 0.0, angular: float = 0.0, *,
+                     twist: Optional[Any] = None) -> None:
         """
         Publish a command on the robot's ``cmd_vel``; return once the simulator has counted it.
 
@@ -383,12 +406,15 @@ class RemoteRobot(_RobotHandle):
         ``twist``. A node with ``enable_stamped_cmd_vel`` gets a TwistStamped
         stamped 0 ("now"). Confirmed through the node's ``~/get_status``.
         """
+        publisher = self._cmd_vel
+        if publisher is None:  # closed: the robot left the world
+            raise HarnessError(f'the robot {self.name} is not in the world any more')
         if twist is None:
             twist = twist_message(linear, angular)
         if self._stamped and not hasattr(twist, 'header'):
             twist = twist_stamped_message(twist=twist)
         before = self.commands_received()
-        self._cmd_vel.publish(twist)
+        publisher.publish(twist)
         process = self._process
         deadline = time.monotonic() + process.timeout_s
         while self.commands_received() <= before:
@@ -397,7 +423,7 @@ class RemoteRobot(_RobotHandle):
                                    f'{process.timeout_s:g} s')
             process.probe.spin_until(lambda: False, 0.002)
 
-    def _wait_latest(self, topic: str):
+    def _wait_latest(self, topic: str) -> Any:
         return self._process._wait_latest(topic, self._latest,
                                           _topic(self.namespace, topic))
 
@@ -418,7 +444,7 @@ class RemoteRobot(_RobotHandle):
     def _tf_node(self) -> Node:
         return self._node
 
-    def _tf_wait(self, condition) -> bool:
+    def _tf_wait(self, condition: Callable[[], bool]) -> bool:
         return self._process.probe.spin_until(condition, self._process.timeout_s)
 
     def forget(self) -> None:

@@ -7,11 +7,12 @@ to spawn, is :func:`r2d2_sim.sim.spawnables.box_urdf`.)
 """
 
 import math
+from typing import Any
 
 __all__ = ['scan_range']
 
 
-def scan_range(scan, angle_rad: float) -> float:
+def scan_range(scan: Any, angle_rad: float) -> float:
     """
     Return the range (m) of the beam of ``scan`` nearest ``angle_rad`` (rad, 0 ahead, CCW +).
 

@@ -2,13 +2,16 @@
 
 import json
 import signal
-from typing import Any, Dict, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence
 
+from rclpy.client import Client
+from rclpy.node import Node
+from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.client import ros_child_env, stamp_ns
-from r2d2_sim.testing.domains import env_domain_id, lease_domain
+from r2d2_sim.testing.domains import DomainLease, env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import RemoteProbe
@@ -76,16 +79,19 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         self.paused = False
         self.last_status: Dict[str, Any] = {}
         self._not_before_ns = 0  # state readers take no message stamped before (a reset)
-        self.process: Optional[ChildProcess] = None
-        self.probe: Optional[RemoteProbe] = None
+        # The simulator's process and this side's node: both made below, or the constructor
+        # raises (having stopped what it had started).
+        self.process: ChildProcess
+        self.probe: RemoteProbe
         self._clock: Optional[Clock] = None
-        self._clock_subscription = None
-        self._clients: Dict[str, Any] = {}
+        self._clock_subscription: Optional[Subscription] = None
+        self._clients: Dict[str, Client] = {}
         self._robots: Dict[str, RemoteRobot] = {}  # by name, once the node has said
-        self._pending = []  # made before the node says their names
+        self._pending: List[RemoteRobot] = []  # made before the node says their names
         self._state_subscriptions = state_subscriptions
         parameters = flatten_robots(parameters)
         self._standard: Optional[StandardClient] = None
+        self.lease: Optional[DomainLease]  # None: lease=False, the caller's own domain
         if lease or domain_id is None:
             self.lease = lease_domain(domain_id, timeout_s=max(timeout_s, 60.0))
             self.domain_id = self.lease.domain_id
@@ -100,25 +106,27 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         remaps = (['-r', f'__node:={node_name}'] if node_name != 'r2d2_sim' else []) + \
             (['-r', f'__ns:={namespace}'] if namespace else [])
         self.command = sim_node_command(parameters, remaps + list(ros_args), command)
+        process: Optional[ChildProcess] = None
+        probe: Optional[RemoteProbe] = None
         try:
             # The simulator holds the lease too: should this process die without
             # stop(), the domain stays leased until the simulator has ended as well.
             inherited = self.lease.fds if self.lease is not None else ()
-            self.process = ChildProcess(self.command, ros_child_env(self.domain_id),
-                                        pass_fds=inherited).start()
+            process = self.process = ChildProcess(self.command, ros_child_env(self.domain_id),
+                                                  pass_fds=inherited).start()
             probe_args = [arg for rule in given.remaps for arg in ('-r', rule)]
-            self.probe = RemoteProbe(self.domain_id, '_r2d2_sim_process_client',
-                                     namespace=namespace or None, ros_args=probe_args)
+            probe = self.probe = RemoteProbe(self.domain_id, '_r2d2_sim_process_client',
+                                             namespace=namespace or None, ros_args=probe_args)
             self._connect(expected_namespaces(parameters, namespace))
             self._wait_ready()
         except BaseException:
-            self.stop()
+            self._end(process, probe)
             raise
 
     # -- the node's own control services (~/pause, ~/step, ~/reset, ~/get_status) ------
 
-    def _request(self, name: str, request, resend_after_s: Optional[float] = None,
-                 client=None) -> Dict[str, Any]:
+    def _request(self, name: str, request: Any, resend_after_s: Optional[float] = None,
+                 client: Optional[Client] = None) -> Dict[str, Any]:
         if self._exited():
             raise HarnessError(f'sim_node has exited (status {self.process.returncode})')
         client = client or self._clients[name]
@@ -198,7 +206,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
                                    f'{self.timeout_s:g} s')
         return self._request('get_joint_info', Trigger.Request(), STATUS_RESEND_S, client)
 
-    def _connect(self, namespaces) -> None:
+    def _connect(self, namespaces: Sequence[str]) -> None:
         """Create the clients, ``/clock`` and the subscriptions of robots in ``namespaces``."""
         node = self.probe.node
         if self._state_subscriptions:
@@ -219,7 +227,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
     def _wait_ready(self) -> None:
         services = [self._clients[name] for name, _ in SERVICES]
 
-        def linked():
+        def linked() -> bool:
             return self._exited() or (all(c.service_is_ready() for c in services)
                                       and all(robot.linked() for robot in self._pending)
                                       and (self._clock_subscription is None or
@@ -278,7 +286,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         return handle
 
     @property
-    def robot_names(self):
+    def robot_names(self) -> List[str]:
         """Return the names of the robots in the world, in the simulator's order."""
         return list(self.status()['robots'])
 
@@ -338,13 +346,13 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         self._not_before_ns = 0
         return self.status()
 
-    def _tf_node(self):
+    def _tf_node(self) -> Node:
         return self.probe.node
 
-    def _tf_wait(self, condition) -> bool:
+    def _tf_wait(self, condition: Callable[[], bool]) -> bool:
         return self.probe.spin_until(condition, self.timeout_s)
 
-    def _wait_latest(self, key: str, latest: Dict[str, Any], what: str):
+    def _wait_latest(self, key: str, latest: Dict[str, Any], what: str) -> Any:
         """
         Paused: wait for the latest state publication's message. Running: the newest.
 
@@ -364,7 +372,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
                                'publication; step() first')
         floor = max(wanted, self._not_before_ns)
 
-        def arrived():
+        def arrived() -> bool:
             msg = latest[key]
             if msg is None:
                 return False
@@ -385,22 +393,25 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         Also closes this object's node and releases the domain. Safe to call
         twice: later calls return the first result.
         """
+        return self._end(self.process, self.probe, timeout_s)
+
+    def _end(self, process: Optional[ChildProcess], probe: Optional[RemoteProbe],
+             timeout_s: float = 10.0) -> ProcessResult:
+        """Stop ``process``, close ``probe`` (either None: start-up never made it), release."""
         if self.result is not None:
             return self.result
         try:
-            if self.process is not None:
-                self.result = self.process.stop(signal.SIGINT, timeout_s)
-            else:
-                self.result = ProcessResult(-1, '', '')
+            result = self.result = (process.stop(signal.SIGINT, timeout_s)
+                                    if process is not None else ProcessResult(-1, '', ''))
         finally:
-            if self.probe is not None:
-                self.probe.close()
+            if probe is not None:
+                probe.close()
             if self.lease is not None:
                 self.lease.release()
-        return self.result
+        return result
 
     def __enter__(self) -> 'SimProcess':
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: Any) -> None:
         self.stop()

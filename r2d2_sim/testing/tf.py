@@ -13,7 +13,7 @@ subscriber on /tf from the start would cost every lockstep period a
 delivery), seeded with the latest /tf its simulator sent, which it knows.
 """
 
-from typing import Callable, Optional, Tuple
+from typing import Any, Callable, Optional, Tuple
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -47,7 +47,7 @@ class TfListener:
     pip-only venv).
     """
 
-    def __init__(self, node: Node, buffer: TransformBuffer = None,
+    def __init__(self, node: Node, buffer: Optional[TransformBuffer] = None,
                  topics: Tuple[str, str] = ('/tf', '/tf_static'), *,
                  on_demand: bool = False) -> None:
         from tf2_msgs.msg import TFMessage
@@ -82,11 +82,11 @@ class TfListener:
         self.take()
         return self._received[1]
 
-    def _on_tf(self, msg) -> None:
+    def _on_tf(self, msg: Any) -> None:
         self._buffer.add_tf_message(msg, static=False)
         self._received[0] += 1
 
-    def _on_tf_static(self, msg) -> None:
+    def _on_tf_static(self, msg: Any) -> None:
         self._buffer.add_tf_message(msg, static=True)
         self._received[1] += 1
 

@@ -14,7 +14,7 @@ and :class:`~r2d2_sim.sim.bounds.Region`.
 """
 
 import math
-from typing import List, Optional, Sequence
+from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import BaseState
@@ -23,6 +23,10 @@ from r2d2_sim.sim.bounds import Region, REGION_KINDS
 from r2d2_sim.sim.tags import FILTER_MODE_ALL, FILTER_MODE_ANY, TagsFilter
 from r2d2_sim.sim.worlds import NamedPose
 from r2d2_sim.sim.worlds import WorldEntry
+from r2d2_sim.testing.standard import StandardClient
+
+if TYPE_CHECKING:  # PyBullet is imported only when a simulator is made
+    from r2d2_sim.ros.node import SimNode
 
 __all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'NamedPose', 'WorldEntry',
            'EntityInfo', 'Region']
@@ -30,29 +34,29 @@ __all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'NamedPose', 'WorldEntry'
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
 
-def _orientation(yaw: float, orientation: Optional[Sequence[float]]) -> tuple:
+def _orientation(yaw: float, orientation: Optional[Sequence[float]]) -> Tuple[float, ...]:
     if orientation is not None:
         return tuple(orientation)
     return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
 
 
-def _resource(urdf: str) -> tuple:
+def _resource(urdf: str) -> Tuple[str, str]:
     """Return (uri, resource_string): XML text goes as a resource string, anything else a uri."""
     return ('', urdf) if urdf.lstrip().startswith('<') else (urdf, '')
 
 
-def _world_resource(world: str) -> tuple:
+def _world_resource(world: str) -> Tuple[str, str]:
     """Return (uri, resource_string): a text of several lines or XML is the file's text."""
     text = world.lstrip()
     return ('', world) if text.startswith('<') or '\n' in text else (world, '')
 
 
-def _region(bounds) -> Region:
+def _region(bounds: Any) -> Region:
     kind = REGION_KINDS[bounds.type] if bounds.type < len(REGION_KINDS) else str(bounds.type)
     return Region(kind, tuple((p.x, p.y, p.z) for p in bounds.points))
 
 
-def _entry(world) -> WorldEntry:
+def _entry(world: Any) -> WorldEntry:
     resource = world.world_resource
     return WorldEntry(world.name, resource.uri or resource.resource_string, world.description,
                       tuple(world.tags))
@@ -61,11 +65,12 @@ def _entry(world) -> WorldEntry:
 class CoreWorld:
     """The verbs on a SimNode in this process: its core's operations, under the node's lock."""
 
-    def __init__(self, node) -> None:
+    def __init__(self, node: 'SimNode') -> None:
         self._node = node
 
-    def spawn(self, uri, resource_string, name, position, orientation, allow_renaming,
-              namespace='', frame_id='') -> str:
+    def spawn(self, uri: str, resource_string: str, name: str, position: Sequence[float],
+              orientation: Sequence[float], allow_renaming: bool, namespace: str = '',
+              frame_id: str = '') -> str:
         simulation = self._node.simulation
         request = SpawnRequest(name, allow_renaming, uri, resource_string, namespace, frame_id,
                                position, orientation)
@@ -77,8 +82,9 @@ class CoreWorld:
         with self._node.lock:
             return self._node.simulation.entities.state(name)
 
-    def set_entity_state(self, name, position, orientation, linear, angular,
-                         frame_id='') -> None:
+    def set_entity_state(self, name: str, position: Sequence[float],
+                         orientation: Sequence[float], linear: Sequence[float],
+                         angular: Sequence[float], frame_id: str = '') -> None:
         with self._node.lock:
             self._node.simulation.set_entity_state(name, frame_id, position, orientation,
                                                    linear, angular)
@@ -87,7 +93,8 @@ class CoreWorld:
         with self._node.lock:
             return self._node.simulation.entities.info(name)
 
-    def set_entity_info(self, name, category, description, tags) -> None:
+    def set_entity_info(self, name: str, category: int, description: str,
+                        tags: Sequence[str]) -> None:
         with self._node.lock:
             self._node.simulation.set_entity_info(name, category, description, tags)
 
@@ -136,11 +143,12 @@ class CoreWorld:
 class StandardWorld:
     """The verbs through a :class:`~r2d2_sim.testing.standard.StandardClient`."""
 
-    def __init__(self, client) -> None:
+    def __init__(self, client: StandardClient) -> None:
         self._client = client
 
-    def spawn(self, uri, resource_string, name, position, orientation, allow_renaming,
-              namespace='', frame_id='') -> str:
+    def spawn(self, uri: str, resource_string: str, name: str, position: Sequence[float],
+              orientation: Sequence[float], allow_renaming: bool, namespace: str = '',
+              frame_id: str = '') -> str:
         return self._client.spawn(uri, resource_string, name, position, orientation,
                                   allow_renaming, namespace, frame_id)
 
@@ -150,8 +158,9 @@ class StandardWorld:
         return BaseState((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), (v.x, v.y, v.z),
                          (w.x, w.y, w.z))
 
-    def set_entity_state(self, name, position, orientation, linear, angular,
-                         frame_id='') -> None:
+    def set_entity_state(self, name: str, position: Sequence[float],
+                         orientation: Sequence[float], linear: Sequence[float],
+                         angular: Sequence[float], frame_id: str = '') -> None:
         self._client.set_entity_state(name, position, orientation, linear, angular, frame_id)
 
     def delete(self, name: str) -> None:
@@ -161,7 +170,8 @@ class StandardWorld:
         info = self._client.entity_info(name)
         return EntityInfo(info.category.category, info.description, tuple(info.tags))
 
-    def set_entity_info(self, name, category, description, tags) -> None:
+    def set_entity_info(self, name: str, category: int, description: str,
+                        tags: Sequence[str]) -> None:
         self._client.set_entity_info(name, category, description, tags)
 
     def entity_bounds(self, name: str) -> Region:
@@ -201,7 +211,7 @@ class StandardWorld:
 class WorldVerbs:
     """A harness's world verbs, on ``self._world_backend()`` (a CoreWorld or StandardWorld)."""
 
-    def _world_backend(self):
+    def _world_backend(self) -> Union[CoreWorld, StandardWorld]:
         raise NotImplementedError
 
     def _before_reset(self) -> None:
@@ -280,6 +290,9 @@ class WorldVerbs:
                         tags: Optional[Sequence[str]] = None) -> None:
         """Change an entity's category (a label), description or tags; the rest stays."""
         now = self.entity_info(name)
+        # An entity's info as read is whole: a category and a description (what the entity
+        # is, where it came from) even where none was set.
+        assert now.category is not None and now.description is not None
         self._world_backend().set_entity_info(
             name, now.category if category is None else category,
             now.description if description is None else description,

@@ -99,6 +99,22 @@ def test_driver_stops_timing_when_ground_truth_goes_back_in_time(ros):
     assert driver.elapsed_s == 0.5 and driver.truth_xy[-1] == (0.1, 0.0)
 
 
+def test_driver_begun_for_a_later_time_holds_the_robot_until_then(ros):
+    """begin(start_s) ahead of the states: a stop command meanwhile, then the first phase."""
+    import io
+
+    from r2d2_sim.apps.demo import ManoeuvreDriver
+
+    sent = []
+    driver = ros.add_node(ManoeuvreDriver(out=io.StringIO(), context=ros.context,
+                                          send=sent.append, resend_period_s=math.inf),
+                          use_sim_time=False)
+    driver.begin(start_s=20.0)
+    driver._on_odom(_odometry_at(15.0))
+    driver._on_truth(_odometry_at(15.0))  # 5 s before the start: no phase yet
+    assert [(t.linear.x, t.angular.z) for t in sent] == [(0.0, 0.0)] and not driver.done
+
+
 def test_camera_snapshot_writer_round_trips(tmp_path):
     """An rgb8 Image with a padded row stride becomes a PNG of the right size and colours."""
     from matplotlib import pyplot

@@ -1,10 +1,11 @@
 """
 The types are checked, not only written: mypy over the package, with setup.cfg's settings.
 
-``model``, ``physics``, ``sim``, ``ros`` and ``recording`` (setup.cfg's ``[mypy] files``)
-are held at zero errors: the typed seams between translation and the core mean
-something only while a checker holds the code to them. The rest of the package (the
-testing API, the executables, the farm, the kit) is counted and may not grow past
+``model``, ``physics``, ``sim``, ``ros``, ``recording``, ``testing`` and ``apps``
+(setup.cfg's ``[mypy] files``) are held at zero errors: the typed seams between
+translation and the core mean something only while a checker holds the code to them,
+and the testing API ships ``py.typed``, so its signatures are what users' checkers see.
+The rest of the package (the farm, the kit) is counted and may not grow past
 :data:`REST_AT_MOST` (a ratchet: lower it as it falls). A file written for the purpose
 proves that the check finds what it looks for. Imports no ROS: part of the fast tier.
 """
@@ -18,9 +19,9 @@ import textwrap
 from common import REPO
 
 LAYERS = ['r2d2_sim/model', 'r2d2_sim/physics', 'r2d2_sim/sim', 'r2d2_sim/ros',
-          'r2d2_sim/recording']
+          'r2d2_sim/recording', 'r2d2_sim/testing', 'r2d2_sim/apps']
 # The errors mypy finds in the rest of the package; it may fall, never rise.
-REST_AT_MOST = 116
+REST_AT_MOST = 16
 SUMMARY = re.compile(r'Found (\d+) errors? in')
 
 
@@ -42,9 +43,9 @@ def error_count(result: subprocess.CompletedProcess) -> int:
 
 def test_the_core_layers_have_no_type_error_and_the_rest_no_more_than_before():
     """
-    One mypy run over the package: nothing in the five layers of LAYERS; the rest counted.
+    One mypy run over the package: nothing in the layers of LAYERS; the rest counted.
 
-    The lines found in the four layers are the failure's message; the count of the rest
+    The lines found in those layers are the failure's message; the count of the rest
     (print) stays at or below REST_AT_MOST.
     """
     result = mypy('r2d2_sim')

@@ -111,3 +111,16 @@ def test_lookup_transform_says_why_it_cannot(r2d2_sim_factory):
     harness.advance(1)
     with pytest.raises(HarnessError, match='no_such_frame'):
         harness.lookup_transform('odom', 'no_such_frame')
+
+
+def test_a_deleted_robots_handle_refuses_a_command_in_one_line(r2d2_sim_factory):
+    """send_cmd_vel on the handle of a robot deleted since: HarnessError, as its readers say."""
+    harness = r2d2_sim_factory()
+    name = harness.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='c',
+                         position=(0.0, 2.0, 0.48))
+    c = harness.robot(name)
+    harness.delete_entity(name)
+    with pytest.raises(HarnessError, match='the robot c is not in the world any more'):
+        c.send_cmd_vel(linear=0.3)
+    with pytest.raises(HarnessError, match='the robot c is not in the world any more'):
+        c.ground_truth()
