@@ -100,7 +100,7 @@ def test_entity_info_tags_and_bounds(r2d2_sim):
 
 
 def test_available_worlds_can_leave_out_a_directory_with_a_bad_world(r2d2_sim_factory, tmp_path):
-    """One bad world file fails the listing (the standard's default); continue_on_error lists on."""
+    """One bad world file fails the listing (the default); continue_on_error lists the rest."""
     (tmp_path / 'bad.sdf').write_text('<sdf version="1.9"><world name="w"><unclosed')
     sim = r2d2_sim_factory(world_paths=[str(tmp_path)])
     with pytest.raises(RefusedError, match='^DEFAULT_SOURCES_FAILED: .*bad.sdf'):
