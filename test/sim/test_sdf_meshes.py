@@ -165,6 +165,28 @@ def test_a_mesh_over_the_triangle_budget_is_refused(tmp_path, monkeypatch, write
     assert len(read_mesh(path, 'big').faces) == 12
 
 
+@pytest.mark.parametrize('extension, text, count', [
+    ('.stl', 'solid s\n' + 'facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n'
+     'vertex 0 1 0\nendloop\nendfacet\n' * 3 + 'endsolid s\n', 3),  # ASCII: one a facet
+    ('.obj', 'f 1 2 3\nv 0 0 0\nf\t1 2 3\n# f 1 2 3\nf 1 2 3 4\n', 3),  # a quad: 1 at least
+    ('.dae', '<COLLADA><triangles material="m" count="12"><p/></triangles><c:polylist '
+     'count = \'5\' material="n"><vcount/></c:polylist><polygons count="2"/><lines '
+     'count="9"/><triangles/><tristrips count="4"/></COLLADA>', 19),
+    ('.ply', 'ply\nelement face 12\n', 0),
+], ids=['ascii-stl', 'obj', 'dae', 'other'])
+def test_a_mesh_files_declared_triangles_are_read_without_parsing_it(extension, text, count):
+    """What a world's triangle budget is checked with before any mesh is converted."""
+    assert meshes.declared_triangles(text.encode(), extension) == count
+
+
+@pytest.mark.parametrize('write', [write_stl, write_obj, write_dae])
+def test_the_triangles_a_written_mesh_declares_are_those_it_has(tmp_path, write):
+    extension = {write_stl: '.stl', write_obj: '.obj', write_dae: '.dae'}[write]
+    path = write(tmp_path / f'b{extension}', box((1.0, 1.0, 1.0)))
+    with open(path, 'rb') as handle:
+        assert meshes.declared_triangles(handle.read(), extension) == 12
+
+
 def test_a_mesh_file_over_the_size_bound_is_refused_unread(tmp_path, monkeypatch):
     path = write_stl(tmp_path / 'b.stl', box((1.0, 1.0, 1.0)))
     monkeypatch.setattr(meshes, 'MAX_MESH_BYTES', 100)
