@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # One entry point for a fresh machine: ./run.sh demo | test [fast] | bench | sim [ROS args...]
-# Each command creates .venv (if needed), installs requirements.txt into it,
-# keeps ROS discovery on this host, then runs.
+# Each command creates .venv (if needed), installs requirements.txt into it, writes
+# setup.py's executables into .venv/bin (running this checkout), keeps ROS discovery on
+# this host, then runs.
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -18,6 +19,9 @@ setup_venv() {
     "$PY" -m pip install --quiet --disable-pip-version-check -r requirements.txt
     touch "$VENV/.installed"
   fi
+  # setup.py's executables (sim_node, sim_conformance, demo, drive, replay) as small
+  # wrappers in .venv/bin that run this checkout, where `pip install .` would put them.
+  "$PY" -S tools/console_scripts.py "$VENV"
   export PATH="$PWD/$VENV/bin:$PATH"
   export PYTHONPATH="$PWD${PYTHONPATH:+:$PYTHONPATH}"
 }

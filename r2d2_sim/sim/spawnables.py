@@ -15,7 +15,7 @@ spawn as the URDF written from them.
 import errno
 import math
 import os
-from typing import List, NamedTuple, Optional, Protocol, Sequence
+from typing import List, NamedTuple, Optional, Protocol, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 from xml.sax.saxutils import quoteattr
 
@@ -31,8 +31,17 @@ from r2d2_sim.sim.sdf.loading import SdfSettings, TriangleBudget
 from r2d2_sim.sim.sdf.mesh_cache import MeshCache
 from r2d2_sim.sim.sdf.spawning import is_sdf_spawn, read_sdf_spawnable
 
-__all__ = ['check_description', 'read_spawnable', 'spawnable_uris', 'Spawnable', 'Closable',
+__all__ = ['check_description', 'read_description', 'convert_meshes', 'MeshUse',
+           'read_spawnable', 'spawnable_uris', 'Spawnable', 'Closable',
            'box_urdf', 'MAX_DESCRIPTION_BYTES', 'MAX_LINKS']
+
+
+class MeshUse(NamedTuple):
+    """One use of a mesh in a URDF: the file's path, and its name as the URDF wrote it."""
+
+    path: str
+    shown: str
+
 
 # What one spawn request may cost (a URDF of R2D2 is 14 kB and 16 links).
 MAX_DESCRIPTION_BYTES = 1_000_000
@@ -48,10 +57,25 @@ def check_description(text: str, base_dir: Optional[str],
     a request). Its meshes are held to the bounds of an SDF world's before
     PyBullet sees them (a regular file, size, triangles: read and converted
     through the mesh cache), every use counted against ``triangles`` (a
-    world's, shared by its models; by default this description's own).
+    world's, shared by its models; by default this description's own), first
+    from what the files say they hold, before any is converted.
     RefusedError otherwise: RESOURCE_PARSE_ERROR, UNSUPPORTED_FORMAT,
     MISSING_ASSETS or UNSUPPORTED_ASSETS, naming neither a file's content nor
     more than the offending path.
+    """
+    name, meshes = read_description(text, base_dir)
+    budget = triangles if triangles is not None else TriangleBudget()
+    budget.expect([path for path, _ in meshes], '')
+    convert_meshes(meshes, budget)
+    return name
+
+
+def read_description(text: str, base_dir: Optional[str]) -> Tuple[str, List[MeshUse]]:
+    """
+    Return the URDF's robot name and its meshes, checked as :func:`check_description` does.
+
+    Every use of a mesh, its path found and checked to lie where it may;
+    nothing converted yet (:func:`convert_meshes`).
     """
     if len(text.encode('utf-8', errors='replace')) > MAX_DESCRIPTION_BYTES:
         raise RefusedError('RESOURCE_PARSE_ERROR', f'the description is larger than '
@@ -72,13 +96,18 @@ def check_description(text: str, base_dir: Optional[str],
     if len(links) > MAX_LINKS:
         raise RefusedError('RESOURCE_PARSE_ERROR', f'the URDF has {len(links)} links, more '
                            f'than {MAX_LINKS}')
-    budget = triangles if triangles is not None else TriangleBudget()
-    cache = MeshCache()
+    meshes = []
     for mesh in root.iter('mesh'):
         filename = mesh.get('filename', '')
-        path = _check_mesh(filename, base_dir)
-        budget.take(cache.convert(path, filename[:200]).triangles, f'mesh {filename[:200]}')
-    return root.get('name', '')
+        meshes.append(MeshUse(_check_mesh(filename, base_dir), filename[:200]))
+    return root.get('name', ''), meshes
+
+
+def convert_meshes(meshes: Sequence[MeshUse], triangles: TriangleBudget) -> None:
+    """Convert a URDF's meshes through the mesh cache, each use counted against ``triangles``."""
+    cache = MeshCache()
+    for path, shown in meshes:
+        triangles.take(cache.convert(path, shown).triangles, f'mesh {shown}')
 
 
 def _check_mesh(filename: str, base_dir: Optional[str]) -> str:

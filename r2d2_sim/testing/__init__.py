@@ -1,6 +1,31 @@
 """
 Testing code against the simulator: harnesses, deadline waits, ROS domains, processes.
 
+Names you need (a guide with examples: ``docs/testing.md``; every name:
+``docs/api/testing.md``):
+
+- Fixtures (:mod:`r2d2_sim.pytest_plugin`; an installed r2d2_sim loads it,
+  a source tree needs ``pytest_plugins = ['r2d2_sim.pytest_plugin']``):
+  ``r2d2_sim``, a ready SimHarness; ``r2d2_sim_parameters``, override it to
+  set the simulator's parameters; ``r2d2_sim_factory(**parameters)``, more
+  harnesses; ``r2d2_sim_process(**parameters)``, a SimProcess.
+- :class:`SimHarness`: the simulator in the test's process; time moves only
+  in ``advance(seconds=...)``; ``send_cmd_vel``, ``ground_truth()``,
+  ``odom()``, ``joint_states()``; ``create_node`` for your own nodes.
+- :class:`SimProcess`: ``sim_node`` in a process of its own, driven through
+  its services (``step``, ``pause``, ``reset``; ``standard`` is its
+  :class:`StandardClient`).
+- Both: ``spawn``, ``set_entity_state``, ``entity_state``, ``delete_entity``,
+  ``load_world``, ``named_pose``, ``reset_world``; ``robot(name)`` for one
+  robot of several.
+- Errors: :class:`RefusedError` (the simulator refused; ``code`` as the
+  standard names it), :class:`StandardError` (a standard service's answer),
+  :class:`HarnessError` (the harness: a deadline, no world loaded),
+  :class:`StartupError` (parameters it cannot start with).
+- Your own processes: :func:`lease_domain` (a ROS domain no other test
+  uses), :func:`ros_child_env` (their environment); :func:`wait_for`
+  (a deadline, never a sleep).
+
 :class:`SimHarness` runs the simulator inside the test's process, in an rclpy
 context of its own, and moves simulated time only when told (``advance``).
 :class:`SimProcess` runs the ``sim_node`` executable in a process of its own

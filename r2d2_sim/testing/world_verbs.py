@@ -117,9 +117,10 @@ class CoreWorld:
         return WorldEntry(world.name, world.uri or world.resource_string, world.description,
                           world.tags)
 
-    def available_worlds(self, tags: TagsFilter) -> List[WorldEntry]:
+    def available_worlds(self, tags: TagsFilter, continue_on_error: bool) -> List[WorldEntry]:
         with self._node.lock:
-            return self._node.simulation.worlds.available(tags=tags)[0]
+            return self._node.simulation.worlds.available(
+                tags=tags, continue_on_error=continue_on_error)[0]
 
     def named_poses(self, tags: TagsFilter) -> List[NamedPose]:
         with self._node.lock:
@@ -187,9 +188,9 @@ class StandardWorld:
         world = self._client.current_world()
         return None if world is None else _entry(world)
 
-    def available_worlds(self, tags: TagsFilter) -> List[WorldEntry]:
+    def available_worlds(self, tags: TagsFilter, continue_on_error: bool) -> List[WorldEntry]:
         return [_entry(w) for w in self._client.available_worlds(
-            tags.tags, tags.mode == FILTER_MODE_ALL)]
+            tags.tags, tags.mode == FILTER_MODE_ALL, continue_on_error=continue_on_error)]
 
     def named_poses(self, tags: TagsFilter) -> List[NamedPose]:
         poses = []
@@ -328,11 +329,21 @@ class WorldVerbs:
         """Return the world loaded now (None after unload_world)."""
         return self._world_backend().current_world()
 
-    def available_worlds(self, tags: Sequence[str] = (), match_all: bool = False
-                         ) -> List[WorldEntry]:
-        """Return the worlds load_world can load, with any (or all) of ``tags``."""
+    def available_worlds(self, tags: Sequence[str] = (), match_all: bool = False,
+                         continue_on_error: bool = False) -> List[WorldEntry]:
+        """
+        Return the worlds load_world can load, with any (or all) of ``tags``.
+
+        A source that fails (a ``world_paths`` directory gone, or a world
+        file in it that does not read) fails the call, RefusedError
+        DEFAULT_SOURCES_FAILED, as the standard's GetAvailableWorlds does by
+        default. With ``continue_on_error`` that source is left out instead
+        (all of its worlds: the standard lists by source) and the rest is
+        listed; the call fails only when no source yields a world.
+        """
         return self._world_backend().available_worlds(
-            TagsFilter(tuple(tags), FILTER_MODE_ALL if match_all else FILTER_MODE_ANY))
+            TagsFilter(tuple(tags), FILTER_MODE_ALL if match_all else FILTER_MODE_ANY),
+            continue_on_error)
 
     def named_poses(self, tags: Sequence[str] = (), match_all: bool = False
                     ) -> List[NamedPose]:

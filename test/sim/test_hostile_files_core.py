@@ -160,3 +160,106 @@ def test_an_sdf_model_spawns_only_from_where_load_world_may_read_it(make, tmp_pa
     beside = make(model_paths=[str(outside)])  # or among the model paths
     assert beside.spawn(SpawnRequest('crate', uri=str(outside / 'crate.sdf'),
                                      position=(1.0, 0.0, 0.5))) == 'crate'
+
+
+def meshes_of_every_format(directory, count):
+    """
+    Write ``count`` boxes of 12 triangles, each its own size (each one converted), as files.
+
+    Binary STL, ASCII STL, OBJ and COLLADA in turn; return their file names.
+    """
+    from trimesh.exchange.stl import export_stl_ascii
+    from sdf_files import box, write_dae, write_obj, write_stl
+    names = []
+    for index in range(count):
+        shape = box((0.2 + 0.01 * index, 0.2, 0.2))
+        kind = index % 4
+        name = f'part{index}.' + ('stl', 'stl', 'obj', 'dae')[kind]
+        if kind == 0:
+            write_stl(directory / name, shape)
+        elif kind == 1:
+            (directory / name).write_text(export_stl_ascii(shape))
+        elif kind == 2:
+            write_obj(directory / name, shape)
+        else:
+            write_dae(directory / name, shape)
+        names.append(name)
+    return names
+
+
+@pytest.fixture
+def conversions(monkeypatch):
+    """Return the list of meshes converted (read and parsed; a cached one is not) from now on."""
+    from r2d2_sim.sim.sdf import mesh_cache
+    converted = []
+    real = mesh_cache.read_mesh
+
+    def counted(path, shown, data=None):
+        converted.append(shown)
+        return real(path, shown, data)
+    monkeypatch.setattr(mesh_cache, 'read_mesh', counted)
+    return converted
+
+
+def test_a_world_over_its_triangle_budget_is_refused_before_a_mesh_is_converted(
+        make, tmp_path, cache, monkeypatch, conversions):
+    """An over-budget world was refused only once its meshes had converted (20 s of work)."""
+    from r2d2_sim.sim.sdf import loading
+    from sdf_files import mesh_model
+    names = meshes_of_every_format(tmp_path, 8)  # 8 models, mesh as collision and visual
+    world = tmp_path / 'parts.sdf'
+    world.write_text(sdf('<world name="parts">' + ''.join(
+        mesh_model(f'm{i}', name, pose=f'{i} 0 0 0 0 0') for i, name in enumerate(names)) +
+        '</world>'))
+    simulation = make(world_paths=[str(tmp_path)])
+    monkeypatch.setattr(loading, 'MAX_WORLD_TRIANGLES', 8 * 2 * 12 - 1)
+    with pytest.raises(RefusedError, match='^UNSUPPORTED_ASSETS: .*more than 191 triangles in '
+                                           'all'):
+        simulation.load_world(str(world))
+    assert conversions == []  # the files' own counts: no mesh parsed
+    assert simulation.worlds.current.name == 'empty'
+    monkeypatch.setattr(loading, 'MAX_WORLD_TRIANGLES', 8 * 2 * 12)  # each format counted exactly
+    assert simulation.load_world(str(world)).name == 'parts'
+    assert len(conversions) == 8
+
+
+def test_a_manifest_over_its_triangle_budget_is_refused_before_a_mesh_is_converted(
+        make, tmp_path, cache, monkeypatch, conversions):
+    """URDF and SDF models of one manifest together, before the first model's meshes."""
+    from r2d2_sim.sim.sdf import loading
+    from sdf_files import mesh_model
+    names = meshes_of_every_format(tmp_path, 6)
+    entries = []
+    for index, name in enumerate(names[:4]):  # four URDFs, each its mesh twice
+        urdf_with_mesh(tmp_path, name, uses=2, name=f'urdf{index}')
+        entries.append(f'  - {{uri: urdf{index}.urdf, position: [{index}, 0, 0]}}\n')
+    for index, name in enumerate(names[4:]):  # two SDF models, collision and visual
+        (tmp_path / f'sdf{index}.sdf').write_text(sdf(mesh_model(f'sdf{index}', name)))
+        entries.append(f'  - {{uri: sdf{index}.sdf, position: [{index}, 2, 0]}}\n')
+    (tmp_path / 'parts.world.yaml').write_text('r2d2_sim_world: 1\nmodels:\n' + ''.join(entries))
+    simulation = make(world_paths=[str(tmp_path)])
+    monkeypatch.setattr(loading, 'MAX_WORLD_TRIANGLES', 6 * 2 * 12 - 1)
+    with pytest.raises(RefusedError, match='^UNSUPPORTED_ASSETS: .*more than 143 triangles in '
+                                           'all'):
+        simulation.load_world(str(tmp_path / 'parts.world.yaml'))
+    assert conversions == []
+    monkeypatch.setattr(loading, 'MAX_WORLD_TRIANGLES', 6 * 2 * 12)
+    assert simulation.load_world(str(tmp_path / 'parts.world.yaml')).name == 'parts'
+    assert len(conversions) == 6
+
+
+def test_a_urdf_over_its_triangle_budget_is_refused_before_a_mesh_is_converted(
+        make, tmp_path, cache, monkeypatch, conversions):
+    from r2d2_sim.sim.sdf import loading
+    from r2d2_sim.sim.simulation import SpawnRequest
+    names = meshes_of_every_format(tmp_path, 4)
+    visuals = ''.join(f'<visual><geometry><mesh filename="{n}"/></geometry></visual>'
+                      for n in names)
+    (tmp_path / 'parts.urdf').write_text(f'<robot name="parts"><link name="base">{visuals}'
+                                         '</link></robot>')
+    simulation = make()
+    monkeypatch.setattr(loading, 'MAX_WORLD_TRIANGLES', 4 * 12 - 1)
+    with pytest.raises(RefusedError, match='^UNSUPPORTED_ASSETS: .*more than 47 triangles in '
+                                           'all'):
+        simulation.spawn(SpawnRequest('parts', uri=str(tmp_path / 'parts.urdf')))
+    assert conversions == []

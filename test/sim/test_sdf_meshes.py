@@ -165,6 +165,28 @@ def test_a_mesh_over_the_triangle_budget_is_refused(tmp_path, monkeypatch, write
     assert len(read_mesh(path, 'big').faces) == 12
 
 
+@pytest.mark.parametrize('extension, text, count', [
+    ('.stl', 'solid s\n' + 'facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n'
+     'vertex 0 1 0\nendloop\nendfacet\n' * 3 + 'endsolid s\n', 3),  # ASCII: one a facet
+    ('.obj', 'f 1 2 3\nv 0 0 0\nf\t1 2 3\n# f 1 2 3\nf 1 2 3 4\n', 3),  # a quad: 1 at least
+    ('.dae', '<COLLADA><triangles material="m" count="12"><p/></triangles><c:polylist '
+     'count = \'5\' material="n"><vcount/></c:polylist><polygons count="2"/><lines '
+     'count="9"/><triangles/><tristrips count="4"/></COLLADA>', 19),
+    ('.ply', 'ply\nelement face 12\n', 0),
+], ids=['ascii-stl', 'obj', 'dae', 'other'])
+def test_a_mesh_files_declared_triangles_are_read_without_parsing_it(extension, text, count):
+    """What a world's triangle budget is checked with before any mesh is converted."""
+    assert meshes.declared_triangles(text.encode(), extension) == count
+
+
+@pytest.mark.parametrize('write', [write_stl, write_obj, write_dae])
+def test_the_triangles_a_written_mesh_declares_are_those_it_has(tmp_path, write):
+    extension = {write_stl: '.stl', write_obj: '.obj', write_dae: '.dae'}[write]
+    path = write(tmp_path / f'b{extension}', box((1.0, 1.0, 1.0)))
+    with open(path, 'rb') as handle:
+        assert meshes.declared_triangles(handle.read(), extension) == 12
+
+
 def test_a_mesh_file_over_the_size_bound_is_refused_unread(tmp_path, monkeypatch):
     path = write_stl(tmp_path / 'b.stl', box((1.0, 1.0, 1.0)))
     monkeypatch.setattr(meshes, 'MAX_MESH_BYTES', 100)
@@ -243,6 +265,84 @@ def test_a_big_moving_mesh_loads_as_a_small_hull_and_a_small_one_as_it_was(tmp_p
     with open(cache.hulls(converted)) as handle:
         text = handle.read()
     assert text.count('\nv ') <= mesh_cache.HULL_POINTS and text.count('\nf ') < 300
+
+
+def pieces_one_face_at_a_time(faces, vertex_count):
+    """Return the pieces as the converter found them before (union-find, a loop over faces)."""
+    parent = list(range(vertex_count))
+
+    def root(v):
+        while parent[v] != v:
+            parent[v] = parent[parent[v]]
+            v = parent[v]
+        return v
+    for a, b, c in faces.tolist():
+        ra, rb, rc = root(a), root(b), root(c)
+        parent[rb] = ra
+        parent[root(rc)] = ra
+    labels = numpy.array([root(int(f)) for f in faces[:, 0]])
+    found = [numpy.flatnonzero(labels == label) for label in numpy.unique(labels)]
+    return sorted(found, key=lambda indices: (-len(indices), int(indices[0])))
+
+
+def test_conversion_steps_that_let_other_threads_run_give_the_same_results():
+    """
+    Whole-array steps in place of numpy's record sort and Python loops: nothing else changes.
+
+    numpy.unique(axis=0) sorts rows as records, holding the interpreter lock (2 s
+    for a 600,000-triangle STL, the node's physics and services waiting: a user saw
+    replies delayed 1.6-2.2 s); the pieces were found in a loop over faces.
+    """
+    rng = numpy.random.default_rng(3)
+    for _ in range(30):
+        points = rng.normal(size=(int(rng.integers(1, 400)), 3))
+        points[rng.random(points.shape) < 0.3] = 0.25
+        rows = points[rng.integers(0, len(points), int(rng.integers(1, 2000)))]
+        unique, inverse = mesh_cache.unique_rows(rows)
+        expected, expected_inverse = numpy.unique(rows, axis=0, return_inverse=True)
+        assert unique.tobytes() == expected.tobytes()
+        assert numpy.array_equal(inverse, expected_inverse.reshape(-1))
+        faces = rng.integers(0, len(rows), size=(int(rng.integers(1, 300)), 3))
+        found = mesh_cache.pieces(faces, len(rows))
+        assert [p.tolist() for p in found] == \
+            [p.tolist() for p in pieces_one_face_at_a_time(faces, len(rows))]
+    signed = numpy.array([[0.0, 1.0, 2.0], [-0.0, 1.0, 2.0], [0.0, 1.0, 2.0]])
+    unique, inverse = mesh_cache.unique_rows(signed)  # 0.0 and -0.0: as numpy keeps them
+    expected, expected_inverse = numpy.unique(signed, axis=0, return_inverse=True)
+    assert unique.tobytes() == expected.tobytes() and inverse.tolist() == [0, 0, 0]
+
+
+def test_merging_a_meshs_corners_sorts_no_records(monkeypatch):
+    """Only rows with a -0.0 go to numpy.unique(axis=0), whose sort holds the lock."""
+    sorted_as_records = []
+    real = numpy.unique
+
+    def spy(values, *args, **kwargs):
+        if kwargs.get('axis') is not None:
+            sorted_as_records.append(len(values))
+        return real(values, *args, **kwargs)
+    monkeypatch.setattr(numpy, 'unique', spy)
+    shape = box((1.0, 2.0, 3.0), (0.5, 1.0, 1.5))
+    corners = numpy.asarray(shape.vertices)[numpy.asarray(shape.faces)].reshape(-1, 3)
+    vertices, faces, kept = mesh_cache.merged(corners, numpy.arange(36).reshape(-1, 3))
+    assert len(vertices) == 8 and len(faces) == 12 and kept.all()
+    assert sorted_as_records == []
+
+
+def test_obj_text_in_blocks_is_the_text_of_one_format_and_reads_back(tmp_path, monkeypatch):
+    monkeypatch.setattr(mesh_cache, 'LINES_A_BLOCK', 7)
+    rng = numpy.random.default_rng(5)
+    vertices = rng.normal(size=(50, 3))
+    faces = rng.integers(0, 50, size=(40, 3))
+    text = mesh_cache.obj_text(vertices, faces, [numpy.arange(17), numpy.arange(17, 40)])
+    assert text == ('# written by r2d2_sim\n' +
+                    ('v %.9g %.9g %.9g\n' * 50) % tuple(vertices.ravel().tolist()) +
+                    'o piece_0\n' + ('f %d %d %d\n' * 17) % tuple((faces[:17] + 1).ravel()) +
+                    'o piece_1\n' + ('f %d %d %d\n' * 23) % tuple((faces[17:] + 1).ravel()))
+    (tmp_path / 'mesh.obj').write_text(text)
+    read_vertices, read_faces = mesh_cache._read_obj(str(tmp_path / 'mesh.obj'))
+    assert numpy.array_equal(read_faces, faces) and read_faces.dtype == numpy.int64
+    assert read_vertices.tolist() == [[float('%.9g' % v) for v in row] for row in vertices]
 
 
 CONVERT = '''

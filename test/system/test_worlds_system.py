@@ -20,7 +20,7 @@ from simulation_interfaces import msg, srv
 
 from common import REPO, TEST_DIR
 from r2d2_sim.client import ros_child_env
-from r2d2_sim.testing import HarnessError
+from r2d2_sim.testing import HarnessError, StandardError
 
 CLIENT = Path(TEST_DIR) / 'children' / 'world_client.py'
 ROOM = 'package://r2d2_sim/urdf/room.world.yaml'
@@ -76,6 +76,16 @@ def test_sim_process_verbs_load_a_world_and_use_its_named_poses(r2d2_sim_process
         sim.step(1)
     sim.load_world(ROOM)
     assert sim.standard.state() == STATE.STATE_STOPPED
+
+
+def test_sim_process_available_worlds_can_leave_out_a_bad_world_path(r2d2_sim_process,
+                                                                     tmp_path):
+    (tmp_path / 'bad.sdf').write_text('<sdf version="1.9"><world name="w"><unclosed')
+    sim = r2d2_sim_process(start_paused=True, world_paths=[str(tmp_path)])
+    with pytest.raises(StandardError, match='DEFAULT_SOURCES_FAILED.*bad.sdf'):
+        sim.available_worlds()
+    assert [w.name for w in sim.available_worlds(continue_on_error=True)] == \
+        ['empty', 'room', 'samurai']
 
 
 def test_a_load_world_during_a_step_is_refused_and_the_world_stays(r2d2_sim_process):

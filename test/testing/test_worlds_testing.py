@@ -97,3 +97,15 @@ def test_entity_info_tags_and_bounds(r2d2_sim):
     assert upper == pytest.approx((2.1, 2.6, 1.0)) and lower == pytest.approx((-3.1, -2.6, 0.0))
     r2d2_sim.reset_world()  # a full reset: the room as loaded, its tags too
     assert r2d2_sim.entity_info('room').tags == ('walls', 'static')
+
+
+def test_available_worlds_can_leave_out_a_directory_with_a_bad_world(r2d2_sim_factory, tmp_path):
+    """One bad world file fails the listing (the default); continue_on_error lists the rest."""
+    (tmp_path / 'bad.sdf').write_text('<sdf version="1.9"><world name="w"><unclosed')
+    sim = r2d2_sim_factory(world_paths=[str(tmp_path)])
+    with pytest.raises(RefusedError, match='^DEFAULT_SOURCES_FAILED: .*bad.sdf'):
+        sim.available_worlds()
+    assert [w.name for w in sim.available_worlds(continue_on_error=True)] == \
+        ['empty', 'room', 'samurai']
+    assert [w.name for w in sim.available_worlds(tags=['indoor'], continue_on_error=True)] == \
+        ['room']

@@ -15,7 +15,7 @@ import hashlib
 import os
 import shutil
 import tempfile
-from typing import Dict, List, NamedTuple, Optional, Tuple
+from typing import Dict, Iterable, List, NamedTuple, Optional, Tuple
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import compose, rotate, Transform
@@ -23,12 +23,13 @@ from r2d2_sim.sim.sdf.bodies import plan_bodies
 from r2d2_sim.sim.sdf.description import Geometry, Model, Scene
 from r2d2_sim.sim.sdf.elements import Place
 from r2d2_sim.sim.sdf.mesh_cache import Converted, MeshCache
+from r2d2_sim.sim.sdf.meshes import check_triangles, declared_triangles, read_mesh_bytes
 from r2d2_sim.sim.sdf.reader import Reader, ReadOptions
 from r2d2_sim.sim.sdf.resources import Resources
 from r2d2_sim.sim.sdf.urdf import urdf_text
 
 __all__ = ['GeneratedFiles', 'SdfSettings', 'SdfBody', 'SdfRead', 'SdfBuilt', 'read_sdf',
-           'build_bodies', 'summary_line', 'is_ground_plane', 'TriangleBudget',
+           'build_bodies', 'scene_meshes', 'summary_line', 'is_ground_plane', 'TriangleBudget',
            'MAX_WORLD_TRIANGLES']
 
 # Triangles of all the meshes of one world, each use counted (a concave mesh's
@@ -41,20 +42,55 @@ class TriangleBudget:
     """
     The mesh triangles one world or one spawn may load, each use of a mesh counted.
 
-    For the meshes of URDF descriptions, which PyBullet loads itself; an SDF
-    world's are counted as its bodies are built (:func:`build_bodies`).
+    Checked twice: :meth:`expect` before any mesh is converted, from what the
+    files say they hold (an over-budget world is refused in the time it takes
+    to read its files, not to convert them: 20 s for one a user met), then
+    :meth:`take` as each mesh converts, with the count converted. For an SDF
+    world's meshes (:func:`build_bodies`) and a URDF's, which PyBullet loads
+    itself.
     """
 
     def __init__(self, limit: Optional[int] = None) -> None:
         self.limit = MAX_WORLD_TRIANGLES if limit is None else limit
         self.left = self.limit
 
+    def _refused(self, shown: str) -> RefusedError:
+        return RefusedError('UNSUPPORTED_ASSETS', f'{shown + ": " if shown else ""}the meshes '
+                                                  f'have more than {self.limit} triangles in all')
+
+    def expect(self, meshes: Iterable[str], shown: str) -> None:
+        """
+        Refuse (UNSUPPORTED_ASSETS) when these meshes say they hold more triangles than are left.
+
+        ``meshes``: a mesh file's path for every use of it. Each file's count
+        is :func:`~.meshes.declared_triangles`; a file that cannot be read, or
+        holds more than a mesh may, counts 0 here (its conversion refuses it,
+        or leaves it out, with its own reason). Takes nothing from the budget.
+        """
+        counts: Dict[str, int] = {}
+        total = 0
+        for path in meshes:
+            if path not in counts:
+                counts[path] = _declared(path)
+            total += counts[path]
+            if total > self.left:
+                raise self._refused(shown)
+
     def take(self, triangles: int, shown: str) -> None:
         """Count a mesh's triangles; UNSUPPORTED_ASSETS (naming ``shown``) past the budget."""
         self.left -= triangles
         if self.left < 0:
-            raise RefusedError('UNSUPPORTED_ASSETS', f'{shown}: the meshes have more than '
-                                                     f'{self.limit} triangles in all')
+            raise self._refused(shown)
+
+
+def _declared(path: str) -> int:
+    """Return the triangles a mesh file declares; 0 for one that is not a mesh may be."""
+    try:
+        count = declared_triangles(read_mesh_bytes(path, ''), os.path.splitext(path)[1].lower())
+        check_triangles(count, '')
+    except RefusedError:
+        return 0
+    return count
 
 
 class SdfSettings(NamedTuple):
@@ -183,6 +219,13 @@ class _Notes:
         self.counts[what] = self.counts.get(what, 0) + 1
 
 
+def scene_meshes(scene: Scene) -> List[str]:
+    """Return the mesh file of every mesh shape of ``scene``'s models: each use, once."""
+    return [shape.geometry.mesh for model in scene.models for link in model.links
+            for shape in link.collisions + link.visuals
+            if shape.geometry.kind == 'mesh' and shape.geometry.mesh is not None]
+
+
 def build_bodies(scene: Scene, cache: MeshCache, ignore_missing: bool = False,
                  relative: bool = False, budget: Optional[TriangleBudget] = None
                  ) -> SdfBuilt:
@@ -192,7 +235,8 @@ def build_bodies(scene: Scene, cache: MeshCache, ignore_missing: bool = False,
     ``relative``: poses in the model's frame (a spawn), else in the world.
     ``ignore_missing``: a mesh that cannot be used is left out (noted), not
     refused. ``budget``: the world's triangles, when the scene is one of its
-    files (a manifest's model), else the scene's own. RefusedError:
+    files (a manifest's model), else the scene's own: checked first from
+    what the mesh files say they hold, then as each converts. RefusedError:
     UNSUPPORTED_ASSETS past MAX_WORLD_TRIANGLES, or for a mesh that is too
     big or unreadable; RESOURCE_PARSE_ERROR for a moving link of mass 0.
     """
@@ -212,6 +256,8 @@ def build_bodies(scene: Scene, cache: MeshCache, ignore_missing: bool = False,
                 return None
             raise
     try:
+        # before any mesh is converted
+        budget.expect(scene_meshes(scene), scene.models[0].source if scene.models else '')
         bodies: List[SdfBody] = []
         taken = set()
         triangles = 0

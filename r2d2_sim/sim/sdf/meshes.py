@@ -27,8 +27,8 @@ import numpy
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import read_regular, UnsafeFile
 
-__all__ = ['Triangles', 'read_mesh', 'read_mesh_bytes', 'check_triangles', 'MESH_FORMATS',
-           'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
+__all__ = ['Triangles', 'read_mesh', 'read_mesh_bytes', 'check_triangles',
+           'declared_triangles', 'MESH_FORMATS', 'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
 
 MESH_FORMATS = ('.dae', '.stl', '.obj')
 # One mesh file (AWS's small house: 140 DAE files of 87 MB in all, the largest 6 MB).
@@ -44,6 +44,10 @@ _DECLARED_ENCODING = re.compile(rb'<\?xml[^>]{0,1000}?encoding\s*=\s*["\']([A-Za
 # Encodings in which markup is ASCII, byte for byte, so the DOCTYPE check reads it as the
 # parser does; another (UTF-16, UTF-32, EBCDIC, UTF-7 with lxml) could hide a DOCTYPE.
 _ASCII_MARKUP = ('utf-8', 'utf8', 'us-ascii', 'ascii', 'iso-8859-1', 'latin-1', 'latin1')
+# The count of each COLLADA primitive read as triangles (bounded, so linear in the file).
+_COLLADA_COUNT = re.compile(
+    rb'<(?:[A-Za-z_][A-Za-z0-9_.-]{0,40}:)?(?:triangles|polylist|polygons)\s[^<>]{0,200}?'
+    rb'(?<=\s)count\s*=\s*["\']\s*([0-9]{1,12})\s*["\']')
 
 Rgba = Tuple[float, float, float, float]
 
@@ -69,6 +73,29 @@ def check_triangles(count: int, shown: str) -> None:
                                         f'{MAX_MESH_TRIANGLES}')
 
 
+def declared_triangles(data: bytes, extension: str) -> int:
+    """
+    Return how many triangles a mesh file says it holds, read without parsing it.
+
+    A binary STL's header count; an ASCII STL's facets; an OBJ's face lines
+    (a polygon is more than one triangle: at least this many); COLLADA's
+    ``count`` of its ``<triangles>``, ``<polylist>`` and ``<polygons>``
+    (each polygon at least one triangle). Milliseconds for a large file, so a
+    world over its triangle budget is refused before a mesh is converted;
+    0 for another format.
+    """
+    if extension == '.stl':
+        if len(data) >= 84 and not data[:5].lower() == b'solid':
+            return int(struct.unpack('<I', data[80:84])[0])
+        return data.count(b'endfacet')  # 'facet normal' ... 'endfacet': one each
+    if extension == '.obj':
+        return (data.count(b'\nf ') + data.count(b'\nf\t') +
+                int(data.startswith((b'f ', b'f\t'))))
+    if extension == '.dae':
+        return sum(map(int, _COLLADA_COUNT.findall(data)))
+    return 0
+
+
 def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], shown: str
           ) -> Triangles:
     """Join (vertices, faces, colour) pieces into one mesh, faces grouped by colour."""
@@ -90,14 +117,16 @@ def _join(pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]], sho
                                       'points and triangles') from None
         groups.append(numpy.full(len(faces[-1]), colours.index(colour)))
         offset += len(vertices[-1])
-    joined = numpy.concatenate(vertices)
+    # One piece (an STL, most meshes) is not copied: 40 MB copied hold the interpreter lock.
+    joined = vertices[0] if len(vertices) == 1 else numpy.concatenate(vertices)
     if not numpy.all(numpy.isfinite(joined)) or numpy.abs(joined).max() > MAX_COORDINATE:
         raise RefusedError(PARSE, f'mesh {shown} has a vertex that is not finite or more than '
                                   f'{MAX_COORDINATE:g} from its origin')
-    joined_faces = numpy.concatenate(faces)
+    joined_faces = faces[0] if len(faces) == 1 else numpy.concatenate(faces)
     if joined_faces.min() < 0 or joined_faces.max() >= len(joined):
         raise RefusedError(PARSE, f'mesh {shown} has a triangle of a vertex it does not have')
-    return Triangles(joined, joined_faces, tuple(colours), numpy.concatenate(groups))
+    return Triangles(joined, joined_faces, tuple(colours),
+                     groups[0] if len(groups) == 1 else numpy.concatenate(groups))
 
 
 def _check_collada_bytes(data: bytes, shown: str) -> None:
@@ -168,10 +197,7 @@ def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
 
 
 def _stl(data: bytes, shown: str) -> Triangles:
-    if len(data) >= 84 and not data[:5].lower() == b'solid':
-        check_triangles(struct.unpack('<I', data[80:84])[0], shown)
-    else:
-        check_triangles(data.count(b'facet'), shown)
+    check_triangles(declared_triangles(data, '.stl'), shown)
     from trimesh.exchange.stl import load_stl
     try:
         loaded = load_stl(io.BytesIO(data))
@@ -198,7 +224,7 @@ class _MaterialFiles:
 
 
 def _obj(data: bytes, shown: str, directory: str) -> Triangles:
-    check_triangles(data.count(b'\nf '), shown)
+    check_triangles(declared_triangles(data, '.obj'), shown)
     from trimesh.exchange.obj import load_obj
     try:
         loaded = load_obj(io.BytesIO(data),

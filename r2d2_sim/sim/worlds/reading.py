@@ -21,15 +21,16 @@ message that names files, never their contents.
 """
 
 import os
-from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple, TypeVar
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.physics.description import DescriptionFile
 from r2d2_sim.sim.sdf.elements import root_tag
-from r2d2_sim.sim.sdf.loading import SdfSettings, TriangleBudget
-from r2d2_sim.sim.worlds.sdf_format import read_sdf_world, sdf_models
-from r2d2_sim.sim.spawnables import check_description, MAX_DESCRIPTION_BYTES
+from r2d2_sim.sim.sdf.loading import scene_meshes, SdfSettings, TriangleBudget
+from r2d2_sim.sim.worlds.sdf_format import read_sdf_model, read_sdf_world, sdf_models
+from r2d2_sim.sim.spawnables import (
+    convert_meshes, MAX_DESCRIPTION_BYTES, MeshUse, read_description)
 from r2d2_sim.sim.worlds.manifest import load_yaml, MAX_WORLD_BYTES, read_manifest
 from r2d2_sim.sim.worlds.world import World, WorldModel
 from r2d2_sim.sim.worlds.places import (
@@ -39,6 +40,7 @@ __all__ = ['LoadOptions', 'WorldFormat', 'FORMATS', 'read_world', 'empty_world',
            'EMPTY_WORLD_URI']
 
 EMPTY_WORLD_URI = f'{PACKAGE_WORLDS}/empty.world.yaml'
+T = TypeVar('T')
 # A URDF's top-level elements PyBullet reads; others (gazebo, transmission...) it ignores.
 URDF_ELEMENTS = ('link', 'joint', 'material')
 
@@ -99,8 +101,15 @@ class _Reading:
             raise RefusedError('UNSUPPORTED_ELEMENTS', listed)
         self.notes.append(f'ignored: {listed}')
 
-    def urdf(self, text: str, base_dir: Optional[str], shown: str) -> str:
-        """Check a URDF's text; return its robot name. The world's own codes on refusal."""
+    def urdf(self, text: str, base_dir: Optional[str], shown: str
+             ) -> Tuple[str, List[MeshUse]]:
+        """
+        Check a URDF's text; return its robot name and its meshes, none converted yet.
+
+        The world's own codes on refusal; a trusted world's meshes are not
+        checked (PyBullet reads them as they are).
+        """
+        meshes: List[MeshUse] = []
         if self.trusted:
             if '<!DOCTYPE' in text or '<!ENTITY' in text:
                 raise RefusedError('RESOURCE_PARSE_ERROR', f'{shown} declares a DOCTYPE or '
@@ -114,55 +123,101 @@ class _Reading:
                 raise RefusedError('UNSUPPORTED_FORMAT', f'{shown}: the root element is '
                                                          f'<{root.tag[:40]}>, not <robot>')
         else:
-            # size, DOCTYPE, links, meshes' places and bounds
-            name = check_description(text, base_dir, self.triangles)
+            name, meshes = read_description(text, base_dir)  # size, DOCTYPE, links, meshes
             root = ElementTree.fromstring(text)
         self.unsupported([shown for child in root if child.tag not in URDF_ELEMENTS],
                          'elements PyBullet does not read')
-        return root.get('name', '') if self.trusted else name
+        return (root.get('name', '') if self.trusted else name), meshes
 
-    def model(self, entry, base_dir: Optional[str], anchor: Optional[str]) -> List[WorldModel]:
+    def convert(self, meshes: Sequence[MeshUse]) -> None:
+        """Convert a URDF's meshes: the world's triangles counted from the files first."""
+        self.triangles.expect([mesh.path for mesh in meshes], '')
+        convert_meshes(meshes, self.triangles)
+
+    def model(self, entry, base_dir: Optional[str], anchor: Optional[str]) -> '_Model':
         """
-        Return a manifest's model, its file found and checked (none: left out, as asked).
+        Return a manifest's model, its file found, read and checked, its meshes not converted.
 
         A URDF is one model; an SDF file is the bodies of its models (several
         when no joint joins them), at the entry's pose, named after the entry.
+        A model that cannot be had, now or when built, is left out (noted)
+        when the request allows it.
         """
         try:
-            path, root = self.places.resolve(entry.uri, base_dir)
-            shown = entry.uri[:200]
-            if not self.trusted and not self.places.allowed(path, anchor, root):
-                raise RefusedError('UNSUPPORTED_ASSETS', f'model {shown} lies outside the places '
-                                                         'worlds are loaded from')
-            if not os.path.isfile(path):
-                raise RefusedError('MISSING_ASSETS', f'model {shown}: no such file')
-            if path.lower().endswith(SDF_SUFFIXES):
-                try:
-                    return sdf_models(entry, path, self, anchor or os.path.dirname(path))
-                except RefusedError as exc:  # the world is a manifest: its asset is at fault
-                    if exc.code != 'UNSUPPORTED_FORMAT':
-                        raise
-                    raise RefusedError('UNSUPPORTED_ASSETS', exc.message) from None
-            if not path.lower().endswith('.urdf'):
-                raise RefusedError('UNSUPPORTED_ASSETS', f'model {shown}: only URDF and SDF '
-                                                         'models are loaded')
-            text = read_text(path, f'model {shown}', 'MISSING_ASSETS', MAX_DESCRIPTION_BYTES)
-            try:
-                self.urdf(text, os.path.dirname(path), f'model {shown}')
-            except RefusedError as exc:
-                code = {'UNSUPPORTED_FORMAT': 'UNSUPPORTED_ASSETS',
-                        'NO_RESOURCE': 'MISSING_ASSETS'}.get(exc.code, exc.code)
-                raise RefusedError(code, f'model {shown}: {exc.message}') from None
+            return self._model(entry, base_dir, anchor)
         except RefusedError as exc:
-            if (self.options.ignore_missing_or_unsupported_assets
-                    and exc.code in ('MISSING_ASSETS', 'UNSUPPORTED_ASSETS', 'NOT_FOUND')):
-                self.notes.append(f'left out: {exc.message}')
-                return []
-            if exc.code == 'NOT_FOUND':
-                raise RefusedError('MISSING_ASSETS', exc.message) from None
+            self._left_out(exc)
+            return _Model((), list)
+
+    def _model(self, entry, base_dir: Optional[str], anchor: Optional[str]) -> '_Model':
+        path, root = self.places.resolve(entry.uri, base_dir)
+        shown = entry.uri[:200]
+        if not self.trusted and not self.places.allowed(path, anchor, root):
+            raise RefusedError('UNSUPPORTED_ASSETS', f'model {shown} lies outside the places '
+                                                     'worlds are loaded from')
+        if not os.path.isfile(path):
+            raise RefusedError('MISSING_ASSETS', f'model {shown}: no such file')
+        if path.lower().endswith(SDF_SUFFIXES):
+            read = _as_asset(lambda: read_sdf_model(entry, path, self,
+                                                    anchor or os.path.dirname(path)))
+            return _Model(tuple(scene_meshes(read.scene)), lambda: self._built(
+                lambda: _as_asset(lambda: sdf_models(entry, read, self))))
+        if not path.lower().endswith('.urdf'):
+            raise RefusedError('UNSUPPORTED_ASSETS', f'model {shown}: only URDF and SDF '
+                                                     'models are loaded')
+        text = read_text(path, f'model {shown}', 'MISSING_ASSETS', MAX_DESCRIPTION_BYTES)
+        _, meshes = _as_asset(lambda: self.urdf(text, os.path.dirname(path), f'model {shown}'),
+                              shown)
+        model = WorldModel(entry.name, path, entry.uri, entry.position, entry.orientation,
+                           entry.description or entry.uri, entry.tags)
+
+        def build() -> List[WorldModel]:
+            _as_asset(lambda: self.convert(meshes), shown)
+            return [model]
+        return _Model(tuple(mesh.path for mesh in meshes), lambda: self._built(build))
+
+    def _built(self, build: Callable[[], List[WorldModel]]) -> List[WorldModel]:
+        """Return a model's bodies, its meshes converted; none when it is left out."""
+        try:
+            return build()
+        except RefusedError as exc:
+            self._left_out(exc)
+            return []
+
+    def _left_out(self, exc: RefusedError) -> None:
+        """Note a model that cannot be had as left out, if the request allows; else refuse."""
+        if (self.options.ignore_missing_or_unsupported_assets
+                and exc.code in ('MISSING_ASSETS', 'UNSUPPORTED_ASSETS', 'NOT_FOUND')):
+            self.notes.append(f'left out: {exc.message}')
+            return
+        if exc.code == 'NOT_FOUND':
+            raise RefusedError('MISSING_ASSETS', exc.message) from None
+        raise exc
+
+
+class _Model(NamedTuple):
+    """A manifest's model read and checked; ``build()`` converts its meshes: its bodies."""
+
+    meshes: Tuple[str, ...]   # the mesh file of every use of a mesh
+    build: Callable[[], List[WorldModel]]
+
+
+def _as_asset(call: Callable[[], T], urdf: Optional[str] = None) -> T:
+    """
+    Return ``call()``, a refusal made a manifest's model's: the world's asset is at fault.
+
+    ``urdf``: the model is that URDF, named in front of the message.
+    """
+    try:
+        return call()
+    except RefusedError as exc:
+        if urdf is not None:
+            code = {'UNSUPPORTED_FORMAT': 'UNSUPPORTED_ASSETS',
+                    'NO_RESOURCE': 'MISSING_ASSETS'}.get(exc.code, exc.code)
+            raise RefusedError(code, f'model {urdf}: {exc.message}') from None
+        if exc.code != 'UNSUPPORTED_FORMAT':
             raise
-        return [WorldModel(entry.name, path, entry.uri, entry.position, entry.orientation,
-                           entry.description or entry.uri, entry.tags)]
+        raise RefusedError('UNSUPPORTED_ASSETS', exc.message) from None
 
 
 class WorldFormat(NamedTuple):
@@ -186,7 +241,8 @@ def _xml_root(text: str) -> Optional[str]:
 def _read_urdf_world(text: str, path: Optional[str], uri: str, reading: _Reading,
                      anchor: Optional[str]) -> World:
     shown = uri[:200] if uri else 'the resource_string'
-    name = reading.urdf(text, os.path.dirname(path) if path else None, shown)
+    name, meshes = reading.urdf(text, os.path.dirname(path) if path else None, shown)
+    reading.convert(meshes)
     if path is None:
         description = DescriptionFile(text)
         reading.resources.append(description)
@@ -203,9 +259,12 @@ def _read_manifest_world(text: str, path: Optional[str], uri: str, reading: _Rea
     manifest = read_manifest(data, file_stem(path) if path else 'world')
     reading.unsupported(list(manifest.ignored), 'unknown keys')
     base_dir = os.path.dirname(path) if path else None
+    read = [reading.model(entry, base_dir, anchor) for entry in manifest.models]
+    if not reading.options.ignore_missing_or_unsupported_assets:  # else each model on its own
+        reading.triangles.expect([mesh for model in read for mesh in model.meshes], '')
     models: List[WorldModel] = []
-    for entry in manifest.models:
-        for model in reading.model(entry, base_dir, anchor):
+    for entry in read:
+        for model in entry.build():
             # two files' "crate" (an SDF model always has its name)
             if model.sdf and model.name is not None and model.name in {m.name for m in models}:
                 model = model._replace(name=_unused_name(model.name, models))

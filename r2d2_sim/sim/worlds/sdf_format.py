@@ -9,8 +9,10 @@ simulated (refused as UNSUPPORTED_ELEMENTS with
 world's models and named poses as the other formats give them. Named poses
 are the world's own ``<frame>`` elements (``<world><frame name="goal">``),
 in the world frame; a frame named ``start`` is the start pose the start-up
-robots stand at. :func:`sdf_models` gives a world manifest's models from an
-SDF file; :func:`sdf_world_entry` is what GetAvailableWorlds lists of one.
+robots stand at. :func:`read_sdf_model` and :func:`sdf_models` give a world
+manifest's models from an SDF file (read, then built: the whole world's
+meshes are counted between the two); :func:`sdf_world_entry` is what
+GetAvailableWorlds lists of one.
 """
 
 import os
@@ -28,7 +30,7 @@ from r2d2_sim.sim.sdf.resources import Resources
 from r2d2_sim.sim.worlds.manifest import check_world_pose
 from r2d2_sim.sim.worlds.world import NamedPose, World, WorldModel
 
-__all__ = ['read_sdf_world', 'sdf_models', 'sdf_world_entry', 'START_FRAME']
+__all__ = ['read_sdf_world', 'read_sdf_model', 'sdf_models', 'sdf_world_entry', 'START_FRAME']
 
 START_FRAME = 'start'
 SDF_TAG = 'sdf'
@@ -42,20 +44,29 @@ def _resources(reading, anchor: Optional[str], path: Optional[str]) -> Resources
     return Resources(reading.sdf.model_paths, roots)
 
 
-def _build(text: str, path: Optional[str], shown: str, reading, anchor: Optional[str],
-           named: bool = False) -> Tuple[SdfRead, SdfBuilt, str]:
+def _read(text: str, path: Optional[str], shown: str, reading, anchor: Optional[str]
+          ) -> SdfRead:
     """
-    Read and build an SDF file for a world; return its summary line, noted (or refused).
+    Read an SDF file for a world, no mesh converted; refuse what is not simulated if strict.
 
-    ``shown`` names the file in messages ('': read_world names it in front
-    of them); ``named``: so does the summary line (one of a manifest's models).
+    ``shown`` names the file in messages ('': read_world names it in front of them).
     """
     settings, options = reading.sdf, reading.options
-    ignore = options.ignore_missing_or_unsupported_assets
     read = read_sdf(text, path, shown, _resources(reading, anchor, path),
-                    settings.read_options(ignore), settings.ground_plane)
+                    settings.read_options(options.ignore_missing_or_unsupported_assets),
+                    settings.ground_plane)
     if read.summary and options.fail_on_unsupported_element:
         reading.not_simulated(read.summary)  # refused before any mesh is converted
+    return read
+
+
+def _build(read: SdfRead, shown: str, reading, named: bool = False) -> Tuple[SdfBuilt, str]:
+    """
+    Build a read SDF file's bodies for a world; return its summary line, noted (or refused).
+
+    ``named``: the summary line names the file (one of a manifest's models).
+    """
+    ignore = reading.options.ignore_missing_or_unsupported_assets
     built = build_bodies(read.scene, MeshCache(), ignore, budget=reading.triangles)
     reading.resources.append(built.files)
     counts = dict(read.scene.not_simulated)
@@ -65,7 +76,7 @@ def _build(text: str, path: Optional[str], shown: str, reading, anchor: Optional
     if line:
         reading.not_simulated(f'{shown}: {line}' if named else line)
     reading.notes += [f'left out: {m}' for m in read.scene.left_out + built.left_out]
-    return read, built, line
+    return built, line
 
 
 def _models(built: SdfBuilt, source: str, entry=None) -> List[WorldModel]:
@@ -89,7 +100,8 @@ def read_sdf_world(text: str, path: Optional[str], uri: str, reading,
                    anchor: Optional[str]) -> World:
     """Return an SDF file as a World: its models as bodies, its frames as named poses."""
     shown = '' if uri else 'the resource_string'  # read_world puts a file's name in front
-    read, built, summary = _build(text, path, shown, reading, anchor)
+    read = _read(text, path, shown, reading, anchor)
+    built, summary = _build(read, shown, reading)
     at = f'{shown}: ' if shown else ''
     poses = []
     for frame in read.scene.frames:
@@ -116,16 +128,23 @@ def read_sdf_world(text: str, path: Optional[str], uri: str, reading,
                  (SDF_TAG,), tuple(models), tuple(poses), start)
 
 
-def sdf_models(entry, path: str, reading, anchor: Optional[str]) -> List[WorldModel]:
-    """
-    Return a manifest's model that is an SDF file: its bodies at the entry's pose.
+def read_sdf_model(entry, path: str, reading, anchor: Optional[str]) -> SdfRead:
+    """Return a manifest's model that is an SDF file, read and checked, no mesh converted."""
+    shown = f'model {entry.uri[:200]}'
+    return _read(read_limited(path, shown, 'MISSING_ASSETS', MAX_SDF_BYTES), path, shown,
+                 reading, anchor)
 
-    The entry's name replaces the model's (its other bodies keep their
-    ``__`` suffixes); a file of several models takes no name.
+
+def sdf_models(entry, read: SdfRead, reading) -> List[WorldModel]:
+    """
+    Return a manifest's model that is an SDF file (:func:`read_sdf_model`): its bodies.
+
+    At the entry's pose, its meshes converted. The entry's name replaces the
+    model's (its other bodies keep their ``__`` suffixes); a file of several
+    models takes no name.
     """
     shown = f'model {entry.uri[:200]}'
-    text = read_limited(path, shown, 'MISSING_ASSETS', MAX_SDF_BYTES)
-    _, built, _ = _build(text, path, shown, reading, anchor, named=True)
+    built, _ = _build(read, shown, reading, named=True)
     if entry.name is not None and len({body.model for body in built.bodies}) > 1:
         raise RefusedError('RESOURCE_PARSE_ERROR', f'{shown} holds several models: the entry '
                                                    'cannot give them one name')
