@@ -39,6 +39,13 @@ NO_SIMULATION = ('needs an r2d2_sim simulation: run scenario_execution with --si
                  'r2d2_sim.osc:StandardSimulation (a running simulator, over ROS)')
 
 
+def given(**values: Any) -> None:
+    """Raise ValueError naming the first argument the scenario left without a value."""
+    for name, value in values.items():
+        if value is None:
+            raise ValueError(f'argument {name!r} has no value: give it (it has no default)')
+
+
 def _pose(value: Dict[str, Any]) -> Tuple[Tuple[float, float, float],
                                           Tuple[float, float, float, float]]:
     """Return (position, orientation x y z w) of an OSC pose_3d's resolved value."""
@@ -79,14 +86,24 @@ class SimAction(BaseAction):
         super().__init__()
         self.port: Optional[SimulatorPort] = None
         self.clock: Any = None
-        self.failure = ''       # why act() returned FAILURE
-        self.failure_line = ''  # the line the action failed with, for a verdict's reason
+        self.failure = ''         # why act() returned FAILURE
+        self.failure_line = ''    # the line the action failed with, for a verdict's reason
+        self.argument_error = ''  # an argument the scenario left out or gave wrong
 
     def setup(self, **kwargs: Any) -> None:
         """Take the simulation and the scenario's clock that scenario_execution hands over."""
         simulation = kwargs.get('simulation')
         self.port = simulation if hasattr(simulation, 'watch') else None
         self.clock = kwargs.get('clock')
+
+    def initialise(self) -> None:
+        """Take the arguments (``execute``); one missing or malformed fails at update."""
+        self.failure_line = self.failure = ''
+        self.argument_error = ''
+        try:
+            super().initialise()
+        except (TypeError, ValueError, KeyError) as exc:
+            self.argument_error = f'{self.name}: {exc}'
 
     def now(self) -> float:
         """Return the scenario's time (s): it runs on while the simulation is paused."""
@@ -100,6 +117,8 @@ class SimAction(BaseAction):
         if port.error:
             self.feedback_message = self.failure_line = port.error  # logged once, at reset
             return Status.FAILURE
+        if self.argument_error:
+            return self._fail(self.argument_error)
         try:
             status = self.act(port)
         except RefusedError as exc:
@@ -127,6 +146,7 @@ class SpawnEntity(SimAction):
 
     def execute(self, entity_name: str, uri: str, initial_pose: Dict[str, Any],
                 allow_renaming: bool, entity_namespace: str) -> None:
+        given(entity_name=entity_name, uri=uri, initial_pose=initial_pose)
         self.args = (entity_name, uri, _pose(initial_pose), bool(allow_renaming),
                      entity_namespace)
 
@@ -141,6 +161,7 @@ class DeleteEntity(SimAction):
     """delete_entity(entity)."""
 
     def execute(self, entity: str) -> None:
+        given(entity=entity)
         self.entity = entity
 
     def act(self, port: SimulatorPort) -> Status:
@@ -153,6 +174,7 @@ class SetEntityState(SimAction):
 
     def execute(self, entity: str, pose: Dict[str, Any], twist: Dict[str, Any],
                 acceleration: Dict[str, Any]) -> None:
+        given(entity=entity)
         self.entity, self.pose, self.twist = entity, _pose(pose), _twist(twist)
 
     def act(self, port: SimulatorPort) -> Status:
@@ -164,6 +186,7 @@ class LoadWorld(SimAction):
     """load_world(uri): STOPPED after it; set_simulation_state(playing) goes on."""
 
     def execute(self, uri: str) -> None:
+        given(uri=uri)
         self.uri = uri
 
     def act(self, port: SimulatorPort) -> Status:
@@ -204,6 +227,7 @@ class SetSimulationState(SimAction):
     """set_simulation_state(state): stopped, playing or paused (the scenario's lockstep)."""
 
     def execute(self, state: Any) -> None:
+        given(state=state)
         # scenario_execution hands an enum over as (name, index).
         self.state = state[0] if isinstance(state, (tuple, list)) else str(state)
 
@@ -217,7 +241,23 @@ class SetSimulationState(SimAction):
 # -- what the farm knows: drive, wait, check -----------------------------------------------
 
 
-class Drive(SimAction):
+class _Driving(SimAction):
+    """An action that commands a robot (``entity``, ``namespace``): stopped when given up."""
+
+    entity = ''
+    namespace = ''
+
+    def request_cancel(self) -> bool:
+        """Stop the robot when the branch that drove it is given up."""
+        if self.port is not None and not self.port.error and self.entity:
+            try:
+                self.port.command(self.entity, self.namespace, 0.0, 0.0)
+            except RefusedError:
+                pass  # it left the world: nothing to stop
+        return True
+
+
+class Drive(_Driving):
     """drive(entity, linear, angular, duration, entity_namespace): a velocity held, then 0."""
 
     def execute(self, entity: str, linear: float, angular: float, duration: float,
@@ -236,17 +276,8 @@ class Drive(SimAction):
         port.command(self.entity, self.namespace, 0.0, 0.0)
         return Status.SUCCESS
 
-    def request_cancel(self) -> bool:
-        """Stop the robot when the branch that drove it is given up."""
-        if self.port is not None and not self.port.error:
-            try:
-                self.port.command(self.entity, self.namespace, 0.0, 0.0)
-            except RefusedError:
-                pass  # it left the world: nothing to stop
-        return True
 
-
-class DriveTo(SimAction):
+class DriveTo(_Driving):
     """
     drive_to(entity, pose, speed, stop_distance, tolerance, entity_namespace).
 
@@ -259,8 +290,8 @@ class DriveTo(SimAction):
     def execute(self, entity: str, pose: str, speed: float, stop_distance: float,
                 tolerance: float, entity_namespace: str) -> None:
         self.entity, self.pose_name, self.namespace = entity, pose, entity_namespace
-        self.speed, self.stop_distance, self.tolerance = (float(speed), float(stop_distance),
-                                                         float(tolerance))
+        self.speed, self.stop_distance = float(speed), float(stop_distance)
+        self.tolerance = float(tolerance)
         self.region: Optional[GroundRegion] = None
 
     def act(self, port: SimulatorPort) -> Status:
@@ -277,15 +308,12 @@ class DriveTo(SimAction):
                      *go_to(pose, _centre(self.region), self.speed, blocked))
         return Status.RUNNING
 
-    def request_cancel(self) -> bool:
-        """Stop the robot when the branch that drove it is given up."""
-        return Drive.request_cancel(self)  # type: ignore[arg-type]
-
 
 class WaitUntilInRegion(SimAction):
     """wait_until_in_region(entity, x, y, radius): until its base stands in that circle."""
 
     def execute(self, entity: str, x: float, y: float, radius: float) -> None:
+        given(x=x, y=y, radius=radius)
         self.entity = entity
         self.region = circle_region(float(x), float(y), float(radius))
 
@@ -341,6 +369,7 @@ class AssertMinClearance(_Check):
     """assert_min_clearance(entity, distance): fails when anything comes nearer."""
 
     def execute(self, entity: str, distance: float) -> None:
+        given(distance=distance)
         self.entity, self.clearance_m = entity, float(distance)
 
     def broken(self, seen: Watched) -> str:
@@ -362,4 +391,3 @@ class AssertNotTipped(_Check):
             return ''
         return (f'{self.entity} tipped over (leaned past {math.degrees(self.tip_rad):g} deg) '
                 f'at {seen.tipped_s:.3f} s')
-

@@ -197,9 +197,11 @@ class R2D2Simulation(SimulationInterface):
     def spawn(self, name: str, uri: str, position: Sequence[float],
               orientation: Sequence[float], allow_renaming: bool, namespace: str) -> str:
         """Spawn as SpawnEntity does; return the entity's name."""
+        x, y, z = position
+        qx, qy, qz, qw = orientation
         return self._core().spawn(SpawnRequest(
             name=name, allow_renaming=allow_renaming, uri=uri, namespace=namespace,
-            position=tuple(position), orientation=tuple(orientation)))
+            position=(x, y, z), orientation=(qx, qy, qz, qw)))
 
     def delete(self, name: str) -> None:
         """Delete an entity."""
@@ -302,4 +304,3 @@ class R2D2Simulation(SimulationInterface):
                        near.time_ns / 1e9 if within and near.time_ns is not None else None,
                        near.distance_m,
                        None if watch.tipped_ns is None else watch.tipped_ns / 1e9)
-

@@ -299,42 +299,42 @@ class StandardSimulation(SimulationInterface):
 
     def spawn(self, name: str, uri: str, position: Sequence[float],
               orientation: Sequence[float], allow_renaming: bool, namespace: str) -> str:
-        """SpawnEntity; return the entity's name."""
+        """Spawn an entity (SpawnEntity); return its name."""
         return self._client().spawn(uri=uri, name=name, position=position,
                                     orientation=orientation, allow_renaming=allow_renaming,
                                     namespace=namespace)
 
     def delete(self, name: str) -> None:
-        """DeleteEntity."""
+        """Delete an entity (DeleteEntity)."""
         self._client().delete(name)
 
     def set_entity_state(self, name: str, position: Sequence[float],
                          orientation: Sequence[float], linear: Sequence[float],
                          angular: Sequence[float]) -> None:
-        """SetEntityState."""
+        """Place an entity (SetEntityState)."""
         self._client().set_entity_state(name, position, orientation, linear, angular)
         self._poses.pop(name, None)
 
     def load_world(self, uri: str) -> None:
-        """LoadWorld: STOPPED after it."""
+        """Load a world (LoadWorld): STOPPED after it."""
         self._client().load_world(uri=uri)
         self.playing = False
         self._poses, self._bounds = {}, {}
 
     def unload_world(self) -> None:
-        """UnloadWorld."""
+        """Unload the world (UnloadWorld)."""
         self._client().unload_world()
         self.playing = False
         self._poses, self._bounds = {}, {}
 
     def reset_simulation(self) -> None:
-        """ResetSimulation ALL, kept paused."""
+        """Reset all (ResetSimulation ALL), kept paused."""
         self._client().reset(0)
         self._hold()
         self._poses = {}
 
     def step_physics(self, steps: int) -> None:
-        """StepSimulation of a paused scenario."""
+        """Step a paused scenario (StepSimulation)."""
         self._check_world()
         if self.playing:
             raise RefusedError('OPERATION_FAILED', 'step_simulation steps a paused simulation: '
@@ -399,7 +399,7 @@ class StandardSimulation(SimulationInterface):
         return json.loads(response.message)['robots']
 
     def pose(self, entity: str) -> Pose3:
-        """GetEntityState's pose, read once per control period."""
+        """Return the pose GetEntityState gives, read once per control period."""
         pose = self._poses.get(entity)
         if pose is None:
             p = self._client().entity_state(entity).pose
@@ -421,11 +421,11 @@ class StandardSimulation(SimulationInterface):
         return circle_region(position.x, position.y, tolerance_m)
 
     def meeting(self, region: Region) -> List[str]:
-        """GetEntities with a bounds filter."""
+        """Return the entities that meet a region (GetEntities with a bounds filter)."""
         return self._client().entities(bounds=_bounds_message(region))
 
     def bounds(self, entity: str) -> Region:
-        """GetEntityBounds, read once per entity."""
+        """Return an entity's bounds (GetEntityBounds), read once per entity."""
         bounds = self._bounds.get(entity)
         if bounds is None:
             bounds = self._bounds[entity] = _bounds_region(self._client().entity_bounds(entity))

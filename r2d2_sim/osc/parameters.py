@@ -83,8 +83,8 @@ def _boxes(text: str) -> Tuple[Box, ...]:
         if len(values) != 6:
             raise ScenarioError(f'parameter obstacles: box {index} needs [x, y, yaw, size_x, '
                                 f'size_y, height], got {item!r}')
-        x, y, yaw, *size = (_number(f'obstacles[{index}]', v) for v in values)
-        boxes.append(Box(x, y, yaw, tuple(size)))
+        x, y, yaw, size_x, size_y, height = (_number(f'obstacles[{index}]', v) for v in values)
+        boxes.append(Box(x, y, yaw, (size_x, size_y, height)))
     return tuple(boxes)
 
 

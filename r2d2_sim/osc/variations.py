@@ -37,7 +37,7 @@ from r2d2_sim.errors import ScenarioError
 Status = py_trees.common.Status
 
 __all__ = ['Task', 'Verdict', 'read_documents', 'tasks_of', 'run_document', 'run_variations',
-           'write_junit', 'IN_PROCESS']
+           'write_junit', 'scenario_parameters', 'simulator_parameters', 'IN_PROCESS']
 
 # The simulation a variation runs against: R2D2 in the worker's own process.
 IN_PROCESS = 'r2d2_sim.osc:R2D2Simulation'
@@ -49,17 +49,16 @@ class Task(NamedTuple):
     """One document of a parameter file, to run: all a worker needs, picklable."""
 
     scenario_file: str              # the .osc file, absolute
-    index: int                      # the document's place in the file (0 first)
+    number: int                     # the document's place in the file (0 first)
     document: Optional[Dict[str, Any]]  # {scenario name: {parameter: value}}, None: defaults
-    output_dir: str                 # where the run's own files go ('' none)
     simulation: str = IN_PROCESS    # the simulation class, module:Class
 
 
 class Verdict(NamedTuple):
     """One document's run: scenario_execution's verdict, the reason, the farm's measures."""
 
-    index: int
-    name: str                       # as scenario_execution names it: <scenario>-<index>
+    number: int                     # the document's place in the file
+    name: str                       # as scenario_execution names it: <scenario>-<number>
     passed: bool
     reason: str                     # one line ('' when passed)
     wall_s: float
@@ -70,7 +69,7 @@ class Verdict(NamedTuple):
         def measures(verdict: 'Verdict') -> Any:
             data = dict(verdict.outcome or {})
             data.pop('wall_s', None)
-            return (verdict.index, verdict.name, verdict.passed, verdict.reason, data)
+            return (verdict.number, verdict.name, verdict.passed, verdict.reason, data)
         return measures(self) == measures(other)
 
 
@@ -96,15 +95,12 @@ def read_documents(path: str) -> List[Optional[Dict[str, Any]]]:
 
 
 def tasks_of(scenario_file: str, parameter_file: Optional[str] = None,
-             output_dir: str = '', simulation: str = IN_PROCESS) -> List[Task]:
+             simulation: str = IN_PROCESS) -> List[Task]:
     """Return one task per document of ``parameter_file`` (one task when there is none)."""
     documents: List[Optional[Dict[str, Any]]] = (
         read_documents(parameter_file) if parameter_file else [None])
-    several = len(documents) > 1
-    return [Task(os.path.abspath(scenario_file), index, document,
-                 os.path.join(output_dir, str(index)) if output_dir and several else output_dir,
-                 simulation)
-            for index, document in enumerate(documents)]
+    return [Task(os.path.abspath(scenario_file), number, document, simulation)
+            for number, document in enumerate(documents)]
 
 
 # -- one document, in a worker ---------------------------------------------------------------
@@ -175,20 +171,18 @@ def run_document(task: Task) -> Verdict:
     ensure_registered()
     from scenario_execution.scenario_execution_base import ScenarioExecution
     started = time.perf_counter()
-    if task.output_dir:
-        os.makedirs(task.output_dir, exist_ok=True)
     logger = _QuietLogger()
     simulation = _simulation(task.simulation)
     execution = ScenarioExecution(debug=False, log_model=False, live_tree=False,
-                                  scenario_file=task.scenario_file,
-                                  output_dir=task.output_dir or None, logger=logger,
+                                  scenario_file=task.scenario_file, output_dir=None,
+                                  logger=logger,
                                   register_signal=False, simulation=simulation)
-    name = f'{Path(task.scenario_file).stem}-{task.index}'
+    name = f'{Path(task.scenario_file).stem}-{task.number}'
     try:
         trees = (_parser(logger).process_file(task.scenario_file) if task.document is None
                  else _with_document(task, logger))
     except Exception as exc:  # scenario_execution's parse errors: ValueError, OSC2Error...
-        return Verdict(task.index, name, False, _line(f'parsing failed: {exc}'),
+        return Verdict(task.number, name, False, _line(f'parsing failed: {exc}'),
                        time.perf_counter() - started, None)
     execution.scenarios_list = [(_renamed(tree, task), params, None)
                                 for tree, params, _ in trees]
@@ -198,7 +192,7 @@ def run_document(task: Task) -> Verdict:
     passed = bool(results) and all(r.result for r in results)
     reason = '' if passed else _reason(execution, results, logger)
     outcome = _outcome(simulation, passed, reason, time.perf_counter() - started)
-    return Verdict(task.index, name, passed, reason, time.perf_counter() - started, outcome)
+    return Verdict(task.number, name, passed, reason, time.perf_counter() - started, outcome)
 
 
 def _with_document(task: Task, logger: Any) -> Any:
@@ -216,7 +210,7 @@ def _with_document(task: Task, logger: Any) -> Any:
 def _renamed(tree: Any, task: Task) -> Any:
     """Name a document's scenario as scenario_execution does in a multi-document run."""
     if task.document is not None:
-        tree.name = f'{tree.name}-{task.index}'
+        tree.name = f'{tree.name}-{task.number}'
     return tree
 
 
@@ -263,6 +257,32 @@ def _outcome(simulation: Any, passed: bool, reason: str, wall_s: float
     return Outcome(passed=passed, reason=reason, wall_s=wall_s, **measures).to_dict()
 
 
+def scenario_parameters(scenario_file: str, document: Optional[Dict[str, Any]] = None
+                        ) -> Dict[str, Any]:
+    """
+    Return the parameters the scenario (with ``document``'s overrides) gives the simulation.
+
+    Those :data:`~r2d2_sim.osc.parameters.DEFAULTS` names: what ``reset``
+    receives. With :func:`simulator_parameters`, what to start ``sim_node``
+    with so that it stands as the in-process run starts.
+    """
+    from r2d2_sim.osc.parameters import DEFAULTS
+    task = Task(os.path.abspath(scenario_file), 0, document)
+    logger = _QuietLogger()
+    trees = (_parser(logger).process_file(task.scenario_file) if document is None
+             else _with_document(task, logger))
+    return {name: value for name, value in trees[0][1].items() if name in DEFAULTS}
+
+
+def simulator_parameters(scenario_file: str, document: Optional[Dict[str, Any]] = None
+                         ) -> Dict[str, Any]:
+    """Return sim_node's parameters for the scenario: its world, start and seed, as in process."""
+    from r2d2_sim.osc.in_process import IN_PROCESS_PARAMETERS
+    from r2d2_sim.osc.parameters import read_parameters
+    settings = read_parameters(scenario_parameters(scenario_file, document))
+    return {**IN_PROCESS_PARAMETERS, **settings.scenario.parameters(), **settings.parameters}
+
+
 # -- every document, in a pool -------------------------------------------------------------
 
 
@@ -275,7 +295,7 @@ def _pool_map(jobs: int) -> Mapper:
 
 def run_variations(scenario_file: str, parameter_file: Optional[str], output_dir: str, *,
                    jobs: int = 2, map_tasks: Optional[Mapper] = None,
-                   report: bool = True) -> List[Verdict]:
+                   report: bool = True, simulation: str = IN_PROCESS) -> List[Verdict]:
     """
     Run every document of ``parameter_file`` against ``scenario_file``; return the verdicts.
 
@@ -283,12 +303,13 @@ def run_variations(scenario_file: str, parameter_file: Optional[str], output_dir
     ``jobs`` processes; ``jobs`` 1 runs them here, one after another). Writes
     ``output_dir/test.xml`` (one test case per document) and, with
     ``report``, the farm's report in ``output_dir/farm``. The verdicts are
-    in document order, whatever order they ran in.
+    in document order, whatever order they ran in. ``simulation``: the
+    class each task runs against (module:Class).
     """
-    tasks = tasks_of(scenario_file, parameter_file, output_dir)
+    tasks = tasks_of(scenario_file, parameter_file, simulation)
     if map_tasks is None:
         map_tasks = _pool_map(jobs) if jobs > 1 else (lambda f, ts: [f(t) for t in ts])
-    verdicts = sorted(map_tasks(run_document, tasks), key=lambda v: v.index)
+    verdicts = sorted(map_tasks(run_document, tasks), key=lambda v: v.number)
     Path(output_dir).mkdir(parents=True, exist_ok=True)
     write_junit(verdicts, Path(output_dir) / 'test.xml')
     if report:
