@@ -425,7 +425,7 @@ class StandardSimulation(SimulationInterface):
         return self._client().entities(bounds=_bounds_message(region))
 
     def bounds(self, entity: str) -> Region:
-        """Return an entity's bounds (GetEntityBounds), read once per entity."""
+        """Return the box around an entity (GetEntityBounds), read once per entity."""
         bounds = self._bounds.get(entity)
         if bounds is None:
             bounds = self._bounds[entity] = _bounds_region(self._client().entity_bounds(entity))
