@@ -106,6 +106,10 @@ def test_pip_install_alone_brings_the_pinned_dependencies(pip_venv, tmp_path):
         spec = declared[next(k for k in declared if k.split('[')[0] == name)]
         if spec.startswith('=='):
             assert version == spec[2:], (name, version, spec)
+    # The scenarios extra pins scenario_execution as requirements.txt does.
+    extra = [line for line in facts['requires'] if 'extra == "scenarios"' in line]
+    assert [r.split(';')[0].strip() for r in extra] == [
+        line for line in lines if line.startswith('scenario_execution')], extra
     # pip's own consistency check: every declared dependency is there, at its version.
     _run([str(pip_venv / 'bin' / 'python'), '-m', 'pip', 'check'], env=user_env())
 
