@@ -137,12 +137,24 @@ class R2D2Simulation(SimulationInterface):
             self.logger.error(f'r2d2_sim: {line}')
 
     def step(self) -> None:
-        """Advance one control period while playing (whole physics steps); else nothing."""
+        """Advance one control period while playing: :meth:`policy`, then whole physics steps."""
         simulation = self.simulation
         if simulation is None or not self.playing:
             return
+        self.policy(simulation)
         for _ in range(self._steps_per_period):
             simulation.step()
+
+    def policy(self, simulation: Simulation) -> None:
+        """
+        Command the robots for the next control period: override it with your own controller.
+
+        Called before each period's physics steps, with the core simulation
+        (``simulation.robots[0].command(linear, angular)``, poses from
+        ``simulation.entities``); ``self.settings.scenario`` is the run's
+        scenario. Run the subclass with ``--simulation module:YourClass``.
+        Does nothing here: the scenario's actions drive.
+        """
 
     def shutdown(self) -> None:
         """Close the physics."""

@@ -163,3 +163,19 @@ def test_a_robot_laid_on_its_side_fails_assert_not_tipped(tmp_path):
                   "            assert_not_tipped()\n")
     assert re.fullmatch(r'r2d2 tipped over \(leaned past 45 deg\) at \d+\.\d{3} s',
                         verdict.reason), verdict
+
+
+def test_a_subclass_policy_drives_the_robot(tmp_path, monkeypatch):
+    """docs/scenarios.md's policy, as written: 0.4 m/s each period, the robot gets there."""
+    page = (LIBRARY.parents[3] / 'docs' / 'scenarios.md').read_text(encoding='utf-8')
+    (block,) = re.findall(r'^```python\n(.*?)^```$', page, re.S | re.M)
+    (tmp_path / 'my_policies.py').write_text(block)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    scenario = tmp_path / 'probe.osc'
+    scenario.write_text('import osc.helpers\nimport osc.r2d2\n\nscenario probe:\n'
+                        '    timeout(10s)\n'
+                        '    do serial:\n'
+                        '        wait_until_in_region(x: 2m, y: 0m, radius: 0.1m)\n')
+    verdict = run_document(Task(str(scenario), 0, None, 'my_policies:Forward'))
+    assert verdict.passed, verdict.reason
+    assert verdict.outcome['time_to_goal_s'] is not None  # the default goal at 1 m on the way

@@ -1,5 +1,5 @@
 """
-A scenario's parameters as the farm's Scenario: defaults, boxes, named poses, and one line per mistake.
+A scenario's parameters as the farm's Scenario: defaults, boxes, named poses, a line per mistake.
 
 No ROS, no physics, no scenario_execution (the simulations' ``reset`` signatures are
 read with ``inspect`` and checked against the one table of parameters).

@@ -52,7 +52,7 @@ def test_a_pool_gives_one_verdict_per_document_the_same_on_a_rerun(tmp_path):
 
 
 def test_the_command_line_says_each_verdict(tmp_path):
-    """python -m r2d2_sim.osc: a line per variation, the count, exit status 1 for a failure."""
+    """The command line: a line per variation, the count, exit status 1 for a failure."""
     result = subprocess.run(
         [sys.executable, '-m', 'r2d2_sim.osc', str(OSC_EXAMPLES / 'crossing.osc'),
          '--parameters', str(OSC_EXAMPLES / 'crossing_speeds.yaml'), '-o', 'out', '--jobs', '2'],

@@ -1,5 +1,5 @@
 """
-The same scenarios over ROS: the library's actions against a running sim_node give the same verdict.
+The same scenarios over ROS: the library's actions against a running sim_node, the same verdicts.
 
 ``scenario_execution --simulation r2d2_sim.osc:StandardSimulation`` against a
 ``SimProcess`` started with the scenario's own parameters (its world, start and
