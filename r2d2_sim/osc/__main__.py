@@ -42,6 +42,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if not os.path.isfile(args.scenario):
         print(f'r2d2_sim.osc: error: no scenario file {args.scenario}', file=sys.stderr)
         return 2
+    try:
+        import scenario_execution  # noqa: F401
+    except ImportError:
+        print("r2d2_sim.osc: error: needs scenario_execution: pip install 'r2d2_sim[scenarios]' "
+              '(or scenario_execution==1.8.0)', file=sys.stderr)
+        return 2
     from r2d2_sim.osc.entry_points import ensure_registered
     ensure_registered()
     from r2d2_sim.osc.variations import IN_PROCESS, run_variations

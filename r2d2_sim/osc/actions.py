@@ -123,6 +123,8 @@ class SimAction(BaseAction):
             status = self.act(port)
         except RefusedError as exc:
             return self._fail(f'{self.name}: {exc.code}: {exc.message}')
+        except ValueError as exc:  # a value the simulator gave that the action cannot use
+            return self._fail(f'{self.name}: {exc}')
         if status == Status.FAILURE:
             return self._fail(self.failure)
         return status

@@ -283,3 +283,27 @@ def test_readme_examples_run_unchanged_in_the_pip_venv(pip_venv, tmp_path):
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert f'{len(examples)} passed' in result.stdout  # one test per example file
+
+
+def test_the_scenarios_extra_runs_a_documented_scenario_pip_only(pip_venv, tmp_path):
+    """
+    pip-installed r2d2_sim plus scenario_execution: the command runs docs' crossing, in process.
+
+    The installed package registers osc.r2d2 through its entry points and ships its
+    library file; nothing comes from the source tree. (Last in this file: the install
+    takes PyYAML down to scenario_execution's pin.)
+    """
+    pip = [str(pip_venv / 'bin' / 'python'), '-m', 'pip', 'install', '--quiet',
+           '--disable-pip-version-check']
+    extra = next(line for line in (Path(REPO) / 'requirements.txt').read_text().splitlines()
+                 if line.startswith('scenario_execution'))
+    _run(pip + [extra], cwd=tmp_path)
+    scenario = tmp_path / 'crossing.osc'
+    shutil.copy2(Path(REPO) / 'test' / 'examples' / 'osc' / 'crossing.osc', scenario)
+    result = subprocess.run(
+        [str(pip_venv / 'bin' / 'scenario_execution'), '--simulation',
+         'r2d2_sim.osc:R2D2Simulation', '-o', 'out', str(scenario)], cwd=tmp_path,
+        env=user_env(), capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert "Scenario 'crossing' succeeded." in result.stdout
+    _run([str(pip_venv / 'bin' / 'python'), '-m', 'pip', 'check'], env=user_env())
