@@ -179,8 +179,12 @@ def osc_env(shim_dir, **extra):
     """
     from r2d2_sim.osc.entry_points import write_shim
     env = dict(os.environ)
-    env['PYTHONPATH'] = os.pathsep.join(
-        p for p in (write_shim(str(shim_dir)), REPO, env.get('PYTHONPATH')) if p)
+    # A build in the tree (pip wheel, setup.py) leaves an egg-info that registers them
+    # already: a second registration would make scenario_execution refuse both.
+    built = any('r2d2_sim.osc:library' in (info / 'entry_points.txt').read_text()
+                for info in Path(REPO).glob('*.egg-info') if (info / 'entry_points.txt').exists())
+    shim = '' if built else write_shim(str(shim_dir))
+    env['PYTHONPATH'] = os.pathsep.join(p for p in (shim, REPO, env.get('PYTHONPATH')) if p)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env.update({key: str(value) for key, value in extra.items()})
     return env
