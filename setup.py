@@ -1,6 +1,8 @@
 """Packaging for r2d2_sim (ament_python): executables go to lib/r2d2_sim for `ros2 run`."""
 
 from glob import glob
+import os
+import runpy
 
 from setuptools import find_packages, setup
 
@@ -39,12 +41,22 @@ INSTALL_REQUIRES = [
     'hypothesis>=6.100,<7',
 ]
 
+# OpenSCENARIO scenarios through scenario_execution (r2d2_sim.osc): an extra, because
+# scenario_execution pins its dependencies exactly (docs/scenarios.md says what that
+# changes: PyYAML 6.0.1 in place of the 6.0.4 the ROS wheels bring, py-trees 2.4.0,
+# antlr4-python3-runtime 4.9.2). Its entry points come from the package's one table of
+# them, read without importing the package.
+EXTRAS_REQUIRE = {'scenarios': ['scenario_execution==1.8.0']}
+OSC_ENTRY_POINTS = runpy.run_path(
+    os.path.join(os.path.dirname(os.path.abspath(__file__)), 'r2d2_sim', 'osc', 'entry_points.py')
+)['ENTRY_POINTS']
+
 setup(
     name=package_name,
     version='0.2.0',
     packages=find_packages(exclude=['test']),
     # PEP 561: the marker tells type checkers that r2d2_sim's own hints are to be read.
-    package_data={package_name: ['py.typed']},
+    package_data={package_name: ['py.typed'], package_name + '.osc': ['lib_osc/*.osc']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -54,6 +66,7 @@ setup(
         ('share/' + package_name + '/rviz', ['config/r2d2_sim.rviz']),
     ],
     install_requires=INSTALL_REQUIRES,
+    extras_require=EXTRAS_REQUIRE,
     python_requires='>=3.10',
     # A zipped egg would hide py.typed from type checkers (PEP 561).
     zip_safe=False,
@@ -72,5 +85,6 @@ setup(
         ],
         'pytest11': ['r2d2_sim.pytest_plugin = r2d2_sim.pytest_plugin',
                      'r2d2_sim.farm.pytest_plugin = r2d2_sim.farm.pytest_plugin'],
+        **OSC_ENTRY_POINTS,
     },
 )

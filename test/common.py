@@ -162,3 +162,46 @@ def distance_to_the_room(points):
         signed = numpy.linalg.norm(numpy.maximum(q, 0.0), axis=1) + numpy.minimum(q.max(1), 0.0)
         distance = numpy.minimum(distance, numpy.abs(signed))
     return distance
+
+
+# -- OpenSCENARIO scenarios (test/osc, system/test_osc_over_ros.py) ---------------------------
+
+OSC_EXAMPLES = Path(REPO) / 'test' / 'examples' / 'osc'
+
+
+def osc_env(shim_dir, **extra):
+    """
+    Return an environment in which scenario_execution finds osc.r2d2 from this source tree.
+
+    An installed r2d2_sim registers its entry points; a source checkout does
+    not, so a shim ``.dist-info`` is written into ``shim_dir`` and put on
+    PYTHONPATH before the tree. ``extra``: more variables (ROS_DOMAIN_ID...).
+    """
+    from r2d2_sim.osc.entry_points import write_shim
+    env = dict(os.environ)
+    # A build in the tree (pip wheel, setup.py) leaves an egg-info that registers them
+    # already: a second registration would make scenario_execution refuse both.
+    built = any('r2d2_sim.osc:library' in (info / 'entry_points.txt').read_text()
+                for info in Path(REPO).glob('*.egg-info') if (info / 'entry_points.txt').exists())
+    shim = '' if built else write_shim(str(shim_dir))
+    env['PYTHONPATH'] = os.pathsep.join(p for p in (shim, REPO, env.get('PYTHONPATH')) if p)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.update({key: str(value) for key, value in extra.items()})
+    return env
+
+
+def scenario_execution(args, env, cwd, timeout_s=300):
+    """Run the scenario_execution command; return (exit status, its output, test.xml's cases)."""
+    import subprocess
+    import sys
+    import xml.etree.ElementTree as ElementTree
+    command = os.path.join(os.path.dirname(sys.executable), 'scenario_execution')
+    result = subprocess.run([command, '-o', 'out', *map(str, args)], cwd=cwd, env=env,
+                            capture_output=True, text=True, timeout=timeout_s)
+    junit = Path(cwd) / 'out' / 'test.xml'
+    cases = {}
+    if junit.exists():
+        for case in ElementTree.parse(junit).getroot().iter('testcase'):
+            failure = case.find('failure')
+            cases[case.get('name')] = None if failure is None else failure.get('message')
+    return result.returncode, result.stdout + result.stderr, cases

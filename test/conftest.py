@@ -5,6 +5,7 @@ The folders are tiers. ``model/``, ``physics/`` and ``sim/`` are the fast tier
 (``./run.sh test fast``): they never load rclpy (``model/`` not even PyBullet),
 and a session of them alone fails if rclpy gets imported anyway. ``recording/``,
 ``ros/``, ``testing/``, ``apps/`` and ``conformance/`` run ROS in this process;
+``osc/`` runs scenarios through scenario_execution (in this process, and its command);
 ``system/`` starts processes or builds things, and is marked ``system``; ``lint/`` checks style
 and the package's layering. Helpers are in ``common.py`` (no ROS) and
 ``helpers.py`` (ROS); test modules import from those, never from a conftest.

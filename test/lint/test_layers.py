@@ -39,7 +39,7 @@ PACKAGE = 'r2d2_sim'
 ROOT_RANK = -1
 RANK = {'deprecations': ROOT_RANK, 'errors': 0, 'memory': 0, 'files': 0, 'model': 1,
         'recording': 2, 'physics': 3, 'sim': 4, 'client': 5, 'ros': 6, 'testing': 7, 'apps': 8,
-        'farm': 9, 'pytest_plugin': 10, '__main__': 10, 'conformance': 11}
+        'farm': 9, 'pytest_plugin': 10, '__main__': 10, 'conformance': 11, 'osc': 12}
 # What importing all of a ROS-free layer must not load.
 MUST_NOT_LOAD = {'model': ['rclpy', 'pybullet'], 'physics': ['rclpy'], 'sim': ['rclpy'],
                  'recording': ['rclpy', 'pybullet']}

@@ -106,6 +106,10 @@ def test_pip_install_alone_brings_the_pinned_dependencies(pip_venv, tmp_path):
         spec = declared[next(k for k in declared if k.split('[')[0] == name)]
         if spec.startswith('=='):
             assert version == spec[2:], (name, version, spec)
+    # The scenarios extra pins scenario_execution as requirements.txt does.
+    extra = [line for line in facts['requires'] if 'extra == "scenarios"' in line]
+    assert [r.split(';')[0].strip() for r in extra] == [
+        line for line in lines if line.startswith('scenario_execution')], extra
     # pip's own consistency check: every declared dependency is there, at its version.
     _run([str(pip_venv / 'bin' / 'python'), '-m', 'pip', 'check'], env=user_env())
 
@@ -279,3 +283,27 @@ def test_readme_examples_run_unchanged_in_the_pip_venv(pip_venv, tmp_path):
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert f'{len(examples)} passed' in result.stdout  # one test per example file
+
+
+def test_the_scenarios_extra_runs_a_documented_scenario_pip_only(pip_venv, tmp_path):
+    """
+    pip-installed r2d2_sim plus scenario_execution: the command runs docs' crossing, in process.
+
+    The installed package registers osc.r2d2 through its entry points and ships its
+    library file; nothing comes from the source tree. (Last in this file: the install
+    takes PyYAML down to scenario_execution's pin.)
+    """
+    pip = [str(pip_venv / 'bin' / 'python'), '-m', 'pip', 'install', '--quiet',
+           '--disable-pip-version-check']
+    extra = next(line for line in (Path(REPO) / 'requirements.txt').read_text().splitlines()
+                 if line.startswith('scenario_execution'))
+    _run(pip + [extra], cwd=tmp_path)
+    scenario = tmp_path / 'crossing.osc'
+    shutil.copy2(Path(REPO) / 'test' / 'examples' / 'osc' / 'crossing.osc', scenario)
+    result = subprocess.run(
+        [str(pip_venv / 'bin' / 'scenario_execution'), '--simulation',
+         'r2d2_sim.osc:R2D2Simulation', '-o', 'out', str(scenario)], cwd=tmp_path,
+        env=user_env(), capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert "Scenario 'crossing' succeeded." in result.stdout
+    _run([str(pip_venv / 'bin' / 'python'), '-m', 'pip', 'check'], env=user_env())

@@ -1,0 +1,318 @@
+"""
+scenario_execution's step-based simulation, in the scenario's process: the core, no ROS.
+
+``scenario_execution --simulation r2d2_sim.osc:R2D2Simulation scenario.osc``
+runs a scenario against :class:`R2D2Simulation`: ``reset(**parameters)``
+builds a fresh core :class:`~r2d2_sim.sim.simulation.Simulation` for the
+farm's Scenario the parameters describe (:mod:`.parameters`: world, start,
+goal, boxes, seed, limits), ``step()`` advances one control period
+(:data:`CONTROL_PERIOD_S`, whole physics steps) in lockstep with the
+behaviour tree, and the actions of :mod:`.actions` change and read the world
+through it (:class:`~.port.SimulatorPort`). The same seed gives the same run,
+bit for bit.
+
+A scenario author's mistake found at reset (a world or a named pose that does
+not exist, a parameter that cannot be) is logged as one line and fails the
+scenario at the first action, with that line as its reason: scenario_execution
+prints a traceback for an exception raised in ``reset``.
+"""
+
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+from scenario_execution.simulation import SimulationInterface
+
+from r2d2_sim.errors import RefusedError, ScenarioError, SetupError
+from r2d2_sim.model.regions import circle_region, Region as GroundRegion
+from r2d2_sim.model.transforms import yaw_to_quaternion
+from r2d2_sim.osc.parameters import DEFAULTS, read_parameters, RunSettings
+from r2d2_sim.osc.port import Pose3, STATES, Watched
+from r2d2_sim.sim.bounds import Region
+from r2d2_sim.sim.entities import SpawnRequest
+from r2d2_sim.sim.oracles import DEFAULT_TIP_ANGLE_RAD, RunWatch
+from r2d2_sim.sim.settings.robots import parse_world
+from r2d2_sim.sim.simulation import Simulation
+from r2d2_sim.sim.spawnables import box_urdf
+
+__all__ = ['R2D2Simulation', 'CONTROL_PERIOD_S', 'IN_PROCESS_PARAMETERS', 'GOAL',
+           'TRAJECTORY_PERIOD_S']
+
+# One tick of the behaviour tree: 12 physics steps at 240 Hz (the farm's stopper's rate).
+CONTROL_PERIOD_S = 0.05
+# Under every in-process run: what nobody reads here is not measured (the physics does not
+# depend on it, so the run is the same as sim_node's with its defaults).
+IN_PROCESS_PARAMETERS: Dict[str, Any] = {'scan_rate': 0.0, 'imu_rate': 0.0,
+                                         'publish_rate': 1.0 / CONTROL_PERIOD_S}
+# The scenario's goal region, as the run's watch and wait_until_at_pose name it.
+GOAL = 'goal'
+# The robot's trajectory, for the farm's report, at this period of simulated time.
+TRAJECTORY_PERIOD_S = 0.1
+
+
+def _quiet(text: str) -> None:
+    pass
+
+
+class R2D2Simulation(SimulationInterface):
+    """
+    R2D2 in PyBullet, stepped by scenario_execution: one control period per tick.
+
+    Made with no arguments (scenario_execution's ``--simulation`` does so);
+    every run's settings come from the scenario's parameters at ``reset``.
+    After a run, :meth:`measures` says what the robot did (the farm's
+    Outcome's measures), whatever the verdict.
+    """
+
+    def __init__(self) -> None:
+        self.simulation: Optional[Simulation] = None
+        self.settings: Optional[RunSettings] = None
+        # A mistake found at reset, one line: every action fails with it.
+        self.error: Optional[str] = None
+        self.playing = True
+        self.logger: Any = None
+        self.warnings: List[str] = []
+        self._steps_per_period = 0
+        self._run: Optional[RunWatch] = None
+        self._watches: Dict[Tuple[str, float], RunWatch] = {}
+        # The last run's measures, kept when its simulation is closed (shutdown comes first).
+        self._finished: Dict[str, Any] = {}
+
+    @property
+    def dt(self) -> float:
+        """Return the control period (s): the tick of the behaviour tree, in simulated time."""
+        return CONTROL_PERIOD_S
+
+    def setup(self, **kwargs: Any) -> None:
+        """Keep scenario_execution's logger; the simulation itself is built at each reset."""
+        self.logger = kwargs.get('logger')
+
+    def reset(self, world: str = DEFAULTS['world'], robot: str = DEFAULTS['robot'],
+              start_x: float = DEFAULTS['start_x'], start_y: float = DEFAULTS['start_y'],
+              start_yaw: float = DEFAULTS['start_yaw'],
+              start_pose: str = DEFAULTS['start_pose'], goal_x: float = DEFAULTS['goal_x'],
+              goal_y: float = DEFAULTS['goal_y'],
+              goal_tolerance: float = DEFAULTS['goal_tolerance'],
+              goal_pose: str = DEFAULTS['goal_pose'], obstacles: str = DEFAULTS['obstacles'],
+              seed: int = DEFAULTS['seed'], scan_noise_std: float = DEFAULTS['scan_noise_std'],
+              limits: str = DEFAULTS['limits'], parameters: str = DEFAULTS['parameters'],
+              simulator_namespace: str = DEFAULTS['simulator_namespace']) -> None:
+        """Build the world of the scenario's parameters afresh (see :mod:`.parameters`)."""
+        values = dict(locals())
+        del values['self']
+        self._close()
+        self._finished = {}
+        self.error = None
+        self.playing = True
+        self.warnings = []
+        try:
+            self.settings = read_parameters(values)
+            self.simulation = self._build(self.settings)
+        except (ScenarioError, SetupError) as exc:
+            self._fail(str(exc))
+        except RefusedError as exc:
+            self._fail(exc.message)
+
+    def _build(self, settings: RunSettings) -> Simulation:
+        scenario = settings.scenario
+        config, robots = parse_world({**IN_PROCESS_PARAMETERS, **scenario.parameters(),
+                                      **settings.parameters})
+        simulation = Simulation(config, robots, warn=self.warnings.append, error=_quiet)
+        try:
+            for index, box in enumerate(scenario.obstacles):
+                simulation.spawn(SpawnRequest(
+                    name=f'box_{index}', resource_string=box_urdf(box.size),
+                    position=(box.x, box.y, box.size[2] / 2.0),
+                    orientation=yaw_to_quaternion(box.yaw)))
+            simulation.entities.body(settings.robot)  # NOT_FOUND, listing the entities
+            self._run = RunWatch(simulation, settings.robot, regions={GOAL: scenario.goal},
+                                 trajectory_period_s=TRAJECTORY_PERIOD_S)
+        except BaseException:
+            simulation.close()
+            raise
+        self._steps_per_period = max(1, round(CONTROL_PERIOD_S * config.physics_rate_hz))
+        return simulation
+
+    def _fail(self, line: str) -> None:
+        self.error = line
+        if self.logger is not None:
+            self.logger.error(f'r2d2_sim: {line}')
+
+    def step(self) -> None:
+        """Advance one control period while playing: :meth:`policy`, then whole physics steps."""
+        simulation = self.simulation
+        if simulation is None or not self.playing:
+            return
+        self.policy(simulation)
+        for _ in range(self._steps_per_period):
+            simulation.step()
+
+    def policy(self, simulation: Simulation) -> None:
+        """
+        Command the robots for the next control period: override it with your own controller.
+
+        Called before each period's physics steps, with the core simulation
+        (``simulation.robots[0].command(linear, angular)``, poses from
+        ``simulation.entities``); ``self.settings.scenario`` is the run's
+        scenario. Run the subclass with ``--simulation module:YourClass``.
+        Does nothing here: the scenario's actions drive.
+        """
+
+    def shutdown(self) -> None:
+        """Close the physics."""
+        self._close()
+
+    def _close(self) -> None:
+        if self._run is not None:
+            self._finished = self._measures(self._run)
+        for watch in self._watches.values():
+            watch.close()
+        self._watches = {}
+        if self._run is not None:
+            self._run.close()
+            self._run = None
+        if self.simulation is not None:
+            self.simulation.close()
+            self.simulation = None
+
+    def _core(self) -> Simulation:
+        if self.simulation is None:
+            raise RefusedError('OPERATION_FAILED', self.error or 'the simulation was not reset')
+        return self.simulation
+
+    # -- what a run did, for the farm's report ---------------------------------------------
+
+    def measures(self) -> Dict[str, Any]:
+        """Return the followed robot's run as the farm's Outcome fields (no verdict), or {}."""
+        return self._finished if self._run is None else self._measures(self._run)
+
+    def _measures(self, watch: RunWatch) -> Dict[str, Any]:
+        settings = self.settings
+        if settings is None:
+            return {}
+        start = watch.start_ns
+
+        def since(time_ns: Optional[int]) -> Optional[float]:
+            return None if time_ns is None else (time_ns - start) / 1e9
+
+        return {'scenario': settings.scenario, 'time_to_goal_s': since(watch.reached.get(GOAL)),
+                'clearance_m': watch.clearance.distance_m, 'closest': watch.clearance.other,
+                'closest_s': since(watch.clearance.time_ns), 'contacts': tuple(watch.contacts),
+                'tipped_s': since(watch.tipped_ns), 'trajectory': tuple(watch.trajectory),
+                'steps': watch.steps, 'seconds': (self._core().time_ns - start) / 1e9}
+
+    # -- the port: what the actions ask ------------------------------------------------------
+
+    @property
+    def time_s(self) -> float:
+        """Return the simulated time (s)."""
+        return self._core().time_ns / 1e9
+
+    def spawn(self, name: str, uri: str, position: Sequence[float],
+              orientation: Sequence[float], allow_renaming: bool, namespace: str) -> str:
+        """Spawn as SpawnEntity does; return the entity's name."""
+        x, y, z = position
+        qx, qy, qz, qw = orientation
+        return self._core().spawn(SpawnRequest(
+            name=name, allow_renaming=allow_renaming, uri=uri, namespace=namespace,
+            position=(x, y, z), orientation=(qx, qy, qz, qw)))
+
+    def delete(self, name: str) -> None:
+        """Delete an entity."""
+        self._core().delete_entity(name)
+
+    def set_entity_state(self, name: str, position: Sequence[float],
+                         orientation: Sequence[float], linear: Sequence[float],
+                         angular: Sequence[float]) -> None:
+        """Place an entity, moving with a world-frame twist."""
+        self._core().set_entity_state(name, '', position, orientation, linear, angular)
+
+    def load_world(self, uri: str) -> None:
+        """Load a world: STOPPED after it, as the standard says (set_simulation_state plays)."""
+        self._core().load_world(uri)
+        self.playing = False
+
+    def unload_world(self) -> None:
+        """Unload the world: nothing steps until a world is loaded."""
+        self._core().unload_world()
+        self.playing = False
+
+    def reset_simulation(self) -> None:
+        """Reset time, state and spawned entities (ResetSimulation ALL)."""
+        self._core().reset(time=True, state=True, spawned=True)
+
+    def step_physics(self, steps: int) -> None:
+        """Step a paused simulation ``steps`` physics steps, as StepSimulation does."""
+        simulation = self._core()
+        self._check_world()
+        if self.playing:
+            raise RefusedError('OPERATION_FAILED', 'step_simulation steps a paused simulation: '
+                                                   'set_simulation_state(paused) first')
+        for _ in range(steps):
+            simulation.step()
+
+    def set_state(self, state: str) -> None:
+        """'playing': step with the scenario; 'paused': hold; 'stopped': reset ALL and hold."""
+        if state not in STATES:
+            raise RefusedError('INCORRECT_TRANSITION', f'no state {state!r}: one of '
+                                                       f'{", ".join(STATES)}')
+        self._check_world()
+        if state == 'stopped':
+            self.reset_simulation()
+        self.playing = state == 'playing'
+
+    def _check_world(self) -> None:
+        if not self._core().worlds.is_loaded:
+            raise RefusedError('INCORRECT_STATE', 'no world is loaded: load_world first')
+
+    def command(self, entity: str, namespace: str, linear: float, angular: float) -> None:
+        """Hand a robot's drive controller a velocity command."""
+        simulation = self._core()
+        for robot in simulation.robots:
+            if robot.name == entity:
+                robot.command(linear, angular)
+                return
+        known = ', '.join(r.name for r in simulation.robots) or 'none'
+        raise RefusedError('NOT_FOUND', f'no robot named {entity!r} to drive; robots: {known}')
+
+    def pose(self, entity: str) -> Pose3:
+        """Return an entity's base pose in the world."""
+        state = self._core().entities.body(entity).world_state()
+        return tuple(state.position), tuple(state.orientation)  # type: ignore[return-value]
+
+    def region(self, name: str, tolerance_m: float) -> GroundRegion:
+        """Return the scenario's goal ('goal'), or a circle around a named pose of the world."""
+        if name == GOAL and self.settings is not None:
+            return self.settings.scenario.goal
+        world = self._core().worlds.current
+        if world is None:
+            raise RefusedError('NOT_FOUND', f'no named pose {name!r}: no world is loaded')
+        pose = world.named_pose(name)
+        return circle_region(pose.position[0], pose.position[1], tolerance_m)
+
+    def meeting(self, region: Region) -> List[str]:
+        """Return the entities whose collision shape meets the world region."""
+        return self._core().entities.overlapping(region)
+
+    def bounds(self, entity: str) -> Region:
+        """Return the box around an entity's collision shape, in its base frame."""
+        return self._core().entities.bounds(entity)
+
+    def watch(self, entity: str, tip_angle_rad: float, clearance_m: float) -> Watched:
+        """Return what ``entity`` did since first watched: the physics' contacts and distances."""
+        simulation = self._core()
+        key = (entity, tip_angle_rad)
+        run = self._run
+        watch = (run if run is not None and run.name == entity
+                 and tip_angle_rad == DEFAULT_TIP_ANGLE_RAD else self._watches.get(key))
+        if watch is None:
+            simulation.entities.body(entity)  # NOT_FOUND, listing the entities
+            watch = self._watches[key] = RunWatch(simulation, entity,
+                                                  tip_angle_rad=tip_angle_rad)
+        first = watch.contacts[0] if watch.contacts else None
+        near = watch.clearance
+        within = near.distance_m < clearance_m and near.other is not None
+        return Watched(first.other if first else None,
+                       first.start_ns / 1e9 if first else None,
+                       near.other if within else None,
+                       near.time_ns / 1e9 if within and near.time_ns is not None else None,
+                       near.distance_m,
+                       None if watch.tipped_ns is None else watch.tipped_ns / 1e9)

@@ -1,0 +1,85 @@
+"""
+A scenario author's mistakes, each said in one clear line, never a traceback.
+
+Through the scenario_execution command (its own output) for an unknown action and a
+missing argument; through a run's verdict for a world or named pose that does not
+exist; and, over ROS, for a service namespace where no simulator answers.
+"""
+
+import os
+
+import pytest
+
+from common import osc_env, scenario_execution
+from r2d2_sim.osc.variations import run_document, Task
+
+HEADER = 'import osc.helpers\nimport osc.r2d2\n\nscenario oops:\n'
+
+
+def write(tmp_path, text):
+    """Write a scenario file; return its path."""
+    path = tmp_path / 'oops.osc'
+    path.write_text(HEADER + text, encoding='utf-8')
+    return path
+
+
+def lines_with(output, text):
+    """Return the output's lines that say ``text``."""
+    return [line for line in output.splitlines() if text in line]
+
+
+@pytest.mark.parametrize('body, says', [
+    ('    do serial:\n        drive_fast(linear: 1mps)\n',
+     'BehaviorInvocation uses unknown behavior "drive_fast"'),
+    ('    do serial:\n        wait_until_in_region(x: 1m, y: 0m)\n',
+     "wait_until_in_region: argument 'radius' has no value: give it (it has no default)"),
+])
+def test_the_command_says_it_in_one_line(tmp_path, body, says):
+    """An unknown action, a missing argument: a line saying so, the run failed, no traceback."""
+    status, output, _ = scenario_execution(
+        ['--simulation', 'r2d2_sim.osc:R2D2Simulation', write(tmp_path, body)],
+        osc_env(tmp_path / 'shim'), tmp_path)
+    assert status == 1
+    assert lines_with(output, says), output[-3000:]
+    assert 'Traceback' not in output
+
+
+@pytest.mark.parametrize('parameters, says', [
+    ("    world: string = 'package://r2d2_sim/urdf/nothere.world.yaml'\n",
+     'world package://r2d2_sim/urdf/nothere.world.yaml: '),
+    ("    world: string = 'package://r2d2_sim/urdf/room.world.yaml'\n"
+     "    goal_pose: string = 'kitchen'\n",
+     "no named pose 'kitchen' in package://r2d2_sim/urdf/room.world.yaml; it has: corner_ne, "),
+])
+def test_a_world_or_named_pose_that_does_not_exist(tmp_path, parameters, says):
+    """Found at reset: the verdict's reason is that one line (logged once, not per action)."""
+    path = write(tmp_path, parameters + '    do serial:\n        drive_to()\n')
+    verdict = run_document(Task(str(path), 0, None))
+    assert not verdict.passed and verdict.reason.startswith(says), verdict.reason
+    assert '\n' not in verdict.reason
+
+
+def test_a_named_pose_of_a_check_that_does_not_exist(tmp_path):
+    """wait_until_at_pose for a name the world lacks: NOT_FOUND, listing the names it has."""
+    path = write(tmp_path, "    world: string = 'package://r2d2_sim/urdf/room.world.yaml'\n"
+                 "    do serial:\n        wait_until_at_pose(pose: 'kitchen')\n")
+    verdict = run_document(Task(str(path), 0, None))
+    assert verdict.reason.startswith("wait_until_at_pose: NOT_FOUND: no named pose 'kitchen' in "
+                                     'the world'), verdict.reason
+    assert 'it has: start, goal, dock' in verdict.reason
+
+
+def test_a_namespace_where_no_simulator_answers(tmp_path):
+    """Over ROS, on a domain with no simulator: one line naming the namespace, after the wait."""
+    from helpers import next_domain_id
+    path = write(tmp_path, "    simulator_namespace: string = '/nobody'\n"
+                 "    do serial:\n        drive(linear: 0.2mps)\n")
+    env = osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=next_domain_id(), R2D2_OSC_DISCOVERY_S=1)
+    status, output, cases = scenario_execution(
+        ['--simulation', 'r2d2_sim.osc:StandardSimulation', path], env, tmp_path)
+    says = ("r2d2_sim: no simulator answers under simulator_namespace '/nobody' within 1 s "
+            '(missing StepSimulation, ')
+    assert status == 1 and len(lines_with(output, says)) == 1, output[-3000:]
+    assert lines_with(output, 'simulators answer under: none')
+    assert 'Traceback' not in output and cases == {'oops': 'execution failed.'}
+    assert os.environ.get('R2D2_OSC_DISCOVERY_S') is None  # the child's alone

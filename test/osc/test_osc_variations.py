@@ -1,0 +1,78 @@
+"""
+A parameter file's documents as variations: one task each, run in a process pool.
+
+One verdict per document, in document order, the same on a rerun in another order;
+one JUnit file and the farm's report. The crossing example with four speeds of its
+second robot: a few simulated seconds each.
+"""
+
+import subprocess
+import sys
+import xml.etree.ElementTree as ElementTree
+
+from common import OSC_EXAMPLES, osc_env
+from r2d2_sim.osc.variations import read_documents, run_document, run_variations, tasks_of
+
+SPEEDS = [0.25, 0.6, 0.5, 0.27]
+
+
+def write_speeds(tmp_path):
+    """Write the crossing's parameter file: one document per speed of r2."""
+    path = tmp_path / 'speeds.yaml'
+    path.write_text('---\n'.join(f'crossing:\n  r2_speed: {speed}\n' for speed in SPEEDS))
+    return path
+
+
+def test_each_document_is_one_task():
+    """A file of two documents is two tasks, numbered, each with its document."""
+    tasks = tasks_of(str(OSC_EXAMPLES / 'crossing.osc'),
+                     str(OSC_EXAMPLES / 'crossing_speeds.yaml'))
+    assert [(t.number, t.document) for t in tasks] == [
+        (0, {'crossing': {'r2_speed': 0.25}}), (1, {'crossing': {'r2_speed': 0.6}})]
+    assert read_documents(str(OSC_EXAMPLES / 'crossing_speeds.yaml')) == \
+        [t.document for t in tasks]
+
+
+def test_a_pool_gives_one_verdict_per_document_the_same_on_a_rerun(tmp_path):
+    """Two processes, then the documents one by one in reverse: the same verdicts, measures."""
+    speeds = write_speeds(tmp_path)
+    verdicts = run_variations(str(OSC_EXAMPLES / 'crossing.osc'), str(speeds),
+                              str(tmp_path / 'out'), jobs=2)
+    assert [v.name for v in verdicts] == [f'crossing-{i}' for i in range(len(SPEEDS))]
+    assert [v.passed for v in verdicts] == [True, False, False, True]
+    assert verdicts[1].reason.startswith('r2d2 came within 0.3 m of r2 (0.')
+    again = [run_document(task) for task in reversed(tasks_of(
+        str(OSC_EXAMPLES / 'crossing.osc'), str(speeds)))]
+    assert all(a.same_as(b) for a, b in zip(verdicts, reversed(again)))
+    cases = ElementTree.parse(tmp_path / 'out' / 'test.xml').getroot().findall('testcase')
+    assert [(c.get('name'), c.find('failure') is None) for c in cases] == \
+        [(v.name, v.passed) for v in verdicts]
+    report = (tmp_path / 'out' / 'farm' / 'report.md').read_text()
+    assert '| passed | 2 of 4 (50.0 %) |' in report
+
+
+def test_the_command_line_says_each_verdict(tmp_path):
+    """The command line: a line per variation, the count, exit status 1 for a failure."""
+    result = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.osc', str(OSC_EXAMPLES / 'crossing.osc'),
+         '--parameters', str(OSC_EXAMPLES / 'crossing_speeds.yaml'), '-o', 'out', '--jobs', '2'],
+        cwd=tmp_path, env=osc_env(tmp_path / 'shim'), capture_output=True, text=True,
+        timeout=300)
+    lines = result.stdout.splitlines()
+    assert lines[0] == 'crossing-0: passed', result.stdout + result.stderr
+    assert lines[1].startswith('crossing-1: FAILED: r2d2 came within 0.3 m of r2')
+    assert lines[2] == '1 passed, 1 failed; out/test.xml' and result.returncode == 1
+
+
+def test_a_parameter_file_that_cannot_be_read_is_one_line(tmp_path):
+    """A document that is not {scenario: {parameter: value}}: exit status 2, one line."""
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('crossing:\n  r2_speed: 0.3\n---\n- 1\n- 2\n')
+    result = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.osc', str(OSC_EXAMPLES / 'crossing.osc'),
+         '--parameters', str(bad)], cwd=tmp_path, env=osc_env(tmp_path / 'shim'),
+        capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert result.stderr.splitlines() == [
+        f'r2d2_sim.osc: error: parameter file {bad}: document 1 is not '
+        '{scenario name: {parameter: value}}']

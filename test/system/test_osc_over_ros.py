@@ -1,0 +1,60 @@
+"""
+The same scenarios over ROS: the library's actions against a running sim_node, the same verdicts.
+
+``scenario_execution --simulation r2d2_sim.osc:StandardSimulation`` against a
+``SimProcess`` started with the scenario's own parameters (its world, start and
+seed: ``simulator_parameters``): the standard's services found by type, the
+simulator stepped in lockstep, one control period a tick. Each verdict is compared
+with the in-process run's.
+"""
+
+import pytest
+
+from common import OSC_EXAMPLES, osc_env, scenario_execution
+from r2d2_sim.osc.variations import run_document, simulator_parameters, tasks_of
+from r2d2_sim.testing import SimProcess
+
+OVER_ROS = 'r2d2_sim.osc:StandardSimulation'
+
+
+@pytest.mark.parametrize('example, document', [('obstacle_stop.osc', None),
+                                               ('crossing.osc', 1)])
+def test_the_verdict_over_ros_is_the_in_process_one(tmp_path, example, document):
+    """The crate spawned mid-run is stopped for (passes); r2 at 0.6 m/s comes too near (fails)."""
+    scenario = OSC_EXAMPLES / example
+    speeds = OSC_EXAMPLES / 'crossing_speeds.yaml'
+    task = tasks_of(str(scenario), str(speeds) if document is not None else None)[document or 0]
+    local = run_document(task)
+    args = ['--simulation', OVER_ROS, scenario]
+    if document is not None:
+        single = tmp_path / 'document.yaml'
+        single.write_text(speeds.read_text().split('---\n')[document])
+        args = ['--scenario-parameter-file', single, *args]
+    with SimProcess(**simulator_parameters(str(scenario), task.document)) as sim:
+        status, output, cases = scenario_execution(
+            args, osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id), tmp_path)
+    assert list(cases.values()) == [None if local.passed else 'execution failed.'], \
+        output[-3000:]
+    assert local.passed == (document is None)
+    if not local.passed:
+        assert local.reason.split(' (')[0] in output  # the same check fails, against r2
+    assert 'Traceback' not in output
+
+
+def test_a_simulator_under_a_namespace_is_found_by_type(tmp_path):
+    """sim_node under /sim: the scenario names that namespace, its services are found there."""
+    scenario = tmp_path / 'spawn.osc'
+    scenario.write_text(
+        "import osc.r2d2\n\nscenario spawn:\n    simulator_namespace: string = '/sim'\n"
+        "    do serial:\n"
+        "        spawn_entity(entity_name: 'cube', uri: 'cube_small.urdf', initial_pose: "
+        "pose_3d(position: position_3d(x: 1m, z: 0.1m)))\n"
+        "        wait_until_in_region(entity: 'cube', x: 1m, y: 0m, radius: 0.05m)\n"
+        "        delete_entity(entity: 'cube')\n")
+    with SimProcess(namespace='sim', publish_rate=20.0, scan_rate=0.0, imu_rate=0.0) as sim:
+        status, output, cases = scenario_execution(
+            ['--simulation', OVER_ROS, scenario],
+            osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id), tmp_path)
+        names = sim.standard.entities()
+    assert cases == {'spawn': None} and status == 0, output[-3000:]
+    assert 'cube' not in names
