@@ -43,9 +43,12 @@ def console_scripts(setup_py: str = SETUP_PY) -> List[Tuple[str, str, str]]:
     for node in ast.walk(tree):
         if isinstance(node, ast.Call) and getattr(node.func, 'id', '') == 'setup':
             for keyword in node.keywords:
-                if keyword.arg == 'entry_points':
-                    entries = ast.literal_eval(keyword.value).get('console_scripts', [])
-                    return [_parse(entry) for entry in entries]
+                if keyword.arg == 'entry_points' and isinstance(keyword.value, ast.Dict):
+                    # Only the console_scripts entry is read: the others (plugins'
+                    # groups, a **mapping read from a file) need not be literals.
+                    for key, value in zip(keyword.value.keys, keyword.value.values):
+                        if isinstance(key, ast.Constant) and key.value == 'console_scripts':
+                            return [_parse(entry) for entry in ast.literal_eval(value)]
     return []
 
 
