@@ -127,15 +127,19 @@ class RunWatch:
     of a named pose of the world (its bounds, :func:`ground_region`), whose
     first entry time is kept in :attr:`reached`. ``trajectory_period_s`` (simulated
     seconds, rounded to whole steps; None: none kept) samples the base into
-    :attr:`trajectory`: where it is now, then every period. ValueError for an unknown
-    entity or a range, angle or period that is none.
+    :attr:`trajectory`: where it is now, then every period. ``clearance``
+    False leaves the clearance out (it stays at the range): the closest
+    points are most of what the watch costs, which a learning environment
+    that ends an episode at the first contact does not need. ValueError for
+    an unknown entity or a range, angle or period that is none.
     """
 
     def __init__(self, simulation, entity: Optional[str] = None, *,
                  regions: Optional[Mapping[str, Union[Region, str]]] = None,
                  clearance_range_m: float = DEFAULT_CLEARANCE_RANGE_M,
                  tip_angle_rad: float = DEFAULT_TIP_ANGLE_RAD,
-                 trajectory_period_s: Optional[float] = None) -> None:
+                 trajectory_period_s: Optional[float] = None,
+                 clearance: bool = True) -> None:
         if not (math.isfinite(clearance_range_m) and clearance_range_m > 0.0):
             raise ValueError(f'clearance_range_m must be > 0, got {clearance_range_m}')
         if not (math.isfinite(tip_angle_rad) and 0.0 < tip_angle_rad < math.pi):
@@ -161,6 +165,7 @@ class RunWatch:
         self.tip_cos = math.cos(tip_angle_rad)
         self.contacts: List[Contact] = []
         self.clearance = Clearance(clearance_range_m, None, None)
+        self._measure_clearance = clearance
         self.reached: Dict[str, int] = {}
         self.tipped_ns: Optional[int] = None
         self.trajectory: List[TrajectoryPoint] = []
@@ -182,7 +187,8 @@ class RunWatch:
         others = [(name, other) for name, other in self._simulation.world.bodies.items()
                   if other is not body and name != GROUND_PLANE_NAME]
         self._contacts(body, time_ns, others)
-        self._clearance(body, time_ns, others)
+        if self._measure_clearance:
+            self._clearance(body, time_ns, others)
         base = body.world_state()
         x, y = base.position[0], base.position[1]
         for name, region in self.regions.items():
