@@ -39,6 +39,15 @@ INSTALL_REQUIRES = [
     'hypothesis>=6.100,<7',
 ]
 
+# Optional: `pip install r2d2_sim[gym]` for the learning environments (r2d2_sim.gym),
+# `[rl]` adds the libraries of its recipes (Stable-Baselines3, RLlib on Ray), so that
+# `pip install .` stays lean. RLlib's own extra pins Gymnasium 1.2.2: its dependencies
+# are named here instead (it runs on Gymnasium 1.4).
+GYM_REQUIRES = ['gymnasium>=1.4,<1.5', 'pettingzoo>=1.27,<1.28']
+RL_REQUIRES = GYM_REQUIRES + [
+    'stable-baselines3>=2.9,<3', 'ray>=2.60,<3', 'dm_tree', 'lz4', 'ormsgpack>=1.7.0', 'pandas',
+    'pyarrow>=17.0.0', 'pydantic>=2.5,<3', 'requests', 'scipy', 'tensorboardX>=1.9']
+
 setup(
     name=package_name,
     version='0.2.0',
@@ -54,6 +63,7 @@ setup(
         ('share/' + package_name + '/rviz', ['config/r2d2_sim.rviz']),
     ],
     install_requires=INSTALL_REQUIRES,
+    extras_require={'gym': GYM_REQUIRES, 'rl': RL_REQUIRES},
     python_requires='>=3.10',
     # A zipped egg would hide py.typed from type checkers (PEP 561).
     zip_safe=False,

@@ -1,8 +1,8 @@
 """
 The types are checked, not only written: mypy over the package, with setup.cfg's settings.
 
-``model``, ``physics``, ``sim`` and ``ros`` (setup.cfg's ``[mypy] files``) are held at
-zero errors: the typed seams between translation and the core mean something only
+``model``, ``physics``, ``sim``, ``ros`` and ``gym`` (setup.cfg's ``[mypy] files``) are held
+at zero errors: the typed seams between translation and the core mean something only
 while a checker holds the code to them. The rest of the package (the testing API, the
 executables, the farm, the kit, the recording) is counted and may not grow past
 :data:`REST_AT_MOST` (a ratchet: lower it as it falls). A file written for the purpose
@@ -17,7 +17,7 @@ import textwrap
 
 from common import REPO
 
-LAYERS = ['r2d2_sim/model', 'r2d2_sim/physics', 'r2d2_sim/sim', 'r2d2_sim/ros']
+LAYERS = ['r2d2_sim/model', 'r2d2_sim/physics', 'r2d2_sim/sim', 'r2d2_sim/ros', 'r2d2_sim/gym']
 # The errors mypy finds in the rest of the package; it may fall, never rise.
 REST_AT_MOST = 600
 SUMMARY = re.compile(r'Found (\d+) errors? in')
@@ -41,7 +41,7 @@ def error_count(result: subprocess.CompletedProcess) -> int:
 
 def test_the_core_layers_have_no_type_error_and_the_rest_no_more_than_before():
     """
-    One mypy run over the package: nothing in model, physics, sim and ros; the rest counted.
+    One mypy run over the package: nothing in model, physics, sim, ros and gym; the rest counted.
 
     The lines found in the four layers are the failure's message; the count of the rest
     (print) stays at or below REST_AT_MOST.
