@@ -5,7 +5,8 @@ The folders are tiers. ``model/``, ``physics/``, ``sim/`` and ``gym/`` (the lear
 environments in process) are the fast tier (``./run.sh test fast``): they never
 load rclpy (``model/`` not even PyBullet),
 and a session of them alone fails if rclpy gets imported anyway. ``recording/``,
-``ros/``, ``testing/``, ``apps/`` and ``conformance/`` run ROS in this process;
+``ros/``, ``testing/``, ``apps/``, ``gym_ros/`` (the learning environments' ``ros``
+backend) and ``conformance/`` run ROS in this process;
 ``system/`` starts processes or builds things, and is marked ``system``; ``lint/`` checks style
 and the package's layering. Helpers are in ``common.py`` (no ROS) and
 ``helpers.py`` (ROS); test modules import from those, never from a conftest.

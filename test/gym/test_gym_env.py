@@ -9,7 +9,6 @@ history of episodes (a reset only puts bodies back in place would not: see
 test/sim/test_saved_states.py). Bad input is one line.
 """
 
-import hashlib
 import json
 import os
 import subprocess
@@ -21,7 +20,7 @@ from gymnasium.utils.env_checker import check_env
 import numpy
 import pytest
 
-from common import REPO
+from common import gym_actions as actions, gym_rollout as rollout, REPO
 import r2d2_sim.gym  # noqa: F401 (registers the environments)
 from r2d2_sim.farm.scenario import Box, Pose, Scenario
 from r2d2_sim.gym import GymError
@@ -42,31 +41,6 @@ def make():
     yield build
     for env in made:
         env.close()
-
-
-def rollout(env, seed, actions, options=None):
-    """Reset with ``seed``, step ``actions`` until the end; return a hash of all it returned."""
-    digest = hashlib.sha256()
-    observation, info = env.reset(seed=seed, options=options)
-    digest.update(_bytes(observation) + json.dumps(info, sort_keys=True).encode())
-    for action in actions:
-        observation, reward, terminated, truncated, info = env.step(action)
-        digest.update(_bytes(observation) + numpy.float64(reward).tobytes()
-                      + json.dumps(info, sort_keys=True).encode())
-        if terminated or truncated:
-            break
-    return digest.hexdigest()
-
-
-def _bytes(observation):
-    if isinstance(observation, dict):
-        return b''.join(observation[key].tobytes() for key in sorted(observation))
-    return observation.tobytes()
-
-
-def actions(seed, count=40):
-    """Return ``count`` random actions in [-1, 1] (float32)."""
-    return numpy.random.default_rng(seed).uniform(-1.0, 1.0, (count, 2)).astype(numpy.float32)
 
 
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])

@@ -7,13 +7,13 @@ each other and meet; an agent leaves when its episode ends; bad input is
 one line.
 """
 
-import hashlib
 import warnings
 
 import numpy
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 import pytest
 
+from common import parallel_rollout as rollout
 from r2d2_sim.farm.scenario import Box, Pose
 from r2d2_sim.gym import GymError
 from r2d2_sim.gym.arena import Episode
@@ -33,22 +33,6 @@ def make():
     yield build
     for env in made:
         env.close()
-
-
-def rollout(env, seed, steps=30):
-    """Reset with ``seed``; step random actions (from the seed) until all are done; a hash."""
-    rng = numpy.random.default_rng(seed)
-    digest = hashlib.sha256()
-    observations, _ = env.reset(seed=seed)
-    for _ in range(steps):
-        for agent in sorted(observations):
-            digest.update(agent.encode() + observations[agent].tobytes())
-        if not env.agents:
-            break
-        actions = {agent: rng.uniform(-1, 1, 2).astype(numpy.float32) for agent in env.agents}
-        observations, rewards, _, _, _ = env.step(actions)
-        digest.update(repr(sorted(rewards.items())).encode())
-    return digest.hexdigest()
 
 
 def test_pettingzoos_api_and_seed_tests_pass(make):
