@@ -148,6 +148,9 @@ class Body:
         self._get_base_velocity: Callable[..., Any] = partial(
             pybullet.getBaseVelocity, body, physicsClientId=cid)
         self._multiply_transforms = partial(pybullet.multiplyTransforms, physicsClientId=cid)
+        # The drive sets the wheels' motors at most steps while it ramps.
+        self._set_motors = partial(pybullet.setJointMotorControlArray, body,
+                                   physicsClientId=cid)
         # A run's watch asks these after every step (sim/oracles.py).
         self._get_contact_points = partial(pybullet.getContactPoints, body, physicsClientId=cid)
         self._get_closest_points = partial(pybullet.getClosestPoints, body, physicsClientId=cid)
@@ -200,6 +203,11 @@ class Body:
         return BaseState(position, orientation, rotate_inverse(orientation, linear),
                          rotate_inverse(orientation, angular))
 
+    def world_pose(self) -> Tuple[Vec3, Quat]:
+        """Return the body frame's pose in the world: :meth:`world_state` without the twist."""
+        com_position, com_orientation = self._get_base_pose()
+        return self._multiply_transforms(com_position, com_orientation, *self._com_to_body)
+
     def world_state(self) -> BaseState:
         """Return the body frame's pose and its origin's twist, both in the world frame."""
         com_position, com_orientation = self._get_base_pose()
@@ -239,12 +247,11 @@ class Body:
     def set_joint_velocities(self, indices: Sequence[int], velocities: Sequence[float],
                              max_forces: Sequence[float]) -> None:
         """Drive joints with velocity motors (target rad/s or m/s, force limit N or N m)."""
-        self._anchor(indices, False)
-        self._client.setJointMotorControlArray(
-            self.id, list(indices), pybullet.VELOCITY_CONTROL,
-            targetVelocities=list(velocities), forces=list(max_forces))
-        self._motors.update((index, Motor(velocity, force))
-                            for index, velocity, force in zip(indices, velocities, max_forces))
+        if self._anchored:
+            self._anchor(indices, False)
+        self._set_motors(list(indices), pybullet.VELOCITY_CONTROL,
+                         targetVelocities=list(velocities), forces=list(max_forces))
+        self._motors.update(zip(indices, map(Motor, velocities, max_forces)))
 
     def hold_joints(self, indices: Sequence[int], max_forces: Sequence[float],
                     positions: Optional[Sequence[float]] = None) -> None:
@@ -482,6 +489,7 @@ class Body:
         self._id = None
         # The bound queries hold the old id: from now on they raise instead.
         self._get_joint_states = self._get_base_pose = self._get_base_velocity = self._removed
+        self._set_motors = self._removed
 
     def reload(self) -> None:
         """

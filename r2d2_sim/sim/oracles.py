@@ -184,24 +184,29 @@ class RunWatch:
         if not body.alive:
             return  # it left the world: nothing more to see
         self.steps += 1
-        others = [(name, other) for name, other in self._simulation.world.bodies.items()
-                  if other is not body and name != GROUND_PLANE_NAME]
-        self._contacts(body, time_ns, others)
         if self._measure_clearance:
+            others = [(name, other) for name, other in self._simulation.world.bodies.items()
+                      if other is not body and name != GROUND_PLANE_NAME]
+            self._contacts(body, time_ns, others)
             self._clearance(body, time_ns, others)
-        base = body.world_state()
-        x, y = base.position[0], base.position[1]
+        else:  # every body is looked at only when something touches
+            self._contacts(body, time_ns, None)
+        position, orientation = body.world_pose()
+        x, y = position[0], position[1]
         for name, region in self.regions.items():
             if name not in self.reached and region.contains(x, y):
                 self.reached[name] = time_ns
-        if self.tipped_ns is None and _up_cos(base.orientation) < self.tip_cos:
+        if self.tipped_ns is None and _up_cos(orientation) < self.tip_cos:
             self.tipped_ns = time_ns
         if self._sample_every and self.steps % self._sample_every == 0:
-            self.trajectory.append(TrajectoryPoint(time_ns, x, y, yaw_of(base.orientation)))
+            self.trajectory.append(TrajectoryPoint(time_ns, x, y, yaw_of(orientation)))
 
-    def _contacts(self, body: Body, time_ns: int, others: List[Tuple[str, Body]]) -> None:
+    def _contacts(self, body: Body, time_ns: int,
+                  others: Optional[List[Tuple[str, Body]]]) -> None:
         touches = {touch.other: touch
                    for touch in touching(self._simulation.world, body, others)}
+        if not touches and not self._open:
+            return
         for name in [n for n in self._open if n not in touches]:
             ended = self._open.pop(name)
             self.contacts[ended] = self.contacts[ended]._replace(end_ns=time_ns)

@@ -226,9 +226,10 @@ class Simulation:
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
+        measured = any(measurements)
         casting = [(i, measurement, robots[i].pending_rays())
                    for i, measurement in enumerate(measurements)
-                   if measurement is not None and robots[i].pending_rays()]
+                   if measurement is not None and robots[i].pending_rays()] if measured else ()
         if casting:
             # Every robot's rays of this step cast together (raycast.cast_requests: a
             # call per robot, its mask's); each robot then takes its answers.
@@ -240,7 +241,7 @@ class Simulation:
             watcher(time_ns)
         if state_due:
             self.last_frame_step = step
-        elif not any(measurements):
+        elif not measured:
             return None
         return StepResult(step, time_ns, state_due, tuple(measurements))
 

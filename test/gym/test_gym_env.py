@@ -194,6 +194,17 @@ def test_the_goal_env_rewards_as_its_compute_reward_for_any_goal(make):
     assert batch.tolist() == [0.0, -1.0]
 
 
+def test_hindsight_replay_learns_from_the_goal_env(make):
+    """SB3's HerReplayBuffer relabels goals through compute_reward: SAC takes a few updates."""
+    from stable_baselines3 import HerReplayBuffer, SAC
+    env = make('R2D2NavGoal-v0', max_episode_steps=30)  # an episode ends before the updates
+    model = SAC('MultiInputPolicy', env, replay_buffer_class=HerReplayBuffer,
+                replay_buffer_kwargs={'n_sampled_goal': 4, 'goal_selection_strategy': 'future'},
+                learning_starts=40, batch_size=32, device='cpu', seed=0)
+    model.learn(50)
+    assert model.num_timesteps == 50 and model.replay_buffer.size() > 0
+
+
 def test_importing_and_running_in_process_loads_no_ros():
     """A fresh interpreter: import r2d2_sim.gym, make, reset and step an environment; no rclpy."""
     code = ('import sys, gymnasium, numpy\n'
