@@ -18,6 +18,7 @@ the random policy's as a line). Numbers are printed, never asserted.
 """
 
 import argparse
+import json
 import os
 import time
 
@@ -51,7 +52,13 @@ def main():
     parser.add_argument('--eval-every', type=int, default=20_000)
     parser.add_argument('--eval-episodes', type=int, default=30)
     parser.add_argument('--seed', type=int, default=0)
+    parser.add_argument('--draw', action='store_true',
+                        help='only draw the picture again from bench/gym_ppo.json')
     args = parser.parse_args()
+    if args.draw:
+        with open(RESULTS_PATH, encoding='utf-8') as results:
+            draw(json.load(results))
+        return
     import gymnasium
     import numpy
     import torch
@@ -107,17 +114,17 @@ def draw(results):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     curve = results['curve']
-    steps = [point['env_steps'] for point in curve]
+    steps = [point['env_steps'] / 1000 for point in curve]
     figure, (success, returns) = plt.subplots(1, 2, figsize=(10, 4))
     success.plot(steps, [point['success_rate'] for point in curve], 'o-', label='PPO')
     success.axhline(results['random']['success_rate'], color='grey', ls='--', label='random')
     success.set_ylim(-0.02, 1.02)
-    success.set_xlabel('env steps')
+    success.set_xlabel('env steps (thousands)')
     success.set_ylabel(f'success rate ({results["args"]["eval_episodes"]} episodes)')
     success.legend()
     returns.plot(steps, [point['mean_return'] for point in curve], 'o-', label='PPO')
     returns.axhline(results['random']['mean_return'], color='grey', ls='--', label='random')
-    returns.set_xlabel('env steps')
+    returns.set_xlabel('env steps (thousands)')
     returns.set_ylabel('mean return')
     returns.legend()
     figure.suptitle(f'SB3 PPO on R2D2Nav-v0 ({results["args"]["backend"]}, '
