@@ -59,14 +59,14 @@ case "$cmd" in
   demo)  setup; exec "$PY" -m r2d2_sim.apps.demo "$@" ;;
   sim)   setup; exec "$PY" -m r2d2_sim "$@" ;;
   # Two workers: every ROS test leases a domain of its own. Paths given replace test/.
-  # 'test fast': the tiers without ROS (test/model, physics, sim) and the lint checks
+  # 'test fast': the tiers without ROS (test/model, physics, sim, gym) and the lint checks
   # that run no ROS here (layering, types, mixins, old names, the version), in seconds:
   # only the venv, no interface build; two workers were faster. Tests marked slow
   # (long statistics, soaks) run in the full tier.
   test)  if [ "${1:-}" = fast ]; then
            shift; setup_venv
            exec "$PY" -m pytest -q -p no:cacheprovider -n 2 -m 'not slow' test/model \
-             test/physics test/sim test/lint/test_layers.py test/lint/test_types.py \
+             test/physics test/sim test/gym test/lint/test_layers.py test/lint/test_types.py \
              test/lint/test_mixins.py test/lint/test_deprecations.py \
              test/lint/test_changelog.py "$@"
          fi

@@ -50,6 +50,14 @@ EXTRAS_REQUIRE = {'scenarios': ['scenario_execution==1.8.0']}
 OSC_ENTRY_POINTS = runpy.run_path(
     os.path.join(os.path.dirname(os.path.abspath(__file__)), 'r2d2_sim', 'osc', 'entry_points.py')
 )['ENTRY_POINTS']
+# Optional: `pip install r2d2_sim[gym]` for the learning environments (r2d2_sim.gym),
+# `[rl]` adds the libraries of its recipes (Stable-Baselines3, RLlib on Ray), so that
+# `pip install .` stays lean. RLlib's own extra pins Gymnasium 1.2.2: its dependencies
+# are named here instead (it runs on Gymnasium 1.4).
+GYM_REQUIRES = ['gymnasium>=1.4,<1.5', 'pettingzoo>=1.27,<1.28']
+RL_REQUIRES = GYM_REQUIRES + [
+    'stable-baselines3>=2.9,<3', 'ray>=2.60,<3', 'dm_tree', 'lz4', 'ormsgpack>=1.7.0', 'pandas',
+    'pyarrow>=17.0.0', 'pydantic>=2.5,<3', 'requests', 'scipy', 'tensorboardX>=1.9']
 
 setup(
     name=package_name,
@@ -66,7 +74,7 @@ setup(
         ('share/' + package_name + '/rviz', ['config/r2d2_sim.rviz']),
     ],
     install_requires=INSTALL_REQUIRES,
-    extras_require=EXTRAS_REQUIRE,
+    extras_require={**EXTRAS_REQUIRE, 'gym': GYM_REQUIRES, 'rl': RL_REQUIRES},
     python_requires='>=3.10',
     # A zipped egg would hide py.typed from type checkers (PEP 561).
     zip_safe=False,

@@ -15,7 +15,9 @@ The folders are the layers, each importing only from those listed before it:
 - :mod:`r2d2_sim.testing`: the public testing API (harnesses, domain leases, clients);
 - :mod:`r2d2_sim.apps`: the executables (``sim_node``, ``demo``, ``drive``, ``replay``);
 - :mod:`r2d2_sim.farm`: the scenario farm (seeded and Hypothesis-drawn variations,
-  verdicts with their evidence, reports), which nothing else imports.
+  verdicts with their evidence, reports);
+- :mod:`r2d2_sim.gym`: learning environments on the farm's scenario spaces (Gymnasium's
+  ``R2D2Nav-v0``, PettingZoo), in process or over ROS, which nothing else imports.
 - :mod:`r2d2_sim.conformance`: on top, imported by nothing: a kit that checks any
   simulator against ROS 2's simulation standard (``sim_conformance``).
 

@@ -205,3 +205,52 @@ def scenario_execution(args, env, cwd, timeout_s=300):
             failure = case.find('failure')
             cases[case.get('name')] = None if failure is None else failure.get('message')
     return result.returncode, result.stdout + result.stderr, cases
+
+
+# -- the learning environments: gym/test_gym_env.py, gym/test_gym_parallel.py, gym_ros/,
+# system/test_gym_system.py
+
+def gym_actions(seed, count=40):
+    """Return ``count`` random actions in [-1, 1] (float32) drawn from ``seed``."""
+    import numpy
+    return numpy.random.default_rng(seed).uniform(-1.0, 1.0, (count, 2)).astype(numpy.float32)
+
+
+def gym_rollout(env, seed, actions, options=None):
+    """Reset with ``seed``, step ``actions`` until the end; return a hash of all it returned."""
+    import hashlib
+    import numpy
+    digest = hashlib.sha256()
+    observation, info = env.reset(seed=seed, options=options)
+    digest.update(_observation_bytes(observation) + json.dumps(info, sort_keys=True).encode())
+    for action in actions:
+        observation, reward, terminated, truncated, info = env.step(action)
+        digest.update(_observation_bytes(observation) + numpy.float64(reward).tobytes()
+                      + json.dumps(info, sort_keys=True).encode())
+        if terminated or truncated:
+            break
+    return digest.hexdigest()
+
+
+def _observation_bytes(observation):
+    if isinstance(observation, dict):
+        return b''.join(observation[key].tobytes() for key in sorted(observation))
+    return observation.tobytes()
+
+
+def parallel_rollout(env, seed, steps=30):
+    """Reset a ParallelEnv with ``seed``; step random actions (from the seed); a hash."""
+    import hashlib
+    import numpy
+    rng = numpy.random.default_rng(seed)
+    digest = hashlib.sha256()
+    observations, _ = env.reset(seed=seed)
+    for _ in range(steps):
+        for agent in sorted(observations):
+            digest.update(agent.encode() + observations[agent].tobytes())
+        if not env.agents:
+            break
+        actions = {agent: rng.uniform(-1, 1, 2).astype(numpy.float32) for agent in env.agents}
+        observations, rewards, _, _, _ = env.step(actions)
+        digest.update(repr(sorted(rewards.items())).encode())
+    return digest.hexdigest()

@@ -1,10 +1,12 @@
 """
 Markers and fixtures for this project's own tests; this file imports no ROS.
 
-The folders are tiers. ``model/``, ``physics/`` and ``sim/`` are the fast tier
-(``./run.sh test fast``): they never load rclpy (``model/`` not even PyBullet),
+The folders are tiers. ``model/``, ``physics/``, ``sim/`` and ``gym/`` (the learning
+environments in process) are the fast tier (``./run.sh test fast``): they never
+load rclpy (``model/`` not even PyBullet),
 and a session of them alone fails if rclpy gets imported anyway. ``recording/``,
-``ros/``, ``testing/``, ``apps/`` and ``conformance/`` run ROS in this process;
+``ros/``, ``testing/``, ``apps/``, ``gym_ros/`` (the learning environments' ``ros``
+backend) and ``conformance/`` run ROS in this process;
 ``osc/`` runs scenarios through scenario_execution (in this process, and its command);
 ``system/`` starts processes or builds things, and is marked ``system``; ``lint/`` checks style
 and the package's layering. Helpers are in ``common.py`` (no ROS) and
@@ -34,7 +36,7 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 collect_ignore = ['examples']
 
 TEST_DIR = Path(__file__).resolve().parent
-FAST_TIER = [TEST_DIR / 'model', TEST_DIR / 'physics', TEST_DIR / 'sim']
+FAST_TIER = [TEST_DIR / 'model', TEST_DIR / 'physics', TEST_DIR / 'sim', TEST_DIR / 'gym']
 # Fast-tier tests outside those folders: what they import of ROS, if anything, loads in
 # interpreters of their own (the layering, the type check, the old module paths of the
 # ROS layer), or they read files only (mixins, the changelog).

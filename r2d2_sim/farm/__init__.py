@@ -1,8 +1,9 @@
 """
 The scenario farm: many seeded variations of a world, each a verdict with its evidence.
 
-The top layer: it may import every layer below, and no module of the package
-imports it. What it holds, by role:
+It may import every layer below; only the learning environments above it
+(:mod:`r2d2_sim.gym`, which draw their episodes from its scenario spaces)
+import it. What it holds, by role:
 
 - :mod:`~r2d2_sim.farm.scenario`: :class:`Scenario` (obstacles, start, goal,
   seed, world, limits; JSON exactly) and :class:`ScenarioSpace`, whose

@@ -14,7 +14,9 @@ since (its initial pose, friction, damping, ray groups), so a world emptied
 by ``resetSimulation`` can load it again exactly (:meth:`Body.reload`): the
 same object, a new id. Bullet keeps contact manifolds and the order of its
 overlapping pairs from step to step, which a reset in place leaves behind;
-a rebuilt world has none of them, as at start-up.
+a rebuilt world has none of them, as at start-up. :meth:`Body.reinsert`
+drops them for one body without loading it again (a world restoring a saved
+state does it for all).
 
 A body is one concept, kept whole: its identity, state, motors and lasting
 changes, and the read-only questions about its links (names and indices,
@@ -26,6 +28,7 @@ entities' bounds and a run's watch ask.
 from functools import partial
 import math
 import os
+import xml.etree.ElementTree as ElementTree
 from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Set, Tuple
 
 from r2d2_sim.errors import WorldError
@@ -44,6 +47,10 @@ with silenced_output():  # PyBullet prints its build time on import
 __all__ = ['Body', 'BodyRemoved', 'Loading', 'Motor', 'WorldError', 'file_stamp']
 
 ZERO: Vec3 = (0.0, 0.0, 0.0)
+# Bullet's collision filters as PyBullet gives them at load (URDF2Bullet): the base link
+# of a fixed base is static, every other link dynamic. (group, mask)
+STATIC_FILTER = (2, -1 ^ 2)
+DYNAMIC_FILTER = (1, -1)
 
 
 class BodyRemoved(RuntimeError):
@@ -105,6 +112,7 @@ class Body:
         # the angle it holds, or None for a velocity motor).
         self._motors: Dict[int, Motor] = {}
         self._anchored: Set[int] = set()  # links whose contacts hold_joints anchored
+        self._own_filters: Optional[bool] = None  # its URDF sets collision filters (once read)
         info = records.body_info(client, body_id)
         self.base_link_name = info.base_link_name
         self.urdf_name = info.name
@@ -140,6 +148,9 @@ class Body:
         self._get_base_velocity: Callable[..., Any] = partial(
             pybullet.getBaseVelocity, body, physicsClientId=cid)
         self._multiply_transforms = partial(pybullet.multiplyTransforms, physicsClientId=cid)
+        # The drive sets the wheels' motors at most steps while it ramps.
+        self._set_motors = partial(pybullet.setJointMotorControlArray, body,
+                                   physicsClientId=cid)
         # A run's watch asks these after every step (sim/oracles.py).
         self._get_contact_points = partial(pybullet.getContactPoints, body, physicsClientId=cid)
         self._get_closest_points = partial(pybullet.getClosestPoints, body, physicsClientId=cid)
@@ -192,6 +203,11 @@ class Body:
         return BaseState(position, orientation, rotate_inverse(orientation, linear),
                          rotate_inverse(orientation, angular))
 
+    def world_pose(self) -> Tuple[Vec3, Quat]:
+        """Return the body frame's pose in the world: :meth:`world_state` without the twist."""
+        com_position, com_orientation = self._get_base_pose()
+        return self._multiply_transforms(com_position, com_orientation, *self._com_to_body)
+
     def world_state(self) -> BaseState:
         """Return the body frame's pose and its origin's twist, both in the world frame."""
         com_position, com_orientation = self._get_base_pose()
@@ -231,12 +247,11 @@ class Body:
     def set_joint_velocities(self, indices: Sequence[int], velocities: Sequence[float],
                              max_forces: Sequence[float]) -> None:
         """Drive joints with velocity motors (target rad/s or m/s, force limit N or N m)."""
-        self._anchor(indices, False)
-        self._client.setJointMotorControlArray(
-            self.id, list(indices), pybullet.VELOCITY_CONTROL,
-            targetVelocities=list(velocities), forces=list(max_forces))
-        self._motors.update((index, Motor(velocity, force))
-                            for index, velocity, force in zip(indices, velocities, max_forces))
+        if self._anchored:
+            self._anchor(indices, False)
+        self._set_motors(list(indices), pybullet.VELOCITY_CONTROL,
+                         targetVelocities=list(velocities), forces=list(max_forces))
+        self._motors.update(zip(indices, map(Motor, velocities, max_forces)))
 
     def hold_joints(self, indices: Sequence[int], max_forces: Sequence[float],
                     positions: Optional[Sequence[float]] = None) -> None:
@@ -424,6 +439,42 @@ class Body:
     def _exclude_from_rays(self, links: Optional[Sequence[int]], group: int) -> None:
         exclude_from_rays(self._client, self.id, links, group)
 
+    def collision_filters(self) -> Dict[int, Tuple[int, int]]:
+        """
+        Return each link's collision filter (group, mask) now, by link index (-1: the base).
+
+        PyBullet's at load (the base link of a fixed base static, every other
+        link dynamic), then the rays' exclusions since. WorldError for a URDF
+        that sets its own (``<collision group=... mask=...>``): those are not
+        followed here.
+        """
+        if self._own_filters is None:
+            self._own_filters = _sets_collision_filters(self._loading)
+        if self._own_filters:
+            raise WorldError(f'{self.name} sets its own collision groups in its URDF, which '
+                             'cannot be put back')
+        filters = {link: DYNAMIC_FILTER for link in self.links()}
+        if self.fixed_base:
+            filters[-1] = STATIC_FILTER
+        for method, args, _ in self._changes:
+            if method == '_exclude_from_rays':
+                links, group = args
+                for link in self.links() if links is None else links:
+                    filters[link] = (group, -1)
+        return filters
+
+    def reinsert(self) -> None:
+        """
+        Put every link into Bullet's broadphase again, with its filter: its pairs are dropped.
+
+        With them go their contact points, and the order in which Bullet
+        found them: the body is then as it was loaded, for the next step's
+        pairs (see :meth:`collision_filters` for what raises).
+        """
+        client, body = self._client, self.id
+        for link, (group, mask) in self.collision_filters().items():
+            client.setCollisionFilterGroupMask(body, link, group, mask)
+
     def remove(self) -> None:
         """Take the body out of the world; its id is forgotten (PyBullet will reuse it)."""
         if self._id is not None:
@@ -438,6 +489,7 @@ class Body:
         self._id = None
         # The bound queries hold the old id: from now on they raise instead.
         self._get_joint_states = self._get_base_pose = self._get_base_velocity = self._removed
+        self._set_motors = self._removed
 
     def reload(self) -> None:
         """
@@ -580,3 +632,15 @@ class Body:
 
     def __repr__(self) -> str:
         return f'Body({self.name!r}, id={self._id}, source={self.source!r})'
+
+
+def _sets_collision_filters(loading: Optional[Loading]) -> bool:
+    """Return True when the URDF a body was loaded from sets a collision group or mask."""
+    if loading is None or loading.file is None:
+        return False
+    try:
+        root = ElementTree.parse(loading.file[0]).getroot()
+    except (OSError, ElementTree.ParseError):
+        return True  # unknown: treated as set, so nothing is put back wrongly
+    return any(c.get('group') is not None or c.get('mask') is not None
+               for c in root.iter('collision'))

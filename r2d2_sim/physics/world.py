@@ -8,14 +8,16 @@ build and tear down their own. Every body in it is a
 through those objects, never through ids cached elsewhere (PyBullet reuses
 the ids of removed bodies, and a rebuilt world gives every body a new one),
 so bodies can be added and removed while it runs, and the whole world can be
-built again from them (:meth:`SimWorld.reset`).
+built again from them (:meth:`SimWorld.reset`). While its bodies stay the same,
+a state saved (:meth:`SimWorld.save_state`) is come back to at once, contacts
+included (:meth:`SimWorld.restore_state`).
 """
 
 from functools import partial
 import math
 import os
 import socket
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Dict, List, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy
 
@@ -33,7 +35,7 @@ with silenced_output():  # PyBullet prints its build time on import
 import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
 from pybullet_utils.bullet_client import BulletClient
 
-__all__ = ['SimWorld', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
+__all__ = ['SimWorld', 'SavedWorld', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
            'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask', 'RayRequest',
            'COMPACT_AFTER_REMOVALS']
 
@@ -50,6 +52,14 @@ RAY_GROUPS = tuple(RAY_EXCLUDED_GROUP << bit for bit in range(29))  # 4 ... 2**3
 # R2D2) until resetSimulation: after this many removals the world is built again
 # in place (SimWorld.compact), so spawning and deleting for hours stays bounded.
 COMPACT_AFTER_REMOVALS = 64
+
+
+class SavedWorld(NamedTuple):
+    """A state of a world kept by PyBullet (``saveState``), and the bodies it holds."""
+
+    state_id: int                          # PyBullet's, in this world's client
+    bodies: Tuple[Tuple[str, int], ...]    # every body's name and id, in load order
+    built: int                             # which build of the world (clear() makes another)
 
 
 def _found(path: str) -> str:
@@ -115,6 +125,7 @@ class SimWorld:
         self.step_count = 0
         self.bodies: Dict[str, Body] = {}
         self.removed_since_built = 0  # bodies removed since the world was last built
+        self.builds = 0  # how often the physics world was built (each clear() builds it anew)
         self._free_ray_groups = list(RAY_GROUPS)
         self._client: Optional[BulletClient] = None
         problem = display_problem() if gui else None
@@ -146,6 +157,7 @@ class SimWorld:
         client = self._live_client
         client.resetSimulation()
         self.removed_since_built = 0
+        self.builds += 1  # states saved before are gone with the old physics world
         client.setAdditionalSearchPath(pybullet_data.getDataPath())
         client.setTimeStep(self.time_step_s)
         client.setGravity(*gravity)
@@ -347,6 +359,52 @@ class SimWorld:
                 failed.append(str(exc))
         if failed:
             raise WorldError('; '.join(failed))
+
+    def save_state(self) -> SavedWorld:
+        """
+        Keep the physics state now in memory, to come back to it with :meth:`restore_state`.
+
+        From the first save on, Bullet handles its overlapping pairs in the
+        order of their bodies' links (``deterministicOverlappingPairs``), not
+        in the order it found them, which depends on everything that ran
+        before. WorldError (one line) for a body whose URDF sets its own
+        collision groups (see :meth:`Body.collision_filters`).
+        """
+        client = self._live_client
+        for body in self.bodies.values():
+            body.collision_filters()
+        client.setPhysicsEngineParameter(deterministicOverlappingPairs=1)
+        return SavedWorld(client.saveState(), self._body_ids(), self.builds)
+
+    def restore_state(self, saved: SavedWorld) -> None:
+        """
+        Put the physics back as :meth:`save_state` kept it: every run from it the same.
+
+        Every body's pose, twist and joints come back (PyBullet's
+        ``restoreState``); Bullet's pairs and contact points are dropped
+        (each body put into the broadphase again, in load order): kept, they
+        would be those of whatever ran since, in the order it met them, and
+        the next steps would differ from those of a world that ran nothing
+        else. So a run from the state repeats any other run from it, not the
+        run that went on from the save. Motors and lasting changes of the
+        bodies stay as they are. Only the same bodies can come back
+        (``restoreState`` matches them by id): WorldError (one line) once a
+        body was added, removed or loaded again since, or the world built again.
+        """
+        if saved.built != self.builds or saved.bodies != self._body_ids():
+            raise WorldError('the saved state is of other bodies: bodies were added, removed '
+                             'or loaded again since it was saved')
+        self._live_client.restoreState(stateId=saved.state_id)
+        for body in self.bodies.values():
+            body.reinsert()
+
+    def forget_state(self, saved: SavedWorld) -> None:
+        """Free a state :meth:`save_state` kept; nothing if the world was built again since."""
+        if saved.built == self.builds and self._client is not None:
+            self._client.removeState(saved.state_id)
+
+    def _body_ids(self) -> Tuple[Tuple[str, int], ...]:
+        return tuple((name, body.id) for name, body in self.bodies.items())
 
     def cast_rays(self, starts: numpy.ndarray, ends: numpy.ndarray,
                   mask: int = RAY_MASK) -> numpy.ndarray:

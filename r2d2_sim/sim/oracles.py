@@ -127,15 +127,19 @@ class RunWatch:
     of a named pose of the world (its bounds, :func:`ground_region`), whose
     first entry time is kept in :attr:`reached`. ``trajectory_period_s`` (simulated
     seconds, rounded to whole steps; None: none kept) samples the base into
-    :attr:`trajectory`: where it is now, then every period. ValueError for an unknown
-    entity or a range, angle or period that is none.
+    :attr:`trajectory`: where it is now, then every period. ``clearance``
+    False leaves the clearance out (it stays at the range): the closest
+    points are most of what the watch costs, which a learning environment
+    that ends an episode at the first contact does not need. ValueError for
+    an unknown entity or a range, angle or period that is none.
     """
 
     def __init__(self, simulation, entity: Optional[str] = None, *,
                  regions: Optional[Mapping[str, Union[Region, str]]] = None,
                  clearance_range_m: float = DEFAULT_CLEARANCE_RANGE_M,
                  tip_angle_rad: float = DEFAULT_TIP_ANGLE_RAD,
-                 trajectory_period_s: Optional[float] = None) -> None:
+                 trajectory_period_s: Optional[float] = None,
+                 clearance: bool = True) -> None:
         if not (math.isfinite(clearance_range_m) and clearance_range_m > 0.0):
             raise ValueError(f'clearance_range_m must be > 0, got {clearance_range_m}')
         if not (math.isfinite(tip_angle_rad) and 0.0 < tip_angle_rad < math.pi):
@@ -161,6 +165,7 @@ class RunWatch:
         self.tip_cos = math.cos(tip_angle_rad)
         self.contacts: List[Contact] = []
         self.clearance = Clearance(clearance_range_m, None, None)
+        self._measure_clearance = clearance
         self.reached: Dict[str, int] = {}
         self.tipped_ns: Optional[int] = None
         self.trajectory: List[TrajectoryPoint] = []
@@ -179,23 +184,29 @@ class RunWatch:
         if not body.alive:
             return  # it left the world: nothing more to see
         self.steps += 1
-        others = [(name, other) for name, other in self._simulation.world.bodies.items()
-                  if other is not body and name != GROUND_PLANE_NAME]
-        self._contacts(body, time_ns, others)
-        self._clearance(body, time_ns, others)
-        base = body.world_state()
-        x, y = base.position[0], base.position[1]
+        if self._measure_clearance:
+            others = [(name, other) for name, other in self._simulation.world.bodies.items()
+                      if other is not body and name != GROUND_PLANE_NAME]
+            self._contacts(body, time_ns, others)
+            self._clearance(body, time_ns, others)
+        else:  # every body is looked at only when something touches
+            self._contacts(body, time_ns, None)
+        position, orientation = body.world_pose()
+        x, y = position[0], position[1]
         for name, region in self.regions.items():
             if name not in self.reached and region.contains(x, y):
                 self.reached[name] = time_ns
-        if self.tipped_ns is None and _up_cos(base.orientation) < self.tip_cos:
+        if self.tipped_ns is None and _up_cos(orientation) < self.tip_cos:
             self.tipped_ns = time_ns
         if self._sample_every and self.steps % self._sample_every == 0:
-            self.trajectory.append(TrajectoryPoint(time_ns, x, y, yaw_of(base.orientation)))
+            self.trajectory.append(TrajectoryPoint(time_ns, x, y, yaw_of(orientation)))
 
-    def _contacts(self, body: Body, time_ns: int, others: List[Tuple[str, Body]]) -> None:
+    def _contacts(self, body: Body, time_ns: int,
+                  others: Optional[List[Tuple[str, Body]]]) -> None:
         touches = {touch.other: touch
                    for touch in touching(self._simulation.world, body, others)}
+        if not touches and not self._open:
+            return
         for name in [n for n in self._open if n not in touches]:
             ended = self._open.pop(name)
             self.contacts[ended] = self.contacts[ended]._replace(end_ns=time_ns)

@@ -17,7 +17,10 @@ the robots (the ROS node's fleet) is told of every change and may refuse one,
 which is then undone. Any entity can be deleted, start-up ones included; a
 reset of the state builds the physics world again (so a run after it repeats
 bit for bit), and a full reset builds it as it was at start-up, bringing back
-deleted start-up entities under their names.
+deleted start-up entities under their names. Many short runs from one start
+(a learning environment's episodes) come back to a state saved once
+(:meth:`Simulation.save_state`, :meth:`Simulation.restore_state`): no body
+is loaded again, and the run after it repeats bit for bit all the same.
 
 The world around the robots is a file (:mod:`r2d2_sim.sim.worlds`): the
 ``world`` parameter's at start-up, another one loaded while running
@@ -35,27 +38,28 @@ do that slow part outside the simulator's lock. Every attribute is set in
 ``Simulation.__init__``.
 """
 
+import dataclasses
 from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple, Union
 
 from r2d2_sim.errors import RefusedError, SetupError, WorldError
 from r2d2_sim.model.timing import StepClock, StepSchedule
 from r2d2_sim.model.transforms import Transform, yaw_of
 from r2d2_sim.physics.body import Body
-from r2d2_sim.physics.world import SimWorld
+from r2d2_sim.physics.world import SavedWorld, SimWorld
 from r2d2_sim.sim.entities import Category, Entities, EntityInfo, SpawnRequest
 from r2d2_sim.sim.robots.robot import Frame, Measurement, Robot
 from r2d2_sim.sim.sdf.loading import SdfSettings
 from r2d2_sim.sim.settings.readers import namespace as read_namespace
 from r2d2_sim.sim.settings.robots import resolve_namespace, robot_config, RobotSpec
-from r2d2_sim.sim.settings.table import ConfigError
-from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.settings.table import ConfigError, NOISE_FAMILIES, PARAMETERS_BY_NAME
+from r2d2_sim.sim.settings.config import read_value, SimConfig
 from r2d2_sim.sim.spawnables import Spawnable
 from r2d2_sim.sim.startup import docked, Rebuilt, robot_starts, Startup
 from r2d2_sim.sim.worlds import empty_world, LoadOptions, Places, World, WorldFiles
 
 # Frame and Measurement are the core's data, defined beside the robot that measures them.
-__all__ = ['Simulation', 'StepResult', 'Frame', 'Measurement', 'SpawnRequest', 'EntityInfo',
-           'GUI_CAMERA_RATE_HZ']
+__all__ = ['Simulation', 'StepResult', 'SavedState', 'Frame', 'Measurement', 'SpawnRequest',
+           'EntityInfo', 'GUI_CAMERA_RATE_HZ', 'NOISE_PARAMETERS']
 
 # Follow the robot with the GUI camera this many times per simulated second.
 GUI_CAMERA_RATE_HZ = 30.0
@@ -64,6 +68,9 @@ SHOVE_DEPTH_M = 0.001
 
 # Told the robots after every change of the set (start-up, spawn, delete, reset).
 RobotsWatcher = Callable[[Sequence[Robot]], None]
+# The parameters restart_noise may set: every sensor's noise (the seed apart).
+NOISE_PARAMETERS = frozenset(spec.name for family in NOISE_FAMILIES.values()
+                             for spec in family.parameters())
 
 
 class StepResult(NamedTuple):
@@ -73,6 +80,13 @@ class StepResult(NamedTuple):
     time_ns: int
     state_due: bool                                  # a state publication (and /clock) is due
     measurements: Tuple[Optional[Measurement], ...]  # per robot, in Simulation.robots order
+
+
+class SavedState(NamedTuple):
+    """A state of the simulation to come back to (:meth:`Simulation.save_state`)."""
+
+    world: SavedWorld              # the physics, kept by PyBullet
+    robots: Tuple[Robot, ...]      # the robots then, which must be the robots still
 
 
 def _ignore(text: str) -> None:
@@ -213,9 +227,10 @@ class Simulation:
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
+        measured = any(measurements)
         casting = [(i, measurement, robots[i].pending_rays())
                    for i, measurement in enumerate(measurements)
-                   if measurement is not None and robots[i].pending_rays()]
+                   if measurement is not None and robots[i].pending_rays()] if measured else ()
         if casting:
             # Every robot's rays of this step cast together (raycast.cast_requests: a
             # call per robot, its mask's); each robot then takes its answers.
@@ -227,7 +242,7 @@ class Simulation:
             watcher(time_ns)
         if state_due:
             self.last_frame_step = step
-        elif not any(measurements):
+        elif not measured:
             return None
         return StepResult(step, time_ns, state_due, tuple(measurements))
 
@@ -275,6 +290,64 @@ class Simulation:
         if changed:
             self._robots_changed()
         self.pristine = time and state and spawned
+
+    def save_state(self) -> SavedState:
+        """
+        Keep the world as it is now, to come back to it with :meth:`restore_state`.
+
+        Far cheaper than a reset, which loads every body again: for many
+        short runs from one start, such as a learning environment's episodes.
+        """
+        return SavedState(self.world.save_state(), tuple(self.robots))
+
+    def restore_state(self, saved: SavedState) -> None:
+        """
+        Put the world back as it was saved: a run after it repeats bit for bit, whatever ran since.
+
+        Every body's pose, twist and joints come back, and Bullet's pairs and
+        contact points are dropped (a body only put back in place would leave
+        those of the last run behind: see :meth:`SimWorld.restore_state
+        <r2d2_sim.physics.world.SimWorld.restore_state>`); every robot is at
+        rest as after a reset (commands and odometry dropped, its sensors'
+        schedules starting again now); time goes on, as after a state reset.
+        Only while the world holds the bodies and robots it held then:
+        WorldError (one line) after a spawn, a delete, a reset or a world
+        loaded since, and the world stays as it is.
+        """
+        if tuple(self.robots) != saved.robots:
+            raise WorldError('the saved state is of other robots: robots were spawned, deleted '
+                             'or loaded again since it was saved')
+        self.world.restore_state(saved.world)
+        step = self.world.step_count
+        self.publish_schedule.restart(step)
+        for robot in self.robots:
+            robot.restart_time(0)
+            robot.reloaded()
+        self.pristine = False
+
+    def forget_state(self, saved: SavedState) -> None:
+        """Free what :meth:`save_state` kept (PyBullet holds it until then)."""
+        self.world.forget_state(saved.world)
+
+    def restart_noise(self, noise_seed: int, **noise: float) -> None:
+        """
+        Start every robot's noise streams again from ``noise_seed``, with ``noise`` if given.
+
+        ``noise``: noise parameters by their names (``scan_noise_std``...,
+        :data:`NOISE_PARAMETERS`), for every robot. Each robot keeps a stream
+        of its own per sensor (the seed, its name, the sensor): a run with the
+        same seed reads the same noise, as after start-up with ``noise_seed``.
+        ConfigError (one line) for a value the parameter would refuse, or a
+        name that is no noise parameter; nothing changes then.
+        """
+        unknown = sorted(set(noise) - NOISE_PARAMETERS)
+        if unknown:
+            raise ConfigError(f'{", ".join(unknown)}: not a noise parameter')
+        values = {'noise_seed': noise_seed, **noise}
+        fields = {PARAMETERS_BY_NAME[name].field: read_value(PARAMETERS_BY_NAME[name], value)
+                  for name, value in values.items()}
+        for robot in self.robots:
+            robot.restart_noise(dataclasses.replace(robot.config, **fields))
 
     def _restart_time(self) -> None:
         """Put the step count and simulated time back to 0, every schedule from there."""

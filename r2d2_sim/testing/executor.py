@@ -157,6 +157,22 @@ class RosHarness:
                 self._park_requests -= 1
                 self._state.notify_all()
 
+    @contextmanager
+    def driving(self) -> Iterator[None]:
+        """
+        Drive the executor from this thread for as long as the block lasts.
+
+        The spinning thread parks; every :meth:`settle`, advance and wait
+        inside runs the callbacks in this thread at once, without handing
+        the executor over between threads each time (0.1-0.3 ms a handover
+        on a loaded machine: a loop of short periods, as a learning
+        environment's steps, pays it twice a period). Meanwhile callbacks run
+        only inside those calls: a request from another process is answered
+        at the next one. Nests; ``close`` ends it.
+        """
+        with self._own_executor():
+            yield
+
     def settle(self, timeout_s: Optional[float] = None) -> None:
         """
         Return once every callback that is ready has run, and those they made ready too.

@@ -3,8 +3,9 @@ The package's folders are its layers: each imports from its own layer or lower o
 
 From the lowest up: ``errors`` (with ``memory`` and ``files``), ``recording``, ``model``,
 ``physics``, ``sim``, ``client``, ``ros``, ``testing``, ``apps``, ``farm`` (above the
-executables: none of them imports it), then ``pytest_plugin`` and ``__main__``, and on
-top ``conformance``, which nothing imports; the package's own ``__init__`` imports
+executables: none of them imports it), ``gym`` (the learning environments, on the farm's
+scenario spaces), then ``pytest_plugin`` and ``__main__``, then ``conformance``, and on
+top ``osc``, which uses the kit's discovery; the package's own ``__init__`` imports
 nothing of it but ``deprecations``, the table of old names, which imports nothing of
 the package (it imports a new module by name when an old name is used). Two checks:
 
@@ -39,7 +40,7 @@ PACKAGE = 'r2d2_sim'
 ROOT_RANK = -1
 RANK = {'deprecations': ROOT_RANK, 'errors': 0, 'memory': 0, 'files': 0, 'model': 1,
         'recording': 2, 'physics': 3, 'sim': 4, 'client': 5, 'ros': 6, 'testing': 7, 'apps': 8,
-        'farm': 9, 'pytest_plugin': 10, '__main__': 10, 'conformance': 11, 'osc': 12}
+        'farm': 9, 'gym': 10, 'pytest_plugin': 11, '__main__': 11, 'conformance': 12, 'osc': 13}
 # What importing all of a ROS-free layer must not load.
 MUST_NOT_LOAD = {'model': ['rclpy', 'pybullet'], 'physics': ['rclpy'], 'sim': ['rclpy'],
                  'recording': ['rclpy', 'pybullet']}

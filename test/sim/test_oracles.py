@@ -76,6 +76,17 @@ def test_a_robot_driven_into_a_wall_touches_it_when_geometry_says(make):
     assert watch.tipped_ns is None
 
 
+def test_without_clearance_the_contacts_are_the_same_and_the_clearance_the_range(make):
+    """clearance=False asks no closest points: the same contact, the clearance left at 2 m."""
+    simulation = make()
+    place_box(simulation, 'wall', 1.115 + 0.1, sizes=(0.2, 2.0, 1.0))
+    with RunWatch(simulation, clearance=False) as watch:
+        simulation.robot.command(0.3, 0.0)
+        run(simulation, 3.0)
+    assert watch.touched() == ['wall']
+    assert watch.clearance == (2.0, None, None)
+
+
 def test_the_ground_and_the_robot_itself_are_no_contacts(make):
     """Driving on the plane, alone: no contact, clearance the range."""
     simulation = make()

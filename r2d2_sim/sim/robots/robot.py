@@ -174,11 +174,7 @@ class Robot:
         self._wheel_forces = [drive.max_force_n_m] * len(drive.wheel_indices)
         slot = {index: i for i, index in enumerate(self.movable_indices)}
         self._wheel_slots = [slot[index] for index in drive.wheel_indices]
-        noise = config.noise('encoder')
-        covariance = None
-        if not noise.exact:
-            covariance = OdometryCovariance(noise, drive.geometry.wheel_radius_m,
-                                            drive.geometry.wheel_separation_m)
+        covariance = self._odometry_covariance(drive)
         self.controller = DriveController(
             drive.geometry, drive.limits, 1.0 / config.physics_rate_hz,
             timeout_steps(config.cmd_vel_timeout_s, config.physics_rate_hz),
@@ -326,14 +322,31 @@ class Robot:
         if self.imu is not None:
             self.imu.reset()  # its time went back: no acceleration from the jump
 
-    def restart_noise(self) -> None:
-        """Start every noise stream again from the seed, as at start-up (a full reset)."""
+    def restart_noise(self, config: Optional[SimConfig] = None) -> None:
+        """
+        Start every noise stream again from the seed, as at start-up (a full reset).
+
+        With ``config``: the robot's settings with other noise settings or
+        seed (nothing else may differ), taken from now on.
+        """
+        if config is not None:
+            self.config = config
         for sensor in (self.laser, self.lidar, self.imu, self.camera):
             if sensor is not None:
-                sensor.restart_noise()
+                sensor.restart_noise(config)
         if self.controller is not None:
             # Fresh encoders: the next odometry reading takes a new baseline.
             self.controller.encoders = self._new_encoders()
+            if config is not None:
+                self.controller.covariance = self._odometry_covariance(self.drive)
+
+    def _odometry_covariance(self, drive: Optional[DriveTrain]) -> Optional[OdometryCovariance]:
+        """Return the odometry's covariance the encoders' noise gives; None when they are exact."""
+        noise = self.config.noise('encoder')
+        if noise.exact or drive is None:
+            return None
+        return OdometryCovariance(noise, drive.geometry.wheel_radius_m,
+                                  drive.geometry.wheel_separation_m)
 
     def teleported(self) -> None:
         """Forget the motion so far: the body was placed, and the IMU must not read the jump."""

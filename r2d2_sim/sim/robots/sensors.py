@@ -95,8 +95,10 @@ class HeadCamera:
                           noise_generator(config.noise_seed, self._body.name, 'depth'),
                           period_s=1.0 / config.camera_rate_hz)
 
-    def restart_noise(self) -> None:
-        """Start the depth noise again from its seed, as at start-up (a full reset)."""
+    def restart_noise(self, config: Optional[SimConfig] = None) -> None:
+        """Start the depth noise again from its seed (``config``'s from now on, if given)."""
+        if config is not None:
+            self._config = config
         self._depth_noise = self._new_depth_noise()
 
     def render(self, depth: bool = False) -> CameraImage:
@@ -172,8 +174,10 @@ class _RaySensor:
                           noise_generator(config.noise_seed, self._body.name, self.NOISE),
                           period_s=1.0 / getattr(config, self.RATE))
 
-    def restart_noise(self) -> None:
-        """Start the noise stream again from its seed, as at start-up (a full reset)."""
+    def restart_noise(self, config: Optional[SimConfig] = None) -> None:
+        """Start the noise stream again from its seed (``config``'s from now on, if given)."""
+        if config is not None:
+            self._config = config
         self._noise = self._new_noise()
 
 
@@ -311,8 +315,10 @@ class ImuSensor:
             rng=noise_generator(config.noise_seed, self._body.name, 'imu'),
             period_s=1.0 / config.imu_rate_hz)
 
-    def restart_noise(self) -> None:
-        """Start afresh as at start-up (a full reset): the noise stream from its seed."""
+    def restart_noise(self, config: Optional[SimConfig] = None) -> None:
+        """Start afresh as at start-up: the noise stream from its seed (``config``'s, if given)."""
+        if config is not None:
+            self._config = config
         self.model = self._new_model()
 
     def read(self, time_s: float) -> ImuReading:

@@ -1,0 +1,219 @@
+"""
+R2D2Nav-v0 and R2D2NavGoal-v0 in process (backend ``inproc``): checkers, seeds, rewards, errors.
+
+No ROS: the fast tier. Gymnasium's ``check_env`` runs on environments made
+with ``gymnasium.make``, so that its determinism checks run (they are
+skipped without a spec); Stable-Baselines3's too. A reset then a rollout
+must equal the same rollout in a fresh environment, bit for bit, after any
+history of episodes (a reset only puts bodies back in place would not: see
+test/sim/test_saved_states.py). Bad input is one line.
+"""
+
+import json
+import os
+import subprocess
+import sys
+import warnings
+
+import gymnasium
+from gymnasium.utils.env_checker import check_env
+import numpy
+import pytest
+
+from common import gym_actions as actions, gym_rollout as rollout, REPO
+import r2d2_sim.gym  # noqa: F401 (registers the environments)
+from r2d2_sim.farm.scenario import Box, Pose, Scenario
+from r2d2_sim.gym import GymError
+from r2d2_sim.model.regions import circle_region
+
+NOISY = {'sim_parameters': {'scan_noise_std': 0.02}}
+
+
+@pytest.fixture
+def make():
+    """Provide gymnasium.make, every environment closed after the test."""
+    made = []
+
+    def build(env_id='R2D2Nav-v0', **kwargs):
+        env = gymnasium.make(env_id, **kwargs)
+        made.append(env)
+        return env
+    yield build
+    for env in made:
+        env.close()
+
+
+@pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
+def test_gymnasiums_checker_passes_with_its_determinism_checks(make, env_id):
+    """check_env on a made environment (spec: nondeterministic False), with no warning."""
+    env = make(env_id, **NOISY)
+    assert env.spec.nondeterministic is False and not env.spec.disable_env_checker
+    assert env.spec.max_episode_steps == 200
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        check_env(env.unwrapped)
+
+
+@pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
+def test_stable_baselines3s_checker_passes(make, env_id):
+    """SB3's own check_env (its warnings are errors here)."""
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+    env = make(env_id)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        sb3_check_env(env.unwrapped)
+
+
+def test_a_reset_then_a_rollout_equals_a_fresh_environments_after_any_history(make):
+    """Seeds 1, 2, 3 fresh; then in one environment 3, 1, 2, 1, 3: each equal, noise and all."""
+    fresh = {}
+    for seed in (1, 2, 3):
+        fresh[seed] = rollout(make(**NOISY), seed, actions(seed))
+    env = make(**NOISY)
+    for seed in (3, 1, 2, 1, 3):
+        assert rollout(env, seed, actions(seed)) == fresh[seed], seed
+    assert len(set(fresh.values())) == 3
+
+
+def test_the_seed_draws_the_scenario_and_its_noise(make):
+    """The same seed, the same world and scan noise; the seed's scenario replayed, the same run."""
+    env = make(**NOISY)
+    first, info = env.reset(seed=7)
+    again, _ = env.reset(seed=7)
+    other, other_info = env.reset(seed=8)
+    assert first.tobytes() == again.tobytes() and first.tobytes() != other.tobytes()
+    assert info['scenario'] != other_info['scenario']
+    scenario = info['scenario']
+    assert rollout(env, 7, actions(0)) == rollout(env, None, actions(0),
+                                                  {'scenario': json.dumps(scenario)})
+
+
+def test_driving_into_a_box_ends_the_episode_with_the_collision_penalty(make):
+    """A box 1.2 m ahead: full speed ahead touches it, terminated, reward about -10."""
+    scenario = Scenario(obstacles=(Box(1.2, 0.0, 0.0, (0.4, 0.4, 0.5)),),
+                        start=Pose(0.0, 0.0, 0.0), goal=circle_region(3.0, 0.0, 0.3))
+    env = make()
+    env.reset(options={'scenario': scenario})
+    for _ in range(40):
+        _, reward, terminated, truncated, info = env.step(numpy.array([1.0, 0.0]))
+        if terminated:
+            break
+    assert terminated and not truncated
+    assert info['contact'] == 'box_0' and not info['is_success']
+    assert reward < -9.0
+
+
+def test_reaching_the_goal_ends_the_episode_with_the_bonus(make):
+    """Nothing in the way, a goal 1.5 m ahead: full speed ahead reaches it, reward above 10."""
+    scenario = Scenario(start=Pose(0.0, 0.0, 0.0), goal=circle_region(1.5, 0.0, 0.3))
+    env = make()
+    env.reset(options={'scenario': scenario})
+    total = 0.0
+    for step in range(40):
+        _, reward, terminated, truncated, info = env.step(numpy.array([1.0, 0.0]))
+        total += reward
+        if terminated:
+            break
+    assert terminated and info['is_success'] and info['reached'] and info['contact'] == ''
+    assert reward > 10.0
+    assert total == pytest.approx(1.2 + 10.0 - 0.01 * (step + 1), abs=0.15)  # 1.2 m nearer
+
+
+def test_renders_the_arena_from_above_and_the_head_camera(make):
+    """rgb_array: 240 x 320 x 3 bytes from above; the camera's size from its parameters."""
+    top = make(render_mode='rgb_array')
+    top.reset(seed=1)
+    image = top.render()
+    assert image.shape == (240, 320, 3) and image.dtype == numpy.uint8 and image.std() > 0
+    camera = make(render_mode='rgb_array', render_view='camera')
+    camera.reset(seed=1)
+    assert camera.render().shape == (240, 320, 3)
+
+
+@pytest.mark.parametrize('action, message', [
+    (numpy.array([2.0, 0.0]), r'^the action must be within \[-1, 1\], got array\(\[2., 0.\]\)$'),
+    (numpy.array([numpy.nan, 0.0]),
+     r'^the action must be finite numbers, got array\(\[nan,  0.\]\)$'),
+    ([0.1, 0.2, 0.3], r'^the action must be two numbers in \[-1, 1\] \(forward, turn\), got '
+                      r'shape \(3,\): \[0.1, 0.2, 0.3\]$'),
+    ('ahead', r'^the action must be two numbers in \[-1, 1\] \(forward, turn\), got '
+              r"'ahead'$"),
+])
+def test_a_bad_action_is_one_line_and_the_episode_goes_on(make, action, message):
+    """Out of the space, NaN, another shape, no number: GymError in one line; stepping goes on."""
+    env = make()
+    env.reset(seed=0)
+    with pytest.raises(GymError, match=message):
+        env.unwrapped.step(action)
+    env.step(numpy.zeros(2, dtype=numpy.float32))
+
+
+def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(make):
+    """Reset options are checked; a closed environment says so (reset and step)."""
+    env = make()
+    with pytest.raises(GymError, match=r"^unknown reset option\(s\) 'goal', 'seed': NavEnv takes "
+                                       r'scenario$'):
+        env.reset(options={'goal': 1, 'seed': 2})
+    with pytest.raises(GymError, match='^reset option scenario: not JSON'):
+        env.reset(options={'scenario': '{'})
+    env.reset(seed=0)
+    env.close()
+    env.close()  # twice is fine
+    for call in (lambda: env.unwrapped.step(numpy.zeros(2)), lambda: env.unwrapped.reset()):
+        with pytest.raises(GymError, match='^the environment is closed: make a new one$'):
+            call()
+
+
+@pytest.mark.parametrize('kwargs, message', [
+    ({'control_rate_hz': 7.0}, 'control_rate_hz must divide the physics rate'),
+    ({'scan_beams': 7}, r'scan_beams must divide scan_rays \(360\) into equal sectors, got 7'),
+    ({'backend': 'gazebo'}, "backend must be one of inproc, ros, got 'gazebo'"),
+    ({'sim_parameters': {'scan_rate': 5.0}}, 'sim_parameters: scan_rate are set by the env'),
+    ({'color': 'blue'}, "unexpected keyword argument 'color'"),
+    ({'render_mode': 'human'}, "render_mode must be None or 'rgb_array', got 'human'"),
+])
+def test_settings_that_cannot_be_are_one_line_at_construction(kwargs, message):
+    """Each: GymError naming the setting, no simulator left behind."""
+    with pytest.raises(GymError, match=message) as caught:
+        r2d2_sim.gym.env.NavEnv(**kwargs)
+    assert '\n' not in str(caught.value)
+
+
+def test_the_goal_env_rewards_as_its_compute_reward_for_any_goal(make):
+    """Each step's reward is compute_reward of its goals; a batch of relabelled goals too."""
+    env = make('R2D2NavGoal-v0')
+    observation, _ = env.reset(seed=4)
+    for action in actions(4, 10):
+        observation, reward, terminated, _, info = env.step(action)
+        achieved, desired = observation['achieved_goal'], observation['desired_goal']
+        assert reward == env.unwrapped.compute_reward(achieved, desired, info)
+        if terminated:
+            break
+    batch = env.unwrapped.compute_reward(numpy.stack([achieved, achieved]),
+                                         numpy.stack([achieved, achieved + 5.0]), [info, info])
+    assert batch.tolist() == [0.0, -1.0]
+
+
+def test_hindsight_replay_learns_from_the_goal_env(make):
+    """SB3's HerReplayBuffer relabels goals through compute_reward: SAC takes a few updates."""
+    from stable_baselines3 import HerReplayBuffer, SAC
+    env = make('R2D2NavGoal-v0', max_episode_steps=30)  # an episode ends before the updates
+    model = SAC('MultiInputPolicy', env, replay_buffer_class=HerReplayBuffer,
+                replay_buffer_kwargs={'n_sampled_goal': 4, 'goal_selection_strategy': 'future'},
+                learning_starts=40, batch_size=32, device='cpu', seed=0)
+    model.learn(50)
+    assert model.num_timesteps == 50 and model.replay_buffer.size() > 0
+
+
+def test_importing_and_running_in_process_loads_no_ros():
+    """A fresh interpreter: import r2d2_sim.gym, make, reset and step an environment; no rclpy."""
+    code = ('import sys, gymnasium, numpy\n'
+            'env = gymnasium.make("r2d2_sim.gym:R2D2Nav-v0")\n'
+            'env.reset(seed=0); env.step(numpy.zeros(2, dtype=numpy.float32)); env.close()\n'
+            'import r2d2_sim.gym.multi, r2d2_sim.gym.recipes\n'
+            'print("rclpy" in sys.modules)\n')
+    env = dict(os.environ, PYTHONPATH=REPO)
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                            env=env, timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.strip().splitlines()[-1] == 'False'
