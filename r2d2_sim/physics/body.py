@@ -149,8 +149,8 @@ class Body:
             pybullet.getBaseVelocity, body, physicsClientId=cid)
         self._multiply_transforms = partial(pybullet.multiplyTransforms, physicsClientId=cid)
         # The drive sets the wheels' motors at most steps while it ramps.
-        self._set_motors = partial(pybullet.setJointMotorControlArray, body,
-                                   physicsClientId=cid)
+        self._set_motors: Callable[..., Any] = partial(
+            pybullet.setJointMotorControlArray, body, physicsClientId=cid)
         # A run's watch asks these after every step (sim/oracles.py).
         self._get_contact_points = partial(pybullet.getContactPoints, body, physicsClientId=cid)
         self._get_closest_points = partial(pybullet.getClosestPoints, body, physicsClientId=cid)
