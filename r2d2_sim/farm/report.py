@@ -206,9 +206,8 @@ def _markdown(data: Dict[str, Any]) -> str:
                   'No verdict: the process running it died, or the run raised. Not run again; '
                   'its seed reruns it.', '']
     for c in crashes:
-        command = (c['farm'] or {}).get('rerun') or c['rerun']
         lines += [f'### Case {c["case"]}: `{_test_name(c)}`, seed {c["seed"]}', '',
-                  f'- {c["reason"]}', f'- on: `{c["worker"]}`', f'- run it again: `{command}`',
+                  f'- {c["reason"]}', f'- on: `{c["worker"]}`', f'- run it again: `{c["rerun"]}`',
                   '']
     return '\n'.join(lines).rstrip('\n') + '\n'
 

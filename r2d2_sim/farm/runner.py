@@ -291,7 +291,19 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
         if failed:
             from r2d2_sim.farm.shrink import shrink_failure
             run.shrunk = shrink_failure(farm, farm.items([failed[0]])[0], directory)
+            if run.shrunk is not None and 'report.md' in run.written:
+                _add_shrunk(run.written['report.md'], run.shrunk)
     return run
+
+
+def _add_shrunk(report: Path, shrunk: Dict[str, Any]) -> None:
+    """Append the shrinking's result to report.md."""
+    lines = ['', '## Shrunk by Hypothesis, on the machine that ran the farm', '',
+             f'- {shrunk["summary"]}', f'- the first failing scenario: `{shrunk["first"]}`']
+    if shrunk.get('shrunk'):
+        lines.append(f'- shrunk to: `{shrunk["shrunk"]}`')
+    with open(report, 'a', encoding='utf-8') as out:
+        out.write('\n'.join(lines) + '\n')
 
 
 def _keys(job: FarmJob, variations: Optional[int], seeds: Optional[Sequence[int]]) -> List[int]:

@@ -1,5 +1,5 @@
 """
-The farm runner's parts that start no process: shards, seeds, the job, progress, crashes in a report, segments.
+The farm runner's parts that start no process: shards, seeds, jobs, progress, crashes, segments.
 
 The runner itself, with its worker processes and clusters, is tested in
 ``test/system/test_farm_runner.py`` and ``test/system/test_farm_clusters.py``.
@@ -219,7 +219,7 @@ def test_a_crashed_variation_is_a_case_of_its_own_with_its_seed(tmp_path):
     crashed = data['cases'][2]
     assert crashed['crashed'] and crashed['seed'] == 7 and 'SIGKILL' in crashed['reason']
     text = written['report.md'].read_text()
-    assert '## Crashed (1)' in text and 'seed 7' in text and '--seeds 7' in text
+    assert '## Crashed (1)' in text and 'seed 7' in text and '--case 2' in text
     assert '| crashed (no verdict' in text and '## Failures (1)' in text
 
 

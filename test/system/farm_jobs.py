@@ -6,7 +6,7 @@ farm is named on the command line. ``R2D2_FARM_VICTIM=SEED:FILE`` makes the
 variation of that seed write its process id into FILE once its simulator and
 its Fast DDS participant exist, then wait (up to a minute) for the test to
 kill its process; every other variation is the stopper's run, unchanged.
-``R2D2_FARM_SECONDS`` shortens the runs (default 20 simulated seconds).
+``FARM`` runs 20 simulated seconds (the pinned references'), ``SHORT`` 4.
 """
 
 import os
@@ -20,7 +20,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'examples' / 'farm'
 import test_stopper_farm as example  # noqa: E402  (docs/farm.md's example)
 
 VICTIM_ENV = 'R2D2_FARM_VICTIM'
-SECONDS_ENV = 'R2D2_FARM_SECONDS'
 WAIT_TO_BE_KILLED_S = 60.0
 
 
@@ -39,6 +38,25 @@ def stopper_or_victim(harness, scenario):
     example.goal_stopper(harness, scenario)
 
 
-FARM = FarmJob(example.SPACE, stopper_or_victim,
-               seconds=float(os.environ.get(SECONDS_ENV, '20')), verdict=safe,
+FARM = FarmJob(example.SPACE, stopper_or_victim, seconds=20.0, verdict=safe,
                parameters=example.PARAMETERS, name='stopper')
+SHORT = FarmJob(example.SPACE, stopper_or_victim, seconds=4.0, verdict=safe,
+                parameters=example.PARAMETERS, name='stopper')
+
+
+# A stopper that stops too late (0.3 m: R2D2's legs stand out further), among 0.3 m boxes
+# ahead of a robot at the origin driving to (2.5, 0): test_farm_system.py's late stopper.
+LATE_SPACE = example.ScenarioSpace(
+    obstacles=(0, 3), area=(0.9, -0.6, 1.5, 0.6), box_size=(0.3, 0.3), box_yaw=(0.0, 0.0),
+    start_area=(0.0, 0.0, 0.0, 0.0), start_yaw=(0.0, 0.0), goal_area=(2.5, 0.0, 2.5, 0.0),
+    keep_out=0.5)
+
+
+def late_stopper(harness, scenario):
+    """Add a stopper that stops at 0.3 m."""
+    harness.add_node(example.GoalStopper(scenario.goal_point, stop_m=0.3,
+                                         context=harness.context))
+
+
+LATE = FarmJob(LATE_SPACE, late_stopper, seconds=4.0, verdict=safe,
+               parameters=example.PARAMETERS, name='late')

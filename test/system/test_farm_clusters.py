@@ -1,5 +1,5 @@
 """
-The farm runner on clusters built on this machine: Ray with two nodes, Dask with a scheduler and two workers.
+The farm runner on clusters built here: Ray with two nodes, Dask with a scheduler and two workers.
 
 Each cluster runs docs/farm.md's farm, five seeds recording every run, and a
 sixth variation whose worker is killed (SIGKILL) mid-run:

@@ -1,5 +1,5 @@
 """
-The farm runner with its local worker processes: the reference, a killed worker, Ctrl-C, shards, bad input.
+The farm runner's local worker processes: references, a killed worker, Ctrl-C, shards, bad input.
 
 - docs/farm.md's farm, five seeds, every run recorded: verdicts, measures and
   recording hashes are those pinned in ``test/farm/data/fingerprints.json``
@@ -10,6 +10,9 @@ The farm runner with its local worker processes: the reference, a killed worker,
 - Ctrl-C (SIGINT to the command): exit status 130, a report of what finished;
   the same command again resumes and runs only the rest;
 - two CI shards run every seed once between them, and their reports merge;
+- a failure shrunk by Hypothesis in the runner's process (fewer boxes, the
+  same kind of failure, recorded), and a case rerun from the report, its
+  recording byte-identical to the farm's;
 - bad input on the command line: one line, exit status 2.
 
 The clusters (Ray, Dask) are in ``test_farm_clusters.py``.
@@ -33,6 +36,7 @@ from r2d2_sim.farm.runner import run_farm
 
 JOBS = Path(__file__).resolve().parent / 'farm_jobs.py'
 FARM = f'{JOBS}:FARM'
+SHORT = f'{JOBS}:SHORT'
 FINGERPRINTS = Path(REPO) / 'test' / 'farm' / 'data' / 'fingerprints.json'
 REFERENCE_SEEDS = [0, 1, 2, 3, 4]
 DEADLINE_S = 120.0
@@ -59,8 +63,8 @@ def check_against_fingerprints(records: dict) -> None:
         record, reference = records[seed], pinned[f'stopper-{seed}']
         outcome = record['outcome']
         assert outcome is not None, record.get('crashed')
-        assert (outcome['passed'], outcome['reason']) == (reference['passed'],
-                                                           reference['reason'])
+        assert outcome['passed'] == reference['passed']
+        assert outcome['reason'] == reference['reason']
         assert measures_sha256(outcome) == reference['measures_sha256'], seed
         assert record['farm']['recording_sha256'] == reference['recording_sha256'], seed
         assert hashlib.sha256(Path(outcome['recording']).read_bytes()).hexdigest() == \
@@ -121,16 +125,15 @@ def children_of(pid: int) -> list:
     return found
 
 
-def test_a_killed_worker_is_a_crash_named_with_its_seed_and_leaves_nothing(tmp_path,
-                                                                          monkeypatch):
+def test_a_killed_worker_is_a_crash_named_with_its_seed_and_leaves_nothing(
+        tmp_path, monkeypatch):
     seeds, victim = [0, 1, 2, 3, 4, 5], 2
-    monkeypatch.setenv('R2D2_FARM_SECONDS', '4')
-    undisturbed = run_farm(FARM, seeds=seeds, out=tmp_path / 'undisturbed', workers=2,
+    undisturbed = run_farm(SHORT, seeds=seeds, out=tmp_path / 'undisturbed', workers=2,
                            progress=False)
     pid_file = tmp_path / 'victim.pid'
     monkeypatch.setenv('R2D2_FARM_VICTIM', f'{victim}:{pid_file}')
     killer = Killer(pid_file)
-    run = run_farm(FARM, seeds=seeds, out=tmp_path / 'killed', workers=2, progress=False)
+    run = run_farm(SHORT, seeds=seeds, out=tmp_path / 'killed', workers=2, progress=False)
     killer.thread.join(DEADLINE_S)
     assert killer.pid is not None, 'the victim never said where it runs'
     crashed = run.records[victim]['crashed']
@@ -144,7 +147,7 @@ def test_a_killed_worker_is_a_crash_named_with_its_seed_and_leaves_nothing(tmp_p
                 'wall_s': run.records[seed]['outcome']['wall_s']}, seed
     report = (tmp_path / 'killed' / 'report.md').read_text()
     assert '## Crashed (1)' in report and f'seed {victim}' in report
-    assert f'--seeds {victim}' in report
+    assert f'rerun {tmp_path / "killed" / "report.json"} --case {seeds.index(victim)}' in report
     assert not alive(killer.pid) and children_of(killer.pid) == []
     assert killer.segments, 'the victim held no Fast DDS segment: nothing was checked'
     # A segment another live process shares (a port others listen on too) is not ours alone.
@@ -156,9 +159,9 @@ def test_a_killed_worker_is_a_crash_named_with_its_seed_and_leaves_nothing(tmp_p
 
 def test_ctrl_c_writes_what_finished_and_the_same_command_resumes(tmp_path):
     out = tmp_path / 'report'
-    command = [sys.executable, '-m', 'r2d2_sim.farm', 'run', FARM, '--variations', '6',
+    command = [sys.executable, '-m', 'r2d2_sim.farm', 'run', SHORT, '--variations', '6',
                '--workers', '1', '--out', str(out), '--no-progress']
-    env = farm_env(R2D2_FARM_SECONDS='3')
+    env = farm_env()
     first = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True)
     outcomes = out / 'outcomes'
@@ -187,11 +190,11 @@ def test_ctrl_c_writes_what_finished_and_the_same_command_resumes(tmp_path):
 
 
 def test_two_shards_run_every_seed_once_and_their_reports_merge(tmp_path):
-    env = farm_env(R2D2_FARM_SECONDS='2')
+    env = farm_env()
     seeds = set()
     for index in (1, 2):
         done = subprocess.run(
-            [sys.executable, '-m', 'r2d2_sim.farm', 'run', FARM, '--variations', '6',
+            [sys.executable, '-m', 'r2d2_sim.farm', 'run', SHORT, '--variations', '6',
              '--shard', f'{index}/2', '--workers', '1', '--out', str(tmp_path / f'shard{index}'),
              '--record', 'none'], cwd=tmp_path, env=env, capture_output=True, text=True,
             timeout=DEADLINE_S)
@@ -208,6 +211,27 @@ def test_two_shards_run_every_seed_once_and_their_reports_merge(tmp_path):
     assert merged.returncode == 0, merged.stderr
     report = json.loads((tmp_path / 'all' / 'report.json').read_text())
     assert sorted(c['seed'] for c in report['cases']) == list(range(6))
+
+
+def test_a_failure_is_shrunk_here_and_reruns_from_the_report(tmp_path):
+    out = tmp_path / 'report'
+    run = run_farm(f'{JOBS}:LATE', seeds=[0], out=out, workers=1, shrink=True,
+                   progress=False)
+    failed = run.records[0]['outcome']
+    assert not failed['passed'] and failed['reason'].startswith('touched box_')
+    first, shrunk = (json.loads(run.shrunk[k]) for k in ('first', 'shrunk'))
+    assert len(shrunk['obstacles']) < len(first['obstacles'])
+    assert run.shrunk['reason'].startswith('touched box_')
+    assert Path(run.shrunk['recording']).stat().st_size > 0
+    assert (out / 'shrunk-0.json').exists()
+    assert '## Shrunk by Hypothesis' in (out / 'report.md').read_text()
+    again = subprocess.run([sys.executable, '-m', 'r2d2_sim.farm', 'rerun',
+                            str(out / 'report.json'), '--case', '0'], cwd=REPO,
+                           env=farm_env(), capture_output=True, text=True, timeout=DEADLINE_S)
+    assert again.returncode == 0, again.stderr
+    assert 'the same outcome as in the report' in again.stdout
+    rerun = next((out / 'rerun-0').glob('*.mcap'))
+    assert rerun.read_bytes() == Path(failed['recording']).read_bytes()
 
 
 @pytest.mark.parametrize('arguments, says', [
