@@ -70,7 +70,9 @@ class FarmRun:
     the resumed ones'), by key; ``ran`` how many this run finished,
     ``resumed`` how many were there already; ``interrupted`` whether Ctrl-C
     stopped it; ``cleaned`` the Fast DDS segments removed after crashes;
-    ``written`` the report's files; ``shrunk`` the shrinking's result, if asked.
+    ``written`` the report's files; ``shrunk`` the shrinking's result, if asked;
+    ``start_s`` and ``run_s`` the wall time of starting the executor and of
+    running the tasks.
     """
 
     directory: Path
@@ -82,6 +84,9 @@ class FarmRun:
     written: Dict[str, Path] = field(default_factory=dict)
     shrunk: Optional[Dict[str, Any]] = None
     executor: str = ''
+    start_s: float = 0.0  # starting or connecting to the executor (wall)
+    run_s: float = 0.0    # from the first task submitted to the last result (wall)
+    ready_s: List[float] = field(default_factory=list)  # local workers: spawned to ready
 
     def count(self, verdict: str) -> int:
         """Return how many variations ``passed``, ``failed`` or ``crashed``."""
@@ -330,7 +335,10 @@ def _drive(pool: Any, todo: List[Item], job: FarmJob, source: Optional[JobSource
     """Start the executor, run ``todo``, keep every result as it comes; stop on Ctrl-C."""
     if not todo:
         return
+    started = time.perf_counter()
     pool.start()
+    submitted = time.perf_counter()
+    run.start_s = submitted - started
     try:
         pool.submit(todo)
         with open(outcomes, 'a', encoding='utf-8') as lines:
@@ -347,6 +355,8 @@ def _drive(pool: Any, todo: List[Item], job: FarmJob, source: Optional[JobSource
         run.interrupted = True
         pool.stop()
     finally:
+        run.run_s = time.perf_counter() - submitted
+        run.ready_s = list(getattr(pool, 'ready_s', []))
         try:
             run.cleaned = pool.clean_hosts()
         finally:

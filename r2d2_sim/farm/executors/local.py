@@ -24,6 +24,7 @@ import os
 import pickle
 import signal
 import socket
+import time
 from typing import Any, Dict, List, Optional, Sequence
 
 from r2d2_sim.farm.executors.base import Crash, ExecutorError, Finished
@@ -81,9 +82,12 @@ class LocalPool:
         self._started = 0
         self.errors: List[str] = []  # a worker that could not load the job says why
         self.cleaned: List[str] = []  # Fast DDS segments dead workers left, removed
+        self.started_at = 0.0
+        self.ready_s: List[float] = []  # each worker's start-up: spawned to ready for work (s)
 
     def start(self) -> None:
         """Start the workers (they import the run and the job while the first tasks wait)."""
+        self.started_at = time.perf_counter()
         for _ in range(self._count):
             self._spawn()
 
@@ -138,6 +142,8 @@ class LocalPool:
                 if kind == 'done' and worker.item is not None:
                     self._finished.append((worker.item, body))
                     worker.item = None
+                elif kind == 'ready':
+                    self.ready_s.append(time.perf_counter() - self.started_at)
                 elif kind == 'error':
                     self.errors.append(body)
         except (EOFError, OSError):
@@ -222,6 +228,7 @@ def _serve(connection: Connection, parent: int, payload: bytes, record: str) -> 
     except Exception as exc:
         connection.send(('error', f'a worker could not load the farm: {exc}'))
         return
+    connection.send(('ready', os.getpid()))
     while True:
         try:
             item = connection.recv()
