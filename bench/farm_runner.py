@@ -29,8 +29,9 @@ The farm runner in one run: start-up, overhead per task, 200 variations alike ev
    and after).
 
 Cores kept busy by other processes are measured before (1 s) and during the
-README farm. Writes ``bench/farm_runner.json``; numbers printed, never
-asserted.
+README farm. Writes ``bench/farm_runner.json`` (the README farm's report
+stays in ``bench/farm_run/``; docs/farm.md shows ``farm.py``'s, of the
+pytest farm); numbers printed, never asserted.
 """
 
 import argparse
@@ -171,10 +172,6 @@ def readme_farm(variations, workers):
     load = meter.stop()
     with open(os.path.join(out, 'report.json'), encoding='utf-8') as source:
         report = json.load(source)
-    report_dir = os.path.join(BENCH_DIR, 'farm_report')
-    os.makedirs(report_dir, exist_ok=True)
-    for name in ('report.md', 'trajectories.png'):
-        shutil.copy(os.path.join(out, name), report_dir)
     return {'wall_s': wall, 'returncode': done.returncode, 'load': load,
             'stdout': done.stdout.strip().splitlines()[:1], 'summary': report['summary']}
 
