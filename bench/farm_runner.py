@@ -184,11 +184,40 @@ def main(argv=None):
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--raw-sample', type=int, default=20)
     parser.add_argument('--skip-clusters', action='store_true')
+    parser.add_argument('--readme-only', action='store_true',
+                        help='only part 4, the README farm (the rest of farm_runner.json kept)')
     args = parser.parse_args(argv)
     os.environ['PYTHONPATH'] = env()['PYTHONPATH']  # the clusters' workers import this checkout
     from r2d2_sim.farm.runner import run_farm
     results = {'machine': machine_info(), 'date': local_date(), 'variations': args.variations,
                'workers': args.workers, 'background_load_before': background_load()}
+    if args.readme_only:
+        with open(RESULTS_PATH, encoding='utf-8') as source:
+            earlier = json.load(source)
+        results = dict(earlier, readme_date=results['date'],
+                       readme_background_load_before=results['background_load_before'])
+    else:
+        results.update(run_executors(args, run_farm))
+    # 4. The README farm.
+    step = max(1, args.variations // args.raw_sample)
+    seeds = list(range(0, args.variations, step))[:args.raw_sample]
+    raw_before = measure_raw(seeds)
+    farm = readme_farm(args.variations, args.workers)
+    raw_after = measure_raw(seeds)
+    raw = statistics.median(raw_before + raw_after)
+    steps = farm['summary']['physics_steps']
+    per_worker = steps / farm['wall_s'] / args.workers
+    results.update(readme_farm=farm, raw_steps_per_s_before=raw_before,
+                   raw_steps_per_s_after=raw_after, raw_steps_per_s_median=raw,
+                   farm_steps_per_s_per_worker=per_worker, ratio_to_raw=per_worker / raw)
+    write_json(RESULTS_PATH, results)
+    show(results, args, farm, steps, per_worker, raw)
+    return 0
+
+
+def run_executors(args, run_farm):
+    """Parts 1-3: start-up, overhead per task and the 200 compared, on every executor."""
+    results = {}
     scratch = tempfile.mkdtemp(prefix='r2d2_farm_bench_')
     tiny = tiny_job(scratch)
     clusters = Clusters(scratch)
@@ -246,19 +275,12 @@ def main(argv=None):
     finally:
         clusters.stop()
         shutil.rmtree(scratch, ignore_errors=True)
-    # 4. The README farm.
-    step = max(1, args.variations // args.raw_sample)
-    seeds = list(range(0, args.variations, step))[:args.raw_sample]
-    raw_before = measure_raw(seeds)
-    farm = readme_farm(args.variations, args.workers)
-    raw_after = measure_raw(seeds)
-    raw = statistics.median(raw_before + raw_after)
-    steps = farm['summary']['physics_steps']
-    per_worker = steps / farm['wall_s'] / args.workers
-    results.update(readme_farm=farm, raw_steps_per_s_before=raw_before,
-                   raw_steps_per_s_after=raw_after, raw_steps_per_s_median=raw,
-                   farm_steps_per_s_per_worker=per_worker, ratio_to_raw=per_worker / raw)
-    write_json(RESULTS_PATH, results)
+    return results
+
+
+def show(results, args, farm, steps, per_worker, raw):
+    """Print the numbers."""
+    before = results.get('readme_background_load_before', results['background_load_before'])
     print(f'\nlocal workers ready in {max(results["local_workers_ready_s"] or [0]):.2f} s; one '
           f'tiny variation, whole command: {results["one_tiny_variation_command_s"]:.2f} s')
     for name, numbers in results['overhead'].items():
@@ -270,10 +292,9 @@ def main(argv=None):
           f'{results["pinned_match"]}')
     print(f'README farm, {args.variations} x 20 simulated s, local: {farm["wall_s"]:.1f} s '
           f'(exit {farm["returncode"]}; cores busy {farm["load"]["busy_cores"]:.2f}, other '
-          f'processes before {results["background_load_before"]["busy_cores"]:.2f}); '
+          f'processes before {before["busy_cores"]:.2f}); '
           f'{steps:,} steps, {per_worker:,.0f} steps/s per worker = {per_worker / raw:.2f} of '
           f'raw ({raw:,.0f})')
-    return 0
 
 
 if __name__ == '__main__':
