@@ -37,7 +37,7 @@ MAX_SHRINKS = 200
 
 
 def _milli(value: float, low: float, high: float) -> List[int]:
-    """The choice of a value drawn as whole thousandths in [low, high] (none if fixed)."""
+    """Return the choice of a value drawn as whole thousandths in [low, high] (none if fixed)."""
     lowest, highest = math.ceil(round(low * 1000.0, 6)), math.floor(round(high * 1000.0, 6))
     if highest < lowest:
         return []

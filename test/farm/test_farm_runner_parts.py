@@ -26,7 +26,7 @@ from r2d2_sim.farm.shards import parse_shard, Shard, shard_of
 
 
 def drive(harness, scenario):
-    """A controller that commands nothing (these tests never run it)."""
+    """Command nothing (these tests never run the controller)."""
 
 
 SPACE = ScenarioSpace(obstacles=(0, 2))

@@ -55,7 +55,7 @@ def victim_env(tmp_path):
 
 
 def check_run(run, killer: Killer, tmp_path: Path, executor: str) -> None:
-    """The pinned five, the victim crashed with nothing left of it, everything written here."""
+    """Check the pinned five, the victim crashed with nothing left, everything written here."""
     assert run.executor == executor and run.ran == len(REFERENCE_SEEDS) + 1
     check_against_fingerprints(run.records)
     for seed in REFERENCE_SEEDS:
