@@ -74,7 +74,10 @@ setup(
         ('share/' + package_name + '/rviz', ['config/r2d2_sim.rviz']),
     ],
     install_requires=INSTALL_REQUIRES,
-    extras_require={**EXTRAS_REQUIRE, 'gym': GYM_REQUIRES, 'rl': RL_REQUIRES},
+    # The farm runner's cluster executors, imported only when chosen
+    # (python -m r2d2_sim.farm run --executor ray|dask); requirements.txt pins them for tests.
+    extras_require={**EXTRAS_REQUIRE, 'gym': GYM_REQUIRES, 'rl': RL_REQUIRES,
+                    'ray': ['ray>=2.60,<3'], 'dask': ['dask[distributed]>=2026.8']},
     python_requires='>=3.10',
     # A zipped egg would hide py.typed from type checkers (PEP 561).
     zip_safe=False,

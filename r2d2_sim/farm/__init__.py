@@ -19,7 +19,12 @@ import it. What it holds, by role:
 - :mod:`~r2d2_sim.farm.maps`: a world's walls and boxes for the picture;
 - :mod:`~r2d2_sim.farm.pytest_plugin`: the ``r2d2_farm`` fixture, outcomes
   from every xdist worker, the report at the end (opt-in);
-- ``python -m r2d2_sim.farm``: rerun a case from its report, recording it.
+- :mod:`~r2d2_sim.farm.runner`: ``run_farm`` (a :class:`FarmJob`'s variations
+  as tasks of an executor, :mod:`~r2d2_sim.farm.executors`: local processes,
+  Ray, Dask), with :mod:`~r2d2_sim.farm.job` (the job, the task),
+  :mod:`~r2d2_sim.farm.shm` (segments killed tasks left), :mod:`~r2d2_sim.farm.shards`,
+  :mod:`~r2d2_sim.farm.progress` and :mod:`~r2d2_sim.farm.shrink`;
+- ``python -m r2d2_sim.farm``: run a farm; rerun a case from its report, recording it.
 
 Importing this package imports no rclpy, PyBullet or Hypothesis; the names
 below load their modules when first used.
@@ -33,7 +38,9 @@ _HOMES = {'Box': 'scenario', 'Pose': 'scenario', 'Scenario': 'scenario',
           'ScenarioSpace': 'scenario', 'ScenarioError': 'scenario', 'ROOM': 'scenario',
           'LIMITS': 'scenario', 'scenarios': 'strategies', 'farm_settings': 'strategies',
           'run_scenario': 'run', 'Outcome': 'run', 'reached_safely': 'run', 'safe': 'run',
-          'DeterminismError': 'run', 'world_boxes': 'maps', 'write_report': 'report'}
+          'DeterminismError': 'run', 'world_boxes': 'maps', 'write_report': 'report',
+          'FarmJob': 'job', 'JobSource': 'job', 'run_farm': 'runner', 'FarmRun': 'runner',
+          'FarmError': 'runner'}
 
 __all__ = list(_HOMES)
 

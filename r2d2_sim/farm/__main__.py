@@ -1,9 +1,20 @@
 """
-``python -m r2d2_sim.farm``: rerun a farm's case from its report, recording it; rebuild a report.
+``python -m r2d2_sim.farm``: run a farm; rerun a case from its report, recording it; merge reports.
 
+    python -m r2d2_sim.farm run FILE.py:NAME --variations 200 [--executor local|ray|dask]
+                                [--address ADDR] [--workers N] [--out DIR] [--shard i/N]
+                                [--seeds 0-9,17] [--record failures|all|none] [--fresh]
+                                [--shrink] [--progress | --no-progress]
     python -m r2d2_sim.farm rerun farm_report/report.json --case 3 [--record DIR]
                                   [--project DIR]
     python -m r2d2_sim.farm report DIR [--out DIR]
+
+``run`` runs every variation of the farm named (a ``FarmJob`` in a file or a
+module) as a task of an executor (:mod:`r2d2_sim.farm.runner`): local
+processes by default, Ray or Dask when asked or when ``RAY_ADDRESS`` or
+``DASK_SCHEDULER_ADDRESS`` says so. Exit status 0 when every variation
+passed, 1 when one failed or crashed, 2 for bad input, 130 after Ctrl-C
+(the report of what finished is written; the same command resumes).
 
 ``rerun`` runs the case's test again, the project's own file of it
 (``--project``, default the current directory; a report does not choose the
@@ -22,6 +33,7 @@ import sys
 from typing import Optional, Sequence
 
 from r2d2_sim.farm.rerun import read_records, ReportError, rerun
+from r2d2_sim.farm.runner import FarmError
 
 __all__ = ['main']
 
@@ -40,11 +52,66 @@ def rebuild(directories: Sequence[Path], out: Path) -> int:
     return 0
 
 
+def run(args: argparse.Namespace) -> int:
+    """Run a farm from the command line; print where its report is."""
+    from r2d2_sim.farm.runner import parse_seeds, run_farm
+    try:
+        seeds = None if args.seeds is None else parse_seeds(args.seeds)
+    except ValueError as exc:
+        raise FarmError(str(exc)) from None
+    done = run_farm(args.farm, variations=args.variations, seeds=seeds, executor=args.executor,
+                    address=args.address, workers=args.workers, out=args.out,
+                    shard=args.shard, record=args.record, fresh=args.fresh,
+                    progress=args.progress, shrink=args.shrink)
+    passed, failed, crashed = (done.count(v) for v in ('passed', 'failed', 'crashed'))
+    total = len(done.records)
+    state = 'interrupted: ' if done.interrupted else ''
+    print(f'{state}{total} variations reported ({done.ran} run now on {done.executor}, '
+          f'{done.resumed} resumed): {passed} passed, {failed} failed, {crashed} crashed')
+    if done.cleaned:
+        print(f'removed {len(done.cleaned)} shared-memory files crashed tasks left: '
+              + ' '.join(done.cleaned))
+    for path in done.written.values():
+        print(path)
+    if done.shrunk is not None:
+        print(done.shrunk['summary'])
+    if done.interrupted:
+        print('the report holds what finished; run the same command again to resume',
+              file=sys.stderr)
+    return done.exit_status
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the command line; return the exit status."""
     parser = argparse.ArgumentParser(prog='python -m r2d2_sim.farm', description=__doc__.split(
         '\n\n')[0])
     commands = parser.add_subparsers(dest='command', required=True)
+    farm = commands.add_parser('run', help='run a farm\'s variations on an executor')
+    farm.add_argument('farm', help='the farm: FILE.py:NAME or MODULE:NAME, NAME a FarmJob')
+    which = farm.add_mutually_exclusive_group()
+    which.add_argument('--variations', type=int, default=None, metavar='N',
+                       help='seeds 0..N-1 (a list of scenarios: all of them by default)')
+    which.add_argument('--seeds', default=None, help='these seeds: 0-199, 3,17,42, 0-9,20')
+    farm.add_argument('--executor', choices=('local', 'ray', 'dask'), default=None,
+                      help='where tasks run (default: local, or the cluster RAY_ADDRESS or '
+                      'DASK_SCHEDULER_ADDRESS names)')
+    farm.add_argument('--address', default=None,
+                      help='the cluster: ray://HOST:10001, HOST:6379 (with --executor ray), '
+                      'auto, tcp://HOST:8786')
+    farm.add_argument('--workers', type=int, default=None,
+                      help='worker processes (local, or a cluster started here; default: cores)')
+    farm.add_argument('--out', type=Path, default=Path('farm_report'),
+                      help='the report directory (default farm_report); a run resumes there')
+    farm.add_argument('--shard', default=None, metavar='i/N',
+                      help='run only the seeds of CI shard i of N (by the hash of the seed)')
+    farm.add_argument('--record', choices=('failures', 'all', 'none'), default='failures',
+                      help='what is recorded to MCAP (default: failures)')
+    farm.add_argument('--fresh', action='store_true',
+                      help='clear an earlier run from --out instead of resuming it')
+    farm.add_argument('--shrink', action='store_true',
+                      help='shrink the first failure with Hypothesis, on this machine')
+    farm.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
+                      help='the progress line (default: on a terminal)')
     again = commands.add_parser('rerun', help='rerun a case of a report, recording it')
     again.add_argument('report', type=Path, help='the report.json of a farm')
     again.add_argument('--case', type=int, required=True, help='the case number')
@@ -58,10 +125,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     build.add_argument('--out', type=Path, default=Path('farm_report'), help='where it goes')
     args = parser.parse_args(argv)
     try:
+        if args.command == 'run':
+            return run(args)
         if args.command == 'rerun':
             return rerun(args.report, args.case, args.record, args.project)
         return rebuild(args.directories, args.out)
-    except ReportError as exc:
+    except (ReportError, FarmError) as exc:
         print(f'r2d2_sim.farm: error: {exc}', file=sys.stderr)
         return 2
 

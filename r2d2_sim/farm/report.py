@@ -86,14 +86,20 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
     cases = []
     for number, record in enumerate(sorted(records, key=case_key)):
         outcome = record['outcome']
+        crashed = record.get('crashed')
+        farm = record.get('farm') or {}
         cases.append({'case': number, 'nodeid': record['nodeid'],
                       'rootdir': record.get('rootdir') or rootdir, 'run': record.get('run', 0),
                       'property': record.get('property', False),
-                      'worker': record.get('worker', ''), 'passed': outcome['passed'],
-                      'reason': outcome['reason'], 'seed': outcome['scenario']['seed'],
-                      'recording': outcome['recording'],
+                      'worker': record.get('worker', ''),
+                      'passed': outcome is not None and outcome['passed'],
+                      'crashed': crashed is not None,
+                      'reason': crashed['reason'] if crashed else outcome['reason'],
+                      'seed': farm['seed'] if crashed else outcome['scenario']['seed'],
+                      'recording': None if crashed else outcome['recording'],
                       'rerun': rerun_command(report_json, number), 'outcome': outcome,
-                      'first_failure': record.get('first_failure')})
+                      'first_failure': record.get('first_failure'),
+                      'farm': record.get('farm'), 'traceback': (crashed or {}).get('traceback')})
     summary = _summary(cases)
     data = {'date': datetime.datetime.now().astimezone().isoformat(timespec='seconds'),
             'invocation_dir': invocation_dir, 'rootdir': rootdir, 'summary': summary,
@@ -111,11 +117,13 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
 
 
 def _summary(cases: List[Dict[str, Any]]) -> Dict[str, Any]:
-    outcomes = [c['outcome'] for c in cases]
+    # A crashed case has no outcome: it counts among the runs, not in the measures.
+    outcomes = [c['outcome'] for c in cases if c['outcome'] is not None]
     reached = [o['time_to_goal_s'] for o in outcomes if o['time_to_goal_s'] is not None]
     simulated = [o['steps'] for o in outcomes]
     return {'runs': len(cases), 'passed': sum(c['passed'] for c in cases),
-            'failed': sum(not c['passed'] for c in cases), 'goal_reached': len(reached),
+            'failed': sum(not c['passed'] and not c['crashed'] for c in cases),
+            'crashed': sum(c['crashed'] for c in cases), 'goal_reached': len(reached),
             'touched': sum(bool(o['contacts']) for o in outcomes),
             'tipped': sum(o['tipped_s'] is not None for o in outcomes),
             'time_to_goal_s': _distribution(reached),
@@ -151,6 +159,8 @@ def _markdown(data: Dict[str, Any]) -> str:
              f'| goal reached | {_rate(summary["goal_reached"], total)} |',
              f'| touched something | {summary["touched"]} |',
              f'| tipped over | {summary["tipped"]} |',
+             *([f'| crashed (no verdict: its process died or it raised) | '
+                f'{summary["crashed"]} |'] if summary.get('crashed') else []),
              f'| simulated | {summary["physics_steps"]:,} physics steps in '
              f'{summary["wall_s_total"]:.1f} s of run wall time |', '',
              '## Distributions', '',
@@ -158,14 +168,15 @@ def _markdown(data: Dict[str, Any]) -> str:
              _row('time to goal', 's', summary['time_to_goal_s']),
              _row('clearance', 'm', summary['clearance_m']),
              _row('wall time of a run', 's', summary['wall_s']), '']
-    reached = [c for c in cases if c['outcome']['time_to_goal_s'] is not None]
+    judged = [c for c in cases if c['outcome'] is not None]
+    reached = [c for c in judged if c['outcome']['time_to_goal_s'] is not None]
     slowest = sorted(reached, key=lambda c: (-c['outcome']['time_to_goal_s'], c['case']))
     lines += [f'## The slowest to the goal ({min(LISTED, len(slowest))})', '',
               '| case | test | seed | time to goal (s) | clearance (m) |', '|---|---|---|---|---|']
     lines += [f'| {c["case"]} | `{_test_name(c)}` | {c["seed"]} | '
               f'{c["outcome"]["time_to_goal_s"]:.3f} | {c["outcome"]["clearance_m"]:.3f} |'
               for c in slowest[:LISTED]]
-    closest = sorted(cases, key=lambda c: (c['outcome']['clearance_m'], c['case']))
+    closest = sorted(judged, key=lambda c: (c['outcome']['clearance_m'], c['case']))
     lines += ['', f'## The closest ({min(LISTED, len(closest))})', '',
               '| case | test | seed | clearance (m) | to | at (s) |', '|---|---|---|---|---|---|']
     for c in closest[:LISTED]:
@@ -173,7 +184,7 @@ def _markdown(data: Dict[str, Any]) -> str:
         at = '-' if o['closest_s'] is None else f'{o["closest_s"]:.3f}'
         lines.append(f'| {c["case"]} | `{_test_name(c)}` | {c["seed"]} | '
                      f'{o["clearance_m"]:.3f} | {o["closest"] or "-"} | {at} |')
-    failures = [c for c in cases if not c['passed']]
+    failures = [c for c in judged if not c['passed']]
     lines += ['', f'## Failures ({len(failures)})', '']
     if not failures:
         lines.append('None.')
@@ -189,6 +200,15 @@ def _markdown(data: Dict[str, Any]) -> str:
             lines.append(f'- shrunk by Hypothesis from a first failing scenario of {count} '
                          f'box{"" if count == 1 else "es"}: `{first.to_json()}`')
         lines.append('')
+    crashes = [c for c in cases if c['crashed']]
+    if crashes:
+        lines += [f'## Crashed ({len(crashes)})', '',
+                  'No verdict: the process running it died, or the run raised. Not run again; '
+                  'its seed reruns it.', '']
+    for c in crashes:
+        lines += [f'### Case {c["case"]}: `{_test_name(c)}`, seed {c["seed"]}', '',
+                  f'- {c["reason"]}', f'- on: `{c["worker"]}`', f'- run it again: `{c["rerun"]}`',
+                  '']
     return '\n'.join(lines).rstrip('\n') + '\n'
 
 
@@ -208,6 +228,7 @@ def draw_trajectories(cases: List[Dict[str, Any]], path: Path) -> None:
 
     figure = Figure(figsize=(9, 7.5), dpi=110)
     axes = figure.add_subplot()
+    cases = [c for c in cases if c['outcome'] is not None]  # a crash ran no trajectory
     scenarios = [Scenario.from_dict(c['outcome']['scenario']) for c in cases]
     for world in sorted({s.world for s in scenarios if s.world}):
         for box in world_boxes(world):

@@ -18,6 +18,12 @@ project with ``--rootdir`` and ``--confcutdir`` the project, so neither the
 report's directories nor a ``conftest.py`` above the project is imported; the
 rerun names the test and the ``conftest.py`` files it will run first.
 
+**A case of the farm runner** (``python -m r2d2_sim.farm run``: its record
+names the farm, ``FILE.py:NAME`` or ``MODULE:NAME``, and the variation's
+seed) runs again in this process (:func:`rerun_farm_case`), recorded; the
+farm's file must be a file of the project, as a test's must. A crashed
+case has no outcome to compare with: its new outcome is printed.
+
 **Which run is the case's.** A node id is relative to the rootdir of the
 pytest process that ran it, which each record keeps: pytest chooses it from
 the command line before the farm plugin's options are known, so a separate
@@ -37,7 +43,7 @@ import tempfile
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 __all__ = ['ReportError', 'rerun', 'load_case', 'locate', 'same_run', 'read_records',
-           'conftests']
+           'conftests', 'rerun_farm_case']
 
 PLUGIN = 'r2d2_sim.farm.pytest_plugin'
 # A test: its file (resolved) and its name in the file, as after '::' in a node id.
@@ -154,6 +160,8 @@ def rerun(report: Path, number: int, record: Optional[Path],
     from r2d2_sim.farm.scenario import ScenarioError
     from r2d2_sim.farm.strategies import REPLAY_ENV
     case = load_case(report, number)
+    if case.get('farm'):
+        return rerun_farm_case(report, case, record, project)
     try:
         expected = Outcome.from_dict(case['outcome'])
     except ScenarioError as exc:
@@ -194,5 +202,57 @@ def rerun(report: Path, number: int, record: Optional[Path],
     verdict = 'passed' if again.passed else f'failed: {again.reason}'
     print(f'the same outcome as in the report ({verdict}); recording: {again.recording}\n'
           f'replay it into ROS: replay {again.recording} (python -m r2d2_sim.apps.replay), '
+          'or open it in Foxglove')
+    return 0
+
+
+def rerun_farm_case(report: Path, case: Dict[str, Any], record: Optional[Path],
+                    project: Optional[Path] = None) -> int:
+    """
+    Run a farm runner's case again in this process, recording it; compare with the report.
+
+    Returns 0 for the report's outcome (or, for a crashed case, any outcome),
+    1 for another outcome or a run that raised. ReportError (one line) for a
+    farm given as a Python object (nothing to import) or a file outside the
+    project.
+    """
+    from r2d2_sim.farm.job import Item, JobSource, run_variation
+    from r2d2_sim.farm.run import check_same, DeterminismError, Outcome
+    farm = case['farm']
+    number, key, seed = case['case'], int(farm['key']), int(farm['seed'])
+    source = farm.get('source')
+    if not source:
+        raise ReportError(f'case {number} came from run_farm() given a FarmJob object, not a '
+                          f'file or module: run it again with run_farm(job, seeds=[{key}], '
+                          'record="all")')
+    where, _, name = str(source).rpartition(':')
+    project = (project or Path.cwd()).resolve()
+    if where.endswith('.py'):
+        found, _ = locate({'case': number, 'nodeid': f'{where}::{name}', 'rootdir': ''},
+                          project)
+        where = str(found)
+    record = (record or report.parent / f'rerun-{number}').resolve()
+    record.mkdir(parents=True, exist_ok=True)
+    print(f'rerunning case {number} (seed {seed}) of the farm {where}:{name} in this process, '
+          f'recording into {record}', flush=True)
+    result = run_variation(JobSource(where, name), Item(key, seed), record='all')
+    if result.outcome is None:
+        print(f'r2d2_sim.farm: the rerun raised {result.error}', file=sys.stderr)
+        return 1
+    path = record / f'case-{number}-seed-{seed}.mcap'
+    path.write_bytes(result.recording or b'')
+    again = Outcome.from_dict(dict(result.outcome, recording=str(path)))
+    verdict = 'passed' if again.passed else f'failed: {again.reason}'
+    if case['outcome'] is None:
+        print(f'the report has it crashed ({case["reason"]}); this time it {verdict}; '
+              f'recording: {path}')
+        return 0
+    try:
+        check_same(Outcome.from_dict(case['outcome']), again)
+    except DeterminismError as exc:
+        print(str(exc), file=sys.stderr)
+        return 1
+    print(f'the same outcome as in the report ({verdict}); recording: {path}\n'
+          f'replay it into ROS: replay {path} (python -m r2d2_sim.apps.replay), '
           'or open it in Foxglove')
     return 0

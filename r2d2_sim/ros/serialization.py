@@ -23,7 +23,7 @@ import array
 import importlib
 import random
 import struct
-from typing import Any, List, NamedTuple, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
@@ -350,6 +350,7 @@ class MessageTemplate:
             raise ValueError(f'unsupported serialization: encapsulation {kind.hex()}, '
                              f'expected {_CDR_LE.hex()} (plain little-endian CDR)')
         self._buffer = bytearray(serialized)
+        self._serialized = bytes(serialized)
         # A private copy, normalized the way a subscriber sees it (float32 rounded).
         self._message = deserialize_message(serialized, self.message_type)
 
@@ -430,8 +431,22 @@ class MessageTemplate:
         return deserialize_message(bytes(self._buffer), self.message_type)
 
     def _locate(self, path: str, leaves: List[_Leaf], dtype: Optional[str]) -> _Span:
-        """Find where ``leaves`` lie in the bytes by sentinels, and prove it."""
+        """Find where ``leaves`` lie in the bytes by sentinels, and prove it (once per layout)."""
         codes = ''.join(leaf.code for leaf in leaves)
+        # The bytes of the message as given fix its layout (every sequence's length), and
+        # the search is seeded: the same message and path are found at the same place.
+        # A farm builds the same templates for every run: found once per process.
+        key = (self.message_type, self._serialized, path, codes, dtype)
+        span = _LOCATED.get(key)
+        if span is None:
+            span = self._search(path, leaves, codes, dtype)
+            if len(_LOCATED) >= _LOCATED_MAX:
+                _LOCATED.clear()
+            _LOCATED[key] = span
+        return span
+
+    def _search(self, path: str, leaves: List[_Leaf], codes: str, dtype: Optional[str]) -> _Span:
+        """Find where ``leaves`` lie in the bytes by sentinels, and prove it."""
         if not leaves:
             # An empty sequence: nothing to patch, and nothing to find.
             return _Span(path, 0, 0, codes, dtype)
@@ -477,6 +492,11 @@ class MessageTemplate:
             problem = f'do not deserialize ({error})'
         raise FieldError(f'{span.path!r}: found at byte {span.offset}, but the bytes '
                          f'patched there {problem}')
+
+
+# Spans found, by message type, bytes, path, codes and dtype (see MessageTemplate._locate).
+_LOCATED: Dict[Tuple[Any, bytes, str, str, Optional[str]], _Span] = {}
+_LOCATED_MAX = 1024
 
 
 def _occurrences(haystack: bytes, needle: bytes) -> List[int]:

@@ -514,3 +514,23 @@ def test_other_encodings_are_refused(monkeypatch, encapsulation, error):
     monkeypatch.setattr(cdr, 'serialize_message', other_encoding)  # the template's first
     with pytest.raises(ValueError, match=error):
         MessageTemplate(Clock())
+
+
+def test_a_layout_is_searched_once_per_process_and_found_where_a_search_finds_it(monkeypatch):
+    """A farm builds the same templates every run: a second one reuses the first one's spans."""
+    from r2d2_sim.ros import serialization
+    searched = []
+    search = MessageTemplate._search
+
+    def counted(self, path, *args):
+        searched.append(path)
+        return search(self, path, *args)
+    monkeypatch.setattr(serialization, '_LOCATED', {})
+    monkeypatch.setattr(MessageTemplate, '_search', counted)
+    first = MessageTemplate(LaserScan(ranges=[0.0] * 181)).field('ranges')
+    again = MessageTemplate(LaserScan(ranges=[0.0] * 181)).field('ranges')
+    assert searched == ['ranges'] and (again.offset, again.count) == (first.offset, 181)
+    other = MessageTemplate(LaserScan(ranges=[0.0] * 90)).field('ranges')  # another layout
+    assert searched == ['ranges', 'ranges'] and other.count == 90
+    framed = MessageTemplate(LaserScan(header=header('x' * 7, 0, 0), ranges=[0.0] * 181))
+    assert framed.field('ranges').offset != first.offset and len(searched) == 3

@@ -9,7 +9,7 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
 
-from r2d2_sim.farm import farm_settings, ROOM, safe, scenarios, ScenarioSpace
+from r2d2_sim.farm import FarmJob, farm_settings, ROOM, safe, scenarios, ScenarioSpace
 
 # Up to 5 boxes across the room, between a start at its west end and a goal at its east end.
 SPACE = ScenarioSpace(world=ROOM, obstacles=(0, 5), area=(-1.8, -2.2, 0.9, 2.2),
@@ -61,6 +61,11 @@ class GoalStopper(Node):
 
 def goal_stopper(harness, scenario):
     harness.add_node(GoalStopper(scenario.goal_point, context=harness.context))
+
+
+# The same farm for the runner: python -m r2d2_sim.farm run test_stopper_farm.py:FARM
+FARM = FarmJob(SPACE, goal_stopper, seconds=20.0, verdict=safe, parameters=PARAMETERS,
+               name='stopper')
 
 
 @pytest.mark.parametrize('seed', range(VARIATIONS))

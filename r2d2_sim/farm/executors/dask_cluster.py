@@ -1,0 +1,163 @@
+"""
+The Dask executor: each variation a task of a ``distributed`` cluster, a crash never run again.
+
+Dask's scheduler runs a task again on another worker when the worker running
+it dies (``distributed.scheduler.allowed-failures``, 3 by default), and that
+setting belongs to the scheduler, which may be shared: it is not changed here.
+Instead each task marks itself started (a ``distributed.Event`` named for
+this run and variation) before it runs; a task that finds its mark set was
+started before and its worker died under it, so it runs nothing and reports
+the variation crashed. With ``allowed-failures`` 0 the scheduler gives up at
+once (``KilledWorker``), also reported as a crash.
+
+Where it runs: ``address`` (``tcp://HOST:8786``), else Dask's own setting
+(``DASK_SCHEDULER_ADDRESS``, the ``scheduler-address`` key), else a
+``LocalCluster`` started here with ``workers`` processes of one thread each.
+Workers should have one thread (``dask worker --nthreads 1``): PyBullet holds
+the GIL while it steps, so threads of one process would share a core. The
+package (and the farm's module, unless named by a file path that exists on
+every worker) must be installed on every worker.
+"""
+
+from typing import Any, Dict, List, Optional, Sequence
+import uuid
+
+from r2d2_sim.farm.executors.base import (
+    check_pickles, check_reachable, Crash, ExecutorError, Finished, ship_by_value)
+from r2d2_sim.farm.job import Item, run_variation, TaskResult
+
+__all__ = ['DaskPool', 'run_once']
+
+SCHEDULER_PORT = 8786
+CONNECT_TIMEOUT = '10s'
+
+
+def run_once(payload: Any, item: Item, record: str, run: str) -> TaskResult:
+    """Run the variation, unless an earlier start of it died (then report it crashed)."""
+    import os
+    import socket
+    from distributed import Event
+    mark = Event(f'r2d2-farm-{run}-{item.key}')
+    if mark.is_set():
+        return TaskResult(item.key, item.seed, None, CRASHED_BEFORE, None, None, None,
+                          socket.gethostname(), os.getpid(), 0.0)
+    mark.set()
+    try:
+        return run_variation(payload, item, record)
+    finally:
+        mark.clear()  # an event cleared is forgotten by the scheduler
+
+
+# The error of a variation whose first start died: the runner reports it as a crash.
+CRASHED_BEFORE = 'its Dask worker died while running it (Dask started it again: not run twice)'
+
+
+class DaskPool:
+    """Variations of ``payload`` as tasks of a Dask cluster (see the module)."""
+
+    name = 'dask'
+
+    def __init__(self, payload: Any, record: str, address: Optional[str],
+                 workers: Optional[int]) -> None:
+        try:
+            import cloudpickle
+            import dask
+            import distributed  # noqa: F401
+        except ImportError:
+            raise ExecutorError('the dask executor needs Dask\'s distributed scheduler: pip '
+                                'install "r2d2_sim[dask]" (or pip install "dask[distributed]")'
+                                ) from None
+        ship_by_value(cloudpickle, payload)
+        check_pickles(cloudpickle.dumps, payload)
+        self._payload = payload
+        self._record = record
+        self._address = address or dask.config.get('scheduler-address', None)
+        self._workers = workers
+        self._run = uuid.uuid4().hex[:12]
+        self._client: Any = None
+        self._cluster: Any = None
+        self._job: Any = None
+        self._pending: Dict[Any, Item] = {}
+
+    def start(self) -> None:
+        """Connect to the scheduler (or start a LocalCluster); ExecutorError if it fails."""
+        from distributed import Client, LocalCluster
+        try:
+            if self._address:
+                check_reachable(self._address, 'Dask scheduler', SCHEDULER_PORT)
+                self._client = Client(self._address, timeout=CONNECT_TIMEOUT)
+            else:
+                self._cluster = LocalCluster(n_workers=self._workers, threads_per_worker=1,
+                                             processes=True, dashboard_address=None)
+                self._client = Client(self._cluster)
+        except ExecutorError:
+            raise
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ExecutorError(f'cannot connect to the Dask scheduler at {self._address}: '
+                                f'{str(exc).splitlines()[0] if str(exc) else repr(exc)}'
+                                ) from None
+        self._job = self._client.scatter(self._payload, broadcast=True, hash=False)
+
+    def submit(self, items: Sequence[Item]) -> None:
+        """Submit one task per variation."""
+        for item in items:
+            future = self._client.submit(run_once, self._job, item, self._record, self._run,
+                                         key=f'r2d2-farm-{self._run}-{item.key}', pure=False,
+                                         retries=0)
+            self._pending[future] = item
+
+    def pending(self) -> int:
+        """Return the tasks not finished."""
+        return len(self._pending)
+
+    def wait(self, timeout_s: float) -> List[Finished]:
+        """Return the tasks finished, waiting up to ``timeout_s`` for one."""
+        from distributed import wait
+        if not self._pending:
+            return []
+        try:
+            done, _ = wait(list(self._pending), timeout=timeout_s, return_when='FIRST_COMPLETED')
+        except TimeoutError:
+            return []
+        finished: List[Finished] = []
+        for future in done:
+            item = self._pending.pop(future)
+            if future.status == 'finished':
+                result = future.result()
+                if result.error == CRASHED_BEFORE:
+                    finished.append((item, Crash(item.key, item.seed, CRASHED_BEFORE,
+                                                 result.host, None)))
+                else:
+                    finished.append((item, result))
+            else:
+                error = future.exception()
+                text = str(error).strip().splitlines()[0] if str(error).strip() else ''
+                finished.append((item, Crash(item.key, item.seed,
+                                             f'its Dask worker died ({type(error).__name__}: '
+                                             f'{text})', '?', None)))
+        return finished
+
+    def stop(self) -> None:
+        """Cancel the tasks not finished."""
+        if self._client is not None and self._pending:
+            self._client.cancel(list(self._pending), force=True)
+        self._pending.clear()
+
+    def close(self) -> None:
+        """Disconnect (and end a LocalCluster started here)."""
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
+
+    def clean_hosts(self) -> List[str]:
+        """Remove the segments dead tasks left, on the host of every worker."""
+        from r2d2_sim.farm.shm import clean_dead
+        if self._client is None:
+            return []
+        removed: List[str] = []
+        for names in self._client.run(clean_dead).values():
+            removed += [n for n in names if n not in removed]
+        return removed

@@ -1,0 +1,163 @@
+"""
+Fast DDS shared-memory segments a killed farm task leaves: noted while it runs, removed after.
+
+Fast DDS (Jazzy's rmw_fastrtps) gives each participant files in
+``/dev/shm``: its own segment (``fastrtps_<16 hex>`` and its ``_el`` lock),
+the ports it listens on (``fastrtps_port<N>``, ``_el``, and the named
+semaphore ``sem.fastrtps_port<N>_mutex``) and, for data sharing,
+``fast_datasharing_*``. A participant that closes removes them; one whose
+process is killed leaves them, and stale segments fill ``/dev/shm`` (Fast-DDS
+#2790) or block the next participant on that port (rmw_fastrtps #812).
+
+Only ours are removed, never another program's: a farm task notes the
+segments its process holds (:func:`note`, after its simulator is built and
+again after the user's nodes are added) in a file of its own in a private
+directory of this host (``$TMPDIR/r2d2_sim-farm-<uid>/tasks/<pid>-<start
+time>``); a task that ends normally forgets them (:func:`forget`). When a
+task's process is gone (its id and start time no longer name a live process:
+an id reused by another process is not taken for it), :func:`clean_dead`
+removes each segment it noted that no live process maps or holds open, then
+its note. Anyone on the host may call it: the local pool after a worker dies
+and at the end of a run, every task on a cluster's host as it starts, and the
+farm on every host at the end.
+"""
+
+import os
+from pathlib import Path
+import re
+import tempfile
+from typing import Iterable, List, Optional, Set
+
+__all__ = ['SHM_DIR', 'note', 'forget', 'clean_dead', 'segments_of', 'registry_dir',
+           'in_use']
+
+SHM_DIR = Path('/dev/shm')
+# The files Fast DDS makes in /dev/shm (and the lock and semaphore beside a segment).
+_FAST_DDS = re.compile(r'^(?:sem\.)?(?:fastrtps_|fast_datasharing)')
+_PORT = re.compile(r'^fastrtps_port(\d+)$')
+
+
+def registry_dir() -> Path:
+    """Return this user's directory of task notes on this host (made 0700)."""
+    path = Path(tempfile.gettempdir()) / f'r2d2_sim-farm-{os.getuid()}' / 'tasks'
+    path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    return path
+
+
+def _start_time(pid: int) -> Optional[str]:
+    """Return a process's start time (clock ticks since boot), or None if it is gone."""
+    try:
+        with open(f'/proc/{pid}/stat', encoding='utf-8') as stat:
+            # The command name may hold spaces and parentheses: fields follow the last ')'.
+            return stat.read().rsplit(')', 1)[1].split()[19]
+    except (OSError, IndexError):
+        return None
+
+
+def segments_of(pid: str = 'self') -> Set[str]:
+    """Return the Fast DDS files in /dev/shm that process ``pid`` maps or holds open."""
+    found: Set[str] = set()
+    try:
+        with open(f'/proc/{pid}/maps', encoding='utf-8', errors='replace') as maps:
+            for line in maps:
+                at = line.find('/dev/shm/')
+                if at >= 0:
+                    name = line[at + 9:].rstrip('\n').removesuffix(' (deleted)')
+                    if _FAST_DDS.match(name):
+                        found.add(name)
+    except OSError:
+        return found
+    fd_dir = f'/proc/{pid}/fd'
+    try:
+        descriptors = os.listdir(fd_dir)
+    except OSError:
+        return found
+    for fd in descriptors:
+        try:
+            target = os.readlink(f'{fd_dir}/{fd}')
+        except OSError:
+            continue
+        if target.startswith('/dev/shm/') and _FAST_DDS.match(target[9:]):
+            found.add(target[9:])
+    return found
+
+
+def _with_companions(names: Iterable[str]) -> Set[str]:
+    """Add the lock file and semaphore Fast DDS keeps beside each segment."""
+    every = set(names)
+    for name in list(every):
+        if name.endswith('_el') or name.startswith('sem.'):
+            continue
+        every.add(name + '_el')
+        if _PORT.match(name):
+            every.add(f'sem.{name}_mutex')
+    return every
+
+
+def _note_path(pid: int) -> Optional[Path]:
+    start = _start_time(pid)
+    return None if start is None else registry_dir() / f'{pid}-{start}'
+
+
+def note() -> None:
+    """Note the Fast DDS segments this process holds now (added to what it noted before)."""
+    path = _note_path(os.getpid())
+    if path is None:
+        return
+    names = _with_companions(segments_of())
+    if path.exists():
+        names |= set(path.read_text(encoding='utf-8').split())
+    scratch = path.with_suffix('.new')
+    scratch.write_text('\n'.join(sorted(names)) + '\n', encoding='utf-8')
+    os.replace(scratch, path)  # a reader never sees half a note
+
+
+def forget() -> None:
+    """Drop this process's note: its task ended and closed its segments itself."""
+    path = _note_path(os.getpid())
+    if path is not None:
+        path.unlink(missing_ok=True)
+
+
+def in_use(names: Set[str]) -> Set[str]:
+    """Return which of ``names`` a live process of this host maps or holds open."""
+    used: Set[str] = set()
+    for entry in os.listdir('/proc'):
+        if entry.isdigit():
+            used |= segments_of(entry) & names
+            if used == names:
+                break
+    return used
+
+
+def clean_dead() -> List[str]:
+    """
+    Remove the segments of noted tasks whose process is gone, if no live process uses them.
+
+    Returns the names removed. Notes of live processes are left alone, as
+    are files that are not Fast DDS's (a note is read, never trusted as a path).
+    """
+    removed: List[str] = []
+    try:
+        notes = [p for p in registry_dir().iterdir() if p.suffix != '.new']
+    except OSError:
+        return removed
+    for path in notes:
+        pid, _, start = path.name.partition('-')
+        if pid.isdigit() and _start_time(int(pid)) == start:
+            continue  # still running
+        try:
+            names = {n for n in path.read_text(encoding='utf-8').split()
+                     if _FAST_DDS.match(n) and '/' not in n}
+        except OSError:
+            continue
+        for name in sorted(names - in_use(names)):
+            try:
+                (SHM_DIR / name).unlink()
+                removed.append(name)
+            except FileNotFoundError:
+                pass
+            except OSError:
+                continue
+        path.unlink(missing_ok=True)
+    return removed

@@ -1,0 +1,273 @@
+"""
+The farm runner's parts that start no process: shards, seeds, jobs, progress, crashes, segments.
+
+The runner itself, with its worker processes and clusters, is tested in
+``test/system/test_farm_runner.py`` and ``test/system/test_farm_clusters.py``.
+"""
+
+import io
+import json
+import os
+from pathlib import Path
+import pickle
+import uuid
+
+import pytest
+
+from r2d2_sim.farm import shm
+from r2d2_sim.farm.executors import choose, ExecutorError
+from r2d2_sim.farm.executors.base import check_reachable
+from r2d2_sim.farm.job import describe, FarmJob, Item, JobSource
+from r2d2_sim.farm.progress import Progress
+from r2d2_sim.farm.report import write_report
+from r2d2_sim.farm.runner import FarmError, parse_seeds, run_farm
+from r2d2_sim.farm.scenario import Scenario, ScenarioError, ScenarioSpace
+from r2d2_sim.farm.shards import parse_shard, Shard, shard_of
+
+
+def drive(harness, scenario):
+    """Command nothing (these tests never run the controller)."""
+
+
+SPACE = ScenarioSpace(obstacles=(0, 2))
+JOB = FarmJob(SPACE, drive, seconds=1.0, name='idle')
+
+
+# -- shards --------------------------------------------------------------------------
+
+def test_a_shard_is_read_as_i_of_n_counted_from_one():
+    assert parse_shard('1/4') == Shard(1, 4) and str(parse_shard('4/4')) == '4/4'
+
+
+@pytest.mark.parametrize('text, says', [
+    ('3/2', 'i must be 1..N'), ('0/2', 'i must be 1..N'), ('1/0', 'N must be 1 or more'),
+    ('a/b', 'write it i/N'), ('2', 'write it i/N'), ('1/2/3', 'write it i/N')])
+def test_a_shard_that_cannot_be_is_one_line(text, says):
+    with pytest.raises(ValueError) as raised:
+        parse_shard(text)
+    assert says in str(raised.value) and '\n' not in str(raised.value)
+
+
+def test_shards_split_the_seeds_between_them_once_each_by_the_seed_alone():
+    seeds = range(1000)
+    shards = [Shard(i, 4) for i in range(1, 5)]
+    owners = [[s for s in shards if s.holds(seed)] for seed in seeds]
+    assert all(len(owner) == 1 for owner in owners)
+    sizes = [sum(s.holds(seed) for seed in seeds) for s in shards]
+    assert min(sizes) > 200  # about 250 each
+    # Pinned: a seed's shard is SHA-256 of its decimal text, whatever else runs.
+    assert [shard_of(seed, 4) for seed in range(8)] == [shard_of(s, 4) for s in range(8)]
+    assert shard_of(0, 1) == 1
+    evens = [shard_of(seed, 2) for seed in range(0, 200, 2)]
+    assert set(evens) == {1, 2}  # a hash, not seed % N: every even seed is not in one shard
+
+
+# -- seeds and the job ---------------------------------------------------------------
+
+def test_seeds_are_read_as_ranges_and_lists():
+    assert parse_seeds('0-3,7,9-10') == [0, 1, 2, 3, 7, 9, 10]
+    for wrong in ('3-1', 'x', '-2', '1,,2'):
+        with pytest.raises(ValueError, match='--seeds'):
+            parse_seeds(wrong)
+
+
+def test_a_job_derives_each_variation_from_its_seed_or_its_index():
+    assert JOB.items([3, 5]) == [Item(3, 3), Item(5, 5)]
+    assert JOB.scenario(Item(3, 3)) == SPACE.draw(3)
+    listed = FarmJob([SPACE.draw(7), SPACE.draw(9)], drive, seconds=1.0)
+    assert listed.items([1]) == [Item(1, 9)] and listed.scenario(Item(1, 9)) == SPACE.draw(9)
+    with pytest.raises(ScenarioError, match='lists 2 scenarios'):
+        listed.items([2])
+    assert pickle.loads(pickle.dumps(JOB)) == JOB
+
+
+def test_a_job_that_cannot_be_is_one_line():
+    with pytest.raises(ScenarioError, match='ScenarioSpace or a list'):
+        FarmJob(['not a scenario'], drive, seconds=1.0)
+    with pytest.raises(ScenarioError, match='callable'):
+        FarmJob(SPACE, 'drive', seconds=1.0)
+    with pytest.raises(ScenarioError, match='seconds'):
+        FarmJob(SPACE, drive, seconds=0.0)
+
+
+def test_a_job_is_identified_by_what_it_runs_not_by_how_many():
+    identity = describe(JOB)
+    assert identity == describe(FarmJob(SPACE, drive, seconds=1.0, name='idle'))
+    assert identity['controller'].endswith(':drive')
+    assert describe(FarmJob(SPACE, drive, seconds=2.0, name='idle')) != identity
+    json.dumps(identity)
+
+
+def test_a_job_by_reference_is_loaded_from_a_file(tmp_path):
+    farm = tmp_path / 'my_farm.py'
+    farm.write_text('from r2d2_sim.farm import FarmJob, ScenarioSpace\n'
+                    'def drive(harness, scenario):\n    pass\n'
+                    'FARM = FarmJob(ScenarioSpace(), drive, seconds=2.0, name="mine")\n'
+                    'OTHER = 3\n', encoding='utf-8')
+    source = JobSource.parse(f'{farm}:FARM')
+    assert source.load().name == 'mine' and source.load() is source.load()
+    assert pickle.loads(pickle.dumps(source)) == source
+    with pytest.raises(ScenarioError, match='not a FarmJob'):
+        JobSource.parse(f'{farm}:OTHER').load()
+    with pytest.raises(ScenarioError, match='no such file'):
+        JobSource.parse(f'{tmp_path}/missing.py:FARM')
+    with pytest.raises(ScenarioError, match='FILE.py:NAME'):
+        JobSource.parse(str(farm))
+    with pytest.raises(ScenarioError, match='cannot import'):
+        JobSource.parse('no_such_module_here:FARM').load()
+
+
+# -- choosing an executor, bad input ---------------------------------------------------
+
+def test_the_executor_is_local_unless_a_cluster_is_named(monkeypatch):
+    monkeypatch.delenv('RAY_ADDRESS', raising=False)
+    monkeypatch.delenv('DASK_SCHEDULER_ADDRESS', raising=False)
+    assert choose(None, None, payload=JOB, record='failures', workers=1).name == 'local'
+    with pytest.raises(ExecutorError, match='--executor ray or --executor dask'):
+        choose(None, 'somehost:1234', payload=JOB, record='failures', workers=1)
+    with pytest.raises(ExecutorError, match='takes no address'):
+        choose('local', 'tcp://x:1', payload=JOB, record='failures', workers=1)
+    with pytest.raises(ExecutorError, match='one of local, ray, dask'):
+        choose('slurm', None, payload=JOB, record='failures', workers=1)
+
+
+def test_an_unreachable_address_is_one_line():
+    with pytest.raises(ExecutorError) as raised:
+        check_reachable('tcp://127.0.0.1:9', 'Dask scheduler', 8786)
+    assert 'cannot reach the Dask scheduler at tcp://127.0.0.1:9' in str(raised.value)
+    assert '\n' not in str(raised.value)
+
+
+def test_a_farm_that_does_not_pickle_is_one_line_before_anything_runs(tmp_path):
+    job = FarmJob(SPACE, lambda harness, scenario: None, seconds=1.0)
+    with pytest.raises(FarmError) as raised:
+        run_farm(job, variations=2, out=tmp_path / 'report', executor='local', progress=False)
+    assert 'does not pickle' in str(raised.value) and '\n' not in str(raised.value)
+    assert not list((tmp_path / 'report').glob('outcomes/*'))
+
+
+class UnpicklableSpace(ScenarioSpace):
+    """A space that holds an open file: it cannot travel to a worker."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        object.__setattr__(self, 'log', open(os.devnull, 'w'))
+
+
+def test_a_space_that_does_not_pickle_is_one_line(tmp_path):
+    job = FarmJob(UnpicklableSpace(), drive, seconds=1.0)
+    with pytest.raises(FarmError, match='does not pickle') as raised:
+        run_farm(job, variations=1, out=tmp_path, executor='local', progress=False)
+    assert '\n' not in str(raised.value)
+    job.space.log.close()
+
+
+def test_a_report_directory_that_cannot_be_written_is_one_line(tmp_path):
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    with pytest.raises(FarmError) as raised:
+        run_farm(JOB, variations=1, out=blocker / 'report', progress=False)
+    assert 'cannot be written' in str(raised.value) and '\n' not in str(raised.value)
+
+
+def test_a_directory_of_another_farm_is_not_resumed(tmp_path):
+    (tmp_path / 'farm.json').write_text(json.dumps({'farm': describe(JOB)}))
+    other = FarmJob(SPACE, drive, seconds=5.0, name='idle')
+    with pytest.raises(FarmError, match='another farm \\(its seconds differs\\)'):
+        run_farm(other, variations=1, out=tmp_path, progress=False)
+
+
+# -- progress ------------------------------------------------------------------------
+
+def test_progress_counts_and_says_the_time_left():
+    stream = io.StringIO()
+    progress = Progress(10, done=2, stream=stream, live=False)
+    for verdict in ('passed', 'failed', 'crashed'):
+        progress.add(verdict)
+    line = progress.line()
+    assert '5/10: 1 passed, 1 failed, 1 crashed' in line and 'left' in line
+    assert stream.getvalue().count('\n') == 3  # every tenth of 10 is every variation
+    quiet = Progress(10, stream=io.StringIO(), enabled=False)
+    quiet.add('passed')
+    assert quiet.stream.getvalue() == ''
+
+
+# -- a report with crashes -------------------------------------------------------------
+
+def outcome_of(seed: int, passed: bool = True) -> dict:
+    """Return an outcome's JSON for the report, as a run gives it."""
+    return {'scenario': Scenario(seed=seed).to_dict(), 'passed': passed,
+            'reason': '' if passed else 'touched box_0 at 1.000 s (base, 3 N)', 'seconds': 5.0,
+            'time_to_goal_s': 2.5 if passed else None, 'clearance_m': 0.2, 'closest': 'box_0',
+            'closest_s': 1.0, 'contacts': [], 'tipped_s': None,
+            'trajectory': [[0, 0.0, 0.0, 0.0], [10**8, 0.1, 0.0, 0.0]], 'steps': 600,
+            'wall_s': 0.5, 'recording': None}
+
+
+def test_a_crashed_variation_is_a_case_of_its_own_with_its_seed(tmp_path):
+    farm = {'rerun': 'python -m r2d2_sim.farm run f.py:FARM --seeds 7', 'seed': 7, 'key': 7}
+    records = [
+        {'nodeid': 'f[3]', 'run': 0, 'property': False, 'outcome': outcome_of(3)},
+        {'nodeid': 'f[5]', 'run': 0, 'property': False, 'outcome': outcome_of(5, False)},
+        {'nodeid': 'f[7]', 'run': 0, 'property': False, 'outcome': None, 'worker': 'h:42',
+         'farm': farm, 'crashed': {'reason': 'crashed: its worker process 42 died, killed by '
+                                   'SIGKILL', 'host': 'h', 'pid': 42}}]
+    written = write_report(records, tmp_path, picture=True)
+    data = json.loads(written['report.json'].read_text())
+    assert data['summary']['crashed'] == 1 and data['summary']['failed'] == 1
+    assert data['summary']['runs'] == 3 and data['summary']['clearance_m']['runs'] == 2
+    crashed = data['cases'][2]
+    assert crashed['crashed'] and crashed['seed'] == 7 and 'SIGKILL' in crashed['reason']
+    text = written['report.md'].read_text()
+    assert '## Crashed (1)' in text and 'seed 7' in text and '--case 2' in text
+    assert '| crashed (no verdict' in text and '## Failures (1)' in text
+
+
+# -- shared-memory segments ------------------------------------------------------------
+
+def fake_segment(tmp_name: str) -> Path:
+    """Make a file in /dev/shm named as Fast DDS names its segments (removed by the test)."""
+    path = shm.SHM_DIR / tmp_name
+    path.write_bytes(b'')
+    return path
+
+
+def test_only_the_segments_of_dead_tasks_that_nobody_uses_are_removed():
+    tag = uuid.uuid4().hex[:12]
+    dead_only = fake_segment(f'fastrtps_{tag}a')
+    used = fake_segment(f'fastrtps_{tag}b')
+    live_task = fake_segment(f'fastrtps_{tag}c')
+    not_fast_dds = fake_segment(f'other_{tag}')
+    registry = shm.registry_dir()
+    me = os.getpid()
+    start = shm._start_time(me)
+    # A dead task: this process's id with another start time (an id reused by another process).
+    (registry / f'{me}-0').write_text('\n'.join([dead_only.name, used.name, not_fast_dds.name,
+                                                 '../etc/passwd']))
+    (registry / f'{me}-{start}').write_text(live_task.name)
+    holder = open(used, 'rb')  # a live process holds it open
+    try:
+        removed = shm.clean_dead()
+        assert dead_only.name in removed and not dead_only.exists()
+        assert used.exists() and live_task.exists() and not_fast_dds.exists()
+        assert not (registry / f'{me}-0').exists() and (registry / f'{me}-{start}').exists()
+    finally:
+        holder.close()
+        (registry / f'{me}-{start}').unlink(missing_ok=True)
+        for path in (dead_only, used, live_task, not_fast_dds):
+            path.unlink(missing_ok=True)
+
+
+def test_a_task_notes_its_segments_with_their_lock_files_and_forgets_them():
+    tag = uuid.uuid4().hex[:12]
+    port = fake_segment(f'fastrtps_port9{tag[:4].translate(str.maketrans("abcdef", "123456"))}')
+    with open(port, 'rb'):
+        shm.note()
+        noted = shm._note_path(os.getpid()).read_text().split()
+    try:
+        assert port.name in noted and port.name + '_el' in noted
+        assert f'sem.{port.name}_mutex' in noted
+    finally:
+        shm.forget()
+        port.unlink()
+    assert not shm._note_path(os.getpid()).exists()

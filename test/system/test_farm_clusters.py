@@ -1,0 +1,139 @@
+"""
+The farm runner on clusters built here: Ray with two nodes, Dask with a scheduler and two workers.
+
+Each cluster runs docs/farm.md's farm, five seeds recording every run, and a
+sixth variation whose worker is killed (SIGKILL) mid-run:
+
+- the five give the verdicts, measures and recording hashes pinned in
+  ``test/farm/data/fingerprints.json`` (the same runs made in one process),
+  with their recordings written here, on the machine that asked;
+- the killed one is reported crashed with its seed, not run again (Ray's
+  retries are off; Dask's scheduler starts it again on another worker, and
+  that start reports the crash instead of running it); its process is gone
+  and so are the Fast DDS segments it held.
+
+Ray takes about 5 s and 600 MiB per node to start: one cluster of each, and
+few variations here. ``bench/farm_clusters.py`` runs the 200 variations of
+the done-when on each executor.
+"""
+
+import os
+from pathlib import Path
+import subprocess
+import sys
+import time
+
+import pytest
+
+from helpers import REPO
+from r2d2_sim.farm import shm
+from r2d2_sim.farm.runner import run_farm
+from test_farm_runner import (
+    alive, check_against_fingerprints, DEADLINE_S, FARM, Killer, REFERENCE_SEEDS)
+
+VICTIM = 5
+# A Ray node's object store: small, it holds one job and small results.
+OBJECT_STORE_BYTES = 100 * 1024 * 1024
+
+
+@pytest.fixture
+def victim_env(tmp_path):
+    """Point the victim at a pid file; set before any worker process starts (they inherit it)."""
+    pid_file = tmp_path / 'victim.pid'
+    saved = {k: os.environ.get(k) for k in ('R2D2_FARM_VICTIM', 'PYTHONPATH')}
+    os.environ['R2D2_FARM_VICTIM'] = f'{VICTIM}:{pid_file}'
+    os.environ['PYTHONPATH'] = os.pathsep.join(
+        p for p in (REPO, saved['PYTHONPATH']) if p)
+    try:
+        yield pid_file
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def check_run(run, killer: Killer, tmp_path: Path, executor: str) -> None:
+    """Check the pinned five, the victim crashed with nothing left, everything written here."""
+    assert run.executor == executor and run.ran == len(REFERENCE_SEEDS) + 1
+    check_against_fingerprints(run.records)
+    for seed in REFERENCE_SEEDS:
+        assert Path(run.records[seed]['outcome']['recording']).parent == \
+            tmp_path / 'report' / 'recordings'
+    assert len({run.records[s]['worker'] for s in REFERENCE_SEEDS}) >= 2  # both workers ran
+    killer.thread.join(DEADLINE_S)
+    assert killer.pid is not None, 'the victim never said where it runs'
+    crashed = run.records[VICTIM]['crashed']
+    assert crashed['reason'].startswith('crashed: its ') and 'died' in crashed['reason']
+    assert run.count('crashed') == 1
+    assert f'seed {VICTIM}' in (tmp_path / 'report' / 'report.md').read_text()
+    assert not alive(killer.pid)
+    assert killer.segments, 'the victim held no Fast DDS segment: nothing was checked'
+    # A segment another live process shares (a port others listen on too) is not ours alone.
+    left = {name for name in killer.segments if (shm.SHM_DIR / name).exists()}
+    left = sorted(left - shm.in_use(left))
+    assert left == [], f'segments of the killed worker left in /dev/shm: {left}'
+
+
+def test_a_ray_cluster_of_two_nodes_gives_the_pinned_runs_and_names_a_crash(tmp_path,
+                                                                            victim_env):
+    import ray
+    from ray.cluster_utils import Cluster
+    cluster = Cluster(initialize_head=True, head_node_args={
+        'num_cpus': 1, 'object_store_memory': OBJECT_STORE_BYTES, 'include_dashboard': False})
+    try:
+        cluster.add_node(num_cpus=1, object_store_memory=OBJECT_STORE_BYTES)
+        cluster.wait_for_nodes()
+        killer = Killer(victim_env)
+        run = run_farm(FARM, seeds=REFERENCE_SEEDS + [VICTIM], executor='ray',
+                       address=cluster.address, out=tmp_path / 'report', record='all',
+                       progress=False)
+        assert not ray.is_initialized()  # the runner connected, so it let go
+        check_run(run, killer, tmp_path, 'ray')
+        assert 'Ray worker died' in run.records[VICTIM]['crashed']['reason']
+    finally:
+        cluster.shutdown()
+
+
+def start(command: list, log: Path) -> subprocess.Popen:
+    """Start a cluster process, its output in ``log``."""
+    with open(log, 'wb') as out:
+        return subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+
+
+def test_a_dask_scheduler_with_two_workers_gives_the_pinned_runs_and_names_a_crash(
+        tmp_path, victim_env):
+    scheduler_file = tmp_path / 'scheduler.json'
+    processes = [start([sys.executable, '-m', 'distributed.cli.dask_scheduler', '--host',
+                        '127.0.0.1', '--port', '0', '--no-dashboard', '--scheduler-file',
+                        str(scheduler_file)], tmp_path / 'scheduler.log')]
+    try:
+        deadline = time.monotonic() + DEADLINE_S
+        while not scheduler_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        import json
+        address = json.loads(scheduler_file.read_text())['address']
+        for name in ('w1', 'w2'):
+            processes.append(start([sys.executable, '-m', 'distributed.cli.dask_worker',
+                                    '--scheduler-file', str(scheduler_file), '--nthreads', '1',
+                                    '--no-dashboard', '--name', name],
+                                   tmp_path / f'{name}.log'))
+        from distributed import Client
+        with Client(address, timeout='60s') as client:
+            client.wait_for_workers(2, timeout=DEADLINE_S)
+        killer = Killer(victim_env)
+        run = run_farm(FARM, seeds=REFERENCE_SEEDS + [VICTIM], executor='dask',
+                       address=address, out=tmp_path / 'report', record='all', progress=False)
+        check_run(run, killer, tmp_path, 'dask')
+        assert 'Dask' in run.records[VICTIM]['crashed']['reason']
+    finally:
+        for process in reversed(processes):
+            process.terminate()
+        for process in reversed(processes):
+            try:
+                process.wait(20)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()

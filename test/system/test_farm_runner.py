@@ -1,0 +1,260 @@
+"""
+The farm runner's local worker processes: references, a killed worker, Ctrl-C, shards, bad input.
+
+- docs/farm.md's farm, five seeds, every run recorded: verdicts, measures and
+  recording hashes are those pinned in ``test/farm/data/fingerprints.json``
+  (the same runs made in the test's own process);
+- a worker killed mid-run (SIGKILL): the report names that variation crashed
+  with its seed; no process of it is left, nor a Fast DDS segment it held; the
+  other variations' outcomes are those of a run without the kill;
+- Ctrl-C (SIGINT to the command): exit status 130, a report of what finished;
+  the same command again resumes and runs only the rest;
+- two CI shards run every seed once between them, and their reports merge;
+- a failure shrunk by Hypothesis in the runner's process (fewer boxes, the
+  same kind of failure, recorded), and a case rerun from the report, its
+  recording byte-identical to the farm's;
+- bad input on the command line: one line, exit status 2.
+
+The clusters (Ray, Dask) are in ``test_farm_clusters.py``.
+"""
+
+import hashlib
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from helpers import REPO
+from r2d2_sim.farm import shm
+from r2d2_sim.farm.runner import run_farm
+
+JOBS = Path(__file__).resolve().parent / 'farm_jobs.py'
+FARM = f'{JOBS}:FARM'
+SHORT = f'{JOBS}:SHORT'
+FINGERPRINTS = Path(REPO) / 'test' / 'farm' / 'data' / 'fingerprints.json'
+REFERENCE_SEEDS = [0, 1, 2, 3, 4]
+DEADLINE_S = 120.0
+
+
+def farm_env(**more: str) -> dict:
+    """Return the environment of a farm command: this checkout first on the path."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        p for p in (REPO, os.environ.get('PYTHONPATH')) if p), **more)
+    env.pop('ROS_DOMAIN_ID', None)
+    return env
+
+
+def measures_sha256(outcome: dict) -> str:
+    """Return the hash the fingerprints keep of an outcome's measures."""
+    measures = {k: v for k, v in outcome.items() if k not in ('wall_s', 'recording')}
+    return hashlib.sha256(json.dumps(measures, sort_keys=True).encode()).hexdigest()
+
+
+def check_against_fingerprints(records: dict) -> None:
+    """Assert each pinned seed's verdict, measures and recording hash are the reference's."""
+    pinned = json.loads(FINGERPRINTS.read_text(encoding='utf-8'))
+    for seed in REFERENCE_SEEDS:
+        record, reference = records[seed], pinned[f'stopper-{seed}']
+        outcome = record['outcome']
+        assert outcome is not None, record.get('crashed')
+        assert outcome['passed'] == reference['passed']
+        assert outcome['reason'] == reference['reason']
+        assert measures_sha256(outcome) == reference['measures_sha256'], seed
+        assert record['farm']['recording_sha256'] == reference['recording_sha256'], seed
+        assert hashlib.sha256(Path(outcome['recording']).read_bytes()).hexdigest() == \
+            reference['recording_sha256']
+
+
+def test_the_local_farm_gives_the_pinned_verdicts_measures_and_recordings(tmp_path):
+    run = run_farm(FARM, seeds=REFERENCE_SEEDS, out=tmp_path / 'report', workers=2,
+                   record='all', progress=False)
+    assert run.executor == 'local' and run.ran == 5 and not run.interrupted
+    check_against_fingerprints(run.records)
+    report = json.loads((tmp_path / 'report' / 'report.json').read_text())
+    assert [c['seed'] for c in report['cases']] == REFERENCE_SEEDS
+    assert {c['worker'].rsplit(':', 1)[1] for c in report['cases']} != {str(os.getpid())}
+
+
+class Killer:
+    """Waits for the victim to say where it runs, notes its segments, and kills it (SIGKILL)."""
+
+    def __init__(self, pid_file: Path) -> None:
+        self.pid_file = pid_file
+        self.pid = None
+        self.segments: set = set()
+        self.thread = threading.Thread(target=self._kill, daemon=True)
+        self.thread.start()
+
+    def _kill(self) -> None:
+        deadline = time.monotonic() + DEADLINE_S
+        while not self.pid_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        if not self.pid_file.exists():
+            return
+        self.pid = int(self.pid_file.read_text())
+        self.segments = shm.segments_of(str(self.pid))
+        os.kill(self.pid, signal.SIGKILL)
+
+
+def alive(pid: int) -> bool:
+    """Return True when ``pid`` names a process that has not ended (zombies count as ended)."""
+    try:
+        with open(f'/proc/{pid}/stat', encoding='utf-8') as stat:
+            return stat.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except OSError:
+        return False
+
+
+def children_of(pid: int) -> list:
+    """Return the processes whose parent is ``pid``."""
+    found = []
+    for entry in os.listdir('/proc'):
+        if entry.isdigit():
+            try:
+                with open(f'/proc/{entry}/stat', encoding='utf-8') as stat:
+                    if int(stat.read().rsplit(')', 1)[1].split()[1]) == pid:
+                        found.append(int(entry))
+            except OSError:
+                continue
+    return found
+
+
+def test_a_killed_worker_is_a_crash_named_with_its_seed_and_leaves_nothing(
+        tmp_path, monkeypatch):
+    seeds, victim = [0, 1, 2, 3, 4, 5], 2
+    undisturbed = run_farm(SHORT, seeds=seeds, out=tmp_path / 'undisturbed', workers=2,
+                           progress=False)
+    pid_file = tmp_path / 'victim.pid'
+    monkeypatch.setenv('R2D2_FARM_VICTIM', f'{victim}:{pid_file}')
+    killer = Killer(pid_file)
+    run = run_farm(SHORT, seeds=seeds, out=tmp_path / 'killed', workers=2, progress=False)
+    killer.thread.join(DEADLINE_S)
+    assert killer.pid is not None, 'the victim never said where it runs'
+    crashed = run.records[victim]['crashed']
+    assert crashed['reason'] == (f'crashed: its worker process {killer.pid} died, killed by '
+                                 'SIGKILL')
+    assert run.count('crashed') == 1 and run.ran == len(seeds)
+    for seed in seeds:
+        if seed != victim:
+            assert run.records[seed]['outcome'] == {
+                **undisturbed.records[seed]['outcome'],
+                'wall_s': run.records[seed]['outcome']['wall_s']}, seed
+    report = (tmp_path / 'killed' / 'report.md').read_text()
+    assert '## Crashed (1)' in report and f'seed {victim}' in report
+    assert f'rerun {tmp_path / "killed" / "report.json"} --case {seeds.index(victim)}' in report
+    assert not alive(killer.pid) and children_of(killer.pid) == []
+    assert killer.segments, 'the victim held no Fast DDS segment: nothing was checked'
+    # A segment another live process shares (a port others listen on too) is not ours alone.
+    left = {name for name in killer.segments if (shm.SHM_DIR / name).exists()}
+    left = sorted(left - shm.in_use(left))
+    assert left == [], f'segments of the killed worker left in /dev/shm: {left}'
+    assert killer.segments - shm.in_use(killer.segments) <= set(run.cleaned)
+
+
+def test_ctrl_c_writes_what_finished_and_the_same_command_resumes(tmp_path):
+    out = tmp_path / 'report'
+    command = [sys.executable, '-m', 'r2d2_sim.farm', 'run', SHORT, '--variations', '6',
+               '--workers', '1', '--out', str(out), '--no-progress']
+    env = farm_env()
+    first = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    outcomes = out / 'outcomes'
+    deadline = time.monotonic() + DEADLINE_S
+    while time.monotonic() < deadline and first.poll() is None:
+        lines = sum(p.read_text().count('\n') for p in outcomes.glob('*.jsonl')) \
+            if outcomes.is_dir() else 0
+        if lines >= 1:
+            break
+        time.sleep(0.05)
+    first.send_signal(signal.SIGINT)
+    stdout, stderr = first.communicate(timeout=DEADLINE_S)
+    assert first.returncode == 130, stderr
+    assert 'run the same command again to resume' in stderr
+    assert 'Traceback' not in stderr
+    report = json.loads((out / 'report.json').read_text())
+    finished = report['summary']['runs']
+    assert 1 <= finished < 6
+    second = subprocess.run(command, cwd=tmp_path, env=env, capture_output=True, text=True,
+                            timeout=DEADLINE_S)
+    assert second.returncode == 0, second.stderr
+    assert f'6 variations reported ({6 - finished} run now on local, {finished} resumed)' \
+        in second.stdout
+    report = json.loads((out / 'report.json').read_text())
+    assert [c['seed'] for c in report['cases']] == list(range(6))
+
+
+def test_two_shards_run_every_seed_once_and_their_reports_merge(tmp_path):
+    env = farm_env()
+    seeds = set()
+    for index in (1, 2):
+        done = subprocess.run(
+            [sys.executable, '-m', 'r2d2_sim.farm', 'run', SHORT, '--variations', '6',
+             '--shard', f'{index}/2', '--workers', '1', '--out', str(tmp_path / f'shard{index}'),
+             '--record', 'none'], cwd=tmp_path, env=env, capture_output=True, text=True,
+            timeout=DEADLINE_S)
+        assert done.returncode == 0, done.stderr
+        shard = json.loads((tmp_path / f'shard{index}' / 'report.json').read_text())
+        mine = {c['seed'] for c in shard['cases']}
+        assert not mine & seeds
+        seeds |= mine
+    assert seeds == set(range(6))
+    merged = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.farm', 'report', str(tmp_path / 'shard1'),
+         str(tmp_path / 'shard2'), '--out', str(tmp_path / 'all')], cwd=tmp_path, env=env,
+        capture_output=True, text=True, timeout=DEADLINE_S)
+    assert merged.returncode == 0, merged.stderr
+    report = json.loads((tmp_path / 'all' / 'report.json').read_text())
+    assert sorted(c['seed'] for c in report['cases']) == list(range(6))
+
+
+def test_a_failure_is_shrunk_here_and_reruns_from_the_report(tmp_path):
+    out = tmp_path / 'report'
+    run = run_farm(f'{JOBS}:LATE', seeds=[0], out=out, workers=1, shrink=True,
+                   progress=False)
+    failed = run.records[0]['outcome']
+    assert not failed['passed'] and failed['reason'].startswith('touched box_')
+    first, shrunk = (json.loads(run.shrunk[k]) for k in ('first', 'shrunk'))
+    assert len(shrunk['obstacles']) < len(first['obstacles'])
+    assert run.shrunk['reason'].startswith('touched box_')
+    assert Path(run.shrunk['recording']).stat().st_size > 0
+    assert (out / 'shrunk-0.json').exists()
+    assert '## Shrunk by Hypothesis' in (out / 'report.md').read_text()
+    again = subprocess.run([sys.executable, '-m', 'r2d2_sim.farm', 'rerun',
+                            str(out / 'report.json'), '--case', '0'], cwd=REPO,
+                           env=farm_env(), capture_output=True, text=True, timeout=DEADLINE_S)
+    assert again.returncode == 0, again.stderr
+    assert 'the same outcome as in the report' in again.stdout
+    rerun = next((out / 'rerun-0').glob('*.mcap'))
+    assert rerun.read_bytes() == Path(failed['recording']).read_bytes()
+
+
+@pytest.mark.parametrize('arguments, says', [
+    (['--shard', '3/2'], '--shard 3/2: i must be 1..N'),
+    (['--out', '{blocker}/report'], 'cannot be written'),
+    (['--executor', 'dask', '--address', 'tcp://127.0.0.1:9'],
+     'cannot reach the Dask scheduler at tcp://127.0.0.1:9'),
+    (['--executor', 'ray', '--address', '127.0.0.1:9'],
+     'cannot reach the Ray cluster at 127.0.0.1:9'),
+    (['--seeds', '5-2'], '--seeds'),
+])
+def test_bad_input_is_one_line_and_exit_status_2(tmp_path, arguments, says):
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    arguments = [a.replace('{blocker}', str(blocker)) for a in arguments]
+    if '--seeds' not in arguments:
+        arguments += ['--variations', '2']
+    done = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.farm', 'run', FARM, *arguments],
+        cwd=tmp_path, env=farm_env(), capture_output=True, text=True, timeout=DEADLINE_S)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('r2d2_sim.farm: error: '), done.stderr
+    assert says in lines[0]
+    assert not (tmp_path / 'farm_report' / 'outcomes').exists() or not list(
+        (tmp_path / 'farm_report' / 'outcomes').glob('*.jsonl'))
