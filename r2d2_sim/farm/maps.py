@@ -54,10 +54,10 @@ def _model_boxes(path: str, position: Sequence[float], yaw: float) -> List[Box]:
         if box is None:
             continue
         origin = collision.find('origin')
-        xyz = _numbers(origin.get('xyz') if origin is not None else '', 3)
-        rpy = _numbers(origin.get('rpy') if origin is not None else '', 3)
-        size = _numbers(box.get('size'), 3)
-        if all(math.isfinite(v) and v > 0.0 for v in size):
+        xyz = _numbers(origin.get('xyz', '') if origin is not None else '', 3)
+        rpy = _numbers(origin.get('rpy', '') if origin is not None else '', 3)
+        sx, sy, sz = _numbers(box.get('size', ''), 3)
+        if all(math.isfinite(v) and v > 0.0 for v in (sx, sy, sz)):
             boxes.append(Box(position[0] + c * xyz[0] - s * xyz[1],
-                             position[1] + s * xyz[0] + c * xyz[1], yaw + rpy[2], tuple(size)))
+                             position[1] + s * xyz[0] + c * xyz[1], yaw + rpy[2], (sx, sy, sz)))
     return boxes

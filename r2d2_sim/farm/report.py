@@ -241,7 +241,8 @@ def draw_trajectories(cases: List[Dict[str, Any]], path: Path) -> None:
                      zorder=3 if failed else 1)
         goal = scenario.goal
         if goal.kind == 'circle':
-            axes.add_patch(Circle(goal.values[:2], goal.values[2], facecolor='none',
+            centre = (goal.values[0], goal.values[1])
+            axes.add_patch(Circle(centre, goal.values[2], facecolor='none',
                                   edgecolor='green', alpha=0.35, linewidth=0.6))
         else:
             x_min, y_min, x_max, y_max = goal.values
@@ -259,8 +260,8 @@ def draw_trajectories(cases: List[Dict[str, Any]], path: Path) -> None:
     goals = [s.goal_point for s in scenarios]
     axes.scatter([g[0] for g in goals], [g[1] for g in goals], marker='x', s=14, color='green',
                  zorder=6, label='goal')
-    failed = sum(not c['passed'] for c in cases)
-    axes.set_title(f'{len(cases)} runs, {failed} failed (red)')
+    failures = sum(not c['passed'] for c in cases)
+    axes.set_title(f'{len(cases)} runs, {failures} failed (red)')
     axes.set_xlabel('x (m)')
     axes.set_ylabel('y (m)')
     axes.set_aspect('equal')

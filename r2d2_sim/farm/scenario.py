@@ -53,6 +53,15 @@ def _finite(name: str, *values: float) -> Tuple[float, ...]:
     return numbers
 
 
+def _size(values: Sequence[Any]) -> Tuple[float, float, float]:
+    """Return a box's size read from JSON: three numbers (ScenarioError otherwise)."""
+    try:
+        x, y, z = (float(v) for v in values)
+    except (TypeError, ValueError):
+        raise ScenarioError(f'a box size is three numbers, not {values!r:.60}') from None
+    return x, y, z
+
+
 @dataclass(frozen=True)
 class Pose:
     """Where the robot starts: x, y (m) and yaw (rad, 0 along +x) in the world."""
@@ -215,7 +224,7 @@ class Scenario:
                       else circle_region(*values[:3]))
             start = data['start']
             return cls(obstacles=tuple(Box(float(b['x']), float(b['y']), float(b['yaw']),
-                                           tuple(float(v) for v in b['size']))
+                                           _size(b['size']))
                                        for b in data['obstacles']),
                        start=Pose(float(start['x']), float(start['y']), float(start['yaw'])),
                        goal=region, seed=data['seed'], world=str(data['world']),

@@ -19,17 +19,17 @@ __all__ = ['Shard', 'parse_shard', 'shard_of']
 
 
 class Shard(NamedTuple):
-    """Shard ``index`` (1..count) of ``count``."""
+    """Shard ``number`` (1..of) of ``of``."""
 
-    index: int
-    count: int
+    number: int
+    of: int
 
     def __str__(self) -> str:
-        return f'{self.index}/{self.count}'
+        return f'{self.number}/{self.of}'
 
     def holds(self, seed: int) -> bool:
         """Return True when ``seed`` belongs to this shard."""
-        return shard_of(seed, self.count) == self.index
+        return shard_of(seed, self.of) == self.number
 
 
 def shard_of(seed: int, count: int) -> int:
@@ -47,8 +47,8 @@ def parse_shard(text: str) -> Shard:
         shard = None
     if not slash or shard is None:
         raise ValueError(f'--shard {text!r}: write it i/N, e.g. 1/4 (the first of four shards)')
-    if shard.count < 1 or not 1 <= shard.index <= shard.count:
+    if shard.of < 1 or not 1 <= shard.number <= shard.of:
         raise ValueError(f'--shard {text}: i must be 1..N, counted from 1 (for N = '
-                         f'{shard.count}: {"1" if shard.count == 1 else f"1..{shard.count}"})'
-                         if shard.count >= 1 else f'--shard {text}: N must be 1 or more')
+                         f'{shard.of}: {"1" if shard.of == 1 else f"1..{shard.of}"})'
+                         if shard.of >= 1 else f'--shard {text}: N must be 1 or more')
     return shard

@@ -24,7 +24,7 @@ on it alone.
 
 import math
 import os
-from typing import Any
+from typing import Any, Dict
 
 from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
@@ -112,10 +112,11 @@ def farm_settings(max_examples: int = 20, **more: Any) -> settings:
     """
     # No explain phase: it reruns variations of the failing example (whole runs) to
     # list the lines only failures ran, which says little about a simulated run.
-    chosen = dict(max_examples=max_examples, derandomize=True, database=None, deadline=None,
-                  report_multiple_bugs=False, print_blob=False,
-                  phases=[p for p in Phase if p is not Phase.explain],
-                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                         HealthCheck.filter_too_much])
+    chosen: Dict[str, Any] = dict(
+        max_examples=max_examples, derandomize=True, database=None, deadline=None,
+        report_multiple_bugs=False, print_blob=False,
+        phases=[p for p in Phase if p is not Phase.explain],
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
+                               HealthCheck.filter_too_much])
     chosen.update(more)
     return settings(**chosen)
