@@ -35,12 +35,13 @@ import sys
 import tempfile
 import time
 import traceback
-from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Union
+from typing import (Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Protocol, Sequence,
+                    Union)
 
 from r2d2_sim.farm.scenario import Scenario, ScenarioError, ScenarioSpace
 
-__all__ = ['FarmJob', 'JobSource', 'Item', 'TaskResult', 'run_variation', 'RECORD_MODES',
-           'describe']
+__all__ = ['FarmJob', 'JobSource', 'ItemJob', 'Item', 'TaskResult', 'run_variation',
+           'prepare', 'RECORD_MODES', 'describe']
 
 # What is recorded: a failure's run (run again, recording, as the pytest farm does),
 # every run, or nothing.
@@ -216,6 +217,34 @@ def _import(where: str) -> Any:
     return module
 
 
+class ItemJob(Protocol):
+    """
+    A job of another kind the executors run: one item in, its outcome as JSON data out.
+
+    The farm's executors run anything of this shape as they run a
+    :class:`FarmJob` (one task per item, crashes reported and never retried,
+    discovery kept on the host, Fast DDS segments cleaned): the OpenSCENARIO
+    variations (:class:`r2d2_sim.osc.variations.DocumentsJob`) are one.
+    """
+
+    def prepare(self) -> None:
+        """Import and read what every item needs, once per worker, before the first."""
+
+    def run_item(self, item: Item) -> Dict[str, Any]:
+        """Run ``item`` in this process; return its outcome as JSON data."""
+
+
+def prepare(job: Any) -> Any:
+    """Load a worker's job (a :class:`JobSource` imported) and warm it up; return it."""
+    if isinstance(job, JobSource):
+        job = job.load()
+    if isinstance(job, FarmJob):
+        import r2d2_sim.farm.run  # noqa: F401  (rclpy and PyBullet, once, before the first task)
+    else:
+        job.prepare()
+    return job
+
+
 class TaskResult(NamedTuple):
     """
     What a task sends back, plain data only.
@@ -239,9 +268,13 @@ class TaskResult(NamedTuple):
     task_s: float
 
 
-def run_variation(job: Union[FarmJob, JobSource], item: Item, record: str = 'failures'
+def run_variation(job: Union[FarmJob, JobSource, ItemJob], item: Item, record: str = 'failures'
                   ) -> TaskResult:
-    """Run one variation of ``job`` in this process; return its result (see the module)."""
+    """
+    Run one variation of ``job`` in this process; return its result (see the module).
+
+    An :class:`ItemJob` runs its item itself (``record`` is a FarmJob's only).
+    """
     started = time.perf_counter()
     # Discovery stays on this host whatever the worker's environment says; the
     # simulator leases its domain on this host (lock files and domain_coordinator's port).
@@ -252,7 +285,10 @@ def run_variation(job: Union[FarmJob, JobSource], item: Item, record: str = 'fai
     try:
         if isinstance(job, JobSource):
             job = job.load()
-        outcome, recording = _run(job, item, record, shm)
+        if isinstance(job, FarmJob):
+            outcome, recording = _run(job, item, record, shm)
+        else:
+            outcome = job.run_item(item)
         if recording is not None:
             digest = hashlib.sha256(recording).hexdigest()
     except Exception as exc:  # the variation's error, reported as its case: never retried

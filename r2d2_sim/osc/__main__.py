@@ -1,11 +1,15 @@
 """
-``python -m r2d2_sim.osc``: run an OpenSCENARIO scenario's variations, a process per core.
+``python -m r2d2_sim.osc``: run an OpenSCENARIO scenario's variations on the farm's executors.
 
-    python -m r2d2_sim.osc SCENARIO.osc [--parameters FILE] [-o DIR] [--jobs N] [--ros]
+    python -m r2d2_sim.osc SCENARIO.osc [--parameters FILE] [-o DIR] [--jobs N]
+                           [--executor local|ray|dask] [--address ADDRESS] [--ros]
 
 Each document of the ``--parameters`` file (scenario_execution's
-``--scenario-parameter-file``) is one variation, run in lockstep in one of
-``--jobs`` processes (default: as many as cores); one line per variation, its
+``--scenario-parameter-file``) is one variation, one task of the farm's
+executor (local processes by default, ``--jobs`` of them, one per core; a
+Ray or Dask cluster as ``python -m r2d2_sim.farm`` chooses one: the
+executor named, the address's kind, ``RAY_ADDRESS``, ``DASK_SCHEDULER_ADDRESS``),
+run in lockstep; one line per variation, its
 verdict and reason, then ``DIR/test.xml`` (JUnit, a test case per document)
 and the farm's report in ``DIR/farm``. ``--ros`` runs them one after
 another against a running simulator instead (the scenario's
@@ -34,8 +38,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='a scenario parameter file; each YAML document one variation')
     parser.add_argument('-o', '--output-dir', default='osc_results', metavar='DIR',
                         help='where test.xml and the farm report go (default: osc_results)')
-    parser.add_argument('--jobs', type=int, default=os.cpu_count() or 1,
-                        help='processes running variations (default: one per core)')
+    parser.add_argument('--jobs', type=int, default=None,
+                        help='worker processes (default: one per core; a cluster: its own)')
+    parser.add_argument('--executor', choices=('local', 'ray', 'dask'), default=None,
+                        help='where the variations run (default: local, or the cluster '
+                             'RAY_ADDRESS or DASK_SCHEDULER_ADDRESS names)')
+    parser.add_argument('--address', default=None,
+                        help="the cluster's address (ray://HOST:PORT, auto, tcp://HOST:PORT)")
     parser.add_argument('--ros', action='store_true',
                         help='run against a running simulator over ROS, one at a time')
     args = parser.parse_args(argv)
@@ -50,13 +59,21 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 2
     from r2d2_sim.osc.entry_points import ensure_registered
     ensure_registered()
-    from r2d2_sim.osc.variations import IN_PROCESS, run_variations
+    from r2d2_sim.farm.executors import ExecutorError
+    from r2d2_sim.osc.variations import executor_map, IN_PROCESS, run_variations
     simulation = 'r2d2_sim.osc:StandardSimulation' if args.ros else IN_PROCESS
+    if args.jobs is not None and args.jobs < 1:
+        print(f'r2d2_sim.osc: error: --jobs {args.jobs}: at least 1', file=sys.stderr)
+        return 2
+    if args.ros or args.jobs == 1:
+        # Over ROS the variations share the one running simulator: one after another.
+        mapper = None
+    else:
+        mapper = executor_map(args.executor, args.address, args.jobs)
     try:
         verdicts = run_variations(args.scenario, args.parameters, args.output_dir,
-                                  jobs=1 if args.ros else max(1, args.jobs),
-                                  simulation=simulation)
-    except ScenarioError as exc:
+                                  jobs=1, map_tasks=mapper, simulation=simulation)
+    except (ScenarioError, ExecutorError) as exc:
         print(f'r2d2_sim.osc: error: {exc}', file=sys.stderr)
         return 2
     for verdict in verdicts:

@@ -1,5 +1,5 @@
 """
-Variations: a multi-document parameter file, one scenario run per document, in a process pool.
+Variations: a multi-document parameter file, one scenario run per document, on the farm's executors.
 
 scenario_execution reads a ``--scenario-parameter-file`` with several YAML
 documents as several scenarios (``name-0``, ``name-1``...) and runs them one
@@ -8,8 +8,10 @@ document, its index, the scenario file), run by :func:`run_document` in
 whichever process takes it, so the documents of a file fan out over cores;
 each run is in lockstep and seeded by its document's ``seed``, so its
 verdict does not depend on where or when it ran. :func:`run_variations`
-maps the tasks (a local process pool by default; a farm's executor takes
-over by passing its own ``map``) and writes one JUnit file (``test.xml``,
+hands the tasks to the farm's executors (:mod:`r2d2_sim.farm.executors`:
+local processes by default, a Ray or a Dask cluster when asked), as one
+:class:`DocumentsJob`, a task per document, a crash reported as that
+document's failure and never retried, and writes one JUnit file (``test.xml``,
 a test case per document, as scenario_execution names them) and the farm's
 report (``farm/report.md``, ``report.json``, ``trajectories.png``).
 
@@ -18,15 +20,15 @@ document it runs (scenario_execution's own multi-document path does the
 same: parsing is about 0.4 s, a copy 0.06 s).
 """
 
-from concurrent.futures import ProcessPoolExecutor
 import copy
+from dataclasses import dataclass
 import functools
 import importlib
 import os
 from pathlib import Path
 import tempfile
 import time
-from typing import Any, Callable, Dict, Iterable, List, NamedTuple, Optional, Sequence
+from typing import Any, Callable, Dict, Iterable, List, NamedTuple, Optional, Sequence, Tuple
 from xml.sax.saxutils import quoteattr
 
 import py_trees
@@ -36,8 +38,9 @@ from r2d2_sim.errors import ScenarioError
 
 Status = py_trees.common.Status
 
-__all__ = ['Task', 'Verdict', 'read_documents', 'tasks_of', 'run_document', 'run_variations',
-           'write_junit', 'scenario_parameters', 'simulator_parameters', 'IN_PROCESS']
+__all__ = ['Task', 'Verdict', 'DocumentsJob', 'read_documents', 'tasks_of', 'run_document',
+           'run_variations', 'executor_map', 'write_junit', 'scenario_parameters',
+           'simulator_parameters', 'IN_PROCESS']
 
 # The simulation a variation runs against: R2D2 in the worker's own process.
 IN_PROCESS = 'r2d2_sim.osc:R2D2Simulation'
@@ -283,24 +286,97 @@ def simulator_parameters(scenario_file: str, document: Optional[Dict[str, Any]] 
     return {**IN_PROCESS_PARAMETERS, **settings.scenario.parameters(), **settings.parameters}
 
 
-# -- every document, in a pool -------------------------------------------------------------
+# -- every document, on the farm's executors -------------------------------------------------
 
 
-def _pool_map(jobs: int) -> Mapper:
+@dataclass(frozen=True)
+class DocumentsJob:
+    """
+    A parameter file's documents as a job of the farm's executors: item ``k`` runs task ``k``.
+
+    An :class:`~r2d2_sim.farm.job.ItemJob`: the executors pickle it once
+    per worker, which parses the scenario file once (:meth:`prepare`) and
+    then runs document after document.
+    """
+
+    tasks: Tuple[Task, ...]
+
+    def prepare(self) -> None:
+        """Register osc.r2d2 and parse the scenario file, once per worker."""
+        from r2d2_sim.osc.entry_points import ensure_registered
+        ensure_registered()
+        for path in sorted({task.scenario_file for task in self.tasks}):
+            if os.path.isfile(path):
+                _parsed(path, os.stat(path).st_mtime_ns)
+
+    def run_item(self, item: Any) -> Dict[str, Any]:
+        """Run document ``item.key``; return its :class:`Verdict` as a dictionary."""
+        return run_document(self.tasks[item.key])._asdict()
+
+    def items(self) -> List[Any]:
+        """Return one item per document: its number, and its seed (0 when it has none)."""
+        from r2d2_sim.farm.job import Item
+        return [Item(task.number, _seed_of(task)) for task in self.tasks]
+
+
+def _seed_of(task: Task) -> int:
+    for values in (task.document or {}).values():
+        seed = values.get('seed')
+        if isinstance(seed, int):
+            return seed
+    return 0
+
+
+def _verdict_of(task: Task, result: Any) -> Verdict:
+    """Return a task's verdict from what the executor gave back (a result or a crash)."""
+    from r2d2_sim.farm.executors import Crash
+    name = f'{Path(task.scenario_file).stem}-{task.number}'
+    if isinstance(result, Crash):
+        return Verdict(task.number, name, False, f'crashed: {result.reason}', 0.0, None)
+    if result.outcome is None:
+        return Verdict(task.number, name, False, f'the run raised {result.error}',
+                       result.task_s, None)
+    return Verdict(**result.outcome)
+
+
+def executor_map(executor: Optional[str] = None, address: Optional[str] = None,
+                 workers: Optional[int] = None) -> Mapper:
+    """
+    Return a map of tasks onto one of the farm's executors (see :mod:`r2d2_sim.farm.executors`).
+
+    ``executor`` (local, ray, dask), ``address`` and ``workers`` as the farm
+    runner's command line takes them; ExecutorError (one line) when the
+    executor cannot be used. Its function argument is always
+    :func:`run_document` (the executors run a :class:`DocumentsJob`).
+    """
     def mapped(function: Callable[[Task], Verdict], tasks: Sequence[Task]) -> Iterable[Verdict]:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            return list(pool.map(function, tasks))
+        from r2d2_sim.farm.executors import choose
+        job = DocumentsJob(tuple(tasks))
+        pool = choose(executor, address, payload=job, record='none', workers=workers)
+        pool.start()
+        verdicts: List[Verdict] = []
+        try:
+            pool.submit(job.items())
+            while pool.pending():
+                verdicts += [_verdict_of(job.tasks[item.key], result)
+                             for item, result in pool.wait(1.0)]
+        except BaseException:
+            pool.stop()
+            raise
+        pool.close()
+        return verdicts
     return mapped
 
 
 def run_variations(scenario_file: str, parameter_file: Optional[str], output_dir: str, *,
-                   jobs: int = 2, map_tasks: Optional[Mapper] = None,
+                   jobs: Optional[int] = None, map_tasks: Optional[Mapper] = None,
                    report: bool = True, simulation: str = IN_PROCESS) -> List[Verdict]:
     """
     Run every document of ``parameter_file`` against ``scenario_file``; return the verdicts.
 
-    ``map_tasks(run_document, tasks)`` runs them (default: a pool of
-    ``jobs`` processes; ``jobs`` 1 runs them here, one after another). Writes
+    ``map_tasks(run_document, tasks)`` runs them (default: the farm's local
+    executor with ``jobs`` processes, one per core when None; ``jobs`` 1
+    runs them here, one after another; :func:`executor_map` for a cluster). Writes
     ``output_dir/test.xml`` (one test case per document) and, with
     ``report``, the farm's report in ``output_dir/farm``. The verdicts are
     in document order, whatever order they ran in. ``simulation``: the
@@ -308,7 +384,8 @@ def run_variations(scenario_file: str, parameter_file: Optional[str], output_dir
     """
     tasks = tasks_of(scenario_file, parameter_file, simulation)
     if map_tasks is None:
-        map_tasks = _pool_map(jobs) if jobs > 1 else (lambda f, ts: [f(t) for t in ts])
+        map_tasks = (executor_map('local', workers=jobs) if jobs is None or jobs > 1
+                     else (lambda f, ts: [f(t) for t in ts]))
     verdicts = sorted(map_tasks(run_document, tasks), key=lambda v: v.number)
     Path(output_dir).mkdir(parents=True, exist_ok=True)
     write_junit(verdicts, Path(output_dir) / 'test.xml')

@@ -1,5 +1,5 @@
 """
-A parameter file's documents as variations: one task each, run in a process pool.
+A parameter file's documents as variations: one task each, on the farm's executors.
 
 One verdict per document, in document order, the same on a rerun in another order;
 one JUnit file and the farm's report. The crossing example with four speeds of its
@@ -11,7 +11,8 @@ import sys
 import xml.etree.ElementTree as ElementTree
 
 from common import OSC_EXAMPLES, osc_env
-from r2d2_sim.osc.variations import read_documents, run_document, run_variations, tasks_of
+from r2d2_sim.osc.variations import (
+    executor_map, read_documents, run_document, run_variations, tasks_of)
 
 SPEEDS = [0.25, 0.6, 0.5, 0.27]
 
@@ -51,6 +52,21 @@ def test_a_pool_gives_one_verdict_per_document_the_same_on_a_rerun(tmp_path):
     assert '| passed | 2 of 4 (50.0 %) |' in report
 
 
+def test_a_document_whose_process_dies_is_its_failure_and_the_others_still_run():
+    """A worker killed mid-document: that document crashed (not rerun), the rest unharmed."""
+    tasks = tasks_of(str(OSC_EXAMPLES / 'crossing.osc'),
+                     str(OSC_EXAMPLES / 'crossing_speeds.yaml'))
+    tasks[0] = tasks[0]._replace(simulation='dying_simulation:DyingSimulation')
+    verdicts = sorted(executor_map('local', workers=2)(run_document, tasks),
+                      key=lambda v: v.number)
+    assert [(v.name, v.passed) for v in verdicts] == [('crossing-0', False),
+                                                      ('crossing-1', False)]
+    assert verdicts[0].reason.startswith('crashed: its worker process ')
+    assert verdicts[0].reason.endswith('died, killed by SIGKILL')
+    assert verdicts[1].reason.startswith('r2d2 came within 0.3 m of r2'), verdicts[1].reason
+    assert verdicts[1].same_as(run_document(tasks[1]))
+
+
 def test_the_command_line_says_each_verdict(tmp_path):
     """The command line: a line per variation, the count, exit status 1 for a failure."""
     result = subprocess.run(
@@ -62,6 +78,19 @@ def test_the_command_line_says_each_verdict(tmp_path):
     assert lines[0] == 'crossing-0: passed', result.stdout + result.stderr
     assert lines[1].startswith('crossing-1: FAILED: r2d2 came within 0.3 m of r2')
     assert lines[2] == '1 passed, 1 failed; out/test.xml' and result.returncode == 1
+
+
+def test_a_cluster_that_does_not_answer_is_one_line(tmp_path):
+    """--address of a Dask scheduler nobody runs: exit status 2, one line naming it."""
+    result = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.osc', str(OSC_EXAMPLES / 'crossing.osc'),
+         '--parameters', str(OSC_EXAMPLES / 'crossing_speeds.yaml'),
+         '--address', 'tcp://127.0.0.1:9'], cwd=tmp_path, env=osc_env(tmp_path / 'shim'),
+        capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert result.stderr.splitlines() == [
+        'r2d2_sim.osc: error: cannot reach the Dask scheduler at tcp://127.0.0.1:9 '
+        '(127.0.0.1:9: Connection refused); is it running, and is the address right?']
 
 
 def test_a_parameter_file_that_cannot_be_read_is_one_line(tmp_path):

@@ -12,11 +12,15 @@ sixth variation whose worker is killed (SIGKILL) mid-run:
   that start reports the crash instead of running it); its process is gone
   and so are the Fast DDS segments it held.
 
+The OpenSCENARIO variations run on the same executors: the crossing's two
+documents on a Dask cluster give the verdicts of a local run.
+
 Ray takes about 5 s and 600 MiB per node to start: one cluster of each, and
 few variations here. ``bench/farm_clusters.py`` runs the 200 variations of
 the done-when on each executor.
 """
 
+import contextlib
 import os
 from pathlib import Path
 import subprocess
@@ -103,8 +107,9 @@ def start(command: list, log: Path) -> subprocess.Popen:
                                 start_new_session=True)
 
 
-def test_a_dask_scheduler_with_two_workers_gives_the_pinned_runs_and_names_a_crash(
-        tmp_path, victim_env):
+@contextlib.contextmanager
+def dask_cluster(tmp_path: Path, workers: int = 2):
+    """Run a Dask scheduler and ``workers`` one-thread workers here; yield its address."""
     scheduler_file = tmp_path / 'scheduler.json'
     processes = [start([sys.executable, '-m', 'distributed.cli.dask_scheduler', '--host',
                         '127.0.0.1', '--port', '0', '--no-dashboard', '--scheduler-file',
@@ -115,19 +120,15 @@ def test_a_dask_scheduler_with_two_workers_gives_the_pinned_runs_and_names_a_cra
             time.sleep(0.05)
         import json
         address = json.loads(scheduler_file.read_text())['address']
-        for name in ('w1', 'w2'):
+        for number in range(1, workers + 1):
             processes.append(start([sys.executable, '-m', 'distributed.cli.dask_worker',
                                     '--scheduler-file', str(scheduler_file), '--nthreads', '1',
-                                    '--no-dashboard', '--name', name],
-                                   tmp_path / f'{name}.log'))
+                                    '--no-dashboard', '--name', f'w{number}'],
+                                   tmp_path / f'w{number}.log'))
         from distributed import Client
         with Client(address, timeout='60s') as client:
-            client.wait_for_workers(2, timeout=DEADLINE_S)
-        killer = Killer(victim_env)
-        run = run_farm(FARM, seeds=REFERENCE_SEEDS + [VICTIM], executor='dask',
-                       address=address, out=tmp_path / 'report', record='all', progress=False)
-        check_run(run, killer, tmp_path, 'dask')
-        assert 'Dask' in run.records[VICTIM]['crashed']['reason']
+            client.wait_for_workers(workers, timeout=DEADLINE_S)
+        yield address
     finally:
         for process in reversed(processes):
             process.terminate()
@@ -137,3 +138,29 @@ def test_a_dask_scheduler_with_two_workers_gives_the_pinned_runs_and_names_a_cra
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
+
+
+def test_a_dask_scheduler_with_two_workers_gives_the_pinned_runs_and_names_a_crash(
+        tmp_path, victim_env):
+    with dask_cluster(tmp_path) as address:
+        killer = Killer(victim_env)
+        run = run_farm(FARM, seeds=REFERENCE_SEEDS + [VICTIM], executor='dask',
+                       address=address, out=tmp_path / 'report', record='all', progress=False)
+        check_run(run, killer, tmp_path, 'dask')
+        assert 'Dask' in run.records[VICTIM]['crashed']['reason']
+
+
+def test_openscenario_documents_on_a_dask_cluster_give_the_local_verdicts(tmp_path, victim_env):
+    """The crossing's two documents as Dask tasks: the verdicts and measures of a local run."""
+    from common import OSC_EXAMPLES
+    from r2d2_sim.osc.entry_points import ensure_registered
+    from r2d2_sim.osc.variations import executor_map, run_document, tasks_of
+    ensure_registered()
+    tasks = tasks_of(str(OSC_EXAMPLES / 'crossing.osc'),
+                     str(OSC_EXAMPLES / 'crossing_speeds.yaml'))
+    with dask_cluster(tmp_path, workers=1) as address:
+        verdicts = sorted(executor_map('dask', address)(run_document, tasks),
+                          key=lambda v: v.number)
+    assert [(v.name, v.passed) for v in verdicts] == [('crossing-0', True),
+                                                      ('crossing-1', False)]
+    assert all(v.same_as(run_document(t)) for v, t in zip(verdicts, tasks))

@@ -28,7 +28,7 @@ import time
 from typing import Any, Dict, List, Optional, Sequence
 
 from r2d2_sim.farm.executors.base import Crash, ExecutorError, Finished
-from r2d2_sim.farm.job import Item, JobSource, run_variation
+from r2d2_sim.farm.job import Item, prepare, run_variation
 
 __all__ = ['LocalPool', 'payload_bytes']
 
@@ -221,10 +221,7 @@ def _serve(connection: Connection, parent: int, payload: bytes, record: str) -> 
     os.environ[PARENT_PID_ENV] = str(parent)
     try:
         end_with_parent()
-        job = pickle.loads(payload)
-        if isinstance(job, JobSource):
-            job = job.load()
-        import r2d2_sim.farm.run  # noqa: F401  (rclpy and PyBullet, once, before the first task)
+        job = prepare(pickle.loads(payload))
     except Exception as exc:
         connection.send(('error', f'a worker could not load the farm: {exc}'))
         return
