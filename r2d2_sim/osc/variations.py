@@ -1,5 +1,5 @@
 """
-Variations: a multi-document parameter file, one scenario run per document, on the farm's executors.
+Variations: a multi-document parameter file, a scenario run per document, on the farm's executors.
 
 scenario_execution reads a ``--scenario-parameter-file`` with several YAML
 documents as several scenarios (``name-0``, ``name-1``...) and runs them one
