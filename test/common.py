@@ -254,3 +254,22 @@ def parallel_rollout(env, seed, steps=30):
         observations, rewards, _, _, _ = env.step(actions)
         digest.update(repr(sorted(rewards.items())).encode())
     return digest.hexdigest()
+
+
+def setup_py_console_scripts():
+    """
+    Return setup.py's ``console_scripts`` entries, read from its syntax tree (not run).
+
+    Only that key is read as a literal: ``entry_points`` also spreads the
+    OpenSCENARIO library's entry points (``**OSC_ENTRY_POINTS``), which are not.
+    """
+    import ast
+    tree = ast.parse((Path(REPO) / 'setup.py').read_text(encoding='utf-8'))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and getattr(node.func, 'id', '') == 'setup':
+            for keyword in node.keywords:
+                if keyword.arg == 'entry_points' and isinstance(keyword.value, ast.Dict):
+                    for key, value in zip(keyword.value.keys, keyword.value.values):
+                        if isinstance(key, ast.Constant) and key.value == 'console_scripts':
+                            return ast.literal_eval(value)
+    raise AssertionError('setup.py has no console_scripts')

@@ -41,7 +41,8 @@ def installed_share_files():
     os.chdir(REPO)  # setup.py globs relative paths
     try:
         with mock.patch('setuptools.setup', lambda **kwargs: captured.update(kwargs)):
-            exec(compile(setup_py(), 'setup.py', 'exec'), {'__name__': 'setup'})
+            exec(compile(setup_py(), 'setup.py', 'exec'),
+                 {'__name__': 'setup', '__file__': os.path.join(REPO, 'setup.py')})
     finally:
         os.chdir(cwd)
     files = set()

@@ -6,14 +6,13 @@ cites), discovery against graphs written by hand, the reports against
 outcomes made up for the purpose, and the command line's usage errors.
 """
 
-import ast
 import importlib
 from pathlib import Path
 import xml.etree.ElementTree as ElementTree
 
 import pytest
 
-from common import REPO
+from common import REPO, setup_py_console_scripts
 from r2d2_sim.conformance import BY_ID, CLAUSES, FAIL, GROUPS, KitError, Outcome, PASS, select
 from r2d2_sim.conformance.cli import main
 from r2d2_sim.conformance.discovery import (
@@ -184,10 +183,7 @@ def test_bad_numbers_are_argparse_errors(capsys):
 
 def test_console_scripts_resolve():
     """Every console script of setup.py names a module:function that imports (sim_conformance)."""
-    tree = ast.parse((Path(REPO) / 'setup.py').read_text(encoding='utf-8'))
-    scripts = next(ast.literal_eval(k.value)['console_scripts'] for node in ast.walk(tree)
-                   if isinstance(node, ast.Call) for k in node.keywords
-                   if k.arg == 'entry_points')
+    scripts = setup_py_console_scripts()
     assert any(s.startswith('sim_conformance = ') for s in scripts)
     for script in scripts:
         module, _, function = script.split(' = ')[1].partition(':')

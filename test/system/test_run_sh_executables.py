@@ -9,14 +9,13 @@ with no PYTHONPATH. The names come from setup.py itself, so a new executable
 without a wrapper fails here. A pip install's own script is never overwritten.
 """
 
-import ast
 import os
 import subprocess
 import sys
 
 import pytest
 
-from common import REPO
+from common import REPO, setup_py_console_scripts
 
 VENV_BIN = os.path.join(REPO, '.venv', 'bin')
 TOOL = os.path.join(REPO, 'tools', 'console_scripts.py')
@@ -24,15 +23,7 @@ TOOL = os.path.join(REPO, 'tools', 'console_scripts.py')
 
 def setup_py_executables():
     """Return the console_scripts names of setup.py (read here, not by the tool under test)."""
-    with open(os.path.join(REPO, 'setup.py'), encoding='utf-8') as handle:
-        tree = ast.parse(handle.read())
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Call) and getattr(node.func, 'id', '') == 'setup':
-            for keyword in node.keywords:
-                if keyword.arg == 'entry_points':
-                    scripts = ast.literal_eval(keyword.value)['console_scripts']
-                    return [entry.split('=')[0].strip() for entry in scripts]
-    raise AssertionError('setup.py has no console_scripts')
+    return [entry.split('=')[0].strip() for entry in setup_py_console_scripts()]
 
 
 EXECUTABLES = setup_py_executables()
