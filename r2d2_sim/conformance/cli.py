@@ -163,4 +163,10 @@ def main(argv: Optional[List[str]] = None) -> int:
     except OSError as exc:
         print(f'{PROG}: error: cannot write {exc.filename}: {exc.strerror}', file=sys.stderr)
         return 2
-    return exit_status(outcomes)
+    status = exit_status(outcomes)
+    if status == 0 and kit.target.features_error:
+        # FEAT-01 was not among the clauses run, so nothing said the simulator was not read.
+        print(f'{PROG}: error: nothing was checked: {kit.target.features_error}',
+              file=sys.stderr)
+        return 1
+    return status

@@ -148,11 +148,24 @@ def test_a_slow_simulator_is_checked_within_the_total_time(tmp_path):
     domain = next_domain_id()
     with ToySimulator(domain, defect='SLOW'):
         result = subprocess.run(KIT + ['--prefix', '/toy', '--asset', 'toy://box', '--only',
-                                       'STATE', '--timeout', '2', '--total-timeout', '4'],
+                                       'STATE', '--timeout', '10', '--total-timeout', '6'],
                                 env=ros_child_env(domain), cwd=REPO, capture_output=True,
                                 text=True, timeout=RUN_S)
     assert result.returncode == 1, result.stdout[-3000:] + result.stderr[-2000:]
     assert 'time limit' in result.stdout.splitlines()[-2], result.stdout[-3000:]
+
+
+def test_no_simulator_found_is_a_failure_even_when_feat_01_is_not_run():
+    """Only STATE asked for, nothing answers: exit status 1 and one line, never a pass."""
+    domain = next_domain_id()
+    result = subprocess.run(KIT + ['--prefix', '/nobody', '--asset', 'toy://box', '--only',
+                                   'STATE', '--timeout', '1'],
+                            env=ros_child_env(domain), cwd=REPO, capture_output=True,
+                            text=True, timeout=RUN_S)
+    assert result.returncode == 1, result.stdout[-3000:] + result.stderr[-2000:]
+    assert result.stderr.splitlines() == [
+        "sim_conformance: error: nothing was checked: no service of type GetSimulatorFeatures "
+        "under '/nobody' within 1 s (found: none of the standard's services)"]
 
 
 def test_a_simulator_under_a_namespace_is_refused_in_one_line():
