@@ -74,9 +74,10 @@ def check_run(run, killer: Killer, tmp_path: Path, executor: str) -> None:
     assert f'seed {VICTIM}' in (tmp_path / 'report' / 'report.md').read_text()
     assert not alive(killer.pid)
     assert killer.segments, 'the victim held no Fast DDS segment: nothing was checked'
-    # A segment another live process shares (a port others listen on too) is not ours alone.
+    # A segment another process shares (a port others send to too), now or at the kill, is
+    # not the victim's alone.
     left = {name for name in killer.segments if (shm.SHM_DIR / name).exists()}
-    left = sorted(left - shm.in_use(left))
+    left = sorted(left - shm.in_use(left) - killer.shared)
     assert left == [], f'segments of the killed worker left in /dev/shm: {left}'
 
 
