@@ -19,12 +19,11 @@ prints a traceback for an exception raised in ``reset``.
 
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
-from scenario_execution.simulation import SimulationInterface
-
 from r2d2_sim.errors import RefusedError, ScenarioError, SetupError
 from r2d2_sim.model.regions import circle_region, Region as GroundRegion
 from r2d2_sim.model.transforms import yaw_to_quaternion
-from r2d2_sim.osc.parameters import DEFAULTS, read_parameters, RunSettings
+from r2d2_sim.osc.base import CONTROL_PERIOD_S, ScenarioSimulation
+from r2d2_sim.osc.parameters import read_parameters, RunSettings
 from r2d2_sim.osc.port import Pose3, STATES, Watched
 from r2d2_sim.sim.bounds import Region
 from r2d2_sim.sim.entities import SpawnRequest
@@ -36,8 +35,6 @@ from r2d2_sim.sim.spawnables import box_urdf
 __all__ = ['R2D2Simulation', 'CONTROL_PERIOD_S', 'IN_PROCESS_PARAMETERS', 'GOAL',
            'TRAJECTORY_PERIOD_S']
 
-# One tick of the behaviour tree: 12 physics steps at 240 Hz (the farm's stopper's rate).
-CONTROL_PERIOD_S = 0.05
 # Under every in-process run: what nobody reads here is not measured (the physics does not
 # depend on it, so the run is the same as sim_node's with its defaults).
 IN_PROCESS_PARAMETERS: Dict[str, Any] = {'scan_rate': 0.0, 'imu_rate': 0.0,
@@ -52,7 +49,7 @@ def _quiet(text: str) -> None:
     pass
 
 
-class R2D2Simulation(SimulationInterface):
+class R2D2Simulation(ScenarioSimulation):
     """
     R2D2 in PyBullet, stepped by scenario_execution: one control period per tick.
 
@@ -76,28 +73,8 @@ class R2D2Simulation(SimulationInterface):
         # The last run's measures, kept when its simulation is closed (shutdown comes first).
         self._finished: Dict[str, Any] = {}
 
-    @property
-    def dt(self) -> float:
-        """Return the control period (s): the tick of the behaviour tree, in simulated time."""
-        return CONTROL_PERIOD_S
-
-    def setup(self, **kwargs: Any) -> None:
-        """Keep scenario_execution's logger; the simulation itself is built at each reset."""
-        self.logger = kwargs.get('logger')
-
-    def reset(self, world: str = DEFAULTS['world'], robot: str = DEFAULTS['robot'],
-              start_x: float = DEFAULTS['start_x'], start_y: float = DEFAULTS['start_y'],
-              start_yaw: float = DEFAULTS['start_yaw'],
-              start_pose: str = DEFAULTS['start_pose'], goal_x: float = DEFAULTS['goal_x'],
-              goal_y: float = DEFAULTS['goal_y'],
-              goal_tolerance: float = DEFAULTS['goal_tolerance'],
-              goal_pose: str = DEFAULTS['goal_pose'], obstacles: str = DEFAULTS['obstacles'],
-              seed: int = DEFAULTS['seed'], scan_noise_std: float = DEFAULTS['scan_noise_std'],
-              limits: str = DEFAULTS['limits'], parameters: str = DEFAULTS['parameters'],
-              simulator_namespace: str = DEFAULTS['simulator_namespace']) -> None:
+    def start(self, values: Dict[str, Any]) -> None:
         """Build the world of the scenario's parameters afresh (see :mod:`.parameters`)."""
-        values = dict(locals())
-        del values['self']
         self._close()
         self._finished = {}
         self.error = None
@@ -130,11 +107,6 @@ class R2D2Simulation(SimulationInterface):
             raise
         self._steps_per_period = max(1, round(CONTROL_PERIOD_S * config.physics_rate_hz))
         return simulation
-
-    def _fail(self, line: str) -> None:
-        self.error = line
-        if self.logger is not None:
-            self.logger.error(f'r2d2_sim: {line}')
 
     def step(self) -> None:
         """Advance one control period while playing: :meth:`policy`, then whole physics steps."""

@@ -27,14 +27,14 @@ import os
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import Twist
-from scenario_execution.simulation import SimulationInterface
 
 from r2d2_sim.conformance.discovery import find_interfaces, normal_prefix, simulator_levels
 from r2d2_sim.errors import RefusedError, ScenarioError
 from r2d2_sim.model.regions import circle_region, Region as GroundRegion
 from r2d2_sim.model.transforms import yaw_of, yaw_to_quaternion
-from r2d2_sim.osc.in_process import CONTROL_PERIOD_S, GOAL
-from r2d2_sim.osc.parameters import DEFAULTS, read_parameters, RunSettings
+from r2d2_sim.osc.base import CONTROL_PERIOD_S, ScenarioSimulation
+from r2d2_sim.osc.in_process import GOAL
+from r2d2_sim.osc.parameters import read_parameters, RunSettings
 from r2d2_sim.osc.port import hull_at, Pose3, STATES, Watched
 from r2d2_sim.sim.bounds import Region
 from r2d2_sim.sim.spawnables import box_urdf
@@ -88,7 +88,7 @@ class _Watch:
         return Watched(touched[0], touched[1], within[0], within[1], None, self.tipped_s)
 
 
-class StandardSimulation(SimulationInterface):
+class StandardSimulation(ScenarioSimulation):
     """
     A simulator of the standard, over ROS, stepped by scenario_execution one period a tick.
 
@@ -113,28 +113,8 @@ class StandardSimulation(SimulationInterface):
         self._bounds: Dict[str, Region] = {}
         self._time_ns = 0
 
-    @property
-    def dt(self) -> float:
-        """Return the control period (s), as in process."""
-        return CONTROL_PERIOD_S
-
-    def setup(self, **kwargs: Any) -> None:
-        """Keep scenario_execution's logger; the connection is made at the first reset."""
-        self.logger = kwargs.get('logger')
-
-    def reset(self, world: str = DEFAULTS['world'], robot: str = DEFAULTS['robot'],
-              start_x: float = DEFAULTS['start_x'], start_y: float = DEFAULTS['start_y'],
-              start_yaw: float = DEFAULTS['start_yaw'],
-              start_pose: str = DEFAULTS['start_pose'], goal_x: float = DEFAULTS['goal_x'],
-              goal_y: float = DEFAULTS['goal_y'],
-              goal_tolerance: float = DEFAULTS['goal_tolerance'],
-              goal_pose: str = DEFAULTS['goal_pose'], obstacles: str = DEFAULTS['obstacles'],
-              seed: int = DEFAULTS['seed'], scan_noise_std: float = DEFAULTS['scan_noise_std'],
-              limits: str = DEFAULTS['limits'], parameters: str = DEFAULTS['parameters'],
-              simulator_namespace: str = DEFAULTS['simulator_namespace']) -> None:
-        """Put the simulator in the scenario's start (see :mod:`.parameters`), paused."""
-        values = dict(locals())
-        del values['self']
+    def start(self, values: Dict[str, Any]) -> None:
+        """Put the simulator where the scenario begins (see :mod:`.parameters`), paused."""
         self.error = None
         self.playing = True
         self._watches, self._poses, self._bounds = {}, {}, {}
@@ -146,11 +126,6 @@ class StandardSimulation(SimulationInterface):
             self._fail(str(exc))
         except RefusedError as exc:
             self._fail(f'{exc.code}: {exc.message}')
-
-    def _fail(self, line: str) -> None:
-        self.error = line
-        if self.logger is not None:
-            self.logger.error(f'r2d2_sim: {line}')
 
     # -- the connection: the standard found by type ------------------------------------------
 

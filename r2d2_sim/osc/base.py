@@ -1,0 +1,63 @@
+"""
+What r2d2_sim's two simulations for scenario_execution share: the tick, the logger, reset.
+
+scenario_execution calls ``reset(**parameters)`` with the scenario's
+parameters that the class's ``reset`` names (it reads the signature), so
+the one signature here, the names of :data:`~.parameters.DEFAULTS`, is what
+both :class:`~.in_process.R2D2Simulation` (the core, no ROS) and
+:class:`~.over_ros.StandardSimulation` (any simulator of the standard)
+accept; each starts its run in :meth:`ScenarioSimulation.start`.
+"""
+
+from typing import Any, Dict, Optional
+
+from scenario_execution.simulation import SimulationInterface
+
+from r2d2_sim.osc.parameters import DEFAULTS
+
+__all__ = ['ScenarioSimulation', 'CONTROL_PERIOD_S']
+
+# One tick of the behaviour tree: 12 physics steps at 240 Hz (the farm's stopper's rate).
+CONTROL_PERIOD_S = 0.05
+
+
+class ScenarioSimulation(SimulationInterface):
+    """A step-based simulation of scenario_execution whose runs start from DEFAULTS' names."""
+
+    logger: Any = None
+    # A mistake found at reset, one line: every action fails with it.
+    error: Optional[str] = None
+
+    @property
+    def dt(self) -> float:
+        """Return the control period (s): the tick of the behaviour tree, in simulated time."""
+        return CONTROL_PERIOD_S
+
+    def setup(self, **kwargs: Any) -> None:
+        """Keep scenario_execution's logger; each run is made at its reset."""
+        self.logger = kwargs.get('logger')
+
+    def reset(self, world: str = DEFAULTS['world'], robot: str = DEFAULTS['robot'],
+              start_x: float = DEFAULTS['start_x'], start_y: float = DEFAULTS['start_y'],
+              start_yaw: float = DEFAULTS['start_yaw'],
+              start_pose: str = DEFAULTS['start_pose'], goal_x: float = DEFAULTS['goal_x'],
+              goal_y: float = DEFAULTS['goal_y'],
+              goal_tolerance: float = DEFAULTS['goal_tolerance'],
+              goal_pose: str = DEFAULTS['goal_pose'], obstacles: str = DEFAULTS['obstacles'],
+              seed: int = DEFAULTS['seed'], scan_noise_std: float = DEFAULTS['scan_noise_std'],
+              limits: str = DEFAULTS['limits'], parameters: str = DEFAULTS['parameters'],
+              simulator_namespace: str = DEFAULTS['simulator_namespace']) -> None:
+        """Start a run of the scenario's parameters (see :mod:`.parameters`)."""
+        values = dict(locals())
+        del values['self']
+        self.start(values)
+
+    def start(self, values: Dict[str, Any]) -> None:
+        """Start a run of these parameters (every DEFAULTS name, each with its value)."""
+        raise NotImplementedError
+
+    def _fail(self, line: str) -> None:
+        """Note a scenario author's mistake: one line, logged, and every action fails with it."""
+        self.error = line
+        if self.logger is not None:
+            self.logger.error(f'r2d2_sim: {line}')
