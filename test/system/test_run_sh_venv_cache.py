@@ -1,5 +1,5 @@
 """
-./run.sh keeps the installed requirements in the user's cache and links a new checkout's venv from it.
+run.sh keeps the installed requirements in the user's cache; a new checkout's venv links them.
 
 The two functions of run.sh (``venv_to_cache``, ``venv_from_cache``) are taken
 from the script itself and run with bash on two checkouts in a temporary
