@@ -14,6 +14,7 @@ import math
 import os
 from pathlib import Path
 import re
+import sys
 
 import pytest
 
@@ -273,3 +274,27 @@ def setup_py_console_scripts():
                         if isinstance(key, ast.Constant) and key.value == 'console_scripts':
                             return ast.literal_eval(value)
     raise AssertionError('setup.py has no console_scripts')
+
+
+def clean_fast_dds_zombies() -> None:
+    """
+    Run eProsima's ``fastdds shm clean`` (the venv's copy), which removes only unlocked files.
+
+    A process killed with SIGKILL (this suite kills many on purpose) leaves its
+    segments and ports in /dev/shm; later participants on the same domain then
+    wait on them (docs/limits.md), and the suite slowed run after run: one
+    module of ours took 23.3 s with 84 such files about, 16.5 s without.
+    Only at the session's start: during it, a test may be checking that
+    r2d2_sim's own farm removed a killed worker's files.
+    """
+    import contextlib
+    import importlib.util
+    import io
+    tool = Path(sys.prefix) / 'tools' / 'fastdds' / 'shm' / 'clean.py'
+    spec = importlib.util.spec_from_file_location('fastdds_shm_clean', tool)
+    if not tool.is_file() or spec is None or spec.loader is None:
+        return  # a ROS install elsewhere: its own tool, not ours to run
+    module = importlib.util.module_from_spec(spec)
+    with contextlib.redirect_stdout(io.StringIO()):
+        spec.loader.exec_module(module)
+        module.Clean().run()

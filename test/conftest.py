@@ -50,6 +50,12 @@ CI_ENV = 'R2D2_SIM_CI'
 ROS_SEEN = pytest.StashKey[bool]()
 
 
+def pytest_sessionstart(session):
+    """Remove the Fast DDS shared-memory files that processes which died left (see below)."""
+    if not hasattr(session.config, 'workerinput'):  # once, before xdist's workers start
+        common.clean_fast_dds_zombies()
+
+
 def in_fast_tier(path: Path) -> bool:
     """Return True for a test file of the fast tier (no rclpy in this process)."""
     return path in FAST_FILES or any(folder in path.parents for folder in FAST_TIER)
