@@ -286,7 +286,8 @@ def run_variation(job: Union[FarmJob, JobSource, ItemJob], item: Item, record: s
         if isinstance(job, JobSource):
             job = job.load()
         if isinstance(job, FarmJob):
-            outcome, recording = _run(job, item, record, shm)
+            with shm.noting():  # the ports Fast DDS opens later, should this process be killed
+                outcome, recording = _run(job, item, record, shm)
         else:
             outcome = job.run_item(item)
         if recording is not None:

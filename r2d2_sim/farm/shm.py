@@ -10,8 +10,9 @@ process is killed leaves them, and stale segments fill ``/dev/shm`` (Fast-DDS
 #2790) or block the next participant on that port (rmw_fastrtps #812).
 
 Only ours are removed, never another program's: a farm task notes the
-segments its process holds (:func:`note`, after its simulator is built and
-again after the user's nodes are added) in a file of its own in a private
+segments its process holds (:func:`note`, after its simulator is built,
+again after the user's nodes are added, and every :data:`NOTE_PERIOD_S` while
+it runs: :func:`noting`, for the ports Fast DDS opens later) in a file of its own in a private
 directory of this host (``$TMPDIR/r2d2_sim-farm-<uid>/tasks/<pid>-<start
 time>``); a task that ends normally forgets them (:func:`forget`). When a
 task's process is gone (its id and start time no longer name a live process:
@@ -22,19 +23,25 @@ and at the end of a run, every task on a cluster's host as it starts, and the
 farm on every host at the end.
 """
 
+import contextlib
 import os
 from pathlib import Path
 import re
 import tempfile
-from typing import Iterable, List, Optional, Set
+import threading
+from typing import Iterable, Iterator, List, Optional, Set
 
-__all__ = ['SHM_DIR', 'note', 'forget', 'clean_dead', 'segments_of', 'registry_dir',
-           'in_use']
+__all__ = ['SHM_DIR', 'note', 'noting', 'forget', 'clean_dead', 'segments_of',
+           'registry_dir', 'in_use', 'NOTE_PERIOD_S']
 
 SHM_DIR = Path('/dev/shm')
 # The files Fast DDS makes in /dev/shm (and the lock and semaphore beside a segment).
 _FAST_DDS = re.compile(r'^(?:sem\.)?(?:fastrtps_|fast_datasharing)')
 _PORT = re.compile(r'^fastrtps_port(\d+)$')
+# How often a running task notes its segments again (wall s): a port Fast DDS opens after
+# the last note and before a kill is the only thing a killed task can leave.
+NOTE_PERIOD_S = 0.2
+_NOTE_LOCK = threading.Lock()
 
 
 def registry_dir() -> Path:
@@ -101,15 +108,37 @@ def _note_path(pid: int) -> Optional[Path]:
 
 def note() -> None:
     """Note the Fast DDS segments this process holds now (added to what it noted before)."""
-    path = _note_path(os.getpid())
-    if path is None:
-        return
-    names = _with_companions(segments_of())
-    if path.exists():
-        names |= set(path.read_text(encoding='utf-8').split())
-    scratch = path.with_suffix('.new')
-    scratch.write_text('\n'.join(sorted(names)) + '\n', encoding='utf-8')
-    os.replace(scratch, path)  # a reader never sees half a note
+    with _NOTE_LOCK:
+        path = _note_path(os.getpid())
+        if path is None:
+            return
+        names = _with_companions(segments_of())
+        if path.exists():
+            names |= set(path.read_text(encoding='utf-8').split())
+        scratch = path.with_suffix('.new')
+        scratch.write_text('\n'.join(sorted(names)) + '\n', encoding='utf-8')
+        os.replace(scratch, path)  # a reader never sees half a note
+
+
+@contextlib.contextmanager
+def noting(period_s: float = NOTE_PERIOD_S) -> Iterator[None]:
+    """Note this process's segments every ``period_s`` (a thread) while the block runs."""
+    done = threading.Event()
+
+    def again() -> None:
+        while not done.wait(period_s):
+            try:
+                note()
+            except OSError:
+                pass  # the registry went: the next note tries again
+
+    thread = threading.Thread(target=again, name='r2d2_farm-shm-note', daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
 
 
 def forget() -> None:

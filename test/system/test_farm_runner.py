@@ -99,6 +99,9 @@ class Killer:
         if not self.pid_file.exists():
             return
         self.pid = int(self.pid_file.read_text())
+        # A task notes its segments every NOTE_PERIOD_S: a port opened in the last moment
+        # before a kill is the one thing it may leave (docs/farm-cluster.md).
+        time.sleep(3 * shm.NOTE_PERIOD_S)
         self.segments = shm.segments_of(str(self.pid))
         # A port segment is opened by every participant that sends to that port: one a
         # live process shared at the kill is that process's to remove, even if it has
