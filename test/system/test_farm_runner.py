@@ -179,8 +179,11 @@ def test_ctrl_c_writes_what_finished_and_the_same_command_resumes(tmp_path):
     command = [sys.executable, '-m', 'r2d2_sim.farm', 'run', SHORT, '--variations', str(count),
                '--workers', '1', '--out', str(out), '--no-progress']
     env = farm_env()
+    # As in a terminal: a suite started in the background (cmd &) ignores SIGINT, and its
+    # children would inherit that.
     first = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
+                             stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     outcomes = out / 'outcomes'
     deadline = time.monotonic() + DEADLINE_S
     while time.monotonic() < deadline and first.poll() is None:
