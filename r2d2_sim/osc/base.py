@@ -13,7 +13,9 @@ from typing import Any, Dict, Optional
 
 from scenario_execution.simulation import SimulationInterface
 
+from r2d2_sim.errors import RefusedError
 from r2d2_sim.osc.parameters import DEFAULTS
+from r2d2_sim.osc.port import STATES
 
 __all__ = ['ScenarioSimulation', 'CONTROL_PERIOD_S']
 
@@ -27,6 +29,8 @@ class ScenarioSimulation(SimulationInterface):
     logger: Any = None
     # A mistake found at reset, one line: every action fails with it.
     error: Optional[str] = None
+    # True while the scenario's ticks step the physics (set_simulation_state: playing).
+    playing: bool = True
 
     @property
     def dt(self) -> float:
@@ -61,3 +65,28 @@ class ScenarioSimulation(SimulationInterface):
         self.error = line
         if self.logger is not None:
             self.logger.error(f'r2d2_sim: {line}')
+
+    def set_state(self, state: str) -> None:
+        """'playing': step with the scenario; 'paused': hold; 'stopped': reset ALL and hold."""
+        if state not in STATES:
+            raise RefusedError('INCORRECT_TRANSITION', f'no state {state!r}: one of '
+                                                       f'{", ".join(STATES)}')
+        self._check_world()
+        if state == 'stopped':
+            self.reset_simulation()
+        self.playing = state == 'playing'
+
+    def _check_paused(self) -> None:
+        """Refuse a StepSimulation while the scenario plays (the standard steps a paused one)."""
+        self._check_world()
+        if self.playing:
+            raise RefusedError('OPERATION_FAILED', 'step_simulation steps a paused simulation: '
+                                                   'set_simulation_state(paused) first')
+
+    def _check_world(self) -> None:
+        """Refuse (INCORRECT_STATE) when no world is loaded."""
+        raise NotImplementedError
+
+    def reset_simulation(self) -> None:
+        """Reset the whole simulation (ResetSimulation ALL), as the standard's STOPPED does."""
+        raise NotImplementedError

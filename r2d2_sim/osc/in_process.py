@@ -24,7 +24,7 @@ from r2d2_sim.model.regions import circle_region, Region as GroundRegion
 from r2d2_sim.model.transforms import yaw_to_quaternion
 from r2d2_sim.osc.base import CONTROL_PERIOD_S, ScenarioSimulation
 from r2d2_sim.osc.parameters import read_parameters, RunSettings
-from r2d2_sim.osc.port import Pose3, STATES, Watched
+from r2d2_sim.osc.port import Pose3, Watched
 from r2d2_sim.sim.bounds import Region
 from r2d2_sim.sim.entities import SpawnRequest
 from r2d2_sim.sim.oracles import DEFAULT_TIP_ANGLE_RAD, RunWatch
@@ -214,22 +214,9 @@ class R2D2Simulation(ScenarioSimulation):
     def step_physics(self, steps: int) -> None:
         """Step a paused simulation ``steps`` physics steps, as StepSimulation does."""
         simulation = self._core()
-        self._check_world()
-        if self.playing:
-            raise RefusedError('OPERATION_FAILED', 'step_simulation steps a paused simulation: '
-                                                   'set_simulation_state(paused) first')
+        self._check_paused()
         for _ in range(steps):
             simulation.step()
-
-    def set_state(self, state: str) -> None:
-        """'playing': step with the scenario; 'paused': hold; 'stopped': reset ALL and hold."""
-        if state not in STATES:
-            raise RefusedError('INCORRECT_TRANSITION', f'no state {state!r}: one of '
-                                                       f'{", ".join(STATES)}')
-        self._check_world()
-        if state == 'stopped':
-            self.reset_simulation()
-        self.playing = state == 'playing'
 
     def _check_world(self) -> None:
         if not self._core().worlds.is_loaded:

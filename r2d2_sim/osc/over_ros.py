@@ -35,7 +35,7 @@ from r2d2_sim.model.transforms import yaw_of, yaw_to_quaternion
 from r2d2_sim.osc.base import CONTROL_PERIOD_S, ScenarioSimulation
 from r2d2_sim.osc.in_process import GOAL
 from r2d2_sim.osc.parameters import read_parameters, RunSettings
-from r2d2_sim.osc.port import hull_at, Pose3, STATES, Watched
+from r2d2_sim.osc.port import hull_at, Pose3, Watched
 from r2d2_sim.sim.bounds import Region
 from r2d2_sim.sim.spawnables import box_urdf
 from r2d2_sim.testing.remote import RemoteProbe
@@ -310,22 +310,9 @@ class StandardSimulation(ScenarioSimulation):
 
     def step_physics(self, steps: int) -> None:
         """Step a paused scenario (StepSimulation)."""
-        self._check_world()
-        if self.playing:
-            raise RefusedError('OPERATION_FAILED', 'step_simulation steps a paused simulation: '
-                                                   'set_simulation_state(paused) first')
+        self._check_paused()
         self._client().step(steps)
         self._poses = {}
-
-    def set_state(self, state: str) -> None:
-        """'playing': step with the scenario; 'paused': hold; 'stopped': reset ALL and hold."""
-        if state not in STATES:
-            raise RefusedError('INCORRECT_TRANSITION', f'no state {state!r}: one of '
-                                                       f'{", ".join(STATES)}')
-        self._check_world()
-        if state == 'stopped':
-            self.reset_simulation()
-        self.playing = state == 'playing'
 
     def _check_world(self) -> None:
         client = self._client()
