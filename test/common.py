@@ -298,3 +298,8 @@ def clean_fast_dds_zombies() -> None:
     with contextlib.redirect_stdout(io.StringIO()):
         spec.loader.exec_module(module)
         module.Clean().run()
+
+
+# The learning environments' tests, in process and over ROS: a noisy scan, so that the
+# seed's noise is part of what must repeat.
+GYM_NOISY = {'sim_parameters': {'scan_noise_std': 0.02}}

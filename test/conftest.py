@@ -105,6 +105,22 @@ def _release_domains():
 
 
 @pytest.fixture
+def gym_make():
+    """Provide gymnasium.make (learning environments), every environment closed after the test."""
+    import gymnasium
+    import r2d2_sim.gym  # noqa: F401  (registers the environments)
+    made = []
+
+    def build(env_id='R2D2Nav-v0', **kwargs):
+        env = gymnasium.make(env_id, **kwargs)
+        made.append(env)
+        return env
+    yield build
+    for env in made:
+        env.close()
+
+
+@pytest.fixture
 def world():
     """Provide a fresh world with the package's R2D2, closed afterwards."""
     from r2d2_sim.physics.world import SimWorld

@@ -15,38 +15,21 @@ import subprocess
 import sys
 import warnings
 
-import gymnasium
 from gymnasium.utils.env_checker import check_env
 import numpy
 import pytest
 
-from common import gym_actions as actions, gym_rollout as rollout, REPO
+from common import gym_actions as actions, gym_rollout as rollout, GYM_NOISY, REPO
 import r2d2_sim.gym  # noqa: F401 (registers the environments)
 from r2d2_sim.farm.scenario import Box, Pose, Scenario
 from r2d2_sim.gym import GymError
 from r2d2_sim.model.regions import circle_region
 
-NOISY = {'sim_parameters': {'scan_noise_std': 0.02}}
-
-
-@pytest.fixture
-def make():
-    """Provide gymnasium.make, every environment closed after the test."""
-    made = []
-
-    def build(env_id='R2D2Nav-v0', **kwargs):
-        env = gymnasium.make(env_id, **kwargs)
-        made.append(env)
-        return env
-    yield build
-    for env in made:
-        env.close()
-
 
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
-def test_gymnasiums_checker_passes_with_its_determinism_checks(make, env_id):
+def test_gymnasiums_checker_passes_with_its_determinism_checks(gym_make, env_id):
     """check_env on a made environment (spec: nondeterministic False), with no warning."""
-    env = make(env_id, **NOISY)
+    env = gym_make(env_id, **GYM_NOISY)
     assert env.spec.nondeterministic is False and not env.spec.disable_env_checker
     assert env.spec.max_episode_steps == 200
     with warnings.catch_warnings():
@@ -55,29 +38,29 @@ def test_gymnasiums_checker_passes_with_its_determinism_checks(make, env_id):
 
 
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
-def test_stable_baselines3s_checker_passes(make, env_id):
+def test_stable_baselines3s_checker_passes(gym_make, env_id):
     """SB3's own check_env (its warnings are errors here)."""
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
-    env = make(env_id)
+    env = gym_make(env_id)
     with warnings.catch_warnings():
         warnings.simplefilter('error')
         sb3_check_env(env.unwrapped)
 
 
-def test_a_reset_then_a_rollout_equals_a_fresh_environments_after_any_history(make):
+def test_a_reset_then_a_rollout_equals_a_fresh_environments_after_any_history(gym_make):
     """Seeds 1, 2, 3 fresh; then in one environment 3, 1, 2, 1, 3: each equal, noise and all."""
     fresh = {}
     for seed in (1, 2, 3):
-        fresh[seed] = rollout(make(**NOISY), seed, actions(seed))
-    env = make(**NOISY)
+        fresh[seed] = rollout(gym_make(**GYM_NOISY), seed, actions(seed))
+    env = gym_make(**GYM_NOISY)
     for seed in (3, 1, 2, 1, 3):
         assert rollout(env, seed, actions(seed)) == fresh[seed], seed
     assert len(set(fresh.values())) == 3
 
 
-def test_the_seed_draws_the_scenario_and_its_noise(make):
+def test_the_seed_draws_the_scenario_and_its_noise(gym_make):
     """The same seed, the same world and scan noise; the seed's scenario replayed, the same run."""
-    env = make(**NOISY)
+    env = gym_make(**GYM_NOISY)
     first, info = env.reset(seed=7)
     again, _ = env.reset(seed=7)
     other, other_info = env.reset(seed=8)
@@ -88,11 +71,11 @@ def test_the_seed_draws_the_scenario_and_its_noise(make):
                                                   {'scenario': json.dumps(scenario)})
 
 
-def test_driving_into_a_box_ends_the_episode_with_the_collision_penalty(make):
+def test_driving_into_a_box_ends_the_episode_with_the_collision_penalty(gym_make):
     """A box 1.2 m ahead: full speed ahead touches it, terminated, reward about -10."""
     scenario = Scenario(obstacles=(Box(1.2, 0.0, 0.0, (0.4, 0.4, 0.5)),),
                         start=Pose(0.0, 0.0, 0.0), goal=circle_region(3.0, 0.0, 0.3))
-    env = make()
+    env = gym_make()
     env.reset(options={'scenario': scenario})
     for _ in range(40):
         _, reward, terminated, truncated, info = env.step(numpy.array([1.0, 0.0]))
@@ -103,10 +86,10 @@ def test_driving_into_a_box_ends_the_episode_with_the_collision_penalty(make):
     assert reward < -9.0
 
 
-def test_reaching_the_goal_ends_the_episode_with_the_bonus(make):
+def test_reaching_the_goal_ends_the_episode_with_the_bonus(gym_make):
     """Nothing in the way, a goal 1.5 m ahead: full speed ahead reaches it, reward above 10."""
     scenario = Scenario(start=Pose(0.0, 0.0, 0.0), goal=circle_region(1.5, 0.0, 0.3))
-    env = make()
+    env = gym_make()
     env.reset(options={'scenario': scenario})
     total = 0.0
     for step in range(40):
@@ -119,13 +102,13 @@ def test_reaching_the_goal_ends_the_episode_with_the_bonus(make):
     assert total == pytest.approx(1.2 + 10.0 - 0.01 * (step + 1), abs=0.15)  # 1.2 m nearer
 
 
-def test_renders_the_arena_from_above_and_the_head_camera(make):
+def test_renders_the_arena_from_above_and_the_head_camera(gym_make):
     """rgb_array: 240 x 320 x 3 bytes from above; the camera's size from its parameters."""
-    top = make(render_mode='rgb_array')
+    top = gym_make(render_mode='rgb_array')
     top.reset(seed=1)
     image = top.render()
     assert image.shape == (240, 320, 3) and image.dtype == numpy.uint8 and image.std() > 0
-    camera = make(render_mode='rgb_array', render_view='camera')
+    camera = gym_make(render_mode='rgb_array', render_view='camera')
     camera.reset(seed=1)
     assert camera.render().shape == (240, 320, 3)
 
@@ -139,18 +122,18 @@ def test_renders_the_arena_from_above_and_the_head_camera(make):
     ('ahead', r'^the action must be two numbers in \[-1, 1\] \(forward, turn\), got '
               r"'ahead'$"),
 ])
-def test_a_bad_action_is_one_line_and_the_episode_goes_on(make, action, message):
+def test_a_bad_action_is_one_line_and_the_episode_goes_on(gym_make, action, message):
     """Out of the space, NaN, another shape, no number: GymError in one line; stepping goes on."""
-    env = make()
+    env = gym_make()
     env.reset(seed=0)
     with pytest.raises(GymError, match=message):
         env.unwrapped.step(action)
     env.step(numpy.zeros(2, dtype=numpy.float32))
 
 
-def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(make):
+def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(gym_make):
     """Reset options are checked; a closed environment says so (reset and step)."""
-    env = make()
+    env = gym_make()
     with pytest.raises(GymError, match=r"^unknown reset option\(s\) 'goal', 'seed': NavEnv takes "
                                        r'scenario$'):
         env.reset(options={'goal': 1, 'seed': 2})
@@ -179,9 +162,9 @@ def test_settings_that_cannot_be_are_one_line_at_construction(kwargs, message):
     assert '\n' not in str(caught.value)
 
 
-def test_the_goal_env_rewards_as_its_compute_reward_for_any_goal(make):
+def test_the_goal_env_rewards_as_its_compute_reward_for_any_goal(gym_make):
     """Each step's reward is compute_reward of its goals; a batch of relabelled goals too."""
-    env = make('R2D2NavGoal-v0')
+    env = gym_make('R2D2NavGoal-v0')
     observation, _ = env.reset(seed=4)
     for action in actions(4, 10):
         observation, reward, terminated, _, info = env.step(action)
@@ -194,10 +177,10 @@ def test_the_goal_env_rewards_as_its_compute_reward_for_any_goal(make):
     assert batch.tolist() == [0.0, -1.0]
 
 
-def test_hindsight_replay_learns_from_the_goal_env(make):
+def test_hindsight_replay_learns_from_the_goal_env(gym_make):
     """SB3's HerReplayBuffer relabels goals through compute_reward: SAC takes a few updates."""
     from stable_baselines3 import HerReplayBuffer, SAC
-    env = make('R2D2NavGoal-v0', max_episode_steps=30)  # an episode ends before the updates
+    env = gym_make('R2D2NavGoal-v0', max_episode_steps=30)  # an episode ends before the updates
     model = SAC('MultiInputPolicy', env, replay_buffer_class=HerReplayBuffer,
                 replay_buffer_kwargs={'n_sampled_goal': 4, 'goal_selection_strategy': 'future'},
                 learning_starts=40, batch_size=32, device='cpu', seed=0)

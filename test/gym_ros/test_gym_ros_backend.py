@@ -13,7 +13,6 @@ the actions); the CDR readers read what rclpy would.
 import math
 import warnings
 
-import gymnasium
 from gymnasium.utils.env_checker import check_env
 from nav_msgs.msg import Odometry
 import numpy
@@ -22,45 +21,31 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import LaserScan
 
-from common import gym_actions as actions, gym_rollout as rollout, parallel_rollout
+from common import (
+    gym_actions as actions, gym_rollout as rollout, GYM_NOISY, parallel_rollout)
 import r2d2_sim.gym  # noqa: F401 (registers the environments)
 from r2d2_sim.gym import GymError
 from r2d2_sim.gym.multi import parallel_env
 from r2d2_sim.gym.ros_backend import read_odometry, read_scan, twist_bytes
 
-NOISY = {'sim_parameters': {'scan_noise_std': 0.02}}
-
-
-@pytest.fixture
-def make():
-    """Provide gymnasium.make, every environment closed after the test."""
-    made = []
-
-    def build(env_id='R2D2Nav-v0', **kwargs):
-        env = gymnasium.make(env_id, **kwargs)
-        made.append(env)
-        return env
-    yield build
-    for env in made:
-        env.close()
-
 
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
-def test_gymnasiums_checker_passes_over_ros(make, env_id):
+def test_gymnasiums_checker_passes_over_ros(gym_make, env_id):
     """check_env with its determinism checks (three simulator nodes: its own make() twice)."""
-    env = make(env_id, backend='ros')
+    env = gym_make(env_id, backend='ros')
     assert env.spec.nondeterministic is False
     with warnings.catch_warnings():
         warnings.simplefilter('error')
         check_env(env.unwrapped)
 
 
-def test_stable_baselines3s_checker_passes_over_ros(make):
-    """SB3's check_env on the ros backend."""
+def test_stable_baselines3s_checker_passes_over_ros(gym_make):
+    """SB3's check_env on the ros backend (its warnings are errors here, not the imports')."""
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
+    env = gym_make(backend='ros')
     with warnings.catch_warnings():
         warnings.simplefilter('error')
-        sb3_check_env(make(backend='ros').unwrapped)
+        sb3_check_env(env.unwrapped)
 
 
 def test_pettingzoos_tests_pass_over_ros():
@@ -75,9 +60,9 @@ def test_pettingzoos_tests_pass_over_ros():
 
 
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
-def test_the_same_seed_and_actions_give_the_same_run_in_both_backends(make, env_id):
+def test_the_same_seed_and_actions_give_the_same_run_in_both_backends(gym_make, env_id):
     """Seeds 11, 12, then 11 again in each: every run equal across the backends, noise and all."""
-    ros, inproc = make(env_id, backend='ros', **NOISY), make(env_id, **NOISY)
+    ros, inproc = gym_make(env_id, backend='ros', **GYM_NOISY), gym_make(env_id, **GYM_NOISY)
     for seed in (11, 12, 11):
         assert rollout(ros, seed, actions(seed)) == rollout(inproc, seed, actions(seed)), seed
 
@@ -105,19 +90,20 @@ def halving_filter(harness):
     node.create_subscription(Twist, 'policy/cmd_vel', halve, 10)
 
 
-def test_a_node_between_the_policy_and_the_robot_runs_in_lockstep(make):
+def test_a_node_between_the_policy_and_the_robot_runs_in_lockstep(gym_make):
     """The filter halves each command in the step it is sent: inproc with half the actions."""
-    filtered = make(backend='ros', ros_nodes=halving_filter, topics={'command': 'policy/cmd_vel'})
-    inproc = make()
+    filtered = gym_make(backend='ros', ros_nodes=halving_filter,
+                        topics={'command': 'policy/cmd_vel'})
+    inproc = gym_make()
     full = actions(3, 30)
     assert rollout(filtered, 3, full) == rollout(inproc, 3, full * 0.5)
     assert rollout(filtered, 3, full) != rollout(inproc, 3, full)
 
 
-def test_unknown_topics_are_one_line(make):
+def test_unknown_topics_are_one_line(gym_make):
     """The topics keyword takes command, scan and state, nothing else."""
     with pytest.raises(GymError, match='^topics takes command, scan, state, got odom$'):
-        make(backend='ros', topics={'odom': 'odometry'})
+        gym_make(backend='ros', topics={'odom': 'odometry'})
 
 
 @pytest.mark.parametrize('frame_id', ['', 'base_scan', 'a' * 13])
