@@ -11,11 +11,11 @@ the stepping itself is the simulation part's ``advance``.
 
 from typing import Any, Callable, Optional, Tuple, TYPE_CHECKING
 
+from r2d2_sim.conformance.calls import TargetCalls
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
 
 if TYPE_CHECKING:
     from r2d2_sim.conformance.simulation_verbs import TargetSimulation
-    from r2d2_sim.conformance.target import Target
 
 # How long the kit waits for a /clock publisher once the services are found (s).
 CLOCK_WAIT_S = 2.0
@@ -26,7 +26,7 @@ DRAIN_SPINS = 1000
 class TargetClock:
     """The clock of ``target``: its subscription, the latest time, and waits for it to move."""
 
-    def __init__(self, target: 'Target', sim: 'TargetSimulation') -> None:
+    def __init__(self, target: TargetCalls, sim: 'TargetSimulation') -> None:
         self.target = target
         self.sim = sim
         self.topic = target.options.clock_topic

@@ -11,13 +11,11 @@ Target's client; the calls go through the Target's (``ok``, ``expect``).
 """
 
 import itertools
-from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING
+from typing import Any, List, Optional, Sequence, Tuple
 
+from r2d2_sim.conformance.calls import TargetCalls
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
 from r2d2_sim.conformance.values import vector, yaw_quaternion
-
-if TYPE_CHECKING:
-    from r2d2_sim.conformance.target import Target
 
 # The kit's own box: a cube this wide, 1 kg, from a resource string.
 BOX_SIZE_M = 0.2
@@ -30,7 +28,7 @@ STILL = (0.0, 0.0, 0.0)
 class TargetEntities:
     """The entities of ``target``: queries, placing, the kit's box spawned and deleted."""
 
-    def __init__(self, target: 'Target') -> None:
+    def __init__(self, target: TargetCalls) -> None:
         self.target = target
         self.spawned: List[str] = []  # names the kit spawned and has not deleted
         self._names = itertools.count(1)

@@ -11,18 +11,17 @@ Target's (``ok``, ``expect``, ``call``) and its client's action.
 
 from typing import Any, List, Optional, Tuple, TYPE_CHECKING
 
+from r2d2_sim.conformance.calls import TargetCalls
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
 
 if TYPE_CHECKING:
     from rclpy.action.client import ClientGoalHandle
 
-    from r2d2_sim.conformance.target import Target
-
 
 class TargetSimulation:
     """The simulation's state, its steps and the SimulateSteps action, on ``target``."""
 
-    def __init__(self, target: 'Target') -> None:
+    def __init__(self, target: TargetCalls) -> None:
         from action_msgs.msg import GoalStatus
         self.target = target
         self.GoalStatus = GoalStatus

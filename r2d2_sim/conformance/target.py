@@ -24,13 +24,14 @@ the start and put back (:mod:`~r2d2_sim.conformance.world_verbs`) and
 import os
 import time
 from typing import (
-    Any, Callable, Dict, FrozenSet, List, NamedTuple, Optional, Sequence, Tuple)
+    Any, Callable, Dict, FrozenSet, List, Optional, Sequence)
 
 from r2d2_sim.conformance.clause import ClauseFailed, one_line
 from r2d2_sim.conformance.clock_verbs import TargetClock
 from r2d2_sim.conformance.discovery import (
     ACTION, FEATURE_INTERFACES, FEATURES, find_interfaces, normal_prefix, simulator_levels)
 from r2d2_sim.conformance.entity_verbs import BOX_SIZE_M, TargetEntities
+from r2d2_sim.conformance.options import KitOptions
 from r2d2_sim.conformance.simulation_verbs import TargetSimulation
 from r2d2_sim.conformance.undo import TargetUndo
 from r2d2_sim.conformance.world_verbs import TargetWorld
@@ -50,33 +51,6 @@ SETTLE_S = 0.25
 
 class KitError(SetupError):
     """The kit cannot run at all (simulation_interfaces missing, a bad option): one line."""
-
-
-class KitOptions(NamedTuple):
-    """
-    Where the simulator is and what the kit may use there.
-
-    ``prefix``: the namespace its services are under (``/``, ``/gzserver``);
-    ``domain_id``: its ROS domain (None: ``ROS_DOMAIN_ID``, else 0);
-    ``asset``: a URI its SpawnEntity takes (``cube.urdf``, a ``.usd``);
-    ``world``: a URI its LoadWorld takes; ``timeout_s``: the longest wait
-    for any one reply or discovery; ``free_space``: a point with free room
-    around it (20 m along x) where the kit puts what it spawns;
-    ``world_frame``: the world frame's name besides '' and ``world``;
-    ``clock_topic``: where simulated time is published; ``total_timeout_s``:
-    the longest the whole run may take, connecting included (None: 30
-    timeouts; see :class:`~r2d2_sim.conformance.runner.Kit`).
-    """
-
-    prefix: str = '/'
-    domain_id: Optional[int] = None
-    asset: str = ''
-    world: str = ''
-    timeout_s: float = 10.0
-    free_space: Tuple[float, float, float] = (20.0, 20.0, 5.0)
-    world_frame: str = 'world'
-    clock_topic: str = '/clock'
-    total_timeout_s: Optional[float] = None
 
 
 def default_domain_id() -> int:

@@ -11,19 +11,19 @@ given the parts whose changes it undoes.
 
 from typing import Callable, List, Optional, TYPE_CHECKING
 
+from r2d2_sim.conformance.calls import TargetCalls
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
 
 if TYPE_CHECKING:
     from r2d2_sim.conformance.entity_verbs import TargetEntities
     from r2d2_sim.conformance.simulation_verbs import TargetSimulation
-    from r2d2_sim.conformance.target import Target
     from r2d2_sim.conformance.world_verbs import TargetWorld
 
 
 class TargetUndo:
     """What a clause changed on ``target``, and its undoing; the simulator's state at the start."""
 
-    def __init__(self, target: 'Target', sim: 'TargetSimulation', entities: 'TargetEntities',
+    def __init__(self, target: TargetCalls, sim: 'TargetSimulation', entities: 'TargetEntities',
                  world: 'TargetWorld') -> None:
         self.target = target
         self.sim, self.entities, self.world = sim, entities, world

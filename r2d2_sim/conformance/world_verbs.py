@@ -7,16 +7,15 @@ remember that it did: it owns the world found when the kit connected and
 whether a clause changed it, and puts that world back after the clause.
 """
 
-from typing import Any, TYPE_CHECKING
+from typing import Any
 
-if TYPE_CHECKING:
-    from r2d2_sim.conformance.target import Target
+from r2d2_sim.conformance.calls import TargetCalls
 
 
 class TargetWorld:
     """The world of ``target``: what was loaded at the start, and whether the kit changed it."""
 
-    def __init__(self, target: 'Target') -> None:
+    def __init__(self, target: TargetCalls) -> None:
         self.target = target
         self.initial: Any = None  # the WorldResource current at connect, when told
         self.known = False  # GetCurrentWorld answered at connect (a world, or none)

@@ -11,7 +11,7 @@ of their first robot (the one robot, by default).
 """
 
 import time
-from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, TYPE_CHECKING
+from typing import Any, Callable, Dict, List, Mapping, Optional, Protocol, Tuple, TYPE_CHECKING
 
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
@@ -25,18 +25,59 @@ from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
 from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.lockstep import TakenOnDemand
+from r2d2_sim.testing.process import ChildProcess
+from r2d2_sim.testing.remote import RemoteProbe
 from r2d2_sim.testing.tf import TfListener, TransformLookup
 
-if TYPE_CHECKING:  # the harnesses import this module; the interfaces need PyBullet
+if TYPE_CHECKING:  # the simulator's side needs PyBullet, which a remote test never loads
+    from r2d2_sim.ros.node import SimNode
     from r2d2_sim.ros.robot_interfaces import RobotInterfaces
-    from r2d2_sim.testing.harness import SimHarness
-    from r2d2_sim.testing.sim_process import SimProcess
 
-__all__ = ['LocalRobot', 'RemoteRobot', 'STATE_TYPES', 'flatten_robots',
-           'expected_namespaces']
+__all__ = ['LocalRobot', 'RemoteRobot', 'LocalHost', 'RemoteHost', 'STATE_TYPES',
+           'flatten_robots', 'expected_namespaces']
 
 STATE_TYPES = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry}
 TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
+
+
+class LocalHost(Protocol):
+    """
+    What a :class:`LocalRobot` uses of its :class:`~r2d2_sim.testing.harness.SimHarness`.
+
+    The harness makes its handles and hands each itself; a handle calls back
+    only through this, so this module never imports the harness's.
+    """
+
+    sim: 'SimNode'
+
+    def _wait(self, condition: Callable[[], Any], what: str) -> Any:
+        """Wait for ``condition`` while the harness's callbacks run; HarnessError with ``what``."""
+
+    def _tf_wait(self, condition: Callable[[], bool]) -> bool:
+        """Wait for ``condition`` as a transform lookup does; False at the timeout."""
+
+    def last_publication_ns(self) -> int:
+        """Return the simulated time (ns) of the simulator's latest state publication."""
+
+
+class RemoteHost(Protocol):
+    """What a :class:`RemoteRobot` uses of its :class:`~r2d2_sim.testing.SimProcess`."""
+
+    probe: RemoteProbe
+    process: ChildProcess
+    timeout_s: float
+
+    def status(self) -> Dict[str, Any]:
+        """Return the simulator's state (its ``~/get_status`` reply)."""
+
+    def _wait_latest(self, key: str, latest: Dict[str, Any], what: str) -> Any:
+        """Return the state message ``key`` of the latest publication (paused) or the newest."""
+
+    def _tf_topics(self) -> Tuple[str, str]:
+        """Return the process's two TF topics, resolved."""
+
+    def listen_tf(self) -> TfListener:
+        """Return the process's TF listener (listening since the start)."""
 
 
 def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:
@@ -164,7 +205,7 @@ class LocalRobot(_RobotHandle):
     to the simulator's robot once that exists.
     """
 
-    def __init__(self, harness: 'SimHarness', link: Node, namespace: str) -> None:
+    def __init__(self, harness: LocalHost, link: Node, namespace: str) -> None:
         self.namespace = namespace
         self._harness = harness
         self._link = link
@@ -315,7 +356,7 @@ class RemoteRobot(_RobotHandle):
     :meth:`attach` then makes the ``cmd_vel`` publisher of the type the node takes.
     """
 
-    def __init__(self, process: 'SimProcess', namespace: str, name: Optional[str] = None,
+    def __init__(self, process: RemoteHost, namespace: str, name: Optional[str] = None,
                  facts: Optional[Mapping[str, Any]] = None, *, subscribe: bool = True) -> None:
         self.namespace = namespace
         self.name = name

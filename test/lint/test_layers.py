@@ -127,23 +127,13 @@ def layer_violations(root: Path, package: str) -> list:
     return found
 
 
-def _type_only(tree: ast.AST) -> set:
-    """Return the import nodes under ``if TYPE_CHECKING:``: read by a checker, never run."""
-    found = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.If) and (
-                (isinstance(node.test, ast.Name) and node.test.id == 'TYPE_CHECKING') or
-                (isinstance(node.test, ast.Attribute) and node.test.attr == 'TYPE_CHECKING')):
-            found.update(id(inner) for statement in node.body for inner in ast.walk(statement))
-    return found
-
-
 def import_graph(root: Path, package: str) -> dict:
     """
     Return each module of ``package`` and the modules of it that it imports, anywhere in it.
 
-    Imports under ``if TYPE_CHECKING:`` are left out: they name a type for the
-    checker (a part naming the whole that composes it) and are never run.
+    Imports under ``if TYPE_CHECKING:`` count too: never run, they still tie
+    a part to the whole that composes it (the part names a seam instead, a
+    ``Protocol`` of what it uses, in a module both import).
     """
     paths = {}
     for path in sorted((root / package).rglob('*.py')):
@@ -154,10 +144,7 @@ def import_graph(root: Path, package: str) -> dict:
         is_package = path.name == '__init__.py'
         targets = set()
         tree = ast.parse(path.read_text(encoding='utf-8'), str(path))
-        type_only = _type_only(tree)
         for node in ast.walk(tree):
-            if id(node) in type_only:
-                continue
             if isinstance(node, ast.Import):
                 targets.update(alias.name for alias in node.names)
             elif isinstance(node, ast.ImportFrom):
@@ -209,9 +196,13 @@ def test_every_import_goes_to_the_same_layer_or_a_lower_one():
 
 def test_no_modules_import_one_another_round():
     """
-    No import circle, top-level or in a function (a function's import hides one, not ends it).
+    No import circle, top-level, in a function or for the type checker only.
 
-    The farm's places and scenario were one: each needed ScenarioError of the other.
+    A function's import hides a circle, not ends it, and so does one under
+    ``if TYPE_CHECKING:``. The farm's places and scenario were one (each
+    needed ScenarioError of the other); the kit's Target and its parts, the
+    harnesses and their robot handles were others (each part now names a
+    Protocol of what it uses: conformance.calls, testing.robots' hosts).
     """
     assert import_circles(Path(REPO), PACKAGE) == []
 
@@ -248,10 +239,14 @@ FAULTY = {
     'fakepkg/apps/one.py': 'from fakepkg.apps import two\n',
     'fakepkg/apps/two.py': 'from .three import thing\n',
     'fakepkg/apps/three.py': 'thing = 1\n\n\ndef later():\n    import fakepkg.apps.one\n',
-    # A part that names the whole it belongs to for the checker only: no circle.
+    # A part that names the whole it belongs to, for the checker only: a circle still.
     'fakepkg/apps/whole.py': 'from fakepkg.apps.part import Part\n',
     'fakepkg/apps/part.py': ('from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n'
                              '    from fakepkg.apps.whole import Whole\nPart = 1\n'),
+    # A part that names a seam both import: no circle.
+    'fakepkg/apps/seam.py': 'from typing import Protocol\nclass Host(Protocol): ...\n',
+    'fakepkg/apps/host.py': 'from fakepkg.apps.seam import Host\nfrom fakepkg.apps import piece\n',
+    'fakepkg/apps/piece.py': 'from fakepkg.apps.seam import Host\n',
     # Stand-ins, so that the fresh interpreter finds these names without loading the real ones.
     'rclpy.py': '',
     'pybullet.py': '',
@@ -287,6 +282,7 @@ def test_the_static_check_names_each_import_that_goes_up(faulty):
 
 
 def test_the_circle_check_names_modules_that_import_one_another_round(faulty):
-    """The faulty apps' one, two and three import one another round; nothing else does."""
+    """One, two and three import one another round, and a part its whole for the checker."""
     assert import_circles(faulty, 'fakepkg') == [
-        ['fakepkg.apps.one', 'fakepkg.apps.three', 'fakepkg.apps.two']]
+        ['fakepkg.apps.one', 'fakepkg.apps.three', 'fakepkg.apps.two'],
+        ['fakepkg.apps.part', 'fakepkg.apps.whole']]
