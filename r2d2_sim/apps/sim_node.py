@@ -13,6 +13,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from types import FrameType
 from typing import Callable, List, Optional, Sequence, TYPE_CHECKING
 
@@ -28,16 +29,36 @@ if TYPE_CHECKING:  # only the standard library is imported here (see the module)
 SPIN_POLL_S = 0.1
 
 
+# The paced loop lets go of the interpreter lock at least this often (wall s).
+YIELD_EVERY_S = 0.002
+
+
+def yield_interpreter() -> None:
+    """Let go of the interpreter lock once, so that the node's other threads can take it."""
+    time.sleep(0.0)
+
+
 def run_paced(node: 'SimNode', stop: threading.Event, pacer: Optional['DeadlinePacer'] = None,
-              advance: Optional[Callable[[Optional[int]], bool]] = None) -> None:
+              advance: Optional[Callable[[Optional[int]], bool]] = None,
+              yield_: Callable[[], None] = yield_interpreter,
+              clock: Callable[[], float] = time.monotonic) -> None:
     """
     Step a :class:`~r2d2_sim.ros.node.SimNode` against the wall clock until ``stop`` is set.
 
     Real time (``real_time_factor`` > 0): one physics step per absolute
     deadline, or with a GUI one batch of steps per frame. As fast as
-    possible: whole control periods back to back. ``pacer`` (a
-    :class:`~r2d2_sim.model.timing.DeadlinePacer`; made from the rate when None)
-    and ``advance`` (default ``node.advance_if_running``) are seams for
+    possible: whole control periods back to back. A loop that does not sleep
+    (as fast as possible, or behind its deadlines because the world is too
+    big for real time) yields the interpreter lock once every
+    :data:`YIELD_EVERY_S` between two advances: PyBullet holds that lock
+    through every call, and the ROS executors' threads, which need it for
+    each part of serving a request, were starved (``~/get_status``
+    unanswered for over 60 s with 24 robots at real time, 0.2-1.3 s with one
+    robot as fast as possible). A yield per advance would cost one robot as
+    fast as possible half its rate (each hand-over of the lock waits for a
+    thread to wake). ``pacer`` (a :class:`~r2d2_sim.model.timing.DeadlinePacer`;
+    made from the rate when None), ``advance`` (default
+    ``node.advance_if_running``), ``yield_`` and ``clock`` are seams for
     measuring the loop.
     """
     from r2d2_sim.model.timing import DeadlinePacer
@@ -50,13 +71,18 @@ def run_paced(node: 'SimNode', stop: threading.Event, pacer: Optional['DeadlineP
     if pacer is None and rate > 0.0:
         pacer = DeadlinePacer(batch / rate)
     advance = advance or node.advance_if_running
+    yielded = clock()
     while not stop.is_set():
         if not advance(None if pacer is None else batch):
             stop.wait(0.005)
             if pacer is not None:
                 pacer.reanchor()
-        elif pacer is not None:
-            pacer.wait()
+            yielded = clock()
+        elif pacer is not None and pacer.wait():
+            yielded = clock()  # it slept: the other threads had the lock meanwhile
+        elif clock() - yielded >= YIELD_EVERY_S:
+            yield_()
+            yielded = clock()
 
 
 HELP_FLAGS = ('-h', '--help')

@@ -94,8 +94,13 @@ class DeadlinePacer:
         """Start the schedule afresh from now (after a pause)."""
         self._next = self._clock() + self.period_s
 
-    def wait(self) -> None:
-        """Sleep until the next deadline, then schedule the one after it."""
+    def wait(self) -> bool:
+        """
+        Sleep until the next deadline, then schedule the one after it.
+
+        Return True when it slept, False when the deadline had passed (the loop
+        is behind): then it did not sleep at all.
+        """
         remaining = self._next - self._clock()
         if remaining > 0.0:
             self._sleep(remaining)
@@ -103,6 +108,7 @@ class DeadlinePacer:
             self.overruns += 1
             self._next = self._clock()
         self._next += self.period_s
+        return remaining > 0.0
 
 
 class StepClock:

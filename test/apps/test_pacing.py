@@ -4,7 +4,9 @@ sim_node's paced loop, with stand-ins for the node and the pacer: the schedule i
 A simulator at half real time still steps and publishes correctly; only the
 deadlines it waits for tell. These check them exactly: one physics step per
 1/(240 * real_time_factor) s, a GUI frame's batch per batch/(240 * factor) s,
-and no waiting at all as fast as possible.
+and no waiting at all as fast as possible; and a loop that never sleeps (as
+fast as possible, or behind its deadlines) lets the ROS threads have the
+interpreter lock every YIELD_EVERY_S.
 """
 
 import threading
@@ -46,6 +48,7 @@ def pacers(monkeypatch):
 
         def wait(self):
             self.waits += 1
+            return True  # it slept: on time
     monkeypatch.setattr(timing, 'DeadlinePacer', RecordingPacer)
     return made
 
@@ -75,3 +78,51 @@ def test_as_fast_as_possible_waits_for_nothing(pacers):
     node = Node(stop, periods=4, real_time_factor=0.0)
     sim_node.run_paced(node, stop)
     assert pacers == [] and node.advances == [None] * 4
+
+
+class SteppedClock:
+    """A wall clock that moves ``step_s`` each time it is read."""
+
+    def __init__(self, step_s):
+        self.now, self.step_s = 0.0, step_s
+
+    def __call__(self):
+        self.now += self.step_s
+        return self.now
+
+
+class LatePacer:
+    """A pacer always behind its deadlines: it never sleeps."""
+
+    def wait(self):
+        return False
+
+    def reanchor(self):
+        pass
+
+
+def test_as_fast_as_possible_yields_the_interpreter_every_interval():
+    """The clock moves a third of YIELD_EVERY_S a reading: a yield every three or four loops."""
+    stop = threading.Event()
+    node = Node(stop, periods=30, real_time_factor=0.0)
+    yields = []
+    clock = SteppedClock(sim_node.YIELD_EVERY_S / 3.0)
+    sim_node.run_paced(node, stop, yield_=lambda: yields.append(clock.now), clock=clock)
+    gaps = [b - a for a, b in zip(yields, yields[1:])]
+    assert len(node.advances) == 30 and 6 <= len(yields) <= 10
+    assert all(gap >= sim_node.YIELD_EVERY_S for gap in gaps)
+
+
+def test_a_loop_behind_its_deadlines_yields_and_one_on_time_does_not(pacers):
+    """Late: the pacer never sleeps, so the loop yields; on time its sleeps are the yields."""
+    stop = threading.Event()
+    node = Node(stop, periods=20)
+    yields = []
+    sim_node.run_paced(node, stop, pacer=LatePacer(), yield_=lambda: yields.append(1),
+                       clock=SteppedClock(sim_node.YIELD_EVERY_S))
+    assert node.advances == [1] * 20 and len(yields) >= 10
+    stop.clear()
+    on_time = Node(stop, periods=20)
+    sim_node.run_paced(on_time, stop, yield_=lambda: yields.append(2),
+                       clock=SteppedClock(sim_node.YIELD_EVERY_S))
+    assert pacers[0].waits == 20 and 2 not in yields

@@ -67,6 +67,15 @@ def test_reanchor_after_pause():
     assert t.sleeps == [pytest.approx(0.004)]
 
 
+def test_wait_says_whether_it_slept():
+    """On time it sleeps and says True; past the deadline it does not sleep and says False."""
+    t = FakeTime()
+    pacer = DeadlinePacer(0.004, clock=t.clock, sleep=t.sleep)
+    assert pacer.wait() is True and len(t.sleeps) == 1
+    t.now += 0.010  # work past the next deadline
+    assert pacer.wait() is False and len(t.sleeps) == 1
+
+
 def test_period_must_be_positive():
     """A zero period is refused."""
     with pytest.raises(ValueError):
