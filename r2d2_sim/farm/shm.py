@@ -17,8 +17,9 @@ directory of this host (``$TMPDIR/r2d2_sim-farm-<uid>/tasks/<pid>-<start
 time>``); a task that ends normally forgets them (:func:`forget`). When a
 task's process is gone (its id and start time no longer name a live process:
 an id reused by another process is not taken for it), :func:`clean_dead`
-removes each segment it noted that no live process maps or holds open, then
-its note. Anyone on the host may call it: the local pool after a worker dies
+removes each segment it noted that no live process maps or holds open, and
+its note once none is left (one still in use stays noted for a later call).
+Anyone on the host may call it: the local pool after a worker dies
 and at the end of a run, every task on a cluster's host as it starts, and the
 farm on every host at the end.
 """
@@ -115,9 +116,13 @@ def note() -> None:
         names = _with_companions(segments_of())
         if path.exists():
             names |= set(path.read_text(encoding='utf-8').split())
-        scratch = path.with_suffix('.new')
-        scratch.write_text('\n'.join(sorted(names)) + '\n', encoding='utf-8')
-        os.replace(scratch, path)  # a reader never sees half a note
+        _write_note(path, sorted(names))
+
+
+def _write_note(path: Path, names: List[str]) -> None:
+    scratch = path.with_suffix('.new')
+    scratch.write_text('\n'.join(names) + '\n', encoding='utf-8')
+    os.replace(scratch, path)  # a reader never sees half a note
 
 
 @contextlib.contextmanager
@@ -180,7 +185,8 @@ def clean_dead() -> List[str]:
                      if _FAST_DDS.match(n) and '/' not in n}
         except OSError:
             continue
-        for name in sorted(names - in_use(names)):
+        used = in_use(names)
+        for name in sorted(names - used):
             try:
                 (SHM_DIR / name).unlink()
                 removed.append(name)
@@ -188,5 +194,12 @@ def clean_dead() -> List[str]:
                 pass
             except OSError:
                 continue
-        path.unlink(missing_ok=True)
+        # A segment another process uses now (a port a later participant opened again)
+        # stays noted: once that process lets go of it without removing it, a later
+        # call (the sweep at a run's end) removes it.
+        kept = sorted(name for name in used if (SHM_DIR / name).exists())
+        if kept:
+            _write_note(path, kept)
+        else:
+            path.unlink(missing_ok=True)
     return removed

@@ -250,9 +250,15 @@ def test_only_the_segments_of_dead_tasks_that_nobody_uses_are_removed():
         removed = shm.clean_dead()
         assert dead_only.name in removed and not dead_only.exists()
         assert used.exists() and live_task.exists() and not_fast_dds.exists()
-        assert not (registry / f'{me}-0').exists() and (registry / f'{me}-{start}').exists()
+        assert (registry / f'{me}-{start}').exists()
+        # The segment still in use stays noted, and nothing else of the dead task's.
+        assert (registry / f'{me}-0').read_text().split() == [used.name]
+        holder.close()  # the other process lets go of it (without removing it)
+        assert shm.clean_dead() == [used.name] and not used.exists()
+        assert not (registry / f'{me}-0').exists() and live_task.exists()
     finally:
         holder.close()
+        (registry / f'{me}-0').unlink(missing_ok=True)
         (registry / f'{me}-{start}').unlink(missing_ok=True)
         for path in (dead_only, used, live_task, not_fast_dds):
             path.unlink(missing_ok=True)
