@@ -106,10 +106,14 @@ def window_rates(arrivals, start, window_s, windows):
     or after its end, and its rate is the simulated time between the two over
     the wall time between them, times 240.
     """
+    def first_from(t):
+        found = next((a for a in arrivals if a[0] >= t), None)
+        if found is None:
+            raise RuntimeError(f'no /clock message came after {t - start:.1f} s')
+        return found
     rates = []
     for k in range(windows):
-        begin = next(a for a in arrivals if a[0] >= start + k * window_s)
-        end = next(a for a in arrivals if a[0] >= start + (k + 1) * window_s)
+        begin, end = first_from(start + k * window_s), first_from(start + (k + 1) * window_s)
         rates.append((end[1] - begin[1]) * 1e-9 / (end[0] - begin[0]) * 240.0)
     return rates
 
