@@ -114,6 +114,8 @@ def window_rates(arrivals, start, window_s, windows):
     rates = []
     for k in range(windows):
         begin, end = first_from(start + k * window_s), first_from(start + (k + 1) * window_s)
+        if end is begin:
+            raise RuntimeError(f'no /clock message in window {k + 1} ({window_s:g} s)')
         rates.append((end[1] - begin[1]) * 1e-9 / (end[0] - begin[0]) * 240.0)
     return rates
 
@@ -149,16 +151,17 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
             pid = sim.process.process.pid
             listener.wait_clock()
             if driving:
-                for name in status()['robots']:
+                for name in sim.status()['robots']:
                     sim.robot(name).send_cmd_vel(*DRIVE)
             time.sleep(settle_s)
             start, cpu_before = time.monotonic(), process_cpu_s(pid)
+            read_before = start
             for k in range(windows):
                 time.sleep(max(0.0, start + (k + 1) * window_s - time.monotonic()))
                 status()
-                cpu_after = process_cpu_s(pid)
-                shares.append((cpu_after - cpu_before) / window_s)
-                cpu_before = cpu_after
+                cpu_after, read_after = process_cpu_s(pid), time.monotonic()
+                shares.append((cpu_after - cpu_before) / (read_after - read_before))
+                cpu_before, read_before = cpu_after, read_after
             time.sleep(0.2)  # the message that ends the last window
             rates = window_rates(listener.since(start), start, window_s, windows)
         finally:

@@ -76,7 +76,7 @@ def harness(args):
 
         def wait(self):
             deadlines.append(self._next)
-            super().wait()
+            return super().wait()  # run_paced yields the lock when it did not sleep
 
     stop = stop_on_signals()
     init_ros(args.domain)

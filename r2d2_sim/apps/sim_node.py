@@ -29,7 +29,8 @@ if TYPE_CHECKING:  # only the standard library is imported here (see the module)
 SPIN_POLL_S = 0.1
 
 
-# The paced loop lets go of the interpreter lock at least this often (wall s).
+# A paced loop that does not sleep lets go of the interpreter lock between two advances,
+# at most this often (wall s).
 YIELD_EVERY_S = 0.002
 
 

@@ -45,7 +45,7 @@ class LocalHost(Protocol):
     What a :class:`LocalRobot` uses of its :class:`~r2d2_sim.testing.harness.SimHarness`.
 
     The harness makes its handles and hands each itself; a handle calls back
-    only through this, so this module never imports the harness's.
+    only through this, so this module never imports the harnesses' modules.
     """
 
     sim: 'SimNode'
@@ -61,7 +61,12 @@ class LocalHost(Protocol):
 
 
 class RemoteHost(Protocol):
-    """What a :class:`RemoteRobot` uses of its :class:`~r2d2_sim.testing.SimProcess`."""
+    """
+    What a :class:`RemoteRobot` uses of its :class:`~r2d2_sim.testing.sim_process.SimProcess`.
+
+    The process makes its handles and hands each itself, as a harness does
+    (:class:`LocalHost`).
+    """
 
     probe: RemoteProbe
     process: ChildProcess

@@ -126,3 +126,26 @@ def test_a_loop_behind_its_deadlines_yields_and_one_on_time_does_not(pacers):
     sim_node.run_paced(on_time, stop, yield_=lambda: yields.append(2),
                        clock=SteppedClock(sim_node.YIELD_EVERY_S))
     assert pacers[0].waits == 20 and 2 not in yields
+
+
+def test_a_paused_loop_waits_and_reanchors_without_yielding():
+    """Paused (advance says False): a 5 ms wait and a fresh schedule; yields only when it ran."""
+    stop = threading.Event()
+    node = Node(stop, periods=3)
+    answers = iter([False, False, True, True, True])
+    reanchored = []
+
+    class Pacer(LatePacer):
+        def reanchor(self):
+            reanchored.append(1)
+
+    def advance(steps):
+        running = next(answers)
+        if running:
+            node.advance_if_running(steps)
+        return running
+    yields = []
+    sim_node.run_paced(node, stop, pacer=Pacer(), advance=advance,
+                       yield_=lambda: yields.append(1),
+                       clock=SteppedClock(sim_node.YIELD_EVERY_S))
+    assert reanchored == [1, 1] and len(yields) == 3 and node.advances == [1] * 3
