@@ -123,7 +123,7 @@ class Killer:
 
 
 def noted(pid: int) -> set:
-    """Return the segments the farm task in process ``pid`` has noted (its registry file)."""
+    """Return the segments in the registry file of the farm task in process ``pid``."""
     names: set = set()
     for path in shm.registry_dir().glob(f'{pid}-*'):
         if path.suffix != '.new':
