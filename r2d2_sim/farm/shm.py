@@ -17,8 +17,10 @@ directory of this host (``$TMPDIR/r2d2_sim-farm-<uid>/tasks/<pid>-<start
 time>``); a task that ends normally forgets them (:func:`forget`). When a
 task's process is gone (its id and start time no longer name a live process:
 an id reused by another process is not taken for it), :func:`clean_dead`
-removes each segment it noted that no live process maps or holds open, and
-its note once none is left (one still in use stays noted for a later call).
+removes each segment it noted that no live process maps or holds open, or
+whose owner it was and whose lock nobody holds now (a zombie, which live
+senders may still map: Fast DDS's own test), and its note once none is left
+(one a new owner uses stays noted for a later call).
 Anyone on the host may call it: the local pool after a worker dies
 and at the end of a run, every task on a cluster's host as it starts, and the
 farm on every host at the end.
@@ -30,7 +32,7 @@ from pathlib import Path
 import re
 import tempfile
 import threading
-from typing import Iterable, Iterator, List, Optional, Set
+from typing import Iterable, Iterator, List, Optional, Set, Tuple
 
 __all__ = ['SHM_DIR', 'note', 'noting', 'forget', 'clean_dead', 'segments_of',
            'registry_dir', 'in_use', 'NOTE_PERIOD_S']
@@ -39,6 +41,8 @@ SHM_DIR = Path('/dev/shm')
 # The files Fast DDS makes in /dev/shm (and the lock and semaphore beside a segment).
 _FAST_DDS = re.compile(r'^(?:sem\.)?(?:fastrtps_|fast_datasharing)')
 _PORT = re.compile(r'^fastrtps_port(\d+)$')
+# A locked file in /proc/locks: major:minor:inode (the device's numbers in hex).
+_LOCKED_FILE = re.compile(r'^([0-9a-f]+):([0-9a-f]+):(\d+)$')
 # How often a running task notes its segments again (wall s): a port Fast DDS opens after
 # the last note and before a kill is the only thing a killed task can leave.
 NOTE_PERIOD_S = 0.2
@@ -164,6 +168,52 @@ def in_use(names: Set[str]) -> Set[str]:
     return used
 
 
+def _locked_files() -> Set[Tuple[int, int, int]]:
+    """Return (major, minor, inode) of every file a process of this host holds a lock on."""
+    found: Set[Tuple[int, int, int]] = set()
+    try:
+        with open('/proc/locks', encoding='utf-8') as locks:
+            for line in locks:
+                for field in line.split():
+                    match = _LOCKED_FILE.match(field)
+                    if match:
+                        found.add((int(match[1], 16), int(match[2], 16), int(match[3])))
+                        break
+    except OSError:
+        pass
+    return found
+
+
+def _orphans(used: Set[str], names: Set[str]) -> Set[str]:
+    """
+    Return which of the ``used`` files of a dead task have lost their owner.
+
+    A segment's owner (the participant that listens on a port, or writes into
+    its own segment) holds a lock on its ``_el`` file for as long as it lives;
+    the others who map it only send to it or read from it. When the dead task
+    noted the lock file (it was the owner) and nobody holds a lock on it now,
+    the segment is a zombie, which Fast DDS itself removes and makes anew when
+    a participant next listens on that port: its remaining users keep their
+    mappings, and the names, which would outlive them, go (with the lock file
+    and the port's semaphore).
+    """
+    locked: Optional[Set[Tuple[int, int, int]]] = None
+    orphans: Set[str] = set()
+    for name in used:
+        lock = f'{name}_el'
+        if name.endswith('_el') or name.startswith('sem.') or lock not in names:
+            continue
+        try:
+            stat = os.stat(SHM_DIR / lock)
+        except OSError:
+            continue  # no lock file: a participant may be making the segment now
+        if locked is None:
+            locked = _locked_files()
+        if (os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino) not in locked:
+            orphans |= _with_companions([name]) & names
+    return orphans
+
+
 def clean_dead() -> List[str]:
     """
     Remove the segments of noted tasks whose process is gone, if no live process uses them.
@@ -186,6 +236,7 @@ def clean_dead() -> List[str]:
         except OSError:
             continue
         used = in_use(names)
+        used -= _orphans(used, names)
         for name in sorted(names - used):
             try:
                 (SHM_DIR / name).unlink()
@@ -194,9 +245,9 @@ def clean_dead() -> List[str]:
                 pass
             except OSError:
                 continue
-        # A segment another process uses now (a port a later participant opened again)
-        # stays noted: once that process lets go of it without removing it, a later
-        # call (the sweep at a run's end) removes it.
+        # A segment another process uses now (a port a later participant listens on
+        # again) stays noted: once that process lets go of it without removing it, a
+        # later call (the sweep at a run's end) removes it.
         kept = sorted(name for name in used if (SHM_DIR / name).exists())
         if kept:
             _write_note(path, kept)

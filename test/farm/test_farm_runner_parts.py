@@ -5,6 +5,7 @@ The runner itself, with its worker processes and clusters, is tested in
 ``test/system/test_farm_runner.py`` and ``test/system/test_farm_clusters.py``.
 """
 
+import fcntl
 import io
 import json
 import os
@@ -261,6 +262,37 @@ def test_only_the_segments_of_dead_tasks_that_nobody_uses_are_removed():
         (registry / f'{me}-0').unlink(missing_ok=True)
         (registry / f'{me}-{start}').unlink(missing_ok=True)
         for path in (dead_only, used, live_task, not_fast_dds):
+            path.unlink(missing_ok=True)
+
+
+def test_a_dead_owners_segment_goes_though_a_sender_maps_it_and_a_new_owners_stays():
+    """A zombie port (its owner's lock free) goes though a sender maps it; a relocked one stays."""
+    tag = uuid.uuid4().hex[:12]
+    digits = tag[:4].translate(str.maketrans('abcdef', '123456'))
+    zombie, relocked = (fake_segment(f'fastrtps_port8{digits}{n}') for n in '01')
+    files = [zombie, relocked] + [fake_segment(f'{p.name}_el') for p in (zombie, relocked)] + [
+        fake_segment(f'sem.{p.name}_mutex') for p in (zombie, relocked)]
+    note = shm.registry_dir() / f'{os.getpid()}-0'  # a dead task that owned both
+    note.write_text('\n'.join(path.name for path in files))
+    senders = [open(zombie, 'rb'), open(relocked, 'rb')]  # live senders map both ports
+    owner = open(shm.SHM_DIR / f'{relocked.name}_el', 'rb')
+    fcntl.flock(owner, fcntl.LOCK_EX)  # and a new participant listens on the second
+    senders.append(open(shm.SHM_DIR / f'sem.{relocked.name}_mutex', 'rb'))  # its semaphore
+    try:
+        removed = shm.clean_dead()
+        assert sorted(removed) == sorted([zombie.name, f'{zombie.name}_el',
+                                          f'sem.{zombie.name}_mutex'])
+        assert not zombie.exists() and relocked.exists()
+        kept = [relocked.name, f'{relocked.name}_el', f'sem.{relocked.name}_mutex']
+        assert sorted(note.read_text().split()) == sorted(kept)  # what its new owner uses
+        owner.close()  # the new owner is killed too: its lock goes with it
+        assert sorted(shm.clean_dead()) == sorted(kept)
+        assert not note.exists()
+    finally:
+        for handle in senders + [owner]:
+            handle.close()
+        note.unlink(missing_ok=True)
+        for path in files:
             path.unlink(missing_ok=True)
 
 

@@ -190,6 +190,72 @@ def test_a_killed_worker_is_a_crash_named_with_its_seed_and_leaves_nothing(
     assert killer.segments - shm.in_use(killer.segments) - killer.shared <= set(run.cleaned)
 
 
+PARTICIPANT = """
+import sys, time
+import rclpy
+from rclpy.context import Context
+from std_msgs.msg import String
+context = Context()
+rclpy.init(context=context, domain_id=int(sys.argv[1]))
+node = rclpy.create_node('victim', context=context)
+node.create_subscription(String, 'chatter', lambda message: None, 10)
+publisher = node.create_publisher(String, 'chatter', 10)
+print('up', flush=True)
+while True:
+    publisher.publish(String(data='victim'))
+    time.sleep(0.02)
+"""
+
+
+def test_a_killed_participants_segments_go_while_a_live_peer_still_maps_them():
+    """Fast DDS's own owner lock says a segment is a zombie; its senders do not keep it."""
+    import rclpy
+    from rclpy.context import Context
+    from std_msgs.msg import String
+    from r2d2_sim.testing.domains import lease_domain
+    with lease_domain() as lease:
+        victim = subprocess.Popen([sys.executable, '-c', PARTICIPANT, str(lease.domain_id)],
+                                  stdout=subprocess.PIPE, text=True)
+        context = Context()
+        try:
+            assert victim.stdout.readline().strip() == 'up'
+            rclpy.init(context=context, domain_id=lease.domain_id)
+            peer = rclpy.create_node('peer', context=context)
+            peer.create_subscription(String, 'chatter', lambda message: None, 10)
+            publisher = peer.create_publisher(String, 'chatter', 10)
+            deadline = time.monotonic() + DEADLINE_S
+            shared: set = set()
+            while time.monotonic() < deadline and not shared:
+                publisher.publish(String(data='peer'))
+                time.sleep(0.02)
+                # The victim's segments (it holds their locks) that this process maps too.
+                owned = {n[:-3] for n in shm.segments_of(str(victim.pid)) if n.endswith('_el')}
+                shared = owned & shm.segments_of()
+            assert shared, 'the peer never mapped a segment of the victim'
+            path = shm.registry_dir() / f'{victim.pid}-{shm._start_time(victim.pid)}'
+            path.write_text('\n'.join(sorted(shm._with_companions(
+                shm.segments_of(str(victim.pid))))))
+            victim.kill()
+            victim.wait()
+            assert shared <= shm.segments_of()  # still mapped here, the sender
+            removed = shm.clean_dead()
+            assert shared <= set(removed)
+            assert not any((shm.SHM_DIR / name).exists() for name in shared)
+            # What stays noted is the peer's own (the victim sent to it): live, locked.
+            mine = {n[:-3] for n in shm.segments_of() if n.endswith('_el')}
+            assert {n.removesuffix('_el') for n in path.read_text().split()
+                    if not n.startswith('sem.')} <= mine
+            peer.destroy_node()
+            rclpy.shutdown(context=context)  # the peer closes and removes its own
+            shm.clean_dead()
+            assert not path.exists(), path.read_text()
+        finally:
+            victim.kill()
+            victim.wait()
+            if context.ok():
+                rclpy.shutdown(context=context)
+
+
 def test_ctrl_c_writes_what_finished_and_the_same_command_resumes(tmp_path):
     # Enough variations that the runner cannot finish them all while this process, starved
     # on a loaded machine, is still on its way to the Ctrl-C (6 were not, once, in CI).
