@@ -271,15 +271,13 @@ def outputs_off():
     return existing_parameters(OUTPUTS_OFF)
 
 
-def make_sim_node(context, namespace, params, quiet=True, taken=True):
+def make_sim_node(context, namespace, params, quiet=True):
     """
     Build a SimNode in ``context`` (None: the default one) under ``namespace``.
 
     ``params`` maps parameter names to values. PyBullet's banner is silenced;
     with ``quiet`` the node logs errors only (a chain robot has no wheels to
-    warn about). With ``taken`` every output has a subscriber (:func:`take_every_output`):
-    the node builds and sends every message, as for a user who takes them all;
-    without, it builds none of the outputs nobody takes.
+    warn about).
     """
     from rclpy.logging import LoggingSeverity, set_logger_level
     from rclpy.parameter import Parameter
@@ -290,32 +288,5 @@ def make_sim_node(context, namespace, params, quiet=True, taken=True):
                          LoggingSeverity.ERROR)
     with silenced_output():
         from r2d2_sim.ros.node import SimNode
-        node = SimNode(context=context, namespace=namespace, parameter_overrides=[
+        return SimNode(context=context, namespace=namespace, parameter_overrides=[
             Parameter(name, value=value) for name, value in params.items()])
-    if taken:
-        take_every_output(node)
-    return node
-
-
-def take_every_output(node, timeout_s=10.0):
-    """
-    Give each of ``node``'s publishers a subscription in its context (never spun).
-
-    The node then builds and sends every message (an output nobody takes is
-    not built); what lands is left in the subscriptions' queues, as a
-    subscriber that reads it would find it. Returns the subscriptions.
-    """
-    subscriptions = [node.create_subscription(p.msg_type, p.topic_name, lambda message: None,
-                                              p.qos_profile, raw=True)
-                     for p in list(node.publishers)]
-    try:
-        from r2d2_sim.ros.demand import taken
-    except ImportError:  # a tree from before: it builds every output anyway
-        def taken(publisher):
-            return publisher.get_subscription_count() > 0
-    deadline = time.monotonic() + timeout_s
-    while not all(taken(p) for p in node.publishers):
-        if time.monotonic() > deadline:
-            raise RuntimeError('the bench\'s subscriptions never matched the node\'s outputs')
-        time.sleep(0.01)
-    return subscriptions

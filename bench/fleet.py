@@ -9,12 +9,9 @@ N robots (1, 2, 4, 8, 16) stand in a row 2 m apart, in one world.
 - **Throughput**: an in-process node (rtf 0, ``advance`` without an executor, as
   ``SimHarness`` steps it) and raw ``stepSimulation`` of the very same world
   take turns every 60 steps (``common.alternate``), so both see the same load
-  from other processes; their ratio is the bridge's share. Three configurations:
+  from other processes; their ratio is the bridge's share. Two configurations:
   ``state`` (every step, sensors and TF off, as the main bench's rows) and
-  ``defaults`` (every step, scan 10 Hz, IMU 100 Hz, TF), each output with a
-  subscription of this process's (never spun: the node builds and sends every
-  message), and ``untaken``, the defaults that nobody takes (the node builds
-  none of those outputs, but measures the robots as always). The bridge's cost per
+  ``defaults`` (every step, scan 10 Hz, IMU 100 Hz, TF). The bridge's cost per
   robot is (1/node - 1/raw) / N; the node's whole step (1/node) against the
   4,167 us a step may take at 240 Hz says whether one core can keep real time.
 - **Real time**: ``sim_node`` with N robots (1, 2, 4, 8, 12, 16, 24, 28) in a process
@@ -27,9 +24,7 @@ N robots (1, 2, 4, 8, 16) stand in a row 2 m apart, in one world.
   robots standing (parked: their wheels braked, as after start-up) and driving
   (each sent one ``cmd_vel``, 0.3 m/s turning at 0.6 rad/s, with
   ``cmd_vel_timeout`` 0 so it never stops: circles of 0.5 m, 2 m apart), since
-  a parked robot's physics costs less. Then driving with a fleet manager: 8,
-  12 and 16 robots with this process taking every robot's ``odom`` and
-  ``scan`` and ``/tf``, since the node builds only the outputs someone takes.
+  a parked robot's physics costs less.
 
 Prints a table and writes ``bench/fleet.json``. Numbers are printed, never asserted.
 """
@@ -50,7 +45,6 @@ STEP_BUDGET_US = 1e6 / 240.0  # a step's share of one core at 240 Hz
 REAL_TIME_ROBOTS = (1, 2, 4, 8, 12, 16, 24, 28)  # a world holds at most 29 with a laser
 KEEPS_REAL_TIME_HZ = 239.0  # the lowest one-second window's rate
 DRIVE = (0.3, 0.6)  # m/s, rad/s: a circle of 0.5 m
-MANAGER_ROBOTS = (8, 12, 16)  # driving, this process taking every odom, scan and /tf
 
 
 def fleet(count):
@@ -74,11 +68,9 @@ def measure_throughput(domain_id, counts, rounds, min_s):
     nodes = []
     try:
         for count in counts:
-            for config, extra, taken in (('state', outputs_off(), True),
-                                         ('defaults', {}, True), ('untaken', {}, False)):
+            for config, extra in (('state', outputs_off()), ('defaults', {})):
                 node = make_sim_node(context, f'/fleet_{config}_{count}',
-                                     dict(fleet(count), real_time_factor=0.0, **extra),
-                                     taken=taken)
+                                     dict(fleet(count), real_time_factor=0.0, **extra))
                 nodes.append(node)
                 advances = [node.advance, raw_stepper(node.world)]
                 for advance in advances:  # warm-up: the robots settle, code paths get hot
@@ -128,28 +120,7 @@ def window_rates(arrivals, start, window_s, windows):
     return rates
 
 
-def take_fleet(listener, count):
-    """Subscribe the listener's node to every robot's ``odom`` and ``scan`` and to ``/tf``."""
-    from nav_msgs.msg import Odometry
-    from rclpy.qos import qos_profile_sensor_data, QoSProfile
-    from sensor_msgs.msg import LaserScan
-    from tf2_msgs.msg import TFMessage
-    names = [f'r{i}' for i in range(count)] if count > 1 else ['']
-    counted = {'messages': 0}
-
-    def take(message):
-        counted['messages'] += 1
-    for name in names:
-        prefix = f'/{name}' if name else ''
-        listener.node.create_subscription(Odometry, f'{prefix}/odom', take, QoSProfile(depth=10))
-        listener.node.create_subscription(LaserScan, f'{prefix}/scan', take,
-                                          qos_profile_sensor_data)
-    listener.node.create_subscription(TFMessage, '/tf', take, QoSProfile(depth=100))
-    return counted
-
-
-def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=False,
-                      manager=False):
+def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=False):
     """
     Achieved rate and CPU share of sim_node at rtf 1 with N robots and the default outputs.
 
@@ -159,9 +130,7 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
     reached KEEPS_REAL_TIME_HZ; the rate and CPU reported are their medians.
     ``~/get_status`` is asked once a window, and its longest answer kept.
     ``driving``: every robot drives a circle from the start (one command
-    each, no timeout). ``manager``: this process also takes every robot's
-    ``odom`` and ``scan`` and ``/tf``, as a fleet manager beside Nav2 would
-    (the node builds only what someone takes).
+    each, no timeout).
     """
     from clock_gaps import ClockListener
     from r2d2_sim.testing import SimProcess
@@ -171,7 +140,6 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
         sim = SimProcess(domain_id=domain_id, state_subscriptions=False, timeout_s=60.0,
                          **fleet(count), **extra)
         listener = ClockListener(domain_id)
-        taken = take_fleet(listener, count) if manager else None
         shares, answers = [], []  # CPU of a core; how long each ~/get_status took (s)
 
         def status():
@@ -199,8 +167,7 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
         finally:
             listener.close()
             sim.stop()
-        results[str(count)] = {'robots': count, 'driving': driving, 'manager': manager,
-                               'messages_taken': None if taken is None else taken['messages'],
+        results[str(count)] = {'robots': count, 'driving': driving,
                                'rate_hz': statistics.median(rates), 'rates_hz': rates,
                                'lowest_hz': min(rates),
                                'status_answer_ms_max': max(answers) * 1e3,
@@ -218,10 +185,7 @@ def print_table(results):
         print(f'{entry["robots"]:>6} | {entry["config"]:>8} | {entry["ratio_median"]:>18.3f} | '
               f'{entry["raw_us_per_robot"]:>12.1f} | {entry["bridge_us_per_robot"]:>15.1f} | '
               f'{entry.get("node_us_per_step", float("nan")):.0f}')
-    for key, title in (('real_time', 'standing'), ('real_time_driving', 'driving'),
-                       ('real_time_manager', 'driving, odom+scan+tf taken')):
-        if key not in results:
-            continue
+    for key, title in (('real_time', 'standing'), ('real_time_driving', 'driving')):
         print(f'\n{"robots":>6} | {title + ": rate at rtf 1 (Hz), lowest 1 s":>40} | '
               f'{"CPU of a core":>13} | get_status, longest | keeps 240 Hz')
         for entry in results[key].values():
@@ -246,10 +210,7 @@ def main(argv=None):
                                               window_s, windows),
                'real_time_driving': measure_real_time(args.domain + 1, REAL_TIME_ROBOTS,
                                                       settle_s, window_s, windows,
-                                                      driving=True),
-               'real_time_manager': measure_real_time(
-                   args.domain + 1, MANAGER_ROBOTS, settle_s, window_s, windows,
-                   driving=True, manager=True)}
+                                                      driving=True)}
     write_json(args.output, results)
     print_table(results)
     print(f'\nwritten to {args.output}')

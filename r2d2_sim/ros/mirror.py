@@ -54,10 +54,6 @@ class MirroredPublisher:
         self.publisher.publish(data)
         self.channel.log(data, self._time_ns())
 
-    def taken(self) -> bool:
-        """Return True: the sink takes every message (see :func:`r2d2_sim.ros.demand.taken`)."""
-        return True
-
     def release(self) -> None:
         """Stop feeding the sink: the publisher's node is going (a deleted robot's)."""
         self.channel.release()

@@ -33,7 +33,6 @@ from r2d2_sim.sim.robots.robot import Frame, Measurement, Robot
 from r2d2_sim.ros.sensor_outputs import (
     BatteryOutput, CAMERA_QOS, HeadCameraOutput, ImuOutput, Lidar3dOutput, PointCloudTemplate,
     ScanOutput, SENSOR_QOS)
-from r2d2_sim.ros.demand import taken
 from r2d2_sim.ros.serialization import MessageTemplate, StampSlot
 from r2d2_sim.ros.tf_outputs import (  # noqa: F401 (TF's QoS here too)
     start_tf, TF_QOS, TF_STATIC_QOS)
@@ -77,9 +76,7 @@ class JointStateOutput:
                         ] if joints else []
 
     def publish(self, frame: Frame) -> None:
-        """Publish the frame's joint readout (when someone takes it)."""
-        if not taken(self._publisher):
-            return
+        """Publish the frame's joint readout."""
         self._stamp.set(*frame.stamp)
         joints = frame.joints
         for slot, values in zip(self._arrays,
@@ -109,9 +106,7 @@ class GroundTruthOutput:
         self._msg = _OdometryTemplate(msg)
 
     def publish(self, frame: Frame) -> None:
-        """Publish the frame's true base state (when someone takes it)."""
-        if not taken(self._publisher):
-            return
+        """Publish the frame's true base state."""
         msg, base = self._msg, frame.base
         msg.stamp.set(*frame.stamp)
         msg.pose.set(base.position + base.orientation)
@@ -153,9 +148,7 @@ class OdometryOutput:
         self._height_m = footprint_height_m
 
     def publish(self, frame: Frame) -> None:
-        """Publish the frame's wheel odometry (when someone takes it)."""
-        if not taken(self._publisher):
-            return
+        """Publish the frame's wheel odometry."""
         msg, odometry = self._msg, frame.odometry
         assert odometry is not None, 'a robot with wheels (this output) measures odometry'
         msg.stamp.set(*frame.stamp)

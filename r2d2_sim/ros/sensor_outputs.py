@@ -29,7 +29,6 @@ from r2d2_sim.model import battery, camera
 from r2d2_sim.model.camera import CameraIntrinsics
 from r2d2_sim.model.sensors import ImuModel, ImuReading, LidarGeometry, ScanGeometry
 from r2d2_sim.model.timing import stamp_of
-from r2d2_sim.ros.demand import taken
 from r2d2_sim.ros.serialization import FieldSlot, MessageTemplate, StampSlot
 from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.robots.sensors import (
@@ -135,9 +134,7 @@ class ScanOutput:
         self._ranges = self._template.field('ranges')
 
     def publish(self, time_ns: int, ranges: numpy.ndarray) -> None:
-        """Publish REP-117 ranges measured at ``time_ns`` (when someone takes them)."""
-        if not taken(self._publisher):
-            return
+        """Publish REP-117 ranges measured at ``time_ns``."""
         self._stamp.set_nanoseconds(time_ns)
         self._ranges.set(ranges)
         self._publisher.publish(self._template.to_bytes())
@@ -160,9 +157,7 @@ class ImuOutput:
         self._linear = self._template.field('linear_acceleration')
 
     def publish(self, time_ns: int, reading: ImuReading) -> None:
-        """Publish a reading taken at ``time_ns`` (when someone takes it)."""
-        if not taken(self._publisher):
-            return
+        """Publish a reading taken at ``time_ns``."""
         self._stamp.set_nanoseconds(time_ns)
         self._orientation.set(reading.orientation_xyzw)
         self._angular.set(reading.angular_velocity_rad_s)

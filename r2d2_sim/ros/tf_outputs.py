@@ -22,7 +22,6 @@ from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.robots.robot import Frame, Robot
 from r2d2_sim.sim.robots.sensors import (
     HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
-from r2d2_sim.ros.demand import taken
 from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.model.timing import stamp_of
 from r2d2_sim.model.link_tree import LinkTransforms
@@ -79,35 +78,12 @@ class TfOutput:
         self._transforms = [self._template.field(f'transforms[{i}].transform')
                             for i in range(len(pairs))]
         self.empty = not pairs
-        self._latest: Optional[bytes] = None
-        self._unsent: Optional[Frame] = None  # the latest frame, when nobody took it
-
-    @property
-    def latest(self) -> Optional[bytes]:
-        """
-        Return the latest /tf (serialized), published or not; None before the first.
-
-        For a listener in this process that starts later: a harness then reads
-        it here rather than listen to every publication. Built now from the
-        latest frame when nobody subscribed to /tf then: the same bytes.
-        """
-        if self._unsent is not None:
-            self._latest = self._serialize(self._unsent)
-            self._unsent = None
-        return self._latest
+        # The latest /tf sent (serialized), for a listener in this process that starts
+        # later: a harness then reads it here rather than listen to every publication.
+        self.latest: Optional[bytes] = None
 
     def publish(self, frame: Frame) -> None:
-        """Publish the frame's transforms (when someone takes them; kept for :attr:`latest`)."""
-        if not taken(self._publisher):
-            self._unsent = frame
-            return
-        data = self._serialize(frame)
-        self._publisher.publish(data)
-        self._latest = data
-        self._unsent = None
-
-    def _serialize(self, frame: Frame) -> bytes:
-        """Return the frame's transforms as a serialized TFMessage."""
+        """Publish the frame's transforms."""
         stamp = frame.stamp
         for slot in self._stamps:
             slot.set(*stamp)
@@ -128,7 +104,9 @@ class TfOutput:
             positions = frame.joints.positions
             for joint in self._links.moving([positions[i] for i in self._joint_slots]):
                 next(slots).set(joint.transform.translation + joint.transform.rotation)
-        return self._template.to_bytes()
+        data = self._template.to_bytes()
+        self._publisher.publish(data)
+        self.latest = data
 
 
 def start_tf(node: Node, config: SimConfig, robot: Robot, time_ns: int) -> Optional[TfOutput]:

@@ -44,9 +44,6 @@ class RecordingNode:
     def create_publisher(self, msg_type, topic, qos):
         return self
 
-    def taken(self):
-        return True  # a subscriber takes everything
-
     def publish(self, data):
         self.published.append(data)
 

@@ -11,7 +11,6 @@ differ there; test_serialization.py checks the written bytes.)
 """
 
 import math
-import time
 import random
 
 from nav_msgs.msg import Odometry
@@ -41,14 +40,10 @@ FRAMES = 100
 
 
 class RecordingPublisher:
-    """Keeps what an output publishes; a subscriber takes it unless ``subscribed`` is False."""
+    """Keeps what an output publishes."""
 
     def __init__(self, msg_type, topic):
         self.msg_type, self.topic, self.published = msg_type, topic, []
-        self.subscribed = True
-
-    def taken(self):
-        return self.subscribed
 
     def publish(self, msg):
         self.published.append(msg)
@@ -266,83 +261,3 @@ def test_scan_and_imu_outputs_publish_exactly_the_readings_given():
         assert msg.linear_acceleration_covariance[0] == pytest.approx(0.01)
         assert msg.linear_acceleration_covariance[4] == pytest.approx(0.01)
     assert len(node.publishers['scan'].published) == len(node.publishers['imu'].published) == 20
-
-
-def test_an_output_nobody_takes_is_not_built_and_the_first_one_taken_is_as_always():
-    """Skipped frames leave nothing behind: the next one taken is an always-taken twin's bytes."""
-    import numpy
-    from r2d2_sim.ros.outputs import ImuOutput, ScanOutput
-    from r2d2_sim.ros.tf_outputs import link_transforms, TfOutput
-    from r2d2_sim.model.sensors import ImuModel, ImuReading, ScanGeometry
-    config = parse_config({'publish_ground_truth_tf': True})
-    simulation = Simulation(config)
-    robot = simulation.robot
-    links = link_transforms(config, robot)
-    geometry = ScanGeometry(-2.0, 2.0, 181, 0.1, 9.0)
-    model = ImuModel(linear_acceleration_std_m_s2=0.1, rng=numpy.random.default_rng(0))
-
-    def outputs(node):
-        return {'joint_states': JointStateOutput(node, robot.movable),
-                'ground_truth': GroundTruthOutput(node, config),
-                'odom': OdometryOutput(node, config, robot.footprint_height_m),
-                '/tf': TfOutput(node, config, robot, links),
-                'scan': ScanOutput(node, config, geometry), 'imu': ImuOutput(node, config, model)}
-    lazy_node, always_node = RecordingNode(), RecordingNode()
-    lazy, always = outputs(lazy_node), outputs(always_node)
-    rng = random.Random(3)
-
-    def publish_all(outputs, frame, time_ns, scan, reading):
-        for topic, output in outputs.items():
-            if topic == 'scan':
-                output.publish(time_ns, scan)
-            elif topic == 'imu':
-                output.publish(time_ns, reading)
-            else:
-                output.publish(frame)
-    for taken_now in (False, False, True, False, True):
-        for publisher in lazy_node.publishers.values():
-            publisher.subscribed = taken_now
-        frame = random_frame(rng, len(robot.movable), True)
-        time_ns = rng.randrange(10**15)
-        scan = numpy.array([rng.uniform(0.1, 9.0) for _ in range(181)], dtype=numpy.float32)
-        reading = ImuReading(tuple(rng.uniform(-1, 1) for _ in range(4)),
-                             tuple(rng.uniform(-5, 5) for _ in range(3)),
-                             tuple(rng.uniform(-20, 20) for _ in range(3)))
-        publish_all(lazy, frame, time_ns, scan, reading)
-        publish_all(always, frame, time_ns, scan, reading)
-        for topic, publisher in lazy_node.publishers.items():
-            sent = always_node.publishers[topic].published
-            if taken_now:
-                assert publisher.published[-1] == sent[-1], topic
-            else:
-                assert not publisher.published or publisher.published[-1] != sent[-1], topic
-        # The latest /tf is the latest frame's, sent or not (a harness's late listener reads it).
-        assert lazy['/tf'].latest == always['/tf'].latest
-    assert {topic: len(p.published) for topic, p in lazy_node.publishers.items()} == \
-        dict.fromkeys(lazy_node.publishers, 2)
-    simulation.close()
-
-
-def test_a_publisher_is_taken_once_a_subscription_matches_and_a_mirrored_one_always():
-    import rclpy
-    from rclpy.context import Context
-    from r2d2_sim.ros.demand import taken
-    from r2d2_sim.ros.mirror import MirroredPublisher
-    from r2d2_sim.testing.domains import lease_domain
-    with lease_domain() as lease:
-        context = Context()
-        rclpy.init(context=context, domain_id=lease.domain_id)
-        try:
-            node = rclpy.create_node('outputs', context=context)
-            publisher = node.create_publisher(JointState, 'joint_states', 10)
-            assert not taken(publisher)
-            node.create_subscription(JointState, 'joint_states', lambda message: None, 10)
-            deadline = time.monotonic() + 10.0
-            while not taken(publisher) and time.monotonic() < deadline:
-                time.sleep(0.01)
-            assert taken(publisher) and publisher.get_subscription_count() == 1
-            lonely = node.create_publisher(JointState, 'nobody_listens', 10)
-            assert taken(MirroredPublisher(lonely, JointState, None, lambda: 0))
-            assert not taken(lonely)
-        finally:
-            rclpy.shutdown(context=context)
