@@ -18,9 +18,10 @@ time>``); a task that ends normally forgets them (:func:`forget`). When a
 task's process is gone (its id and start time no longer name a live process:
 an id reused by another process is not taken for it), :func:`clean_dead`
 removes each segment it noted that no live process maps or holds open, or
-whose owner it was and whose lock nobody holds now (a zombie, which live
-senders may still map: Fast DDS's own test), and its note once none is left
-(one a new owner uses stays noted for a later call).
+that it owned and nobody owns now (the same file, noted with its inode while
+the task held its ``_el`` lock, and that lock free: a zombie, which live
+senders may still map; Fast DDS's own test), and its note once none is left
+(one another process uses, a new owner's, stays noted for a later call).
 Anyone on the host may call it: the local pool after a worker dies
 and at the end of a run, every task on a cluster's host as it starts, and the
 farm on every host at the end.
@@ -32,7 +33,7 @@ from pathlib import Path
 import re
 import tempfile
 import threading
-from typing import Iterable, Iterator, List, Optional, Set, Tuple
+from typing import Dict, Iterable, Iterator, List, Optional, Set, Tuple
 
 __all__ = ['SHM_DIR', 'note', 'noting', 'forget', 'clean_dead', 'segments_of',
            'registry_dir', 'in_use', 'NOTE_PERIOD_S']
@@ -112,20 +113,45 @@ def _note_path(pid: int) -> Optional[Path]:
 
 
 def note() -> None:
-    """Note the Fast DDS segments this process holds now (added to what it noted before)."""
+    """
+    Note the Fast DDS segments this process holds now (added to what it noted before).
+
+    A segment whose ``_el`` lock this process holds (it owns the segment) is
+    noted with the segment file's inode: after the process is gone, that very
+    file, its lock free, is a zombie (:func:`clean_dead`).
+    """
     with _NOTE_LOCK:
         path = _note_path(os.getpid())
         if path is None:
             return
-        names = _with_companions(segments_of())
-        if path.exists():
-            names |= set(path.read_text(encoding='utf-8').split())
-        _write_note(path, sorted(names))
+        current = segments_of()
+        mine = {key for pid, key in _locks() if pid == os.getpid()}
+        owned: Dict[str, int] = {}
+        for name in current:
+            file = _file_key(name)
+            lock = _file_key(f'{name}_el')
+            if file is not None and lock is not None and lock in mine:
+                owned[name] = file[2]
+        noted = _read_note(path) if path.exists() else {}
+        for name in _with_companions(current):
+            noted[name] = owned.get(name, noted.get(name))
+        _write_note(path, noted)
 
 
-def _write_note(path: Path, names: List[str]) -> None:
+def _read_note(path: Path) -> Dict[str, Optional[int]]:
+    """Return a note's names, each with the inode of a segment the task owned (else None)."""
+    noted: Dict[str, Optional[int]] = {}
+    for line in path.read_text(encoding='utf-8').splitlines():
+        fields = line.split()
+        if fields:
+            noted[fields[0]] = int(fields[1]) if len(fields) > 1 and fields[1].isdigit() else None
+    return noted
+
+
+def _write_note(path: Path, noted: Dict[str, Optional[int]]) -> None:
+    lines = [name if noted[name] is None else f'{name} {noted[name]}' for name in sorted(noted)]
     scratch = path.with_suffix('.new')
-    scratch.write_text('\n'.join(names) + '\n', encoding='utf-8')
+    scratch.write_text('\n'.join(lines) + '\n', encoding='utf-8')
     os.replace(scratch, path)  # a reader never sees half a note
 
 
@@ -168,49 +194,59 @@ def in_use(names: Set[str]) -> Set[str]:
     return used
 
 
-def _locked_files() -> Set[Tuple[int, int, int]]:
-    """Return (major, minor, inode) of every file a process of this host holds a lock on."""
-    found: Set[Tuple[int, int, int]] = set()
+def _locks() -> List[Tuple[int, Tuple[int, int, int]]]:
+    """Return (pid, (major, minor, inode)) of every lock /proc/locks lists on this host."""
+    found: List[Tuple[int, Tuple[int, int, int]]] = []
     try:
         with open('/proc/locks', encoding='utf-8') as locks:
             for line in locks:
-                for field in line.split():
+                fields = line.split()
+                for at, field in enumerate(fields):
                     match = _LOCKED_FILE.match(field)
-                    if match:
-                        found.add((int(match[1], 16), int(match[2], 16), int(match[3])))
+                    if match and at > 0 and fields[at - 1].isdigit():
+                        found.append((int(fields[at - 1]), (int(match[1], 16),
+                                                            int(match[2], 16), int(match[3]))))
                         break
     except OSError:
         pass
     return found
 
 
-def _orphans(used: Set[str], names: Set[str]) -> Set[str]:
+def _file_key(name: str) -> Optional[Tuple[int, int, int]]:
+    """Return a /dev/shm file's (major, minor, inode) as /proc/locks names it; None if gone."""
+    try:
+        stat = os.stat(SHM_DIR / name)
+    except OSError:
+        return None
+    return os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino
+
+
+def _orphans(used: Set[str], owned: Dict[str, int]) -> Set[str]:
     """
-    Return which of the ``used`` files of a dead task have lost their owner.
+    Return which of the ``used`` files of a dead task have lost their owner: the task.
 
     A segment's owner (the participant that listens on a port, or writes into
     its own segment) holds a lock on its ``_el`` file for as long as it lives;
-    the others who map it only send to it or read from it. When the dead task
-    noted the lock file (it was the owner) and nobody holds a lock on it now,
-    the segment is a zombie, which Fast DDS itself removes and makes anew when
-    a participant next listens on that port: its remaining users keep their
-    mappings, and the names, which would outlive them, go (with the lock file
-    and the port's semaphore).
+    the others who map it only send to it or read from it. A segment the dead
+    task owned (``owned``: noted with its inode while the task held the lock),
+    still that very file, whose lock nobody holds now, is a zombie, which Fast
+    DDS itself removes and makes anew when a participant next listens on that
+    port: its remaining users keep their mappings, and the names, which would
+    outlive them, go (with the lock file and the port's semaphore). A port
+    made anew by a new owner is another file (another inode) and stays, even
+    in the moment before its owner locks it; so does a port shared by several
+    readers, which nobody locks.
     """
-    locked: Optional[Set[Tuple[int, int, int]]] = None
+    candidates = [name for name in used if name in owned]
+    if not candidates:
+        return set()
+    locked = {key for _, key in _locks()}
     orphans: Set[str] = set()
-    for name in used:
-        lock = f'{name}_el'
-        if name.endswith('_el') or name.startswith('sem.') or lock not in names:
+    for name in candidates:
+        file, lock = _file_key(name), _file_key(f'{name}_el')
+        if file is None or file[2] != owned[name] or lock is None or lock in locked:
             continue
-        try:
-            stat = os.stat(SHM_DIR / lock)
-        except OSError:
-            continue  # no lock file: a participant may be making the segment now
-        if locked is None:
-            locked = _locked_files()
-        if (os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino) not in locked:
-            orphans |= _with_companions([name]) & names
+        orphans |= _with_companions([name]) & used | {name}
     return orphans
 
 
@@ -231,12 +267,13 @@ def clean_dead() -> List[str]:
         if pid.isdigit() and _start_time(int(pid)) == start:
             continue  # still running
         try:
-            names = {n for n in path.read_text(encoding='utf-8').split()
+            noted = {n: inode for n, inode in _read_note(path).items()
                      if _FAST_DDS.match(n) and '/' not in n}
         except OSError:
             continue
+        names = set(noted)
         used = in_use(names)
-        used -= _orphans(used, names)
+        used -= _orphans(used, {n: i for n, i in noted.items() if i is not None})
         for name in sorted(names - used):
             try:
                 (SHM_DIR / name).unlink()
@@ -248,7 +285,7 @@ def clean_dead() -> List[str]:
         # A segment another process uses now (a port a later participant listens on
         # again) stays noted: once that process lets go of it without removing it, a
         # later call (the sweep at a run's end) removes it.
-        kept = sorted(name for name in used if (SHM_DIR / name).exists())
+        kept = {name: noted[name] for name in used if (SHM_DIR / name).exists()}
         if kept:
             _write_note(path, kept)
         else:

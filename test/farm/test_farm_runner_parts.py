@@ -266,33 +266,69 @@ def test_only_the_segments_of_dead_tasks_that_nobody_uses_are_removed():
 
 
 def test_a_dead_owners_segment_goes_though_a_sender_maps_it_and_a_new_owners_stays():
-    """A zombie port (its owner's lock free) goes though a sender maps it; a relocked one stays."""
+    """
+    A port the dead task owned, its lock free, goes though a sender still maps it.
+
+    What stays: one a new owner locked, one a new owner made again (another
+    inode) and has not locked yet, one the task only read from (shared, no lock).
+    """
     tag = uuid.uuid4().hex[:12]
     digits = tag[:4].translate(str.maketrans('abcdef', '123456'))
-    zombie, relocked = (fake_segment(f'fastrtps_port8{digits}{n}') for n in '01')
-    files = [zombie, relocked] + [fake_segment(f'{p.name}_el') for p in (zombie, relocked)] + [
-        fake_segment(f'sem.{p.name}_mutex') for p in (zombie, relocked)]
-    note = shm.registry_dir() / f'{os.getpid()}-0'  # a dead task that owned both
-    note.write_text('\n'.join(path.name for path in files))
-    senders = [open(zombie, 'rb'), open(relocked, 'rb')]  # live senders map both ports
+    zombie, relocked, remade, shared = (fake_segment(f'fastrtps_port8{digits}{n}')
+                                        for n in '0123')
+    ports = [zombie, relocked, remade, shared]
+    files = ports + [fake_segment(f'{p.name}_el') for p in ports] + [
+        fake_segment(f'sem.{p.name}_mutex') for p in ports]
+    inode = {p.name: os.stat(p).st_ino for p in ports}
+    note = shm.registry_dir() / f'{os.getpid()}-0'  # a dead task
+    owned = {zombie.name: inode[zombie.name], relocked.name: inode[relocked.name],
+             remade.name: inode[remade.name] + 1}  # remade: not the file the task owned
+    note.write_text('\n'.join(f'{p.name} {owned[p.name]}' if p.name in owned else p.name
+                              for p in files))
+    users = [open(p, 'rb') for p in ports]  # live senders (or readers) map every port
+    users += [open(shm.SHM_DIR / f'sem.{p.name}_mutex', 'rb') for p in (relocked, remade)]
     owner = open(shm.SHM_DIR / f'{relocked.name}_el', 'rb')
-    fcntl.flock(owner, fcntl.LOCK_EX)  # and a new participant listens on the second
-    senders.append(open(shm.SHM_DIR / f'sem.{relocked.name}_mutex', 'rb'))  # its semaphore
+    fcntl.flock(owner, fcntl.LOCK_EX)  # a new participant listens on relocked
     try:
         removed = shm.clean_dead()
+        # The zombie and its companions; of the others, only what nobody has open.
         assert sorted(removed) == sorted([zombie.name, f'{zombie.name}_el',
-                                          f'sem.{zombie.name}_mutex'])
-        assert not zombie.exists() and relocked.exists()
-        kept = [relocked.name, f'{relocked.name}_el', f'sem.{relocked.name}_mutex']
-        assert sorted(note.read_text().split()) == sorted(kept)  # what its new owner uses
+                                          f'sem.{zombie.name}_mutex', f'{remade.name}_el',
+                                          f'{shared.name}_el', f'sem.{shared.name}_mutex'])
+        assert not zombie.exists() and relocked.exists() and remade.exists() and shared.exists()
+        kept = [relocked.name, f'{relocked.name}_el', remade.name, shared.name,
+                f'sem.{relocked.name}_mutex', f'sem.{remade.name}_mutex']
+        assert sorted(line.split()[0] for line in note.read_text().splitlines()) == sorted(kept)
         owner.close()  # the new owner is killed too: its lock goes with it
+        for user in users:
+            user.close()  # and everyone lets go
         assert sorted(shm.clean_dead()) == sorted(kept)
         assert not note.exists()
     finally:
-        for handle in senders + [owner]:
+        for handle in users + [owner]:
             handle.close()
         note.unlink(missing_ok=True)
         for path in files:
+            path.unlink(missing_ok=True)
+
+
+def test_a_task_notes_the_inode_of_each_segment_it_owns():
+    tag = uuid.uuid4().hex[:12]
+    digits = tag[:4].translate(str.maketrans('abcdef', '123456'))
+    mine, theirs = (fake_segment(f'fastrtps_port7{digits}{n}') for n in '01')
+    locks = [fake_segment(f'{p.name}_el') for p in (mine, theirs)]
+    handles = [open(mine, 'rb'), open(theirs, 'rb'), open(locks[0], 'rb')]
+    fcntl.flock(handles[2], fcntl.LOCK_EX)  # this process owns the first port
+    try:
+        shm.note()
+        noted = shm._read_note(shm._note_path(os.getpid()))
+        assert noted[mine.name] == os.stat(mine).st_ino
+        assert noted[theirs.name] is None and noted[f'{mine.name}_el'] is None
+    finally:
+        for handle in handles:
+            handle.close()
+        shm.forget()
+        for path in [mine, theirs] + locks:
             path.unlink(missing_ok=True)
 
 

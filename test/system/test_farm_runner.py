@@ -128,7 +128,7 @@ def noted(pid: int) -> set:
     for path in shm.registry_dir().glob(f'{pid}-*'):
         if path.suffix != '.new':
             try:
-                names |= set(path.read_text(encoding='utf-8').split())
+                names |= set(shm._read_note(path))
             except OSError:
                 continue
     return names
@@ -195,15 +195,17 @@ import sys, time
 import rclpy
 from rclpy.context import Context
 from std_msgs.msg import String
+from r2d2_sim.farm import shm
 context = Context()
 rclpy.init(context=context, domain_id=int(sys.argv[1]))
 node = rclpy.create_node('victim', context=context)
 node.create_subscription(String, 'chatter', lambda message: None, 10)
 publisher = node.create_publisher(String, 'chatter', 10)
-print('up', flush=True)
-while True:
-    publisher.publish(String(data='victim'))
-    time.sleep(0.02)
+with shm.noting():  # as a farm task notes its segments
+    print('up', flush=True)
+    while True:
+        publisher.publish(String(data='victim'))
+        time.sleep(0.02)
 """
 
 
@@ -215,7 +217,8 @@ def test_a_killed_participants_segments_go_while_a_live_peer_still_maps_them():
     from r2d2_sim.testing.domains import lease_domain
     with lease_domain() as lease:
         victim = subprocess.Popen([sys.executable, '-c', PARTICIPANT, str(lease.domain_id)],
-                                  stdout=subprocess.PIPE, text=True)
+                                  stdout=subprocess.PIPE, text=True,
+                                  env=dict(os.environ, PYTHONPATH=REPO))
         context = Context()
         try:
             assert victim.stdout.readline().strip() == 'up'
@@ -223,18 +226,19 @@ def test_a_killed_participants_segments_go_while_a_live_peer_still_maps_them():
             peer = rclpy.create_node('peer', context=context)
             peer.create_subscription(String, 'chatter', lambda message: None, 10)
             publisher = peer.create_publisher(String, 'chatter', 10)
+            path = shm.registry_dir() / f'{victim.pid}-{shm._start_time(victim.pid)}'
             deadline = time.monotonic() + DEADLINE_S
             shared: set = set()
-            while time.monotonic() < deadline and not shared:
+            while time.monotonic() < deadline:
                 publisher.publish(String(data='peer'))
                 time.sleep(0.02)
-                # The victim's segments (it holds their locks) that this process maps too.
-                owned = {n[:-3] for n in shm.segments_of(str(victim.pid)) if n.endswith('_el')}
+                # The segments the victim noted as its own that this process maps too.
+                owned = {n for n, inode in (shm._read_note(path) if path.exists() else {}).items()
+                         if inode is not None}
                 shared = owned & shm.segments_of()
-            assert shared, 'the peer never mapped a segment of the victim'
-            path = shm.registry_dir() / f'{victim.pid}-{shm._start_time(victim.pid)}'
-            path.write_text('\n'.join(sorted(shm._with_companions(
-                shm.segments_of(str(victim.pid))))))
+                if shared and time.monotonic() > deadline - DEADLINE_S + 1.0:
+                    break  # a second of traffic: every port both use is open by now
+            assert shared, 'the peer never mapped a segment the victim owns'
             victim.kill()
             victim.wait()
             assert shared <= shm.segments_of()  # still mapped here, the sender
