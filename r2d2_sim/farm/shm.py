@@ -272,9 +272,14 @@ def clean_dead() -> List[str]:
         except OSError:
             continue
         names = set(noted)
+        # Each file as it was before the scan of every process (milliseconds): one made
+        # again meanwhile (a new participant's port of the same number) is not ours.
+        seen = {name: _file_key(name) for name in names}
         used = in_use(names)
         used -= _orphans(used, {n: i for n, i in noted.items() if i is not None})
         for name in sorted(names - used):
+            if seen[name] is None or _file_key(name) != seen[name]:
+                continue
             try:
                 (SHM_DIR / name).unlink()
                 removed.append(name)

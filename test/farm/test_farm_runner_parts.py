@@ -312,6 +312,26 @@ def test_a_dead_owners_segment_goes_though_a_sender_maps_it_and_a_new_owners_sta
             path.unlink(missing_ok=True)
 
 
+def test_a_port_made_again_while_the_sweep_looks_is_not_removed(monkeypatch):
+    """A dead task's free port that a new participant makes anew during the scan stays."""
+    port = fake_segment(f'fastrtps_port6{uuid.uuid4().int % 10**6}')
+    note = shm.registry_dir() / f'{os.getpid()}-0'  # a dead task
+    note.write_text(port.name)
+    scan = shm.in_use
+
+    def made_again_meanwhile(names):
+        port.unlink()
+        port.write_bytes(b'new')  # another file under the same name (another inode)
+        return scan(names)
+    monkeypatch.setattr(shm, 'in_use', made_again_meanwhile)
+    try:
+        assert shm.clean_dead() == [] and port.read_bytes() == b'new'
+        assert not note.exists()  # the file there now is not the task's
+    finally:
+        note.unlink(missing_ok=True)
+        port.unlink(missing_ok=True)
+
+
 def test_a_task_notes_the_inode_of_each_segment_it_owns():
     tag = uuid.uuid4().hex[:12]
     digits = tag[:4].translate(str.maketrans('abcdef', '123456'))
