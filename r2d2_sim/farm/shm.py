@@ -246,7 +246,7 @@ def _orphans(used: Set[str], owned: Dict[str, int]) -> Set[str]:
         file, lock = _file_key(name), _file_key(f'{name}_el')
         if file is None or file[2] != owned[name] or lock is None or lock in locked:
             continue
-        orphans |= _with_companions([name]) & used | {name}
+        orphans |= _with_companions([name]) & used  # the segment is used: it is among them
     return orphans
 
 
