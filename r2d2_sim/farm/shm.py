@@ -22,12 +22,15 @@ that it owned and nobody owns now (the same file, noted with its inode while
 the task held its ``_el`` lock, and that lock free: a zombie, which live
 senders may still map; Fast DDS's own test), and its note once none is left
 (one another process uses, a new owner's, stays noted for a later call).
-Anyone on the host may call it: the local pool after a worker dies
-and at the end of a run, every task on a cluster's host as it starts, and the
-farm on every host at the end.
+A segment is removed only while the sweep holds its ``_el`` lock itself, and
+its lock file and semaphore only with it. Anyone on the host may call it,
+one sweep at a time: the local pool after a worker dies and at the end of a
+run, every task on a cluster's host as it starts, and the farm on every host
+at the end.
 """
 
 import contextlib
+import fcntl
 import os
 from pathlib import Path
 import re
@@ -150,7 +153,7 @@ def _read_note(path: Path) -> Dict[str, Optional[int]]:
 
 def _write_note(path: Path, noted: Dict[str, Optional[int]]) -> None:
     lines = [name if noted[name] is None else f'{name} {noted[name]}' for name in sorted(noted)]
-    scratch = path.with_suffix('.new')
+    scratch = path.with_name(f'{path.name}.{os.getpid()}.new')
     scratch.write_text('\n'.join(lines) + '\n', encoding='utf-8')
     os.replace(scratch, path)  # a reader never sees half a note
 
@@ -221,33 +224,96 @@ def _file_key(name: str) -> Optional[Tuple[int, int, int]]:
     return os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino
 
 
-def _orphans(used: Set[str], owned: Dict[str, int]) -> Set[str]:
-    """
-    Return which of the ``used`` files of a dead task have lost their owner: the task.
+def _is_segment(name: str) -> bool:
+    """Return True for a segment's own name (not the lock file or semaphore beside it)."""
+    return not (name.endswith('_el') or name.startswith('sem.'))
 
-    A segment's owner (the participant that listens on a port, or writes into
-    its own segment) holds a lock on its ``_el`` file for as long as it lives;
-    the others who map it only send to it or read from it. A segment the dead
-    task owned (``owned``: noted with its inode while the task held the lock),
-    still that very file, whose lock nobody holds now, is a zombie, which Fast
-    DDS itself removes and makes anew when a participant next listens on that
-    port: its remaining users keep their mappings, and the names, which would
-    outlive them, go (with the lock file and the port's semaphore). A port
-    made anew by a new owner is another file (another inode) and stays, even
-    in the moment before its owner locks it; so does a port shared by several
-    readers, which nobody locks.
+
+def _remove_segment(name: str, inode: int) -> List[str]:
     """
-    candidates = [name for name in used if name in owned]
-    if not candidates:
-        return set()
-    locked = {key for _, key in _locks()}
-    orphans: Set[str] = set()
-    for name in candidates:
-        file, lock = _file_key(name), _file_key(f'{name}_el')
-        if file is None or file[2] != owned[name] or lock is None or lock in locked:
+    Remove segment ``name``, with its lock file and semaphore, if it is file ``inode`` unowned.
+
+    The segment's owner (the participant that listens on a port, or writes
+    into its own segment) holds an exclusive ``flock`` on its ``_el`` file for
+    as long as it lives. Taking that lock without waiting is Fast DDS's own
+    zombie test (``Port::is_zombie``), and holding it while the files go is
+    what makes this safe beside Fast DDS: a participant that opens the port
+    meanwhile finds it locked and takes another, and one that made the file
+    anew (another inode) keeps it. Returns the names removed.
+    """
+    lock_name = f'{name}_el'
+    try:
+        lock: Optional[int] = os.open(SHM_DIR / lock_name, os.O_RDONLY)
+    except FileNotFoundError:
+        lock = None
+    except OSError:
+        return []
+    try:
+        if lock is not None:
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                return []  # an owner holds it
+        file = _file_key(name)
+        if file is None or file[2] != inode:
+            return []
+        removed: List[str] = []
+        for each in sorted(_with_companions([name])):
+            if each == lock_name and (lock is None or _file_key(each) != _fd_key(lock)):
+                continue  # not the lock file we hold: another's, made since
+            try:
+                (SHM_DIR / each).unlink()
+                removed.append(each)
+            except OSError:
+                pass
+        return removed
+    finally:
+        if lock is not None:
+            os.close(lock)  # and the lock with it
+
+
+def _fd_key(fd: int) -> Tuple[int, int, int]:
+    stat = os.fstat(fd)
+    return os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino
+
+
+def _sweep_note(path: Path) -> List[str]:
+    """Remove what a dead task's note names and nobody uses or owns; rewrite or drop the note."""
+    noted = {n: inode for n, inode in _read_note(path).items()
+             if _FAST_DDS.match(n) and '/' not in n}
+    names = set(noted)
+    # Each file as it was before the scan of every process (milliseconds): one made
+    # again meanwhile (a new participant's port of the same number) is not ours.
+    seen = {name: _file_key(name) for name in names}
+    used = in_use(names)
+    removed: List[str] = []
+    for name in sorted(n for n in names if _is_segment(n)):
+        # One mapped still, by senders to a port the dead task owned, is a zombie if it is
+        # the very file the task owned and its lock is free.
+        key, owned = seen[name], noted[name]
+        inode = owned if name in used else None if key is None else key[2]
+        if inode is not None:
+            removed += _remove_segment(name, inode)
+    # A lock file or semaphore goes on its own only when its segment is gone.
+    for name in sorted(n for n in names - used if not _is_segment(n)):
+        owner = name[4:-6] if name.startswith('sem.') else name[:-3]
+        if (SHM_DIR / owner).exists() or seen[name] is None or _file_key(name) != seen[name]:
             continue
-        orphans |= _with_companions([name]) & used  # the segment is used: it is among them
-    return orphans
+        try:
+            (SHM_DIR / name).unlink()
+            removed.append(name)
+        except OSError:
+            pass
+    # What is still there, the same file, stays noted (a port another process maps now):
+    # once it is let go of without being removed, a later sweep (a run's end) removes it.
+    # A file made anew under a noted name since is another participant's.
+    kept = {name: noted[name] for name in names
+            if seen[name] is not None and _file_key(name) == seen[name]}
+    if kept:
+        _write_note(path, kept)
+    else:
+        path.unlink(missing_ok=True)
+    return removed
 
 
 def clean_dead() -> List[str]:
@@ -256,43 +322,25 @@ def clean_dead() -> List[str]:
 
     Returns the names removed. Notes of live processes are left alone, as
     are files that are not Fast DDS's (a note is read, never trusted as a path).
+    One sweep runs at a time on a host (tasks starting together all call it);
+    it never raises: what it cannot do now, a later sweep does.
     """
     removed: List[str] = []
     try:
-        notes = [p for p in registry_dir().iterdir() if p.suffix != '.new']
+        registry = registry_dir()
+        sweep = os.open(registry / '.sweep', os.O_RDONLY | os.O_CREAT, 0o600)
     except OSError:
         return removed
-    for path in notes:
-        pid, _, start = path.name.partition('-')
-        if pid.isdigit() and _start_time(int(pid)) == start:
-            continue  # still running
-        try:
-            noted = {n: inode for n, inode in _read_note(path).items()
-                     if _FAST_DDS.match(n) and '/' not in n}
-        except OSError:
-            continue
-        names = set(noted)
-        # Each file as it was before the scan of every process (milliseconds): one made
-        # again meanwhile (a new participant's port of the same number) is not ours.
-        seen = {name: _file_key(name) for name in names}
-        used = in_use(names)
-        used -= _orphans(used, {n: i for n, i in noted.items() if i is not None})
-        for name in sorted(names - used):
-            if seen[name] is None or _file_key(name) != seen[name]:
-                continue
+    try:
+        fcntl.flock(sweep, fcntl.LOCK_EX)
+        for path in sorted(registry.iterdir()):
+            pid, _, start = path.name.partition('-')
+            if not pid.isdigit() or '.' in start or _start_time(int(pid)) == start:
+                continue  # still running (or the sweep's lock, or a note being written)
             try:
-                (SHM_DIR / name).unlink()
-                removed.append(name)
-            except FileNotFoundError:
-                pass
+                removed += _sweep_note(path)
             except OSError:
                 continue
-        # A segment another process uses now (a port a later participant listens on
-        # again) stays noted: once that process lets go of it without removing it, a
-        # later call (the sweep at a run's end) removes it.
-        kept = {name: noted[name] for name in used if (SHM_DIR / name).exists()}
-        if kept:
-            _write_note(path, kept)
-        else:
-            path.unlink(missing_ok=True)
+    finally:
+        os.close(sweep)
     return removed
