@@ -78,7 +78,7 @@ def check_run(run, killer: Killer, tmp_path: Path, executor: str) -> None:
     # not the victim's alone.
     left = {name for name in killer.segments if (shm.SHM_DIR / name).exists()}
     left = sorted(left - shm.in_use(left) - killer.shared)
-    assert left == [], f'segments of the killed worker left in /dev/shm: {left}'
+    assert left == [], f'segments of the killed worker left in /dev/shm: {killer.describe(left)}'
 
 
 def test_a_ray_cluster_of_two_nodes_gives_the_pinned_runs_and_names_a_crash(tmp_path,

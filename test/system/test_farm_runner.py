@@ -89,6 +89,7 @@ class Killer:
         self.pid = None
         self.segments: set = set()
         self.shared: set = set()  # of those, the ones another process also held at the kill
+        self.files: dict = {}  # each one's (device, inode) at the kill
         self.thread = threading.Thread(target=self._kill, daemon=True)
         self.thread.start()
 
@@ -119,7 +120,16 @@ class Killer:
                     self.shared |= shm.segments_of(entry) & self.segments
                 except OSError:
                     continue
+        self.files = {name: shm._file_key(name) for name in self.segments}
         os.kill(self.pid, signal.SIGKILL)
+
+    def describe(self, left: list) -> str:
+        """Say of each segment left whether it is the file the victim held or one made since."""
+        said = []
+        for name in left:
+            same = shm._file_key(name) == self.files.get(name)
+            said.append(f"{name} ({'the same file' if same else 'made anew since the kill'})")
+        return ', '.join(said)
 
 
 def noted(pid: int) -> set:
@@ -186,7 +196,7 @@ def test_a_killed_worker_is_a_crash_named_with_its_seed_and_leaves_nothing(
     # not the victim's alone.
     left = {name for name in killer.segments if (shm.SHM_DIR / name).exists()}
     left = sorted(left - shm.in_use(left) - killer.shared)
-    assert left == [], f'segments of the killed worker left in /dev/shm: {left}'
+    assert left == [], f'segments of the killed worker left in /dev/shm: {killer.describe(left)}'
     assert killer.segments - shm.in_use(killer.segments) - killer.shared <= set(run.cleaned)
 
 
