@@ -11,6 +11,7 @@ such an install could not find its own URDF.) The colcon layout is proved in
 test_colcon.py; the source tree by the rest of the suite.
 """
 
+import fcntl
 import json
 import os
 from pathlib import Path
@@ -38,10 +39,29 @@ def _run(args, **kwargs):
     return result
 
 
-@pytest.fixture(scope='module')
+@pytest.fixture(scope='session')
 def pip_venv(tmp_path_factory):
-    """Provide a fresh venv with r2d2_sim pip-installed (not editable) from a source copy."""
-    root = tmp_path_factory.mktemp('pip_user')
+    """
+    Provide a fresh venv with r2d2_sim pip-installed (not editable) from a source copy.
+
+    Built once per run: pytest-xdist's workers share the run's base directory,
+    and the first to ask builds it under a lock while the others wait (a
+    module fixture was built again on each worker this file's tests went to:
+    three times, 91 s, in one run). Tests only read it; one that installs
+    more works on a copy of its own (:func:`private_copy`).
+    """
+    shared = tmp_path_factory.getbasetemp().parent  # every worker's, under xdist
+    root, done = shared / 'pip_user', shared / 'pip_user.done'
+    with open(shared / 'pip_user.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when closed: a builder that failed too
+        if not done.exists():
+            shutil.rmtree(root, ignore_errors=True)  # half of one that failed
+            _build_pip_venv(root)
+            done.touch()
+    return root / 'venv'
+
+
+def _build_pip_venv(root: Path) -> None:
     sources = root / 'src'
     files = subprocess.run(['git', 'ls-files'], cwd=REPO, capture_output=True, text=True,
                            check=True).stdout.split()
@@ -56,7 +76,19 @@ def pip_venv(tmp_path_factory):
     _run(pip + [str(sources)], cwd=root)  # alone: the package brings what it needs
     _run(pip + USER_REQUIREMENTS)
     shutil.rmtree(sources)  # nothing may come from the source tree
-    return venv
+
+
+def private_copy(venv: Path, where: Path) -> Path:
+    """
+    Return a copy of ``venv`` in ``where`` that pip may change: hard links, made in a second.
+
+    pip replaces files (a new one, then a rename) and never writes into an
+    installed one, so the shared venv is left as it was.
+    """
+    copy = where / 'venv'
+    _run(['cp', '-al', str(venv), str(copy)])
+    # Its python finds its own pyvenv.cfg beside it: pip installs into the copy.
+    return copy
 
 
 def user_env(domain_id=None):
@@ -290,9 +322,10 @@ def test_the_scenarios_extra_runs_a_documented_scenario_pip_only(pip_venv, tmp_p
     pip-installed r2d2_sim plus scenario_execution: the command runs docs' crossing, in process.
 
     The installed package registers osc.r2d2 through its entry points and ships its
-    library file; nothing comes from the source tree. (Last in this file: the install
-    takes PyYAML down to scenario_execution's pin.)
+    library file; nothing comes from the source tree. (On a copy of the venv: the
+    install takes PyYAML down to scenario_execution's pin.)
     """
+    pip_venv = private_copy(pip_venv, tmp_path)
     pip = [str(pip_venv / 'bin' / 'python'), '-m', 'pip', 'install', '--quiet',
            '--disable-pip-version-check']
     extra = next(line for line in (Path(REPO) / 'requirements.txt').read_text().splitlines()
