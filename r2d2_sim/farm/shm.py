@@ -277,15 +277,17 @@ def _fd_key(fd: int) -> Tuple[int, int, int]:
     return os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino
 
 
-def _sweep_note(path: Path) -> List[str]:
-    """Remove what a dead task's note names and nobody uses or owns; rewrite or drop the note."""
-    noted = {n: inode for n, inode in _read_note(path).items()
-             if _FAST_DDS.match(n) and '/' not in n}
+def _sweep_note(path: Path, noted: Dict[str, Optional[int]],
+                seen: Dict[str, Optional[Tuple[int, int, int]]], used: Set[str]) -> List[str]:
+    """
+    Remove what a dead task's note names and nobody uses or owns; rewrite or drop the note.
+
+    ``seen``: each file's key before the scan of every process that found
+    the ``used`` ones (a file made again meanwhile, a new participant's port
+    of the same number, is not the task's).
+    """
     names = set(noted)
-    # Each file as it was before the scan of every process (milliseconds): one made
-    # again meanwhile (a new participant's port of the same number) is not ours.
-    seen = {name: _file_key(name) for name in names}
-    used = in_use(names)
+    used = used & names
     removed: List[str] = []
     for name in sorted(n for n in names if _is_segment(n)):
         # One mapped still, by senders to a port the dead task owned, is a zombie if it is
@@ -333,12 +335,23 @@ def clean_dead() -> List[str]:
         return removed
     try:
         fcntl.flock(sweep, fcntl.LOCK_EX)
+        notes: Dict[Path, Dict[str, Optional[int]]] = {}
         for path in sorted(registry.iterdir()):
             pid, _, start = path.name.partition('-')
             if not pid.isdigit() or '.' in start or _start_time(int(pid)) == start:
                 continue  # still running (or the sweep's lock, or a note being written)
             try:
-                removed += _sweep_note(path)
+                notes[path] = {n: inode for n, inode in _read_note(path).items()
+                               if _FAST_DDS.match(n) and '/' not in n}
+            except OSError:
+                continue
+        names: Set[str] = set().union(*notes.values())
+        # Every file as it is now, then one scan of every process (milliseconds) for them all.
+        seen = {name: _file_key(name) for name in names}
+        used = in_use(names) if names else set()
+        for path, noted in notes.items():
+            try:
+                removed += _sweep_note(path, noted, seen, used)
             except OSError:
                 continue
     finally:
