@@ -30,10 +30,13 @@ at the end.
 """
 
 import contextlib
+import ctypes
+import errno
 import fcntl
 import os
 from pathlib import Path
 import re
+import stat as stat_module
 import tempfile
 import threading
 from typing import Dict, Iterable, Iterator, List, Optional, Set, Tuple
@@ -225,8 +228,75 @@ def _file_key(name: str) -> Optional[Tuple[int, int, int]]:
 
 
 def _is_segment(name: str) -> bool:
-    """Return True for a segment's own name (not the lock file or semaphore beside it)."""
-    return not (name.endswith('_el') or name.startswith('sem.'))
+    """Return True for a segment's own name (not a lock file or the semaphore beside it)."""
+    return not (name.endswith(('_el', '_sl')) or name.startswith('sem.'))
+
+
+def _segment_of(name: str) -> str:
+    """Return the segment a lock file (``_el``, ``_sl``) or a port's semaphore belongs to."""
+    return name[4:-6] if name.startswith('sem.') else name[:-3]
+
+
+class _Semaphores:
+    """POSIX named semaphores through the C library (None where it has none)."""
+
+    def __init__(self) -> None:
+        libc = ctypes.CDLL(None, use_errno=True)
+        self.open = libc.sem_open
+        self.open.restype = ctypes.c_void_p  # NULL (SEM_FAILED) on an error
+        self.open.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.c_uint, ctypes.c_uint]
+        self.trywait, self.post, self.close = libc.sem_trywait, libc.sem_post, libc.sem_close
+        for function in (self.trywait, self.post, self.close):
+            function.argtypes = [ctypes.c_void_p]
+
+
+_SEMAPHORE_SIZE = 32  # sizeof(sem_t) with glibc on 64-bit Linux: a named semaphore's file
+try:
+    _SEMAPHORES: Optional[_Semaphores] = _Semaphores()
+except (OSError, AttributeError):  # not glibc: the port's mutex is not taken
+    _SEMAPHORES = None
+
+
+@contextlib.contextmanager
+def _port_mutex(name: str) -> Iterator[bool]:
+    """
+    Hold port ``name``'s named mutex (``sem.<name>_mutex``) while the block runs, if free.
+
+    Fast DDS opens, tests and replaces a port only while it holds this mutex
+    (``SharedMemGlobal::open_port_internal``), so nothing of Fast DDS's can
+    be halfway through that port meanwhile. Yields False when another process
+    holds it (or it cannot be opened); True when there is none.
+    """
+    semaphores = _SEMAPHORES
+    if semaphores is None or not _PORT.match(name):
+        yield True
+        return
+    try:
+        file = os.lstat(SHM_DIR / f'sem.{name}_mutex')
+    except FileNotFoundError:
+        yield True
+        return
+    except OSError:
+        yield False
+        return
+    # sem_open maps the file: one too short would be a SIGBUS when touched.
+    if not stat_module.S_ISREG(file.st_mode) or file.st_size < _SEMAPHORE_SIZE:
+        yield False  # not a semaphore Fast DDS made: the port is left as it is
+        return
+    handle = semaphores.open(f'/{name}_mutex'.encode(), 0, 0, 0)
+    if not handle:
+        yield ctypes.get_errno() == errno.ENOENT
+        return
+    try:
+        if semaphores.trywait(handle) != 0:
+            yield False  # a participant is opening the port
+            return
+        try:
+            yield True
+        finally:
+            semaphores.post(handle)
+    finally:
+        semaphores.close(handle)
 
 
 def _remove_segment(name: str, inode: int) -> List[str]:
@@ -236,20 +306,29 @@ def _remove_segment(name: str, inode: int) -> List[str]:
     The segment's owner (the participant that listens on a port, or writes
     into its own segment) holds an exclusive ``flock`` on its ``_el`` file for
     as long as it lives. Taking that lock without waiting is Fast DDS's own
-    zombie test (``Port::is_zombie``), and holding it while the files go is
-    what makes this safe beside Fast DDS: a participant that opens the port
-    meanwhile finds it locked and takes another, and one that made the file
-    anew (another inode) keeps it. Returns the names removed.
+    zombie test (``Port::is_zombie``). A port's files go while the sweep holds
+    the port's named mutex too (:func:`_port_mutex`), as Fast DDS opens and
+    replaces a port: no participant is halfway through opening it, one that
+    comes meanwhile waits and then makes the port anew, and one that made
+    the file anew (another inode) keeps it. Returns the names removed.
     """
+    with _port_mutex(name) as free:
+        return _remove_unowned(name, inode) if free else []
+
+
+def _remove_unowned(name: str, inode: int) -> List[str]:
     lock_name = f'{name}_el'
     try:
-        lock: Optional[int] = os.open(SHM_DIR / lock_name, os.O_RDONLY)
+        lock: Optional[int] = os.open(SHM_DIR / lock_name,
+                                      os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except FileNotFoundError:
         lock = None
     except OSError:
         return []
     try:
         if lock is not None:
+            if not stat_module.S_ISREG(os.fstat(lock).st_mode):
+                return []  # not a lock file Fast DDS made
             try:
                 fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
@@ -278,17 +357,17 @@ def _fd_key(fd: int) -> Tuple[int, int, int]:
 
 
 def _sweep_note(path: Path, noted: Dict[str, Optional[int]],
-                seen: Dict[str, Optional[Tuple[int, int, int]]], used: Set[str]) -> List[str]:
+                seen: Dict[str, Optional[Tuple[int, int, int]]], used: Set[str],
+                removed: List[str]) -> None:
     """
     Remove what a dead task's note names and nobody uses or owns; rewrite or drop the note.
 
     ``seen``: each file's key before the scan of every process that found
     the ``used`` ones (a file made again meanwhile, a new participant's port
-    of the same number, is not the task's).
+    of the same number, is not the task's). What goes is added to ``removed``.
     """
     names = set(noted)
     used = used & names
-    removed: List[str] = []
     for name in sorted(n for n in names if _is_segment(n)):
         # One mapped still, by senders to a port the dead task owned, is a zombie if it is
         # the very file the task owned and its lock is free.
@@ -298,14 +377,16 @@ def _sweep_note(path: Path, noted: Dict[str, Optional[int]],
             removed += _remove_segment(name, inode)
     # A lock file or semaphore goes on its own only when its segment is gone.
     for name in sorted(n for n in names - used if not _is_segment(n)):
-        owner = name[4:-6] if name.startswith('sem.') else name[:-3]
-        if (SHM_DIR / owner).exists() or seen[name] is None or _file_key(name) != seen[name]:
-            continue
-        try:
-            (SHM_DIR / name).unlink()
-            removed.append(name)
-        except OSError:
-            pass
+        segment = _segment_of(name)
+        with _port_mutex(segment) as free:  # nobody is opening that port now
+            if not free or (SHM_DIR / segment).exists() or seen[name] is None \
+                    or _file_key(name) != seen[name]:
+                continue
+            try:
+                (SHM_DIR / name).unlink()
+                removed.append(name)
+            except OSError:
+                pass
     # What is still there, the same file, stays noted (a port another process maps now):
     # once it is let go of without being removed, a later sweep (a run's end) removes it.
     # A file made anew under a noted name since is another participant's.
@@ -315,7 +396,6 @@ def _sweep_note(path: Path, noted: Dict[str, Optional[int]],
         _write_note(path, kept)
     else:
         path.unlink(missing_ok=True)
-    return removed
 
 
 def clean_dead() -> List[str]:
@@ -335,25 +415,39 @@ def clean_dead() -> List[str]:
         return removed
     try:
         fcntl.flock(sweep, fcntl.LOCK_EX)
-        notes: Dict[Path, Dict[str, Optional[int]]] = {}
-        for path in sorted(registry.iterdir()):
-            pid, _, start = path.name.partition('-')
-            if not pid.isdigit() or '.' in start or _start_time(int(pid)) == start:
-                continue  # still running (or the sweep's lock, or a note being written)
-            try:
-                notes[path] = {n: inode for n, inode in _read_note(path).items()
-                               if _FAST_DDS.match(n) and '/' not in n}
-            except OSError:
-                continue
-        names: Set[str] = set().union(*notes.values())
-        # Every file as it is now, then one scan of every process (milliseconds) for them all.
-        seen = {name: _file_key(name) for name in names}
-        used = in_use(names) if names else set()
-        for path, noted in notes.items():
-            try:
-                removed += _sweep_note(path, noted, seen, used)
-            except OSError:
-                continue
+        _sweep(registry, removed)
+    except (OSError, ValueError):
+        pass  # the registry or /proc could not be read: the next sweep tries again
     finally:
         os.close(sweep)
     return removed
+
+
+def _sweep(registry: Path, removed: List[str]) -> None:
+    """Sweep every dead task's note in ``registry`` (the caller holds the sweep's lock)."""
+    notes: Dict[Path, Dict[str, Optional[int]]] = {}
+    for path in sorted(registry.iterdir()):
+        pid, _, start = path.name.partition('-')
+        if not pid.isdigit():
+            continue  # the sweep's lock
+        if '.' in start:  # a note being written: <note>.<writer's pid>.new
+            writer = start.split('.')[1]
+            if writer.isdigit() and not os.path.exists(f'/proc/{writer}'):
+                path.unlink(missing_ok=True)  # its writer was killed writing it
+            continue
+        if _start_time(int(pid)) == start:
+            continue  # still running
+        try:
+            notes[path] = {n: inode for n, inode in _read_note(path).items()
+                           if _FAST_DDS.match(n) and '/' not in n}
+        except (OSError, ValueError):
+            continue  # gone meanwhile, or not a note (left alone)
+    names: Set[str] = set().union(*notes.values())
+    # Every file as it is now, then one scan of every process (milliseconds) for them all.
+    seen = {name: _file_key(name) for name in names}
+    used = in_use(names) if names else set()
+    for path, noted in notes.items():
+        try:
+            _sweep_note(path, noted, seen, used, removed)
+        except OSError:
+            continue

@@ -234,13 +234,31 @@ def fake_segment(tmp_name: str) -> Path:
     return path
 
 
-def test_only_the_segments_of_dead_tasks_that_nobody_uses_are_removed():
+def fake_mutex(port: str, count: int = 1) -> Path:
+    """Make a port's named mutex as Fast DDS does: a POSIX semaphore, free at count 1."""
+    semaphores = shm._SEMAPHORES
+    assert semaphores is not None, 'no POSIX semaphores in this C library'
+    handle = semaphores.open(f'/{port}_mutex'.encode(), os.O_CREAT | os.O_EXCL, 0o600, count)
+    assert handle, f'sem_open failed for {port}'
+    semaphores.close(handle)
+    return shm.SHM_DIR / f'sem.{port}_mutex'
+
+
+@pytest.fixture
+def registry(tmp_path, monkeypatch):
+    """Give the test a registry of task notes of its own: other tests' sweeps stay out."""
+    path = tmp_path / 'tasks'
+    path.mkdir()
+    monkeypatch.setattr(shm, 'registry_dir', lambda: path)
+    return path
+
+
+def test_only_the_segments_of_dead_tasks_that_nobody_uses_are_removed(registry):
     tag = uuid.uuid4().hex[:12]
     dead_only = fake_segment(f'fastrtps_{tag}a')
     used = fake_segment(f'fastrtps_{tag}b')
     live_task = fake_segment(f'fastrtps_{tag}c')
     not_fast_dds = fake_segment(f'other_{tag}')
-    registry = shm.registry_dir()
     me = os.getpid()
     start = shm._start_time(me)
     # A dead task: this process's id with another start time (an id reused by another process).
@@ -266,7 +284,7 @@ def test_only_the_segments_of_dead_tasks_that_nobody_uses_are_removed():
             path.unlink(missing_ok=True)
 
 
-def test_a_dead_owners_segment_goes_though_a_sender_maps_it_and_a_new_owners_stays():
+def test_a_dead_owners_segment_goes_though_a_sender_maps_it_and_a_new_owners_stays(registry):
     """
     A port the dead task owned, its lock free, goes though a sender still maps it.
 
@@ -279,9 +297,9 @@ def test_a_dead_owners_segment_goes_though_a_sender_maps_it_and_a_new_owners_sta
                                         for n in '0123')
     ports = [zombie, relocked, remade, shared]
     files = ports + [fake_segment(f'{p.name}_el') for p in ports] + [
-        fake_segment(f'sem.{p.name}_mutex') for p in ports]
+        fake_mutex(p.name) for p in ports]
     inode = {p.name: os.stat(p).st_ino for p in ports}
-    note = shm.registry_dir() / f'{os.getpid()}-0'  # a dead task
+    note = registry / f'{os.getpid()}-0'  # a dead task
     owned = {zombie.name: inode[zombie.name], relocked.name: inode[relocked.name],
              remade.name: inode[remade.name] + 1}  # remade: not the file the task owned
     note.write_text('\n'.join(f'{p.name} {owned[p.name]}' if p.name in owned else p.name
@@ -312,10 +330,10 @@ def test_a_dead_owners_segment_goes_though_a_sender_maps_it_and_a_new_owners_sta
             path.unlink(missing_ok=True)
 
 
-def test_a_port_made_again_while_the_sweep_looks_is_not_removed(monkeypatch):
+def test_a_port_made_again_while_the_sweep_looks_is_not_removed(monkeypatch, registry):
     """A dead task's free port that a new participant makes anew during the scan stays."""
     port = fake_segment(f'fastrtps_port6{uuid.uuid4().int % 10**6}')
-    note = shm.registry_dir() / f'{os.getpid()}-0'  # a dead task
+    note = registry / f'{os.getpid()}-0'  # a dead task
     note.write_text(port.name)
     scan = shm.in_use
 
@@ -332,11 +350,11 @@ def test_a_port_made_again_while_the_sweep_looks_is_not_removed(monkeypatch):
         port.unlink(missing_ok=True)
 
 
-def test_a_segment_nobody_maps_stays_while_an_owner_holds_its_lock():
+def test_a_segment_nobody_maps_stays_while_an_owner_holds_its_lock(registry):
     """An owner may hold the lock before it maps the port (Fast DDS opens it so)."""
     port = fake_segment(f'fastrtps_port5{uuid.uuid4().int % 10**6}')
     lock = fake_segment(f'{port.name}_el')
-    note = shm.registry_dir() / f'{os.getpid()}-0'  # a dead task
+    note = registry / f'{os.getpid()}-0'  # a dead task
     note.write_text(f'{port.name}\n{lock.name}\n')
     owner = open(lock, 'rb')
     fcntl.flock(owner, fcntl.LOCK_EX)
@@ -353,12 +371,50 @@ def test_a_segment_nobody_maps_stays_while_an_owner_holds_its_lock():
         lock.unlink(missing_ok=True)
 
 
-def test_sweeps_at_once_never_fail_and_keep_what_is_used():
+def test_a_port_is_left_while_a_participant_holds_its_mutex(registry):
+    """Fast DDS opens, tests and replaces a port holding its named mutex: not under it."""
+    port = fake_segment(f'fastrtps_port4{uuid.uuid4().int % 10**6}')
+    lock = fake_segment(f'{port.name}_el')
+    mutex = fake_mutex(port.name, count=0)  # taken: a participant is opening the port
+    note = registry / f'{os.getpid()}-0'  # a dead task that owned the port
+    note.write_text(f'{port.name} {os.stat(port).st_ino}\n')
+    semaphores = shm._SEMAPHORES
+    try:
+        assert shm.clean_dead() == [] and port.exists() and lock.exists() and mutex.exists()
+        handle = semaphores.open(f'/{port.name}_mutex'.encode(), 0, 0, 0)
+        semaphores.post(handle)  # the participant is done with it
+        semaphores.close(handle)
+        assert sorted(shm.clean_dead()) == sorted([port.name, lock.name, mutex.name])
+        assert not note.exists()
+    finally:
+        for path in (note, port, lock, mutex):
+            path.unlink(missing_ok=True)
+
+
+def test_a_sweep_never_raises_on_what_it_cannot_read(registry):
+    """A note that is not text, a semaphore too short to map, a writer killed mid-note."""
+    port = fake_segment(f'fastrtps_port3{uuid.uuid4().int % 10**6}')
+    short = fake_segment(f'sem.{port.name}_mutex')  # mapped, it would be a SIGBUS
+    (registry / f'{os.getpid()}-0').write_bytes(b'\xff\xfe not a note')
+    (registry / f'{os.getpid()}-1').write_text(f'{port.name} {os.stat(port).st_ino}\n')
+    dead_writer = registry / f'{os.getpid()}-2.{2 ** 22 + 1}.new'  # beyond pid_max
+    dead_writer.write_text('half a note')
+    try:
+        assert shm.clean_dead() == []
+        assert port.exists() and short.exists()  # its mutex unreadable: the port is left
+        assert not dead_writer.exists()  # the scratch file of a writer that is gone
+        assert (registry / f'{os.getpid()}-0').exists()  # not a note: left as it is
+    finally:
+        for path in [port, short] + list(registry.iterdir()):
+            path.unlink(missing_ok=True)
+
+
+def test_sweeps_at_once_never_fail_and_keep_what_is_used(registry):
     """Tasks that start together each sweep (ci: one's rewrite of a note crashed another's)."""
     tag = uuid.uuid4().hex[:8]
     used = [fake_segment(f'fastrtps_{tag}u{n}') for n in range(40)]
     free = [fake_segment(f'fastrtps_{tag}f{n}') for n in range(40)]
-    notes = [shm.registry_dir() / f'{os.getpid()}-{n}' for n in range(40)]  # dead tasks
+    notes = [registry / f'{os.getpid()}-{n}' for n in range(40)]  # dead tasks
     for note, one, other in zip(notes, used, free):
         note.write_text(f'{one.name}\n{other.name}\n')
     holders = [open(path, 'rb') for path in used]  # live senders map these
@@ -387,11 +443,11 @@ def test_sweeps_at_once_never_fail_and_keep_what_is_used():
             path.unlink(missing_ok=True)
 
 
-def test_a_sweep_scans_the_processes_once_for_every_dead_task(monkeypatch):
+def test_a_sweep_scans_the_processes_once_for_every_dead_task(monkeypatch, registry):
     """The sweep's lock is held for one scan of /proc, however many tasks died."""
     tag = uuid.uuid4().hex[:8]
     files = [fake_segment(f'fastrtps_{tag}s{n}') for n in range(5)]
-    notes = [shm.registry_dir() / f'{os.getpid()}-{n}' for n in range(5)]  # dead tasks
+    notes = [registry / f'{os.getpid()}-{n}' for n in range(5)]  # dead tasks
     for note, path in zip(notes, files):
         note.write_text(path.name)
     scans = []
@@ -407,7 +463,7 @@ def test_a_sweep_scans_the_processes_once_for_every_dead_task(monkeypatch):
             path.unlink(missing_ok=True)
 
 
-def test_a_task_notes_the_inode_of_each_segment_it_owns():
+def test_a_task_notes_the_inode_of_each_segment_it_owns(registry):
     tag = uuid.uuid4().hex[:12]
     digits = tag[:4].translate(str.maketrans('abcdef', '123456'))
     mine, theirs = (fake_segment(f'fastrtps_port7{digits}{n}') for n in '01')
@@ -427,7 +483,7 @@ def test_a_task_notes_the_inode_of_each_segment_it_owns():
             path.unlink(missing_ok=True)
 
 
-def test_a_task_notes_its_segments_with_their_lock_files_and_forgets_them():
+def test_a_task_notes_its_segments_with_their_lock_files_and_forgets_them(registry):
     tag = uuid.uuid4().hex[:12]
     port = fake_segment(f'fastrtps_port9{tag[:4].translate(str.maketrans("abcdef", "123456"))}')
     with open(port, 'rb'):
