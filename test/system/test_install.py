@@ -47,10 +47,14 @@ def pip_venv(tmp_path_factory):
     Built once per run: pytest-xdist's workers share the run's base directory,
     and the first to ask builds it under a lock while the others wait (a
     module fixture was built again on each worker this file's tests went to:
-    three times, 91 s, in one run). Tests only read it; one that installs
-    more works on a copy of its own (:func:`private_copy`).
+    three times, 91 s, in one run). Tests add to it only what the documented
+    interface build adds (under that script's own lock); one that installs
+    more with pip works on a copy of its own (:func:`private_copy`).
     """
-    shared = tmp_path_factory.getbasetemp().parent  # every worker's, under xdist
+    # Under xdist, the run's directory every worker's base directory is in (new each run);
+    # else this run's own (a parent outlives the run).
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if os.environ.get('PYTEST_XDIST_WORKER') else base
     root, done = shared / 'pip_user', shared / 'pip_user.done'
     with open(shared / 'pip_user.lock', 'w') as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # released when closed: a builder that failed too
@@ -80,14 +84,16 @@ def _build_pip_venv(root: Path) -> None:
 
 def private_copy(venv: Path, where: Path) -> Path:
     """
-    Return a copy of ``venv`` in ``where`` that pip may change: hard links, made in a second.
+    Return a copy of ``venv`` in ``where`` that pip may change, the shared one as it was.
 
-    pip replaces files (a new one, then a rename) and never writes into an
-    installed one, so the shared venv is left as it was.
+    A whole copy (not hard links: an interface build writes into the shared
+    venv in place), taken while no build runs there (the build's own lock).
+    Its python finds its own pyvenv.cfg beside it, so pip installs into the copy.
     """
     copy = where / 'venv'
-    _run(['cp', '-al', str(venv), str(copy)])
-    # Its python finds its own pyvenv.cfg beside it: pip installs into the copy.
+    with open(venv / '.build_interfaces.lock', 'a') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        _run(['cp', '-a', str(venv), str(copy)])
     return copy
 
 
