@@ -22,16 +22,14 @@ that it owned and nobody owns now (the same file, noted with its inode while
 the task held its ``_el`` lock, and that lock free: a zombie, which live
 senders may still map; Fast DDS's own test), and its note once none is left
 (one another process uses, a new owner's, stays noted for a later call).
-A segment is removed only while the sweep holds its ``_el`` lock itself (and
-a port's named mutex), and its lock file and semaphore only with it. Anyone
+A segment is removed only while the sweep holds its ``_el`` lock itself, and
+its lock file and semaphore only with it. Anyone
 on the host may call it, one sweep at a time: the local pool after a worker
 dies and at the end of a run, every task on a cluster's host as it starts,
 and the farm on every host at the end.
 """
 
 import contextlib
-import ctypes
-import errno
 import fcntl
 import os
 from pathlib import Path
@@ -237,68 +235,6 @@ def _segment_of(name: str) -> str:
     return name[4:-6] if name.startswith('sem.') else name[:-3]
 
 
-class _Semaphores:
-    """POSIX named semaphores through the C library (None where it has none)."""
-
-    def __init__(self) -> None:
-        libc = ctypes.CDLL(None, use_errno=True)
-        self.open = libc.sem_open
-        self.open.restype = ctypes.c_void_p  # NULL (SEM_FAILED) on an error
-        self.open.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.c_uint, ctypes.c_uint]
-        self.trywait, self.post, self.close = libc.sem_trywait, libc.sem_post, libc.sem_close
-        for function in (self.trywait, self.post, self.close):
-            function.argtypes = [ctypes.c_void_p]
-
-
-_SEMAPHORE_SIZE = 32  # sizeof(sem_t) with glibc on 64-bit Linux: a named semaphore's file
-try:
-    _SEMAPHORES: Optional[_Semaphores] = _Semaphores()
-except (OSError, AttributeError):  # not glibc: the port's mutex is not taken
-    _SEMAPHORES = None
-
-
-@contextlib.contextmanager
-def _port_mutex(name: str) -> Iterator[bool]:
-    """
-    Hold port ``name``'s named mutex (``sem.<name>_mutex``) while the block runs, if free.
-
-    Fast DDS opens, tests and replaces a port only while it holds this mutex
-    (``SharedMemGlobal::open_port_internal``), so nothing of Fast DDS's can
-    be halfway through that port meanwhile. Yields False when another process
-    holds it (or it cannot be opened); True when there is none.
-    """
-    semaphores = _SEMAPHORES
-    if semaphores is None or not _PORT.match(name):
-        yield True
-        return
-    try:
-        file = os.lstat(SHM_DIR / f'sem.{name}_mutex')
-    except FileNotFoundError:
-        yield True
-        return
-    except OSError:
-        yield False
-        return
-    # sem_open maps the file: one too short would be a SIGBUS when touched.
-    if not stat_module.S_ISREG(file.st_mode) or file.st_size < _SEMAPHORE_SIZE:
-        yield False  # not a semaphore Fast DDS made: the port is left as it is
-        return
-    handle = semaphores.open(f'/{name}_mutex'.encode(), 0, 0, 0)
-    if not handle:
-        yield ctypes.get_errno() == errno.ENOENT
-        return
-    try:
-        if semaphores.trywait(handle) != 0:
-            yield False  # a participant is opening the port
-            return
-        try:
-            yield True
-        finally:
-            semaphores.post(handle)
-    finally:
-        semaphores.close(handle)
-
-
 def _remove_segment(name: str, inode: int) -> List[str]:
     """
     Remove segment ``name``, with its lock file and semaphore, if it is file ``inode`` unowned.
@@ -306,17 +242,13 @@ def _remove_segment(name: str, inode: int) -> List[str]:
     The segment's owner (the participant that listens on a port, or writes
     into its own segment) holds an exclusive ``flock`` on its ``_el`` file for
     as long as it lives. Taking that lock without waiting is Fast DDS's own
-    zombie test (``Port::is_zombie``). A port's files go while the sweep holds
-    the port's named mutex too (:func:`_port_mutex`), as Fast DDS opens and
-    replaces a port: no participant is halfway through opening it, one that
-    comes meanwhile waits and then makes the port anew, and one that made
-    the file anew (another inode) keeps it. Returns the names removed.
+    zombie test (``Port::is_zombie``), and holding it while the files go is
+    what makes this safe beside Fast DDS: a participant that opens the port
+    meanwhile finds it locked and takes another, and one that made the file
+    anew (another inode) keeps it. Returns the names removed. (Fast DDS also
+    holds the port's named mutex to open one; taking it too made the sweep
+    miss ports that a sender to a dead listener keeps re-opening.)
     """
-    with _port_mutex(name) as free:
-        return _remove_unowned(name, inode) if free else []
-
-
-def _remove_unowned(name: str, inode: int) -> List[str]:
     lock_name = f'{name}_el'
     try:
         lock: Optional[int] = os.open(SHM_DIR / lock_name,
@@ -377,16 +309,14 @@ def _sweep_note(path: Path, noted: Dict[str, Optional[int]],
             removed += _remove_segment(name, inode)
     # A lock file or semaphore goes on its own only when its segment is gone.
     for name in sorted(n for n in names - used if not _is_segment(n)):
-        segment = _segment_of(name)
-        with _port_mutex(segment) as free:  # nobody is opening that port now
-            if not free or (SHM_DIR / segment).exists() or seen[name] is None \
-                    or _file_key(name) != seen[name]:
-                continue
-            try:
-                (SHM_DIR / name).unlink()
-                removed.append(name)
-            except OSError:
-                pass
+        if (SHM_DIR / _segment_of(name)).exists() or seen[name] is None \
+                or _file_key(name) != seen[name]:
+            continue
+        try:
+            (SHM_DIR / name).unlink()
+            removed.append(name)
+        except OSError:
+            pass
     # What is still there, the same file, stays noted (a port another process maps now):
     # once it is let go of without being removed, a later sweep (a run's end) removes it.
     # A file made anew under a noted name since is another participant's.

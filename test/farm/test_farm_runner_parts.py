@@ -234,16 +234,6 @@ def fake_segment(tmp_name: str) -> Path:
     return path
 
 
-def fake_mutex(port: str, count: int = 1) -> Path:
-    """Make a port's named mutex as Fast DDS does: a POSIX semaphore, free at count 1."""
-    semaphores = shm._SEMAPHORES
-    assert semaphores is not None, 'no POSIX semaphores in this C library'
-    handle = semaphores.open(f'/{port}_mutex'.encode(), os.O_CREAT | os.O_EXCL, 0o600, count)
-    assert handle, f'sem_open failed for {port}'
-    semaphores.close(handle)
-    return shm.SHM_DIR / f'sem.{port}_mutex'
-
-
 @pytest.fixture
 def registry(tmp_path, monkeypatch):
     """Give the test a registry of task notes of its own: other tests' sweeps stay out."""
@@ -297,7 +287,7 @@ def test_a_dead_owners_segment_goes_though_a_sender_maps_it_and_a_new_owners_sta
                                         for n in '0123')
     ports = [zombie, relocked, remade, shared]
     files = ports + [fake_segment(f'{p.name}_el') for p in ports] + [
-        fake_mutex(p.name) for p in ports]
+        fake_segment(f'sem.{p.name}_mutex') for p in ports]
     inode = {p.name: os.stat(p).st_ino for p in ports}
     note = registry / f'{os.getpid()}-0'  # a dead task
     owned = {zombie.name: inode[zombie.name], relocked.name: inode[relocked.name],
@@ -371,41 +361,20 @@ def test_a_segment_nobody_maps_stays_while_an_owner_holds_its_lock(registry):
         lock.unlink(missing_ok=True)
 
 
-def test_a_port_is_left_while_a_participant_holds_its_mutex(registry):
-    """Fast DDS opens, tests and replaces a port holding its named mutex: not under it."""
-    port = fake_segment(f'fastrtps_port4{uuid.uuid4().int % 10**6}')
-    lock = fake_segment(f'{port.name}_el')
-    mutex = fake_mutex(port.name, count=0)  # taken: a participant is opening the port
-    note = registry / f'{os.getpid()}-0'  # a dead task that owned the port
-    note.write_text(f'{port.name} {os.stat(port).st_ino}\n')
-    semaphores = shm._SEMAPHORES
-    try:
-        assert shm.clean_dead() == [] and port.exists() and lock.exists() and mutex.exists()
-        handle = semaphores.open(f'/{port.name}_mutex'.encode(), 0, 0, 0)
-        semaphores.post(handle)  # the participant is done with it
-        semaphores.close(handle)
-        assert sorted(shm.clean_dead()) == sorted([port.name, lock.name, mutex.name])
-        assert not note.exists()
-    finally:
-        for path in (note, port, lock, mutex):
-            path.unlink(missing_ok=True)
-
-
 def test_a_sweep_never_raises_on_what_it_cannot_read(registry):
-    """A note that is not text, a semaphore too short to map, a writer killed mid-note."""
+    """A note that is not text is left alone; a writer killed mid-note leaves no scratch."""
     port = fake_segment(f'fastrtps_port3{uuid.uuid4().int % 10**6}')
-    short = fake_segment(f'sem.{port.name}_mutex')  # mapped, it would be a SIGBUS
     (registry / f'{os.getpid()}-0').write_bytes(b'\xff\xfe not a note')
     (registry / f'{os.getpid()}-1').write_text(f'{port.name} {os.stat(port).st_ino}\n')
     dead_writer = registry / f'{os.getpid()}-2.{2 ** 22 + 1}.new'  # beyond pid_max
     dead_writer.write_text('half a note')
     try:
-        assert shm.clean_dead() == []
-        assert port.exists() and short.exists()  # its mutex unreadable: the port is left
+        assert shm.clean_dead() == [port.name] and not port.exists()
         assert not dead_writer.exists()  # the scratch file of a writer that is gone
         assert (registry / f'{os.getpid()}-0').exists()  # not a note: left as it is
+        assert not (registry / f'{os.getpid()}-1').exists()
     finally:
-        for path in [port, short] + list(registry.iterdir()):
+        for path in [port] + list(registry.iterdir()):
             path.unlink(missing_ok=True)
 
 
