@@ -225,6 +225,30 @@ def test_a_crashed_variation_is_a_case_of_its_own_with_its_seed(tmp_path):
     assert '| crashed (no verdict' in text and '## Failures (1)' in text
 
 
+def test_a_dask_task_the_scheduler_dropped_is_a_crash_not_an_error(monkeypatch):
+    """Dask's wait raises for a cancelled future (ci: "already forgotten", worker killed)."""
+    import distributed
+    from distributed.client import FuturesCancelledError
+    from r2d2_sim.farm.executors.dask_cluster import DaskPool
+
+    class Dropped:
+        status = 'cancelled'
+
+    class Running:
+        status = 'pending'
+
+    def wait(futures, timeout, return_when):
+        raise FuturesCancelledError([])
+    monkeypatch.setattr(distributed, 'wait', wait)
+    pool = DaskPool.__new__(DaskPool)  # no cluster: only its bookkeeping of futures
+    dropped, running = Dropped(), Running()
+    pool._pending = {dropped: Item(5, 5), running: Item(6, 6)}
+    (item, crash), = pool.wait(0.1)
+    assert item == Item(5, 5) and crash.key == 5 and crash.seed == 5
+    assert 'died' in crash.reason and 'cancelled' in crash.reason
+    assert list(pool._pending) == [running]
+
+
 # -- shared-memory segments ------------------------------------------------------------
 
 def fake_segment(tmp_name: str) -> Path:

@@ -19,6 +19,7 @@ package (and the farm's module, unless named by a file path that exists on
 every worker) must be installed on every worker.
 """
 
+from concurrent.futures import CancelledError
 from typing import Any, Dict, List, Optional, Sequence
 import uuid
 
@@ -50,6 +51,18 @@ def run_once(payload: Any, item: Item, record: str, run: str) -> TaskResult:
 
 # The error of a variation whose first start died: the runner reports it as a crash.
 CRASHED_BEFORE = 'its Dask worker died while running it (Dask started it again: not run twice)'
+
+
+def _why_lost(future: Any) -> str:
+    """Say in one line why a task that did not finish ended: erred, cancelled or lost."""
+    if future.status == 'cancelled':  # the scheduler forgot it, as after its worker died
+        return 'its Dask worker died or the scheduler dropped it (cancelled)'
+    try:
+        error = future.exception()
+    except CancelledError as exc:
+        error = exc
+    text = str(error).strip().splitlines()[0] if str(error).strip() else ''
+    return f'its Dask worker died ({type(error).__name__}: {text})'
 
 
 class DaskPool:
@@ -116,11 +129,13 @@ class DaskPool:
         if not self._pending:
             return []
         try:
-            done, _ = wait(list(self._pending), timeout=timeout_s, return_when='FIRST_COMPLETED')
+            wait(list(self._pending), timeout=timeout_s, return_when='FIRST_COMPLETED')
         except TimeoutError:
             return []
+        except CancelledError:
+            pass  # a task the scheduler dropped (its worker died): a crash, below
         finished: List[Finished] = []
-        for future in done:
+        for future in [f for f in self._pending if f.status != 'pending']:
             item = self._pending.pop(future)
             if future.status == 'finished':
                 result = future.result()
@@ -130,11 +145,7 @@ class DaskPool:
                 else:
                     finished.append((item, result))
             else:
-                error = future.exception()
-                text = str(error).strip().splitlines()[0] if str(error).strip() else ''
-                finished.append((item, Crash(item.key, item.seed,
-                                             f'its Dask worker died ({type(error).__name__}: '
-                                             f'{text})', '?', None)))
+                finished.append((item, Crash(item.key, item.seed, _why_lost(future), '?', None)))
         return finished
 
     def stop(self) -> None:
