@@ -117,10 +117,14 @@ def dask_cluster(tmp_path: Path, workers: int = 2):
                         str(scheduler_file)], tmp_path / 'scheduler.log')]
     try:
         deadline = time.monotonic() + DEADLINE_S
-        while not scheduler_file.exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
         import json
-        address = json.loads(scheduler_file.read_text())['address']
+        address = None
+        while address is None and time.monotonic() < deadline:
+            try:  # the scheduler writes the file: it may exist before its text does
+                address = json.loads(scheduler_file.read_text())['address']
+            except (OSError, ValueError, KeyError):
+                time.sleep(0.05)
+        assert address is not None, 'the Dask scheduler never wrote its address'
         for number in range(1, workers + 1):
             processes.append(start([sys.executable, '-m', 'distributed.cli.dask_worker',
                                     '--scheduler-file', str(scheduler_file), '--nthreads', '1',
