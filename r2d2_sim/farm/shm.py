@@ -103,7 +103,7 @@ def _with_companions(names: Iterable[str]) -> Set[str]:
     """Add the lock file and semaphore Fast DDS keeps beside each segment."""
     every = set(names)
     for name in list(every):
-        if name.endswith('_el') or name.startswith('sem.'):
+        if not _is_segment(name):
             continue
         every.add(name + '_el')
         if _PORT.match(name):
@@ -131,7 +131,7 @@ def note() -> None:
         current = segments_of()
         mine = {key for pid, key in _locks() if pid == os.getpid()}
         owned: Dict[str, int] = {}
-        for name in current:
+        for name in filter(_is_segment, current):
             file = _file_key(name)
             lock = _file_key(f'{name}_el')
             if file is not None and lock is not None and lock in mine:
@@ -216,13 +216,17 @@ def _locks() -> List[Tuple[int, Tuple[int, int, int]]]:
     return found
 
 
+def _key(stat: os.stat_result) -> Tuple[int, int, int]:
+    """Return a file's (major, minor, inode), as /proc/locks names it."""
+    return os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino
+
+
 def _file_key(name: str) -> Optional[Tuple[int, int, int]]:
-    """Return a /dev/shm file's (major, minor, inode) as /proc/locks names it; None if gone."""
+    """Return a /dev/shm file's :func:`_key`; None if it is gone."""
     try:
-        stat = os.stat(SHM_DIR / name)
+        return _key(os.stat(SHM_DIR / name))
     except OSError:
         return None
-    return os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino
 
 
 def _is_segment(name: str) -> bool:
@@ -258,9 +262,12 @@ def _remove_segment(name: str, inode: int) -> List[str]:
     except OSError:
         return []
     try:
+        held = None  # the lock file we hold, as its key
         if lock is not None:
-            if not stat_module.S_ISREG(os.fstat(lock).st_mode):
+            lock_stat = os.fstat(lock)
+            if not stat_module.S_ISREG(lock_stat.st_mode):
                 return []  # not a lock file Fast DDS made
+            held = _key(lock_stat)
             try:
                 fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
@@ -270,7 +277,7 @@ def _remove_segment(name: str, inode: int) -> List[str]:
             return []
         removed: List[str] = []
         for each in sorted(_with_companions([name])):
-            if each == lock_name and (lock is None or _file_key(each) != _fd_key(lock)):
+            if each == lock_name and (held is None or _file_key(each) != held):
                 continue  # not the lock file we hold: another's, made since
             try:
                 (SHM_DIR / each).unlink()
@@ -281,11 +288,6 @@ def _remove_segment(name: str, inode: int) -> List[str]:
     finally:
         if lock is not None:
             os.close(lock)  # and the lock with it
-
-
-def _fd_key(fd: int) -> Tuple[int, int, int]:
-    stat = os.fstat(fd)
-    return os.major(stat.st_dev), os.minor(stat.st_dev), stat.st_ino
 
 
 def _sweep_note(path: Path, noted: Dict[str, Optional[int]],
@@ -303,8 +305,11 @@ def _sweep_note(path: Path, noted: Dict[str, Optional[int]],
     for name in sorted(n for n in names if _is_segment(n)):
         # One mapped still, by senders to a port the dead task owned, is a zombie if it is
         # the very file the task owned and its lock is free.
-        key, owned = seen[name], noted[name]
-        inode = owned if name in used else None if key is None else key[2]
+        if name in used:
+            inode = noted[name]  # the owner's file, or None: not the task's to remove
+        else:
+            key = seen[name]
+            inode = None if key is None else key[2]
         if inode is not None:
             removed += _remove_segment(name, inode)
     # A lock file or semaphore goes on its own only when its segment is gone.
