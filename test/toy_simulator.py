@@ -207,6 +207,7 @@ MORE_DEFECTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
 # A hostile simulator: what the kit must bound (its time, what it prints).
 HOSTILE: Dict[str, str] = {
     'SLOW': 'every reply comes after 0.5 s',
+    'SLOW-PAUSE': 'PAUSED is taken 0.5 s after it is asked, the time running meanwhile',
     'HUGE': 'replies of megabytes: a spawn format, an entity name, a frame, error messages',
 }
 HUGE_TEXT = 2_000_000  # characters of each huge string
@@ -439,7 +440,8 @@ class ToySimulator:
     def _answer(self, handler, kind: str):
         """Wrap a handler: a Refused becomes its code; every other reply is OK."""
         def answer(request, response):
-            if self.broken('SLOW'):
+            if self.broken('SLOW') or (self.broken('SLOW-PAUSE') and kind == 'SetSimulationState'
+                                       and request.state.state == S.STATE_PAUSED):
                 time.sleep(SLOW_S)  # outside the lock: the other threads answer meanwhile
             with self.lock:
                 if kind in CHANGES:
