@@ -30,7 +30,6 @@ import time
 import pytest
 
 from helpers import REPO
-from r2d2_sim.farm import shm
 from r2d2_sim.farm.runner import run_farm
 from test_farm_runner import (
     alive, check_against_fingerprints, DEADLINE_S, FARM, Killer, REFERENCE_SEEDS)
@@ -74,11 +73,7 @@ def check_run(run, killer: Killer, tmp_path: Path, executor: str) -> None:
     assert f'seed {VICTIM}' in (tmp_path / 'report' / 'report.md').read_text()
     assert not alive(killer.pid)
     assert killer.segments, 'the victim held no Fast DDS segment: nothing was checked'
-    # A segment another process shares (a port others send to too), now or at the kill, is
-    # not the victim's alone.
-    left = {name for name in killer.segments if (shm.SHM_DIR / name).exists()}
-    left = sorted(left - shm.in_use(left) - killer.shared)
-    assert left == [], f'segments of the killed worker left in /dev/shm: {killer.describe(left)}'
+    assert killer.left() == [], 'segments of the killed worker left in /dev/shm'
 
 
 def test_a_ray_cluster_of_two_nodes_gives_the_pinned_runs_and_names_a_crash(tmp_path,
