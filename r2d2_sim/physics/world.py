@@ -126,6 +126,8 @@ class SimWorld:
         self.bodies: Dict[str, Body] = {}
         self.removed_since_built = 0  # bodies removed since the world was last built
         self.builds = 0  # how often the physics world was built (each clear() builds it anew)
+        # Threads a large batch of rays is cast on (raycast.cast_rays): the same answers.
+        self.ray_threads = 1
         self._free_ray_groups = list(RAY_GROUPS)
         self._client: Optional[BulletClient] = None
         problem = display_problem() if gui else None
@@ -414,11 +416,11 @@ class SimWorld:
         ``mask``: the groups the rays can hit; ``ray_mask(group)`` passes
         through the links a robot put in its own ray group.
         """
-        return cast_rays(self._live_client, starts, ends, mask)
+        return cast_rays(self._live_client, starts, ends, mask, threads=self.ray_threads)
 
     def cast_requests(self, requests: Sequence[RayRequest]) -> List[numpy.ndarray]:
         """Cast several sensors' rays in as few calls as their robots allow (see raycast)."""
-        return cast_requests(self._live_client, requests)
+        return cast_requests(self._live_client, requests, self.ray_threads)
 
     def render(self, width_px: int, height_px: int, view: Sequence[float],
                projection: Sequence[float]) -> Tuple[bytes, numpy.ndarray]:

@@ -22,7 +22,7 @@ from r2d2_sim.ros.control_services import ControlServices
 from r2d2_sim.ros.fleet import Fleet
 from r2d2_sim.ros.mirror import MirroringNode, start_sink
 from r2d2_sim.ros.outputs import ClockOutput
-from r2d2_sim.ros.parameters import declare_parameters
+from r2d2_sim.ros.parameters import declare_parameters, with_ray_threads
 from r2d2_sim.ros.robot_interfaces import RobotInterfaces
 from r2d2_sim.ros.standard import server as standard
 from r2d2_sim.ros.standard.server import SimulationInterfaces
@@ -75,7 +75,8 @@ class SimNode(MirroringNode):
         # first run from watch_robots on), so it is never None.
         simulation: Optional[Simulation] = None
         try:
-            self.config, specs = declare_parameters(self)
+            config, specs = declare_parameters(self)
+            self.config = with_ray_threads(config)
             self.sink = start_sink(self.config, self.get_name(), self.get_logger())
             simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
                                     error=self._log_blow_up, namespace=self.get_namespace())

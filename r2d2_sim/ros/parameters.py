@@ -8,7 +8,9 @@ Each robot listed in ``robots`` has the parameters it sets as
 ``NAME.parameter`` (and ``NAME.namespace``), declared the same way.
 """
 
+import dataclasses
 import difflib
+import os
 from typing import Any, Callable, Dict, List, Tuple
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -55,6 +57,19 @@ def declare_parameters(node: Node) -> Tuple[SimConfig, List[RobotSpec]]:
         _declare_typed(node, spec._replace(name=name), value)
     _warn_unknown_overrides(node, overrides, list(config.robots))
     return config, specs
+
+
+def with_ray_threads(config: SimConfig) -> SimConfig:
+    """
+    Return ``config`` with ``ray_threads`` auto (0) made what a node takes: 2 on two cores.
+
+    The node's physics thread casts its scans while the executor's thread
+    mostly waits, so a second core is there to cast on; a process allowed one
+    core (``taskset``, a container's CPU set) casts on one.
+    """
+    if config.ray_threads:
+        return config
+    return dataclasses.replace(config, ray_threads=min(2, len(os.sched_getaffinity(0))))
 
 
 def _declare_typed(node: Node, spec: ParameterSpec, value: Any) -> None:

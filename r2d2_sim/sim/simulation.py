@@ -134,6 +134,7 @@ class Simulation:
         self.worlds = WorldFiles(places, sdf, self.time_step_s)
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
                               gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
+        self.world.ray_threads = config.ray_threads or 1  # auto: one per core here (see table)
         self.entities = Entities(self.world, config.world_frame_id, sdf)
         # What a full reset builds again: every start-up entity, in load order.
         self._startup = Startup(self.world, warn, error)

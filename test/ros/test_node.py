@@ -145,6 +145,16 @@ def test_timeout_zero_disables_braking(ros):
     assert velocity[0] == pytest.approx(0.3, rel=0.05)
 
 
+def test_the_node_casts_its_scans_on_two_threads_when_it_may_use_two_cores(ros, monkeypatch):
+    """ray_threads auto (0) is 2 in the node on two cores or more, 1 on one; a value stays."""
+    import os
+    for cores, expected in ((1, 1), (2, 2), (8, 2)):
+        monkeypatch.setattr(os, 'sched_getaffinity', lambda pid, n=cores: set(range(n)))
+        sim = make_sim(ros)
+        assert (sim.config.ray_threads, sim.simulation.world.ray_threads) == (expected, expected)
+    assert make_sim(ros, ray_threads=3).simulation.world.ray_threads == 3
+
+
 def test_huge_command_is_clamped_preserving_curvature(sim, probe):
     """1e308 on both axes gives wheels at the limit, turning, all finite."""
     probe.send(1e308, 1e308)

@@ -49,3 +49,17 @@ def test_batched_lidar_points_are_the_per_robot_points_bit_for_bit(make):
     measurements = scans_step(simulation)
     for robot, measurement in zip(simulation.robots, measurements):
         assert measurement.lidar.tobytes() == robot.lidar.scan().tobytes(), robot.name
+
+
+def test_scans_cast_on_two_threads_are_the_scans_on_one_bit_for_bit(make):
+    """ray_threads 2 against 1 (the core's auto), the same drive: every scan and lidar alike."""
+    extra = dict(cmd_vel_timeout=0.0, lidar3d_rate=10.0, lidar3d_rings=4, lidar3d_samples=90)
+    one, two = make(**fleet(**extra)), make(**fleet(ray_threads=2, **extra))
+    assert (one.world.ray_threads, two.world.ray_threads) == (1, 2)
+    for simulation in (one, two):
+        for robot in simulation.robots:
+            robot.command(0.3, 0.5)
+    for _ in range(3):
+        for a, b in zip(scans_step(one), scans_step(two)):
+            assert a.scan.tobytes() == b.scan.tobytes()
+            assert a.lidar.tobytes() == b.lidar.tobytes()

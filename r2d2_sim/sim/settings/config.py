@@ -60,6 +60,7 @@ class SimConfig:
     physics_rate_hz: float                                  # physics_rate
     real_time_factor: float
     publish_rate_hz: float                                  # publish_rate
+    ray_threads: int
     cmd_vel_timeout_s: float                                # cmd_vel_timeout
     start_paused: bool
     wheel_radius_m: float                                   # wheel_radius

@@ -249,6 +249,11 @@ PARAMETERS: List[Parameter] = [
               'A rate that does not divide physics_rate (50 Hz at 240 Hz) publishes at the '
               'first step after each period.',
               'publish_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'every step')),
+    Parameter('ray_threads', 'integer', 0,
+              'Threads a call of 128 rays or more (a scan) is cast on, the ranges the same bit '
+              'for bit; 0 = auto: 2 in sim_node when it may use two cores, 1 in the ROS-free '
+              'core (farm workers and learning environments run one per core).',
+              'ray_threads', read.integer, Bounds(1, 64, '', 'auto')),
     Parameter('cmd_vel_timeout', 'double', 0.5,
               'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
               'cmd_vel_timeout_s', read.non_negative, per_robot=True),
