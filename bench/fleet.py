@@ -26,6 +26,9 @@ N robots (1, 2, 4, 8, 16) stand in a row 2 m apart, in one world.
   ``cmd_vel_timeout`` 0 so it never stops: circles of 0.5 m, 2 m apart), since
   a parked robot's physics costs less.
 
+- **Ray threads**: 16 robots driving at real time, ``ray_threads`` 1 (every
+  scan on the physics thread) and auto (two threads on two cores), in turns.
+
 Prints a table and writes ``bench/fleet.json``. Numbers are printed, never asserted.
 """
 
@@ -45,6 +48,7 @@ STEP_BUDGET_US = 1e6 / 240.0  # a step's share of one core at 240 Hz
 REAL_TIME_ROBOTS = (1, 2, 4, 8, 12, 16, 24, 28)  # a world holds at most 29 with a laser
 KEEPS_REAL_TIME_HZ = 239.0  # the lowest one-second window's rate
 DRIVE = (0.3, 0.6)  # m/s, rad/s: a circle of 0.5 m
+RAY_THREADS_ROBOTS = 16  # scans on one thread against two, in turns, at this many
 
 
 def fleet(count):
@@ -120,7 +124,8 @@ def window_rates(arrivals, start, window_s, windows):
     return rates
 
 
-def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=False):
+def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=False,
+                      parameters=None):
     """
     Achieved rate and CPU share of sim_node at rtf 1 with N robots and the default outputs.
 
@@ -130,13 +135,14 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
     reached KEEPS_REAL_TIME_HZ; the rate and CPU reported are their medians.
     ``~/get_status`` is asked once a window, and its longest answer kept.
     ``driving``: every robot drives a circle from the start (one command
-    each, no timeout).
+    each, no timeout). ``parameters``: more of sim_node's.
     """
     from clock_gaps import ClockListener
     from r2d2_sim.testing import SimProcess
     results = {}
     for count in counts:
         extra = {'cmd_vel_timeout': 0.0} if driving else {}
+        extra.update(parameters or {})
         sim = SimProcess(domain_id=domain_id, state_subscriptions=False, timeout_s=60.0,
                          **fleet(count), **extra)
         listener = ClockListener(domain_id)
@@ -176,6 +182,26 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
     return results
 
 
+def measure_ray_threads(domain_id, count, rounds, settle_s, window_s, windows):
+    """
+    ``count`` robots driving at rtf 1: scans on one thread against auto (two), in turns.
+
+    The same measurement as the real-time rows, ``ray_threads`` 1 (every
+    scan cast on the physics thread, as before the parameter) and 0 (auto:
+    two threads on two cores), alternating ``rounds`` times: each one's
+    lowest window and CPU share per round.
+    """
+    results = {'robots': count, 'one_thread': [], 'auto': []}
+    for _ in range(rounds):
+        for key, threads in (('one_thread', 1), ('auto', 0)):
+            entry = measure_real_time(domain_id, [count], settle_s, window_s, windows,
+                                      driving=True, parameters={'ray_threads': threads})
+            entry = entry[str(count)]
+            results[key].append({'lowest_hz': entry['lowest_hz'], 'rate_hz': entry['rate_hz'],
+                                 'cpu_share': entry['cpu_share']})
+    return results
+
+
 def print_table(results):
     """Print the throughput and real-time rows."""
     print(f'\n{"robots":>6} | {"config":>8} | {"node/raw (median)":>18} | '
@@ -193,6 +219,14 @@ def print_table(results):
             rates = f'{entry["rate_hz"]:.2f}, {entry["lowest_hz"]:.2f}'
             print(f'{entry["robots"]:>6} | {rates:>40} | {entry["cpu_share"] * 100:>12.1f}% | '
                   f'{entry["status_answer_ms_max"]:>16.1f} ms | {keeps}')
+    threads = results.get('ray_threads')
+    if threads:
+        print(f'\n{threads["robots"]} robots driving, in turns: lowest 1 s window (Hz), CPU of '
+              'a core')
+        for key, title in (('one_thread', 'ray_threads 1'), ('auto', 'ray_threads auto (2)')):
+            rounds = ', '.join(f'{r["lowest_hz"]:.1f} ({r["cpu_share"] * 100:.0f}%)'
+                               for r in threads[key])
+            print(f'{title:>22}: {rounds}')
 
 
 def main(argv=None):
@@ -210,7 +244,10 @@ def main(argv=None):
                                               window_s, windows),
                'real_time_driving': measure_real_time(args.domain + 1, REAL_TIME_ROBOTS,
                                                       settle_s, window_s, windows,
-                                                      driving=True)}
+                                                      driving=True),
+               'ray_threads': measure_ray_threads(args.domain + 1, RAY_THREADS_ROBOTS,
+                                                  2 if args.quick else 3, settle_s, window_s,
+                                                  windows)}
     write_json(args.output, results)
     print_table(results)
     print(f'\nwritten to {args.output}')
