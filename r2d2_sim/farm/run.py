@@ -30,9 +30,11 @@ __all__ = ['Outcome', 'run_scenario', 'reached_safely', 'safe', 'DeterminismErro
            'DEFAULT_PARAMETERS', 'TRAJECTORY_RATE_HZ', 'GOAL']
 
 # The simulator's parameters under every run, before the scenario's and the caller's:
-# a command holds until the next one (as in the r2d2_sim fixture), and what the robot
-# touches is published on contacts, so that a failure's recording shows it.
-DEFAULT_PARAMETERS: Mapping[str, Any] = {'cmd_vel_timeout': 0.0, 'publish_contacts': True}
+# a command holds until the next one (as in the r2d2_sim fixture), what the robot
+# touches is published on contacts, so that a failure's recording shows it, and the
+# scans are cast on one thread (a farm runs a variation per core).
+DEFAULT_PARAMETERS: Mapping[str, Any] = {'cmd_vel_timeout': 0.0, 'publish_contacts': True,
+                                         'ray_threads': 1}
 # The base's trajectory is kept at this rate (simulated Hz).
 TRAJECTORY_RATE_HZ = 10.0
 # The goal region's name in the run's watch.

@@ -173,7 +173,8 @@ class NavSettings:
             'scan_range_max': float(self.scan_range_m), 'imu_rate': 0.0,
             'max_linear_velocity': float(self.max_linear_m_s),
             'max_angular_velocity': float(self.max_angular_rad_s), 'cmd_vel_timeout': 0.0,
-            'world': self.space.world, 'real_time_factor': 0.0}
+            'world': self.space.world, 'real_time_factor': 0.0,
+            'ray_threads': 1}  # vector envs run one per core (sim_parameters may say 2)
         if self.robots > 1:
             parameters['robots'] = list(self.names)
             for name, lane in zip(self.names, self.lanes()):

@@ -29,7 +29,13 @@ def forward(harness, scenario):
 def test_the_goal_is_reached_when_the_ramp_says():
     """A goal circle of 0.1 m around x = 1.5: its edge at 1.4 m, reached at 4.8 s."""
     scenario = Scenario(start=Pose(0.0, 0.0, 0.0), goal=circle_region(1.5, 0.0, 0.1), seed=3)
-    outcome = run_scenario(scenario, forward, seconds=10.0, parameters=QUIET)
+    threads = []
+
+    def forward_noting_threads(harness, scenario):
+        threads.append(harness.sim.simulation.world.ray_threads)
+        forward(harness, scenario)
+    outcome = run_scenario(scenario, forward_noting_threads, seconds=10.0, parameters=QUIET)
+    assert threads == [1]  # a farm runs a variation per core: its scans on one thread
     expected_s = 0.3 + (1.4 - 0.045) / 0.3  # 4.817 s
     assert outcome.passed and outcome.reason == ''
     assert outcome.time_to_goal_s == pytest.approx(expected_s, abs=0.05)

@@ -63,6 +63,10 @@ def test_pettingzoos_tests_pass_over_ros():
 def test_the_same_seed_and_actions_give_the_same_run_in_both_backends(gym_make, env_id):
     """Seeds 11, 12, then 11 again in each: every run equal across the backends, noise and all."""
     ros, inproc = gym_make(env_id, backend='ros', **GYM_NOISY), gym_make(env_id, **GYM_NOISY)
+    # Both cast their scans on one thread (vector envs run one per core): the node's auto
+    # would take two.
+    assert ros.unwrapped.backend.harness.sim.simulation.world.ray_threads == 1
+    assert inproc.unwrapped.backend.simulation.world.ray_threads == 1
     for seed in (11, 12, 11):
         assert rollout(ros, seed, actions(seed)) == rollout(inproc, seed, actions(seed)), seed
 

@@ -251,8 +251,8 @@ PARAMETERS: List[Parameter] = [
               'publish_rate_hz', read.non_negative, Bounds(0.001, 10000.0, 'Hz', 'every step')),
     Parameter('ray_threads', 'integer', 0,
               'Threads a call of 128 rays or more (a scan) is cast on, the ranges the same bit '
-              'for bit; 0 = auto: 2 in sim_node when it may use two cores, 1 in the ROS-free '
-              'core (farm workers and learning environments run one per core).',
+              'for bit; 0 = auto: 2 in a node (sim_node, SimHarness) that may use two cores, 1 '
+              'in the ROS-free core. Farms and learning environments set 1: one per core.',
               'ray_threads', read.integer, Bounds(1, 64, '', 'auto')),
     Parameter('cmd_vel_timeout', 'double', 0.5,
               'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
