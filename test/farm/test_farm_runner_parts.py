@@ -229,7 +229,7 @@ def test_a_dask_task_the_scheduler_dropped_is_a_crash_not_an_error(monkeypatch):
     """Dask's wait raises for a cancelled future (ci: "already forgotten", worker killed)."""
     import distributed
     from distributed.client import FuturesCancelledError
-    from r2d2_sim.farm.executors.dask_cluster import DaskPool
+    from r2d2_sim.farm.executors.dask_cluster import take_finished
 
     class Dropped:
         status = 'cancelled'
@@ -240,13 +240,12 @@ def test_a_dask_task_the_scheduler_dropped_is_a_crash_not_an_error(monkeypatch):
     def wait(futures, timeout, return_when):
         raise FuturesCancelledError([])
     monkeypatch.setattr(distributed, 'wait', wait)
-    pool = DaskPool.__new__(DaskPool)  # no cluster: only its bookkeeping of futures
     dropped, running = Dropped(), Running()
-    pool._pending = {dropped: Item(5, 5), running: Item(6, 6)}
-    (item, crash), = pool.wait(0.1)
+    pending = {dropped: Item(5, 5), running: Item(6, 6)}
+    (item, crash), = take_finished(pending, 0.1)
     assert item == Item(5, 5) and crash.key == 5 and crash.seed == 5
     assert 'died' in crash.reason and 'cancelled' in crash.reason
-    assert list(pool._pending) == [running]
+    assert list(pending) == [running]
 
 
 # -- shared-memory segments ------------------------------------------------------------

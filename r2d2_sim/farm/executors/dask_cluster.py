@@ -27,7 +27,7 @@ from r2d2_sim.farm.executors.base import (
     check_pickles, check_reachable, Crash, ExecutorError, Finished, ship_by_value)
 from r2d2_sim.farm.job import Item, run_variation, TaskResult
 
-__all__ = ['DaskPool', 'run_once']
+__all__ = ['DaskPool', 'run_once', 'take_finished']
 
 SCHEDULER_PORT = 8786
 CONNECT_TIMEOUT = '10s'
@@ -63,6 +63,36 @@ def _why_lost(future: Any) -> str:
         error = exc
     text = str(error).strip().splitlines()[0] if str(error).strip() else ''
     return f'its Dask worker died ({type(error).__name__}: {text})'
+
+
+def take_finished(pending: Dict[Any, Item], timeout_s: float) -> List[Finished]:
+    """
+    Wait up to ``timeout_s`` for one of ``pending``'s futures; take out and return those done.
+
+    A future the scheduler dropped (its worker died: Dask's ``wait`` then
+    raises for it, "already forgotten") is a crash with its seed, as is
+    one that failed; a task that said it crashed before running is one too.
+    """
+    from distributed import wait
+    try:
+        wait(list(pending), timeout=timeout_s, return_when='FIRST_COMPLETED')
+    except TimeoutError:
+        return []
+    except CancelledError:
+        pass  # a task the scheduler dropped: a crash, below
+    finished: List[Finished] = []
+    for future in [f for f in pending if f.status != 'pending']:
+        item = pending.pop(future)
+        if future.status == 'finished':
+            result = future.result()
+            if result.error == CRASHED_BEFORE:
+                finished.append((item, Crash(item.key, item.seed, CRASHED_BEFORE,
+                                             result.host, None)))
+            else:
+                finished.append((item, result))
+        else:
+            finished.append((item, Crash(item.key, item.seed, _why_lost(future), '?', None)))
+    return finished
 
 
 class DaskPool:
@@ -125,28 +155,7 @@ class DaskPool:
 
     def wait(self, timeout_s: float) -> List[Finished]:
         """Return the tasks finished, waiting up to ``timeout_s`` for one."""
-        from distributed import wait
-        if not self._pending:
-            return []
-        try:
-            wait(list(self._pending), timeout=timeout_s, return_when='FIRST_COMPLETED')
-        except TimeoutError:
-            return []
-        except CancelledError:
-            pass  # a task the scheduler dropped (its worker died): a crash, below
-        finished: List[Finished] = []
-        for future in [f for f in self._pending if f.status != 'pending']:
-            item = self._pending.pop(future)
-            if future.status == 'finished':
-                result = future.result()
-                if result.error == CRASHED_BEFORE:
-                    finished.append((item, Crash(item.key, item.seed, CRASHED_BEFORE,
-                                                 result.host, None)))
-                else:
-                    finished.append((item, result))
-            else:
-                finished.append((item, Crash(item.key, item.seed, _why_lost(future), '?', None)))
-        return finished
+        return take_finished(self._pending, timeout_s) if self._pending else []
 
     def stop(self) -> None:
         """Cancel the tasks not finished."""
