@@ -198,6 +198,10 @@ MORE_DEFECTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
                         ('ENTITY-04',)),
     'TIME-half': ('a reset of the time takes it back by half, not to the start',
                   ('STATE-14', 'RESET-04', 'RESET-05', 'RESET-13')),
+    'TIME-zero-on-play': ('STOPPED keeps the time, and a clock of 0 goes out as it plays',
+                          ('STATE-14',)),
+    'TIME-zero-while-stopped': ('STOPPED keeps the time, and the clock says 0 while stopped',
+                                ('STATE-14',)),
     'BOUNDS-constant': ('GetEntityBounds gives every entity the same 1 m box', ('BOUNDS-03',)),
     'FILTER-12-name': ('the name filter is ignored when another filter is given',
                        ('FILTER-12',)),
@@ -388,6 +392,8 @@ class ToySimulator:
         with self.lock:
             if self.state == S.STATE_PLAYING:
                 self._step()
+            elif self.state == S.STATE_STOPPED and self.broken('TIME-zero-while-stopped'):
+                self.clock.publish(Clock())  # 0 while stopped; playing goes on from the old time
 
     # -- worlds and resets -------------------------------------------------------------
 
@@ -431,7 +437,8 @@ class ToySimulator:
         with self.lock:
             if self.broken('STATE-07') and self.state == S.STATE_PAUSED:
                 return
-            self._reset(time=not self.broken('STATE-14'), state=True,
+            keeps = self.defect in ('STATE-14', 'TIME-zero-on-play', 'TIME-zero-while-stopped')
+            self._reset(time=not keeps, state=True,
                         spawned=not self.broken('STATE-13'))
             self.state = S.STATE_STOPPED
 
@@ -504,6 +511,8 @@ class ToySimulator:
                 return
             if self.broken('STATE-06') and now == S.STATE_PAUSED:
                 raise Refused(transition.INCORRECT_TRANSITION, 'no')
+            if self.broken('TIME-zero-on-play') and now == S.STATE_STOPPED:
+                self.clock.publish(Clock())  # 0 as it leaves STOPPED, then the old time
             self.state = S.STATE_PLAYING
         elif wanted == S.STATE_PAUSED:
             if now == S.STATE_STOPPED:

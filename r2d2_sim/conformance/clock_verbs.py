@@ -9,7 +9,7 @@ reach a time or to go back. It owns the subscription and the latest time;
 the stepping itself is the simulation part's ``advance``.
 """
 
-from typing import Any, Callable, Optional, Tuple, TYPE_CHECKING
+from typing import Any, Callable, List, Optional, Sequence, Tuple, TYPE_CHECKING
 
 from r2d2_sim.conformance.calls import TargetCalls
 from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
@@ -33,7 +33,7 @@ class TargetClock:
         self.present = False  # someone publishes the clock topic, and we are linked to it
         self._ns: Optional[int] = None  # the latest time received
         self._count = 0  # messages received
-        self._low: Optional[int] = None  # the lowest time received since mark_low()
+        self._since: Optional[List[int]] = None  # every time received since expect_start's mark
         self._subscription: Any = None
 
     def listen(self) -> None:
@@ -54,8 +54,8 @@ class TargetClock:
         def keep(msg: Any) -> None:
             ns = self._ns = msg.clock.sec * 10**9 + msg.clock.nanosec
             self._count += 1
-            if self._low is None or ns < self._low:
-                self._low = ns
+            if self._since is not None:
+                self._since.append(ns)
         subscription = self._subscription = t.node.create_subscription(Clock, topic, keep, qos)
         self.present = t.wait(lambda: subscription.get_publisher_count() > 0)
 
@@ -121,31 +121,51 @@ class TargetClock:
                                f'{expected_ns} ns')
         return got
 
-    def expect_start(self, step_ns: int, doing: str, slack_steps: int) -> None:
+    def expect_start(self, step_ns: int, doing: str, slack_steps: int, run_steps: int) -> None:
         """
         Pause, step once: raise ClauseFailed unless the clock reads one step from the start.
 
         The start is time 0, where a simulator starts (as it is launched)
         and where a reset of the time puts it back ("Reset simulation time
-        to start"). Where the kit must play to pause (from STOPPED), the
-        simulator runs meanwhile for as long as the two calls take (under
-        load, more than ``slack_steps``): then the earliest time the clock
-        read while it played counts, which is near the start only if the
-        time went back, and up to ``slack_steps`` are allowed on it.
+        to start"); ``run_steps`` ran before the reset. Where the kit must
+        play to pause (from STOPPED), the simulator runs meanwhile for as long
+        as the two calls take (under load, more than ``slack_steps``): then
+        the clock counts from the earliest time it read meanwhile, if the
+        readings climb from there to the last one by less than half of
+        ``run_steps`` at a time (one low reading, a stray 0 before a time
+        that went on, does not count), with ``slack_steps`` allowed on it.
         """
         sim = self.sim
         paused = (self.target.declared('SIMULATION_STATE_GETTING')
                   and sim.state() == sim.S.STATE_PAUSED)
         self.settled()
-        self._low = None
-        sim.pause()
-        got = self.after(lambda: sim.advance(1), f'{doing} and one step')
+        since: List[int] = []
+        self._since = since
+        try:
+            sim.pause()
+            got = self.after(lambda: sim.advance(1), f'{doing} and one step')
+        finally:
+            self._since = None
         extra = 0 if paused else slack_steps
-        low = self._low if self._low is not None else got
-        start = got if paused else min(got, low + step_ns)  # as if stepped once from there
+        low = _steady_low(since + [got], run_steps // 2 * step_ns)
+        start = got if paused or low is None else min(got, low + step_ns)  # stepped from low
         if start > (1 + extra) * step_ns + 1 + extra:  # a ns a step of rounding
             most = (f' (or up to {extra} more, run while the kit played to pause: the earliest '
-                    f'read then was {low} ns)' if extra else '')
+                    f'read then was {min(since + [got])} ns)' if extra else '')
             raise ClauseFailed(f'after {doing}, one step reads {got} ns on {self.topic}: the time '
                                f'is not back at the start (0), where one step reads {step_ns} ns'
                                f'{most}')
+
+
+def _steady_low(readings: Sequence[int], max_jump_ns: int) -> Optional[int]:
+    """
+    Return the lowest of ``readings`` if they climb steadily from it to the last; else None.
+
+    Steadily: never down, never more than ``max_jump_ns`` at a time. A low
+    reading the time did not go on from (a stray 0) gives None.
+    """
+    first = min(range(len(readings)), key=readings.__getitem__)  # the first of the lowest
+    climb = readings[first:]
+    if all(0 <= b - a <= max_jump_ns for a, b in zip(climb, climb[1:])):
+        return climb[0]
+    return None

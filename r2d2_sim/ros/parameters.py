@@ -69,7 +69,9 @@ def with_ray_threads(config: SimConfig) -> SimConfig:
     """
     if config.ray_threads:
         return config
-    return dataclasses.replace(config, ray_threads=min(2, len(os.sched_getaffinity(0))))
+    affinity = getattr(os, 'sched_getaffinity', None)  # Linux; elsewhere the machine's cores
+    cores = len(affinity(0)) if affinity is not None else (os.cpu_count() or 1)
+    return dataclasses.replace(config, ray_threads=min(2, cores))
 
 
 def _declare_typed(node: Node, spec: ParameterSpec, value: Any) -> None:

@@ -69,6 +69,25 @@ def test_several_robots_requests_on_threads_are_the_same(cluttered):
     assert all(numpy.array_equal(a, b) for a, b in zip(one, two))
 
 
+def test_the_world_casts_on_its_ray_threads(cluttered, monkeypatch):
+    """SimWorld.cast_rays and cast_requests ask PyBullet for ray_threads threads."""
+    world, _ = cluttered
+    calls = []
+    cast = world.client.rayTestBatch
+
+    def noted(starts, ends, **kwargs):
+        calls.append(kwargs.get('numThreads', 1))
+        return cast(starts, ends, **kwargs)
+    monkeypatch.setattr(world.client, 'rayTestBatch', noted)
+    starts, ends = circle((0.0, -1.0, 0.3), 360)
+    monkeypatch.setattr(world, 'ray_threads', 2)
+    world.cast_rays(starts, ends)
+    world.cast_requests([RayRequest(starts, ends, 8)])
+    monkeypatch.setattr(world, 'ray_threads', 1)
+    world.cast_rays(starts, ends)
+    assert calls == [2, 2, 1]
+
+
 class _Recorder:
     """A client that answers every ray with a miss and notes each call's ray count and threads."""
 

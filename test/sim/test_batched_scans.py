@@ -51,11 +51,19 @@ def test_batched_lidar_points_are_the_per_robot_points_bit_for_bit(make):
         assert measurement.lidar.tobytes() == robot.lidar.scan().tobytes(), robot.name
 
 
-def test_scans_cast_on_two_threads_are_the_scans_on_one_bit_for_bit(make):
+def test_scans_cast_on_two_threads_are_the_scans_on_one_bit_for_bit(make, monkeypatch):
     """ray_threads 2 against 1 (the core's auto), the same drive: every scan and lidar alike."""
     extra = dict(cmd_vel_timeout=0.0, lidar3d_rate=10.0, lidar3d_rings=4, lidar3d_samples=90)
     one, two = make(**fleet(**extra)), make(**fleet(ray_threads=2, **extra))
     assert (one.world.ray_threads, two.world.ray_threads) == (1, 2)
+    threads = {}  # each world's calls: (rays, numThreads), as PyBullet was asked
+    for name, simulation in (('one', one), ('two', two)):
+        client, calls = simulation.world.client, threads.setdefault(name, [])
+
+        def noted(starts, ends, *, _cast=client.rayTestBatch, _calls=calls, **kwargs):
+            _calls.append((len(starts), kwargs.get('numThreads', 1)))
+            return _cast(starts, ends, **kwargs)
+        monkeypatch.setattr(client, 'rayTestBatch', noted)
     for simulation in (one, two):
         for robot in simulation.robots:
             robot.command(0.3, 0.5)
@@ -63,3 +71,5 @@ def test_scans_cast_on_two_threads_are_the_scans_on_one_bit_for_bit(make):
         for a, b in zip(scans_step(one), scans_step(two)):
             assert a.scan.tobytes() == b.scan.tobytes()
             assert a.lidar.tobytes() == b.lidar.tobytes()
+    # A call per robot and step (its laser's 360 rays and its lidar's 360): two threads each.
+    assert threads['one'] == [(720, 1)] * 18 and threads['two'] == [(720, 2)] * 18

@@ -45,7 +45,7 @@ def _time_back(t: Target, scope: int) -> None:
     _, step_ns = t.clock.step_ns()
     t.clock.after(lambda: t.sim.advance(RUN), f'{RUN} steps')
     t.sim.reset(scope)
-    t.clock.expect_start(step_ns, f'ResetSimulation scope {scope}', SLACK)
+    t.clock.expect_start(step_ns, f'ResetSimulation scope {scope}', SLACK, RUN)
 
 
 def _moved(t: Target, linear=(0.0, 0.0, 0.0)):
@@ -192,4 +192,4 @@ def time_and_state(t: Target) -> None:
     position = t.entities.position(name)
     if not close(position, start):
         raise ClauseFailed(f'{name} is at {fmt(position)} after scope 3, spawned at {fmt(start)}')
-    t.clock.expect_start(step_ns, 'ResetSimulation scope 3', SLACK)
+    t.clock.expect_start(step_ns, 'ResetSimulation scope 3', SLACK, RUN)

@@ -185,4 +185,4 @@ def stopped_resets_time(t: Target) -> None:
     _, step_ns = t.clock.step_ns()
     t.clock.after(lambda: t.sim.advance(RUN), f'{RUN} steps')
     t.sim.stop()
-    t.clock.expect_start(step_ns, 'STOPPED', SLACK)
+    t.clock.expect_start(step_ns, 'STOPPED', SLACK, RUN)
