@@ -147,11 +147,12 @@ class TargetClock:
         finally:
             self._since = None
         extra = 0 if paused else slack_steps
-        low = _steady_low(since + [got], run_steps // 2 * step_ns)
+        readings = since + [got]  # got was read last: never empty
+        low = _steady_low(readings, run_steps // 2 * step_ns)
         start = got if paused or low is None else min(got, low + step_ns)  # stepped from low
         if start > (1 + extra) * step_ns + 1 + extra:  # a ns a step of rounding
             most = (f' (or up to {extra} more, run while the kit played to pause: the earliest '
-                    f'read then was {min(since + [got])} ns)' if extra else '')
+                    f'read then was {min(readings)} ns)' if extra else '')
             raise ClauseFailed(f'after {doing}, one step reads {got} ns on {self.topic}: the time '
                                f'is not back at the start (0), where one step reads {step_ns} ns'
                                f'{most}')

@@ -23,10 +23,10 @@ the task held its ``_el`` lock, and that lock free: a zombie, which live
 senders may still map; Fast DDS's own test), and its note once none is left
 (one another process uses, a new owner's, stays noted for a later call).
 A segment is removed only while the sweep holds its ``_el`` lock itself, and
-its lock file and semaphore only with it. Anyone
-on the host may call it, one sweep at a time: the local pool after a worker
-dies and at the end of a run, every task on a cluster's host as it starts,
-and the farm on every host at the end.
+its lock file and semaphore only with it. Anyone on the host may call it,
+one sweep at a time: the local pool after a worker dies and at the end of a
+run, every task on a cluster's host as it starts, and the farm on every host
+at the end.
 """
 
 import contextlib

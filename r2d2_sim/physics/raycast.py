@@ -112,14 +112,13 @@ def cast_rays(client: BulletClient, starts: ArrayLike, ends: ArrayLike, mask: in
         raise ValueError(f'threads must be 1 or more, got {threads}')
     fractions: List[float] = []
     for first in range(0, len(starts_m), batch_size):
-        count = min(batch_size, len(starts_m) - first)
-        hits = client.rayTestBatch(starts_m[first:first + batch_size],
-                                   ends_m[first:first + batch_size],
+        batch = starts_m[first:first + batch_size]
+        count = len(batch)
+        hits = client.rayTestBatch(batch, ends_m[first:first + batch_size],
                                    collisionFilterMask=mask,
                                    numThreads=threads if count >= THREADED_RAYS_MIN else 1)
-        if len(hits) != len(starts_m[first:first + batch_size]):
-            raise RuntimeError(f'rayTestBatch answered {len(hits)} of '
-                               f'{len(starts_m[first:first + batch_size])} rays')
+        if len(hits) != count:
+            raise RuntimeError(f'rayTestBatch answered {len(hits)} of {count} rays')
         fractions.extend(fraction if object_id != -1 else 1.0
                          for object_id, _, fraction, _, _ in hits)
     return numpy.array(fractions, dtype=float)
