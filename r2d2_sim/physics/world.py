@@ -35,8 +35,8 @@ with silenced_output():  # PyBullet prints its build time on import
 import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
 from pybullet_utils.bullet_client import BulletClient
 
-__all__ = ['SimWorld', 'SavedWorld', 'WorldError', 'display_problem', 'SPAWN_CLEARANCE_M',
-           'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask', 'RayRequest',
+__all__ = ['SimWorld', 'WorldBuild', 'SavedWorld', 'WorldError', 'display_problem',
+           'SPAWN_CLEARANCE_M', 'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask', 'RayRequest',
            'COMPACT_AFTER_REMOVALS']
 
 # Gap left between the lowest point of the robot and the ground at spawn, so
@@ -67,6 +67,15 @@ def _found(path: str) -> str:
     if os.path.isfile(path):
         return path
     return os.path.join(pybullet_data.getDataPath(), path)
+
+
+def _unique_name(bodies: Dict[str, Body], wanted: str) -> str:
+    if wanted not in bodies:
+        return wanted
+    suffix = 1
+    while f'{wanted}_{suffix}' in bodies:
+        suffix += 1
+    return f'{wanted}_{suffix}'
 
 
 def display_problem(environ=os.environ) -> Optional[str]:
@@ -101,6 +110,25 @@ def display_problem(environ=os.environ) -> Optional[str]:
     finally:
         sock.close()
     return None
+
+
+class WorldBuild:
+    """
+    A physics world built body by body to take the live one's place (:meth:`SimWorld.build`).
+
+    Beside (``beside``): in a PyBullet client of its own, set up as the
+    live world's, while the live world goes on stepping; :meth:`SimWorld.take`
+    swaps it in at once. A body of the live world loaded into it stays the
+    same object: its twin here (``Body.loaded_into``) is adopted at the swap.
+    In place (a GUI world: PyBullet opens one window only): the live world is
+    emptied first and the bodies are loaded straight into it.
+    """
+
+    def __init__(self, client: BulletClient, bodies: Dict[str, Body], beside: bool) -> None:
+        self.client = client
+        self.bodies = bodies  # by name, in load order: the live world's dict when in place
+        self.beside = beside
+        self.twins: List[Tuple[Body, Body]] = []  # (a live body, its twin in this build)
 
 
 class SimWorld:
@@ -156,10 +184,13 @@ class SimWorld:
         return client
 
     def _setup(self, gravity: Vec3) -> None:
-        client = self._live_client
-        client.resetSimulation()
         self.removed_since_built = 0
         self.builds += 1  # states saved before are gone with the old physics world
+        self._set_up(self._live_client, gravity)
+
+    def _set_up(self, client: BulletClient, gravity: Vec3) -> None:
+        """Empty ``client``'s physics world and set it up as at start."""
+        client.resetSimulation()
         client.setAdditionalSearchPath(pybullet_data.getDataPath())
         client.setTimeStep(self.time_step_s)
         client.setGravity(*gravity)
@@ -172,24 +203,21 @@ class SimWorld:
 
     def unique_name(self, wanted: str) -> str:
         """Return ``wanted``, or with the first free ``_1``, ``_2``... suffix when taken."""
-        if wanted not in self.bodies:
-            return wanted
-        suffix = 1
-        while f'{wanted}_{suffix}' in self.bodies:
-            suffix += 1
-        return f'{wanted}_{suffix}'
+        return _unique_name(self.bodies, wanted)
 
     def load(self, path: str, position: Vec3 = (0.0, 0.0, 0.0),
              orientation: Quat = IDENTITY_QUATERNION, *, name: Optional[str] = None,
              flags: int = 0, body_yaw_offset_rad: float = 0.0, spawned: bool = False,
-             source: Optional[str] = None) -> Body:
+             source: Optional[str] = None, into: Optional[WorldBuild] = None) -> Body:
         """
         Load a URDF file as a new body; return it.
 
         ``name`` (default: the URDF's ``<robot name>``, made unique) must not
-        be taken. ``orientation`` is that of the URDF base frame.
+        be taken. ``orientation`` is that of the URDF base frame. ``into``:
+        a world being built (:meth:`build`) instead of the live one.
         """
-        client = self._live_client
+        client, bodies = ((into.client, into.bodies) if into is not None
+                          else (self._live_client, self.bodies))
         try:
             body_id = client.loadURDF(path, basePosition=position,
                                       baseOrientation=orientation, flags=flags)
@@ -197,8 +225,9 @@ class SimWorld:
             raise WorldError(f'PyBullet cannot load {path}: {exc}') from None
         if name is None:
             urdf_name = records.body_info(client, body_id).name
-            name = self.unique_name(urdf_name or os.path.splitext(os.path.basename(path))[0])
-        elif name in self.bodies:
+            name = _unique_name(bodies, urdf_name
+                                or os.path.splitext(os.path.basename(path))[0])
+        elif name in bodies:
             client.removeBody(body_id)
             raise WorldError(f'a body named {name!r} is already in the world')
         # Copied as tuples (a caller may pass lists), as loadURDF took them: 3 and 4 numbers.
@@ -208,12 +237,13 @@ class SimWorld:
                     body_yaw_offset_rad=body_yaw_offset_rad, spawned=spawned,
                     loading=Loading(path, (x, y, z), (qx, qy, qz, qw), flags,
                                     file_stamp(_found(path))))
-        self.bodies[name] = body
+        bodies[name] = body
         return body
 
     def load_robot(self, path: str, pose: Tuple[float, float, float],
                    body_yaw_offset_rad: float = 0.0, *, name: Optional[str] = None,
-                   spawned: bool = False, source: Optional[str] = None) -> Body:
+                   spawned: bool = False, source: Optional[str] = None,
+                   into: Optional[WorldBuild] = None) -> Body:
         """
         Load a driven robot at (x, y, yaw), its lowest point just above the ground.
 
@@ -222,11 +252,11 @@ class SimWorld:
         from the file.
         """
         x, y, yaw = pose
-        client = self._live_client
+        client = into.client if into is not None else self._live_client
         orientation = client.getQuaternionFromEuler((0.0, 0.0, yaw - body_yaw_offset_rad))
         body = self.load(path, (x, y, 0.0), orientation, name=name, spawned=spawned,
                          flags=self.robot_flags, body_yaw_offset_rad=body_yaw_offset_rad,
-                         source=source)
+                         source=source, into=into)
         position, _ = client.getBasePositionAndOrientation(body.id)
         body.set_initial_pose((position[0], position[1],
                                position[2] - body.bounding_box().low[2] + SPAWN_CLEARANCE_M),
@@ -332,12 +362,76 @@ class SimWorld:
         self.bodies = {}
         self._setup(self.gravity_m_s2)
 
-    def reload(self, body: Body) -> None:
-        """Load ``body`` again as it was loaded, in its initial state (see Body.reload)."""
-        if body.name in self.bodies:
+    def reload(self, body: Body, into: Optional[WorldBuild] = None) -> None:
+        """
+        Load ``body`` again as it was loaded, in its initial state (see Body.reload).
+
+        ``into``: into a world being built (beside: a twin the body adopts at
+        :meth:`take`) instead of the live one, emptied before.
+        """
+        bodies = into.bodies if into is not None else self.bodies
+        if body.name in bodies:
             raise WorldError(f'a body named {body.name!r} is already in the world')
-        body.reload()
-        self.bodies[body.name] = body
+        if into is not None and into.beside:
+            into.twins.append((body, body.loaded_into(into.client)))
+        else:
+            body.reload()
+        bodies[body.name] = body
+
+    def build(self, beside: bool = True) -> WorldBuild:
+        """
+        Start building the world anew: load into the build, then :meth:`take` it.
+
+        Beside (unless the world has PyBullet's window, which opens once): a
+        client of its own, set up as this one, while this world goes on as it
+        is. Else in place: the world is emptied now (:meth:`clear`).
+        Either way the build starts as this world did (an emptied world is
+        the same as a new one, bit for bit).
+        """
+        if beside and not self.gui:
+            with silenced_output(stderr=False):
+                client = BulletClient(connection_mode=pybullet.DIRECT)
+            try:
+                self._set_up(client, self.gravity_m_s2)
+            except BaseException:
+                client.disconnect()
+                raise
+            return WorldBuild(client, {}, beside=True)
+        self.clear()
+        return WorldBuild(self._live_client, self.bodies, beside=False)
+
+    def take(self, build: WorldBuild) -> None:
+        """
+        Make ``build`` the world, at once: its bodies, in their order; the old ones are gone.
+
+        A body of the old world not in the build is unloaded (kept, as by
+        :meth:`clear`); one reloaded into it takes its twin's place. The step
+        counter and the ray groups taken stay.
+        """
+        if not build.beside:
+            return
+        kept = {id(body) for body in build.bodies.values()}
+        for body in self.bodies.values():
+            if id(body) not in kept:
+                body.unloaded()
+        for body, twin in build.twins:
+            body.adopt(twin)
+        old, self._client = self._client, build.client
+        self._step_simulation = partial(pybullet.stepSimulation,
+                                        physicsClientId=build.client._client)
+        self.bodies = dict(build.bodies)
+        self.removed_since_built = 0
+        self.builds += 1  # states saved before are gone with the old physics world
+        build.twins.clear()
+        if old is not None:
+            old.disconnect()
+        malloc_trim()
+
+    def abandon(self, build: WorldBuild) -> None:
+        """Drop a build that will not be taken (its client disconnected); safe to call twice."""
+        if build.beside and build.client.isConnected():
+            build.client.disconnect()
+        build.twins.clear()
 
     def reset(self) -> None:
         """

@@ -9,6 +9,7 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 """
 
 import threading
+import time
 from typing import Callable, Optional, Union
 
 from rclpy.node import Node
@@ -30,6 +31,9 @@ from r2d2_sim.sim.simulation import Simulation, StepResult
 from r2d2_sim.sim.worlds import LoadOptions, World
 
 NODE_NAME = 'r2d2_sim'
+# A LoadWorld builds the new world for at most this long (one body at least)
+# before the physics takes a step of the old one: well within a 240 Hz step.
+BUILD_CHUNK_S = 0.002
 __all__ = ['SimNode', 'StartupError', 'NODE_NAME']
 
 
@@ -174,10 +178,33 @@ class SimNode(MirroringNode):
         """
         if isinstance(world, str):
             world = self.simulation.worlds.read(world, resource_string, options)
-        with self.lock:
-            loaded = self.simulation.load_world(world)
-            self._stopped_at_zero()
-            return loaded
+        # Built beside the old world, a few bodies at a time with the lock held, and
+        # swapped in at once: the physics steps on between (one step each time).
+        steps = self.simulation.loading_world(world)
+        while True:
+            with self.lock:
+                chunk_end = time.monotonic() + BUILD_CHUNK_S
+                try:
+                    while True:
+                        next(steps)
+                        if time.monotonic() >= chunk_end:
+                            break
+                except StopIteration as stop:
+                    self._stopped_at_zero()
+                    return stop.value
+                running, before = not self._paused, self.simulation.step_count
+            if running:
+                self._wait_for_a_step(before)
+
+    def _wait_for_a_step(self, before: int) -> None:
+        """Wait until the physics stepped on from ``before`` (at most two step periods)."""
+        config = self.config
+        if config.real_time_factor <= 0.0:
+            time.sleep(0)  # as fast as possible: the loop takes the lock when it is free
+            return
+        deadline = time.monotonic() + 2.0 / (config.physics_rate_hz * config.real_time_factor)
+        while self.simulation.step_count == before and time.monotonic() < deadline:
+            time.sleep(0.0005)
 
     def unload_world(self) -> None:
         """Unload the world: paused, time 0, and nothing steps until a world is loaded."""

@@ -162,7 +162,12 @@ class WorldChanges(Protocol):
     lock: threading.RLock
 
     def load_world(self, world: 'World') -> 'World':
-        """Load a world read beforehand in place of the current one, stopped at time 0."""
+        """
+        Load a world read beforehand in place of the current one, stopped at time 0.
+
+        Takes ``lock`` itself, as often as it likes: the physics may step
+        between while the new world is built, never once it is swapped in.
+        """
 
     def unload_world(self) -> None:
         """Unload the world (NO_WORLD until another is loaded)."""

@@ -39,7 +39,7 @@ do that slow part outside the simulator's lock. Every attribute is set in
 """
 
 import dataclasses
-from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple, Union
+from typing import Callable, Generator, List, NamedTuple, Optional, Sequence, Tuple, Union
 
 from r2d2_sim.errors import RefusedError, SetupError, WorldError
 from r2d2_sim.model.timing import StepClock, StepSchedule
@@ -54,7 +54,7 @@ from r2d2_sim.sim.settings.robots import resolve_namespace, robot_config, RobotS
 from r2d2_sim.sim.settings.table import ConfigError, NOISE_FAMILIES, PARAMETERS_BY_NAME
 from r2d2_sim.sim.settings.config import read_value, SimConfig
 from r2d2_sim.sim.spawnables import Spawnable
-from r2d2_sim.sim.startup import docked, Rebuilt, robot_starts, Startup
+from r2d2_sim.sim.startup import docked, finished, Rebuilt, robot_starts, Startup
 from r2d2_sim.sim.worlds import empty_world, LoadOptions, Places, World, WorldFiles
 
 # Frame and Measurement are the core's data, defined beside the robot that measures them.
@@ -87,6 +87,10 @@ class SavedState(NamedTuple):
 
     world: SavedWorld              # the physics, kept by PyBullet
     robots: Tuple[Robot, ...]      # the robots then, which must be the robots still
+
+
+class _WorldMoved(Exception):
+    """The world changed while another was built beside it: build that one in place."""
 
 
 def _ignore(text: str) -> None:
@@ -513,6 +517,22 @@ class Simulation:
         (STOPPED, once the caller pauses). RefusedError with LoadWorld's codes;
         OPERATION_FAILED for a model named like a robot or a start-up model.
         """
+        return finished(self.loading_world(world, resource_string, options))
+
+    def loading_world(self, world: Union[str, World], resource_string: str = '',
+                      options: LoadOptions = LoadOptions()) -> Generator[None, None, World]:
+        """
+        Load a world as :meth:`load_world` does, one body at a time: a generator.
+
+        The new world is built beside the old one (a PyBullet client of its
+        own) and swapped in by the last ``next``, which returns the world
+        (``StopIteration.value``). Between two ``next`` the old world may
+        step on: a caller that holds the simulation's lock for each ``next``
+        keeps the physics at its rate while a large world is built. If the
+        world changed under the build (a reset, a start-up robot deleted),
+        the last ``next`` builds it again in place. The same world, bit for
+        bit, as :meth:`load_world` and as a launch with it.
+        """
         world_file = self.worlds.read(world, resource_string, options) \
             if isinstance(world, str) else world
         try:
@@ -520,7 +540,7 @@ class Simulation:
         except BaseException:
             world_file.close()
             raise
-        self._switch(world_file)
+        yield from self._switching(world_file)
         return world_file
 
     def unload_world(self) -> None:
@@ -534,7 +554,7 @@ class Simulation:
         """
         if not self.worlds.is_loaded:
             raise RefusedError('NO_WORLD_LOADED', 'no world is loaded')
-        self._switch(empty_world())
+        finished(self._switching(empty_world(), beside=False))
         self._world_loaded(None)
 
     def _world_loaded(self, world_file: Optional[World]) -> None:
@@ -556,21 +576,38 @@ class Simulation:
                                    'would take the name of one of the simulator\'s own '
                                    'entities (a robot, the ground plane, extra_models)')
 
-    def _switch(self, world_file: World) -> None:
+    def _switching(self, world_file: World, beside: bool = True) -> Generator[None, None, None]:
         """Build the world as launched with ``world_file``: spawned ones gone, time at 0."""
-        self._forget_robots([r for r in self.robots if r.body.spawned])
-        for name, body in list(self.world.bodies.items()):
-            if body.spawned:
-                self.entities.dropped(name)
-        for name in [n for n in self.world.bodies if n not in self._startup.names()]:
-            self.entities.dropped(name)  # the old world's models: their info goes with them
+        robots = self._start_up_robots()
+        builds = self.world.builds
+        left = []
+
+        def leaving() -> None:
+            if self.world.builds != builds or self._start_up_robots() != robots:
+                raise _WorldMoved()
+            drop_spawned()
+
+        def drop_spawned() -> None:
+            left.append(True)
+            self._forget_robots([r for r in self.robots if r.body.spawned])
+            for name, body in list(self.world.bodies.items()):
+                if body.spawned:
+                    self.entities.dropped(name)
+            for name in [n for n in self.world.bodies if n not in self._startup.names()]:
+                self.entities.dropped(name)  # the old world's models: their info goes with them
         try:
-            rebuilt = self._startup.switch(world_file, self.robots)
+            try:
+                rebuilt = yield from self._startup.switching(world_file, robots, beside, leaving)
+            except _WorldMoved:
+                robots, builds = self._start_up_robots(), self.world.builds
+                rebuilt = finished(self._startup.switching(world_file, robots, False, leaving))
         except WorldError as exc:
             # Only a file changed between the check and the load gets here.
             self._error(f'the world {world_file.name} could not be built ({exc}): building the '
                         'previous one again, as launched')
             world_file.close()
+            if not left:
+                drop_spawned()
             self._take(self._startup.rebuild([], as_launched=True))
             self.entities.restore_info(self._startup.infos())
             raise RefusedError('OPERATION_FAILED', f'the world could not be built: {exc}; the '
@@ -578,6 +615,9 @@ class Simulation:
                                                    'launched') from None
         self._take(rebuilt)
         self._world_loaded(world_file)
+
+    def _start_up_robots(self) -> List[Robot]:
+        return [robot for robot in self.robots if not robot.body.spawned]
 
     def _take(self, rebuilt: Rebuilt) -> None:
         """Take a rebuilt world's robots and models, time at 0, and tell the robots' watchers."""

@@ -12,21 +12,24 @@ put back in place, and change the next steps), or, for a full reset ("as if
 it was closed and launched again"), the start-up entities themselves, a
 robot deleted since loaded again from its start-up arguments.
 
-Loading another world (:meth:`Startup.switch`) makes its launch the one a
+Loading another world (:meth:`Startup.switching`) makes its launch the one a
 full reset builds: the same ground, robots and ``extra_models``, with that
-world's models, the robots standing at its start pose.
+world's models, the robots standing at its start pose. It is built beside
+the old world, in a PyBullet client of its own, body by body, while the old
+one may go on stepping between, and swapped in at once.
 """
 
 import dataclasses
 import math
-from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple
+from typing import (
+    Callable, Dict, Generator, List, NamedTuple, Optional, Sequence, Tuple, TypeVar)
 
 from r2d2_sim.errors import SetupError, WorldError
 from r2d2_sim.model.transforms import yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.description import (
     DescriptionError, resolve_description_path, RobotDescription)
-from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
+from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld, WorldBuild
 from r2d2_sim.sim.entities import Category, EntityInfo
 from r2d2_sim.sim.settings.table import ConfigError
 from r2d2_sim.sim.settings.config import SimConfig
@@ -34,7 +37,7 @@ from r2d2_sim.sim.robots.robot import Robot
 from r2d2_sim.sim.settings.robots import resolve_namespace, RobotSpec
 from r2d2_sim.sim.worlds import World, WorldModel
 
-__all__ = ['Startup', 'RobotStart', 'Rebuilt', 'robot_starts', 'placed', 'docked']
+__all__ = ['Startup', 'RobotStart', 'Rebuilt', 'robot_starts', 'placed', 'docked', 'finished']
 
 
 class RobotStart(NamedTuple):
@@ -177,7 +180,8 @@ class Startup:
             for description, position in config.extra_models:
                 models.append(self._load_extra(description, position))
             for model in world_file.models:
-                models.append(self._load_world_model(model))
+                self._entities.append(self._load_world_model(model))
+                models.append(self._entities[-1].body)
             for start in starts[1:]:
                 robots.append(self._start_robot(placed(start, world_file)))
             _check_apart(robots)
@@ -205,27 +209,28 @@ class Startup:
         self._entities.append(_Entity(model, model=True))
         return model
 
-    def _load_world_model(self, model: WorldModel) -> Body:
+    def _load_world_model(self, model: WorldModel, into: Optional[WorldBuild] = None
+                          ) -> '_Entity':
         body = self._world.load(model.path, model.position, model.orientation, name=model.name,
-                                source=model.source,
+                                source=model.source, into=into,
                                 flags=self._world.model_flags if model.sdf else 0)
         body.drop_damping()
         if model.sdf:
             body.free_joints()  # Gazebo's joints: held by their friction, not a motor
-        self._entities.append(_Entity(body, model=True, world_model=True, info=EntityInfo(
-            description=model.description, tags=model.tags)))
-        return body
+        return _Entity(body, model=True, world_model=True, info=EntityInfo(
+            description=model.description, tags=model.tags))
 
     def _start_robot(self, start: RobotStart) -> Robot:
         robot = self.load_robot(start)
         self._entities.append(_Entity(robot.body, start, info=_robot_info(start)))
         return robot
 
-    def load_robot(self, start: RobotStart) -> Robot:
+    def load_robot(self, start: RobotStart, into: Optional[WorldBuild] = None) -> Robot:
         """
         Load a driven robot standing at its ``initial_pose``; return it.
 
-        Its description, drive and sensors are ``start.config``'s. Raises a
+        Its description, drive and sensors are ``start.config``'s; ``into``:
+        a world being built (``SimWorld.build``) instead of the live one. Raises a
         SetupError (WorldError, ConfigError) when it cannot be loaded or
         driven, naming the robot when it is a listed one; nothing of it stays.
         """
@@ -240,7 +245,8 @@ class Startup:
             # or the temporary file robot_description's text was written to.
             body = self._world.load_robot(
                 description.path, config.initial_pose, config.body_yaw_offset_rad, name=name,
-                source=description.path if config.robot_description else config.urdf or None)
+                source=description.path if config.robot_description else config.urdf or None,
+                into=into)
             source = ('the robot_description parameter' if config.robot_description
                       else description.path)
             warn = self._warn
@@ -250,7 +256,11 @@ class Startup:
                          error=self._error, resources=[description], namespace=namespace)
         except Exception:
             if body is not None:
-                self._world.remove(body)
+                if into is not None:
+                    into.bodies.pop(body.name, None)
+                    body.remove()
+                else:
+                    self._world.remove(body)
             description.close()
             raise
 
@@ -302,87 +312,140 @@ class Startup:
         models = [e.body for e in self._entities if e.model] if as_launched else None
         return Rebuilt(after, models, changed, dropped)
 
-    def switch(self, world_file: World, robots: Sequence[Robot]) -> Rebuilt:
+    def switching(self, world_file: World, robots: Sequence[Robot], beside: bool = True,
+                  leaving: Callable[[], None] = lambda: None
+                  ) -> Generator[None, None, Rebuilt]:
         """
         Build the physics world again as launched with ``world_file`` instead of the old world.
 
-        The ground, the robots and ``extra_models`` stay (loaded again in
-        their order, the robots at the new world's start pose: a robot whose
-        start does not move is the same Robot, others are built anew); the
-        old world's models leave, the new world's take their place in the
-        order. ``robots`` are the simulation's now (spawned ones excluded).
-        Raises WorldError when a new model cannot be loaded (the caller
-        checked them first); a body of the old launch that cannot be loaded
-        again leaves the world, with one error line.
+        A generator: beside (``SimWorld.build``), it yields after each body
+        it loads, while the old world may go on stepping between (a caller
+        holds the simulation's lock for each ``next``), and its last ``next``
+        swaps the new world in at once; in place (``beside`` False, or a GUI
+        world) it yields nothing. Returns (``StopIteration.value``) what the
+        simulation keeps. The ground, the robots and ``extra_models`` stay
+        (loaded again in their order, the robots at the new world's start
+        pose: a robot whose start does not move is the same Robot, others are
+        built anew); the old world's models leave, the new world's take their
+        place in the order. ``robots`` are the simulation's now (spawned ones
+        excluded), as they are at the swap. ``leaving()`` is called once, as
+        the old world goes (just before the swap, or before it is emptied in
+        place): it may raise to keep the old world. Raises WorldError when a new
+        model cannot be loaded (the caller checked them first; the old world
+        is then as it was if built beside); a body of the old launch that
+        cannot be loaded again leaves the world, with one error line.
         """
-        old, old_world = self._entities, self.world_file
-        try:
-            return self._switch(world_file, robots)
-        except BaseException:
-            self._entities, self.world_file = old, old_world  # for rebuild() to build it again
-            raise
-
-    def _switch(self, world_file: World, robots: Sequence[Robot]) -> Rebuilt:
         robot_of = {id(robot.body): robot for robot in robots}
         kept = [entity for entity in self._entities if not entity.world_model]
         robot_places = [i for i, entity in enumerate(kept) if entity.robot is not None]
         # The world's models load after the first robot and extra_models, before the others.
         at = robot_places[1] if len(robot_places) > 1 else len(kept)
         starts = iter(self._starts)
-        self._entities, self.world_file = [], world_file
-        self._world.clear()
+        if not beside or self._world.gui:
+            leaving()
+        build = self._world.build(beside)
+        entities: List[_Entity] = []
         after: List[Robot] = []
+        restarted: List[Robot] = []  # kept robots, to start again once their bodies are in
+        built: List[Tuple[Robot, int]] = []  # robots built anew, and the step they were built at
+        replaced: List[Robot] = []  # the robots they replace
         dropped: List[str] = []
         changed = False
-        for entity in kept[:at] + [None] + kept[at:]:
-            if entity is None:
-                for model in world_file.models:
-                    self._load_world_model(model)
-                continue
-            if entity.robot is None:
-                if self._reload(entity.body, dropped):
-                    self._entities.append(entity)
-                continue
-            start = placed(next(starts), world_file, self._warn)
-            entity = _Entity(entity.body, start, info=_robot_info(start))
-            self._entities.append(entity)
-            robot = robot_of.get(id(entity.body))
-            if robot is not None and robot.config == start.config:  # its start did not move
-                if self._reload(entity.body, dropped):
-                    robot.reloaded()
-                    robot.restart_noise()
-                    after.append(robot)
+        try:
+            for entity in kept[:at] + [None] + kept[at:]:
+                if entity is None:
+                    for model in world_file.models:
+                        entities.append(self._load_world_model(model, build))
+                        if build.beside:
+                            yield
                     continue
-                self._entities.remove(entity)
-            if robot is not None:
-                robot.close()
-            changed = True
-            if entity.body.name not in dropped:
-                robot = self._load_again(entity)  # at the new start, with new interfaces
+                if entity.robot is None:
+                    if self._reload(entity.body, dropped, build):
+                        entities.append(entity)
+                    if build.beside:
+                        yield
+                    continue
+                start = placed(next(starts), world_file, self._warn)
+                entity = _Entity(entity.body, start, info=_robot_info(start))
+                robot = robot_of.get(id(entity.body))
+                if robot is not None and robot.config == start.config:  # its start did not move
+                    if self._reload(entity.body, dropped, build):
+                        entities.append(entity)
+                        restarted.append(robot)
+                        after.append(robot)
+                        if not build.beside:  # as it was: started before the next load
+                            robot.reloaded()
+                            robot.restart_noise()
+                        else:
+                            yield
+                        continue
                 if robot is not None:
-                    after.append(robot)
-        return Rebuilt(after, [e.body for e in self._entities if e.model], changed, dropped)
+                    if build.beside:
+                        replaced.append(robot)  # it goes on in the old world until the swap
+                    else:
+                        robot.close()
+                changed = True
+                if entity.body.name not in dropped:
+                    entities.append(entity)  # a full reset tries again if it fails now
+                    robot = self._load_again(entity, build)  # at the new start, new interfaces
+                    if robot is not None:
+                        after.append(robot)
+                        built.append((robot, self._world.step_count))
+                if build.beside:
+                    yield
+            if build.beside:
+                leaving()
+            self._world.take(build)
+        except BaseException:
+            self._world.abandon(build)
+            for robot, _ in built:
+                robot.close()
+            raise
+        if build.beside:
+            for robot in restarted:
+                robot.reloaded()
+                robot.restart_noise()
+        for robot, step in built:
+            # Built while the old world stepped on: as if built now.
+            robot.restart_time(step - self._world.step_count)
+        for robot in replaced:
+            robot.close()
+        self._entities, self.world_file = entities, world_file
+        return Rebuilt(after, [e.body for e in entities if e.model], changed, dropped)
 
-    def _reload(self, body: Body, dropped: List[str]) -> bool:
+    def _reload(self, body: Body, dropped: List[str], into: Optional[WorldBuild] = None) -> bool:
         """Load ``body`` again; False (one error line, its name in ``dropped``) if it cannot be."""
         try:
-            self._world.reload(body)
+            self._world.reload(body, into)
         except WorldError as exc:
             self._error(f'{body.name} left the world: {exc}')
             dropped.append(body.name)
             return False
         return True
 
-    def _load_again(self, entity: _Entity) -> Optional[Robot]:
+    def _load_again(self, entity: _Entity, into: Optional[WorldBuild] = None
+                    ) -> Optional[Robot]:
         """Load a deleted start-up robot as at start-up; None (one error line) if it cannot be."""
         assert entity.robot is not None  # asked only of a robot's entity
         try:
-            robot = self.load_robot(entity.robot)
+            robot = self.load_robot(entity.robot, into)
         except SetupError as exc:
             self._error(f'robot {entity.body.name} cannot be loaded again: {exc}')
             return None
         entity.body = robot.body
         return robot
+
+
+T = TypeVar('T')
+
+
+def finished(steps: Generator[None, None, T]) -> T:
+    """Run a generator of steps (:meth:`Startup.switching`) to its end; return its value."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            return stop.value
 
 
 def _named(warn: Callable[[str], None], name: str) -> Callable[[str], None]:

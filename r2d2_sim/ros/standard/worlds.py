@@ -13,7 +13,8 @@ step: while a step request runs it is refused (INCORRECT_STATE), and while it
 runs the simulation state is LOADING_WORLD and step requests are refused. A
 load reads its world (the files, an SDF world's includes, its meshes
 converted) before it takes the simulator's lock, so the physics keeps its
-rate meanwhile; only building the bodies holds it.
+rate meanwhile; then the simulator builds the bodies beside the old world,
+taking the lock a few bodies at a time, and swaps the new world in at once.
 """
 
 import threading
@@ -122,10 +123,10 @@ class WorldServices(Replies):
 
         def load():
             try:
-                # No lock: the files, SDF and meshes touch no physics.
+                # No lock: the files, SDF and meshes touch no physics; the load
+                # takes the lock itself, a few bodies at a time.
                 world = self._reads.read(request.uri, request.resource_string, options)
-                with self._lock:
-                    self._changes.load_world(world)
+                self._changes.load_world(world)
             except RefusedError as exc:
                 return self._fail_entity(response, exc)
             self._world_resource(response.world, world)

@@ -1,0 +1,128 @@
+"""
+A LoadWorld builds the new world beside the old one, which steps on until the swap.
+
+``Simulation.loading_world`` is a generator: each ``next`` loads a body into
+a PyBullet client of its own, the old world may step between, and the last
+``next`` swaps the new world in. What comes out is what a launch with that
+world gives, bit for bit, however many steps the old world took meanwhile;
+if the old world changed under the build (a start-up robot deleted, a reset),
+the swap builds the world in place instead, the same way.
+"""
+
+import pybullet
+import pytest
+
+from r2d2_sim.errors import RefusedError
+from r2d2_sim.sim.simulation import SpawnRequest
+
+SIMULATION_DEFAULTS = {'cmd_vel_timeout': 0.0, 'imu_rate': 0.0}
+ROBOTS = {'robots': ['a', 'b'], 'b.initial_pose': [1.0, 0.0, 0.0]}
+
+# Its start pose moves robot a (built anew) and b (its start moves with it).
+SHELVES = '''
+r2d2_sim_world: 1
+name: shelves
+start_pose: entry
+models:
+  - {uri: cube_small.urdf, name: shelf, position: [3.0, 0.0, 0.025]}
+  - {uri: cube_small.urdf, name: crate, position: [3.0, 1.0, 0.025]}
+  - {uri: cube_small.urdf, name: box, position: [3.0, -1.0, 0.025]}
+named_poses:
+  - {name: entry, position: [1.0, 2.0, 0.0], yaw: 1.5707963267948966}
+'''
+
+
+BOX = '''<robot name="crate"><link name="base"><inertial><mass value="1"/>
+<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+<collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision></link></robot>'''
+
+
+def run(simulation, steps=120):
+    """Drive every robot for ``steps``; return every body's name and state at the end."""
+    for robot in simulation.robots:
+        robot.command(0.4, 0.3)
+    for _ in range(steps):
+        simulation.step()
+    return [(name, body.world_state()) for name, body in simulation.world.bodies.items()]
+
+
+def connected_clients():
+    """Return the ids of the PyBullet clients connected in this process."""
+    return [i for i in range(64) if pybullet.isConnected(physicsClientId=i)]
+
+
+@pytest.fixture
+def world_path(tmp_path):
+    path = tmp_path / 'shelves.world.yaml'
+    path.write_text(SHELVES)
+    return path
+
+
+def test_the_old_world_steps_between_the_bodies_and_the_new_one_is_a_launch(make, world_path):
+    started = make(world=str(world_path), **ROBOTS)
+    loaded = make(world_paths=[str(world_path.parent)], **ROBOTS)
+    run(loaded, 24)
+    robot = loaded.robot
+    steps = loaded.loading_world(str(world_path))
+    poses, chunks = [], 0
+    with pytest.raises(StopIteration) as done:
+        while True:
+            next(steps)
+            chunks += 1
+            assert loaded.entities.names() == ['ground_plane', 'a', 'b']  # the old world
+            loaded.step()
+            poses.append(robot.body.world_pose())
+    assert done.value.value.name == 'shelves'
+    assert chunks >= 5  # the ground, two robots, three models: one body each
+    assert len(set(poses)) == len(poses)  # the old robot drove on all along
+    assert loaded.step_count == 0 and loaded.pristine
+    assert loaded.entities.names() == started.entities.names() == [
+        'ground_plane', 'a', 'shelf', 'crate', 'box', 'b']
+    assert run(loaded) == run(started)  # bit for bit
+
+
+def test_a_world_changed_during_the_build_is_built_in_place_as_a_launch(make, world_path):
+    started = make(world=str(world_path), **ROBOTS)
+    loaded = make(world_paths=[str(world_path.parent)], **ROBOTS)
+    clients = connected_clients()
+    steps = loaded.loading_world(str(world_path))
+    next(steps)
+    next(steps)
+    loaded.delete_entity('b')  # built beside with b kept: the swap must not take it
+    loaded.spawn(SpawnRequest('cube', uri='cube_small.urdf', position=(0.5, 0.5, 0.025)))
+    for _ in steps:
+        loaded.step()
+    assert connected_clients() == clients  # the build beside was dropped, not leaked
+    assert loaded.entities.names() == started.entities.names()  # b back, the cube gone
+    assert run(loaded) == run(started)
+
+
+def test_a_spawn_during_the_build_leaves_with_the_old_world(make, world_path):
+    loaded = make(world_paths=[str(world_path.parent)], **ROBOTS)
+    steps = loaded.loading_world(str(world_path))
+    next(steps)
+    loaded.spawn(SpawnRequest('cube', uri='cube_small.urdf', position=(0.5, 0.5, 0.025)))
+    for _ in steps:
+        loaded.step()
+    assert 'cube' not in loaded.entities.names() and 'cube' not in loaded.world.bodies
+    assert loaded.entities.names() == ['ground_plane', 'a', 'shelf', 'crate', 'box', 'b']
+
+
+def test_a_build_that_fails_drops_its_client_and_builds_the_old_world_as_launched(
+        make, world_path, tmp_path):
+    model = tmp_path / 'crate.urdf'
+    model.write_text(BOX)
+    world_path.write_text(SHELVES.replace('uri: cube_small.urdf, name: crate',
+                                          f'uri: {model}, name: crate'))
+    errors = []
+    loaded = make(errors=errors, world_paths=[str(world_path.parent)], **ROBOTS)
+    clients = connected_clients()
+    steps = loaded.loading_world(str(world_path))
+    next(steps)
+    model.write_text('<robot name="broken">')  # changed between the check and the build
+    with pytest.raises(RefusedError, match='could not be built'):
+        for _ in steps:
+            loaded.step()
+    assert connected_clients() == clients
+    assert loaded.entities.names() == ['ground_plane', 'a', 'b'] and loaded.step_count == 0
+    assert any('could not be built' in line for line in errors)
