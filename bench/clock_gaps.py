@@ -13,17 +13,20 @@ through the simulation standard, each with an empty mesh cache:
 - **LoadWorld** of the warehouse of ``bench/sdf_world.py`` (35 models with
   COLLADA, STL and OBJ meshes, 153,088 triangles, one of them a concave wall
   mesh of 73,728): the read phase (files, includes, meshes converted) runs
-  while the old world still steps, so its ``/clock`` keeps coming; then the
-  switch builds the bodies (``loadURDF``, PyBullet's own time, with the
-  simulator's lock held) and ``/clock`` says 0 once, the simulation stopped
-  there as the standard says (no ``/clock`` while paused).
+  while the old world still steps, so its ``/clock`` keeps coming; so does,
+  since the world is built beside the old one, the build (``loadURDF`` of each
+  body in a client of its own, the lock taken a body or so at a time); then
+  the switch, and ``/clock`` says 0 once, the simulation stopped there as the
+  standard says (no ``/clock`` while paused). An older tree builds the bodies
+  at the switch, with the lock held.
 - **SpawnEntity** of a meshed SDF model (a statue of 20,480 triangles in
   COLLADA, moving, so each piece becomes a convex hull) while the room runs.
 
 For each: the longest ``/clock`` gap (wall time between two messages) while
-the request was answered, split for the load into the read phase (before the
-switch) and the switch itself (the last message of the old world to the zero
-of the new one), and the request's own wall time. Writes
+the request was answered, split for the load into what comes before the
+switch (``load_read_*``: the read, and the build where it is done beside) and
+the switch itself (the last message of the old world to the zero of the new
+one), and the request's own wall time. Writes
 ``bench/clock_gaps.json``. Numbers are printed, never asserted.
 """
 

@@ -5,7 +5,8 @@ No ROS, no PyBullet. PyBullet reads OBJ most completely (a concave triangle
 mesh for a static collision, one convex hull per object for a moving one), and
 COLLADA's units and scene transforms only partly, so every mesh is converted
 (:mod:`.meshes`) into OBJ files in metres: the whole mesh (``mesh.obj``,
-vertices merged), one file per colour for the camera (``part_<i>.obj``), and,
+vertices merged; in a large mesh, each flat face's triangles merged too:
+:mod:`.planes`), one file per colour for the camera (``part_<i>.obj``), and,
 when a moving body needs it, its connected pieces as separate objects
 (``hulls.obj``: Bullet makes each a convex hull, a decomposition that keeps
 a table's legs apart; a piece of more than :data:`HULL_POINTS` vertices is
@@ -36,12 +37,18 @@ import numpy
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import check_private, make_private_directories, read_regular, UnsafeFile
 from r2d2_sim.sim.sdf.meshes import check_triangles, read_mesh, read_mesh_bytes, Triangles
+from r2d2_sim.sim.sdf.planes import merge_coplanar
 
 __all__ = ['MeshCache', 'Converted', 'cache_directory', 'CACHE_VARIABLE', 'CONVERTER_VERSION',
-           'MAX_PARTS', 'MAX_HULLS', 'HULL_POINTS', 'hull_points', 'unique_rows', 'pieces']
+           'MAX_PARTS', 'MAX_HULLS', 'HULL_POINTS', 'MERGE_PLANES_FROM', 'hull_points',
+           'unique_rows', 'pieces']
 
 CACHE_VARIABLE = 'R2D2_SIM_CACHE_DIR'
-CONVERTER_VERSION = 2
+CONVERTER_VERSION = 3
+# A mesh of this many triangles or more has its flat faces' triangles merged
+# (planes.merge_coplanar): the same surface, loaded and collided with in a
+# fraction of the time (the warehouse walls of bench/sdf_world.py: 73,728 -> 72).
+MERGE_PLANES_FROM = 4096
 # Visual pieces of one mesh (one per colour); beyond, the rest are drawn in one piece.
 MAX_PARTS = 32
 # Convex pieces of a moving mesh; a mesh of more (or larger) pieces is one convex hull.
@@ -306,6 +313,9 @@ class MeshCache:
             raise RefusedError('RESOURCE_PARSE_ERROR', f'mesh {shown} has no triangle of '
                                                        'three distinct corners')
         groups = triangles.groups[kept]
+        if len(faces) >= MERGE_PLANES_FROM:
+            faces, groups = merge_coplanar(vertices, faces, groups)
+            vertices, faces = _used(vertices, faces)
         mesh = os.path.join(directory, 'mesh.obj')
         _write(mesh, obj_text(vertices, faces))
         colours = list(triangles.colours)
