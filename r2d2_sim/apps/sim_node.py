@@ -135,6 +135,9 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
     keep_large_blocks_mapped()
     if stop is None:
         stop = _import_stopping_at_once()
+    # A process of our own: trimesh's parsers without scipy, whose import stalls /clock.
+    from r2d2_sim.sim.sdf.meshes import lean_mesh_imports
+    lean_mesh_imports()
     import rclpy
     from r2d2_sim.client import end_with_parent
     from r2d2_sim.ros.node import NODE_NAME, StartupError

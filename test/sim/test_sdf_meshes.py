@@ -438,3 +438,29 @@ def test_the_cache_is_private_and_one_others_own_or_reach_through_a_link_is_refu
     assert refused.value.code == 'OPERATION_FAILED'
     assert f'belongs to user id {real_uid}' in refused.value.message
     assert 'R2D2_SIM_CACHE_DIR' in refused.value.message and '\n' not in refused.value.message
+
+
+def test_sim_nodes_lean_imports_read_meshes_alike_without_importing_scipy(tmp_path):
+    """A fresh interpreter: trimesh without scipy, the meshes read alike, scipy still free."""
+    stl = write_stl(tmp_path / 'box.stl', box((1.0, 2.0, 3.0)))
+    obj = write_obj(tmp_path / 'box.obj', box((1.0, 2.0, 3.0)), rgba=(0.2, 0.4, 0.6, 1.0))
+    script = f'''
+import importlib.util, json, sys
+from r2d2_sim.sim.sdf import meshes
+meshes.lean_mesh_imports()
+found = [meshes.read_mesh(p, 'x') for p in ({stl!r}, {obj!r})]
+facts = {{'trimesh': 'trimesh' in sys.modules,
+          'spared': [n for n in meshes.TRIMESH_SPARED if n in sys.modules],
+          'triangles': [t.vertices[t.faces].round(9).tolist() for t in found],
+          'colours': [list(t.colours) for t in found]}}
+for name in meshes.TRIMESH_SPARED:  # refused only while trimesh imported
+    if importlib.util.find_spec(name) is not None:
+        importlib.import_module(name)
+print(json.dumps(facts))
+'''
+    lean = json.loads(subprocess.run([sys.executable, '-c', script], cwd=REPO, check=True,
+                                     capture_output=True, text=True).stdout)
+    whole = [read_mesh(str(p), 'x') for p in (stl, obj)]
+    assert lean['trimesh'] and lean['spared'] == []
+    assert lean['triangles'] == [t.vertices[t.faces].round(9).tolist() for t in whole]
+    assert lean['colours'] == [[list(c) if c else None for c in t.colours] for t in whole]

@@ -18,6 +18,7 @@ import logging
 import os
 import re
 import struct
+import sys
 import warnings
 import zipfile
 from typing import List, NamedTuple, Optional, Tuple
@@ -28,7 +29,8 @@ from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import read_regular, UnsafeFile
 
 __all__ = ['Triangles', 'read_mesh', 'read_mesh_bytes', 'check_triangles',
-           'declared_triangles', 'MESH_FORMATS', 'MAX_MESH_BYTES', 'MAX_MESH_TRIANGLES']
+           'declared_triangles', 'lean_mesh_imports', 'MESH_FORMATS', 'MAX_MESH_BYTES',
+           'MAX_MESH_TRIANGLES', 'TRIMESH_SPARED']
 
 MESH_FORMATS = ('.dae', '.stl', '.obj')
 # One mesh file (AWS's small house: 140 DAE files of 87 MB in all, the largest 6 MB).
@@ -49,6 +51,13 @@ _COLLADA_COUNT = re.compile(
     rb'<(?:[A-Za-z_][A-Za-z0-9_.-]{0,40}:)?(?:triangles|polylist|polygons)\s[^<>]{0,200}?'
     rb'(?<=\s)count\s*=\s*["\']\s*([0-9]{1,12})\s*["\']')
 
+# What trimesh imports when it is installed and its STL and OBJ parsers never use.
+# Importing scipy held the interpreter for 20 ms at a time (an extension's set-up, on
+# a quiet machine): in sim_node, the first LoadWorld with meshes stopped /clock for up
+# to 58 ms while trimesh was imported (bench/clock_gaps.py).
+TRIMESH_SPARED = ('scipy', 'networkx')
+_lean = False
+
 Rgba = Tuple[float, float, float, float]
 
 
@@ -59,6 +68,34 @@ class Triangles(NamedTuple):
     faces: numpy.ndarray
     colours: Tuple[Optional[Rgba], ...]   # one per group of faces, in order
     groups: numpy.ndarray                 # per face: its index in ``colours``
+
+
+def lean_mesh_imports() -> None:
+    """
+    Import trimesh without :data:`TRIMESH_SPARED` from now on, in a process of r2d2_sim's own.
+
+    ``sim_node`` calls it: nothing else there uses trimesh, whose parsers
+    do not need them. A process that shares trimesh with other code (a test
+    with ``SimHarness``) keeps trimesh whole: a module trimesh imported
+    without scipy goes on without it.
+    """
+    global _lean
+    _lean = True
+
+
+def _import_trimesh() -> None:
+    """Import trimesh (lean when asked, the spared modules refused only while it imports)."""
+    if 'trimesh' in sys.modules:
+        return
+    spared = [name for name in TRIMESH_SPARED if _lean and name not in sys.modules]
+    for name in spared:
+        sys.modules[name] = None  # type: ignore[assignment]  # ImportError at once
+    try:
+        import trimesh  # noqa: F401
+    finally:
+        for name in spared:
+            if name in sys.modules and sys.modules[name] is None:
+                del sys.modules[name]
 
 
 def _quiet_trimesh() -> None:
@@ -198,6 +235,7 @@ def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
 
 def _stl(data: bytes, shown: str) -> Triangles:
     check_triangles(declared_triangles(data, '.stl'), shown)
+    _import_trimesh()
     from trimesh.exchange.stl import load_stl
     try:
         loaded = load_stl(io.BytesIO(data))
@@ -225,6 +263,7 @@ class _MaterialFiles:
 
 def _obj(data: bytes, shown: str, directory: str) -> Triangles:
     check_triangles(declared_triangles(data, '.obj'), shown)
+    _import_trimesh()
     from trimesh.exchange.obj import load_obj
     try:
         loaded = load_obj(io.BytesIO(data),

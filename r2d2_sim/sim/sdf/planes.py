@@ -122,18 +122,14 @@ def _retriangulated(vertices: numpy.ndarray, faces: numpy.ndarray, normal: numpy
 def _outline(faces: numpy.ndarray) -> Optional[List[int]]:
     """Return the facet's boundary as one loop of vertices in the faces' winding; else None."""
     directed = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    pairs = {(int(a), int(b)) for a, b in directed}
-    if len(pairs) != len(directed):
+    base = int(directed.max()) + 1
+    codes = directed[:, 0] * base + directed[:, 1]
+    if len(numpy.unique(codes)) != len(codes):
         return None  # an edge twice the same way: not a surface
-    following: Dict[int, int] = {}
-    for a, b in pairs:
-        if (b, a) in pairs:
-            continue  # inside the facet
-        if a in following:
-            return None  # the outline touches itself
-        following[a] = b
-    if len(following) < 3:
-        return None
+    outer = directed[~numpy.isin(directed[:, 1] * base + directed[:, 0], codes)]
+    if len(outer) < 3 or len(numpy.unique(outer[:, 0])) != len(outer):
+        return None  # the outline touches itself
+    following: Dict[int, int] = dict(zip(outer[:, 0].tolist(), outer[:, 1].tolist()))
     start = min(following)
     loop = [start]
     while True:
