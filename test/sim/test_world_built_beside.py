@@ -63,6 +63,7 @@ def test_the_old_world_steps_between_the_bodies_and_the_new_one_is_a_launch(make
     loaded = make(world_paths=[str(world_path.parent)], **ROBOTS)
     run(loaded, 24)
     robot = loaded.robot
+    clients = connected_clients()
     steps = loaded.loading_world(str(world_path))
     poses, chunks = [], 0
     with pytest.raises(StopIteration) as done:
@@ -73,6 +74,7 @@ def test_the_old_world_steps_between_the_bodies_and_the_new_one_is_a_launch(make
             loaded.step()
             poses.append(robot.body.world_pose())
     assert done.value.value.name == 'shelves'
+    assert len(connected_clients()) == len(clients)  # the old client went with the old world
     assert chunks >= 5  # the ground, two robots, three models: one body each
     assert len(set(poses)) == len(poses)  # the old robot drove on all along
     assert loaded.step_count == 0 and loaded.pristine
