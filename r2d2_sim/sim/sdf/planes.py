@@ -51,11 +51,15 @@ def merge_coplanar(vertices: numpy.ndarray, faces: numpy.ndarray, groups: numpy.
     labels = _facets(faces, normals, offsets, groups, usable)
     order = numpy.argsort(labels, kind='stable')
     bounds = numpy.flatnonzero(numpy.diff(labels[order])) + 1
+    starts = numpy.concatenate([[0], bounds])
+    ends = numpy.concatenate([bounds, [len(order)]])
     kept = numpy.ones(len(faces), dtype=bool)
     new_faces: List[Tuple[int, int, int]] = []
     new_groups: List[int] = []
-    for members in numpy.split(order, bounds):
-        if len(members) < 3 or not usable[members[0]]:
+    # Only facets of three triangles or more can come out smaller (a terrain has none).
+    for start, end in zip(starts[ends - starts >= 3].tolist(), ends[ends - starts >= 3].tolist()):
+        members = order[start:end]
+        if not usable[members[0]]:
             continue
         triangles = _retriangulated(vertices, faces[members], normals[members[0]],
                                     offsets[members[0]], doubled_areas[members].sum())
