@@ -13,11 +13,12 @@ a state saved (:meth:`SimWorld.save_state`) is come back to at once, contacts
 included (:meth:`SimWorld.restore_state`).
 """
 
+from contextlib import contextmanager
 from functools import partial
 import math
 import os
 import socket
-from typing import Dict, List, NamedTuple, Optional, Sequence, Tuple, Union
+from typing import Dict, Iterator, List, NamedTuple, Optional, Sequence, Tuple, Union
 
 import numpy
 
@@ -124,11 +125,16 @@ class WorldBuild:
     emptied first and the bodies are loaded straight into it.
     """
 
-    def __init__(self, client: BulletClient, bodies: Dict[str, Body], beside: bool) -> None:
+    def __init__(self, client: BulletClient, bodies: Dict[str, Body], beside: bool,
+                 free_ray_groups: List[int]) -> None:
         self.client = client
         self.bodies = bodies  # by name, in load order: the live world's dict when in place
         self.beside = beside
         self.twins: List[Tuple[Body, Body]] = []  # (a live body, its twin in this build)
+        # The ray groups a robot built into it may take: a group need only be unique
+        # within one client (the live world's list when in place).
+        self.free_ray_groups = free_ray_groups
+        self.taken = False
 
 
 class SimWorld:
@@ -378,7 +384,7 @@ class SimWorld:
             body.reload()
         bodies[body.name] = body
 
-    def build(self, beside: bool = True) -> WorldBuild:
+    def build(self, beside: bool = True, keep_ray_groups: Sequence[int] = ()) -> WorldBuild:
         """
         Start building the world anew: load into the build, then :meth:`take` it.
 
@@ -386,7 +392,8 @@ class SimWorld:
         client of its own, set up as this one, while this world goes on as it
         is. Else in place: the world is emptied now (:meth:`clear`).
         Either way the build starts as this world did (an emptied world is
-        the same as a new one, bit for bit).
+        the same as a new one, bit for bit). ``keep_ray_groups``: the groups
+        of the robots that go on into the build (the others are free there).
         """
         if beside and not self.gui:
             with silenced_output(stderr=False):
@@ -396,9 +403,22 @@ class SimWorld:
             except BaseException:
                 client.disconnect()
                 raise
-            return WorldBuild(client, {}, beside=True)
+            free = [group for group in RAY_GROUPS if group not in keep_ray_groups]
+            return WorldBuild(client, {}, True, free)
         self.clear()
-        return WorldBuild(self._live_client, self.bodies, beside=False)
+        return WorldBuild(self._live_client, self.bodies, False, self._free_ray_groups)
+
+    @contextmanager
+    def ray_groups_of(self, build: Optional[WorldBuild]) -> Iterator[None]:
+        """Take and give back ray groups from ``build``'s list meanwhile (robots built into it)."""
+        if build is None or not build.beside:
+            yield
+            return
+        live, self._free_ray_groups = self._free_ray_groups, build.free_ray_groups
+        try:
+            yield
+        finally:
+            self._free_ray_groups = live
 
     def take(self, build: WorldBuild) -> None:
         """
@@ -410,26 +430,31 @@ class SimWorld:
         """
         if not build.beside:
             return
+        old = self._live_client  # WorldError once closed: a build is not taken then
+        for body, twin in build.twins:
+            body.adopt(twin)
         kept = {id(body) for body in build.bodies.values()}
         for body in self.bodies.values():
             if id(body) not in kept:
                 body.unloaded()
-        for body, twin in build.twins:
-            body.adopt(twin)
-        old, self._client = self._client, build.client
+        self._client = build.client
         self._step_simulation = partial(pybullet.stepSimulation,
                                         physicsClientId=build.client._client)
         self.bodies = dict(build.bodies)
+        self._free_ray_groups = build.free_ray_groups
         self.removed_since_built = 0
         self.builds += 1  # states saved before are gone with the old physics world
         build.twins.clear()
-        if old is not None:
+        build.taken = True  # its client is the world's now: abandon() leaves it alone
+        try:
             old.disconnect()
+        except pybullet.error:
+            pass  # gone already: nothing of it is used any more
         malloc_trim()
 
     def abandon(self, build: WorldBuild) -> None:
         """Drop a build that will not be taken (its client disconnected); safe to call twice."""
-        if build.beside and build.client.isConnected():
+        if build.beside and not build.taken and build.client.isConnected():
             build.client.disconnect()
         build.twins.clear()
 

@@ -34,6 +34,9 @@ NODE_NAME = 'r2d2_sim'
 # A LoadWorld builds the new world for at most this long (one body at least)
 # before the physics takes a step of the old one: well within a 240 Hz step.
 BUILD_CHUNK_S = 0.002
+# And waits at most this long between two chunks for the paced loop's step (a
+# 240 Hz step at real time is due within 4.2 ms).
+BUILD_WAIT_S = 0.005
 __all__ = ['SimNode', 'StartupError', 'NODE_NAME']
 
 
@@ -181,28 +184,35 @@ class SimNode(MirroringNode):
         # Built beside the old world, a few bodies at a time with the lock held, and
         # swapped in at once: the physics steps on between (one step each time).
         steps = self.simulation.loading_world(world)
-        while True:
-            with self.lock:
-                chunk_end = time.monotonic() + BUILD_CHUNK_S
-                try:
-                    while True:
-                        next(steps)
-                        if time.monotonic() >= chunk_end:
-                            break
-                except StopIteration as stop:
-                    self._stopped_at_zero()
-                    return stop.value
-                running, before = not self._paused, self.simulation.step_count
-            if running:
-                self._wait_for_a_step(before)
+        try:
+            while True:
+                with self.lock:
+                    if not self.simulation.world.connected:  # the node is being destroyed
+                        raise RefusedError('OPERATION_FAILED', 'the simulator is shutting down')
+                    chunk_end = time.monotonic() + BUILD_CHUNK_S
+                    try:
+                        while True:
+                            next(steps)
+                            if time.monotonic() >= chunk_end:
+                                break
+                    except StopIteration as stop:
+                        self._stopped_at_zero()
+                        return stop.value
+                    running, before = not self._paused, self.simulation.step_count
+                if running:
+                    self._wait_for_a_step(before)
+        finally:
+            steps.close()  # a build not taken leaves nothing behind (its client, its robots)
 
     def _wait_for_a_step(self, before: int) -> None:
-        """Wait until the physics stepped on from ``before`` (at most two step periods)."""
+        """Wait until the physics stepped on from ``before``: two step periods, 5 ms at most."""
         config = self.config
         if config.real_time_factor <= 0.0:
             time.sleep(0)  # as fast as possible: the loop takes the lock when it is free
             return
-        deadline = time.monotonic() + 2.0 / (config.physics_rate_hz * config.real_time_factor)
+        # In slow motion a step is seldom due: the build does not wait a period for it.
+        wait_s = min(2.0 / (config.physics_rate_hz * config.real_time_factor), BUILD_WAIT_S)
+        deadline = time.monotonic() + wait_s
         while self.simulation.step_count == before and time.monotonic() < deadline:
             time.sleep(0.0005)
 

@@ -540,7 +540,11 @@ class Simulation:
         except BaseException:
             world_file.close()
             raise
-        yield from self._switching(world_file)
+        try:
+            yield from self._switching(world_file)
+        except BaseException:  # refused, or the caller stopped (GeneratorExit)
+            world_file.close()
+            raise
         return world_file
 
     def unload_world(self) -> None:
@@ -608,6 +612,8 @@ class Simulation:
             world_file.close()
             if not left:
                 drop_spawned()
+            for robot in self.robots:  # built again below: their ray groups free first
+                robot.close()
             self._take(self._startup.rebuild([], as_launched=True))
             self.entities.restore_info(self._startup.infos())
             raise RefusedError('OPERATION_FAILED', f'the world could not be built: {exc}; the '

@@ -252,8 +252,9 @@ class Startup:
             warn = self._warn
             if listed:
                 warn = _named(self._warn, body.name)
-            return Robot(self._world, body, config, source, description.text, warn=warn,
-                         error=self._error, resources=[description], namespace=namespace)
+            with self._world.ray_groups_of(into):
+                return Robot(self._world, body, config, source, description.text, warn=warn,
+                             error=self._error, resources=[description], namespace=namespace)
         except Exception:
             if body is not None:
                 if into is not None:
@@ -341,9 +342,15 @@ class Startup:
         # The world's models load after the first robot and extra_models, before the others.
         at = robot_places[1] if len(robot_places) > 1 else len(kept)
         starts = iter(self._starts)
+        robot_starts = {id(entity): placed(next(starts), world_file, self._warn)
+                        for entity in kept if entity.robot is not None}  # in load order
+        staying = [robot_of[id(entity.body)] for entity in kept
+                   if id(entity.body) in robot_of
+                   and robot_of[id(entity.body)].config == robot_starts[id(entity)].config]
         if not beside or self._world.gui:
             leaving()
-        build = self._world.build(beside)
+        build = self._world.build(beside, [robot.ray_group for robot in staying
+                                           if robot.ray_group is not None])
         entities: List[_Entity] = []
         after: List[Robot] = []
         restarted: List[Robot] = []  # kept robots, to start again once their bodies are in
@@ -365,7 +372,7 @@ class Startup:
                     if build.beside:
                         yield
                     continue
-                start = placed(next(starts), world_file, self._warn)
+                start = robot_starts[id(entity)]
                 entity = _Entity(entity.body, start, info=_robot_info(start))
                 robot = robot_of.get(id(entity.body))
                 if robot is not None and robot.config == start.config:  # its start did not move
@@ -395,11 +402,14 @@ class Startup:
                     yield
             if build.beside:
                 leaving()
+                for robot in replaced:  # their ray groups back to the old world's list
+                    robot.close()
             self._world.take(build)
         except BaseException:
             self._world.abandon(build)
-            for robot, _ in built:
-                robot.close()
+            with self._world.ray_groups_of(build):
+                for robot, _ in built:
+                    robot.close()
             raise
         if build.beside:
             for robot in restarted:
@@ -408,8 +418,6 @@ class Startup:
         for robot, step in built:
             # Built while the old world stepped on: as if built now.
             robot.restart_time(step - self._world.step_count)
-        for robot in replaced:
-            robot.close()
         self._entities, self.world_file = entities, world_file
         return Rebuilt(after, [e.body for e in entities if e.model], changed, dropped)
 

@@ -117,3 +117,47 @@ def test_the_cache_merges_a_large_mesh_only(tmp_path):
         assert converted.triangles == expected
         loaded = trimesh.load(converted.mesh, process=False)
         assert loaded.area == pytest.approx(mesh.area, rel=1e-9)
+
+
+def staircase_on_a_ramp(tilt_deg, cells=((0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (0, 2))):
+    """Return a flat staircase of half-cells (two triangles each), tilted and far from 0."""
+    import math
+    index, faces = {}, []
+
+    def corner(point):
+        return index.setdefault(point, len(index))
+    for cx, cy in cells:
+        for i in range(2):
+            for j in range(2):
+                x, y = 2 * cx + i, 2 * cy + j
+                a, b = corner((x, y)), corner((x + 1, y))
+                c, d = corner((x + 1, y + 1)), corner((x, y + 1))
+                faces += [(a, b, c), (a, c, d)]
+    flat = numpy.array(sorted(index, key=index.get), dtype=float) / 2.0
+    tilt = math.radians(tilt_deg)
+    vertices = numpy.column_stack([flat[:, 0] * math.cos(tilt) + 12.0, flat[:, 1] + 7.0,
+                                   flat[:, 0] * math.sin(tilt) + 0.5])
+    return vertices, numpy.array(faces)
+
+
+@pytest.mark.parametrize('tilt_deg', [0.0, 10.0, 30.0])
+def test_a_tilted_staircase_comes_back_with_no_sliver_and_none_turned_over(tilt_deg):
+    vertices, faces = staircase_on_a_ramp(tilt_deg)
+    new_faces, _ = merge_coplanar(vertices, faces, numpy.zeros(len(faces), dtype=int))
+    assert len(new_faces) < len(faces)
+    normals = numpy.cross(vertices[new_faces[:, 1]] - vertices[new_faces[:, 0]],
+                          vertices[new_faces[:, 2]] - vertices[new_faces[:, 0]])
+    first = numpy.cross(vertices[faces[0, 1]] - vertices[faces[0, 0]],
+                        vertices[faces[0, 2]] - vertices[faces[0, 0]])
+    assert (numpy.linalg.norm(normals, axis=1) > 1e-6).all()  # no triangle of no area
+    assert (normals @ first > 0).all()  # each faces the way the old ones did
+    assert (trimesh.Trimesh(vertices, new_faces, process=False).area
+            == pytest.approx(trimesh.Trimesh(vertices, faces, process=False).area, rel=1e-12))
+
+
+def test_an_outline_of_too_many_corners_is_kept_as_it_was():
+    teeth = 80  # a comb: 4 corners a tooth, 320 in all
+    cells = [(x, 0) for x in range(2 * teeth)] + [(2 * t, 1) for t in range(teeth)]
+    vertices, faces = staircase_on_a_ramp(0.0, cells)
+    new_faces, _ = merge_coplanar(vertices, faces, numpy.zeros(len(faces), dtype=int))
+    assert numpy.array_equal(new_faces, faces)

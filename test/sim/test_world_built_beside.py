@@ -12,7 +12,7 @@ the swap builds the world in place instead, the same way.
 import pybullet
 import pytest
 
-from r2d2_sim.errors import RefusedError
+from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.sim.simulation import SpawnRequest
 
 SIMULATION_DEFAULTS = {'cmd_vel_timeout': 0.0, 'imu_rate': 0.0}
@@ -128,3 +128,35 @@ def test_a_build_that_fails_drops_its_client_and_builds_the_old_world_as_launche
     assert connected_clients() == clients
     assert loaded.entities.names() == ['ground_plane', 'a', 'b'] and loaded.step_count == 0
     assert any('could not be built' in line for line in errors)
+
+
+def test_fifteen_robots_with_lasers_all_move_to_the_new_start(make, world_path):
+    """Ray groups are per client: the robots built beside take the new world's, not 29 more."""
+    names = [f'r{i}' for i in range(15)]
+    poses = {f'{name}.initial_pose': [1.5 * (i % 6), 1.5 * (i // 6), 0.0]
+             for i, name in enumerate(names)}
+    errors = []
+    started = make(world=str(world_path), robots=names, **poses)
+    loaded = make(errors=errors, world_paths=[str(world_path.parent)], robots=names, **poses)
+    assert all(robot.laser is not None for robot in loaded.robots)
+    loaded.load_world(str(world_path))  # its start pose moves every robot: built anew
+    assert errors == []
+    assert [r.name for r in loaded.robots] == [r.name for r in started.robots] == names
+    assert [r.ray_group for r in loaded.robots] == [r.ray_group for r in started.robots]
+    spare = loaded.world.take_ray_group()  # the next group free is a launch's next one
+    assert spare == started.world.take_ray_group()
+    assert spare not in [r.ray_group for r in loaded.robots]
+
+
+def test_a_world_closed_during_the_build_is_not_brought_back(make, world_path):
+    loaded = make(world_paths=[str(world_path.parent)], **ROBOTS)
+    clients = connected_clients()
+    steps = loaded.loading_world(str(world_path))
+    next(steps)
+    next(steps)
+    loaded.close()  # what destroying the node does between two chunks
+    with pytest.raises(WorldError, match='closed'):
+        for _ in steps:
+            pass
+    assert not loaded.world.connected
+    assert len(connected_clients()) == len(clients) - 1  # its own client gone, the build's too

@@ -21,11 +21,14 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy
 
-__all__ = ['merge_coplanar', 'PLANE_TOLERANCE']
+__all__ = ['merge_coplanar', 'PLANE_TOLERANCE', 'MAX_CORNERS']
 
 # Normals (unit) and plane offsets (m) within this are one plane; a corner
 # farther than this from its facet's plane keeps the facet as it was.
 PLANE_TOLERANCE = 1e-7
+# An outline of more corners is kept as it was: ear clipping here is quadratic in
+# them (a comb of 2,000 teeth took 7.8 s), and so jagged a face gains little.
+MAX_CORNERS = 256
 
 
 def merge_coplanar(vertices: numpy.ndarray, faces: numpy.ndarray, groups: numpy.ndarray
@@ -38,6 +41,7 @@ def merge_coplanar(vertices: numpy.ndarray, faces: numpy.ndarray, groups: numpy.
     them, vertices merged. The vertices are not changed (some may be left
     unused); the faces kept come first, in their order, then the new ones.
     """
+    vertices = numpy.asarray(vertices, dtype=numpy.float64)
     faces = numpy.asarray(faces, dtype=numpy.int64)
     groups = numpy.asarray(groups)
     if len(faces) < 4:
@@ -112,7 +116,7 @@ def _retriangulated(vertices: numpy.ndarray, faces: numpy.ndarray, normal: numpy
     u = numpy.cross(normal, (1.0, 0.0, 0.0) if abs(normal[0]) < 0.9 else (0.0, 1.0, 0.0))
     u /= numpy.linalg.norm(u)
     v = numpy.cross(normal, u)
-    points = vertices[loop]
+    points = vertices[loop] - vertices[loop[0]]  # small numbers: exact turns stay exact
     flat = [(float(p @ u), float(p @ v)) for p in points]
     triangles = _ear_clipped(flat)
     if triangles is None:
@@ -152,9 +156,14 @@ def _cross(o: Sequence[float], a: Sequence[float], b: Sequence[float]) -> float:
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
 
-def _inside(p, a, b, c) -> bool:
-    """Return True when ``p`` lies in the triangle abc (counter-clockwise), edges included."""
-    return _cross(a, b, p) >= 0.0 and _cross(b, c, p) >= 0.0 and _cross(c, a, p) >= 0.0
+def _inside(p, a, b, c, eps: float = 0.0) -> bool:
+    """
+    Return True when ``p`` lies in the triangle abc (counter-clockwise), edges included.
+
+    ``eps`` (a cross product: length squared) widens the edges: a point that
+    rounding put just outside one still counts.
+    """
+    return _cross(a, b, p) >= -eps and _cross(b, c, p) >= -eps and _cross(c, a, p) >= -eps
 
 
 def _corners(points: List[Tuple[float, float]]) -> List[int]:
@@ -190,21 +199,24 @@ def _ear_clipped(points: List[Tuple[float, float]]) -> Optional[List[Tuple[int, 
     turns the other way (a reflex one) is cut off, until three remain.
     """
     ring = _corners(points)
-    if len(ring) < 3:
+    if not 3 <= len(ring) <= MAX_CORNERS:
         return None
     triangles: List[Tuple[int, int, int]] = []
+    # A turn within this of straight is no corner to cut, and may be in the way of one.
+    span = max(max(abs(x), abs(y)) for x, y in points) or 1.0
+    eps = 1e-9 * span * span
 
     def turn(k: int) -> float:
         return _cross(points[ring[k - 1]], points[ring[k]], points[ring[(k + 1) % len(ring)]])
-    reflex = {ring[k] for k in range(len(ring)) if turn(k) < 0.0}
+    reflex = {ring[k] for k in range(len(ring)) if turn(k) <= eps}  # not clearly convex
     k = 0
     misses = 0
     while len(ring) > 3:
         m = len(ring)
         k %= m
         a, b, c = ring[k - 1], ring[k], ring[(k + 1) % m]
-        ear = turn(k) > 0.0 and not any(
-            _inside(points[r], points[a], points[b], points[c])
+        ear = turn(k) > eps and not any(
+            _inside(points[r], points[a], points[b], points[c], eps)
             for r in reflex if r not in (a, b, c))
         if not ear:
             k += 1
@@ -217,10 +229,10 @@ def _ear_clipped(points: List[Tuple[float, float]]) -> Optional[List[Tuple[int, 
         misses = 0
         m -= 1
         for j in (k - 1, k % m):  # the neighbours may have stopped turning the other way
-            if ring[j] in reflex and turn(j) >= 0.0:
+            if ring[j] in reflex and turn(j) > eps:
                 reflex.discard(ring[j])
         k = max(k - 1, 0)
-    if _cross(*(points[i] for i in ring)) <= 0.0:
+    if _cross(*(points[i] for i in ring)) <= eps:
         return None
     triangles.append((ring[0], ring[1], ring[2]))
     return triangles
