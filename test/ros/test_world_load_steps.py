@@ -54,3 +54,27 @@ def test_the_old_world_steps_while_the_new_one_is_built(ros, tmp_path):
         runner.join(5.0)
     assert len(seen) >= 16  # the ground, three robots, twelve cubes, the swap
     assert seen[-2] > seen[0]  # the old world stepped on between the bodies
+
+
+def test_a_simulation_closed_between_two_chunks_ends_the_load_in_one_line(ros, tmp_path):
+    """As when the node is destroyed mid-load: a refusal, the world stays closed, nothing leaks."""
+    import pybullet
+    import pytest
+    from r2d2_sim.errors import RefusedError
+    path = tmp_path / 'crowded.world.yaml'
+    path.write_text(WORLD)
+    sim = make_sim(ros, world_paths=[str(tmp_path)])  # running, nothing paces it here
+    clients = [i for i in range(64) if pybullet.isConnected(physicsClientId=i)]
+    waits = []
+
+    def wait_for_a_step(before):  # between two chunks, the lock free: close then
+        waits.append(before)
+        if len(waits) == 1:
+            with sim.lock:
+                sim.simulation.close()
+    sim._wait_for_a_step = wait_for_a_step
+    with pytest.raises(RefusedError, match='shutting down'):
+        sim.load_world(str(path))
+    assert len(waits) == 1 and not sim.simulation.world.connected
+    left = [i for i in range(64) if pybullet.isConnected(physicsClientId=i)]
+    assert len(left) == len(clients) - 1  # the simulator's own client, and no build's
