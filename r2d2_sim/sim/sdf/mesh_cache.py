@@ -36,6 +36,7 @@ import numpy
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import check_private, make_private_directories, read_regular, UnsafeFile
+from r2d2_sim.sim.sdf.components import lowest_labels
 from r2d2_sim.sim.sdf.meshes import check_triangles, read_mesh, read_mesh_bytes, Triangles
 from r2d2_sim.sim.sdf.planes import merge_coplanar
 
@@ -209,32 +210,11 @@ def hull_text(vertices: numpy.ndarray, faces: numpy.ndarray,
 
 
 def pieces(faces: numpy.ndarray, vertex_count: int) -> List[numpy.ndarray]:
-    """
-    Return the faces of each connected piece (sharing vertices), largest first.
-
-    Pieces are found with whole-array steps (the interpreter lock released
-    in each), not a loop over faces: every vertex points at the smallest
-    vertex of its piece found so far, edges hook the larger of their two
-    pieces' roots onto the smaller, then the pointers are followed to their
-    roots; each round at least halves the pieces.
-    """
-    parent = numpy.arange(vertex_count)
+    """Return the faces of each connected piece (sharing vertices), largest first."""
     if not len(faces):
         return []
-    ends = numpy.concatenate([faces[:, 0], faces[:, 0]]), \
-        numpy.concatenate([faces[:, 1], faces[:, 2]])
-    while True:
-        first, second = parent[ends[0]], parent[ends[1]]
-        apart = first != second
-        if not apart.any():
-            break
-        low, high = numpy.minimum(first, second)[apart], numpy.maximum(first, second)[apart]
-        numpy.minimum.at(parent, high, low)
-        while True:  # to the roots
-            grand = parent[parent]
-            if numpy.array_equal(grand, parent):
-                break
-            parent = grand
+    parent = lowest_labels(vertex_count, numpy.concatenate([faces[:, 0], faces[:, 0]]),
+                           numpy.concatenate([faces[:, 1], faces[:, 2]]))
     labels = parent[faces[:, 0]]
     order = numpy.argsort(labels, kind='stable')
     starts = numpy.flatnonzero(numpy.diff(labels[order])) + 1

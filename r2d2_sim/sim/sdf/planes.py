@@ -21,6 +21,8 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy
 
+from r2d2_sim.sim.sdf.components import lowest_labels
+
 __all__ = ['merge_coplanar', 'PLANE_TOLERANCE', 'MAX_CORNERS']
 
 # Normals (unit) and plane offsets (m) within this are one plane; a corner
@@ -91,16 +93,7 @@ def _facets(faces: numpy.ndarray, normals: numpy.ndarray, offsets: numpy.ndarray
               & (numpy.abs(offsets[first] - offsets[second]) <= PLANE_TOLERANCE)
               & numpy.all(numpy.abs(normals[first] - normals[second]) <= PLANE_TOLERANCE,
                           axis=1))
-    first, second = first[joined], second[joined]
-    labels = numpy.arange(count)
-    while True:  # the lowest label spreads along shared edges, with pointer jumping
-        lowest = numpy.minimum(labels[first], labels[second])
-        before = labels.copy()
-        numpy.minimum.at(labels, first, lowest)
-        numpy.minimum.at(labels, second, lowest)
-        labels = labels[labels]
-        if numpy.array_equal(labels, before):
-            return labels
+    return lowest_labels(count, first[joined], second[joined])
 
 
 def _retriangulated(vertices: numpy.ndarray, faces: numpy.ndarray, normal: numpy.ndarray,
