@@ -344,6 +344,7 @@ class Startup:
         starts = iter(self._starts)
         robot_starts = {id(entity): placed(next(starts), world_file, self._warn)
                         for entity in kept if entity.robot is not None}  # in load order
+        # The robots whose start does not move: the same Robot, its ray group kept.
         staying = [robot_of[id(entity.body)] for entity in kept
                    if id(entity.body) in robot_of
                    and robot_of[id(entity.body)].config == robot_starts[id(entity)].config]
@@ -375,7 +376,7 @@ class Startup:
                 start = robot_starts[id(entity)]
                 entity = _Entity(entity.body, start, info=_robot_info(start))
                 robot = robot_of.get(id(entity.body))
-                if robot is not None and robot.config == start.config:  # its start did not move
+                if robot is not None and robot in staying:  # its start did not move
                     if self._reload(entity.body, dropped, build):
                         entities.append(entity)
                         restarted.append(robot)
