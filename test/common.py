@@ -303,3 +303,18 @@ def clean_fast_dds_zombies() -> None:
 # The learning environments' tests, in process and over ROS: a noisy scan, so that the
 # seed's noise is part of what must repeat.
 GYM_NOISY = {'sim_parameters': {'scan_noise_std': 0.02}}
+
+
+def drive_and_read(simulation, steps=240):
+    """Drive every robot of a core Simulation for ``steps``; return each body's name and state."""
+    for robot in simulation.robots:
+        robot.command(0.4, 0.3)
+    for _ in range(steps):
+        simulation.step()
+    return [(name, body.world_state()) for name, body in simulation.world.bodies.items()]
+
+
+def connected_clients():
+    """Return the ids of the PyBullet clients connected in this process."""
+    import pybullet
+    return [i for i in range(64) if pybullet.isConnected(physicsClientId=i)]

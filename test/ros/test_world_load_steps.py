@@ -9,6 +9,7 @@ before the caller's reply.
 
 import threading
 
+from common import connected_clients
 from helpers import make_sim, wait_for
 
 from r2d2_sim.apps.sim_node import run_paced
@@ -58,13 +59,12 @@ def test_the_old_world_steps_while_the_new_one_is_built(ros, tmp_path):
 
 def test_a_simulation_closed_between_two_chunks_ends_the_load_in_one_line(ros, tmp_path):
     """As when the node is destroyed mid-load: a refusal, the world stays closed, nothing leaks."""
-    import pybullet
     import pytest
     from r2d2_sim.errors import RefusedError
     path = tmp_path / 'crowded.world.yaml'
     path.write_text(WORLD)
     sim = make_sim(ros, world_paths=[str(tmp_path)])  # running, nothing paces it here
-    clients = [i for i in range(64) if pybullet.isConnected(physicsClientId=i)]
+    clients = connected_clients()
     waits = []
 
     def wait_for_a_step(before):  # between two chunks, the lock free: close then
@@ -76,5 +76,5 @@ def test_a_simulation_closed_between_two_chunks_ends_the_load_in_one_line(ros, t
     with pytest.raises(RefusedError, match='shutting down'):
         sim.load_world(str(path))
     assert len(waits) == 1 and not sim.simulation.world.connected
-    left = [i for i in range(64) if pybullet.isConnected(physicsClientId=i)]
-    assert len(left) == len(clients) - 1  # the simulator's own client, and no build's
+    # The simulator's own client gone, and no build's left.
+    assert len(connected_clients()) == len(clients) - 1

@@ -12,6 +12,7 @@ bit for bit, as a twin simulation's that was never asked.
 import subprocess
 import sys
 
+from common import drive_and_read
 import pytest
 
 from r2d2_sim.errors import RefusedError
@@ -71,26 +72,18 @@ BAD_TEXTS = {
 }
 
 
-def run(simulation, steps=240):
-    """Drive every robot for ``steps``; return every body's name and state at the end."""
-    for robot in simulation.robots:
-        robot.command(0.4, 0.3)
-    for _ in range(steps):
-        simulation.step()
-    return [(name, body.world_state()) for name, body in simulation.world.bodies.items()]
-
-
 @pytest.mark.parametrize('text, code', BAD_TEXTS.values(), ids=BAD_TEXTS.keys())
 def test_a_bad_world_text_is_refused_and_the_world_runs_on_as_it_was(make, text, code):
     twin, simulation = make(), make()
-    run(twin, 60)
-    run(simulation, 60)
+    drive_and_read(twin, 60)
+    drive_and_read(simulation, 60)
     with pytest.raises(RefusedError) as refused:
         simulation.load_world('', text)
     assert refused.value.code == code, refused.value
     assert MARK not in str(refused.value) and '\n' not in str(refused.value)
     assert simulation.worlds.current.name == 'room' and simulation.step_count == 60
-    assert run(simulation) == run(twin)  # exactly as it was: the same run, bit for bit
+    # Exactly as it was: the same run, bit for bit.
+    assert drive_and_read(simulation) == drive_and_read(twin)
 
 
 def test_bad_world_files_are_refused_by_name_without_their_contents(make, tmp_path):

@@ -9,7 +9,7 @@ if the old world changed under the build (a start-up robot deleted, a reset),
 the swap builds the world in place instead, the same way.
 """
 
-import pybullet
+from common import connected_clients, drive_and_read
 import pytest
 
 from r2d2_sim.errors import RefusedError, WorldError
@@ -37,20 +37,6 @@ BOX = '''<robot name="crate"><link name="base"><inertial><mass value="1"/>
 <collision><geometry><box size="0.2 0.2 0.2"/></geometry></collision></link></robot>'''
 
 
-def run(simulation, steps=120):
-    """Drive every robot for ``steps``; return every body's name and state at the end."""
-    for robot in simulation.robots:
-        robot.command(0.4, 0.3)
-    for _ in range(steps):
-        simulation.step()
-    return [(name, body.world_state()) for name, body in simulation.world.bodies.items()]
-
-
-def connected_clients():
-    """Return the ids of the PyBullet clients connected in this process."""
-    return [i for i in range(64) if pybullet.isConnected(physicsClientId=i)]
-
-
 @pytest.fixture
 def world_path(tmp_path):
     path = tmp_path / 'shelves.world.yaml'
@@ -61,7 +47,7 @@ def world_path(tmp_path):
 def test_the_old_world_steps_between_the_bodies_and_the_new_one_is_a_launch(make, world_path):
     started = make(world=str(world_path), **ROBOTS)
     loaded = make(world_paths=[str(world_path.parent)], **ROBOTS)
-    run(loaded, 24)
+    drive_and_read(loaded, 24)
     robot = loaded.robot
     clients = connected_clients()
     steps = loaded.loading_world(str(world_path))
@@ -80,7 +66,7 @@ def test_the_old_world_steps_between_the_bodies_and_the_new_one_is_a_launch(make
     assert loaded.step_count == 0 and loaded.pristine
     assert loaded.entities.names() == started.entities.names() == [
         'ground_plane', 'a', 'shelf', 'crate', 'box', 'b']
-    assert run(loaded) == run(started)  # bit for bit
+    assert drive_and_read(loaded, 120) == drive_and_read(started, 120)  # bit for bit
 
 
 def test_a_world_changed_during_the_build_is_built_in_place_as_a_launch(make, world_path):
@@ -96,7 +82,7 @@ def test_a_world_changed_during_the_build_is_built_in_place_as_a_launch(make, wo
         loaded.step()
     assert connected_clients() == clients  # the build beside was dropped, not leaked
     assert loaded.entities.names() == started.entities.names()  # b back, the cube gone
-    assert run(loaded) == run(started)
+    assert drive_and_read(loaded, 120) == drive_and_read(started, 120)
 
 
 def test_a_spawn_during_the_build_leaves_with_the_old_world(make, world_path):

@@ -11,6 +11,7 @@ start pose. Named poses are frames a spawn or a teleport can be given in.
 import math
 import os
 
+from common import drive_and_read
 import pytest
 
 from r2d2_sim.errors import RefusedError, WorldError
@@ -34,15 +35,6 @@ named_poses:
   - {name: entry, position: [1.0, 2.0, 0.0], yaw: 1.5707963267948966, tags: [start]}
   - {name: far, description: somewhere, position: [-4.0, 0.0, 0.0], tags: [goal, far]}
 '''
-
-
-def run(simulation, steps=240):
-    """Drive every robot for ``steps``; return every body's name and state at the end."""
-    for robot in simulation.robots:
-        robot.command(0.4, 0.3)
-    for _ in range(steps):
-        simulation.step()
-    return [(name, body.world_state()) for name, body in simulation.world.bodies.items()]
 
 
 def test_the_world_parameter_takes_a_manifest_with_models_named_poses_and_tags(make):
@@ -103,11 +95,11 @@ def test_a_loaded_world_runs_as_one_started_with_it(make, tmp_path):
     robots = {'robots': ['a', 'b'], 'b.initial_pose': [1.0, 0.0, 0.0]}
     started = make(world=str(path), **robots)
     loaded = make(world_paths=[str(tmp_path)], **robots)
-    run(loaded, 50)
+    drive_and_read(loaded, 50)
     loaded.load_world(str(path))
     assert loaded.entities.names() == started.entities.names() == [
         'ground_plane', 'a', 'shelf', 'b']
-    assert run(loaded) == run(started)  # bit for bit
+    assert drive_and_read(loaded) == drive_and_read(started)  # bit for bit
 
 
 def test_load_world_replaces_the_world_and_stops_at_time_zero(make):
@@ -115,7 +107,7 @@ def test_load_world_replaces_the_world_and_stops_at_time_zero(make):
     simulation = make(world=ROOM)
     robot = simulation.robot
     simulation.spawn(SpawnRequest('box', uri='cube_small.urdf', position=(0.5, 0.5, 0.025)))
-    run(simulation, 48)
+    drive_and_read(simulation, 48)
     world = simulation.load_world('', TURNED)
     assert world.name == 'turned' and simulation.worlds.current is world
     assert simulation.entities.names() == ['ground_plane', 'r2d2', 'shelf']
@@ -134,12 +126,12 @@ def test_a_full_reset_builds_the_world_loaded_last_as_it_was_loaded(make):
     """Moved, relabelled or deleted: a full reset restores the loaded world; the run repeats."""
     other = make(world=ROOM)
     other.load_world('', TURNED)
-    fresh = run(other)
+    fresh = drive_and_read(other)
     simulation = make(world=ROOM)
     simulation.load_world('', TURNED)
-    run(simulation, 100)
+    drive_and_read(simulation, 100)
     simulation.reset(time=True, state=True, spawned=True)
-    assert run(simulation) == fresh  # bit for bit, as loaded
+    assert drive_and_read(simulation) == fresh  # bit for bit, as loaded
     simulation.set_entity_state('shelf', '', (9.0, 9.0, 0.025), (0.0, 0.0, 0.0, 1.0),
                                 (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     simulation.set_entity_info('shelf', Category.HUMAN, 'a person now', ['person'])
@@ -151,7 +143,7 @@ def test_a_full_reset_builds_the_world_loaded_last_as_it_was_loaded(make):
     info = simulation.entities.info('shelf')
     assert (info.category, info.tags) == (Category.DYNAMIC_OBJECT, ('shelf', 'small'))
     assert simulation.entities.state('shelf').position[0] == pytest.approx(3.0, abs=1e-6)
-    assert run(simulation) == fresh
+    assert drive_and_read(simulation) == fresh
 
 
 def test_unload_world_leaves_the_robots_and_no_world(make):
