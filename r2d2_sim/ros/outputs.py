@@ -33,6 +33,7 @@ from r2d2_sim.sim.robots.robot import Frame, Measurement, Robot
 from r2d2_sim.ros.sensor_outputs import (
     BatteryOutput, CAMERA_QOS, HeadCameraOutput, ImuOutput, Lidar3dOutput, PointCloudTemplate,
     ScanOutput, SENSOR_QOS)
+from r2d2_sim.ros.mirror import demand
 from r2d2_sim.ros.serialization import MessageTemplate, StampSlot
 from r2d2_sim.ros.tf_outputs import (  # noqa: F401 (TF's QoS here too)
     start_tf, TF_QOS, TF_STATIC_QOS)
@@ -53,11 +54,14 @@ class ClockOutput:
 
     def __init__(self, node: Node) -> None:
         self._publisher = node.create_publisher(Clock, '/clock', STATE_QOS)
+        self._demand = demand(self._publisher)
         self._template = MessageTemplate(Clock())
         self._clock = self._template.stamp('clock')
 
     def publish(self, time_ns: int) -> None:
         """Publish the time."""
+        if not self._demand():
+            return
         self._clock.set_nanoseconds(time_ns)
         self._publisher.publish(self._template.to_bytes())
 
@@ -67,6 +71,7 @@ class JointStateOutput:
 
     def __init__(self, node: Node, joints: Sequence[JointRecord]) -> None:
         self._publisher = node.create_publisher(JointState, 'joint_states', STATE_QOS)
+        self._demand = demand(self._publisher)
         zeros = [0.0] * len(joints)
         self._template = MessageTemplate(JointState(
             name=[j.name for j in joints], position=zeros, velocity=zeros, effort=zeros))
@@ -77,6 +82,8 @@ class JointStateOutput:
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's joint readout."""
+        if not self._demand():
+            return
         self._stamp.set(*frame.stamp)
         joints = frame.joints
         for slot, values in zip(self._arrays,
@@ -100,6 +107,7 @@ class GroundTruthOutput:
 
     def __init__(self, node: Node, config: SimConfig) -> None:
         self._publisher = node.create_publisher(Odometry, 'ground_truth', STATE_QOS)
+        self._demand = demand(self._publisher)
         msg = Odometry()
         msg.header.frame_id = config.world_frame_id
         msg.child_frame_id = config.frame(config.base_frame_id)
@@ -107,6 +115,8 @@ class GroundTruthOutput:
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's true base state."""
+        if not self._demand():
+            return
         msg, base = self._msg, frame.base
         msg.stamp.set(*frame.stamp)
         msg.pose.set(base.position + base.orientation)
@@ -133,6 +143,7 @@ class OdometryOutput:
 
     def __init__(self, node: Node, config: SimConfig, footprint_height_m: float) -> None:
         self._publisher = node.create_publisher(Odometry, 'odom', STATE_QOS)
+        self._demand = demand(self._publisher)
         msg = Odometry()
         msg.header.frame_id = config.frame(config.odom_frame_id)
         msg.child_frame_id = config.frame(config.base_frame_id)
@@ -149,6 +160,8 @@ class OdometryOutput:
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's wheel odometry."""
+        if not self._demand():
+            return
         msg, odometry = self._msg, frame.odometry
         assert odometry is not None, 'a robot with wheels (this output) measures odometry'
         msg.stamp.set(*frame.stamp)
@@ -193,6 +206,7 @@ class ContactsOutput:
 
     def __init__(self, node: Node, config: SimConfig) -> None:
         self._publisher = node.create_publisher(MarkerArray, 'contacts', STATE_QOS)
+        self._demand = demand(self._publisher)
         self._frame_id = config.world_frame_id
         self._templates: 'OrderedDict[Tuple, Tuple]' = OrderedDict()
         self._touching = False
@@ -202,6 +216,8 @@ class ContactsOutput:
         if not touches and not self._touching:
             return
         self._touching = bool(touches)
+        if not self._demand():
+            return
         key = tuple((t.other, t.link, t.other_link) for t in touches)
         template, stamps, points = self._template(key)
         for stamp in stamps:

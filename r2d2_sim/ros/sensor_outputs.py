@@ -29,6 +29,7 @@ from r2d2_sim.model import battery, camera
 from r2d2_sim.model.camera import CameraIntrinsics
 from r2d2_sim.model.sensors import ImuModel, ImuReading, LidarGeometry, ScanGeometry
 from r2d2_sim.model.timing import stamp_of
+from r2d2_sim.ros.mirror import demand
 from r2d2_sim.ros.serialization import FieldSlot, MessageTemplate, StampSlot
 from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.robots.sensors import (
@@ -74,9 +75,17 @@ class HeadCameraOutput:
                                 is_bigendian=0, step=4 * k.width_px)
             depth_image.header.frame_id = frame_id
             self._depth = depth_image, depth_pub, depth_info_pub
+        publishers = [self._image_pub, self._info_pub]
+        if self._cloud is not None:
+            publishers.append(self._cloud_pub)
+        if self._depth is not None:
+            publishers += self._depth[1:]
+        self._demands = [demand(publisher) for publisher in publishers]
 
     def publish(self, time_ns: int, image: CameraImage) -> None:
         """Publish an image and its CameraInfo (and depth), stamped ``time_ns``."""
+        if not any(taken() for taken in self._demands):
+            return
         stamp = stamp_of(time_ns)
         info = self._info
         info.header.stamp.sec, info.header.stamp.nanosec = stamp
@@ -121,6 +130,7 @@ class ScanOutput:
 
     def __init__(self, node: Node, config: SimConfig, geometry: ScanGeometry) -> None:
         self._publisher = node.create_publisher(LaserScan, 'scan', SENSOR_QOS)
+        self._demand = demand(self._publisher)
         msg = LaserScan(angle_min=geometry.angle_min_rad, angle_max=geometry.last_angle_rad,
                         angle_increment=geometry.angle_increment_rad,
                         # All beams are cast at one instant: no motion between them,
@@ -135,6 +145,8 @@ class ScanOutput:
 
     def publish(self, time_ns: int, ranges: numpy.ndarray) -> None:
         """Publish REP-117 ranges measured at ``time_ns``."""
+        if not self._demand():
+            return
         self._stamp.set_nanoseconds(time_ns)
         self._ranges.set(ranges)
         self._publisher.publish(self._template.to_bytes())
@@ -145,6 +157,7 @@ class ImuOutput:
 
     def __init__(self, node: Node, config: SimConfig, model: ImuModel) -> None:
         self._publisher = node.create_publisher(Imu, 'imu', SENSOR_QOS)
+        self._demand = demand(self._publisher)
         msg = Imu()
         msg.header.frame_id = config.frame(IMU_FRAME_ID)
         msg.orientation_covariance = model.orientation_covariance
@@ -158,6 +171,8 @@ class ImuOutput:
 
     def publish(self, time_ns: int, reading: ImuReading) -> None:
         """Publish a reading taken at ``time_ns``."""
+        if not self._demand():
+            return
         self._stamp.set_nanoseconds(time_ns)
         self._orientation.set(reading.orientation_xyzw)
         self._angular.set(reading.angular_velocity_rad_s)
@@ -214,6 +229,7 @@ class Lidar3dOutput:
 
     def __init__(self, node: Node, config: SimConfig, geometry: LidarGeometry) -> None:
         self._publisher = node.create_publisher(PointCloud2, 'points', CAMERA_QOS)
+        self._demand = demand(self._publisher)
         self._cloud = PointCloudTemplate(config.frame(LIDAR3D_FRAME_ID), geometry.rings,
                                          geometry.samples, XYZIRT)
         self._points = numpy.zeros((geometry.rings, geometry.samples), XYZIRT)
@@ -221,6 +237,8 @@ class Lidar3dOutput:
 
     def publish(self, time_ns: int, points: numpy.ndarray) -> None:
         """Publish a scan's points, (rings, samples, 3), measured at ``time_ns``."""
+        if not self._demand():
+            return
         cloud, packed = self._cloud, self._points
         packed['x'], packed['y'], packed['z'] = points[..., 0], points[..., 1], points[..., 2]
         cloud.stamp.set_nanoseconds(time_ns)
@@ -241,6 +259,7 @@ class BatteryOutput:
 
     def __init__(self, node: Node, config: SimConfig, capacity_ah: float) -> None:
         self._publisher = node.create_publisher(BatteryState, 'battery_state', SENSOR_QOS)
+        self._demand = demand(self._publisher)
         # Per status: the template, its stamp, voltage, current, charge, percentage.
         self._templates: Dict[int, Tuple[MessageTemplate, StampSlot, FieldSlot, FieldSlot,
                                          FieldSlot, FieldSlot]] = {}
@@ -258,6 +277,8 @@ class BatteryOutput:
 
     def publish(self, time_ns: int, reading: battery.BatteryReading) -> None:
         """Publish the battery as read at ``time_ns``."""
+        if not self._demand():
+            return
         template, stamp, voltage, current, charge, percentage = self._templates[reading.status]
         stamp.set_nanoseconds(time_ns)
         voltage.set((reading.voltage_v,))

@@ -22,6 +22,7 @@ from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.robots.robot import Frame, Robot
 from r2d2_sim.sim.robots.sensors import (
     HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
+from r2d2_sim.ros.mirror import demand
 from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.model.timing import stamp_of
 from r2d2_sim.model.link_tree import LinkTransforms
@@ -78,12 +79,34 @@ class TfOutput:
         self._transforms = [self._template.field(f'transforms[{i}].transform')
                             for i in range(len(pairs))]
         self.empty = not pairs
-        # The latest /tf sent (serialized), for a listener in this process that starts
-        # later: a harness then reads it here rather than listen to every publication.
-        self.latest: Optional[bytes] = None
+        self._demand = demand(self._publisher)
+        # The latest frame, and its /tf serialized once someone asked (see latest).
+        self._frame: Optional[Frame] = None
+        self._latest: Optional[bytes] = None
+
+    @property
+    def latest(self) -> Optional[bytes]:
+        """
+        The latest /tf published (serialized), None before the first.
+
+        For a listener in this process that starts later: a harness reads it
+        here rather than listen to every publication. Built when asked if
+        nobody subscribed to /tf when it was published.
+        """
+        if self._latest is None and self._frame is not None:
+            self._latest = self._serialized(self._frame)
+        return self._latest
 
     def publish(self, frame: Frame) -> None:
-        """Publish the frame's transforms."""
+        """Publish the frame's transforms (to nobody: keep the frame for :attr:`latest`)."""
+        self._frame = frame
+        if not self._demand():
+            self._latest = None
+            return
+        data = self._latest = self._serialized(frame)
+        self._publisher.publish(data)
+
+    def _serialized(self, frame: Frame) -> bytes:
         stamp = frame.stamp
         for slot in self._stamps:
             slot.set(*stamp)
@@ -104,9 +127,7 @@ class TfOutput:
             positions = frame.joints.positions
             for joint in self._links.moving([positions[i] for i in self._joint_slots]):
                 next(slots).set(joint.transform.translation + joint.transform.rotation)
-        data = self._template.to_bytes()
-        self._publisher.publish(data)
-        self.latest = data
+        return self._template.to_bytes()
 
 
 def start_tf(node: Node, config: SimConfig, robot: Robot, time_ns: int) -> Optional[TfOutput]:

@@ -1,0 +1,129 @@
+"""
+Outputs nobody takes are not built, and a subscriber that comes later gets what it always got.
+
+An output asks its publisher how many subscriptions it matched before it
+builds a message (issue 38: "outputs computed only when someone takes
+them"). The measurements go on whether or not anyone listens (the noise
+streams, the odometry, the contact state), so a subscriber that arrives
+late receives, from then on, the very bytes a subscriber present from the
+start receives. The recording and the live view take everything
+(test/recording checks their contents); ``/tf`` kept for the harness's own
+lookups is built when asked.
+"""
+
+from nav_msgs.msg import Odometry
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import Imu, JointState, LaserScan
+from tf2_msgs.msg import TFMessage
+
+from helpers import make_sim, wait_for
+
+# Noise on every noisy reading: a skipped build must not move any stream.
+NOISY = dict(cmd_vel_timeout=0.0, scan_rate=60.0, imu_rate=120.0, noise_seed=7,
+             scan_noise_std=0.02, imu_angular_velocity_noise_std=0.01,
+             imu_linear_acceleration_noise_std=0.05, imu_orientation_noise_std=0.01,
+             encoder_noise_std=0.01)
+TOPICS = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry,
+          'scan': LaserScan, 'imu': Imu}
+STEPS, LATE = 96, 48
+# The sensors publish best effort (as sensor drivers do): a reliable subscription would not match.
+SENSORS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
+QOS = {'joint_states': 1000, 'odom': 1000, 'ground_truth': 1000, 'scan': SENSORS, 'imu': SENSORS}
+
+
+class CountingPublisher:
+    """Counts an rclpy publisher's publish calls, passing each on."""
+
+    def __init__(self, output):
+        self.calls = 0
+        publisher = output._publisher
+        publish = publisher.publish
+
+        def counted(msg):
+            self.calls += 1
+            publish(msg)
+        publisher.publish = counted
+
+
+def stamp_ns(raw, msg_type):
+    stamp = deserialize_message(raw, msg_type).header.stamp
+    return stamp.sec * 10**9 + stamp.nanosec
+
+
+def drive_and_listen(ros, subscribe_at):
+    """Drive a noisy run of STEPS; listen (raw bytes) to TOPICS from step ``subscribe_at``."""
+    sim = make_sim(ros, **NOISY)
+    sim.simulation.robot.command(0.4, 0.8)
+    heard = {topic: [] for topic in TOPICS}
+    node = ros.create_node('listener', use_sim_time=False)
+    for step in range(0, STEPS, 8):
+        if step == subscribe_at:
+            subscriptions = [node.create_subscription(msg_type, topic, heard[topic].append,
+                                                      QOS[topic], raw=True)
+                             for topic, msg_type in TOPICS.items()]
+            assert wait_for(lambda: all(s.get_publisher_count() for s in subscriptions))
+            publishers = [output._publisher for output in sim.robots[0].outputs.state[:3]]
+            assert wait_for(lambda: all(p.get_subscription_count() for p in publishers))
+        sim.advance(8)
+    # Every state topic once a step from the subscription on, scan and IMU at their rates.
+    expected = {'joint_states': STEPS - subscribe_at, 'odom': STEPS - subscribe_at,
+                'ground_truth': STEPS - subscribe_at, 'scan': (STEPS - subscribe_at) // 4,
+                'imu': (STEPS - subscribe_at) // 2}
+    assert wait_for(lambda: all(len(heard[t]) >= n for t, n in expected.items())), \
+        {t: len(heard[t]) for t in TOPICS}
+    return {topic: {stamp_ns(raw, TOPICS[topic]): raw for raw in messages}
+            for topic, messages in heard.items()}, sim
+
+
+def test_an_output_nobody_takes_builds_nothing(ros):
+    sim = make_sim(ros, **NOISY)
+    outputs = sim.robots[0].outputs
+    counters = [CountingPublisher(output) for output in outputs.state[:3]]
+    counters += [CountingPublisher(outputs.scan), CountingPublisher(outputs.imu)]
+    sim.advance(24)
+    assert [c.calls for c in counters] == [0, 0, 0, 0, 0]
+    node = ros.create_node('listener', use_sim_time=False)
+    heard = []
+    subscription = node.create_subscription(JointState, 'joint_states', heard.append, 100)
+    assert wait_for(lambda: subscription.get_publisher_count() > 0)
+    assert wait_for(lambda: outputs.state[0]._publisher.get_subscription_count() > 0)
+    sim.advance(24)
+    assert [c.calls for c in counters] == [24, 0, 0, 0, 0]
+    assert wait_for(lambda: len(heard) == 24)
+    assert heard[-1].header.stamp.nanosec == round(48 / 240 * 1e9)
+
+
+def test_a_late_subscriber_hears_the_bytes_of_one_there_from_the_start(ros):
+    early, early_sim = drive_and_listen(ros, 0)
+    early_state = early_sim.simulation.robot.body.base_state()
+    early_sim.destroy_node()
+    late, late_sim = drive_and_listen(ros, LATE)
+    for topic in TOPICS:
+        assert late[topic], topic
+        for stamp, raw in late[topic].items():
+            assert raw == early[topic][stamp], (topic, stamp)
+    # Nothing the run measured moved: the noise streams and the odometry went on unheard.
+    assert late_sim.simulation.robot.body.base_state() == early_state
+
+
+def test_tf_is_built_when_asked_and_is_what_a_subscriber_hears(ros):
+    sim = make_sim(ros, cmd_vel_timeout=0.0)
+    tf = sim.robots[0].outputs.tf
+    counter = CountingPublisher(tf)
+    sim.simulation.robot.command(0.3, 0.0)
+    sim.advance(12)
+    assert counter.calls == 0
+    asked = deserialize_message(tf.latest, TFMessage)
+    stamp = asked.transforms[0].header.stamp
+    assert (stamp.sec, stamp.nanosec) == (0, round(12 / 240 * 1e9))
+    assert asked.transforms[0].transform.translation.x > 0.0
+    assert tf.latest is tf.latest  # built once per publication
+    heard = []
+    node = ros.create_node('listener', use_sim_time=False)
+    node.create_subscription(TFMessage, '/tf', heard.append, 100, raw=True)
+    assert wait_for(lambda: tf._publisher.get_subscription_count() > 0)
+    sim.advance(1)
+    assert counter.calls == 1
+    assert wait_for(lambda: len(heard) == 1)
+    assert heard[0] == tf.latest
