@@ -20,6 +20,7 @@ __all__ = [
     'Transform',
     'IDENTITY',
     'BaseState',
+    'in_body_frame',
     'quaternion_multiply',
     'quaternion_from_rpy',
     'quaternion_from_axis_angle',
@@ -132,6 +133,13 @@ def rotate_inverse(rotation: Quaternion, vector: Sequence[float]) -> Vector3:
     """Rotate ``vector`` by the inverse of the unit quaternion ``rotation``."""
     x, y, z, w = rotation
     return rotate((-x, -y, -z, w), vector)
+
+
+def in_body_frame(world: BaseState) -> BaseState:
+    """Return ``world`` (its twist in the world frame) with the twist in the body's own frame."""
+    position, orientation, linear, angular = world
+    return BaseState(position, orientation, rotate_inverse(orientation, linear),
+                     rotate_inverse(orientation, angular))
 
 
 def compose(a: Transform, b: Transform) -> Transform:

@@ -33,7 +33,7 @@ from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Se
 
 from r2d2_sim.errors import WorldError
 from r2d2_sim.model.health import base_problem, joint_problem, joints_finite, twist_problem
-from r2d2_sim.model.transforms import BaseState, rotate_inverse
+from r2d2_sim.model.transforms import BaseState, in_body_frame, rotate_inverse
 from r2d2_sim.physics import records
 from r2d2_sim.physics.raycast import exclude_from_rays, RAY_EXCLUDED_GROUP
 from r2d2_sim.physics.records import (
@@ -199,9 +199,7 @@ class Body:
         base link frame turned by ``body_yaw_offset_rad`` (the REP-103 body
         frame) and expresses both velocities in it, as ROS odometry does.
         """
-        position, orientation, linear, angular = self.world_state()
-        return BaseState(position, orientation, rotate_inverse(orientation, linear),
-                         rotate_inverse(orientation, angular))
+        return in_body_frame(self.world_state())
 
     def world_pose(self) -> Tuple[Vec3, Quat]:
         """Return the body frame's pose in the world: :meth:`world_state` without the twist."""

@@ -265,3 +265,28 @@ def test_noise_is_set_per_robot():
     with pytest.raises(ConfigError,
                        match='robot b: parameter encoder_noise_dynamic_bias_std needs'):
         parse_world({'robots': ['b'], 'b.encoder_noise_dynamic_bias_std': 0.1})
+
+
+def test_the_imu_reads_the_same_with_or_without_a_frame_read_that_step(make):
+    # With the state published every step the IMU takes the frame's own read of the
+    # base (one query pair fewer); published once a second, it reads the body itself.
+    # Bit for bit the same readings, noise and all.
+    noise = dict(imu_rate=120.0, noise_seed=5, cmd_vel_timeout=0.0,
+                 imu_angular_velocity_noise_std=0.01, imu_linear_acceleration_noise_std=0.05,
+                 imu_orientation_noise_std=0.01)
+    readings = []
+    for publish_rate in (0.0, 1.0):
+        simulation = make(publish_rate=publish_rate, **noise)
+        simulation.robot.command(0.4, 0.6)
+        seen = []
+        for _ in range(240):
+            result = simulation.step()
+            if result is not None and result.measurements[0].imu is not None:
+                seen.append((result.step, result.measurements[0].frame is not None,
+                             result.measurements[0].imu))
+        readings.append(seen)
+    every_step, rarely = readings
+    assert len(every_step) == len(rarely) == 120
+    assert all(framed for _, framed, _ in every_step)
+    assert sum(framed for _, framed, _ in rarely) <= 2
+    assert [(step, imu) for step, _, imu in every_step] == [(step, imu) for step, _, imu in rarely]

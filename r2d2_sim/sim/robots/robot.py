@@ -20,7 +20,7 @@ from typing import Callable, List, NamedTuple, Optional, Sequence, Tuple, Union
 import numpy
 
 from r2d2_sim.physics.body import Body
-from r2d2_sim.model.transforms import BaseState, yaw_of
+from r2d2_sim.model.transforms import BaseState, in_body_frame, yaw_of
 from r2d2_sim.physics.records import JointRecord, JointStates
 from r2d2_sim.model.drive_controller import (
     CommandVerdict, DriveController, NO_WHEELS, timeout_steps)
@@ -233,9 +233,9 @@ class Robot:
         imu = self._imu_due is not None and self._imu_due.due(step)
         battery = self._battery_due is not None and self._battery_due.due(step)
         sensing = camera or scan or lidar or imu
-        frame = contacts = None
+        frame = contacts = world = None
         if state_due:
-            frame = self.read_frame(step, time_ns)
+            frame, world = self._read_frame(step, time_ns)
             if self.config.publish_contacts:
                 contacts = tuple(touching(self.world, self.body))
         else:
@@ -257,7 +257,7 @@ class Robot:
             time_ns, frame,
             self.camera.render(depth=self._camera_depth) if camera and self.camera else None,
             None,  # the scan and the lidar's points: once its rays are cast (take_rays)
-            self.imu.read(time_ns / 1e9) if imu and self.imu else None,
+            self.imu.read(time_ns / 1e9, world) if imu and self.imu else None,
             None,
             self.battery.reading() if battery and self.battery else None,
             contacts)
@@ -280,14 +280,20 @@ class Robot:
 
     def read_frame(self, step: int, time_ns: int) -> Frame:
         """Read the robot once (resetting it first if the state is absurd); integrate odometry."""
+        return self._read_frame(step, time_ns)[0]
+
+    def _read_frame(self, step: int, time_ns: int) -> Tuple[Frame, BaseState]:
+        """:meth:`read_frame`, and the base's state with its twist in the world (the IMU's)."""
         body = self.body
         joints = body.joint_states(self.movable_indices)
-        base = body.base_state()
+        world = body.world_state()
+        base = in_body_frame(world)
         problem = body.joint_problem(self.movable_indices, joints) or body.state_problem(base)
         if problem is not None:
             self._recover(problem, time_ns)
             joints = body.joint_states(self.movable_indices)
-            base = body.base_state()
+            world = body.world_state()
+            base = in_body_frame(world)
         odometry = None
         if self.controller is not None:
             positions = joints.positions
@@ -295,7 +301,7 @@ class Robot:
             odometry = self.controller.odometry_state()
         if self.battery is not None:
             self._run_battery(self.battery, step, joints, base)
-        return Frame(step, time_ns, joints, base, odometry)
+        return Frame(step, time_ns, joints, base, odometry), world
 
     def _run_battery(self, battery: Battery, step: int, joints: JointStates,
                      base: BaseState) -> None:

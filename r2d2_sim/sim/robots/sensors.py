@@ -30,7 +30,7 @@ from r2d2_sim.model.sensors import (
     ImuModel, ImuReading, lidar_directions, lidar_ranges, LidarGeometry, linearize_depth,
     noisy_depth, ranges_from_hits, ray_endpoints, ScanGeometry, SensorConfigError)
 from r2d2_sim.model.transforms import (
-    apply, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotation_matrix,
+    apply, BaseState, IDENTITY, quaternion_from_rpy, quaternion_multiply, rotation_matrix,
     Transform)
 
 if TYPE_CHECKING:  # typing only
@@ -321,9 +321,14 @@ class ImuSensor:
             self._config = config
         self.model = self._new_model()
 
-    def read(self, time_s: float) -> ImuReading:
-        """Return the reading for the body's true motion now (acceleration since the last)."""
-        base = self._body.world_state()
+    def read(self, time_s: float, world: Optional[BaseState] = None) -> ImuReading:
+        """
+        Return the reading for the body's true motion now (acceleration since the last).
+
+        ``world``: the body's :meth:`~r2d2_sim.physics.body.Body.world_state`
+        this step, when the robot already read it (one query pair fewer).
+        """
+        base = world if world is not None else self._body.world_state()
         return self.model.update(time_s, base.orientation, base.linear_velocity,
                                  base.angular_velocity)
 
