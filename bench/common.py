@@ -290,3 +290,35 @@ def make_sim_node(context, namespace, params, quiet=True):
         from r2d2_sim.ros.node import SimNode
         return SimNode(context=context, namespace=namespace, parameter_overrides=[
             Parameter(name, value=value) for name, value in params.items()])
+
+
+def take_every_topic(context, nodes):
+    """
+    Subscribe, in ``context``, to every topic the simulator ``nodes`` publish; return the node.
+
+    The outputs build and publish only what someone takes (issue 38), so a
+    bench that measures "publishing every step" in one process must take
+    every message: one subscription per topic (raw, best effort, depth 1,
+    which matches reliable publishers too), on a node nobody spins, so the
+    messages arrive and wait. Latched topics (``/tf_static``,
+    ``robot_description``) are published once and are left out.
+    """
+    import rclpy
+    from rclpy.qos import qos_profile_sensor_data
+    taker = rclpy.create_node('bench_taker', context=context)
+    publishers = {}
+    for node in nodes:
+        for owner in [node] + [robot.node for robot in node.robots]:
+            for publisher in owner.publishers:
+                if not publisher.topic_name.endswith(
+                        ('/tf_static', 'robot_description', '/parameter_events', '/rosout')):
+                    publishers.setdefault(publisher.topic_name, publisher)
+    for topic, publisher in sorted(publishers.items()):
+        taker.create_subscription(publisher.msg_type, topic, lambda _: None,
+                                  qos_profile_sensor_data, raw=True)
+    deadline = time.monotonic() + 10.0
+    while not all(p.get_subscription_count() for p in publishers.values()):
+        if time.monotonic() > deadline:
+            raise RuntimeError("the bench's subscriptions did not match the simulator's topics")
+        time.sleep(0.01)
+    return taker

@@ -28,7 +28,7 @@ from common import (
     alternate, background_load, BENCH_DIR, existing_parameters, fit_line, init_ros, LoadMeter,
     local_date, log_tail, machine_info, make_sim_node, missing_parameters, outputs_off,
     percentile, PHYSICS_RATE_HZ, process_cpu_s, raw_stepper, read_json, start_role, start_sim,
-    status, stop_process, wait_process, write_json)
+    status, stop_process, take_every_topic, wait_process, write_json)
 from r2d2_sim.client import wait_for  # noqa: I100 (after common put the repository on sys.path)
 
 RESULTS_PATH = os.path.join(BENCH_DIR, 'results.json')
@@ -371,7 +371,7 @@ def measure_throughput(work, domain_id, subprocess_domain, plan, params):
     init_ros(domain_id, context)
     nodes, advances, counters, sensors = {}, {}, {}, {}
     groups = {'rates': ['node@every', 'raw'] + [rate_name(r) for r in PUBLISH_RATES_HZ if r]}
-    sub = None
+    sub = takers = None
 
     def add(name, node_params, raw=None):
         node = make_sim_node(context, '/bench_' + re.sub(r'\W', '_', name),
@@ -415,6 +415,8 @@ def measure_throughput(work, domain_id, subprocess_domain, plan, params):
             groups[f'chain{joints}'] = [f'chain{joints}:node', f'chain{joints}:raw']
         joints_published = {name: len(node.simulation.robot.movable)
                             for name, node in nodes.items()}
+        # Someone takes every message (the outputs skip what nobody takes).
+        takers = take_every_topic(context, {id(n): n for n in nodes.values()}.values())
         sub = SubprocessSim(work, subprocess_domain, params)
         for advance in advances.values():  # warm-up: the robots settle, code paths get hot
             advance(240)
@@ -444,6 +446,8 @@ def measure_throughput(work, domain_id, subprocess_domain, plan, params):
                 sensors[case.name]['call_us_median'] = statistics.median(calls or [math.nan])
     finally:
         subprocess_result = sub.close() if sub is not None else None
+        if takers is not None:
+            takers.destroy_node()
         for node in {id(node): node for node in nodes.values()}.values():
             node.destroy_node()
         rclpy.try_shutdown(context=context)
