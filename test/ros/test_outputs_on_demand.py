@@ -127,3 +127,18 @@ def test_tf_is_built_when_asked_and_is_what_a_subscriber_hears(ros):
     assert counter.calls == 1
     assert wait_for(lambda: len(heard) == 1)
     assert heard[0] == tf.latest
+
+
+def test_a_recording_takes_every_message_with_nobody_subscribed(tmp_path):
+    from r2d2_sim.recording.reader import RecordingFile
+    from r2d2_sim.testing import SimHarness
+    path = tmp_path / 'run.mcap'
+    with SimHarness(record=str(path), cmd_vel_timeout=0.0, scan_rate=60.0,
+                    imu_rate=120.0) as harness:
+        harness.advance(48)
+    recording = RecordingFile(path)
+    counts = {channel.topic: recording.message_counts.get(channel_id, 0)
+              for channel_id, channel in recording.channels.items()}
+    # Every step of the 48 (and the start-up's publication at 0 for the state).
+    assert counts['/joint_states'] >= 48 and counts['/ground_truth'] >= 48, counts
+    assert counts['/scan'] >= 12 and counts['/imu'] >= 24 and counts['/tf'] >= 48, counts
