@@ -322,3 +322,56 @@ def take_every_topic(context, nodes):
             raise RuntimeError("the bench's subscriptions did not match the simulator's topics")
         time.sleep(0.01)
     return taker
+
+
+class TopicTaker:
+    """
+    Another context on ``domain_id`` taking every topic a simulator process publishes.
+
+    For real-time rows that should pay for every message: the outputs build
+    only what someone takes. Each topic with a publisher (but the latched
+    ones, the parameter events and the log) gets a raw best-effort
+    subscription of depth 1 on a node nobody spins; the messages arrive (Fast
+    DDS's own threads receive them) and wait. ``wait(topics)`` returns once
+    ``topics`` topics are matched.
+    """
+
+    LEFT_OUT = ('/tf_static', 'robot_description', '/parameter_events', '/rosout')
+
+    def __init__(self, domain_id):
+        import rclpy
+        from rclpy.context import Context
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node('bench_topic_taker', context=self.context)
+        self.subscriptions = {}
+
+    def wait(self, topics, timeout_s=30.0):
+        """Subscribe to every published topic until ``topics`` of them are matched."""
+        import importlib
+        from rclpy.qos import qos_profile_sensor_data
+
+        def get_message(name):  # 'sensor_msgs/msg/LaserScan'
+            package, kind, message = name.split('/')
+            return getattr(importlib.import_module(f'{package}.{kind}'), message)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            for topic, types in self.node.get_topic_names_and_types():
+                if (topic in self.subscriptions or topic.endswith(self.LEFT_OUT)
+                        or '/_action/' in topic or not self.node.count_publishers(topic)):
+                    continue
+                self.subscriptions[topic] = self.node.create_subscription(
+                    get_message(types[0]), topic, lambda _: None, qos_profile_sensor_data,
+                    raw=True)
+            matched = sum(1 for s in self.subscriptions.values() if s.get_publisher_count())
+            if matched >= topics:
+                return matched
+            if time.monotonic() > deadline:
+                raise RuntimeError(f'only {matched} of {topics} topics to take appeared')
+            time.sleep(0.05)
+
+    def close(self):
+        """Leave the domain."""
+        import rclpy
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

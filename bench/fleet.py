@@ -9,9 +9,12 @@ N robots (1, 2, 4, 8, 16) stand in a row 2 m apart, in one world.
 - **Throughput**: an in-process node (rtf 0, ``advance`` without an executor, as
   ``SimHarness`` steps it) and raw ``stepSimulation`` of the very same world
   take turns every 60 steps (``common.alternate``), so both see the same load
-  from other processes; their ratio is the bridge's share. Two configurations:
-  ``state`` (every step, sensors and TF off, as the main bench's rows) and
-  ``defaults`` (every step, scan 10 Hz, IMU 100 Hz, TF). The bridge's cost per
+  from other processes; their ratio is the bridge's share. Three configurations:
+  ``state`` (every step, sensors and TF off, as the main bench's rows),
+  ``defaults`` (every step, scan 10 Hz, IMU 100 Hz, TF), both with every topic
+  taken by a subscription in this process (``common.take_every_topic``: the
+  outputs build only what someone takes), and ``untaken`` (the defaults, nobody
+  subscribed: the robots are measured, no message is built). The bridge's cost per
   robot is (1/node - 1/raw) / N; the node's whole step (1/node) against the
   4,167 us a step may take at 240 Hz says whether one core can keep real time.
 - **Real time**: ``sim_node`` with N robots (1, 2, 4, 8, 12, 16, 24, 28) in a process
@@ -24,7 +27,9 @@ N robots (1, 2, 4, 8, 16) stand in a row 2 m apart, in one world.
   robots standing (parked: their wheels braked, as after start-up) and driving
   (each sent one ``cmd_vel``, 0.3 m/s turning at 0.6 rad/s, with
   ``cmd_vel_timeout`` 0 so it never stops: circles of 0.5 m, 2 m apart), since
-  a parked robot's physics costs less.
+  a parked robot's physics costs less. Then driving again with every topic
+  taken (N = 1, 8, 12, 16), by subscriptions in another context
+  (``common.TopicTaker``): what a node pays when its robots are listened to.
 
 - **Ray threads**: 16 robots driving at real time, ``ray_threads`` 1 (every
   scan on the physics thread) and auto (two threads on two cores), in turns.
@@ -39,13 +44,17 @@ import time
 
 from common import (
     alternate, BENCH_DIR, init_ros, local_date, machine_info, make_sim_node, outputs_off,
-    process_cpu_s, raw_stepper, write_json)
+    process_cpu_s, raw_stepper, take_every_topic, TopicTaker, write_json)
 
 RESULTS_PATH = os.path.join(BENCH_DIR, 'fleet.json')
+# A robot's topics with the default outputs: joint_states, odom, ground_truth, scan, imu.
+TAKEN_TOPICS_PER_ROBOT = 5
 SPACING_M = 2.0
 THROUGHPUT_ROBOTS = (1, 2, 4, 8, 16)
 STEP_BUDGET_US = 1e6 / 240.0  # a step's share of one core at 240 Hz
 REAL_TIME_ROBOTS = (1, 2, 4, 8, 12, 16, 24, 28)  # a world holds at most 29 with a laser
+# The same with every topic taken (the outputs build only what someone takes).
+REAL_TIME_ROBOTS_TAKEN = (1, 8, 12, 16)
 KEEPS_REAL_TIME_HZ = 239.0  # the lowest one-second window's rate
 DRIVE = (0.3, 0.6)  # m/s, rad/s: a circle of 0.5 m
 RAY_THREADS_ROBOTS = 16  # scans on one thread against two, in turns, at this many
@@ -72,10 +81,14 @@ def measure_throughput(domain_id, counts, rounds, min_s):
     nodes = []
     try:
         for count in counts:
-            for config, extra in (('state', outputs_off()), ('defaults', {})):
+            # Every message taken by a subscription in this process (the outputs build
+            # only what someone takes), and the default outputs with nobody subscribed.
+            for config, extra, taken in (('state', outputs_off(), True), ('defaults', {}, True),
+                                         ('untaken', {}, False)):
                 node = make_sim_node(context, f'/fleet_{config}_{count}',
                                      dict(fleet(count), real_time_factor=0.0, **extra))
                 nodes.append(node)
+                taker = take_every_topic(context, [node]) if taken else None
                 advances = [node.advance, raw_stepper(node.world)]
                 for advance in advances:  # warm-up: the robots settle, code paths get hot
                     advance(240)
@@ -92,6 +105,8 @@ def measure_throughput(domain_id, counts, rounds, min_s):
                     'node_us_per_step': 1e6 / best_node,
                     'bridge_us_per_robot': (1e6 / best_node - 1e6 / best_raw) / count,
                 }
+                if taker is not None:
+                    taker.destroy_node()
                 node.destroy_node()
                 nodes.remove(node)
     finally:
@@ -125,7 +140,7 @@ def window_rates(arrivals, start, window_s, windows):
 
 
 def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=False,
-                      parameters=None):
+                      parameters=None, taken=False):
     """
     Achieved rate and CPU share of sim_node at rtf 1 with N robots and the default outputs.
 
@@ -135,7 +150,9 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
     reached KEEPS_REAL_TIME_HZ; the rate and CPU reported are their medians.
     ``~/get_status`` is asked once a window, and its longest answer kept.
     ``driving``: every robot drives a circle from the start (one command
-    each, no timeout). ``parameters``: more of sim_node's.
+    each, no timeout). ``parameters``: more of sim_node's. ``taken``: a
+    :class:`~common.TopicTaker` takes every topic (else only ``/clock`` is
+    taken, and the robots' outputs are not built).
     """
     from clock_gaps import ClockListener
     from r2d2_sim.testing import SimProcess
@@ -146,6 +163,7 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
         sim = SimProcess(domain_id=domain_id, state_subscriptions=False, timeout_s=60.0,
                          **fleet(count), **extra)
         listener = ClockListener(domain_id)
+        taker = TopicTaker(domain_id) if taken else None
         shares, answers = [], []  # CPU of a core; how long each ~/get_status took (s)
 
         def status():
@@ -156,6 +174,8 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
         try:
             pid = sim.process.process.pid
             listener.wait_clock()
+            if taker is not None:
+                taker.wait(TAKEN_TOPICS_PER_ROBOT * count + 2)  # and /tf, /clock
             if driving:
                 for name in sim.status()['robots']:
                     sim.robot(name).send_cmd_vel(*DRIVE)
@@ -172,8 +192,10 @@ def measure_real_time(domain_id, counts, settle_s, window_s, windows, driving=Fa
             rates = window_rates(listener.since(start), start, window_s, windows)
         finally:
             listener.close()
+            if taker is not None:
+                taker.close()
             sim.stop()
-        results[str(count)] = {'robots': count, 'driving': driving,
+        results[str(count)] = {'robots': count, 'driving': driving, 'taken': taken,
                                'rate_hz': statistics.median(rates), 'rates_hz': rates,
                                'lowest_hz': min(rates),
                                'status_answer_ms_max': max(answers) * 1e3,
@@ -211,7 +233,10 @@ def print_table(results):
         print(f'{entry["robots"]:>6} | {entry["config"]:>8} | {entry["ratio_median"]:>18.3f} | '
               f'{entry["raw_us_per_robot"]:>12.1f} | {entry["bridge_us_per_robot"]:>15.1f} | '
               f'{entry.get("node_us_per_step", float("nan")):.0f}')
-    for key, title in (('real_time', 'standing'), ('real_time_driving', 'driving')):
+    for key, title in (('real_time', 'standing'), ('real_time_driving', 'driving'),
+                       ('real_time_driving_taken', 'driving, every topic taken')):
+        if key not in results:
+            continue
         print(f'\n{"robots":>6} | {title + ": rate at rtf 1 (Hz), lowest 1 s":>40} | '
               f'{"CPU of a core":>13} | get_status, longest | keeps 240 Hz')
         for entry in results[key].values():
@@ -245,6 +270,9 @@ def main(argv=None):
                'real_time_driving': measure_real_time(args.domain + 1, REAL_TIME_ROBOTS,
                                                       settle_s, window_s, windows,
                                                       driving=True),
+               'real_time_driving_taken': measure_real_time(
+                   args.domain + 1, REAL_TIME_ROBOTS_TAKEN, settle_s, window_s, windows,
+                   driving=True, taken=True),
                'ray_threads': measure_ray_threads(args.domain + 1, RAY_THREADS_ROBOTS,
                                                   2 if args.quick else 3, settle_s, window_s,
                                                   windows)}
