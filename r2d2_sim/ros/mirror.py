@@ -70,7 +70,7 @@ def _always() -> int:
 
 def demand(publisher) -> Callable[[], int]:
     """
-    Return a cheap question for an output: does anyone take what ``publisher`` publishes now?
+    Return a cheap question for an output: whether anyone takes what ``publisher`` publishes.
 
     The answer is a count, 0 when nobody does: an rclpy publisher's matched
     subscriptions, read from the middleware (about 0.24 us; a message built

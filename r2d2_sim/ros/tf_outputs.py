@@ -87,7 +87,7 @@ class TfOutput:
     @property
     def latest(self) -> Optional[bytes]:
         """
-        The latest /tf published (serialized), None before the first.
+        Return the latest /tf published (serialized), None before the first.
 
         For a listener in this process that starts later: a harness reads it
         here rather than listen to every publication. Built when asked if
