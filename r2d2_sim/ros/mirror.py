@@ -15,6 +15,7 @@ publishers, so mirroring costs nothing when it is off.
 from typing import Callable, Optional
 
 from rclpy.publisher import Publisher
+from rclpy.qos import DurabilityPolicy
 from r2d2_sim.ros.cdr import serialize
 
 from r2d2_sim.recording.channels import SinkChannel
@@ -74,14 +75,18 @@ def demand(publisher) -> Callable[[], int]:
 
     The answer is a count, 0 when nobody does: an rclpy publisher's matched
     subscriptions, read from the middleware (about 0.24 us; a message built
-    and published to nobody costs 5-15 us). A mirrored publisher's sink (the
-    recording, the live view) takes every message, and so does anything that
-    is not an rclpy publisher (a test's recorder): they always answer 1. A
-    subscription a publisher has not matched yet would not get a message
-    published now either, so asking changes nothing anyone receives.
+    and published to nobody costs 5-15 us). These always answer 1: a
+    mirrored publisher (its sink, the recording or the live view, takes every
+    message), anything that is not an rclpy publisher (a test's recorder),
+    and a latched (transient-local) publisher, whose late joiners get what it
+    published before. A subscription a publisher has not matched yet would
+    not get a message published now either (Fast DDS counts a match as it
+    adds the reader), so asking changes what nobody receives only.
     """
     if not isinstance(publisher, Publisher):
         return _always
+    if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+        return _always  # a late joiner gets what was published before it came
     # The handle's own method: rclpy's wrapper takes a lock first, three times the cost.
     return publisher.handle.get_subscription_count
 

@@ -157,6 +157,7 @@ class OdometryOutput:
         self._covariances = (self._msg.template.field('pose.covariance'),
                              self._msg.template.field('twist.covariance'))
         self._height_m = footprint_height_m
+        self._patched = [False, False]  # pose, twist: holds an encoder covariance
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's wheel odometry."""
@@ -168,12 +169,17 @@ class OdometryOutput:
         msg.pose.set((odometry.x_m, odometry.y_m, self._height_m)
                      + yaw_to_quaternion(odometry.yaw_rad))
         msg.twist.set((odometry.linear_m_s, 0.0, 0.0, 0.0, 0.0, odometry.angular_rad_s))
-        if odometry.pose_covariance is not None:
-            self._covariances[0].set(_embedded(self._pose_covariance, self._POSE_AXES,
-                                               odometry.pose_covariance))
-        if odometry.twist_covariance is not None:
-            self._covariances[1].set(_embedded(self._twist_covariance, self._TWIST_AXES,
-                                               odometry.twist_covariance))
+        # The encoders' covariance when they err, else the configured diagonal (written
+        # back once when the noise is switched off: the template keeps the last one set).
+        for slot, (base, axes, block) in enumerate((
+                (self._pose_covariance, self._POSE_AXES, odometry.pose_covariance),
+                (self._twist_covariance, self._TWIST_AXES, odometry.twist_covariance))):
+            if block is not None:
+                self._covariances[slot].set(_embedded(base, axes, block))
+                self._patched[slot] = True
+            elif self._patched[slot]:
+                self._covariances[slot].set(base)
+                self._patched[slot] = False
         self._publisher.publish(msg.template.to_bytes())
 
 

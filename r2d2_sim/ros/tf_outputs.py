@@ -11,6 +11,7 @@ sensor mounts, fixed joints, the camera's optical frame) once at start-up.
 tf2_msgs is in every ROS install but not on PyPI: without it TF is off.
 """
 
+import threading
 from typing import List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import TransformStamped
@@ -83,6 +84,9 @@ class TfOutput:
         # The latest frame, and its /tf serialized once someone asked (see latest).
         self._frame: Optional[Frame] = None
         self._latest: Optional[bytes] = None
+        # A harness may read latest on its test's thread while an executor thread steps
+        # (~/step): the template is patched by one of them at a time, from one frame.
+        self._lock = threading.Lock()
 
     @property
     def latest(self) -> Optional[bytes]:
@@ -93,17 +97,19 @@ class TfOutput:
         here rather than listen to every publication. Built when asked if
         nobody subscribed to /tf when it was published.
         """
-        if self._latest is None and self._frame is not None:
-            self._latest = self._serialized(self._frame)
-        return self._latest
+        with self._lock:
+            if self._latest is None and self._frame is not None:
+                self._latest = self._serialized(self._frame)
+            return self._latest
 
     def publish(self, frame: Frame) -> None:
         """Publish the frame's transforms (to nobody: keep the frame for :attr:`latest`)."""
-        self._frame = frame
-        if not self._demand():
-            self._latest = None
-            return
-        data = self._latest = self._serialized(frame)
+        with self._lock:
+            self._frame = frame
+            if not self._demand():
+                self._latest = None
+                return
+            data = self._latest = self._serialized(frame)
         self._publisher.publish(data)
 
     def _serialized(self, frame: Frame) -> bytes:

@@ -130,3 +130,21 @@ def test_imu_covariance_is_the_mean_square_error_of_the_noise(ros):
         assert [covariance[0], covariance[4], covariance[8]] == pytest.approx([variance] * 3)
         assert [covariance[i] for i in (1, 2, 3, 5, 6, 7)] == [0.0] * 6
     assert math.isfinite(imu.angular_velocity.z)
+
+
+def test_the_configured_diagonal_comes_back_when_the_encoders_stop_erring():
+    # Encoder noise switched off at run time (restart_noise): the next odom carries the
+    # configured covariance again, not the last one the encoders gave.
+    config = parse_config({'encoder_noise_std': 0.01,
+                           'pose_covariance_diagonal': [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+                           'twist_covariance_diagonal': [7.0, 8.0, 9.0, 10.0, 11.0, 12.0]})
+    node = RecordingNode()
+    output = OdometryOutput(node, config, 0.47)
+    output.publish(frame_with(OdometryState(0.1, 0.2, 0.3, 0.4, 0.5, (0.5,) * 9, (0.25,) * 4)))
+    output.publish(frame_with(OdometryState(0.1, 0.2, 0.3, 0.4, 0.5, None, None)))
+    msg = deserialize_message(node.published[-1], Odometry)
+    assert list(msg.pose.covariance) == [1.0 * (i == 0) + 2.0 * (i == 7) + 3.0 * (i == 14)
+                                         + 4.0 * (i == 21) + 5.0 * (i == 28) + 6.0 * (i == 35)
+                                         for i in range(36)]
+    assert list(msg.twist.covariance)[::7] == [7.0, 8.0, 9.0, 10.0, 11.0, 12.0]
+    assert sum(abs(v) for v in msg.twist.covariance) == sum(range(7, 13))
