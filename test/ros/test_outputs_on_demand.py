@@ -27,7 +27,8 @@ NOISY = dict(cmd_vel_timeout=0.0, scan_rate=60.0, imu_rate=120.0, noise_seed=7,
 TOPICS = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry,
           'scan': LaserScan, 'imu': Imu}
 STEPS, LATE = 96, 48
-# The sensors publish best effort (as sensor drivers do): a reliable subscription would not match.
+# Sensor-data (best effort) subscriptions for the sensors, default ones for the state: both
+# match the outputs' reliable publishers.
 SENSORS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT)
 QOS = {'joint_states': 1000, 'odom': 1000, 'ground_truth': 1000, 'scan': SENSORS, 'imu': SENSORS}
 
@@ -72,6 +73,7 @@ def drive_and_listen(ros, subscribe_at):
                 'imu': (STEPS - subscribe_at) // 2}
     assert wait_for(lambda: all(len(heard[t]) >= n for t, n in expected.items())), \
         {t: len(heard[t]) for t in TOPICS}
+    node.destroy_node()  # else its subscriptions take the next run's messages from its start
     return {topic: {stamp_ns(raw, TOPICS[topic]): raw for raw in messages}
             for topic, messages in heard.items()}, sim
 
@@ -99,6 +101,7 @@ def test_a_late_subscriber_hears_the_bytes_of_one_there_from_the_start(ros):
     early_state = early_sim.simulation.robot.body.base_state()
     early_sim.destroy_node()
     late, late_sim = drive_and_listen(ros, LATE)
+    assert min(late['joint_states']) == (LATE + 1) * 10**9 // 240  # nothing heard before
     for topic in TOPICS:
         assert late[topic], topic
         for stamp, raw in late[topic].items():
@@ -142,3 +145,53 @@ def test_a_recording_takes_every_message_with_nobody_subscribed(tmp_path):
     # Every step of the 48 (and the start-up's publication at 0 for the state).
     assert counts['/joint_states'] >= 48 and counts['/ground_truth'] >= 48, counts
     assert counts['/scan'] >= 12 and counts['/imu'] >= 24 and counts['/tf'] >= 48, counts
+
+
+def test_tf_latest_is_the_newest_frame_after_its_subscriber_left(ros):
+    sim = make_sim(ros, cmd_vel_timeout=0.0)
+    tf = sim.robots[0].outputs.tf
+    node = ros.create_node('listener', use_sim_time=False)
+    subscription = node.create_subscription(TFMessage, '/tf', lambda _: None, 10)
+    assert wait_for(lambda: tf._publisher.get_subscription_count() > 0)
+    sim.advance(1)  # published, and kept as latest
+    node.destroy_subscription(subscription)
+    assert wait_for(lambda: tf._publisher.get_subscription_count() == 0)
+    sim.advance(1)  # not published: latest is built from this frame when asked
+    stamp = deserialize_message(tf.latest, TFMessage).transforms[0].header.stamp
+    assert (stamp.sec, stamp.nanosec) == (0, round(2 / 240 * 1e9))
+
+
+def test_contacts_unheard_still_end_as_they_would_have_been_heard():
+    # The DELETEALL that follows the last contact is due at the step contact ends,
+    # heard or not: a subscriber that comes back later gets no stale one.
+    from r2d2_sim.ros.outputs import ContactsOutput
+    from r2d2_sim.sim.oracles import Touch
+    from r2d2_sim.sim.settings.config import parse_config
+    from test_outputs import RecordingNode
+    node = RecordingNode()
+    output = ContactsOutput(node, parse_config({'publish_contacts': True}))
+    published = node.publishers['contacts'].published
+    listened = [True]
+    output._demand = lambda: listened[0]
+    touch = Touch('box', 'base_link', 'box_link', (1.0, 0.0, 0.1), 5.0)
+    output.publish(10, [touch])   # heard: the contact
+    listened[0] = False
+    output.publish(20, [])        # the contact ends while nobody listens
+    listened[0] = True
+    output.publish(30, [])        # nothing touched since: nothing to say
+    assert len(published) == 1
+    output.publish(40, [touch])
+    output.publish(50, [])
+    assert len(published) == 3    # the contact, then its end
+
+
+def test_a_latched_publisher_is_always_taken(ros):
+    # A late joiner of a transient-local topic gets what was published before it came.
+    from rclpy.qos import DurabilityPolicy
+    from std_msgs.msg import String
+    from r2d2_sim.ros.mirror import demand
+    node = ros.create_node('latched', use_sim_time=False)
+    latched = node.create_publisher(
+        String, 'latched', QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    volatile = node.create_publisher(String, 'volatile', 1)
+    assert demand(latched)() == 1 and demand(volatile)() == 0
