@@ -292,6 +292,10 @@ def make_sim_node(context, namespace, params, quiet=True):
             Parameter(name, value=value) for name, value in params.items()])
 
 
+# Topics a bench's takers leave alone: latched ones (published once), ROS's own.
+NOT_TAKEN = ('/tf_static', 'robot_description', '/parameter_events', '/rosout')
+
+
 def take_every_topic(context, nodes):
     """
     Subscribe, in ``context``, to every topic the simulator ``nodes`` publish; return the node.
@@ -310,8 +314,7 @@ def take_every_topic(context, nodes):
     for node in nodes:
         for owner in [node] + [robot.node for robot in node.robots]:
             for publisher in owner.publishers:
-                if not publisher.topic_name.endswith(
-                        ('/tf_static', 'robot_description', '/parameter_events', '/rosout')):
+                if not publisher.topic_name.endswith(NOT_TAKEN):
                     publishers.setdefault(publisher.topic_name, publisher)
     for topic, publisher in sorted(publishers.items()):
         taker.create_subscription(publisher.msg_type, topic, lambda _: None,
@@ -336,8 +339,6 @@ class TopicTaker:
     ``topics`` topics are matched.
     """
 
-    LEFT_OUT = ('/tf_static', 'robot_description', '/parameter_events', '/rosout')
-
     def __init__(self, domain_id):
         import rclpy
         from rclpy.context import Context
@@ -348,20 +349,16 @@ class TopicTaker:
 
     def wait(self, topics, timeout_s=30.0):
         """Subscribe to every published topic until ``topics`` of them are matched."""
-        import importlib
         from rclpy.qos import qos_profile_sensor_data
-
-        def get_message(name):  # 'sensor_msgs/msg/LaserScan'
-            package, kind, message = name.split('/')
-            return getattr(importlib.import_module(f'{package}.{kind}'), message)
+        from r2d2_sim.recording.reader import message_class
         deadline = time.monotonic() + timeout_s
         while True:
             for topic, types in self.node.get_topic_names_and_types():
-                if (topic in self.subscriptions or topic.endswith(self.LEFT_OUT)
+                if (topic in self.subscriptions or topic.endswith(NOT_TAKEN)
                         or '/_action/' in topic or not self.node.count_publishers(topic)):
                     continue
                 self.subscriptions[topic] = self.node.create_subscription(
-                    get_message(types[0]), topic, lambda _: None, qos_profile_sensor_data,
+                    message_class(types[0]), topic, lambda _: None, qos_profile_sensor_data,
                     raw=True)
             matched = sum(1 for s in self.subscriptions.values() if s.get_publisher_count())
             if matched >= topics:
