@@ -63,7 +63,8 @@ def merge_coplanar(vertices: numpy.ndarray, faces: numpy.ndarray, groups: numpy.
     new_faces: List[Tuple[int, int, int]] = []
     new_groups: List[int] = []
     # Only facets of three triangles or more can come out smaller (a terrain has none).
-    for start, end in zip(starts[ends - starts >= 3].tolist(), ends[ends - starts >= 3].tolist()):
+    large = ends - starts >= 3
+    for start, end in zip(starts[large].tolist(), ends[large].tolist()):
         members = order[start:end]
         if not usable[members[0]]:
             continue
