@@ -53,28 +53,41 @@ def frame_with(odometry):
                  BaseState((0.0,) * 3, (0.0, 0.0, 0.0, 1.0), (0.0,) * 3, (0.0,) * 3), odometry)
 
 
-def test_odometry_covariance_entries_are_patched_around_the_configured_diagonal():
+POSE_DIAGONAL = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+TWIST_DIAGONAL = (7.0, 8.0, 9.0, 10.0, 11.0, 12.0)
+
+
+def noisy_odometry_output():
+    """Return a recording node and the odometry output of noisy encoders on it."""
     config = parse_config({'encoder_noise_std': 0.01,
-                           'pose_covariance_diagonal': [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
-                           'twist_covariance_diagonal': [7.0, 8.0, 9.0, 10.0, 11.0, 12.0]})
+                           'pose_covariance_diagonal': list(POSE_DIAGONAL),
+                           'twist_covariance_diagonal': list(TWIST_DIAGONAL)})
     node = RecordingNode()
-    output = OdometryOutput(node, config, 0.47)
+    return node, OdometryOutput(node, config, 0.47)
+
+
+def diagonal(values):
+    """Return the 6 x 6 matrix (row by row) with ``values`` on its diagonal."""
+    matrix = [0.0] * 36
+    for i, value in enumerate(values):
+        matrix[7 * i] = value
+    return matrix
+
+
+def test_odometry_covariance_entries_are_patched_around_the_configured_diagonal():
+    node, output = noisy_odometry_output()
     rng = random.Random(3)
     for _ in range(50):
         pose = tuple(rng.uniform(-1.0, 1.0) for _ in range(9))
         twist = tuple(rng.uniform(-1.0, 1.0) for _ in range(4))
         output.publish(frame_with(OdometryState(0.1, 0.2, 0.3, 0.4, 0.5, pose, twist)))
         msg = deserialize_message(node.published[-1], Odometry)
-        expected = [0.0] * 36
-        for i, value in enumerate((1.0, 2.0, 3.0, 4.0, 5.0, 6.0)):
-            expected[7 * i] = value
+        expected = diagonal(POSE_DIAGONAL)
         for i, row in enumerate((0, 1, 5)):
             for j, column in enumerate((0, 1, 5)):
                 expected[6 * row + column] = pose[3 * i + j]
         assert list(msg.pose.covariance) == expected
-        expected = [0.0] * 36
-        for i, value in enumerate((7.0, 8.0, 9.0, 10.0, 11.0, 12.0)):
-            expected[7 * i] = value
+        expected = diagonal(TWIST_DIAGONAL)
         for i, row in enumerate((0, 5)):
             for j, column in enumerate((0, 5)):
                 expected[6 * row + column] = twist[2 * i + j]
@@ -135,16 +148,9 @@ def test_imu_covariance_is_the_mean_square_error_of_the_noise(ros):
 def test_the_configured_diagonal_comes_back_when_the_encoders_stop_erring():
     # Encoder noise switched off at run time (restart_noise): the next odom carries the
     # configured covariance again, not the last one the encoders gave.
-    config = parse_config({'encoder_noise_std': 0.01,
-                           'pose_covariance_diagonal': [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
-                           'twist_covariance_diagonal': [7.0, 8.0, 9.0, 10.0, 11.0, 12.0]})
-    node = RecordingNode()
-    output = OdometryOutput(node, config, 0.47)
+    node, output = noisy_odometry_output()
     output.publish(frame_with(OdometryState(0.1, 0.2, 0.3, 0.4, 0.5, (0.5,) * 9, (0.25,) * 4)))
     output.publish(frame_with(OdometryState(0.1, 0.2, 0.3, 0.4, 0.5, None, None)))
     msg = deserialize_message(node.published[-1], Odometry)
-    assert list(msg.pose.covariance) == [1.0 * (i == 0) + 2.0 * (i == 7) + 3.0 * (i == 14)
-                                         + 4.0 * (i == 21) + 5.0 * (i == 28) + 6.0 * (i == 35)
-                                         for i in range(36)]
-    assert list(msg.twist.covariance)[::7] == [7.0, 8.0, 9.0, 10.0, 11.0, 12.0]
-    assert sum(abs(v) for v in msg.twist.covariance) == sum(range(7, 13))
+    assert list(msg.pose.covariance) == diagonal(POSE_DIAGONAL)
+    assert list(msg.twist.covariance) == diagonal(TWIST_DIAGONAL)
