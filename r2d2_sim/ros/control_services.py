@@ -1,6 +1,8 @@
 """
 The simulator's own control services: ``~/pause``, ``~/step``, ``~/reset``, ``~/get_status``.
 
+And ``~/get_readers``: how many readers each of its writers matched.
+
 std_srvs types, so any ROS tool can call them; each replies with the
 simulation's state as JSON in ``message`` (:meth:`ControlServices.status`),
 for programs to parse. The operations are the node's (pause landing on a
@@ -9,6 +11,7 @@ this module only answers, under the node's lock.
 """
 
 import json
+from typing import Dict
 
 from rclpy.node import Node
 from std_srvs.srv import SetBool, Trigger
@@ -31,10 +34,12 @@ class ControlServices:
     def __init__(self, simulator: SimulatorControl, server: Node, fleet: Fleet) -> None:
         self._simulator = simulator
         self._fleet = fleet
+        self._server = server
         server.create_service(SetBool, '~/pause', self._on_pause)
         server.create_service(Trigger, '~/step', self._on_step)
         server.create_service(Trigger, '~/reset', self._on_reset)
         server.create_service(Trigger, '~/get_status', self._on_get_status)
+        server.create_service(Trigger, '~/get_readers', self._on_get_readers)
 
     def status(self, **facts) -> str:
         """
@@ -58,6 +63,25 @@ class ControlServices:
                             for i in fleet}}
         state.update(facts)
         return json.dumps(state)
+
+    def readers(self) -> Dict[str, int]:
+        """
+        Return, for each topic the simulator publishes, the readers its writers there match.
+
+        The fewest any of its writers of that topic (one per robot on a shared
+        ``/tf``) has matched. A client that just subscribed waits until this
+        counts its reader: a message published before the writer matched it
+        never reaches it, and with outputs built on demand a writer that counts
+        no reader builds nothing. 0.2 us a writer.
+        """
+        nodes = {id(node): node for node in [self._server] + [i.node for i in self._fleet]}
+        counts: Dict[str, int] = {}
+        for node in nodes.values():
+            for publisher in node.publishers:
+                count = publisher.get_subscription_count()
+                topic = publisher.topic_name
+                counts[topic] = min(counts.get(topic, count), count)
+        return counts
 
     def _on_pause(self, request, response):
         with self._simulator.lock:  # the reply's time is the state the pause landed on
@@ -98,6 +122,12 @@ class ControlServices:
     def _on_get_status(self, request, response):
         with self._simulator.lock:
             response.message = self.status()
+        response.success = True
+        return response
+
+    def _on_get_readers(self, request, response):
+        with self._simulator.lock:  # the robots' nodes come and go under it
+            response.message = json.dumps(self.readers())
         response.success = True
         return response
 

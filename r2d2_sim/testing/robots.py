@@ -84,6 +84,9 @@ class RemoteHost(Protocol):
     def listen_tf(self) -> TfListener:
         """Return the process's TF listener (listening since the start)."""
 
+    def _wait_heard(self) -> None:
+        """Wait until the simulator's writers match every reader of the process's node."""
+
 
 def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:
     """
@@ -391,7 +394,12 @@ class RemoteRobot(_RobotHandle):
         return self
 
     def connect(self) -> 'RemoteRobot':
-        """Wait (by deadline) until linked, make the ``cmd_vel`` publisher, wait for its match."""
+        """
+        Wait (by deadline) until linked, make the ``cmd_vel`` publisher, wait for its match.
+
+        Then until the simulator's writers match this handle's readers (TF's
+        too): a step taken at once is then heard.
+        """
         process = self._process
         if not process.probe.spin_until(lambda: self.linked() or process.process.exited(),
                                         process.timeout_s):
@@ -405,6 +413,7 @@ class RemoteRobot(_RobotHandle):
                                f'{process.timeout_s:g} s')
         if self._subscriptions:  # not for a benchmark's handle, which adds no subscriber
             self._listen_tf_from_now()
+        process._wait_heard()
         return self
 
     def cmd_vel_type(self) -> Optional[str]:

@@ -2,6 +2,8 @@
 
 import json
 import signal
+import time
+from collections import Counter
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from rclpy.client import Client
@@ -27,7 +29,8 @@ __all__ = ['SimProcess', 'STATUS_RESEND_S']
 # this long without a reply (wall s); a reply sent before the server had found
 # our reply reader is lost. Replies take 0.5-1.5 ms here.
 STATUS_RESEND_S = 1.0
-SERVICES = (('pause', SetBool), ('step', Trigger), ('reset', Trigger), ('get_status', Trigger))
+SERVICES = (('pause', SetBool), ('step', Trigger), ('reset', Trigger), ('get_readers', Trigger),
+            ('get_status', Trigger))
 
 
 class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
@@ -135,7 +138,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         if reply is None:
             raise HarnessError(f'{client.srv_name} did not answer within {self.timeout_s:g} s')
         facts = json.loads(reply.message)
-        if name != 'get_joint_info':
+        if name not in ('get_joint_info', 'get_readers'):
             self.last_status = facts
             self.paused = facts['paused']
         if not reply.success:
@@ -160,6 +163,14 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         ``sim_time_ns``, ``sim_time``, ``commands_received``.
         """
         return self._request('get_status', Trigger.Request(), STATUS_RESEND_S)
+
+    def readers(self) -> Dict[str, int]:
+        """
+        Return how many readers the simulator's writers match, by topic (``~/get_readers``).
+
+        The fewest of its writers on a topic (several robots share ``/tf``).
+        """
+        return self._request('get_readers', Trigger.Request(), STATUS_RESEND_S)
 
     def step(self, count: int = 1) -> Dict[str, Any]:
         """
@@ -254,9 +265,32 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         # In the node's order: the first robot is the harness's own.
         self._robots = {name: self._robots[name] for name in robots if name in self._robots}
         self._pending = []
+        self._wait_heard()
         if (self._state_subscriptions and not self.paused and not self.probe.spin_until(
                 lambda: self._clock is not None or self._exited(), self.timeout_s)):
             self._fail_start('published no /clock')
+
+    def _wait_heard(self) -> None:
+        """
+        Wait (by deadline) until the simulator's writers match every reader of this harness.
+
+        Our reader matching their writer is not enough: the writer learns of
+        the reader on its own, a moment later, and what it publishes before
+        then never arrives (a first step's ``/tf`` lost, a state message waited
+        for in vain). Its ``~/get_readers`` counts the readers each writer
+        matched: each topic must count at least ours.
+        """
+        ours = Counter(s.topic_name for s in self.probe.node.subscriptions)
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            readers = self.readers()
+            late = sorted(t for t, n in ours.items() if t in readers and readers[t] < n)
+            if not late:
+                return
+            if time.monotonic() > deadline:
+                raise HarnessError(f'the simulator did not match this harness\'s readers of '
+                                   f'{", ".join(late)} within {self.timeout_s:g} s')
+            self.probe.spin_until(lambda: False, 0.002)
 
     def robot(self, name: Optional[str] = None) -> RemoteRobot:
         """

@@ -13,6 +13,7 @@ import time
 
 from helpers import _run_schedule_in_process, latest_truth, make_sim, Probe, wait_for
 import pytest
+from sensor_msgs.msg import LaserScan
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.apps.sim_node import run_paced
@@ -39,6 +40,17 @@ def test_pause_is_idempotent_and_reports_state(sim, probe):
     assert sim.paused
     resumed = pause(probe, False)
     assert json.loads(resumed.message)['paused'] is False and not sim.paused
+
+
+def test_get_readers_counts_the_readers_each_writer_matched(sim, probe):
+    """~/get_readers: 0 on a topic nobody takes; one more once the writer matched a new reader."""
+    def readers():
+        return json.loads(trigger(probe, 'get_readers').message)
+    before = readers()
+    assert before['/scan'] == 0 and before['/odom'] >= 1  # the probe takes odom
+    probe.node.create_subscription(LaserScan, '/scan', lambda msg: None, 10)
+    assert wait_for(lambda: readers()['/scan'] == 1)
+    assert readers()['/odom'] == before['/odom']
 
 
 def test_step_fails_while_running(sim, probe):

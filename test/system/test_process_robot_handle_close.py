@@ -42,6 +42,8 @@ def test_a_process_robot_handle_looks_its_tf_up_then_lets_go(r2d2_sim_process, l
     sim = r2d2_sim_process(start_paused=True, tf_layout=layout)
     before = topics_subscribed(sim.probe.node)
     sim.spawn(URDF, name='c', namespace='/c', position=(0.0, 2.0, 0.48))
+    # The handle returned once the robot's TF writers matched its reader: a step now is heard.
+    assert sim.readers()['/tf' if layout == 'shared' else '/c/tf'] >= 1
     sim.step()
     transform = sim.robot('c').lookup_transform(odom, base)
     assert transform.transform.translation[1] == pytest.approx(2.0, abs=0.01)
