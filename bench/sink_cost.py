@@ -19,7 +19,14 @@ step between processes, so only differences taken within one are compared):
   process connected and subscribed to every channel; ``outputs+record`` and
   ``outputs+view`` with one of them;
 - ``camera`` and ``camera+sink``: the same two with the head camera at 30 Hz,
-  colour and depth.
+  colour and depth;
+- ``untaken`` and ``untaken+view``: every output but the camera with nobody
+  subscribed, without and with a live view that no viewer watches (an output
+  nobody takes, over DDS or in the live view, builds nothing).
+
+Every configuration but the ``untaken`` ones has each topic taken by a
+subscription in the child (``common.take_every_topic``): the outputs build
+only what someone takes, so "every output" means every output received.
 
 Each child steps at rtf 0 without an executor (as ``SimHarness.advance``
 does), 240 steps to warm up, then ``--steps`` of each timed. Prints a table, writes
@@ -36,13 +43,14 @@ import sys
 import tempfile
 import time
 
-from common import BENCH_DIR, init_ros, machine_info, local_date, make_sim_node, write_json
+from common import (
+    BENCH_DIR, init_ros, machine_info, local_date, make_sim_node, take_every_topic, write_json)
 
 OUTPUTS = {'publish_link_tf': True, 'publish_ground_truth_tf': True}  # + the defaults
 CAMERA = {'camera_rate': 30.0, 'camera_depth': True}
 CHUNK = 240  # raw and node take turns every simulated second
 CONFIGS = ('outputs', 'outputs+record', 'outputs+view', 'outputs+sink', 'camera',
-           'camera+sink')
+           'camera+sink', 'untaken', 'untaken+view')
 SUBSCRIBED = 'subscribed'
 
 
@@ -93,8 +101,9 @@ def child(config: str, steps: int, domain_id: int) -> dict:
         params['foxglove_port'] = free_port()
     init_ros(domain_id)
     node = make_sim_node(None, '/sink_bench', params)
+    taker = None if config.startswith('untaken') else take_every_topic(None, [node])
     try:
-        if 'foxglove_port' in params:
+        if 'foxglove_port' in params and not config.startswith('untaken'):
             watcher = subprocess.Popen(
                 [sys.executable, __file__, '--viewer', str(params['foxglove_port'])],
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -124,6 +133,8 @@ def child(config: str, steps: int, domain_id: int) -> dict:
                 'extra_us_per_step': node_us - raw_us,
                 'wall_s': time.perf_counter() - wall0}
     finally:
+        if taker is not None:
+            taker.destroy_node()
         node.destroy_node()  # closes the recording: the writer's last chunk is outside the timing
         if watcher is not None:
             watcher.stdin.close()
@@ -166,6 +177,9 @@ def run(rounds: int, steps: int, domain_id: int) -> dict:
                         'sink_us_per_step': cost([('outputs+sink', 1), outputs]),
                         'record_us_per_step': cost([('outputs+record', 1), outputs]),
                         'view_us_per_step': cost([('outputs+view', 1), outputs]),
+                        'unwatched_view_us_per_step': cost([('untaken+view', 1),
+                                                            ('untaken', -1)]),
+                        'untaken_extra_us_per_step': cost([('untaken', 1)]),
                         'camera_us_per_image': cost([('camera', 1), outputs], images_per_step),
                         'sink_us_per_image': cost([('camera+sink', 1), ('camera', -1),
                                                    ('outputs+sink', -1), ('outputs', 1)],
@@ -185,6 +199,8 @@ def print_table(results: dict) -> None:
           f'over raw; live view with a viewer + recording: +{s["sink_us_per_step"]:.1f} us '
           f'per step (recording alone +{s["record_us_per_step"]:.1f}, live view alone '
           f'+{s["view_us_per_step"]:.1f})')
+    print(f'nobody subscribed: +{s["untaken_extra_us_per_step"]:.1f} us per step over raw; a '
+          f'live view no viewer watches: +{s["unwatched_view_us_per_step"]:.1f}')
     print(f'head camera 320x240 with depth: {s["camera_us_per_image"] / 1000:.2f} ms per image; '
           f'the sink: +{s["sink_us_per_image"]:.0f} us per image')
 

@@ -302,18 +302,23 @@ class FoxgloveSink:
         if first is not None:
             return self._share(first, type_name, qos)
         latched = qos.durability.name == 'TRANSIENT_LOCAL'
-        live_log, file_log, live_id = self._open_channels(topic, type_name, qos)
+        live_log, file_log, live_id, live_taken = self._open_channels(topic, type_name, qos)
         depth = max(qos.depth, 1) if latched else 0
-        handle = SinkChannel(topic, type_name, live_log, file_log, depth, self._resend_period_s)
+        handle = SinkChannel(topic, type_name, live_log, file_log, depth, self._resend_period_s,
+                             live_taken)
         self._channels[topic] = handle
         self._live_ids[topic] = live_id
         return self._track(handle, latched)
 
     def _open_channels(self, topic: str, type_name: str, qos) -> tuple:
-        """Advertise ``topic`` to the live view and the file; return their logs and live id."""
-        live_log = file_log = live_id = None
+        """
+        Advertise ``topic`` to the live view and the file.
+
+        Return their logs, the live channel's id and its ``has_sinks`` (a viewer subscribes).
+        """
+        live_log = file_log = live_id = live_taken = None
         if self._foxglove is None:
-            return live_log, file_log, live_id
+            return live_log, file_log, live_id, live_taken
         try:
             definition = message_definition(type_name)
         except UnknownMessageType as exc:
@@ -331,6 +336,7 @@ class FoxgloveSink:
                                              context=self._live_context, metadata=metadata)
             channels.append(channel)
             live_log, live_id = channel.base.log, channel.base.id()
+            live_taken = channel.base.has_sinks
         file = self._file  # there is a file context only with a file
         if self._file_context is not None and file is not None and self.record_error is None:
             with file.lock:
@@ -338,7 +344,7 @@ class FoxgloveSink:
                                                  context=self._file_context, metadata=metadata)
             channels.append(channel)
             file_log = locked(channel.base.log, file.lock)
-        return live_log, file_log, live_id
+        return live_log, file_log, live_id, live_taken
 
     def _track(self, handle: SinkChannel, latched: bool) -> SinkChannel:
         """Keep ``handle`` among its topic's publishers (and latched ones) until released."""

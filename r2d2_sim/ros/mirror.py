@@ -75,14 +75,22 @@ def demand(publisher) -> Callable[[], int]:
 
     The answer is a count, 0 when nobody does: an rclpy publisher's matched
     subscriptions, read from the middleware (about 0.24 us; a message built
-    and published to nobody costs 5-15 us). These always answer 1: a
-    mirrored publisher (its sink, the recording or the live view, takes every
-    message), anything that is not an rclpy publisher (a test's recorder),
-    and a latched (transient-local) publisher, whose late joiners get what it
-    published before. A subscription a publisher has not matched yet would
-    not get a message published now either (Fast DDS counts a match as it
-    adds the reader), so asking changes what nobody receives only.
+    and published to nobody costs 5-15 us). A mirrored publisher adds its
+    sink's channel (:meth:`SinkChannel.taken
+    <r2d2_sim.recording.channels.SinkChannel.taken>`): the recording takes
+    every message, the live view those of a topic a viewer subscribes to.
+    These always answer 1: anything that is not an rclpy publisher (a test's
+    recorder), and a latched (transient-local) publisher, whose late joiners
+    get what it published before. A subscription a publisher has not matched
+    yet would not get a message published now either (Fast DDS counts a match
+    as it adds the reader), so asking changes what nobody receives only.
     """
+    if isinstance(publisher, MirroredPublisher):
+        over_dds = demand(publisher.publisher)
+        if over_dds is _always:
+            return _always
+        channel = publisher.channel  # its taken() is bound again when a sink stops
+        return lambda: over_dds() or channel.taken()
     if not isinstance(publisher, Publisher):
         return _always
     if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:

@@ -254,3 +254,24 @@ def test_bad_channels_and_sinks_are_one_line_errors(tmp_path):
     assert not (tmp_path / 'never.mcap').exists(), 'a sink that failed left a file'
     assert sink.port is None
     sink.close()  # again: nothing happens
+
+
+def test_a_channel_is_taken_by_the_file_always_and_by_the_live_view_while_watched(tmp_path):
+    """taken(): the node builds a message only when someone takes it (the live view's part)."""
+    volatile = next(t for t, (_, qos) in TOPICS.items() if qos != LATCHED)
+    latched = next(t for t, (_, qos) in TOPICS.items() if qos == LATCHED)
+    with FoxgloveSink(port=0) as live_only:
+        channels = open_channels(live_only)
+        assert not channels[volatile].taken() and channels[latched].taken()
+        viewer = connected_viewer(live_only, [volatile])
+        with viewer:
+            assert viewer.pump(channels[volatile].taken)
+            viewer.unsubscribe([volatile])
+            assert viewer.pump(lambda: not channels[volatile].taken())
+    with FoxgloveSink(port=0, record_path=str(tmp_path / 'run.mcap')) as both:
+        channel = open_channels(both)[volatile]
+        assert channel.taken()
+        channel.stop_file()  # as when the disk fills: the live view alone is left
+        assert not channel.taken()
+        channel.stop()
+        assert not channel.taken()

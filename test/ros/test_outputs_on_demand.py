@@ -6,8 +6,8 @@ builds a message (issue 38: "outputs computed only when someone takes
 them"). The measurements go on whether or not anyone listens (the noise
 streams, the odometry, the contact state), so a subscriber that arrives
 late receives, from then on, the very bytes a subscriber present from the
-start receives. The recording and the live view take everything
-(test/recording checks their contents); ``/tf`` kept for the harness's own
+start receives. The recording takes everything (test/recording checks its contents), the
+live view what a viewer subscribes to; ``/tf`` kept for the harness's own
 lookups is built when asked.
 """
 
@@ -195,3 +195,34 @@ def test_a_latched_publisher_is_always_taken(ros):
         String, 'latched', QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
     volatile = node.create_publisher(String, 'volatile', 1)
     assert demand(latched)() == 1 and demand(volatile)() == 0
+
+
+def test_the_live_view_takes_only_what_a_viewer_subscribes_to(ros):
+    # A live view nobody watches builds nothing; a viewer's topic is built, and is what
+    # a DDS subscriber of that step hears.
+    import socket
+    from r2d2_sim.testing import LiveViewClient
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        port = sock.getsockname()[1]
+    sim = make_sim(ros, foxglove_port=port, cmd_vel_timeout=0.0)
+    state = {output._publisher.topic_name: output
+             for output in sim.robots[0].outputs.state[:3]}
+    assert sorted(state) == ['/ground_truth', '/joint_states', '/odom']
+    counters = [CountingPublisher(state[topic]) for topic in sorted(state)]
+    sim.simulation.robot.command(0.3, 0.0)
+    sim.advance(24)
+    assert [c.calls for c in counters] == [0, 0, 0]
+    with LiveViewClient(port) as viewer:
+        viewer.wait_for_channels(['/odom'])
+        viewer.subscribe(['/odom'])
+        channel = state['/odom']._publisher.channel
+        assert viewer.pump(channel.taken)  # the server took the subscription
+        sim.advance(24)
+        assert [c.calls for c in counters] == [0, 0, 24]
+        odom = viewer.wait_for_messages('/odom', 24)
+        assert odom[-1].log_time_ns == round(48 / 240 * 1e9)
+        viewer.unsubscribe(['/odom'])
+        assert viewer.pump(lambda: not channel.taken())
+        sim.advance(24)
+        assert [c.calls for c in counters] == [0, 0, 24]
