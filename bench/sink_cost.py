@@ -200,7 +200,7 @@ def print_table(results: dict) -> None:
           f'per step (recording alone +{s["record_us_per_step"]:.1f}, live view alone '
           f'+{s["view_us_per_step"]:.1f})')
     print(f'nobody subscribed: +{s["untaken_extra_us_per_step"]:.1f} us per step over raw; a '
-          f'live view no viewer watches: +{s["unwatched_view_us_per_step"]:.1f}')
+          f'live view no viewer watches: {s["unwatched_view_us_per_step"]:+.1f}')
     print(f'head camera 320x240 with depth: {s["camera_us_per_image"] / 1000:.2f} ms per image; '
           f'the sink: +{s["sink_us_per_image"]:.0f} us per image')
 
