@@ -376,6 +376,8 @@ class FoxgloveSink:
         if handle in latched:
             latched.remove(handle)
         if handles:
+            # The next publisher of the topic is made from a live handle, not this stopped one.
+            self._channels[topic] = handles[0]
             return
         with self._file.lock if self._file is not None else nullcontext():
             for channel in self._sdk_channels.pop(topic, []):

@@ -84,7 +84,7 @@ class RemoteHost(Protocol):
     def listen_tf(self) -> TfListener:
         """Return the process's TF listener (listening since the start)."""
 
-    def _wait_heard(self) -> None:
+    def wait_heard(self) -> None:
         """Wait until the simulator's writers match every reader of the process's node."""
 
 
@@ -413,7 +413,11 @@ class RemoteRobot(_RobotHandle):
                                f'{process.timeout_s:g} s')
         if self._subscriptions:  # not for a benchmark's handle, which adds no subscriber
             self._listen_tf_from_now()
-        process._wait_heard()
+        try:
+            process.wait_heard()
+        except BaseException:
+            self.close()  # its readers must not stay on the probe's node
+            raise
         return self
 
     def cmd_vel_type(self) -> Optional[str]:

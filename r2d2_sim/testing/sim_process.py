@@ -3,11 +3,11 @@
 import json
 import signal
 import time
-from collections import Counter
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from rclpy.client import Client
 from rclpy.node import Node
+from rclpy.qos import qos_check_compatible, QoSCompatibility
 from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
@@ -23,7 +23,7 @@ from r2d2_sim.testing.standard import StandardClient
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import StandardWorld, WorldVerbs
 
-__all__ = ['SimProcess', 'STATUS_RESEND_S']
+__all__ = ['SimProcess', 'STATUS_RESEND_S', 'matchable_readers']
 
 # SimProcess sends an idempotent query (get_status, get_joint_info) again after
 # this long without a reply (wall s); a reply sent before the server had found
@@ -31,6 +31,25 @@ __all__ = ['SimProcess', 'STATUS_RESEND_S']
 STATUS_RESEND_S = 1.0
 SERVICES = (('pause', SetBool), ('step', Trigger), ('reset', Trigger), ('get_readers', Trigger),
             ('get_status', Trigger))
+
+
+def matchable_readers(node: Node, topic: str, writer: str) -> int:
+    """
+    Return how many subscriptions of ``topic`` the writers of node ``writer`` can all match.
+
+    As ``node`` sees the graph: those whose message type is the writers' and
+    whose QoS each writer's offer fits (a transient-local reader of a
+    volatile topic is never matched). With no such writer seen yet, ``node``'s
+    own subscriptions of the topic.
+    """
+    writers = [info for info in node.get_publishers_info_by_topic(topic)
+               if info.node_name == writer]
+    if not writers:
+        return sum(1 for s in node.subscriptions if s.topic_name == topic)
+    return sum(1 for reader in node.get_subscriptions_info_by_topic(topic)
+               if all(reader.topic_type == w.topic_type and qos_check_compatible(
+                   w.qos_profile, reader.qos_profile)[0] != QoSCompatibility.ERROR
+                      for w in writers))
 
 
 class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
@@ -265,30 +284,38 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         # In the node's order: the first robot is the harness's own.
         self._robots = {name: self._robots[name] for name in robots if name in self._robots}
         self._pending = []
-        self._wait_heard()
+        self.wait_heard()
         if (self._state_subscriptions and not self.paused and not self.probe.spin_until(
                 lambda: self._clock is not None or self._exited(), self.timeout_s)):
             self._fail_start('published no /clock')
 
-    def _wait_heard(self) -> None:
+    def wait_heard(self) -> None:
         """
-        Wait (by deadline) until the simulator's writers match every reader of this harness.
+        Wait (by deadline) until the simulator's writers match every reader on the probe's node.
 
-        Our reader matching their writer is not enough: the writer learns of
-        the reader on its own, a moment later, and what it publishes before
-        then never arrives (a first step's ``/tf`` lost, a state message waited
-        for in vain). Its ``~/get_readers`` counts the readers each writer
-        matched: each topic must count at least ours.
+        A reader matching a writer is not enough: the writer learns of the
+        reader on its own, a moment later, and what it publishes before then
+        never arrives (a first step's ``/tf`` lost, a state message waited for
+        in vain). The harness calls this when it starts and when it makes a
+        robot's handle; call it after making subscriptions of your own on
+        ``probe.node`` and before stepping. For each topic the node subscribes
+        that the simulator publishes, its ``~/get_readers`` must count every
+        subscription the graph shows that its writers can match (the message
+        type and QoS fit: :func:`matchable_readers`), ours among them.
+        HarnessError naming the topics when the deadline passes.
         """
-        ours = Counter(s.topic_name for s in self.probe.node.subscriptions)
+        node = self.probe.node
+        writer = self.node_path.rsplit('/', 1)[1]  # the robots' nodes share the name
+        topics = sorted({s.topic_name for s in node.subscriptions})
         deadline = time.monotonic() + self.timeout_s
         while True:
             readers = self.readers()
-            late = sorted(t for t, n in ours.items() if t in readers and readers[t] < n)
+            late = [t for t in topics
+                    if t in readers and readers[t] < matchable_readers(node, t, writer)]
             if not late:
                 return
             if time.monotonic() > deadline:
-                raise HarnessError(f'the simulator did not match this harness\'s readers of '
+                raise HarnessError(f'the simulator did not match the readers of '
                                    f'{", ".join(late)} within {self.timeout_s:g} s')
             self.probe.spin_until(lambda: False, 0.002)
 

@@ -263,11 +263,13 @@ def test_a_channel_is_taken_by_the_file_always_and_by_the_live_view_while_watche
     with FoxgloveSink(port=0) as live_only:
         channels = open_channels(live_only)
         assert not channels[volatile].taken() and channels[latched].taken()
+        sibling = live_only.channel(volatile, *TOPICS[volatile])  # a second publisher
         viewer = connected_viewer(live_only, [volatile])
         with viewer:
-            assert viewer.pump(channels[volatile].taken)
+            assert viewer.pump(channels[volatile].taken) and sibling.taken()
             viewer.unsubscribe([volatile])
             assert viewer.pump(lambda: not channels[volatile].taken())
+            assert not sibling.taken()
     with FoxgloveSink(port=0, record_path=str(tmp_path / 'run.mcap')) as both:
         channel = open_channels(both)[volatile]
         assert channel.taken()
@@ -275,3 +277,21 @@ def test_a_channel_is_taken_by_the_file_always_and_by_the_live_view_while_watche
         assert not channel.taken()
         channel.stop()
         assert not channel.taken()
+
+
+def test_a_publisher_made_after_the_first_of_its_topic_went_still_records(tmp_path):
+    """Robot a's /tf publisher released (a deleted), then c spawned: c's /tf is recorded."""
+    path = tmp_path / 'run.mcap'
+    volatile = next(t for t, (_, qos) in TOPICS.items() if qos != LATCHED)
+    type_name, qos = TOPICS[volatile]
+    data = next(s.data for s in samples() if s.topic == volatile)
+    with FoxgloveSink(record_path=str(path)) as sink:
+        first = sink.channel(volatile, type_name, qos)
+        second = sink.channel(volatile, type_name, qos)
+        first.release()
+        third = sink.channel(volatile, type_name, qos)
+        assert second.taken() and third.taken()
+        second.log(data, 1)
+        third.log(data, 2)
+    _, _, messages = read_with_mcap(path)
+    assert [m.log_time for c, _, m in messages if c.topic == volatile] == [1, 2]

@@ -271,15 +271,14 @@ def test_a_killed_participants_segments_go_while_a_live_peer_still_maps_them():
             victim.kill()
             victim.wait()
             assert shared <= shm.segments_of()  # still mapped here, the sender
-            removed = shm.clean_dead()
+            shm.clean_dead()
             # Ports 7000, 7001... are shared by every participant on this host, whatever its
             # domain: on a busy machine another test's participant may take one over (Fast
             # DDS reopens a zombie port) between the kill and the sweep. It is that one's
-            # then, rightly kept.
-            taken_over = {name for name in shared - set(removed)
-                          if owned_by_another(name, noted[name], victim.pid)}
-            assert shared - taken_over <= set(removed)
-            assert not any((shm.SHM_DIR / name).exists() for name in shared - taken_over)
+            # then, rightly kept. (Another farm task's sweep may have removed the rest first:
+            # what is checked is what is left.)
+            left = {name for name in shared if (shm.SHM_DIR / name).exists()}
+            assert all(owned_by_another(name, noted[name], victim.pid) for name in left), left
             # What stays noted is live processes' own (the victim sent to them): the peer's,
             # or on a busy machine another participant's port of the host's shared ones.
             assert all(locked_by_another(n, victim.pid)
