@@ -75,6 +75,8 @@ def test_sim_node_resolved_through_ament_index_starts(colcon_workspace):
     from simulation_interfaces.msg import SimulatorFeatures
     from simulation_interfaces.srv import GetSimulatorFeatures
     import time
+    from r2d2_sim.client import spin_until
+    from r2d2_sim.testing.remote import send_request
 
     # The system's packages only for the Python they were built for: sourcing
     # /opt/ros/jazzy puts them ahead of the venv's on PYTHONPATH.
@@ -105,10 +107,11 @@ def test_sim_node_resolved_through_ament_index_starts(colcon_workspace):
             executor.spin_once(timeout_sec=0.05)
         while not features.service_is_ready() and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
-        future = features.call_async(GetSimulatorFeatures.Request())
-        while not future.done() and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        reply = future.result()
+        # Sent again after 1 s without a reply (rmw_fastrtps drops a reply when the server
+        # has not yet discovered the client's reply reader 100 ms after the request).
+        reply = send_request(features, GetSimulatorFeatures.Request(),
+                             lambda done, timeout_s: spin_until(executor, done, timeout_s),
+                             max(deadline - time.monotonic(), 0.0), resend_after_s=1.0)
     finally:
         code, out, err = stop_process(process)
         node.destroy_node()
