@@ -18,7 +18,7 @@ from rclpy.node import Node
 from r2d2_sim.client import spin_until
 from r2d2_sim.testing.executor import HarnessError
 
-__all__ = ['RemoteProbe', 'send_request', 'Wait']
+__all__ = ['RemoteProbe', 'send_request', 'ask_until', 'Wait']
 
 # How a caller waits: spin until condition() holds (True) or timeout_s passes (False).
 Wait = Callable[[Callable[[], bool], float], bool]
@@ -50,6 +50,24 @@ def send_request(client: Client, request: Any, wait: Wait, timeout_s: float,
         client.remove_pending_request(future)
         if (abort is not None and abort()) or time.monotonic() >= deadline:
             return None
+
+
+def ask_until(answered: Callable[[], bool], wait: Wait, timeout_s: float,
+              pause_s: float = 0.002) -> bool:
+    """
+    Ask ``answered()`` until it holds; False once ``timeout_s`` has passed.
+
+    For a question the simulator answers through a service (its counts of
+    commands or readers): ``answered`` calls it, so it cannot be a condition
+    ``wait`` checks while it spins. Between questions ``wait`` spins the
+    caller's executor for ``pause_s``.
+    """
+    deadline = time.monotonic() + timeout_s
+    while not answered():
+        if time.monotonic() > deadline:
+            return False
+        wait(lambda: False, pause_s)
+    return True
 
 
 class RemoteProbe:

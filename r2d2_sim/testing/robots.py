@@ -10,7 +10,6 @@ simulator in this process) and :class:`RemoteRobot` for
 of their first robot (the one robot, by default).
 """
 
-import time
 from typing import Any, Callable, Dict, List, Mapping, Optional, Protocol, Tuple, TYPE_CHECKING
 
 from geometry_msgs.msg import Twist, TwistStamped
@@ -26,7 +25,7 @@ from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.lockstep import TakenOnDemand
 from r2d2_sim.testing.process import ChildProcess
-from r2d2_sim.testing.remote import RemoteProbe
+from r2d2_sim.testing.remote import ask_until, RemoteProbe
 from r2d2_sim.testing.tf import TfListener, TransformLookup
 
 if TYPE_CHECKING:  # the simulator's side needs PyBullet, which a remote test never loads
@@ -475,12 +474,10 @@ class RemoteRobot(_RobotHandle):
         before = self.commands_received()
         publisher.publish(twist)
         process = self._process
-        deadline = time.monotonic() + process.timeout_s
-        while self.commands_received() <= before:
-            if time.monotonic() > deadline:
-                raise HarnessError(f'the robot {self.name} did not take cmd_vel within '
-                                   f'{process.timeout_s:g} s')
-            process.probe.spin_until(lambda: False, 0.002)
+        if not ask_until(lambda: self.commands_received() > before, process.probe.spin_until,
+                         process.timeout_s):
+            raise HarnessError(f'the robot {self.name} did not take cmd_vel within '
+                               f'{process.timeout_s:g} s')
 
     def _wait_latest(self, topic: str) -> Any:
         return self._process._wait_latest(topic, self._latest,

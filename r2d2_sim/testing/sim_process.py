@@ -2,7 +2,6 @@
 
 import json
 import signal
-import time
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from rclpy.client import Client
@@ -16,7 +15,7 @@ from r2d2_sim.client import ros_child_env, stamp_ns
 from r2d2_sim.testing.domains import DomainLease, env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
-from r2d2_sim.testing.remote import RemoteProbe
+from r2d2_sim.testing.remote import ask_until, RemoteProbe
 from r2d2_sim.testing.robots import (
     expected_namespaces, FirstRobot, flatten_robots, RemoteRobot)
 from r2d2_sim.testing.standard import StandardClient
@@ -307,17 +306,16 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         node = self.probe.node
         writer = self.node_path.rsplit('/', 1)[1]  # the robots' nodes share the name
         topics = sorted({s.topic_name for s in node.subscriptions})
-        deadline = time.monotonic() + self.timeout_s
-        while True:
+        late: List[str] = []
+
+        def heard() -> bool:
             readers = self.readers()
-            late = [t for t in topics
-                    if t in readers and readers[t] < matchable_readers(node, t, writer)]
-            if not late:
-                return
-            if time.monotonic() > deadline:
-                raise HarnessError(f'the simulator did not match the readers of '
-                                   f'{", ".join(late)} within {self.timeout_s:g} s')
-            self.probe.spin_until(lambda: False, 0.002)
+            late[:] = [t for t in topics
+                       if t in readers and readers[t] < matchable_readers(node, t, writer)]
+            return not late
+        if not ask_until(heard, self.probe.spin_until, self.timeout_s):
+            raise HarnessError(f'the simulator did not match the readers of '
+                               f'{", ".join(late)} within {self.timeout_s:g} s')
 
     def robot(self, name: Optional[str] = None) -> RemoteRobot:
         """
