@@ -101,9 +101,10 @@ def child(config: str, steps: int, domain_id: int) -> dict:
         params['foxglove_port'] = free_port()
     init_ros(domain_id)
     node = make_sim_node(None, '/sink_bench', params)
-    taker = None if config.startswith('untaken') else take_every_topic(None, [node])
+    untaken = config.startswith('untaken')  # nobody subscribed, no viewer either
+    taker = None if untaken else take_every_topic(None, [node])
     try:
-        if 'foxglove_port' in params and not config.startswith('untaken'):
+        if 'foxglove_port' in params and not untaken:
             watcher = subprocess.Popen(
                 [sys.executable, __file__, '--viewer', str(params['foxglove_port'])],
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)

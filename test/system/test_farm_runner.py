@@ -237,6 +237,12 @@ def owned_by_another(name, inode, pid):
     return locked_by_another(name, pid)
 
 
+def noted_are_others(path, pid):
+    """Return True if each segment a note still names is a live process's other than ``pid``."""
+    return all(locked_by_another(name, pid)
+               for name in shm._read_note(path) if shm._is_segment(name))
+
+
 def test_a_killed_participants_segments_go_while_a_live_peer_still_maps_them():
     """Fast DDS's own owner lock says a segment is a zombie; its senders do not keep it."""
     import rclpy
@@ -281,14 +287,11 @@ def test_a_killed_participants_segments_go_while_a_live_peer_still_maps_them():
             assert all(owned_by_another(name, noted[name], victim.pid) for name in left), left
             # What stays noted is live processes' own (the victim sent to them): the peer's,
             # or on a busy machine another participant's port of the host's shared ones.
-            assert all(locked_by_another(n, victim.pid)
-                       for n in shm._read_note(path) if shm._is_segment(n))
+            assert noted_are_others(path, victim.pid)
             peer.destroy_node()
             rclpy.shutdown(context=context)  # the peer closes and removes its own
             shm.clean_dead()
-            assert not path.exists() or all(
-                locked_by_another(n, victim.pid)
-                for n in shm._read_note(path) if shm._is_segment(n)), path.read_text()
+            assert not path.exists() or noted_are_others(path, victim.pid), path.read_text()
         finally:
             victim.kill()
             victim.wait()
