@@ -77,9 +77,14 @@ class LiveViewClient:
         self._next_subscription = 1
         self._stack = ExitStack()  # websockets wants its connection used as a context
         try:
+            # max_queue=None: frames the reader takes while nobody pumps are buffered
+            # without bound, as ``messages`` keeps them. A bounded queue (websockets'
+            # default: 16 frames) stops reading once full, so the end of the connection
+            # was never read and every close after a busy subscription waited out
+            # close_timeout (10 s).
             self._ws = self._stack.enter_context(connect(
                 self.url, subprotocols=[Subprotocol(subprotocol)], max_size=None,
-                open_timeout=timeout_s))
+                max_queue=None, open_timeout=timeout_s))
         except Exception as exc:  # websockets and the OS raise assorted types
             raise LiveViewError(f'cannot connect to the live view at {self.url}: {exc}') from None
 

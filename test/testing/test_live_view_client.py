@@ -6,6 +6,7 @@ step); the client is the one :mod:`r2d2_sim.testing` exports.
 """
 
 import socket
+import threading
 
 from nav_msgs.msg import Odometry
 import pytest
@@ -82,3 +83,24 @@ def test_what_the_client_cannot_do_is_one_line():
             view.subscribe(['/nothing'])
         with pytest.raises(LiveViewError, match=r'/odom: 0 of 2 messages'):
             view.wait_for_messages('/odom', count=2)
+
+
+def test_a_client_that_left_messages_unread_closes_without_waiting_out_the_timeout():
+    """Unread messages do not stall the reader, so close() sees the connection end at once."""
+    type_name, qos = TOPICS['/odom']
+    with FoxgloveSink(port=0) as sink:
+        odom = sink.channel('/odom', type_name, qos)
+        view = LiveViewClient(sink.port)
+        view.subscribe(['/odom'])
+        for _ in range(100):  # until the subscription is served
+            odom.log(b'a', 1)
+            if view.pump(lambda: view.messages['/odom'], timeout_s=0.1):
+                break
+        for stamp in range(200):  # far more than a bounded reader queue holds (16)
+            odom.log(b'b', stamp)
+        closing = threading.Thread(target=view.close, daemon=True)
+        closing.start()
+        # A stalled reader never reads the end of the connection: close() then waits
+        # out websockets' close_timeout (10 s). A deadline of half that tells them apart.
+        closing.join(timeout=5.0)
+        assert not closing.is_alive()
