@@ -179,12 +179,15 @@ def sim_node_command(parameters: Optional[Mapping[str, Any]] = None,
 
     ``command`` defaults to this interpreter's ``-m r2d2_sim`` (the same code
     as ``sim_node``). Values are written with :func:`r2d2_sim.client.ros_arg`:
-    strings stay strings, lists stay lists.
+    strings stay strings, lists stay lists. A value of None is left out: the
+    node keeps its default (written, YAML's ``null`` reached the node as the
+    text "null": ``record=None`` recorded into a file named null).
     """
     args = list(command or [sys.executable, '-m', 'r2d2_sim'])
     ros = []
     for name, value in (parameters or {}).items():
-        ros += ['-p', f'{name}:={ros_arg(value)}']
+        if value is not None:
+            ros += ['-p', f'{name}:={ros_arg(value)}']
     ros += list(ros_args)
     return args + (['--ros-args'] + ros if ros else [])
 

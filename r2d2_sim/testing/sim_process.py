@@ -56,7 +56,8 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
     The ``sim_node`` executable in a process of its own, driven through its services.
 
     ``SimProcess(start_paused=True, publish_rate=20.0)``: keywords other than
-    the harness's own are the simulator's ROS parameters; ``ros_args`` are
+    the harness's own are the simulator's ROS parameters (None: left at the
+    node's default, so ``record=None`` records nothing); ``ros_args`` are
     appended after ``--ros-args`` (remaps, ``--params-file``). Starts the
     process and returns once it serves its services, its topics are linked
     to this object's node and, unless it starts paused, ``/clock`` arrives.

@@ -1,6 +1,6 @@
 """The ROS arguments the child-process layer reads (its processes: system/test_process.py)."""
 
-from r2d2_sim.testing.process import parse_ros_args, RosArgs
+from r2d2_sim.testing.process import parse_ros_args, RosArgs, sim_node_command
 
 
 def test_remaps_for_the_node_are_read_and_others_left_out():
@@ -9,3 +9,11 @@ def test_remaps_for_the_node_are_read_and_others_left_out():
     assert parse_ros_args(args, 'r2d2_sim') == RosArgs(
         'sim', '/a', ('/clock:=/a/clock', 'scan:=front_scan'))
     assert parse_ros_args([], 'r2d2_sim') == RosArgs(None, None, ())
+
+
+def test_a_parameter_given_as_none_is_left_at_the_nodes_default():
+    """SimProcess(record=None) means no recording, not a file named null."""
+    command = sim_node_command({'record': None, 'scan_rate': 10.0, 'world': 'room'},
+                               command=['sim_node'])
+    assert command == ['sim_node', '--ros-args', '-p', 'scan_rate:=10.0', '-p', 'world:="room"']
+    assert sim_node_command({'record': None}, command=['sim_node']) == ['sim_node']
