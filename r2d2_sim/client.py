@@ -25,7 +25,8 @@ from r2d2_sim.errors import StartupError
 from r2d2_sim.model.timing import stamp_ns, stamp_of
 from r2d2_sim.model.transforms import quaternion_to_yaw
 
-__all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env',
+__all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'step_count',
+           'sim_seconds', 'ros_child_env',
            'numbers_alike', 'ros_arg', 'stamp_ns', 'twist_message', 'twist_stamped_message',
            'UNKNOWN_NODE_NAME', 'PARENT_PID_ENV', 'end_with_parent']
 
@@ -111,6 +112,30 @@ def wait_for(condition: Callable[[], Any], timeout_s: float = 10.0,
         if value or time.monotonic() > deadline:
             return value
         time.sleep(interval_s)
+
+
+def step_count(value: Any, what: str = 'steps') -> int:
+    """
+    Return ``value`` as a number of steps; ValueError (one line) unless a whole number >= 0.
+
+    A float is refused, even 2.0: ``advance(2.0)`` meant seconds, which go by
+    keyword. Checked before any request is sent (a negative count reached
+    ``step_simulation`` as a huge unsigned one).
+    """
+    if isinstance(value, bool) or not isinstance(value, int):
+        hint = ' (simulated time goes as seconds=...)' if isinstance(value, float) else ''
+        raise ValueError(f'{what} must be a whole number >= 0, got {value!r}{hint}')
+    if value < 0:
+        raise ValueError(f'{what} must be a whole number >= 0, got {value}')
+    return value
+
+
+def sim_seconds(value: Any) -> float:
+    """Return ``value`` as simulated seconds; ValueError (one line) unless a finite number >= 0."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            0.0 <= value < float('inf')):
+        raise ValueError(f'simulated time must be a finite number >= 0 s, got {value!r}')
+    return float(value)
 
 
 def ros_child_env(domain_id: Optional[int] = None) -> dict:

@@ -8,11 +8,13 @@ callbacks to idleness itself (lockstep). Errors raised in callbacks come back
 to the caller as :class:`CallbackError`.
 """
 
+import atexit
 from contextlib import contextmanager
 import os
 import threading
 import time
 from types import TracebackType
+import weakref
 from typing import Any, Callable, Iterator, List, Mapping, Optional, Type
 
 import rclpy
@@ -93,6 +95,7 @@ class RosHarness:
         self._thread = threading.Thread(target=self._spin, daemon=True,
                                         name=f'ros-harness-{self.domain_id}')
         self._thread.start()
+        _left_open.add(self)
 
     def create_node(self, name: str, *, use_sim_time: bool = True, **node_kwargs: Any) -> Node:
         """
@@ -273,6 +276,7 @@ class RosHarness:
         if self._closed:
             return
         self._closed = True
+        _left_open.discard(self)
         problems: List[BaseException] = []
         try:
             self._stop.set()
@@ -304,3 +308,19 @@ class RosHarness:
         except CallbackError:
             if exc_type is None:  # do not hide the exception already on its way out
                 raise
+
+
+# Harnesses not closed yet. One left open when the interpreter exits (a script that
+# forgot close(), or raised outside ``with``) is closed on the way out: its thread
+# otherwise still spun rclpy's executor while the interpreter tore the context down,
+# and the process died of SIGABRT ("terminate called without an active exception").
+_left_open: 'weakref.WeakSet[RosHarness]' = weakref.WeakSet()
+
+
+@atexit.register
+def _close_left_open() -> None:
+    for harness in list(_left_open):
+        try:
+            harness.close()
+        except Exception:  # noqa: B902 (the process is ending: a callback's error is moot)
+            pass

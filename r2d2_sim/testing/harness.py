@@ -7,7 +7,6 @@ they run in lockstep with the simulator, so a run repeats bit for bit.
 """
 
 import json
-import math
 from typing import Any, Callable, Dict, List, Optional, Set, Tuple, Type, TYPE_CHECKING
 
 from rclpy.node import Node
@@ -15,6 +14,7 @@ from rclpy.qos import DurabilityPolicy
 from rclpy.subscription import Subscription
 from std_srvs.srv import Trigger
 
+from r2d2_sim.client import sim_seconds, step_count
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.testing.executor import (
     CallbackError, HarnessError, parameter_overrides, RosHarness)
@@ -233,8 +233,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
             steps = self._steps(seconds)
         elif steps is None:
             steps = self.sim.steps_to_next_publish()
-        if steps < 0:
-            raise ValueError(f'cannot advance by {steps} steps')
+        else:
+            steps = step_count(steps)
         self._check_world()
         self.raise_callback_error()
         if not self._lockstep:
@@ -284,9 +284,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         return False
 
     def _steps(self, seconds: float) -> int:
-        if not 0.0 <= seconds < math.inf:
-            raise ValueError(f'simulated time must be a finite number >= 0 s, got {seconds}')
-        return round(seconds * self.physics_rate_hz)
+        return round(sim_seconds(seconds) * self.physics_rate_hz)
 
     def _tf_node(self) -> Node:
         return self._link

@@ -11,7 +11,7 @@ from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 
-from r2d2_sim.client import ros_child_env, stamp_ns
+from r2d2_sim.client import ros_child_env, stamp_ns, step_count
 from r2d2_sim.testing.domains import DomainLease, env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
@@ -200,7 +200,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         """
         total = 0
         facts: Dict[str, Any] = {}
-        for _ in range(count):
+        for _ in range(step_count(count, 'count')):
             facts = self._request('step', Trigger.Request())
             total += facts['steps']
         facts['steps'] = total
@@ -400,7 +400,8 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         """
         Step a paused simulator ``steps`` physics steps (step_simulation); return its status.
 
-        Raises StandardError (OPERATION_FAILED) while the simulator is playing.
+        Raises StandardError (OPERATION_FAILED) while the simulator is playing,
+        ValueError (nothing sent) for a count that is not a whole number >= 0.
         """
         self.standard.step(steps)
         self._not_before_ns = 0

@@ -29,6 +29,7 @@ from rclpy.client import Client
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
+from r2d2_sim.client import step_count
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.testing.remote import send_request, Wait
 
@@ -270,7 +271,12 @@ class StandardClient:
         self.call('set_simulation_state', self.state_request(state))
 
     def step(self, steps: int) -> None:
-        """Step a paused simulation ``steps`` physics steps; returns once they are done."""
+        """
+        Step a paused simulation ``steps`` physics steps; returns once they are done.
+
+        ValueError (nothing sent) unless ``steps`` is a whole number >= 0.
+        """
+        steps = step_count(steps)
         self.call('step_simulation', self.srv.StepSimulation.Request(steps=steps))
 
     def reset(self, scope: int = 0) -> None:

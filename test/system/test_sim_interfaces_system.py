@@ -79,6 +79,17 @@ def test_a_long_step_repeats_bit_for_bit_however_it_is_cut(r2d2_sim_process):
     assert poses[0][0][0] > 0.3  # it did drive
 
 
+def test_a_negative_step_count_is_refused_here_and_nothing_is_sent(r2d2_sim_process):
+    """step_physics(-1) and step(-1): ValueError in one line; the simulator stays where it was."""
+    sim = r2d2_sim_process(start_paused=True)
+    before = sim.status()['step']
+    for call in (sim.step_physics, sim.step):
+        with pytest.raises(ValueError, match='must be a whole number >= 0, got -1'):
+            call(-1)
+    after = sim.step_physics(24)  # the next request is served: no runaway step holds it
+    assert after['step'] == before + 24 and after['paused']
+
+
 def test_a_long_step_leaves_the_other_services_answered(r2d2_sim_process):
     """While 40 s of simulated time are stepped, get_simulation_state and cmd_vel are answered."""
     sim = r2d2_sim_process(start_paused=True, cmd_vel_timeout=0.0)

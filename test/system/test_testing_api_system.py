@@ -273,3 +273,22 @@ def test_the_leased_domain_range_can_be_set_for_a_shared_machine(value, expected
                              'import r2d2_sim.testing as t; print(t.DOMAIN_IDS)'],
                             env=env, capture_output=True, text=True, timeout=60)
     assert expected in result.stdout + result.stderr
+
+
+@pytest.mark.parametrize('ending, status', [('', 0), ('raise RuntimeError("late")', 1)])
+def test_a_harness_left_open_at_exit_is_closed_and_the_process_ends_normally(ending, status):
+    """No close(), or an exception outside ``with``: exit 0 (or 1 and the traceback), no abort."""
+    script = textwrap.dedent(f'''
+        from r2d2_sim.testing import SimHarness
+        harness = SimHarness()
+        harness.advance(seconds=0.5)
+        print('stepped', flush=True)
+        {ending}
+    ''')
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    ended = subprocess.run([sys.executable, '-c', script], env=env, capture_output=True,
+                           text=True, timeout=120)
+    assert ended.returncode == status, ended.stderr[-2000:]  # SIGABRT was -6
+    assert 'stepped' in ended.stdout
+    assert 'terminate called' not in ended.stderr
+    assert ('RuntimeError: late' in ended.stderr) == bool(ending)

@@ -105,6 +105,20 @@ def test_seconds_must_be_finite(r2d2_sim):
             r2d2_sim.advance(seconds=bad)
 
 
+def test_step_counts_and_times_of_the_wrong_kind_are_one_line(r2d2_sim):
+    """A negative or fractional count, time as text: ValueError naming the value; no step."""
+    before = r2d2_sim.sim.step_count
+    for steps in (-3, 2.0, '4', True):
+        with pytest.raises(ValueError, match='steps must be a whole number >= 0') as raised:
+            r2d2_sim.advance(steps)
+        assert '\n' not in str(raised.value)
+    with pytest.raises(ValueError, match=r'seconds=\.\.\.'):  # advance(2.0) meant seconds
+        r2d2_sim.advance(2.0)
+    with pytest.raises(ValueError, match="finite number >= 0 s, got '1'"):
+        r2d2_sim.advance(seconds='1')
+    assert r2d2_sim.sim.step_count == before
+
+
 def test_lookup_transform_says_why_it_cannot(r2d2_sim_factory):
     """An unknown frame is a HarnessError naming it (tf2's reason), at the harness's deadline."""
     harness = r2d2_sim_factory(timeout_s=1.0)
