@@ -55,7 +55,10 @@ def r2d2_sim(r2d2_sim_factory, r2d2_sim_parameters):
     try:
         return r2d2_sim_factory(**r2d2_sim_parameters)
     except StartupError as exc:
-        pytest.fail(f'r2d2_sim_parameters: {exc}', pytrace=False)
+        problem = str(exc)
+    # Failed outside the except block: inside, pytest printed the error three times
+    # (the StartupError, then "the direct cause of", then "during handling of").
+    pytest.fail(f'r2d2_sim_parameters: {problem}', pytrace=False)
 
 
 @pytest.fixture

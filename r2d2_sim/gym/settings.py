@@ -13,8 +13,10 @@ from dataclasses import dataclass, field
 import math
 from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
+from r2d2_sim.errors import SetupError
 from r2d2_sim.farm.scenario import ScenarioSpace
 from r2d2_sim.gym.task import ObservationShape, Rewards
+from r2d2_sim.sim.settings.robots import parse_world
 
 __all__ = ['GymError', 'NavSettings', 'DEFAULT_SPACE', 'BACKENDS', 'PHYSICS_RATE_HZ',
            'robot_names']
@@ -126,6 +128,10 @@ class NavSettings:
         if taken:
             raise GymError(f'sim_parameters: {", ".join(taken)} are set by the environment '
                            '(give its own keywords instead)')
+        try:  # read as the simulator will, so a bad name or value is this line, both backends
+            parse_world(self.sim_parameters_for())
+        except SetupError as exc:
+            raise GymError(f'sim_parameters: {exc}') from None
 
     @property
     def steps_per_period(self) -> int:

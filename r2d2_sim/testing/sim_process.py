@@ -12,6 +12,7 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.client import ros_child_env, stamp_ns, step_count
+from r2d2_sim.errors import StartupError
 from r2d2_sim.testing.domains import DomainLease, env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
@@ -22,7 +23,7 @@ from r2d2_sim.testing.standard import StandardClient
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import StandardWorld, WorldVerbs
 
-__all__ = ['SimProcess', 'STATUS_RESEND_S', 'matchable_readers']
+__all__ = ['SimProcess', 'ProcessStartupError', 'STATUS_RESEND_S', 'matchable_readers']
 
 # SimProcess sends an idempotent query (get_status, get_joint_info) again after
 # this long without a reply (wall s); a reply sent before the server had found
@@ -49,6 +50,15 @@ def matchable_readers(node: Node, topic: str, writer: str) -> int:
                if all(reader.topic_type == w.topic_type and qos_check_compatible(
                    w.qos_profile, reader.qos_profile)[0] != QoSCompatibility.ERROR
                       for w in writers))
+
+
+class ProcessStartupError(HarnessError, StartupError):
+    """
+    sim_node refused its parameters or files (exit status 2): its one line.
+
+    A :class:`StartupError`, as the in-process harness raises for the same
+    mistake, and a :class:`HarnessError`, as every other failed start.
+    """
 
 
 class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
@@ -362,6 +372,10 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
     def _fail_start(self, what: str) -> None:
         if self._exited():
             result = self.stop()
+            refusals = [line.split(': error: ', 1)[1] for line in result.stderr.splitlines()
+                        if ': error: ' in line]
+            if result.returncode == 2 and refusals:  # sim_node refused a parameter or file
+                raise ProcessStartupError(refusals[-1])
             raise HarnessError(f'sim_node exited with status {result.returncode} while '
                                f'starting: {result.stderr.strip()[-2000:]}')
         raise HarnessError(f'sim_node {what} within {self.timeout_s:g} s')

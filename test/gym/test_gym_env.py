@@ -152,13 +152,18 @@ def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(gym_make):
     ({'scan_beams': 7}, r'scan_beams must divide scan_rays \(360\) into equal sectors, got 7'),
     ({'backend': 'gazebo'}, "backend must be one of inproc, ros, got 'gazebo'"),
     ({'sim_parameters': {'scan_rate': 5.0}}, 'sim_parameters: scan_rate are set by the env'),
+    ({'sim_parameters': {'publish_rat': 3}},
+     r'sim_parameters: unknown parameter\(s\): publish_rat'),
+    ({'sim_parameters': {'scan_noise_std': 'x'}, 'backend': 'ros'},
+     "sim_parameters: parameter scan_noise_std must be a number, got 'x'"),
     ({'color': 'blue'}, "unexpected keyword argument 'color'"),
     ({'render_mode': 'human'}, "render_mode must be None or 'rgb_array', got 'human'"),
 ])
 def test_settings_that_cannot_be_are_one_line_at_construction(kwargs, message):
     """Each: GymError naming the setting, no simulator left behind."""
+    from r2d2_sim.gym.env import NavEnv  # imported here: alone, the test found no gym.env
     with pytest.raises(GymError, match=message) as caught:
-        r2d2_sim.gym.env.NavEnv(**kwargs)
+        NavEnv(**kwargs)
     assert '\n' not in str(caught.value)
 
 

@@ -19,7 +19,8 @@ import pytest
 
 from common import EXAMPLE_FILES, EXAMPLES
 from r2d2_sim import testing
-from r2d2_sim.testing import DomainUnavailable, HarnessError, lease_domain, SimProcess
+from r2d2_sim.testing import (
+    DomainUnavailable, HarnessError, lease_domain, SimProcess, StartupError)
 
 
 # -- the README and the examples ----------------------------------------------------
@@ -148,6 +149,7 @@ def test_parameters_the_simulator_refuses_are_one_line_in_pytest(tmp_path):
             in result.stdout), result.stdout[-800:]
     assert 'r2d2_sim/sim/' not in result.stdout  # no frame of the library shown
     assert 'Traceback' not in result.stdout
+    assert result.stdout.count('no such world file') == 1, result.stdout[-800:]  # not thrice
 
 
 # -- import costs -------------------------------------------------------------------
@@ -292,3 +294,11 @@ def test_a_harness_left_open_at_exit_is_closed_and_the_process_ends_normally(end
     assert 'stepped' in ended.stdout
     assert 'terminate called' not in ended.stderr
     assert ('RuntimeError: late' in ended.stderr) == bool(ending)
+
+
+def test_a_process_the_simulator_refuses_to_start_is_a_startup_error_in_one_line():
+    """A missing world file: StartupError (as in process), also a HarnessError; its own line."""
+    with pytest.raises(StartupError) as refused:
+        SimProcess(world='romo.world.yaml')
+    assert isinstance(refused.value, HarnessError)
+    assert str(refused.value) == 'world romo.world.yaml: no such world file'
