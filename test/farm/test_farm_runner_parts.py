@@ -131,6 +131,9 @@ def test_the_executor_is_local_unless_a_cluster_is_named(monkeypatch):
         choose('local', 'tcp://x:1', payload=JOB, record='failures', workers=1)
     with pytest.raises(ExecutorError, match='one of local, ray, dask'):
         choose('slurm', None, payload=JOB, record='failures', workers=1)
+    for name, workers in (('local', 0), ('local', -3), ('ray', 0), ('dask', 0)):
+        with pytest.raises(ExecutorError, match=f'^--workers {workers}: at least 1$'):
+            choose(name, None, payload=JOB, record='failures', workers=workers)
 
 
 def test_an_unreachable_address_is_one_line():

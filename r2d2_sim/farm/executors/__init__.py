@@ -53,6 +53,8 @@ def choose(name: Optional[str], address: Optional[str], *, payload: Any, record:
     """
     if name is not None and name not in EXECUTORS:
         raise ExecutorError(f'--executor {name}: one of {", ".join(EXECUTORS)}')
+    if workers is not None and workers < 1:  # None: each executor's default
+        raise ExecutorError(f'--workers {workers}: at least 1')
     if name is None and address:
         name = _kind_of(address)
         if name is None:
@@ -70,7 +72,7 @@ def choose(name: Optional[str], address: Optional[str], *, payload: Any, record:
         if address:
             raise ExecutorError(f'--address {address}: the local executor takes no address')
         from r2d2_sim.farm.executors.local import LocalPool
-        return LocalPool(payload, record, workers or default_workers())
+        return LocalPool(payload, record, default_workers() if workers is None else workers)
     if name == 'ray':
         from r2d2_sim.farm.executors.ray_cluster import RayPool
         return RayPool(payload, record, address, workers)
