@@ -304,6 +304,9 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
             return False
         return True
 
+    def _tf_frozen(self) -> bool:
+        return True  # time moves only when this harness advances it
+
     def last_publication_ns(self) -> int:
         """Return the simulated time (ns) of the simulator's latest state publication."""
         return self.sim.last_publication_ns

@@ -55,6 +55,9 @@ class LocalHost(Protocol):
     def _tf_wait(self, condition: Callable[[], bool]) -> bool:
         """Wait for ``condition`` as a transform lookup does; False at the timeout."""
 
+    def _tf_frozen(self) -> bool:
+        """Return True when no transform can arrive until the harness steps."""
+
     def last_publication_ns(self) -> int:
         """Return the simulated time (ns) of the simulator's latest state publication."""
 
@@ -332,6 +335,9 @@ class LocalRobot(_RobotHandle):
 
     def _tf_wait(self, condition: Callable[[], bool]) -> bool:
         return self._harness._tf_wait(condition)
+
+    def _tf_frozen(self) -> bool:
+        return self._harness._tf_frozen()
 
     def bound_to(self, interfaces: Optional['RobotInterfaces']) -> bool:
         """Return True if this handle is of the robot ``interfaces`` (the very same robot)."""

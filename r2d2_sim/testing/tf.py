@@ -122,7 +122,8 @@ class TransformLookup:
 
     The harness gives ``_tf_node()`` and ``_tf_wait(condition)`` (True once
     it holds, False at its deadline), and may give ``_tf_default_time_ns()``
-    for a lookup at time 0 (else tf2's: the latest common time).
+    for a lookup at time 0 (else tf2's: the latest common time) and
+    ``_tf_frozen()`` (True: nothing arrives until the harness steps).
     """
 
     _tf: Optional[TfListener] = None
@@ -135,6 +136,9 @@ class TransformLookup:
 
     def _tf_default_time_ns(self) -> int:
         return 0
+
+    def _tf_frozen(self) -> bool:
+        return False
 
     def _tf_topics(self) -> Tuple[str, str]:
         return '/tf', '/tf_static'
@@ -181,7 +185,15 @@ class TransformLookup:
 
         def can_transform() -> bool:
             return listener.buffer.can_transform(target_frame, source_frame, time_ns)
-        if not self._tf_wait(can_transform):
+        # In process (frozen), once /tf_static's latched message is in (it comes a
+        # moment after a new listener matches), the buffer holds all it will until
+        # the next step: an unknown frame is said then, not at the deadline (10 s
+        # of waiting for nothing). A world with no static transform waits as before.
+        frozen = self._tf_frozen()
+
+        def decided() -> bool:
+            return can_transform() or (frozen and listener.static_received > 0)
+        if not self._tf_wait(decided) or not can_transform():
             try:
                 listener.buffer.lookup_transform(target_frame, source_frame, time_ns)
             except TransformException as exc:
