@@ -104,6 +104,7 @@ class RosHarness:
         ``use_sim_time`` (on by default) makes the node's clock and timers
         follow the simulator's ``/clock``. Other keywords go to ``Node``.
         """
+        self.check_open()
         overrides = list(node_kwargs.pop('parameter_overrides', None) or [])
         if use_sim_time and not any(p.name == 'use_sim_time' for p in overrides):
             overrides.append(Parameter('use_sim_time', value=True))
@@ -117,6 +118,9 @@ class RosHarness:
         ``use_sim_time`` (on by default) switches the node to the simulator's
         clock: its timers then count from the first ``/clock`` it receives.
         """
+        self.check_open()
+        if not isinstance(node, Node):
+            raise TypeError(f'add_node takes an rclpy Node, got {type(node).__name__}')
         if node.context is not self.context:
             raise ValueError(f'node {node.get_name()} belongs to another context: build it '
                              'with context=harness.context')
@@ -176,6 +180,11 @@ class RosHarness:
         with self._own_executor():
             yield
 
+    def check_open(self) -> None:
+        """Raise HarnessError (one line) once the harness is closed."""
+        if self._closed:
+            raise HarnessError('the harness is closed: make a new one')
+
     def settle(self, timeout_s: Optional[float] = None) -> None:
         """
         Return once every callback that is ready has run, and those they made ready too.
@@ -185,6 +194,7 @@ class RosHarness:
         call, and whatever it published in response. Raises HarnessError at the
         deadline (callbacks that never stop making work).
         """
+        self.check_open()
         with self._own_executor():
             self._run_until_idle(self.timeout_s if timeout_s is None else timeout_s)
         self.raise_callback_error()

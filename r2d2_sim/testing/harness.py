@@ -125,6 +125,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         A robot spawned with a namespace has one from its spawn on. HarnessError
         for a robot the world does not have.
         """
+        self.check_open()
         self._drop_departed()
         if name is None:
             if not self._robots:
@@ -176,6 +177,9 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         wall time, so without this a node would start on a simulated time
         that depends on the machine's load.
         """
+        self.check_open()
+        if not isinstance(node, Node):
+            raise TypeError(f'add_node takes an rclpy Node, got {type(node).__name__}')
         self._lockstep = True
         pending = self._latched_subscriptions(node)
         delivered: Set[Subscription] = set()
@@ -261,6 +265,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
             return predicate() or self._run_periods(limit, predicate)
 
     def _check_world(self) -> None:
+        self.check_open()
         if not self.sim.world_is_loaded:
             raise HarnessError('no world is loaded (unload_world): load_world first')
 
@@ -327,6 +332,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         return json.loads(reply.message)
 
     def _world_backend(self) -> CoreWorld:
+        self.check_open()
         return CoreWorld(self.sim)
 
     def _before_reset(self) -> None:

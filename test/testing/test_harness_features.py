@@ -152,3 +152,21 @@ def test_a_deleted_robots_handle_refuses_a_command_in_one_line(r2d2_sim_factory)
         c.send_cmd_vel(linear=0.3)
     with pytest.raises(HarnessError, match='the robot c is not in the world any more'):
         c.ground_truth()
+
+
+def test_a_closed_harness_says_so_in_one_line(r2d2_sim_factory):
+    """advance, a robot's state, a spawn, settle, a node after close(): 'the harness is closed'."""
+    harness = r2d2_sim_factory()
+    harness.advance(1)
+    harness.close()
+    for call in (lambda: harness.advance(seconds=0.1), lambda: harness.ground_truth(),
+                 lambda: harness.send_cmd_vel(0.1), lambda: harness.spawn('cube.urdf'),
+                 harness.settle, lambda: harness.create_node('late')):
+        with pytest.raises(HarnessError, match='^the harness is closed: make a new one$'):
+            call()
+
+
+def test_add_node_of_something_else_is_one_line(r2d2_sim):
+    """None where a node belongs: TypeError naming what came."""
+    with pytest.raises(TypeError, match='^add_node takes an rclpy Node, got NoneType$'):
+        r2d2_sim.add_node(None)
