@@ -29,7 +29,7 @@ def read_recording(path: Union[str, os.PathLike[str]],
     Return the messages of an MCAP recording, typed, by topic, in the order they were written.
 
     ``read_recording('run.mcap')['/odom'][-1].message`` is the last recorded
-    ``Odometry``. ``topics``: only these (each must be in the file with a
+    ``Odometry``. ``topics``: only these, or this one (each must be in the file with a
     type this machine has); default every topic whose type an installed ROS
     interface package defines (others are left out). Read as ``replay``
     reads (:class:`~r2d2_sim.recording.reader.RecordingFile`): types only
@@ -40,8 +40,12 @@ def read_recording(path: Union[str, os.PathLike[str]],
     a requested topic that is missing or of an unknown type, bytes that are
     not their topic's type, or more than ``max_messages`` messages.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise RecordingError(f'read_recording takes the path of an MCAP file, got '
+                             f'{type(path).__name__}')
     recording = RecordingFile(path, max_bytes)
-    wanted = None if topics is None else list(topics)
+    # One topic as a string: itself, not its letters (it was read as '/', 'o', 'd'...).
+    wanted = None if topics is None else [topics] if isinstance(topics, str) else list(topics)
     by_topic: Dict[str, List[RecordedChannel]] = {}
     for channel in recording.channels.values():
         if channel.message_encoding == 'cdr' and (wanted is None or channel.topic in wanted):

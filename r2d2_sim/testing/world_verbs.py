@@ -34,20 +34,40 @@ __all__ = ['WorldVerbs', 'CoreWorld', 'StandardWorld', 'NamedPose', 'WorldEntry'
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
 
+def _numbers(value: Any, count: int, what: str) -> Tuple[float, ...]:
+    """Return ``value`` as ``count`` floats; TypeError (one line) for anything else."""
+    try:
+        numbers = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        numbers = ()
+    if len(numbers) != count or isinstance(value, str):
+        raise TypeError(f'{what} must be {count} numbers, got {value!r}')
+    return numbers
+
+
 def _orientation(yaw: float, orientation: Optional[Sequence[float]]) -> Tuple[float, ...]:
     if orientation is not None:
-        return tuple(orientation)
+        return _numbers(orientation, 4, 'orientation (x, y, z, w)')
     return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
+
+
+def _text(value: Any, what: str) -> str:
+    if not isinstance(value, str):
+        raise TypeError(f'{what}, got {type(value).__name__}')
+    return value
 
 
 def _resource(urdf: str) -> Tuple[str, str]:
     """Return (uri, resource_string): XML text goes as a resource string, anything else a uri."""
+    _text(urdf, 'spawn takes a URDF or SDF: a path, a package:// or model:// URI, a '
+                'pybullet_data name or the XML text')
     return ('', urdf) if urdf.lstrip().startswith('<') else (urdf, '')
 
 
 def _world_resource(world: str) -> Tuple[str, str]:
     """Return (uri, resource_string): a text of several lines or XML is the file's text."""
-    text = world.lstrip()
+    text = _text(world, 'load_world takes a world file, a package:// URI or the world\'s '
+                        'text').lstrip()
     return ('', world) if text.startswith('<') or '\n' in text else (world, '')
 
 
@@ -253,7 +273,8 @@ class WorldVerbs:
         """
         uri, text = _resource(urdf)
         renaming = not name if allow_renaming is None else allow_renaming
-        spawned = self._world_backend().spawn(uri, text, name, tuple(position),
+        spawned = self._world_backend().spawn(uri, text, name,
+                                              _numbers(position, 3, 'position (x, y, z)'),
                                               _orientation(yaw, orientation), renaming,
                                               namespace, at)
         self._after_spawn(spawned, namespace)
@@ -278,9 +299,9 @@ class WorldVerbs:
         frame: ``set_entity_state('r2d2', (0, 0, 0.471), at='goal')`` stands
         R2D2 at the goal, facing the way the pose does.
         """
-        self._world_backend().set_entity_state(name, tuple(position),
-                                               _orientation(yaw, orientation), tuple(linear),
-                                               tuple(angular), at)
+        self._world_backend().set_entity_state(
+            name, _numbers(position, 3, 'position (x, y, z)'), _orientation(yaw, orientation),
+            _numbers(linear, 3, 'linear (m/s)'), _numbers(angular, 3, 'angular (rad/s)'), at)
 
     def entity_info(self, name: str) -> EntityInfo:
         """Return an entity's ``EntityInfo(category, description, tags)``."""

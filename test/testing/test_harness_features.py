@@ -170,3 +170,24 @@ def test_add_node_of_something_else_is_one_line(r2d2_sim):
     """None where a node belongs: TypeError naming what came."""
     with pytest.raises(TypeError, match='^add_node takes an rclpy Node, got NoneType$'):
         r2d2_sim.add_node(None)
+
+
+def test_world_verbs_given_the_wrong_kind_of_thing_say_so_in_one_line(r2d2_sim):
+    """None for a file, a vector of the wrong length or type: TypeError naming what came."""
+    cases = [
+        (lambda: r2d2_sim.spawn(None), '^spawn takes a URDF or SDF: .*, got NoneType$'),
+        (lambda: r2d2_sim.load_world(None), '^load_world takes a world file, .*, got NoneType$'),
+        (lambda: r2d2_sim.spawn('cube.urdf', position=None),
+         r'^position \(x, y, z\) must be 3 numbers, got None$'),
+        (lambda: r2d2_sim.spawn('cube.urdf', position=(1.0, 2.0)),
+         r'^position \(x, y, z\) must be 3 numbers, got \(1.0, 2.0\)$'),
+        (lambda: r2d2_sim.set_entity_state('r2d2', None),
+         r'^position \(x, y, z\) must be 3 numbers, got None$'),
+        (lambda: r2d2_sim.set_entity_state('r2d2', (0.0, 0.0, 0.5), orientation='up'),
+         r"^orientation \(x, y, z, w\) must be 4 numbers, got 'up'$"),
+    ]
+    entities = r2d2_sim.entities()
+    for call, message in cases:
+        with pytest.raises(TypeError, match=message):
+            call()
+    assert r2d2_sim.entities() == entities

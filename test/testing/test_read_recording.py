@@ -53,6 +53,10 @@ def test_only_the_topics_asked_for(recording):
     assert sorted(read_recording(path, ['/clock', '/odom'])) == ['/clock', '/odom']
     with pytest.raises(RecordingError, match=r"no cdr topic '/cmd_vel'; it has \[.*'/odom'"):
         read_recording(path, ['/cmd_vel'])
+    assert list(read_recording(path, '/odom')) == ['/odom']  # one topic as a string
+    with pytest.raises(RecordingError, match='^read_recording takes the path of an MCAP file, '
+                       'got NoneType$'):
+        read_recording(None)
 
 
 def test_a_cut_off_recording_gives_what_it_holds(recording, tmp_path):
