@@ -37,6 +37,7 @@ the same rank in its final (shrunk) example.
 import json
 import os
 from pathlib import Path, PurePosixPath
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -174,8 +175,12 @@ def rerun(report: Path, number: int, record: Optional[Path],
     record.mkdir(parents=True, exist_ok=True)
     for old in record.glob('*.mcap'):
         old.unlink()
+    # The rerun's own farm report goes beside its recording: the pytest run prints
+    # where it is, and a report in a scratch directory was gone by then.
+    farm = record / 'farm'
+    shutil.rmtree(farm, ignore_errors=True)
     with tempfile.TemporaryDirectory(prefix='r2d2_farm_rerun_') as scratch:
-        scenario, farm = Path(scratch) / 'scenario.json', Path(scratch) / 'farm'
+        scenario = Path(scratch) / 'scenario.json'
         scenario.write_text(expected.scenario.to_json(), encoding='utf-8')
         env = dict(os.environ, **{REPLAY_ENV: str(scenario)})
         # Options as one argument each: pytest chooses its rootdir before it knows them.

@@ -19,6 +19,7 @@ import hashlib
 import json
 import os
 from pathlib import Path
+import re
 import subprocess
 import sys
 import textwrap
@@ -172,6 +173,8 @@ def test_a_farm_rerun_in_another_order_gives_the_same_verdicts_and_recordings(tm
         env=environment(), capture_output=True, text=True, timeout=300)
     assert rerun.returncode == 0, rerun.stdout[-2000:] + rerun.stderr[-2000:]
     assert 'the same outcome as in the report (failed: touched box_' in rerun.stdout
+    printed = re.findall(r'(/\S+?(?:report\.json|report\.md|trajectories\.png))', rerun.stdout)
+    assert printed and all(Path(p).is_file() for p in printed), printed  # not a scratch dir's
     recorded = list((tmp_path / 'rerun').glob('*.mcap'))
     assert len(recorded) == 1 and sha256(recorded[0]) == sha256(case['recording'])
 
