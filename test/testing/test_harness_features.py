@@ -191,3 +191,12 @@ def test_world_verbs_given_the_wrong_kind_of_thing_say_so_in_one_line(r2d2_sim):
         with pytest.raises(TypeError, match=message):
             call()
     assert r2d2_sim.entities() == entities
+
+
+def test_pybullet_datas_r2d2_spawned_as_a_robot_points_to_the_forward_axis(r2d2_sim):
+    """The classic model drives along its y axis: the refusal says where to look."""
+    from r2d2_sim.testing import RefusedError
+    with pytest.raises(RefusedError, match=r"base_forward_axis .*pybullet_data's r2d2\.urdf "
+                       'faces y; package://r2d2_sim/urdf/r2d2.urdf faces x'):
+        r2d2_sim.spawn('r2d2.urdf', name='c', namespace='/c', position=(2.0, 0.0, 0.48))
+    assert 'c' not in r2d2_sim.entities()

@@ -121,7 +121,9 @@ def _track_m(body: Body, left: Tuple[int, ...], right: Tuple[int, ...]) -> float
     if separation <= 0.0:
         raise ConfigError(
             f'left wheels are not to the left of the right wheels (track {separation:.3f} m '
-            'along base y): check left_wheel_names/right_wheel_names')
+            'along base y): check left_wheel_names/right_wheel_names, and base_forward_axis '
+            'for a URDF that faces another way than x (pybullet_data\'s r2d2.urdf faces y; '
+            'package://r2d2_sim/urdf/r2d2.urdf faces x)')
     return separation
 
 
