@@ -55,7 +55,8 @@ def declare_parameters(node: Node) -> Tuple[SimConfig, List[RobotSpec]]:
         parameter = name.partition('.')[2]
         spec = NAMESPACE_SPEC if parameter == 'namespace' else PARAMETERS_BY_NAME[parameter]
         _declare_typed(node, spec._replace(name=name), value)
-    _warn_unknown_overrides(node, overrides, list(config.robots))
+    for problem in unknown_overrides(node, overrides, list(config.robots)):
+        node.get_logger().warning(f'ignoring {problem}')
     return config, specs
 
 
@@ -119,10 +120,15 @@ def _declare_empty_list(node: Node, name: str, ros_type: Parameter.Type,
     node.set_descriptor(name, descriptor)
 
 
-def _warn_unknown_overrides(node: Node, overrides, robots) -> None:
-    """Name parameters given on the command line or in a file that nothing reads."""
-    # ROS ignores overrides nobody declares, so a typo would run on the default.
+def unknown_overrides(node: Node, overrides, robots) -> List[str]:
+    """
+    Return 'unknown parameter NAME (did you mean ...?)' for each override nothing reads.
+
+    ROS ignores overrides nobody declares, so a typo would run on the
+    default: the node warns of each; the in-process harness refuses them.
+    """
     known = [spec.name for spec in PARAMETERS]
+    problems = []
     for name in sorted(overrides):
         if node.has_parameter(name) or name.startswith('qos_overrides.'):
             continue  # ours, or rclpy's own (use_sim_time)
@@ -133,4 +139,5 @@ def _warn_unknown_overrides(node: Node, overrides, robots) -> None:
         else:
             close = difflib.get_close_matches(name, known, n=1)
             hint = f' (did you mean {close[0]}?)' if close else ''
-        node.get_logger().warning(f'ignoring unknown parameter {name}{hint}')
+        problems.append(f'unknown parameter {name}{hint}')
+    return problems

@@ -15,6 +15,7 @@ from rclpy.subscription import Subscription
 from std_srvs.srv import Trigger
 
 from r2d2_sim.client import sim_seconds, step_count
+from r2d2_sim.errors import StartupError
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.testing.executor import (
     CallbackError, HarnessError, parameter_overrides, RosHarness)
@@ -76,6 +77,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         parameters = flatten_robots(parameters)
         try:
             from r2d2_sim.ros.node import SimNode  # PyBullet: only when a simulator is wanted
+            from r2d2_sim.ros.parameters import unknown_overrides
             # Without parameter services, rosout, type descriptions or QoS
             # event handlers: fewer entities for the executor to gather on every
             # wait of a lockstep run.
@@ -93,6 +95,11 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                        for ns in expected_namespaces(parameters, namespace)]
             self.sim = SimNode(node_name, context=self.context, namespace=namespace or None,
                                parameter_overrides=parameter_overrides(parameters))
+            # A keyword nothing reads is a mistake here, not a warning to read past
+            # (the node only warns, as ROS ignores undeclared overrides).
+            unknown = unknown_overrides(self.sim, parameters, list(self.sim.config.robots))
+            if unknown:
+                raise StartupError('; '.join(unknown))
             RosHarness.add_node(self, self.sim, use_sim_time=False)
             if self.sim.standard is not None:  # its services, on a node of their own
                 RosHarness.add_node(self, self.sim.standard.node, use_sim_time=False)

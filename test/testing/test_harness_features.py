@@ -200,3 +200,14 @@ def test_pybullet_datas_r2d2_spawned_as_a_robot_points_to_the_forward_axis(r2d2_
                        'faces y; package://r2d2_sim/urdf/r2d2.urdf faces x'):
         r2d2_sim.spawn('r2d2.urdf', name='c', namespace='/c', position=(2.0, 0.0, 0.48))
     assert 'c' not in r2d2_sim.entities()
+
+
+def test_a_keyword_the_simulator_does_not_read_is_refused_in_one_line(r2d2_sim_factory):
+    """A typo runs on the default in ROS (the node warns); in the harness it is StartupError."""
+    with pytest.raises(StartupError, match=r'^unknown parameter cmd_vel_timout '
+                       r'\(did you mean cmd_vel_timeout\?\)$'):
+        r2d2_sim_factory(cmd_vel_timout=0.0)
+    with pytest.raises(StartupError, match=r'^unknown parameter b\.initial_pose '
+                       r'\(robots lists a\)$'):
+        r2d2_sim_factory(robots=['a'], **{'b.initial_pose': [0.0, 1.0, 0.0]})
+    assert r2d2_sim_factory(cmd_vel_timeout=0.0).sim.config.cmd_vel_timeout_s == 0.0
