@@ -30,7 +30,7 @@ directories (CI shards' together).
 import argparse
 from pathlib import Path
 import sys
-from typing import Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Set, Tuple
 
 from r2d2_sim.farm.rerun import read_records, ReportError, rerun
 from r2d2_sim.farm.runner import FarmError
@@ -41,15 +41,33 @@ __all__ = ['main']
 def rebuild(directories: Sequence[Path], out: Path) -> int:
     """Write one report of the outcomes in ``directories`` into ``out``."""
     from r2d2_sim.farm.report import write_report
-    records = []
+    records: List[Dict[str, Any]] = []
+    seen: Set[Tuple[Any, ...]] = set()
+    repeated = 0
     for directory in directories:
         found = read_records(directory)
         if not found:
             raise ReportError(f'{directory}: no farm outcomes (outcomes/*.jsonl)')
-        records += found
+        # A run a directory given before holds too (a farm and a part of it, given
+        # together) is counted once: reports of shards never share one.
+        keys = [_identity(record) for record in found]
+        records += [record for record, key in zip(found, keys) if key not in seen]
+        repeated += sum(key in seen for key in keys)
+        seen.update(keys)
+    if repeated:
+        print(f'r2d2_sim.farm: {repeated} outcome(s) were in more than one of the directories '
+              '(the same test, run and seed): counted once', file=sys.stderr)
     for path in write_report(records, out).values():
         print(path)
     return 0
+
+
+def _identity(record: Dict[str, Any]) -> Tuple[Any, ...]:
+    """Return what makes a farm outcome one run: its test, its run number, its seed."""
+    outcome, farm = record.get('outcome'), record.get('farm') or {}
+    seed = outcome['scenario']['seed'] if outcome else farm.get('seed')
+    return (record.get('rootdir'), record['nodeid'], record.get('run', 0),
+            bool(record.get('property')), seed)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -352,6 +352,8 @@ def test_two_shards_run_every_seed_once_and_their_reports_merge(tmp_path):
         mine = {c['seed'] for c in shard['cases']}
         assert not mine & seeds
         seeds |= mine
+        if index == 1:
+            shard1_seeds = mine
     assert seeds == set(range(6))
     merged = subprocess.run(
         [sys.executable, '-m', 'r2d2_sim.farm', 'report', str(tmp_path / 'shard1'),
@@ -360,6 +362,17 @@ def test_two_shards_run_every_seed_once_and_their_reports_merge(tmp_path):
     assert merged.returncode == 0, merged.stderr
     report = json.loads((tmp_path / 'all' / 'report.json').read_text())
     assert sorted(c['seed'] for c in report['cases']) == list(range(6))
+    assert 'more than one' not in merged.stderr
+    # A shard given again beside the whole: its runs counted once, and said.
+    again = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.farm', 'report', str(tmp_path / 'shard1'),
+         str(tmp_path / 'shard2'), str(tmp_path / 'shard1'), '--out', str(tmp_path / 'twice')],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=DEADLINE_S)
+    assert again.returncode == 0, again.stderr
+    report = json.loads((tmp_path / 'twice' / 'report.json').read_text())
+    assert sorted(c['seed'] for c in report['cases']) == list(range(6))
+    assert (f'{len(shard1_seeds)} outcome(s) were in more than one of the directories'
+            in again.stderr), again.stderr
 
 
 def test_a_failure_is_shrunk_here_and_reruns_from_the_report(tmp_path):
