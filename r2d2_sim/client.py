@@ -9,6 +9,8 @@ ties to the process that started it (:func:`end_with_parent`).
 """
 
 import json
+import math
+import numbers
 import os
 from pathlib import Path
 import select
@@ -122,20 +124,21 @@ def step_count(value: Any, what: str = 'steps') -> int:
     keyword. Checked before any request is sent (a negative count reached
     ``step_simulation`` as a huge unsigned one).
     """
-    if isinstance(value, bool) or not isinstance(value, int):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         hint = ' (simulated time goes as seconds=...)' if isinstance(value, float) else ''
         raise ValueError(f'{what} must be a whole number >= 0, got {value!r}{hint}')
-    if value < 0:
-        raise ValueError(f'{what} must be a whole number >= 0, got {value}')
-    return value
+    count = int(value)  # numpy's integers too
+    if count < 0:
+        raise ValueError(f'{what} must be a whole number >= 0, got {count}')
+    return count
 
 
 def sim_seconds(value: Any) -> float:
     """Return ``value`` as simulated seconds; ValueError (one line) unless a finite number >= 0."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-            0.0 <= value < float('inf')):
+    seconds = float(value) if isinstance(value, numbers.Real) else math.nan  # numpy's too
+    if isinstance(value, bool) or not 0.0 <= seconds < math.inf:
         raise ValueError(f'simulated time must be a finite number >= 0 s, got {value!r}')
-    return float(value)
+    return seconds
 
 
 def ros_child_env(domain_id: Optional[int] = None) -> dict:

@@ -12,6 +12,7 @@ import threading
 import time
 
 from geometry_msgs.msg import TwistStamped
+import numpy
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
@@ -118,6 +119,9 @@ def test_step_counts_and_times_of_the_wrong_kind_are_one_line(r2d2_sim):
     with pytest.raises(ValueError, match="finite number >= 0 s, got '1'"):
         r2d2_sim.advance(seconds='1')
     assert r2d2_sim.sim.step_count == before
+    assert r2d2_sim.advance(numpy.int64(3)) == 3  # numpy's numbers are numbers
+    assert r2d2_sim.advance(seconds=numpy.float32(0.125)) == 30
+    assert r2d2_sim.sim.step_count == before + 33
 
 
 def test_lookup_transform_says_why_it_cannot_at_once(r2d2_sim_factory):
