@@ -49,3 +49,19 @@ def test_stop_twice_returns_the_first_result(tmp_path):
     assert child.stop() is first
     assert first.returncode == 0 and sorted(first.stdout.split()) == ['err', 'out']
     assert sorted(log.read_text().split()) == ['err', 'out']
+
+
+def test_reading_the_output_while_the_child_writes_loses_no_line():
+    """output() polled as fast as it goes while the child writes: every line, in order, once."""
+    code = ('import sys\nfor i in range(3000):\n'
+            '    sys.stderr.write(f"line {i:04d} " + "x" * 60 + "\\n"); sys.stderr.flush()')
+    expected = [f'line {i:04d} ' + 'x' * 60 for i in range(3000)]
+    for _ in range(3):  # a seek per poll corrupted every run of three
+        child = ChildProcess([sys.executable, '-c', code]).start()
+        polls = 0
+        while not child.exited():
+            child.output()
+            polls += 1
+        result = child.stop()
+        assert result.returncode == 0 and polls > 1
+        assert result.stderr.splitlines() == expected
