@@ -28,6 +28,7 @@ directories (CI shards' together).
 """
 
 import argparse
+import json
 from pathlib import Path
 import sys
 from typing import Any, Dict, List, Optional, Sequence, Set, Tuple
@@ -50,16 +51,27 @@ def rebuild(directories: Sequence[Path], out: Path) -> int:
             raise ReportError(f'{directory}: no farm outcomes (outcomes/*.jsonl)')
         # A run a directory given before holds too (a farm and a part of it, given
         # together) is counted once: reports of shards never share one.
-        keys = [_identity(record) for record in found]
+        farm = _farm_identity(directory)
+        keys = [(farm,) + _identity(record) for record in found]
         records += [record for record, key in zip(found, keys) if key not in seen]
         repeated += sum(key in seen for key in keys)
         seen.update(keys)
     if repeated:
         print(f'r2d2_sim.farm: {repeated} outcome(s) were in more than one of the directories '
-              '(the same test, run and seed): counted once', file=sys.stderr)
+              '(the same farm, test, run and seed): counted once', file=sys.stderr)
     for path in write_report(records, out).values():
         print(path)
     return 0
+
+
+def _farm_identity(directory: Path) -> str:
+    """Return what identifies the farm run in ``directory`` (its farm.json), '' if unsaid."""
+    from r2d2_sim.farm.runner import FARM_JSON
+    try:
+        saved = json.loads((directory / FARM_JSON).read_text(encoding='utf-8'))
+    except (OSError, ValueError):
+        return ''  # a pytest farm's directory: its records name their tests
+    return json.dumps(saved.get('farm'), sort_keys=True)
 
 
 def _identity(record: Dict[str, Any]) -> Tuple[Any, ...]:

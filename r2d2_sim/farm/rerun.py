@@ -176,9 +176,13 @@ def rerun(report: Path, number: int, record: Optional[Path],
     for old in record.glob('*.mcap'):
         old.unlink()
     # The rerun's own farm report goes beside its recording: the pytest run prints
-    # where it is, and a report in a scratch directory was gone by then.
-    farm = record / 'farm'
-    shutil.rmtree(farm, ignore_errors=True)
+    # where it is, and a report in a scratch directory was gone by then. Made afresh,
+    # but only ever over a rerun's own (--record may name any directory).
+    farm = record / 'rerun_farm'
+    if farm.exists():
+        if not (farm / 'outcomes').is_dir():
+            raise ReportError(f'{farm} exists and is no farm directory: give another --record')
+        shutil.rmtree(farm)
     with tempfile.TemporaryDirectory(prefix='r2d2_farm_rerun_') as scratch:
         scenario = Path(scratch) / 'scenario.json'
         scenario.write_text(expected.scenario.to_json(), encoding='utf-8')

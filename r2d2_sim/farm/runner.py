@@ -255,6 +255,8 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
     if shard is not None:
         keys = [k for k, item in zip(keys, farm.items(keys)) if shard.holds(
             item.key if farm.listed else item.seed)]
+    if workers is not None and workers < 1:  # before --fresh clears anything
+        raise FarmError(f'--workers {workers}: at least 1')
     directory = Path(out).resolve()
     _writable(directory)
     identity = describe(farm)

@@ -121,23 +121,39 @@ def _declare_empty_list(node: Node, name: str, ros_type: Parameter.Type,
 
 
 def unknown_overrides(node: Node, overrides, robots) -> List[str]:
-    """
-    Return 'unknown parameter NAME (did you mean ...?)' for each override nothing reads.
+    """Return :func:`unknown_parameters` of the overrides ``node`` declares no parameter for."""
+    return unknown_parameters([name for name in overrides if not node.has_parameter(name)],
+                              robots)
 
-    ROS ignores overrides nobody declares, so a typo would run on the
-    default: the node warns of each; the in-process harness refuses them.
+
+# rclpy's own parameters, which every node declares.
+ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+
+
+def unknown_parameters(names, robots) -> List[str]:
+    """
+    Return 'unknown parameter NAME (did you mean ...?)' for each name the simulator reads not.
+
+    Ours, ``ROBOT.parameter`` of a robot ``robots`` lists, rclpy's own and its
+    ``qos_overrides.`` are read. ROS ignores overrides nobody declares, so a
+    typo would run on the default: the node warns of each; the harnesses
+    refuse them before anything starts.
     """
     known = [spec.name for spec in PARAMETERS]
     problems = []
-    for name in sorted(overrides):
-        if node.has_parameter(name) or name.startswith('qos_overrides.'):
-            continue  # ours, or rclpy's own (use_sim_time)
-        if '.' in name:  # NAME.parameter of a robot robots does not list (a typo?)
-            close = difflib.get_close_matches(name.partition('.')[0], robots, n=1)
-            hint = (f' (did you mean {close[0]}.{name.partition(".")[2]}?)' if close else
+    for name in sorted(names):
+        robot, dot, parameter = name.partition('.')
+        if (name in PARAMETERS_BY_NAME or name in ROS_OWN_PARAMETERS
+                or name.startswith('qos_overrides.')
+                or (dot and robot in robots
+                    and (parameter in PARAMETERS_BY_NAME or parameter == 'namespace'))):
+            continue
+        if dot and robot not in robots:  # NAME.parameter of a robot robots does not list
+            close = difflib.get_close_matches(robot, robots, n=1)
+            hint = (f' (did you mean {close[0]}.{parameter}?)' if close else
                     f' (robots lists {", ".join(robots) or "none"})')
         else:
-            close = difflib.get_close_matches(name, known, n=1)
-            hint = f' (did you mean {close[0]}?)' if close else ''
+            close = difflib.get_close_matches(parameter if dot else name, known, n=1)
+            hint = f' (did you mean {robot + "." if dot else ""}{close[0]}?)' if close else ''
         problems.append(f'unknown parameter {name}{hint}')
     return problems

@@ -20,7 +20,7 @@ from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.testing.executor import (
     CallbackError, HarnessError, parameter_overrides, RosHarness)
 from r2d2_sim.testing.robots import (
-    expected_namespaces, FirstRobot, flatten_robots, LocalRobot)
+    expected_namespaces, FirstRobot, flatten_robots, LocalRobot, robot_list)
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import CoreWorld, WorldVerbs
 
@@ -74,10 +74,17 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         self._link: Node
         self._lockstep = False
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
-        parameters = flatten_robots(parameters)
+        # None: the node's default, as SimProcess reads it.
+        parameters = {k: v for k, v in flatten_robots(parameters).items() if v is not None}
         try:
             from r2d2_sim.ros.node import SimNode  # PyBullet: only when a simulator is wanted
-            from r2d2_sim.ros.parameters import unknown_overrides
+            from r2d2_sim.ros.parameters import unknown_parameters
+            # A keyword nothing reads is a mistake here, not a warning to read past (the
+            # node only warns, as ROS ignores undeclared overrides): refused before
+            # anything is built, so no port, window or recording file is left behind.
+            unknown = unknown_parameters(parameters, robot_list(parameters))
+            if unknown:
+                raise StartupError('; '.join(unknown))
             # Without parameter services, rosout, type descriptions or QoS
             # event handlers: fewer entities for the executor to gather on every
             # wait of a lockstep run.
@@ -95,11 +102,6 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                        for ns in expected_namespaces(parameters, namespace)]
             self.sim = SimNode(node_name, context=self.context, namespace=namespace or None,
                                parameter_overrides=parameter_overrides(parameters))
-            # A keyword nothing reads is a mistake here, not a warning to read past
-            # (the node only warns, as ROS ignores undeclared overrides).
-            unknown = unknown_overrides(self.sim, parameters, list(self.sim.config.robots))
-            if unknown:
-                raise StartupError('; '.join(unknown))
             RosHarness.add_node(self, self.sim, use_sim_time=False)
             if self.sim.standard is not None:  # its services, on a node of their own
                 RosHarness.add_node(self, self.sim.standard.node, use_sim_time=False)
@@ -237,6 +239,9 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         Seconds are rounded to whole physics steps. With neither, one control
         period: up to and including the next state publication (as ``~/step``).
         Pause does not apply here: the harness decides when time moves.
+        ValueError (one line, nothing stepped) unless ``steps`` is a whole
+        number >= 0 (numpy's too; not 2.0: time goes as ``seconds=``) and
+        ``seconds`` a finite number >= 0.
         """
         if steps is not None and seconds is not None:
             raise ValueError('give steps or seconds, not both')
@@ -299,6 +304,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         return round(sim_seconds(seconds) * self.physics_rate_hz)
 
     def _tf_node(self) -> Node:
+        self.check_open()
         return self._link
 
     def _tf_default_time_ns(self) -> int:
@@ -332,6 +338,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         control period: simulated time goes on, and the state readers return
         the reset robot.
         """
+        self.check_open()
         self._before_reset()
         reply = self.call_service(Trigger, self.sim.get_fully_qualified_name() + '/reset',
                                   Trigger.Request())
@@ -370,6 +377,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         (or use ``with``) to stop paying for it: about 10 us per other body
         per step.
         """
+        self.check_open()
         from r2d2_sim.sim.oracles import RunWatch
         with self.sim.lock:
             return RunWatch(self.sim.simulation, entity, **options)

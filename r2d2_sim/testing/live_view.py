@@ -44,6 +44,16 @@ class LiveViewError(RuntimeError):
     """The client cannot connect, or was asked for a topic the server does not advertise."""
 
 
+def _websockets_at_least(*wanted: int) -> bool:
+    """Return True if the installed websockets is at least version ``wanted``."""
+    from websockets.version import version
+    numbers = []
+    for part in version.split('.')[:len(wanted)]:
+        digits = ''.join(c for c in part if c.isdigit()) or '0'
+        numbers.append(int(digits))
+    return tuple(numbers) >= wanted
+
+
 class LiveViewClient:
     """
     A Foxglove WebSocket client of the live view at ``address``: a port on this host, or a URL.
@@ -82,9 +92,11 @@ class LiveViewClient:
             # default: 16 frames) stops reading once full, so the end of the connection
             # was never read and every close after a busy subscription waited out
             # close_timeout (10 s).
+            # (websockets 14.1 first took max_queue=None here; older ones keep their queue.)
+            unbounded = {'max_queue': None} if _websockets_at_least(14, 1) else {}
             self._ws = self._stack.enter_context(connect(
                 self.url, subprotocols=[Subprotocol(subprotocol)], max_size=None,
-                max_queue=None, open_timeout=timeout_s))
+                open_timeout=timeout_s, **unbounded))
         except Exception as exc:  # websockets and the OS raise assorted types
             raise LiveViewError(f'cannot connect to the live view at {self.url}: {exc}') from None
 

@@ -33,7 +33,7 @@ if TYPE_CHECKING:  # the simulator's side needs PyBullet, which a remote test ne
     from r2d2_sim.ros.robot_interfaces import RobotInterfaces
 
 __all__ = ['LocalRobot', 'RemoteRobot', 'LocalHost', 'RemoteHost', 'STATE_TYPES',
-           'flatten_robots', 'expected_namespaces']
+           'flatten_robots', 'robot_list', 'expected_namespaces']
 
 STATE_TYPES = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry}
 TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
@@ -48,6 +48,9 @@ class LocalHost(Protocol):
     """
 
     sim: 'SimNode'
+
+    def check_open(self) -> None:
+        """Raise HarnessError (one line) once the harness is closed."""
 
     def _wait(self, condition: Callable[[], Any], what: str) -> Any:
         """Wait for ``condition`` while the harness's callbacks run; HarnessError with ``what``."""
@@ -88,6 +91,12 @@ class RemoteHost(Protocol):
 
     def wait_heard(self) -> None:
         """Wait until the simulator's writers match every reader of the process's node."""
+
+
+def robot_list(parameters: Mapping[str, Any]) -> List[str]:
+    """Return the robots ``parameters`` list (flattened), [] if none or not a list."""
+    robots = parameters.get('robots')
+    return [str(r) for r in robots] if isinstance(robots, (list, tuple)) else []
 
 
 def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:
@@ -259,6 +268,7 @@ class LocalRobot(_RobotHandle):
 
     def _bound(self) -> 'RobotInterfaces':
         """Return the simulator's robot this handle is bound to; HarnessError before attach."""
+        self._harness.check_open()
         if self._interfaces is None:
             raise HarnessError(f'{self!r} is not bound to a robot of the simulator yet')
         return self._interfaces
@@ -283,6 +293,7 @@ class LocalRobot(_RobotHandle):
         TwistStamped stamped with the simulated time now. Raises HarnessError
         if the command does not arrive in time, or the robot left the world.
         """
+        self._harness.check_open()
         publisher = self._cmd_vel
         if publisher is None:  # closed: the robot was deleted, or a reset left it out
             raise HarnessError(f'the robot {self.name} is not in the world any more')
@@ -306,6 +317,7 @@ class LocalRobot(_RobotHandle):
     def _wait_latest(self, topic: str) -> Any:
         """Wait until the message of the latest publication has been delivered; return it."""
         harness = self._harness
+        harness.check_open()
         if self._interfaces is None or not harness.sim.simulation.robots.count(
                 self._interfaces.robot):
             raise HarnessError(f'the robot {self.name} is not in the world any more')
@@ -324,6 +336,7 @@ class LocalRobot(_RobotHandle):
         return found[0]
 
     def _tf_node(self) -> Node:
+        self._harness.check_open()
         return self._link
 
     def _tf_default_time_ns(self) -> int:

@@ -179,6 +179,9 @@ class TransformLookup:
         0 means the latest: in the in-process harness the latest state
         publication's time, so the answer is the current state, never one
         still on its way. Waits by deadline; HarnessError with tf2's reason.
+        In the in-process harness an unknown frame fails at once instead,
+        once ``/tf_static`` is in: time moves only when it steps (TF that
+        another process publishes there would have to be in already).
         """
         listener = self.listen_tf()
         time_ns = time_ns or self._tf_default_time_ns()

@@ -14,6 +14,7 @@ and :class:`~r2d2_sim.sim.bounds.Region`.
 """
 
 import math
+import os
 from typing import Any, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 
 from r2d2_sim.errors import RefusedError
@@ -52,6 +53,8 @@ def _orientation(yaw: float, orientation: Optional[Sequence[float]]) -> Tuple[fl
 
 
 def _text(value: Any, what: str) -> str:
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)  # a pathlib.Path is a path
     if not isinstance(value, str):
         raise TypeError(f'{what}, got {type(value).__name__}')
     return value
@@ -59,15 +62,16 @@ def _text(value: Any, what: str) -> str:
 
 def _resource(urdf: str) -> Tuple[str, str]:
     """Return (uri, resource_string): XML text goes as a resource string, anything else a uri."""
-    _text(urdf, 'spawn takes a URDF or SDF: a path, a package:// or model:// URI, a '
-                'pybullet_data name or the XML text')
+    urdf = _text(urdf, 'spawn takes a URDF or SDF: a path, a package:// or model:// URI, a '
+                       'pybullet_data name or the XML text')
     return ('', urdf) if urdf.lstrip().startswith('<') else (urdf, '')
 
 
 def _world_resource(world: str) -> Tuple[str, str]:
     """Return (uri, resource_string): a text of several lines or XML is the file's text."""
-    text = _text(world, 'load_world takes a world file, a package:// URI or the world\'s '
-                        'text').lstrip()
+    world = _text(world, 'load_world takes a world file, a package:// URI or the world\'s '
+                         'text')
+    text = world.lstrip()
     return ('', world) if text.startswith('<') or '\n' in text else (world, '')
 
 

@@ -302,3 +302,11 @@ def test_a_process_the_simulator_refuses_to_start_is_a_startup_error_in_one_line
         SimProcess(world='romo.world.yaml')
     assert isinstance(refused.value, HarnessError)
     assert str(refused.value) == 'world romo.world.yaml: no such world file'
+
+
+def test_a_process_keyword_the_simulator_does_not_read_is_refused_before_it_starts():
+    """SimProcess(cmd_vel_timout=0.0): StartupError with the node's own hint; nothing started."""
+    with pytest.raises(StartupError, match=r'^unknown parameter cmd_vel_timout '
+                       r'\(did you mean cmd_vel_timeout\?\)$') as refused:
+        SimProcess(cmd_vel_timout=0.0)
+    assert isinstance(refused.value, HarnessError)

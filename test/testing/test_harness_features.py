@@ -8,11 +8,13 @@ system/test_harness_features_system.py's.
 """
 
 import math
+from pathlib import Path
 import threading
 import time
 
 from geometry_msgs.msg import TwistStamped
 import numpy
+import pybullet_data
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
@@ -162,10 +164,14 @@ def test_a_closed_harness_says_so_in_one_line(r2d2_sim_factory):
     """advance, a robot's state, a spawn, settle, a node after close(): 'the harness is closed'."""
     harness = r2d2_sim_factory()
     harness.advance(1)
+    robot = harness.robot()  # a handle taken before the close
     harness.close()
     for call in (lambda: harness.advance(seconds=0.1), lambda: harness.ground_truth(),
                  lambda: harness.send_cmd_vel(0.1), lambda: harness.spawn('cube.urdf'),
-                 harness.settle, lambda: harness.create_node('late')):
+                 harness.settle, lambda: harness.create_node('late'), harness.reset,
+                 harness.watch, lambda: harness.lookup_transform('odom', 'base_link'),
+                 robot.ground_truth, robot.odom, lambda: robot.send_cmd_vel(0.1),
+                 lambda: robot.lookup_transform('odom', 'base_link')):
         with pytest.raises(HarnessError, match='^the harness is closed: make a new one$'):
             call()
 
@@ -195,6 +201,8 @@ def test_world_verbs_given_the_wrong_kind_of_thing_say_so_in_one_line(r2d2_sim):
         with pytest.raises(TypeError, match=message):
             call()
     assert r2d2_sim.entities() == entities
+    cube = Path(pybullet_data.getDataPath()) / 'cube.urdf'  # a pathlib.Path is a path
+    assert r2d2_sim.spawn(cube, position=(0.0, 3.0, 0.5)) in r2d2_sim.entities()
 
 
 def test_pybullet_datas_r2d2_spawned_as_a_robot_points_to_the_forward_axis(r2d2_sim):
@@ -206,7 +214,8 @@ def test_pybullet_datas_r2d2_spawned_as_a_robot_points_to_the_forward_axis(r2d2_
     assert 'c' not in r2d2_sim.entities()
 
 
-def test_a_keyword_the_simulator_does_not_read_is_refused_in_one_line(r2d2_sim_factory):
+def test_a_keyword_the_simulator_does_not_read_is_refused_in_one_line(
+        r2d2_sim_factory, tmp_path):
     """A typo runs on the default in ROS (the node warns); in the harness it is StartupError."""
     with pytest.raises(StartupError, match=r'^unknown parameter cmd_vel_timout '
                        r'\(did you mean cmd_vel_timeout\?\)$'):
@@ -214,4 +223,12 @@ def test_a_keyword_the_simulator_does_not_read_is_refused_in_one_line(r2d2_sim_f
     with pytest.raises(StartupError, match=r'^unknown parameter b\.initial_pose '
                        r'\(robots lists a\)$'):
         r2d2_sim_factory(robots=['a'], **{'b.initial_pose': [0.0, 1.0, 0.0]})
-    assert r2d2_sim_factory(cmd_vel_timeout=0.0).sim.config.cmd_vel_timeout_s == 0.0
+    # Refused before anything is built: the recording file of the refused start is not
+    # there to refuse the next one ("exists: choose another file name").
+    record = tmp_path / 'run.mcap'
+    with pytest.raises(StartupError, match='unknown parameter cmd_vel_timout'):
+        r2d2_sim_factory(record=str(record), cmd_vel_timout=0.0)
+    assert not record.exists()
+    harness = r2d2_sim_factory(record=str(record), cmd_vel_timeout=0.0, imu_rate=None)
+    assert harness.sim.config.cmd_vel_timeout_s == 0.0  # and None: the default IMU rate
+    assert harness.sim.config.imu_rate_hz == 100.0
