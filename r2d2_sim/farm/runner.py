@@ -255,20 +255,18 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
     if shard is not None:
         keys = [k for k, item in zip(keys, farm.items(keys)) if shard.holds(
             item.key if farm.listed else item.seed)]
-    if workers is not None and workers < 1:  # before --fresh clears anything
-        raise FarmError(f'--workers {workers}: at least 1')
     directory = Path(out).resolve()
     _writable(directory)
     identity = describe(farm)
-    if fresh:
-        _clear(directory)
-    earlier = _earlier(directory, identity)
-    todo = farm.items([k for k in keys if k not in earlier])
-    try:
+    try:  # chosen (not started) before --fresh clears anything: a bad choice clears nothing
         pool = choose(executor, address, payload=source or farm, record=record,
                       workers=workers)
     except ExecutorError as exc:
         raise FarmError(str(exc)) from None
+    if fresh:
+        _clear(directory)
+    earlier = _earlier(directory, identity)
+    todo = farm.items([k for k in keys if k not in earlier])
     (directory / OUTCOMES).mkdir(exist_ok=True)
     (directory / FARM_JSON).write_text(json.dumps(
         {'farm': identity, 'source': None if source is None else str(source),

@@ -118,12 +118,7 @@ class RosHarness:
         ``use_sim_time`` (on by default) switches the node to the simulator's
         clock: its timers then count from the first ``/clock`` it receives.
         """
-        self.check_open()
-        if not isinstance(node, Node):
-            raise TypeError(f'add_node takes an rclpy Node, got {type(node).__name__}')
-        if node.context is not self.context:
-            raise ValueError(f'node {node.get_name()} belongs to another context: build it '
-                             'with context=harness.context')
+        self._check_new_node(node)
         if use_sim_time and not node.get_parameter('use_sim_time').value:
             node.set_parameters([Parameter('use_sim_time', value=True)])
         self.nodes.append(node)
@@ -179,6 +174,15 @@ class RosHarness:
         """
         with self._own_executor():
             yield
+
+    def _check_new_node(self, node: Any) -> None:
+        """Refuse (one line) a node this open harness cannot spin: none, or another context's."""
+        self.check_open()
+        if not isinstance(node, Node):
+            raise TypeError(f'add_node takes an rclpy Node, got {type(node).__name__}')
+        if node.context is not self.context:
+            raise ValueError(f'node {node.get_name()} belongs to another context: build it '
+                             'with context=harness.context')
 
     def check_open(self) -> None:
         """Raise HarnessError (one line) once the harness is closed."""

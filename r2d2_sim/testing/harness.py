@@ -20,7 +20,7 @@ from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.testing.executor import (
     CallbackError, HarnessError, parameter_overrides, RosHarness)
 from r2d2_sim.testing.robots import (
-    expected_namespaces, FirstRobot, flatten_robots, LocalRobot, robot_list)
+    expected_namespaces, FirstRobot, LocalRobot, simulator_parameters)
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import CoreWorld, WorldVerbs
 
@@ -67,6 +67,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
     def __init__(self, node_name: str = 'r2d2_sim', *, namespace: str = '',
                  domain_id: Optional[int] = None, timeout_s: float = 10.0,
                  **parameters: Any) -> None:
+        parameters = simulator_parameters(parameters, StartupError)  # before anything is built
         super().__init__(domain_id=domain_id, timeout_s=timeout_s)
         self.namespace = namespace
         # The simulator and the harness's own node: both made below, or the constructor raises.
@@ -74,17 +75,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         self._link: Node
         self._lockstep = False
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
-        # None: the node's default, as SimProcess reads it.
-        parameters = {k: v for k, v in flatten_robots(parameters).items() if v is not None}
         try:
             from r2d2_sim.ros.node import SimNode  # PyBullet: only when a simulator is wanted
-            from r2d2_sim.ros.parameters import unknown_parameters
-            # A keyword nothing reads is a mistake here, not a warning to read past (the
-            # node only warns, as ROS ignores undeclared overrides): refused before
-            # anything is built, so no port, window or recording file is left behind.
-            unknown = unknown_parameters(parameters, robot_list(parameters))
-            if unknown:
-                raise StartupError('; '.join(unknown))
             # Without parameter services, rosout, type descriptions or QoS
             # event handlers: fewer entities for the executor to gather on every
             # wait of a lockstep run.
@@ -186,9 +178,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         wall time, so without this a node would start on a simulated time
         that depends on the machine's load.
         """
-        self.check_open()
-        if not isinstance(node, Node):
-            raise TypeError(f'add_node takes an rclpy Node, got {type(node).__name__}')
+        self._check_new_node(node)  # before its callbacks are wrapped below
         self._lockstep = True
         pending = self._latched_subscriptions(node)
         delivered: Set[Subscription] = set()

@@ -21,6 +21,7 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
 from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
+from r2d2_sim.ros.parameters import unknown_parameters
 from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.lockstep import TakenOnDemand
@@ -33,7 +34,7 @@ if TYPE_CHECKING:  # the simulator's side needs PyBullet, which a remote test ne
     from r2d2_sim.ros.robot_interfaces import RobotInterfaces
 
 __all__ = ['LocalRobot', 'RemoteRobot', 'LocalHost', 'RemoteHost', 'STATE_TYPES',
-           'flatten_robots', 'robot_list', 'expected_namespaces']
+           'flatten_robots', 'simulator_parameters', 'expected_namespaces']
 
 STATE_TYPES = {'joint_states': JointState, 'odom': Odometry, 'ground_truth': Odometry}
 TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
@@ -93,10 +94,24 @@ class RemoteHost(Protocol):
         """Wait until the simulator's writers match every reader of the process's node."""
 
 
-def robot_list(parameters: Mapping[str, Any]) -> List[str]:
-    """Return the robots ``parameters`` list (flattened), [] if none or not a list."""
-    robots = parameters.get('robots')
-    return [str(r) for r in robots] if isinstance(robots, (list, tuple)) else []
+def simulator_parameters(parameters: Mapping[str, Any],
+                         refused: Callable[[str], Exception]) -> Dict[str, Any]:
+    """
+    Return a harness's keywords as the simulator's parameters; raise ``refused`` for a typo.
+
+    ``robots`` given as a dict spelled out (:func:`flatten_robots`), a None
+    value left out (the node's default). A name the simulator does not read
+    raises ``refused(line)`` (the node's own words, with its did-you-mean):
+    ROS ignores undeclared overrides and the node only warns, but a
+    harness's keyword nothing reads is a mistake, said before anything starts.
+    """
+    flat = {k: v for k, v in flatten_robots(parameters).items() if v is not None}
+    robots = flat.get('robots')
+    unknown = unknown_parameters(flat, [str(r) for r in robots]
+                                 if isinstance(robots, (list, tuple)) else [])
+    if unknown:
+        raise refused('; '.join(unknown))
+    return flat
 
 
 def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:

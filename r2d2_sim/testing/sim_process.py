@@ -13,13 +13,12 @@ from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.client import ros_child_env, stamp_ns, step_count
 from r2d2_sim.errors import StartupError
-from r2d2_sim.ros.parameters import unknown_parameters
 from r2d2_sim.testing.domains import DomainLease, env_domain_id, lease_domain
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import ask_until, RemoteProbe
 from r2d2_sim.testing.robots import (
-    expected_namespaces, FirstRobot, flatten_robots, RemoteRobot, robot_list)
+    expected_namespaces, FirstRobot, RemoteRobot, simulator_parameters)
 from r2d2_sim.testing.standard import StandardClient
 from r2d2_sim.testing.tf import TransformLookup
 from r2d2_sim.testing.world_verbs import StandardWorld, WorldVerbs
@@ -122,13 +121,9 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         self._robots: Dict[str, RemoteRobot] = {}  # by name, once the node has said
         self._pending: List[RemoteRobot] = []  # made before the node says their names
         self._state_subscriptions = state_subscriptions
-        # None: the node's default (left off the command line).
-        parameters = {k: v for k, v in flatten_robots(parameters).items() if v is not None}
-        # A keyword nothing reads is refused here, before a process starts: the node
-        # would only warn of it, in a log nobody reads, and run on the default.
-        unknown = unknown_parameters(parameters, robot_list(parameters))
-        if unknown:
-            raise ProcessStartupError('; '.join(unknown))
+        # Refused here, before a process starts: the node would only warn of a name
+        # it does not read, in a log nobody reads, and run on the default.
+        parameters = simulator_parameters(parameters, ProcessStartupError)
         self._standard: Optional[StandardClient] = None
         self.lease: Optional[DomainLease]  # None: lease=False, the caller's own domain
         if lease or domain_id is None:
