@@ -12,15 +12,16 @@ serialized once, and DDS and the sink both get those bytes. Without a sink the n
 publishers, so mirroring costs nothing when it is off.
 """
 
-from typing import Callable, Optional
+from typing import Callable, List, Optional
 
 from rclpy.publisher import Publisher
-from rclpy.qos import DurabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from r2d2_sim.ros.cdr import serialize
 
 from r2d2_sim.recording.channels import SinkChannel
 from r2d2_sim.recording.sink import FoxgloveSink
 from r2d2_sim.ros.quiet_node import QuietNode
+from r2d2_sim.ros.relay import OutputRelay, RelayedPublisher
 
 __all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode', 'start_sink',
            'demand']
@@ -91,6 +92,10 @@ def demand(publisher) -> Callable[[], int]:
             return _always
         channel = publisher.channel  # its taken() is bound again when a sink stops
         return lambda: over_dds() or channel.taken()
+    if isinstance(publisher, RelayedPublisher):  # the outputs process's count (relay.py)
+        if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+            return _always
+        return publisher.subscription_counter()
     if not isinstance(publisher, Publisher):
         return _always
     if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
@@ -138,18 +143,33 @@ class MirroringNode(QuietNode):
 
     Subclasses set ``sink`` after ``Node.__init__`` (rclpy's own publishers,
     made there, stay unmirrored) and give the simulated time of what they
-    publish with :meth:`sink_time_ns`.
+    publish with :meth:`sink_time_ns`. With ``relay`` set (``outputs_process``)
+    its publishers are relayed (:class:`~r2d2_sim.ros.relay.RelayedPublisher`): the
+    outputs process publishes (on the topic this node resolves) what they are
+    given; they are listed in :attr:`relayed_publishers`, not rclpy's ``publishers``.
     """
 
     sink: Optional[FoxgloveSink] = None
+    relay: Optional[OutputRelay] = None
 
     def sink_time_ns(self) -> int:
         """Return the simulated time (ns) that mirrored messages are logged at."""
         return 0
 
+    @property
+    def relayed_publishers(self) -> List[RelayedPublisher]:
+        """Return the publishers the outputs process holds for this node (none without one)."""
+        return list(self.__dict__.get('_relayed', []))
+
     def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
         """Create a publisher; with a live view or a recording on, one that feeds them too."""
-        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        if self.relay is not None:
+            qos = qos_profile if isinstance(qos_profile, QoSProfile) else QoSProfile(
+                depth=qos_profile)
+            publisher = self.relay.create_publisher(msg_type, self.resolve_topic_name(topic), qos)
+            self.__dict__.setdefault('_relayed', []).append(publisher)
+        else:
+            publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
         if self.sink is None:
             return publisher
         mirrored = mirror(publisher, msg_type, self.sink, self.sink_time_ns)
@@ -161,11 +181,22 @@ class MirroringNode(QuietNode):
         for mirrored in self.__dict__.pop('_mirrored', []):
             mirrored.release()
 
+    def destroy_relayed(self) -> None:
+        """Destroy this node's publishers in the outputs process (before the node goes)."""
+        for publisher in self.__dict__.pop('_relayed', []):
+            publisher.destroy()
+
     def destroy_publisher(self, publisher) -> bool:
-        """Destroy a publisher, rclpy's or mirrored (which first stops feeding the sink)."""
+        """Destroy a publisher: rclpy's, relayed, or mirrored (first released from the sink)."""
         inner = publisher.publisher if isinstance(publisher, MirroredPublisher) else publisher
         mirrors = self.__dict__.get('_mirrored', [])
         for mirrored in [m for m in mirrors if m.publisher is inner]:
             mirrored.release()
             mirrors.remove(mirrored)
+        if isinstance(inner, RelayedPublisher):
+            relayed = self.__dict__.get('_relayed', [])
+            if inner in relayed:
+                relayed.remove(inner)
+            inner.destroy()
+            return True
         return super().destroy_publisher(inner)

@@ -24,6 +24,7 @@ from r2d2_sim.ros.fleet import Fleet
 from r2d2_sim.ros.mirror import MirroringNode, start_sink
 from r2d2_sim.ros.outputs import ClockOutput
 from r2d2_sim.ros.parameters import declare_parameters, with_ray_threads
+from r2d2_sim.ros.relay import OutputRelay, RelayError
 from r2d2_sim.ros.robot_interfaces import RobotInterfaces
 from r2d2_sim.ros.standard import server as standard
 from r2d2_sim.ros.standard.server import SimulationInterfaces
@@ -69,6 +70,8 @@ class SimNode(MirroringNode):
                  graph_check_period_s: float = GRAPH_CHECK_PERIOD_S,
                  on_quit: Optional[Callable[[], None]] = None, **node_kwargs) -> None:
         self.sink: Optional[FoxgloveSink] = None  # before rclpy makes its own publishers
+        self.relay: Optional[OutputRelay] = None
+        self._in_loop = False  # advancing for the real-time loop: no wait for the relay
         super().__init__(node_name, **node_kwargs)
         self.lock = threading.RLock()  # one thread in PyBullet at a time (public: the services')
         self._throttled = ThrottledLog(warning_period_s)
@@ -84,13 +87,17 @@ class SimNode(MirroringNode):
         try:
             config, specs = declare_parameters(self)
             self.config = with_ray_threads(config)
+            if self.config.outputs_process:
+                self.relay = OutputRelay(self.context.get_domain_id(),
+                                         f'{self.get_name()}_outputs', self.get_namespace(),
+                                         self.get_logger().error)
             self.sink = start_sink(self.config, self.get_name(), self.get_logger())
             simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
                                     error=self._log_blow_up, namespace=self.get_namespace())
             self.simulation: Simulation = simulation
             self._clock_output = ClockOutput(self)
             simulation.watch_robots(self.fleet.follow)
-        except (SetupError, SinkError) as exc:
+        except (SetupError, SinkError, RelayError) as exc:
             self._close(simulation)
             raise StartupError(str(exc)) from exc
         self._paused = self.config.start_paused
@@ -257,12 +264,16 @@ class SimNode(MirroringNode):
         """Return the number of physics steps until the next state publication."""
         return self.simulation.steps_to_next_publish()
 
-    def advance(self, steps: int = 1) -> None:
+    def advance(self, steps: int = 1, *, published: bool = True) -> None:
         """
         Step the physics ``steps`` times, applying commands and publishing on schedule.
 
         This is the in-process API for tests: it ignores pause and pacing, so a
         test can advance simulated time deterministically between its own spins.
+        With ``outputs_process`` it returns once the outputs process has
+        published every message of these steps, unless ``published`` is False
+        or :meth:`advance_if_running` (the real-time loop) called it: the
+        physics goes on meanwhile.
         """
         with self.lock:
             step, publish = self.simulation.step, self._publish
@@ -270,6 +281,8 @@ class SimNode(MirroringNode):
                 result = step()
                 if result is not None:
                     publish(result)
+            if published and self.relay is not None and not self._in_loop:
+                self.relay.wait()
 
     def advance_to_next_publish(self) -> int:
         """Advance one control period: to and including the next publication."""
@@ -283,18 +296,31 @@ class SimNode(MirroringNode):
 
         The check and the steps hold the lock that ``~/pause`` takes, so once a
         pause is answered no further step runs and the reply's time is final.
+        The real-time loop's (``sim_node``): it never waits for an outputs process.
         """
         with self.lock:
             if self._paused:
                 return False
-            if steps is None:
-                self.advance_to_next_publish()
-            else:
-                self.advance(steps)
+            self._in_loop = True  # advance itself is a seam (tests wrap it): told, not passed
+            try:
+                self.advance(self.steps_to_next_publish() if steps is None else steps)
+            finally:
+                self._in_loop = False
             return True
 
     def _publish(self, result: StepResult) -> None:
         """Translate one step's measurements into messages: /clock first, then each robot's."""
+        relay = self.relay
+        if relay is not None:
+            relay.begin()  # one frame to the outputs process a step
+            try:
+                self._publish_messages(result)
+            finally:
+                relay.end()
+        else:
+            self._publish_messages(result)
+
+    def _publish_messages(self, result: StepResult) -> None:
         if result.state_due:
             self._clock_output.publish(result.time_ns)
             if self.sink is not None:
@@ -353,12 +379,15 @@ class SimNode(MirroringNode):
                     self.sink.set_time(self.simulation.time_ns)
 
     def _close(self, simulation: Optional[Simulation]) -> None:
-        """Close the robots' interfaces, ``simulation`` (None: not built) and the sink."""
+        """Close the robots' interfaces, ``simulation`` (None: not built), the sink, the relay."""
         self.fleet.close()
         if simulation is not None:
             simulation.close()
         if self.sink is not None:
             self.sink.close()  # an MCAP file is readable only once closed
+        if self.relay is not None:
+            self.destroy_relayed()
+            self.relay.close()  # the child publishes what it has, then ends
 
     def destroy_node(self) -> None:
         """Take the standard's services down, disconnect physics, end the recording, destroy."""

@@ -31,7 +31,8 @@ __all__ = ['RobotInterfaces', 'RobotNode', 'DESCRIPTION_QOS']
 DESCRIPTION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
 # What a robot may make on a node it shares, and how each is taken down again.
-ENTITY_KINDS = (('publishers', 'destroy_publisher'), ('subscriptions', 'destroy_subscription'),
+ENTITY_KINDS = (('publishers', 'destroy_publisher'), ('relayed_publishers', 'destroy_publisher'),
+                ('subscriptions', 'destroy_subscription'),
                 ('services', 'destroy_service'), ('clients', 'destroy_client'),
                 ('timers', 'destroy_timer'))
 
@@ -66,6 +67,7 @@ class RobotNode(MirroringNode):
                          cli_args=['--ros-args', '-r', f'__node:={name}',
                                    '-r', f'__ns:={namespace}'])
         self.sink = simulator.sink
+        self.relay = simulator.relay
         self._simulator_time_ns = simulator.sink_time_ns
         self._destroyed = False
 
@@ -78,6 +80,7 @@ class RobotNode(MirroringNode):
         if not self._destroyed:
             self._destroyed = True
             self.release_mirrors()
+            self.destroy_relayed()
             super().destroy_node()
 
 

@@ -52,9 +52,9 @@ def stamp_ns(raw, msg_type):
     return stamp.sec * 10**9 + stamp.nanosec
 
 
-def drive_and_listen(ros, subscribe_at):
+def drive_and_listen(ros, subscribe_at, **params):
     """Drive a noisy run of STEPS; listen (raw bytes) to TOPICS from step ``subscribe_at``."""
-    sim = make_sim(ros, **NOISY)
+    sim = make_sim(ros, **NOISY, **params)
     sim.simulation.robot.command(0.4, 0.8)
     heard = {topic: [] for topic in TOPICS}
     node = ros.create_node('listener', use_sim_time=False)

@@ -61,6 +61,7 @@ class SimConfig:
     real_time_factor: float
     publish_rate_hz: float                                  # publish_rate
     ray_threads: int
+    outputs_process: bool
     cmd_vel_timeout_s: float                                # cmd_vel_timeout
     start_paused: bool
     wheel_radius_m: float                                   # wheel_radius

@@ -254,6 +254,11 @@ PARAMETERS: List[Parameter] = [
               'for bit; 0 = auto: 2 in a node (sim_node, SimHarness) that may use two cores, 1 '
               'in the ROS-free core. Farms and learning environments set 1: one per core.',
               'ray_threads', read.integer, Bounds(1, 64, '', 'auto')),
+    Parameter('outputs_process', 'bool', False,
+              'Publish every output from a second process (r2d2_sim_outputs), fed a step\'s '
+              'bytes through a pipe: the physics thread builds the messages but never waits in '
+              'DDS. The same bytes, order and stamps; lockstep calls return once published.',
+              'outputs_process', read.boolean),
     Parameter('cmd_vel_timeout', 'double', 0.5,
               'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
               'cmd_vel_timeout_s', read.non_negative, per_robot=True),

@@ -1,0 +1,306 @@
+"""
+Publishing from a second process: the physics thread hands each step's bytes over and goes on.
+
+rclpy's ``publish`` holds the interpreter lock through the whole DDS write
+(pybind11, no release), so no thread of the simulator's process can publish
+while the physics runs: with every topic of 16 robots taken, the writes cost
+about 1.5 ms of each 4.2 ms step at real time (bench/README.md). With
+``outputs_process`` the node's publishers are relayed (:class:`RelayedPublisher`):
+the outputs build their messages as always (the serialized templates, patched
+in place) and a relayed ``publish`` only appends the bytes to the step's
+batch; at the end of the step one ``write`` hands the batch to the child
+process (:mod:`r2d2_sim.ros.relay_child`), whose own node (``NAME_outputs``, in
+the simulator's namespace) owns the real publishers and publishes the bytes in
+the order they were made. Subscribers get the same bytes, in the same order,
+with the same stamps.
+
+The parts:
+
+- frames on a pipe, parent to child: a header (:data:`FRAME`: payload length,
+  sequence number, flags) and records (:data:`RECORD`: publisher index or
+  :data:`CREATE`/:data:`DESTROY`, data length, data). A publisher's creation
+  and destruction travel in the same stream as the messages, so the child
+  always has the publisher a message names. The pipe holds 1 MiB where Linux
+  lets it: a child that falls behind by more makes the physics wait (it is
+  never dropped).
+- acknowledgements on a second pipe, child to parent, only for frames that
+  ask (:data:`ACK`): :meth:`OutputRelay.wait` sends an empty frame asking and
+  waits for its number. :meth:`SimNode.advance <r2d2_sim.ros.node.SimNode.advance>`
+  waits so: a lockstep step (``~/step``, the standard's StepSimulation, a
+  harness's ``advance``) returns once its messages are out; the real-time loop
+  does not wait.
+- matched subscriptions, child to parent, in a shared memory map (an
+  anonymous ``memfd``: nothing to clean up): one int32 per publisher, written
+  by the child's matched events. The outputs ask it as they ask an rclpy
+  publisher (:func:`r2d2_sim.ros.mirror.demand`), and build nothing nobody takes.
+
+The child ends when the pipe closes (the node is destroyed, or its process
+died); a child that died makes the next write fail, and the node logs one
+error and publishes nothing more rather than stopping its physics.
+"""
+
+import json
+import mmap
+import os
+import select
+import struct
+import subprocess
+import sys
+import time
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+from rclpy.qos import QoSProfile
+
+from r2d2_sim.ros.cdr import serialize
+
+__all__ = ['OutputRelay', 'RelayedPublisher', 'RelayError', 'FRAME', 'RECORD', 'CREATE',
+           'DESTROY', 'ACK', 'MAX_PUBLISHERS', 'qos_to_dict', 'qos_from_dict']
+
+FRAME = struct.Struct('<IQB')   # payload bytes after this header, sequence number, flags
+RECORD = struct.Struct('<iI')   # publisher index (or CREATE / DESTROY), data bytes
+ACK_RECORD = struct.Struct('<Q')
+CREATE = -1                      # data: the publisher as JSON (index, topic, type, QoS)
+DESTROY = -2                     # data: the index as JSON
+ACK = 1                          # flag: the child writes the frame's number back once published
+MAX_PUBLISHERS = 4096            # the shared counts' slots (indices of destroyed ones are reused)
+PIPE_BYTES = 1 << 20             # Linux's default /proc/sys/fs/pipe-max-size
+F_SETPIPE_SZ = 1031
+WAIT_S = 10.0                    # the longest wait for the child's acknowledgement
+CLOSE_S = 5.0                    # the longest wait for the child to end
+
+
+class RelayError(RuntimeError):
+    """The outputs process could not start, or did not answer in time."""
+
+
+def qos_to_dict(qos: QoSProfile) -> Dict[str, int]:
+    """Return what the child needs for the same QoS: history, depth, reliability, durability."""
+    return {'history': int(qos.history), 'depth': int(qos.depth),
+            'reliability': int(qos.reliability), 'durability': int(qos.durability)}
+
+
+def qos_from_dict(fields: Dict[str, int]) -> QoSProfile:
+    """Return the QoSProfile :func:`qos_to_dict` described."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+    return QoSProfile(history=HistoryPolicy(fields['history']), depth=fields['depth'],
+                      reliability=ReliabilityPolicy(fields['reliability']),
+                      durability=DurabilityPolicy(fields['durability']))
+
+
+def _type_name(msg_type: type) -> str:
+    package = msg_type.__module__.split('.', 1)[0]
+    return f'{package}/msg/{msg_type.__name__}'
+
+
+class RelayedPublisher:
+    """A publisher whose messages the outputs process publishes; rclpy's interface, in part."""
+
+    def __init__(self, relay: 'OutputRelay', index: int, msg_type: type, topic_name: str,
+                 qos_profile: QoSProfile) -> None:
+        self.relay = relay
+        self.index = index
+        self.msg_type = msg_type
+        self.topic_name = topic_name
+        self.qos_profile = qos_profile
+        self.destroyed = False
+
+    def publish(self, msg: Any) -> None:
+        """Hand ``msg`` (a message or its serialized bytes) to the outputs process."""
+        if type(msg) is bytes:
+            data = msg
+        elif isinstance(msg, self.msg_type):
+            data = serialize(msg)
+        else:  # what rclpy's publish says
+            raise TypeError(f'Expected {self.msg_type}, got {type(msg)}')
+        self.relay.publish(self.index, data)
+
+    def get_subscription_count(self) -> int:
+        """Return the subscriptions the child's publisher matched (its latest matched event)."""
+        return self.relay.subscription_count(self.index)
+
+    def subscription_counter(self) -> Callable[[], int]:
+        """Return the cheapest way to ask :meth:`get_subscription_count` (the outputs' demand)."""
+        counts, index = self.relay.counts, self.index
+        return lambda: counts[index]
+
+    def destroy(self) -> None:
+        """Take the child's publisher down (once)."""
+        if not self.destroyed:
+            self.destroyed = True
+            self.relay.destroy(self.index)
+
+
+class OutputRelay:
+    """
+    The outputs process of one simulator, and the pipe to it (see the module).
+
+    ``domain_id`` is the simulator's context's; the child's node is
+    ``node_name`` in ``namespace``. ``log_error`` says, once, that the child
+    is gone. Raises :class:`RelayError` when the process cannot start.
+    """
+
+    def __init__(self, domain_id: int, node_name: str, namespace: str,
+                 log_error: Callable[[str], None] = print) -> None:
+        self._log_error = log_error
+        counts_fd = os.memfd_create('r2d2_sim_outputs_counts')
+        os.ftruncate(counts_fd, 4 * MAX_PUBLISHERS)
+        self._map = mmap.mmap(counts_fd, 4 * MAX_PUBLISHERS)
+        self.counts = memoryview(self._map).cast('i')
+        frames_read, self._frames = os.pipe()
+        self._acks, acks_write = os.pipe()
+        try:
+            import fcntl
+            fcntl.fcntl(self._frames, F_SETPIPE_SZ, PIPE_BYTES)
+        except OSError:  # a lower pipe-max-size: the default 64 KiB
+            pass
+        command = [sys.executable, '-m', 'r2d2_sim.ros.relay_child',
+                   '--frames', str(frames_read), '--acks', str(acks_write),
+                   '--counts', str(counts_fd), '--domain', str(domain_id),
+                   '--node', node_name, '--namespace', namespace]
+        try:
+            self.process: Optional[subprocess.Popen] = subprocess.Popen(
+                command, pass_fds=(frames_read, acks_write, counts_fd), stdin=subprocess.DEVNULL)
+        except OSError as exc:
+            for fd in (self._frames, self._acks):
+                os.close(fd)
+            raise RelayError(f'cannot start the outputs process: {exc}') from exc
+        finally:
+            for fd in (frames_read, acks_write, counts_fd):
+                os.close(fd)
+        self._pending: List[bytes] = []
+        self._batching = 0
+        self._sequence = 0
+        self._acknowledged = 0
+        self._next_index = 0
+        self._free: List[int] = []
+        self.broken = False
+        self.frames_sent = 0
+
+    # -- publishers ---------------------------------------------------------------------
+
+    def create_publisher(self, msg_type: type, topic_name: str,
+                         qos_profile: QoSProfile) -> RelayedPublisher:
+        """Have the child make a publisher of ``msg_type`` on the resolved ``topic_name``."""
+        if self._free:
+            index = self._free.pop()
+        elif self._next_index < MAX_PUBLISHERS:
+            index, self._next_index = self._next_index, self._next_index + 1
+        else:
+            raise RelayError(f'the outputs process holds {MAX_PUBLISHERS} publishers at most')
+        self.counts[index] = 0
+        self._record(CREATE, json.dumps({
+            'index': index, 'topic': topic_name, 'type': _type_name(msg_type),
+            'qos': qos_to_dict(qos_profile)}).encode())
+        return RelayedPublisher(self, index, msg_type, topic_name, qos_profile)
+
+    def destroy(self, index: int) -> None:
+        """Have the child destroy the publisher ``index``; the index is free again after."""
+        self._record(DESTROY, json.dumps({'index': index}).encode())
+        self.counts[index] = 0
+        self._free.append(index)
+
+    def subscription_count(self, index: int) -> int:
+        """Return what the child last said about publisher ``index``'s matched subscriptions."""
+        return self.counts[index]
+
+    # -- messages -----------------------------------------------------------------------
+
+    def publish(self, index: int, data: bytes) -> None:
+        """Queue ``data`` for publisher ``index``: at once, or at the end of the batch."""
+        self._record(index, data)
+
+    def _record(self, index: int, data: bytes) -> None:
+        self._pending.append(RECORD.pack(index, len(data)))
+        self._pending.append(data)
+        if not self._batching:
+            self._send(0)
+
+    def begin(self) -> None:
+        """Start a batch (a step): what is published until :meth:`end` goes in one frame."""
+        self._batching += 1
+
+    def end(self) -> None:
+        """End a batch; the outermost one sends its frame."""
+        self._batching -= 1
+        if not self._batching and self._pending:
+            self._send(0)
+
+    def _send(self, flags: int) -> int:
+        """Write the pending records as one frame; return its sequence number (0: not sent)."""
+        if self.broken:
+            self._pending = []
+            return 0
+        payload = b''.join(self._pending)
+        self._pending = []
+        self._sequence += 1
+        frame = FRAME.pack(len(payload), self._sequence, flags) + payload
+        try:
+            view = memoryview(frame)
+            while view:
+                written = os.write(self._frames, view)
+                view = view[written:]
+        except OSError as exc:  # BrokenPipeError: the child is gone
+            self._broke(f'{exc.strerror or exc}')
+            return 0
+        self.frames_sent += 1
+        return self._sequence
+
+    def wait(self, timeout_s: float = WAIT_S) -> bool:
+        """
+        Return once the child has published everything handed over so far (True).
+
+        False when the child is gone or did not answer within ``timeout_s``
+        (said once in the node's log).
+        """
+        if self._batching:
+            raise RuntimeError('wait() inside a batch: its frame is not sent yet')
+        target = self._send(ACK)
+        if not target:
+            return False
+        deadline = time.monotonic() + timeout_s
+        while self._acknowledged < target:
+            left = deadline - time.monotonic()
+            if left <= 0.0 or not select.select([self._acks], [], [], left)[0]:
+                self._broke(f'no answer within {timeout_s:g} s')
+                return False
+            data = os.read(self._acks, 4096)
+            if not data:
+                self._broke('it closed its pipe')
+                return False
+            usable = len(data) - len(data) % ACK_RECORD.size  # whole numbers only
+            for (number,) in ACK_RECORD.iter_unpack(data[:usable]):
+                self._acknowledged = max(self._acknowledged, number)
+        return True
+
+    def _broke(self, why: str) -> None:
+        if not self.broken:
+            self.broken = True
+            status = self.process.poll() if self.process is not None else None
+            ended = '' if status is None else f' (it ended with status {status})'
+            self._log_error(f'the outputs process failed{ended}: {why}; nothing more is '
+                            'published')
+
+    # -- the process --------------------------------------------------------------------
+
+    def close(self, timeout_s: float = CLOSE_S) -> Optional[int]:
+        """Close the pipe (the child publishes what it has, then ends); return its status."""
+        process, self.process = self.process, None
+        if process is None:
+            return None
+        self._pending = []
+        self.broken = True  # quietly: what is published after this goes nowhere
+        for fd in (self._frames, self._acks):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        try:
+            status = process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            status = process.wait()
+        return status  # the counts' map stays until the last publisher asking it is gone
+
+    def describe(self) -> Tuple[int, int]:
+        """Return (frames sent, publishers held): for status and tests."""
+        return self.frames_sent, self._next_index - len(self._free)

@@ -1,0 +1,142 @@
+"""
+``outputs_process``: a second process publishes the outputs, and subscribers see no difference.
+
+The physics thread builds each message as before and hands a step's bytes to
+the child (r2d2_sim/ros/relay.py); the child owns the publishers. What a
+subscriber hears must be the very bytes, in the same order, of the node
+publishing itself; a lockstep step returns once its messages are out;
+the outputs still build only what someone takes; robots' publishers come
+and go with the robots; a child that dies costs one error line, not the
+physics; and destroying the node ends the child.
+"""
+
+import os
+import signal
+
+from nav_msgs.msg import Odometry
+from rclpy.serialization import deserialize_message
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+
+from helpers import make_sim, wait_for
+from test_outputs_on_demand import drive_and_listen, TOPICS
+
+from r2d2_sim.ros.relay import RelayedPublisher
+from r2d2_sim.ros.robot_interfaces import DESCRIPTION_QOS
+
+
+def test_subscribers_hear_the_same_bytes_from_the_outputs_process(ros):
+    direct, direct_sim = drive_and_listen(ros, 0)
+    direct_state = direct_sim.simulation.robot.body.base_state()
+    direct_sim.destroy_node()
+    relayed, relayed_sim = drive_and_listen(ros, 0, outputs_process=True)
+    assert relayed_sim.relay is not None
+    assert isinstance(relayed_sim.robots[0].outputs.state[0]._publisher, RelayedPublisher)
+    for topic in TOPICS:
+        assert relayed[topic] and relayed[topic] == direct[topic], topic
+    assert relayed_sim.simulation.robot.body.base_state() == direct_state
+
+
+def test_the_topics_belong_to_the_outputs_node_and_keep_their_qos(ros):
+    sim = make_sim(ros, outputs_process=True)
+    node = ros.create_node('looker', use_sim_time=False)
+    assert wait_for(lambda: node.count_publishers('/odom') == 1
+                    and node.count_publishers('/clock') == 1)
+    assert wait_for(lambda: node.get_publishers_info_by_topic('/odom')[0].node_name
+                    == 'r2d2_sim_outputs')
+    info = node.get_publishers_info_by_topic('/odom')[0]
+    expected = sim.robots[0].outputs.state[2]._publisher.qos_profile
+    assert (info.qos_profile.reliability, info.qos_profile.durability) == (
+        expected.reliability, expected.durability)
+    # The latched description: a late joiner still gets it from the child.
+    heard = []
+    description = node.create_subscription(String, 'robot_description', heard.append,
+                                           DESCRIPTION_QOS)
+    assert wait_for(lambda: description.get_publisher_count() == 1)
+    assert wait_for(lambda: len(heard) == 1) and heard[0].data.startswith('<?xml')
+
+
+def test_a_lockstep_step_returns_once_its_messages_are_out(ros):
+    sim = make_sim(ros, outputs_process=True)
+    node = ros.create_node('listener', use_sim_time=False)
+    clocks, states = [], []
+    node.create_subscription(Clock, '/clock', clocks.append, 1000)
+    joints = node.create_subscription(JointState, 'joint_states', states.append, 1000)
+    assert wait_for(lambda: joints.get_publisher_count() == 1)
+    publisher = sim.robots[0].outputs.state[0]._publisher
+    assert wait_for(lambda: publisher.get_subscription_count() == 1)  # the child's matched event
+    sent = sim.relay.frames_sent
+    sim.advance(10)
+    assert sim.relay.frames_sent == sent + 11  # a frame a step, and the one asking for the answer
+    assert sim.relay._acknowledged == sim.relay._sequence  # answered before advance returned
+    assert wait_for(lambda: len(states) == 10)
+    assert [m.header.stamp.nanosec for m in states] == [
+        step * 10**9 // 240 for step in range(1, 11)]
+    assert wait_for(lambda: clocks and clocks[-1].clock.nanosec == 10 * 10**9 // 240)
+
+
+def test_an_output_nobody_takes_is_not_handed_over(ros):
+    sim = make_sim(ros, outputs_process=True, scan_rate=0.0, imu_rate=0.0)
+    odom = sim.robots[0].outputs.state[2]._publisher
+    handed = []
+    publish = sim.relay.publish
+    sim.relay.publish = lambda index, data: (handed.append(index), publish(index, data))
+    sim.advance(24)
+    assert odom.index not in handed
+    node = ros.create_node('listener', use_sim_time=False)
+    heard = []
+    node.create_subscription(Odometry, 'odom', heard.append, 100)
+    assert wait_for(lambda: odom.get_subscription_count() == 1)
+    sim.advance(24)
+    assert handed.count(odom.index) == 24
+    assert wait_for(lambda: len(heard) == 24)
+
+
+def test_a_deleted_robots_topics_leave_with_it(ros):
+    sim = make_sim(ros, outputs_process=True, robots=['a', 'b'],
+                   **{'b.initial_pose': [2.0, 0.0, 0.0]})
+    node = ros.create_node('looker', use_sim_time=False)
+    assert wait_for(lambda: node.count_publishers('/b/odom') == 1)
+    held = sim.relay.describe()[1]
+    with sim.lock:
+        sim.simulation.delete_entity('b')
+    assert sim.relay.describe()[1] < held
+    sim.advance(1)
+    assert wait_for(lambda: node.count_publishers('/b/odom') == 0)
+    assert node.count_publishers('/a/odom') == 1
+
+
+def test_a_dead_outputs_process_costs_one_error_line_not_the_physics(ros):
+    sim = make_sim(ros, outputs_process=True)
+    errors = []
+    sim.relay._log_error = errors.append
+    os.kill(sim.relay.process.pid, signal.SIGKILL)
+    sim.relay.process.wait(10)
+    before = sim.step_count
+    for _ in range(3):
+        sim.advance(24)
+    assert sim.step_count == before + 72
+    assert len(errors) == 1 and 'the outputs process failed (it ended with status -9)' in errors[0]
+
+
+def test_destroying_the_node_ends_the_outputs_process(ros):
+    sim = make_sim(ros, outputs_process=True)
+    process = sim.relay.process
+    sim.advance(24)
+    sim.destroy_node()
+    assert process.poll() == 0
+    assert sim.relay.process is None
+
+
+def test_what_the_outputs_process_publishes_deserializes(ros):
+    sim = make_sim(ros, outputs_process=True)
+    node = ros.create_node('listener', use_sim_time=False)
+    heard = []
+    subscription = node.create_subscription(Odometry, 'odom', heard.append, 100, raw=True)
+    assert wait_for(lambda: subscription.get_publisher_count() == 1)
+    assert wait_for(lambda: sim.robots[0].outputs.state[2]._publisher.get_subscription_count())
+    sim.advance(2)
+    assert wait_for(lambda: len(heard) == 2)
+    odom = deserialize_message(heard[-1], Odometry)
+    assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_link')

@@ -1,0 +1,55 @@
+"""
+``sim_node`` with ``outputs_process``: the same messages across processes, paced or stepped.
+
+At real time the loop never waits for the outputs process; a ``~/step``
+answers once its messages are out; stopping the simulator ends the child too.
+"""
+
+from pathlib import Path
+
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+
+from r2d2_sim.testing import SimProcess
+
+
+def relay_children(parent_pid):
+    """Return the pids of outputs processes whose parent is ``parent_pid``."""
+    found = []
+    for stat in Path('/proc').glob('[0-9]*/stat'):
+        try:
+            fields = stat.read_text().rsplit(')', 1)[1].split()
+            cmdline = (stat.parent / 'cmdline').read_bytes()
+        except OSError:
+            continue
+        if int(fields[1]) == parent_pid and b'r2d2_sim.ros.relay_child' in cmdline:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def test_paced_and_stepped_sim_node_publish_through_the_outputs_process():
+    sim = SimProcess(outputs_process=True, scan_rate=0.0)
+    node = sim.probe.node
+    clocks, odoms = [], []
+    subscriptions = [node.create_subscription(Clock, '/clock', clocks.append, 1000),
+                     node.create_subscription(Odometry, 'odom', odoms.append, 1000)]
+    pid = sim.process.process.pid
+    try:
+        assert sim.probe.spin_until(
+            lambda: all(s.get_publisher_count() > 0 for s in subscriptions), 10.0)
+        children = relay_children(pid)
+        assert len(children) == 1
+        # Paced at real time: the clock runs and odom follows, a message a step.
+        assert sim.probe.spin_until(lambda: len(odoms) >= 48, 10.0)
+        stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in odoms[-24:]]
+        assert all(b - a in (10**9 // 240, 10**9 // 240 + 1) for a, b in zip(stamps, stamps[1:]))
+        sim.pause()
+        heard = len(odoms)
+        reply = sim.step()  # answered once the step's messages are out
+        assert reply['steps'] >= 1
+        assert sim.probe.spin_until(lambda: len(odoms) >= heard + reply['steps']
+                                    and clocks[-1].clock == odoms[-1].header.stamp, 10.0)
+    finally:
+        code, out, err = sim.stop()
+    assert code == 0, err
+    assert not any(Path(f'/proc/{child}').exists() for child in children)  # ended with it
