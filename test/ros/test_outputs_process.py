@@ -24,6 +24,7 @@ from test_outputs_on_demand import drive_and_listen, TOPICS
 
 from r2d2_sim.ros.relay import RelayedPublisher
 from r2d2_sim.ros.robot_interfaces import DESCRIPTION_QOS
+from r2d2_sim.testing import read_recording, SimHarness
 
 
 def test_subscribers_hear_the_same_bytes_from_the_outputs_process(ros):
@@ -140,3 +141,19 @@ def test_what_the_outputs_process_publishes_deserializes(ros):
     assert wait_for(lambda: len(heard) == 2)
     odom = deserialize_message(heard[-1], Odometry)
     assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_link')
+
+
+def test_a_harness_and_a_recording_work_through_the_outputs_process(tmp_path):
+    """SimHarness takes it as any parameter; the recording still gets every message."""
+    recording = tmp_path / 'run.mcap'
+    with SimHarness(outputs_process=True, cmd_vel_timeout=0.0, record=str(recording),
+                    scan_rate=0.0) as harness:
+        harness.send_cmd_vel(linear=0.3)
+        harness.advance(seconds=0.5)
+        odom = harness.odom()
+        assert odom.header.stamp.nanosec == 120 * 10**9 // 240
+        assert odom.pose.pose.position.x > 0.0
+        assert harness.sim.relay is not None and not harness.sim.relay.broken
+    recorded = read_recording(str(recording), topics=['/odom'])['/odom']
+    assert [r.log_time_ns for r in recorded] == [step * 10**9 // 240 for step in range(121)]
+    assert recorded[-1].message == odom
