@@ -144,7 +144,7 @@ def test_what_the_outputs_process_publishes_deserializes(ros):
 
 
 def test_a_harness_and_a_recording_work_through_the_outputs_process(tmp_path):
-    """SimHarness takes it as any parameter; the recording still gets every message."""
+    """A SimHarness takes it as any parameter; the recording still gets every message."""
     recording = tmp_path / 'run.mcap'
     with SimHarness(outputs_process=True, cmd_vel_timeout=0.0, record=str(recording),
                     scan_rate=0.0) as harness:
