@@ -92,6 +92,29 @@ def process_cpu_s(pid):
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
+def child_pids(pid):
+    """Return the pids of ``pid``'s children (``/proc/<pid>/task/*/children``)."""
+    children = []
+    for task in os.listdir(f'/proc/{pid}/task'):
+        try:
+            with open(f'/proc/{pid}/task/{task}/children', encoding='utf-8') as listing:
+                children += [int(child) for child in listing.read().split()]
+        except OSError:  # the thread ended meanwhile
+            pass
+    return children
+
+
+def process_tree_cpu_s(pid):
+    """Return the CPU seconds of ``pid`` and its children (an outputs process)."""
+    total = process_cpu_s(pid)
+    for child in child_pids(pid):
+        try:
+            total += process_cpu_s(child)
+        except OSError:
+            pass
+    return total
+
+
 def system_cpu_ticks():
     """Return (busy, steal, total) jiffies summed over all CPUs, from /proc/stat."""
     with open('/proc/stat', encoding='utf-8') as stat:

@@ -142,7 +142,10 @@ class OutputRelay:
     def __init__(self, domain_id: int, node_name: str, namespace: str,
                  log_error: Callable[[str], None] = print) -> None:
         self._log_error = log_error
-        counts_fd = os.memfd_create('r2d2_sim_outputs_counts')
+        try:
+            counts_fd = os.memfd_create('r2d2_sim_outputs_counts')
+        except (AttributeError, OSError) as exc:  # memfd_create is Linux's
+            raise RelayError(f'outputs_process needs memfd_create (Linux): {exc}') from exc
         os.ftruncate(counts_fd, 4 * MAX_PUBLISHERS)
         self._map = mmap.mmap(counts_fd, 4 * MAX_PUBLISHERS)
         self.counts = memoryview(self._map).cast('i')
