@@ -77,7 +77,7 @@ class ControlServices:
         nodes = {id(node): node for node in [self._server] + [i.node for i in self._fleet]}
         counts: Dict[str, int] = {}
         for node in nodes.values():
-            for publisher in node.publishers:
+            for publisher in node.all_publishers():  # relayed ones too (outputs_process)
                 count = publisher.get_subscription_count()
                 topic = publisher.topic_name
                 counts[topic] = min(counts.get(topic, count), count)

@@ -161,6 +161,10 @@ class MirroringNode(QuietNode):
         """Return the publishers the outputs process holds for this node (none without one)."""
         return list(self.__dict__.get('_relayed', []))
 
+    def all_publishers(self) -> list:
+        """Return rclpy's publishers of this node and those the outputs process holds for it."""
+        return list(self.publishers) + self.relayed_publishers
+
     def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
         """Create a publisher; with a live view or a recording on, one that feeds them too."""
         if self.relay is not None:

@@ -100,6 +100,9 @@ class SimNode(MirroringNode):
         except (SetupError, SinkError, RelayError) as exc:
             self._close(simulation)
             raise StartupError(str(exc)) from exc
+        except BaseException:  # nothing left running: the sink, the outputs process
+            self._close(simulation)
+            raise
         self._paused = self.config.start_paused
         self.control = ControlServices(self, self, self.fleet)
         if standard.available():

@@ -46,7 +46,9 @@ import select
 import struct
 import subprocess
 import sys
+import threading
 import time
+import weakref
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from rclpy.qos import QoSProfile
@@ -87,6 +89,14 @@ def qos_from_dict(fields: Dict[str, int]) -> QoSProfile:
                       durability=DurabilityPolicy(fields['durability']))
 
 
+def _close_fds(fds: Tuple[int, ...]) -> None:
+    for fd in fds:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+
+
 def _type_name(msg_type: type) -> str:
     package = msg_type.__module__.split('.', 1)[0]
     return f'{package}/msg/{msg_type.__name__}'
@@ -106,6 +116,8 @@ class RelayedPublisher:
 
     def publish(self, msg: Any) -> None:
         """Hand ``msg`` (a message or its serialized bytes) to the outputs process."""
+        if self.destroyed:  # as rclpy's InvalidHandle says it
+            raise RelayError(f'the publisher of {self.topic_name} was destroyed')
         if type(msg) is bytes:
             data = msg
         elif isinstance(msg, self.msg_type):
@@ -170,6 +182,11 @@ class OutputRelay:
         finally:
             for fd in (frames_read, acks_write, counts_fd):
                 os.close(fd)
+        os.set_blocking(self._frames, False)  # a stuck child: a deadline, not a hang
+        # A node never destroyed: its pipe closes at exit or collection, and the child ends.
+        self._finalizer = weakref.finalize(self, _close_fds, (self._frames, self._acks))
+        self._lock = threading.RLock()  # one frame at a time, whichever thread publishes
+        self._acks_left = b''  # a partial acknowledgement read (never split in practice)
         self._pending: List[bytes] = []
         self._batching = 0
         self._sequence = 0
@@ -184,6 +201,11 @@ class OutputRelay:
     def create_publisher(self, msg_type: type, topic_name: str,
                          qos_profile: QoSProfile) -> RelayedPublisher:
         """Have the child make a publisher of ``msg_type`` on the resolved ``topic_name``."""
+        with self._lock:
+            return self._create_publisher(msg_type, topic_name, qos_profile)
+
+    def _create_publisher(self, msg_type: type, topic_name: str,
+                          qos_profile: QoSProfile) -> RelayedPublisher:
         if self._free:
             index = self._free.pop()
         elif self._next_index < MAX_PUBLISHERS:
@@ -198,9 +220,10 @@ class OutputRelay:
 
     def destroy(self, index: int) -> None:
         """Have the child destroy the publisher ``index``; the index is free again after."""
-        self._record(DESTROY, json.dumps({'index': index}).encode())
-        self.counts[index] = 0
-        self._free.append(index)
+        with self._lock:
+            self._record(DESTROY, json.dumps({'index': index}).encode())
+            self.counts[index] = 0
+            self._free.append(index)
 
     def subscription_count(self, index: int) -> int:
         """Return what the child last said about publisher ``index``'s matched subscriptions."""
@@ -213,20 +236,25 @@ class OutputRelay:
         self._record(index, data)
 
     def _record(self, index: int, data: bytes) -> None:
-        self._pending.append(RECORD.pack(index, len(data)))
-        self._pending.append(data)
-        if not self._batching:
-            self._send(0)
+        with self._lock:
+            self._pending.append(RECORD.pack(index, len(data)))
+            self._pending.append(data)
+            if not self._batching:
+                self._send(0)
 
     def begin(self) -> None:
         """Start a batch (a step): what is published until :meth:`end` goes in one frame."""
+        self._lock.acquire()  # held through the batch: another thread's records wait
         self._batching += 1
 
     def end(self) -> None:
         """End a batch; the outermost one sends its frame."""
-        self._batching -= 1
-        if not self._batching and self._pending:
-            self._send(0)
+        try:
+            self._batching -= 1
+            if not self._batching and self._pending:
+                self._send(0)
+        finally:
+            self._lock.release()
 
     def _send(self, flags: int) -> int:
         """Write the pending records as one frame; return its sequence number (0: not sent)."""
@@ -237,11 +265,19 @@ class OutputRelay:
         self._pending = []
         self._sequence += 1
         frame = FRAME.pack(len(payload), self._sequence, flags) + payload
+        view, deadline = memoryview(frame), None
         try:
-            view = memoryview(frame)
             while view:
-                written = os.write(self._frames, view)
-                view = view[written:]
+                try:
+                    view = view[os.write(self._frames, view):]
+                except BlockingIOError:  # the pipe is full: the child is behind
+                    now = time.monotonic()
+                    deadline = deadline or now + WAIT_S
+                    writable = now < deadline and select.select(
+                        [], [self._frames], [], deadline - now)[1]
+                    if not writable:
+                        self._broke(f'it took nothing for {WAIT_S:g} s')
+                        return 0
         except OSError as exc:  # BrokenPipeError: the child is gone
             self._broke(f'{exc.strerror or exc}')
             return 0
@@ -255,25 +291,27 @@ class OutputRelay:
         False when the child is gone or did not answer within ``timeout_s``
         (said once in the node's log).
         """
-        if self._batching:
-            raise RuntimeError('wait() inside a batch: its frame is not sent yet')
-        target = self._send(ACK)
-        if not target:
-            return False
-        deadline = time.monotonic() + timeout_s
-        while self._acknowledged < target:
-            left = deadline - time.monotonic()
-            if left <= 0.0 or not select.select([self._acks], [], [], left)[0]:
-                self._broke(f'no answer within {timeout_s:g} s')
+        with self._lock:
+            if self._batching:
+                raise RuntimeError('wait() inside a batch: its frame is not sent yet')
+            target = self._send(ACK)
+            if not target:
                 return False
-            data = os.read(self._acks, 4096)
-            if not data:
-                self._broke('it closed its pipe')
-                return False
-            usable = len(data) - len(data) % ACK_RECORD.size  # whole numbers only
-            for (number,) in ACK_RECORD.iter_unpack(data[:usable]):
-                self._acknowledged = max(self._acknowledged, number)
-        return True
+            deadline = time.monotonic() + timeout_s
+            while self._acknowledged < target:
+                left = deadline - time.monotonic()
+                if left <= 0.0 or not select.select([self._acks], [], [], left)[0]:
+                    self._broke(f'no answer within {timeout_s:g} s')
+                    return False
+                data = self._acks_left + os.read(self._acks, 4096)
+                if data == self._acks_left:
+                    self._broke('it closed its pipe')
+                    return False
+                usable = len(data) - len(data) % ACK_RECORD.size  # whole numbers only
+                self._acks_left = data[usable:]
+                for (number,) in ACK_RECORD.iter_unpack(data[:usable]):
+                    self._acknowledged = max(self._acknowledged, number)
+            return True
 
     def _broke(self, why: str) -> None:
         if not self.broken:
@@ -287,16 +325,13 @@ class OutputRelay:
 
     def close(self, timeout_s: float = CLOSE_S) -> Optional[int]:
         """Close the pipe (the child publishes what it has, then ends); return its status."""
-        process, self.process = self.process, None
-        if process is None:
-            return None
-        self._pending = []
-        self.broken = True  # quietly: what is published after this goes nowhere
-        for fd in (self._frames, self._acks):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+        with self._lock:
+            process, self.process = self.process, None
+            if process is None:
+                return None
+            self._pending = []
+            self.broken = True  # quietly: what is published after this goes nowhere
+            self._finalizer()  # closes the pipes: the child publishes what it has, then ends
         try:
             status = process.wait(timeout_s)
         except subprocess.TimeoutExpired:

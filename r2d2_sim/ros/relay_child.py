@@ -56,13 +56,20 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                              start_parameter_services=False)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, name='matched events', daemon=True)
+    stop = threading.Event()
+
+    def spin() -> None:  # stopped by the event, never by shutting the executor down under it
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.1)
+    spinner = threading.Thread(target=spin, name='matched events', daemon=True)
     spinner.start()
     publishers: Dict[int, Publisher] = {}
 
-    def matched(index: int):
+    def matched(index: int, made: list):
         def on_matched(info) -> None:
-            if index in publishers:
+            # Only the publisher that holds the index now: an index is reused after a
+            # destroy, and a late event of the old publisher must not count for the new.
+            if made and publishers.get(index) is made[0]:
                 counts[index] = info.current_count
         return on_matched
 
@@ -85,11 +92,13 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                     publishers[index].publish(data)
                 elif index == CREATE:
                     spec = json.loads(data)
-                    new = spec['index']
-                    publishers[new] = node.create_publisher(
+                    new, made = spec['index'], []
+                    publisher = node.create_publisher(
                         _message_type(spec['type']), spec['topic'], qos_from_dict(spec['qos']),
-                        event_callbacks=PublisherEventCallbacks(matched=matched(new)))
-                    counts[new] = publishers[new].get_subscription_count()
+                        event_callbacks=PublisherEventCallbacks(matched=matched(new, made)))
+                    publishers[new] = publisher
+                    made.append(publisher)
+                    counts[new] = publisher.get_subscription_count()
                 elif index == DESTROY:
                     gone = json.loads(data)['index']
                     node.destroy_publisher(publishers.pop(gone))
@@ -97,8 +106,9 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
             if flags & ACK:
                 os.write(acks, ACK_RECORD.pack(sequence))
     finally:
-        executor.shutdown(timeout_sec=1.0)  # wakes the spinner, which then returns
-        spinner.join(timeout=2.0)
+        stop.set()
+        spinner.join()  # within a spin_once's timeout
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
 

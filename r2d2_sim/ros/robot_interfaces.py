@@ -130,7 +130,7 @@ class RobotInterfaces:
     @property
     def publishers(self) -> Iterator[Publisher]:
         """Return every publisher of the robot's node (the simulator's, for the default robot)."""
-        return self.node.publishers
+        return iter(self.node.all_publishers())  # relayed ones too (outputs_process)
 
     def taken(self, topics: Sequence[str]) -> bool:
         """
@@ -140,7 +140,7 @@ class RobotInterfaces:
         subscription sees it; the outputs process (``outputs_process``) learns
         it from a matched event a little later, and builds nothing until then.
         """
-        publishers = list(self.node.publishers) + self.node.relayed_publishers
+        publishers = self.node.all_publishers()
         return all(any(p.topic_name == topic and p.get_subscription_count() > 0
                        for p in publishers) for topic in topics)
 

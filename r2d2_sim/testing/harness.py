@@ -210,7 +210,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
 
     def _latched_subscriptions(self, node: Node) -> List[Subscription]:
         """Return the node's transient-local subscriptions to the simulator's latched topics."""
-        publishers = list(self.sim.publishers) + [
+        publishers = self.sim.all_publishers() + [
             p for robot in self.sim.robots if robot.own_node for p in robot.publishers]
         latched = {publisher.topic_name for publisher in publishers
                    if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL}

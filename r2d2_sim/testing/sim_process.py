@@ -40,10 +40,11 @@ def matchable_readers(node: Node, topic: str, writer: str) -> int:
     As ``node`` sees the graph: those whose message type is the writers' and
     whose QoS each writer's offer fits (a transient-local reader of a
     volatile topic is never matched). With no such writer seen yet, ``node``'s
-    own subscriptions of the topic.
+    own subscriptions of the topic. The writers of ``writer``'s outputs process
+    (``outputs_process``: node ``WRITER_outputs``) count as its own.
     """
     writers = [info for info in node.get_publishers_info_by_topic(topic)
-               if info.node_name == writer]
+               if info.node_name in (writer, f'{writer}_outputs')]
     if not writers:
         return sum(1 for s in node.subscriptions if s.topic_name == topic)
     return sum(1 for reader in node.get_subscriptions_info_by_topic(topic)

@@ -64,7 +64,9 @@ def drive_and_listen(ros, subscribe_at, **params):
                                                       QOS[topic], raw=True)
                              for topic, msg_type in TOPICS.items()]
             assert wait_for(lambda: all(s.get_publisher_count() for s in subscriptions))
-            publishers = [output._publisher for output in sim.robots[0].outputs.state[:3]]
+            outputs = sim.robots[0].outputs
+            publishers = [output._publisher for output in
+                          outputs.state[:3] + [outputs.scan, outputs.imu]]
             assert wait_for(lambda: all(p.get_subscription_count() for p in publishers))
         sim.advance(8)
     # Every state topic once a step from the subscription on, scan and IMU at their rates.

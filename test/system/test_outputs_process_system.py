@@ -33,10 +33,14 @@ def test_paced_and_stepped_sim_node_publish_through_the_outputs_process():
     clocks, odoms = [], []
     subscriptions = [node.create_subscription(Clock, '/clock', clocks.append, 1000),
                      node.create_subscription(Odometry, 'odom', odoms.append, 1000)]
-    pid = sim.process.process.pid
+    pid, children = sim.process.process.pid, []
     try:
         assert sim.probe.spin_until(
             lambda: all(s.get_publisher_count() > 0 for s in subscriptions), 10.0)
+        # ~/get_readers counts the outputs process's writers, and wait_heard waits for them.
+        sim.wait_heard()
+        readers = sim.readers()
+        assert readers['/odom'] >= 1 and readers['/clock'] >= 1, readers
         children = relay_children(pid)
         assert len(children) == 1
         # Paced at real time: the clock runs and odom follows, a message a step.
