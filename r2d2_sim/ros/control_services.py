@@ -13,11 +13,11 @@ this module only answers, under the node's lock.
 import json
 from typing import Dict
 
-from rclpy.node import Node
 from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.ros.fleet import Fleet
+from r2d2_sim.ros.mirror import MirroringNode
 from r2d2_sim.ros.seams import SimulatorControl
 
 __all__ = ['ControlServices']
@@ -31,7 +31,8 @@ class ControlServices:
     for the status.
     """
 
-    def __init__(self, simulator: SimulatorControl, server: Node, fleet: Fleet) -> None:
+    def __init__(self, simulator: SimulatorControl, server: MirroringNode,
+                 fleet: Fleet) -> None:
         self._simulator = simulator
         self._fleet = fleet
         self._server = server

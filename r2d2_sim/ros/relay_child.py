@@ -16,7 +16,7 @@ import mmap
 import os
 import sys
 import threading
-from typing import Dict, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from r2d2_sim.ros.relay import (
     ACK, ACK_RECORD, CREATE, DESTROY, FRAME, MAX_PUBLISHERS, qos_from_dict, RECORD)
@@ -65,7 +65,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
     spinner.start()
     publishers: Dict[int, Publisher] = {}
 
-    def matched(index: int, made: list):
+    def matched(index: int, made: List[Publisher]) -> Callable[[Any], None]:
         def on_matched(info) -> None:
             # Only the publisher that holds the index now: an index is reused after a
             # destroy, and a late event of the old publisher must not count for the new.
@@ -92,7 +92,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                     publishers[index].publish(data)
                 elif index == CREATE:
                     spec = json.loads(data)
-                    new, made = spec['index'], []
+                    new, made = spec['index'], []  # type: int, List[Publisher]
                     publisher = node.create_publisher(
                         _message_type(spec['type']), spec['topic'], qos_from_dict(spec['qos']),
                         event_callbacks=PublisherEventCallbacks(matched=matched(new, made)))
@@ -122,8 +122,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--namespace', default='/')
     args = parser.parse_args(argv)
     # The simulator ends it by closing the pipe; a Ctrl-C in the terminal reaches both.
+    # SIGTERM ends it at once, but as an exit: its participant's shared memory is removed.
     import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda number, frame: sys.exit(128 + number))
     return run(args.frames, args.acks, args.counts, args.domain, args.node, args.namespace)
 
 
