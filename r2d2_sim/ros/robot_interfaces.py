@@ -10,7 +10,7 @@ namespace is how one process serves several (they share one DDS participant).
 """
 
 import threading
-from typing import Callable, Iterator, List, Sequence, Tuple
+from typing import Callable, Iterator, List, Tuple
 
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -131,18 +131,6 @@ class RobotInterfaces:
     def publishers(self) -> Iterator[Publisher]:
         """Return every publisher of the robot's node (the simulator's, for the default robot)."""
         return iter(self.node.all_publishers())  # relayed ones too (outputs_process)
-
-    def taken(self, topics: Sequence[str]) -> bool:
-        """
-        Return True once the outputs on ``topics`` (resolved names) know they are taken.
-
-        Within one process a publisher counts a subscription as soon as the
-        subscription sees it; the outputs process (``outputs_process``) learns
-        it from a matched event a little later, and builds nothing until then.
-        """
-        publishers = self.node.all_publishers()
-        return all(any(p.topic_name == topic and p.get_subscription_count() > 0
-                       for p in publishers) for topic in topics)
 
     def publish(self, measurement: Measurement) -> None:
         """Publish what the robot measured at one step."""

@@ -43,7 +43,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
     the harness's own are the simulator's ROS parameters (``sim_node`` takes
     the same names). ``node_name`` and ``namespace`` place the simulator (its
     services are ``<namespace>/<node_name>/pause`` and so on). Raises
-    :class:`r2d2_sim.ros.node.StartupError` when the parameters are unusable.
+    :class:`r2d2_sim.ros.node.StartupError` when the parameters are unusable
+    (``outputs_process`` too: lockstep needs delivery within this process).
 
     Several robots: ``robots=['a', 'b']`` with ``**{'b.initial_pose': [...]}``,
     or ``robots={'a': {}, 'b': {'initial_pose': [2.0, 0.0, 3.14]}}``.
@@ -68,6 +69,11 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                  domain_id: Optional[int] = None, timeout_s: float = 10.0,
                  **parameters: Any) -> None:
         parameters = simulator_parameters(parameters, StartupError)  # before anything is built
+        if parameters.get('outputs_process'):
+            raise StartupError(
+                'outputs_process: SimHarness delivers every message within this process, '
+                'which its lockstep needs; a second process publishing would make a run '
+                'depend on timing (SimProcess runs sim_node with it)')
         super().__init__(domain_id=domain_id, timeout_s=timeout_s)
         self.namespace = namespace
         # The simulator and the harness's own node: both made below, or the constructor raises.

@@ -277,8 +277,7 @@ class LocalRobot(_RobotHandle):
         state = [s for topic, s in zip(STATE_TYPES, self._subscriptions)
                  if topic != 'odom' or self.has_wheels]
         self._harness._wait(lambda: cmd_vel.get_subscription_count() > 0 and all(
-            s.get_publisher_count() > 0 for s in state)
-            and interfaces.taken([s.topic_name for s in state]),
+            s.get_publisher_count() > 0 for s in state),
             f'the robot {self.name} did not link its topics')
         return self
 

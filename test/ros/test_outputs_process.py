@@ -14,7 +14,7 @@ import os
 import signal
 
 from nav_msgs.msg import Odometry
-from rclpy.node import Node
+import pytest
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -23,6 +23,7 @@ from std_msgs.msg import String
 from helpers import make_sim, wait_for
 from test_outputs_on_demand import drive_and_listen, TOPICS
 
+from r2d2_sim.errors import StartupError
 from r2d2_sim.ros.relay import RelayedPublisher
 from r2d2_sim.ros.robot_interfaces import DESCRIPTION_QOS
 from r2d2_sim.testing import read_recording, SimHarness
@@ -152,49 +153,28 @@ def test_what_the_outputs_process_publishes_deserializes(ros):
     assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_link')
 
 
-def test_a_harness_and_a_recording_work_through_the_outputs_process(tmp_path):
-    """A SimHarness takes it as any parameter; the recording still gets every message."""
+def test_a_recording_gets_every_message_through_the_outputs_process(ros, tmp_path):
+    """The sink stays in the simulator's process and logs the bytes the child publishes."""
     recording = tmp_path / 'run.mcap'
-    with SimHarness(outputs_process=True, cmd_vel_timeout=0.0, record=str(recording),
-                    scan_rate=0.0) as harness:
-        harness.send_cmd_vel(linear=0.3)
-        harness.advance(seconds=0.5)
-        odom = harness.odom()
-        assert odom.header.stamp.nanosec == 120 * 10**9 // 240
-        assert odom.pose.pose.position.x > 0.0
-        assert harness.sim.relay is not None and not harness.sim.relay.broken
+    sim = make_sim(ros, outputs_process=True, cmd_vel_timeout=0.0, record=str(recording),
+                   scan_rate=0.0)
+    node = ros.create_node('listener', use_sim_time=False)
+    heard = []
+    subscription = node.create_subscription(Odometry, 'odom', heard.append, 1000)
+    assert wait_for(lambda: subscription.get_publisher_count() == 1)
+    sim.simulation.robot.command(0.3, 0.0)
+    sim.advance(120)
+    assert wait_for(lambda: heard and heard[-1].header.stamp.nanosec == 120 * 10**9 // 240)
+    assert heard[-1].pose.pose.position.x > 0.0
+    sim.destroy_node()  # the recording is readable once closed
     recorded = read_recording(str(recording), topics=['/odom'])['/odom']
     assert [r.log_time_ns for r in recorded] == [step * 10**9 // 240 for step in range(121)]
-    assert recorded[-1].message == odom
+    assert recorded[-1].message == heard[-1]
 
 
-def test_robots_spawned_after_a_delete_reuse_the_freed_publishers_rightly():
-    """Spawn, delete, spawn again: the new robot's topics carry its own messages."""
-    with SimHarness(outputs_process=True, cmd_vel_timeout=0.0, scan_rate=0.0) as sim:
-        held = sim.sim.relay.describe()[1]
-        sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='c',
-                  position=(0.0, 2.0, 0.48))
-        sim.advance(seconds=0.1)
-        sim.delete_entity('c')
-        sim.advance(seconds=0.1)
-        assert sim.sim.relay.describe()[1] == held
-        name = sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='d', namespace='d',
-                         position=(0.0, -2.0, 0.48))
-        d = sim.robot(name)
-        d.send_cmd_vel(linear=0.3)
-        sim.advance(seconds=1.0)
-        truth = d.ground_truth()
-        assert truth.header.frame_id == 'world' and truth.child_frame_id == 'd/base_link'
-        assert truth.pose.pose.position.x > 0.2 and truth.pose.pose.position.y < -1.9
-        assert d.odom().header.frame_id == 'd/odom'
-        assert abs(sim.ground_truth().pose.pose.position.x) < 0.01  # r2d2 stood still
-
-
-def test_a_node_added_to_the_harness_has_the_latched_description_at_once():
-    """add_node waits for the latched topics the outputs process holds, as for its own."""
-    with SimHarness(outputs_process=True, scan_rate=0.0) as sim:
-        node = Node('late', context=sim.context)
-        heard = []
-        node.create_subscription(String, 'robot_description', heard.append, DESCRIPTION_QOS)
-        sim.add_node(node)
-        assert len(heard) == 1 and heard[0].data.startswith('<?xml')
+def test_the_in_process_harness_refuses_it_in_one_line():
+    """Lockstep needs delivery within one process: SimHarness says so before anything starts."""
+    with pytest.raises(StartupError) as refused:
+        SimHarness(outputs_process=True)
+    assert 'outputs_process' in str(refused.value) and 'SimProcess' in str(refused.value)
+    assert '\n' not in str(refused.value)

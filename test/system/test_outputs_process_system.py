@@ -57,3 +57,24 @@ def test_paced_and_stepped_sim_node_publish_through_the_outputs_process():
         code, out, err = sim.stop()
     assert code == 0, err
     assert not any(Path(f'/proc/{child}').exists() for child in children)  # ended with it
+
+
+def test_robots_spawned_after_a_delete_reuse_the_freed_publishers_rightly():
+    """Spawn, delete, spawn again through the standard: the new robot's topics are its own."""
+    with SimProcess(outputs_process=True, cmd_vel_timeout=0.0, scan_rate=0.0,
+                    start_paused=True) as sim:
+        sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='c', namespace='c',
+                  position=(0.0, 2.0, 0.48))
+        sim.step_physics(24)
+        sim.delete_entity('c')
+        sim.step_physics(24)
+        name = sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='d', namespace='d',
+                         position=(0.0, -2.0, 0.48))
+        d = sim.robot(name)
+        d.send_cmd_vel(linear=0.3)
+        sim.step_physics(240)
+        truth = d.ground_truth()
+        assert truth.header.frame_id == 'world' and truth.child_frame_id == 'd/base_link'
+        assert truth.pose.pose.position.x > 0.2 and truth.pose.pose.position.y < -1.9
+        assert d.odom().header.frame_id == 'd/odom'
+        assert abs(sim.ground_truth().pose.pose.position.x) < 0.01  # r2d2 stood still
