@@ -173,8 +173,12 @@ class OutputRelay:
                    '--counts', str(counts_fd), '--domain', str(domain_id),
                    '--node', node_name, '--namespace', namespace]
         try:
+            # A session of its own: a Ctrl-C in the terminal reaches the simulator only
+            # (the child, still importing rclpy, printed a KeyboardInterrupt traceback);
+            # the simulator's end closes the pipe, and that ends the child.
             self.process: Optional[subprocess.Popen] = subprocess.Popen(
-                command, pass_fds=(frames_read, acks_write, counts_fd), stdin=subprocess.DEVNULL)
+                command, pass_fds=(frames_read, acks_write, counts_fd), stdin=subprocess.DEVNULL,
+                start_new_session=True)
         except OSError as exc:
             for fd in (self._frames, self._acks):
                 os.close(fd)

@@ -69,7 +69,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                  domain_id: Optional[int] = None, timeout_s: float = 10.0,
                  **parameters: Any) -> None:
         parameters = simulator_parameters(parameters, StartupError)  # before anything is built
-        if parameters.get('outputs_process'):
+        if parameters.get('outputs_process') is True:  # a wrong type: the node's own line
             raise StartupError(
                 'outputs_process: SimHarness delivers every message within this process, '
                 'which its lockstep needs; a second process publishing would make a run '

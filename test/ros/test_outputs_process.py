@@ -68,8 +68,9 @@ def test_a_lockstep_step_returns_once_its_messages_are_out(ros):
     node.create_subscription(Clock, '/clock', clocks.append, 1000)
     joints = node.create_subscription(JointState, 'joint_states', states.append, 1000)
     assert wait_for(lambda: joints.get_publisher_count() == 1)
-    publisher = sim.robots[0].outputs.state[0]._publisher
-    assert wait_for(lambda: publisher.get_subscription_count() == 1)  # the child's matched event
+    publishers = [sim.robots[0].outputs.state[0]._publisher, sim._clock_output._publisher]
+    # The child's matched events: what its writers publish before they match never arrives.
+    assert wait_for(lambda: all(p.get_subscription_count() == 1 for p in publishers))
     sent = sim.relay.frames_sent
     sim.advance(10)
     assert sim.relay.frames_sent == sent + 11  # a frame a step, and the one asking for the answer
@@ -162,6 +163,8 @@ def test_a_recording_gets_every_message_through_the_outputs_process(ros, tmp_pat
     heard = []
     subscription = node.create_subscription(Odometry, 'odom', heard.append, 1000)
     assert wait_for(lambda: subscription.get_publisher_count() == 1)
+    # And the child's writer saw the reader: what it publishes before that never arrives.
+    assert wait_for(lambda: sim.robots[0].outputs.state[2]._publisher.get_subscription_count())
     sim.simulation.robot.command(0.3, 0.0)
     sim.advance(120)
     assert wait_for(lambda: heard and heard[-1].header.stamp.nanosec == 120 * 10**9 // 240)
@@ -178,3 +181,8 @@ def test_the_in_process_harness_refuses_it_in_one_line():
         SimHarness(outputs_process=True)
     assert 'outputs_process' in str(refused.value) and 'SimProcess' in str(refused.value)
     assert '\n' not in str(refused.value)
+    # A value of the wrong type is the node's own refusal, not this one.
+    for wrong in ('false', 1):
+        with pytest.raises(StartupError) as refused:
+            SimHarness(outputs_process=wrong)
+        assert 'must be true or false' in str(refused.value), str(refused.value)

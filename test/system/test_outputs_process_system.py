@@ -5,12 +5,18 @@ At real time the loop never waits for the outputs process; a ``~/step``
 answers once its messages are out; stopping the simulator ends the child too.
 """
 
+import os
 from pathlib import Path
+import signal
+import subprocess
+import time
 
+from helpers import next_domain_id, ros_env
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 
 from r2d2_sim.testing import SimProcess
+from r2d2_sim.testing.process import sim_node_command
 
 
 def relay_children(parent_pid):
@@ -78,3 +84,21 @@ def test_robots_spawned_after_a_delete_reuse_the_freed_publishers_rightly():
         assert truth.pose.pose.position.x > 0.2 and truth.pose.pose.position.y < -1.9
         assert d.odom().header.frame_id == 'd/odom'
         assert abs(sim.ground_truth().pose.pose.position.x) < 0.01  # r2d2 stood still
+
+
+def test_a_ctrl_c_at_start_up_reaches_the_simulator_alone():
+    """A session of its own: the terminal's SIGINT goes to sim_node only, which ends the child."""
+    process = subprocess.Popen(sim_node_command(ros_args=['-p', 'outputs_process:=true']),
+                               env=ros_env(next_domain_id()), stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 30.0
+    while not relay_children(process.pid) and time.monotonic() < deadline:
+        time.sleep(0.005)
+    children = relay_children(process.pid)
+    assert children, 'no outputs process appeared'
+    os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole foreground group
+    out, err = process.communicate(timeout=30)
+    assert process.returncode == 0, err
+    assert 'Traceback' not in err + out and 'KeyboardInterrupt' not in err + out, err
+    assert 'outputs process failed' not in err + out, err
+    assert not any(Path(f'/proc/{child}').exists() for child in children)
