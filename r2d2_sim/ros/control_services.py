@@ -51,7 +51,9 @@ class ControlServices:
         the latest state publication), ``commands_received`` (cmd_vel
         messages taken so far by all robots, so a client can confirm its
         command arrived), ``robots`` (each robot's ``namespace``, ``tf`` topic
-        and ``commands_received``, by name), plus the service's own ``facts``
+        and ``commands_received``, by name), with ``outputs_process`` its
+        ``outputs`` (``running``: the child alive and taking frames, ``frames``
+        sent, ``publishers`` held), plus the service's own ``facts``
         (``steps`` advanced, an ``error``).
         """
         simulator, fleet = self._simulator, self._fleet
@@ -62,6 +64,11 @@ class ControlServices:
                  'robots': {i.name: {'namespace': i.namespace, 'tf': i.tf_topics[0],
                                      'commands_received': i.cmd_vel.received}
                             for i in fleet}}
+        relay = self._server.relay
+        if relay is not None:
+            frames, publishers = relay.describe()
+            state['outputs'] = {'running': relay.running, 'frames': frames,
+                                'publishers': publishers}
         state.update(facts)
         return json.dumps(state)
 

@@ -343,6 +343,14 @@ class OutputRelay:
             status = process.wait()
         return status  # the counts' map stays until the last publisher asking it is gone
 
+    @property
+    def running(self) -> bool:
+        """Return True while the child is alive and takes frames (a dead one is said once)."""
+        process = self.process
+        if process is not None and not self.broken and process.poll() is not None:
+            self._broke('it ended')  # found by asking, before the next write would
+        return process is not None and not self.broken
+
     def describe(self) -> Tuple[int, int]:
         """Return (frames sent, publishers held): for status and tests."""
         return self.frames_sent, self._next_index - len(self._free)

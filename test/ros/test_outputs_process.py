@@ -10,6 +10,7 @@ and go with the robots; a child that dies costs one error line, not the
 physics; and destroying the node ends the child.
 """
 
+import json
 import os
 import signal
 
@@ -130,6 +131,22 @@ def test_a_dead_outputs_process_costs_one_error_line_not_the_physics(ros):
     assert sim.step_count == before + 72
     assert len(errors) == 1, errors
     assert 'the outputs process failed (it ended with status 143)' in errors[0]
+    assert json.loads(sim.status())['outputs']['running'] is False
+
+
+def test_the_status_says_whether_the_outputs_process_runs(ros):
+    """~/get_status carries it: a dead child is found by asking, not only at the next write."""
+    sim = make_sim(ros, outputs_process=True, scan_rate=0.0, imu_rate=0.0)
+    sim.advance(1)  # answered: the child runs
+    outputs = json.loads(sim.status())['outputs']
+    assert outputs['running'] is True and outputs['frames'] >= 2 and outputs['publishers'] >= 5
+    errors = []
+    sim.relay._log_error = errors.append
+    os.kill(sim.relay.process.pid, signal.SIGTERM)
+    sim.relay.process.wait(10)
+    assert json.loads(sim.status())['outputs']['running'] is False  # nothing published since
+    assert len(errors) == 1 and 'it ended' in errors[0]
+    assert 'outputs' not in json.loads(make_sim(ros, scan_rate=0.0).status())
 
 
 def test_destroying_the_node_ends_the_outputs_process(ros):
