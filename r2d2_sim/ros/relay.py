@@ -89,6 +89,13 @@ def qos_from_dict(fields: Dict[str, int]) -> QoSProfile:
                       durability=DurabilityPolicy(fields['durability']))
 
 
+def _ready(fd: int, event: int, timeout_s: float) -> bool:
+    """Return True once ``fd`` is ready for ``event`` (POLLIN, POLLOUT) within ``timeout_s``."""
+    poller = select.poll()  # not select(): a test process may hold fds above 1023
+    poller.register(fd, event)
+    return bool(poller.poll(max(0.0, timeout_s) * 1000.0))
+
+
 def _close_fds(fds: Tuple[int, ...]) -> None:
     for fd in fds:
         try:
@@ -190,6 +197,7 @@ class OutputRelay:
         # A node never destroyed: its pipe closes at exit or collection, and the child ends.
         self._finalizer = weakref.finalize(self, _close_fds, (self._frames, self._acks))
         self._lock = threading.RLock()  # one frame at a time, whichever thread publishes
+        self._broke_lock = threading.Lock()
         self._acks_left = b''  # a partial acknowledgement read (never split in practice)
         self._pending: List[bytes] = []
         self._batching = 0
@@ -277,9 +285,8 @@ class OutputRelay:
                 except BlockingIOError:  # the pipe is full: the child is behind
                     now = time.monotonic()
                     deadline = deadline or now + WAIT_S
-                    writable = now < deadline and select.select(
-                        [], [self._frames], [], deadline - now)[1]
-                    if not writable:
+                    if now >= deadline or not _ready(self._frames, select.POLLOUT,
+                                                     deadline - now):
                         self._broke(f'it took nothing for {WAIT_S:g} s')
                         return 0
         except OSError as exc:  # BrokenPipeError: the child is gone
@@ -304,7 +311,7 @@ class OutputRelay:
             deadline = time.monotonic() + timeout_s
             while self._acknowledged < target:
                 left = deadline - time.monotonic()
-                if left <= 0.0 or not select.select([self._acks], [], [], left)[0]:
+                if left <= 0.0 or not _ready(self._acks, select.POLLIN, left):
                     self._broke(f'no answer within {timeout_s:g} s')
                     return False
                 data = self._acks_left + os.read(self._acks, 4096)
@@ -318,12 +325,14 @@ class OutputRelay:
             return True
 
     def _broke(self, why: str) -> None:
-        if not self.broken:
+        with self._broke_lock:  # the physics thread and a status request may both find it
+            if self.broken:
+                return
             self.broken = True
-            status = self.process.poll() if self.process is not None else None
-            ended = '' if status is None else f' (it ended with status {status})'
-            self._log_error(f'the outputs process failed{ended}: {why}; nothing more is '
-                            'published')
+        process = self.process
+        status = process.poll() if process is not None else None
+        ended = '' if status is None else f' (it ended with status {status})'
+        self._log_error(f'the outputs process failed{ended}: {why}; nothing more is published')
 
     # -- the process --------------------------------------------------------------------
 
@@ -338,9 +347,13 @@ class OutputRelay:
             self._finalizer()  # closes the pipes: the child publishes what it has, then ends
         try:
             status = process.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            status = process.wait()
+        except subprocess.TimeoutExpired:  # stuck: SIGTERM is a clean exit, SIGKILL is not
+            process.terminate()
+            try:
+                status = process.wait(1.0)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                status = process.wait()
         return status  # the counts' map stays until the last publisher asking it is gone
 
     @property

@@ -104,7 +104,10 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                     node.destroy_publisher(publishers.pop(gone))
                     counts[gone] = 0
             if flags & ACK:
-                os.write(acks, ACK_RECORD.pack(sequence))
+                try:
+                    os.write(acks, ACK_RECORD.pack(sequence))
+                except BrokenPipeError:  # the simulator stopped waiting: it is going
+                    return 0
     finally:
         stop.set()
         spinner.join()  # within a spin_once's timeout

@@ -75,6 +75,7 @@ def test_a_lockstep_step_returns_once_its_messages_are_out(ros):
     sent = sim.relay.frames_sent
     sim.advance(10)
     assert sim.relay.frames_sent == sent + 11  # a frame a step, and the one asking for the answer
+    assert sim.relay._acknowledged == sim.relay._sequence  # answered before advance returned
     # Out before advance returned: with the child stopped, every message still arrives.
     os.kill(sim.relay.process.pid, signal.SIGSTOP)
     try:
@@ -145,7 +146,7 @@ def test_the_status_says_whether_the_outputs_process_runs(ros):
     os.kill(sim.relay.process.pid, signal.SIGTERM)
     sim.relay.process.wait(10)
     assert json.loads(sim.status())['outputs']['running'] is False  # nothing published since
-    assert len(errors) == 1 and 'it ended' in errors[0]
+    assert len(errors) == 1 and errors[0].endswith('it ended; nothing more is published')
     assert 'outputs' not in json.loads(make_sim(ros, scan_rate=0.0).status())
 
 
