@@ -17,7 +17,7 @@ from rclpy.serialization import serialize_message
 from rosidl_parser.definition import (
     AbstractGenericString, AbstractNestedType, AbstractSequence, AbstractWString, BasicType)
 
-__all__ = ['serialize', 'layout', 'fields']
+__all__ = ['serialize', 'message_bytes', 'ros_type_name', 'layout', 'fields']
 
 # Bytes of each basic type in CDR, which is also its alignment.
 _CDR_SIZES = {'boolean': 1, 'octet': 1, 'char': 1, 'uint8': 1, 'int8': 1, 'int16': 2,
@@ -48,6 +48,27 @@ def serialize(msg: Any) -> bytes:
         serialized[4 + offset:4 + offset + size] = bytes(size)
     serialized[4 + end:] = bytes(data - end)  # what the serializer leaves past the end
     return bytes(serialized)
+
+
+def message_bytes(msg: Any, msg_type: type) -> bytes:
+    """
+    Return what a publisher of ``msg_type`` sends for ``msg``: its bytes, or serialized.
+
+    A message already serialized goes as it is; a typed one is serialized
+    once (:func:`serialize`); anything else is rclpy's TypeError, before any
+    byte goes out.
+    """
+    if type(msg) is bytes:
+        return msg
+    if isinstance(msg, msg_type):
+        return serialize(msg)
+    raise TypeError(f'Expected {msg_type}, got {type(msg)}')
+
+
+def ros_type_name(msg_type: type) -> str:
+    """Return the ROS name of an rclpy message class: ``sensor_msgs/msg/LaserScan``."""
+    package = msg_type.__module__.split('.', 1)[0]
+    return f'{package}/msg/{msg_type.__name__}'
 
 
 def _align(offset: int, size: int, pads: List[Tuple[int, int]]) -> int:

@@ -16,7 +16,7 @@ from typing import Callable, List, Optional
 
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile
-from r2d2_sim.ros.cdr import serialize
+from r2d2_sim.ros.cdr import message_bytes, ros_type_name
 
 from r2d2_sim.recording.channels import SinkChannel
 from r2d2_sim.recording.sink import FoxgloveSink
@@ -25,12 +25,6 @@ from r2d2_sim.ros.relay import OutputRelay, RelayedPublisher
 
 __all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode', 'start_sink',
            'demand']
-
-
-def ros_type_name(msg_type: type) -> str:
-    """Return the ROS name of an rclpy message class: ``sensor_msgs/msg/LaserScan``."""
-    package = msg_type.__module__.split('.', 1)[0]
-    return f'{package}/msg/{msg_type.__name__}'
 
 
 class MirroredPublisher:
@@ -48,12 +42,7 @@ class MirroredPublisher:
         """Publish ``msg`` (a message or its serialized bytes) to DDS and to the sink."""
         # A typed message is serialized once, here, and both get the bytes: a
         # camera image (230-300 kB) is not serialized a second time by rclpy.
-        if type(msg) is bytes:
-            data = msg
-        elif isinstance(msg, self.msg_type):
-            data = serialize(msg)
-        else:  # what rclpy's publish says, before anything goes out as bytes
-            raise TypeError(f'Expected {self.msg_type}, got {type(msg)}')
+        data = message_bytes(msg, self.msg_type)
         self.publisher.publish(data)
         self.channel.log(data, self._time_ns())
 

@@ -53,7 +53,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 
 from rclpy.qos import QoSProfile
 
-from r2d2_sim.ros.cdr import serialize
+from r2d2_sim.ros.cdr import message_bytes, ros_type_name
 
 __all__ = ['OutputRelay', 'RelayedPublisher', 'RelayError', 'FRAME', 'RECORD', 'CREATE',
            'DESTROY', 'ACK', 'MAX_PUBLISHERS', 'qos_to_dict', 'qos_from_dict']
@@ -104,11 +104,6 @@ def _close_fds(fds: Tuple[int, ...]) -> None:
             pass
 
 
-def _type_name(msg_type: type) -> str:
-    package = msg_type.__module__.split('.', 1)[0]
-    return f'{package}/msg/{msg_type.__name__}'
-
-
 class RelayedPublisher:
     """A publisher whose messages the outputs process publishes; rclpy's interface, in part."""
 
@@ -125,13 +120,7 @@ class RelayedPublisher:
         """Hand ``msg`` (a message or its serialized bytes) to the outputs process."""
         if self.destroyed:  # as rclpy's InvalidHandle says it
             raise RelayError(f'the publisher of {self.topic_name} was destroyed')
-        if type(msg) is bytes:
-            data = msg
-        elif isinstance(msg, self.msg_type):
-            data = serialize(msg)
-        else:  # what rclpy's publish says
-            raise TypeError(f'Expected {self.msg_type}, got {type(msg)}')
-        self.relay.publish(self.index, data)
+        self.relay.publish(self.index, message_bytes(msg, self.msg_type))
 
     def get_subscription_count(self) -> int:
         """Return the subscriptions the child's publisher matched (its latest matched event)."""
@@ -226,7 +215,7 @@ class OutputRelay:
             raise RelayError(f'the outputs process holds {MAX_PUBLISHERS} publishers at most')
         self.counts[index] = 0
         self._record(CREATE, json.dumps({
-            'index': index, 'topic': topic_name, 'type': _type_name(msg_type),
+            'index': index, 'topic': topic_name, 'type': ros_type_name(msg_type),
             'qos': qos_to_dict(qos_profile)}).encode())
         return RelayedPublisher(self, index, msg_type, topic_name, qos_profile)
 

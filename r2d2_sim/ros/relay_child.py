@@ -10,7 +10,6 @@ counts (its executor thread serves the matched events). It ends, with status
 """
 
 import argparse
-import importlib
 import json
 import mmap
 import os
@@ -18,6 +17,7 @@ import sys
 import threading
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
+from r2d2_sim.recording.reader import message_class
 from r2d2_sim.ros.relay import (
     ACK, ACK_RECORD, CREATE, DESTROY, FRAME, MAX_PUBLISHERS, qos_from_dict, RECORD)
 
@@ -32,11 +32,6 @@ def _read_exactly(fd: int, size: int) -> Optional[bytes]:
         chunks.append(chunk)
         size -= len(chunk)
     return b''.join(chunks)
-
-
-def _message_type(name: str) -> type:
-    package, _, type_name = name.split('/')
-    return getattr(importlib.import_module(f'{package}.msg'), type_name)
 
 
 def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
@@ -94,7 +89,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                     spec = json.loads(data)
                     new, made = spec['index'], []  # type: int, List[Publisher]
                     publisher = node.create_publisher(
-                        _message_type(spec['type']), spec['topic'], qos_from_dict(spec['qos']),
+                        message_class(spec['type']), spec['topic'], qos_from_dict(spec['qos']),
                         event_callbacks=PublisherEventCallbacks(matched=matched(new, made)))
                     publishers[new] = publisher
                     made.append(publisher)
