@@ -9,9 +9,9 @@ output is built and published):
 
 - **in process**, 1, 4 and 16 robots in a row with the default outputs: the node
   publishing itself (``direct``), the node handing its bytes to the outputs
-  process (``relay``, ``advance(published=False)`` as the real-time loop
-  calls it) and raw ``stepSimulation`` of the same world, taking turns every 60
-  steps (``common.alternate``). Steps per second of the stepping thread's CPU
+  process (``relay``, ``advance_if_running``: the real-time loop's, which
+  does not wait for the child) and raw ``stepSimulation`` of the same world,
+  taking turns every 60 steps (``common.alternate``). Steps per second of the stepping thread's CPU
   (what the physics thread spends: the child's work is on the other core) and
   per wall second (which also counts waiting for a child that fell behind).
 - **at real time**: ``sim_node`` at rtf 1 with 16 robots driving and every topic
@@ -55,7 +55,7 @@ def measure_throughput(domain_id, counts, rounds, min_s):
                 # /clock is one topic for both; /tf one per simulator.
                 taker.wait(2 * TOPICS_PER_ROBOT * count + 2)
                 advances = [lambda s: nodes['direct'].advance(s),
-                            lambda s: nodes['relay'].advance(s, published=False),
+                            nodes['relay'].advance_if_running,
                             raw_stepper(nodes['direct'].world)]
                 for advance in advances:
                     advance(240)

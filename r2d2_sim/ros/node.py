@@ -267,16 +267,15 @@ class SimNode(MirroringNode):
         """Return the number of physics steps until the next state publication."""
         return self.simulation.steps_to_next_publish()
 
-    def advance(self, steps: int = 1, *, published: bool = True) -> None:
+    def advance(self, steps: int = 1) -> None:
         """
         Step the physics ``steps`` times, applying commands and publishing on schedule.
 
         This is the in-process API for tests: it ignores pause and pacing, so a
         test can advance simulated time deterministically between its own spins.
         With ``outputs_process`` it returns once the outputs process has
-        published every message of these steps, unless ``published`` is False
-        or :meth:`advance_if_running` (the real-time loop) called it: the
-        physics goes on meanwhile.
+        published every message of these steps, unless :meth:`advance_if_running`
+        (the real-time loop) called it: the physics goes on meanwhile.
         """
         with self.lock:
             step, publish = self.simulation.step, self._publish
@@ -284,7 +283,7 @@ class SimNode(MirroringNode):
                 result = step()
                 if result is not None:
                     publish(result)
-            if published and self.relay is not None and not self._in_loop:
+            if self.relay is not None and not self._in_loop:
                 self.relay.wait()
 
     def advance_to_next_publish(self) -> int:
