@@ -14,6 +14,9 @@ output is built and published):
   taking turns every 60 steps (``common.alternate``). Steps per second of the stepping thread's CPU
   (what the physics thread spends: the child's work is on the other core) and
   per wall second (which also counts waiting for a child that fell behind).
+- **recording**, the same in process with ``record`` on: the node's own
+  sink (``direct``), and the outputs process's (``relay``: the child writes the
+  MCAP file), 1 and 16 robots.
 - **at real time**: ``sim_node`` at rtf 1 with 16 robots driving and every topic
   taken by another context, with and without ``outputs_process``, in turns:
   the rate of one-second windows timed by ``/clock`` as it arrives (median and
@@ -26,6 +29,7 @@ never asserted.
 import argparse
 import os
 import statistics
+import tempfile
 
 from common import (
     alternate, BENCH_DIR, init_ros, local_date, machine_info, make_sim_node, raw_stepper,
@@ -34,12 +38,17 @@ from fleet import fleet, measure_real_time
 
 RESULTS_PATH = os.path.join(BENCH_DIR, 'outputs_process.json')
 THROUGHPUT_ROBOTS = (1, 4, 16)
+RECORDING_ROBOTS = (1, 16)
 REAL_TIME_ROBOTS = 16
 TOPICS_PER_ROBOT = 5  # joint_states, odom, ground_truth, scan, imu (and /tf, /clock)
 
 
-def measure_throughput(domain_id, counts, rounds, min_s):
-    """Steps/s (thread CPU and wall) of direct, relay and raw stepping, per robot count."""
+def measure_throughput(domain_id, counts, rounds, min_s, record_in=None):
+    """
+    Steps/s (thread CPU and wall) of direct, relay and raw stepping, per robot count.
+
+    ``record_in``: a folder; each node records to a file of its own there.
+    """
     import rclpy
     from rclpy.context import Context
     context = Context()
@@ -48,7 +57,9 @@ def measure_throughput(domain_id, counts, rounds, min_s):
     try:
         for count in counts:
             nodes = {mode: make_sim_node(context, f'/{mode}_{count}', dict(
-                fleet(count), real_time_factor=0.0, outputs_process=(mode == 'relay')))
+                fleet(count), real_time_factor=0.0, outputs_process=(mode == 'relay'),
+                **({} if record_in is None else
+                   {'record': os.path.join(record_in, f'{mode}_{count}.mcap')})))
                 for mode in ('direct', 'relay')}
             taker = TopicTaker(domain_id)
             try:
@@ -100,15 +111,9 @@ def measure_real_time_in_turns(domain_id, rounds, settle_s, window_s, windows):
 
 def print_table(results):
     """Print the in-process rows and the real-time runs."""
-    print('\n| robots | node / raw, thread CPU: direct | relay | µs a step: direct / relay / raw '
-          '| node / raw, wall: direct | relay |')
-    print('|---|---|---|---|---|---|')
-    for row in results['throughput'].values():
-        us = row['us_per_step']
-        print(f"| {row['robots']} | {row['cpu_ratio']['direct']:.3f} | "
-              f"{row['cpu_ratio']['relay']:.3f} | {us['direct']:.0f} / {us['relay']:.0f} / "
-              f"{us['raw']:.0f} | {row['wall_ratio']['direct']:.3f} | "
-              f"{row['wall_ratio']['relay']:.3f} |")
+    for part in ('throughput', 'recording'):
+        if part in results:
+            print_rows(part, results[part])
     print(f'\nsim_node at rtf 1, {REAL_TIME_ROBOTS} robots driving, every topic taken '
           '(median (lowest second) Hz, CPU of the simulator process):')
     for mode, runs in results['real_time'].items():
@@ -116,6 +121,20 @@ def print_table(results):
                          f" ({r['cpu_share_with_children']:.0%} with the outputs process)"
                          for r in runs)
         print(f'  {mode}: {text}')
+
+
+def print_rows(part, rows):
+    """Print one in-process table: every topic taken, or recorded too."""
+    print(f'\n{part}:')
+    print('| robots | node / raw, thread CPU: direct | relay | µs a step: direct / relay / raw '
+          '| node / raw, wall: direct | relay |')
+    print('|---|---|---|---|---|---|')
+    for row in rows.values():
+        us = row['us_per_step']
+        print(f"| {row['robots']} | {row['cpu_ratio']['direct']:.3f} | "
+              f"{row['cpu_ratio']['relay']:.3f} | {us['direct']:.0f} / {us['relay']:.0f} / "
+              f"{us['raw']:.0f} | {row['wall_ratio']['direct']:.3f} | "
+              f"{row['wall_ratio']['relay']:.3f} |")
 
 
 def main(argv=None):
@@ -128,8 +147,11 @@ def main(argv=None):
     args = parser.parse_args(argv)
     rounds, min_s = (2, 0.5) if args.quick else (5, 1.0)
     settle_s, window_s, windows = (1.0, 1.0, 4) if args.quick else (2.0, 1.0, 8)
+    with tempfile.TemporaryDirectory() as folder:
+        recording = measure_throughput(args.domain, RECORDING_ROBOTS, rounds, min_s, folder)
     results = {'machine': machine_info(), 'date': local_date(), 'quick': args.quick,
                'throughput': measure_throughput(args.domain, THROUGHPUT_ROBOTS, rounds, min_s),
+               'recording': recording,
                'real_time': measure_real_time_in_turns(args.domain + 1,
                                                        1 if args.quick else args.rounds,
                                                        settle_s, window_s, windows)}

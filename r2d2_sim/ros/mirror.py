@@ -12,7 +12,7 @@ serialized once, and DDS and the sink both get those bytes. Without a sink the n
 publishers, so mirroring costs nothing when it is off.
 """
 
-from typing import Callable, List, Optional
+from typing import Any, Callable, Dict, List, Optional
 
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -24,7 +24,7 @@ from r2d2_sim.ros.quiet_node import QuietNode
 from r2d2_sim.ros.relay import OutputRelay, RelayedPublisher
 
 __all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode', 'start_sink',
-           'demand']
+           'sink_spec', 'say_sink', 'demand']
 
 
 class MirroredPublisher:
@@ -111,17 +111,30 @@ def start_sink(config, name: str, logger) -> Optional[FoxgloveSink]:
     the live view's listener gone, foxglove-sdk's own lines (throttled), so
     ROS says them on ``/rosout``. SinkError when either cannot start.
     """
+    spec = sink_spec(config, name)
+    if spec is None:
+        return None
+    sink = FoxgloveSink(spec['port'], spec['host'], spec['record_path'], name=name,
+                        warn=logger.warning, error=logger.error)
+    say_sink(config, sink.url, logger)
+    return sink
+
+
+def sink_spec(config, name: str) -> Optional[Dict[str, Any]]:
+    """Return the sink a SimConfig asks for (FoxgloveSink's arguments), None for none."""
     port = config.foxglove_port or None
     record = config.record or None
     if port is None and record is None:
         return None
-    sink = FoxgloveSink(port, config.foxglove_host, record, name=name,
-                        warn=logger.warning, error=logger.error)
-    if sink.url is not None:
-        logger.info(f'Foxglove live view at {sink.url}')
-    if record is not None:
-        logger.info(f'recording every output to {record}')
-    return sink
+    return {'port': port, 'host': config.foxglove_host, 'record_path': record, 'name': name}
+
+
+def say_sink(config, url: Optional[str], logger) -> None:
+    """Log where the live view serves (``url``) and where the recording goes, if anywhere."""
+    if url is not None:
+        logger.info(f'Foxglove live view at {url}')
+    if config.record:
+        logger.info(f'recording every output to {config.record}')
 
 
 class MirroringNode(QuietNode):

@@ -21,7 +21,7 @@ from r2d2_sim.ros.cmd_vel import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog
     WARNING_PERIOD_S
 from r2d2_sim.ros.control_services import ControlServices
 from r2d2_sim.ros.fleet import Fleet
-from r2d2_sim.ros.mirror import MirroringNode, start_sink
+from r2d2_sim.ros.mirror import MirroringNode, say_sink, sink_spec, start_sink
 from r2d2_sim.ros.outputs import ClockOutput
 from r2d2_sim.ros.parameters import declare_parameters, with_ray_threads
 from r2d2_sim.ros.relay import OutputRelay, RelayError
@@ -88,10 +88,15 @@ class SimNode(MirroringNode):
             config, specs = declare_parameters(self)
             self.config = with_ray_threads(config)
             if self.config.outputs_process:
+                # The live view and the recording go with the publishing (relay.py).
+                sink = sink_spec(self.config, self.get_name())
                 self.relay = OutputRelay(self.context.get_domain_id(),
                                          f'{self.get_name()}_outputs', self.get_namespace(),
-                                         self.get_logger().error)
-            self.sink = start_sink(self.config, self.get_name(), self.get_logger())
+                                         self.get_logger().error, sink=sink,
+                                         time_ns=self.sink_time_ns if sink else None)
+                say_sink(self.config, self.relay.sink_url, self.get_logger())
+            else:
+                self.sink = start_sink(self.config, self.get_name(), self.get_logger())
             simulation = Simulation(self.config, specs, warn=self.get_logger().warning,
                                     error=self._log_blow_up, namespace=self.get_namespace())
             self.simulation: Simulation = simulation

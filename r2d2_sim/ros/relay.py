@@ -33,6 +33,15 @@ The parts:
   anonymous ``memfd``: nothing to clean up): one int32 per publisher, written
   by the child's matched events. The outputs ask it as they ask an rclpy
   publisher (:func:`r2d2_sim.ros.mirror.demand`), and build nothing nobody takes.
+- the live view and the recording (``sink``), when asked, live in the child
+  too: it opens the :class:`~r2d2_sim.recording.sink.FoxgloveSink`, says on
+  the acknowledgements' pipe whether that worked (:data:`REPORT`, before
+  anything else), and logs each message it publishes to the sink at the
+  simulated time the parent stamped on the stream (:data:`TIME` records, one
+  whenever the time moved). The same calls in the same order as the node made
+  in its own process: the same MCAP file, byte for byte. A second map of the
+  same size says which publishers' messages a viewer takes, so that with a
+  live view alone nothing nobody watches is built either.
 
 The child ends when the pipe closes (the node is destroyed, or its process
 died); a child that died makes the next write fail, and the node logs one
@@ -56,18 +65,23 @@ from rclpy.qos import QoSProfile
 from r2d2_sim.ros.cdr import message_bytes, ros_type_name
 
 __all__ = ['OutputRelay', 'RelayedPublisher', 'RelayError', 'FRAME', 'RECORD', 'CREATE',
-           'DESTROY', 'ACK', 'MAX_PUBLISHERS', 'qos_to_dict', 'qos_from_dict']
+           'DESTROY', 'TIME', 'TIME_RECORD', 'REPORT', 'ACK', 'MAX_PUBLISHERS',
+           'qos_to_dict', 'qos_from_dict']
 
 FRAME = struct.Struct('<IQB')   # payload bytes after this header, sequence number, flags
 RECORD = struct.Struct('<iI')   # publisher index (or CREATE / DESTROY), data bytes
 ACK_RECORD = struct.Struct('<Q')
+REPORT = struct.Struct('<I')     # the child's start report: JSON bytes after this length
+TIME_RECORD = struct.Struct('<q')
 CREATE = -1                      # data: the publisher as JSON (index, topic, type, QoS)
 DESTROY = -2                     # data: the index as JSON
+TIME = -3                        # data: the simulated time (ns) of the messages after it
 ACK = 1                          # flag: the child writes the frame's number back once published
 MAX_PUBLISHERS = 4096            # the shared counts' slots (indices of destroyed ones are reused)
 PIPE_BYTES = 1 << 20             # Linux's default /proc/sys/fs/pipe-max-size
 F_SETPIPE_SZ = 1031
 WAIT_S = 10.0                    # the longest wait for the child's acknowledgement
+START_S = 60.0                   # the longest wait for a child opening a sink to report
 CLOSE_S = 5.0                    # the longest wait for the child to end
 
 
@@ -127,8 +141,18 @@ class RelayedPublisher:
         return self.relay.subscription_count(self.index)
 
     def subscription_counter(self) -> Callable[[], int]:
-        """Return the cheapest way to ask :meth:`get_subscription_count` (the outputs' demand)."""
-        counts, index = self.relay.counts, self.index
+        """
+        Return the cheapest way to ask whether anyone takes this (the outputs' demand).
+
+        The child's matched subscriptions, and with a live view in the child
+        whether a viewer takes the topic; with a recording, always.
+        """
+        relay, index = self.relay, self.index
+        counts, taken = relay.counts, relay.sink_taken
+        if relay.sink_records:
+            return _one
+        if relay.sink_live:
+            return lambda: counts[index] or taken[index]
         return lambda: counts[index]
 
     def destroy(self) -> None:
@@ -138,25 +162,44 @@ class RelayedPublisher:
             self.relay.destroy(self.index)
 
 
+def _one() -> int:
+    return 1
+
+
 class OutputRelay:
     """
     The outputs process of one simulator, and the pipe to it (see the module).
 
     ``domain_id`` is the simulator's context's; the child's node is
     ``node_name`` in ``namespace``. ``log_error`` says, once, that the child
-    is gone. Raises :class:`RelayError` when the process cannot start.
+    is gone. ``sink``: the live view and recording to open in the child
+    (:class:`~r2d2_sim.recording.sink.FoxgloveSink`'s ``port``, ``host``,
+    ``record_path`` and ``name``; None: none), whose messages are logged at
+    ``time_ns()`` when they are handed over. Raises :class:`RelayError` when
+    the process cannot start, or its sink cannot (the sink's own line).
     """
 
     def __init__(self, domain_id: int, node_name: str, namespace: str,
-                 log_error: Callable[[str], None] = print) -> None:
+                 log_error: Callable[[str], None] = print, *,
+                 sink: Optional[Dict[str, Any]] = None,
+                 time_ns: Optional[Callable[[], int]] = None) -> None:
         self._log_error = log_error
+        if sink is not None and time_ns is None:
+            raise ValueError('a sink in the outputs process needs time_ns')
         try:
             counts_fd = os.memfd_create('r2d2_sim_outputs_counts')
         except (AttributeError, OSError) as exc:  # memfd_create is Linux's
             raise RelayError(f'outputs_process needs memfd_create (Linux): {exc}') from exc
-        os.ftruncate(counts_fd, 4 * MAX_PUBLISHERS)
-        self._map = mmap.mmap(counts_fd, 4 * MAX_PUBLISHERS)
-        self.counts = memoryview(self._map).cast('i')
+        os.ftruncate(counts_fd, 8 * MAX_PUBLISHERS)
+        self._map = mmap.mmap(counts_fd, 8 * MAX_PUBLISHERS)
+        shared = memoryview(self._map).cast('i')
+        self.counts = shared[:MAX_PUBLISHERS]       # matched subscriptions, by index
+        self.sink_taken = shared[MAX_PUBLISHERS:]   # 1 while a viewer takes the topic
+        self._time_ns = time_ns if sink is not None else None
+        self._sent_time: Optional[int] = None
+        self.sink_records = sink is not None and sink.get('record_path') is not None
+        self.sink_live = sink is not None and sink.get('port') is not None
+        self.sink_url: Optional[str] = None  # the live view's address, once the child said
         frames_read, self._frames = os.pipe()
         self._acks, acks_write = os.pipe()
         try:
@@ -168,6 +211,8 @@ class OutputRelay:
                    '--frames', str(frames_read), '--acks', str(acks_write),
                    '--counts', str(counts_fd), '--domain', str(domain_id),
                    '--node', node_name, '--namespace', namespace]
+        if sink is not None:
+            command += ['--sink', json.dumps(sink)]
         try:
             # A session of its own: a Ctrl-C in the terminal reaches the simulator only
             # (the child, still importing rclpy, printed a KeyboardInterrupt traceback);
@@ -196,6 +241,32 @@ class OutputRelay:
         self._free: List[int] = []
         self.broken = False
         self.frames_sent = 0
+        if sink is not None:
+            self._await_report()
+
+    def _await_report(self) -> None:
+        """Read the child's start report: its sink's address, or why it could not open."""
+        deadline, data = time.monotonic() + START_S, b''
+        while True:
+            if len(data) >= REPORT.size:
+                (length,) = REPORT.unpack_from(data)
+                if len(data) >= REPORT.size + length:
+                    break
+            left = deadline - time.monotonic()
+            chunk = (os.read(self._acks, 4096)
+                     if left > 0.0 and _ready(self._acks, select.POLLIN, left) else None)
+            if not chunk:
+                status = self.close(1.0)
+                why = (f'it did not answer within {START_S:g} s' if chunk is None
+                       else f'it ended with status {status}')
+                raise RelayError(f'the outputs process could not start: {why}')
+            data += chunk
+        report = json.loads(data[REPORT.size:REPORT.size + length])
+        self._acks_left = data[REPORT.size + length:]
+        if 'error' in report:
+            self.close(1.0)
+            raise RelayError(report['error'])
+        self.sink_url = report.get('url')
 
     # -- publishers ---------------------------------------------------------------------
 
@@ -213,7 +284,7 @@ class OutputRelay:
             index, self._next_index = self._next_index, self._next_index + 1
         else:
             raise RelayError(f'the outputs process holds {MAX_PUBLISHERS} publishers at most')
-        self.counts[index] = 0
+        self.counts[index] = self.sink_taken[index] = 0
         self._record(CREATE, json.dumps({
             'index': index, 'topic': topic_name, 'type': ros_type_name(msg_type),
             'qos': qos_to_dict(qos_profile)}).encode())
@@ -223,7 +294,7 @@ class OutputRelay:
         """Have the child destroy the publisher ``index``; the index is free again after."""
         with self._lock:
             self._record(DESTROY, json.dumps({'index': index}).encode())
-            self.counts[index] = 0
+            self.counts[index] = self.sink_taken[index] = 0
             self._free.append(index)
 
     def subscription_count(self, index: int) -> int:
@@ -238,6 +309,12 @@ class OutputRelay:
 
     def _record(self, index: int, data: bytes) -> None:
         with self._lock:
+            if self._time_ns is not None and index >= 0:
+                now = self._time_ns()  # what the sink logs it at, as a mirror would
+                if now != self._sent_time:
+                    self._sent_time = now
+                    self._pending.append(RECORD.pack(TIME, TIME_RECORD.size))
+                    self._pending.append(TIME_RECORD.pack(now))
             self._pending.append(RECORD.pack(index, len(data)))
             self._pending.append(data)
             if not self._batching:

@@ -5,8 +5,12 @@ Started by :class:`r2d2_sim.ros.relay.OutputRelay` (never by hand): it reads
 frames from an inherited pipe, makes and destroys the publishers they name,
 publishes each message's bytes, writes a frame's number back when the frame
 asks, and keeps the matched subscriptions of every publisher in the shared
-counts (its executor thread serves the matched events). It ends, with status
-0, when the pipe closes.
+counts (its executor thread serves the matched events). With ``--sink`` it
+also holds the simulator's live view and recording: it opens them first and
+reports (their address, or the one line saying why not, and then status 2),
+logs every message it publishes to them at the simulated time the stream
+gives, and closes them, finishing the MCAP file, when the pipe closes. It
+ends, with status 0, when the pipe closes.
 """
 
 import argparse
@@ -19,7 +23,32 @@ from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from r2d2_sim.recording.reader import message_class
 from r2d2_sim.ros.relay import (
-    ACK, ACK_RECORD, CREATE, DESTROY, FRAME, MAX_PUBLISHERS, qos_from_dict, RECORD)
+    ACK, ACK_RECORD, CREATE, DESTROY, FRAME, MAX_PUBLISHERS, qos_from_dict, RECORD, REPORT,
+    TIME, TIME_RECORD)
+
+# How often the executor's thread asks each sink channel whether a viewer takes it.
+TAKEN_PERIOD_S = 0.1
+
+
+def _report(fd: int, report: Dict[str, Any]) -> None:
+    """Write the start report (the sink's address, or its error) on the acknowledgements."""
+    data = json.dumps(report).encode()
+    os.write(fd, REPORT.pack(len(data)) + data)
+
+
+def open_sink(spec: Dict[str, Any], node, acks: int):
+    """Open the sink ``spec`` describes and report; None (reported) when it cannot open."""
+    from r2d2_sim.recording.sink import FoxgloveSink, SinkError
+    logger = node.get_logger()
+    try:
+        sink = FoxgloveSink(spec.get('port'), spec.get('host', '127.0.0.1'),
+                            spec.get('record_path'), name=spec.get('name', 'r2d2_sim'),
+                            warn=logger.warning, error=logger.error)
+    except SinkError as exc:
+        _report(acks, {'error': str(exc)})
+        return None
+    _report(acks, {'url': sink.url})
+    return sink
 
 
 def _read_exactly(fd: int, size: int) -> Optional[bytes]:
@@ -35,27 +64,40 @@ def _read_exactly(fd: int, size: int) -> Optional[bytes]:
 
 
 def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
-        namespace: str) -> int:
+        namespace: str, sink_spec: Optional[Dict[str, Any]] = None) -> int:
     """Publish what the pipe ``frames`` brings until it closes; return the exit status."""
     import rclpy
     from rclpy.event_handler import PublisherEventCallbacks
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.publisher import Publisher
     from rclpy.signals import SignalHandlerOptions
-    counts_map = mmap.mmap(counts_fd, 4 * MAX_PUBLISHERS)
-    counts = memoryview(counts_map).cast('i')
+    counts_map = mmap.mmap(counts_fd, 8 * MAX_PUBLISHERS)
+    shared = memoryview(counts_map).cast('i')
+    counts, taken = shared[:MAX_PUBLISHERS], shared[MAX_PUBLISHERS:]
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=domain_id,
                signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(node_name, namespace=namespace, context=context,
                              start_parameter_services=False)
+    sink = None
+    if sink_spec is not None:
+        sink = open_sink(sink_spec, node, acks)
+        if sink is None:
+            node.destroy_node()
+            rclpy.try_shutdown(context=context)
+            return 2
+    channels: Dict[int, Any] = {}  # the sink's channel of each publisher, by index
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     stop = threading.Event()
 
     def spin() -> None:  # stopped by the event, never by shutting the executor down under it
         while not stop.is_set():
-            executor.spin_once(timeout_sec=0.1)
+            executor.spin_once(timeout_sec=TAKEN_PERIOD_S)
+            for index, handle in list(channels.items()):
+                is_taken = 1 if handle.taken() else 0
+                if index in channels and channels[index] is handle:  # not destroyed meanwhile
+                    taken[index] = is_taken
     spinner = threading.Thread(target=spin, name='matched events', daemon=True)
     spinner.start()
     publishers: Dict[int, Publisher] = {}
@@ -68,6 +110,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                 counts[index] = info.current_count
         return on_matched
 
+    now_ns = 0  # the simulated time of the messages that follow (TIME records)
     try:
         while True:
             header = _read_exactly(frames, FRAME.size)
@@ -85,6 +128,13 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                 offset += size
                 if index >= 0:
                     publishers[index].publish(data)
+                    channel = channels.get(index)
+                    if channel is not None:
+                        channel.log(data, now_ns)
+                elif index == TIME:
+                    (now_ns,) = TIME_RECORD.unpack(data)
+                    if sink is not None:
+                        sink.set_time(now_ns)
                 elif index == CREATE:
                     spec = json.loads(data)
                     new, made = spec['index'], []  # type: int, List[Publisher]
@@ -94,10 +144,17 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                     publishers[new] = publisher
                     made.append(publisher)
                     counts[new] = publisher.get_subscription_count()
+                    if sink is not None:
+                        channel = sink.channel(spec['topic'], spec['type'], publisher.qos_profile)
+                        channels[new] = channel
+                        taken[new] = 1 if channel.taken() else 0
                 elif index == DESTROY:
                     gone = json.loads(data)['index']
                     node.destroy_publisher(publishers.pop(gone))
-                    counts[gone] = 0
+                    channel = channels.pop(gone, None)
+                    if channel is not None:
+                        channel.release()
+                    counts[gone] = taken[gone] = 0
             if flags & ACK:
                 try:
                     os.write(acks, ACK_RECORD.pack(sequence))
@@ -106,6 +163,8 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
     finally:
         stop.set()
         spinner.join()  # within a spin_once's timeout
+        if sink is not None:
+            sink.close()  # the MCAP file's summary and footer: readable from now on
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
@@ -118,13 +177,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         parser.add_argument(f'--{name}', type=int, required=True)
     parser.add_argument('--node', required=True)
     parser.add_argument('--namespace', default='/')
+    parser.add_argument('--sink', type=json.loads, default=None,
+                        help='the live view and recording to hold, as JSON')
     args = parser.parse_args(argv)
     # The simulator ends it by closing the pipe; a Ctrl-C in the terminal reaches both.
     # SIGTERM ends it at once, but as an exit: its participant's shared memory is removed.
     import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, lambda number, frame: sys.exit(128 + number))
-    return run(args.frames, args.acks, args.counts, args.domain, args.node, args.namespace)
+    return run(args.frames, args.acks, args.counts, args.domain, args.node, args.namespace,
+               args.sink)
 
 
 if __name__ == '__main__':

@@ -7,7 +7,9 @@ subscriber hears must be the very bytes, in the same order, of the node
 publishing itself; a lockstep step returns once its messages are out;
 the outputs still build only what someone takes; robots' publishers come
 and go with the robots; a child that dies costs one error line, not the
-physics; and destroying the node ends the child.
+physics; and destroying the node ends the child. The live view and the
+recording move to the child with the publishing: the same MCAP file, byte
+for byte, and a live view still builds only what a viewer takes.
 """
 
 import json
@@ -22,7 +24,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 
 from helpers import make_sim, wait_for
-from test_outputs_on_demand import drive_and_listen, TOPICS
+from test_outputs_on_demand import drive_and_listen, NOISY, TOPICS
 
 from r2d2_sim.errors import StartupError
 from r2d2_sim.ros.relay import RelayedPublisher
@@ -173,7 +175,7 @@ def test_what_the_outputs_process_publishes_deserializes(ros):
 
 
 def test_a_recording_gets_every_message_through_the_outputs_process(ros, tmp_path):
-    """The sink stays in the simulator's process and logs the bytes the child publishes."""
+    """The child's sink logs the bytes it publishes, at the simulated time of their step."""
     recording = tmp_path / 'run.mcap'
     sim = make_sim(ros, outputs_process=True, cmd_vel_timeout=0.0, record=str(recording),
                    scan_rate=0.0)
@@ -204,3 +206,58 @@ def test_the_in_process_harness_refuses_it_in_one_line():
         with pytest.raises(StartupError) as refused:
             SimHarness(outputs_process=wrong)
         assert 'must be true or false' in str(refused.value), str(refused.value)
+
+
+def test_the_outputs_process_records_the_same_file_byte_for_byte(ros, tmp_path):
+    """Every default output, noisy, recorded in the simulator's process and in the child."""
+    files = []
+    for relayed in (False, True):
+        path = tmp_path / f'run_{relayed}.mcap'
+        sim = make_sim(ros, outputs_process=relayed, record=str(path), **NOISY)
+        assert (sim.sink is None) == relayed  # the child holds it
+        sim.simulation.robot.command(0.4, 0.8)
+        sim.advance(240)
+        sim.destroy_node()
+        files.append(path.read_bytes())
+    topics = read_recording(str(tmp_path / 'run_True.mcap'))
+    assert {'/odom', '/scan', '/imu', '/tf', '/tf_static', '/clock'} <= set(topics)
+    assert len(topics['/odom']) == 241
+    assert files[0] == files[1]
+
+
+def test_a_live_view_in_the_outputs_process_builds_what_a_viewer_takes(ros):
+    """The child's server; nothing built for it until a viewer subscribes, then each step."""
+    import socket
+    from r2d2_sim.testing import LiveViewClient
+    from test_outputs_on_demand import CountingPublisher
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        port = sock.getsockname()[1]
+    sim = make_sim(ros, outputs_process=True, foxglove_port=port, cmd_vel_timeout=0.0)
+    assert sim.relay.sink_url == f'ws://127.0.0.1:{port}'
+    odom = sim.robots[0].outputs.state[2]
+    assert odom._publisher.topic_name == '/odom'
+    counter = CountingPublisher(odom)
+    sim.simulation.robot.command(0.3, 0.0)
+    sim.advance(24)
+    assert counter.calls == 0
+    with LiveViewClient(port) as viewer:
+        viewer.wait_for_channels(['/odom'])
+        viewer.subscribe(['/odom'])
+        index = odom._publisher.index
+        assert viewer.pump(lambda: sim.relay.sink_taken[index] == 1)
+        sim.advance(24)
+        assert counter.calls == 24
+        heard = viewer.wait_for_messages('/odom', 24)
+        assert heard[-1].log_time_ns == round(48 / 240 * 1e9)
+    sim.destroy_node()
+
+
+def test_a_sink_the_outputs_process_cannot_open_is_one_line(ros, tmp_path):
+    """A recording that exists is refused by the child; the node says the sink's line."""
+    taken = tmp_path / 'taken.mcap'
+    taken.write_bytes(b'mine')
+    with pytest.raises(StartupError) as refused:
+        make_sim(ros, outputs_process=True, record=str(taken))
+    assert str(refused.value) == f'{taken} exists: choose another file name'
+    assert taken.read_bytes() == b'mine'

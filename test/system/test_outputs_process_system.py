@@ -102,3 +102,27 @@ def test_a_ctrl_c_at_start_up_reaches_the_simulator_alone():
     assert 'Traceback' not in err + out and 'KeyboardInterrupt' not in err + out, err
     assert 'outputs process failed' not in err + out, err
     assert not any(Path(f'/proc/{child}').exists() for child in children)
+
+
+def test_a_killed_simulator_leaves_a_finished_recording():
+    """The child holds the recording: SIGKILL of sim_node closes its pipe, the file is ended."""
+    from r2d2_sim.testing import read_recording
+    import tempfile
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / 'run.mcap'
+        sim = SimProcess(outputs_process=True, scan_rate=0.0, record=str(path),
+                         start_paused=True, cmd_vel_timeout=0.0)
+        pid = sim.process.process.pid
+        try:
+            children = relay_children(pid)
+            assert len(children) == 1
+            sim.step_physics(48)  # answered once the child has logged them
+            os.kill(pid, signal.SIGKILL)
+            deadline = time.monotonic() + 20.0
+            while Path(f'/proc/{children[0]}').exists() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert not Path(f'/proc/{children[0]}').exists()
+        finally:
+            sim.stop()
+        odom = read_recording(str(path), topics=['/odom'])['/odom']
+        assert [r.log_time_ns for r in odom] == [step * 10**9 // 240 for step in range(49)]
