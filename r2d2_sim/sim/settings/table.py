@@ -257,8 +257,9 @@ PARAMETERS: List[Parameter] = [
     Parameter('outputs_process', 'bool', False,
               'Publish every output from a second process (r2d2_sim_outputs), fed a step\'s '
               'bytes through a pipe: the physics thread builds the messages but never waits in '
-              'DDS. The same bytes, order and stamps; lockstep calls return once published '
-              '(slower there: for many robots at real time with their topics taken).',
+              'DDS. The same bytes, order and stamps; the live view and the recording live '
+              'there too (the same file). Lockstep calls return once published (slower there: '
+              'for many robots at real time with their topics taken).',
               'outputs_process', read.boolean),
     Parameter('cmd_vel_timeout', 'double', 0.5,
               'Simulated seconds without cmd_vel before the wheels are braked; 0 disables.',
