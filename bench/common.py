@@ -336,7 +336,7 @@ def take_every_topic(context, nodes):
     publishers = {}
     for node in nodes:
         for owner in [node] + [robot.node for robot in node.robots]:
-            for publisher in owner.publishers:
+            for publisher in owner.all_publishers():  # the outputs process's too
                 if not publisher.topic_name.endswith(NOT_TAKEN):
                     publishers.setdefault(publisher.topic_name, publisher)
     for topic, publisher in sorted(publishers.items()):

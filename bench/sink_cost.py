@@ -22,7 +22,10 @@ step between processes, so only differences taken within one are compared):
   colour and depth;
 - ``untaken`` and ``untaken+view``: every output but the camera with nobody
   subscribed, without and with a live view that no viewer watches (an output
-  nobody takes, over DDS or in the live view, builds nothing).
+  nobody takes, over DDS or in the live view, builds nothing);
+- ``relay`` and ``relay+sink``: ``outputs`` and ``outputs+sink`` with
+  ``outputs_process``, whose child publishes and holds the sink: what is left
+  in the simulator's process (the child's CPU is its own).
 
 Every configuration but the ``untaken`` ones has each topic taken by a
 subscription in the child (``common.take_every_topic``): the outputs build
@@ -50,7 +53,7 @@ OUTPUTS = {'publish_link_tf': True, 'publish_ground_truth_tf': True}  # + the de
 CAMERA = {'camera_rate': 30.0, 'camera_depth': True}
 CHUNK = 240  # raw and node take turns every simulated second
 CONFIGS = ('outputs', 'outputs+record', 'outputs+view', 'outputs+sink', 'camera',
-           'camera+sink', 'untaken', 'untaken+view')
+           'camera+sink', 'untaken', 'untaken+view', 'relay', 'relay+sink')
 SUBSCRIBED = 'subscribed'
 
 
@@ -99,6 +102,8 @@ def child(config: str, steps: int, domain_id: int) -> dict:
         params['record'] = os.path.join(work, 'run.mcap')
     if config.endswith(('+sink', '+view')):
         params['foxglove_port'] = free_port()
+    if config.startswith('relay'):
+        params['outputs_process'] = True
     init_ros(domain_id)
     node = make_sim_node(None, '/sink_bench', params)
     untaken = config.startswith('untaken')  # nobody subscribed, no viewer either
@@ -180,6 +185,8 @@ def run(rounds: int, steps: int, domain_id: int) -> dict:
                         'view_us_per_step': cost([('outputs+view', 1), outputs]),
                         'unwatched_view_us_per_step': cost([('untaken+view', 1),
                                                             ('untaken', -1)]),
+                        'relay_extra_us_per_step': cost([('relay', 1)]),
+                        'relay_sink_us_per_step': cost([('relay+sink', 1), ('relay', -1)]),
                         'untaken_extra_us_per_step': cost([('untaken', 1)]),
                         'camera_us_per_image': cost([('camera', 1), outputs], images_per_step),
                         'sink_us_per_image': cost([('camera+sink', 1), ('camera', -1),
@@ -202,6 +209,9 @@ def print_table(results: dict) -> None:
           f'+{s["view_us_per_step"]:.1f})')
     print(f'nobody subscribed: +{s["untaken_extra_us_per_step"]:.1f} us per step over raw; a '
           f'live view no viewer watches: {s["unwatched_view_us_per_step"]:+.1f}')
+    print(f'outputs_process: +{s["relay_extra_us_per_step"]:.1f} us per step over raw in the '
+          f'simulator\'s process; its live view with a viewer + recording there: '
+          f'{s["relay_sink_us_per_step"]:+.1f}')
     print(f'head camera 320x240 with depth: {s["camera_us_per_image"] / 1000:.2f} ms per image; '
           f'the sink: +{s["sink_us_per_image"]:.0f} us per image')
 
