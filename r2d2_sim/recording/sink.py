@@ -155,7 +155,9 @@ class FoxgloveSink:
     while it runs (the recording stopped by a write error, the live view's
     listener gone, the SDK's own lines, throttled); stderr by default.
     ``latched_resend_period_s``: how often at most a latched topic goes to
-    the live view again. Raises :class:`SinkError` (one line) when
+    the live view again. ``subscriptions_changed`` is called (on the
+    server's thread) after a viewer subscribes or unsubscribes, when the
+    channels' ``taken()`` already says so. Raises :class:`SinkError` (one line) when
     foxglove-sdk is missing, the port is taken or the file cannot be made.
     """
 
@@ -165,7 +167,8 @@ class FoxgloveSink:
                  time_rate_hz: float = DEFAULT_TIME_RATE_HZ,
                  warn: Callable[[str], None] = _to_stderr,
                  error: Callable[[str], None] = _to_stderr,
-                 latched_resend_period_s: float = LATCHED_RESEND_PERIOD_S) -> None:
+                 latched_resend_period_s: float = LATCHED_RESEND_PERIOD_S,
+                 subscriptions_changed: Callable[[], None] = nothing) -> None:
         if port is not None and not 0 <= port <= 65535:
             raise SinkError(f'port must be 0-65535 (0: any free port), got {port}')
         if time_rate_hz <= 0.0:
@@ -176,6 +179,7 @@ class FoxgloveSink:
         self.record_path = None if record_path is None else os.fspath(record_path)
         self._warn, self._error = warn, error
         self._resend_period_s = latched_resend_period_s
+        self._subscriptions_changed = subscriptions_changed
         self._foxglove: Optional[ModuleType] = None
         self._live_context: Optional['Context'] = None
         self._file_context: Optional['Context'] = None
@@ -220,7 +224,8 @@ class FoxgloveSink:
                 server = foxglove.start_server(
                     name=name, host=host, port=port, context=self._live_context,
                     capabilities=[foxglove.websocket.Capability.Time],
-                    server_listener=_make_listener(foxglove, self._latched_by_id))
+                    server_listener=_make_listener(foxglove, self._latched_by_id,
+                                                   self._subscriptions_changed))
                 self._server = closer.server = server
                 closer.watch = ListenerWatch(server.port, _address(host, server.port),
                                              self._warn, self._error)
@@ -438,12 +443,21 @@ def _call_if_alive(method: weakref.WeakMethod, *args) -> None:
         bound(*args)
 
 
-def _make_listener(foxglove, latched_by_id: Dict[int, List[SinkChannel]]):
-    """Return a server listener that re-sends latched topics when a viewer subscribes."""
+def _make_listener(foxglove, latched_by_id: Dict[int, List[SinkChannel]],
+                   subscriptions_changed: Callable[[], None] = nothing):
+    """
+    Return a server listener that re-sends latched topics when a viewer subscribes.
+
+    ``subscriptions_changed`` is called after a viewer subscribes or unsubscribes.
+    """
     class LatchingListener(foxglove.websocket.ServerListener):
         # A subclass, not a plain class: the server calls every method of the
         # protocol, and a missing one fails ("AttributeError: on_unsubscribe").
         def on_subscribe(self, client, channel) -> None:
             for handle in list(latched_by_id.get(channel.id, ())):
                 handle.request_resend()
+            subscriptions_changed()
+
+        def on_unsubscribe(self, client, channel) -> None:
+            subscriptions_changed()
     return LatchingListener()

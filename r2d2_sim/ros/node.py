@@ -240,8 +240,7 @@ class SimNode(MirroringNode):
     def _stopped_at_zero(self) -> None:
         self._paused = True
         self._clock_output.publish(self.simulation.time_ns)
-        if self.sink is not None:
-            self.sink.set_time(self.simulation.time_ns)
+        self._tell_time(self.simulation.time_ns)
 
     @property
     def blow_ups(self) -> int:
@@ -330,11 +329,17 @@ class SimNode(MirroringNode):
     def _publish_messages(self, result: StepResult) -> None:
         if result.state_due:
             self._clock_output.publish(result.time_ns)
-            if self.sink is not None:
-                self.sink.set_time(result.time_ns)
+            self._tell_time(result.time_ns)
         for interfaces, measurement in zip(self.robots, result.measurements):
             if measurement is not None:
                 interfaces.publish(measurement)
+
+    def _tell_time(self, time_ns: int) -> None:
+        """Give the live view the simulated time: this process's sink, or the child's."""
+        if self.sink is not None:
+            self.sink.set_time(time_ns)
+        elif self.relay is not None:
+            self.relay.set_time(time_ns)
 
     def status(self, **facts) -> str:
         """Return the simulation's state as the control services' JSON (see ControlServices)."""
@@ -382,8 +387,7 @@ class SimNode(MirroringNode):
             self.simulation.reset(time=time, state=state, spawned=spawned)
             if time:
                 self._clock_output.publish(self.simulation.time_ns)
-                if self.sink is not None:
-                    self.sink.set_time(self.simulation.time_ns)
+                self._tell_time(self.simulation.time_ns)
 
     def _close(self, simulation: Optional[Simulation]) -> None:
         """Close the robots' interfaces, ``simulation`` (None: not built), the sink, the relay."""

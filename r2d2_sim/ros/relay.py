@@ -38,10 +38,12 @@ The parts:
   the acknowledgements' pipe whether that worked (:data:`REPORT`, before
   anything else), and logs each message it publishes to the sink at the
   simulated time the parent stamped on the stream (:data:`TIME` records, one
-  whenever the time moved). The same calls in the same order as the node made
-  in its own process: the same MCAP file, byte for byte. A second map of the
-  same size says which publishers' messages a viewer takes, so that with a
-  live view alone nothing nobody watches is built either.
+  whenever the time moved; :meth:`OutputRelay.set_time` sends one for the
+  live view's clock where the node would tell its own sink). The same calls
+  in the same order as the node made in its own process: the same MCAP file,
+  byte for byte. A second map of the same size says which publishers'
+  messages a viewer takes (written when a viewer subscribes or unsubscribes),
+  so that with a live view alone nothing nobody watches is built either.
 
 The child ends when the pipe closes (the node is destroyed, or its process
 died); a child that died makes the next write fail, and the node logs one
@@ -90,17 +92,28 @@ class RelayError(RuntimeError):
 
 
 def qos_to_dict(qos: QoSProfile) -> Dict[str, int]:
-    """Return what the child needs for the same QoS: history, depth, reliability, durability."""
+    """Return every field of a QoS as numbers (durations in ns), for the child to rebuild."""
     return {'history': int(qos.history), 'depth': int(qos.depth),
-            'reliability': int(qos.reliability), 'durability': int(qos.durability)}
+            'reliability': int(qos.reliability), 'durability': int(qos.durability),
+            'liveliness': int(qos.liveliness),
+            'deadline': qos.deadline.nanoseconds, 'lifespan': qos.lifespan.nanoseconds,
+            'liveliness_lease_duration': qos.liveliness_lease_duration.nanoseconds,
+            'avoid_ros_namespace_conventions': int(qos.avoid_ros_namespace_conventions)}
 
 
 def qos_from_dict(fields: Dict[str, int]) -> QoSProfile:
-    """Return the QoSProfile :func:`qos_to_dict` described."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
-    return QoSProfile(history=HistoryPolicy(fields['history']), depth=fields['depth'],
-                      reliability=ReliabilityPolicy(fields['reliability']),
-                      durability=DurabilityPolicy(fields['durability']))
+    """Return the QoSProfile :func:`qos_to_dict` described (the same offered QoS)."""
+    from rclpy.duration import Duration
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, LivelinessPolicy, ReliabilityPolicy
+    return QoSProfile(
+        history=HistoryPolicy(fields['history']), depth=fields['depth'],
+        reliability=ReliabilityPolicy(fields['reliability']),
+        durability=DurabilityPolicy(fields['durability']),
+        liveliness=LivelinessPolicy(fields['liveliness']),
+        deadline=Duration(nanoseconds=fields['deadline']),
+        lifespan=Duration(nanoseconds=fields['lifespan']),
+        liveliness_lease_duration=Duration(nanoseconds=fields['liveliness_lease_duration']),
+        avoid_ros_namespace_conventions=bool(fields['avoid_ros_namespace_conventions']))
 
 
 def _ready(fd: int, event: int, timeout_s: float) -> bool:
@@ -307,14 +320,25 @@ class OutputRelay:
         """Queue ``data`` for publisher ``index``: at once, or at the end of the batch."""
         self._record(index, data)
 
+    def set_time(self, time_ns: int) -> None:
+        """Tell the child's live view the simulated time, as the node tells its own sink."""
+        if self.sink_live:
+            with self._lock:
+                self._stamp(time_ns)
+                if not self._batching:
+                    self._send(0)
+
+    def _stamp(self, time_ns: int) -> None:
+        """Queue a TIME record if the time moved since the last one (the lock held)."""
+        if time_ns != self._sent_time:
+            self._sent_time = time_ns
+            self._pending.append(RECORD.pack(TIME, TIME_RECORD.size))
+            self._pending.append(TIME_RECORD.pack(time_ns))
+
     def _record(self, index: int, data: bytes) -> None:
         with self._lock:
             if self._time_ns is not None and index >= 0:
-                now = self._time_ns()  # what the sink logs it at, as a mirror would
-                if now != self._sent_time:
-                    self._sent_time = now
-                    self._pending.append(RECORD.pack(TIME, TIME_RECORD.size))
-                    self._pending.append(TIME_RECORD.pack(now))
+                self._stamp(self._time_ns())  # what the sink logs it at, as a mirror would
             self._pending.append(RECORD.pack(index, len(data)))
             self._pending.append(data)
             if not self._batching:

@@ -22,32 +22,42 @@ import threading
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from r2d2_sim.recording.reader import message_class
+from r2d2_sim.recording.sink import SinkError
 from r2d2_sim.ros.relay import (
     ACK, ACK_RECORD, CREATE, DESTROY, FRAME, MAX_PUBLISHERS, qos_from_dict, RECORD, REPORT,
     TIME, TIME_RECORD)
 
-# How often the executor's thread asks each sink channel whether a viewer takes it.
+# How often the executor's thread asks each sink channel whether a viewer takes it (the
+# live view also says so at once when a viewer subscribes or unsubscribes).
 TAKEN_PERIOD_S = 0.1
 
 
-def _report(fd: int, report: Dict[str, Any]) -> None:
-    """Write the start report (the sink's address, or its error) on the acknowledgements."""
+def _report(fd: int, report: Dict[str, Any]) -> bool:
+    """Write the start report on the acknowledgements; False if the simulator is gone."""
     data = json.dumps(report).encode()
-    os.write(fd, REPORT.pack(len(data)) + data)
+    try:
+        os.write(fd, REPORT.pack(len(data)) + data)
+    except BrokenPipeError:
+        return False
+    return True
 
 
-def open_sink(spec: Dict[str, Any], node, acks: int):
+def open_sink(spec: Dict[str, Any], node, acks: int,
+              subscriptions_changed: Callable[[], None]) -> Optional[Any]:
     """Open the sink ``spec`` describes and report; None (reported) when it cannot open."""
     from r2d2_sim.recording.sink import FoxgloveSink, SinkError
     logger = node.get_logger()
     try:
         sink = FoxgloveSink(spec.get('port'), spec.get('host', '127.0.0.1'),
                             spec.get('record_path'), name=spec.get('name', 'r2d2_sim'),
-                            warn=logger.warning, error=logger.error)
+                            warn=logger.warning, error=logger.error,
+                            subscriptions_changed=subscriptions_changed)
     except SinkError as exc:
         _report(acks, {'error': str(exc)})
         return None
-    _report(acks, {'url': sink.url})
+    if not _report(acks, {'url': sink.url}):
+        sink.close()
+        return None
     return sink
 
 
@@ -79,14 +89,21 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(node_name, namespace=namespace, context=context,
                              start_parameter_services=False)
+    channels: Dict[int, Any] = {}  # the sink's channel of each publisher, by index
+
+    def refresh_taken() -> None:
+        """Say, for each sink channel, whether a message logged now goes anywhere."""
+        for index, handle in list(channels.items()):
+            is_taken = 1 if handle.taken() else 0
+            if channels.get(index, None) is not None and channels[index] is handle:
+                taken[index] = is_taken  # (not one destroyed meanwhile)
     sink = None
     if sink_spec is not None:
-        sink = open_sink(sink_spec, node, acks)
+        sink = open_sink(sink_spec, node, acks, refresh_taken)
         if sink is None:
             node.destroy_node()
             rclpy.try_shutdown(context=context)
             return 2
-    channels: Dict[int, Any] = {}  # the sink's channel of each publisher, by index
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     stop = threading.Event()
@@ -94,10 +111,10 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
     def spin() -> None:  # stopped by the event, never by shutting the executor down under it
         while not stop.is_set():
             executor.spin_once(timeout_sec=TAKEN_PERIOD_S)
-            for index, handle in list(channels.items()):
-                is_taken = 1 if handle.taken() else 0
-                if index in channels and channels[index] is handle:  # not destroyed meanwhile
-                    taken[index] = is_taken
+            try:
+                refresh_taken()  # besides the live view's own calls: a channel that changed
+            except Exception as exc:  # the matched events must go on
+                node.get_logger().error(f'cannot ask the live view what it takes: {exc}')
     spinner = threading.Thread(target=spin, name='matched events', daemon=True)
     spinner.start()
     publishers: Dict[int, Publisher] = {}
@@ -145,9 +162,15 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                     made.append(publisher)
                     counts[new] = publisher.get_subscription_count()
                     if sink is not None:
-                        channel = sink.channel(spec['topic'], spec['type'], publisher.qos_profile)
-                        channels[new] = channel
-                        taken[new] = 1 if channel.taken() else 0
+                        try:
+                            channel = sink.channel(spec['topic'], spec['type'],
+                                                   publisher.qos_profile)
+                        except SinkError as exc:  # in process, this publisher's refusal
+                            node.get_logger().error(f'{spec["topic"]} is not recorded or '
+                                                    f'shown: {exc}')
+                        else:
+                            channels[new] = channel
+                            taken[new] = 1 if channel.taken() else 0
                 elif index == DESTROY:
                     gone = json.loads(data)['index']
                     node.destroy_publisher(publishers.pop(gone))

@@ -216,18 +216,23 @@ def test_the_outputs_process_records_the_same_file_byte_for_byte(ros, tmp_path):
         sim = make_sim(ros, outputs_process=relayed, record=str(path), **NOISY)
         assert (sim.sink is None) == relayed  # the child holds it
         sim.simulation.robot.command(0.4, 0.8)
-        sim.advance(240)
+        sim.advance(120)
+        sim.reset_simulation(time=True)  # the time goes back: the log times too
+        sim.simulation.robot.command(0.4, -0.8)
+        sim.advance(120)
         sim.destroy_node()
         files.append(path.read_bytes())
     topics = read_recording(str(tmp_path / 'run_True.mcap'))
     assert {'/odom', '/scan', '/imu', '/tf', '/tf_static', '/clock'} <= set(topics)
-    assert len(topics['/odom']) == 241
+    odom_times = [record.log_time_ns for record in topics['/odom']]
+    assert len(odom_times) == 241 and odom_times[120] == odom_times[-1] == 120 * 10**9 // 240
     assert files[0] == files[1]
 
 
 def test_a_live_view_in_the_outputs_process_builds_what_a_viewer_takes(ros):
-    """The child's server; nothing built for it until a viewer subscribes, then each step."""
+    """The child's server: its clock; nothing built until a viewer subscribes, then each step."""
     import socket
+    import time
     from r2d2_sim.testing import LiveViewClient
     from test_outputs_on_demand import CountingPublisher
     with socket.socket() as sock:
@@ -243,6 +248,14 @@ def test_a_live_view_in_the_outputs_process_builds_what_a_viewer_takes(ros):
     assert counter.calls == 0
     with LiveViewClient(port) as viewer:
         viewer.wait_for_channels(['/odom'])
+        # The viewer's clock runs though nothing is built (the server sends it at most 30
+        # times a second: a step after a pause is sent), and goes back with a reset.
+        time.sleep(0.05)
+        sim.advance(1)
+        assert viewer.pump(lambda: viewer.times and viewer.times[-1] == 25 * 10**9 // 240)
+        sim.reset_simulation(time=True)
+        assert viewer.pump(lambda: viewer.times[-1] == 0)
+        sim.advance(24)
         viewer.subscribe(['/odom'])
         index = odom._publisher.index
         assert viewer.pump(lambda: sim.relay.sink_taken[index] == 1)
@@ -250,6 +263,10 @@ def test_a_live_view_in_the_outputs_process_builds_what_a_viewer_takes(ros):
         assert counter.calls == 24
         heard = viewer.wait_for_messages('/odom', 24)
         assert heard[-1].log_time_ns == round(48 / 240 * 1e9)
+        viewer.unsubscribe(['/odom'])
+        assert viewer.pump(lambda: sim.relay.sink_taken[index] == 0)
+        sim.advance(24)
+        assert counter.calls == 24
     sim.destroy_node()
 
 
@@ -261,3 +278,17 @@ def test_a_sink_the_outputs_process_cannot_open_is_one_line(ros, tmp_path):
         make_sim(ros, outputs_process=True, record=str(taken))
     assert str(refused.value) == f'{taken} exists: choose another file name'
     assert taken.read_bytes() == b'mine'
+
+
+def test_every_qos_field_reaches_the_outputs_process():
+    """The child's publisher offers the QoS asked for, deadlines and liveliness included."""
+    from rclpy.duration import Duration
+    from rclpy.qos import LivelinessPolicy, QoSProfile, ReliabilityPolicy
+    from r2d2_sim.ros.relay import qos_from_dict, qos_to_dict
+    qos = QoSProfile(depth=7, reliability=ReliabilityPolicy.BEST_EFFORT,
+                     deadline=Duration(seconds=1, nanoseconds=5), lifespan=Duration(seconds=2),
+                     liveliness=LivelinessPolicy.MANUAL_BY_TOPIC,
+                     liveliness_lease_duration=Duration(seconds=3),
+                     avoid_ros_namespace_conventions=True)
+    rebuilt = qos_from_dict(json.loads(json.dumps(qos_to_dict(qos))))
+    assert rebuilt == qos and rebuilt != QoSProfile(depth=7)
