@@ -20,7 +20,8 @@ output is built and published):
 - **at real time**: ``sim_node`` at rtf 1 with 16 robots driving and every topic
   taken by another context, with and without ``outputs_process``, in turns:
   the rate of one-second windows timed by ``/clock`` as it arrives (median and
-  lowest) and the simulator's CPU (its own process; the child's beside it).
+  lowest) and the simulator's CPU (its own process; the child's beside it);
+  then the same with nobody subscribed and every topic recorded.
 
 Prints a table and writes ``bench/outputs_process.json``. Numbers are printed,
 never asserted.
@@ -97,14 +98,22 @@ def measure_throughput(domain_id, counts, rounds, min_s, record_in=None):
     return results
 
 
-def measure_real_time_in_turns(domain_id, rounds, settle_s, window_s, windows):
-    """sim_node at rtf 1, 16 robots driving, every topic taken: direct and relay in turns."""
+def measure_real_time_in_turns(domain_id, rounds, settle_s, window_s, windows, record_in=None):
+    """
+    sim_node at rtf 1, 16 robots driving: direct and relay in turns.
+
+    Every topic taken; or, with ``record_in`` (a folder), nobody subscribed and
+    every topic recorded there.
+    """
     runs = {'direct': [], 'relay': []}
-    for _ in range(rounds):
+    for round_index in range(rounds):
         for mode in runs:
+            parameters = {'outputs_process': mode == 'relay'}
+            if record_in is not None:
+                parameters['record'] = os.path.join(record_in, f'{mode}_{round_index}.mcap')
             result = measure_real_time(domain_id, (REAL_TIME_ROBOTS,), settle_s, window_s,
-                                       windows, driving=True, taken=True,
-                                       parameters={'outputs_process': mode == 'relay'})
+                                       windows, driving=True, taken=record_in is None,
+                                       parameters=parameters)
             runs[mode].append(result[str(REAL_TIME_ROBOTS)])
     return runs
 
@@ -114,13 +123,17 @@ def print_table(results):
     for part in ('throughput', 'recording'):
         if part in results:
             print_rows(part, results[part])
-    print(f'\nsim_node at rtf 1, {REAL_TIME_ROBOTS} robots driving, every topic taken '
-          '(median (lowest second) Hz, CPU of the simulator process):')
-    for mode, runs in results['real_time'].items():
-        text = ', '.join(f"{r['rate_hz']:.2f} ({r['lowest_hz']:.2f}) at {r['cpu_share']:.0%}"
-                         f" ({r['cpu_share_with_children']:.0%} with the outputs process)"
-                         for r in runs)
-        print(f'  {mode}: {text}')
+    for part, what in (('real_time', 'every topic taken'),
+                       ('real_time_recorded', 'nobody subscribed, every topic recorded')):
+        if part not in results:
+            continue
+        print(f'\nsim_node at rtf 1, {REAL_TIME_ROBOTS} robots driving, {what} '
+              '(median (lowest second) Hz, CPU of the simulator process):')
+        for mode, runs in results[part].items():
+            text = ', '.join(f"{r['rate_hz']:.2f} ({r['lowest_hz']:.2f}) at "
+                             f"{r['cpu_share']:.0%} ({r['cpu_share_with_children']:.0%} with "
+                             'the outputs process)' for r in runs)
+            print(f'  {mode}: {text}')
 
 
 def print_rows(part, rows):
@@ -147,14 +160,18 @@ def main(argv=None):
     args = parser.parse_args(argv)
     rounds, min_s = (2, 0.5) if args.quick else (5, 1.0)
     settle_s, window_s, windows = (1.0, 1.0, 4) if args.quick else (2.0, 1.0, 8)
+    real_time_rounds = 1 if args.quick else args.rounds
     with tempfile.TemporaryDirectory() as folder:
         recording = measure_throughput(args.domain, RECORDING_ROBOTS, rounds, min_s, folder)
+    with tempfile.TemporaryDirectory() as folder:
+        recorded_real_time = measure_real_time_in_turns(
+            args.domain + 1, real_time_rounds, settle_s, window_s, windows, folder)
     results = {'machine': machine_info(), 'date': local_date(), 'quick': args.quick,
                'throughput': measure_throughput(args.domain, THROUGHPUT_ROBOTS, rounds, min_s),
                'recording': recording,
-               'real_time': measure_real_time_in_turns(args.domain + 1,
-                                                       1 if args.quick else args.rounds,
-                                                       settle_s, window_s, windows)}
+               'real_time': measure_real_time_in_turns(args.domain + 1, real_time_rounds,
+                                                       settle_s, window_s, windows),
+               'real_time_recorded': recorded_real_time}
     write_json(args.output, results)
     print_table(results)
     print(f'\nwritten to {args.output}')
