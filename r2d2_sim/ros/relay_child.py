@@ -9,8 +9,9 @@ counts (its executor thread serves the matched events). With ``--sink`` it
 also holds the simulator's live view and recording: it opens them first and
 reports (their address, or the one line saying why not, and then status 2),
 logs every message it publishes to them at the simulated time the stream
-gives, and closes them, finishing the MCAP file, when the pipe closes. It
-ends, with status 0, when the pipe closes.
+gives (through a :class:`~r2d2_sim.recording.feeder.SinkFeeder`: the
+publishing never waits for the disk), and closes them, finishing the MCAP
+file, when the pipe closes. It ends, with status 0, when the pipe closes.
 """
 
 import argparse
@@ -21,8 +22,8 @@ import sys
 import threading
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
+from r2d2_sim.recording.feeder import SinkFeeder
 from r2d2_sim.recording.reader import message_class
-from r2d2_sim.recording.sink import SinkError
 from r2d2_sim.ros.relay import (
     ACK, ACK_RECORD, CREATE, DESTROY, FRAME, MAX_PUBLISHERS, qos_from_dict, RECORD, REPORT,
     TIME, TIME_RECORD)
@@ -97,13 +98,19 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
             is_taken = 1 if handle.taken() else 0
             if channels.get(index, None) is not None and channels[index] is handle:
                 taken[index] = is_taken  # (not one destroyed meanwhile)
-    sink = None
+
+    def opened(index: int, channel) -> None:
+        taken[index] = 1 if channel.taken() else 0
+    sink = feeder = None
     if sink_spec is not None:
         sink = open_sink(sink_spec, node, acks, refresh_taken)
         if sink is None:
             node.destroy_node()
             rclpy.try_shutdown(context=context)
             return 2
+        # The recording's writes on a thread of their own: the topics never wait for the disk.
+        feeder = SinkFeeder(sink, node.get_logger().error, opened)
+        channels = feeder.channels
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     stop = threading.Event()
@@ -145,9 +152,8 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                 offset += size
                 if index >= 0:
                     publishers[index].publish(data)
-                    channel = channels.get(index)
-                    if channel is not None:
-                        channel.log(data, now_ns)
+                    if feeder is not None:
+                        feeder.log(index, data, now_ns)
                 elif index == TIME:
                     (now_ns,) = TIME_RECORD.unpack(data)
                     if sink is not None:
@@ -161,22 +167,13 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                     publishers[new] = publisher
                     made.append(publisher)
                     counts[new] = publisher.get_subscription_count()
-                    if sink is not None:
-                        try:
-                            channel = sink.channel(spec['topic'], spec['type'],
-                                                   publisher.qos_profile)
-                        except SinkError as exc:  # in process, this publisher's refusal
-                            node.get_logger().error(f'{spec["topic"]} is not recorded or '
-                                                    f'shown: {exc}')
-                        else:
-                            channels[new] = channel
-                            taken[new] = 1 if channel.taken() else 0
+                    if feeder is not None:
+                        feeder.open(new, spec['topic'], spec['type'], publisher.qos_profile)
                 elif index == DESTROY:
                     gone = json.loads(data)['index']
                     node.destroy_publisher(publishers.pop(gone))
-                    channel = channels.pop(gone, None)
-                    if channel is not None:
-                        channel.release()
+                    if feeder is not None:
+                        feeder.release(gone)
                     counts[gone] = taken[gone] = 0
             if flags & ACK:
                 try:
@@ -186,6 +183,8 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
     finally:
         stop.set()
         spinner.join()  # within a spin_once's timeout
+        if feeder is not None:
+            feeder.close()  # every message queued is logged first
         if sink is not None:
             sink.close()  # the MCAP file's summary and footer: readable from now on
         executor.shutdown()
