@@ -53,8 +53,9 @@ class ControlServices:
         command arrived), ``robots`` (each robot's ``namespace``, ``tf`` topic
         and ``commands_received``, by name), with ``outputs_process`` its
         ``outputs`` (``running``: the child alive and taking frames, ``frames``
-        sent, ``publishers`` held), plus the service's own ``facts``
-        (``steps`` advanced, an ``error``).
+        sent, ``publishers`` held), with a live view or a recording
+        ``live_view`` (its address) and ``recording`` (the file), plus the
+        service's own ``facts`` (``steps`` advanced, an ``error``).
         """
         simulator, fleet = self._simulator, self._fleet
         ns = simulator.sim_time_ns
@@ -69,6 +70,7 @@ class ControlServices:
             frames, publishers = relay.describe()
             state['outputs'] = {'running': relay.running, 'frames': frames,
                                 'publishers': publishers}
+        state.update(self._server.sink_status())
         state.update(facts)
         return json.dumps(state)
 

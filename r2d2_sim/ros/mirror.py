@@ -158,6 +158,19 @@ class MirroringNode(QuietNode):
         """Return the simulated time (ns) that mirrored messages are logged at."""
         return 0
 
+    def sink_status(self) -> Dict[str, Optional[str]]:
+        """
+        Return where the live view serves (``live_view``) and the recording goes (``recording``).
+
+        Empty with neither; with ``outputs_process`` the outputs process holds them.
+        """
+        if self.sink is not None:
+            return {'live_view': self.sink.url, 'recording': self.sink.record_path}
+        relay = self.relay
+        if relay is not None and (relay.sink_live or relay.sink_records):
+            return {'live_view': relay.sink_url, 'recording': relay.sink_record_path}
+        return {}
+
     @property
     def relayed_publishers(self) -> List[RelayedPublisher]:
         """Return the publishers the outputs process holds for this node (none without one)."""

@@ -213,6 +213,7 @@ class OutputRelay:
         self.sink_records = sink is not None and sink.get('record_path') is not None
         self.sink_live = sink is not None and sink.get('port') is not None
         self.sink_url: Optional[str] = None  # the live view's address, once the child said
+        self.sink_record_path: Optional[str] = None if sink is None else sink.get('record_path')
         frames_read, self._frames = os.pipe()
         self._acks, acks_write = os.pipe()
         try:

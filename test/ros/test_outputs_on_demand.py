@@ -11,6 +11,8 @@ live view what a viewer subscribes to; ``/tf`` kept for the harness's own
 lookups is built when asked.
 """
 
+import json
+
 from nav_msgs.msg import Odometry
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -208,6 +210,8 @@ def test_the_live_view_takes_only_what_a_viewer_subscribes_to(ros):
         sock.bind(('127.0.0.1', 0))
         port = sock.getsockname()[1]
     sim = make_sim(ros, foxglove_port=port, cmd_vel_timeout=0.0)
+    status = json.loads(sim.status())  # where to point a viewer
+    assert (status['live_view'], status['recording']) == (f'ws://127.0.0.1:{port}', None)
     state = {output._publisher.topic_name: output
              for output in sim.robots[0].outputs.state[:3]}
     assert sorted(state) == ['/ground_truth', '/joint_states', '/odom']

@@ -215,6 +215,8 @@ def test_the_outputs_process_records_the_same_file_byte_for_byte(ros, tmp_path):
         path = tmp_path / f'run_{relayed}.mcap'
         sim = make_sim(ros, outputs_process=relayed, record=str(path), **NOISY)
         assert (sim.sink is None) == relayed  # the child holds it
+        status = json.loads(sim.status())
+        assert (status['recording'], status['live_view']) == (str(path), None)
         sim.simulation.robot.command(0.4, 0.8)
         sim.advance(120)
         sim.reset_simulation(time=True)  # the time goes back: the log times too
@@ -239,7 +241,8 @@ def test_a_live_view_in_the_outputs_process_builds_what_a_viewer_takes(ros):
         sock.bind(('127.0.0.1', 0))
         port = sock.getsockname()[1]
     sim = make_sim(ros, outputs_process=True, foxglove_port=port, cmd_vel_timeout=0.0)
-    assert sim.relay.sink_url == f'ws://127.0.0.1:{port}'
+    assert json.loads(sim.status())['live_view'] == f'ws://127.0.0.1:{port}'
+    assert json.loads(sim.status())['recording'] is None
     odom = sim.robots[0].outputs.state[2]
     assert odom._publisher.topic_name == '/odom'
     counter = CountingPublisher(odom)
