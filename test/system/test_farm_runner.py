@@ -200,7 +200,13 @@ def test_a_killed_worker_is_a_crash_named_with_its_seed_and_leaves_nothing(
     assert not alive(killer.pid) and children_of(killer.pid) == []
     assert killer.segments, 'the victim held no Fast DDS segment: nothing was checked'
     assert killer.left() == [], 'segments of the killed worker left in /dev/shm'
-    assert killer.segments - shm.in_use(killer.segments) - killer.shared <= set(run.cleaned)
+    # The runner's sweep removed the rest, but for a port of the dead listener that a live
+    # participant opened meanwhile: Fast DDS replaces such a zombie itself
+    # (docs/farm-cluster.md), and the original file is gone all the same (seen once in CI:
+    # fastrtps_port7004 and its _el, removed before the sweep came).
+    unswept = killer.segments - shm.in_use(killer.segments) - killer.shared - set(run.cleaned)
+    assert all(name.startswith('fastrtps_port') and shm._file_key(name) != killer.files[name]
+               for name in unswept), unswept
 
 
 PARTICIPANT = """
