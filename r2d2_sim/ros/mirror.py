@@ -114,14 +114,13 @@ def start_sink(config, name: str, logger) -> Optional[FoxgloveSink]:
     spec = sink_spec(config, name)
     if spec is None:
         return None
-    sink = FoxgloveSink(spec['port'], spec['host'], spec['record_path'], name=name,
-                        warn=logger.warning, error=logger.error)
+    sink = FoxgloveSink(**spec, warn=logger.warning, error=logger.error)
     say_sink(config, sink.url, logger)
     return sink
 
 
 def sink_spec(config, name: str) -> Optional[Dict[str, Any]]:
-    """Return the sink a SimConfig asks for (FoxgloveSink's arguments), None for none."""
+    """Return the sink a SimConfig asks for (FoxgloveSink's keyword arguments), None for none."""
     port = config.foxglove_port or None
     record = config.record or None
     if port is None and record is None:
@@ -167,7 +166,7 @@ class MirroringNode(QuietNode):
         if self.sink is not None:
             return {'live_view': self.sink.url, 'recording': self.sink.record_path}
         relay = self.relay
-        if relay is not None and (relay.sink_live or relay.sink_records):
+        if relay is not None and (relay.sink_live or relay.sink_record_path is not None):
             return {'live_view': relay.sink_url, 'recording': relay.sink_record_path}
         return {}
 

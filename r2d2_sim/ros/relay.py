@@ -162,7 +162,7 @@ class RelayedPublisher:
         """
         relay, index = self.relay, self.index
         counts, taken = relay.counts, relay.sink_taken
-        if relay.sink_records:
+        if relay.sink_record_path is not None:
             return _one
         if relay.sink_live:
             return lambda: counts[index] or taken[index]
@@ -210,10 +210,10 @@ class OutputRelay:
         self.sink_taken = shared[MAX_PUBLISHERS:]   # 1 while a viewer takes the topic
         self._time_ns = time_ns if sink is not None else None
         self._sent_time: Optional[int] = None
-        self.sink_records = sink is not None and sink.get('record_path') is not None
-        self.sink_live = sink is not None and sink.get('port') is not None
+        spec = sink or {}
+        self.sink_live = spec.get('port') is not None
+        self.sink_record_path: Optional[str] = spec.get('record_path')
         self.sink_url: Optional[str] = None  # the live view's address, once the child said
-        self.sink_record_path: Optional[str] = None if sink is None else sink.get('record_path')
         frames_read, self._frames = os.pipe()
         self._acks, acks_write = os.pipe()
         try:

@@ -49,9 +49,7 @@ def open_sink(spec: Dict[str, Any], node, acks: int,
     from r2d2_sim.recording.sink import FoxgloveSink, SinkError
     logger = node.get_logger()
     try:
-        sink = FoxgloveSink(spec.get('port'), spec.get('host', '127.0.0.1'),
-                            spec.get('record_path'), name=spec.get('name', 'r2d2_sim'),
-                            warn=logger.warning, error=logger.error,
+        sink = FoxgloveSink(**spec, warn=logger.warning, error=logger.error,
                             subscriptions_changed=subscriptions_changed)
     except SinkError as exc:
         _report(acks, {'error': str(exc)})
