@@ -88,14 +88,16 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(node_name, namespace=namespace, context=context,
                              start_parameter_services=False)
-    channels: Dict[int, Any] = {}  # the sink's channel of each publisher, by index
+    # The sink's channel of each publisher, by index: the feeder's own dict once it exists
+    # (the sink that calls refresh_taken is opened before the feeder that fills it).
+    channels: Dict[int, Any] = {}
 
     def refresh_taken() -> None:
         """Say, for each sink channel, whether a message logged now goes anywhere."""
         for index, handle in list(channels.items()):
             is_taken = 1 if handle.taken() else 0
-            if channels.get(index, None) is not None and channels[index] is handle:
-                taken[index] = is_taken  # (not one destroyed meanwhile)
+            if channels.get(index) is handle:  # not one destroyed meanwhile
+                taken[index] = is_taken
 
     def opened(index: int, channel) -> None:
         taken[index] = 1 if channel.taken() else 0
