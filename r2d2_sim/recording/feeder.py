@@ -3,13 +3,14 @@ A sink fed from a thread of its own: whoever logs to it never waits for the disk
 
 No ROS here. :class:`SinkFeeder` takes a
 :class:`~r2d2_sim.recording.sink.FoxgloveSink`'s work (open a publisher's
-channel, log a message, release a channel), queues it, and one thread does it
-in the order given: the same calls in the same order as made directly, so
-the same MCAP file. The caller waits only once ``max_bytes`` of messages are
-queued (a disk stalled that long), and then only until the thread catches up.
-The outputs process (:mod:`r2d2_sim.ros.relay_child`) feeds its sink so: its
-reading of frames and its publishing do not wait for the recording, and a
-disk that stalls for a few seconds delays the file, not the topics.
+channel, log a message, tell the viewers the time, release a channel),
+queues it, and one thread does it in the order given: the same calls in
+the same order as made directly, so the same MCAP file. The caller waits
+only once ``max_bytes`` of messages are queued (a disk stalled that long),
+and then only until the thread catches up. The outputs process
+(:mod:`r2d2_sim.ros.relay_child`) feeds its sink so: its reading of frames
+and its publishing do not wait for the recording, and a disk that stalls
+for a few seconds delays the file, not the topics.
 """
 
 from collections import deque
@@ -67,6 +68,24 @@ class SinkFeeder:
         """Release publisher ``index``'s channel (its publisher is gone)."""
         self._put(('release', index), 0)
 
+    def set_time(self, time_ns: int) -> None:
+        """Tell the sink's viewers the time, in order with the messages (``sink.set_time``)."""
+        self._put(('time', time_ns), 0)
+
+    def drop(self) -> None:
+        """
+        Drop everything queued and stop the thread after what it is doing now.
+
+        For an owner that cannot wait for the disk any longer: the sink stays
+        open, so its owner can still close it (an MCAP file then ends after the
+        last message written). Safe from a signal handler and to call twice.
+        """
+        with self._changed:
+            self._queue.clear()
+            self._queued_bytes = 0
+            self._queue.append((None, 0))
+            self._changed.notify_all()
+
     @property
     def queued_bytes(self) -> int:
         """Return the bytes of messages queued and not yet logged."""
@@ -97,11 +116,13 @@ class SinkFeeder:
                 self._changed.notify_all()
 
     def _do(self, item: tuple) -> None:
-        kind, index = item[0], item[1]
+        kind, index = item[0], item[1]  # 'time': the time, not an index
         if kind == 'log':
             channel = self.channels.get(index)
             if channel is not None:
                 channel.log(item[2], item[3])
+        elif kind == 'time':
+            self.sink.set_time(item[1])
         elif kind == 'open':
             topic, type_name, qos = item[2:]
             try:

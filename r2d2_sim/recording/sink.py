@@ -155,10 +155,13 @@ class FoxgloveSink:
     while it runs (the recording stopped by a write error, the live view's
     listener gone, the SDK's own lines, throttled); stderr by default.
     ``latched_resend_period_s``: how often at most a latched topic goes to
-    the live view again. ``subscriptions_changed`` is called (on the
-    server's thread) after a viewer subscribes or unsubscribes, when the
-    channels' ``taken()`` already says so. Raises :class:`SinkError` (one line) when
-    foxglove-sdk is missing, the port is taken or the file cannot be made.
+    the live view again. ``subscriptions_changed`` is called after a
+    viewer subscribes or unsubscribes, when the channels' ``taken()``
+    already says so: on the server's thread, or, when a channel a viewer
+    takes is released, on the releasing thread while it holds the
+    recording's lock (so the callback must not log to this sink). Raises
+    :class:`SinkError` (one line) when foxglove-sdk is missing, the port is
+    taken or the file cannot be made.
     """
 
     def __init__(self, port: Optional[int] = None, host: str = '127.0.0.1',

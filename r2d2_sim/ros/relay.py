@@ -256,7 +256,11 @@ class OutputRelay:
         self.broken = False
         self.frames_sent = 0
         if sink is not None:
-            self._await_report()
+            try:
+                self._await_report()
+            except BaseException:  # a refusal, or a Ctrl-C meanwhile: no child left behind
+                self.close(1.0)
+                raise
 
     def _await_report(self) -> None:
         """Read the child's start report: its sink's address, or why it could not open."""
@@ -423,12 +427,22 @@ class OutputRelay:
         process = self.process
         status = process.poll() if process is not None else None
         ended = '' if status is None else f' (it ended with status {status})'
-        self._log_error(f'the outputs process failed{ended}: {why}; nothing more is published')
+        lost = ('nothing more is published or recorded' if self.sink_record_path is not None
+                else 'nothing more is published')
+        self._log_error(f'the outputs process failed{ended}: {why}; {lost}')
 
     # -- the process --------------------------------------------------------------------
 
     def close(self, timeout_s: float = CLOSE_S) -> Optional[int]:
-        """Close the pipe (the child publishes what it has, then ends); return its status."""
+        """
+        Close the pipe (the child publishes what it has, then ends); return its status.
+
+        A child that does not end within ``timeout_s`` gets SIGTERM, then
+        SIGKILL after as long again. A child that records waits as long as
+        its file grows (a slow disk still taking the queue: the recording is
+        what the user asked for); SIGTERM then drops what is left and still
+        finishes the file.
+        """
         with self._lock:
             process, self.process = self.process, None
             if process is None:
@@ -436,16 +450,31 @@ class OutputRelay:
             self._pending = []
             self.broken = True  # quietly: what is published after this goes nowhere
             self._finalizer()  # closes the pipes: the child publishes what it has, then ends
-        try:
-            status = process.wait(timeout_s)
-        except subprocess.TimeoutExpired:  # stuck: SIGTERM is a clean exit, SIGKILL is not
-            process.terminate()
+        size = self._recorded_bytes()
+        while True:
             try:
-                status = process.wait(1.0)
+                return process.wait(timeout_s)
             except subprocess.TimeoutExpired:
-                process.kill()
-                status = process.wait()
-        return status  # the counts' map stays until the last publisher asking it is gone
+                grown, size = self._recorded_bytes(), size
+                if grown is None or grown <= (size or 0):
+                    break
+                size = grown  # the disk is still taking the recording: wait on
+        process.terminate()  # stuck: SIGTERM is a clean exit (the file finished), SIGKILL not
+        try:
+            return process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            return process.wait()
+        # the counts' map stays until the last publisher asking it is gone
+
+    def _recorded_bytes(self) -> Optional[int]:
+        """Return the size of the child's recording now (None: no recording, or no file)."""
+        if self.sink_record_path is None:
+            return None
+        try:
+            return os.stat(self.sink_record_path).st_size
+        except OSError:
+            return None
 
     @property
     def running(self) -> bool:

@@ -11,13 +11,16 @@ reports (their address, or the one line saying why not, and then status 2),
 logs every message it publishes to them at the simulated time the stream
 gives (through a :class:`~r2d2_sim.recording.feeder.SinkFeeder`: the
 publishing never waits for the disk), and closes them, finishing the MCAP
-file, when the pipe closes. It ends, with status 0, when the pipe closes.
+file, when the pipe closes. It ends, with status 0, when the pipe closes;
+SIGTERM ends it at once (status 143), and a child that records then drops
+what the disk has not taken yet and still finishes the file.
 """
 
 import argparse
 import json
 import mmap
 import os
+import signal
 import sys
 import threading
 from typing import Any, Callable, Dict, List, Optional, Sequence
@@ -91,16 +94,29 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
     # The sink's channel of each publisher, by index: the feeder's own dict once it exists
     # (the sink that calls refresh_taken is opened before the feeder that fills it).
     channels: Dict[int, Any] = {}
+    # The taken map is written from three threads (this one, the executor's, the live
+    # view's server or the feeder's): one at a time, each writing what it just read, so
+    # an older answer never lands after a newer one. An index destroyed here keeps its
+    # channel until the feeder releases it: it is left at 0 until a new one is opened.
+    taken_lock = threading.Lock()
+    destroyed = set()
 
     def refresh_taken() -> None:
         """Say, for each sink channel, whether a message logged now goes anywhere."""
-        for index, handle in list(channels.items()):
-            is_taken = 1 if handle.taken() else 0
-            if channels.get(index) is handle:  # not one destroyed meanwhile
-                taken[index] = is_taken
+        with taken_lock:
+            for index, handle in list(channels.items()):
+                if index not in destroyed:
+                    taken[index] = 1 if handle.taken() else 0
 
     def opened(index: int, channel) -> None:
-        taken[index] = 1 if channel.taken() else 0
+        with taken_lock:
+            destroyed.discard(index)
+            taken[index] = 1 if channel.taken() else 0
+
+    def forget(index: int) -> None:
+        with taken_lock:
+            destroyed.add(index)
+            counts[index] = taken[index] = 0
     sink = feeder = None
     if sink_spec is not None:
         sink = open_sink(sink_spec, node, acks, refresh_taken)
@@ -111,6 +127,9 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
         # The recording's writes on a thread of their own: the topics never wait for the disk.
         feeder = SinkFeeder(sink, node.get_logger().error, opened)
         channels = feeder.channels
+        # From now on SIGTERM drops what the disk has not taken yet and still finishes the
+        # file (a simulator that could not wait for the rest; see OutputRelay.close).
+        signal.signal(signal.SIGTERM, _terminate(feeder))
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     stop = threading.Event()
@@ -156,8 +175,8 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                         feeder.log(index, data, now_ns)
                 elif index == TIME:
                     (now_ns,) = TIME_RECORD.unpack(data)
-                    if sink is not None:
-                        sink.set_time(now_ns)
+                    if feeder is not None:  # in order with the messages, as in one process
+                        feeder.set_time(now_ns)
                 elif index == CREATE:
                     spec = json.loads(data)
                     new, made = spec['index'], []  # type: int, List[Publisher]
@@ -174,22 +193,36 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                     node.destroy_publisher(publishers.pop(gone))
                     if feeder is not None:
                         feeder.release(gone)
-                    counts[gone] = taken[gone] = 0
+                    forget(gone)
             if flags & ACK:
                 try:
                     os.write(acks, ACK_RECORD.pack(sequence))
                 except BrokenPipeError:  # the simulator stopped waiting: it is going
                     return 0
     finally:
+        _closing.set()  # a SIGTERM from here on drops the queue but lets this finish
         stop.set()
         spinner.join()  # within a spin_once's timeout
         if feeder is not None:
-            feeder.close()  # every message queued is logged first
+            feeder.close()  # every message queued is logged first (unless SIGTERM dropped it)
         if sink is not None:
             sink.close()  # the MCAP file's summary and footer: readable from now on
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+# Set once run() is finishing: a SIGTERM then only drops the feeder's queue.
+_closing = threading.Event()
+
+
+def _terminate(feeder: SinkFeeder) -> Callable[[int, Any], None]:
+    """Return the SIGTERM handler of a child that records: drop the queue, finish the file."""
+    def on_term(number: int, frame: Any) -> None:
+        feeder.drop()  # what is being written finishes; nothing queued after it
+        if not _closing.is_set():
+            sys.exit(128 + number)  # out of a read of the pipe, into run()'s finally
+    return on_term
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -204,7 +237,6 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parser.parse_args(argv)
     # The simulator ends it by closing the pipe; a Ctrl-C in the terminal reaches both.
     # SIGTERM ends it at once, but as an exit: its participant's shared memory is removed.
-    import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, lambda number, frame: sys.exit(128 + number))
     return run(args.frames, args.acks, args.counts, args.domain, args.node, args.namespace,

@@ -9,11 +9,15 @@ the outputs still build only what someone takes; robots' publishers come
 and go with the robots; a child that dies costs one error line, not the
 physics; and destroying the node ends the child. The live view and the
 recording move to the child with the publishing: the same MCAP file, byte
-for byte, and a live view still builds only what a viewer takes.
+for byte, and a live view still builds only what a viewer takes. A child
+whose disk is slow is waited for while its file grows; told to stop, it
+drops what the disk has not taken and still finishes the file; a Ctrl-C
+while it opens its sink leaves no child behind.
 """
 
 import json
 import os
+import random
 import signal
 
 from nav_msgs.msg import Odometry
@@ -295,3 +299,87 @@ def test_every_qos_field_reaches_the_outputs_process():
                      avoid_ros_namespace_conventions=True)
     rebuilt = qos_from_dict(json.loads(json.dumps(qos_to_dict(qos))))
     assert rebuilt == qos and rebuilt != QoSProfile(depth=7)
+
+
+# The child's disk made slow: each write of the recording of more than 4 KiB waits.
+SLOW_DISK = '''
+import os
+import time
+from r2d2_sim.recording import mcap_file
+_write = mcap_file.McapOutput.write
+
+
+def write(self, data):
+    if len(memoryview(data)) > 4096:
+        time.sleep(float(os.environ['R2D2_SIM_TEST_SLOW_WRITE_S']))
+    return _write(self, data)
+
+
+mcap_file.McapOutput.write = write
+'''
+BLOBS = 20
+
+
+def blob(index):
+    """Return 100 kB that do not compress (the file's chunks are written as they fill)."""
+    return random.Random(index).randbytes(100_000)
+
+
+def recording_relay(ros, monkeypatch, tmp_path, write_s):
+    """Return (relay, path): a relay recording, its child's disk ``write_s`` slow a write."""
+    from std_msgs.msg import UInt8MultiArray
+    from rclpy.qos import QoSProfile
+    from r2d2_sim.ros.relay import OutputRelay
+    (tmp_path / 'slow').mkdir()
+    (tmp_path / 'slow' / 'sitecustomize.py').write_text(SLOW_DISK)
+    monkeypatch.setenv('PYTHONPATH', os.pathsep.join(
+        p for p in (str(tmp_path / 'slow'), os.environ.get('PYTHONPATH')) if p))
+    monkeypatch.setenv('R2D2_SIM_TEST_SLOW_WRITE_S', str(write_s))
+    path, now = tmp_path / 'run.mcap', [0]
+    relay = OutputRelay(ros.domain_id, 'slow_disk_outputs', '/', print,
+                        sink={'port': None, 'record_path': str(path)}, time_ns=lambda: now[0])
+    publisher = relay.create_publisher(UInt8MultiArray, '/blob', QoSProfile(depth=1))
+    for index in range(BLOBS):
+        now[0] = index * 1000
+        publisher.publish(UInt8MultiArray(data=blob(index)))
+    assert relay.wait()  # published: the recording is still queued for the disk
+    return relay, path
+
+
+def test_closing_waits_while_a_slow_disk_takes_the_recording(ros, monkeypatch, tmp_path):
+    """The child's file still grows after the close's timeout: it is waited for, not killed."""
+    relay, path = recording_relay(ros, monkeypatch, tmp_path, write_s=0.02)
+    assert relay.close(timeout_s=0.3) == 0
+    recorded = read_recording(path)['/blob']
+    assert [bytes(each.message.data) for each in recorded] == [blob(i) for i in range(BLOBS)]
+    assert [each.log_time_ns for each in recorded] == [i * 1000 for i in range(BLOBS)]
+
+
+def test_a_recording_child_told_to_stop_still_finishes_its_file(ros, monkeypatch, tmp_path):
+    """SIGTERM drops what the disk has not taken; the file ends, readable, after the rest."""
+    relay, path = recording_relay(ros, monkeypatch, tmp_path, write_s=0.05)
+    process = relay.process
+    process.send_signal(signal.SIGTERM)
+    assert process.wait(10.0) == 128 + signal.SIGTERM
+    with open(path, 'rb') as recorded:  # the summary and the footer were written
+        recorded.seek(-8, os.SEEK_END)
+        assert recorded.read() == b'\x89MCAP0\r\n'
+    kept = [bytes(each.message.data) for each in read_recording(path)['/blob']]
+    assert kept == [blob(i) for i in range(len(kept))] and len(kept) < BLOBS
+    relay.close()
+
+
+def test_a_ctrl_c_while_the_child_opens_its_sink_leaves_no_child(ros, monkeypatch, tmp_path):
+    """Interrupted before the child's start report: the relay closes its child, then raises."""
+    from r2d2_sim.ros.relay import OutputRelay
+    started = []
+
+    def interrupted(relay):
+        started.append(relay.process)
+        raise KeyboardInterrupt
+    monkeypatch.setattr(OutputRelay, '_await_report', interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        OutputRelay(ros.domain_id, 'interrupted_outputs', '/', print,
+                    sink={'port': None, 'record_path': str(tmp_path / 'run.mcap')},
+                    time_ns=lambda: 0)
+    assert started[0].poll() is not None  # ended and reaped
