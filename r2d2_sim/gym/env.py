@@ -28,7 +28,7 @@ import numpy
 from r2d2_sim.farm.scenario import Scenario, ScenarioError
 from r2d2_sim.gym.arena import Episode, episode_of
 from r2d2_sim.gym.backends import Backend, make_backend
-from r2d2_sim.gym.settings import GymError, NavSettings
+from r2d2_sim.gym.settings import GymError, NavSettings, reset_options
 from r2d2_sim.gym.task import (
     Command, goal_distance, goal_observation, goal_reward, nav_observation, nav_reward, Outcome,
     Reading, WORLD_EXTENT_M)
@@ -228,7 +228,7 @@ class _Env(gymnasium.Env):
                ) -> Tuple[Reading, Dict[str, Any]]:
         """Seed, draw (or take the option's scenario) and place an episode; its info."""
         super().reset(seed=seed)
-        options = dict(options or {})
+        options = reset_options(options)
         unknown = sorted(set(options) - set(RESET_OPTIONS))
         if unknown:
             raise GymError(f'unknown reset option(s) {", ".join(map(repr, unknown))}: '

@@ -26,7 +26,7 @@ from pettingzoo import ParallelEnv
 
 from r2d2_sim.gym.backends import Backend
 from r2d2_sim.gym.env import check_action, Navigation
-from r2d2_sim.gym.settings import GymError, NavSettings
+from r2d2_sim.gym.settings import GymError, NavSettings, reset_options
 from r2d2_sim.gym.task import Command, nav_observation, nav_reward
 
 __all__ = ['NavParallelEnv', 'parallel_env', 'MAX_CYCLES']
@@ -104,7 +104,7 @@ class NavParallelEnv(ParallelEnv):
         self.nav.check_open()
         if seed is not None:
             self.np_random = numpy.random.default_rng(seed)
-        unknown = sorted(set(options or {}))
+        unknown = sorted(reset_options(options))
         if 'scenario' in unknown:
             raise GymError('reset option scenario: several robots draw several; give a seed')
         if unknown:

@@ -18,8 +18,8 @@ from r2d2_sim.farm.scenario import ScenarioSpace
 from r2d2_sim.gym.task import ObservationShape, Rewards
 from r2d2_sim.sim.settings.robots import parse_world
 
-__all__ = ['GymError', 'NavSettings', 'DEFAULT_SPACE', 'BACKENDS', 'PHYSICS_RATE_HZ',
-           'robot_names']
+__all__ = ['GymError', 'NavSettings', 'reset_options', 'DEFAULT_SPACE', 'BACKENDS',
+           'PHYSICS_RATE_HZ', 'robot_names']
 
 # The backends: the core in this process, or the simulator node in lockstep over ROS.
 BACKENDS = ('inproc', 'ros')
@@ -44,6 +44,16 @@ LANE_SPACING_M = 3.0
 
 class GymError(ValueError):
     """An environment's setting or an input it cannot take: one line."""
+
+
+def reset_options(options: Any) -> Dict[str, Any]:
+    """Return ``reset``'s options as a dict (None: none); GymError if they are not a mapping."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise GymError(f'reset options must be a dict, got {type(options).__name__} '
+                       f'{options!r:.60}')
+    return dict(options)
 
 
 def robot_names(count: int) -> Tuple[str, ...]:

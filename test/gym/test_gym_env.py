@@ -139,6 +139,9 @@ def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(gym_make):
         env.reset(options={'goal': 1, 'seed': 2})
     with pytest.raises(GymError, match='^reset option scenario: not JSON'):
         env.reset(options={'scenario': '{'})
+    for options, kind in ((['scenario'], 'list'), ('scenario', 'str')):
+        with pytest.raises(GymError, match=f'^reset options must be a dict, got {kind} '):
+            env.reset(options=options)
     env.reset(seed=0)
     env.close()
     env.close()  # twice is fine

@@ -92,6 +92,8 @@ def test_bad_input_is_one_line(make):
         env.reset(options={'scenario': {}})
     with pytest.warns(UserWarning, match="unknown reset option\\(s\\) 'x' ignored"):
         env.reset(options={'x': 1})
+    with pytest.raises(GymError, match='^reset options must be a dict, got str '):
+        env.reset(options='x')
     env.close()
     with pytest.raises(GymError, match='^the environment is closed'):
         env.step({'r2d2_0': numpy.zeros(2), 'r2d2_1': numpy.zeros(2)})
