@@ -8,6 +8,7 @@ the exit status after Ctrl-C.
 
 import argparse
 import math
+import os
 import signal
 import sys
 import threading
@@ -59,6 +60,25 @@ def domain_id_arg(text: str) -> int:
     return value
 
 
+def domain_env_problem() -> Optional[str]:
+    """
+    Return what is wrong with the ``ROS_DOMAIN_ID`` environment variable (None: unset or fine).
+
+    Checked before ROS starts: Fast DDS ends the process itself, with lines of
+    its own, at a domain id whose ports do not exist.
+    """
+    text = os.environ.get('ROS_DOMAIN_ID', '').strip()
+    if not text:
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        return f'ROS_DOMAIN_ID must be an integer, got {text!r}'
+    if not 0 <= value <= MAX_DOMAIN_ID:
+        return f'ROS_DOMAIN_ID must be in 0..{MAX_DOMAIN_ID}, got {value}'
+    return None
+
+
 def init_ros(argv: Sequence[str], prog: str) -> bool:
     """
     Initialise rclpy for a tool without rclpy's signal handlers; False after one error line.
@@ -68,6 +88,10 @@ def init_ros(argv: Sequence[str], prog: str) -> bool:
     """
     import rclpy
     from rclpy.signals import SignalHandlerOptions
+    problem = domain_env_problem()
+    if problem is not None:
+        print(f'{prog}: error: {problem}', file=sys.stderr)
+        return False
     try:
         rclpy.init(args=list(argv), signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # e.g. an invalid ROS_DOMAIN_ID; rclpy raises assorted types

@@ -17,7 +17,7 @@ import time
 from types import FrameType
 from typing import Callable, List, Optional, Sequence, TYPE_CHECKING
 
-from r2d2_sim.apps.cli import stop_on_signals
+from r2d2_sim.apps.cli import domain_env_problem, stop_on_signals
 from r2d2_sim.memory import keep_large_blocks_mapped
 
 if TYPE_CHECKING:  # only the standard library is imported here (see the module)
@@ -255,6 +255,10 @@ def _init_ros(argv: List[str]) -> Optional[int]:
     from rclpy.signals import SignalHandlerOptions
     from rclpy.utilities import remove_ros_args
     from r2d2_sim.ros.node import NODE_NAME
+    problem = domain_env_problem()
+    if problem is not None:
+        print(f'{NODE_NAME}: error: {problem}', file=sys.stderr)
+        return 2
     try:
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         # sim_node takes only ROS arguments: '-p x:=1' without --ros-args

@@ -9,8 +9,8 @@ import subprocess
 import sys
 
 from helpers import (
-    drive_forward_until, next_domain_id, RemoteProbe, ros_env, start_sim_process,
-    stop_process)
+    drive_forward_until, next_domain_id, RemoteProbe, ros_env, sim_node_command,
+    start_sim_process, stop_process)
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
@@ -97,6 +97,18 @@ def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     assert 'Traceback' not in err
     lines = [line for line in err.splitlines() if 'error' in line]
     assert len(lines) == 1 and fragment in lines[0], err
+
+
+@pytest.mark.parametrize('domain_id, fragment', [
+    ('300', 'ROS_DOMAIN_ID must be in 0..231, got 300'),
+    ('one', "ROS_DOMAIN_ID must be an integer, got 'one'")])
+def test_a_domain_id_ros_cannot_use_is_one_line_before_ros_starts(domain_id, fragment):
+    """Fast DDS would end the process itself at domain 300, in lines of its own: checked first."""
+    env = dict(ros_env(next_domain_id()), ROS_DOMAIN_ID=domain_id)
+    result = subprocess.run(sim_node_command(), capture_output=True, text=True, timeout=60.0,
+                            env=env)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [f'r2d2_sim: error: {fragment}']
 
 
 @pytest.mark.parametrize('args', [
