@@ -30,11 +30,15 @@ directories (CI shards' together).
 import argparse
 import json
 from pathlib import Path
+import signal
 import sys
 from typing import Any, Dict, List, Optional, Sequence, Set, Tuple
 
 from r2d2_sim.farm.rerun import read_records, ReportError, rerun
 from r2d2_sim.farm.runner import FarmError
+
+EXIT_INTERRUPTED = 130  # as a shell reports a process Ctrl-C ended
+SHOWN_FILES = 3         # shared-memory files named in the summary line (then "...")
 
 __all__ = ['main']
 
@@ -89,18 +93,32 @@ def run(args: argparse.Namespace) -> int:
         seeds = None if args.seeds is None else parse_seeds(args.seeds)
     except ValueError as exc:
         raise FarmError(str(exc)) from None
-    done = run_farm(args.farm, variations=args.variations, seeds=seeds, executor=args.executor,
-                    address=args.address, workers=args.workers, out=args.out,
-                    shard=args.shard, record=args.record, fresh=args.fresh,
-                    progress=args.progress, shrink=args.shrink)
+    terminated: List[int] = []
+
+    def on_term(number: int, frame: Any) -> None:
+        # SIGTERM (a CI job cancelled, `kill`) stops the run as Ctrl-C does: what finished
+        # is reported and the run resumes from it. Once: the report is being written.
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        terminated.append(number)
+        raise KeyboardInterrupt
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        done = run_farm(args.farm, variations=args.variations, seeds=seeds,
+                        executor=args.executor, address=args.address, workers=args.workers,
+                        out=args.out, shard=args.shard, record=args.record,
+                        fresh=args.fresh, progress=args.progress, shrink=args.shrink)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     passed, failed, crashed = (done.count(v) for v in ('passed', 'failed', 'crashed'))
     total = len(done.records)
     state = 'interrupted: ' if done.interrupted else ''
     print(f'{state}{total} variations reported ({done.ran} run now on {done.executor}, '
           f'{done.resumed} resumed): {passed} passed, {failed} failed, {crashed} crashed')
     if done.cleaned:
-        print(f'removed {len(done.cleaned)} shared-memory files crashed tasks left: '
-              + ' '.join(done.cleaned))
+        names = ' '.join(done.cleaned[:SHOWN_FILES]) + (
+            ' ...' if len(done.cleaned) > SHOWN_FILES else '')
+        print(f'removed {len(done.cleaned)} shared-memory file(s) that stopped or crashed '
+              f'tasks left: {names}')
     for path in done.written.values():
         print(path)
     if done.shrunk is not None:
@@ -108,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
     if done.interrupted:
         print('the report holds what finished; run the same command again to resume',
               file=sys.stderr)
+        if terminated:
+            return 128 + terminated[0]  # as a shell reports a process SIGTERM ended
     return done.exit_status
 
 
@@ -163,6 +183,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except (ReportError, FarmError) as exc:
         print(f'r2d2_sim.farm: error: {exc}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM outside the variations' run
+        print('r2d2_sim.farm: interrupted', file=sys.stderr)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == '__main__':
