@@ -22,6 +22,7 @@ from r2d2_sim.ros.cmd_vel import CmdVelInput, GRAPH_CHECK_PERIOD_S, ThrottledLog
 from r2d2_sim.ros.control_services import ControlServices
 from r2d2_sim.ros.fleet import Fleet
 from r2d2_sim.ros.mirror import MirroringNode, say_sink, sink_spec, start_sink
+from r2d2_sim.ros.notices import warn_once
 from r2d2_sim.ros.outputs import ClockOutput
 from r2d2_sim.ros.parameters import declare_parameters, with_ray_threads
 from r2d2_sim.ros.relay import OutputRelay, RelayError
@@ -114,10 +115,10 @@ class SimNode(MirroringNode):
             self.standard = SimulationInterfaces(self, simulation.entities, simulation,
                                                  simulation.worlds, self, self, on_quit)
         else:
-            self.get_logger().warning(
-                'simulation_interfaces is not installed: its services (spawn_entity, '
-                'step_simulation...) are off (a pip-only venv gets it from '
-                'tools/build_interfaces.sh VENV); everything else works')
+            warn_once(self.get_logger(),
+                      'simulation_interfaces is not installed: its services (spawn_entity, '
+                      'step_simulation...) are off (a pip-only venv gets it from '
+                      'tools/build_interfaces.sh VENV); everything else works')
         self._publish(self.simulation.read_states())
 
     def sink_time_ns(self) -> int:

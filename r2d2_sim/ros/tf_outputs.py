@@ -24,6 +24,7 @@ from r2d2_sim.sim.robots.robot import Frame, Robot
 from r2d2_sim.sim.robots.sensors import (
     HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
 from r2d2_sim.ros.mirror import demand
+from r2d2_sim.ros.notices import warn_once
 from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.model.timing import stamp_of
 from r2d2_sim.model.link_tree import LinkTransforms
@@ -146,9 +147,9 @@ def start_tf(node: Node, config: SimConfig, robot: Robot, time_ns: int) -> Optio
     try:
         import tf2_msgs.msg  # noqa: F401  (a pip-only venv: tools/build_tf2_msgs.sh)
     except ImportError:
-        node.get_logger().warning(
-            'tf2_msgs is not installed: /tf and /tf_static are off (a pip-only venv gets '
-            'it from tools/build_tf2_msgs.sh VENV); everything else works')
+        warn_once(node.get_logger(),
+                  'tf2_msgs is not installed: /tf and /tf_static are off (a pip-only venv '
+                  'gets it from tools/build_tf2_msgs.sh VENV); everything else works')
         return None
     links = link_transforms(config, robot) if config.publish_link_tf else None
     publish_static_transforms(node, static_transforms(config, robot, links), stamp_of(time_ns),
