@@ -25,16 +25,16 @@ def test_every_parameter_has_a_description():
 
 
 @pytest.mark.parametrize('name, value, fragment', [
-    ('physics_rate', 0.0, '> 0'),
-    ('physics_rate', -240.0, '> 0'),
+    ('physics_rate', 0.0, 'must be in [10, 10000] Hz, got 0'),
+    ('physics_rate', -240.0, 'must be in [10, 10000] Hz, got -240'),
     ('physics_rate', math.nan, 'finite'),
     ('physics_rate', 'fast', 'number'),
-    ('publish_rate', -1.0, '>= 0'),
+    ('publish_rate', -1.0, 'must be in [0.001, 10000] Hz (every step with 0), got -1'),
     ('publish_rate', 480.0, 'cannot exceed'),
-    ('real_time_factor', -1.0, '>= 0'),
+    ('real_time_factor', -1.0, 'must be in [0, 1000], got -1'),
     ('real_time_factor', math.inf, 'finite'),
     ('cmd_vel_timeout', -0.1, '>= 0'),
-    ('wheel_separation_multiplier', 0.0, '> 0'),
+    ('wheel_separation_multiplier', 0.0, 'must be in [0.1, 10], got 0'),
     ('wheel_lateral_friction_ratio', 1.5, '(0, 1]'),
     ('gui', 'yes', 'true or false'),
     ('initial_pose', [1.0], '3 numbers'),

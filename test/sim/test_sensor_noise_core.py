@@ -243,7 +243,7 @@ def test_a_state_reset_goes_on_with_the_streams(make):
 
 
 @pytest.mark.parametrize('parameters, message', [
-    ({'scan_noise_bias_std': -0.1}, 'parameter scan_noise_bias_std must be >= 0'),
+    ({'scan_noise_bias_std': -0.1}, r'parameter scan_noise_bias_std must be in \[0, 10\] m'),
     ({'imu_angular_velocity_noise_mean': 11.0},
      r'parameter imu_angular_velocity_noise_mean must be in \[-10, 10\] rad/s'),
     ({'encoder_noise_dynamic_bias_std': 0.1},

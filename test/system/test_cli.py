@@ -57,14 +57,15 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
 
 
 @pytest.mark.parametrize('args, fragment', [
-    (['-p', 'physics_rate:=-5.0'], 'physics_rate must be > 0'),
-    (['-p', 'physics_rate:=0.0'], 'physics_rate must be > 0'),
-    (['-p', 'publish_rate:=-1.0'], 'publish_rate must be >= 0'),
+    (['-p', 'physics_rate:=-5.0'], 'physics_rate must be in [10, 10000] Hz, got -5'),
+    (['-p', 'physics_rate:=0.0'], 'physics_rate must be in [10, 10000] Hz, got 0'),
+    (['-p', 'publish_rate:=-1.0'], 'publish_rate must be in [0.001, 10000] Hz (every step'),
     (['-p', 'publish_rate:=480.0'], 'cannot exceed physics_rate'),
     (['-p', 'camera_rate:=1000.0'], 'cannot exceed physics_rate'),
-    (['-p', 'real_time_factor:=-1.0'], 'real_time_factor must be >= 0'),
+    (['-p', 'real_time_factor:=-1.0'], 'real_time_factor must be in [0, 1000], got -1'),
     (['-p', 'cmd_vel_timeout:=fast'], 'cmd_vel_timeout must be a number'),
-    (['-p', 'max_linear_acceleration:=-1.0'], 'max_linear_acceleration must be >= 0'),
+    (['-p', 'max_linear_acceleration:=-1.0'],
+     'max_linear_acceleration must be in [0.001, 1000] m/s^2'),
     (['-p', 'urdf:=/nonexistent/robot.urdf'], 'not found'),
     (['-p', 'urdf:=/etc/hostname'], 'not well-formed XML'),
     (['-p', 'left_wheel_names:=[nope]'], 'wheel joint(s) nope not in the URDF'),

@@ -216,7 +216,15 @@ def read_value(spec: Parameter, value: Any, label: Optional[str] = None) -> Any:
     # ROS cannot tell the type of an empty list (-p names:=[]): it arrives as None.
     if value is None and spec.ros_type.endswith('_array'):
         value = []
-    result = spec.read(label, value)
+    try:
+        result = spec.read(label, value)
+    except ConfigError:
+        # A number the reader refuses for its sign (-5 for a rate): the range says more
+        # ("must be in [10, 10000] Hz", not "must be > 0", then 5 refused in turn).
+        if (spec.bounds is not None and isinstance(value, (int, float))
+                and not isinstance(value, bool) and math.isfinite(value)):
+            spec.bounds.check(label, float(value))
+        raise
     if spec.bounds is not None:
         values = result if isinstance(result, tuple) else (result,)
         for v in values:
