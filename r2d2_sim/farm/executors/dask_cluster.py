@@ -119,7 +119,6 @@ class DaskPool:
         self._run = uuid.uuid4().hex[:12]
         self._client: Any = None
         self._cluster: Any = None
-        self._job: Any = None
         self._pending: Dict[Any, Item] = {}
 
     def start(self) -> None:
@@ -139,12 +138,17 @@ class DaskPool:
             raise ExecutorError(f'cannot connect to the Dask scheduler at {self._address}: '
                                 f'{str(exc).splitlines()[0] if str(exc) else repr(exc)}'
                                 ) from None
-        self._job = self._client.scatter(self._payload, broadcast=True, hash=False)
 
     def submit(self, items: Sequence[Item]) -> None:
-        """Submit one task per variation."""
+        """
+        Submit one task per variation, each carrying the job (a few kB, pickled by value).
+
+        Not scattered once: a scattered job lives on the workers that hold it,
+        and once the last of them died the scheduler could not give it to any
+        task still waiting, which all ended "crashed" for one dead worker.
+        """
         for item in items:
-            future = self._client.submit(run_once, self._job, item, self._record, self._run,
+            future = self._client.submit(run_once, self._payload, item, self._record, self._run,
                                          key=f'r2d2-farm-{self._run}-{item.key}', pure=False,
                                          retries=0)
             self._pending[future] = item
