@@ -26,6 +26,7 @@ needs neither); :func:`run_variation` does.
 
 from dataclasses import dataclass, field
 import hashlib
+import json
 import importlib
 import importlib.util
 import os
@@ -125,10 +126,12 @@ def describe(job: FarmJob) -> Dict[str, Any]:
         space = 'scenarios sha256 ' + hashlib.sha256(text.encode()).hexdigest()
     else:
         space = repr(job.space)
-    return {'name': job.name, 'space': space, 'controller': _qualified(job.controller),
-            'verdict': _qualified(job.verdict) if job.verdict else 'reached_safely',
-            'seconds': float(job.seconds),
-            'parameters': {k: job.parameters[k] for k in sorted(job.parameters)}}
+    identity = {'name': job.name, 'space': space, 'controller': _qualified(job.controller),
+                'verdict': _qualified(job.verdict) if job.verdict else 'reached_safely',
+                'seconds': float(job.seconds),
+                'parameters': {k: job.parameters[k] for k in sorted(job.parameters)}}
+    # As farm.json keeps it (a tuple comes back a list): compared with it on a resume.
+    return json.loads(json.dumps(identity, sort_keys=True))
 
 
 def _qualified(function: Any) -> str:

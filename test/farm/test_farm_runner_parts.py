@@ -100,6 +100,14 @@ def test_a_job_is_identified_by_what_it_runs_not_by_how_many():
     json.dumps(identity)
 
 
+def test_a_job_with_tuples_in_its_parameters_is_its_own_farm_once_saved():
+    """farm.json keeps a tuple as a list: a resume compares what it kept with this."""
+    job = FarmJob(SPACE, drive, seconds=1.0, name='idle',
+                  parameters={'initial_pose': (0.0, 0.0, 0.0)})
+    saved = json.loads(json.dumps({'farm': describe(job)}))['farm']
+    assert saved == describe(job) and saved['parameters']['initial_pose'] == [0.0, 0.0, 0.0]
+
+
 def test_a_job_by_reference_is_loaded_from_a_file(tmp_path):
     farm = tmp_path / 'my_farm.py'
     farm.write_text('from r2d2_sim.farm import FarmJob, ScenarioSpace\n'

@@ -25,6 +25,7 @@ the done-when on each executor.
 import contextlib
 import os
 from pathlib import Path
+import signal
 import subprocess
 import sys
 import time
@@ -89,10 +90,13 @@ def test_a_ray_cluster_of_two_nodes_gives_the_pinned_runs_and_names_a_crash(tmp_
         cluster.add_node(num_cpus=1, object_store_memory=OBJECT_STORE_BYTES)
         cluster.wait_for_nodes()
         killer = Killer(victim_env)
+        term = signal.getsignal(signal.SIGTERM)
         run = run_farm(FARM, seeds=REFERENCE_SEEDS + [VICTIM], executor='ray',
                        address=cluster.address, out=tmp_path / 'report', record='all',
                        progress=False)
         assert not ray.is_initialized()  # the runner connected, so it let go
+        # ray.init's own SIGTERM handler (sys.exit) would have ended a run with no report.
+        assert signal.getsignal(signal.SIGTERM) is term
         check_run(run, killer, tmp_path, 'ray')
         assert 'Ray worker died' in run.records[VICTIM]['crashed']['reason']
     finally:

@@ -17,6 +17,8 @@ file path that exists on every node) must be installed on every node.
 """
 
 import os
+import signal
+import threading
 from typing import Any, Dict, List, Optional, Sequence
 
 from r2d2_sim.farm.executors.base import (
@@ -64,12 +66,18 @@ class RayPool:
             options: Dict[str, Any] = dict(log_to_driver=False, configure_logging=False)
             if not address or address == 'local':
                 options.update(include_dashboard=False, num_cpus=self._workers)
+            # ray.init puts a SIGTERM handler of its own (sys.exit) in place of the caller's,
+            # which would end a farm run with no report and its tasks still queued.
+            term = signal.getsignal(signal.SIGTERM)
             try:
                 ray.init(address=address, **options)
             except (ConnectionError, RuntimeError, ValueError) as exc:
                 text = str(exc).strip().splitlines()[0] if str(exc).strip() else repr(exc)
                 where = address or 'a new local instance'
                 raise ExecutorError(f'cannot connect to Ray at {where}: {text}') from None
+            finally:
+                if term is not None and threading.current_thread() is threading.main_thread():
+                    signal.signal(signal.SIGTERM, term)
             self._ours = True
         self._task = ray.remote(max_retries=0, retry_exceptions=False, num_cpus=1)(
             run_variation)
