@@ -49,9 +49,12 @@ def rebuild(directories: Sequence[Path], out: Path) -> int:
     records: List[Dict[str, Any]] = []
     seen: Set[Tuple[Any, ...]] = set()
     repeated = 0
+    from r2d2_sim.farm.runner import FARM_JSON
     for directory in directories:
         found = read_records(directory)
         if not found:
+            if (directory / FARM_JSON).is_file():
+                continue  # a runner's shard that held no seed: nothing to add
             raise ReportError(f'{directory}: no farm outcomes (outcomes/*.jsonl)')
         # A run a directory given before holds too (a farm and a part of it, given
         # together) is counted once: reports of shards never share one.
@@ -60,6 +63,8 @@ def rebuild(directories: Sequence[Path], out: Path) -> int:
         records += [record for record, key in zip(found, keys) if key not in seen]
         repeated += sum(key in seen for key in keys)
         seen.update(keys)
+    if not records:
+        raise ReportError(f'no farm outcomes in {", ".join(map(str, directories))}')
     if repeated:
         print(f'r2d2_sim.farm: {repeated} outcome(s) were in more than one of the directories '
               '(the same farm, test, run and seed): counted once', file=sys.stderr)

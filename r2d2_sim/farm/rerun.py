@@ -115,11 +115,32 @@ def conftests(project: Path, test_file: Path) -> List[Path]:
 
 
 def read_records(directory: Path) -> List[Dict[str, Any]]:
-    """Return the outcome records of a farm directory (outcomes/*.jsonl), file by file."""
+    """
+    Return the outcome records of a farm directory (outcomes/*.jsonl), file by file.
+
+    A file's last line cut short (a run killed, or a disk full, while it was
+    written) is left out, said once on stderr: that variation runs again on
+    a resume. Any other line that is not a record is a ReportError (one line).
+    """
     records = []
     for path in sorted((directory / 'outcomes').glob('*.jsonl')):
-        records += [json.loads(line) for line in path.read_text(encoding='utf-8').splitlines()
-                    if line.strip()]
+        try:
+            lines = [line for line in path.read_text(encoding='utf-8').splitlines()
+                     if line.strip()]
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ReportError(f'{path}: cannot be read: {exc}') from None
+        for number, line in enumerate(lines, 1):
+            try:
+                record = json.loads(line)
+            except ValueError:
+                if number == len(lines):
+                    print(f'r2d2_sim.farm: {path}: its last line is cut short; left out',
+                          file=sys.stderr)
+                    continue
+                raise ReportError(f'{path}: line {number} is not a farm outcome') from None
+            if not isinstance(record, dict):
+                raise ReportError(f'{path}: line {number} is not a farm outcome')
+            records.append(record)
     return records
 
 

@@ -258,12 +258,20 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
     directory = Path(out).resolve()
     _writable(directory)
     identity = describe(farm)
-    try:  # chosen (not started) before --fresh clears anything: a bad choice clears nothing
+    try:  # chosen before --fresh clears anything: a bad choice clears nothing
         pool = choose(executor, address, payload=source or farm, record=record,
                       workers=workers)
     except ExecutorError as exc:
         raise FarmError(str(exc)) from None
-    if fresh:
+    started_s = None
+    if fresh:  # started (the cluster reached) before anything is cleared
+        started = time.perf_counter()
+        try:
+            pool.start()
+        except ExecutorError as exc:
+            pool.close()
+            raise FarmError(str(exc)) from None
+        started_s = time.perf_counter() - started
         _clear(directory)
     earlier = _earlier(directory, identity)
     todo = farm.items([k for k in keys if k not in earlier])
@@ -282,7 +290,7 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
               file=shown.stream)
     outcomes = directory / OUTCOMES / f'runner-{os.getpid()}-{int(time.time())}.jsonl'
     try:
-        _drive(pool, todo, farm, source, directory, outcomes, run, shown)
+        _drive(pool, todo, farm, source, directory, outcomes, run, shown, started_s)
     except ExecutorError as exc:
         raise FarmError(str(exc)) from None
     finally:
@@ -331,29 +339,44 @@ def _keys(job: FarmJob, variations: Optional[int], seeds: Optional[Sequence[int]
 
 
 def _drive(pool: Any, todo: List[Item], job: FarmJob, source: Optional[JobSource],
-           directory: Path, outcomes: Path, run: FarmRun, shown: Progress) -> None:
-    """Start the executor, run ``todo``, keep every result as it comes; stop on Ctrl-C."""
+           directory: Path, outcomes: Path, run: FarmRun, shown: Progress,
+           started_s: Optional[float] = None) -> None:
+    """
+    Start the executor, run ``todo``, keep every result as it comes; stop on Ctrl-C.
+
+    ``started_s``: the executor was started already, in that many seconds.
+    """
     if not todo:
+        pool.close()
         return
-    started = time.perf_counter()
-    pool.start()
+    if started_s is None:
+        started = time.perf_counter()
+        pool.start()
+        started_s = time.perf_counter() - started
     submitted = time.perf_counter()
-    run.start_s = submitted - started
+    run.start_s = started_s
     try:
         pool.submit(todo)
         with open(outcomes, 'a', encoding='utf-8') as lines:
             while pool.pending():
                 finished: List[Finished] = pool.wait(POLL_S)
                 for item, result in finished:
-                    entry = _record(job, source, directory, item, result, pool.name)
-                    lines.write(json.dumps(entry, sort_keys=True) + '\n')
-                    lines.flush()
+                    try:
+                        entry = _record(job, source, directory, item, result, pool.name)
+                        lines.write(json.dumps(entry, sort_keys=True) + '\n')
+                        lines.flush()
+                    except OSError as exc:  # a full disk, recordings/ not a folder...
+                        raise FarmError(f'cannot write the outcome of variation {item.key} '
+                                        f'into {directory}: {exc.strerror or exc}') from None
                     run.records[item.key] = entry
                     run.ran += 1
                     shown.add(_verdict(entry))
     except KeyboardInterrupt:
         run.interrupted = True
         pool.stop()
+    except BaseException:  # whatever else ends the run: nothing of it goes on running
+        pool.stop()
+        raise
     finally:
         run.run_s = time.perf_counter() - submitted
         run.ready_s = list(getattr(pool, 'ready_s', []))

@@ -241,3 +241,31 @@ def test_a_report_without_its_outcome_is_one_line(tmp_path):
     (tmp_path / 'report.json').write_text(json.dumps(data))
     result = rerun(tmp_path / 'report.json', tmp_path)
     assert result.returncode == 2 and result.stderr.count('\n') == 1, result.stderr
+
+
+def test_a_cut_short_last_line_is_left_out_and_another_bad_line_is_one_line(tmp_path, capsys):
+    """A run killed while writing leaves half a line: resumable; a line bad before is not."""
+    from r2d2_sim.farm.rerun import read_records
+    outcomes = tmp_path / 'outcomes'
+    outcomes.mkdir()
+    good = json.dumps(record('t.py::test_a', tmp_path))
+    (outcomes / 'a.jsonl').write_text(good + '\n' + good[:40] + '\n')
+    assert read_records(tmp_path) == [json.loads(good)]
+    assert 'a.jsonl: its last line is cut short; left out' in capsys.readouterr().err
+    (outcomes / 'a.jsonl').write_text(good[:40] + '\n' + good + '\n')
+    with pytest.raises(ReportError, match=r'a\.jsonl: line 1 is not a farm outcome$'):
+        read_records(tmp_path)
+
+
+def test_a_shard_that_held_no_seed_merges_into_the_report(tmp_path, capsys):
+    """A runner's directory with its farm.json and no outcome adds nothing, and is no error."""
+    full, empty = tmp_path / 'shard1', tmp_path / 'shard2'
+    (full / 'outcomes').mkdir(parents=True)
+    (full / 'outcomes' / 'a.jsonl').write_text(json.dumps(record('t.py::test_a', full)) + '\n')
+    (empty / 'outcomes').mkdir(parents=True)
+    (empty / 'farm.json').write_text(json.dumps({'farm': {'name': 'x'}}))
+    assert main(['report', str(full), str(empty), '--out', str(tmp_path / 'merged')]) == 0
+    cases = json.loads((tmp_path / 'merged' / 'report.json').read_text())['cases']
+    assert [case['nodeid'] for case in cases] == ['t.py::test_a']
+    assert main(['report', str(empty), '--out', str(tmp_path / 'none')]) == 2
+    assert capsys.readouterr().err.strip().endswith(f'no farm outcomes in {empty}')

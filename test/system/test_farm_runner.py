@@ -437,3 +437,33 @@ def test_bad_input_is_one_line_and_exit_status_2(tmp_path, arguments, says):
     assert says in lines[0]
     assert not (tmp_path / 'farm_report' / 'outcomes').exists() or not list(
         (tmp_path / 'farm_report' / 'outcomes').glob('*.jsonl'))
+
+
+def test_fresh_against_a_cluster_that_does_not_answer_clears_nothing(tmp_path):
+    """--fresh starts the executor first: an unreachable address leaves the old report."""
+    out = tmp_path / 'report'
+    (out / 'outcomes').mkdir(parents=True)
+    kept = [out / 'outcomes' / 'runner-1-1.jsonl', out / 'report.md']
+    for path in kept:
+        path.write_text('an earlier run\n')
+    done = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.farm', 'run', FARM, '--variations', '2', '--fresh',
+         '--out', str(out), '--executor', 'dask', '--address', 'tcp://127.0.0.1:9'],
+        cwd=tmp_path, env=farm_env(), capture_output=True, text=True, timeout=DEADLINE_S)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert all(path.read_text() == 'an earlier run\n' for path in kept)
+
+
+def test_an_outcome_that_cannot_be_written_is_one_line_and_leaves_nothing_running(tmp_path):
+    """recordings/ is a file: the run stops with one line (not a traceback), exit status 2."""
+    out = tmp_path / 'report'
+    out.mkdir()
+    (out / 'recordings').write_text('not a folder')
+    done = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.farm', 'run', SHORT, '--variations', '1', '--workers',
+         '1', '--record', 'all', '--out', str(out), '--no-progress'],
+        cwd=tmp_path, env=farm_env(), capture_output=True, text=True, timeout=DEADLINE_S)
+    errors = [line for line in done.stderr.splitlines() if 'error' in line]  # the run logs too
+    assert done.returncode == 2 and len(errors) == 1 and 'Traceback' not in done.stderr, \
+        done.stderr
+    assert errors[0].startswith('r2d2_sim.farm: error: cannot write the outcome of variation 0')
