@@ -97,7 +97,8 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
                       'reason': crashed['reason'] if crashed else outcome['reason'],
                       'seed': farm['seed'] if crashed else outcome['scenario']['seed'],
                       'recording': None if crashed else outcome['recording'],
-                      'rerun': rerun_command(report_json, number), 'outcome': outcome,
+                      'rerun': record.get('rerun') or rerun_command(report_json, number),
+                      'outcome': outcome,
                       'first_failure': record.get('first_failure'),
                       'farm': record.get('farm'), 'traceback': (crashed or {}).get('traceback')})
     summary = _summary(cases)
@@ -150,9 +151,12 @@ def _test_name(case: Dict[str, Any]) -> str:
 def _markdown(data: Dict[str, Any]) -> str:
     summary, cases = data['summary'], data['cases']
     total = summary['runs']
+    how = ('Every case below reruns, recording its MCAP, with the command given '
+           '(`python -m r2d2_sim.farm rerun`)'
+           if all(c['rerun'].startswith('python -m r2d2_sim.farm rerun') for c in cases)
+           else 'Every case below says the command that runs it again')
     lines = ['# Farm report', '',
-             f'{data["date"]}: {total} runs. Every case below reruns, recording its MCAP, with '
-             'the command given (`python -m r2d2_sim.farm rerun`); `report.json` has every '
+             f'{data["date"]}: {total} runs. {how}; `report.json` has every '
              'case with its scenario and measures.', '',
              '| | |', '|---|---|',
              f'| passed | {_rate(summary["passed"], total)} |',

@@ -91,6 +91,10 @@ def locate(case: Dict[str, Any], project: Path) -> Where:
     followed). ReportError (one line) when none is.
     """
     path, _, name = str(case['nodeid']).partition('::')
+    if path.endswith('.osc'):
+        again = case.get('rerun') or 'python -m r2d2_sim.osc'
+        raise ReportError(f'case {case.get("case")} is the OpenSCENARIO variation {name}, not '
+                          f'a pytest test: run it again with {again}')
     parts = [part for part in PurePosixPath(path).parts if part != '/']
     candidates = [Path(case['rootdir'], path)] if case.get('rootdir') else []
     candidates += [project.joinpath(*parts[first:]) for first in range(len(parts))]

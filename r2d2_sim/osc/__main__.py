@@ -51,6 +51,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if not os.path.isfile(args.scenario):
         print(f'r2d2_sim.osc: error: no scenario file {args.scenario}', file=sys.stderr)
         return 2
+    if os.path.exists(args.output_dir) and not os.path.isdir(args.output_dir):
+        print(f'r2d2_sim.osc: error: -o {args.output_dir} is a file, not a directory',
+              file=sys.stderr)
+        return 2
     try:
         import scenario_execution  # noqa: F401
     except ImportError:
@@ -75,6 +79,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                   jobs=1, map_tasks=mapper, simulation=simulation)
     except (ScenarioError, ExecutorError) as exc:
         print(f'r2d2_sim.osc: error: {exc}', file=sys.stderr)
+        return 2
+    except OSError as exc:  # the results cannot be written there
+        print(f'r2d2_sim.osc: error: cannot write into {args.output_dir}: '
+              f'{exc.strerror or exc}', file=sys.stderr)
         return 2
     for verdict in verdicts:
         said = 'passed' if verdict.passed else f'FAILED: {verdict.reason}'

@@ -26,6 +26,7 @@ import functools
 import importlib
 import os
 from pathlib import Path
+import shlex
 import tempfile
 import time
 from typing import Any, Callable, Dict, Iterable, List, NamedTuple, Optional, Sequence, Tuple
@@ -392,7 +393,11 @@ def run_variations(scenario_file: str, parameter_file: Optional[str], output_dir
     if report:
         from r2d2_sim.farm.report import write_report
         source = Path(scenario_file).name
-        records = [{'nodeid': f'{source}::{v.name}', 'outcome': v.outcome}
+        # Not `python -m r2d2_sim.farm rerun` (it reruns pytest tests): the documents again.
+        again = ['python', '-m', 'r2d2_sim.osc', os.path.abspath(scenario_file)] + (
+            ['--parameters', os.path.abspath(parameter_file)] if parameter_file else [])
+        records = [{'nodeid': f'{source}::{v.name}', 'outcome': v.outcome,
+                    'rerun': f'{shlex.join(again)} --jobs 1 (document {v.number})'}
                    for v in verdicts if v.outcome is not None]
         if records:
             write_report(records, Path(output_dir) / 'farm',

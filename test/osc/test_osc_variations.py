@@ -6,6 +6,7 @@ one JUnit file and the farm's report. The crossing example with four speeds of i
 second robot: a few simulated seconds each.
 """
 
+import json
 import subprocess
 import sys
 import xml.etree.ElementTree as ElementTree
@@ -78,6 +79,18 @@ def test_the_command_line_says_each_verdict(tmp_path):
     assert lines[0] == 'crossing-0: passed', result.stdout + result.stderr
     assert lines[1].startswith('crossing-1: FAILED: r2d2 came within 0.3 m of r2')
     assert lines[2] == '1 passed, 1 failed; out/test.xml' and result.returncode == 1
+    # The report's rerun is the documents again, not the farm's rerun of a pytest test,
+    # which says so in one line if asked.
+    report = tmp_path / 'out' / 'farm' / 'report.json'
+    failed = json.loads(report.read_text())['cases'][1]
+    assert failed['rerun'].startswith('python -m r2d2_sim.osc ') and \
+        failed['rerun'].endswith('crossing_speeds.yaml --jobs 1 (document 1)')
+    asked = subprocess.run([sys.executable, '-m', 'r2d2_sim.farm', 'rerun', str(report),
+                            '--case', '1'], cwd=tmp_path, env=osc_env(tmp_path / 'shim'),
+                           capture_output=True, text=True, timeout=120)
+    assert asked.returncode == 2 and asked.stderr.splitlines() == [
+        'r2d2_sim.farm: error: case 1 is the OpenSCENARIO variation crossing-1, not a pytest '
+        f'test: run it again with {failed["rerun"]}']
 
 
 def test_a_cluster_that_does_not_answer_is_one_line(tmp_path):
@@ -91,6 +104,18 @@ def test_a_cluster_that_does_not_answer_is_one_line(tmp_path):
     assert result.stderr.splitlines() == [
         'r2d2_sim.osc: error: cannot reach the Dask scheduler at tcp://127.0.0.1:9 '
         '(127.0.0.1:9: Connection refused); is it running, and is the address right?']
+
+
+def test_an_output_directory_that_is_a_file_is_one_line(tmp_path):
+    """-o naming a file: exit status 2, one line, before anything runs."""
+    (tmp_path / 'fleet.yaml').write_text('mine\n')
+    result = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.osc', str(OSC_EXAMPLES / 'crossing.osc'), '-o',
+         'fleet.yaml'], cwd=tmp_path, env=osc_env(tmp_path / 'shim'), capture_output=True,
+        text=True, timeout=120)
+    assert result.returncode == 2 and result.stderr.splitlines() == [
+        'r2d2_sim.osc: error: -o fleet.yaml is a file, not a directory'], result.stderr
+    assert (tmp_path / 'fleet.yaml').read_text() == 'mine\n'
 
 
 def test_a_parameter_file_that_cannot_be_read_is_one_line(tmp_path):
