@@ -46,10 +46,10 @@ __all__ = ['main']
 def rebuild(directories: Sequence[Path], out: Path) -> int:
     """Write one report of the outcomes in ``directories`` into ``out``."""
     from r2d2_sim.farm.report import write_report
+    from r2d2_sim.farm.runner import FARM_JSON
     records: List[Dict[str, Any]] = []
     seen: Set[Tuple[Any, ...]] = set()
     repeated = 0
-    from r2d2_sim.farm.runner import FARM_JSON
     for directory in directories:
         found = read_records(directory)
         if not found:

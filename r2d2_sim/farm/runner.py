@@ -273,13 +273,18 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
             raise FarmError(str(exc)) from None
         started_s = time.perf_counter() - started
         _clear(directory)
-    earlier = _earlier(directory, identity)
-    todo = farm.items([k for k in keys if k not in earlier])
-    (directory / OUTCOMES).mkdir(exist_ok=True)
-    (directory / FARM_JSON).write_text(json.dumps(
-        {'farm': identity, 'source': None if source is None else str(source),
-         'shard': None if shard is None else str(shard)}, indent=1, sort_keys=True) + '\n',
-        encoding='utf-8')
+    try:
+        earlier = _earlier(directory, identity)
+        todo = farm.items([k for k in keys if k not in earlier])
+        (directory / OUTCOMES).mkdir(exist_ok=True)
+        (directory / FARM_JSON).write_text(json.dumps(
+            {'farm': identity, 'source': None if source is None else str(source),
+             'shard': None if shard is None else str(shard)}, indent=1, sort_keys=True) + '\n',
+            encoding='utf-8')
+    except BaseException:
+        if started_s is not None:  # started for --fresh: let its workers go
+            pool.close()
+        raise
     run = FarmRun(directory, records={k: earlier[k] for k in keys if k in earlier},
                   resumed=len([k for k in keys if k in earlier]), executor=pool.name)
     shown = Progress(len(keys), run.resumed, stream=stream,
