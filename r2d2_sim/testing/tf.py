@@ -42,7 +42,8 @@ class TfListener:
     The node's executor delivers the messages, or with ``on_demand`` they wait
     in the middleware until :meth:`take`, which reading ``buffer`` does (no
     executor runs them: a lockstep period costs nothing for them);
-    ``static_received`` and ``dynamic_received`` count them. Needs tf2_msgs
+    ``static_received`` and ``dynamic_received`` count them, ``static_publishers``
+    the ``/tf_static`` publishers matched (each latches one message). Needs tf2_msgs
     (ImportError without it: ``tools/build_tf2_msgs.sh`` builds it for a
     pip-only venv).
     """
@@ -81,6 +82,11 @@ class TfListener:
         """Return how many ``/tf_static`` messages arrived so far."""
         self.take()
         return self._received[1]
+
+    @property
+    def static_publishers(self) -> int:
+        """Return how many ``/tf_static`` publishers the listener matched (each latches one)."""
+        return self._subscriptions[1].get_publisher_count() if self._subscriptions else 0
 
     def _on_tf(self, msg: Any) -> None:
         self._buffer.add_tf_message(msg, static=False)
@@ -188,14 +194,19 @@ class TransformLookup:
 
         def can_transform() -> bool:
             return listener.buffer.can_transform(target_frame, source_frame, time_ns)
-        # In process (frozen), once /tf_static's latched message is in (it comes a
-        # moment after a new listener matches), the buffer holds all it will until
-        # the next step: an unknown frame is said then, not at the deadline (10 s
-        # of waiting for nothing). A world with no static transform waits as before.
+        # In process (frozen), once /tf_static's latched messages are in (each comes a
+        # moment after a new listener matches its publisher: one per robot), the buffer
+        # holds all it will until the next step: an unknown frame is said then, not at
+        # the deadline (10 s of waiting for nothing). Not after the first robot's: a
+        # robot spawned later has its own publisher, its message perhaps still on its
+        # way (a CI run once said "no c/base_link" so). No static transform: as before.
         frozen = self._tf_frozen()
 
         def decided() -> bool:
-            return can_transform() or (frozen and listener.static_received > 0)
+            if can_transform():
+                return True
+            received = listener.static_received
+            return frozen and received > 0 and received >= listener.static_publishers
         if not self._tf_wait(decided) or not can_transform():
             try:
                 listener.buffer.lookup_transform(target_frame, source_frame, time_ns)
