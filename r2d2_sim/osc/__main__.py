@@ -64,7 +64,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     from r2d2_sim.osc.entry_points import ensure_registered
     ensure_registered()
     from r2d2_sim.farm.executors import ExecutorError
-    from r2d2_sim.osc.variations import executor_map, IN_PROCESS, run_variations
+    from r2d2_sim.osc.variations import check_parses, executor_map, IN_PROCESS, run_variations
     simulation = 'r2d2_sim.osc:StandardSimulation' if args.ros else IN_PROCESS
     if args.jobs is not None and args.jobs < 1:
         print(f'r2d2_sim.osc: error: --jobs {args.jobs}: at least 1', file=sys.stderr)
@@ -75,6 +75,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     else:
         mapper = executor_map(args.executor, args.address, args.jobs)
     try:
+        check_parses(args.scenario)
         verdicts = run_variations(args.scenario, args.parameters, args.output_dir,
                                   jobs=1, map_tasks=mapper, simulation=simulation)
     except (ScenarioError, ExecutorError) as exc:

@@ -20,10 +20,12 @@ document it runs (scenario_execution's own multi-document path does the
 same: parsing is about 0.4 s, a copy 0.06 s).
 """
 
+import contextlib
 import copy
 from dataclasses import dataclass
 import functools
 import importlib
+import io
 import os
 from pathlib import Path
 import shlex
@@ -40,7 +42,7 @@ from r2d2_sim.errors import ScenarioError
 Status = py_trees.common.Status
 
 __all__ = ['Task', 'Verdict', 'DocumentsJob', 'read_documents', 'tasks_of', 'run_document',
-           'run_variations', 'executor_map', 'write_junit', 'scenario_parameters',
+           'check_parses', 'run_variations', 'executor_map', 'write_junit', 'scenario_parameters',
            'simulator_parameters', 'IN_PROCESS']
 
 # The simulation a variation runs against: R2D2 in the worker's own process.
@@ -197,6 +199,22 @@ def run_document(task: Task) -> Verdict:
     reason = '' if passed else _reason(execution, results, logger)
     outcome = _outcome(simulation, passed, reason, time.perf_counter() - started)
     return Verdict(task.number, name, passed, reason, time.perf_counter() - started, outcome)
+
+
+def check_parses(scenario_file: str) -> None:
+    """
+    Parse the scenario file once here; ScenarioError (one line) if it does not parse.
+
+    Before any variation runs: a file that cannot be read is the command's
+    one line and exit status 2, not the same failed verdict for every
+    document. ANTLR's own line on stderr is kept out (the error says it).
+    """
+    logger = _QuietLogger()
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):
+            _parser(logger).process_file(os.path.abspath(scenario_file))
+    except Exception as exc:  # scenario_execution's parse errors: ValueError, OSC2Error...
+        raise ScenarioError(_line(f'{scenario_file}: parsing failed: {exc}')) from None
 
 
 def _with_document(task: Task, logger: Any) -> Any:

@@ -106,6 +106,20 @@ def test_a_cluster_that_does_not_answer_is_one_line(tmp_path):
         '(127.0.0.1:9: Connection refused); is it running, and is the address right?']
 
 
+def test_a_scenario_that_does_not_parse_is_one_line_before_anything_runs(tmp_path):
+    """Not each document failing alike: exit status 2 and the parser's error, once."""
+    (tmp_path / 'garbage.osc').write_text('garbage { here\n')
+    result = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.osc', 'garbage.osc', '--parameters',
+         str(OSC_EXAMPLES / 'crossing_speeds.yaml')], cwd=tmp_path,
+        env=osc_env(tmp_path / 'shim'), capture_output=True, text=True, timeout=120)
+    lines = result.stderr.splitlines()
+    assert result.returncode == 2 and len(lines) == 1, result.stderr
+    assert lines[0].startswith("r2d2_sim.osc: error: garbage.osc: parsing failed: line 1:0 "
+                               "mismatched input 'garbage'")
+    assert not (tmp_path / 'osc_results').exists()
+
+
 def test_an_output_directory_that_is_a_file_is_one_line(tmp_path):
     """-o naming a file: exit status 2, one line, before anything runs."""
     (tmp_path / 'fleet.yaml').write_text('mine\n')
