@@ -263,26 +263,33 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
                       workers=workers)
     except ExecutorError as exc:
         raise FarmError(str(exc)) from None
-    started_s = None
-    if fresh:  # started (the cluster reached) before anything is cleared
-        started = time.perf_counter()
+
+    def start() -> float:
+        began = time.perf_counter()
         try:
             pool.start()
         except ExecutorError as exc:
             pool.close()
             raise FarmError(str(exc)) from None
-        started_s = time.perf_counter() - started
+        return time.perf_counter() - began
+    # The executor starts (a cluster is reached) before the directory changes: --fresh
+    # clears nothing, and a run writes no farm.json, for an address that does not answer.
+    started_s = None
+    if fresh:
+        started_s = start()
         _clear(directory)
     try:
         earlier = _earlier(directory, identity)
         todo = farm.items([k for k in keys if k not in earlier])
+        if todo and started_s is None:
+            started_s = start()
         (directory / OUTCOMES).mkdir(exist_ok=True)
         (directory / FARM_JSON).write_text(json.dumps(
             {'farm': identity, 'source': None if source is None else str(source),
              'shard': None if shard is None else str(shard)}, indent=1, sort_keys=True) + '\n',
             encoding='utf-8')
     except BaseException:
-        if started_s is not None:  # started for --fresh: let its workers go
+        if started_s is not None:  # started: let its workers go
             pool.close()
         raise
     run = FarmRun(directory, records={k: earlier[k] for k in keys if k in earlier},
@@ -347,9 +354,10 @@ def _drive(pool: Any, todo: List[Item], job: FarmJob, source: Optional[JobSource
            directory: Path, outcomes: Path, run: FarmRun, shown: Progress,
            started_s: Optional[float] = None) -> None:
     """
-    Start the executor, run ``todo``, keep every result as it comes; stop on Ctrl-C.
+    Run ``todo`` on the executor, keep every result as it comes; stop on Ctrl-C.
 
-    ``started_s``: the executor was started already, in that many seconds.
+    ``started_s``: the executor was started already, in that many seconds
+    (None: start it here).
     """
     if not todo:
         pool.close()

@@ -437,6 +437,8 @@ def test_bad_input_is_one_line_and_exit_status_2(tmp_path, arguments, says):
     assert says in lines[0]
     assert not (tmp_path / 'farm_report' / 'outcomes').exists() or not list(
         (tmp_path / 'farm_report' / 'outcomes').glob('*.jsonl'))
+    # Nothing says a farm runs there: the executor is reached before the directory changes.
+    assert not (tmp_path / 'farm_report' / 'farm.json').exists()
 
 
 def test_fresh_against_a_cluster_that_does_not_answer_clears_nothing(tmp_path):
