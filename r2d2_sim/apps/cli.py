@@ -79,6 +79,26 @@ def domain_env_problem() -> Optional[str]:
     return None
 
 
+def params_file_problem(argv: Sequence[str]) -> Optional[str]:
+    """
+    Return what is wrong with a ``--params-file`` among ``argv``'s ROS arguments (None: fine).
+
+    Checked before ROS starts: rcl logs a line of its own, then raises with
+    the YAML parser's source locations, for a file that is not there.
+    """
+    ros = False
+    for index, arg in enumerate(argv):
+        if arg == '--ros-args':
+            ros = True
+        elif arg == '--':
+            ros = False
+        elif ros and arg == '--params-file' and index + 1 < len(argv):
+            path = argv[index + 1]
+            if not os.path.isfile(path):
+                return f'--params-file {path}: no such file'
+    return None
+
+
 def init_ros(argv: Sequence[str], prog: str) -> bool:
     """
     Initialise rclpy for a tool without rclpy's signal handlers; False after one error line.
@@ -88,7 +108,7 @@ def init_ros(argv: Sequence[str], prog: str) -> bool:
     """
     import rclpy
     from rclpy.signals import SignalHandlerOptions
-    problem = domain_env_problem()
+    problem = domain_env_problem() or params_file_problem(argv)
     if problem is not None:
         print(f'{prog}: error: {problem}', file=sys.stderr)
         return False

@@ -88,6 +88,8 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
      'world_frame_id and odom_frame_id'),
     (['-p', 'frame_prefix:=/robot1/'], "frame_prefix must not start with '/'"),
     (['-p', 'base_frame_id:=base link'], 'base_frame_id must be a tf2 frame id'),
+    (['--params-file', '/nonexistent/params.yaml'],
+     '--params-file /nonexistent/params.yaml: no such file'),
 ])
 def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     """A wrong parameter stops start-up with one readable line and exit code 2."""
