@@ -10,6 +10,7 @@ to the caller as :class:`CallbackError`.
 
 import atexit
 from contextlib import contextmanager
+import math
 import os
 import threading
 import time
@@ -52,6 +53,14 @@ def parameter_overrides(parameters: Mapping[str, Any]) -> List[Parameter]:
     return [Parameter(name, value=numbers_alike(value)) for name, value in parameters.items()]
 
 
+def check_timeout(timeout_s: Any) -> float:
+    """Return ``timeout_s`` (s) if it is a finite number > 0; ValueError (one line) if not."""
+    if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) \
+            or not math.isfinite(timeout_s) or timeout_s <= 0:
+        raise ValueError(f'timeout_s must be a finite number of seconds > 0, got {timeout_s!r}')
+    return float(timeout_s)
+
+
 class RosHarness:
     """
     One rclpy context on a leased domain, with an executor spinning in a thread.
@@ -70,7 +79,7 @@ class RosHarness:
     """
 
     def __init__(self, *, domain_id: Optional[int] = None, timeout_s: float = 10.0) -> None:
-        self.timeout_s = timeout_s
+        self.timeout_s = check_timeout(timeout_s)
         self.lease = lease_domain(domain_id, timeout_s=max(timeout_s, 60.0))
         self.domain_id = self.lease.domain_id
         self.nodes: List[Node] = []

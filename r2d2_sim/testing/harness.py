@@ -314,6 +314,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
     def _tf_wait(self, condition: Callable[[], bool]) -> bool:
         try:
             self._wait(condition, 'no transform')
+        except CallbackError:
+            raise  # a callback's error, for the caller: not "no transform"
         except HarnessError:
             return False
         return True
@@ -377,6 +379,12 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         from r2d2_sim.sim.oracles import RunWatch
         with self.sim.lock:
             return RunWatch(self.sim.simulation, entity, **options)
+
+    def _after_time_back(self) -> None:
+        """Listen to TF afresh, the harness and every robot's handle: the old frames go."""
+        self._restart_tf()
+        for handle in self._robots.values():
+            handle._restart_tf()
 
     def _after_world(self, loaded: bool) -> None:
         """After load_world as after a full reset; after unload_world nothing can step."""

@@ -10,6 +10,7 @@ simulator in this process) and :class:`RemoteRobot` for
 of their first robot (the one robot, by default).
 """
 
+import os
 from typing import Any, Callable, Dict, List, Mapping, Optional, Protocol, Tuple, TYPE_CHECKING
 
 from geometry_msgs.msg import Twist, TwistStamped
@@ -105,13 +106,40 @@ def simulator_parameters(parameters: Mapping[str, Any],
     ROS ignores undeclared overrides and the node only warns, but a
     harness's keyword nothing reads is a mistake, said before anything starts.
     """
-    flat = {k: v for k, v in flatten_robots(parameters).items() if v is not None}
+    robots = parameters.get('robots')
+    if isinstance(robots, Mapping):
+        for name, own in robots.items():
+            if own is not None and not isinstance(own, Mapping):
+                raise refused(f'robots: robot {name!r} takes a dict of its parameters '
+                              f'(or None), got {type(own).__name__} {own!r:.40}')
+    flat = {k: _ros_value(v) for k, v in flatten_robots(parameters).items() if v is not None}
+    for name, value in flat.items():
+        if not _is_ros_value(value):
+            raise refused(f'parameter {name}: a {type(value).__name__} is no ROS parameter '
+                          'value (a bool, number, string or list of one of those)')
     robots = flat.get('robots')
     unknown = unknown_parameters(flat, [str(r) for r in robots]
                                  if isinstance(robots, (list, tuple)) else [])
     if unknown:
         raise refused('; '.join(unknown))
     return flat
+
+
+def _ros_value(value: Any) -> Any:
+    """Return ``value`` with paths as strings (a file given as a ``pathlib.Path``)."""
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if isinstance(value, (list, tuple)):
+        return [os.fspath(v) if isinstance(v, os.PathLike) else v for v in value]
+    return value
+
+
+def _is_ros_value(value: Any) -> bool:
+    """Return True for what a ROS parameter holds: a scalar, or a list of scalars."""
+    scalars = (bool, int, float, str)
+    if isinstance(value, scalars):
+        return True
+    return isinstance(value, (list, tuple)) and all(isinstance(v, scalars) for v in value)
 
 
 def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:

@@ -14,7 +14,7 @@ from std_srvs.srv import SetBool, Trigger
 from r2d2_sim.client import ros_child_env, stamp_ns, step_count
 from r2d2_sim.errors import StartupError
 from r2d2_sim.testing.domains import DomainLease, env_domain_id, lease_domain
-from r2d2_sim.testing.executor import HarnessError
+from r2d2_sim.testing.executor import check_timeout, HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import ask_until, RemoteProbe
 from r2d2_sim.testing.robots import (
@@ -107,7 +107,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
                  lease: bool = True, **parameters: Any) -> None:
         if domain_id is None and use_env_domain:
             domain_id = env_domain_id()
-        self.timeout_s = timeout_s
+        self.timeout_s = check_timeout(timeout_s)
         self.result: Optional[ProcessResult] = None
         self.paused = False
         self.last_status: Dict[str, Any] = {}
@@ -126,13 +126,12 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         # it does not read, in a log nobody reads, and run on the default.
         parameters = simulator_parameters(parameters, ProcessStartupError)
         self._standard: Optional[StandardClient] = None
-        self.lease: Optional[DomainLease]  # None: lease=False, the caller's own domain
-        if lease or domain_id is None:
-            self.lease = lease_domain(domain_id, timeout_s=max(timeout_s, 60.0))
-            self.domain_id = self.lease.domain_id
-        else:
-            self.lease, self.domain_id = None, domain_id
-        # The node's name and namespace: ours, overridden by remaps in ros_args.
+        # The node's name and namespace: ours, overridden by remaps in ros_args. The
+        # command is built before the domain is leased: a mistake in it leases nothing.
+        if isinstance(ros_args, (str, bytes)) or not all(
+                isinstance(arg, str) for arg in (ros_args or ())):
+            raise ProcessStartupError(f'ros_args must be a list of strings, got {ros_args!r:.60}')
+        ros_args = list(ros_args or ())
         given = parse_ros_args(ros_args, node_name)
         node_name = given.node_name or node_name
         namespace = given.namespace if given.namespace is not None else namespace
@@ -140,7 +139,13 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         self.node_path = f'{namespace}/{node_name}'
         remaps = (['-r', f'__node:={node_name}'] if node_name != 'r2d2_sim' else []) + \
             (['-r', f'__ns:={namespace}'] if namespace else [])
-        self.command = sim_node_command(parameters, remaps + list(ros_args), command)
+        self.command = sim_node_command(parameters, remaps + ros_args, command)
+        self.lease: Optional[DomainLease]  # None: lease=False, the caller's own domain
+        if lease or domain_id is None:
+            self.lease = lease_domain(domain_id, timeout_s=max(self.timeout_s, 60.0))
+            self.domain_id = self.lease.domain_id
+        else:
+            self.lease, self.domain_id = None, domain_id
         process: Optional[ChildProcess] = None
         probe: Optional[RemoteProbe] = None
         try:
@@ -412,6 +417,12 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
             self.robot(first)
         self._robots = {name: self._robots[name] for name in facts['robots']
                         if name in self._robots}
+
+    def _after_time_back(self) -> None:
+        """Listen to TF afresh, the harness and every robot's handle: the old frames go."""
+        self._restart_tf()
+        for handle in self._robots.values():
+            handle._restart_tf()
 
     def step_physics(self, steps: int) -> Dict[str, Any]:
         """

@@ -161,6 +161,12 @@ class TransformLookup:
                 self._tf.add_serialized(data)
         return self._tf
 
+    def _restart_tf(self) -> None:
+        """Listen afresh if listening (time went back, or another world): old frames go."""
+        if self._tf is not None:
+            self._stop_tf()
+            self.listen_tf()
+
     def _stop_tf(self) -> None:
         """Close the listener, if any: its subscriptions must not outlive the robot's handle."""
         if self._tf is not None:

@@ -255,6 +255,14 @@ class WorldVerbs:
         """Resync the state readers after load_world (True) or unload_world (a harness hook)."""
         self._after_reset()
 
+    def _after_time_back(self) -> None:
+        """
+        Forget the transforms of the time before (a harness hook): time went back to 0.
+
+        As tf2 clears its buffer when time jumps back: else a lookup of the
+        latest transform would answer with the old run's.
+        """
+
     def spawn(self, urdf: str, *, name: str = '', position: Sequence[float] = (0.0, 0.0, 0.0),
               yaw: float = 0.0, orientation: Optional[Sequence[float]] = None,
               allow_renaming: Optional[bool] = None, namespace: str = '',
@@ -343,12 +351,14 @@ class WorldVerbs:
         """
         entry = self._world_backend().load_world(*_world_resource(world))
         self._after_world(True)
+        self._after_time_back()
         return entry
 
     def unload_world(self) -> None:
         """Unload the world (UnloadWorld): nothing steps until a world is loaded again."""
         self._world_backend().unload_world()
         self._after_world(False)
+        self._after_time_back()
 
     def current_world(self) -> Optional[WorldEntry]:
         """Return the world loaded now (None after unload_world)."""
@@ -395,7 +405,15 @@ class WorldVerbs:
 
     def reset_world(self, *, time: bool = True, state: bool = True,
                     spawned: bool = True) -> None:
-        """Reset with the standard's scopes (all by default: time back to 0, as at start-up)."""
+        """
+        Reset with the standard's scopes (all by default: time back to 0, as at start-up).
+
+        With time back to 0, the transforms looked up before are forgotten,
+        as tf2 clears its buffer when time jumps back (so do load_world and
+        unload_world): a lookup answers with the new run's, never the old one's.
+        """
         self._before_reset()
         self._world_backend().reset(time, state, spawned)
         self._after_reset()
+        if time:
+            self._after_time_back()

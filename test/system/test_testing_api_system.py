@@ -7,8 +7,10 @@ The same API in process, and the README's section against test/examples/,
 are testing/test_testing_api.py's.
 """
 
+import importlib.util
 import os
 from pathlib import Path
+import re
 import subprocess
 import sys
 import textwrap
@@ -20,7 +22,7 @@ import pytest
 from common import EXAMPLE_FILES, EXAMPLES
 from r2d2_sim import testing
 from r2d2_sim.testing import (
-    DomainUnavailable, HarnessError, lease_domain, SimProcess, StartupError)
+    DomainUnavailable, HarnessError, lease_domain, SimHarness, SimProcess, StartupError)
 
 
 # -- the README and the examples ----------------------------------------------------
@@ -314,3 +316,43 @@ def test_a_process_keyword_the_simulator_does_not_read_is_refused_before_it_star
                        r'\(did you mean cmd_vel_timeout\?\)$') as refused:
         SimProcess(cmd_vel_timout=0.0)
     assert isinstance(refused.value, HarnessError)
+
+
+@pytest.mark.skipif(importlib.util.find_spec('tf2_msgs') is None, reason='tf2_msgs is needed')
+def test_a_process_lookup_after_reset_world_is_of_the_new_run(r2d2_sim_process):
+    """Driven 2 s, reset_world, 1 s standing: the transform is the new run's, not the old."""
+    sim = r2d2_sim_process(real_time_factor=0.0, publish_rate=60.0, cmd_vel_timeout=0.0)
+    sim.lookup_transform('odom', 'base_link')  # listening from the start
+    sim.send_cmd_vel(linear=0.5)
+    assert testing.wait_for(lambda: sim.odom().pose.pose.position.x > 0.5, timeout_s=30.0)
+    sim.send_cmd_vel(linear=0.0)
+    sim.reset_world()
+    assert abs(sim.odom().pose.pose.position.x) < 0.05  # standing at the start again
+    latest = sim.lookup_transform('odom', 'base_link')
+    assert abs(latest.transform.translation[0]) < 0.05, latest  # not the old run's 0.5 m
+
+
+@pytest.mark.parametrize('keywords, says', [
+    ({'world': {'name': 'room'}}, 'parameter world: a dict is no ROS parameter value'),
+    ({'robots': {'a': 5}}, "robots: robot 'a' takes a dict of its parameters"),
+    ({'ros_args': '--log-level debug'}, 'ros_args must be a list of strings'),
+])
+def test_a_process_given_what_cannot_be_a_parameter_is_one_line_and_leases_nothing(
+        keywords, says):
+    """One line, before any domain is leased: the same domain is free at once after."""
+    from r2d2_sim.testing import lease_domain
+    with lease_domain() as first:
+        domain = first.domain_id
+    with pytest.raises(StartupError, match=re.escape(says)):
+        SimProcess(domain_id=domain, **keywords)
+    with lease_domain(domain, timeout_s=1.0) as again:  # not held by the refused process
+        assert again.domain_id == domain
+
+
+@pytest.mark.parametrize('timeout_s', [0, -1.0, float('nan')])
+def test_a_timeout_that_is_no_time_is_one_line(timeout_s):
+    """SimProcess and the in-process harness refuse it before anything starts."""
+    for make in (SimProcess, SimHarness):
+        with pytest.raises(ValueError, match=r'^timeout_s must be a finite number of '
+                           r'seconds > 0, got '):
+            make(timeout_s=timeout_s)
