@@ -397,6 +397,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
 
     def call_service(self, srv_type: Type, name: str, request: Any) -> Any:
         """Call a service (of the simulator or yours) from the harness's node; return the reply."""
+        self.check_open()
         client = self._link.create_client(srv_type, name)
         try:
             self._wait(client.service_is_ready, f'service {name} was not available')

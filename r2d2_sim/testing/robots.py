@@ -82,6 +82,9 @@ class RemoteHost(Protocol):
     def status(self) -> Dict[str, Any]:
         """Return the simulator's state (its ``~/get_status`` reply)."""
 
+    def check_open(self) -> None:
+        """Raise HarnessError (one line) once the process was stopped."""
+
     def _wait_latest(self, key: str, latest: Dict[str, Any], what: str) -> Any:
         """Return the state message ``key`` of the latest publication (paused) or the newest."""
 
@@ -361,6 +364,8 @@ class LocalRobot(_RobotHandle):
         """Wait until the message of the latest publication has been delivered; return it."""
         harness = self._harness
         harness.check_open()
+        if not harness.sim.world_is_loaded:  # nothing publishes: said now, not in 10 s
+            raise HarnessError('no world is loaded (unload_world): load_world first')
         if self._interfaces is None or not harness.sim.simulation.robots.count(
                 self._interfaces.robot):
             raise HarnessError(f'the robot {self.name} is not in the world any more')
@@ -555,11 +560,13 @@ class RemoteRobot(_RobotHandle):
         simulator, and each spawn and delete would make and unmake them.
         """
         process = self._process
+        process.check_open()
         if self.tf_topics == tuple(map(self._node.resolve_topic_name, process._tf_topics())):
             return process.listen_tf()
         return super().listen_tf()
 
     def _tf_node(self) -> Node:
+        self._process.check_open()
         return self._node
 
     def _tf_wait(self, condition: Callable[[], bool]) -> bool:

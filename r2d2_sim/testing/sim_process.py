@@ -165,8 +165,14 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
 
     # -- the node's own control services (~/pause, ~/step, ~/reset, ~/get_status) ------
 
+    def check_open(self) -> None:
+        """Raise HarnessError (one line) once :meth:`stop` has ended the simulator."""
+        if self.result is not None:
+            raise HarnessError('the simulator process was stopped: start a new SimProcess')
+
     def _request(self, name: str, request: Any, resend_after_s: Optional[float] = None,
                  client: Optional[Client] = None) -> Dict[str, Any]:
+        self.check_open()
         if self._exited():
             raise HarnessError(f'sim_node has exited (status {self.process.returncode})')
         client = client or self._clients[name]
@@ -243,6 +249,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         robot's node: the simulator's for the one default robot, else
         ``<robot namespace>/<node name>/get_joint_info``.
         """
+        self.check_open()
         handle = self.robot(robot)
         path = f'{handle.namespace.rstrip("/")}/{self.node_path.rsplit("/", 1)[1]}'
         client = self._clients.get(path)
@@ -391,6 +398,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
     @property
     def standard(self) -> StandardClient:
         """Return the client of the node's simulation_interfaces services (made on first use)."""
+        self.check_open()
         if self._standard is None:
             namespace = self.node_path.rsplit('/', 1)[0]
             # Queries sent again, as ~/get_status is: a reply can be lost on a busy machine.
@@ -436,6 +444,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         return self.status()
 
     def _tf_node(self) -> Node:
+        self.check_open()
         return self.probe.node
 
     def _tf_wait(self, condition: Callable[[], bool]) -> bool:

@@ -155,8 +155,9 @@ class TransformLookup:
 
     def listen_tf(self) -> TfListener:
         """Start taking ``/tf`` and ``/tf_static`` into a transform buffer (once); return it."""
+        node = self._tf_node()  # HarnessError (one line) once the harness is closed
         if self._tf is None:
-            self._tf = TfListener(self._tf_node(), topics=self._tf_topics(), on_demand=True)
+            self._tf = TfListener(node, topics=self._tf_topics(), on_demand=True)
             for data in self._tf_sent_before():
                 self._tf.add_serialized(data)
         return self._tf

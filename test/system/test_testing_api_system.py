@@ -356,3 +356,18 @@ def test_a_timeout_that_is_no_time_is_one_line(timeout_s):
         with pytest.raises(ValueError, match=r'^timeout_s must be a finite number of '
                            r'seconds > 0, got '):
             make(timeout_s=timeout_s)
+
+
+def test_a_stopped_process_says_so_in_one_line(r2d2_sim_process):
+    """After stop(): the standard's verbs, the services and lookups: HarnessError, one line."""
+    sim = r2d2_sim_process(real_time_factor=0.0)
+    robot = sim.robot()
+    sim.stop()
+    calls = [sim.entities, sim.status, lambda: sim.step_physics(1), sim.joint_info,
+             lambda: sim.spawn('package://r2d2_sim/urdf/r2d2.urdf', name='late')]
+    if importlib.util.find_spec('tf2_msgs') is not None:
+        calls += [lambda: sim.lookup_transform('odom', 'base_link'),
+                  lambda: robot.lookup_transform('odom', 'base_link')]
+    for call in calls:
+        with pytest.raises(HarnessError, match='^the simulator process was stopped'):
+            call()

@@ -64,3 +64,27 @@ def test_a_callbacks_error_is_not_swallowed_by_a_lookup(r2d2_sim_factory):
     with pytest.raises(CallbackError, match='ValueError: mine'):
         harness.lookup_transform('odom', 'base_link')
     assert harness.lookup_transform('odom', 'base_link').stamp_ns > 0  # said once
+
+
+def test_state_and_calls_after_unload_or_close_are_one_line_at_once(r2d2_sim_factory):
+    """No world: the state readers say so at once; a closed harness: lookups and services."""
+    import time
+    from std_srvs.srv import Trigger
+    from r2d2_sim.testing import HarnessError
+    harness = r2d2_sim_factory()
+    robot = harness.robot()
+    harness.unload_world()
+    started = time.monotonic()
+    for read in (robot.odom, robot.ground_truth):
+        with pytest.raises(HarnessError, match=r'^no world is loaded \(unload_world\)'):
+            read()
+    assert time.monotonic() - started < 5.0  # not the 10 s deadline
+    harness.load_world('empty.world.yaml')
+    if importlib.util.find_spec('tf2_msgs') is not None:
+        harness.lookup_transform('odom', 'base_link')  # a listener made while open
+    harness.close()
+    for call in (lambda: harness.lookup_transform('odom', 'base_link'),
+                 lambda: harness.call_service(Trigger, '/r2d2_sim/get_status',
+                                              Trigger.Request())):
+        with pytest.raises(HarnessError, match='^the harness is closed'):
+            call()
