@@ -19,7 +19,12 @@ Each harness leases a ROS domain no other harness on the machine uses, so
 tests may run in parallel (``pytest -n auto``).
 """
 
+from typing import Any, Callable, Iterator, TYPE_CHECKING
+
 import pytest
+
+if TYPE_CHECKING:  # the plugin imports nothing heavy until a fixture is used
+    from r2d2_sim.testing import SimHarness, SimProcess
 
 
 def pytest_configure(config) -> None:
@@ -36,14 +41,15 @@ def r2d2_sim_parameters() -> dict:
 
 
 @pytest.fixture
-def r2d2_sim_factory():
+def r2d2_sim_factory() -> Iterator[Callable[..., 'SimHarness']]:
     """Provide ``make(**parameters) -> SimHarness``; each harness made closes after the test."""
     from r2d2_sim.testing import SimHarness
     yield from _made_and_closed(SimHarness, SimHarness.close)
 
 
 @pytest.fixture
-def r2d2_sim(r2d2_sim_factory, r2d2_sim_parameters):
+def r2d2_sim(r2d2_sim_factory: Callable[..., 'SimHarness'],
+             r2d2_sim_parameters: dict) -> 'SimHarness':
     """
     Provide a ready in-process simulator harness (``SimHarness``) on a domain of its own.
 
@@ -62,7 +68,7 @@ def r2d2_sim(r2d2_sim_factory, r2d2_sim_parameters):
 
 
 @pytest.fixture
-def r2d2_sim_process():
+def r2d2_sim_process() -> Iterator[Callable[..., 'SimProcess']]:
     """
     Provide ``start(**parameters) -> SimProcess``: ``sim_node`` in its own process, ready.
 
@@ -74,11 +80,12 @@ def r2d2_sim_process():
     yield from _made_and_closed(SimProcess, SimProcess.stop)
 
 
-def _made_and_closed(build, close):
+def _made_and_closed(build: Callable[..., Any],
+                     close: Callable[[Any], Any]) -> Iterator[Callable[..., Any]]:
     """Yield ``make(**parameters)`` that builds and keeps; close all it made afterwards."""
     made = []
 
-    def make(**parameters):
+    def make(**parameters: Any) -> Any:
         thing = build(**parameters)
         made.append(thing)
         return thing
@@ -86,7 +93,7 @@ def _made_and_closed(build, close):
     _close_all(made, close)
 
 
-def _close_all(harnesses, close) -> None:
+def _close_all(harnesses: list, close: Callable[[Any], Any]) -> None:
     """Close every harness, newest first, even if one fails; then raise the first failure."""
     errors = []
     for harness in reversed(harnesses):

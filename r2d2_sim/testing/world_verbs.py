@@ -52,6 +52,10 @@ def _orientation(yaw: float, orientation: Optional[Sequence[float]]) -> Tuple[fl
     return 0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)
 
 
+# A file by its path (a pathlib.Path too), a URI, or the file's text.
+PathOrText = Union[str, 'os.PathLike[str]']
+
+
 def _text(value: Any, what: str) -> str:
     if isinstance(value, os.PathLike):
         return os.fspath(value)  # a pathlib.Path is a path
@@ -60,14 +64,14 @@ def _text(value: Any, what: str) -> str:
     return value
 
 
-def _resource(urdf: str) -> Tuple[str, str]:
+def _resource(urdf: PathOrText) -> Tuple[str, str]:
     """Return (uri, resource_string): XML text goes as a resource string, anything else a uri."""
     urdf = _text(urdf, 'spawn takes a URDF or SDF: a path, a package:// or model:// URI, a '
                        'pybullet_data name or the XML text')
     return ('', urdf) if urdf.lstrip().startswith('<') else (urdf, '')
 
 
-def _world_resource(world: str) -> Tuple[str, str]:
+def _world_resource(world: PathOrText) -> Tuple[str, str]:
     """Return (uri, resource_string): a text of several lines or XML is the file's text."""
     world = _text(world, 'load_world takes a world file, a package:// URI or the world\'s '
                          'text')
@@ -263,7 +267,8 @@ class WorldVerbs:
         latest transform would answer with the old run's.
         """
 
-    def spawn(self, urdf: str, *, name: str = '', position: Sequence[float] = (0.0, 0.0, 0.0),
+    def spawn(self, urdf: PathOrText, *, name: str = '',
+              position: Sequence[float] = (0.0, 0.0, 0.0),
               yaw: float = 0.0, orientation: Optional[Sequence[float]] = None,
               allow_renaming: Optional[bool] = None, namespace: str = '',
               at: str = '') -> str:
@@ -336,7 +341,7 @@ class WorldVerbs:
         """Return the box around an entity's collision shape, in its base link's frame."""
         return self._world_backend().entity_bounds(name)
 
-    def load_world(self, world: str) -> WorldEntry:
+    def load_world(self, world: PathOrText) -> WorldEntry:
         """
         Load a world in place of the current one (LoadWorld); return its name, URI, tags.
 
