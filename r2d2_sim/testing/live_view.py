@@ -138,22 +138,36 @@ class LiveViewClient:
         """Subscribe to ``topics`` (waiting for their advertisements; LiveViewError if none)."""
         topics = [t for t in topics if t not in self._subscription_of_topic]
         advertised = self.wait_for_channels(topics, timeout_s)
-        subscriptions = []
+        subscriptions: List[Dict[str, int]] = []
         for topic in topics:
-            subscription = self._next_subscription
-            self._next_subscription += 1
-            self._topic_of_subscription[subscription] = topic
-            self._subscription_of_topic[topic] = subscription
-            subscriptions.append({'id': subscription, 'channelId': advertised[topic]['id']})
-        if subscriptions:
-            self._ws.send(json.dumps({'op': 'subscribe', 'subscriptions': subscriptions}))
+            subscriptions.append({'id': self._next_subscription + len(subscriptions),
+                                  'channelId': advertised[topic]['id']})
+        if not subscriptions:
+            return
+        self._send({'op': 'subscribe', 'subscriptions': subscriptions})
+        # Noted once sent: a connection that is gone subscribes nothing.
+        for topic, sent in zip(topics, subscriptions):
+            self._topic_of_subscription[sent['id']] = topic
+            self._subscription_of_topic[topic] = sent['id']
+        self._next_subscription += len(subscriptions)
 
     def unsubscribe(self, topics: Iterable[str]) -> None:
         """Stop receiving ``topics`` (what was received stays in ``messages``)."""
-        ids = [self._subscription_of_topic.pop(t) for t in topics
-               if t in self._subscription_of_topic]
-        if ids:
-            self._ws.send(json.dumps({'op': 'unsubscribe', 'subscriptionIds': ids}))
+        topics = [t for t in topics if t in self._subscription_of_topic]
+        if topics:
+            self._send({'op': 'unsubscribe',
+                        'subscriptionIds': [self._subscription_of_topic[t] for t in topics]})
+            for topic in topics:
+                del self._subscription_of_topic[topic]
+
+    def _send(self, message: dict) -> None:
+        """Send a JSON operation; LiveViewError (one line) when the connection is gone."""
+        from websockets.exceptions import ConnectionClosed
+        try:
+            self._ws.send(json.dumps(message))
+        except ConnectionClosed as exc:
+            raise LiveViewError(f'the live view at {self.url} closed the connection '
+                                f'({exc}): connect again') from None
 
     def wait_for_messages(self, topic: str, count: int = 1,
                           timeout_s: Optional[float] = None) -> List[LiveMessage]:

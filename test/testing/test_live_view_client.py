@@ -83,6 +83,14 @@ def test_what_the_client_cannot_do_is_one_line():
             view.subscribe(['/nothing'])
         with pytest.raises(LiveViewError, match=r'/odom: 0 of 2 messages'):
             view.wait_for_messages('/odom', count=2)
+        sink.channel('/scan', *TOPICS['/scan'])
+        view.wait_for_channels(['/scan'])
+        view.close()  # the connection gone: a subscription is one line, and not noted
+        for call in (lambda: view.subscribe(['/scan']), lambda: view.unsubscribe(['/odom'])):
+            with pytest.raises(LiveViewError, match='closed the connection') as gone:
+                call()
+            assert '\n' not in str(gone.value)
+        assert '/scan' not in view._subscription_of_topic
 
 
 def test_a_client_that_left_messages_unread_closes_without_waiting_out_the_timeout():
