@@ -6,8 +6,10 @@ Simulated time moves only in :meth:`SimHarness.advance` and
 they run in lockstep with the simulator, so a run repeats bit for bit.
 """
 
+import inspect
 import json
 from typing import Any, Callable, Dict, List, Optional, Set, Tuple, Type, TYPE_CHECKING
+import weakref
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
@@ -19,6 +21,7 @@ from r2d2_sim.errors import StartupError
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.testing.executor import (
     CallbackError, HarnessError, parameter_overrides, RosHarness)
+from r2d2_sim.testing.lockstep import TakenOnDemand
 from r2d2_sim.testing.robots import (
     expected_namespaces, FirstRobot, LocalRobot, simulator_parameters)
 from r2d2_sim.testing.tf import TransformLookup
@@ -33,6 +36,38 @@ __all__ = ['SimHarness', 'LINK_NODE_NAME']
 # Name of the node through which a harness talks to the simulator (the
 # leading underscore hides it from `ros2 node list`).
 LINK_NODE_NAME = '_r2d2_sim_harness'
+
+
+def _noting(subscription: Subscription, delivered: Set[int]) -> Callable[..., Any]:
+    """
+    Return the subscription's callback that first notes it in ``delivered``.
+
+    Of the same kind: a coroutine stays one, and one that takes the message's
+    info takes it too (rclpy tells them apart by the callback's signature).
+    """
+    callback, key = subscription.callback, id(subscription)
+    with_info = subscription._callback_type is Subscription.CallbackType.WithMessageInfo
+    if inspect.iscoroutinefunction(callback):
+        if with_info:
+            async def noted_async_info(msg: Any, info: Any) -> Any:
+                delivered.add(key)
+                return await callback(msg, info)
+            return noted_async_info
+
+        async def noted_async(msg: Any) -> Any:
+            delivered.add(key)
+            return await callback(msg)
+        return noted_async
+    if with_info:
+        def noted_info(msg: Any, info: Any) -> Any:
+            delivered.add(key)
+            return callback(msg, info)
+        return noted_info
+
+    def noted(msg: Any) -> Any:
+        delivered.add(key)
+        return callback(msg)
+    return noted
 
 
 class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
@@ -80,6 +115,10 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         self.sim: SimNode
         self._link: Node
         self._lockstep = False
+        # Latched subscriptions served (their message in before time moved), and every
+        # subscription looked at: weakly, as a destroyed one's id may be another's later.
+        self._latched_served: 'weakref.WeakSet[Subscription]' = weakref.WeakSet()
+        self._subscriptions_seen: 'weakref.WeakSet[Subscription]' = weakref.WeakSet()
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
         try:
             from r2d2_sim.ros.node import SimNode  # PyBullet: only when a simulator is wanted
@@ -186,33 +225,54 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         """
         self._check_new_node(node)  # before its callbacks are wrapped below
         self._lockstep = True
-        pending = self._latched_subscriptions(node)
-        delivered: Set[Subscription] = set()
+        self._serve_latched([node], lambda: super(SimHarness, self).add_node(
+            node, use_sim_time=use_sim_time))
+        return node
+
+    def _serve_latched(self, nodes: List[Node], spin: Callable[[], Any] = lambda: None) -> None:
+        """
+        Return once ``nodes``' latched subscriptions not served yet have their message.
+
+        For :meth:`add_node` (``spin`` adds the node to the executor), and
+        before each lockstep advance, for subscriptions a node made after it
+        was added: else their message would reach them at a simulated time
+        that depends on the machine's load.
+        """
+        pending = [sub for node in nodes for sub in self._latched_subscriptions(node)
+                   if sub not in self._latched_served]
+        delivered: Set[int] = set()
         originals = [(sub, sub.callback) for sub in pending]
         # Noted before the node is spun: the spinning thread may take a latched
         # message as soon as the node is in the executor.
-        for sub, callback in originals:
-            def noted(msg: Any, sub: Subscription = sub, callback: Callable = callback) -> Any:
-                delivered.add(sub)
-                return callback(msg)
-            sub.callback = noted
+        for sub, _ in originals:
+            sub.callback = _noting(sub, delivered)
         try:
-            super().add_node(node, use_sim_time=use_sim_time)
+            spin()
             if pending:
                 with self._own_executor():
                     self._wait(lambda: len(delivered) == len(pending),
-                               f'the latched topics did not reach {node.get_name()}')
+                               'the latched topics did not reach '
+                               f'{", ".join(sorted({n.get_name() for n in nodes}))}')
         except CallbackError:
             raise  # a callback of the user's raised: that error, its cause kept
         except HarnessError as exc:
-            missing = ', '.join(sub.topic_name for sub in pending if sub not in delivered)
+            missing = ', '.join(sub.topic_name for sub in pending if id(sub) not in delivered)
             if not missing:
                 raise
             raise HarnessError(f'{exc} (still missing: {missing})') from None
         finally:
             for sub, callback in originals:
                 sub.callback = callback
-        return node
+        self._latched_served.update(pending)
+
+    def _serve_new_latched(self) -> None:
+        """Before a lockstep advance: serve latched subscriptions made since (see above)."""
+        seen = self._subscriptions_seen
+        fresh = [node for node in self.nodes if any(sub not in seen for sub in node.subscriptions)]
+        if fresh:
+            self._serve_latched(fresh)
+            for node in fresh:
+                seen.update(node.subscriptions)
 
     def _latched_subscriptions(self, node: Node) -> List[Subscription]:
         """Return the node's transient-local subscriptions to the simulator's latched topics."""
@@ -221,7 +281,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         latched = {publisher.topic_name for publisher in publishers
                    if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL}
         return [sub for sub in node.subscriptions if sub.topic_name in latched
-                and sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL]
+                and sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                and not isinstance(sub.callback_group, TakenOnDemand)]
 
     @property
     def physics_rate_hz(self) -> float:
@@ -252,6 +313,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         if not self._lockstep:
             self.sim.advance(steps)
             return steps
+        self._serve_new_latched()
         with self._own_executor():
             self._run_periods(steps)
         return steps
@@ -267,6 +329,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         """
         limit = self._steps(timeout_s)
         self._check_world()
+        if self._lockstep:
+            self._serve_new_latched()
         # Driven from this thread: each period's messages are handled before
         # the predicate looks, with no hand-over to the executor thread.
         with self._own_executor():

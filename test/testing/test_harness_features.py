@@ -102,6 +102,38 @@ def test_a_latched_callback_that_raises_is_the_error_add_node_raises(r2d2_sim):
     assert 'still missing' not in str(raised.value)
 
 
+@pytest.mark.parametrize('attempt', range(3))
+def test_a_latched_subscription_made_after_add_node_has_its_message_before_time_moves(
+        r2d2_sim, attempt):
+    """create_node, then a latched subscription: the next advance waits for it first."""
+    node = r2d2_sim.create_node('late_consumer')
+    got = []
+    node.create_subscription(String, 'robot_description',
+                             lambda msg: got.append(r2d2_sim.sim.sim_time_ns), LATCHED_QOS)
+    before = r2d2_sim.sim.sim_time_ns
+    r2d2_sim.advance()
+    assert got == [before]  # not at a time the machine's load chose
+
+
+def test_latched_callbacks_that_are_coroutines_or_take_message_info_get_their_message(
+        r2d2_sim):
+    """add_node's wait wraps the callbacks: an async one is awaited, an info one gets its info."""
+    from rclpy.node import Node
+    got = {}
+
+    async def described(msg):
+        got['async'] = msg.data
+
+    def with_info(msg, info):
+        got['info'] = info['source_timestamp'] if isinstance(info, dict) else info
+    node = Node('wrapped_consumers', context=r2d2_sim.context)
+    node.create_subscription(String, 'robot_description', described, LATCHED_QOS)
+    node.create_subscription(String, 'robot_description', with_info, LATCHED_QOS)
+    r2d2_sim.add_node(node)
+    r2d2_sim.settle()
+    assert got['async'].startswith('<') and got['info'] is not None
+
+
 def test_seconds_must_be_finite(r2d2_sim):
     """advance(seconds=inf) is a ValueError like NaN, not an OverflowError."""
     for bad in (math.inf, math.nan, -1.0):
