@@ -294,19 +294,29 @@ class RosHarness:
         Stop spinning, shut the executor down, destroy the nodes, shut the context down.
 
         In that order (see the class). Releases the domain; safe to call twice.
-        Raises CallbackError if a callback raised and no harness call reported it.
+        Raises CallbackError if a callback raised and no harness call reported it,
+        and HarnessError (leaving the nodes and the domain as they are) if a
+        callback is still running ``timeout_s`` later.
         """
         if self._closed:
             return
         self._closed = True
         _left_open.discard(self)
         problems: List[BaseException] = []
+        waited_s = max(self.timeout_s, 1.0)
+        self._stop.set()
+        with self._state:
+            self._state.notify_all()
+        self.executor.wake()
+        self._thread.join(timeout=waited_s)
+        if self._thread.is_alive():
+            # A callback that does not return: its nodes are not destroyed under it (it
+            # would go on against destroyed handles), and the domain stays leased while
+            # they live, so that no other harness shares it.
+            raise HarnessError(f'a callback was still running {waited_s:g} s after close(): '
+                               'the harness\'s nodes are left to it, and its domain '
+                               f'{self.domain_id} stays leased until this process ends')
         try:
-            self._stop.set()
-            with self._state:
-                self._state.notify_all()
-            self.executor.wake()
-            self._thread.join(timeout=max(self.timeout_s, 1.0))
             self.executor.shutdown(timeout_sec=1.0)
             for node in reversed(self.nodes):
                 try:

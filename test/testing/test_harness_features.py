@@ -264,3 +264,29 @@ def test_a_keyword_the_simulator_does_not_read_is_refused_in_one_line(
     harness = r2d2_sim_factory(record=str(record), cmd_vel_timeout=0.0, imu_rate=None)
     assert harness.sim.config.cmd_vel_timeout_s == 0.0  # and None: the default IMU rate
     assert harness.sim.config.imu_rate_hz == 100.0
+
+
+def test_closing_while_a_callback_still_runs_is_one_line_and_destroys_nothing_under_it():
+    """A callback longer than timeout_s: close() says so; the callback ends on live handles."""
+    import rclpy
+    from r2d2_sim.testing import RosHarness
+    harness = RosHarness(timeout_s=1.0)
+    node = harness.create_node('slow', use_sim_time=False)
+    started, ended = threading.Event(), threading.Event()
+
+    def slow(msg):
+        started.set()
+        time.sleep(2.5)
+        node.get_logger().debug('still alive')  # on a live node: no InvalidHandle
+        ended.set()
+    node.create_subscription(String, 'slow', slow, 10)
+    node.create_publisher(String, 'slow', 10).publish(String())
+    assert started.wait(10.0)
+    with pytest.raises(HarnessError, match=r'^a callback was still running 1 s after close\(\)'):
+        harness.close()
+    assert ended.wait(10.0)
+    harness._thread.join(10.0)  # stopped after the callback; then this test cleans up
+    harness.raise_callback_error()  # the callback did not fail
+    node.destroy_node()
+    rclpy.try_shutdown(context=harness.context)
+    harness.lease.release()
