@@ -351,7 +351,7 @@ def test_a_process_given_what_cannot_be_a_parameter_is_one_line_and_leases_nothi
 
 @pytest.mark.parametrize('timeout_s', [0, -1.0, float('nan')])
 def test_a_timeout_that_is_no_time_is_one_line(timeout_s):
-    """SimProcess and the in-process harness refuse it before anything starts."""
+    """Both harnesses, SimProcess and the in-process one, refuse it before anything starts."""
     for make in (SimProcess, SimHarness):
         with pytest.raises(ValueError, match=r'^timeout_s must be a finite number of '
                            r'seconds > 0, got '):
