@@ -146,12 +146,29 @@ class DriveController:
 
     # -- odometry ---------------------------------------------------------------
 
+    def _sides(self, wheel_positions_rad: Sequence[float]) -> Tuple[float, float]:
+        """Return the (left, right) wheel angles odometry counts: each side's mean, signed."""
+        n_left, sign = self.left_count, self.wheel_velocity_sign
+        return (sign * sum(wheel_positions_rad[:n_left]) / n_left,
+                sign * sum(wheel_positions_rad[n_left:]) / self.right_count)
+
+    def take_encoders(self, encoders: Optional[Encoders],
+                      wheel_positions_rad: Sequence[float]) -> None:
+        """
+        Count with ``encoders`` from now on (their noise started again), from this baseline.
+
+        Read once at no interval (nothing is drawn): the next odometry step
+        then errs over its whole interval, as the first after start-up does.
+        Without that, fresh encoders took their baseline at the next step and
+        counted that interval exact, every later draw one reading behind.
+        """
+        self.encoders = encoders
+        if encoders is not None and self.odometry.baseline is not None:
+            encoders.read(*self._sides(wheel_positions_rad), 0.0)
+
     def update_odometry(self, wheel_positions_rad: Sequence[float], step: int) -> None:
         """Integrate the wheel joint angles (left wheels, then right) read after ``step``."""
-        n_left = self.left_count
-        sign = self.wheel_velocity_sign
-        left = sign * sum(wheel_positions_rad[:n_left]) / n_left
-        right = sign * sum(wheel_positions_rad[n_left:]) / self.right_count
+        left, right = self._sides(wheel_positions_rad)
         dt_s = (step - self._odometry_step) * self.time_step_s
         if self.encoders is not None:
             left, right = self.encoders.read(left, right, dt_s)

@@ -17,6 +17,7 @@ import pytest
 from r2d2_sim.sim.settings.table import ConfigError
 from r2d2_sim.sim.settings.config import parse_config
 from r2d2_sim.sim.settings.robots import parse_world
+from r2d2_sim.sim.simulation import Simulation
 
 ROOM = 'package://r2d2_sim/urdf/room.urdf'
 SCANS = 30  # x 360 beams
@@ -290,3 +291,41 @@ def test_the_imu_reads_the_same_with_or_without_a_frame_read_that_step(make):
     assert all(framed for _, framed, _ in every_step)
     assert sum(framed for _, framed, _ in rarely) <= 2
     assert [(step, imu) for step, _, imu in every_step] == [(step, imu) for step, _, imu in rarely]
+
+
+def _odometry_run(simulation, steps=100):
+    """Drive a curve; return each state publication's odometry (x, y, yaw)."""
+    out = []
+    for step in range(steps):
+        if step % 50 == 0:
+            simulation.robot.command(0.3, 0.4)
+        result = simulation.step()
+        if result is not None and result.state_due:
+            out.append(result.measurements[0].frame.odometry[:3])
+    return out
+
+
+def test_encoder_noise_after_load_world_repeats_a_launch():
+    """The encoders' first interval after load_world errs as after start-up (it read exact)."""
+    values = dict(encoder_noise_std=0.05, noise_seed=7, world='room.world.yaml',
+                  publish_rate=50.0)
+    config, robots = parse_world(values)
+    launched = Simulation(config, robots)
+    try:
+        expected = _odometry_run(launched)
+    finally:
+        launched.close()
+    exact_config, _ = parse_world(dict(values, encoder_noise_std=0.0))
+    exact = Simulation(exact_config, robots)
+    try:
+        assert _odometry_run(exact)[0] != expected[0]  # the noise shows from the first
+    finally:
+        exact.close()
+    loaded = Simulation(config, robots)
+    try:
+        for _ in range(100):
+            loaded.step()
+        loaded.load_world('room.world.yaml')
+        assert _odometry_run(loaded) == expected
+    finally:
+        loaded.close()

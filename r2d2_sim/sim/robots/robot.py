@@ -341,8 +341,9 @@ class Robot:
             if sensor is not None:
                 sensor.restart_noise(config)
         if self.controller is not None:
-            # Fresh encoders: the next odometry reading takes a new baseline.
-            self.controller.encoders = self._new_encoders()
+            # Fresh encoders, their baseline the wheels as they stand (whether the robot
+            # was put back before or after this): the next reading errs as at start-up.
+            self.controller.take_encoders(self._new_encoders(), self._wheel_positions())
             if config is not None:
                 self.controller.covariance = self._odometry_covariance(self.drive)
 
