@@ -81,8 +81,10 @@ class Encoders:
 
 
 # The state of the error filter: pose error (x, y, yaw), then each side's
-# constant bias (left, right) and dynamic bias (left, right).
-_POSE, _CONSTANT, _DYNAMIC = slice(0, 3), slice(3, 5), slice(5, 7)
+# constant bias (left, right), dynamic bias (left, right) and the rounding
+# error of its latest reading (left, right; in metres of travel).
+_POSE, _CONSTANT, _DYNAMIC, _ROUNDING = slice(0, 3), slice(3, 5), slice(5, 7), slice(7, 9)
+_STATE = 9
 
 
 class OdometryCovariance:
@@ -93,8 +95,11 @@ class OdometryCovariance:
     the heading before, each side's travel in metres and the time it took.
     The pose error moves as the odometry's midpoint integration linearised
     (x += ds cos(yaw + dyaw/2)...); each side's travel error is its travel
-    times (constant bias + dynamic bias + white noise), plus the rounding of
-    two readings (r^2 precision^2 / 6 in m^2). The constant biases start with
+    times (constant bias + dynamic bias + white noise), plus this reading's
+    rounding minus the last one's (each r^2 precision^2 / 12 in m^2): the
+    counts are the accumulated angle rounded, so the roundings cancel along
+    the way and a robot standing still keeps its covariance (summed as fresh
+    noise every step, they grew without bound). The constant biases start with
     variance bias_mean^2 + bias_stddev^2 + mean^2 (a white-noise mean is as
     systematic as a bias), the dynamic ones at 0 and follow their
     Gauss-Markov process; the pose starts known (0). The twist's covariance
@@ -108,16 +113,23 @@ class OdometryCovariance:
         self.wheel_separation_m = wheel_separation_m
         self._to_twist = numpy.array([[0.5, 0.5],
                                       [-1.0 / wheel_separation_m, 1.0 / wheel_separation_m]])
-        self.covariance = numpy.zeros((7, 7))
+        self.covariance = numpy.zeros((_STATE, _STATE))
         self.twist = numpy.zeros((2, 2))
         self.reset()
 
+    @property
+    def _reading_rounding_m2(self) -> float:
+        """Return the variance of one reading's rounding, in m^2 of travel: (r p)^2 / 12."""
+        return (self.wheel_radius_m * self.spec.precision) ** 2 / 12.0
+
     def reset(self) -> None:
-        """Start again at a known pose: no pose error, the biases' prior variance."""
+        """Start again at a known pose: no pose error, the priors of biases and rounding."""
         spec = self.spec
-        self.covariance = numpy.zeros((7, 7))
+        self.covariance = numpy.zeros((_STATE, _STATE))
         constant = spec.bias_mean ** 2 + spec.bias_stddev ** 2 + spec.mean ** 2
         self.covariance[_CONSTANT, _CONSTANT] = constant * numpy.eye(2)
+        # The baseline reading was rounded too: it shows in the first step's travel.
+        self.covariance[_ROUNDING, _ROUNDING] = self._reading_rounding_m2 * numpy.eye(2)
         self.twist = numpy.zeros((2, 2))
 
     @property
@@ -144,22 +156,28 @@ class OdometryCovariance:
                             * math.expm1(-2.0 * dt_s / tau))
         # The reading's error is travel * (constant + dynamic after its step + white):
         # the dynamic bias steps first (decay, then a fresh draw), as Encoders draws it.
-        a = numpy.eye(7)
+        a = numpy.eye(_STATE)
         a[0, 2] = -ds * sin
         a[1, 2] = ds * cos
         a[_POSE, _CONSTANT] = along
         a[_POSE, _DYNAMIC] = decay * along
         a[_DYNAMIC, _DYNAMIC] = decay * numpy.eye(2)
-        g = numpy.zeros((7, 4))  # fresh draws: white (left, right), dynamic step (left, right)
+        # Each count is the accumulated angle rounded to a tick: a step's travel holds
+        # this reading's rounding minus the last one's, which then leaves the state.
+        a[_POSE, _ROUNDING] = -to_pose
+        a[_ROUNDING, _ROUNDING] = 0.0
+        # Fresh draws: white (left, right), dynamic step (left, right), rounding (left, right).
+        g = numpy.zeros((_STATE, 6))
         g[_POSE, 0:2] = along
         g[_POSE, 2:4] = along
         g[_DYNAMIC, 2:4] = numpy.eye(2)
-        fresh = numpy.diag([spec.stddev ** 2] * 2 + [dynamic_step] * 2)
-        # Each count is rounded to a tick: the difference of two roundings, r^2 p^2 / 6.
-        rounding = self.wheel_radius_m ** 2 * spec.precision ** 2 / 6.0 * numpy.eye(2)
+        g[_POSE, 4:6] = to_pose
+        g[_ROUNDING, 4:6] = numpy.eye(2)
+        reading = self._reading_rounding_m2
+        fresh = numpy.diag([spec.stddev ** 2] * 2 + [dynamic_step] * 2 + [reading] * 2)
+        rounding = 2.0 * reading * numpy.eye(2)  # a step's: the difference of two roundings
         before = self.covariance
-        covariance = (a @ before @ a.T + g @ fresh @ g.T
-                      + _embed_pose(to_pose @ rounding @ to_pose.T))
+        covariance = a @ before @ a.T + g @ fresh @ g.T
         self.covariance = (covariance + covariance.T) / 2.0  # symmetric to the last bit
         if dt_s > 0.0:
             # This step's relative error per side: biases as known before it, its draws.
@@ -171,10 +189,3 @@ class OdometryCovariance:
             step = travel @ relative @ travel + rounding
             twist = self._to_twist @ step @ self._to_twist.T / (dt_s * dt_s)
             self.twist = (twist + twist.T) / 2.0
-
-
-def _embed_pose(pose: numpy.ndarray) -> numpy.ndarray:
-    """Return a 7 x 7 matrix holding ``pose`` (3 x 3) in its pose block, zeros elsewhere."""
-    full = numpy.zeros((7, 7))
-    full[_POSE, _POSE] = pose
-    return full
