@@ -18,7 +18,7 @@ from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence
     TYPE_CHECKING
 
 from r2d2_sim.errors import RefusedError, WorldError
-from r2d2_sim.model.health import MAX_DISTANCE_M
+from r2d2_sim.model.health import MAX_ANGULAR_SPEED_RAD_S, MAX_DISTANCE_M, MAX_LINEAR_SPEED_M_S
 from r2d2_sim.model.transforms import BaseState, compose, quaternion_multiply, rotate, Transform
 from r2d2_sim.sim.names import MAX_NAME_LENGTH, NAME
 from r2d2_sim.sim.bounds import body_box, body_meets, check_region, Region
@@ -232,6 +232,13 @@ class Entities:
         placed = check_pose(position, orientation)
         if not _finite(linear, angular):
             raise RefusedError('INVALID_POSE', 'the twist has a value that is not finite')
+        speed, spin = math.hypot(*linear), math.hypot(*angular)
+        if speed >= MAX_LINEAR_SPEED_M_S or spin >= MAX_ANGULAR_SPEED_RAD_S:
+            # What a robot's health check takes for a blow-up: any other body would step
+            # to NaN and stay there (only robots are put back).
+            raise RefusedError('INVALID_POSE', f'the twist ({speed:g} m/s, {spin:g} rad/s) is '
+                               f'not below {MAX_LINEAR_SPEED_M_S:g} m/s and '
+                               f'{MAX_ANGULAR_SPEED_RAD_S:g} rad/s')
         if body.static and any(v != 0.0 for v in (*linear, *angular)):
             raise RefusedError('OPERATION_FAILED', f'{name} is static: it takes a pose, '
                                                    'not a twist')

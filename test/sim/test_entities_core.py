@@ -106,6 +106,21 @@ def test_a_pose_of_the_wrong_length_is_refused_in_one_line(make, position, orien
     assert simulation.entities.names() == ['ground_plane', 'r2d2', box]
 
 
+@pytest.mark.parametrize('linear, angular', [((1e300, 0.0, 0.0), (0.0, 0.0, 0.0)),
+                                             ((0.0, 0.0, 0.0), (0.0, 60.0, 0.0))])
+def test_a_twist_no_body_survives_is_refused_in_one_line(make, linear, angular):
+    """Finite but past what a robot's health check calls a blow-up: nothing moved, not NaN."""
+    simulation = make()
+    box = spawn_box(simulation, (1.0, 0.0, 0.1))
+    before = simulation.entities.state(box)
+    with pytest.raises(RefusedError, match=r'^INVALID_POSE.*is not below 50 m/s and 50 rad/s'):
+        simulation.set_entity_state(box, '', (1.0, 0.0, 0.15), (0.0, 0.0, 0.0, 1.0),
+                                    linear, angular)
+    for _ in range(24):
+        simulation.step()
+    assert simulation.entities.state(box).position == pytest.approx(before.position, abs=1e-3)
+
+
 def test_name_filters_search_a_part_of_the_name():
     """The standard's filter: a regular expression that matches a part of the name."""
     assert name_filter('')('anything')
