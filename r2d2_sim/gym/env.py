@@ -25,6 +25,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 import numpy
 
+from r2d2_sim.errors import RefusedError, SetupError
 from r2d2_sim.farm.scenario import Scenario, ScenarioError
 from r2d2_sim.gym.arena import Episode, episode_of
 from r2d2_sim.gym.backends import Backend, make_backend
@@ -117,8 +118,12 @@ class Navigation:
     def begin(self, episode: Episode) -> List[Reading]:
         """Place ``episode`` in the world; return each robot's first reading."""
         backend = self.live
-        with backend.core():
-            readings = backend.start(episode)
+        self.episode = None  # a start that fails leaves no episode to step ("reset first")
+        try:
+            with backend.core():
+                readings = backend.start(episode)
+        except (SetupError, RefusedError) as exc:  # a replayed scenario the world refuses
+            raise GymError(f'the episode cannot start: {exc}') from None
         self.episode = episode
         self.goals = episode.goal_points()
         self._take(readings)
@@ -218,6 +223,7 @@ class _Env(gymnasium.Env):
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=numpy.float32)
         self.nav = Navigation(self.settings, ros_nodes, topics)
         self.scenario: Optional[Scenario] = None
+        self._terminated = False  # the episode ended: a step then is refused until a reset
 
     @property
     def backend(self) -> Backend:
@@ -228,6 +234,7 @@ class _Env(gymnasium.Env):
                ) -> Tuple[Reading, Dict[str, Any]]:
         """Seed, draw (or take the option's scenario) and place an episode; its info."""
         super().reset(seed=seed)
+        self._terminated = False
         options = reset_options(options)
         unknown = sorted(set(options) - set(RESET_OPTIONS))
         if unknown:
@@ -240,6 +247,7 @@ class _Env(gymnasium.Env):
             episode = self.nav.draw(self.np_random)
         reading = self.nav.begin(episode)[0]
         self.scenario = episode.scenarios[0]
+        self._terminated = False
         return reading, {'scenario': self.scenario.to_dict(), 'distance': self.nav.distances[0]}
 
     def _episode_of(self, given: Any) -> Episode:
@@ -267,6 +275,8 @@ class _Env(gymnasium.Env):
 
     def _command(self, action: Any) -> Command:
         self.nav.check_open()  # a step after close: that line, not the action's
+        if self._terminated:  # its outcome would be paid again, step after step
+            raise GymError('the episode has terminated: reset the environment')
         forward, turn = check_action(action)
         settings = self.settings
         return forward * settings.max_linear_m_s, turn * settings.max_angular_rad_s
@@ -324,6 +334,7 @@ class NavEnv(_Env):
         reward = nav_reward(before[0], after, outcome, self.settings.rewards)
         info = {'distance': after, 'reached': outcome.reached, 'contact': outcome.contact or '',
                 'tipped': outcome.tipped, 'is_success': outcome.success}
+        self._terminated = outcome.terminated
         return (nav_observation(reading, self.nav.goals[0], self.nav.shape), reward,
                 outcome.terminated, False, info)
 
@@ -376,6 +387,7 @@ class NavGoalEnv(_Env):
         reward = float(self.compute_reward(achieved, desired, info))
         terminated = bool(self.compute_terminated(achieved, desired, info))
         info['is_success'] = reward == 0.0 and not outcome.failed
+        self._terminated = terminated
         return observation, reward, terminated, False, info
 
     def compute_reward(self, achieved_goal: numpy.ndarray, desired_goal: numpy.ndarray,

@@ -132,9 +132,15 @@ class NavSettings:
                            'max_angular_rad_s instead')
         if not isinstance(self.rewards, Rewards):
             raise GymError(f'rewards must be a Rewards, got {type(self.rewards).__name__}')
+        for name, value in zip(self.rewards._fields, self.rewards):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value):
+                raise GymError(f'rewards.{name} must be a finite number, got {value!r}')
         if not isinstance(self.sim_parameters, Mapping):
             raise GymError('sim_parameters must be a mapping of parameter names to values')
-        taken = sorted(set(self.sim_parameters) & set(OWN_PARAMETERS))
+        # A robot's own value (``r2d2_1.scan_rate``) is that parameter too.
+        taken = sorted(name for name in self.sim_parameters
+                       if str(name).rpartition('.')[2] in OWN_PARAMETERS)
         if taken:
             raise GymError(f'sim_parameters: {", ".join(taken)} are set by the environment '
                            '(give its own keywords instead)')

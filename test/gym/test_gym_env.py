@@ -23,6 +23,7 @@ from common import gym_actions as actions, gym_rollout as rollout, GYM_NOISY, RE
 import r2d2_sim.gym  # noqa: F401 (registers the environments)
 from r2d2_sim.farm.scenario import Box, Pose, Scenario
 from r2d2_sim.gym import GymError
+from r2d2_sim.gym.task import Rewards
 from r2d2_sim.model.regions import circle_region
 
 
@@ -155,6 +156,9 @@ def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(gym_make):
     ({'scan_beams': 7}, r'scan_beams must divide scan_rays \(360\) into equal sectors, got 7'),
     ({'backend': 'gazebo'}, "backend must be one of inproc, ros, got 'gazebo'"),
     ({'sim_parameters': {'scan_rate': 5.0}}, 'sim_parameters: scan_rate are set by the env'),
+    ({'robots': 2, 'sim_parameters': {'r2d2_1.scan_rate': 5.0}},
+     r'sim_parameters: r2d2_1\.scan_rate are set by the env'),
+    ({'rewards': Rewards(goal=float('nan'))}, 'rewards.goal must be a finite number, got nan'),
     ({'sim_parameters': {'publish_rat': 3}},
      r'sim_parameters: unknown parameter\(s\): publish_rat'),
     ({'sim_parameters': {'scan_noise_std': 'x'}, 'backend': 'ros'},
@@ -168,6 +172,36 @@ def test_settings_that_cannot_be_are_one_line_at_construction(kwargs, message):
     with pytest.raises(GymError, match=message) as caught:
         NavEnv(**kwargs)
     assert '\n' not in str(caught.value)
+
+
+def test_a_replayed_scenario_the_world_refuses_is_one_line_and_the_env_goes_on(gym_make):
+    """A start 1e6 m away: GymError; a step then says reset first; the next reset works."""
+    env = gym_make()
+    scenario = env.reset(seed=0)[1]['scenario']
+    scenario['start']['x'] = 1e6
+    with pytest.raises(GymError, match='^the episode cannot start: INVALID_POSE: '):
+        env.reset(options={'scenario': scenario})
+    with pytest.raises(GymError, match='^reset the environment before stepping it$'):
+        env.unwrapped.step(numpy.zeros(2, dtype=numpy.float32))
+    again, _ = env.reset(seed=0)
+    assert env.step(numpy.zeros(2, dtype=numpy.float32))[0].shape == again.shape
+
+
+@pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
+def test_a_step_after_the_episode_terminated_is_refused_until_a_reset(gym_make, env_id):
+    """Its outcome would be paid again, step after step: GymError, then a reset goes on."""
+    env = gym_make(env_id)
+    env.reset(seed=3)
+    terminated = False
+    for _ in range(300):  # straight ahead, full speed: into a box, or the goal
+        terminated = env.step(numpy.array([1.0, 0.0], dtype=numpy.float32))[2]
+        if terminated:
+            break
+    assert terminated
+    with pytest.raises(GymError, match='^the episode has terminated: reset the environment$'):
+        env.unwrapped.step(numpy.zeros(2, dtype=numpy.float32))
+    env.reset(seed=3)
+    env.step(numpy.zeros(2, dtype=numpy.float32))
 
 
 def test_the_goal_env_rewards_as_its_compute_reward_for_any_goal(gym_make):
