@@ -270,6 +270,14 @@ class _Env(gymnasium.Env):
         goal = given.goal
         if goal.kind != 'circle':
             raise GymError('reset option scenario: the goal must be a circle')
+        # What an environment keeps for all its episodes: a scenario may not change it
+        # (it would run in the environment's own, and say otherwise in its info).
+        if given.world != self.settings.space.world:
+            raise GymError(f'reset option scenario: its world {given.world!r} is not the '
+                           f'environment\'s ({self.settings.space.world!r})')
+        if given.limits:
+            raise GymError('reset option scenario: robot limits are the environment\'s '
+                           '(max_linear_m_s, max_angular_rad_s), not a scenario\'s')
         return Episode((given,), (given.start,), (circle_region(*goal.values[:3]),),
                        given.obstacles, given.seed, given.scan_noise_std)
 

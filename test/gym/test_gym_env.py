@@ -185,6 +185,11 @@ def test_a_replayed_scenario_the_world_refuses_is_one_line_and_the_env_goes_on(g
         env.unwrapped.step(numpy.zeros(2, dtype=numpy.float32))
     again, _ = env.reset(seed=0)
     assert env.step(numpy.zeros(2, dtype=numpy.float32))[0].shape == again.shape
+    scenario = env.reset(seed=0)[1]['scenario']
+    for key, value, says in (('world', 'room.world.yaml', "its world 'room.world.yaml'"),
+                             ('limits', [['max_linear_velocity', 0.2]], 'robot limits')):
+        with pytest.raises(GymError, match=f'^reset option scenario: {says}'):
+            env.reset(options={'scenario': dict(scenario, **{key: value})})
 
 
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
