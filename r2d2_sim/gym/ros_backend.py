@@ -164,6 +164,28 @@ class _RobotLink:
                        (v[10], v[11], v[12]))
 
 
+def _topics(topics: Any) -> Topics:
+    """Return the policy's topics; GymError (one line) for anything but names of each."""
+    if topics is None:
+        return Topics()
+    if not isinstance(topics, Mapping):
+        raise GymError(f'topics must be a dict of {", ".join(Topics._fields)}, got '
+                       f'{type(topics).__name__}')
+    unknown = sorted(set(map(str, topics)) - set(Topics._fields))
+    if unknown:
+        raise GymError(f'topics takes {", ".join(Topics._fields)}, got {", ".join(unknown)}')
+    from rclpy.validate_topic_name import validate_topic_name
+    for key, name in topics.items():
+        if not isinstance(name, str):
+            raise GymError(f'topics: {key} must be a topic name, got {type(name).__name__}')
+        try:
+            validate_topic_name(name)
+        except Exception as exc:  # rclpy's InvalidTopicNameException, over several lines
+            raise GymError(f'topics: {key} {name!r} is not a topic name: '
+                           f'{" ".join(str(exc).split())[:160]}') from None
+    return Topics(**dict(topics))
+
+
 class RosBackend:
     """
     The simulator node in a :class:`~r2d2_sim.testing.SimHarness`, in lockstep, over its topics.
@@ -180,11 +202,7 @@ class RosBackend:
                  domain_id: Optional[int] = None) -> None:
         self._driving: Optional[ExitStack] = None
         self._closed = False
-        try:
-            self.topics = Topics(**dict(topics or {}))
-        except TypeError:
-            raise GymError(f'topics takes {", ".join(Topics._fields)}, got '
-                           f'{", ".join(sorted(topics or {}))}') from None
+        self.topics = _topics(topics)
         self.harness = SimHarness(domain_id=domain_id, **settings.sim_parameters_for())
         self.arena: Optional[Arena] = None
         self.node: Optional[QuietNode] = None

@@ -104,10 +104,17 @@ def test_a_node_between_the_policy_and_the_robot_runs_in_lockstep(gym_make):
     assert rollout(filtered, 3, full) != rollout(inproc, 3, full)
 
 
-def test_unknown_topics_are_one_line(gym_make):
-    """The topics keyword takes command, scan and state, nothing else."""
-    with pytest.raises(GymError, match='^topics takes command, scan, state, got odom$'):
-        gym_make(backend='ros', topics={'odom': 'odometry'})
+@pytest.mark.parametrize('topics, says', [
+    ({'odom': 'odometry'}, '^topics takes command, scan, state, got odom$'),
+    ('abc', '^topics must be a dict of command, scan, state, got str$'),
+    ({'command': 5}, '^topics: command must be a topic name, got int$'),
+    ({'command': 'bad name!'}, "^topics: command 'bad name!' is not a topic name: "),
+])
+def test_topics_that_cannot_be_are_one_line(gym_make, topics, says):
+    """The topics keyword takes names of command, scan and state, nothing else."""
+    with pytest.raises(GymError, match=says) as refused:
+        gym_make(backend='ros', topics=topics)
+    assert '\n' not in str(refused.value)
 
 
 @pytest.mark.parametrize('frame_id', ['', 'base_scan', 'a' * 13])
