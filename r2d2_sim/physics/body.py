@@ -152,8 +152,10 @@ class Body:
         self._set_motors: Callable[..., Any] = partial(
             pybullet.setJointMotorControlArray, body, physicsClientId=cid)
         # A run's watch asks these after every step (sim/oracles.py).
-        self._get_contact_points = partial(pybullet.getContactPoints, body, physicsClientId=cid)
-        self._get_closest_points = partial(pybullet.getClosestPoints, body, physicsClientId=cid)
+        self._get_contact_points: Callable[..., Any] = partial(
+            pybullet.getContactPoints, body, physicsClientId=cid)
+        self._get_closest_points: Callable[..., Any] = partial(
+            pybullet.getClosestPoints, body, physicsClientId=cid)
 
     @property
     def id(self) -> int:
@@ -488,6 +490,8 @@ class Body:
         # The bound queries hold the old id: from now on they raise instead.
         self._get_joint_states = self._get_base_pose = self._get_base_velocity = self._removed
         self._set_motors = self._removed
+        # A later body may take the old id: these would read that one's contacts.
+        self._get_contact_points = self._get_closest_points = self._removed
 
     def reload(self) -> None:
         """

@@ -157,6 +157,9 @@ def test_bodies_come_and_go_and_reset_each_on_its_own(world, robot):
         cube.world_state()
     sphere = world.load('sphere_small.urdf', (0.0, 1.0, 0.5))
     assert sphere.id == old_id and sphere.name not in (cube.name, robot.name)
+    for ask in (cube.contacts, lambda: cube.closest_points(robot, 10.0)):  # not the sphere's
+        with pytest.raises(BodyRemoved):
+            ask()
     world.step(120)  # the sphere falls; restoreState would now refuse the changed world
     robot.set_base_state(position=(0.5, 0.5, 0.8))
     world.reset()
