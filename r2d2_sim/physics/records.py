@@ -237,12 +237,15 @@ def body_info(client, body_id: int) -> BodyInfo:
 
 def contact_records(points: Sequence, ignoring: Sequence[int] = ()) -> List[ContactPoint]:
     """
-    Name what ``getContactPoints`` returned; contacts with the bodies ``ignoring`` are dropped.
+    Name what ``getContactPoints`` returned that touches; those with ``ignoring`` are dropped.
 
     Dropped before they are made records: a robot's wheels touch the ground at every step.
+    Only points at a distance <= 0 touch: Bullet keeps a manifold's points while the
+    shapes are within its contact margin, so it also returns points of bodies still
+    apart (up to about a centimetre, with no normal force), which touch nothing.
     """
     return [ContactPoint(p[1], p[2], p[3], p[4], tuple(p[5]), p[9]) for p in points
-            if p[2] not in ignoring]
+            if p[8] <= 0.0 and p[2] not in ignoring]
 
 
 _DISTANCE = operator.itemgetter(8)  # a closest point's distance
