@@ -126,14 +126,18 @@ def simulate(noise, left_m, right_m, runs, seed, radius_m, separation_m):
     for k in range(steps):
         dynamic = decay * dynamic + generator.normal(0.0, step_std, (runs, 2))
         error = constant + dynamic + generator.normal(0.0, noise.stddev, (runs, 2))
-        left = left_m[k] * (1.0 + error[:, 0])
-        right = right_m[k] * (1.0 + error[:, 1])
-        ds, dyaw = (left + right) / 2.0, (right - left) / separation_m
-        mid = pose[:, 2] + dyaw / 2.0
-        pose[:, 0] += ds * numpy.cos(mid)
-        pose[:, 1] += ds * numpy.sin(mid)
-        pose[:, 2] += dyaw
+        integrate(pose, left_m[k] * (1.0 + error[:, 0]), right_m[k] * (1.0 + error[:, 1]),
+                  separation_m)
     return pose
+
+
+def integrate(pose, left, right, separation_m):
+    """Move each run's pose by its sides' travel, as odometry's midpoint integration does."""
+    ds, dyaw = (left + right) / 2.0, (right - left) / separation_m
+    mid = pose[:, 2] + dyaw / 2.0
+    pose[:, 0] += ds * numpy.cos(mid)
+    pose[:, 1] += ds * numpy.sin(mid)
+    pose[:, 2] += dyaw
 
 
 def test_the_propagated_covariance_matches_a_monte_carlo_of_the_same_errors():
@@ -172,11 +176,7 @@ def simulate_rounded(noise, left_m, right_m, runs, seed, radius_m, separation_m)
         reading = numpy.round(counted / tick) * tick
         left, right = (reading - last).T
         last = reading
-        ds, dyaw = (left + right) / 2.0, (right - left) / separation_m
-        mid = pose[:, 2] + dyaw / 2.0
-        pose[:, 0] += ds * numpy.cos(mid)
-        pose[:, 1] += ds * numpy.sin(mid)
-        pose[:, 2] += dyaw
+        integrate(pose, left, right, separation_m)
     return pose
 
 
