@@ -247,7 +247,6 @@ class _Env(gymnasium.Env):
             episode = self.nav.draw(self.np_random)
         reading = self.nav.begin(episode)[0]
         self.scenario = episode.scenarios[0]
-        self._terminated = False
         return reading, {'scenario': self.scenario.to_dict(), 'distance': self.nav.distances[0]}
 
     def _episode_of(self, given: Any) -> Episode:

@@ -38,6 +38,8 @@ OWN_PARAMETERS = ('physics_rate', 'publish_rate', 'scan_rate', 'scan_samples', '
                   'scan_angle_min', 'scan_angle_max', 'max_linear_velocity',
                   'max_angular_velocity', 'cmd_vel_timeout', 'world', 'robots', 'noise_seed',
                   'real_time_factor', 'start_paused', 'initial_pose')
+# What the ros backend cannot run with: a TwistStamped cmd_vel, the outputs in a child.
+ROS_BACKEND_REFUSED = ('enable_stamped_cmd_vel', 'outputs_process')
 # Robots of a several-robot world stand this far apart (m, along y) before each episode.
 LANE_SPACING_M = 3.0
 
@@ -144,6 +146,14 @@ class NavSettings:
         if taken:
             raise GymError(f'sim_parameters: {", ".join(taken)} are set by the environment '
                            '(give its own keywords instead)')
+        if self.backend == 'ros':
+            # The ros backend drives over Twist and steps in lockstep in its own process.
+            ros_refused = sorted(name for name in self.sim_parameters
+                                 if str(name).rpartition('.')[2] in ROS_BACKEND_REFUSED)
+            if ros_refused:
+                raise GymError(f'sim_parameters: {", ".join(ros_refused)} cannot be used with '
+                               "backend='ros' (it commands over Twist, in lockstep in this "
+                               'process)')
         try:  # read as the simulator will, so a bad name or value is this line, both backends
             parse_world(self.sim_parameters_for())
         except SetupError as exc:
