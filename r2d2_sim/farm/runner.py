@@ -294,6 +294,8 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
         raise
     run = FarmRun(directory, records={k: earlier[k] for k in keys if k in earlier},
                   resumed=len([k for k in keys if k in earlier]), executor=pool.name)
+    if started_s is not None:
+        run.start_s = started_s
     shown = Progress(len(keys), run.resumed, stream=stream,
                      enabled=progress if progress is not None else (stream or sys.stderr)
                      .isatty())
@@ -302,7 +304,7 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
               file=shown.stream)
     outcomes = directory / OUTCOMES / f'runner-{os.getpid()}-{int(time.time())}.jsonl'
     try:
-        _drive(pool, todo, farm, source, directory, outcomes, run, shown, started_s)
+        _drive(pool, todo, farm, source, directory, outcomes, run, shown)
     except ExecutorError as exc:
         raise FarmError(str(exc)) from None
     finally:
@@ -351,23 +353,17 @@ def _keys(job: FarmJob, variations: Optional[int], seeds: Optional[Sequence[int]
 
 
 def _drive(pool: Any, todo: List[Item], job: FarmJob, source: Optional[JobSource],
-           directory: Path, outcomes: Path, run: FarmRun, shown: Progress,
-           started_s: Optional[float] = None) -> None:
+           directory: Path, outcomes: Path, run: FarmRun, shown: Progress) -> None:
     """
     Run ``todo`` on the executor, keep every result as it comes; stop on Ctrl-C.
 
-    ``started_s``: the executor was started already, in that many seconds
-    (None: start it here).
+    The executor was started already when there is anything to run
+    (:func:`run_farm` starts it before the report directory changes).
     """
     if not todo:
         pool.close()
         return
-    if started_s is None:
-        started = time.perf_counter()
-        pool.start()
-        started_s = time.perf_counter() - started
     submitted = time.perf_counter()
-    run.start_s = started_s
     try:
         pool.submit(todo)
         with open(outcomes, 'a', encoding='utf-8') as lines:
