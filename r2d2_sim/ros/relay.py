@@ -441,7 +441,8 @@ class OutputRelay:
         SIGKILL after as long again. A child that records waits as long as
         its file grows (a slow disk still taking the queue: the recording is
         what the user asked for); SIGTERM then drops what is left and still
-        finishes the file.
+        finishes the file. The counts' map stays until the last publisher
+        asking it is gone.
         """
         with self._lock:
             process, self.process = self.process, None
@@ -455,7 +456,7 @@ class OutputRelay:
             try:
                 return process.wait(timeout_s)
             except subprocess.TimeoutExpired:
-                grown, size = self._recorded_bytes(), size
+                grown = self._recorded_bytes()
                 if grown is None or grown <= (size or 0):
                     break
                 size = grown  # the disk is still taking the recording: wait on
@@ -465,7 +466,6 @@ class OutputRelay:
         except subprocess.TimeoutExpired:
             process.kill()
             return process.wait()
-        # the counts' map stays until the last publisher asking it is gone
 
     def _recorded_bytes(self) -> Optional[int]:
         """Return the size of the child's recording now (None: no recording, or no file)."""

@@ -117,6 +117,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
         with taken_lock:
             destroyed.add(index)
             counts[index] = taken[index] = 0
+    closing = threading.Event()  # set once this run is finishing (see _terminate)
     sink = feeder = None
     if sink_spec is not None:
         sink = open_sink(sink_spec, node, acks, refresh_taken)
@@ -129,7 +130,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
         channels = feeder.channels
         # From now on SIGTERM drops what the disk has not taken yet and still finishes the
         # file (a simulator that could not wait for the rest; see OutputRelay.close).
-        signal.signal(signal.SIGTERM, _terminate(feeder))
+        signal.signal(signal.SIGTERM, _terminate(feeder, closing))
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     stop = threading.Event()
@@ -200,7 +201,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                 except BrokenPipeError:  # the simulator stopped waiting: it is going
                     return 0
     finally:
-        _closing.set()  # a SIGTERM from here on drops the queue but lets this finish
+        closing.set()  # a SIGTERM from here on drops the queue but lets this finish
         stop.set()
         spinner.join()  # within a spin_once's timeout
         if feeder is not None:
@@ -212,15 +213,15 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
         rclpy.try_shutdown(context=context)
 
 
-# Set once run() is finishing: a SIGTERM then only drops the feeder's queue.
-_closing = threading.Event()
+def _terminate(feeder: SinkFeeder, closing: threading.Event) -> Callable[[int, Any], None]:
+    """
+    Return the SIGTERM handler of a child that records: drop the queue, finish the file.
 
-
-def _terminate(feeder: SinkFeeder) -> Callable[[int, Any], None]:
-    """Return the SIGTERM handler of a child that records: drop the queue, finish the file."""
+    Once ``closing`` is set (run() is finishing) it only drops the queue.
+    """
     def on_term(number: int, frame: Any) -> None:
         feeder.drop()  # what is being written finishes; nothing queued after it
-        if not _closing.is_set():
+        if not closing.is_set():
             sys.exit(128 + number)  # out of a read of the pipe, into run()'s finally
     return on_term
 
