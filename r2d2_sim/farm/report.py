@@ -65,9 +65,13 @@ def _distribution(values: Sequence[float]) -> Dict[str, Any]:
             'p90': percentile(values, 90.0), 'max': max(values)}
 
 
+# The farm's rerun of a pytest case; a case may carry a command of its own (OpenSCENARIO).
+RERUN = 'python -m r2d2_sim.farm rerun'
+
+
 def rerun_command(report: Path, case: int) -> str:
     """Return the command that reruns case ``case`` of the report at ``report``, recording it."""
-    return f'python -m r2d2_sim.farm rerun {shlex.quote(str(report))} --case {case}'
+    return f'{RERUN} {shlex.quote(str(report))} --case {case}'
 
 
 def write_report(records: List[Dict[str, Any]], directory: Path, *,
@@ -151,9 +155,8 @@ def _test_name(case: Dict[str, Any]) -> str:
 def _markdown(data: Dict[str, Any]) -> str:
     summary, cases = data['summary'], data['cases']
     total = summary['runs']
-    how = ('Every case below reruns, recording its MCAP, with the command given '
-           '(`python -m r2d2_sim.farm rerun`)'
-           if all(c['rerun'].startswith('python -m r2d2_sim.farm rerun') for c in cases)
+    how = (f'Every case below reruns, recording its MCAP, with the command given (`{RERUN}`)'
+           if all(c['rerun'].startswith(RERUN) for c in cases)
            else 'Every case below says the command that runs it again')
     lines = ['# Farm report', '',
              f'{data["date"]}: {total} runs. {how}; `report.json` has every '
