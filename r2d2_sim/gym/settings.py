@@ -11,7 +11,7 @@ that cannot be is a :class:`GymError` in one line, at construction.
 
 from dataclasses import dataclass, field
 import math
-from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
 
 from r2d2_sim.errors import SetupError
 from r2d2_sim.farm.scenario import ScenarioSpace
@@ -46,6 +46,11 @@ LANE_SPACING_M = 3.0
 
 class GymError(ValueError):
     """An environment's setting or an input it cannot take: one line."""
+
+
+def _named(parameters: Mapping[str, Any], names: Sequence[str]) -> List[str]:
+    """Return the parameters among ``names``, a robot's own (``r2d2_1.scan_rate``) too."""
+    return sorted(name for name in parameters if str(name).rpartition('.')[2] in names)
 
 
 def reset_options(options: Any) -> Dict[str, Any]:
@@ -140,16 +145,13 @@ class NavSettings:
                 raise GymError(f'rewards.{name} must be a finite number, got {value!r}')
         if not isinstance(self.sim_parameters, Mapping):
             raise GymError('sim_parameters must be a mapping of parameter names to values')
-        # A robot's own value (``r2d2_1.scan_rate``) is that parameter too.
-        taken = sorted(name for name in self.sim_parameters
-                       if str(name).rpartition('.')[2] in OWN_PARAMETERS)
+        taken = _named(self.sim_parameters, OWN_PARAMETERS)
         if taken:
             raise GymError(f'sim_parameters: {", ".join(taken)} are set by the environment '
                            '(give its own keywords instead)')
         if self.backend == 'ros':
             # The ros backend drives over Twist and steps in lockstep in its own process.
-            ros_refused = sorted(name for name in self.sim_parameters
-                                 if str(name).rpartition('.')[2] in ROS_BACKEND_REFUSED)
+            ros_refused = _named(self.sim_parameters, ROS_BACKEND_REFUSED)
             if ros_refused:
                 raise GymError(f'sim_parameters: {", ".join(ros_refused)} cannot be used with '
                                "backend='ros' (it commands over Twist, in lockstep in this "
