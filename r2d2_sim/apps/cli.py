@@ -99,6 +99,11 @@ def params_file_problem(argv: Sequence[str]) -> Optional[str]:
     return None
 
 
+def ros_start_problem(argv: Sequence[str]) -> Optional[str]:
+    """Return what ROS would refuse to start with, in its own lines (None: nothing found)."""
+    return domain_env_problem() or params_file_problem(argv)
+
+
 def init_ros(argv: Sequence[str], prog: str) -> bool:
     """
     Initialise rclpy for a tool without rclpy's signal handlers; False after one error line.
@@ -108,7 +113,7 @@ def init_ros(argv: Sequence[str], prog: str) -> bool:
     """
     import rclpy
     from rclpy.signals import SignalHandlerOptions
-    problem = domain_env_problem() or params_file_problem(argv)
+    problem = ros_start_problem(argv)
     if problem is not None:
         print(f'{prog}: error: {problem}', file=sys.stderr)
         return False

@@ -17,7 +17,7 @@ import time
 from types import FrameType
 from typing import Callable, List, Optional, Sequence, TYPE_CHECKING
 
-from r2d2_sim.apps.cli import domain_env_problem, params_file_problem, stop_on_signals
+from r2d2_sim.apps.cli import ros_start_problem, stop_on_signals
 from r2d2_sim.memory import keep_large_blocks_mapped
 
 if TYPE_CHECKING:  # only the standard library is imported here (see the module)
@@ -255,7 +255,7 @@ def _init_ros(argv: List[str]) -> Optional[int]:
     from rclpy.signals import SignalHandlerOptions
     from rclpy.utilities import remove_ros_args
     from r2d2_sim.ros.node import NODE_NAME
-    problem = domain_env_problem() or params_file_problem(argv)
+    problem = ros_start_problem(argv)
     if problem is not None:
         print(f'{NODE_NAME}: error: {problem}', file=sys.stderr)
         return 2
