@@ -28,6 +28,7 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import numpy
 from rclpy.qos import QoSProfile
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import LaserScan
 
 from r2d2_sim.client import wait_for
@@ -139,7 +140,7 @@ class _RobotLink:
         self.publisher.publish(bytes(twist))
 
     @staticmethod
-    def latest(subscription) -> Optional[bytes]:
+    def latest(subscription: Subscription) -> Optional[bytes]:
         """Take everything that arrived; return the last one (bytes), None if nothing did."""
         last = None
         with subscription.handle:

@@ -21,6 +21,7 @@ import math
 from typing import List, Sequence, Tuple
 
 import numpy
+from numpy.typing import ArrayLike
 
 __all__ = ['Convex', 'Points', 'Ball', 'Capsule', 'Cylinder', 'distance', 'overlap',
            'extent', 'box_corners', 'collinear', 'DISTANCE_TOLERANCE_M']
@@ -72,7 +73,7 @@ class Convex:
 class Points(Convex):
     """The convex hull of points (N x 3, N >= 1): a box's corners, a mesh, a client's region."""
 
-    def __init__(self, points) -> None:
+    def __init__(self, points: ArrayLike) -> None:
         self.points = numpy.asarray(points, dtype=float).reshape(-1, 3)
         if len(self.points) == 0:
             raise ValueError('a convex hull needs at least one point')

@@ -174,7 +174,8 @@ class ImuModel:
         self._previous_velocity_m_s = velocity_m_s
         return acceleration_m_s2
 
-    def _with_noise(self, q, angular_rad_s, specific_force_m_s2) -> ImuReading:
+    def _with_noise(self, q: Quat, angular_rad_s: Vec3, specific_force_m_s2: Vec3
+                    ) -> ImuReading:
         if not self._exact:
             if not self._orientation.exact:
                 error_rad = self._orientation.apply(numpy.zeros(3))

@@ -31,7 +31,7 @@ from dataclasses import dataclass, fields
 import math
 import numbers
 import zlib
-from typing import Optional, overload, Union
+from typing import Optional, overload, Tuple, Union
 
 import numpy
 
@@ -206,7 +206,8 @@ class NoiseModel:
         self.dynamic_bias = (math.exp(-dt_s / tau) * self.dynamic_bias
                              + rng.normal(0.0, step_stddev, self.channels))
 
-    def error(self, shape, dt_s: Optional[float] = None) -> numpy.ndarray:
+    def error(self, shape: Union[int, Tuple[int, ...]],
+              dt_s: Optional[float] = None) -> numpy.ndarray:
         """
         Return the error for values of ``shape``: bias + dynamic bias + white noise.
 

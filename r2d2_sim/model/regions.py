@@ -7,12 +7,14 @@ point (the robot's base) is inside.
 """
 
 import math
-from typing import NamedTuple, Sequence
+from typing import Iterable, List, NamedTuple, Sequence, Tuple
 
 __all__ = ['Region', 'box_region', 'circle_region', 'polygon_region', 'MIN_WIDTH_M']
 
 # A polygon narrower than this (m) spans no area: seen from above, a flat box on its side.
 MIN_WIDTH_M = 1e-9
+
+Point = Tuple[float, float]  # x, y on the ground
 
 
 class Region(NamedTuple):
@@ -65,11 +67,11 @@ def polygon_region(points: Sequence[Sequence[float]]) -> Region:
     if not all(math.isfinite(v) for point in unique for v in point):
         raise ValueError(f'a polygon needs finite corners, got {unique[:8]}')
 
-    def cross(o, a, b) -> float:
+    def cross(o: Point, a: Point, b: Point) -> float:
         return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
-    def chain(ordered) -> list:  # Andrew's monotone chain: one half of the hull
-        half: list = []
+    def chain(ordered: Iterable[Point]) -> List[Point]:  # Andrew's monotone chain: a half
+        half: List[Point] = []
         for point in ordered:
             while len(half) >= 2 and cross(half[-2], half[-1], point) <= 0.0:
                 half.pop()

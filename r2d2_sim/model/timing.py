@@ -11,7 +11,7 @@ n-th tick is due at ``start + n * period``, so lateness is never accumulated.
 from fractions import Fraction
 import threading
 import time
-from typing import Callable, Dict, Tuple
+from typing import Any, Callable, Dict, Tuple
 
 NS_PER_S = 10**9
 
@@ -21,7 +21,7 @@ def stamp_of(time_ns: int) -> Tuple[int, int]:
     return divmod(time_ns, NS_PER_S)
 
 
-def stamp_ns(stamp) -> int:
+def stamp_ns(stamp: Any) -> int:
     """Return a ``builtin_interfaces/Time`` (a header stamp, a Clock) in integer nanoseconds."""
     return stamp.sec * NS_PER_S + stamp.nanosec
 

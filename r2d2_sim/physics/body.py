@@ -29,7 +29,8 @@ from functools import partial
 import math
 import os
 import xml.etree.ElementTree as ElementTree
-from typing import Any, Callable, Dict, List, NamedTuple, Optional, Sequence, Set, Tuple
+from typing import (
+    Any, Callable, Dict, List, NamedTuple, NoReturn, Optional, Sequence, Set, Tuple)
 
 from r2d2_sim.errors import WorldError
 from r2d2_sim.model.health import base_problem, joint_problem, joints_finite, twist_problem
@@ -43,6 +44,7 @@ from r2d2_sim.physics.stdio import silenced_output
 
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
+from pybullet_utils.bullet_client import BulletClient  # noqa: I100 (after the quiet import)
 
 __all__ = ['Body', 'BodyRemoved', 'Loading', 'Motor', 'WorldError', 'file_stamp']
 
@@ -63,6 +65,12 @@ class Motor(NamedTuple):
     velocity: float                # target, rad/s or m/s (0 for a brake)
     force: float                   # limit, N m or N
     held: Optional[float] = None   # the angle (rad) or position (m) a brake holds
+
+
+# A body's state: its centre of mass's pose, its twist (linear, angular) and its joints.
+State = Tuple[Pose, Tuple[Vec3, Vec3], JointStates]
+# Its state and its joints' motors, as :meth:`Body.moment` returns them.
+Moment = Tuple[State, Dict[int, Motor]]
 
 
 class Loading(NamedTuple):
@@ -96,7 +104,7 @@ class Body:
     body cannot be reloaded.
     """
 
-    def __init__(self, client, body_id: int, name: str, source: str, *,
+    def __init__(self, client: BulletClient, body_id: int, name: str, source: str, *,
                  body_yaw_offset_rad: float = 0.0, spawned: bool = False,
                  loading: Optional[Loading] = None) -> None:
         self.name = name
@@ -325,11 +333,11 @@ class Body:
         if indices:
             self.set_joint_velocities(indices, [0.0] * len(indices), frictions)
 
-    def _change_dynamics(self, links: Sequence[int], **dynamics) -> None:
+    def _change_dynamics(self, links: Sequence[int], **dynamics: Any) -> None:
         for link in links:
             self._client.changeDynamics(self.id, link, **dynamics)
 
-    def _change(self, method: str, *args, **kwargs) -> None:
+    def _change(self, method: str, *args: Any, **kwargs: Any) -> None:
         """Make a lasting change to the body by its method ``method``; remember it for reload."""
         getattr(self, method)(*args, **kwargs)
         self._changes.append((method, args, kwargs))
@@ -385,7 +393,7 @@ class Body:
             self.id, (vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx),
             angular_velocity)
 
-    def _read_state(self) -> Tuple[Pose, Tuple[Vec3, Vec3], JointStates]:
+    def _read_state(self) -> State:
         com = Pose(*self._get_base_pose())
         velocity = self._get_base_velocity()
         return com, (tuple(velocity[0]), tuple(velocity[1])), self.joint_states(
@@ -399,11 +407,11 @@ class Body:
         """Put the body back in its initial state: base pose and twist, joints, at once."""
         self._put(self._initial)
 
-    def moment(self) -> Tuple[Tuple[Pose, Tuple[Vec3, Vec3], JointStates], Dict[int, Motor]]:
+    def moment(self) -> Moment:
         """Return the body's state now and its joints' motors, for :meth:`resume`."""
         return self._read_state(), dict(self._motors)
 
-    def resume(self, moment) -> None:
+    def resume(self, moment: Moment) -> None:
         """
         After :meth:`reload`, put back the state and motors :meth:`moment` returned.
 
@@ -415,15 +423,14 @@ class Body:
         state, motors = moment
         self._put(state)
         driven = [i for i, motor in motors.items() if motor.held is None]
-        held = [i for i, motor in motors.items() if motor.held is not None]
+        held = {i: angle for i, motor in motors.items() if (angle := motor.held) is not None}
         if driven:
             self.set_joint_velocities(driven, [motors[i].velocity for i in driven],
                                       [motors[i].force for i in driven])
         if held:
-            self.hold_joints(held, [motors[i].force for i in held],
-                             [motors[i].held for i in held])
+            self.hold_joints(list(held), [motors[i].force for i in held], list(held.values()))
 
-    def _put(self, state) -> None:
+    def _put(self, state: State) -> None:
         (position, orientation), (linear, angular), joints = state
         client, body = self._client, self.id
         client.resetBasePositionAndOrientation(body, position, orientation)
@@ -511,7 +518,7 @@ class Body:
         for method, args, kwargs in self._changes:
             getattr(self, method)(*args, **kwargs)
 
-    def loaded_into(self, client) -> 'Body':
+    def loaded_into(self, client: BulletClient) -> 'Body':
         """
         Load the body as :meth:`reload` would, into another client; return that body.
 
@@ -541,7 +548,7 @@ class Body:
         self._motors, self._anchored = twin._motors, twin._anchored
         self._bind_hot_path()
 
-    def _load_into(self, client) -> int:
+    def _load_into(self, client: BulletClient) -> int:
         """Load the body's file into ``client`` as it was loaded; return the new id."""
         loading = self._loading
         if loading is None:
@@ -566,7 +573,7 @@ class Body:
         return (loading is not None and loading.file is not None
                 and file_stamp(loading.file[0]) == loading.file)
 
-    def _removed(self, *args, **kwargs):
+    def _removed(self, *args: Any, **kwargs: Any) -> NoReturn:
         raise BodyRemoved(f'body {self.name!r} was removed from the world')
 
     # -- its links: names, poses, boxes, shapes; contacts and near points ---------------

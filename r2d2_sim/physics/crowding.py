@@ -36,6 +36,7 @@ from r2d2_sim.physics.world import SimWorld
 
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
+from pybullet_utils.bullet_client import BulletClient  # noqa: I100 (after the quiet import)
 
 __all__ = ['check_crowding', 'check_placements', 'Placement', 'moving_links', 'touching_pairs',
            'MAX_MOVING_LINKS', 'MAX_TOUCHING_PAIRS', 'MAX_NEAR_PAIRS', 'TOUCH_DISTANCE_M']
@@ -72,7 +73,7 @@ def moving_links(body: Body) -> List[int]:
     return moving
 
 
-def _boxes(client, links: Sequence[Link]) -> numpy.ndarray:
+def _boxes(client: BulletClient, links: Sequence[Link]) -> numpy.ndarray:
     """Return the links' bounding boxes, grown by TOUCH_DISTANCE_M: (N, 2, 3)."""
     # pybullet's function itself: BulletClient's attribute lookup costs twice the call.
     aabb = partial(pybullet.getAABB, physicsClientId=client._client)
@@ -96,7 +97,8 @@ def _near_pairs(boxes: numpy.ndarray, owners: numpy.ndarray, placed: numpy.ndarr
     return numpy.unique(pairs, axis=0) if len(pairs) else pairs.reshape(0, 2)
 
 
-def touching_pairs(client, links: Sequence[Link], placed: Sequence[bool], limit: int) -> int:
+def touching_pairs(client: BulletClient, links: Sequence[Link], placed: Sequence[bool],
+                   limit: int) -> int:
     """
     Count pairs of ``links`` (of different bodies, one of them ``placed``) that touch.
 
@@ -122,7 +124,7 @@ def touching_pairs(client, links: Sequence[Link], placed: Sequence[bool], limit:
     return count
 
 
-def check_crowding(client, bodies: Sequence[Body], placed: Sequence[Body], code: str,
+def check_crowding(client: BulletClient, bodies: Sequence[Body], placed: Sequence[Body], code: str,
                    what: str) -> None:
     """
     Refuse (RefusedError ``code``, naming ``what``) a placing that crowds the moving bodies.

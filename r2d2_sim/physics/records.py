@@ -15,6 +15,7 @@ from r2d2_sim.physics.stdio import silenced_output
 
 with silenced_output():  # PyBullet prints its build time on import
     import pybullet
+from pybullet_utils.bullet_client import BulletClient  # noqa: I100 (after the quiet import)
 
 __all__ = ['Vec3', 'Quat', 'JOINT_TYPE_NAMES', 'GEOMETRY_KINDS', 'JointRecord', 'JointStates',
            'Pose', 'LinkState', 'Aabb', 'Dynamics', 'CollisionShape', 'joint_records',
@@ -185,37 +186,37 @@ class ClosestPoints(NamedTuple):
     distance_m: float     # negative: they overlap by that much
 
 
-def joint_records(client, body_id: int) -> List[JointRecord]:
+def joint_records(client: BulletClient, body_id: int) -> List[JointRecord]:
     """Return every joint of a body, in index order."""
     return [JointRecord.from_info(client.getJointInfo(body_id, index))
             for index in range(client.getNumJoints(body_id))]
 
 
-def link_state(client, body_id: int, link: int) -> LinkState:
+def link_state(client: BulletClient, body_id: int, link: int) -> LinkState:
     """Return a link's world centre of mass and frame, its forward kinematics computed now."""
     state = client.getLinkState(body_id, link, computeForwardKinematics=True)
     return LinkState(tuple(state[0]), tuple(state[1]), tuple(state[4]), tuple(state[5]))
 
 
-def aabb(client, body_id: int, link: int) -> Aabb:
+def aabb(client: BulletClient, body_id: int, link: int) -> Aabb:
     """Return the world bounding box of a link (-1: the base)."""
     low, high = client.getAABB(body_id, link)
     return Aabb(tuple(low), tuple(high))
 
 
-def dynamics(client, body_id: int, link: int) -> Dynamics:
+def dynamics(client: BulletClient, body_id: int, link: int) -> Dynamics:
     """Return a link's mass, lateral friction and inertial frame (-1: the base)."""
     info = client.getDynamicsInfo(body_id, link)
     return Dynamics(info[0], info[1], tuple(info[3]), tuple(info[4]))
 
 
-def collision_shapes(client, body_id: int, link: int) -> List[CollisionShape]:
+def collision_shapes(client: BulletClient, body_id: int, link: int) -> List[CollisionShape]:
     """Return a link's collision shapes, each in its link's inertial frame."""
     return [CollisionShape(shape[2], tuple(shape[3]), tuple(shape[5]), tuple(shape[6]))
             for shape in client.getCollisionShapeData(body_id, link)]
 
 
-def mesh_vertices(client, body_id: int, link: int, shape_index: int) -> List[Vec3]:
+def mesh_vertices(client: BulletClient, body_id: int, link: int, shape_index: int) -> List[Vec3]:
     """
     Return the vertices of a link's collision mesh, in the link's inertial frame, scaled.
 
@@ -229,7 +230,7 @@ def mesh_vertices(client, body_id: int, link: int, shape_index: int) -> List[Vec
     return [tuple(v) for v in vertices[:count]]
 
 
-def body_info(client, body_id: int) -> BodyInfo:
+def body_info(client: BulletClient, body_id: int) -> BodyInfo:
     """Return the names of a body's base link and of the body, as its URDF gives them."""
     base, name = client.getBodyInfo(body_id)[:2]
     return BodyInfo(base.decode('utf-8'), name.decode('utf-8'))

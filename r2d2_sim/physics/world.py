@@ -18,7 +18,8 @@ from functools import partial
 import math
 import os
 import socket
-from typing import Dict, Iterator, List, NamedTuple, Optional, Sequence, Tuple, Union
+from typing import (
+    Dict, Iterator, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union)
 
 import numpy
 
@@ -79,7 +80,7 @@ def _unique_name(bodies: Dict[str, Body], wanted: str) -> str:
     return f'{wanted}_{suffix}'
 
 
-def display_problem(environ=os.environ) -> Optional[str]:
+def display_problem(environ: Mapping[str, str] = os.environ) -> Optional[str]:
     """
     Return why PyBullet's window cannot open here (None if an X display answers).
 
@@ -604,5 +605,5 @@ class SimWorld:
     def __enter__(self) -> 'SimWorld':
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()

@@ -28,6 +28,7 @@ from r2d2_sim.sim.tags import check_description_text, check_tags
 
 if TYPE_CHECKING:  # typing only: the testing API imports this module without PyBullet
     from r2d2_sim.physics.body import Body
+    from r2d2_sim.physics.world import SimWorld
 
 __all__ = ['Category', 'EntityInfo', 'SpawnRequest', 'Spawned', 'Entities', 'check_pose',
            'name_filter', 'MAX_SPAWNED', 'MAX_NAME_LENGTH', 'MAX_FILTER_LENGTH', 'NAME']
@@ -169,7 +170,8 @@ class Entities:
     entities are robots.
     """
 
-    def __init__(self, world, world_frame_id: str, sdf: SdfSettings = SdfSettings()) -> None:
+    def __init__(self, world: 'SimWorld', world_frame_id: str,
+                 sdf: SdfSettings = SdfSettings()) -> None:
         self._world = world
         self.world_frame_id = world_frame_id
         self.sdf = sdf  # where SDF models are found, what they are compared with

@@ -28,7 +28,9 @@ step), and about 10 us per other body per step when made (closest points).
 """
 
 import math
-from typing import Dict, Iterable, List, Mapping, NamedTuple, Optional, Tuple, Union
+from typing import (
+    Callable, Dict, Iterable, List, Mapping, NamedTuple, Optional, Protocol, Sequence, Tuple,
+    Union)
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.convex import box_corners
@@ -36,7 +38,10 @@ from r2d2_sim.model.regions import circle_region, polygon_region, Region
 from r2d2_sim.model.transforms import apply, Transform, yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.records import ContactPoint
-from r2d2_sim.physics.world import GROUND_PLANE_NAME
+from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
+from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.worlds.files import WorldFiles
+from r2d2_sim.sim.worlds.world import NamedPose
 
 __all__ = ['Contact', 'Clearance', 'Touch', 'RunWatch', 'TrajectoryPoint', 'touching',
            'ground_region',
@@ -79,7 +84,7 @@ class TrajectoryPoint(NamedTuple):
     yaw_rad: float
 
 
-def touching(world, body: Body, others: Optional[Iterable[Tuple[str, Body]]] = None
+def touching(world: SimWorld, body: Body, others: Optional[Iterable[Tuple[str, Body]]] = None
              ) -> List[Touch]:
     """
     Return what ``body`` touches after the last step of ``world`` (a SimWorld).
@@ -116,6 +121,39 @@ class Clearance(NamedTuple):
     time_ns: Optional[int]
 
 
+class _Robot(Protocol):
+    @property
+    def body(self) -> Body:
+        """Return the robot's body."""
+
+
+class WatchedSimulation(Protocol):
+    """What a :class:`RunWatch` asks of the simulation it watches (a ``Simulation``)."""
+
+    @property
+    def config(self) -> SimConfig:
+        """Return the simulation's settings (its physics rate)."""
+
+    @property
+    def world(self) -> SimWorld:
+        """Return the physics world."""
+
+    @property
+    def robots(self) -> Sequence[_Robot]:
+        """Return the robots, the first of them watched by default."""
+
+    @property
+    def worlds(self) -> WorldFiles:
+        """Return the world files: the current world's named poses."""
+
+    @property
+    def time_ns(self) -> int:
+        """Return the simulated time now (ns)."""
+
+    def watch_steps(self, watcher: Callable[[int], None]) -> Callable[[], None]:
+        """Call ``watcher`` with the time after every step; return what stops it."""
+
+
 class RunWatch:
     """
     One robot's run as the physics saw it, from now on: contacts, clearance, regions, tipping.
@@ -134,7 +172,7 @@ class RunWatch:
     an unknown entity or a range, angle or period that is none.
     """
 
-    def __init__(self, simulation, entity: Optional[str] = None, *,
+    def __init__(self, simulation: 'WatchedSimulation', entity: Optional[str] = None, *,
                  regions: Optional[Mapping[str, Union[Region, str]]] = None,
                  clearance_range_m: float = DEFAULT_CLEARANCE_RANGE_M,
                  tip_angle_rad: float = DEFAULT_TIP_ANGLE_RAD,
@@ -154,10 +192,11 @@ class RunWatch:
         bodies = simulation.world.bodies
         if entity is None and not simulation.robots:
             raise ValueError('the world has no robot: name the entity to watch')
-        self.body: Body = simulation.robots[0].body if entity is None else bodies.get(entity)
-        if self.body is None:
+        body = simulation.robots[0].body if entity is None else bodies.get(entity)
+        if body is None:
             raise ValueError(f'no entity named {entity!r}; the world has: {", ".join(bodies)}')
-        self.name = self.body.name
+        self.body: Body = body
+        self.name = body.name
         self.regions: Dict[str, Region] = {
             name: _named_region(simulation, region) if isinstance(region, str) else region
             for name, region in (regions or {}).items()}
@@ -246,27 +285,27 @@ class RunWatch:
     def __enter__(self) -> 'RunWatch':
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-def _up_cos(orientation) -> float:
+def _up_cos(orientation: Sequence[float]) -> float:
     """Return the cosine of the angle between the body's z axis and the world's up."""
     x, y, _, _ = orientation
     return 1.0 - 2.0 * (x * x + y * y)
 
 
-def ground_region(pose) -> Region:
+def ground_region(pose: NamedPose) -> Region:
     """
     Return a named pose's bounds seen from above, in the world frame: where "at the pose" is.
 
-    ``pose``: a :class:`~r2d2_sim.sim.worlds.manifest.NamedPose` with bounds
+    ``pose``: a :class:`~r2d2_sim.sim.worlds.world.NamedPose` with bounds
     (relative to the pose). A sphere is the circle of its radius around its
     centre; a box or a convex hull the convex polygon of its corners.
     ValueError (one line) for a pose without bounds: it has no area to reach.
     """
     bounds = pose.bounds
-    frame = Transform(tuple(pose.position), tuple(pose.orientation))
+    frame = Transform(pose.position, pose.orientation)
     if bounds.kind == 'sphere':
         centre = apply(frame, bounds.points[0])
         return circle_region(centre[0], centre[1], bounds.points[1][0])
@@ -283,7 +322,7 @@ def ground_region(pose) -> Region:
                      f'around it instead, e.g. circle_region({x:g}, {y:g}, 0.2)')
 
 
-def _named_region(simulation, name: str) -> Region:
+def _named_region(simulation: 'WatchedSimulation', name: str) -> Region:
     """Return the ground region of the current world's named pose ``name``; ValueError if none."""
     world = simulation.worlds.current
     if world is None:

@@ -199,7 +199,7 @@ class Startup:
         """Return the names of the start-up entities that stay when another world is loaded."""
         return [entity.body.name for entity in self._entities if not entity.world_model]
 
-    def _load_extra(self, description: str, position) -> Body:
+    def _load_extra(self, description: str, position: Tuple[float, float, float]) -> Body:
         try:
             path = resolve_description_path(description)
         except DescriptionError as exc:

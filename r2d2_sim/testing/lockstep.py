@@ -32,7 +32,8 @@ code, as do waits with a timeout and any poll while rclpy tasks are pending.
 """
 
 import inspect
-from typing import Any, Callable, Dict, List, NamedTuple, Optional, Protocol, Set, Tuple, Union
+from typing import (
+    Any, Callable, Dict, Generator, List, NamedTuple, Optional, Protocol, Set, Tuple, Union)
 
 from rclpy.action import ActionServer
 from rclpy.callback_groups import CallbackGroup
@@ -240,11 +241,12 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._gathered = None
         super().remove_node(node)
 
-    # No return type: rclpy's says Tasks, and a poll yields _DirectCallbacks among them (they
-    # run as a Task does: called, then exception(), result(), done()).
+    # Any, not rclpy's Task: a poll yields _DirectCallbacks among the Tasks (they run as a
+    # Task does: called, then exception(), result(), done()).
     def _wait_for_ready_callbacks(self, timeout_sec: Optional[Union[float, TimeoutObject]] = None,
                                   nodes: Optional[List[Node]] = None,
-                                  condition: Callable[[], bool] = lambda: False):
+                                  condition: Callable[[], bool] = lambda: False
+                                  ) -> Generator[Tuple[Any, Any, Node], None, None]:
         if self._tasks:  # rclpy keeps finished Tasks until its next wait: drop them here
             with self._tasks_lock:
                 self._tasks = [t for t in self._tasks if not (t[0].done() or t[0].cancelled())]

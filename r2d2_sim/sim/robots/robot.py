@@ -50,7 +50,7 @@ class Frame(NamedTuple):
     odometry: Optional[OdometryState]    # wheel odometry (None without wheels)
 
     @property
-    def stamp(self):
+    def stamp(self) -> Tuple[int, int]:
         """Return (sec, nanosec) of the frame's simulated time."""
         return stamp_of(self.time_ns)
 

@@ -13,7 +13,7 @@ again as at start-up.
 """
 
 import math
-from typing import NamedTuple, Optional, TYPE_CHECKING
+from typing import List, NamedTuple, Optional, Sequence, TYPE_CHECKING
 
 import numpy
 
@@ -63,7 +63,7 @@ class CameraImage(NamedTuple):
 class HeadCamera:
     """A pinhole camera on the head link looking forward (turning with head_swivel)."""
 
-    def __init__(self, world, body: Body, config: SimConfig) -> None:
+    def __init__(self, world: 'SimWorld', body: Body, config: SimConfig) -> None:
         try:
             self._link = body.link_index(HEAD_CAMERA_LINK)
         except WorldError as exc:
@@ -196,8 +196,8 @@ class LaserScanner(_RaySensor):
 
     NOISE, RATE = 'scan', 'scan_rate_hz'
 
-    def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float,
-                 ray_group: int) -> None:
+    def __init__(self, world: 'SimWorld', body: Body, config: SimConfig,
+                 footprint_height_m: float, ray_group: int) -> None:
         try:
             self.geometry = ScanGeometry(config.scan_angle_min_rad, config.scan_angle_max_rad,
                                          config.scan_samples, config.scan_range_min_m,
@@ -244,8 +244,8 @@ class Lidar3d(_RaySensor):
 
     NOISE, RATE = 'lidar3d', 'lidar3d_rate_hz'
 
-    def __init__(self, world, body: Body, config: SimConfig, footprint_height_m: float,
-                 ray_group: int) -> None:
+    def __init__(self, world: 'SimWorld', body: Body, config: SimConfig,
+                 footprint_height_m: float, ray_group: int) -> None:
         try:
             self.geometry = LidarGeometry(config.lidar3d_rings, config.lidar3d_angle_min_rad,
                                           config.lidar3d_angle_max_rad, config.lidar3d_samples,
@@ -268,7 +268,8 @@ class Lidar3d(_RaySensor):
         body.exclude_from_rays(self.excluded_links, ray_group)
         self._noise = self._new_noise()
 
-    def _own_links_in_view(self, body: Body, axis, ground_z: float):
+    def _own_links_in_view(self, body: Body, axis: Sequence[float], ground_z: float
+                           ) -> List[int]:
         """Return the links the beams could meet within the robot's horizontal extent."""
         radius = 0.0
         for link in body.links():

@@ -29,8 +29,8 @@ from typing import Dict, List, NamedTuple, Tuple
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import (
     compose, IDENTITY, inverse, rotate_inverse, Transform, Vector3)
-from r2d2_sim.sim.sdf.description import Inertial, JointLimits, Link, Model, Shape
-from r2d2_sim.sim.sdf.elements import Place
+from r2d2_sim.sim.sdf.description import Inertial, Joint, JointLimits, Link, Model, Shape
+from r2d2_sim.sim.sdf.elements import Notes, Place
 
 __all__ = ['BodyLink', 'BodyJoint', 'BodyPlan', 'plan_bodies', 'entity_name', 'MASSLESS']
 
@@ -83,7 +83,7 @@ def _moved(link: Link, frame: Transform, static: bool) -> BodyLink:
     """Return ``link`` with its inertia and shapes in ``frame`` (a frame in the model's)."""
     into = compose(inverse(frame), link.pose)
 
-    def shapes(found):
+    def shapes(found: Tuple[Shape, ...]) -> Tuple[Shape, ...]:
         return tuple(shape._replace(pose=compose(into, shape.pose)) for shape in found)
     inertial = MASSLESS if static else link.inertial._replace(
         pose=compose(into, link.inertial.pose))
@@ -105,7 +105,7 @@ def _static_body(name: str, links: List[Link]) -> BodyPlan:
 class _Planner:
     """The moving part of one model, cut into bodies at the joints."""
 
-    def __init__(self, model: Model, notes) -> None:
+    def __init__(self, model: Model, notes: Notes) -> None:
         self.model = model
         self.notes = notes
         self.links = {link.name: link for link in model.links}
@@ -182,14 +182,15 @@ class _Planner:
         return BodyPlan(name, links[0].frame, fixed_base and not urdf_joints, tuple(links),
                         tuple(urdf_joints))
 
-    def _joint(self, joint, turned: bool, parent: str, child: str, frames: Dict,
-               links: List[BodyLink], joints: List[BodyJoint]) -> None:
+    def _joint(self, joint: Joint, turned: bool, parent: str, child: str,
+               frames: Dict[str, Transform], links: List[BodyLink],
+               joints: List[BodyJoint]) -> None:
         """Add the URDF joint(s) from ``parent`` to ``child``, and ``child``'s link."""
         sign = -1.0 if turned else 1.0
         origin = compose(inverse(frames[parent]), frames[child])
         rotation = frames[child].rotation
 
-        def axis_of(direction) -> Vector3:
+        def axis_of(direction: Vector3) -> Vector3:
             x, y, z = rotate_inverse(rotation, direction)
             return (sign * x, sign * y, sign * z)
 
@@ -219,7 +220,7 @@ def _turning(limits: JointLimits) -> str:
     return 'revolute' if limits.lower <= limits.upper else 'continuous'
 
 
-def plan_bodies(model: Model, notes) -> List[BodyPlan]:
+def plan_bodies(model: Model, notes: Notes) -> List[BodyPlan]:
     """
     Return the bodies of ``model``, the one holding its canonical link first.
 

@@ -12,7 +12,7 @@ one-line RESOURCE_PARSE_ERROR a bad value gets, never the file's text.
 import errno
 import math
 import re
-from typing import Optional, overload, Sequence, Tuple
+from typing import Optional, overload, Protocol, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from defusedxml import DefusedXmlException
@@ -24,8 +24,8 @@ from r2d2_sim.model.health import MAX_DISTANCE_M
 from r2d2_sim.model.sdf_poses import FrameError, pose_from_values
 from r2d2_sim.model.transforms import IDENTITY, Transform
 
-__all__ = ['Budget', 'Place', 'parse_xml', 'local_tag', 'read_limited', 'root_tag',
-           'MAX_SDF_FILES', 'MAX_SDF_ELEMENTS', 'MAX_INCLUDE_DEPTH', 'PARSE']
+__all__ = ['Budget', 'Place', 'Notes', 'FileNotes', 'parse_xml', 'local_tag', 'read_limited',
+           'root_tag', 'MAX_SDF_FILES', 'MAX_SDF_ELEMENTS', 'MAX_INCLUDE_DEPTH', 'PARSE']
 
 PARSE = 'RESOURCE_PARSE_ERROR'
 # What one world may cost to read, all its files together (turtlebot3_world: 3 files and
@@ -271,3 +271,17 @@ class Place:
         if max(map(abs, transform.translation)) > MAX_DISTANCE_M:
             raise self.fail(f'<pose> is more than {MAX_DISTANCE_M:g} m out')
         return transform, relative_to
+
+
+class Notes(Protocol):
+    """What a part of a world tells of what it does not simulate (counted by what it is)."""
+
+    def note(self, what: str) -> None:
+        """Count one element that is not simulated (``what``: its tag or kind)."""
+
+
+class FileNotes(Notes, Protocol):
+    """Notes that also find a mesh's file, for the parts of one file."""
+
+    def mesh(self, uri: str, place: Place) -> Optional[str]:
+        """Return a mesh's path; None (noted as left out) when missing and that is allowed."""

@@ -170,7 +170,7 @@ class SdfBuilt(NamedTuple):
     left_out: Tuple[str, ...]                    # meshes left out (ignore_missing)
 
 
-def summary_line(counts) -> str:
+def summary_line(counts: Iterable[Tuple[str, int]]) -> str:
     """Return 'not simulated: light x9, plugin x3, ...' for counts by what (empty for none)."""
     shown = [what if count == 1 else f'{what} x{count}' for what, count in counts]
     return 'not simulated: ' + ', '.join(shown) if shown else ''

@@ -30,7 +30,7 @@ import json
 import os
 import re
 import tempfile
-from typing import Any, List, NamedTuple, Optional, Tuple
+from typing import Any, List, Mapping, NamedTuple, Optional, Tuple
 
 import numpy
 
@@ -68,7 +68,7 @@ _PART = re.compile(r'part_[0-9]{1,3}\.obj')
 Rgba = Tuple[float, float, float, float]
 
 
-def cache_directory(environ=None) -> str:
+def cache_directory(environ: Optional[Mapping[str, str]] = None) -> str:
     """Return r2d2_sim's cache directory: R2D2_SIM_CACHE_DIR, else XDG's, else ~/.cache."""
     environ = os.environ if environ is None else environ
     if environ.get(CACHE_VARIABLE):

@@ -21,7 +21,7 @@ import struct
 import sys
 import warnings
 import zipfile
-from typing import List, NamedTuple, Optional, Tuple
+from typing import Any, List, NamedTuple, Optional, Tuple
 
 import numpy
 
@@ -201,7 +201,8 @@ def _dae(data: bytes, shown: str) -> Triangles:
         return _join(_dae_pieces(collada, data, ignore, shown), shown)
 
 
-def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
+def _dae_pieces(collada: Any, data: bytes, ignore: List[type], shown: str
+                ) -> List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]]:
     """Return a COLLADA file's triangle sets in metres, each with its material's colour."""
     try:
         document = collada.Collada(io.BytesIO(data), ignore=ignore)
@@ -209,7 +210,7 @@ def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
         if scene is None:
             raise RefusedError(PARSE, f'mesh {shown}: the COLLADA file has no <scene>')
         unit = document.assetInfo.unitmeter or 1.0
-        pieces = []
+        pieces: List[Tuple[numpy.ndarray, numpy.ndarray, Optional[Rgba]]] = []
         for geometry in scene.objects('geometry'):
             for primitive in geometry.primitives():
                 if isinstance(primitive, collada.polylist.BoundPolylist):  # polygons too
@@ -219,10 +220,10 @@ def _dae_pieces(collada, data: bytes, ignore, shown: str) -> list:
                 if primitive.vertex is None or not len(primitive.vertex_index):
                     continue
                 diffuse = getattr(getattr(primitive.material, 'effect', None), 'diffuse', None)
-                colour = (tuple(float(c) for c in diffuse[:4])
-                          if isinstance(diffuse, tuple) and len(diffuse) >= 3 else None)
-                if colour is not None and len(colour) == 3:
-                    colour += (1.0,)
+                colour: Optional[Rgba] = None
+                if isinstance(diffuse, tuple) and len(diffuse) >= 3:
+                    rgba = [float(c) for c in diffuse[:4]] + [1.0]  # opaque unless given
+                    colour = (rgba[0], rgba[1], rgba[2], rgba[3])
                 pieces.append((primitive.vertex * unit, primitive.vertex_index, colour))
                 check_triangles(sum(len(p[1]) for p in pieces), shown)
     except RefusedError:

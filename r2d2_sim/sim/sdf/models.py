@@ -13,14 +13,15 @@ frame whichever frame the file's SDF version expresses them in.
 
 import dataclasses
 import math
-from typing import List, Optional, Tuple
+from typing import List, Optional, Protocol, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.model.sdf_poses import FrameError, PoseGraph, SCOPE_SEPARATOR
-from r2d2_sim.model.transforms import compose, inverse, rotate, Transform
+from r2d2_sim.model.transforms import compose, inverse, rotate, Transform, Vector3
 from r2d2_sim.sim.sdf.description import Joint, Link, Model, Shape
-from r2d2_sim.sim.sdf.elements import local_tag, Place
-from r2d2_sim.sim.sdf.parts import JointSpec, LinkSpec, QUIET, read_joint, read_link
+from r2d2_sim.sim.sdf.elements import FileNotes, local_tag, Place
+from r2d2_sim.sim.sdf.parts import (
+    AxisSpec, JointSpec, LinkSpec, QUIET, read_joint, read_link, ShapeSpec)
 
 __all__ = ['ModelTree', 'Origin', 'read_model', 'place_model', 'flatten', 'MODEL_FRAME',
            'MAX_LINKS_PER_MODEL']
@@ -79,7 +80,24 @@ def place_model(graph: PoseGraph, tree: ModelTree, place: Place) -> None:
     _add(graph, place, tree.name, tree.relative_to, pose, tree.graph)
 
 
-def read_model(element: ElementTree.Element, place: Place, origin: Origin, reader,
+class ModelReader(Protocol):
+    """What reading a model asks of the reader of its files (:class:`~.reader.Reader`)."""
+
+    def notes_for(self, origin: Origin) -> FileNotes:
+        """Return what the parts of ``origin``'s file report to."""
+
+    def include(self, element: ElementTree.Element, place: Place, origin: Origin,
+                depth: int, nesting: int = 0) -> Optional[ModelTree]:
+        """Return the model an <include> brings (its overrides applied); None for a light."""
+
+    def note(self, what: str) -> None:
+        """Count one element that is not simulated, by what it is."""
+
+    def count_model(self, place: Place) -> None:
+        """Count one model against the world's limit."""
+
+
+def read_model(element: ElementTree.Element, place: Place, origin: Origin, reader: ModelReader,
                depth: int, nesting: int = 0) -> ModelTree:
     """
     Return a <model> read into a tree; ``reader`` reads includes and counts what it skips.
@@ -130,9 +148,10 @@ def read_model(element: ElementTree.Element, place: Place, origin: Origin, reade
     return tree
 
 
-def _unit(vector, where: str) -> Tuple[float, float, float]:
+def _unit(vector: Vector3, where: str) -> Vector3:
     norm = math.sqrt(sum(v * v for v in vector))
-    return tuple(v / norm for v in vector)
+    x, y, z = vector
+    return x / norm, y / norm, z / norm
 
 
 class _Flattening:
@@ -165,7 +184,7 @@ class _Flattening:
                              'models included')
 
     @staticmethod
-    def _shape(spec, graph: PoseGraph, link: str) -> Shape:
+    def _shape(spec: ShapeSpec, graph: PoseGraph, link: str) -> Shape:
         if not spec.relative_to or spec.relative_to == link:
             return spec.shape
         pose = compose(inverse(graph.pose(link)), compose(graph.pose(spec.relative_to),
@@ -182,7 +201,7 @@ class _Flattening:
         joint_pose = graph.pose(spec.name)
         version = tree.origin.version
 
-        def direction(axis) -> Tuple[float, float, float]:
+        def direction(axis: AxisSpec) -> Vector3:
             if version >= (1, 7):
                 name = axis.expressed_in or spec.name
             elif version >= (1, 5):

@@ -10,13 +10,13 @@ simulate, and asks it for mesh files. Poses stay as written (with their
 """
 
 import math
-from typing import List, NamedTuple, Optional, Tuple
+from typing import Collection, List, NamedTuple, Optional, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.model.transforms import Transform, Vector3
 from r2d2_sim.sim.sdf.description import (
     DEFAULT_INERTIAL, Geometry, Inertial, JOINT_TYPES, JointLimits, Shape)
-from r2d2_sim.sim.sdf.elements import local_tag, Place
+from r2d2_sim.sim.sdf.elements import FileNotes, local_tag, Notes, Place
 
 __all__ = ['ShapeSpec', 'LinkSpec', 'AxisSpec', 'JointSpec', 'read_link', 'read_joint',
            'QUIET', 'MAX_SIZE_M', 'MAX_SHAPES_PER_LINK']
@@ -89,7 +89,7 @@ class JointSpec(NamedTuple):
 _NO_AXIS = AxisSpec((0.0, 0.0, 1.0), '', JointLimits(1.0, -1.0, 0.0, 0.0))
 
 
-def _others(element: ElementTree.Element, known, notes) -> None:
+def _others(element: ElementTree.Element, known: Collection[str], notes: Notes) -> None:
     """Tell ``notes`` of every child not in ``known`` nor QUIET (one count per element)."""
     for child in element:
         tag = local_tag(child)
@@ -103,14 +103,16 @@ def _vector3(values: Tuple[float, ...]) -> Vector3:
     return x, y, z
 
 
-def _positive(place: Place, element, tag: str, default: Optional[float] = None) -> float:
+def _positive(place: Place, element: ElementTree.Element, tag: str,
+              default: Optional[float] = None) -> float:
     value = place.number(element, tag, default, 0.0, MAX_SIZE_M)
     if value is None or not value > 0.0:
         raise place.fail(f'<{tag}> must be a positive length of at most {MAX_SIZE_M:g} m')
     return value
 
 
-def read_geometry(element: ElementTree.Element, place: Place, notes) -> Optional[Geometry]:
+def read_geometry(element: ElementTree.Element, place: Place, notes: FileNotes
+                  ) -> Optional[Geometry]:
     """Return a ``<geometry>``'s shape; None (noted) for one not simulated or left out."""
     shapes = [child for child in element if local_tag(child)]
     if len(shapes) != 1:
@@ -150,7 +152,7 @@ def read_geometry(element: ElementTree.Element, place: Place, notes) -> Optional
     return None
 
 
-def _colour(material: Optional[ElementTree.Element], place: Place, notes
+def _colour(material: Optional[ElementTree.Element], place: Place, notes: Notes
             ) -> Optional[Tuple[float, float, float, float]]:
     """Return a visual's colour: <diffuse>, else <ambient>, else a named Gazebo material."""
     if material is None:
@@ -173,7 +175,7 @@ def _colour(material: Optional[ElementTree.Element], place: Place, notes
     return None
 
 
-def _surface(element: Optional[ElementTree.Element], place: Place, notes
+def _surface(element: Optional[ElementTree.Element], place: Place, notes: Notes
              ) -> Tuple[Optional[float], Optional[float]]:
     """Return a collision's (friction, restitution) where its <surface> gives them."""
     if element is None:
@@ -198,7 +200,7 @@ def _surface(element: Optional[ElementTree.Element], place: Place, notes
     return friction, restitution
 
 
-def _shape(element: ElementTree.Element, place: Place, notes, visual: bool
+def _shape(element: ElementTree.Element, place: Place, notes: FileNotes, visual: bool
            ) -> Optional[ShapeSpec]:
     """Return a <collision> or <visual>; None when its geometry is not simulated."""
     at = place.child(element)
@@ -219,7 +221,8 @@ def _shape(element: ElementTree.Element, place: Place, notes, visual: bool
     return ShapeSpec(Shape(name, pose, geometry, friction, restitution), relative_to)
 
 
-def _inertial(element: Optional[ElementTree.Element], place: Place, notes) -> Inertial:
+def _inertial(element: Optional[ElementTree.Element], place: Place, notes: Notes
+              ) -> Inertial:
     if element is None:
         return DEFAULT_INERTIAL
     at = place.child(element)
@@ -240,7 +243,7 @@ def _inertial(element: Optional[ElementTree.Element], place: Place, notes) -> In
     return Inertial(mass, pose, values)
 
 
-def read_link(element: ElementTree.Element, place: Place, notes) -> LinkSpec:
+def read_link(element: ElementTree.Element, place: Place, notes: FileNotes) -> LinkSpec:
     """Return a <link>: its pose, inertia, collisions and visuals (others noted)."""
     at = place.child(element)
     name = place.name(element)
@@ -265,7 +268,7 @@ def read_link(element: ElementTree.Element, place: Place, notes) -> LinkSpec:
                     tuple(collisions), tuple(visuals))
 
 
-def _axis(element: Optional[ElementTree.Element], place: Place, notes
+def _axis(element: Optional[ElementTree.Element], place: Place, notes: Notes
           ) -> Tuple[AxisSpec, bool]:
     """Return an <axis> (or <axis2>) and its 1.5-1.6 use_parent_model_frame flag."""
     if element is None:
@@ -302,7 +305,7 @@ def _axis(element: Optional[ElementTree.Element], place: Place, notes
                                                          False)
 
 
-def read_joint(element: ElementTree.Element, place: Place, notes) -> JointSpec:
+def read_joint(element: ElementTree.Element, place: Place, notes: Notes) -> JointSpec:
     """Return a <joint> as written; a type PyBullet cannot represent is held fixed (noted)."""
     at = place.child(element)
     name = place.name(element)

@@ -31,6 +31,7 @@ PLANE_TOLERANCE = 1e-7
 # An outline of more corners is kept as it was: ear clipping here is quadratic in
 # them (a comb of 2,000 teeth took 7.8 s), and so jagged a face gains little.
 MAX_CORNERS = 256
+Point2 = Tuple[float, float]  # a corner in its facet's plane
 
 
 def merge_coplanar(vertices: numpy.ndarray, faces: numpy.ndarray, groups: numpy.ndarray
@@ -150,7 +151,7 @@ def _cross(o: Sequence[float], a: Sequence[float], b: Sequence[float]) -> float:
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
 
-def _inside(p, a, b, c, eps: float = 0.0) -> bool:
+def _inside(p: Point2, a: Point2, b: Point2, c: Point2, eps: float = 0.0) -> bool:
     """
     Return True when ``p`` lies in the triangle abc (counter-clockwise), edges included.
 
@@ -178,7 +179,7 @@ def _corners(points: List[Tuple[float, float]]) -> List[int]:
     return ring
 
 
-def _ahead(o, a, b) -> bool:
+def _ahead(o: Point2, a: Point2, b: Point2) -> bool:
     """Return True when ``b`` goes on from ``a`` the way ``a`` came from ``o`` (no turn back)."""
     return (a[0] - o[0]) * (b[0] - a[0]) + (a[1] - o[1]) * (b[1] - a[1]) > 0.0
 

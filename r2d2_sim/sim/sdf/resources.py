@@ -25,7 +25,7 @@ file (``roots`` None).
 """
 
 import os
-from typing import List, NamedTuple, Optional, Sequence, Tuple
+from typing import List, Mapping, NamedTuple, Optional, Sequence, Tuple
 from urllib.parse import unquote, urlsplit
 
 from r2d2_sim.errors import RefusedError
@@ -72,8 +72,8 @@ def _inside(path: str, root: str) -> bool:
     return path == root or path.startswith(root.rstrip(os.sep) + os.sep)
 
 
-def _variable_paths(environ, names: Sequence[str]) -> List[str]:
-    found = []
+def _variable_paths(environ: Mapping[str, str], names: Sequence[str]) -> List[str]:
+    found: List[str] = []
     for name in names:
         found += [p for p in environ.get(name, '').split(os.pathsep) if p]
     return found
@@ -126,7 +126,7 @@ class Resources:
     """
 
     def __init__(self, model_paths: Sequence[str] = (), roots: Optional[Sequence[str]] = None,
-                 environ=None) -> None:
+                 environ: Optional[Mapping[str, str]] = None) -> None:
         environ = os.environ if environ is None else environ
         self.search_paths = [os.path.abspath(os.path.expanduser(p)) for p in
                              list(model_paths) + _variable_paths(environ, MODEL_PATH_VARIABLES)]

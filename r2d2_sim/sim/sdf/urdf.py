@@ -15,13 +15,14 @@ one element a line, as PyBullet reads a URDF line by line into 8 kB buffers
 """
 
 import math
-from typing import Callable, Dict, List, Optional, Tuple
+from typing import Callable, Dict, Iterable, List, Optional, Sequence, Tuple
 from xml.sax.saxutils import quoteattr
 
 from r2d2_sim.model.sdf_poses import rpy_from_quaternion
 from r2d2_sim.model.transforms import compose, Transform
 from r2d2_sim.sim.sdf.bodies import BodyJoint, BodyLink, BodyPlan, entity_name
 from r2d2_sim.sim.sdf.description import Geometry, Shape
+from r2d2_sim.sim.sdf.elements import Notes
 from r2d2_sim.sim.sdf.mesh_cache import Converted
 
 __all__ = ['urdf_text', 'DEFAULT_COLOUR', 'PLANE_THICKNESS_M']
@@ -35,7 +36,7 @@ Meshes = Callable[[Geometry], Optional[Converted]]
 Hulls = Callable[[Converted], str]    # a converted mesh -> its convex pieces' OBJ
 
 
-def _numbers(values) -> str:
+def _numbers(values: Iterable[float]) -> str:
     return ' '.join(repr(float(v)) for v in values)
 
 
@@ -73,7 +74,7 @@ def _primitive(geometry: Geometry) -> str:
 class _Writer:
     """One body's URDF, with the converted meshes it uses and their triangles counted."""
 
-    def __init__(self, meshes: Meshes, hulls: Hulls, notes) -> None:
+    def __init__(self, meshes: Meshes, hulls: Hulls, notes: Notes) -> None:
         self.meshes = meshes
         self.hulls = hulls
         self.notes = notes
@@ -101,7 +102,8 @@ class _Writer:
         return [f'<collision>{_origin(shape.pose)}<geometry>'
                 f'{self._mesh(self.hulls(converted), geometry)}</geometry></collision>']
 
-    def _visual(self, pose: Transform, geometry_text: str, colour) -> str:
+    def _visual(self, pose: Transform, geometry_text: str,
+                colour: Optional[Sequence[float]]) -> str:
         self.materials += 1
         rgba = _numbers(colour or DEFAULT_COLOUR)
         return (f'<visual>{_origin(pose)}<geometry>{geometry_text}</geometry><material '
@@ -162,7 +164,7 @@ def _joint(joint: BodyJoint, names: Dict[str, str]) -> str:
     return ''.join(text)
 
 
-def urdf_text(body: BodyPlan, meshes: Meshes, hulls: Hulls, notes) -> Tuple[str, int]:
+def urdf_text(body: BodyPlan, meshes: Meshes, hulls: Hulls, notes: Notes) -> Tuple[str, int]:
     """Return a body's URDF text and how many mesh triangles it uses."""
     writer = _Writer(meshes, hulls, notes)
     names: Dict[str, str] = {}

@@ -30,8 +30,9 @@ from r2d2_sim.sim.sdf.elements import root_tag
 from r2d2_sim.sim.sdf.loading import scene_meshes, SdfSettings, TriangleBudget
 from r2d2_sim.sim.worlds.sdf_format import read_sdf_model, read_sdf_world, sdf_models
 from r2d2_sim.sim.spawnables import (
-    convert_meshes, MAX_DESCRIPTION_BYTES, MeshUse, read_description)
-from r2d2_sim.sim.worlds.manifest import load_yaml, MAX_WORLD_BYTES, read_manifest
+    Closable, convert_meshes, MAX_DESCRIPTION_BYTES, MeshUse, read_description)
+from r2d2_sim.sim.worlds.manifest import (
+    load_yaml, MAX_WORLD_BYTES, ModelEntry, read_manifest)
 from r2d2_sim.sim.worlds.world import World, WorldModel
 from r2d2_sim.sim.worlds.places import (
     file_stem, PACKAGE_WORLDS, Places, read_text, SDF_SUFFIXES)
@@ -73,7 +74,7 @@ class _Reading:
         self.trusted = trusted
         self.sdf = sdf
         self.notes: List[str] = []
-        self.resources: List[DescriptionFile] = []
+        self.resources: List[Closable] = []
         # The mesh triangles of all its models together, URDF and SDF, each use counted.
         self.triangles = TriangleBudget()
 
@@ -134,7 +135,7 @@ class _Reading:
         self.triangles.expect([mesh.path for mesh in meshes], '')
         convert_meshes(meshes, self.triangles)
 
-    def model(self, entry, base_dir: Optional[str], anchor: Optional[str]) -> '_Model':
+    def model(self, entry: ModelEntry, base_dir: Optional[str], anchor: Optional[str]) -> '_Model':
         """
         Return a manifest's model, its file found, read and checked, its meshes not converted.
 
@@ -149,7 +150,8 @@ class _Reading:
             self._left_out(exc)
             return _Model((), list)
 
-    def _model(self, entry, base_dir: Optional[str], anchor: Optional[str]) -> '_Model':
+    def _model(self, entry: ModelEntry, base_dir: Optional[str], anchor: Optional[str]
+               ) -> '_Model':
         path, root = self.places.resolve(entry.uri, base_dir)
         shown = entry.uri[:200]
         if not self.trusted and not self.places.allowed(path, anchor, root):

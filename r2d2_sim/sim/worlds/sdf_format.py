@@ -16,18 +16,21 @@ GetAvailableWorlds lists of one.
 """
 
 import os
-from typing import List, Optional, Tuple
+from typing import List, Optional, Protocol, Tuple
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import compose, Transform
 from r2d2_sim.sim.names import is_name
 from r2d2_sim.sim.sdf.bodies import entity_name
 from r2d2_sim.sim.sdf.elements import local_tag, parse_xml, read_limited
-from r2d2_sim.sim.sdf.loading import build_bodies, read_sdf, SdfBuilt, SdfRead, summary_line
+from r2d2_sim.sim.sdf.loading import (
+    build_bodies, read_sdf, SdfBuilt, SdfRead, SdfSettings, summary_line, TriangleBudget)
 from r2d2_sim.sim.sdf.mesh_cache import MeshCache
 from r2d2_sim.sim.sdf.reader import MAX_SDF_BYTES
 from r2d2_sim.sim.sdf.resources import Resources
-from r2d2_sim.sim.worlds.manifest import check_world_pose
+from r2d2_sim.sim.spawnables import Closable
+from r2d2_sim.sim.worlds.manifest import check_world_pose, ModelEntry
+from r2d2_sim.sim.worlds.places import Places
 from r2d2_sim.sim.worlds.world import NamedPose, World, WorldModel
 
 __all__ = ['read_sdf_world', 'read_sdf_model', 'sdf_models', 'sdf_world_entry', 'START_FRAME']
@@ -36,7 +39,37 @@ START_FRAME = 'start'
 SDF_TAG = 'sdf'
 
 
-def _resources(reading, anchor: Optional[str], path: Optional[str]) -> Resources:
+class ReadingOptions(Protocol):
+    """What a LoadWorld request asks of the reading (:class:`~.reading.LoadOptions`)."""
+
+    @property
+    def fail_on_unsupported_element(self) -> bool:
+        """Refuse a world with an element that is not simulated."""
+
+    @property
+    def ignore_missing_or_unsupported_assets(self) -> bool:
+        """Leave out (noted) a model or mesh that cannot be had."""
+
+
+class WorldReading(Protocol):
+    """What reading an SDF file asks of one world's reading (:mod:`~.reading`)."""
+
+    trusted: bool                  # anything may be read (the operator's start-up world)
+    places: Places                 # where else files may come from
+    sdf: SdfSettings               # model paths; what a world is compared with
+    triangles: TriangleBudget      # the world's mesh triangles, all its files together
+    resources: List[Closable]      # the generated files to close with the world
+    notes: List[str]               # the lines the world's description gets
+
+    @property
+    def options(self) -> ReadingOptions:
+        """Return the request's options."""
+
+    def not_simulated(self, line: str) -> None:
+        """Note a summary of what is not simulated, or refuse it (a strict request)."""
+
+
+def _resources(reading: WorldReading, anchor: Optional[str], path: Optional[str]) -> Resources:
     """Return where the world's files may come from: anywhere if trusted, else allowed places."""
     if reading.trusted:
         return Resources(reading.sdf.model_paths)
@@ -44,7 +77,7 @@ def _resources(reading, anchor: Optional[str], path: Optional[str]) -> Resources
     return Resources(reading.sdf.model_paths, roots)
 
 
-def _read(text: str, path: Optional[str], shown: str, reading, anchor: Optional[str]
+def _read(text: str, path: Optional[str], shown: str, reading: WorldReading, anchor: Optional[str]
           ) -> SdfRead:
     """
     Read an SDF file for a world, no mesh converted; refuse what is not simulated if strict.
@@ -60,7 +93,8 @@ def _read(text: str, path: Optional[str], shown: str, reading, anchor: Optional[
     return read
 
 
-def _build(read: SdfRead, shown: str, reading, named: bool = False) -> Tuple[SdfBuilt, str]:
+def _build(read: SdfRead, shown: str, reading: WorldReading, named: bool = False
+           ) -> Tuple[SdfBuilt, str]:
     """
     Build a read SDF file's bodies for a world; return its summary line, noted (or refused).
 
@@ -79,7 +113,8 @@ def _build(read: SdfRead, shown: str, reading, named: bool = False) -> Tuple[Sdf
     return built, line
 
 
-def _models(built: SdfBuilt, source: str, entry=None) -> List[WorldModel]:
+def _models(built: SdfBuilt, source: str, entry: Optional[ModelEntry] = None
+            ) -> List[WorldModel]:
     models = []
     for body in built.bodies:
         pose = body.pose
@@ -96,7 +131,7 @@ def _models(built: SdfBuilt, source: str, entry=None) -> List[WorldModel]:
     return models
 
 
-def read_sdf_world(text: str, path: Optional[str], uri: str, reading,
+def read_sdf_world(text: str, path: Optional[str], uri: str, reading: WorldReading,
                    anchor: Optional[str]) -> World:
     """Return an SDF file as a World: its models as bodies, its frames as named poses."""
     shown = '' if uri else 'the resource_string'  # read_world puts a file's name in front
@@ -128,14 +163,15 @@ def read_sdf_world(text: str, path: Optional[str], uri: str, reading,
                  (SDF_TAG,), tuple(models), tuple(poses), start)
 
 
-def read_sdf_model(entry, path: str, reading, anchor: Optional[str]) -> SdfRead:
+def read_sdf_model(entry: ModelEntry, path: str, reading: WorldReading, anchor: Optional[str]
+                   ) -> SdfRead:
     """Return a manifest's model that is an SDF file, read and checked, no mesh converted."""
     shown = f'model {entry.uri[:200]}'
     return _read(read_limited(path, shown, 'MISSING_ASSETS', MAX_SDF_BYTES), path, shown,
                  reading, anchor)
 
 
-def sdf_models(entry, read: SdfRead, reading) -> List[WorldModel]:
+def sdf_models(entry: ModelEntry, read: SdfRead, reading: WorldReading) -> List[WorldModel]:
     """
     Return a manifest's model that is an SDF file (:func:`read_sdf_model`): its bodies.
 

@@ -7,11 +7,13 @@ Plain data: no ROS, no PyBullet. Every world format's reader returns a World
 start-up build from one.
 """
 
-from typing import NamedTuple, Optional, Tuple
+from typing import NamedTuple, Optional, Tuple, TYPE_CHECKING
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.physics.description import DescriptionFile
 from r2d2_sim.sim.bounds import EMPTY, Region
+
+if TYPE_CHECKING:  # typing only: a world is plain data
+    from r2d2_sim.sim.spawnables import Closable
 
 __all__ = ['World', 'WorldModel', 'NamedPose']
 
@@ -75,7 +77,7 @@ class World(NamedTuple):
     named_poses: Tuple[NamedPose, ...]
     start_pose: Optional[NamedPose]
     notes: Tuple[str, ...] = ()
-    resources: Tuple[DescriptionFile, ...] = ()
+    resources: Tuple['Closable', ...] = ()
 
     def named_pose(self, name: str) -> NamedPose:
         """Return the named pose ``name``; RefusedError NOT_FOUND listing the others."""
