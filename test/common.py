@@ -300,9 +300,16 @@ def clean_fast_dds_zombies() -> None:
         module.Clean().run()
 
 
-# The learning environments' tests, in process and over ROS: a noisy scan, so that the
-# seed's noise is part of what must repeat.
-GYM_NOISY = {'sim_parameters': {'scan_noise_std': 0.02}}
+def gym_noisy():
+    """
+    Return the learning environments' keywords for a noisy scan, in process and over ROS.
+
+    Each episode draws its scan noise from the space (0.02 to 0.05 m), so that the seed's
+    noise is part of what must repeat. (A function: the gym package loads Gymnasium.)
+    """
+    import dataclasses
+    from r2d2_sim.gym.settings import DEFAULT_SPACE
+    return {'space': dataclasses.replace(DEFAULT_SPACE, scan_noise_std=(0.02, 0.05))}
 
 
 def drive_and_read(simulation, steps=240):

@@ -15,6 +15,7 @@ world drawn from the farm's scenario space is an :class:`Episode`
 (:func:`episode_of`).
 """
 
+import dataclasses
 import math
 from typing import List, NamedTuple, Optional, Sequence, Tuple
 
@@ -26,7 +27,8 @@ from r2d2_sim.sim.robots.robot import Measurement
 from r2d2_sim.sim.simulation import SavedState, Simulation, SpawnRequest
 from r2d2_sim.sim.spawnables import box_urdf
 
-__all__ = ['Arena', 'Episode', 'episode_of', 'reading_of', 'GOAL', 'PARKED_DEPTH_M']
+__all__ = ['Arena', 'Episode', 'episode_of', 'placed_scenarios', 'reading_of', 'GOAL',
+           'PARKED_DEPTH_M']
 
 # The goal region's name in each robot's watch.
 GOAL = 'goal'
@@ -76,6 +78,18 @@ def episode_of(space: ScenarioSpace, seeds: Sequence[int], lanes: Sequence[float
                         for start, goal in zip(starts, goals))]
     first = scenarios[0]
     return Episode(scenarios, starts, goals, tuple(boxes), first.seed, first.scan_noise_std)
+
+
+def placed_scenarios(episode: Episode) -> List[Scenario]:
+    """
+    Return each robot's world as the episode placed it: its draw, in its lane, every box.
+
+    A draw's start and goal are shifted into the robot's lane and the boxes are
+    those placed for every robot (those too near a start or goal left out), so
+    the scenario replays this robot's world in a one-robot environment.
+    """
+    return [dataclasses.replace(scenario, start=start, goal=goal, obstacles=episode.obstacles)
+            for scenario, start, goal in zip(episode.scenarios, episode.starts, episode.goals)]
 
 
 def reading_of(measurement: Optional[Measurement]) -> Reading:

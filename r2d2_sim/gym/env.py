@@ -32,7 +32,7 @@ from r2d2_sim.gym.backends import Backend, make_backend
 from r2d2_sim.gym.settings import GymError, NavSettings, reset_options
 from r2d2_sim.gym.task import (
     Command, goal_distance, goal_observation, goal_reward, nav_observation, nav_reward, Outcome,
-    Reading, WORLD_EXTENT_M)
+    Reading, GOAL_MARGIN_M, WORLD_EXTENT_M)
 from r2d2_sim.model.camera import projection_matrix, view_matrix
 from r2d2_sim.model.regions import circle_region
 
@@ -232,19 +232,22 @@ class _Env(gymnasium.Env):
 
     def _begin(self, seed: Optional[int], options: Optional[Mapping[str, Any]]
                ) -> Tuple[Reading, Dict[str, Any]]:
-        """Seed, draw (or take the option's scenario) and place an episode; its info."""
-        super().reset(seed=seed)
-        self._terminated = False
+        """
+        Seed, draw (or take the option's scenario) and place an episode; its info.
+
+        Options are read first: a reset they refuse seeds nothing and leaves the
+        episode as it was (a terminated one stays terminated).
+        """
         options = reset_options(options)
         unknown = sorted(set(options) - set(RESET_OPTIONS))
         if unknown:
             raise GymError(f'unknown reset option(s) {", ".join(map(repr, unknown))}: '
                            f'{type(self).__name__} takes {", ".join(RESET_OPTIONS)}')
         self.nav.check_open()  # a closed environment says so before anything is drawn
-        if 'scenario' in options:
-            episode = self._episode_of(options['scenario'])
-        else:
-            episode = self.nav.draw(self.np_random)
+        given = self._episode_of(options['scenario']) if 'scenario' in options else None
+        super().reset(seed=seed)
+        self._terminated = False
+        episode = given if given is not None else self._checked(self.nav.draw(self.np_random))
         reading = self.nav.begin(episode)[0]
         self.scenario = episode.scenarios[0]
         return reading, {'scenario': self.scenario.to_dict(), 'distance': self.nav.distances[0]}
@@ -277,8 +280,12 @@ class _Env(gymnasium.Env):
         if given.limits:
             raise GymError('reset option scenario: robot limits are the environment\'s '
                            '(max_linear_m_s, max_angular_rad_s), not a scenario\'s')
-        return Episode((given,), (given.start,), (circle_region(*goal.values[:3]),),
-                       given.obstacles, given.seed, given.scan_noise_std)
+        return self._checked(Episode((given,), (given.start,), (circle_region(*goal.values[:3]),),
+                                     given.obstacles, given.seed, given.scan_noise_std))
+
+    def _checked(self, episode: Episode) -> Episode:
+        """Return ``episode`` if this environment can run it (GymError if not): any, here."""
+        return episode
 
     def _command(self, action: Any) -> Command:
         self.nav.check_open()  # a step after close: that line, not the action's
@@ -355,7 +362,11 @@ class NavGoalEnv(_Env):
     ``desired_goal`` (the goal's centre). Reward: :meth:`compute_reward`, 0
     within the goal's tolerance and -1 elsewhere, for any goal (so replayed
     goals are scored alike). Terminated within the goal, or at a contact or
-    a fall (:meth:`compute_terminated`).
+    a fall (:meth:`compute_terminated`); truncated where the robot leaves
+    the ±``WORLD_EXTENT_M`` square positions are observed in
+    (:meth:`compute_truncated`). Starts and goals keep ``GOAL_MARGIN_M``
+    inside it, and every goal has the space's tolerance: a replayed
+    scenario that does not is refused.
     """
 
     def __init__(self, **kwargs: Any) -> None:
@@ -369,16 +380,33 @@ class NavGoalEnv(_Env):
                                       dtype=numpy.float32),
             'achieved_goal': spaces.Box(-extent, extent, shape=(2,), dtype=numpy.float32),
             'desired_goal': spaces.Box(-extent, extent, shape=(2,), dtype=numpy.float32)})
-        self.tolerance_m = self.settings.space.goal_tolerance
+        space = self.settings.space
+        self.tolerance_m = space.goal_tolerance  # one for every goal, relabelled ones too
+        limit = extent - GOAL_MARGIN_M
+        if max(map(abs, space.start_area)) > limit \
+                or max(map(abs, space.goal_area)) + space.goal_tolerance > limit:
+            raise GymError(f'space: R2D2NavGoal-v0\'s starts and goal circles must lie within '
+                           f'{limit:g} m of the origin in x and y (start_area '
+                           f'{space.start_area}, goal_area {space.goal_area})')
+
+    def _checked(self, episode: Episode) -> Episode:
+        """Return ``episode``; GymError if its goal's tolerance or its ends do not fit."""
+        start, (x, y, radius) = episode.starts[0], episode.goals[0].values[:3]
+        if radius != self.tolerance_m:
+            raise GymError(f'the scenario\'s goal tolerance {radius:g} m is not the '
+                           f'environment\'s {self.tolerance_m:g} m (the space\'s '
+                           'goal_tolerance): compute_reward scores every goal with one')
+        limit = WORLD_EXTENT_M - GOAL_MARGIN_M
+        if max(abs(start.x), abs(start.y)) > limit or max(abs(x), abs(y)) + radius > limit:
+            raise GymError(f'the scenario\'s start and goal circle must lie within {limit:g} m '
+                           'of the origin in x and y')
+        return episode
 
     def reset(self, *, seed: Optional[int] = None,
               options: Optional[Dict[str, Any]] = None) -> Tuple[Dict[str, numpy.ndarray],
                                                                  Dict[str, Any]]:
         """Begin an episode: drawn with ``seed``, or ``options={'scenario': ...}`` replayed."""
         reading, info = self._begin(seed, options)
-        goal = self.nav.episode.goals[0] if self.nav.episode is not None else None
-        if goal is not None:
-            self.tolerance_m = goal.values[2]
         return goal_observation(reading, self.nav.goals[0], self.nav.shape), info
 
     def step(self, action: Any) -> Tuple[Dict[str, numpy.ndarray], float, bool, bool,
@@ -393,9 +421,10 @@ class NavGoalEnv(_Env):
         achieved, desired = observation['achieved_goal'], observation['desired_goal']
         reward = float(self.compute_reward(achieved, desired, info))
         terminated = bool(self.compute_terminated(achieved, desired, info))
+        truncated = bool(self.compute_truncated(achieved, desired, info))
         info['is_success'] = reward == 0.0 and not outcome.failed
         self._terminated = terminated
-        return observation, reward, terminated, False, info
+        return observation, reward, terminated, truncated, info
 
     def compute_reward(self, achieved_goal: numpy.ndarray, desired_goal: numpy.ndarray,
                        info: Any) -> numpy.ndarray:
@@ -410,8 +439,12 @@ class NavGoalEnv(_Env):
 
     def compute_truncated(self, achieved_goal: numpy.ndarray, desired_goal: numpy.ndarray,
                           info: Any) -> numpy.ndarray:
-        """Return False: only the time limit truncates (gymnasium.make's wrapper)."""
-        return numpy.zeros(numpy.shape(achieved_goal)[:-1], dtype=bool)
+        """
+        Return True where the robot stands on the edge of the observed square (or beyond).
+
+        The time limit truncates too (gymnasium.make's wrapper).
+        """
+        return numpy.any(numpy.abs(numpy.asarray(achieved_goal)) >= WORLD_EXTENT_M, axis=-1)
 
 
 def _failed(info: Any) -> Any:

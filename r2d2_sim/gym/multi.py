@@ -24,6 +24,7 @@ from gymnasium import spaces
 import numpy
 from pettingzoo import ParallelEnv
 
+from r2d2_sim.gym.arena import placed_scenarios
 from r2d2_sim.gym.backends import Backend
 from r2d2_sim.gym.env import check_action, Navigation
 from r2d2_sim.gym.settings import GymError, NavSettings, reset_options
@@ -100,16 +101,23 @@ class NavParallelEnv(ParallelEnv):
 
     def reset(self, seed: Optional[int] = None, options: Optional[Mapping[str, Any]] = None
               ) -> Tuple[Dict[str, numpy.ndarray], Dict[str, Dict[str, Any]]]:
-        """Begin an episode drawn with ``seed`` (None: the generator's next draw)."""
+        """
+        Begin an episode drawn with ``seed`` (None: the generator's next draw).
+
+        Each agent's info: ``distance`` to its goal and ``scenario``, its world as
+        placed (its start and goal in its lane, every box of the episode), which a
+        one-robot environment replays as ``reset(options={'scenario': ...})``.
+        A reset its options refuse seeds nothing.
+        """
         self.nav.check_open()
-        if seed is not None:
-            self.np_random = numpy.random.default_rng(seed)
         unknown = sorted(reset_options(options))
         if 'scenario' in unknown:
             raise GymError('reset option scenario: several robots draw several; give a seed')
         if unknown:
             warnings.warn(f'unknown reset option(s) {", ".join(map(repr, unknown))} ignored: '
                           'NavParallelEnv takes none', stacklevel=2)
+        if seed is not None:
+            self.np_random = numpy.random.default_rng(seed)
         readings = self.nav.begin(self.nav.draw(self.np_random))
         self.agents = list(self.possible_agents)
         self.cycles = 0
@@ -117,9 +125,9 @@ class NavParallelEnv(ParallelEnv):
         episode = self.nav.episode
         observations = {agent: nav_observation(reading, goal, shape)
                         for agent, reading, goal in zip(self.possible_agents, readings, goals)}
-        infos = {agent: {'scenario': scenario.to_dict(), 'distance': distance}
-                 for agent, scenario, distance in zip(
-                     self.possible_agents, episode.scenarios if episode else (),
+        infos = {agent: {'scenario': placed.to_dict(), 'distance': distance}
+                 for agent, placed, distance in zip(
+                     self.possible_agents, placed_scenarios(episode) if episode else (),
                      self.nav.distances)}
         return observations, infos
 

@@ -20,7 +20,7 @@ Stable-Baselines3 and Ray are optional (``pip install r2d2_sim[rl]``):
 imported only here, when asked for.
 """
 
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Mapping, Optional
 
 import gymnasium
 
@@ -33,6 +33,7 @@ START_METHOD = 'spawn'
 
 
 def make_vector_env(num_envs: int, *, vectorization_mode: str = 'async', env_id: str = ENV_ID,
+                    vector_kwargs: Optional[Mapping[str, Any]] = None,
                     **kwargs: Any) -> gymnasium.vector.VectorEnv:
     """
     Return ``num_envs`` environments as one Gymnasium vector environment.
@@ -40,11 +41,14 @@ def make_vector_env(num_envs: int, *, vectorization_mode: str = 'async', env_id:
     ``vectorization_mode``: ``'async'`` (a process each, spawned) or
     ``'sync'`` (all in this process). ``kwargs`` go to every environment
     (``backend``, ``scan_beams``...). Autoreset: the next step (the
-    environments' ``metadata['autoreset_mode']``).
+    environments' ``metadata['autoreset_mode']``) unless ``vector_kwargs``
+    (the vector environment's own arguments, as ``gymnasium.make_vec`` takes
+    them) choose another ``autoreset_mode``; the async one's processes are
+    spawned unless they name another ``context``.
     """
-    vector_kwargs = {'context': START_METHOD} if vectorization_mode == 'async' else {}
+    own = {'context': START_METHOD} if vectorization_mode == 'async' else {}
     return gymnasium.make_vec(env_id, num_envs=num_envs, vectorization_mode=vectorization_mode,
-                              vector_kwargs=vector_kwargs, **kwargs)
+                              vector_kwargs={**own, **(vector_kwargs or {})}, **kwargs)
 
 
 def make_env(env_id: str = ENV_ID, **kwargs: Any) -> Callable[[], gymnasium.Env]:

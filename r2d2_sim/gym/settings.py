@@ -38,6 +38,9 @@ OWN_PARAMETERS = ('physics_rate', 'publish_rate', 'scan_rate', 'scan_samples', '
                   'scan_angle_min', 'scan_angle_max', 'max_linear_velocity',
                   'max_angular_velocity', 'cmd_vel_timeout', 'world', 'robots', 'noise_seed',
                   'real_time_factor', 'start_paused', 'initial_pose')
+# What every episode draws from the space instead (ScenarioSpace.scan_noise_std): given in
+# sim_parameters it would be overwritten at every reset.
+SPACE_PARAMETERS = ('scan_noise_std',)
 # What the ros backend cannot run with: a TwistStamped cmd_vel, the outputs in a child.
 ROS_BACKEND_REFUSED = ('enable_stamped_cmd_vel', 'outputs_process')
 # Robots of a several-robot world stand this far apart (m, along y) before each episode.
@@ -149,6 +152,11 @@ class NavSettings:
         if taken:
             raise GymError(f'sim_parameters: {", ".join(taken)} are set by the environment '
                            '(give its own keywords instead)')
+        drawn = _named(self.sim_parameters, SPACE_PARAMETERS)
+        if drawn:
+            raise GymError(f'sim_parameters: {", ".join(drawn)} is drawn for each episode from '
+                           'the space: give space=dataclasses.replace(DEFAULT_SPACE, '
+                           'scan_noise_std=(low, high))')
         if self.backend == 'ros':
             # The ros backend drives over Twist and steps in lockstep in its own process.
             ros_refused = _named(self.sim_parameters, ROS_BACKEND_REFUSED)

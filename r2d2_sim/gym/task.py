@@ -26,12 +26,17 @@ from typing import NamedTuple, Optional, Sequence, Tuple
 import numpy
 
 __all__ = ['Command', 'Reading', 'Outcome', 'Rewards', 'ObservationShape', 'nav_observation',
-           'goal_observation', 'nav_reward', 'goal_reward', 'scan_sectors', 'WORLD_EXTENT_M']
+           'goal_observation', 'nav_reward', 'goal_reward', 'scan_sectors', 'WORLD_EXTENT_M',
+           'GOAL_MARGIN_M']
 
 # One robot's command: forward speed (m/s) and turning speed (rad/s).
 Command = Tuple[float, float]
-# R2D2NavGoal-v0 gives positions in the world within this many metres of the origin.
+# R2D2NavGoal-v0 gives positions in the world within this many metres of the origin (in x
+# and in y): a robot farther out ends its episode, truncated, where the observation clips it.
 WORLD_EXTENT_M = 20.0
+# Its starts and goal circles keep this far inside that: a position clipped to the edge is
+# never within a goal's tolerance, so a clipped observation scores what the robot did.
+GOAL_MARGIN_M = 1.0
 
 
 class Reading(NamedTuple):

@@ -19,7 +19,7 @@ from gymnasium.utils.env_checker import check_env
 import numpy
 import pytest
 
-from common import gym_actions as actions, gym_rollout as rollout, GYM_NOISY, REPO
+from common import gym_actions as actions, gym_noisy, gym_rollout as rollout, REPO
 import r2d2_sim.gym  # noqa: F401 (registers the environments)
 from r2d2_sim.farm.scenario import Box, Pose, Scenario
 from r2d2_sim.gym import GymError
@@ -30,7 +30,7 @@ from r2d2_sim.model.regions import circle_region
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
 def test_gymnasiums_checker_passes_with_its_determinism_checks(gym_make, env_id):
     """check_env on a made environment (spec: nondeterministic False), with no warning."""
-    env = gym_make(env_id, **GYM_NOISY)
+    env = gym_make(env_id, **gym_noisy())
     assert env.spec.nondeterministic is False and not env.spec.disable_env_checker
     assert env.spec.max_episode_steps == 200
     with warnings.catch_warnings():
@@ -52,8 +52,8 @@ def test_a_reset_then_a_rollout_equals_a_fresh_environments_after_any_history(gy
     """Seeds 1, 2, 3 fresh; then in one environment 3, 1, 2, 1, 3: each equal, noise and all."""
     fresh = {}
     for seed in (1, 2, 3):
-        fresh[seed] = rollout(gym_make(**GYM_NOISY), seed, actions(seed))
-    env = gym_make(**GYM_NOISY)
+        fresh[seed] = rollout(gym_make(**gym_noisy()), seed, actions(seed))
+    env = gym_make(**gym_noisy())
     for seed in (3, 1, 2, 1, 3):
         assert rollout(env, seed, actions(seed)) == fresh[seed], seed
     assert len(set(fresh.values())) == 3
@@ -61,8 +61,13 @@ def test_a_reset_then_a_rollout_equals_a_fresh_environments_after_any_history(gy
 
 def test_the_seed_draws_the_scenario_and_its_noise(gym_make):
     """The same seed, the same world and scan noise; the seed's scenario replayed, the same run."""
-    env = gym_make(**GYM_NOISY)
+    env = gym_make(**gym_noisy())
     first, info = env.reset(seed=7)
+    # The space's noise, drawn for the episode, is the laser's (not a sim_parameters value,
+    # which a reset would overwrite: refused, below).
+    assert 0.02 <= info['scenario']['scan_noise_std'] <= 0.05
+    assert env.unwrapped.backend.simulation.robots[0].config.scan_noise_std_m == \
+        info['scenario']['scan_noise_std']
     again, _ = env.reset(seed=7)
     other, other_info = env.reset(seed=8)
     assert first.tobytes() == again.tobytes() and first.tobytes() != other.tobytes()
@@ -165,8 +170,11 @@ def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(gym_make):
      "sim_parameters: outputs_process cannot be used with backend='ros'"),
     ({'sim_parameters': {'publish_rat': 3}},
      r'sim_parameters: unknown parameter\(s\): publish_rat'),
-    ({'sim_parameters': {'scan_noise_std': 'x'}, 'backend': 'ros'},
-     "sim_parameters: parameter scan_noise_std must be a number, got 'x'"),
+    ({'sim_parameters': {'scan_noise_mean': 'x'}, 'backend': 'ros'},
+     "sim_parameters: parameter scan_noise_mean must be a number, got 'x'"),
+    ({'sim_parameters': {'scan_noise_std': 0.02}},
+     r'sim_parameters: scan_noise_std is drawn for each episode from the space: give '
+     r'space=dataclasses\.replace\(DEFAULT_SPACE, scan_noise_std=\(low, high\)\)'),
     ({'color': 'blue'}, "unexpected keyword argument 'color'"),
     ({'render_mode': 'human'}, "render_mode must be None or 'rgb_array', got 'human'"),
 ])
@@ -194,6 +202,26 @@ def test_a_replayed_scenario_the_world_refuses_is_one_line_and_the_env_goes_on(g
                              ('limits', [['max_linear_velocity', 0.2]], 'robot limits')):
         with pytest.raises(GymError, match=f'^reset option scenario: {says}'):
             env.reset(options={'scenario': dict(scenario, **{key: value})})
+
+
+@pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
+def test_a_reset_its_options_refuse_changes_nothing(gym_make, env_id):
+    """A terminated episode stays terminated; the refused reset's seed seeds nothing."""
+    env, same = gym_make(env_id), gym_make(env_id)
+    env.reset(options={'scenario': Scenario(obstacles=(Box(1.2, 0.0, 0.0, (0.4, 0.4, 0.5)),),
+                                            start=Pose(0.0, 0.0, 0.0),
+                                            goal=circle_region(3.0, 0.0, 0.3))})
+    for _ in range(100):  # into the box
+        if env.step(numpy.array([1.0, 0.0], dtype=numpy.float32))[2]:
+            break
+    env.unwrapped.np_random = numpy.random.default_rng(7)
+    same.unwrapped.np_random = numpy.random.default_rng(7)
+    for bad in ({'goal': 1}, {'scenario': 'not json'}):
+        with pytest.raises(GymError):
+            env.reset(seed=3, options=bad)
+        with pytest.raises(GymError, match='^the episode has terminated: reset the environment$'):
+            env.unwrapped.step(numpy.zeros(2, dtype=numpy.float32))
+    assert env.reset()[1]['scenario'] == same.reset()[1]['scenario']  # the generator's own draw
 
 
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
@@ -228,6 +256,51 @@ def test_the_goal_env_rewards_as_its_compute_reward_for_any_goal(gym_make):
     assert batch.tolist() == [0.0, -1.0]
 
 
+def test_the_goal_env_scores_every_goal_with_the_spaces_tolerance(gym_make):
+    """A stored transition scores the same after any later episode; another tolerance: refused."""
+    env = gym_make('R2D2NavGoal-v0')
+    observation, _ = env.reset(options={'scenario': Scenario(start=Pose(0.0, 0.0, 0.0),
+                                                             goal=circle_region(0.5, 0.0, 0.3))})
+    observation, reward, _, _, info = env.step(numpy.zeros(2, dtype=numpy.float32))
+    stored = (observation['achieved_goal'].copy(), observation['desired_goal'].copy(), info)
+    assert reward == env.unwrapped.compute_reward(*stored) == -1.0  # 0.5 m from the goal
+    with pytest.raises(GymError, match=r"^the scenario's goal tolerance 1 m is not the "
+                                       r"environment's 0\.3 m"):
+        env.reset(options={'scenario': Scenario(start=Pose(0.0, 0.0, 0.0),
+                                                goal=circle_region(3.0, 0.0, 1.0))})
+    env.reset(seed=5)
+    assert env.unwrapped.compute_reward(*stored) == reward
+
+
+def test_the_goal_env_never_scores_a_clipped_goal(gym_make):
+    """Ends and goals beyond 19 m: refused; a robot driving out of ±20 m: truncated, scored -1."""
+    import dataclasses
+    from r2d2_sim.gym.settings import DEFAULT_SPACE
+    with pytest.raises(GymError, match=r"^space: R2D2NavGoal-v0's starts and goal circles must "
+                                       r'lie within 19 m of the origin'):
+        gym_make('R2D2NavGoal-v0', space=dataclasses.replace(
+            DEFAULT_SPACE, goal_area=(24.0, -1.0, 25.0, 1.0)))
+    env = gym_make('R2D2NavGoal-v0')
+    env.reset(seed=0)  # (Gymnasium's passive checker needs a first reset that succeeds)
+    with pytest.raises(GymError, match=r"^the scenario's start and goal circle must lie within "
+                                       r'19 m'):
+        env.reset(options={'scenario': Scenario(start=Pose(18.9, 0.0, 0.0),
+                                                goal=circle_region(25.0, 0.0, 0.3))})
+    env.reset(options={'scenario': Scenario(start=Pose(18.9, 0.0, 0.0),
+                                            goal=circle_region(10.0, 0.0, 0.3))})
+    for _ in range(60):  # away from the goal, out of the square
+        observation, reward, terminated, truncated, info = env.step(
+            numpy.array([1.0, 0.0], dtype=numpy.float32))
+        achieved, desired = observation['achieved_goal'], observation['desired_goal']
+        assert env.observation_space.contains(observation)
+        assert reward == env.unwrapped.compute_reward(achieved, desired, info) == -1.0
+        assert truncated == env.unwrapped.compute_truncated(achieved, desired, info)
+        assert not terminated
+        if truncated:
+            break
+    assert truncated and achieved[0] == 20.0 and info['distance'] > 10.0
+
+
 def test_hindsight_replay_learns_from_the_goal_env(gym_make):
     """SB3's HerReplayBuffer relabels goals through compute_reward: SAC takes a few updates."""
     from stable_baselines3 import HerReplayBuffer, SAC
@@ -251,3 +324,15 @@ def test_importing_and_running_in_process_loads_no_ros():
                             env=env, timeout=120)
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.strip().splitlines()[-1] == 'False'
+
+
+def test_the_vector_recipe_takes_gymnasiums_own_vector_kwargs():
+    """make_vector_env passes vector_kwargs on: here the same-step autoreset Gymnasium offers."""
+    from gymnasium.vector import AutoresetMode
+    from r2d2_sim.gym.recipes import make_vector_env
+    vector = make_vector_env(1, vectorization_mode='sync',
+                             vector_kwargs={'autoreset_mode': AutoresetMode.SAME_STEP})
+    try:
+        assert vector.metadata['autoreset_mode'] == AutoresetMode.SAME_STEP
+    finally:
+        vector.close()

@@ -14,7 +14,7 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test
 import pytest
 
 from common import parallel_rollout as rollout
-from r2d2_sim.farm.scenario import Box, Pose
+from r2d2_sim.farm.scenario import Box, Pose, Scenario
 from r2d2_sim.gym import GymError
 from r2d2_sim.gym.arena import Episode
 from r2d2_sim.gym.multi import parallel_env
@@ -44,12 +44,17 @@ def test_pettingzoos_api_and_seed_tests_pass(make):
 
 
 def test_each_robot_is_an_agent_in_its_lane_and_the_run_repeats(make):
-    """Two agents, their goals 3 m apart; the same seed gives the same run in another world."""
+    """Two agents, lanes 3 m apart, each info its world as placed; a seed repeats its run."""
     env = make()
     assert env.possible_agents == ['r2d2_0', 'r2d2_1']
     _, infos = env.reset(seed=3)
-    goals = [infos[agent]['scenario']['goal']['values'][1] for agent in env.possible_agents]
-    assert env.nav.goals[1][1] - env.nav.goals[0][1] == pytest.approx(3.0 + goals[1] - goals[0])
+    episode = env.nav.episode
+    drawn = [scenario.goal.values[1] for scenario in episode.scenarios]
+    assert env.nav.goals[1][1] - env.nav.goals[0][1] == pytest.approx(3.0 + drawn[1] - drawn[0])
+    for agent, start, goal in zip(env.possible_agents, episode.starts, env.nav.goals):
+        placed = Scenario.from_dict(infos[agent]['scenario'])
+        assert (placed.start, tuple(placed.goal.values[:2])) == (start, tuple(goal))
+        assert placed.obstacles == episode.obstacles
     first = rollout(env, 5)
     rollout(env, 6)
     assert rollout(env, 5) == first == rollout(make(), 5)

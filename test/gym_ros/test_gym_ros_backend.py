@@ -22,7 +22,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import LaserScan
 
 from common import (
-    gym_actions as actions, gym_rollout as rollout, GYM_NOISY, parallel_rollout)
+    gym_actions as actions, gym_noisy, gym_rollout as rollout, parallel_rollout)
 import r2d2_sim.gym  # noqa: F401 (registers the environments)
 from r2d2_sim.gym import GymError
 from r2d2_sim.gym.multi import parallel_env
@@ -62,7 +62,7 @@ def test_pettingzoos_tests_pass_over_ros():
 @pytest.mark.parametrize('env_id', ['R2D2Nav-v0', 'R2D2NavGoal-v0'])
 def test_the_same_seed_and_actions_give_the_same_run_in_both_backends(gym_make, env_id):
     """Seeds 11, 12, then 11 again in each: every run equal across the backends, noise and all."""
-    ros, inproc = gym_make(env_id, backend='ros', **GYM_NOISY), gym_make(env_id, **GYM_NOISY)
+    ros, inproc = gym_make(env_id, backend='ros', **gym_noisy()), gym_make(env_id, **gym_noisy())
     # Both cast their scans on one thread (vector envs run one per core): the node's auto
     # would take two.
     assert ros.unwrapped.backend.harness.sim.simulation.world.ray_threads == 1
