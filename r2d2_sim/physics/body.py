@@ -323,15 +323,26 @@ class Body:
         PyBullet gives every revolute and prismatic joint a velocity motor
         holding it still (a door on a hinge would not swing); this sets each
         motor's force to the joint's friction from the file (0 when none), so
-        a joint turns freely against its Coulomb friction.
+        a joint turns freely against its Coulomb friction. A ball (spherical)
+        joint has a motor too, holding its rotation: it gets the same.
         """
         joints = [j for j in self.joints.values() if j.movable]
+        balls = [j for j in self.joints.values() if j.type_code == pybullet.JOINT_SPHERICAL]
         self._change('_free_joints', tuple(j.index for j in joints),
-                     tuple(j.friction for j in joints))
+                     tuple(j.friction for j in joints), tuple(j.index for j in balls),
+                     tuple(j.friction for j in balls))
 
-    def _free_joints(self, indices: Sequence[int], frictions: Sequence[float]) -> None:
+    def _free_joints(self, indices: Sequence[int], frictions: Sequence[float],
+                     balls: Sequence[int] = (), ball_frictions: Sequence[float] = ()) -> None:
         if indices:
             self.set_joint_velocities(indices, [0.0] * len(indices), frictions)
+        for index, friction in zip(balls, ball_frictions):
+            # A spherical joint's motor is a position motor: no stiffness and a velocity
+            # gain alone make it a brake of at most the friction about each axis.
+            self._client.setJointMotorControlMultiDof(
+                self.id, index, pybullet.POSITION_CONTROL, targetPosition=[0.0, 0.0, 0.0, 1.0],
+                targetVelocity=[0.0, 0.0, 0.0], positionGain=0.0, velocityGain=1.0,
+                force=[friction] * 3)
 
     def _change_dynamics(self, links: Sequence[int], **dynamics: Any) -> None:
         for link in links:

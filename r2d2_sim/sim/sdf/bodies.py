@@ -170,8 +170,10 @@ class _Planner:
                 frames[other] = joint.pose
                 edges.append((joint, joint.parent != current, current, other))
                 queue.append(other)
-        links = [BodyLink(ANCHOR, frames[ANCHOR], MASSLESS, (), ())] if ANCHOR in frames else []
-        links.append(_moved(self.links[root], frames[root], fixed_base))
+        if ANCHOR in frames:  # the root's link comes with the anchor's joint, below
+            links = [BodyLink(ANCHOR, frames[ANCHOR], MASSLESS, (), ())]
+        else:
+            links = [_moved(self.links[root], frames[root], fixed_base)]
         urdf_joints: List[BodyJoint] = []
         for joint, turned, parent, child in edges:
             self._joint(joint, turned, parent, child, frames, links, urdf_joints)
