@@ -24,7 +24,7 @@ caller's code) says what was found.
 """
 
 from functools import partial
-from typing import Dict, List, NamedTuple, Sequence, Tuple
+from typing import Dict, List, NamedTuple, Optional, Sequence, Tuple
 
 import numpy
 
@@ -157,12 +157,13 @@ def check_crowding(client: BulletClient, bodies: Sequence[Body], placed: Sequenc
 
 
 class Placement(NamedTuple):
-    """A body a world will load: its URDF file, pose and loadURDF flags."""
+    """A body a world will load: its URDF file, pose, loadURDF flags, what it is made from."""
 
     path: str
     position: Vec3
     orientation: Quat
     flags: int = 0
+    made_from: Optional[str] = None   # as SimWorld.load takes it
 
 
 def check_placements(placements: Sequence[Placement], time_step_s: float, code: str,
@@ -181,7 +182,7 @@ def check_placements(placements: Sequence[Placement], time_step_s: float, code: 
         bodies, count = [], 0
         for placement in placements:
             body = scratch.load(placement.path, placement.position, placement.orientation,
-                                flags=placement.flags)
+                                flags=placement.flags, made_from=placement.made_from)
             bodies.append(body)
             count += len(moving_links(body))
             if count > MAX_MOVING_LINKS:

@@ -13,7 +13,7 @@ a state saved (:meth:`SimWorld.save_state`) is come back to at once, contacts
 included (:meth:`SimWorld.restore_state`).
 """
 
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from functools import partial
 import math
 import os
@@ -215,21 +215,27 @@ class SimWorld:
     def load(self, path: str, position: Vec3 = (0.0, 0.0, 0.0),
              orientation: Quat = IDENTITY_QUATERNION, *, name: Optional[str] = None,
              flags: int = 0, body_yaw_offset_rad: float = 0.0, spawned: bool = False,
-             source: Optional[str] = None, into: Optional[WorldBuild] = None) -> Body:
+             source: Optional[str] = None, into: Optional[WorldBuild] = None,
+             made_from: Optional[str] = None) -> Body:
         """
         Load a URDF file as a new body; return it.
 
         ``name`` (default: the URDF's ``<robot name>``, made unique) must not
         be taken. ``orientation`` is that of the URDF base frame. ``into``:
         a world being built (:meth:`build`) instead of the live one.
+        ``made_from``: what the user wrote, when ``path`` is a URDF made of it
+        (``SDF model door of hinge.sdf``): an error names that, not a
+        temporary file, and PyBullet's own messages about the made file
+        (names the user never wrote) stay off stdout.
         """
         client, bodies = ((into.client, into.bodies) if into is not None
                           else (self._live_client, self.bodies))
         try:
-            body_id = client.loadURDF(path, basePosition=position,
-                                      baseOrientation=orientation, flags=flags)
+            with silenced_output(stderr=False) if made_from is not None else nullcontext():
+                body_id = client.loadURDF(path, basePosition=position,
+                                          baseOrientation=orientation, flags=flags)
         except client.error as exc:
-            raise WorldError(f'PyBullet cannot load {path}: {exc}') from None
+            raise WorldError(f'PyBullet cannot load {made_from or path}: {exc}') from None
         if name is None:
             urdf_name = records.body_info(client, body_id).name
             name = _unique_name(bodies, urdf_name

@@ -213,7 +213,8 @@ class Startup:
                           ) -> '_Entity':
         body = self._world.load(model.path, model.position, model.orientation, name=model.name,
                                 source=model.source, into=into,
-                                flags=self._world.model_flags if model.sdf else 0)
+                                flags=self._world.model_flags if model.sdf else 0,
+                                made_from=model.made_from)
         body.drop_damping()
         if model.sdf:
             body.free_joints()  # Gazebo's joints: held by their friction, not a motor

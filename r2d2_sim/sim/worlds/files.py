@@ -106,7 +106,7 @@ class WorldFiles:
                         moving.add(path)
             check_placements(
                 [Placement(model.path, model.position, model.orientation,
-                           sdf_flags if model.sdf else 0)
+                           sdf_flags if model.sdf else 0, model.made_from)
                  for model in world.models
                  if (model.sdf and not model.static) or model.path in moving],
                 self.time_step_s, 'RESOURCE_PARSE_ERROR', 'the world')

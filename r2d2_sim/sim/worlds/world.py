@@ -57,6 +57,11 @@ class WorldModel(NamedTuple):
     sdf: bool = False
     static: bool = False
 
+    @property
+    def made_from(self) -> Optional[str]:
+        """Return what errors name for a model made from SDF, whose URDF is made; else None."""
+        return f'SDF model {self.name} of {self.source}' if self.sdf else None
+
 
 class World(NamedTuple):
     """
