@@ -171,6 +171,25 @@ def test_a_joint_axis_is_in_the_frame_its_sdf_version_says(
     assert scene.models[0].joints[0].axis == approx(expected)
 
 
+@pytest.mark.parametrize('version, attribute, expected', [
+    ('1.5', 'frame="l1"', (5.0, 3.0, 0.0)),         # relative to l1, at (5, 0, 0)
+    ('1.6', 'frame="l1"', (5.0, 3.0, 0.0)),
+    ('1.6', 'frame=""', (0.0, 3.0, 0.0)),           # empty: the default, the model's frame
+    ('1.7', 'frame="l1"', (0.0, 3.0, 0.0)),         # 1.7 has no frame attribute
+    ('1.7', 'relative_to="l1"', (5.0, 3.0, 0.0)),
+])
+def test_a_pose_frame_before_sdf_1_7_is_what_1_7_calls_relative_to(
+        tmp_path, version, attribute, expected):
+    """Read 1.5-1.6's //pose/@frame as relative_to, as sdformat does: in a world, included."""
+    model = ('<model name="m"><static>true</static><link name="l1"><pose>5 0 0 0 0 0</pose>'
+             f'</link><link name="l2"><pose {attribute}>0 3 0 0 0 0</pose></link></model>')
+    model_dir(tmp_path / 'models', 'm', model, version)
+    for scene in (read(sdf(f'<world name="w">{model}</world>', version), tmp_path),
+                  read(sdf('<world name="w"><include><uri>model://m</uri></include></world>'),
+                       tmp_path, [str(tmp_path / 'models')], name='including.sdf')):
+        assert world_position(scene.models[0], links(scene)['m/l2']) == approx(expected)
+
+
 def test_what_is_not_simulated_is_counted_by_what_it_is(tmp_path):
     scene = read(sdf('''<world name="w"><gravity>0 0 -9.81</gravity>
       <physics type="ode"><max_step_size>0.001</max_step_size><ode/></physics>

@@ -40,6 +40,21 @@ _PHYSICS_QUIET = ('max_step_size', 'real_time_factor', 'real_time_update_rate', 
                   'gravity', 'magnetic_field')
 
 
+def _relative_to_from_frame(root: ElementTree.Element, version: Tuple[int, int]) -> None:
+    """
+    Make SDF 1.5-1.6's ``<pose frame="f">`` ``relative_to="f"``, as SDF 1.7 renamed it.
+
+    As sdformat converts a file older than 1.7 (``sdf/1.7/1_6.convert``
+    moves the attribute as it is): an empty ``frame`` becomes an empty
+    ``relative_to``, which means the default frame, as no attribute does.
+    """
+    if version >= (1, 7):
+        return
+    for element in root.iter():
+        if local_tag(element) == 'pose' and 'frame' in element.attrib:
+            element.set('relative_to', element.attrib.pop('frame'))
+
+
 class ReadOptions(NamedTuple):
     """
     How to read: r2d2_sim's physics step (s) and gravity to compare the world's with.
@@ -116,7 +131,9 @@ class Reader:
         """Return a file's <sdf> element and version; UNSUPPORTED_FORMAT if it is not SDF."""
         root = parse_xml(text, shown)
         self.budget.take(root, shown)
-        return root, self._version(root, shown)
+        version = self._version(root, shown)
+        _relative_to_from_frame(root, version)
+        return root, version
 
     @staticmethod
     def _version(root: ElementTree.Element, shown: str) -> Tuple[int, int]:
@@ -184,7 +201,9 @@ class Reader:
                     text = read_limited(source.path, source.shown, 'MISSING_ASSETS',
                                         MAX_SDF_BYTES)
                 root = parse_xml(text, source.shown)
-                self._files[key] = (root, self._version(root, source.shown))
+                version = self._version(root, source.shown)
+                _relative_to_from_frame(root, version)
+                self._files[key] = (root, version)
         except RefusedError as exc:
             if exc.code == 'UNSUPPORTED_FORMAT':  # the world is SDF; this asset is not
                 exc = RefusedError('UNSUPPORTED_ASSETS', exc.message)
