@@ -24,6 +24,7 @@ from sensor_msgs.msg import JointState
 from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
 from r2d2_sim.ros.parameters import unknown_parameters
 from r2d2_sim.sim.settings.robots import robot_namespaces
+from r2d2_sim.sim.settings.table import ConfigError
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.lockstep import TakenOnDemand
 from r2d2_sim.testing.process import ChildProcess
@@ -168,7 +169,7 @@ def expected_namespaces(parameters: Mapping[str, Any], namespace: str) -> List[s
     base = '/' + namespace.strip('/') if namespace.strip('/') else '/'
     try:
         listed = robot_namespaces(parameters, base)
-    except (AttributeError, TypeError):  # a malformed robots: the simulator will say what
+    except (AttributeError, TypeError, ConfigError):  # the simulator will say what, in one line
         listed = {}
     return list(listed.values()) or [base]
 

@@ -318,6 +318,13 @@ def test_a_process_keyword_the_simulator_does_not_read_is_refused_before_it_star
     assert isinstance(refused.value, HarnessError)
 
 
+def test_a_process_robot_namespace_ros_refuses_is_the_simulators_one_line():
+    """A namespace 'x y': the node's one line (as SimHarness's), not rclpy's traceback here."""
+    with pytest.raises(StartupError, match=r"^parameter a\.namespace must be a ROS namespace "
+                       r".*, got 'x y'$"):
+        SimProcess(robots={'a': {'namespace': 'x y'}})
+
+
 @pytest.mark.skipif(importlib.util.find_spec('tf2_msgs') is None, reason='tf2_msgs is needed')
 def test_a_process_lookup_after_reset_world_is_of_the_new_run(r2d2_sim_process):
     """Driven 2 s, reset_world, 1 s standing: the transform is the new run's, not the old."""

@@ -266,6 +266,17 @@ def test_a_keyword_the_simulator_does_not_read_is_refused_in_one_line(
     assert harness.sim.config.imu_rate_hz == 100.0
 
 
+def test_a_robot_namespace_ros_refuses_is_the_simulators_one_line(r2d2_sim_factory):
+    """A namespace 'x y': StartupError in sim_node's words, not rclpy's topic-name traceback."""
+    from r2d2_sim.sim.settings.robots import ConfigError, parse_world
+    with pytest.raises(ConfigError) as node_says:  # what sim_node refuses it with
+        parse_world({'robots': ['a'], 'a.namespace': 'x y'})
+    with pytest.raises(StartupError) as refused:
+        r2d2_sim_factory(robots={'a': {'namespace': 'x y'}})
+    assert str(refused.value) == str(node_says.value)
+    assert str(refused.value).startswith('parameter a.namespace must be a ROS namespace')
+
+
 def test_closing_while_a_callback_still_runs_is_one_line_and_destroys_nothing_under_it():
     """A callback longer than timeout_s: close() says so; the callback ends on live handles."""
     import rclpy

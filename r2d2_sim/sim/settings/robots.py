@@ -69,10 +69,12 @@ def robot_namespaces(values: Mapping[str, Any], base: str) -> Dict[str, str]:
 
     Empty without ``robots`` (the one default robot is in ``base`` itself).
     For clients that need the topics before the simulator runs (the harnesses).
+    ConfigError, the line :func:`parse_world` would give, for a namespace
+    that is not one.
     """
     names = values.get('robots') or []
-    return {name: resolve_namespace(base, values.get(f'{name}.namespace') or name)
-            for name in names}
+    return {name: resolve_namespace(base, read.namespace(
+        f'{name}.namespace', values.get(f'{name}.namespace', '')) or name) for name in names}
 
 
 def parse_world(values: Mapping[str, Any]) -> Tuple['SimConfig', List[RobotSpec]]:
