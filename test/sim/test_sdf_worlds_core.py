@@ -152,6 +152,18 @@ def test_a_spawned_mesh_model_from_the_model_path_rests_on_its_hull(make, world_
     assert fall(simulation, name, 480) == pytest.approx(CRATE_SIZE_M / 2.0, abs=2e-3)
 
 
+@pytest.mark.parametrize('static, expected', [(False, (1.0, 5.0, 0.5)),   # its link
+                                              (True, (0.0, 5.0, 0.0))])   # the model frame
+def test_a_spawned_models_state_is_its_canonical_links_or_a_static_ones_model_frame(
+        make, static, expected):
+    """A box 1 m along x and 0.5 m up from its model frame, spawned at (0, 5, 0)."""
+    simulation = make()
+    link = '<link name="link"><pose>1 0 0.5 0 0 0</pose>'
+    text = sdf(box_model('box', static=static).replace('<link name="link">', link, 1))
+    name = simulation.spawn(SpawnRequest(resource_string=text, position=(0.0, 5.0, 0.0)))
+    assert simulation.entities.state(name).position == pytest.approx(expected, abs=1e-9)
+
+
 def states(simulation):
     return [(name, tuple(body.world_state())) for name, body in
             simulation.world.bodies.items()]
