@@ -9,7 +9,7 @@ import os
 from pathlib import Path
 import sys
 import tempfile
-from typing import NamedTuple, Optional
+from typing import Callable, Dict, List, NamedTuple, Optional, Set
 import xml.etree.ElementTree as ElementTree
 
 import pybullet_data
@@ -112,7 +112,7 @@ def read_description(path: str) -> str:
 
 
 def check_urdf_xml(text: str, source: str) -> None:
-    """Raise DescriptionError unless ``text`` is well-formed XML with a <robot> root."""
+    """Raise DescriptionError unless ``text`` is a URDF PyBullet can read (:func:`check_urdf`)."""
     try:
         root = ElementTree.fromstring(text)
     except ElementTree.ParseError as exc:
@@ -120,6 +120,80 @@ def check_urdf_xml(text: str, source: str) -> None:
     if root.tag != 'robot':
         raise DescriptionError(
             f'cannot load {source}: the root element is <{root.tag}>, not <robot>')
+    check_urdf(root, f'cannot load {source}')
+
+
+# The joint types PyBullet's URDF reader knows ('spherical' is its own).
+URDF_JOINT_TYPES = frozenset(
+    ('revolute', 'continuous', 'prismatic', 'fixed', 'floating', 'planar', 'spherical'))
+
+
+def check_urdf(root: ElementTree.Element, source: str) -> None:
+    """
+    Raise DescriptionError unless a URDF's ``<robot>`` is one tree PyBullet reads as written.
+
+    Every URDF a user gives passes here before PyBullet sees it (start-up, a
+    world's, a spawn's). PyBullet 3.2 kills the whole process (SIGSEGV) on two
+    joints of one name, a joint without a name or a type, a link that is the
+    child of two joints and a second root link, and silently drops links no
+    joint joins to the root: all are refused here in one line, ``source: problem``.
+    """
+    def refuse(problem: str) -> DescriptionError:
+        return DescriptionError(f'{source}: {problem}')
+    links = [link.get('name', '') for link in root.findall('link')]
+    if not links:
+        return  # no tree: PyBullet refuses it itself, or reads a <deformable> (torus_deform.urdf)
+    _check_unique(links, 'link', refuse)
+    joints = root.findall('joint')
+    _check_unique([joint.get('name', '') for joint in joints], 'joint', refuse)
+    known = set(links)
+    parent_of: Dict[str, str] = {}
+    children: Dict[str, List[str]] = {}
+    for joint in joints:
+        name = joint.get('name', '')[:100]
+        kind = joint.get('type', '')
+        if kind not in URDF_JOINT_TYPES:
+            raise refuse(f'joint {name!r} has type {kind[:40]!r}, not one of '
+                         f'{", ".join(sorted(URDF_JOINT_TYPES))}')
+        ends = []
+        for end in ('parent', 'child'):
+            element = joint.find(end)
+            link = '' if element is None else element.get('link', '')
+            if link not in known:
+                raise refuse(f'joint {name!r}: its {end} {link[:100]!r} names no link')
+            ends.append(link)
+        parent, child = ends
+        if child in parent_of:
+            raise refuse(f'link {child[:100]!r} is the child of two joints')
+        parent_of[child] = parent
+        children.setdefault(parent, []).append(child)
+    roots = [link for link in links if link not in parent_of]
+    if len(roots) != 1:
+        shown = ', '.join(repr(link[:100]) for link in roots[:3])
+        raise refuse(f'the links must make one tree, but {len(roots)} links are no joint\'s '
+                     f'child{": " + shown if roots else " (a loop)"}')
+    reached, queue = {roots[0]}, [roots[0]]
+    while queue:
+        for child in children.get(queue.pop(), []):
+            if child not in reached:
+                reached.add(child)
+                queue.append(child)
+    if len(reached) != len(links):
+        apart = next(link for link in links if link not in reached)
+        raise refuse(f'link {apart[:100]!r} is on a loop of joints, not joined to the root '
+                     f'{roots[0][:100]!r}')
+
+
+def _check_unique(names: List[str], what: str,
+                  refuse: Callable[[str], DescriptionError]) -> None:
+    """Raise ``refuse``'s error for an empty name or one that is taken twice."""
+    seen: Set[str] = set()
+    for name in names:
+        if not name:
+            raise refuse(f'a <{what}> has no name')
+        if name in seen:
+            raise refuse(f'two {what}s are named {name[:100]!r}')
+        seen.add(name)
 
 
 class DescriptionFile:

@@ -25,7 +25,7 @@ from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import read_regular, UnsafeFile
 from r2d2_sim.model.transforms import IDENTITY, Transform
 from r2d2_sim.physics.description import (
-    DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
+    check_urdf, DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
     resolve_description_path)
 from r2d2_sim.sim.sdf.loading import SdfSettings, TriangleBudget
 from r2d2_sim.sim.sdf.mesh_cache import MeshCache
@@ -48,13 +48,14 @@ MAX_DESCRIPTION_BYTES = 1_000_000
 MAX_LINKS = 200
 
 
-def check_description(text: str, base_dir: Optional[str],
+def check_description(text: str, base_dir: Optional[str], shown: str,
                       triangles: Optional[TriangleBudget] = None) -> str:
     """
     Return the URDF's robot name if ``text`` is one a domain peer may have us load.
 
     ``base_dir`` is the description file's directory (None for text sent in
-    a request). Its meshes are held to the bounds of an SDF world's before
+    a request), ``shown`` what a refusal calls it (the request's URI, or "the
+    resource_string"). Its meshes are held to the bounds of an SDF world's before
     PyBullet sees them (a regular file, size, triangles: read and converted
     through the mesh cache), every use counted against ``triangles`` (a
     world's, shared by its models; by default this description's own), first
@@ -63,14 +64,15 @@ def check_description(text: str, base_dir: Optional[str],
     MISSING_ASSETS or UNSUPPORTED_ASSETS, naming neither a file's content nor
     more than the offending path.
     """
-    name, meshes = read_description(text, base_dir)
+    name, meshes = read_description(text, base_dir, shown)
     budget = triangles if triangles is not None else TriangleBudget()
     budget.expect([path for path, _ in meshes], '')
     convert_meshes(meshes, budget)
     return name
 
 
-def read_description(text: str, base_dir: Optional[str]) -> Tuple[str, List[MeshUse]]:
+def read_description(text: str, base_dir: Optional[str], shown: str
+                     ) -> Tuple[str, List[MeshUse]]:
     """
     Return the URDF's robot name and its meshes, checked as :func:`check_description` does.
 
@@ -96,6 +98,10 @@ def read_description(text: str, base_dir: Optional[str]) -> Tuple[str, List[Mesh
     if len(links) > MAX_LINKS:
         raise RefusedError('RESOURCE_PARSE_ERROR', f'the URDF has {len(links)} links, more '
                            f'than {MAX_LINKS}')
+    try:
+        check_urdf(root, shown)
+    except DescriptionError as exc:
+        raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
     meshes = []
     for mesh in root.iter('mesh'):
         filename = mesh.get('filename', '')
@@ -196,10 +202,11 @@ def read_spawnable(uri: str, resource_string: str, sdf: SdfSettings = SdfSetting
         except (OSError, UnicodeDecodeError):
             raise RefusedError('RESOURCE_PARSE_ERROR', f'{uri[:200]} cannot be read as '
                                'text') from None
-        return Spawnable(path, None, check_description(text, os.path.dirname(path)), text)
+        return Spawnable(path, None, check_description(text, os.path.dirname(path), uri[:200]),
+                         text)
     if not resource_string:
         raise RefusedError('NO_RESOURCE', 'neither a uri nor a resource_string was given')
-    name = check_description(resource_string, None)
+    name = check_description(resource_string, None, 'the resource_string')
     description = DescriptionFile(resource_string)
     return Spawnable(description.path, description, name, resource_string)
 

@@ -10,8 +10,11 @@ falls against Bullet's integration of gravity; a second load against the first
 bit for bit.
 """
 
+import json
 import math
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -236,6 +239,65 @@ def test_joints_are_free_but_for_their_friction_and_each_type_has_its_bullet_joi
     # friction (100 N m) holds its 0.5 m arm (4.9 N m) still.
     assert abs(angles[0]) > 0.5
     assert abs(angles[1]) < 1e-3
+
+
+def arm(name: str, y: float) -> str:
+    """Return a 1 kg link hanging nothing yet: level with its hinge, ``y`` m from it."""
+    return (f'<link name="{name}"><pose>0 {y} 2 0 0 0</pose><inertial><mass>1</mass>'
+            '</inertial><collision name="c"><geometry><sphere><radius>0.05</radius></sphere>'
+            '</geometry></collision></link>')
+
+
+def hinge(name: str, child: str, y: float, kind: str = 'revolute') -> str:
+    """Return a joint about x from the hub to ``child``, at the hub (``y`` m from the child)."""
+    axes = '<axis><xyz>1 0 0</xyz></axis>' + ('<axis2><xyz>0 0 1</xyz></axis2>'
+                                              if kind == 'universal' else '')
+    return (f'<joint name="{name}" type="{kind}"><parent>hub</parent><child>{child}</child>'
+            f'<pose>0 {-y} 0 0 0 0</pose>{axes}</joint>')
+
+
+def test_joints_whose_names_meet_once_made_urdf_safe_are_each_a_joint(tmp_path):
+    """
+    ``j k`` and ``j_k`` are both ``j_k`` in a URDF: PyBullet killed the node (SIGSEGV).
+
+    So did a joint named ``u__first`` beside a universal joint ``u`` (written
+    as ``u__first`` and ``u``). Loaded in a process of its own, as a crash
+    would take the test runner with it; every arm must swing on its own joint.
+    """
+    world = tmp_path / 'arms.sdf'
+    world.write_text(sdf(
+        '<world name="w"><model name="arms"><link name="hub"><pose>0 0 2 0 0 0</pose>'
+        '<inertial><mass>1</mass></inertial></link><joint name="base" type="fixed">'
+        '<parent>world</parent><child>hub</child></joint>' +
+        arm('b', 0.5) + arm('c', -0.5) + arm('d', 0.7) + arm('e', -0.7) +
+        hinge('j k', 'b', 0.5) + hinge('j_k', 'c', -0.5) + hinge('u', 'd', 0.7, 'universal') +
+        hinge('u__first', 'e', -0.7) + '</model></world>'))
+    code = '\n'.join([
+        'import json',
+        'from r2d2_sim.sim.settings.robots import parse_world',
+        'from r2d2_sim.sim.simulation import Simulation',
+        f"config, robots = parse_world({{'world': {str(world)!r}, 'scan_rate': 0.0,",
+        "                                'imu_rate': 0.0, 'cmd_vel_timeout': 0.0})",
+        'simulation = Simulation(config, robots)',
+        "body = simulation.world.bodies['arms']",
+        "joints = {j.name: j.index for j in body.joints.values() if j.type_name != 'fixed'}",
+        'for _ in range(120):',
+        '    simulation.step()',
+        'angles = body.joint_states(list(joints.values())).positions',
+        'print(json.dumps(dict(zip(joints, angles))))',
+        'simulation.close()',
+    ])
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, (result.returncode, result.stderr[-2000:])
+    angles = json.loads(result.stdout.splitlines()[-1])
+    assert sorted(angles) == ['j_k', 'j_k_1', 'u', 'u__first', 'u__first_1']
+    # After 0.5 s each level arm has swung down about x on its own joint, mirrored pairs
+    # alike; the universal joint's second axis (z) stays still.
+    assert angles['j_k'] < -0.3 and angles['j_k_1'] == pytest.approx(-angles['j_k'])
+    assert angles['u__first'] < -0.3
+    assert angles['u__first_1'] == pytest.approx(-angles['u__first'], abs=1e-6)
+    assert angles['u'] == pytest.approx(0.0, abs=1e-6)
 
 
 def test_links_no_joint_joins_are_bodies_of_their_own_and_cannot_be_one_spawn(make, tmp_path):

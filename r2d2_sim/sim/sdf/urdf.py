@@ -15,7 +15,7 @@ one element a line, as PyBullet reads a URDF line by line into 8 kB buffers
 """
 
 import math
-from typing import Callable, Dict, Iterable, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, Iterable, List, Optional, Sequence, Set, Tuple
 from xml.sax.saxutils import quoteattr
 
 from r2d2_sim.model.sdf_poses import rpy_from_quaternion
@@ -148,8 +148,8 @@ class _Writer:
         return '\n'.join(parts)  # PyBullet reads a URDF in lines of at most 8 kB
 
 
-def _joint(joint: BodyJoint, names: Dict[str, str]) -> str:
-    text = [f'<joint name={quoteattr(entity_name(joint.name))} type="{joint.kind}">'
+def _joint(joint: BodyJoint, name: str, names: Dict[str, str]) -> str:
+    text = [f'<joint name={quoteattr(name)} type="{joint.kind}">'
             f'<parent link={quoteattr(names[joint.parent])}/>'
             f'<child link={quoteattr(names[joint.child])}/>{_origin(joint.origin)}']
     if joint.kind != 'fixed':
@@ -164,20 +164,37 @@ def _joint(joint: BodyJoint, names: Dict[str, str]) -> str:
     return ''.join(text)
 
 
+def _unique_names(names: Iterable[str]) -> List[str]:
+    """
+    Return each name as a URDF may have it, made unique among them (a repeat gets ``_1``...).
+
+    Names that differ in SDF can meet once cleaned (``j k`` and ``j_k``, ``a::j``
+    and ``a__j``); PyBullet refuses two links of one name and crashes the whole
+    process (SIGSEGV) on two joints of one name.
+    """
+    taken: Set[str] = set()
+    unique = []
+    for name in names:
+        wanted = entity_name(name)
+        made, number = wanted, 1
+        while made in taken:
+            made, number = f'{wanted}_{number}', number + 1
+        taken.add(made)
+        unique.append(made)
+    return unique
+
+
 def urdf_text(body: BodyPlan, meshes: Meshes, hulls: Hulls, notes: Notes) -> Tuple[str, int]:
     """Return a body's URDF text and how many mesh triangles it uses."""
     writer = _Writer(meshes, hulls, notes)
-    names: Dict[str, str] = {}
-    for link in body.links:
-        wanted = entity_name(link.name)
-        name, number = wanted, 1
-        while name in names.values():
-            name, number = f'{wanted}_{number}', number + 1
-        names[link.name] = name
+    names = dict(zip((link.name for link in body.links),
+                     _unique_names(link.name for link in body.links)))
     text = [f'<robot name={quoteattr(body.name)}>']
     for index, link in enumerate(body.links):
         text.append(writer.link(link, names[link.name], static=body.static or (
             index == 0 and link.inertial.mass == 0.0)))
-    text += [_joint(joint, names) for joint in body.joints]
+    joint_names = _unique_names(joint.name for joint in body.joints)
+    text += [_joint(joint, joint_name, names)
+             for joint, joint_name in zip(body.joints, joint_names)]
     text.append('</robot>')
     return '\n'.join(text), writer.triangles

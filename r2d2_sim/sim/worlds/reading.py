@@ -25,7 +25,7 @@ from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple, 
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.physics.description import DescriptionFile
+from r2d2_sim.physics.description import check_urdf, DescriptionError, DescriptionFile
 from r2d2_sim.sim.sdf.elements import root_tag
 from r2d2_sim.sim.sdf.loading import scene_meshes, SdfSettings, TriangleBudget
 from r2d2_sim.sim.worlds.sdf_format import read_sdf_model, read_sdf_world, sdf_models
@@ -123,8 +123,12 @@ class _Reading:
             if root.tag != 'robot':
                 raise RefusedError('UNSUPPORTED_FORMAT', f'{shown}: the root element is '
                                                          f'<{root.tag[:40]}>, not <robot>')
+            try:
+                check_urdf(root, shown)
+            except DescriptionError as exc:
+                raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
         else:
-            name, meshes = read_description(text, base_dir)  # size, DOCTYPE, links, meshes
+            name, meshes = read_description(text, base_dir, shown)  # size, DOCTYPE, links, meshes
             root = ElementTree.fromstring(text)
         self.unsupported([shown for child in root if child.tag not in URDF_ELEMENTS],
                          'elements PyBullet does not read')
@@ -216,7 +220,9 @@ def _as_asset(call: Callable[[], T], urdf: Optional[str] = None) -> T:
         if urdf is not None:
             code = {'UNSUPPORTED_FORMAT': 'UNSUPPORTED_ASSETS',
                     'NO_RESOURCE': 'MISSING_ASSETS'}.get(exc.code, exc.code)
-            raise RefusedError(code, f'model {urdf}: {exc.message}') from None
+            named = exc.message.startswith(f'model {urdf}: ')  # self.urdf names it already
+            raise RefusedError(code, exc.message if named else f'model {urdf}: {exc.message}'
+                               ) from None
         if exc.code != 'UNSUPPORTED_FORMAT':
             raise
         raise RefusedError('UNSUPPORTED_ASSETS', exc.message) from None
