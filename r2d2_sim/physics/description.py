@@ -5,6 +5,7 @@ No ROS messaging here, only the ament index for ``package://`` URIs. Every
 failure is a :class:`DescriptionError` with a one-line message.
 """
 
+import math
 import os
 from pathlib import Path
 import sys
@@ -182,6 +183,137 @@ def check_urdf(root: ElementTree.Element, source: str) -> None:
         apart = next(link for link in links if link not in reached)
         raise refuse(f'link {apart[:100]!r} is on a loop of joints, not joined to the root '
                      f'{roots[0][:100]!r}')
+    _check_values(root, refuse)
+
+
+def _check_values(root: ElementTree.Element,
+                  refuse: Callable[[str], DescriptionError]) -> None:
+    """
+    Raise ``refuse``'s error for a number PyBullet would misread, naming the link or joint.
+
+    PyBullet reads an unparsable number as 0 and a vector of fewer than 3 as
+    (0, 0, 0), with a warning on stdout only: a box of size ``1 1`` or
+    ``a b c`` became size 0, an origin of ``nan`` put NaN in the body's
+    bounds, a mass of -5 made a floating static body, a joint axis of 0 0 0
+    (or none given) NaN positions. What its own data does and it reads right
+    stays: an absent or blank origin (zeros), mass 0 (a static link), a
+    vector of more than 3 numbers (the first 3), a number with a comma after
+    it (``0.07, 0, -0.69``), a mesh scale of one number (uniform), a visual
+    of size 0 (drawn as nothing), lower > upper limits (no limits).
+    """
+    for link in root.findall('link'):
+        name = f'link {link.get("name", "")[:100]!r}'
+        for inertial in link.findall('inertial'):
+            _check_origins(inertial, f'{name}: inertial', refuse)
+            for mass in inertial.findall('mass'):
+                _check(mass, 'value', f'{name}: mass', refuse, 1, _at_least_zero,
+                       'a finite number >= 0')
+            for inertia in inertial.findall('inertia'):
+                for entry in ('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'):
+                    _check(inertia, entry, f'{name}: inertia', refuse, 1, None,
+                           'a finite number')
+        for part in ('visual', 'collision'):
+            for element in link.findall(part):
+                _check_origins(element, f'{name}: {part}', refuse)
+                for shape in element.findall('geometry/*'):
+                    _check_shape(shape, f'{name}: {part} {shape.tag}', part == 'visual',
+                                 refuse)
+    for joint in root.findall('joint'):
+        name = f'joint {joint.get("name", "")[:100]!r}'
+        _check_origins(joint, name, refuse)
+        if joint.get('type') in ('revolute', 'continuous', 'prismatic', 'planar'):
+            for axis in joint.findall('axis'):
+                _check(axis, 'xyz', f'{name}: axis', refuse, 3, _not_all_zero,
+                       '3 finite numbers, not all 0', required=True)
+        for limit in joint.findall('limit'):
+            for entry in ('lower', 'upper', 'effort', 'velocity'):
+                _check(limit, entry, f'{name}: limit', refuse, 1, None, 'a finite number')
+        for dynamics in joint.findall('dynamics'):
+            for entry in ('damping', 'friction'):
+                _check(dynamics, entry, f'{name}: dynamics', refuse, 1, None,
+                       'a finite number')
+
+
+def _check_origins(parent: ElementTree.Element, where: str,
+                   refuse: Callable[[str], DescriptionError]) -> None:
+    """Check the ``<origin>`` of ``parent``: xyz and rpy absent, blank or 3 finite numbers."""
+    for origin in parent.findall('origin'):
+        for entry in ('xyz', 'rpy'):
+            _check(origin, entry, f'{where} origin', refuse, 3, None, '3 finite numbers',
+                   blank=True)
+
+
+def _check_shape(shape: ElementTree.Element, where: str, visual: bool,
+                 refuse: Callable[[str], DescriptionError]) -> None:
+    """Check a geometry's sizes: above 0 (a visual's: 0 too); a mesh's scale non-zero."""
+    holds, above = (_at_least_zero, '>= 0') if visual else (_above_zero, 'above 0')
+    if shape.tag == 'box':
+        _check(shape, 'size', where, refuse, 3, holds, f'3 finite numbers {above}',
+               required=True)
+    elif shape.tag == 'sphere':
+        _check(shape, 'radius', where, refuse, 1, holds, f'a finite number {above}',
+               required=True)
+    elif shape.tag in ('cylinder', 'capsule'):
+        for entry in ('radius', 'length'):
+            _check(shape, entry, where, refuse, 1, holds, f'a finite number {above}',
+                   required=True)
+    elif shape.tag == 'mesh' and shape.get('scale') is not None:
+        counts = 1 if len(shape.get('scale', '').split()) == 1 else 3
+        _check(shape, 'scale', where, refuse, counts, _none_zero,
+               '3 finite numbers (or 1), none 0')
+
+
+def _above_zero(values: List[float]) -> bool:
+    return all(value > 0.0 for value in values)
+
+
+def _at_least_zero(values: List[float]) -> bool:
+    return all(value >= 0.0 for value in values)
+
+
+def _none_zero(values: List[float]) -> bool:
+    return all(value != 0.0 for value in values)
+
+
+def _not_all_zero(values: List[float]) -> bool:
+    return any(value != 0.0 for value in values)
+
+
+def _check(element: ElementTree.Element, attribute: str, where: str,
+           refuse: Callable[[str], DescriptionError], count: int,
+           holds: Optional[Callable[[List[float]], bool]], wanted: str,
+           required: bool = False, blank: bool = False) -> None:
+    """
+    Raise ``refuse``'s error unless ``attribute`` is ``count`` finite numbers that hold.
+
+    An absent attribute passes unless ``required`` (PyBullet has a default, or
+    refuses it itself); a blank one only when ``blank`` (PyBullet reads zeros).
+    A vector (``count`` 3) may have more numbers: PyBullet reads the first 3.
+    """
+    text = element.get(attribute)
+    if text is None and not required or blank and text is not None and not text.strip():
+        return
+    values = _floats(text or '')
+    if values is not None and count == 3:
+        values = values[:3] if len(values) >= 3 else None
+    if values is None or len(values) != count or (holds is not None and not holds(values)):
+        shown = 'none' if text is None else repr(text[:40])
+        raise refuse(f'{where} {attribute} {shown} is not {wanted}')
+
+
+def _floats(text: str) -> Optional[List[float]]:
+    """Return the finite numbers in ``text``, None if any is not one (as C's strtod reads it)."""
+    values = []
+    for word in text.split():
+        word = word[:-1] if word.endswith(',') else word  # strtod stops at the comma
+        try:
+            value = float(word)
+        except ValueError:
+            return None
+        if '_' in word or not math.isfinite(value):  # Python reads 1_0 as 10, strtod as 1
+            return None
+        values.append(value)
+    return values
 
 
 def _check_unique(names: List[str], what: str,
