@@ -6,8 +6,9 @@ it loads (most recent first), so an id cached anywhere else could silently
 read another body: only the :class:`Body` holds its id, and after
 :meth:`Body.remove` every use raises. Each body saves its own initial state
 and :meth:`Body.reset` puts it back in place (base pose and twist, joint
-positions and velocities): ``restoreState`` of a whole world refuses to work
-once a body was added or removed, and would reset every body at once.
+positions and velocities, a ball joint's rotation and spin too):
+``restoreState`` of a whole world refuses to work once a body was added or
+removed, and would reset every body at once.
 
 A body also remembers how it was loaded and every lasting change made to it
 since (its initial pose, friction, damping, ray groups), so a world emptied
@@ -67,8 +68,21 @@ class Motor(NamedTuple):
     held: Optional[float] = None   # the angle (rad) or position (m) a brake holds
 
 
-# A body's state: its centre of mass's pose, its twist (linear, angular) and its joints.
-State = Tuple[Pose, Tuple[Vec3, Vec3], JointStates]
+# Joints of several degrees of freedom: a ball joint's position is a quaternion (x, y, z,
+# w), its velocity an angular velocity; a planar joint's are 3 numbers each.
+MULTI_DOF_JOINTS = (pybullet.JOINT_SPHERICAL, pybullet.JOINT_PLANAR)
+
+
+class State(NamedTuple):
+    """A body's state: its centre of mass's pose and twist (linear, angular), its joints'."""
+
+    com: Pose
+    twist: Tuple[Vec3, Vec3]
+    joints: JointStates  # of the one-axis joints (Body.movable_indices)
+    # Of the others that move (Body.multi_dof_indices): (position, velocity) each.
+    multi_dof: Tuple[Tuple[Tuple[float, ...], Tuple[float, ...]], ...] = ()
+
+
 # Its state and its joints' motors, as :meth:`Body.moment` returns them.
 Moment = Tuple[State, Dict[int, Motor]]
 
@@ -127,6 +141,8 @@ class Body:
         self.joints: Dict[str, JointRecord] = {j.name: j for j in records.joint_records(
             client, body_id)}
         self.movable_indices = [j.index for j in self.joints.values() if j.movable]
+        self.multi_dof_indices = [j.index for j in self.joints.values()
+                                  if j.type_code in MULTI_DOF_JOINTS]
         base = records.dynamics(client, body_id, -1)
         self.mass_kg = base.mass_kg + sum(records.dynamics(client, body_id, j.index).mass_kg
                                           for j in self.joints.values())
@@ -407,8 +423,13 @@ class Body:
     def _read_state(self) -> State:
         com = Pose(*self._get_base_pose())
         velocity = self._get_base_velocity()
-        return com, (tuple(velocity[0]), tuple(velocity[1])), self.joint_states(
-            self.movable_indices)
+        multi_dof: Tuple[Tuple[Tuple[float, ...], Tuple[float, ...]], ...] = ()
+        if self.multi_dof_indices:
+            multi_dof = tuple((tuple(q), tuple(dq)) for q, dq, *_ in
+                              self._client.getJointStatesMultiDof(self.id,
+                                                                  self.multi_dof_indices))
+        return State(com, (tuple(velocity[0]), tuple(velocity[1])),
+                     self.joint_states(self.movable_indices), multi_dof)
 
     def save_initial_state(self) -> None:
         """Take the body's state now as the one :meth:`reset` returns to."""
@@ -427,9 +448,9 @@ class Body:
         After :meth:`reload`, put back the state and motors :meth:`moment` returned.
 
         Exactly: the same base pose and twist, joint positions and
-        velocities, and motors, held joints at the angles they held (those
-        set since the changes :meth:`reload` replays stay as they were last
-        set).
+        velocities (a ball joint's rotation and spin too), and motors, held
+        joints at the angles they held (those set since the changes
+        :meth:`reload` replays stay as they were last set).
         """
         state, motors = moment
         self._put(state)
@@ -442,12 +463,16 @@ class Body:
             self.hold_joints(list(held), [motors[i].force for i in held], list(held.values()))
 
     def _put(self, state: State) -> None:
-        (position, orientation), (linear, angular), joints = state
+        (position, orientation), (linear, angular), joints, multi_dof = state
         client, body = self._client, self.id
         client.resetBasePositionAndOrientation(body, position, orientation)
         client.resetBaseVelocity(body, linear, angular)
         for index, q, dq in zip(self.movable_indices, joints.positions, joints.velocities):
             client.resetJointState(body, index, q, dq)
+        if multi_dof:  # resetJointState takes one number: a ball joint would stay as it is
+            client.resetJointStatesMultiDof(
+                body, self.multi_dof_indices, targetValues=[q for q, _ in multi_dof],
+                targetVelocities=[dq for _, dq in multi_dof])
 
     def exclude_from_rays(self, links: Optional[Sequence[int]] = None,
                           group: int = RAY_EXCLUDED_GROUP) -> None:

@@ -64,10 +64,10 @@ def test_compaction_puts_every_body_back_as_it_was_to_the_last_bit(world, monkey
     world.remove(cube)  # the 64th: compacted
     assert world.removed_since_built == 0 and rebuilt == [1]
     assert set(world.bodies) == names_before
-    (pose, twist, joints), motors = robot.moment()
-    assert (pose, twist, motors) == (before[0][0], before[0][1], before[1])  # exactly
+    state, motors = robot.moment()
+    assert (state.com, state.twist, motors) == (before[0].com, before[0].twist, before[1])
     # Joint positions and velocities exactly; efforts are what a step applies: the next one's.
-    assert (joints.positions, joints.velocities) == before[0][2][:2]
+    assert (state.joints.positions, state.joints.velocities) == before[0].joints[:2]
     start = robot.world_state().position
     world.step(240)
     assert robot.world_state().position != start  # the motors drove on
