@@ -18,7 +18,7 @@ import signal
 import sys
 import threading
 import time
-from typing import Any, Callable, NamedTuple, Optional
+from typing import Any, Callable, NamedTuple, Optional, TYPE_CHECKING
 
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
@@ -26,6 +26,9 @@ from nav_msgs.msg import Odometry
 from r2d2_sim.errors import StartupError
 from r2d2_sim.model.timing import stamp_ns, stamp_of
 from r2d2_sim.model.transforms import quaternion_to_yaw
+
+if TYPE_CHECKING:  # typing only
+    from rclpy.executors import Executor
 
 __all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'step_count',
            'sim_seconds', 'ros_child_env',
@@ -82,7 +85,7 @@ def twist_stamped_message(linear: float = 0.0, angular: float = 0.0, *, stamp_ns
     return msg
 
 
-def spin_until(executor, condition: Callable[[], bool], timeout_s: float,
+def spin_until(executor: 'Executor', condition: Callable[[], bool], timeout_s: float,
                abort: Optional[Callable[[], bool]] = None) -> bool:
     """
     Spin ``executor`` until ``condition()`` holds; False at the deadline or on ``abort()``.

@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # the plugin imports nothing heavy until a fixture is used
     from r2d2_sim.testing import SimHarness, SimProcess
 
 
-def pytest_configure(config) -> None:
+def pytest_configure(config: pytest.Config) -> None:
     """Hide the ROS wheels' own DeprecationWarnings (lark imports sre_parse on Python 3.11+)."""
     config.addinivalue_line('filterwarnings', r'ignore::DeprecationWarning:lark(\..*)?')
 

@@ -84,7 +84,7 @@ def one_line(text: str, limit: int = LINE_LIMIT) -> str:
 
 def clause(registry: List[Clause], id: str, title: str, features: Sequence[str], source: str,
            quote: str, *, unless: Sequence[str] = (), services: Sequence[str] = (),
-           start: bool = True):
+           start: bool = True) -> Callable[[Callable], Callable]:
     """Return a decorator that adds its function to ``registry`` as a clause."""
     def add(check: Callable) -> Callable:
         registry.append(Clause(id, title, tuple(features), source, quote, check,

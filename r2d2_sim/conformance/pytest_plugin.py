@@ -18,15 +18,21 @@ own session-scoped ``conformance_options`` fixture returning a
 The clauses reset the simulator: do not spread them over xdist workers.
 """
 
+from typing import Iterator, TYPE_CHECKING
+
 import pytest
 
-from r2d2_sim.conformance.clause import FAIL, SKIP
+from r2d2_sim.conformance.clause import Clause, FAIL, SKIP
 from r2d2_sim.conformance.clauses import CLAUSES
+
+if TYPE_CHECKING:  # typing only: rclpy is imported when the kit connects
+    from r2d2_sim.conformance.runner import Kit
+    from r2d2_sim.conformance.target import KitOptions
 
 __all__ = ['test_simulation_standard', 'conformance_options', 'conformance_kit']
 
 
-def pytest_addoption(parser) -> None:
+def pytest_addoption(parser: pytest.Parser) -> None:
     """Add the ``--conformance-*`` options: where the simulator is, what the kit may use."""
     group = parser.getgroup('conformance', 'simulation_interfaces conformance kit')
     group.addoption('--conformance-prefix', default='/', metavar='NS',
@@ -44,7 +50,7 @@ def pytest_addoption(parser) -> None:
 
 
 @pytest.fixture(scope='session')
-def conformance_options(request):
+def conformance_options(request: pytest.FixtureRequest) -> 'KitOptions':
     """Return the KitOptions of the command line (override to start a simulator first)."""
     from r2d2_sim.conformance.target import KitOptions
     option = request.config.getoption
@@ -56,7 +62,7 @@ def conformance_options(request):
 
 
 @pytest.fixture(scope='session')
-def conformance_kit(conformance_options):
+def conformance_kit(conformance_options: 'KitOptions') -> Iterator['Kit']:
     """Provide one connected Kit for the session; it leaves the simulator as found at the end."""
     from r2d2_sim.conformance.runner import Kit
     from r2d2_sim.conformance.target import KitError
@@ -74,13 +80,13 @@ def conformance_kit(conformance_options):
         kit.close()
 
 
-def pytest_generate_tests(metafunc) -> None:
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
     """Give ``conformance_clause`` every clause, in the kit's order, named by its id."""
     if 'conformance_clause' in metafunc.fixturenames:
         metafunc.parametrize('conformance_clause', CLAUSES, ids=[c.id for c in CLAUSES])
 
 
-def test_simulation_standard(conformance_kit, conformance_clause) -> None:
+def test_simulation_standard(conformance_kit: 'Kit', conformance_clause: Clause) -> None:
     """Check one clause of the standard (collect this in a test file of yours)."""
     from r2d2_sim.conformance.target import KitError
     try:

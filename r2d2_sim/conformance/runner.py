@@ -15,7 +15,7 @@ as found. A reason is one line, however much the simulator sent.
 
 import fnmatch
 import time
-from typing import List, Optional, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 from r2d2_sim.conformance.clause import (
     Clause, ClauseFailed, ClauseSkipped, FAIL, feature_text, one_line, Outcome, PASS, SKIP)
@@ -136,7 +136,8 @@ class Kit:
             reason = '; '.join(filter(None, [reason, 'afterwards: ' + '; '.join(problems)]))
         return status, reason
 
-    def run(self, clauses: Sequence[Clause] = CLAUSES, each=None) -> List[Outcome]:
+    def run(self, clauses: Sequence[Clause] = CLAUSES,
+            each: Optional[Callable[[Outcome], object]] = None) -> List[Outcome]:
         """Run ``clauses`` in order; call ``each(outcome)`` after each; return the outcomes."""
         outcomes = []
         for clause in clauses:
@@ -161,5 +162,5 @@ class Kit:
     def __enter__(self) -> 'Kit':
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.close()

@@ -8,19 +8,22 @@ Target so that a clause can use them without it.
 """
 
 import math
-from typing import Iterable, Sequence, Tuple
+from typing import Iterable, Sequence, Tuple, TYPE_CHECKING, Union
+
+if TYPE_CHECKING:  # typing only: no ROS is loaded here
+    from geometry_msgs.msg import Point, Quaternion, Vector3
 
 
 def _close(a: Sequence[float], b: Sequence[float], tolerance: float) -> bool:
     return all(abs(x - y) <= tolerance for x, y in zip(a, b))
 
 
-def vector(v) -> Tuple[float, float, float]:
+def vector(v: 'Union[Vector3, Point]') -> Tuple[float, float, float]:
     """Return a geometry_msgs Vector3 or Point as a tuple."""
     return (v.x, v.y, v.z)
 
 
-def quaternion(q) -> Tuple[float, float, float, float]:
+def quaternion(q: 'Quaternion') -> Tuple[float, float, float, float]:
     """Return a geometry_msgs Quaternion as an (x, y, z, w) tuple."""
     return (q.x, q.y, q.z, q.w)
 

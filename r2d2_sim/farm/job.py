@@ -37,7 +37,7 @@ import tempfile
 import time
 import traceback
 from typing import (Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Protocol, Sequence,
-                    Union)
+                    Tuple, Union)
 
 from r2d2_sim.farm.scenario import Scenario, ScenarioError, ScenarioSpace
 
@@ -304,7 +304,8 @@ def run_variation(job: Union[FarmJob, JobSource, ItemJob], item: Item, record: s
                       socket.gethostname(), os.getpid(), time.perf_counter() - started)
 
 
-def _run(job: FarmJob, item: Item, record: str, shm: Any):
+def _run(job: FarmJob, item: Item, record: str,
+         shm: Any) -> Tuple[Dict[str, Any], Optional[bytes]]:
     """Run the variation; return its outcome's data and the recording's bytes kept (or None)."""
     from r2d2_sim.farm.run import reached_safely, run_scenario
     scenario = job.scenario(item)

@@ -33,9 +33,14 @@ import os
 from pathlib import Path
 import re
 import warnings
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, TYPE_CHECKING
 
 import pytest
+
+if TYPE_CHECKING:  # typing only: nothing heavy is imported until a run is asked for
+    import r2d2_sim.farm.run  # its Outcome named in full: the docs know two others
+    from r2d2_sim.farm.run import Controller
+    from r2d2_sim.farm.scenario import Scenario
 
 __all__ = ['Farm', 'r2d2_farm']
 
@@ -47,7 +52,7 @@ SCENARIOS = 'scenarios'
 DEFAULT_DIR_NAME = 'farm_report'
 
 
-def pytest_addoption(parser) -> None:
+def pytest_addoption(parser: pytest.Parser) -> None:
     """Add --farm-dir and --farm-record."""
     group = parser.getgroup('r2d2_farm', 'r2d2_sim scenario farm')
     group.addoption('--farm-dir', metavar='DIR', default=None,
@@ -72,7 +77,7 @@ class Farm:
     in a worker it appends to that directory.
     """
 
-    def __init__(self, config) -> None:
+    def __init__(self, config: pytest.Config) -> None:
         self.config = config
         self.worker: Optional[str] = None
         self._directory: Optional[Path] = None
@@ -97,7 +102,9 @@ class Farm:
             if given:
                 directory = Path(given).resolve()
             else:
-                directory = self.config._tmp_path_factory.getbasetemp() / DEFAULT_DIR_NAME
+                # pytest's TempPathFactory: its tmp_path plugin sets it on the config, undeclared.
+                directory = (self.config._tmp_path_factory  # type: ignore[attr-defined]
+                             .getbasetemp() / DEFAULT_DIR_NAME)
             if self.worker is None:
                 _clear(directory)
             self._directory = directory
@@ -108,7 +115,8 @@ class Farm:
         folder.mkdir(parents=True, exist_ok=True)
         return folder / f'{self.worker or "main"}-{os.getpid()}.jsonl'
 
-    def run(self, scenario, controller, *, seconds: float, **keywords: Any):
+    def run(self, scenario: 'Scenario', controller: 'Controller', *, seconds: float,
+            **keywords: Any) -> 'r2d2_sim.farm.run.Outcome':
         """
         Run ``scenario`` (see :func:`~r2d2_sim.farm.run.run_scenario`); record and return it.
 
@@ -159,7 +167,7 @@ class Farm:
             self._note(name, nodeid, outcome)
         return outcome
 
-    def _note(self, name: str, nodeid: str, outcome) -> None:
+    def _note(self, name: str, nodeid: str, outcome: 'r2d2_sim.farm.run.Outcome') -> None:
         """Save a property's shrunk scenario and say in the failure how to replay it."""
         from hypothesis import note
         from r2d2_sim.farm.strategies import REPLAY_ENV
@@ -203,7 +211,7 @@ class Farm:
         return self.written
 
 
-def _boxes(scenario) -> str:
+def _boxes(scenario: 'Scenario') -> str:
     count = len(scenario.obstacles)
     return f'{count} box' if count == 1 else f'{count} boxes'
 
@@ -232,25 +240,26 @@ def _hypothesis_final() -> Optional[bool]:
     return bool(current_build_context().is_final)
 
 
-def pytest_configure(config) -> None:
+def pytest_configure(config: pytest.Config) -> None:
     """Make this process's farm."""
     config.stash[FARM_KEY] = Farm(config)
 
 
 @pytest.hookimpl(optionalhook=True)
-def pytest_configure_node(node) -> None:
+def pytest_configure_node(node: Any) -> None:
     """Tell an xdist worker the farm directory of the main process (xdist's hook)."""
     node.workerinput[WORKER_INPUT_KEY] = str(node.config.stash[FARM_KEY].directory)
 
 
-def pytest_sessionfinish(session) -> None:
+def pytest_sessionfinish(session: pytest.Session) -> None:
     """In the main process, write the report of every worker's outcomes."""
     farm = session.config.stash.get(FARM_KEY, None)
     if farm is not None and farm.worker is None:
         farm.write_report()
 
 
-def pytest_terminal_summary(terminalreporter, config) -> None:
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter,
+                            config: pytest.Config) -> None:
     """Name the report files."""
     farm = config.stash.get(FARM_KEY, None)
     if farm is not None and farm.written:
@@ -260,6 +269,6 @@ def pytest_terminal_summary(terminalreporter, config) -> None:
 
 
 @pytest.fixture(scope='session')
-def r2d2_farm(request) -> Farm:
+def r2d2_farm(request: pytest.FixtureRequest) -> Farm:
     """Provide the farm: ``r2d2_farm.run(scenario, controller, seconds=...)`` -> Outcome."""
     return request.config.stash[FARM_KEY]

@@ -24,11 +24,14 @@ import math
 from pathlib import Path
 import re
 import shlex
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple, TYPE_CHECKING, Union
 
 import numpy
 
 from r2d2_sim.farm.scenario import Box, Scenario
+
+if TYPE_CHECKING:  # typing only: matplotlib is imported when a picture is drawn
+    from matplotlib.axes import Axes
 
 __all__ = ['write_report', 'percentile', 'case_key', 'REPORT_JSON', 'REPORT_MD',
            'TRAJECTORIES_PNG']
@@ -52,7 +55,7 @@ def percentile(values: Sequence[float], q: float) -> float:
     return float(numpy.percentile(values, q))
 
 
-def case_key(record: Dict[str, Any]):
+def case_key(record: Dict[str, Any]) -> Tuple[List[Union[int, str]], int]:
     """Sort key of a record: its node id with numbers compared as numbers, then its run."""
     parts = re.split(r'(\d+)', record['nodeid'])
     return [int(p) if p.isdigit() else p for p in parts], record.get('run', 0)
@@ -221,7 +224,7 @@ def _markdown(data: Dict[str, Any]) -> str:
 
 # -- the picture -----------------------------------------------------------------------
 
-def _outline(axes, box: Box, **style) -> None:
+def _outline(axes: 'Axes', box: Box, **style: Any) -> None:
     from matplotlib.patches import Polygon
     axes.add_patch(Polygon(box.corners(), closed=True, **style))
 

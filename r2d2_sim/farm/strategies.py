@@ -24,7 +24,7 @@ on it alone.
 
 import math
 import os
-from typing import Any, Dict
+from typing import Any, Dict, Tuple
 
 from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
@@ -48,7 +48,7 @@ def _thousandths(count: int) -> float:
     return count / 1000.0
 
 
-def _point(area) -> st.SearchStrategy:
+def _point(area: Tuple[float, float, float, float]) -> st.SearchStrategy:
     x_min, y_min, x_max, y_max = area
     return st.tuples(_milli(x_min, x_max), _milli(y_min, y_max))
 
@@ -59,7 +59,8 @@ def boxes(space: ScenarioSpace) -> st.SearchStrategy:
                      _milli(*space.box_size), _milli(*space.box_size), st.just(space.box_height))
 
 
-def box(centre, yaw: float, size_x: float, size_y: float, height: float) -> Box:
+def box(centre: Tuple[float, float], yaw: float, size_x: float, size_y: float,
+        height: float) -> Box:
     """Return the box a draw describes (named, so that a falsifying example reads well)."""
     return Box(centre[0], centre[1], yaw, (size_x, size_y, height))
 

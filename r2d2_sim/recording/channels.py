@@ -12,7 +12,11 @@ can only send to every subscribed viewer at once). The sink
 from collections import deque
 import threading
 import time
-from typing import Callable, Deque, Optional, Tuple
+from types import ModuleType
+from typing import Callable, Deque, Optional, Tuple, TYPE_CHECKING
+
+if TYPE_CHECKING:  # an optional dependency: imported for the checker only
+    from foxglove import Channel
 
 __all__ = ['SinkChannel', 'LATCHED_RESEND_PERIOD_S', 'forget_channel', 'locked', 'nothing']
 
@@ -185,7 +189,7 @@ class SinkChannel:
         return f'SinkChannel({self.topic!r}, {self.type_name!r})'
 
 
-def forget_channel(foxglove, channel) -> None:
+def forget_channel(foxglove: Optional[ModuleType], channel: 'Channel') -> None:
     """
     Close an SDK channel and let it go.
 

@@ -18,7 +18,7 @@ import threading
 from typing import Any, Callable, Deque, Dict, Optional, Tuple
 
 from r2d2_sim.recording.channels import SinkChannel
-from r2d2_sim.recording.sink import SinkError
+from r2d2_sim.recording.sink import FoxgloveSink, SinkError
 
 __all__ = ['SinkFeeder', 'MAX_QUEUED_BYTES']
 
@@ -42,7 +42,7 @@ class SinkFeeder:
     open: its owner closes it).
     """
 
-    def __init__(self, sink, error: Callable[[str], None],
+    def __init__(self, sink: FoxgloveSink, error: Callable[[str], None],
                  opened: Callable[[int, SinkChannel], None] = _ignore,
                  max_bytes: int = MAX_QUEUED_BYTES) -> None:
         self.sink = sink

@@ -24,7 +24,7 @@ closing the writer) must hold :attr:`McapOutput.lock`.
 import os
 import stat
 import threading
-from typing import Callable, Optional
+from typing import Callable, Optional, Union
 
 __all__ = ['McapOutput']
 
@@ -57,7 +57,7 @@ class McapOutput:
         self._position = 0  # where the next write goes (kept on after a failure)
         self._end = 0       # the size the file would have
 
-    def write(self, data) -> int:
+    def write(self, data: Union[bytes, bytearray]) -> int:
         """Write all of ``data``; after a failure, pretend to (the SDK must not see it)."""
         view = memoryview(data).cast('B')
         size = view.nbytes

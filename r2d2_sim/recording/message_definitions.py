@@ -19,13 +19,18 @@ workspace) and under ``sys.prefix`` (where the ``ros-jazzy-*`` wheels put
 them, with no ament index a pip user could rely on).
 """
 
+from enum import Enum
 from functools import lru_cache
 import json
 import os
 from pathlib import Path
 import re
 import sys
-from typing import Iterable, List, Optional, Sequence, Tuple
+from typing import Iterable, List, Optional, Sequence, Tuple, TYPE_CHECKING
+
+if TYPE_CHECKING:  # typing only: this layer loads no ROS
+    from rclpy.duration import Duration
+    from rclpy.qos import QoSProfile
 
 __all__ = ['UnknownMessageType', 'known_message_type', 'message_definition',
            'offered_qos_profiles', 'search_prefixes', 'type_hash']
@@ -191,19 +196,19 @@ def type_hash(type_name: str, prefixes: Optional[Sequence[os.PathLike]] = None) 
     raise UnknownMessageType(f'{type_name}: its .json lists no hash for {full_name}')
 
 
-def _policy(value) -> str:
+def _policy(value: Enum) -> str:
     """Name a QoS policy as rmw's *_policy_to_str and rosbag2 do (keep_last, transient_local)."""
     return value.name.lower()
 
 
-def _duration(duration) -> str:
+def _duration(duration: 'Duration') -> str:
     nanoseconds = duration.nanoseconds
     if nanoseconds == 0:  # unspecified: the rmw offers infinity
         nanoseconds = _INFINITE_NS
     return f'sec: {nanoseconds // _NS_PER_S}\n    nsec: {nanoseconds % _NS_PER_S}'
 
 
-def offered_qos_profiles(*profiles) -> str:
+def offered_qos_profiles(*profiles: 'QoSProfile') -> str:
     """
     Return rosbag2 Jazzy's ``offered_qos_profiles`` YAML (version 9) for rclpy QoS profiles.
 

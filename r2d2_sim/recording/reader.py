@@ -149,7 +149,8 @@ def _channel(body: memoryview) -> Tuple[int, int, str, str, Dict[str, str]]:
     return channel_id, schema_id, topic, encoding, metadata
 
 
-def _decompress(compression: str, data: memoryview, size: int):
+def _decompress(compression: str, data: memoryview,
+                size: int) -> Union[bytes, bytearray, memoryview]:
     """Return a chunk's records (bytes-like), never producing more than ``size`` + 1 bytes."""
     if compression == '':
         return data

@@ -53,7 +53,7 @@ import os
 import sys
 import time
 from types import ModuleType
-from typing import Callable, Dict, List, Optional, TYPE_CHECKING
+from typing import Any, Callable, Dict, List, Optional, TYPE_CHECKING
 import weakref
 
 from r2d2_sim.recording.channels import (
@@ -66,7 +66,8 @@ from r2d2_sim.recording.message_definitions import (
 if TYPE_CHECKING:  # an optional dependency: imported for the checker only
     from foxglove import Context
     from foxglove.mcap import MCAPWriter
-    from foxglove.websocket import WebSocketServer
+    from foxglove.websocket import ChannelView, Client, ServerListener, WebSocketServer
+    from rclpy.qos import QoSProfile
 
 __all__ = ['FoxgloveSink', 'SinkError']
 
@@ -106,7 +107,7 @@ class _Closer:
     then the server; never raises: a failure is one line to ``error``.
     """
 
-    def __init__(self, foxglove, error: Callable[[str], None]) -> None:
+    def __init__(self, foxglove: ModuleType, error: Callable[[str], None]) -> None:
         self.foxglove = foxglove
         self.error = error
         self.watch: Optional[ListenerWatch] = None
@@ -289,7 +290,7 @@ class FoxgloveSink:
         """Return the topics registered so far."""
         return list(self._channels)
 
-    def channel(self, topic: str, type_name: str, qos) -> SinkChannel:
+    def channel(self, topic: str, type_name: str, qos: 'QoSProfile') -> SinkChannel:
         """
         Register a publisher of ``topic`` (absolute) of ROS type ``type_name`` with ``qos``.
 
@@ -318,7 +319,7 @@ class FoxgloveSink:
         self._live_ids[topic] = live_id
         return self._track(handle, latched)
 
-    def _open_channels(self, topic: str, type_name: str, qos) -> tuple:
+    def _open_channels(self, topic: str, type_name: str, qos: 'QoSProfile') -> tuple:
         """
         Advertise ``topic`` to the live view and the file.
 
@@ -396,7 +397,7 @@ class FoxgloveSink:
         self._channels.pop(topic, None)
         self._handles.pop(topic, None)
 
-    def _share(self, first: SinkChannel, type_name: str, qos) -> SinkChannel:
+    def _share(self, first: SinkChannel, type_name: str, qos: 'QoSProfile') -> SinkChannel:
         """Return a handle of another publisher on ``first``'s channel."""
         if type_name != first.type_name:
             raise SinkError(f'topic {first.topic} is registered as {first.type_name}, '
@@ -426,7 +427,7 @@ class FoxgloveSink:
     def __enter__(self) -> 'FoxgloveSink':
         return self
 
-    def __exit__(self, *exc_info) -> None:
+    def __exit__(self, *exc_info: object) -> None:
         self.close()
 
     def __repr__(self) -> str:
@@ -439,15 +440,15 @@ def _address(host: str, port: int) -> str:
     return f'ws://{host}:{port}'
 
 
-def _call_if_alive(method: weakref.WeakMethod, *args) -> None:
+def _call_if_alive(method: weakref.WeakMethod, *args: Any) -> None:
     """Call a weakly held method if its object still exists (a sink the file reports to)."""
     bound = method()
     if bound is not None:
         bound(*args)
 
 
-def _make_listener(foxglove, latched_by_id: Dict[int, List[SinkChannel]],
-                   subscriptions_changed: Callable[[], None] = nothing):
+def _make_listener(foxglove: Any, latched_by_id: Dict[int, List[SinkChannel]],
+                   subscriptions_changed: Callable[[], None] = nothing) -> 'ServerListener':
     """
     Return a server listener that re-sends latched topics when a viewer subscribes.
 
@@ -456,11 +457,11 @@ def _make_listener(foxglove, latched_by_id: Dict[int, List[SinkChannel]],
     class LatchingListener(foxglove.websocket.ServerListener):
         # A subclass, not a plain class: the server calls every method of the
         # protocol, and a missing one fails ("AttributeError: on_unsubscribe").
-        def on_subscribe(self, client, channel) -> None:
+        def on_subscribe(self, client: 'Client', channel: 'ChannelView') -> None:
             for handle in list(latched_by_id.get(channel.id, ())):
                 handle.request_resend()
             subscriptions_changed()
 
-        def on_unsubscribe(self, client, channel) -> None:
+        def on_unsubscribe(self, client: 'Client', channel: 'ChannelView') -> None:
             subscriptions_changed()
     return LatchingListener()

@@ -11,7 +11,7 @@ this module only answers, under the node's lock.
 """
 
 import json
-from typing import Dict
+from typing import Any, Dict, Optional
 
 from std_srvs.srv import SetBool, Trigger
 
@@ -42,7 +42,7 @@ class ControlServices:
         server.create_service(Trigger, '~/get_status', self._on_get_status)
         server.create_service(Trigger, '~/get_readers', self._on_get_readers)
 
-    def status(self, **facts) -> str:
+    def status(self, **facts: Any) -> str:
         """
         Return the simulation's state as the JSON text the control services reply with.
 
@@ -93,7 +93,8 @@ class ControlServices:
                 counts[topic] = min(counts.get(topic, count), count)
         return counts
 
-    def _on_pause(self, request, response):
+    def _on_pause(self, request: SetBool.Request,
+                  response: SetBool.Response) -> SetBool.Response:
         with self._simulator.lock:  # the reply's time is the state the pause landed on
             try:
                 self._simulator.set_paused(request.data)
@@ -105,7 +106,8 @@ class ControlServices:
         response.success = True
         return response
 
-    def _no_world(self, response, **facts):
+    def _no_world(self, response: Trigger.Response,
+                  **facts: Any) -> Optional[Trigger.Response]:
         """Answer a request that needs a world while none is loaded; None when one is."""
         if self._simulator.world_is_loaded:
             return None
@@ -114,7 +116,8 @@ class ControlServices:
                                              '(LoadWorld) first', **facts)
         return response
 
-    def _on_step(self, request, response):
+    def _on_step(self, request: Trigger.Request,
+                 response: Trigger.Response) -> Trigger.Response:
         simulator = self._simulator
         with simulator.lock:
             if self._no_world(response, steps=0) is not None:
@@ -129,19 +132,22 @@ class ControlServices:
         response.success = True
         return response
 
-    def _on_get_status(self, request, response):
+    def _on_get_status(self, request: Trigger.Request,
+                       response: Trigger.Response) -> Trigger.Response:
         with self._simulator.lock:
             response.message = self.status()
         response.success = True
         return response
 
-    def _on_get_readers(self, request, response):
+    def _on_get_readers(self, request: Trigger.Request,
+                        response: Trigger.Response) -> Trigger.Response:
         with self._simulator.lock:  # the robots' nodes come and go under it
             response.message = json.dumps(self.readers())
         response.success = True
         return response
 
-    def _on_reset(self, request, response):
+    def _on_reset(self, request: Trigger.Request,
+                  response: Trigger.Response) -> Trigger.Response:
         with self._simulator.lock:
             if self._no_world(response) is not None:
                 return response

@@ -12,8 +12,9 @@ serialized once, and DDS and the sink both get those bytes. Without a sink the n
 publishers, so mirroring costs nothing when it is off.
 """
 
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Union
 
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from r2d2_sim.ros.cdr import message_bytes, ros_type_name
@@ -22,6 +23,7 @@ from r2d2_sim.recording.channels import SinkChannel
 from r2d2_sim.recording.sink import FoxgloveSink
 from r2d2_sim.ros.quiet_node import QuietNode
 from r2d2_sim.ros.relay import OutputRelay, RelayedPublisher
+from r2d2_sim.sim.settings.config import SimConfig
 
 __all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode', 'start_sink',
            'sink_spec', 'say_sink', 'demand']
@@ -30,7 +32,8 @@ __all__ = ['MirroredPublisher', 'ros_type_name', 'mirror', 'MirroringNode', 'sta
 class MirroredPublisher:
     """An rclpy publisher whose messages also go, as bytes, to a sink channel; else the same."""
 
-    def __init__(self, publisher: Publisher, msg_type: type, channel: SinkChannel,
+    def __init__(self, publisher: Union[Publisher, RelayedPublisher], msg_type: type,
+                 channel: SinkChannel,
                  time_ns: Callable[[], int]) -> None:
         self.publisher = publisher
         # The publisher's own msg_type is typed by rclpy as a TypeVar of no generic class.
@@ -38,7 +41,7 @@ class MirroredPublisher:
         self.channel = channel
         self._time_ns = time_ns
 
-    def publish(self, msg) -> None:
+    def publish(self, msg: Any) -> None:
         """Publish ``msg`` (a message or its serialized bytes) to DDS and to the sink."""
         # A typed message is serialized once, here, and both get the bytes: a
         # camera image (230-300 kB) is not serialized a second time by rclpy.
@@ -50,7 +53,7 @@ class MirroredPublisher:
         """Stop feeding the sink: the publisher's node is going (a deleted robot's)."""
         self.channel.release()
 
-    def __getattr__(self, name: str):
+    def __getattr__(self, name: str) -> Any:
         # Everything else (topic_name, get_subscription_count, destroy...) is the publisher's.
         return getattr(self.publisher, name)
 
@@ -59,7 +62,7 @@ def _always() -> int:
     return 1
 
 
-def demand(publisher) -> Callable[[], int]:
+def demand(publisher: object) -> Callable[[], int]:
     """
     Return a cheap question for an output: whether anyone takes what ``publisher`` publishes.
 
@@ -93,7 +96,7 @@ def demand(publisher) -> Callable[[], int]:
     return publisher.handle.get_subscription_count
 
 
-def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
+def mirror(publisher: Union[Publisher, RelayedPublisher], msg_type: type, sink: FoxgloveSink,
            time_ns: Callable[[], int]) -> MirroredPublisher:
     """Register ``publisher``'s topic with ``sink`` and return the mirrored publisher."""
     channel = sink.channel(publisher.topic_name, ros_type_name(msg_type),
@@ -101,7 +104,8 @@ def mirror(publisher: Publisher, msg_type: type, sink: FoxgloveSink,
     return MirroredPublisher(publisher, msg_type, channel, time_ns)
 
 
-def start_sink(config, name: str, logger) -> Optional[FoxgloveSink]:
+def start_sink(config: SimConfig, name: str,
+               logger: RcutilsLogger) -> Optional[FoxgloveSink]:
     """
     Start the live view and the recording a SimConfig asks for (None: neither); say where.
 
@@ -119,7 +123,7 @@ def start_sink(config, name: str, logger) -> Optional[FoxgloveSink]:
     return sink
 
 
-def sink_spec(config, name: str) -> Optional[Dict[str, Any]]:
+def sink_spec(config: SimConfig, name: str) -> Optional[Dict[str, Any]]:
     """Return the sink a SimConfig asks for (FoxgloveSink's keyword arguments), None for none."""
     port = config.foxglove_port or None
     record = config.record or None
@@ -128,7 +132,7 @@ def sink_spec(config, name: str) -> Optional[Dict[str, Any]]:
     return {'port': port, 'host': config.foxglove_host, 'record_path': record, 'name': name}
 
 
-def say_sink(config, url: Optional[str], logger) -> None:
+def say_sink(config: SimConfig, url: Optional[str], logger: RcutilsLogger) -> None:
     """Log where the live view serves (``url``) and where the recording goes, if anywhere."""
     if url is not None:
         logger.info(f'Foxglove live view at {url}')
@@ -179,8 +183,11 @@ class MirroringNode(QuietNode):
         """Return rclpy's publishers of this node and those the outputs process holds for it."""
         return list(self.publishers) + self.relayed_publishers
 
-    def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
+    def create_publisher(  # type: ignore[override]  # a stand-in for rclpy's Publisher
+            self, msg_type: type, topic: str, qos_profile: Union[QoSProfile, int],
+            **kwargs: Any) -> Union[Publisher, RelayedPublisher, MirroredPublisher]:
         """Create a publisher; with a live view or a recording on, one that feeds them too."""
+        publisher: Union[Publisher, RelayedPublisher]
         if self.relay is not None:
             qos = qos_profile if isinstance(qos_profile, QoSProfile) else QoSProfile(
                 depth=qos_profile)
@@ -204,7 +211,8 @@ class MirroringNode(QuietNode):
         for publisher in self.__dict__.pop('_relayed', []):
             publisher.destroy()
 
-    def destroy_publisher(self, publisher) -> bool:
+    def destroy_publisher(
+            self, publisher: Union[Publisher, RelayedPublisher, MirroredPublisher]) -> bool:
         """Destroy a publisher: rclpy's, relayed, or mirrored (first released from the sink)."""
         inner = publisher.publisher if isinstance(publisher, MirroredPublisher) else publisher
         mirrors = self.__dict__.get('_mirrored', [])

@@ -10,7 +10,7 @@ Everything here is ROS plumbing: parameters in, messages out, services.
 
 import threading
 import time
-from typing import Callable, Optional, Union
+from typing import Any, Callable, Optional, Union
 
 from rclpy.node import Node
 
@@ -69,7 +69,7 @@ class SimNode(MirroringNode):
     def __init__(self, node_name: str = NODE_NAME, *,
                  warning_period_s: float = WARNING_PERIOD_S,
                  graph_check_period_s: float = GRAPH_CHECK_PERIOD_S,
-                 on_quit: Optional[Callable[[], None]] = None, **node_kwargs) -> None:
+                 on_quit: Optional[Callable[[], None]] = None, **node_kwargs: Any) -> None:
         self.sink: Optional[FoxgloveSink] = None  # before rclpy makes its own publishers
         self.relay: Optional[OutputRelay] = None
         self._in_loop = False  # advancing for the real-time loop: no wait for the relay
@@ -342,7 +342,7 @@ class SimNode(MirroringNode):
         elif self.relay is not None:
             self.relay.set_time(time_ns)
 
-    def status(self, **facts) -> str:
+    def status(self, **facts: Any) -> str:
         """Return the simulation's state as the control services' JSON (see ControlServices)."""
         return self.control.status(**facts)
 

@@ -11,7 +11,7 @@ Each robot listed in ``robots`` has the parameters it sets as
 import dataclasses
 import difflib
 import os
-from typing import Any, Callable, Dict, List, Tuple
+from typing import Any, Callable, Dict, Iterable, List, Sequence, Tuple
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
@@ -120,7 +120,7 @@ def _declare_empty_list(node: Node, name: str, ros_type: Parameter.Type,
     node.set_descriptor(name, descriptor)
 
 
-def unknown_overrides(node: Node, overrides, robots) -> List[str]:
+def unknown_overrides(node: Node, overrides: Iterable[str], robots: Sequence[str]) -> List[str]:
     """Return :func:`unknown_parameters` of the overrides ``node`` declares no parameter for."""
     return unknown_parameters([name for name in overrides if not node.has_parameter(name)],
                               robots)
@@ -130,7 +130,7 @@ def unknown_overrides(node: Node, overrides, robots) -> List[str]:
 ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
 
-def unknown_parameters(names, robots) -> List[str]:
+def unknown_parameters(names: Iterable[str], robots: Sequence[str]) -> List[str]:
     """
     Return 'unknown parameter NAME (did you mean ...?)' for each name the simulator reads not.
 

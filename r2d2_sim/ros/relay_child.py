@@ -23,13 +23,19 @@ import os
 import signal
 import sys
 import threading
-from typing import Any, Callable, Dict, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence, TYPE_CHECKING
 
 from r2d2_sim.recording.feeder import SinkFeeder
 from r2d2_sim.recording.reader import message_class
 from r2d2_sim.ros.relay import (
     ACK, ACK_RECORD, CREATE, DESTROY, FRAME, MAX_PUBLISHERS, qos_from_dict, RECORD, REPORT,
     TIME, TIME_RECORD)
+
+if TYPE_CHECKING:  # typing only: the child imports rclpy once it runs
+    from rclpy.node import Node
+
+    from r2d2_sim.recording.channels import SinkChannel
+    from r2d2_sim.recording.sink import FoxgloveSink
 
 # How often the executor's thread asks each sink channel whether a viewer takes it (the
 # live view also says so at once when a viewer subscribes or unsubscribes).
@@ -46,8 +52,8 @@ def _report(fd: int, report: Dict[str, Any]) -> bool:
     return True
 
 
-def open_sink(spec: Dict[str, Any], node, acks: int,
-              subscriptions_changed: Callable[[], None]) -> Optional[Any]:
+def open_sink(spec: Dict[str, Any], node: 'Node', acks: int,
+              subscriptions_changed: Callable[[], None]) -> 'Optional[FoxgloveSink]':
     """Open the sink ``spec`` describes and report; None (reported) when it cannot open."""
     from r2d2_sim.recording.sink import FoxgloveSink, SinkError
     logger = node.get_logger()
@@ -108,7 +114,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
                 if index not in destroyed:
                     taken[index] = 1 if handle.taken() else 0
 
-    def opened(index: int, channel) -> None:
+    def opened(index: int, channel: 'SinkChannel') -> None:
         with taken_lock:
             destroyed.discard(index)
             taken[index] = 1 if channel.taken() else 0
@@ -147,7 +153,7 @@ def run(frames: int, acks: int, counts_fd: int, domain_id: int, node_name: str,
     publishers: Dict[int, Publisher] = {}
 
     def matched(index: int, made: List[Publisher]) -> Callable[[Any], None]:
-        def on_matched(info) -> None:
+        def on_matched(info: Any) -> None:
             # Only the publisher that holds the index now: an index is reused after a
             # destroy, and a late event of the old publisher must not count for the new.
             if made and publishers.get(index) is made[0]:

@@ -136,7 +136,8 @@ class RobotInterfaces:
         """Publish what the robot measured at one step."""
         self.outputs.publish(measurement)
 
-    def _on_get_joint_info(self, request, response):
+    def _on_get_joint_info(self, request: Trigger.Request,
+                           response: Trigger.Response) -> Trigger.Response:
         with self._lock:
             response.message = joint_info_json(self.robot.body, self.robot.source)
         response.success = True

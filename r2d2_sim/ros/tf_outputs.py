@@ -16,6 +16,7 @@ from typing import List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from r2d2_sim.sim.settings.table import ConfigError
@@ -212,7 +213,7 @@ def static_transforms(config: SimConfig, robot: Robot,
 
 
 def publish_static_transforms(node: Node, transforms: Sequence[Tuple[str, str, Transform]],
-                              stamp: Tuple[int, int], topic: str = '/tf_static'):
+                              stamp: Tuple[int, int], topic: str = '/tf_static') -> Publisher:
     """Publish ``topic`` once, transient local for late subscribers; return its publisher."""
     # The publisher stays alive with the node (rclpy keeps it), so late joiners get it.
     from tf2_msgs.msg import TFMessage

@@ -1,10 +1,10 @@
 """ENTITY: listing, reading and placing entities, frames, info; BOUNDS: GetEntityBounds."""
 
 import math
-from typing import List
+from typing import Any, List, Sequence, Tuple
 
 from r2d2_sim.conformance.clause import Clause, clause, ClauseFailed, ClauseSkipped
-from r2d2_sim.conformance.entity_verbs import BOX_SIZE_M
+from r2d2_sim.conformance.entity_verbs import BOX_SIZE_M, Point
 from r2d2_sim.conformance.target import Target
 from r2d2_sim.conformance.values import (
     close, fmt, quaternion, same_rotation, vector, yaw_quaternion)
@@ -26,7 +26,7 @@ INVALID_POSE_QUOTE = ('INVALID_POSE = 101 # initial_pose is invalid, such as whe
 CATEGORIES = (0, 1, 2, 4, 5)
 
 
-def _world_frames(t: Target):
+def _world_frames(t: Target) -> Tuple[str, str, str]:
     return ('', 'world', t.options.world_frame)
 
 
@@ -93,7 +93,8 @@ def states_agree(t: Target) -> None:
             raise ClauseFailed(f'{name}: GetEntityState {fmt(a)}, GetEntitiesStates {fmt(b)}')
 
 
-def _expect_pose(t: Target, name: str, position, orientation, doing: str) -> None:
+def _expect_pose(t: Target, name: str, position: Point, orientation: Sequence[float],
+                 doing: str) -> None:
     state = t.entities.state(name)
     got_p, got_q = vector(state.pose.position), quaternion(state.pose.orientation)
     if state.header.frame_id not in _world_frames(t):
@@ -103,7 +104,7 @@ def _expect_pose(t: Target, name: str, position, orientation, doing: str) -> Non
                            f'{fmt(position)} {fmt(orientation)}')
 
 
-def _expect_twist(t: Target, name: str, linear, angular, doing: str) -> None:
+def _expect_twist(t: Target, name: str, linear: Point, angular: Point, doing: str) -> None:
     twist = t.entities.state(name).twist
     got = vector(twist.linear) + vector(twist.angular)
     if not close(got, tuple(linear) + tuple(angular)):
@@ -171,7 +172,7 @@ def zero_twist_stops(t: Target) -> None:
     _expect_twist(t, name, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 'a SetEntityState of zero twist')
 
 
-def _invalid_pose(t: Target, position, orientation, what: str) -> None:
+def _invalid_pose(t: Target, position: Point, orientation: Sequence[float], what: str) -> None:
     name = _paused_box(t)
     before = t.entities.position(name)
     t.expect('SetEntityState', t.entities.set_request(name, position, orientation),
@@ -260,12 +261,12 @@ def info_round_trip(t: Target) -> None:
 
 # -- BOUNDS -------------------------------------------------------------------------------
 
-def _bounds(t: Target, name: str):
+def _bounds(t: Target, name: str) -> Any:
     return t.ok('GetEntityBounds', t.srv.GetEntityBounds.Request(entity=name),
                 f'GetEntityBounds of {name}').bounds
 
 
-def check_region(t: Target, bounds, what: str) -> None:
+def check_region(t: Target, bounds: Any, what: str) -> None:
     """Raise ClauseFailed unless the Bounds are of a defined type with its number of points."""
     B = t.msg.Bounds
     count = len(bounds.points)
@@ -307,7 +308,7 @@ def bounds_relative(t: Target) -> None:
                            f'{[fmt(p) for p in a][:4]} -> {after.type} {[fmt(p) for p in b][:4]}')
 
 
-def _holds(t: Target, bounds, size: float) -> bool:
+def _holds(t: Target, bounds: Any, size: float) -> bool:
     """Return True when Bounds (not empty) hold a cube ``size`` wide centred on the link."""
     B, half, slack = t.msg.Bounds, size / 2.0, 1e-3
     points = [vector(p) for p in bounds.points]
@@ -320,7 +321,7 @@ def _holds(t: Target, bounds, size: float) -> bool:
     return all(lo <= -half + slack and hi >= half - slack for lo, hi in zip(low, high))
 
 
-def _enclosing_bounds(t: Target, name: str, size: float):
+def _enclosing_bounds(t: Target, name: str, size: float) -> Any:
     """Return the Bounds of ``name``, a cube ``size`` wide; ClauseFailed unless they hold it."""
     bounds = _bounds(t, name)
     check_region(t, bounds, f'GetEntityBounds of {name}')

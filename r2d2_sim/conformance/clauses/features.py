@@ -1,6 +1,6 @@
 """FEAT: what the simulator declares against what it serves, and RESULT: result codes."""
 
-from typing import List
+from typing import Any, List
 
 import functools
 
@@ -114,7 +114,7 @@ def spawnables_result(t: Target) -> None:
     t.ok('GetSpawnables', t.srv.GetSpawnables.Request(), 'GetSpawnables')
 
 
-def _not_found(t: Target, kind: str, **fields) -> None:
+def _not_found(t: Target, kind: str, **fields: Any) -> None:
     request = getattr(t.srv, kind).Request(**fields)
     t.expect(kind, request, (t.msg.Result.RESULT_NOT_FOUND,), f'{kind} of {UNKNOWN_NAME!r}')
 

@@ -1,9 +1,10 @@
 """FILTER: EntityFilters: a name regex, categories, tags, bounds, all combined with AND."""
 
 import re
-from typing import List
+from typing import Any, List, Sequence, Tuple
 
 from r2d2_sim.conformance.clause import Clause, clause, ClauseFailed, ClauseSkipped
+from r2d2_sim.conformance.entity_verbs import Point
 from r2d2_sim.conformance.target import Target
 
 CLAUSES: List[Clause] = []
@@ -18,7 +19,7 @@ TAGS = ('ENTITY_TAGS', 'ENTITY_INFO_SETTING', SPAWNING)
 RED, BIG = 'conformance_red', 'conformance_big'
 
 
-def _picked(t: Target, filters, doing: str) -> set:
+def _picked(t: Target, filters: Any, doing: str) -> set:
     return set(t.entities.names(filters, doing))
 
 
@@ -99,7 +100,7 @@ def two_categories(t: Target) -> None:
                 f'the category filter {list(pair)}')
 
 
-def _near_and_far(t: Target, bounds, doing: str) -> None:
+def _near_and_far(t: Target, bounds: Tuple[int, Sequence[Point]], doing: str) -> None:
     """Box a at slot 0 must be picked by ``bounds``, box b 3 m away must not."""
     a, b = t.entities.spawn(0), t.entities.spawn(1)
     got = _picked(t, t.entities.filters(bounds=bounds), 'GetEntities')
@@ -108,7 +109,7 @@ def _near_and_far(t: Target, bounds, doing: str) -> None:
                            f'not {b} 3 m away')
 
 
-def _cube(t: Target, half: float = 0.5):
+def _cube(t: Target, half: float = 0.5) -> List[Tuple[float, float, float]]:
     x, y, z = t.entities.slot(0)
     return [(x + dx, y + dy, z + dz) for dx in (-half, half) for dy in (-half, half)
             for dz in (-half, half)]
@@ -154,14 +155,14 @@ def unsupported_bounds(t: Target) -> None:
              f'GetEntities with bounds of the undeclared type {kind}')
 
 
-def _tagged(t: Target):
+def _tagged(t: Target) -> Tuple[str, str]:
     """Spawn a (tags red, big) and b (red); return their names."""
     a, b = t.entities.spawn(0), t.entities.spawn(1)
     _tag(t, ((a, [RED, BIG]), (b, [RED])))
     return a, b
 
 
-def _tag(t: Target, tagging) -> None:
+def _tag(t: Target, tagging: Sequence[Tuple[str, List[str]]]) -> None:
     """Give each (name, tags) of ``tagging`` those tags with SetEntityInfo."""
     for name, tags in tagging:
         info = t.msg.EntityInfo(description='tagged by the conformance kit', tags=tags)

@@ -1,8 +1,9 @@
 """RESET: ResetSimulation's scopes, a bit field (TIME, STATE, SPAWNED; DEFAULT = ALL)."""
 
-from typing import List
+from typing import List, Tuple
 
 from r2d2_sim.conformance.clause import Clause, clause, ClauseFailed
+from r2d2_sim.conformance.entity_verbs import Point
 from r2d2_sim.conformance.target import Target
 from r2d2_sim.conformance.values import close, fmt, vector
 
@@ -48,7 +49,8 @@ def _time_back(t: Target, scope: int) -> None:
     t.clock.expect_start(step_ns, f'ResetSimulation scope {scope}', SLACK, RUN)
 
 
-def _moved(t: Target, linear=(0.0, 0.0, 0.0)):
+def _moved(t: Target, linear: Point = (0.0, 0.0, 0.0)
+           ) -> Tuple[str, Tuple[float, float, float], Tuple[float, float, float]]:
     """Pause, spawn at slot 0, move 1 m along y (with ``linear``); return (name, start, moved)."""
     t.sim.pause()
     t.undo.on_cleanup(t.sim.stop)

@@ -1,9 +1,10 @@
 """SPAWN: SpawnEntity's names, resources, poses; BATCH: SpawnEntities; DELETE; SPAWNABLES."""
 
 import math
-from typing import List
+from typing import Any, List, Sequence
 
 from r2d2_sim.conformance.clause import Clause, clause, ClauseFailed, ClauseSkipped
+from r2d2_sim.conformance.entity_verbs import Point
 from r2d2_sim.conformance.target import Target
 from r2d2_sim.conformance.values import (
     close, fmt, quaternion, same_rotation, vector, yaw_quaternion)
@@ -28,7 +29,7 @@ def _listed(t: Target, name: str, doing: str) -> None:
         raise ClauseFailed(f'{doing} returned {name!r}, which GetEntities does not list')
 
 
-def _refused(t: Target, request, codes, doing: str) -> None:
+def _refused(t: Target, request: Any, codes: Sequence[int], doing: str) -> None:
     """Send a spawn that must be refused with one of ``codes``; nothing may appear."""
     before = set(t.entities.names())
     t.entities.spawn_call(request, codes, doing)
@@ -163,7 +164,8 @@ def spawn_nan(t: Target) -> None:
              'SpawnEntity at a NaN position')
 
 
-def _expect_at(t: Target, name: str, position, orientation, doing: str) -> None:
+def _expect_at(t: Target, name: str, position: Point, orientation: Sequence[float],
+               doing: str) -> None:
     pose = t.entities.state(name).pose
     got_p, got_q = vector(pose.position), quaternion(pose.orientation)
     if not close(got_p, position) or not same_rotation(got_q, orientation):
@@ -264,7 +266,7 @@ def spawn_stamp_ignored(t: Target) -> None:
 
 # -- BATCH: SpawnEntities ---------------------------------------------------------------
 
-def _member(t: Target, name: str, index: int, empty: bool = False):
+def _member(t: Target, name: str, index: int, empty: bool = False) -> Any:
     msg = t.msg.SpawnEntity(name=name, allow_renaming=False)
     if not empty:
         uri, resource = t.entities.source(name)
@@ -276,7 +278,7 @@ def _member(t: Target, name: str, index: int, empty: bool = False):
     return msg
 
 
-def _batch(t: Target, members, doing: str):
+def _batch(t: Target, members: Sequence[Any], doing: str) -> Any:
     reply = t.call('SpawnEntities', t.srv.SpawnEntities.Request(spawn_requests=members))
     for result in reply.results:
         if result.result.result == t.msg.Result.RESULT_OK and result.entity_name:
@@ -286,7 +288,7 @@ def _batch(t: Target, members, doing: str):
     return reply
 
 
-def _codes(t: Target, reply) -> List[str]:
+def _codes(t: Target, reply: Any) -> List[str]:
     return [t.code_name('SpawnEntity', r.result.result) for r in reply.results]
 
 
@@ -383,7 +385,7 @@ SPAWNABLES_QUOTE = ('Return a list of resources which are valid as SpawnEntity u
                     'visible to or registered in simulator).')
 
 
-def _spawnables(t: Target, sources=()):
+def _spawnables(t: Target, sources: Sequence[str] = ()) -> Any:
     return t.ok('GetSpawnables', t.srv.GetSpawnables.Request(sources=list(sources)),
                 'GetSpawnables')
 

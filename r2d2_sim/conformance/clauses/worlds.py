@@ -1,6 +1,6 @@
 """NAMED: named poses and their bounds; WORLD: available, load, current, unload."""
 
-from typing import List
+from typing import Any, List, Sequence, Tuple
 
 from r2d2_sim.conformance.clause import Clause, clause, ClauseFailed, ClauseSkipped
 from r2d2_sim.conformance.clauses.entities import check_region
@@ -18,7 +18,7 @@ TAGS_QUOTE = ('TagsFilter tags # Tags filter to apply. Only named poses with mat
 MOST_WORLDS = 3
 
 
-def _poses(t: Target, tags=(), mode: int = 0):
+def _poses(t: Target, tags: Sequence[str] = (), mode: int = 0) -> List[Any]:
     request = t.srv.GetNamedPoses.Request(tags=t.msg.TagsFilter(tags=list(tags), filter_mode=mode))
     return list(t.ok('GetNamedPoses', request, 'GetNamedPoses').poses)
 
@@ -149,22 +149,22 @@ def spawn_at_named_pose(t: Target) -> None:
 NO_WORLD = 'NO_WORLD_LOADED = 101 # No world is loaded at the moment.'
 
 
-def _current(t: Target):
+def _current(t: Target) -> Any:
     """Return GetCurrentWorld's reply (OK or NO_WORLD_LOADED expected)."""
     codes = (t.msg.Result.RESULT_OK, t.srv.GetCurrentWorld.Response.NO_WORLD_LOADED)
     return t.expect('GetCurrentWorld', t.srv.GetCurrentWorld.Request(), codes, 'GetCurrentWorld')
 
 
-def _available(t: Target):
+def _available(t: Target) -> List[Any]:
     request = t.srv.GetAvailableWorlds.Request(offline_only=True)
     return list(t.ok('GetAvailableWorlds', request, 'GetAvailableWorlds (offline only)').worlds)
 
 
-def _resource_of(world) -> str:
+def _resource_of(world: Any) -> str:
     return world.world_resource.uri or world.world_resource.resource_string[:60]
 
 
-def _world_to_load(t: Target):
+def _world_to_load(t: Target) -> Any:
     """Return a Resource to load: --world, else an available world other than the current."""
     if t.options.world:
         return t.msg.Resource(uri=t.options.world)
@@ -179,7 +179,7 @@ def _world_to_load(t: Target):
     raise ClauseSkipped('no world to load: give --world URI (or declare AVAILABLE_WORLDS)')
 
 
-def _load(t: Target, doing: str = 'LoadWorld'):
+def _load(t: Target, doing: str = 'LoadWorld') -> Tuple[Any, Any]:
     """Load a world (see _world_to_load), to be put back after the clause."""
     resource = _world_to_load(t)
     t.undo.on_cleanup(t.world.put_back)

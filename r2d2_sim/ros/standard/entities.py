@@ -15,7 +15,8 @@ its simulation control, on the same node.
 """
 
 import threading
-from typing import Any, Optional
+from types import ModuleType
+from typing import Any, Callable, List, Optional
 
 from geometry_msgs.msg import Vector3
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -40,14 +41,14 @@ class Replies:
     _msg: Any = None  # simulation_interfaces.msg (no stubs), set by each service
     _log: Optional[RcutilsLogger] = None  # the node's, for what no request should cause
 
-    def _guarded(self, callback):
+    def _guarded(self, callback: Callable[[Any, Any], Any]) -> Callable[[Any, Any], Any]:
         """
         Return ``callback`` answering OPERATION_FAILED for an error nobody foresaw.
 
         An exception that escapes a service callback ends the executor's spin,
         and with it the simulator: a request must never do that.
         """
-        def guarded(request, response):
+        def guarded(request: Any, response: Any) -> Any:
             try:
                 return callback(request, response)
             except Exception as exc:  # a defect here, answered and logged, not fatal
@@ -59,11 +60,11 @@ class Replies:
                 return response
         return guarded
 
-    def _ok(self, response, result_field: str = 'result'):
+    def _ok(self, response: Any, result_field: str = 'result') -> Any:
         getattr(response, result_field).result = self._msg.Result.RESULT_OK
         return response
 
-    def _fail(self, response, code: str, message: str, owner=None):
+    def _fail(self, response: Any, code: str, message: str, owner: Optional[type] = None) -> Any:
         """Set a generic result (NOT_FOUND...) or the service's own code (NAME_NOT_UNIQUE...)."""
         generic = getattr(self._msg.Result, f'RESULT_{code}', None)
         value = generic if generic is not None else getattr(owner or type(response), code)
@@ -71,17 +72,18 @@ class Replies:
         response.result.error_message = message
         return response
 
-    def _fail_entity(self, response, error: RefusedError, owner=None):
+    def _fail_entity(self, response: Any, error: RefusedError,
+                     owner: Optional[type] = None) -> Any:
         return self._fail(response, error.code, error.message, owner)
 
 
-def region_of(bounds) -> Region:
+def region_of(bounds: Any) -> Region:
     """Return a Bounds message as the core's Region (checked there); unknown types too."""
     kind = REGION_KINDS[bounds.type] if bounds.type < len(REGION_KINDS) else str(bounds.type)
     return Region(kind, tuple((p.x, p.y, p.z) for p in bounds.points))
 
 
-def fill_bounds(msg, region: Region):
+def fill_bounds(msg: Any, region: Region) -> Any:
     """Fill a Bounds message from a Region; return it."""
     msg.type = REGION_KINDS.index(region.kind)
     msg.points = [Vector3(x=float(x), y=float(y), z=float(z)) for x, y, z in region.points]
@@ -97,7 +99,7 @@ class EntityServices(Replies):
     """
 
     def __init__(self, reads: EntityReads, changes: EntityChanges, lock: threading.RLock,
-                 server: Node, msg, srv) -> None:
+                 server: Node, msg: ModuleType, srv: ModuleType) -> None:
         self._reads = reads
         self._changes = changes
         self._lock = lock
@@ -119,7 +121,7 @@ class EntityServices(Replies):
         for name, srv_type, callback in services:
             server.create_service(srv_type, name, self._guarded(callback))
 
-    def _matching(self, filters):
+    def _matching(self, filters: Any) -> List[str]:
         """Return the names the filters pick: regex (search), categories, tags, bounds (AND)."""
         reads = self._reads
         matches = name_filter(filters.filter)
@@ -139,7 +141,7 @@ class EntityServices(Replies):
             names = [n for n in names if n in inside]
         return names
 
-    def _entities(self, request, response):
+    def _entities(self, request: Any, response: Any) -> Any:
         try:
             with self._lock:
                 response.entities = self._matching(request.filters)
@@ -147,7 +149,7 @@ class EntityServices(Replies):
             return self._fail_entity(response, exc)
         return self._ok(response)
 
-    def _entities_states(self, request, response):
+    def _entities_states(self, request: Any, response: Any) -> Any:
         try:
             with self._lock:
                 names = self._matching(request.filters)
@@ -157,7 +159,7 @@ class EntityServices(Replies):
         response.entities = names
         return self._ok(response)
 
-    def _state_message(self, name: str):
+    def _state_message(self, name: str) -> Any:
         state = self._reads.state(name)
         msg = self._msg.EntityState()
         msg.header.frame_id = self._reads.world_frame_id
@@ -170,7 +172,7 @@ class EntityServices(Replies):
         w.x, w.y, w.z = state.angular_velocity
         return msg
 
-    def _entity_state(self, request, response):
+    def _entity_state(self, request: Any, response: Any) -> Any:
         try:
             with self._lock:
                 response.state = self._state_message(request.entity)
@@ -178,7 +180,7 @@ class EntityServices(Replies):
             return self._fail_entity(response, exc)
         return self._ok(response)
 
-    def _set_entity_state(self, request, response):
+    def _set_entity_state(self, request: Any, response: Any) -> Any:
         state = request.state
         p, q = state.pose.position, state.pose.orientation
         v, w = state.twist.linear, state.twist.angular
@@ -191,7 +193,7 @@ class EntityServices(Replies):
             return self._fail_entity(response, exc)
         return self._ok(response)
 
-    def _entity_info(self, request, response):
+    def _entity_info(self, request: Any, response: Any) -> Any:
         try:
             with self._lock:
                 info = self._reads.info(request.entity)
@@ -202,7 +204,7 @@ class EntityServices(Replies):
         response.info.tags = list(info.tags)
         return self._ok(response)
 
-    def _set_entity_info(self, request, response):
+    def _set_entity_info(self, request: Any, response: Any) -> Any:
         info = request.info
         try:
             with self._lock:
@@ -212,7 +214,7 @@ class EntityServices(Replies):
             return self._fail_entity(response, exc)
         return self._ok(response)
 
-    def _entity_bounds(self, request, response):
+    def _entity_bounds(self, request: Any, response: Any) -> Any:
         try:
             with self._lock:
                 region = self._reads.bounds(request.entity)
@@ -221,7 +223,8 @@ class EntityServices(Replies):
         fill_bounds(response.bounds, region)
         return self._ok(response)
 
-    def _spawn_one(self, name, allow_renaming, uri, resource_string, namespace, pose):
+    def _spawn_one(self, name: str, allow_renaming: bool, uri: str, resource_string: str,
+                   namespace: str, pose: Any) -> str:
         """
         Spawn in the core (a driven robot with a namespace); return the entity name.
 
@@ -235,7 +238,7 @@ class EntityServices(Replies):
         with self._lock:
             return self._changes.spawn(request, spawnable)
 
-    def _spawn(self, request, response):
+    def _spawn(self, request: Any, response: Any) -> Any:
         try:
             response.entity_name = self._spawn_one(
                 request.name, request.allow_renaming, request.uri, request.resource_string,
@@ -244,7 +247,7 @@ class EntityServices(Replies):
             return self._fail_entity(response, exc)
         return self._ok(response)
 
-    def _spawn_many(self, request, response):
+    def _spawn_many(self, request: Any, response: Any) -> Any:
         failed = False
         for spawn in request.spawn_requests:
             result = self._msg.SpawnResult()
@@ -263,7 +266,7 @@ class EntityServices(Replies):
                                                                  'not spawned: see results')
         return self._ok(response)
 
-    def _delete(self, request, response):
+    def _delete(self, request: Any, response: Any) -> Any:
         try:
             with self._lock:
                 self._changes.delete_entity(request.entity)
@@ -271,7 +274,7 @@ class EntityServices(Replies):
             return self._fail_entity(response, exc)
         return self._ok(response)
 
-    def _spawnables(self, request, response):
+    def _spawnables(self, request: Any, response: Any) -> Any:
         """List this package's URDFs and pybullet_data's, or those of the ``sources`` asked for."""
         known = SPAWNABLE_DIRECTORIES + ('pybullet_data',)
         sources = [source.rstrip('/') for source in request.sources] or list(known)

@@ -28,9 +28,10 @@ LoadWorld, which leaves it STOPPED; while one runs, it is LOADING_WORLD.
 import json
 import threading
 import time
-from typing import Callable, Optional, Tuple
+from typing import Any, Callable, Optional, Tuple
 
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
@@ -156,7 +157,7 @@ class SimulationInterfaces(Replies):
 
     # -- the simulation --------------------------------------------------------------
 
-    def _features(self, request, response):
+    def _features(self, request: Any, response: Any) -> Any:
         features = self._msg.SimulatorFeatures
         response.features.features = [getattr(features, name) for name in FEATURES]
         response.features.spawn_formats = ['urdf', 'sdf']
@@ -188,7 +189,7 @@ class SimulationInterfaces(Replies):
             return state.STATE_STOPPED
         return state.STATE_PAUSED
 
-    def _get_state(self, request, response):
+    def _get_state(self, request: Any, response: Any) -> Any:
         if self.activity.loading.is_set():  # answered at once, not after the load
             response.state.state = self._msg.SimulationState.STATE_LOADING_WORLD
             return self._ok(response)
@@ -196,7 +197,7 @@ class SimulationInterfaces(Replies):
             response.state.state = self.state()
         return self._ok(response)
 
-    def _set_state(self, request, response):
+    def _set_state(self, request: Any, response: Any) -> Any:
         state, node = self._msg.SimulationState, self._simulator
         wanted = request.state.state
         if self.activity.loading.is_set() and wanted != state.STATE_QUITTING:
@@ -234,7 +235,7 @@ class SimulationInterfaces(Replies):
                 return self._fail(response, 'INCORRECT_TRANSITION', f'unknown state {wanted}')
         return self._ok(response)
 
-    def _step(self, request, response):
+    def _step(self, request: Any, response: Any) -> Any:
         error, _ = self._run_steps(request.steps)
         return self._fail(response, 'OPERATION_FAILED', error) if error else self._ok(response)
 
@@ -275,13 +276,13 @@ class SimulationInterfaces(Replies):
         finally:
             self._stepping.release()
 
-    def _accept(self, goal_request):
+    def _accept(self, goal_request: Any) -> GoalResponse:
         return GoalResponse.ACCEPT
 
-    def _allow_cancel(self, goal_handle):
+    def _allow_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
         return CancelResponse.ACCEPT
 
-    def _simulate_steps(self, goal_handle):
+    def _simulate_steps(self, goal_handle: ServerGoalHandle) -> Any:
         action = self._steps_action
         result = action.Result()
         steps = goal_handle.request.steps
@@ -300,7 +301,7 @@ class SimulationInterfaces(Replies):
             goal_handle.succeed()
         return self._ok(result)
 
-    def _reset(self, request, response):
+    def _reset(self, request: Any, response: Any) -> Any:
         scope, reset = request.scope, type(request)
         if scope in (reset.SCOPE_DEFAULT, reset.SCOPE_ALL):
             scope = reset.SCOPE_TIME | reset.SCOPE_STATE | reset.SCOPE_SPAWNED

@@ -18,6 +18,8 @@ taking the lock a few bodies at a time, and swaps the new world in at once.
 """
 
 import threading
+from types import ModuleType
+from typing import Any, Callable
 
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
@@ -26,7 +28,7 @@ from r2d2_sim.errors import RefusedError
 from r2d2_sim.ros.seams import WorldChanges, WorldReads
 from r2d2_sim.ros.standard.entities import fill_bounds, Replies
 from r2d2_sim.sim.tags import check_filter
-from r2d2_sim.sim.worlds import LoadOptions
+from r2d2_sim.sim.worlds import LoadOptions, World
 
 __all__ = ['WorldServices', 'Activity']
 
@@ -54,7 +56,7 @@ class WorldServices(Replies):
     """
 
     def __init__(self, reads: WorldReads, changes: WorldChanges, activity: Activity,
-                 server: Node, msg, srv, group: CallbackGroup) -> None:
+                 server: Node, msg: ModuleType, srv: ModuleType, group: CallbackGroup) -> None:
         self._reads = reads
         self._changes = changes
         self._lock = changes.lock
@@ -73,14 +75,14 @@ class WorldServices(Replies):
             server.create_service(srv_type, name, self._guarded(callback),
                                   callback_group=callback_group)
 
-    def _world_resource(self, msg, world) -> None:
+    def _world_resource(self, msg: Any, world: World) -> None:
         msg.name = world.name
         msg.world_resource.uri = world.uri
         msg.world_resource.resource_string = world.resource_string
         msg.description = world.description
         msg.tags = list(world.tags)
 
-    def _available(self, request, response):
+    def _available(self, request: Any, response: Any) -> Any:
         try:
             tags = check_filter(request.filter.tags, request.filter.filter_mode)
             with self._lock:
@@ -98,7 +100,7 @@ class WorldServices(Replies):
         response.result.error_message = note
         return response
 
-    def _exclusive(self, response, what):
+    def _exclusive(self, response: Any, what: Callable[[], Any]) -> Any:
         """
         Run ``what()`` with no step or load running; refuse (INCORRECT_STATE) if one is.
 
@@ -117,11 +119,11 @@ class WorldServices(Replies):
         finally:
             activity.stepping.release()
 
-    def _load(self, request, response):
+    def _load(self, request: Any, response: Any) -> Any:
         options = LoadOptions(request.fail_on_unsupported_element,
                               request.ignore_missing_or_unsupported_assets)
 
-        def load():
+        def load() -> Any:
             try:
                 # No lock: the files, SDF and meshes touch no physics; the load
                 # takes the lock itself, a few bodies at a time.
@@ -135,8 +137,8 @@ class WorldServices(Replies):
             return response
         return self._exclusive(response, load)
 
-    def _unload(self, request, response):
-        def unload():
+    def _unload(self, request: Any, response: Any) -> Any:
+        def unload() -> Any:
             try:
                 with self._lock:
                     self._changes.unload_world()
@@ -145,7 +147,7 @@ class WorldServices(Replies):
             return self._ok(response)
         return self._exclusive(response, unload)
 
-    def _current(self, request, response):
+    def _current(self, request: Any, response: Any) -> Any:
         with self._lock:
             world = self._reads.current
         if world is None:
@@ -153,7 +155,7 @@ class WorldServices(Replies):
         self._world_resource(response.world, world)
         return self._ok(response)
 
-    def _named_poses(self, request, response):
+    def _named_poses(self, request: Any, response: Any) -> Any:
         try:
             tags = check_filter(request.tags.tags, request.tags.filter_mode)
             with self._lock:
@@ -169,7 +171,7 @@ class WorldServices(Replies):
             response.poses.append(msg)
         return self._ok(response)
 
-    def _named_pose_bounds(self, request, response):
+    def _named_pose_bounds(self, request: Any, response: Any) -> Any:
         try:
             with self._lock:
                 pose = self._reads.named_pose(request.name)
