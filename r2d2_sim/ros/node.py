@@ -110,6 +110,8 @@ class SimNode(MirroringNode):
             self._close(simulation)
             raise
         self._paused = self.config.start_paused
+        # A node that starts playing has started its clock: paused at 0 later, it is PAUSED.
+        simulation.clock_unstarted = self._paused
         self.control = ControlServices(self, self, self.fleet)
         if standard.available():
             self.standard = SimulationInterfaces(self, simulation.entities, simulation,
@@ -174,9 +176,9 @@ class SimNode(MirroringNode):
         return self._paused
 
     @property
-    def pristine(self) -> bool:
-        """Return True when nothing changed since start-up or a full reset (time may run)."""
-        return self.simulation.pristine
+    def clock_unstarted(self) -> bool:
+        """Return True while the clock has not run since it last read 0 (no step, not played)."""
+        return self.simulation.clock_unstarted
 
     @property
     def world_is_loaded(self) -> bool:
@@ -367,10 +369,10 @@ class SimNode(MirroringNode):
             if paused and not self._paused:
                 if self.step_count != self.simulation.last_frame_step:
                     self.advance_to_next_publish()
-            if not paused:
-                # Played once, it is no longer the untouched world at time 0: a
-                # pause before any step is PAUSED, not STOPPED, for the standard.
-                self.simulation.pristine = False
+            if bool(paused) != self._paused:
+                # Played or paused, the clock is no longer 'stopped' at 0 (the standard's
+                # STOPPED is reached only by a stop, a time reset or a world loaded).
+                self.simulation.clock_unstarted = False
             self._paused = bool(paused)
 
     def reset_simulation(self, *, time: bool = False, state: bool = True,

@@ -101,8 +101,8 @@ class SimulatorControl(Protocol):
         """Return True while physics is stopped."""
 
     @property
-    def pristine(self) -> bool:
-        """Return True when nothing changed since start-up or a full reset."""
+    def clock_unstarted(self) -> bool:
+        """Return True while the clock has not run since it last read 0 (no step, not played)."""
 
     @property
     def world_is_loaded(self) -> bool:

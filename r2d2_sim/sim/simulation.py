@@ -150,8 +150,9 @@ class Simulation:
         except Exception:
             self.close()
             raise
-        # Nothing changed since start-up (or a full reset): with time at 0, 'stopped'.
-        self.pristine = True
+        # The clock has not run since it last read 0 (start-up, a time reset, a world
+        # loaded): no step, and the node not played. At time 0 and paused, 'stopped'.
+        self.clock_unstarted = True
 
     def _named_warn(self, name: str) -> Callable[[str], None]:
         return lambda text: self._warn(f'robot {name}: {text}')
@@ -225,7 +226,6 @@ class Simulation:
         for robot in robots:
             robot.drive_wheels(step)
         world.step(1)
-        self.pristine = False
         step += 1
         if world.gui and step % self.steps_per_gui_frame == 0 and robots:
             world.follow_camera(robots[0].body)
@@ -294,7 +294,6 @@ class Simulation:
             self.entities.restore_info(self._startup.infos())
         if changed:
             self._robots_changed()
-        self.pristine = time and state and spawned
 
     def save_state(self) -> SavedState:
         """
@@ -328,7 +327,7 @@ class Simulation:
         for robot in self.robots:
             robot.restart_time(0)
             robot.reloaded()
-        self.pristine = False
+        self.clock_unstarted = True  # the clock put back, not run
 
     def forget_state(self, saved: SavedState) -> None:
         """Free what :meth:`save_state` kept (PyBullet holds it until then)."""
@@ -360,6 +359,7 @@ class Simulation:
         self.world.step_count = 0
         self.publish_schedule.restart(0)
         self.last_frame_step = 0
+        self.clock_unstarted = True
         for robot in self.robots:
             robot.restart_time(steps_back)
 
@@ -370,7 +370,6 @@ class Simulation:
                          angular: Sequence[float]) -> None:
         """Place an entity (see :meth:`Entities.set_state <r2d2_sim.sim.entities.Entities>`)."""
         body = self.entities.set_state(name, frame_id, position, orientation, linear, angular)
-        self.pristine = False
         for robot in self.robots:
             if robot.body is body:
                 robot.teleported()  # its IMU must not take the jump for an acceleration
@@ -397,7 +396,6 @@ class Simulation:
         if not request.namespace:
             body, _, notes = self.entities.spawn(request, spawnable=spawnable)
             body.drop_damping()  # a free body keeps its speed, as in Gazebo and Isaac Sim
-            self.pristine = False
             if notes:
                 self._warn(f'{body.name}: {notes}')
             self._warn_of_overlaps(body)
@@ -431,7 +429,6 @@ class Simulation:
                                f'{body.name} cannot be driven: {exc}') from None
         self.entities.mark(body.name, EntityInfo(Category.ROBOT))
         self.robots.append(robot)
-        self.pristine = False
         try:
             self._robots_changed()
         except Exception as exc:
@@ -497,7 +494,6 @@ class Simulation:
         self._forget_robots([r for r in self.robots if r.body is body])
         if body in self.models:
             self.models.remove(body)
-        self.pristine = False
 
     # -- the world file: loaded, unloaded --------------------------------------------------
 
@@ -633,7 +629,6 @@ class Simulation:
         self.robots = rebuilt.robots
         self.models = rebuilt.models if rebuilt.models is not None else self.models
         self._restart_time()
-        self.pristine = True
         self._robots_changed()
 
     def close(self) -> None:

@@ -14,9 +14,10 @@ standard's result code with a one-line message.
 its simulation control, on the same node.
 """
 
+from contextlib import contextmanager
 import threading
 from types import ModuleType
-from typing import Any, Callable, List, Optional
+from typing import Any, Callable, Iterator, List, Optional
 
 from geometry_msgs.msg import Vector3
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -30,9 +31,22 @@ from r2d2_sim.sim.bounds import Region, REGION_KINDS
 from r2d2_sim.sim.spawnables import spawnable_uris
 from r2d2_sim.sim.tags import check_filter, tags_match
 
-__all__ = ['EntityServices', 'Replies', 'SPAWNABLE_DIRECTORIES', 'region_of', 'fill_bounds']
+__all__ = ['Activity', 'EntityServices', 'Replies', 'SPAWNABLE_DIRECTORIES', 'region_of',
+           'fill_bounds']
 
 SPAWNABLE_DIRECTORIES = ('package://r2d2_sim/urdf',)
+
+
+class Activity:
+    """What runs now that excludes the rest: a step request, a world being loaded."""
+
+    def __init__(self) -> None:
+        self.stepping = threading.Lock()  # held by a step request, a load or an unload
+        self.loading = threading.Event()  # set while a world loads or unloads
+
+    def busy(self) -> str:
+        """Return what the holder of ``stepping`` is doing, for a refusal's message."""
+        return 'a world is loading' if self.loading.is_set() else 'a step request is running'
 
 
 class Replies:
@@ -95,14 +109,16 @@ class EntityServices(Replies):
     The standard's entity services: list, read, place, describe, spawn, delete.
 
     Served on ``server``: reads of ``reads``, changes of ``changes``, each
-    under ``lock`` (the simulator's).
+    under ``lock`` (the simulator's). A change while ``activity`` says a world
+    loads is refused (INCORRECT_STATE): the load would drop it with the old world.
     """
 
     def __init__(self, reads: EntityReads, changes: EntityChanges, lock: threading.RLock,
-                 server: Node, msg: ModuleType, srv: ModuleType) -> None:
+                 activity: Activity, server: Node, msg: ModuleType, srv: ModuleType) -> None:
         self._reads = reads
         self._changes = changes
         self._lock = lock
+        self._activity = activity
         self._msg = msg
         self._log = server.get_logger()
         services = (
@@ -120,6 +136,15 @@ class EntityServices(Replies):
         )
         for name, srv_type, callback in services:
             server.create_service(srv_type, name, self._guarded(callback))
+
+    @contextmanager
+    def _changing(self) -> Iterator[None]:
+        """Hold the lock for a change; RefusedError INCORRECT_STATE while a world loads."""
+        with self._lock:  # checked under it: a load that began meanwhile is seen
+            if self._activity.loading.is_set():
+                raise RefusedError('INCORRECT_STATE', 'a world is loading: entities cannot '
+                                                      'change until it is loaded')
+            yield
 
     def _matching(self, filters: Any) -> List[str]:
         """Return the names the filters pick: regex (search), categories, tags, bounds (AND)."""
@@ -185,7 +210,7 @@ class EntityServices(Replies):
         p, q = state.pose.position, state.pose.orientation
         v, w = state.twist.linear, state.twist.angular
         try:
-            with self._lock:
+            with self._changing():
                 self._changes.set_entity_state(
                     request.entity, state.header.frame_id, (p.x, p.y, p.z),
                     (q.x, q.y, q.z, q.w), (v.x, v.y, v.z), (w.x, w.y, w.z))
@@ -207,7 +232,7 @@ class EntityServices(Replies):
     def _set_entity_info(self, request: Any, response: Any) -> Any:
         info = request.info
         try:
-            with self._lock:
+            with self._changing():
                 self._changes.set_entity_info(request.entity, info.category.category,
                                               info.description, list(info.tags))
         except RefusedError as exc:
@@ -235,7 +260,7 @@ class EntityServices(Replies):
         request = SpawnRequest(name, allow_renaming, uri, resource_string, namespace,
                                pose.header.frame_id, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
         spawnable = self._reads.read(request)
-        with self._lock:
+        with self._changing():
             return self._changes.spawn(request, spawnable)
 
     def _spawn(self, request: Any, response: Any) -> Any:
@@ -248,6 +273,9 @@ class EntityServices(Replies):
         return self._ok(response)
 
     def _spawn_many(self, request: Any, response: Any) -> Any:
+        if self._activity.loading.is_set():  # each spawn checks again, under the lock
+            return self._fail(response, 'INCORRECT_STATE', 'a world is loading: entities '
+                                                           'cannot change until it is loaded')
         failed = False
         for spawn in request.spawn_requests:
             result = self._msg.SpawnResult()
@@ -268,7 +296,7 @@ class EntityServices(Replies):
 
     def _delete(self, request: Any, response: Any) -> Any:
         try:
-            with self._lock:
+            with self._changing():
                 self._changes.delete_entity(request.entity)
         except RefusedError as exc:
             return self._fail_entity(response, exc)

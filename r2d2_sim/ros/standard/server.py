@@ -38,8 +38,8 @@ from rclpy.node import Node
 from r2d2_sim.ros.quiet_node import NO_TYPE_DESCRIPTION_SERVICE, QuietNode
 from r2d2_sim.ros.seams import (
     EntityChanges, EntityReads, SimulatorControl, WorldChanges, WorldReads)
-from r2d2_sim.ros.standard.entities import EntityServices, Replies
-from r2d2_sim.ros.standard.worlds import Activity, WorldServices
+from r2d2_sim.ros.standard.entities import Activity, EntityServices, Replies
+from r2d2_sim.ros.standard.worlds import WorldServices
 from r2d2_sim.sim.entities import MAX_FILTER_LENGTH
 from r2d2_sim.sim.tags import MAX_TAG_LENGTH, MAX_TAGS
 
@@ -139,8 +139,8 @@ class SimulationInterfaces(Replies):
         server.action_server = ActionServer(
             server, action.SimulateSteps, 'simulate_steps', self._simulate_steps,
             goal_callback=self._accept, cancel_callback=self._allow_cancel, callback_group=group)
-        self.entities = EntityServices(entity_reads, entity_changes, simulator.lock, server,
-                                       msg, srv)
+        self.entities = EntityServices(entity_reads, entity_changes, simulator.lock,
+                                       self.activity, server, msg, srv)
         self.worlds = WorldServices(world_reads, world_changes, self.activity, server, msg, srv,
                                     group)
 
@@ -173,7 +173,11 @@ class SimulationInterfaces(Replies):
 
     def state(self) -> int:
         """
-        Return the standard's state: PLAYING, STOPPED (time 0, initial world) or PAUSED.
+        Return the standard's state: PLAYING, STOPPED or PAUSED.
+
+        STOPPED: paused at time 0 with the clock not run since it read 0 (a stop,
+        a time reset or a world loaded; entity changes keep it), as Gazebo's
+        "paused at iteration 0"; a step or a play leaves it.
 
         LOADING_WORLD while a world loads or unloads, NO_WORLD after UnloadWorld.
         """
@@ -185,7 +189,7 @@ class SimulationInterfaces(Replies):
             return state.STATE_NO_WORLD
         if not node.paused:
             return state.STATE_PLAYING
-        if node.step_count == 0 and node.pristine:
+        if node.step_count == 0 and node.clock_unstarted:
             return state.STATE_STOPPED
         return state.STATE_PAUSED
 
@@ -246,13 +250,15 @@ class SimulationInterfaces(Replies):
 
         The node's lock is taken per ``chunk`` of steps; ``each(done)`` after
         each chunk returns False to stop early (a cancel). A node shutting
-        down stops it at the next chunk.
+        down stops it at the next chunk; so does a stop or a reset (the clock
+        moved between chunks), and playing: an error then, with the steps done.
         """
         node = self._simulator
         if not self._stepping.acquire(blocking=False):
             return ('a world is loading' if self.activity.loading.is_set() else
                     'another step request is running'), 0
         done = 0
+        start: Optional[int] = None  # the step count it began at
         try:
             while done < steps:
                 if self._closing.is_set():
@@ -263,6 +269,10 @@ class SimulationInterfaces(Replies):
                     if not node.paused:
                         return ('the simulation is playing: pause it first' if done == 0 else
                                 f'the simulation was played after {done} steps'), done
+                    if start is None:
+                        start = node.step_count
+                    elif node.step_count != start + done:  # a stop or a reset between chunks
+                        return f'the simulation was stopped or reset after {done} steps', done
                     count = min(chunk, steps - done)
                     node.advance(count)
                 done += count
@@ -303,8 +313,13 @@ class SimulationInterfaces(Replies):
 
     def _reset(self, request: Any, response: Any) -> Any:
         scope, reset = request.scope, type(request)
+        known = reset.SCOPE_TIME | reset.SCOPE_STATE | reset.SCOPE_SPAWNED
         if scope in (reset.SCOPE_DEFAULT, reset.SCOPE_ALL):
-            scope = reset.SCOPE_TIME | reset.SCOPE_STATE | reset.SCOPE_SPAWNED
+            scope = known
+        if scope & ~known:
+            return self._fail(response, 'FEATURE_UNSUPPORTED', f'reset scope bits '
+                              f'{scope & ~known} are none this simulator knows (TIME 1, '
+                              'STATE 2, SPAWNED 4, ALL 255): nothing was reset')
         if self.activity.loading.is_set():
             return self._fail(response, 'INCORRECT_STATE', 'a world is loading')
         with self._simulator.lock:

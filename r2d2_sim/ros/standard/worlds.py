@@ -17,7 +17,6 @@ rate meanwhile; then the simulator builds the bodies beside the old world,
 taking the lock a few bodies at a time, and swaps the new world in at once.
 """
 
-import threading
 from types import ModuleType
 from typing import Any, Callable
 
@@ -26,23 +25,11 @@ from rclpy.node import Node
 
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.ros.seams import WorldChanges, WorldReads
-from r2d2_sim.ros.standard.entities import fill_bounds, Replies
+from r2d2_sim.ros.standard.entities import Activity, fill_bounds, Replies
 from r2d2_sim.sim.tags import check_filter
 from r2d2_sim.sim.worlds import LoadOptions, World
 
-__all__ = ['WorldServices', 'Activity']
-
-
-class Activity:
-    """What runs now that excludes the rest: a step request, a world being loaded."""
-
-    def __init__(self) -> None:
-        self.stepping = threading.Lock()  # held by a step request, a load or an unload
-        self.loading = threading.Event()  # set while a world loads or unloads
-
-    def busy(self) -> str:
-        """Return what the holder of ``stepping`` is doing, for a refusal's message."""
-        return 'a world is loading' if self.loading.is_set() else 'a step request is running'
+__all__ = ['WorldServices']
 
 
 class WorldServices(Replies):

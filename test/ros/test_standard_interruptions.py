@@ -1,0 +1,178 @@
+"""
+The standard's state machine when requests meet: a load and entity changes, a stop and a step.
+
+In process, on the simulator node's standard services (simulation_interfaces,
+Jazzy 1.x). What the services do while another request runs in the
+executor's other thread is played here between a step's chunks (the
+server takes its lock per chunk, as a request from that thread would), or
+with a world load marked running. Each of these failed before its fix: a
+spawn during a load answered OK and was lost with the old world; a stop
+during a step answered OK while the step went on stepping the reset world;
+a reset or a spawn made STOPPED read PAUSED; pausing at time 0 read STOPPED.
+"""
+
+from geometry_msgs.msg import PoseStamped
+import pytest
+from simulation_interfaces import msg, srv
+from simulation_interfaces.action import SimulateSteps
+
+from common import BOX
+
+OK = msg.Result.RESULT_OK
+STATE = msg.SimulationState
+
+
+@pytest.fixture
+def standard(r2d2_sim):
+    """Return call(name, srv_type, **fields) on the in-process simulator's standard services."""
+    def call(service, srv_type, **fields):
+        return r2d2_sim.call_service(srv_type, '/' + service, srv_type.Request(**fields))
+    return call
+
+
+def state_of(standard):
+    """Return the standard's state now."""
+    return standard('get_simulation_state', srv.GetSimulationState).state.state
+
+
+def set_state(standard, value):
+    """Ask for a state; return the reply's result code."""
+    return standard('set_simulation_state', srv.SetSimulationState,
+                    state=STATE(state=value)).result.result
+
+
+def box_pose(x=2.0):
+    """Return a pose for the small box, on the ground ahead."""
+    pose = PoseStamped()
+    pose.pose.position.x, pose.pose.position.z = x, 0.1
+    pose.pose.orientation.w = 1.0
+    return pose
+
+
+def test_entity_changes_while_a_world_loads_are_refused(r2d2_sim, standard):
+    """INCORRECT_STATE for every change (it would be lost with the old world); reads answer."""
+    standard('spawn_entity', srv.SpawnEntity, name='crate', resource_string=BOX,
+             initial_pose=box_pose())
+    before = standard('get_entities', srv.GetEntities).entities
+    loading = r2d2_sim.sim.standard.activity.loading
+    loading.set()  # LoadWorld running in the other thread
+    try:
+        replies = [
+            standard('spawn_entity', srv.SpawnEntity, name='other', resource_string=BOX,
+                     initial_pose=box_pose(3.0)),
+            standard('spawn_entities', srv.SpawnEntities, spawn_requests=[msg.SpawnEntity(
+                name='more', entity_resource=msg.Resource(resource_string=BOX),
+                initial_pose=box_pose(4.0))]),
+            standard('delete_entity', srv.DeleteEntity, entity='crate'),
+            standard('set_entity_state', srv.SetEntityState, entity='crate'),
+            standard('set_entity_info', srv.SetEntityInfo, entity='crate'),
+        ]
+        for reply in replies:
+            assert reply.result.result == msg.Result.RESULT_INCORRECT_STATE, reply
+            assert 'a world is loading' in reply.result.error_message
+        assert standard('get_entities', srv.GetEntities).entities == before
+    finally:
+        loading.clear()
+    assert standard('delete_entity', srv.DeleteEntity, entity='crate').result.result == OK
+
+
+class StopsAt:
+    """A goal handle (what _simulate_steps uses) that asks for something after N feedbacks."""
+
+    def __init__(self, steps, after, then):
+        self.request = SimulateSteps.Goal(steps=steps)
+        self.feedback, self.ended, self.replies = 0, None, []
+        self._after, self._then = after, then
+
+    is_cancel_requested = False
+
+    def publish_feedback(self, feedback):
+        self.feedback += 1
+        if self.feedback == self._after:
+            self.replies.append(self._then())
+
+    def succeed(self):
+        self.ended = 'succeeded'
+
+    def canceled(self):
+        self.ended = 'canceled'
+
+    def abort(self):
+        self.ended = 'aborted'
+
+
+@pytest.mark.parametrize('ask, says', [
+    (lambda server: server._set_state(srv.SetSimulationState.Request(
+        state=STATE(state=STATE.STATE_STOPPED)), srv.SetSimulationState.Response()),
+     'the simulation was stopped or reset after 10 steps'),
+    (lambda server: server._reset(srv.ResetSimulation.Request(scope=255),
+                                  srv.ResetSimulation.Response()),
+     'the simulation was stopped or reset after 10 steps'),
+])
+def test_a_stop_or_a_reset_during_a_step_ends_the_step(r2d2_sim, standard, ask, says):
+    """The request is done (OK), the step ends there (failed, saying why), nothing steps after."""
+    server = r2d2_sim.sim.standard
+    assert set_state(standard, STATE.STATE_PAUSED) == OK
+    goal = StopsAt(100, after=10, then=lambda: ask(server))
+    result = server._simulate_steps(goal)
+    assert [reply.result.result for reply in goal.replies] == [OK]
+    assert (result.result.result, result.result.error_message) == \
+        (msg.Result.RESULT_OPERATION_FAILED, says)
+    assert goal.ended == 'aborted' and goal.feedback == 10
+    assert r2d2_sim.sim.step_count == 0
+    assert state_of(standard) == STATE.STATE_STOPPED  # paused, at 0, not played since
+
+    def each(done):  # StepSimulation's path: chunks of 24 steps
+        if done == 48:
+            ask(server)
+        return True
+    assert set_state(standard, STATE.STATE_PLAYING) == OK
+    r2d2_sim.advance(steps=24)
+    assert set_state(standard, STATE.STATE_PAUSED) == OK
+    error, done = server._run_steps(240, each, chunk=24)
+    assert (error, done) == (says.replace('10', '48'), 48)
+    assert r2d2_sim.sim.step_count == 0
+    reply = standard('step_simulation', srv.StepSimulation, steps=24)
+    assert reply.result.result == OK and r2d2_sim.sim.step_count == 24
+
+
+@pytest.mark.parametrize('change', ['reset time', 'reset state', 'reset spawned', 'spawn',
+                                    'set entity state'])
+def test_stopped_stays_stopped_until_it_steps_or_plays(standard, change):
+    """Nothing that leaves the clock at 0 un-stops it; a step makes it PAUSED, PLAYING plays."""
+    assert set_state(standard, STATE.STATE_STOPPED) == OK
+    reply = {
+        'reset time': lambda: standard('reset_simulation', srv.ResetSimulation, scope=1),
+        'reset state': lambda: standard('reset_simulation', srv.ResetSimulation, scope=2),
+        'reset spawned': lambda: standard('reset_simulation', srv.ResetSimulation, scope=4),
+        'spawn': lambda: standard('spawn_entity', srv.SpawnEntity, name='crate',
+                                  resource_string=BOX, initial_pose=box_pose()),
+        'set entity state': lambda: standard('set_entity_state', srv.SetEntityState,
+                                             entity='r2d2', state=msg.EntityState(
+                                                 pose=box_pose(0.5).pose)),
+    }[change]()
+    assert reply.result.result == OK
+    assert state_of(standard) == STATE.STATE_STOPPED
+    assert set_state(standard, STATE.STATE_PAUSED) == \
+        srv.SetSimulationState.Response.INCORRECT_TRANSITION
+    assert standard('step_simulation', srv.StepSimulation, steps=1).result.result == OK
+    assert state_of(standard) == STATE.STATE_PAUSED
+
+
+def test_pausing_a_simulation_playing_at_time_zero_reads_paused(r2d2_sim, standard):
+    """It played: PAUSED (not STOPPED), and a second PAUSED is already in the target state."""
+    assert r2d2_sim.sim.step_count == 0 and state_of(standard) == STATE.STATE_PLAYING
+    assert set_state(standard, STATE.STATE_PAUSED) == OK
+    assert state_of(standard) == STATE.STATE_PAUSED
+    assert set_state(standard, STATE.STATE_PAUSED) == \
+        srv.SetSimulationState.Response.ALREADY_IN_TARGET_STATE
+
+
+@pytest.mark.parametrize('scope', [8, 16, 128, 8 | 1])
+def test_a_reset_scope_this_simulator_does_not_know_resets_nothing(r2d2_sim, standard, scope):
+    """FEATURE_UNSUPPORTED naming the bits; the time goes on as it was."""
+    r2d2_sim.advance(steps=24)
+    reply = standard('reset_simulation', srv.ResetSimulation, scope=scope)
+    assert reply.result.result == msg.Result.RESULT_FEATURE_UNSUPPORTED
+    assert f'scope bits {scope & ~7}' in reply.result.error_message
+    assert r2d2_sim.sim.step_count == 24
