@@ -66,6 +66,9 @@ class EntityReads(Protocol):
     def read(self, request: 'SpawnRequest') -> 'Spawnable':
         """Read what a spawn loads (files, SDF, meshes) without touching the physics."""
 
+    def listed(self, source: str) -> Optional[List[str]]:
+        """Return the model files of a directory a spawn takes by path; None: no directory."""
+
 
 class EntityChanges(Protocol):
     """The changes of the world's entities: place, describe, spawn, delete; and time now."""

@@ -23,7 +23,7 @@ from r2d2_sim.model.transforms import BaseState, compose, quaternion_multiply, r
 from r2d2_sim.sim.names import MAX_NAME_LENGTH, NAME
 from r2d2_sim.sim.bounds import body_box, body_meets, check_region, Region
 from r2d2_sim.sim.sdf.loading import SdfSettings
-from r2d2_sim.sim.spawnables import Closable, read_spawnable, Spawnable
+from r2d2_sim.sim.spawnables import Closable, directory_spawnables, read_spawnable, Spawnable
 from r2d2_sim.sim.tags import check_description_text, check_tags
 
 if TYPE_CHECKING:  # typing only: the testing API imports this module without PyBullet
@@ -270,6 +270,10 @@ class Entities:
         with the standard's codes (see :func:`~r2d2_sim.sim.spawnables.read_spawnable`).
         """
         return read_spawnable(request.uri, request.resource_string, self.sdf)
+
+    def listed(self, source: str) -> Optional[List[str]]:
+        """Return the model files of a directory a spawn takes by path (directory_spawnables)."""
+        return directory_spawnables(source, self.sdf)
 
     def spawn(self, request: SpawnRequest, *, flags: int = 0,
               body_yaw_offset_rad: float = 0.0,

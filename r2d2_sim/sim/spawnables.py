@@ -13,6 +13,7 @@ spawn as the URDF written from them.
 """
 
 import errno
+import functools
 import math
 import os
 from typing import List, NamedTuple, Optional, Protocol, Sequence, Tuple
@@ -29,10 +30,11 @@ from r2d2_sim.physics.description import (
     resolve_description_path)
 from r2d2_sim.sim.sdf.loading import SdfSettings, TriangleBudget
 from r2d2_sim.sim.sdf.mesh_cache import MeshCache
+from r2d2_sim.sim.sdf.resources import Resources
 from r2d2_sim.sim.sdf.spawning import is_sdf_spawn, read_sdf_spawnable
 
 __all__ = ['check_description', 'read_description', 'convert_meshes', 'MeshUse',
-           'read_spawnable', 'spawnable_uris', 'Spawnable', 'Closable',
+           'read_spawnable', 'spawnable_uris', 'directory_spawnables', 'Spawnable', 'Closable',
            'box_urdf', 'MAX_DESCRIPTION_BYTES', 'MAX_LINKS']
 
 
@@ -46,6 +48,8 @@ class MeshUse(NamedTuple):
 # What one spawn request may cost (a URDF of R2D2 is 14 kB and 16 links).
 MAX_DESCRIPTION_BYTES = 1_000_000
 MAX_LINKS = 200
+# What GetSpawnables lists of one directory a request names.
+MAX_LISTED = 1000
 
 
 def check_description(text: str, base_dir: Optional[str], shown: str,
@@ -211,8 +215,16 @@ def read_spawnable(uri: str, resource_string: str, sdf: SdfSettings = SdfSetting
     return Spawnable(description.path, description, name, resource_string)
 
 
-def spawnable_uris() -> List[str]:
-    """Return the URDFs GetSpawnables offers: this package's and pybullet_data's own."""
+@functools.lru_cache(maxsize=1)
+def spawnable_uris() -> Tuple[str, ...]:
+    """
+    Return the URDFs GetSpawnables offers: this package's and pybullet_data's a spawn takes.
+
+    Each is read once per process and checked as a spawn checks it
+    (:func:`read_spawnable`): pybullet_data also holds files a spawn refuses
+    (``torus_deform.urdf``, a deformable body with no ``<link>``), which the
+    standard's "valid as SpawnEntity uri fields" leaves out.
+    """
     uris = []
     try:
         share = package_share_directory('r2d2_sim')
@@ -223,7 +235,53 @@ def spawnable_uris() -> List[str]:
         pass
     data = pybullet_data.getDataPath()
     uris += sorted(name for name in os.listdir(data) if name.endswith('.urdf'))
-    return uris
+    return tuple(uri for uri in uris if _spawns(uri))
+
+
+def _spawns(uri: str) -> bool:
+    try:
+        read_spawnable(uri, '')
+    except RefusedError:
+        return False
+    return True
+
+
+def directory_spawnables(source: str, sdf: SdfSettings = SdfSettings()) -> Optional[List[str]]:
+    """
+    Return the model files a spawn takes by path from a directory a GetSpawnables source names.
+
+    ``source``: an absolute path, ``file://`` or ``package://`` (a package's
+    share directory). Its ``.urdf`` files, and its ``.sdf`` files when the
+    directory lies where ``sdf`` lets SDF models be read from (as a spawn
+    checks them); their paths, sorted, at most MAX_LISTED, their contents
+    not read (a spawn checks each). None when the source names no directory.
+    """
+    path = source[len('file://'):] if source.startswith('file://') else source
+    if path.startswith(PACKAGE_SCHEME):
+        package, _, relative = path[len(PACKAGE_SCHEME):].partition('/')
+        try:
+            path = os.path.join(package_share_directory(package), relative)
+        except DescriptionError:
+            return None
+    if not os.path.isabs(path) or not os.path.isdir(path):
+        return None
+    try:
+        names = sorted(os.listdir(path))
+    except OSError:
+        return None
+    files = [os.path.join(path, name) for name in names
+             if name.lower().endswith(('.urdf', '.sdf'))]
+    return [file for file in files if os.path.isfile(file)
+            and (file.lower().endswith('.urdf') or _sdf_allowed(file, sdf))][:MAX_LISTED]
+
+
+def _sdf_allowed(path: str, sdf: SdfSettings) -> bool:
+    """Return True when an SDF spawn may read ``path`` (it lies in an allowed place)."""
+    try:
+        Resources(sdf.model_paths, roots=list(sdf.places)).model(path, os.getcwd(), None)
+    except RefusedError:
+        return False
+    return True
 
 
 def box_urdf(size_m: Sequence[float] = (0.2, 0.2, 0.2), *, mass_kg: float = 0.0,

@@ -171,11 +171,44 @@ def test_entities_are_filtered_described_and_spawned_in_batches(standard):
     every = standard('get_spawnables', srv.GetSpawnables, srv.GetSpawnables.Request())
     uris = [s.uri for s in every.spawnables]
     assert code(every) == OK and ROOM in uris and 'cube.urdf' in uris
+    assert 'torus_deform.urdf' not in uris  # pybullet_data's, which a spawn refuses (no link)
     ours = standard('get_spawnables', srv.GetSpawnables,
                     srv.GetSpawnables.Request(sources=['package://r2d2_sim/urdf', 'elsewhere']))
     assert code(ours) == OK and 'elsewhere' in ours.result.error_message
-    assert ROOM in [s.uri for s in ours.spawnables]
-    assert all(s.uri.startswith('package://r2d2_sim/') for s in ours.spawnables)
+    assert [s.uri for s in ours.spawnables] == uris  # sources add to what is listed
+
+
+@pytest.mark.parametrize('allowed', [False, True])
+def test_a_directory_source_adds_the_models_a_spawn_takes_from_it(r2d2_sim_factory, tmp_path,
+                                                                  allowed):
+    """
+    GetSpawnables' sources are additional (the standard): a directory adds its model files.
+
+    Its URDFs, which a spawn takes from anywhere; its SDF models only where SDF files
+    may be read from (``world_paths`` here). Each listed one spawns.
+    """
+    (tmp_path / 'crate.urdf').write_text(BOX)
+    (tmp_path / 'notes.txt').write_text('not a model')
+    (tmp_path / 'pillar.sdf').write_text(
+        '<sdf version="1.9"><model name="pillar"><static>true</static><link name="l">'
+        '<collision name="c"><geometry><box><size>0.2 0.2 1</size></box></geometry>'
+        '</collision></link></model></sdf>')
+    sim = r2d2_sim_factory(**({'world_paths': [str(tmp_path)]} if allowed else {}))
+
+    def call(name, srv_type, request):
+        return sim.call_service(srv_type, '/' + name, request)
+    every = [s.uri for s in call('get_spawnables', srv.GetSpawnables,
+                                 srv.GetSpawnables.Request()).spawnables]
+    reply = call('get_spawnables', srv.GetSpawnables,
+                 srv.GetSpawnables.Request(sources=[f'file://{tmp_path}/']))
+    added = [s.uri for s in reply.spawnables][len(every):]
+    assert code(reply) == OK and reply.result.error_message == ''
+    sdf = [str(tmp_path / 'pillar.sdf')] if allowed else []
+    assert added == [str(tmp_path / 'crate.urdf')] + sdf
+    for index, uri in enumerate(added):
+        request = spawn_request(name=f'listed_{index}', resource_string='', uri=uri)
+        request.initial_pose.pose.position.y = 2.0 + index
+        assert code(call('spawn_entity', srv.SpawnEntity, request)) == OK
 
 
 def apart(number):

@@ -303,18 +303,33 @@ class EntityServices(Replies):
         return self._ok(response)
 
     def _spawnables(self, request: Any, response: Any) -> Any:
-        """List this package's URDFs and pybullet_data's, or those of the ``sources`` asked for."""
+        """
+        List the URDFs a spawn takes from this package and pybullet_data; and ``sources``'.
+
+        Each source adds to those (the standard's "additional sources"): a
+        directory (a path, ``file://``, ``package://``) its ``.urdf`` and ``.sdf``
+        files; one named above adds nothing; others are named in the reply's
+        error_message, which stays OK.
+        """
         known = SPAWNABLE_DIRECTORIES + ('pybullet_data',)
-        sources = [source.rstrip('/') for source in request.sources] or list(known)
         for uri in spawnable_uris():
             source = known[0] if uri.startswith(known[0]) else 'pybullet_data'
-            if source in sources:
-                spawnable = self._msg.Spawnable()
-                spawnable.uri = uri
-                spawnable.description = f'URDF from {source}'
-                response.spawnables.append(spawnable)
+            response.spawnables.append(self._msg.Spawnable(uri=uri,
+                                                           description=f'URDF from {source}'))
+        unknown = []
+        for source in (source.rstrip('/') for source in request.sources):
+            if source in known:
+                continue
+            files = self._reads.listed(source)
+            if files is None:
+                unknown.append(source)
+                continue
+            response.spawnables.extend(
+                self._msg.Spawnable(uri=path, description=f'{path.rpartition(".")[2].upper()} '
+                                                          f'from {source[:200]}')
+                for path in files)
         self._ok(response)
-        unknown = [s for s in sources if s not in known]
         if unknown:
-            response.result.error_message = f'unknown sources left out: {", ".join(unknown)}'
+            response.result.error_message = ('unknown sources left out (not a directory): '
+                                             f'{", ".join(s[:200] for s in unknown)}')
         return response
