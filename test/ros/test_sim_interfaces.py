@@ -182,7 +182,7 @@ def test_entities_are_filtered_described_and_spawned_in_batches(standard):
 def test_a_directory_source_adds_the_models_a_spawn_takes_from_it(r2d2_sim_factory, tmp_path,
                                                                   allowed):
     """
-    GetSpawnables' sources are additional (the standard): a directory adds its model files.
+    A directory in GetSpawnables' sources adds its model files (they are additional).
 
     Its URDFs, which a spawn takes from anywhere; its SDF models only where SDF files
     may be read from (``world_paths`` here). Each listed one spawns.
