@@ -325,3 +325,38 @@ def connected_clients():
     """Return the ids of the PyBullet clients connected in this process."""
     import pybullet
     return [i for i in range(64) if pybullet.isConnected(physicsClientId=i)]
+
+
+class FakeGoal:
+    """
+    What the standard's _simulate_steps uses of a ServerGoalHandle, in process.
+
+    Keeps each feedback's (completed, remaining) and how the goal ended. A cancel is
+    requested after ``cancel_after`` feedbacks; ``call()`` runs after ``call_after``
+    (what a request from the executor's other thread would do between chunks), its
+    replies kept.
+    """
+
+    def __init__(self, steps, cancel_after=None, call_after=None, call=None):
+        from simulation_interfaces.action import SimulateSteps
+        self.request = SimulateSteps.Goal(steps=steps)
+        self.feedback, self.ended, self.replies = [], None, []
+        self._cancel_after, self._call_after, self._call = cancel_after, call_after, call
+
+    @property
+    def is_cancel_requested(self):
+        return self._cancel_after is not None and len(self.feedback) >= self._cancel_after
+
+    def publish_feedback(self, feedback):
+        self.feedback.append((feedback.completed_steps, feedback.remaining_steps))
+        if self._call is not None and len(self.feedback) == self._call_after:
+            self.replies.append(self._call())
+
+    def succeed(self):
+        self.ended = 'succeeded'
+
+    def canceled(self):
+        self.ended = 'canceled'
+
+    def abort(self):
+        self.ended = 'aborted'

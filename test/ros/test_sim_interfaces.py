@@ -12,9 +12,8 @@ import math
 from geometry_msgs.msg import Point
 import pytest
 from simulation_interfaces import msg, srv
-from simulation_interfaces.action import SimulateSteps
 
-from common import BOX
+from common import BOX, FakeGoal
 from r2d2_sim.sim.entities import MAX_SPAWNED
 from r2d2_sim.sim.spawnables import MAX_LINKS
 
@@ -257,31 +256,6 @@ def test_states_and_steps_follow_the_standard(r2d2_sim, standard):
     assert code(standard('step_simulation', srv.StepSimulation,
                          srv.StepSimulation.Request(steps=24))) == OK
     assert get_state() == state.STATE_PAUSED and r2d2_sim.sim.step_count == 24
-
-
-class FakeGoal:
-    """What _simulate_steps uses of a ServerGoalHandle; a cancel requested after N feedbacks."""
-
-    def __init__(self, steps, cancel_after=None):
-        self.request = SimulateSteps.Goal(steps=steps)
-        self.feedback, self.ended = [], None
-        self._cancel_after = cancel_after
-
-    @property
-    def is_cancel_requested(self):
-        return self._cancel_after is not None and len(self.feedback) >= self._cancel_after
-
-    def publish_feedback(self, feedback):
-        self.feedback.append((feedback.completed_steps, feedback.remaining_steps))
-
-    def succeed(self):
-        self.ended = 'succeeded'
-
-    def canceled(self):
-        self.ended = 'canceled'
-
-    def abort(self):
-        self.ended = 'aborted'
 
 
 def test_the_action_sends_every_feedback_and_ends_as_it_should(r2d2_sim):

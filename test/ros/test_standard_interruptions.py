@@ -14,9 +14,8 @@ a reset or a spawn made STOPPED read PAUSED; pausing at time 0 read STOPPED.
 from geometry_msgs.msg import PoseStamped
 import pytest
 from simulation_interfaces import msg, srv
-from simulation_interfaces.action import SimulateSteps
 
-from common import BOX
+from common import BOX, FakeGoal
 
 OK = msg.Result.RESULT_OK
 STATE = msg.SimulationState
@@ -76,31 +75,6 @@ def test_entity_changes_while_a_world_loads_are_refused(r2d2_sim, standard):
     assert standard('delete_entity', srv.DeleteEntity, entity='crate').result.result == OK
 
 
-class StopsAt:
-    """A goal handle (what _simulate_steps uses) that asks for something after N feedbacks."""
-
-    def __init__(self, steps, after, then):
-        self.request = SimulateSteps.Goal(steps=steps)
-        self.feedback, self.ended, self.replies = 0, None, []
-        self._after, self._then = after, then
-
-    is_cancel_requested = False
-
-    def publish_feedback(self, feedback):
-        self.feedback += 1
-        if self.feedback == self._after:
-            self.replies.append(self._then())
-
-    def succeed(self):
-        self.ended = 'succeeded'
-
-    def canceled(self):
-        self.ended = 'canceled'
-
-    def abort(self):
-        self.ended = 'aborted'
-
-
 @pytest.mark.parametrize('ask, says', [
     (lambda server: server._set_state(srv.SetSimulationState.Request(
         state=STATE(state=STATE.STATE_STOPPED)), srv.SetSimulationState.Response()),
@@ -113,12 +87,12 @@ def test_a_stop_or_a_reset_during_a_step_ends_the_step(r2d2_sim, standard, ask, 
     """The request is done (OK), the step ends there (failed, saying why), nothing steps after."""
     server = r2d2_sim.sim.standard
     assert set_state(standard, STATE.STATE_PAUSED) == OK
-    goal = StopsAt(100, after=10, then=lambda: ask(server))
+    goal = FakeGoal(100, call_after=10, call=lambda: ask(server))
     result = server._simulate_steps(goal)
     assert [reply.result.result for reply in goal.replies] == [OK]
     assert (result.result.result, result.result.error_message) == \
         (msg.Result.RESULT_OPERATION_FAILED, says)
-    assert goal.ended == 'aborted' and goal.feedback == 10
+    assert goal.ended == 'aborted' and len(goal.feedback) == 10
     assert r2d2_sim.sim.step_count == 0
     assert state_of(standard) == STATE.STATE_STOPPED  # paused, at 0, not played since
 
