@@ -80,7 +80,7 @@ class DeadlinePacer:
 
     def __init__(self, period_s: float, max_lag_s: float = 0.25,
                  clock: Callable[[], float] = time.perf_counter,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
+                 sleep: Callable[[float], object] = time.sleep) -> None:
         if not period_s > 0.0:
             raise ValueError(f'period must be > 0 s, got {period_s}')
         self.period_s = period_s

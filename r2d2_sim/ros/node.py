@@ -330,9 +330,11 @@ class SimNode(MirroringNode):
             self._publish_messages(result)
 
     def _publish_messages(self, result: StepResult) -> None:
-        if result.state_due:
-            self._clock_output.publish(result.time_ns)
-            self._tell_time(result.time_ns)
+        # /clock at every step that publishes anything, before it: a node on simulated
+        # time never receives a message stamped later than its clock (an IMU at 100 Hz
+        # with publish_rate 50 was up to a publication period ahead of it).
+        self._clock_output.publish(result.time_ns)
+        self._tell_time(result.time_ns)
         for interfaces, measurement in zip(self.robots, result.measurements):
             if measurement is not None:
                 interfaces.publish(measurement)

@@ -59,6 +59,35 @@ def test_clock_and_stamps_are_simulation_time(sim, probe):
     assert odom.pose.covariance[0] > 0.0 and odom.twist.covariance[35] > 0.0
 
 
+def test_clock_comes_at_every_stamp_when_a_sensor_outpaces_the_state(ros):
+    """
+    publish_rate 50 Hz, the IMU at 100 Hz: /clock at each step that publishes anything.
+
+    A node on simulated time then never receives a message stamped later than its
+    clock (before, half the IMU messages were up to 12.5 ms ahead of it).
+    """
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Imu
+    sim = make_sim(ros, publish_rate=50.0, imu_rate=100.0)
+    probe = Probe(ros, sim)
+    imu = []
+    probe.node.create_subscription(Imu, 'imu', imu.append, QoSProfile(
+        depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT))
+    for _ in range(24):  # chunks the probe's depth-100 queues keep whole
+        before = len(probe.messages['clock'])
+        sim.advance(10)
+        assert wait_for(lambda: len(probe.messages['clock']) > before)
+    probe.wait_count('joint_states', 50)
+    assert wait_for(lambda: len(imu) >= 100), len(imu)
+
+    def stamps(messages):
+        return {(m.header.stamp.sec, m.header.stamp.nanosec) for m in messages}
+    published = stamps(imu) | stamps(probe.messages['joint_states'])
+    probe.wait_count('clock', len(published))
+    clocks = {(m.clock.sec, m.clock.nanosec) for m in probe.messages['clock']}
+    assert clocks == published and len(probe.messages['clock']) == len(published)
+
+
 def test_robot_description_is_latched(sim, probe):
     """A late subscriber still receives the URDF text."""
     probe.wait_count('robot_description', 1)

@@ -509,6 +509,16 @@ def _signal_while_paused(domain, probe, started, hammers, process):
     assert facts['paused'] and facts['step'] == 0, facts
 
 
+def _signal_between_slow_steps(domain, probe, started, hammers, process):
+    # real_time_factor 0.0001: the next step is 42 s of wall time away, and the
+    # loop waits for it; the signal must end that wait, not the step's deadline.
+    status = probe.node.create_client(Trigger, '/r2d2_sim/get_status')
+    assert status.wait_for_service(timeout_sec=START_TIMEOUT_S), 'get_status unavailable'
+    future = status.call_async(Trigger.Request())
+    assert probe.spin_until(future.done, 5.0), 'get_status did not answer'
+    assert json.loads(future.result().message)['step'] <= 1
+
+
 def _signal_during_service_calls(domain, probe, started, hammers, process):
     hammer = Hammer(domain, threads=2)
     hammers.append(hammer)
@@ -523,8 +533,9 @@ def _signal_during_service_calls(domain, probe, started, hammers, process):
     ('0.1 s after start', _signal_at_startup(0.1), ()),
     ('0.3 s after start', _signal_at_startup(0.3), ()),
     ('while paused', _signal_while_paused, ('-p', 'start_paused:=true')),
+    ('between slow steps', _signal_between_slow_steps, ('-p', 'real_time_factor:=0.0001')),
     ('during service calls', _signal_during_service_calls, ()),
-], ids=['startup-0.1s', 'startup-0.3s', 'paused', 'service-calls'])
+], ids=['startup-0.1s', 'startup-0.3s', 'paused', 'slow-steps', 'service-calls'])
 def test_signal_stops_cleanly_and_quickly(sig, moment, prepare, ros_args):
     """SIGINT/SIGTERM at start-up, while paused or mid-call: exit 0 promptly, nothing left."""
     domain = next_domain_id()
