@@ -28,6 +28,7 @@ pytest-xdist that process writes the report, and it never imports test modules.
 This module imports neither rclpy nor PyBullet until a run is asked for.
 """
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -62,10 +63,19 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help='record every farm run (not only failures) into DIR')
 
 
-def _slug(text: str) -> str:
-    """Return a file name made of a node id: its file, test name and parameters."""
-    name = text.rsplit('/', 1)[-1].replace('.py::', '-').replace('::', '-')
-    return re.sub(r'[^A-Za-z0-9_.=-]+', '-', name).strip('-')[:120] or 'case'
+def _slug(nodeid: str) -> str:
+    """
+    Return a file name of a node id, unique to it: its readable part and a hash of it whole.
+
+    The readable part (folders, file, test name, parameters) is cut to fit and
+    may be shared (``nav/test_farm.py::test[0]`` and ``nav-test_farm.py::test[0]``,
+    or two long ids alike at first); the hash of the whole id is not. Each node
+    id runs in one process, under xdist too, so its name is never taken by another.
+    """
+    readable = nodeid.replace('.py::', '-').replace('::', '-')
+    readable = re.sub(r'[^A-Za-z0-9_.=-]+', '-', readable).strip('-.')[:80].rstrip('-.')
+    digest = hashlib.sha256(nodeid.encode('utf-8')).hexdigest()[:10]
+    return f'{readable or "case"}-{digest}'
 
 
 class Farm:

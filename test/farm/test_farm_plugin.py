@@ -1,0 +1,91 @@
+"""
+The farm's pytest plugin in a pytest of its own: names, crashes, and what a case's verdict is.
+
+- Every failing test gets a recording of its own, whatever its folder and
+  parameters (two ``test_farm.py::test[0]`` in two folders, ids with '/').
+
+No physics runs here: the project's conftest.py replaces ``run_scenario`` with
+a fake that judges by the seed (odd fails) and, like the simulator, refuses a
+recording file that exists. Real runs are in ``test/system/test_farm_system.py``.
+"""
+
+import json
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+from r2d2_sim.farm.pytest_plugin import _slug
+
+REPO = Path(__file__).resolve().parents[2]
+# A farm without physics: odd seeds fail; a recording is made as the simulator makes
+# it (refused if its file exists), empty.
+FAKE_RUNS = '''
+import r2d2_sim.farm.run as run
+
+
+def fake_run(scenario, controller, *, seconds, record=None, record_failure=None, **keywords):
+    passed = scenario.seed % 2 == 0
+    recording = record if passed or record else record_failure
+    if recording is not None:
+        with open(recording, 'x'):  # the simulator refuses an MCAP file that exists
+            pass
+    return run.Outcome(scenario=scenario, passed=passed, reason='' if passed else 'odd seed',
+                       seconds=seconds, time_to_goal_s=0.5, clearance_m=2.0, closest=None,
+                       closest_s=None, contacts=(), tipped_s=None, trajectory=(), steps=240,
+                       recording=recording)
+
+
+run.run_scenario = fake_run
+'''
+SEEDED = '''
+import pytest
+
+from r2d2_sim.farm import Scenario
+
+
+@pytest.mark.parametrize('seed', [1])
+@pytest.mark.parametrize('where', ['maps/late'])
+def test_it(r2d2_farm, where, seed):
+    assert r2d2_farm.run(Scenario(seed=seed), None, seconds=1.0).passed
+'''
+
+
+def farm(project: Path, *args: str) -> subprocess.CompletedProcess:
+    """Run pytest with the farm plugin in ``project``; its farm directory is project/farm."""
+    (project / 'conftest.py').write_text(FAKE_RUNS)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        p for p in (str(REPO), os.environ.get('PYTHONPATH')) if p))
+    return subprocess.run([sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
+                           '-p', 'r2d2_sim.farm.pytest_plugin', '--farm-dir', 'farm', *args],
+                          cwd=project, env=env, capture_output=True, text=True, timeout=300)
+
+
+def cases(project: Path) -> list:
+    """Return the cases of the project's farm report."""
+    return json.loads((project / 'farm' / 'report.json').read_text())['cases']
+
+
+def test_a_name_is_readable_and_unique_to_its_node_id():
+    """Folders, file, test and parameters, cut to fit; a '/' in a parameter cuts nothing."""
+    first, second = (_slug(f'{name}.py::test[maps/late-0]') for name in ('nav/a', 'dock/a'))
+    assert first.startswith('nav-a-test-maps-late-0-') and second.startswith('dock-a-test-')
+    assert first != second
+    assert _slug('x/t.py::test[0]') != _slug('x-t.py::test[0]')  # the same readable part
+    long = 'test_farm.py::test[' + 'x' * 300
+    assert len(_slug(long)) < 100 and _slug(long) != _slug(long + 'y')
+
+
+def test_two_failing_tests_of_one_name_in_two_folders_keep_a_recording_each(tmp_path):
+    """nav/test_farm.py::test_it[...] and dock/...: both reported, each with its own file."""
+    for folder in ('nav', 'dock'):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / '__init__.py').write_text('')
+        (tmp_path / folder / 'test_farm.py').write_text(SEEDED)
+    result = farm(tmp_path, '-n', '2', 'nav', 'dock')
+    assert '2 failed' in result.stdout, result.stdout[-3000:]
+    found = cases(tmp_path)
+    assert [c['nodeid'].split('/')[0] for c in found] == ['dock', 'nav']
+    assert not any(c['passed'] or c['crashed'] for c in found)
+    recordings = {c['recording'] for c in found}
+    assert len(recordings) == 2 and all(Path(r).is_file() for r in recordings)
