@@ -33,6 +33,7 @@ import json
 import os
 from pathlib import Path
 import re
+import traceback
 import warnings
 from typing import Any, Dict, List, Optional, TYPE_CHECKING
 
@@ -133,7 +134,9 @@ class Farm:
         The outcome is appended to this process's outcomes file with the
         calling test's node id. In a Hypothesis test, only the final example
         of a failing property is recorded (its scenario saved as JSON and
-        noted in the failure with its seed and recording).
+        noted in the failure with its seed and recording). A run that raises
+        is recorded as crashed (what it raised, the traceback, the scenario),
+        and the exception goes on to fail the test.
         """
         from r2d2_sim.farm.run import run_scenario
         if self._orphan:
@@ -157,25 +160,40 @@ class Farm:
             folder = self.directory / RECORDINGS
             folder.mkdir(parents=True, exist_ok=True)
             record_failure = str(folder / f'{name}.mcap')
-        outcome = run_scenario(scenario, controller, seconds=seconds, record=record,
-                               record_failure=record_failure, **keywords)
+        # The node id is relative to this process's rootdir, which may not be the main
+        # process's: pytest chose it from the command line before it knew --farm-dir.
+        line: Dict[str, Any] = {'nodeid': nodeid, 'rootdir': str(self.config.rootpath),
+                                'run': run, 'worker': self.worker or '',
+                                'property': final is True}
+        try:
+            outcome = run_scenario(scenario, controller, seconds=seconds, record=record,
+                                   record_failure=record_failure, **keywords)
+        except Exception as exc:
+            # No verdict (the user's node raised in a callback, the verdict raised, the
+            # simulator refused a parameter): a crashed case, so that the report does not
+            # count it among none; the test fails with the exception, as without the farm.
+            if not exploring:
+                self._write(dict(line, outcome=None, scenario=scenario.to_dict(), crashed={
+                    'reason': 'raised ' + f'{type(exc).__name__}: {exc}'.splitlines()[0],
+                    'seed': scenario.seed, 'traceback': traceback.format_exc()}))
+            raise
         if exploring:
             if not outcome.passed:
                 self._first_failures.setdefault(nodeid, outcome.scenario)
             return outcome
-        # The node id is relative to this process's rootdir, which may not be the main
-        # process's: pytest chose it from the command line before it knew --farm-dir.
-        line = {'nodeid': nodeid, 'rootdir': str(self.config.rootpath), 'run': run,
-                'worker': self.worker or '', 'property': final is True,
-                'outcome': outcome.to_dict()}
+        line['outcome'] = outcome.to_dict()
         first = self._first_failures.get(nodeid)
         if final and first is not None:
             line['first_failure'] = first.to_dict()
-        with open(self._outcomes_file(), 'a', encoding='utf-8') as out:
-            out.write(json.dumps(line, sort_keys=True) + '\n')
+        self._write(line)
         if final and not outcome.passed:
             self._note(name, nodeid, outcome)
         return outcome
+
+    def _write(self, line: Dict[str, Any]) -> None:
+        """Append one record to this process's outcomes file."""
+        with open(self._outcomes_file(), 'a', encoding='utf-8') as out:
+            out.write(json.dumps(line, sort_keys=True) + '\n')
 
     def _note(self, name: str, nodeid: str, outcome: 'r2d2_sim.farm.run.Outcome') -> None:
         """Save a property's shrunk scenario and say in the failure how to replay it."""

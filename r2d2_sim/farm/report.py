@@ -4,7 +4,9 @@ A farm's report from its outcomes: report.md, report.json and trajectories.png.
 Each run of a farm is a record (one JSON line a worker wrote: the test's
 node id and the rootdir it is relative to, the run's number in that test,
 whether it was a Hypothesis property's final example, and the
-:class:`~r2d2_sim.farm.run.Outcome`).
+:class:`~r2d2_sim.farm.run.Outcome`; a run without one, whose process died
+or which raised, has ``crashed`` instead: what happened, its seed and, from
+the pytest plugin, its ``scenario``).
 :func:`write_report` numbers them in node id order (so a case keeps its
 number however the workers were ordered) and writes:
 
@@ -102,12 +104,14 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
                       'passed': outcome is not None and outcome['passed'],
                       'crashed': crashed is not None,
                       'reason': crashed['reason'] if crashed else outcome['reason'],
-                      'seed': farm['seed'] if crashed else outcome['scenario']['seed'],
+                      'seed': (farm.get('seed', crashed.get('seed')) if crashed
+                               else outcome['scenario']['seed']),
                       'recording': None if crashed else outcome['recording'],
                       'rerun': record.get('rerun') or rerun_command(report_json, number),
                       'outcome': outcome,
                       'first_failure': record.get('first_failure'),
-                      'farm': record.get('farm'), 'traceback': (crashed or {}).get('traceback')})
+                      'farm': record.get('farm'), 'traceback': (crashed or {}).get('traceback'),
+                      'scenario': record.get('scenario')})
     summary = _summary(cases)
     data = {'date': datetime.datetime.now().astimezone().isoformat(timespec='seconds'),
             'invocation_dir': invocation_dir, 'rootdir': rootdir, 'summary': summary,
@@ -217,7 +221,8 @@ def _markdown(data: Dict[str, Any]) -> str:
                   'its seed reruns it.', '']
     for c in crashes:
         lines += [f'### Case {c["case"]}: `{_test_name(c)}`, seed {c["seed"]}', '',
-                  f'- {c["reason"]}', f'- on: `{c["worker"]}`', f'- run it again: `{c["rerun"]}`',
+                  f'- {c["reason"]}', f'- on: `{c["worker"] or "the main process"}`',
+                  f'- run it again: `{c["rerun"]}`',
                   '']
     return '\n'.join(lines).rstrip('\n') + '\n'
 

@@ -5,7 +5,9 @@ Rerunning a farm's case from its report: the project's own test, recorded, check
 the case's test again with its scenario replayed (``R2D2_FARM_REPLAY``: a
 Hypothesis property draws just that scenario; a seeded test draws it from its
 seed anyway), records every run and checks the run that is the case's comes
-out as the report says, measure for measure.
+out as the report says, measure for measure. A case whose run raised (crashed)
+has no outcome to compare with: its scenario runs again and what it does is
+printed.
 
 **What runs is the project's, never the report's.** A report may come from a
 colleague or from CI; the code it names is not trusted. The rerun runs a test
@@ -183,13 +185,18 @@ def rerun(report: Path, number: int, record: Optional[Path],
     runs for a report, case or test that cannot be used.
     """
     from r2d2_sim.farm.run import check_same, DeterminismError, Outcome
-    from r2d2_sim.farm.scenario import ScenarioError
+    from r2d2_sim.farm.scenario import Scenario, ScenarioError
     from r2d2_sim.farm.strategies import REPLAY_ENV
     case = load_case(report, number)
     if case.get('farm'):
         return rerun_farm_case(report, case, record, project)
+    expected: Optional[Outcome] = None
     try:
-        expected = Outcome.from_dict(case['outcome'])
+        if case.get('crashed') and case.get('outcome') is None:  # a run that raised
+            scenario = Scenario.from_dict(case.get('scenario') or {})
+        else:
+            expected = Outcome.from_dict(case['outcome'])
+            scenario = expected.scenario
     except ScenarioError as exc:
         raise ReportError(f'{report}: case {number}: {exc}') from None
     project = (project or Path.cwd()).resolve()
@@ -209,15 +216,15 @@ def rerun(report: Path, number: int, record: Optional[Path],
             raise ReportError(f'{farm} exists and is no farm directory: give another --record')
         shutil.rmtree(farm)
     with tempfile.TemporaryDirectory(prefix='r2d2_farm_rerun_') as scratch:
-        scenario = Path(scratch) / 'scenario.json'
-        scenario.write_text(expected.scenario.to_json(), encoding='utf-8')
-        env = dict(os.environ, **{REPLAY_ENV: str(scenario)})
+        replayed = Path(scratch) / 'scenario.json'
+        replayed.write_text(scenario.to_json(), encoding='utf-8')
+        env = dict(os.environ, **{REPLAY_ENV: str(replayed)})
         # Options as one argument each: pytest chooses its rootdir before it knows them.
         command = [sys.executable, '-m', 'pytest', '-q', '-p', PLUGIN, '-p', 'no:cacheprovider',
                    f'--rootdir={project}', f'--confcutdir={project}', f'--farm-dir={farm}',
                    f'--farm-record={record}', f'{test_file}::{name}']
         loaded = ', '.join(map(str, conftests(project, test_file))) or 'none'
-        print(f'rerunning case {number} ({case["nodeid"]}, seed {expected.scenario.seed}) in '
+        print(f'rerunning case {number} ({case["nodeid"]}, seed {scenario.seed}) in '
               f'{project}:\n  the test: {test_file}::{name}\n  conftest.py: {loaded}\n  '
               + ' '.join(command), flush=True)
         finished = subprocess.run(command, cwd=project, env=env)
@@ -226,6 +233,16 @@ def rerun(report: Path, number: int, record: Optional[Path],
     if mine is None:
         print(f'r2d2_sim.farm: the rerun did not run case {number} again ({case["nodeid"]}; '
               f'pytest exit status {finished.returncode})', file=sys.stderr)
+        return 1
+    if mine['outcome'] is None or expected is None:
+        now = (mine['crashed']['reason'] if mine['outcome'] is None
+               else 'passed' if mine['outcome']['passed']
+               else f'failed: {mine["outcome"]["reason"]}')
+        if expected is None:
+            print(f'the report has it crashed ({case["reason"]}); this time it {now}')
+            return 0
+        print(f'r2d2_sim.farm: case {number} {now} this time, not as in the report',
+              file=sys.stderr)
         return 1
     again = Outcome.from_dict(mine['outcome'])
     try:

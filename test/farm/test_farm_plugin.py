@@ -3,9 +3,11 @@ The farm's pytest plugin in a pytest of its own: names, crashes, and what a case
 
 - Every failing test gets a recording of its own, whatever its folder and
   parameters (two ``test_farm.py::test[0]`` in two folders, ids with '/').
+- A run that raises is a crashed case of the report (never "N of N passed"),
+  and reruns from it.
 
 No physics runs here: the project's conftest.py replaces ``run_scenario`` with
-a fake that judges by the seed (odd fails) and, like the simulator, refuses a
+a fake that judges by the seed (odd fails, 3 raises) and, like the simulator, refuses a
 recording file that exists. Real runs are in ``test/system/test_farm_system.py``.
 """
 
@@ -25,6 +27,8 @@ import r2d2_sim.farm.run as run
 
 
 def fake_run(scenario, controller, *, seconds, record=None, record_failure=None, **keywords):
+    if scenario.seed == 3:
+        raise RuntimeError("a bug in the user's node")  # as a CallbackError would
     passed = scenario.seed % 2 == 0
     recording = record if passed or record else record_failure
     if recording is not None:
@@ -51,14 +55,31 @@ def test_it(r2d2_farm, where, seed):
 '''
 
 
+CRASHING = '''
+import pytest
+
+from r2d2_sim.farm import Scenario
+
+
+@pytest.mark.parametrize('seed', [2, 3, 4])
+def test_it(r2d2_farm, seed):
+    assert r2d2_farm.run(Scenario(seed=seed), None, seconds=1.0).passed
+'''
+
+
+def environment() -> dict:
+    """Return this process's environment with the checkout first on PYTHONPATH."""
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(
+        p for p in (str(REPO), os.environ.get('PYTHONPATH')) if p))
+
+
 def farm(project: Path, *args: str) -> subprocess.CompletedProcess:
     """Run pytest with the farm plugin in ``project``; its farm directory is project/farm."""
     (project / 'conftest.py').write_text(FAKE_RUNS)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        p for p in (str(REPO), os.environ.get('PYTHONPATH')) if p))
     return subprocess.run([sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
                            '-p', 'r2d2_sim.farm.pytest_plugin', '--farm-dir', 'farm', *args],
-                          cwd=project, env=env, capture_output=True, text=True, timeout=300)
+                          cwd=project, env=environment(), capture_output=True, text=True,
+                          timeout=300)
 
 
 def cases(project: Path) -> list:
@@ -89,3 +110,28 @@ def test_two_failing_tests_of_one_name_in_two_folders_keep_a_recording_each(tmp_
     assert not any(c['passed'] or c['crashed'] for c in found)
     recordings = {c['recording'] for c in found}
     assert len(recordings) == 2 and all(Path(r).is_file() for r in recordings)
+
+
+def test_a_run_that_raises_is_a_crashed_case_and_reruns_from_the_report(tmp_path):
+    """Seeds 2, 3, 4, the run of 3 raising: 2 of 3 passed, 1 crashed with its seed and why."""
+    (tmp_path / 'test_crash.py').write_text(CRASHING)
+    result = farm(tmp_path, 'test_crash.py')
+    assert '1 failed, 2 passed' in result.stdout, result.stdout[-3000:]
+    assert "RuntimeError: a bug in the user's node" in result.stdout  # the test's failure
+    report = json.loads((tmp_path / 'farm' / 'report.json').read_text())
+    summary = report['summary']
+    assert (summary['runs'], summary['passed'], summary['failed'], summary['crashed']) == \
+        (3, 2, 0, 1)
+    (crashed,) = [c for c in report['cases'] if c['crashed']]
+    assert crashed['seed'] == 3 and not crashed['passed']
+    assert crashed['reason'] == "raised RuntimeError: a bug in the user's node"
+    assert 'fake_run' in crashed['traceback']
+    markdown = (tmp_path / 'farm' / 'report.md').read_text()
+    assert '| passed | 2 of 3 (66.7 %) |' in markdown and '## Crashed (1)' in markdown
+
+    again = subprocess.run([sys.executable, '-m', 'r2d2_sim.farm', 'rerun', 'farm/report.json',
+                            '--case', str(crashed['case'])], cwd=tmp_path, env=environment(),
+                           capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stdout[-2000:] + again.stderr[-2000:]
+    assert ("the report has it crashed (raised RuntimeError: a bug in the user's node); this "
+            "time it raised RuntimeError: a bug in the user's node") in again.stdout
