@@ -13,8 +13,10 @@ pytest-xdist that process writes the report, and it never imports test modules.
   its MCAP into the farm directory, and must come out the same (else
   :class:`~r2d2_sim.farm.run.DeterminismError`). Session-scoped, so
   Hypothesis's ``@given`` tests may use it: there, only the final (shrunk)
-  example of a failing property is recorded and reported, with its scenario
-  in the failure's notes.
+  example of a failing property is reported, always recorded, with its
+  scenario in the failure's notes. A run that raises is reported crashed.
+  The report's pass or fail of a run is its verdict's and its test's: a test
+  that fails on its own (an assertion, every verdict passed) fails its runs.
 - ``--farm-dir DIR``: where outcomes, recordings and the report go (default
   ``farm_report`` under pytest's base temporary directory). Each xdist worker
   appends its outcomes there; at the end the main process writes
@@ -35,7 +37,7 @@ from pathlib import Path
 import re
 import traceback
 import warnings
-from typing import Any, Dict, List, Optional, TYPE_CHECKING
+from typing import Any, Dict, Generator, List, Optional, TYPE_CHECKING
 
 import pytest
 
@@ -94,6 +96,7 @@ class Farm:
         self._directory: Optional[Path] = None
         self._runs: Dict[str, int] = {}  # node id -> runs so far
         self._first_failures: Dict[str, Any] = {}  # node id -> a property's first failing scenario
+        self._pending: Dict[str, List[Dict[str, Any]]] = {}  # node id -> records, result unknown
         self.written: Dict[str, Path] = {}
         self._orphan = False  # a worker whose main process has no farm: no report
         workerinput = getattr(config, 'workerinput', None)
@@ -153,9 +156,12 @@ class Farm:
         record = record_failure = None
         if exploring:
             pass  # Hypothesis is still searching: only its final example is kept
-        elif self.record_dir is not None:
-            self.record_dir.mkdir(parents=True, exist_ok=True)
-            record = str(self.record_dir / f'{name}.mcap')
+        elif self.record_dir is not None or final:
+            # A property's final example is run only because its test failed, maybe on
+            # the test's own assertion with a passing verdict: it is always recorded.
+            folder = self.record_dir or self.directory / RECORDINGS
+            folder.mkdir(parents=True, exist_ok=True)
+            record = str(folder / f'{name}.mcap')
         else:
             folder = self.directory / RECORDINGS
             folder.mkdir(parents=True, exist_ok=True)
@@ -173,7 +179,7 @@ class Farm:
             # simulator refused a parameter): a crashed case, so that the report does not
             # count it among none; the test fails with the exception, as without the farm.
             if not exploring:
-                self._write(dict(line, outcome=None, scenario=scenario.to_dict(), crashed={
+                self._keep(dict(line, outcome=None, scenario=scenario.to_dict(), crashed={
                     'reason': 'raised ' + f'{type(exc).__name__}: {exc}'.splitlines()[0],
                     'seed': scenario.seed, 'traceback': traceback.format_exc()}))
             raise
@@ -185,15 +191,52 @@ class Farm:
         first = self._first_failures.get(nodeid)
         if final and first is not None:
             line['first_failure'] = first.to_dict()
-        self._write(line)
-        if final and not outcome.passed:
+        self._keep(line)
+        if final:
             self._note(name, nodeid, outcome)
         return outcome
 
-    def _write(self, line: Dict[str, Any]) -> None:
-        """Append one record to this process's outcomes file."""
+    def _keep(self, line: Dict[str, Any]) -> None:
+        """Keep a record until its test's result is known (:meth:`test_done`)."""
+        self._pending.setdefault(line['nodeid'], []).append(line)
+
+    def test_done(self, report: pytest.TestReport) -> None:
+        """
+        Write the records of a test that has its result, with that result merged in.
+
+        ``test``: ``failed``, ``when`` (setup, call, teardown), ``message`` (the
+        failure's first line) and ``own``: it failed while every run's verdict
+        passed, so on its own (an assertion of the test's), which fails those
+        runs in the report; a failed verdict or a crash explains a failure
+        otherwise, and the test's other runs keep their verdicts. A passed setup
+        leaves the records waiting for the call.
+        """
+        if report.when == 'setup' and not report.failed:
+            return
+        lines = self._pending.pop(report.nodeid, None)
+        if not lines:
+            return
+        message = ''
+        if report.failed:
+            crash = getattr(report.longrepr, 'reprcrash', None)
+            text = str(getattr(crash, 'message', None) or report.longrepr or 'failed')
+            message = (text.strip().splitlines() or ['failed'])[0][:200]
+        own = report.failed and all(line['outcome'] is not None and line['outcome']['passed']
+                                    for line in lines)
+        for line in lines:
+            line['test'] = {'failed': report.failed, 'when': report.when, 'message': message,
+                            'own': own}
+        self._write(lines)
+
+    def flush(self) -> None:
+        """Write the records still waiting for a result (of a session cut short): without one."""
+        for nodeid in list(self._pending):
+            self._write(self._pending.pop(nodeid))
+
+    def _write(self, lines: List[Dict[str, Any]]) -> None:
+        """Append records to this process's outcomes file."""
         with open(self._outcomes_file(), 'a', encoding='utf-8') as out:
-            out.write(json.dumps(line, sort_keys=True) + '\n')
+            out.writelines(json.dumps(line, sort_keys=True) + '\n' for line in lines)
 
     def _note(self, name: str, nodeid: str, outcome: 'r2d2_sim.farm.run.Outcome') -> None:
         """Save a property's shrunk scenario and say in the failure how to replay it."""
@@ -207,9 +250,10 @@ class Farm:
         if first is not None:
             note(f'r2d2_farm: the first failing scenario had {_boxes(first)}: '
                  f'{first.to_json()}')
+        verdict = outcome.reason or 'the verdict passed: the test failed on its own'
         note(f'r2d2_farm: the shrunk scenario (seed {outcome.scenario.seed}, '
              f'{_boxes(outcome.scenario)}) {outcome.scenario.to_json()}\n'
-             f'r2d2_farm: {outcome.reason}; recording: {outcome.recording}\n'
+             f'r2d2_farm: {verdict}; recording: {outcome.recording}\n'
              f'r2d2_farm: replay it: {REPLAY_ENV}={path} pytest \'{nodeid}\' '
              f'-p r2d2_sim.farm.pytest_plugin --farm-record DIR '
              '(or python -m r2d2_sim.farm rerun on the report)')
@@ -279,11 +323,25 @@ def pytest_configure_node(node: Any) -> None:
     node.workerinput[WORKER_INPUT_KEY] = str(node.config.stash[FARM_KEY].directory)
 
 
+# Outermost (tryfirst), so that it sees the report as pytest's other plugins leave it (xfail).
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]
+                              ) -> Generator[None, pytest.TestReport, pytest.TestReport]:
+    """Write the farm's records of a test with its result (in the process that ran it)."""
+    report = yield
+    farm = item.config.stash.get(FARM_KEY, None)
+    if farm is not None:
+        farm.test_done(report)
+    return report
+
+
 def pytest_sessionfinish(session: pytest.Session) -> None:
-    """In the main process, write the report of every worker's outcomes."""
+    """Write what waits for a result; in the main process, the report of every worker's."""
     farm = session.config.stash.get(FARM_KEY, None)
-    if farm is not None and farm.worker is None:
-        farm.write_report()
+    if farm is not None:
+        farm.flush()
+        if farm.worker is None:
+            farm.write_report()
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter,

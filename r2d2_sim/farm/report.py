@@ -6,7 +6,9 @@ node id and the rootdir it is relative to, the run's number in that test,
 whether it was a Hypothesis property's final example, and the
 :class:`~r2d2_sim.farm.run.Outcome`; a run without one, whose process died
 or which raised, has ``crashed`` instead: what happened, its seed and, from
-the pytest plugin, its ``scenario``).
+the pytest plugin, its ``scenario``; a pytest run's record has its ``test``'s
+result too, and a case passes only when its verdict passed and its test did
+not fail on its own).
 :func:`write_report` numbers them in node id order (so a case keeps its
 number however the workers were ordered) and writes:
 
@@ -97,13 +99,19 @@ def write_report(records: List[Dict[str, Any]], directory: Path, *,
         outcome = record['outcome']
         crashed = record.get('crashed')
         farm = record.get('farm') or {}
+        # A run passes when its verdict did and its test did not fail on its own (an
+        # assertion of the test's while every verdict of it passed).
+        test = record.get('test') or {}
+        reason = crashed['reason'] if crashed else outcome['reason']
+        if not reason and test.get('own'):
+            reason = f'the verdict passed, the test failed: {test.get("message") or "?"}'
         cases.append({'case': number, 'nodeid': record['nodeid'],
                       'rootdir': record.get('rootdir') or rootdir, 'run': record.get('run', 0),
                       'property': record.get('property', False),
                       'worker': record.get('worker', ''),
-                      'passed': outcome is not None and outcome['passed'],
-                      'crashed': crashed is not None,
-                      'reason': crashed['reason'] if crashed else outcome['reason'],
+                      'passed': (outcome is not None and outcome['passed']
+                                 and not test.get('own')),
+                      'crashed': crashed is not None, 'reason': reason, 'test': record.get('test'),
                       'seed': (farm.get('seed', crashed.get('seed')) if crashed
                                else outcome['scenario']['seed']),
                       'recording': None if crashed else outcome['recording'],

@@ -5,6 +5,9 @@ The farm's pytest plugin in a pytest of its own: names, crashes, and what a case
   parameters (two ``test_farm.py::test[0]`` in two folders, ids with '/').
 - A run that raises is a crashed case of the report (never "N of N passed"),
   and reruns from it.
+- A case passes only when its verdict and its test did: a test failing on
+  its own assertion fails its runs, and a property's final example is
+  recorded and noted whatever its verdict.
 
 No physics runs here: the project's conftest.py replaces ``run_scenario`` with
 a fake that judges by the seed (odd fails, 3 raises) and, like the simulator, refuses a
@@ -64,6 +67,34 @@ from r2d2_sim.farm import Scenario
 @pytest.mark.parametrize('seed', [2, 3, 4])
 def test_it(r2d2_farm, seed):
     assert r2d2_farm.run(Scenario(seed=seed), None, seconds=1.0).passed
+'''
+
+
+OWN_ASSERTIONS = '''
+import pytest
+from hypothesis import given
+
+from r2d2_sim.farm import farm_settings, Scenario, scenarios, ScenarioSpace
+
+
+@pytest.mark.parametrize('seed', [2])
+def test_seeded(r2d2_farm, seed):
+    outcome = r2d2_farm.run(Scenario(seed=seed), None, seconds=1.0)
+    assert outcome.passed
+    assert outcome.clearance_m > 5.0, 'clearance'  # a measure the verdict does not judge
+
+
+def test_two_runs(r2d2_farm):
+    first = r2d2_farm.run(Scenario(seed=2), None, seconds=1.0)
+    second = r2d2_farm.run(Scenario(seed=1), None, seconds=1.0)  # its verdict fails
+    assert first.passed and second.passed
+
+
+@farm_settings(max_examples=5)
+@given(scenario=scenarios(ScenarioSpace(obstacles=(0, 2))))
+def test_property(r2d2_farm, scenario):
+    outcome = r2d2_farm.run(scenario, None, seconds=1.0)
+    assert outcome.clearance_m > 5.0, 'clearance'
 '''
 
 
@@ -135,3 +166,31 @@ def test_a_run_that_raises_is_a_crashed_case_and_reruns_from_the_report(tmp_path
     assert again.returncode == 0, again.stdout[-2000:] + again.stderr[-2000:]
     assert ("the report has it crashed (raised RuntimeError: a bug in the user's node); this "
             "time it raised RuntimeError: a bug in the user's node") in again.stdout
+
+
+def test_a_test_failing_on_its_own_assertion_fails_its_cases_and_keeps_the_final_example(
+        tmp_path):
+    """Verdicts passed, tests failed: failed cases; the property's shrunk run recorded, noted."""
+    (tmp_path / 'test_own.py').write_text(OWN_ASSERTIONS)
+    result = farm(tmp_path, 'test_own.py')
+    assert '3 failed' in result.stdout, result.stdout[-3000:]
+    assert 'r2d2_farm: the verdict passed: the test failed on its own; recording: ' in \
+        result.stdout
+    found = {}
+    for case in cases(tmp_path):
+        found.setdefault(case['nodeid'].split('::')[1].split('[')[0], case)
+    seeded, prop = found['test_seeded'], found['test_property']
+    for case in seeded, prop:
+        assert case['outcome']['passed'] and not case['passed'] and not case['crashed']
+        assert case['reason'].startswith('the verdict passed, the test failed: AssertionError: '
+                                         'clearance'), case['reason']
+    assert seeded['recording'] is None  # a passing verdict: not run again to record it
+    assert prop['property'] and Path(prop['recording']).is_file()
+    (scenario,) = (tmp_path / 'farm' / 'scenarios').glob('*.json')
+    assert scenario.read_text().strip() == json.dumps(prop['outcome']['scenario'],
+                                                      sort_keys=True)
+    # A failed verdict explains its test's failure: the test's other run keeps its verdict.
+    two = [(c['run'], c['passed']) for c in cases(tmp_path) if 'test_two_runs' in c['nodeid']]
+    assert two == [(0, True), (1, False)]
+    markdown = (tmp_path / 'farm' / 'report.md').read_text()
+    assert '| passed | 1 of 4 (25.0 %) |' in markdown and '## Failures (3)' in markdown
