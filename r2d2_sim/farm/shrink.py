@@ -9,8 +9,10 @@ cluster.
 Hypothesis shrinks examples it generated itself. The failing scenario came
 from :meth:`ScenarioSpace.draw` (numpy), so :func:`choices_of` writes it
 as the choices :func:`~r2d2_sim.farm.strategies.scenarios` would have made
-to draw it (each box's continue flag and whole millimetres, then the start,
-the goal, the seed, the limits, the noise: the strategy's order), and an
+to draw it (each box's whole millimetres, with the list's continue flags as
+``st.lists`` draws them, then the start, the goal, the seed, the limits, the
+noise: the strategy's order), checks the strategy draws the same scenario
+from them (else it says it could not express the scenario), and an
 example database that holds only those choices (:class:`_Seeded`, as an
 example not shrunk yet) hands them to Hypothesis: its reuse phase runs the
 scenario again, it fails, and
@@ -25,12 +27,12 @@ directory.
 
 import math
 from pathlib import Path
-from typing import Any, Dict, Iterable, List, Optional
+from typing import Any, Dict, Iterable, List, Optional, Sequence
 
 from r2d2_sim.farm.job import FarmJob, Item
-from r2d2_sim.farm.scenario import Scenario, ScenarioSpace
+from r2d2_sim.farm.scenario import Box, Scenario, ScenarioSpace
 
-__all__ = ['choices_of', 'shrink_failure', 'MAX_SHRINKS']
+__all__ = ['choices_of', 'replay', 'shrink_failure', 'CannotExpress', 'MAX_SHRINKS']
 
 # Runs Hypothesis may make while shrinking (each a whole simulated run).
 MAX_SHRINKS = 200
@@ -44,20 +46,35 @@ def _milli(value: float, low: float, high: float) -> List[int]:
     return [min(max(round(value * 1000.0), lowest), highest)]
 
 
+class CannotExpress(ValueError):
+    """A scenario the strategy's choices cannot draw (so Hypothesis cannot shrink it)."""
+
+
 def choices_of(space: ScenarioSpace, scenario: Scenario) -> tuple:
     """
     Return the choices ``scenarios(space)`` makes to draw ``scenario`` (one of ``space``'s).
 
     A named start or goal stands for the drawn one: its draw is the area's
-    lowest corner (the strategy drops it as ``draw`` does).
+    lowest corner (the strategy drops it as ``draw`` does). The box list is
+    written as Hypothesis's ``st.lists`` draws it (``many``): a list of a fixed
+    size draws no continue flags; another draws a flag before each box and a
+    last one to stop, forced (below the fewest, at the most) but a choice all
+    the same. Boxes ``draw`` left out (none kept out of the start and the goal)
+    are drawn as boxes the strategy leaves out too, up to the fewest;
+    :class:`CannotExpress` when the space has no such box.
     """
+    variable = space.obstacles[0] != space.obstacles[1]
     choices: List[Any] = []
-    for box in scenario.obstacles:
-        choices += [True, *_milli(box.x, space.area[0], space.area[2]),
+    boxes = list(scenario.obstacles)
+    if len(boxes) < space.obstacles[0]:
+        boxes += [_left_out(space, scenario)] * (space.obstacles[0] - len(boxes))
+    for box in boxes:
+        choices += [True] if variable else []
+        choices += [*_milli(box.x, space.area[0], space.area[2]),
                     *_milli(box.y, space.area[1], space.area[3]),
                     *_milli(box.yaw, *space.box_yaw), *_milli(box.size[0], *space.box_size),
                     *_milli(box.size[1], *space.box_size)]
-    choices.append(False)
+    choices += [False] if variable else []
     start_x, start_y, start_yaw = ((space.start_area[0], space.start_area[1],
                                     space.start_yaw[0]) if space.start_pose else
                                    (scenario.start.x, scenario.start.y, scenario.start.yaw))
@@ -73,6 +90,34 @@ def choices_of(space: ScenarioSpace, scenario: Scenario) -> tuple:
         choices += _milli(limits[name], low, high)
     choices += _milli(scenario.scan_noise_std, *space.scan_noise_std)
     return tuple(choices)
+
+
+def _left_out(space: ScenarioSpace, scenario: Scenario) -> Box:
+    """Return a box of ``space`` that does not keep out of the scenario's start or goal."""
+    x_min, y_min, x_max, y_max = space.area
+    for x, y in ((scenario.start.x, scenario.start.y), scenario.goal_point):
+        box = Box(min(max(x, x_min), x_max), min(max(y, y_min), y_max), space.box_yaw[0],
+                  (space.box_size[1], space.box_size[1], space.box_height))
+        if not space.clear(box, scenario.start, scenario.goal_point):
+            return box
+    raise CannotExpress(f'it has {len(scenario.obstacles)} of the space\'s fewest '
+                        f'{space.obstacles[0]} boxes, and no box of its area stands in the way '
+                        'of its start or goal to be left out in their place')
+
+
+def replay(space: ScenarioSpace, choices: Sequence[Any]) -> Optional[Scenario]:
+    """Return the scenario ``scenarios(space)`` draws from ``choices``; None if it cannot."""
+    from hypothesis.control import BuildContext
+    from hypothesis.errors import StopTest
+    from hypothesis.internal.conjecture.data import ConjectureData
+    from r2d2_sim.farm.strategies import scenarios
+    data = ConjectureData.for_choices(tuple(choices))
+    try:
+        with BuildContext(data, wrapped_test=replay):  # a test to name: none runs
+            drawn: Scenario = data.draw(scenarios(space))
+    except StopTest:  # ran out of choices
+        return None
+    return drawn if data.misaligned_at is None else None
 
 
 class _Seeded:
@@ -123,9 +168,17 @@ def shrink_failure(job: FarmJob, item: Item, directory: Path,
     verdict = job.verdict or reached_safely
     first = job.scenario(item)
     found: Dict[str, Any] = {'runs': 0}
+    try:
+        choices = choices_of(space, first)
+        if replay(space, choices) != first:
+            raise CannotExpress('the strategy draws another scenario from its choices')
+    except CannotExpress as exc:
+        return {'first': first.to_json(), 'shrunk': None, 'runs': 0,
+                'summary': f'seed {item.seed}: could not express the scenario as the choices of '
+                           f'the Hypothesis strategy ({exc}): nothing shrunk'}
 
     # The seed under given, the settings above: @seed alone would drop the database.
-    @settings(database=_Seeded(choices_of(space, first)), phases=[Phase.reuse, Phase.shrink],
+    @settings(database=_Seeded(choices), phases=[Phase.reuse, Phase.shrink],
               max_examples=max_shrinks, deadline=None, report_multiple_bugs=False,
               print_blob=False, suppress_health_check=list(HealthCheck))
     @given(scenario=scenarios(space))
