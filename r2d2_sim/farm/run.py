@@ -59,6 +59,11 @@ class Outcome:
     (None: never); ``trajectory`` the base at 10 Hz (time_ns, x, y, yaw);
     ``steps`` the physics steps run; ``wall_s`` the wall time of the whole
     run (start-up included); ``recording`` the MCAP file of the run, if kept.
+
+    Every time counts from the start of the run, when the controller's nodes
+    were added (what it advanced before is not the run's): contacts' and the
+    trajectory's too, so that they and the reasons agree. A recording keeps
+    the simulation's own clock.
     """
 
     scenario: Scenario
@@ -178,15 +183,21 @@ def run_scenario(scenario: Scenario, controller: Controller, *, seconds: float,
     wall_s = time.perf_counter() - started
     start_ns = watch.start_ns
 
+    # Every time of the outcome counts from the watch's start (the controller may have
+    # advanced the simulation before): the watch keeps the simulation's own times.
     def since(time_ns: Optional[int]) -> Optional[float]:
         return None if time_ns is None else (time_ns - start_ns) / 1e9
 
+    contacts = tuple(c._replace(start_ns=c.start_ns - start_ns,
+                                end_ns=None if c.end_ns is None else c.end_ns - start_ns)
+                     for c in watch.contacts)
+    trajectory = tuple(p._replace(time_ns=p.time_ns - start_ns) for p in watch.trajectory)
     outcome = Outcome(
         scenario=scenario, passed=True, reason='', seconds=float(seconds),
         time_to_goal_s=since(watch.reached.get(GOAL)),
         clearance_m=watch.clearance.distance_m, closest=watch.clearance.other,
-        closest_s=since(watch.clearance.time_ns), contacts=tuple(watch.contacts),
-        tipped_s=since(watch.tipped_ns), trajectory=tuple(watch.trajectory),
+        closest_s=since(watch.clearance.time_ns), contacts=contacts,
+        tipped_s=since(watch.tipped_ns), trajectory=trajectory,
         steps=watch.steps, wall_s=wall_s, recording=record)
     reason = verdict(outcome)
     outcome = replace(outcome, passed=not reason, reason=reason or '')

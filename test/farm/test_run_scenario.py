@@ -67,6 +67,25 @@ def test_a_box_in_the_way_fails_with_the_box_named_and_a_recording_kept(tmp_path
     assert safe(outcome) == outcome.reason == reached_safely(outcome)
 
 
+def test_every_time_of_an_outcome_counts_from_the_runs_start():
+    """A controller that lets 1 s pass first: contacts, trajectory and reasons from the run's 0."""
+    scenario = Scenario(obstacles=(Box(1.2, 0.0, 0.3, (0.3, 1.0, 0.5)),),
+                        goal=circle_region(3.0, 0.0, 0.2), seed=11)
+
+    def settle_then_forward(harness, scenario):
+        harness.advance(seconds=1.0)
+        forward(harness, scenario)
+    outcome = run_scenario(scenario, settle_then_forward, seconds=5.0, parameters=QUIET)
+    times = [point.time_ns for point in outcome.trajectory]
+    assert times == [round(k * 1e9 / TRAJECTORY_RATE_HZ) for k in range(len(times))]
+    assert times[-1] == 5 * 10**9  # the run's last sample, at its 5 s
+    touched = outcome.contacts[0]
+    assert 0 < touched.start_ns <= 5 * 10**9
+    assert outcome.reason.startswith(f'touched box_0 at {touched.start_ns / 1e9:.3f} s ')
+    # The clearance reached its smallest (overlapping) when the contact began, or after.
+    assert outcome.clearance_m <= 0.0 and outcome.closest_s >= touched.start_ns / 1e9 - 0.01
+
+
 def test_a_passing_run_records_nothing_and_a_failing_one_only_when_asked(tmp_path):
     """record_failure costs nothing for a pass; without it, a failure keeps no file."""
     scenario = Scenario(goal=circle_region(0.5, 0.0, 0.2))
