@@ -160,9 +160,10 @@ def run_scenario(scenario: Scenario, controller: Controller, *, seconds: float,
     are simulator parameters on top of the scenario's (``publish_rate``...).
     ``record`` records the run into that MCAP file (it must not exist).
     ``verdict(outcome)`` returns why the run failed, '' when it passed
-    (default :func:`reached_safely`). ``record_failure``: if the run fails,
-    run it again recording into that file, and check the two outcomes are the
-    same (:class:`DeterminismError` if not); the outcome then names the file.
+    (default :func:`reached_safely`; TypeError for anything but a str).
+    ``record_failure``: if the run fails, run it again recording into that
+    file, and check the two outcomes are the same (:class:`DeterminismError`
+    if not); the outcome then names the file.
     """
     if not (0.0 < seconds < float('inf')):
         raise ValueError(f'seconds must be > 0 and finite, got {seconds}')
@@ -200,7 +201,11 @@ def run_scenario(scenario: Scenario, controller: Controller, *, seconds: float,
         tipped_s=since(watch.tipped_ns), trajectory=trajectory,
         steps=watch.steps, wall_s=wall_s, recording=record)
     reason = verdict(outcome)
-    outcome = replace(outcome, passed=not reason, reason=reason or '')
+    if not isinstance(reason, str):  # a bool would pass as True ("it was fine") and fail
+        name = getattr(verdict, '__qualname__', type(verdict).__name__)
+        raise TypeError(f'the verdict {name} returned {type(reason).__name__} {reason!r:.60}: '
+                        'a verdict returns a str, why the run failed (\'\' when it passed)')
+    outcome = replace(outcome, passed=not reason, reason=reason)
     if outcome.passed or record_failure is None:
         return outcome
     again = run_scenario(scenario, controller, seconds=seconds, record=record_failure,

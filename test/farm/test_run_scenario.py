@@ -148,6 +148,17 @@ def test_a_run_that_does_not_repeat_is_a_determinism_error(tmp_path):
                      record_failure=str(tmp_path / 'rerun.mcap'))
 
 
+def test_a_verdict_that_returns_no_str_is_one_line():
+    """A bool ('no contact: True') would read as a reason and fail the run: a TypeError."""
+    with pytest.raises(TypeError) as raised:
+        run_scenario(Scenario(), forward, seconds=0.1, parameters=QUIET,
+                     verdict=lambda outcome: not outcome.contacts)
+    message = str(raised.value)
+    assert message == ("the verdict test_a_verdict_that_returns_no_str_is_one_line.<locals>."
+                       "<lambda> returned bool True: a verdict returns a str, why the run "
+                       "failed ('' when it passed)")
+
+
 def test_bad_seconds_are_refused():
     """A run needs a positive, finite time."""
     with pytest.raises(ValueError, match='seconds'):
