@@ -42,6 +42,8 @@ LIMITS = ('max_linear_velocity', 'max_angular_velocity', 'max_linear_acceleratio
           'max_angular_acceleration')
 # Version of the JSON written; read back only when it matches.
 FORMAT = 1
+# The largest laser range noise (m) the simulator takes (its scan_noise_std parameter).
+MAX_SCAN_NOISE_STD = 10.0
 # Random positions are tried this often per obstacle before it is left out.
 PLACEMENT_ATTEMPTS = 50
 
@@ -271,12 +273,16 @@ class ScenarioSpace:
       the goal's centre (the robot must fit, the goal must be reachable);
     - ``world`` (read when the space is made: a world the simulator would
       refuse is a ScenarioError here), ``limits`` ((name, (low, high)) pairs,
-      drawn each), ``scan_noise_std`` (low, high);
+      drawn each), ``scan_noise_std`` (low, high; within 0 and 10 m, as
+      the simulator takes it);
     - ``start_pose``, ``goal_pose``: named poses of ``world`` standing for
       the drawn start (``start_area``, ``start_yaw``) and goal centre
       (``goal_area``; the circle keeps ``goal_tolerance``). The areas are
       still drawn from, and the draws dropped, so the other draws keep their
       order; boxes keep out of the named poses.
+
+    Anything else (a range not a pair, a NaN or infinite number, a negative
+    ``keep_out``) is a ScenarioError of one line when the space is made.
     """
 
     obstacles: Tuple[int, int] = (0, 5)
@@ -302,10 +308,12 @@ class ScenarioSpace:
             _named(self.world, self.start_pose)  # and so does a wrong name
         if self.goal_pose:
             _named(self.world, self.goal_pose)
-        low, high = self.obstacles
-        if not (isinstance(low, int) and isinstance(high, int) and 0 <= low <= high):
+        counts = self.obstacles
+        if not (isinstance(counts, (tuple, list)) and len(counts) == 2
+                and all(isinstance(c, int) and not isinstance(c, bool) for c in counts)
+                and 0 <= counts[0] <= counts[1]):
             raise ScenarioError(f'obstacles must be (fewest, most), 0 <= fewest <= most, got '
-                                f'{self.obstacles}')
+                                f'{self.obstacles!r}')
         for name in ('area', 'start_area', 'goal_area'):
             x_min, y_min, x_max, y_max = _range(name, getattr(self, name), 4)
             if x_min > x_max or y_min > y_max:
@@ -316,12 +324,30 @@ class ScenarioSpace:
             if lowest > highest:
                 raise ScenarioError(f'{name} must be (lowest, highest), got '
                                     f'{getattr(self, name)}')
+        for name in ('box_height', 'goal_tolerance', 'keep_out'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ScenarioError(f'{name} must be a finite number, got {value!r}')
         if self.box_size[0] <= 0.0 or self.box_height <= 0.0 or self.goal_tolerance <= 0.0:
             raise ScenarioError('box_size, box_height and goal_tolerance must be > 0')
-        for name, (lowest, highest) in self.limits:
-            if name not in LIMITS or not 0.0 <= lowest <= highest:
-                raise ScenarioError(f'limits: {name} must be one of {", ".join(LIMITS)} with '
-                                    '0 <= low <= high')
+        if self.keep_out < 0.0:
+            raise ScenarioError(f'keep_out must be >= 0, got {self.keep_out}')
+        if not 0.0 <= self.scan_noise_std[0] <= self.scan_noise_std[1] <= MAX_SCAN_NOISE_STD:
+            raise ScenarioError(f'scan_noise_std must be (lowest, highest) within 0 and '
+                                f'{MAX_SCAN_NOISE_STD:g} m (the simulator\'s), got '
+                                f'{self.scan_noise_std}')
+        if not isinstance(self.limits, (tuple, list)):
+            raise ScenarioError(f'limits must be (name, (low, high)) pairs, got '
+                                f'{type(self.limits).__name__} {self.limits!r:.80}')
+        for limit in self.limits:
+            try:
+                name, (lowest, highest) = limit
+                bad = name not in LIMITS or not 0.0 <= lowest <= highest < math.inf
+            except (TypeError, ValueError):
+                bad = True
+            if bad:
+                raise ScenarioError(f'limits: {limit!r:.60} is not (name, (low, high)) with a '
+                                    f'name of {", ".join(LIMITS)} and 0 <= low <= high, finite')
 
     def clear(self, box: Box, start: Pose, goal: Tuple[float, float]) -> bool:
         """Return True when ``box`` keeps ``keep_out`` from the start and the goal's centre."""

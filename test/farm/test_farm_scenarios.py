@@ -104,14 +104,36 @@ def test_an_impossible_scenario_is_refused(change, message):
         Scenario(**change)
 
 
+NAN, INF = float('nan'), float('inf')
+
+
 @pytest.mark.parametrize('change, message', [
     ({'obstacles': (3, 1)}, 'obstacles must be'), ({'area': (1, 0, 0, 1)}, 'area must be'),
     ({'box_size': (0.5, 0.2)}, 'box_size must be'), ({'goal_tolerance': 0.0}, 'must be > 0'),
+    ({'box_size': (0.2, NAN)}, 'box_size must be finite'),
+    ({'box_height': NAN}, 'box_height must be a finite number, got nan'),
+    ({'box_height': INF}, 'box_height must be a finite number, got inf'),
+    ({'keep_out': NAN}, 'keep_out must be a finite number, got nan'),
+    ({'keep_out': -1.0}, r'keep_out must be >= 0, got -1\.0'),
+    ({'goal_tolerance': NAN}, 'goal_tolerance must be a finite number, got nan'),
+    ({'goal_tolerance': INF}, 'goal_tolerance must be a finite number, got inf'),
+    ({'scan_noise_std': (-0.1, 0.0)}, r'scan_noise_std must be \(lowest, highest\) within 0 '
+                                      'and 10 m'),
+    ({'scan_noise_std': (0.0, 10.5)}, 'scan_noise_std must be'),
+    ({'limits': {'max_linear_velocity': (0.1, 1.0)}}, r'limits must be \(name, \(low, high\)\) '
+                                                      'pairs, got dict'),
+    ({'limits': (('max_linear_velocity', 0.5),)},
+     r"limits: \('max_linear_velocity', 0.5\) is not \(name, \(low, high\)\)"),
+    ({'limits': (('max_linear_velocity', (NAN, 1.0)),)}, 'limits: .*max_linear_velocity'),
+    ({'limits': (('top_speed', (0.1, 1.0)),)}, "limits: .*'top_speed'.* is not"),
+    ({'obstacles': 5}, 'obstacles must be .*got 5'),
+    ({'obstacles': (0.0, 2.0)}, 'obstacles must be'),
 ])
 def test_an_impossible_space_is_refused(change, message):
-    """A space whose ranges are empty says which in one line."""
-    with pytest.raises(ScenarioError, match=message):
+    """A space whose ranges are empty, or not numbers, or not ranges, says which in one line."""
+    with pytest.raises(ScenarioError, match=message) as raised:
         ScenarioSpace(**change)
+    assert '\n' not in str(raised.value)
 
 
 @settings(max_examples=60, deadline=None, derandomize=True, database=None)
