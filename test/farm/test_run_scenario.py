@@ -8,6 +8,8 @@ base covers 0.045 m in the first 0.3 s and 0.3 m each second after.
 
 import json
 import math
+from pathlib import Path
+import re
 
 import pytest
 
@@ -18,6 +20,7 @@ from r2d2_sim.model.regions import circle_region
 from r2d2_sim.sim.oracles import Contact
 from r2d2_sim.testing import read_recording
 
+REPO = Path(__file__).resolve().parents[2]
 QUIET = {'scan_rate': 0.0, 'imu_rate': 0.0, 'publish_tf': False, 'publish_rate': 20.0}
 
 
@@ -47,6 +50,21 @@ def test_the_goal_is_reached_when_the_ramp_says():
     times = [point.time_ns for point in outcome.trajectory]
     assert times == [round(k * 1e9 / TRAJECTORY_RATE_HZ) for k in range(len(times))]
     assert outcome.trajectory[-1].x_m == pytest.approx(1.4, abs=0.05)
+
+
+def test_the_docs_arrival_verdict_judges_the_speed_the_goal_was_entered_at():
+    """docs/farm.md's arrived(): the goal entered at 0.3 m/s fails at 0.2 m/s, passes at 0.5."""
+    page = (REPO / 'docs' / 'farm.md').read_text(encoding='utf-8')
+    (snippet,) = [b for b in re.findall(r'^```python\n(.*?)^```$', page, re.S | re.M)
+                  if 'def arrived(' in b]
+    namespace = {}
+    exec(snippet, namespace)
+    arrived = namespace['arrived']
+    scenario = Scenario(start=Pose(0.0, 0.0, 0.0), goal=circle_region(1.5, 0.0, 0.1), seed=3)
+    outcome = run_scenario(scenario, forward, seconds=10.0, parameters=QUIET)
+    assert outcome.passed  # reached_safely: entered, at full speed
+    assert arrived(outcome) == 'entered the goal at 0.30 m/s'
+    assert arrived(outcome, max_speed=0.5) == ''
 
 
 def test_a_box_in_the_way_fails_with_the_box_named_and_a_recording_kept(tmp_path):
