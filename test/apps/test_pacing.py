@@ -41,8 +41,9 @@ def pacers(monkeypatch):
     made = []
 
     class RecordingPacer(timing.DeadlinePacer):
-        def __init__(self, period_s, **kwargs):
+        def __init__(self, period_s, sleep=None, **kwargs):
             super().__init__(period_s, sleep=lambda s: None, **kwargs)
+            self.sleep_given = sleep  # run_paced's: the stop event's wait
             self.waits = 0
             made.append(self)
 
@@ -61,6 +62,8 @@ def test_one_step_per_deadline_at_the_real_time_factor(pacers, factor):
     sim_node.run_paced(node, stop)
     assert len(pacers) == 1 and pacers[0].period_s == pytest.approx(1.0 / (240.0 * factor))
     assert node.advances == [1] * 5 and pacers[0].waits == 5
+    # It sleeps on the stop event: a signal ends the wait at once, however slow the rate.
+    assert pacers[0].sleep_given == stop.wait
 
 
 def test_a_window_steps_a_frame_batch_per_deadline(pacers):
