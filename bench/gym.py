@@ -234,8 +234,10 @@ def reset_times(env, seeds):
     import numpy
     times = []
     for seed in seeds:
+        env.reset(seed=seed)  # an episode to step: the last one may have ended
         for _ in range(3):
-            env.step(numpy.array([0.5, 0.2], dtype=numpy.float32))
+            if env.step(numpy.array([0.5, 0.2], dtype=numpy.float32))[2]:
+                break  # terminated: a step after it is refused
         started = time.perf_counter()
         env.reset(seed=seed)
         times.append((time.perf_counter() - started) * 1e3)
