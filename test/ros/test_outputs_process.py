@@ -364,7 +364,8 @@ def test_a_recording_child_told_to_stop_still_finishes_its_file(ros, monkeypatch
     with open(path, 'rb') as recorded:  # the summary and the footer were written
         recorded.seek(-8, os.SEEK_END)
         assert recorded.read() == b'\x89MCAP0\r\n'
-    kept = [bytes(each.message.data) for each in read_recording(path)['/blob']]
+    # A prefix, maybe empty: the signal can come before the slow disk took the first blob.
+    kept = [bytes(each.message.data) for each in read_recording(path).get('/blob', ())]
     assert kept == [blob(i) for i in range(len(kept))] and len(kept) < BLOBS
     relay.close()
 
