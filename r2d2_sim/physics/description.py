@@ -332,11 +332,12 @@ class DescriptionFile:
     """
     A URDF given as text, written to a temporary file PyBullet can load.
 
-    The file lives in its own temporary directory until :meth:`close`.
+    The text is one its caller has checked (:func:`check_urdf_xml`, or a spawn's
+    or a world's own checks): each checked it once, before. The file lives in
+    its own temporary directory until :meth:`close`.
     """
 
     def __init__(self, text: str) -> None:
-        check_urdf_xml(text, 'robot_description')
         self._directory: Optional[str] = tempfile.mkdtemp(prefix='r2d2_sim_')
         self.path = os.path.join(self._directory, 'robot_description.urdf')
         with open(self.path, 'w', encoding='utf-8') as handle:
@@ -370,6 +371,7 @@ class RobotDescription(NamedTuple):
         package's own R2D2. DescriptionError (one line) when it cannot be had.
         """
         if text:
+            check_urdf_xml(text, 'robot_description')
             temporary = DescriptionFile(text)
             return RobotDescription(temporary.path, text, temporary)
         path = resolve_description_path(urdf) if urdf else default_urdf_path()

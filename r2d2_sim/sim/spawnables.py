@@ -33,7 +33,7 @@ from r2d2_sim.sim.sdf.mesh_cache import MeshCache
 from r2d2_sim.sim.sdf.resources import Resources
 from r2d2_sim.sim.sdf.spawning import is_sdf_spawn, read_sdf_spawnable
 
-__all__ = ['check_description', 'read_description', 'convert_meshes', 'MeshUse',
+__all__ = ['check_description', 'check_tree', 'read_description', 'convert_meshes', 'MeshUse',
            'read_spawnable', 'spawnable_uris', 'directory_spawnables', 'Spawnable', 'Closable',
            'box_urdf', 'MAX_DESCRIPTION_BYTES', 'MAX_LINKS']
 
@@ -102,15 +102,20 @@ def read_description(text: str, base_dir: Optional[str], shown: str
     if len(links) > MAX_LINKS:
         raise RefusedError('RESOURCE_PARSE_ERROR', f'the URDF has {len(links)} links, more '
                            f'than {MAX_LINKS}')
-    try:
-        check_urdf(root, shown)
-    except DescriptionError as exc:
-        raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
+    check_tree(root, shown)
     meshes = []
     for mesh in root.iter('mesh'):
         filename = mesh.get('filename', '')
         meshes.append(MeshUse(_check_mesh(filename, base_dir), filename[:200]))
     return root.get('name', ''), meshes
+
+
+def check_tree(root: ElementTree.Element, shown: str) -> None:
+    """Raise RefusedError RESOURCE_PARSE_ERROR for a URDF tree or number PyBullet misreads."""
+    try:
+        check_urdf(root, shown)
+    except DescriptionError as exc:
+        raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
 
 
 def convert_meshes(meshes: Sequence[MeshUse], triangles: TriangleBudget) -> None:

@@ -25,12 +25,12 @@ from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple, 
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.physics.description import check_urdf, DescriptionError, DescriptionFile
+from r2d2_sim.physics.description import DescriptionFile
 from r2d2_sim.sim.sdf.elements import root_tag
 from r2d2_sim.sim.sdf.loading import scene_meshes, SdfSettings, TriangleBudget
 from r2d2_sim.sim.worlds.sdf_format import read_sdf_model, read_sdf_world, sdf_models
 from r2d2_sim.sim.spawnables import (
-    Closable, convert_meshes, MAX_DESCRIPTION_BYTES, MeshUse, read_description)
+    check_tree, Closable, convert_meshes, MAX_DESCRIPTION_BYTES, MeshUse, read_description)
 from r2d2_sim.sim.worlds.manifest import (
     load_yaml, MAX_WORLD_BYTES, ModelEntry, read_manifest)
 from r2d2_sim.sim.worlds.world import World, WorldModel
@@ -123,10 +123,7 @@ class _Reading:
             if root.tag != 'robot':
                 raise RefusedError('UNSUPPORTED_FORMAT', f'{shown}: the root element is '
                                                          f'<{root.tag[:40]}>, not <robot>')
-            try:
-                check_urdf(root, shown)
-            except DescriptionError as exc:
-                raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
+            check_tree(root, shown)
         else:
             name, meshes = read_description(text, base_dir, shown)  # size, DOCTYPE, links, meshes
             root = ElementTree.fromstring(text)
