@@ -46,6 +46,9 @@ FORMAT = 1
 MAX_SCAN_NOISE_STD = 10.0
 # Random positions are tried this often per obstacle before it is left out.
 PLACEMENT_ATTEMPTS = 50
+# The most boxes a scenario may have: each is a body in the world (and a learning
+# environment spawns its most, times its robots, once); more is a typo, not a design.
+MAX_OBSTACLES = 1000
 
 
 def _finite(name: str, *values: float) -> Tuple[float, ...]:
@@ -262,7 +265,7 @@ class ScenarioSpace:
     """
     What varies between scenarios, and within which ranges (a farm's design).
 
-    - ``obstacles``: how many boxes, (fewest, most);
+    - ``obstacles``: how many boxes, (fewest, most), at most :data:`MAX_OBSTACLES`;
     - ``area``: where their centres go, (x_min, y_min, x_max, y_max);
     - ``box_size``: each footprint side, (smallest, largest); ``box_yaw``
       (lowest, highest); ``box_height``;
@@ -311,9 +314,9 @@ class ScenarioSpace:
         counts = self.obstacles
         if not (isinstance(counts, (tuple, list)) and len(counts) == 2
                 and all(isinstance(c, int) and not isinstance(c, bool) for c in counts)
-                and 0 <= counts[0] <= counts[1]):
-            raise ScenarioError(f'obstacles must be (fewest, most), 0 <= fewest <= most, got '
-                                f'{self.obstacles!r}')
+                and 0 <= counts[0] <= counts[1] <= MAX_OBSTACLES):
+            raise ScenarioError(f'obstacles must be (fewest, most), 0 <= fewest <= most <= '
+                                f'{MAX_OBSTACLES}, got {self.obstacles!r}')
         for name in ('area', 'start_area', 'goal_area'):
             x_min, y_min, x_max, y_max = _range(name, getattr(self, name), 4)
             if x_min > x_max or y_min > y_max:

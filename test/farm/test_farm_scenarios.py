@@ -128,6 +128,8 @@ NAN, INF = float('nan'), float('inf')
     ({'limits': (('top_speed', (0.1, 1.0)),)}, "limits: .*'top_speed'.* is not"),
     ({'obstacles': 5}, 'obstacles must be .*got 5'),
     ({'obstacles': (0.0, 2.0)}, 'obstacles must be'),
+    ({'obstacles': (0, 10 ** 7)}, r'obstacles must be \(fewest, most\), 0 <= fewest <= most <= '
+                                  r'1000, got \(0, 10000000\)'),
 ])
 def test_an_impossible_space_is_refused(change, message):
     """A space whose ranges are empty, or not numbers, or not ranges, says which in one line."""
