@@ -50,7 +50,6 @@ _CDR_BE = b'\x00\x00'
 
 _NANOSECONDS_PER_SECOND = 1_000_000_000
 _LOCATE_ATTEMPTS = 4
-_MIN_BYTE_RUN = 16
 
 
 class FieldError(ValueError):
@@ -386,10 +385,14 @@ class MessageTemplate:
 
     def bytes_field(self, path: str) -> BytesSlot:
         """
-        Locate a ``uint8[]`` (or ``byte[]``) field of at least 16 elements by its path: ``'data'``.
+        Locate a ``uint8[]`` (or ``byte[]``) field by its path: ``'data'``; any length.
 
-        Single bytes are too common to be found by a sentinel; a run of 16
-        random ones is not. Found and proved as :meth:`field` finds numbers.
+        Random bytes are put there, then the same bytes each flipped: the
+        array lies where the first serialization holds the first and the
+        second the second. A few bytes (a 1x1 camera's 12-byte cloud) may
+        also occur elsewhere by chance, but seldom flipped in both; only
+        alignment padding, which rmw leaves unwritten, changes besides.
+        Found and proved as :meth:`field` finds numbers.
         """
         holder, key, type_def = _resolve(self._message, path)
         value_type = getattr(type_def, 'value_type', None)
@@ -400,13 +403,13 @@ class MessageTemplate:
             raise FieldError(f'{path!r}: name the byte array itself, not an element of a list')
         original = _get(holder, key)
         count = len(original)
-        if count < _MIN_BYTE_RUN:
-            raise FieldError(f'{path!r} has {count} bytes; at least {_MIN_BYTE_RUN} are needed '
-                             'to find them')
+        if count == 0:
+            return BytesSlot(self._buffer, path, 0, 0)  # nothing to patch, nothing to find
         try:
             for attempt in range(_LOCATE_ATTEMPTS):
                 rng = np.random.default_rng(attempt)  # seeded: the same layout every run
-                packed_a, packed_b = rng.bytes(count), rng.bytes(count)
+                packed_a = rng.bytes(count)
+                packed_b = bytes(np.frombuffer(packed_a, np.uint8) ^ 0xFF)
                 setattr(holder, key, packed_b)
                 serialized_b = serialize_message(self._message)
                 setattr(holder, key, packed_a)

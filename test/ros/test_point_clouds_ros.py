@@ -139,7 +139,38 @@ def test_a_byte_array_template_round_trips_and_refuses_what_it_cannot_find():
         data.set(b'\0' * 191)
     with pytest.raises(FieldError, match='not a byte array'):
         template.bytes_field('height')
-    small = PointCloud2()
-    small.data = bytes(4)
-    with pytest.raises(FieldError, match='at least 16'):
-        MessageTemplate(small).bytes_field('data')
+
+
+@pytest.mark.parametrize('count', [0, 1, 12, 15])
+def test_a_byte_array_of_a_few_bytes_is_found_too(count):
+    """A 1x1 camera's cloud is 12 bytes: too few for a sentinel once, found all the same."""
+    msg = PointCloud2(height=1, width=1, point_step=count, row_step=count, is_dense=True)
+    msg.data = bytes(count)
+    template = MessageTemplate(msg)
+    data = template.bytes_field('data')
+    values = bytes(range(200, 200 + count))
+    data.set(values)
+    back = deserialize_message(template.to_bytes(), PointCloud2)
+    assert bytes(back.data) == values
+    assert back.point_step == count and back.is_dense
+
+
+def test_a_one_pixel_camera_publishes_its_one_point(ros):
+    """camera_width 1 x camera_height 1 with the cloud: one point, the depth pixel projected."""
+    sim = make_sim(ros, world=ROOM, camera_rate=10.0, camera_depth=True,
+                   camera_point_cloud=True, camera_width=1, camera_height=1)
+    seen = listen(ros, {'camera/depth/points': (PointCloud2, 10),
+                        'camera/depth/image_raw': (Image, 10),
+                        'camera/depth/camera_info': (CameraInfo, 10)})
+    sim.advance(24)
+    assert wait_for(lambda: all(seen.values()))
+    cloud, depth, info = (seen[t][-1] for t in ('camera/depth/points', 'camera/depth/image_raw',
+                                                'camera/depth/camera_info'))
+    assert (cloud.height, cloud.width, cloud.row_step) == (1, 1, 12)
+    assert cloud.header == depth.header
+    point = cloud_array(cloud)[0, 0]
+    z = float(numpy.frombuffer(bytes(depth.data), '<f4')[0])
+    assert numpy.isfinite(z)  # the room's wall ahead
+    fx, cx, fy, cy = info.k[0], info.k[2], info.k[4], info.k[5]
+    assert (point['x'], point['y'], point['z']) == pytest.approx(
+        (-cx / fx * z, -cy / fy * z, z), rel=1e-6, abs=1e-6)
