@@ -17,10 +17,10 @@ from typing import Optional, Sequence, Tuple
 
 import numpy
 
-from r2d2_sim.model.noise import NoiseModel, NoiseSpec
+from r2d2_sim.model.noise import NoiseModel, NoiseSpec, quantize
 from r2d2_sim.model.sensor_checks import require_generator, require_number, SensorConfigError
 from r2d2_sim.model.transforms import (
-    quaternion_from_axis_angle, quaternion_multiply, rotate_inverse)
+    quaternion_from_axis_angle, quaternion_from_rpy, quaternion_multiply, rotate_inverse)
 
 __all__ = ['ImuReading', 'ImuModel', 'STANDARD_GRAVITY_M_S2']
 
@@ -45,6 +45,21 @@ class ImuReading:
     orientation_xyzw: Quat          # the sensor frame in the fixed world (ENU) frame
     angular_velocity_rad_s: Vec3    # in the sensor frame
     linear_acceleration_m_s2: Vec3  # specific force in the sensor frame: +9.8 up at rest
+
+
+def _rpy(q: Quat) -> Vec3:
+    """Return the roll, pitch, yaw of a unit quaternion: :func:`quaternion_from_rpy` undone."""
+    x, y, z, w = q
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+def _rounded_orientation(q: Quat, precision: float) -> Quat:
+    """Return ``q`` with its roll, pitch and yaw each rounded to a multiple of ``precision``."""
+    roll, pitch, yaw = quantize(numpy.array(_rpy(q)), precision).tolist()
+    return quaternion_from_rpy(roll, pitch, yaw)
 
 
 def _diagonal_covariance(variance: float) -> Tuple[float, ...]:
@@ -76,10 +91,11 @@ class ImuModel:
     has its :class:`~r2d2_sim.model.noise.NoiseSpec` (the ``*_std`` shorthands
     give white noise alone), applied to each of its three axes independently
     (each axis draws its own bias); the orientation noise is a small rotation
-    about the world axes. ``period_s`` (the IMU's period) steps the dynamic
-    biases. All three quantities are provided, so their covariances are
-    diagonal, each the spec's mean square error (never the -1 that marks a
-    missing one).
+    about the world axes, and its precision rounds the noisy orientation's
+    roll, pitch and yaw (fixed axes, as URDF's rpy). ``period_s`` (the IMU's
+    period) steps the dynamic biases. All three quantities are provided, so
+    their covariances are diagonal, each the spec's mean square error (never
+    the -1 that marks a missing one).
     """
 
     def __init__(self, *, gravity_m_s2: Sequence[float] = STANDARD_GRAVITY_M_S2,
@@ -177,9 +193,15 @@ class ImuModel:
     def _with_noise(self, q: Quat, angular_rad_s: Vec3, specific_force_m_s2: Vec3
                     ) -> ImuReading:
         if not self._exact:
-            if not self._orientation.exact:
-                error_rad = self._orientation.apply(numpy.zeros(3))
+            orientation = self._orientation
+            if not orientation.exact:
+                # The error is a rotation about the world axes; precision rounds the
+                # reading (its roll, pitch and yaw), as Gazebo rounds a value with
+                # its noise, not the error alone.
+                error_rad = orientation.error(3)
                 q = quaternion_multiply(_rotation_vector_quaternion(error_rad), q)
+                if orientation.spec.precision > 0.0:
+                    q = _rounded_orientation(q, orientation.spec.precision)
             if not self._angular.exact:
                 angular_rad_s = tuple(self._angular.apply(numpy.array(angular_rad_s)).tolist())
             if not self._linear.exact:

@@ -16,6 +16,8 @@ from r2d2_sim.model.sensors import (
     ScanGeometry,
     SensorConfigError,
 )
+from r2d2_sim.model.noise import NoiseSpec
+from r2d2_sim.model.transforms import quaternion_from_rpy
 
 HALF_SQRT2 = math.sqrt(0.5)
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
@@ -261,6 +263,46 @@ def test_imu_noise_is_seeded_and_has_the_requested_spread():
     # A small rotation by r about the axes has quaternion ~ (r / 2, 1): x, y, z spread 0.005.
     assert numpy.linalg.norm(orientation, axis=1) == pytest.approx(numpy.ones(4000))
     assert orientation[:, :3].std(axis=0) == pytest.approx([0.005] * 3, rel=0.06)
+
+
+def rpy_of(q):
+    """Return roll, pitch, yaw (fixed axes, URDF's rpy) of a quaternion (x, y, z, w)."""
+    x, y, z, w = q
+    return numpy.array([math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+                        math.asin(2 * (w * y - z * x)),
+                        math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))])
+
+
+@pytest.mark.parametrize('std', [0.0, 0.02])
+def test_imu_orientation_precision_rounds_the_reported_angles(std):
+    """
+    Roll, pitch and yaw of the reading are multiples of the precision, within half a step.
+
+    The precision once rounded only the noise's rotation (0 without white
+    noise: the true orientation came out), while the covariance counted
+    precision^2 / 12 of rounding.
+    """
+    precision = 0.1
+    imu = ImuModel(orientation_noise=NoiseSpec(stddev=std, precision=precision),
+                   rng=numpy.random.default_rng(1))
+    assert imu.orientation_covariance[0] == pytest.approx(std ** 2 + precision ** 2 / 12)
+    rng = numpy.random.default_rng(2)
+    errors = []
+    for k in range(500):
+        true_rpy = rng.uniform([-1.0, -1.0, -3.0], [1.0, 1.0, 3.0])
+        reading = imu.update(0.01 * (k + 1), quaternion_from_rpy(*true_rpy), (0, 0, 0),
+                             (0, 0, 0))
+        rpy = rpy_of(reading.orientation_xyzw)
+        assert numpy.allclose(rpy / precision, numpy.round(rpy / precision), atol=1e-9)
+        errors.append(rpy - true_rpy)
+    errors = numpy.array(errors)
+    if std == 0.0:
+        assert numpy.abs(errors).max() <= precision / 2 + 1e-9
+        # Rounding spreads the angles uniformly over a step: its variance is p^2 / 12.
+        assert errors.var(axis=0) == pytest.approx([precision ** 2 / 12] * 3, rel=0.2)
+    else:
+        assert errors.std(axis=0) == pytest.approx([math.sqrt(std ** 2 + precision ** 2 / 12)]
+                                                   * 3, rel=0.2)
 
 
 def test_imu_refuses_time_going_back_until_reset():

@@ -108,6 +108,24 @@ def test_imu_orientation_noise_is_a_rotation_per_axis(make):
     assert angles[:, :2].std(axis=0) == pytest.approx([0.01, 0.01], rel=0.03)
 
 
+def test_imu_orientation_precision_rounds_the_heading_it_reports(make):
+    """A robot turning: each reading's yaw is a multiple of the precision, the true one rounded."""
+    from r2d2_sim.model.transforms import yaw_of
+    simulation = make(cmd_vel_timeout=0.0, imu_orientation_noise_precision=0.1)
+    simulation.robot.command(0.0, 0.5)
+    headings = set()
+    for _ in range(480):
+        simulation.step()
+        simulation.robot.imu.reset()  # read again at a time it may have read at
+        reading = simulation.robot.imu.read(simulation.time_ns / 1e9)
+        yaw = yaw_of(reading.orientation_xyzw)
+        true_yaw = yaw_of(simulation.robot.body.world_state().orientation)
+        assert yaw / 0.1 == pytest.approx(round(yaw / 0.1), abs=1e-9)
+        assert abs(yaw - true_yaw) <= 0.05 + 1e-9
+        headings.add(round(yaw, 6))
+    assert len(headings) > 3  # it turned through several steps
+
+
 def drive_straight(simulation, steps=720):
     simulation.robot.command(0.4, 0.0)
     for _ in range(steps):
