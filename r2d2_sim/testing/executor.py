@@ -24,6 +24,7 @@ from rclpy.executors import (
     ConditionReachedException, ExternalShutdownException, ShutdownException, TimeoutException)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.subscription import Subscription
 
 from r2d2_sim.client import numbers_alike, wait_for
 from r2d2_sim.testing.domains import lease_domain
@@ -92,6 +93,10 @@ class RosHarness:
         self._park_requests = 0
         self._parked = False
         self._owned = 0
+        # Every subscription a message was handled for, by either thread (weakly: a
+        # destroyed one's id may be another's later): SimHarness counts a latched
+        # message taken before it looked as served.
+        self._handled: 'weakref.WeakSet[Subscription]' = weakref.WeakSet()
         # Discovery must stay on this host (a default, set before rclpy.init).
         os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
         self.context = Context()
@@ -216,11 +221,12 @@ class RosHarness:
         """Run ready callbacks in this thread (which owns the executor) until a poll finds none."""
         deadline = time.monotonic() + timeout_s
         worked = False
+        entity: Any
         while True:
             try:
                 # A zero timeout polls; every batch ends with TimeoutException,
                 # and a batch that yielded nothing means idle.
-                handler, _, _ = self.executor.wait_for_ready_callbacks(0.0)
+                handler, entity, _ = self.executor.wait_for_ready_callbacks(0.0)
             except TimeoutException:
                 if not worked:
                     return
@@ -231,9 +237,11 @@ class RosHarness:
             except (ShutdownException, ExternalShutdownException):
                 raise HarnessError('the harness was shut down') from None
             worked = True
-            self._run(handler)
+            self._run(handler, entity)
 
-    def _run(self, handler: Handler) -> None:
+    def _run(self, handler: Handler, entity: Any) -> None:
+        if isinstance(entity, Subscription):
+            self._handled.add(entity)
         handler()
         error = handler.exception()
         if error is not None:
@@ -270,6 +278,7 @@ class RosHarness:
     def _spin(self) -> None:
         """Serve callbacks until stopped, parking while a caller drives."""
         executor = self.executor
+        entity: Any
         while not self._stop.is_set():
             if self._park_requests:
                 with self._state:
@@ -279,13 +288,13 @@ class RosHarness:
                     self._parked = False
                 continue
             try:
-                handler, _, _ = executor.wait_for_ready_callbacks(
+                handler, entity, _ = executor.wait_for_ready_callbacks(
                     SPIN_POLL_S, None, self._park_wanted)
             except (TimeoutException, ConditionReachedException):
                 continue
             except (ShutdownException, ExternalShutdownException):
                 break
-            self._run(handler)
+            self._run(handler, entity)
         with self._state:
             self._state.notify_all()
 

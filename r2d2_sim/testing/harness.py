@@ -238,8 +238,10 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         was added: else their message would reach them at a simulated time
         that depends on the machine's load.
         """
+        # A message some callback already handled (the spinning thread took it
+        # before anyone looked, or a settle() did) came before time moved: served.
         pending = [sub for node in nodes for sub in self._latched_subscriptions(node)
-                   if sub not in self._latched_served]
+                   if sub not in self._latched_served and sub not in self._handled]
         delivered: Set[int] = set()
         originals = [(sub, sub.callback) for sub in pending]
         # Noted before the node is spun: the spinning thread may take a latched
@@ -266,7 +268,12 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         self._latched_served.update(pending)
 
     def _serve_new_latched(self) -> None:
-        """Before a lockstep advance: serve latched subscriptions made since (see above)."""
+        """
+        Before a lockstep advance: serve latched subscriptions made since (see above).
+
+        The caller owns the executor: the spinning thread, parked, cannot take
+        a message between the look at what was handled and the wrapping.
+        """
         seen = self._subscriptions_seen
         fresh = [node for node in self.nodes if any(sub not in seen for sub in node.subscriptions)]
         if fresh:
@@ -313,8 +320,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         if not self._lockstep:
             self.sim.advance(steps)
             return steps
-        self._serve_new_latched()
         with self._own_executor():
+            self._serve_new_latched()
             self._run_periods(steps)
         return steps
 
@@ -329,11 +336,11 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         """
         limit = self._steps(timeout_s)
         self._check_world()
-        if self._lockstep:
-            self._serve_new_latched()
         # Driven from this thread: each period's messages are handled before
         # the predicate looks, with no hand-over to the executor thread.
         with self._own_executor():
+            if self._lockstep:
+                self._serve_new_latched()
             return predicate() or self._run_periods(limit, predicate)
 
     def _check_world(self) -> None:

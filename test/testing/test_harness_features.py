@@ -115,6 +115,31 @@ def test_a_latched_subscription_made_after_add_node_has_its_message_before_time_
     assert got == [before]  # not at a time the machine's load chose
 
 
+@pytest.mark.parametrize('gap', ['spinning thread', 'settle'])
+def test_a_latched_message_a_late_subscription_had_before_advance_counts_as_served(gap):
+    """
+    create_node, a latched subscription, then a gap in which its message arrives: advance goes.
+
+    The spinning thread (or a settle()) delivers robot_description while the
+    test does something else first; advance() once waited for it again, for
+    the harness's whole timeout, and raised HarnessError (4 runs in 10).
+    """
+    from r2d2_sim.testing import wait_for
+    with SimHarness(cmd_vel_timeout=0.0, timeout_s=3.0) as harness:
+        node = harness.create_node('late_consumer')
+        got = []
+        node.create_subscription(String, 'robot_description', got.append, LATCHED_QOS)
+        if gap == 'settle':
+            assert wait_for(lambda: harness.settle() or got, 5.0)
+        else:
+            assert wait_for(lambda: got, 5.0), 'the spinning thread did not deliver in 5 s'
+        before = harness.sim.sim_time_ns
+        started = time.monotonic()
+        harness.advance()
+        assert time.monotonic() - started < 2.0
+        assert len(got) == 1 and harness.sim.sim_time_ns > before
+
+
 def test_latched_callbacks_that_are_coroutines_or_take_message_info_get_their_message(
         r2d2_sim):
     """add_node's wait wraps the callbacks: an async one is awaited, an info one gets its info."""
