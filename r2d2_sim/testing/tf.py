@@ -13,13 +13,14 @@ subscriber on /tf from the start would cost every lockstep period a
 delivery), seeded with the latest /tf its simulator sent, which it knows.
 """
 
-from typing import Any, Callable, Optional, Tuple
+from typing import Any, Callable, List, Optional, Tuple
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.subscription import Subscription
 
-from r2d2_sim.model.tf_buffer import StampedTransform, TransformBuffer, TransformException
+from r2d2_sim.model.tf_buffer import (
+    from_tf_message, StampedTransform, TransformBuffer, TransformException)
 from r2d2_sim.testing.executor import HarnessError
 from r2d2_sim.testing.lockstep import TakenOnDemand
 
@@ -31,6 +32,8 @@ TF_STATIC_QOS = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCA
 # Taken on demand, /tf waits in the middleware's history: this many messages, about
 # 8 s of a robot publishing at 240 Hz (the buffer keeps 10 s, as tf2's does).
 TF_ON_DEMAND_QOS = QoSProfile(depth=2000)
+# Refused transforms whose reasons a listener keeps (a looping publisher repeats them).
+_REFUSALS_KEPT = 10
 
 
 class TfListener:
@@ -43,7 +46,9 @@ class TfListener:
     in the middleware until :meth:`take`, which reading ``buffer`` does (no
     executor runs them: a lockstep period costs nothing for them);
     ``static_received`` and ``dynamic_received`` count them, ``static_publishers``
-    the ``/tf_static`` publishers matched (each latches one message). Needs tf2_msgs
+    the ``/tf_static`` publishers matched (each latches one message). A
+    transform the buffer refuses (a loop, a frame its own parent, NaN) is
+    left out and its reason kept in ``refused`` (the first few). Needs tf2_msgs
     (ImportError without it: ``tools/build_tf2_msgs.sh`` builds it for a
     pip-only venv).
     """
@@ -54,6 +59,7 @@ class TfListener:
         from tf2_msgs.msg import TFMessage
         self._buffer = buffer if buffer is not None else TransformBuffer()
         self._received = [0, 0]  # dynamic, static
+        self.refused: List[str] = []
         self.topics = topics
         group = TakenOnDemand() if on_demand else None
         self._subscriptions: Tuple[Subscription, ...] = (
@@ -89,12 +95,22 @@ class TfListener:
         return self._subscriptions[1].get_publisher_count() if self._subscriptions else 0
 
     def _on_tf(self, msg: Any) -> None:
-        self._buffer.add_tf_message(msg, static=False)
+        self._add(msg, static=False)
         self._received[0] += 1
 
     def _on_tf_static(self, msg: Any) -> None:
-        self._buffer.add_tf_message(msg, static=True)
+        self._add(msg, static=True)
         self._received[1] += 1
+
+    def _add(self, msg: Any, static: bool) -> None:
+        """Add each transform of a TFMessage; keep why one was refused, and go on."""
+        for t in from_tf_message(msg):
+            try:
+                self._buffer.add(t.frame_id, t.child_frame_id, t.stamp_ns,
+                                 t.transform.translation, t.transform.rotation, static)
+            except TransformException as exc:
+                if len(self.refused) < _REFUSALS_KEPT:
+                    self.refused.append(str(exc))
 
     def add_serialized(self, data: bytes, static: bool = False) -> None:
         """Add a serialized TFMessage as if it had arrived (what was sent before this listened)."""
@@ -194,7 +210,10 @@ class TransformLookup:
         still on its way. Waits by deadline; HarnessError with tf2's reason.
         In the in-process harness an unknown frame fails at once instead,
         once ``/tf_static`` is in: time moves only when it steps (TF that
-        another process publishes there would have to be in already).
+        another process publishes there would have to be in already). A
+        transform someone published that the buffer refused (a loop, a frame
+        its own parent) makes every lookup a HarnessError with its reason:
+        the tree is not what its publishers meant.
         """
         listener = self.listen_tf()
         time_ns = time_ns or self._tf_default_time_ns()
@@ -215,9 +234,22 @@ class TransformLookup:
             received = listener.static_received
             return frozen and received > 0 and received >= listener.static_publishers
         if not self._tf_wait(decided) or not can_transform():
+            self._raise_refused(listener, target_frame, source_frame)
             try:
                 listener.buffer.lookup_transform(target_frame, source_frame, time_ns)
             except TransformException as exc:
                 raise HarnessError(f'no transform {source_frame} -> {target_frame}: '
                                    f'{exc}') from None
-        return listener.buffer.lookup_transform(target_frame, source_frame, time_ns)
+        self._raise_refused(listener, target_frame, source_frame)
+        try:
+            return listener.buffer.lookup_transform(target_frame, source_frame, time_ns)
+        except TransformException as exc:  # tf2's kinds, as docs/testing.md promises
+            raise HarnessError(f'no transform {source_frame} -> {target_frame}: '
+                               f'{exc}') from None
+
+    @staticmethod
+    def _raise_refused(listener: TfListener, target_frame: str, source_frame: str) -> None:
+        """Raise HarnessError (one line) if the listener refused a transform someone published."""
+        if listener.refused:
+            raise HarnessError(f'no transform {source_frame} -> {target_frame}: TF is broken, '
+                               f'a published transform was refused: {listener.refused[0]}')
