@@ -12,7 +12,7 @@ tf2_msgs is in every ROS install but not on PyPI: without it TF is off.
 """
 
 import threading
-from typing import List, Optional, Sequence, Tuple
+from typing import FrozenSet, List, NamedTuple, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import TransformStamped
 from rclpy.node import Node
@@ -28,12 +28,13 @@ from r2d2_sim.ros.mirror import demand
 from r2d2_sim.ros.notices import warn_once
 from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.model.timing import stamp_of
-from r2d2_sim.model.link_tree import LinkTransforms
+from r2d2_sim.model.link_tree import LinkTransforms, parse_joints, root_link
 from r2d2_sim.model.transforms import (
     compose, IDENTITY, inverse, split_yaw, Transform, yaw_to_quaternion)
 
 __all__ = ['TF_QOS', 'TF_STATIC_QOS', 'TfOutput', 'start_tf', 'link_transforms',
-           'static_transforms', 'publish_static_transforms', 'tf_topics']
+           'static_transforms', 'publish_static_transforms', 'tf_topics', 'UrdfTree',
+           'urdf_tree', 'check_urdf_frames']
 
 # As tf2's TransformBroadcaster and StaticTransformBroadcaster set them.
 TF_QOS = QoSProfile(depth=100)
@@ -142,9 +143,12 @@ def start_tf(node: Node, config: SimConfig, robot: Robot, time_ns: int) -> Optio
     """
     Publish /tf_static once and return the /tf output (None if it has nothing to publish).
 
-    tf2_msgs is in every ROS install but not on PyPI: without it, say so once
-    and return None; everything else works.
+    A URDF link named like a frame of the node's own is a ConfigError (one
+    line, :func:`check_urdf_frames`), tf2_msgs or not. tf2_msgs is in every
+    ROS install but not on PyPI: without it, say so once and return None;
+    everything else works.
     """
+    check_urdf_frames(config, robot, urdf_tree(robot))
     try:
         import tf2_msgs.msg  # noqa: F401  (a pip-only venv: tools/build_tf2_msgs.sh)
     except ImportError:
@@ -160,22 +164,79 @@ def start_tf(node: Node, config: SimConfig, robot: Robot, time_ns: int) -> Optio
 
 
 def link_transforms(config: SimConfig, robot: Robot) -> LinkTransforms:
-    """
-    Return the robot's link transforms from its URDF, moving joints as the joint readout has them.
-
-    The URDF's root link must be the body frame: a robot whose URDF base is
-    turned (base_forward_axis other than x) would publish two different
-    frames of one name.
-    """
+    """Return the robot's URDF link transforms, moving joints in the joint readout's order."""
     try:
-        links = LinkTransforms(robot.description, [j.name for j in robot.movable])
+        return LinkTransforms(robot.description, [j.name for j in robot.movable])
     except ValueError as exc:
         raise ConfigError(f'publish_link_tf: {exc}') from None
-    if config.body_yaw_offset_rad and links.root_link == config.base_frame_id:
+
+
+class UrdfTree(NamedTuple):
+    """The frames a URDF gives TF: its root link, and every link a joint names."""
+
+    root: Optional[str]  # None for a URDF without joints (robot_state_publisher: no frame)
+    links: FrozenSet[str]
+
+
+def urdf_tree(robot: Robot) -> UrdfTree:
+    """Return the root link and the linked links of the robot's URDF (ConfigError if broken)."""
+    try:
+        joints = parse_joints(robot.description)
+        root = root_link(joints) if joints else None
+    except ValueError as exc:
+        raise ConfigError(f'the robot description: {exc}') from None
+    return UrdfTree(root, frozenset(link for joint in joints
+                                    for link in (joint.parent_link, joint.child_link)))
+
+
+def check_urdf_frames(config: SimConfig, robot: Robot, tree: UrdfTree) -> None:
+    """
+    Refuse (ConfigError, one line) a URDF link named like a frame the node publishes itself.
+
+    robot_state_publisher (or ``publish_link_tf``) publishes every URDF link
+    but the root as a joint's child; the node publishes odom, the footprint,
+    the body frame (``base_frame_id``) and each sensor's frame on its own. A
+    URDF with a link of one of those names (a TurtleBot3's ``base_footprint``
+    root, its ``base_link``, ``base_scan``, ``imu_link``) would give that frame
+    two parents, or close a loop, and tf2 answers with one or the other. The
+    one frame both may name is the URDF's root as ``base_frame_id``, when
+    the root is not turned from the body frame (``base_forward_axis`` x):
+    the node then hangs the URDF there instead of below it.
+    """
+    root, links = tree
+    base = config.base_frame_id
+    if root == base and config.body_yaw_offset_rad:
         raise ConfigError(
-            f'publish_link_tf: the URDF base {links.root_link!r} is turned from the body frame '
-            f'(base_forward_axis {config.base_forward_axis}): give base_frame_id another name')
-    return links
+            f'parameter base_frame_id names the URDF\'s root link {root!r}, which '
+            f'base_forward_axis {config.base_forward_axis} turns from the body frame: TF would '
+            f'have two frames {root!r}; give base_frame_id another name (the classic R2D2\'s '
+            'urdf/classic_r2d2.yaml says base_body)')
+    if not links:
+        return
+    ours = [(config.footprint_frame_id, 'parameter footprint_frame_id'),
+            (base, 'parameter base_frame_id')]
+    if robot.controller is not None:  # odometry: odom -> footprint, world -> odom
+        ours.insert(0, (config.odom_frame_id, 'parameter odom_frame_id'))
+    for sensor, frame_id, what in (
+            (robot.laser, LASER_FRAME_ID, "the laser's frame: scan_rate > 0"),
+            (robot.lidar, LIDAR3D_FRAME_ID, "the 3D lidar's frame: lidar3d_rate > 0"),
+            (robot.imu, IMU_FRAME_ID, "the IMU's frame: imu_rate > 0"),
+            (robot.camera, HEAD_CAMERA_FRAME_ID, "the camera's optical frame: camera_rate > 0")):
+        if sensor is not None:
+            ours.append((frame_id, what))
+    clashes = [f'{frame_id!r} ({what})' for frame_id, what in ours
+               if frame_id in links and not (frame_id == root == base)]
+    world = config.world_frame_id
+    if config.publish_ground_truth_tf and robot.controller is not None:
+        clashes += [f'{link!r} (parameter world_frame_id, with frame_prefix)'
+                    for link in sorted(links) if config.frame(link) == world]
+    if clashes:
+        hint = (f'; base_frame_id may name the URDF\'s root link {root!r}'
+                if root is not None and root != base else '')
+        raise ConfigError(
+            f'the URDF has links named like frames the node publishes itself, which would give '
+            f'TF two parents or a loop: {", ".join(clashes)}; rename those links, or change '
+            f'those parameters (a rate of 0 turns a sensor off){hint}')
 
 
 def static_transforms(config: SimConfig, robot: Robot,
@@ -187,7 +248,10 @@ def static_transforms(config: SimConfig, robot: Robot,
     the node's own, not a URDF link, so the robot keeps the tutorial's 15
     joints and PyBullet gets no extra body), the sensor mounts, the URDF's
     fixed joints when link transforms are on, and the head camera's optical
-    frame (z forward, x right, y down) on the head link.
+    frame (z forward, x right, y down) on the head link. When the URDF's root
+    link is not ``base_frame_id``, base_frame_id -> root (turned as
+    ``base_forward_axis`` says), link transforms or not: robot_state_publisher
+    hangs every other link from the root.
     """
     frame = config.frame
     base = frame(config.base_frame_id)
@@ -199,11 +263,12 @@ def static_transforms(config: SimConfig, robot: Robot,
         result.append((base, frame(LIDAR3D_FRAME_ID), robot.lidar.mount))
     if robot.imu is not None:
         result.append((base, frame(IMU_FRAME_ID), IDENTITY))
+    # The URDF base, turned from the body; a URDF without joints names none.
+    root = links.root_link if links is not None else urdf_tree(robot).root
+    if root is not None and root != config.base_frame_id:
+        result.append((base, frame(root), Transform(
+            (0.0, 0.0, 0.0), yaw_to_quaternion(-config.body_yaw_offset_rad))))
     if links is not None:
-        # The URDF base, turned from the body; a URDF without joints names none.
-        if links.root_link is not None and links.root_link != config.base_frame_id:
-            result.append((base, frame(links.root_link), Transform(
-                (0.0, 0.0, 0.0), yaw_to_quaternion(-config.body_yaw_offset_rad))))
         result += [(frame(j.parent_link), frame(j.child_link), j.transform) for j in links.fixed()]
     if robot.camera is not None:
         # Not a URDF link, so robot_state_publisher never publishes it: always ours.

@@ -318,7 +318,10 @@ PARAMETERS: List[Parameter] = [
               Bounds(0.001, 1000.0, 'rad/s^2', 'no limit'), per_robot=True),
     Parameter('odom_frame_id', 'string', 'odom', 'Frame of the wheel odometry.',
               'odom_frame_id', read.frame, per_robot=True),
-    Parameter('base_frame_id', 'string', 'base_link', 'Child frame of both odometry topics.',
+    Parameter('base_frame_id', 'string', 'base_link',
+              'Child frame of both odometry topics: the body frame (x forward), parent of the '
+              'URDF\'s root link in TF unless it names that link, which it may only when '
+              'base_forward_axis is x.',
               'base_frame_id', read.frame, per_robot=True),
     Parameter('world_frame_id', 'string', 'world', 'Frame of the ground_truth odometry.',
               'world_frame_id', read.frame),
