@@ -261,6 +261,24 @@ class Body:
         """Return None if the base's velocity is finite and in bounds (one query, ~2 us)."""
         return twist_problem(*self._get_base_velocity())
 
+    def finite(self) -> bool:
+        """
+        Return True when the base's pose and twist and every joint's state are finite.
+
+        A body whose physics blew up with a NaN passes it, in that step,
+        through its contacts to the bodies it touches (see
+        :meth:`SimWorld.repair <r2d2_sim.physics.world.SimWorld.repair>`).
+        """
+        position, orientation = self._get_base_pose()
+        linear, angular = self._get_base_velocity()
+        states = self.joint_states(self.movable_indices)
+        values = [*position, *orientation, *linear, *angular, *states.positions,
+                  *states.velocities]
+        if self.multi_dof_indices:
+            multi = self._client.getJointStatesMultiDof(self.id, self.multi_dof_indices)
+            values += [value for q, dq, *_ in multi for value in (*q, *dq)]
+        return all(map(math.isfinite, values))
+
     def joint_problem(self, indices: Sequence[int], states: JointStates) -> Optional[str]:
         """Return None if the joint readout ``states`` of ``indices`` is finite, else which."""
         if joints_finite(states.positions, states.velocities):

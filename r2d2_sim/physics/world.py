@@ -19,7 +19,7 @@ import math
 import os
 import socket
 from typing import (
-    Dict, Iterator, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union)
+    Collection, Dict, Iterator, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union)
 
 import numpy
 
@@ -164,6 +164,9 @@ class SimWorld:
         # Threads a large batch of rays is cast on (raycast.cast_rays): the same answers.
         self.ray_threads = 1
         self._free_ray_groups = list(RAY_GROUPS)
+        # A body's physics blew up and it was put back (put_back): what the blow-up
+        # broke around it is still to be put back (repair).
+        self.blown_up = False
         self._client: Optional[BulletClient] = None
         problem = display_problem() if gui else None
         if problem is not None:
@@ -487,6 +490,61 @@ class SimWorld:
                 failed.append(str(exc))
         if failed:
             raise WorldError('; '.join(failed))
+
+    def put_back(self, body: Body) -> None:
+        """
+        Put a body whose physics blew up back in its initial state: loaded again, in its place.
+
+        Resetting it in place is not enough: after two steps with a NaN,
+        Bullet keeps something inside the multibody that no reset reaches
+        (its state reads finite and its contacts are found, yet they do not
+        hold it: a robot sinks through the floor), and a NaN contact point
+        would stay in its pairs. So it is taken out and loaded again, with
+        its lasting changes (:meth:`Body.reload`), keeping its place in
+        :attr:`bodies` (and, PyBullet reusing the latest removed id, its
+        id). A body whose file is gone or changed (:meth:`Body.reloadable`)
+        is put back in place instead, its pairs dropped (:meth:`Body.reinsert`)
+        where its URDF allows. Its motors are those of a loaded body.
+        """
+        if not body.reloadable():
+            body.reset()
+            try:
+                body.reinsert()
+            except WorldError:
+                pass  # it sets its own collision groups: its pairs stay
+            return
+        order = list(self.bodies)
+        body.remove()
+        self.removed_since_built += 1
+        try:
+            body.reload()
+        except WorldError:
+            del self.bodies[body.name]  # as remove(): it is gone from the world
+            raise
+        body.reset()  # exactly the state it started in, to the bit
+        self.bodies = {name: self.bodies[name] for name in order}
+
+    def repair(self, leave: Collection[Body] = ()) -> List[Body]:
+        """
+        After a blow-up (:attr:`blown_up`): put back what it broke; return the bodies put back.
+
+        A NaN in one body's state spreads in that one step, through its
+        contacts, to what it touches: the ground plane too, whose pose and
+        bounding box become NaN. Bullet then finds no pair with the ground
+        any more, and a robot put back falls through the floor for ever,
+        with every other body on it. Each body whose state is not finite,
+        but those in ``leave`` (the driven robots, which put themselves
+        back, controller and all), is put back (:meth:`put_back`).
+        """
+        self.blown_up = False
+        left = {id(body) for body in leave}
+        broken = [body for body in self.bodies.values()
+                  if id(body) not in left and not body.finite()]
+        for body in broken:
+            self.put_back(body)
+        if self.removed_since_built >= COMPACT_AFTER_REMOVALS:
+            self.compact()
+        return broken
 
     def save_state(self) -> SavedWorld:
         """

@@ -351,8 +351,10 @@ class SimNode(MirroringNode):
         return self.control.status(**facts)
 
     def _log_blow_up(self, text: str) -> None:
-        # Throttled per robot: the line ends "resetting the robot NAME to ...".
-        self._throttled('blow-up ' + text[text.rfind(' the robot '):], self.get_logger().error,
+        # Throttled per robot (the line ends "resetting the robot NAME to ...") and per
+        # other body a blow-up broke (the line names it, and nothing else changes).
+        at = text.rfind(' the robot ')
+        self._throttled('blow-up ' + (text[at:] if at >= 0 else text), self.get_logger().error,
                         text)
 
     def set_paused(self, paused: bool) -> None:

@@ -232,6 +232,8 @@ class Simulation:
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
+        if world.blown_up:  # robots were put back: now what their blow-up broke too
+            self._repair()
         measured = any(measurements)
         casting = [(i, measurement, robots[i].pending_rays())
                    for i, measurement in enumerate(measurements)
@@ -256,9 +258,18 @@ class Simulation:
         step = self.world.step_count
         time_ns = self.clock.time_ns(step)
         self.last_frame_step = step
-        return StepResult(step, time_ns, True, tuple(
+        result = StepResult(step, time_ns, True, tuple(
             Measurement(time_ns, robot.read_frame(step, time_ns), None, None, None)
             for robot in self.robots))
+        if self.world.blown_up:
+            self._repair()
+        return result
+
+    def _repair(self) -> None:
+        """Put back what robots' blow-ups broke around them: the ground, what they touched."""
+        for body in self.world.repair([robot.body for robot in self.robots]):
+            self._error(f'physics blew up: {body.name} was broken with it and is put back '
+                        'where it started')
 
     def reset(self, *, time: bool = False, state: bool = True, spawned: bool = False) -> None:
         """

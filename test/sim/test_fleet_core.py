@@ -126,6 +126,24 @@ def test_a_blown_up_robot_is_reset_alone(make):
         simulation.close()
 
 
+def test_a_nan_in_one_robot_leaves_the_other_standing(make):
+    """The NaN broke the ground under both: b, 2 m away, fell through it once a was put back."""
+    simulation = make(**FACING)
+    a, b = simulation.robots
+    for _ in range(120):
+        simulation.step()
+    b_before = b.body.world_state()
+    a.body.set_base_state(linear_velocity=(math.nan, 0.0, 0.0))
+    simulation.step()
+    assert (a.blow_ups, b.blow_ups) == (1, 0)
+    for _ in range(240 * 3 // 2):
+        simulation.step()
+    for robot in (a, b):
+        assert robot.body.world_state().position[2] == pytest.approx(0.47, abs=0.002)
+    assert x_of(b) == pytest.approx(b_before.position[0], abs=1e-4)  # b was not put back
+    assert (a.blow_ups, b.blow_ups) == (1, 0)
+
+
 def test_a_robot_spawned_at_run_time_drives_and_leaves_nothing_behind(make):
     """Spawned: at its pose exactly, driven, falls to its feet; delete frees its ray group."""
     simulation = make(**FACING)

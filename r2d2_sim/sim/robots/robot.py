@@ -395,7 +395,12 @@ class Robot:
         self.blow_ups += 1
         self._error(f'physics blew up at t={time_ns / 1e9:.6f} s ({problem}): '
                     f'resetting the robot {self.name} to its initial pose')
-        self.reset()
+        # Loaded again, not reset in place: see SimWorld.put_back. What the blow-up broke
+        # around it (the ground...) is put back after every robot's check of this step
+        # (Simulation: SimWorld.repair).
+        self.world.put_back(self.body)
+        self.world.blown_up = True
+        self.reloaded()
 
     def _set_wheels(self, velocities: Sequence[float]) -> None:
         # Stopped, the wheels are braked: a velocity motor at 0 let R2D2 roll away slowly.
