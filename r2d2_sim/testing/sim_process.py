@@ -2,7 +2,7 @@
 
 import json
 import signal
-from typing import Any, Callable, Dict, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, NoReturn, Optional, Sequence
 
 from rclpy.client import Client
 from rclpy.node import Node
@@ -70,8 +70,9 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
     the harness's own are the simulator's ROS parameters (None: left at the
     node's default, so ``record=None`` records nothing); ``ros_args`` are
     appended after ``--ros-args`` (remaps, ``--params-file``). Starts the
-    process and returns once it serves its services, its topics are linked
-    to this object's node and, unless it starts paused, ``/clock`` arrives.
+    process and returns once it serves its services, the topics of every
+    robot its ``~/get_status`` lists (wherever a params file put them) are
+    linked to this object's node and, unless it starts paused, ``/clock`` arrives.
     Remaps in ``ros_args`` apply to this side too: ``-r __ns:=/a`` is the
     namespace, ``-r /clock:=/a/clock`` moves the clock both sides read.
 
@@ -281,33 +282,50 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
 
     def _wait_ready(self) -> None:
         services = [self._clients[name] for name, _ in SERVICES]
+        if not self.probe.spin_until(
+                lambda: self._exited() or all(c.service_is_ready() for c in services),
+                self.timeout_s) or self._exited():
+            self._fail_start('did not serve its services')
+        # Which robots, in which namespaces: a --params-file this side never reads may
+        # list them. The parameters' guess was subscribed to before the node started
+        # (usually right, and linking meanwhile); the node's word decides. get_status's
+        # client was created last: the server learns of our reply readers in the order
+        # we made them, so once it answers here it can answer every client. Paused or
+        # not comes from here too (start_paused may come from a --params-file).
+        try:
+            robots = self.status()['robots']
+        except HarnessError:
+            if not self._exited():
+                raise
+            self._fail_start('did not answer ~/get_status')
+        guessed = {robot.namespace: robot for robot in self._pending}
+        pending: List[RemoteRobot] = []
+        for name, facts in robots.items():
+            robot = guessed.pop(facts['namespace'], None)
+            if robot is None:
+                robot = RemoteRobot(self, facts['namespace'], subscribe=self._state_subscriptions)
+            pending.append(robot.bind(name, facts))
+        for robot in guessed.values():
+            robot.close()  # no robot there: the parameters were overridden
+        self._pending = pending
 
         def linked() -> bool:
-            return self._exited() or (all(c.service_is_ready() for c in services)
-                                      and all(robot.linked() for robot in self._pending)
+            return self._exited() or (all(robot.linked() for robot in pending)
                                       and (self._clock_subscription is None or
                                            self._clock_subscription.get_publisher_count() > 0))
         if not self.probe.spin_until(linked, self.timeout_s) or self._exited():
-            self._fail_start('did not serve its services')
-        for robot in self._pending:
+            unlinked = [robot.name or robot.namespace for robot in pending
+                        if not robot.linked()]
+            self._fail_start(f'did not link the topics of {", ".join(unlinked)}' if unlinked
+                             else 'did not publish /clock')
+        for robot in pending:
             robot.attach()
         if not self.probe.spin_until(
-                lambda: all(r.cmd_vel_linked() for r in self._pending) or self._exited(),
+                lambda: all(r.cmd_vel_linked() for r in pending) or self._exited(),
                 self.timeout_s) or self._exited():
             self._fail_start('did not subscribe cmd_vel')
-        # Paused or not (start_paused may come from a --params-file). get_status's
-        # client is created last: the server learns of our reply readers in the
-        # order we made them, so once it answers here it can answer every client.
-        robots = self.status()['robots']
-        for robot in self._pending:
-            robot.name = next((name for name, facts in robots.items()
-                               if facts['namespace'] == robot.namespace), None)
-            if robot.name is None:
-                robot.close()  # the parameters (a params file?) placed the robots elsewhere
-                continue
-            self._robots[robot.name] = robot.bind(robot.name, robots[robot.name])
         # In the node's order: the first robot is the harness's own.
-        self._robots = {name: self._robots[name] for name in robots if name in self._robots}
+        self._robots = {robot.name: robot for robot in pending if robot.name is not None}
         self._pending = []
         self.wait_heard()
         if (self._state_subscriptions and not self.paused and not self.probe.spin_until(
@@ -384,7 +402,7 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
         if handle is not None:
             handle.close()
 
-    def _fail_start(self, what: str) -> None:
+    def _fail_start(self, what: str) -> NoReturn:
         if self._exited():
             result = self.stop()
             refusals = [line.split(': error: ', 1)[1] for line in result.stderr.splitlines()

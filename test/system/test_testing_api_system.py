@@ -325,6 +325,40 @@ def test_a_process_robot_namespace_ros_refuses_is_the_simulators_one_line():
         SimProcess(robots={'a': {'namespace': 'x y'}})
 
 
+# docs/several-robots.md's fleet.yaml
+FLEET_YAML = """
+r2d2_sim:
+  ros__parameters:
+    robots: [a, b]
+    b:
+      initial_pose: [2.0, 0.0, 3.1416]   # facing robot a, 2 m ahead of it
+      max_linear_velocity: 0.5
+      enable_stamped_cmd_vel: true
+      namespace: /fleet/b                # default: b
+"""
+
+
+def test_a_process_whose_params_file_lists_robots_starts_with_them(tmp_path):
+    """
+    The robots a --params-file lists, where it puts them: asked of the node, then driven.
+
+    It used to wait for a robot in the namespace the keywords imply (/), for
+    the whole timeout, then said the node served no services.
+    """
+    fleet = tmp_path / 'fleet.yaml'
+    fleet.write_text(FLEET_YAML)
+    with SimProcess(start_paused=True, publish_rate=20.0, cmd_vel_timeout=0.0, timeout_s=20.0,
+                    ros_args=['--params-file', str(fleet)]) as sim:
+        assert sim.robot_names == ['a', 'b']
+        assert [sim.robot(name).namespace for name in ('a', 'b')] == ['/a', '/fleet/b']
+        assert sim.robot() is sim.robot('a')  # the first robot is the harness's own
+        sim.send_cmd_vel(0.3)
+        sim.robot('b').send_cmd_vel(0.3)  # TwistStamped: its enable_stamped_cmd_vel
+        sim.step(20)  # 1 s
+        a, b = (sim.robot(name).ground_truth().pose.pose.position for name in ('a', 'b'))
+        assert a.x > 0.1 and b.x < 1.9  # towards each other
+
+
 @pytest.mark.skipif(importlib.util.find_spec('tf2_msgs') is None, reason='tf2_msgs is needed')
 def test_a_process_lookup_after_reset_world_is_of_the_new_run(r2d2_sim_process):
     """Driven 2 s, reset_world, 1 s standing: the transform is the new run's, not the old."""
