@@ -69,9 +69,17 @@ class InvalidArgumentException(TransformException, ValueError):
 
 class StampedTransform(NamedTuple):
     """
-    The pose of ``child_frame_id`` in ``frame_id`` at ``stamp_ns``, as a TransformStamped.
+    The pose of ``child_frame_id`` in ``frame_id`` at ``stamp_ns``: what a lookup returns.
 
-    ``transform`` maps points of the child frame into the parent frame.
+    Plain Python values, not a geometry_msgs ``TransformStamped`` (this layer
+    imports no ROS): ``frame_id`` the parent (a lookup's target frame),
+    ``child_frame_id`` the child (its source frame), ``stamp_ns`` integer
+    nanoseconds, ``transform`` a :class:`~r2d2_sim.model.transforms.Transform`
+    of ``translation`` (x, y, z, m: the child's origin in the parent) and
+    ``rotation`` (a unit quaternion x, y, z, w), both tuples, which map points
+    of the child frame into the parent frame; ``translation`` and ``rotation``
+    are shortcuts to them. So tf2's ``t.transform.translation.x`` is
+    ``t.translation[0]`` here, and ``t.header.stamp`` is ``stamp_ns``.
     """
 
     frame_id: str

@@ -202,18 +202,21 @@ class TransformLookup:
         """
         Return the transform from ``source_frame`` to ``target_frame`` at ``time_ns``.
 
-        As tf2's ``Buffer.lookup_transform``, over what the simulator put on
-        ``/tf`` and ``/tf_static`` since the harness started (or, without
-        tf2_msgs then, since :meth:`listen_tf`). ``time_ns``
-        0 means the latest: in the in-process harness the latest state
-        publication's time, so the answer is the current state, never one
-        still on its way. Waits by deadline; HarnessError with tf2's reason.
-        In the in-process harness an unknown frame fails at once instead,
-        once ``/tf_static`` is in: time moves only when it steps (TF that
-        another process publishes there would have to be in already). A
-        transform someone published that the buffer refused (a loop, a frame
-        its own parent) makes every lookup a HarnessError with its reason:
-        the tree is not what its publishers meant.
+        A :class:`~r2d2_sim.model.tf_buffer.StampedTransform` (``frame_id``
+        ``target_frame``, ``child_frame_id`` ``source_frame``, ``stamp_ns`` the time
+        used, ``transform`` of ``translation`` and ``rotation`` tuples), not a
+        geometry_msgs ``TransformStamped``: ``t.transform.translation[0]`` where tf2 has
+        ``t.transform.translation.x`` (docs/testing.md builds the message from it).
+        Found as tf2's ``Buffer.lookup_transform`` finds it, over what the simulator put
+        on ``/tf`` and ``/tf_static`` since the harness started (or, without tf2_msgs
+        then, since :meth:`listen_tf`). ``time_ns`` 0 means the latest: in the
+        in-process harness the latest state publication's time, so the answer is the
+        current state, never one still on its way. Waits by deadline; HarnessError with
+        tf2's reason. In the in-process harness an unknown frame fails at once instead,
+        once ``/tf_static`` is in: time moves only when it steps (TF that another
+        process publishes there would have to be in already). A transform someone
+        published that the buffer refused (a loop, a frame its own parent) makes every
+        lookup a HarnessError with its reason: the tree is not what its publishers meant.
         """
         listener = self.listen_tf()
         time_ns = time_ns or self._tf_default_time_ns()
