@@ -372,7 +372,11 @@ class AssertMinClearance(_Check):
 
     def execute(self, entity: str, distance: float) -> None:
         given(distance=distance)
-        self.entity, self.clearance_m = entity, float(distance)
+        distance_m = float(distance)
+        if not (math.isfinite(distance_m) and distance_m > 0.0):
+            # Nothing is ever nearer than 0 m or less: such a check could never fail.
+            raise ValueError(f'distance must be > 0, got {distance_m:g} m')
+        self.entity, self.clearance_m = entity, distance_m
 
     def broken(self, seen: Watched) -> str:
         if seen.within is None:

@@ -83,3 +83,13 @@ def test_a_namespace_where_no_simulator_answers(tmp_path):
     assert lines_with(output, 'simulators answer under: none')
     assert 'Traceback' not in output and cases == {'oops': 'execution failed.'}
     assert os.environ.get('R2D2_OSC_DISCOVERY_S') is None  # the child's alone
+
+
+@pytest.mark.parametrize('distance, shown', [('-1m', '-1'), ('0m', '0')])
+def test_a_clearance_of_none_or_less_is_refused(tmp_path, distance, shown):
+    """assert_min_clearance(distance: 0m or less) could never fail: one line, not a pass."""
+    path = write(tmp_path, '    do one_of:\n        wait elapsed(0.5s)\n'
+                 f'        assert_min_clearance(distance: {distance})\n')
+    verdict = run_document(Task(str(path), 0, None))
+    assert not verdict.passed
+    assert verdict.reason == f'assert_min_clearance: distance must be > 0, got {shown} m'
