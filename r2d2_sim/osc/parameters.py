@@ -77,7 +77,11 @@ def _boxes(text: str) -> Tuple[Box, ...]:
     boxes: List[Box] = []
     for index, item in enumerate(_json('obstacles', text, list)):
         if isinstance(item, dict):
-            values = [item.get('x'), item.get('y'), item.get('yaw', 0.0), *item.get('size', ())]
+            size = item.get('size', [])
+            if not isinstance(size, list):
+                raise ScenarioError(f'parameter obstacles: box {index}\'s size is '
+                                    f'[size_x, size_y, height], got {size!r}')
+            values = [item.get('x'), item.get('y'), item.get('yaw', 0.0), *size]
         else:
             values = list(item) if isinstance(item, (list, tuple)) else [item]
         if len(values) != 6:
@@ -115,6 +119,9 @@ def read_parameters(values: Mapping[str, Any]) -> RunSettings:
             raise ScenarioError(f'parameter limits: {name!r} is not one of {", ".join(LIMITS)}')
         _number(f'limits.{name}', value)
     tolerance = _number('goal_tolerance', merged['goal_tolerance'])
+    if tolerance < 0.0:
+        raise ScenarioError(f'parameter goal_tolerance: a radius >= 0 (m) expected, got '
+                            f'{tolerance:g}')
     if merged['world']:
         world_poses(merged['world'])  # a world the simulator would refuse: one line, here
     others: Dict[str, Any] = {

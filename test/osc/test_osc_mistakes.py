@@ -59,6 +59,23 @@ def test_a_world_or_named_pose_that_does_not_exist(tmp_path, parameters, says):
     assert '\n' not in verdict.reason
 
 
+def test_a_parameter_that_cannot_be_fails_its_document_alone(tmp_path):
+    """A negative goal_tolerance in document 0: its one line, no traceback; 1 and 2 still run."""
+    path = write(tmp_path, '    goal_tolerance: float = 0.2\n'
+                 '    do serial:\n        wait_until_in_region(x: 0m, y: 0m, radius: 0.5m)\n')
+    documents = tmp_path / 'tolerances.yaml'
+    documents.write_text('---\n'.join(f'oops:\n  goal_tolerance: {tolerance}\n'
+                                      for tolerance in (-0.5, 0.3, 0.4)))
+    status, output, cases = scenario_execution(
+        ['--simulation', 'r2d2_sim.osc:R2D2Simulation', '--scenario-parameter-file', documents,
+         path], osc_env(tmp_path / 'shim'), tmp_path)
+    assert cases == {'oops-0': 'execution failed.', 'oops-1': None, 'oops-2': None}, \
+        output[-3000:]
+    says = 'r2d2_sim: parameter goal_tolerance: a radius >= 0 (m) expected, got -0.5'
+    assert status == 1 and lines_with(output, says), output[-3000:]
+    assert 'Traceback' not in output
+
+
 def test_a_named_pose_of_a_check_that_does_not_exist(tmp_path):
     """wait_until_at_pose for a name the world lacks: NOT_FOUND, listing the names it has."""
     path = write(tmp_path, "    world: string = 'package://r2d2_sim/urdf/room.world.yaml'\n"

@@ -64,6 +64,10 @@ def test_named_start_and_goal_come_from_the_world():
     ({'limits': '{"top_speed": 2}'}, "parameter limits: 'top_speed' is not one of"),
     ({'seed': 1.5}, 'parameter seed: an integer expected'),
     ({'goal_x': float('nan')}, 'parameter goal_x: a finite number expected'),
+    ({'goal_tolerance': -0.5}, 'parameter goal_tolerance: a radius >= 0 (m) expected, got -0.5'),
+    ({'obstacles': '[{"x": 1, "y": 0, "size": 5}]'},
+     "parameter obstacles: box 0's size is [size_x, size_y, height], got 5"),
+    ({'obstacles': '[{"x": 1, "y": 0, "size": {"x": 1}}]'}, "box 0's size is [size_x, size_y,"),
 ])
 def test_a_mistake_is_one_line(values, says):
     """Each mistake raises ScenarioError in one line saying what is wrong."""
