@@ -15,6 +15,7 @@ A refusal fails the action with one line as its feedback and in the log
 a ``one_of`` (the first branch to end decides).
 """
 
+import itertools
 import math
 from typing import Any, Dict, Optional, Tuple
 
@@ -33,6 +34,9 @@ __all__ = ['SimAction', 'SpawnEntity', 'DeleteEntity', 'SetEntityState', 'LoadWo
            'AssertMinClearance', 'AssertNotTipped', 'NO_SIMULATION']
 
 Status = py_trees.common.Status
+
+# Each check's watch is its own: a token drawn when the check starts names it.
+_TOKENS = itertools.count()
 
 NO_SIMULATION = ('needs an r2d2_sim simulation: run scenario_execution with --simulation '
                  'r2d2_sim.osc:R2D2Simulation (in this process) or --simulation '
@@ -341,14 +345,32 @@ class WaitUntilAtPose(SimAction):
 
 
 class _Check(SimAction):
-    """A check: RUNNING while it holds, FAILURE with the reason the moment it does not."""
+    """
+    A check: RUNNING while it holds, FAILURE with the reason the moment it does not.
+
+    It watches from when it starts: what happened (and ended) before, earlier
+    in a ``serial``, does not count, over ROS as in process.
+    """
 
     tip_rad = DEFAULT_TIP_ANGLE_RAD  # the run watch's, where the check does not ask
     clearance_m = 0.0
+    token = -1                       # its watch, drawn when it starts
+
+    def initialise(self) -> None:
+        """Take the arguments; draw a token: the watch begins at the first tick."""
+        super().initialise()
+        self.token = next(_TOKENS)
 
     def act(self, port: SimulatorPort) -> Status:
-        self.failure = self.broken(port.watch(self.entity, self.tip_rad, self.clearance_m))
+        seen = port.watch(self.entity, self.tip_rad, self.clearance_m, self.token)
+        self.failure = self.broken(seen)
         return Status.FAILURE if self.failure else Status.RUNNING
+
+    def request_cancel(self) -> bool:
+        """Stop watching when the branch that checked is given up."""
+        if self.port is not None and not self.port.error:
+            self.port.unwatch(self.token)
+        return True
 
     def broken(self, seen: Watched) -> str:
         """Return why the check failed ('' while it holds)."""

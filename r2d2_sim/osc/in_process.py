@@ -17,7 +17,7 @@ scenario at the first action, with that line as its reason: scenario_execution
 prints a traceback for an exception raised in ``reset``.
 """
 
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Optional, Sequence
 
 from r2d2_sim.errors import RefusedError, ScenarioError, SetupError
 from r2d2_sim.model.regions import circle_region, Region as GroundRegion
@@ -27,7 +27,7 @@ from r2d2_sim.osc.parameters import read_parameters, RunSettings
 from r2d2_sim.osc.port import Pose3, Watched
 from r2d2_sim.sim.bounds import Region
 from r2d2_sim.sim.entities import SpawnRequest
-from r2d2_sim.sim.oracles import DEFAULT_TIP_ANGLE_RAD, RunWatch
+from r2d2_sim.sim.oracles import RunWatch
 from r2d2_sim.sim.settings.robots import parse_world
 from r2d2_sim.sim.simulation import Simulation
 from r2d2_sim.sim.spawnables import box_urdf
@@ -69,7 +69,7 @@ class R2D2Simulation(ScenarioSimulation):
         self.warnings: List[str] = []
         self._steps_per_period = 0
         self._run: Optional[RunWatch] = None
-        self._watches: Dict[Tuple[str, float], RunWatch] = {}
+        self._watches: Dict[int, RunWatch] = {}  # each check's own, by its token
         # The last run's measures, kept when its simulation is closed (shutdown comes first).
         self._finished: Dict[str, Any] = {}
 
@@ -255,17 +255,22 @@ class R2D2Simulation(ScenarioSimulation):
         """Return the box around an entity's collision shape, in its base frame."""
         return self._core().entities.bounds(entity)
 
-    def watch(self, entity: str, tip_angle_rad: float, clearance_m: float) -> Watched:
-        """Return what ``entity`` did since first watched: the physics' contacts and distances."""
+    def watch(self, entity: str, tip_angle_rad: float, clearance_m: float, token: int
+              ) -> Watched:
+        """
+        Return what ``entity`` did since the watch ``token`` began: the physics' own readings.
+
+        Each token is a :class:`RunWatch` of its own, made when first asked
+        (the run's watch, from the reset, is the farm report's alone); the
+        closest points are measured only when a clearance is asked.
+        """
         simulation = self._core()
-        key = (entity, tip_angle_rad)
-        run = self._run
-        watch = (run if run is not None and run.name == entity
-                 and tip_angle_rad == DEFAULT_TIP_ANGLE_RAD else self._watches.get(key))
+        watch = self._watches.get(token)
         if watch is None:
             simulation.entities.body(entity)  # NOT_FOUND, listing the entities
-            watch = self._watches[key] = RunWatch(simulation, entity,
-                                                  tip_angle_rad=tip_angle_rad)
+            watch = self._watches[token] = RunWatch(simulation, entity,
+                                                    tip_angle_rad=tip_angle_rad,
+                                                    clearance=clearance_m > 0.0)
         first = watch.contacts[0] if watch.contacts else None
         near = watch.clearance
         within = near.distance_m < clearance_m and near.other is not None
@@ -273,5 +278,11 @@ class R2D2Simulation(ScenarioSimulation):
                        first.start_ns / 1e9 if first else None,
                        near.other if within else None,
                        near.time_ns / 1e9 if within and near.time_ns is not None else None,
-                       near.distance_m,
+                       near.distance_m if clearance_m > 0.0 else None,
                        None if watch.tipped_ns is None else watch.tipped_ns / 1e9)
+
+    def unwatch(self, token: int) -> None:
+        """Stop the watch ``token``: its check ended."""
+        watch = self._watches.pop(token, None)
+        if watch is not None:
+            watch.close()

@@ -108,7 +108,7 @@ class StandardSimulation(ScenarioSimulation):
         self._steps_per_period = 0
         self._status: Any = None  # r2d2_sim's get_status client, when the simulator has one
         self._publishers: Dict[str, Any] = {}
-        self._watches: Dict[Tuple[str, float, float], _Watch] = {}
+        self._watches: Dict[int, _Watch] = {}  # each check's own, by its token
         self._poses: Dict[str, Pose3] = {}  # this period's, read once
         self._bounds: Dict[str, Region] = {}
         self._time_ns = 0
@@ -393,15 +393,19 @@ class StandardSimulation(ScenarioSimulation):
             bounds = self._bounds[entity] = _bounds_region(self._client().entity_bounds(entity))
         return bounds
 
-    def watch(self, entity: str, tip_angle_rad: float, clearance_m: float) -> Watched:
-        """Return what ``entity`` did since first watched, sampled after each period."""
-        key = (entity, tip_angle_rad, clearance_m)
-        watch = self._watches.get(key)
+    def watch(self, entity: str, tip_angle_rad: float, clearance_m: float, token: int
+              ) -> Watched:
+        """Return what ``entity`` did since the watch ``token`` began: now, then each period."""
+        watch = self._watches.get(token)
         if watch is None:
             self.pose(entity)  # NOT_FOUND now, not at the next step
-            watch = self._watches[key] = _Watch(entity, tip_angle_rad, clearance_m)
+            watch = self._watches[token] = _Watch(entity, tip_angle_rad, clearance_m)
             self._sample(watch)
         return watch.seen()
+
+    def unwatch(self, token: int) -> None:
+        """Stop sampling the watch ``token``: its check ended."""
+        self._watches.pop(token, None)
 
 
 def _trigger() -> Any:

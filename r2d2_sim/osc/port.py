@@ -5,10 +5,11 @@ What the OpenSCENARIO actions ask of a simulation: one seam, two sides.
 :class:`~.in_process.R2D2Simulation` answers it from the core in the
 scenario's process, :class:`~.over_ros.StandardSimulation` over ROS from any
 simulator of the simulation standard. :class:`Watched` is what a check reads
-of one entity after each step. Also here, pure and shared by both sides so
-that they decide alike: the box ahead of a robot (:func:`box_ahead`), the
-hull of an entity's bounds at its pose (:func:`hull_at`) and the go-to-goal
-law of ``drive_to`` (:func:`go_to`). No ROS, no physics.
+of one entity after each step, from the moment the check began. Also here,
+pure and shared by both sides so that they decide alike: the box ahead of a
+robot (:func:`box_ahead`), the hull of an entity's bounds at its pose
+(:func:`hull_at`) and the go-to-goal law of ``drive_to`` (:func:`go_to`).
+No ROS, no physics.
 """
 
 import math
@@ -30,7 +31,7 @@ STATES = ('stopped', 'playing', 'paused')
 
 
 class Watched(NamedTuple):
-    """One entity's run since it was first watched, as a check reads it after a step."""
+    """One entity's run since a check began watching it, as the check reads it after a step."""
 
     touched: Optional[str]         # the first entity it touched (None: none)
     touched_s: Optional[float]     # when (simulated s)
@@ -85,8 +86,18 @@ class SimulatorPort(Protocol):
     def bounds(self, entity: str) -> Region:
         """Return the box around an entity's collision shape, in its base frame."""
 
-    def watch(self, entity: str, tip_angle_rad: float, clearance_m: float) -> 'Watched':
-        """Return what the entity did since first watched with these limits (from now on)."""
+    def watch(self, entity: str, tip_angle_rad: float, clearance_m: float, token: int
+              ) -> 'Watched':
+        """
+        Return what the entity did since the watch ``token`` began, with these limits.
+
+        ``token``: a number the check drew when it started, a watch of its
+        own: begun when first asked (nothing before it counts), the same
+        watch each time the check asks again.
+        """
+
+    def unwatch(self, token: int) -> None:
+        """Stop the watch ``token`` (its check ended); nothing if there is none."""
 
     @property
     def time_s(self) -> float:

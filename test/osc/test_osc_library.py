@@ -179,3 +179,32 @@ def test_a_subclass_policy_drives_the_robot(tmp_path, monkeypatch):
     verdict = run_document(Task(str(scenario), 0, None, 'my_policies:Forward'))
     assert verdict.passed, verdict.reason
     assert verdict.outcome['time_to_goal_s'] is not None  # the default goal at 1 m on the way
+
+
+# R2D2 drives into a box 0.8 m ahead (touching it at about 1.46 s), backs off, then a check
+# starts: the touch before it does not count.
+TOUCHED_BEFORE = ("        drive(linear: 0.4mps, duration: 2s)\n"
+                  "        drive(linear: -0.4mps, duration: 3s)\n"
+                  "        wait elapsed(0.5s)\n"
+                  "        one_of:\n"
+                  "            wait elapsed(1s)\n")
+BOX_AHEAD = "    obstacles: string = '[[0.8, 0, 0, 0.3, 0.3, 0.5]]'\n"
+
+
+@pytest.mark.parametrize('check', ['assert_no_contact()', 'assert_min_clearance(distance: 0.3m)'])
+def test_a_check_counts_only_what_happens_after_it_starts(tmp_path, check):
+    """Touched (and near) before the check began, clear since: it passes, as over ROS."""
+    verdict = run(tmp_path, TOUCHED_BEFORE + f'            {check}\n', BOX_AHEAD)
+    assert verdict.passed, verdict.reason
+    assert [c['other'] for c in verdict.outcome['contacts']] == ['box_0']  # the run's watch
+
+
+def test_a_contact_still_going_when_a_check_starts_fails_it(tmp_path):
+    """Pushing against the box when the check starts at 2.5 s: it fails then, not at 1.46 s."""
+    verdict = run(tmp_path, "        one_of:\n"
+                  "            drive(linear: 0.4mps, duration: 5s)\n"
+                  "            serial:\n"
+                  "                wait elapsed(2.5s)\n"
+                  "                assert_no_contact()\n", BOX_AHEAD)
+    match = re.fullmatch(r'r2d2 touched box_0 at (\d+\.\d{3}) s', verdict.reason)
+    assert match and 2.5 <= float(match.group(1)) <= 2.6, verdict  # a tick late at most

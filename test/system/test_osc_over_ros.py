@@ -11,7 +11,7 @@ with the in-process run's.
 import pytest
 
 from common import OSC_EXAMPLES, osc_env, scenario_execution
-from r2d2_sim.osc.variations import run_document, simulator_parameters, tasks_of
+from r2d2_sim.osc.variations import run_document, simulator_parameters, Task, tasks_of
 from r2d2_sim.testing import SimProcess
 
 OVER_ROS = 'r2d2_sim.osc:StandardSimulation'
@@ -58,3 +58,30 @@ def test_a_simulator_under_a_namespace_is_found_by_type(tmp_path):
         names = sim.standard.entities()
     assert cases == {'spawn': None} and status == 0, output[-3000:]
     assert 'cube' not in names
+
+
+def test_a_check_counts_only_what_happens_after_it_starts(tmp_path):
+    """
+    A touch between two checks counts for neither, over ROS as in process.
+
+    The first assert_no_contact is given up at 0.5 s; R2D2 then touches the box and backs
+    off; a second one, with the same limits, starts after: both sides pass.
+    """
+    scenario = tmp_path / 'past.osc'
+    scenario.write_text(
+        "import osc.helpers\nimport osc.r2d2\n\nscenario past:\n    timeout(20s)\n"
+        "    obstacles: string = '[[0.8, 0, 0, 0.3, 0.3, 0.5]]'\n"
+        "    do serial:\n"
+        "        one_of:\n            wait elapsed(0.5s)\n            assert_no_contact()\n"
+        "        drive(linear: 0.4mps, duration: 2s)\n"
+        "        drive(linear: -0.4mps, duration: 3s)\n"
+        "        wait elapsed(0.5s)\n"
+        "        one_of:\n            wait elapsed(1s)\n            assert_no_contact()\n")
+    local = run_document(Task(str(scenario), 0, None))
+    assert local.passed, local.reason
+    assert [c['other'] for c in local.outcome['contacts']] == ['box_0']  # it did touch
+    with SimProcess(**simulator_parameters(str(scenario))) as sim:
+        status, output, cases = scenario_execution(
+            ['--simulation', OVER_ROS, scenario],
+            osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id), tmp_path)
+    assert cases == {'past': None} and status == 0, output[-3000:]
