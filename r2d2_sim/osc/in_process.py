@@ -27,7 +27,7 @@ from r2d2_sim.osc.parameters import read_parameters, RunSettings
 from r2d2_sim.osc.port import Pose3, Watched
 from r2d2_sim.sim.bounds import Region
 from r2d2_sim.sim.entities import SpawnRequest
-from r2d2_sim.sim.oracles import RunWatch
+from r2d2_sim.sim.oracles import DEFAULT_CLEARANCE_RANGE_M, RunWatch
 from r2d2_sim.sim.settings.robots import parse_world
 from r2d2_sim.sim.simulation import Simulation
 from r2d2_sim.sim.spawnables import box_urdf
@@ -268,9 +268,10 @@ class R2D2Simulation(ScenarioSimulation):
         watch = self._watches.get(token)
         if watch is None:
             simulation.entities.body(entity)  # NOT_FOUND, listing the entities
-            watch = self._watches[token] = RunWatch(simulation, entity,
-                                                    tip_angle_rad=tip_angle_rad,
-                                                    clearance=clearance_m > 0.0)
+            # Closest points are looked for within the distance asked, however far.
+            watch = self._watches[token] = RunWatch(
+                simulation, entity, tip_angle_rad=tip_angle_rad, clearance=clearance_m > 0.0,
+                clearance_range_m=clearance_m if clearance_m > 0.0 else DEFAULT_CLEARANCE_RANGE_M)
         first = watch.contacts[0] if watch.contacts else None
         near = watch.clearance
         within = near.distance_m < clearance_m and near.other is not None

@@ -208,3 +208,14 @@ def test_a_contact_still_going_when_a_check_starts_fails_it(tmp_path):
                   "                assert_no_contact()\n", BOX_AHEAD)
     match = re.fullmatch(r'r2d2 touched box_0 at (\d+\.\d{3}) s', verdict.reason)
     assert match and 2.5 <= float(match.group(1)) <= 2.6, verdict  # a tick late at most
+
+
+@pytest.mark.parametrize('box_x, distance', [(2.7, '3m'), (3.2, '3m'), (3.2, '2.6m')])
+def test_a_clearance_beyond_two_metres_is_measured(tmp_path, box_x, distance):
+    """A box 2.04 m (2.54 m) away fails a 3 m (2.6 m) clearance at once, as over ROS."""
+    verdict = run(tmp_path, "        one_of:\n"
+                  "            wait elapsed(1s)\n"
+                  f"            assert_min_clearance(distance: {distance})\n",
+                  f"    obstacles: string = '[[{box_x}, 0, 0, 0.3, 0.3, 0.5]]'\n")
+    assert re.fullmatch(rf'r2d2 came within {distance[:-1]} m of box_0 \(2\.[05]\d\d m, at '
+                        r'0\.0\d\d s\)', verdict.reason), verdict
