@@ -288,7 +288,9 @@ def scenario_parameters(scenario_file: str, document: Optional[Dict[str, Any]] =
     receives. With :func:`simulator_parameters`, what to start ``sim_node``
     with so that it stands as the in-process run starts.
     """
+    from r2d2_sim.osc.entry_points import ensure_registered
     from r2d2_sim.osc.parameters import DEFAULTS
+    ensure_registered()  # osc.r2d2, which the scenario imports, from a source checkout too
     task = Task(os.path.abspath(scenario_file), 0, document)
     logger = _QuietLogger()
     trees = (_parser(logger).process_file(task.scenario_file) if document is None

@@ -11,7 +11,7 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ElementTree
 
-from common import OSC_EXAMPLES, osc_env
+from common import OSC_EXAMPLES, osc_env, REPO
 from r2d2_sim.osc.variations import (
     executor_map, read_documents, run_document, run_variations, tasks_of)
 
@@ -144,3 +144,13 @@ def test_a_parameter_file_that_cannot_be_read_is_one_line(tmp_path):
     assert result.stderr.splitlines() == [
         f'r2d2_sim.osc: error: parameter file {bad}: document 1 is not '
         '{scenario name: {parameter: value}}']
+
+
+def test_simulator_parameters_need_no_install(tmp_path):
+    """Called first in a fresh process of a source checkout (no shim): osc.r2d2 is found."""
+    code = ('from r2d2_sim.osc.variations import simulator_parameters\n'
+            f'print(simulator_parameters({str(OSC_EXAMPLES / "crossing.osc")!r})["publish_rate"])')
+    result = subprocess.run([sys.executable, '-c', code], cwd=tmp_path, capture_output=True,
+                            text=True, timeout=120,
+                            env=dict(osc_env(tmp_path / 'shim'), PYTHONPATH=REPO))
+    assert result.stdout == '20.0\n', result.stdout + result.stderr
