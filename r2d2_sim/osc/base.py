@@ -13,14 +13,32 @@ from typing import Any, Dict, Optional
 
 from scenario_execution.simulation import SimulationInterface
 
-from r2d2_sim.errors import RefusedError
+from r2d2_sim.errors import RefusedError, ScenarioError
 from r2d2_sim.osc.parameters import DEFAULTS
 from r2d2_sim.osc.port import STATES
 
-__all__ = ['ScenarioSimulation', 'CONTROL_PERIOD_S']
+__all__ = ['ScenarioSimulation', 'CONTROL_PERIOD_S', 'steps_per_period']
 
 # One tick of the behaviour tree: 12 physics steps at 240 Hz (the farm's stopper's rate).
 CONTROL_PERIOD_S = 0.05
+
+
+def steps_per_period(rate_hz: float, which: str) -> int:
+    """
+    Return how many physics steps at ``rate_hz`` make one control period.
+
+    ScenarioError (one line naming ``which`` rate) unless they are a whole
+    number: the scenario's clock advances a control period a tick, and the
+    simulated time must advance exactly as much.
+    """
+    steps = CONTROL_PERIOD_S * rate_hz
+    whole = round(steps)
+    if whole < 1 or abs(steps - whole) > 1e-6:
+        raise ScenarioError(
+            f'{which} {rate_hz:g} Hz: a control period of {CONTROL_PERIOD_S:g} s would be '
+            f'{steps:g} physics steps, not a whole number; use a rate that is a multiple of '
+            f'{1.0 / CONTROL_PERIOD_S:g} Hz (100, 200, 240, 500, 1000...)')
+    return whole
 
 
 class ScenarioSimulation(SimulationInterface):

@@ -22,7 +22,7 @@ from typing import Any, Dict, List, Optional, Sequence
 from r2d2_sim.errors import RefusedError, ScenarioError, SetupError
 from r2d2_sim.model.regions import circle_region, Region as GroundRegion
 from r2d2_sim.model.transforms import yaw_to_quaternion
-from r2d2_sim.osc.base import CONTROL_PERIOD_S, ScenarioSimulation
+from r2d2_sim.osc.base import CONTROL_PERIOD_S, ScenarioSimulation, steps_per_period
 from r2d2_sim.osc.parameters import read_parameters, RunSettings
 from r2d2_sim.osc.port import Pose3, Watched
 from r2d2_sim.sim.bounds import Region
@@ -92,6 +92,7 @@ class R2D2Simulation(ScenarioSimulation):
         scenario = settings.scenario
         config, robots = parse_world({**IN_PROCESS_PARAMETERS, **scenario.parameters(),
                                       **settings.parameters})
+        steps = steps_per_period(config.physics_rate_hz, 'physics_rate')
         simulation = Simulation(config, robots, warn=self.warnings.append, error=_quiet)
         try:
             for index, box in enumerate(scenario.obstacles):
@@ -105,7 +106,7 @@ class R2D2Simulation(ScenarioSimulation):
         except BaseException:
             simulation.close()
             raise
-        self._steps_per_period = max(1, round(CONTROL_PERIOD_S * config.physics_rate_hz))
+        self._steps_per_period = steps
         return simulation
 
     def step(self) -> None:

@@ -32,7 +32,7 @@ from r2d2_sim.conformance.discovery import find_interfaces, normal_prefix, simul
 from r2d2_sim.errors import RefusedError, ScenarioError
 from r2d2_sim.model.regions import circle_region, Region as GroundRegion
 from r2d2_sim.model.transforms import yaw_of, yaw_to_quaternion
-from r2d2_sim.osc.base import CONTROL_PERIOD_S, ScenarioSimulation
+from r2d2_sim.osc.base import ScenarioSimulation, steps_per_period
 from r2d2_sim.osc.in_process import GOAL
 from r2d2_sim.osc.parameters import read_parameters, RunSettings
 from r2d2_sim.osc.port import hull_at, Pose3, Watched
@@ -106,12 +106,13 @@ class StandardSimulation(ScenarioSimulation):
         self.playing = True
         self.logger: Any = None
         self._steps_per_period = 0
+        self._step_s = 0.0  # the simulator's physics step (s)
         self._status: Any = None  # r2d2_sim's get_status client, when the simulator has one
         self._publishers: Dict[str, Any] = {}
         self._watches: Dict[int, _Watch] = {}  # each check's own, by its token
         self._poses: Dict[str, Pose3] = {}  # this period's, read once
         self._bounds: Dict[str, Region] = {}
-        self._time_ns = 0
+        self._steps = 0  # physics steps sent since the simulator's time was last 0
 
     def start(self, values: Dict[str, Any]) -> None:
         """Put the simulator where the scenario begins (see :mod:`.parameters`), paused."""
@@ -160,9 +161,8 @@ class StandardSimulation(ScenarioSimulation):
                   and normal_prefix(name.rsplit('/', 2)[0]) == namespace]
         self._status = (probe.node.create_client(_trigger(), sorted(status)[0])
                         if status else None)
-        self._steps_per_period = max(1, round(CONTROL_PERIOD_S / self._step_s()))
 
-    def _step_s(self) -> float:
+    def _physics_step_s(self) -> float:
         """Return the simulator's physics step (s): its features' custom_info says (r2d2_sim)."""
         client = self._client()
         response = client.call('get_simulator_features',
@@ -170,9 +170,11 @@ class StandardSimulation(ScenarioSimulation):
         try:
             step_s = float(json.loads(response.features.custom_info)['step_s'])
         except (ValueError, KeyError, TypeError):
+            step_s = math.nan
+        if not (math.isfinite(step_s) and step_s > 0.0):
             raise ScenarioError('the simulator does not say its physics step (custom_info '
                                 '"step_s" of GetSimulatorFeatures): cannot step it one control '
-                                'period at a time') from None
+                                'period at a time')
         return step_s
 
     def _disconnect(self) -> None:
@@ -190,6 +192,10 @@ class StandardSimulation(ScenarioSimulation):
 
     def _start(self, settings: RunSettings) -> None:
         client, scenario = self._client(), settings.scenario
+        self._steps_per_period = 0
+        step_s = self._physics_step_s()  # asked at each reset: it may have restarted
+        self._steps_per_period = steps_per_period(1.0 / step_s, "the simulator's physics rate")
+        self._step_s = step_s
         self._hold()
         if scenario.world:
             current = client.current_world()
@@ -203,7 +209,7 @@ class StandardSimulation(ScenarioSimulation):
             client.spawn(resource_string=box_urdf(box.size), name=f'box_{index}',
                          position=(box.x, box.y, box.size[2] / 2.0),
                          orientation=yaw_to_quaternion(box.yaw), allow_renaming=False)
-        self._time_ns = 0
+        self._steps = 0
 
     def _place(self, settings: RunSettings, state: Any) -> None:
         """Put the robot at the scenario's start, unless it stands there already."""
@@ -231,13 +237,10 @@ class StandardSimulation(ScenarioSimulation):
         if self.error or self.client is None or not self.playing:
             return
         self.client.step(self._steps_per_period)
-        self._time_ns += round(self._steps_per_period * self._step_ns())
+        self._steps += self._steps_per_period
         self._poses = {}
         for watch in self._watches.values():
             self._sample(watch)
-
-    def _step_ns(self) -> float:
-        return CONTROL_PERIOD_S / self._steps_per_period * 1e9 if self._steps_per_period else 0.0
 
     def _sample(self, watch: _Watch) -> None:
         try:
@@ -245,7 +248,7 @@ class StandardSimulation(ScenarioSimulation):
             bounds = self.bounds(watch.entity)
         except RefusedError:
             return  # it left the world: nothing more to see
-        now = self._time_ns / 1e9
+        now = self.time_s
         if watch.touched is None:
             touched = self._others(watch.entity, hull_at(bounds, pose))
             if touched:
@@ -269,8 +272,8 @@ class StandardSimulation(ScenarioSimulation):
 
     @property
     def time_s(self) -> float:
-        """Return the simulated time since the reset (s), counted in steps sent."""
-        return self._time_ns / 1e9
+        """Return the simulated time (s): the steps sent since it was 0, each the simulator's."""
+        return self._steps * self._step_s
 
     def spawn(self, name: str, uri: str, position: Sequence[float],
               orientation: Sequence[float], allow_renaming: bool, namespace: str) -> str:
@@ -295,23 +298,27 @@ class StandardSimulation(ScenarioSimulation):
         self._client().load_world(uri=uri)
         self.playing = False
         self._poses, self._bounds = {}, {}
+        self._steps = 0  # a world loads at time 0
 
     def unload_world(self) -> None:
         """Unload the world (UnloadWorld)."""
         self._client().unload_world()
         self.playing = False
         self._poses, self._bounds = {}, {}
+        self._steps = 0
 
     def reset_simulation(self) -> None:
         """Reset all (ResetSimulation ALL), kept paused."""
         self._client().reset(0)
         self._hold()
         self._poses = {}
+        self._steps = 0
 
     def step_physics(self, steps: int) -> None:
         """Step a paused scenario (StepSimulation)."""
         self._check_paused()
         self._client().step(steps)
+        self._steps += steps
         self._poses = {}
 
     def _check_world(self) -> None:

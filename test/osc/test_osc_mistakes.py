@@ -110,3 +110,32 @@ def test_a_clearance_of_none_or_less_is_refused(tmp_path, distance, shown):
     verdict = run_document(Task(str(path), 0, None))
     assert not verdict.passed
     assert verdict.reason == f'assert_min_clearance: distance must be > 0, got {shown} m'
+
+
+def physics_rate(rate):
+    """Return the scenario parameter that runs the physics at ``rate`` Hz in process."""
+    return f"    parameters: string = '{{\\\"physics_rate\\\": {rate}}}'\n"
+
+
+@pytest.mark.parametrize('rate, steps', [(250, '12.5'), (30, '1.5')])
+def test_a_physics_rate_that_does_not_fit_the_control_period(tmp_path, rate, steps):
+    """250 Hz: 12.5 steps a tick, the simulated time would drift from the scenario's: refused."""
+    path = write(tmp_path, physics_rate(rate) + '    do serial:\n'
+                 '        drive(linear: 0.5mps, duration: 2s)\n')
+    verdict = run_document(Task(str(path), 0, None))
+    assert not verdict.passed
+    assert verdict.reason == (
+        f'physics_rate {rate} Hz: a control period of 0.05 s would be {steps} physics steps, '
+        'not a whole number; use a rate that is a multiple of 20 Hz (100, 200, 240, 500, '
+        '1000...)')
+
+
+@pytest.mark.parametrize('rate', [100, 240, 1000])
+def test_at_a_rate_that_fits_the_simulated_time_is_the_scenarios(tmp_path, rate):
+    """Driven 2 s, then 2 s of waiting: 4.1 s of scenario time (82 ticks), at any such rate."""
+    path = write(tmp_path, physics_rate(rate) + '    do serial:\n'
+                 '        drive(linear: 0.5mps, duration: 2s)\n        wait elapsed(2s)\n')
+    verdict = run_document(Task(str(path), 0, None))
+    assert verdict.passed, verdict.reason
+    assert verdict.outcome['seconds'] == pytest.approx(4.1, abs=1e-6)
+    assert verdict.outcome['steps'] == round(4.1 * rate)

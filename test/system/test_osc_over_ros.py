@@ -8,6 +8,8 @@ simulator stepped in lockstep, one control period a tick. Each verdict is compar
 with the in-process run's.
 """
 
+import re
+
 import pytest
 
 from common import OSC_EXAMPLES, osc_env, scenario_execution
@@ -85,3 +87,50 @@ def test_a_check_counts_only_what_happens_after_it_starts(tmp_path):
             ['--simulation', OVER_ROS, scenario],
             osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id), tmp_path)
     assert cases == {'past': None} and status == 0, output[-3000:]
+
+
+def test_a_simulator_whose_step_does_not_fit_the_control_period_is_refused(tmp_path):
+    """sim_node at 250 Hz: 12.5 steps a tick would drift from the scenario's clock; one line."""
+    scenario = tmp_path / 'drive.osc'
+    scenario.write_text("import osc.r2d2\n\nscenario drive:\n    do serial:\n"
+                        "        drive(linear: 0.2mps, duration: 1s)\n")
+    with SimProcess(physics_rate=250.0, publish_rate=50.0, scan_rate=0.0, imu_rate=0.0) as sim:
+        status, output, cases = scenario_execution(
+            ['--simulation', OVER_ROS, scenario],
+            osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id), tmp_path)
+    says = ("r2d2_sim: the simulator's physics rate 250 Hz: a control period of 0.05 s would be "
+            '12.5 physics steps, not a whole number; use a rate that is a multiple of 20 Hz')
+    assert status == 1 and cases == {'drive': 'execution failed.'}, output[-3000:]
+    assert len([line for line in output.splitlines() if says in line]) == 1, output[-3000:]
+    assert 'Traceback' not in output
+
+
+def test_the_steps_of_step_simulation_count_in_the_scenarios_time(tmp_path):
+    """
+    240 steps while paused are 1 s: a touch after them is reported 1 s later than without.
+
+    Two scenarios in one file, the same drive into a box after a pause: one steps the
+    paused simulator 240 times (step_simulation), the other not.
+    """
+    def touching(name, stepped):
+        return (f'scenario {name}:\n    timeout(20s)\n'
+                "    obstacles: string = '[[0.8, 0, 0, 0.3, 0.3, 0.5]]'\n"
+                '    do serial:\n'
+                '        set_simulation_state(state: simulation_state!paused)\n'
+                + ('        step_simulation(steps: 240)\n' if stepped else '')
+                + '        set_simulation_state(state: simulation_state!playing)\n'
+                '        one_of:\n'
+                '            drive(linear: 0.4mps, duration: 5s)\n'
+                '            assert_no_contact()\n')
+    scenario = tmp_path / 'stepped.osc'
+    scenario.write_text('import osc.helpers\nimport osc.r2d2\n\n' + touching('plain', False)
+                        + touching('stepped', True))
+    with SimProcess(**simulator_parameters(str(scenario))) as sim:
+        status, output, cases = scenario_execution(
+            ['--simulation', OVER_ROS, scenario],
+            osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id), tmp_path)
+    assert cases == {'plain': 'execution failed.', 'stepped': 'execution failed.'}, \
+        output[-3000:]
+    times = re.findall(r'r2d2 touched box_0 at (\d+\.\d{3}) s', output)  # plain's first
+    plain, stepped = float(times[0]), float(times[-1])
+    assert stepped - plain == pytest.approx(1.0, abs=0.06), output[-3000:]
