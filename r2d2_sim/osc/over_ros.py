@@ -233,14 +233,23 @@ class StandardSimulation(ScenarioSimulation):
     # -- stepping -----------------------------------------------------------------------------
 
     def step(self) -> None:
-        """Step one control period while playing; then sample every watched entity."""
+        """
+        Step one control period while playing; then sample every watched entity.
+
+        A refusal (the simulator gone or going away mid-run) is the run's one
+        line: the next action fails with it (scenario_execution's loop lets
+        any exception from here out as a traceback, with no test.xml).
+        """
         if self.error or self.client is None or not self.playing:
             return
-        self.client.step(self._steps_per_period)
-        self._steps += self._steps_per_period
-        self._poses = {}
-        for watch in self._watches.values():
-            self._sample(watch)
+        try:
+            self.client.step(self._steps_per_period)
+            self._steps += self._steps_per_period
+            self._poses = {}
+            for watch in self._watches.values():
+                self._sample(watch)
+        except RefusedError as exc:
+            self._fail(f'the simulator failed mid-run: {exc.code}: {exc.message}')
 
     def _sample(self, watch: _Watch) -> None:
         try:

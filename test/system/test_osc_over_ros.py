@@ -8,7 +8,9 @@ simulator stepped in lockstep, one control period a tick. Each verdict is compar
 with the in-process run's.
 """
 
+from pathlib import Path
 import re
+import xml.etree.ElementTree as ElementTree
 
 import pytest
 
@@ -134,3 +136,45 @@ def test_the_steps_of_step_simulation_count_in_the_scenarios_time(tmp_path):
     times = re.findall(r'r2d2 touched box_0 at (\d+\.\d{3}) s', output)  # plain's first
     plain, stepped = float(times[0]), float(times[-1])
     assert stepped - plain == pytest.approx(1.0, abs=0.06), output[-3000:]
+
+
+def test_a_simulator_that_goes_away_mid_run_fails_the_scenario_in_one_line(tmp_path):
+    """
+    sim_node stopped 1 s into a 600 s scenario: one line, the scenario failed in test.xml.
+
+    Only the check asks the simulator anything, through each tick's step and sampling:
+    that is where the simulator's going away is met (it was a traceback and no test.xml).
+    """
+    import subprocess
+    import sys
+    from rosgraph_msgs.msg import Clock
+    scenario = tmp_path / 'long.osc'
+    scenario.write_text("import osc.helpers\nimport osc.r2d2\n\nscenario long:\n"
+                        "    do one_of:\n        wait elapsed(600s)\n"
+                        "        assert_not_tipped()\n")
+    command = [str(Path(sys.executable).with_name('scenario_execution')), '-o', 'out',
+               '--simulation', OVER_ROS, str(scenario)]
+    with SimProcess(start_paused=True, **simulator_parameters(str(scenario))) as sim:
+        seconds = [0]  # of simulated time, which only the scenario's steps advance
+        sim.probe.node.create_subscription(
+            Clock, '/clock', lambda msg: seconds.append(msg.clock.sec), 10)
+        run = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True,
+                               env=osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id))
+        try:
+            assert sim.probe.spin_until(lambda: seconds[-1] >= 1, 60.0), \
+                'the scenario did not step the simulator'
+            sim.stop()
+            output, _ = run.communicate(timeout=120)
+        finally:
+            if run.poll() is None:
+                run.kill()
+                run.communicate()
+    says = [line for line in output.splitlines()
+            if 'r2d2_sim: the simulator failed mid-run: ' in line]
+    assert run.returncode == 1 and len(says) == 1, output[-3000:]
+    assert re.search(r'--> assert_not_tipped \[✕\] -- the simulator failed mid-run: ', output)
+    assert 'Traceback' not in output
+    cases = ElementTree.parse(tmp_path / 'out' / 'test.xml').getroot().findall('testcase')
+    assert [(case.get('name'), case.find('failure') is not None) for case in cases] == \
+        [('long', True)]
