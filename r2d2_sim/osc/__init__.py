@@ -17,8 +17,8 @@ discovery); nothing imports it. Needs the ``scenarios`` extra
 - :mod:`~r2d2_sim.osc.parameters`: a scenario's parameters as the farm's Scenario;
 - :mod:`~r2d2_sim.osc.port`: the one seam the actions use, and the pure
   decisions both sides share;
-- :mod:`~r2d2_sim.osc.variations`: a multi-document parameter file, one
-  variation per document, run in a process pool; one JUnit file and the
+- :mod:`~r2d2_sim.osc.variations`: a multi-document parameter file, each
+  scenario run per document in a process pool; one JUnit file and the
   farm's report; ``python -m r2d2_sim.osc``.
 
 Importing this package imports neither scenario_execution nor rclpy; the

@@ -9,9 +9,10 @@ Each document of the ``--parameters`` file (scenario_execution's
 executor (local processes by default, ``--jobs`` of them, one per core; a
 Ray or Dask cluster as ``python -m r2d2_sim.farm`` chooses one: the
 executor named, the address's kind, ``RAY_ADDRESS``, ``DASK_SCHEDULER_ADDRESS``),
-run in lockstep; one line per variation, its
-verdict and reason, then ``DIR/test.xml`` (JUnit, a test case per document)
-and the farm's report in ``DIR/farm``. ``--ros`` runs them one after
+run in lockstep, each scenario of the file a task of its own; one line per
+scenario and variation, its verdict and reason, named as scenario_execution
+names its test cases, then ``DIR/test.xml`` (JUnit, the same cases) and the
+farm's report in ``DIR/farm``. ``--ros`` runs them one after
 another against a running simulator instead (the scenario's
 ``simulator_namespace``, on ``ROS_DOMAIN_ID``). Exit status 0 when every
 variation passed, 1 when one failed, 2 for a file that cannot be read.

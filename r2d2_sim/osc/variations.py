@@ -1,18 +1,20 @@
 """
-Variations: a multi-document parameter file, a scenario run per document, on the farm's executors.
+Variations: a multi-document parameter file, each scenario per document, on the farm's executors.
 
 scenario_execution reads a ``--scenario-parameter-file`` with several YAML
-documents as several scenarios (``name-0``, ``name-1``...) and runs them one
-after another. Here each document is a :class:`Task` of its own (the
-document, its index, the scenario file), run by :func:`run_document` in
-whichever process takes it, so the documents of a file fan out over cores;
+documents as several runs of each scenario of the file (``name-0``,
+``name-1``...; with one document, or none, plain ``name``) and runs them one
+after another. Here each scenario of each document is a :class:`Task` of its
+own (the scenario file, the scenario, the document and its index, the test
+case's name), run by :func:`run_document` in whichever process takes it, so
+the documents of a file fan out over cores;
 each run is in lockstep and seeded by its document's ``seed``, so its
 verdict does not depend on where or when it ran. :func:`run_variations`
 hands the tasks to the farm's executors (:mod:`r2d2_sim.farm.executors`:
 local processes by default, a Ray or a Dask cluster when asked), as one
-:class:`DocumentsJob`, a task per document, a crash reported as that
-document's failure and never retried, and writes one JUnit file (``test.xml``,
-a test case per document, as scenario_execution names them) and the farm's
+:class:`DocumentsJob`, a crash reported as that task's failure and never
+retried, and writes one JUnit file (``test.xml``, a test case per task, as
+scenario_execution names them) and the farm's
 report (``farm/report.md``, ``report.json``, ``trajectories.png``).
 
 A worker parses the scenario file once and copies the model for each
@@ -52,19 +54,21 @@ Mapper = Callable[[Callable[['Task'], 'Verdict'], Sequence['Task']], Iterable['V
 
 
 class Task(NamedTuple):
-    """One document of a parameter file, to run: all a worker needs, picklable."""
+    """One scenario of a file with one document of a parameter file: all a worker needs."""
 
     scenario_file: str              # the .osc file, absolute
     number: int                     # the document's place in the file (0 first)
     document: Optional[Dict[str, Any]]  # {scenario name: {parameter: value}}, None: defaults
     simulation: str = IN_PROCESS    # the simulation class, module:Class
+    scenario: str = ''              # the scenario of the file to run ('': its only one)
+    name: str = ''                  # the test case's name ('': the scenario's)
 
 
 class Verdict(NamedTuple):
-    """One document's run: scenario_execution's verdict, the reason, the farm's measures."""
+    """One task's run: scenario_execution's verdict, the reason, the farm's measures."""
 
     number: int                     # the document's place in the file
-    name: str                       # as scenario_execution names it: <scenario>-<number>
+    name: str                       # as scenario_execution names it: <scenario>[-<number>]
     passed: bool
     reason: str                     # one line ('' when passed)
     wall_s: float
@@ -102,11 +106,40 @@ def read_documents(path: str) -> List[Optional[Dict[str, Any]]]:
 
 def tasks_of(scenario_file: str, parameter_file: Optional[str] = None,
              simulation: str = IN_PROCESS) -> List[Task]:
-    """Return one task per document of ``parameter_file`` (one task when there is none)."""
+    """
+    Return one task per scenario of the file and document of ``parameter_file``.
+
+    In document order, then the scenarios' order in the file. Each is named
+    as scenario_execution names its test case: the scenario's name, with
+    ``-N`` for document N when the parameter file has more than one. A
+    scenario file that does not parse gives one task per document (named
+    ``<file stem>-N``), each of which fails saying so.
+    """
+    path = os.path.abspath(scenario_file)
     documents: List[Optional[Dict[str, Any]]] = (
         read_documents(parameter_file) if parameter_file else [None])
-    return [Task(os.path.abspath(scenario_file), number, document, simulation)
-            for number, document in enumerate(documents)]
+    several = len(documents) > 1
+    scenarios = _scenario_names(path)
+    if not scenarios:
+        return [Task(path, number, document, simulation, '', f'{Path(path).stem}-{number}')
+                for number, document in enumerate(documents)]
+    return [Task(path, number, document, simulation, scenario,
+                 f'{scenario}-{number}' if several else scenario)
+            for number, document in enumerate(documents) for scenario in scenarios]
+
+
+def _scenario_names(path: str) -> List[str]:
+    """Return the names of the scenarios a file declares, in order; [] if it does not parse."""
+    from scenario_execution.model.types import ScenarioDeclaration
+
+    from r2d2_sim.osc.entry_points import ensure_registered
+    ensure_registered()
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):  # ANTLR's own line: the run says it
+            model = _parsed(path, os.stat(path).st_mtime_ns)[1]
+    except Exception:  # scenario_execution's parse errors: ValueError, OSC2Error...
+        return []
+    return [scenario.name for scenario in model.find_children_of_type(ScenarioDeclaration)]
 
 
 # -- one document, in a worker ---------------------------------------------------------------
@@ -167,11 +200,12 @@ def _simulation(spec: str) -> Any:
 
 def run_document(task: Task) -> Verdict:
     """
-    Run one document of a parameter file in this process; return its verdict.
+    Run one scenario of a file, with one document of a parameter file, here; return its verdict.
 
     The scenario file is parsed once per process. A document that does not
     fit the scenario (an unknown scenario or parameter) is a failed verdict
-    with scenario_execution's one line.
+    with scenario_execution's one line; so is a task that names no scenario
+    of a file that has several.
     """
     from r2d2_sim.osc.entry_points import ensure_registered
     ensure_registered()
@@ -183,16 +217,26 @@ def run_document(task: Task) -> Verdict:
                                   scenario_file=task.scenario_file, output_dir=None,
                                   logger=logger,
                                   register_signal=False, simulation=simulation)
-    name = f'{Path(task.scenario_file).stem}-{task.number}'
+    name = task.name or task.scenario or f'{Path(task.scenario_file).stem}-{task.number}'
     try:
         trees = (_parser(logger).process_file(task.scenario_file) if task.document is None
                  else _with_document(task, logger))
     except Exception as exc:  # scenario_execution's parse errors: ValueError, OSC2Error...
         return Verdict(task.number, name, False, _line(f'parsing failed: {exc}'),
                        time.perf_counter() - started, None)
-    execution.scenarios_list = [(_renamed(tree, task), params, None)
-                                for tree, params, _ in trees]
-    name = execution.scenarios_list[0][0].name if execution.scenarios_list else name
+    chosen = [(tree, params) for tree, params, _ in trees
+              if tree.name == task.scenario or not task.scenario]
+    if len(chosen) != 1:
+        declared = ', '.join(tree.name for tree, _, _ in trees)
+        wanted = (f'no scenario {task.scenario!r}' if task.scenario
+                  else 'several scenarios, and the task names none')
+        return Verdict(task.number, name, False,
+                       f'{Path(task.scenario_file).name}: {wanted}; it has: {declared}',
+                       time.perf_counter() - started, None)
+    (tree, params), = chosen
+    # The test case's name (its blackboard namespace too, as in scenario_execution).
+    name = tree.name = task.name or tree.name
+    execution.scenarios_list = [(tree, params, None)]
     execution.run()
     results = execution.results
     passed = bool(results) and all(r.result for r in results)
@@ -227,13 +271,6 @@ def _with_document(task: Task, logger: Any) -> Any:
                                             scenario_parameter_file=stream.name)
     finally:
         os.unlink(stream.name)
-
-
-def _renamed(tree: Any, task: Task) -> Any:
-    """Name a document's scenario as scenario_execution does in a multi-document run."""
-    if task.document is not None:
-        tree.name = f'{tree.name}-{task.number}'
-    return tree
 
 
 def _line(text: str) -> str:
@@ -335,13 +372,16 @@ class DocumentsJob:
         return run_document(self.tasks[item.key])._asdict()
 
     def items(self) -> List[Any]:
-        """Return one item per document: its number, and its seed (0 when it has none)."""
+        """Return one item per task: its place in the list, and its seed (0 when it has none)."""
         from r2d2_sim.farm.job import Item
-        return [Item(task.number, _seed_of(task)) for task in self.tasks]
+        return [Item(index, _seed_of(task)) for index, task in enumerate(self.tasks)]
 
 
 def _seed_of(task: Task) -> int:
-    for values in (task.document or {}).values():
+    """Return the seed the task's document gives its scenario (0 when it gives none)."""
+    document = task.document or {}
+    for values in ([document[task.scenario]] if task.scenario in document
+                   else document.values()):
         seed = values.get('seed')
         if isinstance(seed, int):
             return seed
@@ -351,7 +391,7 @@ def _seed_of(task: Task) -> int:
 def _verdict_of(task: Task, result: Any) -> Verdict:
     """Return a task's verdict from what the executor gave back (a result or a crash)."""
     from r2d2_sim.farm.executors import Crash
-    name = f'{Path(task.scenario_file).stem}-{task.number}'
+    name = task.name or task.scenario or f'{Path(task.scenario_file).stem}-{task.number}'
     if isinstance(result, Crash):
         return Verdict(task.number, name, False, f'crashed: {result.reason}', 0.0, None)
     if result.outcome is None:
@@ -393,21 +433,25 @@ def run_variations(scenario_file: str, parameter_file: Optional[str], output_dir
                    jobs: Optional[int] = None, map_tasks: Optional[Mapper] = None,
                    report: bool = True, simulation: str = IN_PROCESS) -> List[Verdict]:
     """
-    Run every document of ``parameter_file`` against ``scenario_file``; return the verdicts.
+    Run every scenario of ``scenario_file`` with each document of ``parameter_file``.
 
+    Return the verdicts, one per task (:func:`tasks_of`).
     ``map_tasks(run_document, tasks)`` runs them (default: the farm's local
     executor with ``jobs`` processes, one per core when None; ``jobs`` 1
     runs them here, one after another; :func:`executor_map` for a cluster). Writes
-    ``output_dir/test.xml`` (one test case per document) and, with
-    ``report``, the farm's report in ``output_dir/farm``. The verdicts are
-    in document order, whatever order they ran in. ``simulation``: the
-    class each task runs against (module:Class).
+    ``output_dir/test.xml`` (one test case per task, named as
+    scenario_execution names them) and, with ``report``, the farm's report
+    in ``output_dir/farm``. The verdicts are in the tasks' order (document,
+    then scenario), whatever order they ran in. ``simulation``: the class
+    each task runs against (module:Class).
     """
     tasks = tasks_of(scenario_file, parameter_file, simulation)
     if map_tasks is None:
         map_tasks = (executor_map('local', workers=jobs) if jobs is None or jobs > 1
                      else (lambda f, ts: [f(t) for t in ts]))
-    verdicts = sorted(map_tasks(run_document, tasks), key=lambda v: v.number)
+    order = {task.name: index for index, task in enumerate(tasks)}
+    verdicts = sorted(map_tasks(run_document, tasks),
+                      key=lambda v: (order.get(v.name, len(order)), v.number))
     Path(output_dir).mkdir(parents=True, exist_ok=True)
     write_junit(verdicts, Path(output_dir) / 'test.xml')
     if report:
@@ -426,7 +470,7 @@ def run_variations(scenario_file: str, parameter_file: Optional[str], output_dir
 
 
 def write_junit(verdicts: Sequence[Verdict], path: Path) -> None:
-    """Write one JUnit file: a test case per document, as scenario_execution writes them."""
+    """Write one JUnit file: a test case per verdict, as scenario_execution writes them."""
     failures = sum(not v.passed for v in verdicts)
     lines = ['<?xml version="1.0" encoding="utf-8"?>',
              f'<testsuite errors="0" failures="{failures}" name="scenario_execution" '

@@ -11,7 +11,9 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ElementTree
 
-from common import OSC_EXAMPLES, osc_env, REPO
+import pytest
+
+from common import OSC_EXAMPLES, osc_env, REPO, scenario_execution
 from r2d2_sim.osc.variations import (
     executor_map, read_documents, run_document, run_variations, tasks_of)
 
@@ -154,3 +156,32 @@ def test_simulator_parameters_need_no_install(tmp_path):
                             text=True, timeout=120,
                             env=dict(osc_env(tmp_path / 'shim'), PYTHONPATH=REPO))
     assert result.stdout == '20.0\n', result.stdout + result.stderr
+
+
+TWO_SCENARIOS = ('import osc.helpers\nimport osc.r2d2\n\n'
+                 'scenario a:\n    do serial:\n        wait elapsed(0.2s)\n'
+                 'scenario b:\n    timeout(1s)\n    do serial:\n'
+                 '        wait_until_in_region(x: 5m, y: 0m, radius: 0.1m)\n')
+
+
+@pytest.mark.parametrize('documents', [None, ['b: {}\n'], ['a: {}\n', 'b: {}\n']])
+def test_each_scenario_is_a_case_named_as_scenario_execution_names_it(tmp_path, documents):
+    """Two scenarios (a passes, b times out), with no, one or two documents: its own cases."""
+    scenario = tmp_path / 'two.osc'
+    scenario.write_text(TWO_SCENARIOS)
+    args = ['--simulation', 'r2d2_sim.osc:R2D2Simulation', scenario]
+    parameters = None
+    if documents is not None:
+        parameters = tmp_path / 'documents.yaml'
+        parameters.write_text('---\n'.join(documents))
+        args = ['--scenario-parameter-file', parameters, *args]
+    _, output, theirs = scenario_execution(args, osc_env(tmp_path / 'shim'), tmp_path)
+    verdicts = run_variations(str(scenario), parameters and str(parameters),
+                              str(tmp_path / 'ours'), jobs=1, report=False)
+    assert {v.name: v.passed for v in verdicts} == {
+        name: failure is None for name, failure in theirs.items()}, output[-3000:]
+    suffixes = ['-0', '-1'] if documents and len(documents) > 1 else ['']
+    assert [v.name for v in verdicts] == [f'{s}{n}' for n in suffixes for s in 'ab']
+    assert [v.reason for v in verdicts if not v.passed] == ['timed out after 1 s'] * len(suffixes)
+    cases = ElementTree.parse(tmp_path / 'ours' / 'test.xml').getroot().findall('testcase')
+    assert [c.get('name') for c in cases] == [v.name for v in verdicts]
