@@ -219,3 +219,42 @@ def test_a_clearance_beyond_two_metres_is_measured(tmp_path, box_x, distance):
                   f"    obstacles: string = '[[{box_x}, 0, 0, 0.3, 0.3, 0.5]]'\n")
     assert re.fullmatch(rf'r2d2 came within {distance[:-1]} m of box_0 \(2\.[05]\d\d m, at '
                         r'0\.0\d\d s\)', verdict.reason), verdict
+
+
+def test_in_process_the_laser_is_off_unless_parameters_turn_it_on():
+    """
+    What docs/scenarios.md says of seed and scan_noise_std in process, measured.
+
+    Off: no laser, and two seeds give the same run. On through ``parameters``: the
+    scan's noise is drawn from the seed, the same for the same seed.
+    """
+    import numpy
+    from r2d2_sim.osc import R2D2Simulation
+    from r2d2_sim.osc.parameters import DEFAULTS
+    page = (LIBRARY.parents[3] / 'docs' / 'scenarios.md').read_text(encoding='utf-8')
+    assert 'in process the laser is off unless `parameters` turns it on' in page
+    assert "`'{\\\"scan_rate\\\": 10}'`" in page and 'simulation.robots[0].laser.scan()' in page
+
+    def run_with(seed, parameters):
+        simulation = R2D2Simulation()
+        simulation.start(dict(DEFAULTS, seed=seed, scan_noise_std=0.05, parameters=parameters,
+                              obstacles='[[1.5, 0, 0, 0.3, 0.3, 0.5]]'))
+        try:
+            assert simulation.error is None, simulation.error
+            core = simulation.simulation
+            core.robots[0].command(0.3, 0.2)
+            for _ in range(10):
+                simulation.step()
+            laser = core.robots[0].laser
+            ranges = None if laser is None else laser.scan()
+            return ranges, core.entities.body('r2d2').world_state().position
+        finally:
+            simulation.shutdown()
+
+    (off_1, where_1), (off_2, where_2) = run_with(1, ''), run_with(2, '')
+    assert off_1 is None and off_2 is None and tuple(where_1) == tuple(where_2)
+    on = '{"scan_rate": 10}'
+    (first, _), (again, _), (other, _) = run_with(1, on), run_with(1, on), run_with(2, on)
+    seen = numpy.isfinite(first)
+    assert seen.any() and numpy.array_equal(first, again)
+    assert not numpy.array_equal(first[seen], other[seen])
