@@ -35,6 +35,7 @@ from typing import (
 
 from r2d2_sim.errors import WorldError
 from r2d2_sim.model.health import base_problem, joint_problem, joints_finite, twist_problem
+from r2d2_sim.model.reach import FIXED, FREE, LinkReach, reach_radius, SLIDES, TURNS
 from r2d2_sim.model.transforms import BaseState, in_body_frame, rotate_inverse
 from r2d2_sim.physics import records
 from r2d2_sim.physics.raycast import exclude_from_rays, RAY_EXCLUDED_GROUP
@@ -71,6 +72,9 @@ class Motor(NamedTuple):
 # Joints of several degrees of freedom: a ball joint's position is a quaternion (x, y, z,
 # w), its velocity an angular velocity; a planar joint's are 3 numbers each.
 MULTI_DOF_JOINTS = (pybullet.JOINT_SPHERICAL, pybullet.JOINT_PLANAR)
+# How each kind of joint moves its link, for a body's reach (model/reach.py): a ball turns.
+_MOTIONS = {pybullet.JOINT_REVOLUTE: TURNS, pybullet.JOINT_SPHERICAL: TURNS,
+            pybullet.JOINT_PRISMATIC: SLIDES, pybullet.JOINT_FIXED: FIXED}
 
 
 class State(NamedTuple):
@@ -135,6 +139,9 @@ class Body:
         self._motors: Dict[int, Motor] = {}
         self._anchored: Set[int] = set()  # links whose contacts hold_joints anchored
         self._own_filters: Optional[bool] = None  # its URDF sets collision filters (once read)
+        # How often the body was put somewhere, loaded or reloaded: a watch that keeps where
+        # a body without joints stands (its bounds) looks again when this changed.
+        self.moves = 0
         info = records.body_info(client, body_id)
         self.base_link_name = info.base_link_name
         self.urdf_name = info.name
@@ -147,6 +154,8 @@ class Body:
         self.mass_kg = base.mass_kg + sum(records.dynamics(client, body_id, j.index).mass_kg
                                           for j in self.joints.values())
         self.fixed_base = base.mass_kg == 0.0
+        # Static, and no joint moves a link: the body stays where it is put.
+        self.rigid = self.static and not self.movable_indices and not self.multi_dof_indices
         self._base_inertial_inverse = client.invertTransform(base.inertial_position,
                                                              base.inertial_orientation)
         # Centre of mass -> body frame (the URDF base frame turned by the yaw
@@ -162,6 +171,7 @@ class Body:
         # BulletClient.__getattr__ builds a new functools.partial (after an
         # inspect.isbuiltin check) on every call: ~1 us each, 11 calls per
         # published step. Bind the per-step queries once instead.
+        self.moves += 1  # a new id: loaded, reloaded or adopted
         cid = self._client._client
         body = self._id
         # Callables, not partials: once the body is removed they are _removed.
@@ -231,6 +241,12 @@ class Body:
         """Return the body frame's pose in the world: :meth:`world_state` without the twist."""
         com_position, com_orientation = self._get_base_pose()
         return self._multiply_transforms(com_position, com_orientation, *self._com_to_body)
+
+    def world_pose_and_com(self) -> Tuple[Tuple[Vec3, Quat], Vec3]:
+        """Return :meth:`world_pose` and the base's centre of mass, from one query."""
+        com_position, com_orientation = self._get_base_pose()
+        return (self._multiply_transforms(com_position, com_orientation, *self._com_to_body),
+                com_position)
 
     def world_state(self) -> BaseState:
         """Return the body frame's pose and its origin's twist, both in the world frame."""
@@ -398,6 +414,7 @@ class Body:
         self.save_initial_state()
 
     def _place(self, position: Vec3, orientation: Quat) -> None:
+        self.moves += 1
         self._client.resetBasePositionAndOrientation(self.id, position, orientation)
 
     def set_base_state(self, position: Optional[Vec3] = None,
@@ -410,6 +427,7 @@ class Body:
         Values left out keep their current ones. Nothing is validated, so tests
         can inject the absurd states that :meth:`state_problem` detects.
         """
+        self.moves += 1
         current_position, current_orientation = self._get_base_pose()
         current_linear, current_angular = self._get_base_velocity()
         self._client.resetBasePositionAndOrientation(
@@ -433,6 +451,7 @@ class Body:
                       com_position[2] - position[2])
         wx, wy, wz = angular_velocity
         vx, vy, vz = linear_velocity
+        self.moves += 1
         self._client.resetBasePositionAndOrientation(self.id, com_position, com_orientation)
         self._client.resetBaseVelocity(
             self.id, (vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx),
@@ -483,6 +502,7 @@ class Body:
     def _put(self, state: State) -> None:
         (position, orientation), (linear, angular), joints, multi_dof = state
         client, body = self._client, self.id
+        self.moves += 1
         client.resetBasePositionAndOrientation(body, position, orientation)
         client.resetBaseVelocity(body, linear, angular)
         for index, q, dq in zip(self.movable_indices, joints.positions, joints.velocities):
@@ -533,6 +553,7 @@ class Body:
         pairs (see :meth:`collision_filters` for what raises).
         """
         client, body = self._client, self.id
+        self.moves += 1  # after a restore (SimWorld.restore_state), its pose came back too
         for link, (group, mask) in self.collision_filters().items():
             client.setCollisionFilterGroupMask(body, link, group, mask)
 
@@ -710,6 +731,10 @@ class Body:
         return records.contact_records(self._get_contact_points(),
                                        [body.id for body in ignoring if body.alive])
 
+    def contacts_with(self, other: 'Body') -> List[ContactPoint]:
+        """Return where this body touches ``other`` after the last step (one pair's points)."""
+        return records.contact_records(self._get_contact_points(other.id))
+
     def closest_points(self, other: 'Body', range_m: float) -> Optional[ClosestPoints]:
         """Return this body's nearest points to ``other`` within ``range_m`` (None: farther)."""
         return records.nearest_points(self._get_closest_points(other.id, range_m))
@@ -721,6 +746,38 @@ class Body:
             return tuple(position), tuple(orientation)
         state = self.link_state(link)
         return state.com_position, state.com_orientation
+
+    def bounds(self) -> Aabb:
+        """Return the world box around every link's collision box now."""
+        boxes = [records.aabb(self._client, self.id, link) for link in self.links()]
+        lows, highs = zip(*(box.low for box in boxes)), zip(*(box.high for box in boxes))
+        (x0, y0, z0), (x1, y1, z1) = map(min, lows), map(max, highs)
+        return Aabb((x0, y0, z0), (x1, y1, z1))
+
+    def reach_m(self) -> Optional[float]:
+        """
+        Return a radius about the base's centre of mass that holds the body in any joint state.
+
+        From the links as they stand now, their joints' kinds and limits (see
+        :func:`~r2d2_sim.model.reach.reach_radius`); None when a joint can take a
+        link anywhere (planar, or a prismatic joint without limits).
+        """
+        client, body = self._client, self.id
+        links = []
+        for joint in self.joints.values():
+            motion = _MOTIONS.get(joint.type_code, FREE)
+            state = client.getLinkState(body, joint.index)
+            origin = tuple(state[4])
+            ends: List[Vec3] = []
+            if motion == SLIDES and joint.lower_limit <= joint.upper_limit:
+                position = client.getJointState(body, joint.index)[0]
+                axis = client.rotateVector(state[5], joint.axis)
+                ends = [tuple(o + a * (limit - position) for o, a in zip(origin, axis))
+                        for limit in (joint.lower_limit, joint.upper_limit)]
+            box = records.aabb(client, body, joint.index)
+            links.append(LinkReach(joint.parent_index, motion, origin, ends, box.low, box.high))
+        base = records.aabb(client, body, -1)
+        return reach_radius(tuple(self._get_base_pose()[0]), base.low, base.high, links)
 
     def mesh_vertices(self, link: int, shape_index: int) -> List[Vec3]:
         """Return a collision mesh's vertices in its link's inertial frame (empty if none)."""

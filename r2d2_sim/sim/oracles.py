@@ -25,11 +25,20 @@ with it.
 
 It costs nothing unless made (the simulation calls its watches after each
 step), and about 10 us per other body per step when made (closest points).
+Only bodies that can be near are asked about: a body that stays where it is
+put (static, no joints that move) is passed over while its bounding box is
+farther from the robot's centre of mass than the robot's reach (a radius
+that holds its links in any joint state, :meth:`Body.reach_m
+<r2d2_sim.physics.body.Body.reach_m>`) plus the distance that matters (0 for
+contacts, the clearance so far for closest points), plus :data:`NEAR_MARGIN_M`.
+No point PyBullet would have given can come from a body passed over, so the
+watch reads the same as one that asks about every body (``prune=False``, what
+the tests compare it with, bit for bit).
 """
 
 import math
 from typing import (
-    Callable, Dict, Iterable, List, Mapping, NamedTuple, Optional, Protocol, Sequence, Tuple,
+    Callable, Dict, List, Mapping, NamedTuple, Optional, Protocol, Sequence, Tuple,
     Union)
 
 from r2d2_sim.errors import RefusedError
@@ -37,7 +46,7 @@ from r2d2_sim.model.convex import box_corners
 from r2d2_sim.model.regions import circle_region, polygon_region, Region
 from r2d2_sim.model.transforms import apply, Transform, yaw_of
 from r2d2_sim.physics.body import Body
-from r2d2_sim.physics.records import ContactPoint
+from r2d2_sim.physics.records import ContactPoint, Vec3
 from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
 from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.worlds.files import WorldFiles
@@ -51,6 +60,9 @@ __all__ = ['Contact', 'Clearance', 'Touch', 'RunWatch', 'TrajectoryPoint', 'touc
 DEFAULT_CLEARANCE_RANGE_M = 2.0
 # Leaning more than this from upright (roll and pitch together) is tipping over.
 DEFAULT_TIP_ANGLE_RAD = math.radians(45.0)
+# Slack on the bounds a watch passes bodies over by (m): their boxes and the reach hold
+# the shapes already; this covers rounding and PyBullet's margins.
+NEAR_MARGIN_M = 0.05
 
 
 class Contact(NamedTuple):
@@ -84,20 +96,27 @@ class TrajectoryPoint(NamedTuple):
     yaw_rad: float
 
 
-def touching(world: SimWorld, body: Body, others: Optional[Iterable[Tuple[str, Body]]] = None
-             ) -> List[Touch]:
+def touching(world: SimWorld, body: Body, others: Optional[Sequence[Tuple[str, Body]]] = None,
+             alone: bool = False) -> List[Touch]:
     """
     Return what ``body`` touches after the last step of ``world`` (a SimWorld).
 
     One :class:`Touch` per other body, its own links and the ground plane
     aside: the contact point with the largest normal force. In the world's
     order of bodies, so that two runs list them alike. ``others`` (name,
-    body) narrows the bodies looked at (those that can be near).
+    body) narrows the bodies looked at (those that can be near); ``alone``
+    asks PyBullet about that one pair only (``others`` holds one body, not
+    the ground plane), which gives the same as asking for every point of
+    ``body`` and keeping that pair's, for less.
     """
     bodies = world.bodies
     ground = bodies.get(GROUND_PLANE_NAME)
     strongest: Dict[int, ContactPoint] = {}
-    for point in body.contacts(ignoring=() if ground is None else (ground,)):
+    if alone and others is not None and len(others) == 1:
+        points = body.contacts_with(others[0][1])
+    else:
+        points = body.contacts(ignoring=() if ground is None else (ground,))
+    for point in points:
         best = strongest.get(point.body_b)
         if best is None or point.normal_force_n > best.normal_force_n:
             strongest[point.body_b] = point
@@ -168,8 +187,10 @@ class RunWatch:
     :attr:`trajectory`: where it is now, then every period. ``clearance``
     False leaves the clearance out (it stays at the range): the closest
     points are most of what the watch costs, which a learning environment
-    that ends an episode at the first contact does not need. ValueError for
-    an unknown entity or a range, angle or period that is none.
+    that ends an episode at the first contact does not need. ``prune`` False
+    asks PyBullet about every other body at every step (the watch reads the
+    same either way; see the module's docstring). ValueError for an unknown
+    entity or a range, angle or period that is none.
     """
 
     def __init__(self, simulation: 'WatchedSimulation', entity: Optional[str] = None, *,
@@ -177,7 +198,7 @@ class RunWatch:
                  clearance_range_m: float = DEFAULT_CLEARANCE_RANGE_M,
                  tip_angle_rad: float = DEFAULT_TIP_ANGLE_RAD,
                  trajectory_period_s: Optional[float] = None,
-                 clearance: bool = True) -> None:
+                 clearance: bool = True, prune: bool = True) -> None:
         if not (math.isfinite(clearance_range_m) and clearance_range_m > 0.0):
             raise ValueError(f'clearance_range_m must be > 0, got {clearance_range_m}')
         if not (math.isfinite(tip_angle_rad) and 0.0 < tip_angle_rad < math.pi):
@@ -211,6 +232,10 @@ class RunWatch:
         self.start_ns = simulation.time_ns
         self.steps = 0
         self._open: Dict[str, int] = {}  # other entity -> index of its contact still going
+        # None: every body is asked about at every step (a reach without bound, or prune off).
+        self._reach = body.reach_m() if prune else None
+        # A rigid body's bounds as last read, by name: (the body, its moves then, low, high).
+        self._bounds: Dict[str, Tuple[Body, int, Vec3, Vec3]] = {}
         if self._sample_every:
             base = self.body.world_state()
             self.trajectory.append(TrajectoryPoint(self.start_ns, base.position[0],
@@ -223,14 +248,22 @@ class RunWatch:
         if not body.alive:
             return  # it left the world: nothing more to see
         self.steps += 1
-        if self._measure_clearance:
-            others = [(name, other) for name, other in self._simulation.world.bodies.items()
-                      if other is not body and name != GROUND_PLANE_NAME]
+        (position, orientation), com = body.world_pose_and_com()
+        others = [(name, other) for name, other in self._simulation.world.bodies.items()
+                  if other is not body and name != GROUND_PLANE_NAME]
+        reach = self._reach
+        if reach is None:
             self._contacts(body, time_ns, others)
-            self._clearance(body, time_ns, others)
-        else:  # every body is looked at only when something touches
-            self._contacts(body, time_ns, None)
-        position, orientation = body.world_pose()
+            if self._measure_clearance:
+                self._clearance(body, time_ns, others)
+        else:
+            gaps = [self._gap(name, other, com, reach) for name, other in others]
+            self._contacts(body, time_ns, [pair for pair, gap in zip(others, gaps)
+                                           if gap <= NEAR_MARGIN_M])
+            if self._measure_clearance:
+                within = max(self.clearance.distance_m, 0.0) + NEAR_MARGIN_M
+                self._clearance(body, time_ns, [pair for pair, gap in zip(others, gaps)
+                                                if gap <= within])
         x, y = position[0], position[1]
         for name, region in self.regions.items():
             if name not in self.reached and region.contains(x, y):
@@ -240,10 +273,28 @@ class RunWatch:
         if self._sample_every and self.steps % self._sample_every == 0:
             self.trajectory.append(TrajectoryPoint(time_ns, x, y, yaw_of(orientation)))
 
-    def _contacts(self, body: Body, time_ns: int,
-                  others: Optional[List[Tuple[str, Body]]]) -> None:
-        touches = {touch.other: touch
-                   for touch in touching(self._simulation.world, body, others)}
+    def _gap(self, name: str, other: Body, com: Vec3, reach: float) -> float:
+        """Return how far ``other`` is at least from the body's shapes (0 for one that moves)."""
+        if not other.rigid:
+            return 0.0
+        known = self._bounds.get(name)
+        if known is None or known[0] is not other or known[1] != other.moves:
+            low, high = other.bounds()
+            known = self._bounds[name] = (other, other.moves, low, high)
+        _, _, (x0, y0, z0), (x1, y1, z1) = known
+        x, y, z = com
+        dx, dy, dz = max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1), max(z0 - z, 0.0, z - z1)
+        return math.sqrt(dx * dx + dy * dy + dz * dz) - reach
+
+    def _contacts(self, body: Body, time_ns: int, others: List[Tuple[str, Body]]) -> None:
+        # One pair asked alone costs less than the robot's every point (its wheels' too).
+        if len(others) == 1:
+            found = touching(self._simulation.world, body, others, alone=True)
+        elif others:
+            found = touching(self._simulation.world, body, others)
+        else:
+            found = []
+        touches = {touch.other: touch for touch in found}
         if not touches and not self._open:
             return
         for name in [n for n in self._open if n not in touches]:

@@ -1,0 +1,136 @@
+"""
+A watch that passes far bodies over reads what one asking about every body reads, bit for bit.
+
+Seeded drives among fixed and loose boxes, with a fixed box put in the
+robot's way, one spawned beside it and one deleted while they run: two
+watches each (pruned, and ``prune=False``), with and without the clearance,
+see the same contacts, clearance, regions and fall. And R2D2's reach holds
+its links with its gripper and head anywhere in their limits.
+"""
+
+import math
+import random
+
+import pybullet
+import pytest
+
+from r2d2_sim.model.regions import circle_region
+from r2d2_sim.model.transforms import yaw_of
+from r2d2_sim.physics.body import Body
+from r2d2_sim.sim.oracles import RunWatch
+from r2d2_sim.sim.simulation import SpawnRequest
+from r2d2_sim.sim.spawnables import box_urdf
+
+SIMULATION_DEFAULTS = {'scan_rate': 0.0, 'imu_rate': 0.0, 'cmd_vel_timeout': 0.0}
+UPRIGHT = (0.0, 0.0, 0.0, 1.0)
+ZERO = (0.0, 0.0, 0.0)
+
+
+def place_box(simulation, name, x, y, size=0.3, mass_kg=0.0):
+    simulation.spawn(SpawnRequest(name, resource_string=box_urdf((size, size, size),
+                                                                 mass_kg=mass_kg, name=name),
+                                  position=(x, y, size / 2)))
+
+
+def readings(watch):
+    return (watch.contacts, watch.clearance, watch.reached, watch.tipped_ns, watch.steps)
+
+
+def drive(make, seed, prune):
+    """Run a seeded drive among boxes; return two watches' readings and the points asked."""
+    rng = random.Random(seed)
+    simulation = make()
+    place_box(simulation, 'wall', 1.6, 0.0, size=0.4)  # every drive meets something
+    for index in range(6):
+        place_box(simulation, f'box_{index}', rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0),
+                  mass_kg=rng.choice((0.0, 0.0, 2.0)))
+    goal = {'goal': circle_region(1.0, 0.5, 0.3)}
+    watches = [RunWatch(simulation, regions=goal, prune=prune, clearance=clearance,
+                        clearance_range_m=1.5) for clearance in (True, False)]
+    for second in range(8):
+        simulation.robot.command(rng.uniform(-0.2, 0.6), rng.uniform(-1.0, 1.0))
+        if second == 3:  # a fixed box jumps against the robot's gripper
+            (x, y, _), orientation = simulation.robot.body.world_pose()
+            yaw = yaw_of(orientation)
+            simulation.set_entity_state('box_0', '', (x + 0.55 * math.cos(yaw),
+                                                      y + 0.55 * math.sin(yaw), 0.15),
+                                        UPRIGHT, ZERO, ZERO)
+        if second == 5:
+            x, y, _ = simulation.robot.body.world_pose()[0]
+            place_box(simulation, 'late', x - 0.6, y)
+            simulation.delete_entity('box_1')
+        for _ in range(240):
+            simulation.step()
+    return [readings(watch) for watch in watches]
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_a_pruned_watch_reads_what_asking_every_body_reads(make, seed, monkeypatch):
+    """Eight simulated seconds among moving and moved boxes, pruned and not: the same readings."""
+    asked = []
+    closest = Body.closest_points
+
+    def counted(body, other, range_m):
+        asked.append(other.name)
+        return closest(body, other, range_m)
+    monkeypatch.setattr(Body, 'closest_points', counted)
+    pruned = drive(make, seed, prune=True)
+    pruned_asked, asked[:] = len(asked), []
+    every = drive(make, seed, prune=False)
+    assert pruned == every
+    contacts, clearance = pruned[0][0], pruned[0][1]
+    assert contacts, 'the drive touched nothing: the test shows nothing'
+    assert clearance.distance_m < 1.5
+    assert pruned_asked < len(asked)  # and far boxes were passed over
+
+
+def test_r2d2s_reach_holds_its_links_in_any_joint_state(make):
+    """
+    Gripper, grippers and head anywhere in their limits, the robot turned any way.
+
+    A probe just outside the reach, in any direction, is never within PyBullet's
+    closest points; one at half the reach now and then is.
+    """
+    simulation = make()
+    body = simulation.robot.body
+    reach = body.reach_m()
+    assert reach is not None and 0.515 < reach < 1.0  # the gripper's tip is 0.515 m ahead
+    place_box(simulation, 'probe', 10.0, 10.0, size=0.02)
+    probe = simulation.world.bodies['probe']
+    client, rng = body._client, random.Random(7)
+    near = 0
+    for _ in range(60):
+        body.set_base_state((0.0, 0.0, 2.0), pybullet.getQuaternionFromEuler(
+            [rng.uniform(-math.pi, math.pi) for _ in range(3)]))
+        for joint in body.joints.values():
+            if joint.index in body.movable_indices:
+                low, high = ((joint.lower_limit, joint.upper_limit)
+                             if joint.lower_limit <= joint.upper_limit else (-math.pi, math.pi))
+                client.resetJointState(body.id, joint.index, rng.uniform(low, high))
+        com = client.getBasePositionAndOrientation(body.id)[0]
+        for _ in range(30):
+            direction = [rng.gauss(0.0, 1.0) for _ in range(3)]
+            norm = math.sqrt(sum(v * v for v in direction))
+            for distance, outside in ((reach + 0.02, True), (0.5 * reach, False)):
+                client.resetBasePositionAndOrientation(
+                    probe.id, [c + distance * v / norm for c, v in zip(com, direction)], UPRIGHT)
+                touching = body.closest_points(probe, 0.0) is not None
+                if outside:
+                    assert not touching, (distance, direction)
+                else:
+                    near += touching
+    assert near > 0  # inside the reach, the probe does meet the robot now and then
+
+
+def test_moving_a_fixed_box_is_seen_at_once(make):
+    """A fixed box 3 m away put against the robot's front between two steps: touching then."""
+    simulation = make()
+    place_box(simulation, 'far', 3.0, 0.0, size=0.8)
+    with RunWatch(simulation, clearance=False) as watch:
+        for _ in range(24):
+            simulation.step()
+        x, y, _ = simulation.robot.body.world_pose()[0]
+        simulation.set_entity_state('far', '', (x + 0.55, y, 0.4), UPRIGHT, ZERO, ZERO)
+        simulation.step()
+    assert watch.touched() == ['far']
+    assert watch.contacts[0].start_ns == simulation.time_ns
