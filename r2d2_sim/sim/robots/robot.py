@@ -85,6 +85,10 @@ def _battery(config: SimConfig) -> Battery:
     return Battery(spec, dock)
 
 
+# A step count no run reaches: a robot without sensors is never due to measure one.
+NEVER = 1 << 62
+
+
 class Robot:
     """
     A driven robot: its :class:`~r2d2_sim.physics.body.Body`, drive train, controller and sensors.
@@ -164,6 +168,12 @@ class Robot:
         self._imu_due = StepSchedule(rate, config.imu_rate_hz, step) if self.imu else None
         self._battery_due = (StepSchedule(rate, config.battery_rate_hz, step) if self.battery
                              else None)
+        self._schedules = [schedule for schedule in (
+            self._camera_due, self._scan_due, self._lidar_due, self._imu_due, self._battery_due)
+            if schedule is not None]
+        # The first step a sensor may be due at: before it, a step without a publication
+        # measures nothing (most steps), and only the blow-up check runs.
+        self._quiet_until = 0
         self._time_step_s = 1.0 / rate
 
     def _build_controller(self, drive: DriveTrain) -> None:
@@ -227,11 +237,18 @@ class Robot:
         base's velocity, where a blow-up shows at once (one query, about 2 us,
         against 4 for the whole state).
         """
+        if step < self._quiet_until and not state_due:
+            problem = self.body.twist_problem()
+            if problem is not None:
+                self._recover(problem, time_ns)
+            return None
         camera = self._camera_due is not None and self._camera_due.due(step)
         scan = self._scan_due is not None and self._scan_due.due(step)
         lidar = self._lidar_due is not None and self._lidar_due.due(step)
         imu = self._imu_due is not None and self._imu_due.due(step)
         battery = self._battery_due is not None and self._battery_due.due(step)
+        self._quiet_until = min([schedule.next_step for schedule in self._schedules],
+                                default=NEVER)
         sensing = camera or scan or lidar or imu
         frame = contacts = world = None
         if state_due:
@@ -319,10 +336,9 @@ class Robot:
         """Start the sensor rates afresh: the step count went back ``steps_back`` (a reset)."""
         step = self.world.step_count
         self._battery_step -= steps_back
-        for schedule in (self._camera_due, self._scan_due, self._lidar_due, self._imu_due,
-                         self._battery_due):
-            if schedule is not None:
-                schedule.restart(step)
+        for schedule in self._schedules:
+            schedule.restart(step)
+        self._quiet_until = 0
         if self.controller is not None:
             self.controller.shift_time(-steps_back)
         if self.imu is not None:
