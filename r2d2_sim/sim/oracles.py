@@ -33,7 +33,10 @@ that holds its links in any joint state, :meth:`Body.reach_m
 contacts, the clearance so far for closest points), plus :data:`NEAR_MARGIN_M`.
 No point PyBullet would have given can come from a body passed over, so the
 watch reads the same as one that asks about every body (``prune=False``, what
-the tests compare it with, bit for bit).
+the tests compare it with, bit for bit). A body is seen to move when it is
+moved through the simulation or its :class:`~r2d2_sim.physics.body.Body` (a
+spawn, a state set, a reset, a restore); one moved through the PyBullet client
+directly is not: watch such a world with ``prune=False``.
 """
 
 import math
