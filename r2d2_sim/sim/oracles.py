@@ -26,11 +26,11 @@ with it.
 It costs nothing unless made (the simulation calls its watches after each
 step), and about 10 us per other body per step when made (closest points).
 Only bodies that can be near are asked about: a body that stays where it is
-put (static, no joints that move) is passed over while its bounding box is
-farther from the robot's centre of mass than the robot's reach (a radius
-that holds its links in any joint state, :meth:`Body.reach_m
-<r2d2_sim.physics.body.Body.reach_m>`) plus the distance that matters (0 for
-contacts, the clearance so far for closest points), plus :data:`NEAR_MARGIN_M`.
+put (static, no joints that move) is passed over while the robot's centre of
+mass is outside its bounding box grown on every side by the robot's reach (a
+radius that holds its links in any joint state, :meth:`Body.reach_m
+<r2d2_sim.physics.body.Body.reach_m>`), :data:`NEAR_MARGIN_M` and the distance
+that matters (0 for contacts, the clearance so far for closest points).
 No point PyBullet would have given can come from a body passed over, so the
 watch reads the same as one that asks about every body (``prune=False``, what
 the tests compare it with, bit for bit). A body is seen to move when it is
@@ -49,7 +49,7 @@ from r2d2_sim.model.convex import box_corners
 from r2d2_sim.model.regions import circle_region, polygon_region, Region
 from r2d2_sim.model.transforms import apply, Transform, yaw_of
 from r2d2_sim.physics.body import Body
-from r2d2_sim.physics.records import ContactPoint, Vec3
+from r2d2_sim.physics.records import ContactPoint
 from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
 from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.worlds.files import WorldFiles
@@ -63,6 +63,8 @@ __all__ = ['Contact', 'Clearance', 'Touch', 'RunWatch', 'TrajectoryPoint', 'touc
 DEFAULT_CLEARANCE_RANGE_M = 2.0
 # Leaning more than this from upright (roll and pitch together) is tipping over.
 DEFAULT_TIP_ANGLE_RAD = math.radians(45.0)
+# Where a watched body's centre of mass must be for a rigid one to count: x0, y0, z0, x1, y1, z1.
+Zone = Tuple[float, float, float, float, float, float]
 # Slack on the bounds a watch passes bodies over by (m): their boxes and the reach hold
 # the shapes already; this covers rounding and PyBullet's margins.
 NEAR_MARGIN_M = 0.05
@@ -237,8 +239,8 @@ class RunWatch:
         self._open: Dict[str, int] = {}  # other entity -> index of its contact still going
         # None: every body is asked about at every step (a reach without bound, or prune off).
         self._reach = body.reach_m() if prune else None
-        # A rigid body's bounds as last read, by name: (the body, its moves then, low, high).
-        self._bounds: Dict[str, Tuple[Body, int, Vec3, Vec3]] = {}
+        # A rigid body's zone (_zone) as last read, by name: (the body, its moves then, zone).
+        self._zones: Dict[str, Tuple[Body, int, Zone]] = {}
         if self._sample_every:
             base = self.body.world_state()
             self.trajectory.append(TrajectoryPoint(self.start_ns, base.position[0],
@@ -260,13 +262,25 @@ class RunWatch:
             if self._measure_clearance:
                 self._clearance(body, time_ns, others)
         else:
-            gaps = [self._gap(name, other, com, reach) for name, other in others]
-            self._contacts(body, time_ns, [pair for pair, gap in zip(others, gaps)
-                                           if gap <= NEAR_MARGIN_M])
+            x, y, z = com
+            near: List[Tuple[str, Body]] = []     # those that may touch the robot
+            in_range: List[Tuple[str, Body]] = []  # those that may be nearer than the clearance
+            slack = max(self.clearance.distance_m, 0.0) if self._measure_clearance else 0.0
+            for pair in others:
+                name, other = pair
+                if other.rigid:
+                    x0, y0, z0, x1, y1, z1 = self._zone(name, other, reach)
+                    if not (x0 - slack <= x <= x1 + slack and y0 - slack <= y <= y1 + slack
+                            and z0 - slack <= z <= z1 + slack):
+                        continue
+                    if x0 <= x <= x1 and y0 <= y <= y1 and z0 <= z <= z1:
+                        near.append(pair)
+                else:
+                    near.append(pair)
+                in_range.append(pair)
+            self._contacts(body, time_ns, near)
             if self._measure_clearance:
-                within = max(self.clearance.distance_m, 0.0) + NEAR_MARGIN_M
-                self._clearance(body, time_ns, [pair for pair, gap in zip(others, gaps)
-                                                if gap <= within])
+                self._clearance(body, time_ns, in_range)
         x, y = position[0], position[1]
         for name, region in self.regions.items():
             if name not in self.reached and region.contains(x, y):
@@ -276,18 +290,22 @@ class RunWatch:
         if self._sample_every and self.steps % self._sample_every == 0:
             self.trajectory.append(TrajectoryPoint(time_ns, x, y, yaw_of(orientation)))
 
-    def _gap(self, name: str, other: Body, com: Vec3, reach: float) -> float:
-        """Return how far ``other`` is at least from the body's shapes (0 for one that moves)."""
-        if not other.rigid:
-            return 0.0
-        known = self._bounds.get(name)
+    def _zone(self, name: str, other: Body, reach: float) -> Zone:
+        """
+        Return where the robot's centre of mass must be for ``other`` (rigid) to touch it.
+
+        Its bounding box grown by the reach and the margin on every side: a
+        centre of mass outside is farther than that from the box, so no shape
+        of the robot meets one of ``other``; grown by a distance more, the
+        same holds for the closest points within that distance.
+        """
+        known = self._zones.get(name)
         if known is None or known[0] is not other or known[1] != other.moves:
-            low, high = other.bounds()
-            known = self._bounds[name] = (other, other.moves, low, high)
-        _, _, (x0, y0, z0), (x1, y1, z1) = known
-        x, y, z = com
-        dx, dy, dz = max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1), max(z0 - z, 0.0, z - z1)
-        return math.sqrt(dx * dx + dy * dy + dz * dz) - reach
+            (x0, y0, z0), (x1, y1, z1) = other.bounds()
+            grow = reach + NEAR_MARGIN_M
+            known = self._zones[name] = (other, other.moves, (
+                x0 - grow, y0 - grow, z0 - grow, x1 + grow, y1 + grow, z1 + grow))
+        return known[2]
 
     def _contacts(self, body: Body, time_ns: int, others: List[Tuple[str, Body]]) -> None:
         # One pair asked alone costs less than the robot's every point (its wheels' too).
