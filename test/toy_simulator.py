@@ -288,6 +288,8 @@ class ToySimulator:
     The standard's services and action on a node under ``/toy``, spun in a thread.
 
     ``defect``: a clause id of :data:`DEFECTS` (None: right everywhere).
+    ``without``: features it leaves undeclared (``ENTITY_BOUNDS_BOX``) and
+    services it does not serve (``GetEntities``, which no feature stands for).
     Close it (or use it as a context manager).
     """
 
@@ -321,7 +323,7 @@ class ToySimulator:
                      'GetSpawnables', 'GetNamedPoses', 'GetNamedPoseBounds', 'LoadWorld',
                      'UnloadWorld', 'GetCurrentWorld', 'GetAvailableWorlds'):
             if (kind, defect) in (('GetSimulatorFeatures', 'FEAT-01'),
-                                  ('GetEntityBounds', 'FEAT-03')):
+                                  ('GetEntityBounds', 'FEAT-03')) or kind in self.without:
                 continue
             self.node.create_service(getattr(srv, kind), kind,
                                      self._answer(getattr(self, '_' + kind), kind),
@@ -472,7 +474,7 @@ class ToySimulator:
         return entity
 
     def _GetSimulatorFeatures(self, request, response):
-        drop = {getattr(F, name) for name in self.without}
+        drop = {getattr(F, name) for name in self.without if hasattr(F, name)}
         features = [f for f in ALL_FEATURES if f not in drop]
         if self.broken('FEAT-02'):
             features.append(99)

@@ -185,9 +185,12 @@ class TargetEntities:
                                f'name {got!r}')
         return got
 
-    def delete(self, name: str) -> None:
-        """Delete ``name`` (OK expected)."""
+    def delete(self, name: str, missing_ok: bool = False) -> None:
+        """Delete ``name``: OK expected (or NOT_FOUND, with ``missing_ok``)."""
         t = self.target
-        t.ok('DeleteEntity', t.srv.DeleteEntity.Request(entity=name), f'DeleteEntity of {name}')
+        R = t.msg.Result
+        codes = (R.RESULT_OK, R.RESULT_NOT_FOUND) if missing_ok else (R.RESULT_OK,)
+        t.expect('DeleteEntity', t.srv.DeleteEntity.Request(entity=name), codes,
+                 f'DeleteEntity of {name}')
         if name in self.spawned:
             self.spawned.remove(name)

@@ -68,6 +68,7 @@ class Kit:
         self.options = options or KitOptions()
         self.target = Target(self.options)
         self.connected = False
+        self.closed = False
         self.restore_problems: List[str] = []
         self.total_s = self.options.total_timeout_s or TOTAL_TIMEOUTS * self.options.timeout_s
         self.deadline: Optional[float] = None  # time.monotonic() when the run's time is up
@@ -148,7 +149,14 @@ class Kit:
         return outcomes
 
     def close(self) -> List[str]:
-        """Leave the simulator as found (TargetUndo.restore), close the node; return problems."""
+        """
+        Leave the simulator as found (TargetUndo.restore), close the node; return problems.
+
+        Once: closing again returns the same problems.
+        """
+        if self.closed:
+            return self.restore_problems
+        self.closed = True
         t = self.target
         try:
             if self.connected and t.features is not None and not t.refusal:

@@ -70,16 +70,12 @@ class TargetUndo:
                 problems.append(str(exc))
         spawned = self.entities.spawned
         if spawned and self.target.declared('DELETING'):
-            try:
-                present = set(self.entities.names())
-            except ClauseFailed as exc:
-                return problems + [str(exc)]
+            # By name: one the clause (or a reset) removed already answers NOT_FOUND.
             for name in list(spawned):
-                if name in present:
-                    try:
-                        self.entities.delete(name)
-                    except ClauseFailed as exc:
-                        problems.append(str(exc))
+                try:
+                    self.entities.delete(name, missing_ok=True)
+                except ClauseFailed as exc:
+                    problems.append(str(exc))
         spawned.clear()
         return problems
 

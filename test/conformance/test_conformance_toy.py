@@ -130,3 +130,31 @@ def test_a_slow_simulator_cannot_hold_the_kit_past_its_total_time():
     late = [o for o in outcomes if 'time limit' in o.reason]
     assert late and outcomes[-1] in late, [(o.clause.id, o.status, o.reason) for o in outcomes]
     assert all(o.status != PASS for o in late)
+
+
+# A service no feature stands for (GetEntities), and LoadWorld with its features left out:
+# what the toy goes without, and what the skips then say.
+NOT_SERVED = {'GetEntities': (('GetEntities',), 'GetEntities not served'),
+              'LoadWorld': (('LoadWorld', 'WORLD_LOADING', 'WORLD_RESOURCE_STRING'),
+                            'needs WORLD_LOADING')}
+
+
+@pytest.mark.parametrize('service', sorted(NOT_SERVED))
+def test_a_service_not_served_skips_the_clauses_that_need_it(service):
+    """
+    A toy without GetEntities (or LoadWorld): no clause fails for the missing interface.
+
+    Each clause names what it calls among its needs, so it is skipped; and
+    what the kit spawned is deleted by name, without a listing to find it.
+    """
+    without, says = NOT_SERVED[service]
+    domain = next_domain_id()
+    with ToySimulator(domain, without=without) as toy:
+        with Kit(kit_options(domain)) as kit:
+            outcomes = kit.run(CLAUSES)
+            problems = kit.close()
+        left = sorted(n for n in toy.entities if n.startswith('conformance_'))
+    bad = {o.clause.id: o.reason for o in outcomes
+           if o.status == FAIL or 'afterwards' in o.reason}
+    assert not bad and not problems and not left, (bad, problems, left)
+    assert any(o.status == SKIP and says in o.reason for o in outcomes)

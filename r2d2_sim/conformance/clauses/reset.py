@@ -15,6 +15,9 @@ TIME, STATE, SPAWNED = ('SIMULATION_RESET_TIME', 'SIMULATION_RESET_STATE',
 SET, PAUSE = 'SIMULATION_STATE_SETTING', 'SIMULATION_STATE_PAUSE'
 STEP = 'STEP_SIMULATION_SINGLE|STEP_SIMULATION_MULTIPLE|STEP_SIMULATION_ACTION'
 MOVE = ('SPAWNING', 'ENTITY_STATE_SETTING', 'ENTITY_STATE_GETTING', SET, PAUSE)
+# The clauses that ask whether an entity is there list them: GetEntities, which no feature
+# stands for, must be served.
+LISTED = ('GetEntities',)
 DEFAULT_QUOTE = 'SCOPE_DEFAULT = 0 # same as SCOPE_ALL.'
 DESPAWN_QUOTE = 'Objects that were dynamically spawned are de-spawned.'
 BITS = ('uint8 scope # ... This is a bit field which may be checked for each scope e.g. '
@@ -69,7 +72,7 @@ def default_ok(t: Target) -> None:
 
 
 @clause(CLAUSES, 'RESET-02', 'SCOPE_DEFAULT removes spawned entities', (RESET, 'SPAWNING'),
-        'ResetSimulation.srv', DESPAWN_QUOTE)
+        'ResetSimulation.srv', DESPAWN_QUOTE, services=LISTED)
 def default_despawns(t: Target) -> None:
     """Spawn, reset with 0: gone."""
     _despawns(t, 0)
@@ -77,7 +80,7 @@ def default_despawns(t: Target) -> None:
 
 @clause(CLAUSES, 'RESET-03', 'SCOPE_ALL removes spawned entities', (RESET, 'SPAWNING'),
         'ResetSimulation.srv', 'SCOPE_ALL = 255 # Fully resets simulation to the start, as if it '
-        'was closed and launched again.')
+        'was closed and launched again.', services=LISTED)
 def all_despawns(t: Target) -> None:
     """Spawn, reset with 255: gone."""
     _despawns(t, _scope(t, 'ALL'))
@@ -100,7 +103,7 @@ def time_resets_time(t: Target) -> None:
 
 
 @clause(CLAUSES, 'RESET-06', 'SCOPE_TIME leaves entities where they are', (TIME,) + MOVE,
-        'ResetSimulation.srv', BITS)
+        'ResetSimulation.srv', BITS, services=LISTED)
 def time_keeps_entities(t: Target) -> None:
     """Reset TIME: a spawned, moved entity is still listed, still where it was moved."""
     name, _, moved = _moved(t)
@@ -137,7 +140,7 @@ def state_stops(t: Target) -> None:
 
 
 @clause(CLAUSES, 'RESET-09', 'SCOPE_STATE keeps spawned entities', (STATE, 'SPAWNING'),
-        'ResetSimulation.srv', BITS)
+        'ResetSimulation.srv', BITS, services=LISTED)
 def state_keeps_spawned(t: Target) -> None:
     """Spawn, reset with STATE: still listed (RobotecAI's example then moves its cubes)."""
     name = t.entities.spawn(0)
@@ -163,14 +166,14 @@ def state_keeps_time(t: Target) -> None:
 
 
 @clause(CLAUSES, 'RESET-11', 'SCOPE_SPAWNED removes spawned entities', (SPAWNED, 'SPAWNING'),
-        'ResetSimulation.srv', SPAWNED_QUOTE)
+        'ResetSimulation.srv', SPAWNED_QUOTE, services=LISTED)
 def spawned_despawns(t: Target) -> None:
     """Spawn, reset with SPAWNED: gone."""
     _despawns(t, _scope(t, 'SPAWNED'))
 
 
 @clause(CLAUSES, 'RESET-12', 'SCOPE_SPAWNED leaves the other entities', (SPAWNED, 'SPAWNING'),
-        'ResetSimulation.srv', SPAWNED_QUOTE)
+        'ResetSimulation.srv', SPAWNED_QUOTE, services=LISTED)
 def spawned_keeps_others(t: Target) -> None:
     """Spawn, reset SPAWNED: the entities there before are all still listed."""
     before = set(t.entities.names())

@@ -165,7 +165,7 @@ def undefined_state(t: Target) -> None:
 
 
 @clause(CLAUSES, 'STATE-13', 'STOPPED removes spawned entities', (SET, 'SPAWNING'),
-        'SimulationState.msg', STOPPED_QUOTE)
+        'SimulationState.msg', STOPPED_QUOTE, services=('GetEntities',))
 def stopped_despawns(t: Target) -> None:
     """Spawn, play, stop: the spawned entity is gone (a reset with ALL de-spawns)."""
     name = t.entities.spawn(0)

@@ -147,6 +147,9 @@ def spawn_at_named_pose(t: Target) -> None:
 # -- WORLD -------------------------------------------------------------------------------
 
 NO_WORLD = 'NO_WORLD_LOADED = 101 # No world is loaded at the moment.'
+# The unloading clauses load a world first (so that there is one) and load the world found
+# at the start back afterwards: they need both.
+UNLOAD = ('WORLD_LOADING', 'WORLD_UNLOADING')
 
 
 def _current(t: Target) -> Any:
@@ -312,7 +315,7 @@ def load_garbage(t: Target) -> None:
 
 
 @clause(CLAUSES, 'WORLD-10', 'after UnloadWorld, GetCurrentWorld is NO_WORLD_LOADED',
-        ('WORLD_UNLOADING', 'WORLD_INFO_GETTING'), 'GetCurrentWorld.srv', NO_WORLD)
+        UNLOAD + ('WORLD_INFO_GETTING',), 'GetCurrentWorld.srv', NO_WORLD)
 def unloaded_no_world(t: Target) -> None:
     """Unload: GetCurrentWorld answers 101."""
     _unload(t)
@@ -321,7 +324,7 @@ def unloaded_no_world(t: Target) -> None:
              'GetCurrentWorld after UnloadWorld')
 
 
-@clause(CLAUSES, 'WORLD-11', 'UnloadWorld with no world is NO_WORLD_LOADED', ('WORLD_UNLOADING',),
+@clause(CLAUSES, 'WORLD-11', 'UnloadWorld with no world is NO_WORLD_LOADED', UNLOAD,
         'UnloadWorld.srv', NO_WORLD)
 def unload_twice(t: Target) -> None:
     """Unload twice: the second answers 101."""
@@ -330,7 +333,7 @@ def unload_twice(t: Target) -> None:
              (t.srv.UnloadWorld.Response.NO_WORLD_LOADED,), 'a second UnloadWorld')
 
 
-@clause(CLAUSES, 'WORLD-12', 'with no world the state reads NO_WORLD', ('WORLD_UNLOADING', GET),
+@clause(CLAUSES, 'WORLD-12', 'with no world the state reads NO_WORLD', UNLOAD + (GET,),
         'SimulationState.msg', 'STATE_NO_WORLD = 4 # Simulation world is currently unloaded.')
 def no_world_state(t: Target) -> None:
     """Unload: the state reads NO_WORLD."""
@@ -339,7 +342,7 @@ def no_world_state(t: Target) -> None:
 
 
 @clause(CLAUSES, 'WORLD-13', 'with no world the simulation cannot be played, stopped or paused',
-        ('WORLD_UNLOADING', SET), 'SimulationState.msg', 'The simulation is inactive and cannot '
+        UNLOAD + (SET,), 'SimulationState.msg', 'The simulation is inactive and cannot '
         'be started, stopped, or paused.')
 def no_world_no_play(t: Target) -> None:
     """
@@ -361,7 +364,7 @@ def no_world_no_play(t: Target) -> None:
 
 
 @clause(CLAUSES, 'WORLD-14', 'UnloadWorld removes spawned entities',
-        ('WORLD_UNLOADING', 'SPAWNING'), 'UnloadWorld.srv',
+        UNLOAD + ('SPAWNING',), 'UnloadWorld.srv',
         'Any previously spawned entities will be removed.', services=('GetEntities',))
 def unload_despawns(t: Target) -> None:
     """Load a world, spawn, unload: GetEntities no longer lists it (or answers with no world)."""
