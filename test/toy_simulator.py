@@ -18,8 +18,10 @@ a rename as Gazebo does...). :data:`DEFECTS` says, for each clause id, what
 its defect is. Everything else stays right, so the kit's clause fails and,
 with no defect, every clause passes. :data:`MORE_DEFECTS` are violations an
 audit of the kit injected that a clause's own defect does not cover, each
-with the clauses that must fail on it; :data:`HOSTILE` are a simulator that
-answers slowly or hugely, which the kit must outlast.
+with the clauses that must fail on it; :data:`VARIANTS` are readings the
+standard allows besides the toy's own, each with the clauses that must still
+pass; :data:`HOSTILE` are a simulator that answers slowly or hugely, which the
+kit must outlast.
 
 ``prefix`` is the namespace the toy serves in (``/`` is the root): two toys on
 one domain are two simulators, and ``changes`` counts the requests that
@@ -208,6 +210,12 @@ MORE_DEFECTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
     'WORLD-13-others': ('with no world, STOPPED and PAUSED answer OK (only PLAYING is refused)',
                         ('WORLD-13',)),
 }
+# Readings the standard allows that the toy takes on demand, each with the clauses that
+# must still pass: the kit may not hold a simulator to one way where the text allows more.
+VARIANTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
+    'BOX-AS-WRITTEN': ('a TYPE_BOX filter\'s points are read in Bounds.msg\'s order: the upper '
+                       'corner, then the lower', ('FILTER-07',)),
+}
 # A hostile simulator: what the kit must bound (its time, what it prints).
 HOSTILE: Dict[str, str] = {
     'SLOW': 'every reply comes after 0.5 s',
@@ -296,7 +304,7 @@ class ToySimulator:
     def __init__(self, domain_id: int, defect: Optional[str] = None,
                  without: Sequence[str] = (), prefix: str = PREFIX) -> None:
         if defect is not None and not (defect in DEFECTS or defect in MORE_DEFECTS
-                                       or defect in HOSTILE):
+                                       or defect in HOSTILE or defect in VARIANTS):
             raise ValueError(f'no defect for {defect!r}')
         self.changes = 0  # requests received that change the simulation
         self.defect = defect
@@ -618,7 +626,11 @@ class ToySimulator:
             return math.dist(nearest, points[0]) <= points[1][0]
         if bounds.type == B.TYPE_BOX and self.broken('FILTER-07'):
             return True
-        # A box, or a hull judged by the box around its points.
+        if bounds.type == B.TYPE_BOX and self.broken('BOX-AS-WRITTEN'):
+            (q_high, q_low) = points[:2]  # "upper right and lower left corners", as they come
+            return all(lo <= qh and ql <= hi
+                       for lo, hi, ql, qh in zip(low, high, q_low, q_high))
+        # A box (its corners in either order), or a hull judged by the box around its points.
         q_low = [min(p[i] for p in points) for i in range(3)]
         q_high = [max(p[i] for p in points) for i in range(3)]
         return all(lo <= qh and ql <= hi for lo, hi, ql, qh in zip(low, high, q_low, q_high))

@@ -8,7 +8,8 @@ named its own way, found by type. Right, it passes every clause; with the
 defect of one clause (:data:`toy_simulator.DEFECTS`), that clause fails:
 each clause can fail. So can the kit on the further violations an audit of it
 injected (:data:`toy_simulator.MORE_DEFECTS`), each failing the clauses that
-check it. Two toys on one domain are two simulators: the kit checks the one it
+check it; a reading the standard allows (:data:`toy_simulator.VARIANTS`)
+passes them. Two toys on one domain are two simulators: the kit checks the one it
 is pointed at and never touches the other.
 """
 
@@ -16,7 +17,7 @@ import pytest
 
 from helpers import next_domain_id
 from r2d2_sim.conformance import BY_ID, CLAUSES, FAIL, Kit, KitError, KitOptions, PASS, SKIP
-from toy_simulator import DEFECTS, MORE_DEFECTS, ToySimulator
+from toy_simulator import DEFECTS, MORE_DEFECTS, ToySimulator, VARIANTS
 
 # Replies come in milliseconds; FEAT-01's defect makes the kit wait this long for nothing.
 TIMEOUT_S = 3.0
@@ -72,6 +73,15 @@ def test_each_further_violation_fails_the_clauses_that_check_it(defect):
     passed = {i: (o.status, o.reason) for i, o in outcomes.items() if o.status != FAIL}
     assert not passed, (what, passed)
     assert all(o.reason and '\n' not in o.reason for o in outcomes.values())
+
+
+@pytest.mark.parametrize('variant', sorted(VARIANTS))
+def test_each_reading_the_standard_allows_passes(variant):
+    """A box's corners upper first, a cancel rejected...: the clauses about them still pass."""
+    what, clause_ids = VARIANTS[variant]
+    outcomes = run(clause_ids, defect=variant)
+    other = {i: (o.status, o.reason) for i, o in outcomes.items() if o.status != PASS}
+    assert not other, (what, other)
 
 
 def test_time_run_while_the_kit_plays_to_pause_is_not_taken_for_no_reset():

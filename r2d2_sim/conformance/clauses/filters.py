@@ -115,6 +115,12 @@ def _cube(t: Target, half: float = 0.5) -> List[Tuple[float, float, float]]:
             for dz in (-half, half)]
 
 
+def _box_corners(t: Target) -> List[Tuple[float, float, float]]:
+    """Return a TYPE_BOX's points as Bounds.msg orders them: the upper corner, then the lower."""
+    corners = _cube(t)
+    return [corners[-1], corners[0]]
+
+
 @clause(CLAUSES, 'FILTER-06', 'a sphere picks the entities that overlap it', (SPAWNING,),
         'EntityFilters.msg', 'Bounds bounds # ... though at least TYPE_SPHERE needs to be '
         'supported.', services=LISTED)
@@ -127,9 +133,13 @@ def sphere_filter(t: Target) -> None:
         ('ENTITY_BOUNDS_BOX', SPAWNING), 'SimulatorFeatures.msg', 'ENTITY_BOUNDS_BOX = 6 # '
         'Supports entity filtering with bounds with TYPE_BOX.', services=LISTED)
 def box_filter(t: Target) -> None:
-    """Filter by an axis-aligned box of 1 m around box a: a, not box b 3 m away."""
-    corners = _cube(t)
-    _near_and_far(t, (t.msg.Bounds.TYPE_BOX, [corners[0], corners[-1]]), 'a box')
+    """
+    Filter by an axis-aligned box of 1 m around box a: a, not box b 3 m away.
+
+    Its corners go as Bounds.msg orders them ("upper right and lower left
+    corners of the box"): the upper one first.
+    """
+    _near_and_far(t, (t.msg.Bounds.TYPE_BOX, _box_corners(t)), 'a box')
 
 
 @clause(CLAUSES, 'FILTER-08', 'a convex hull picks the entities that overlap it',
@@ -147,9 +157,8 @@ def hull_filter(t: Target) -> None:
 def unsupported_bounds(t: Target) -> None:
     """Filter by a box (or a hull) where that type is not declared: 0, not an answer."""
     B = t.msg.Bounds
-    corners = _cube(t)
-    kind, points = ((B.TYPE_BOX, [corners[0], corners[-1]])
-                    if not t.declared('ENTITY_BOUNDS_BOX') else (B.TYPE_CONVEX_HULL, corners))
+    kind, points = ((B.TYPE_BOX, _box_corners(t))
+                    if not t.declared('ENTITY_BOUNDS_BOX') else (B.TYPE_CONVEX_HULL, _cube(t)))
     request = t.srv.GetEntities.Request(filters=t.entities.filters(bounds=(kind, points)))
     t.expect('GetEntities', request, (t.msg.Result.RESULT_FEATURE_UNSUPPORTED,),
              f'GetEntities with bounds of the undeclared type {kind}')
