@@ -62,7 +62,7 @@ DEFECTS: Dict[str, str] = {
     'FEAT-01': 'GetSimulatorFeatures is not served',
     'FEAT-02': 'declares the feature value 99',
     'FEAT-03': 'declares ENTITY_BOUNDS without serving GetEntityBounds',
-    'FEAT-04': 'serves GetNamedPoses without declaring NAMED_POSES',
+    'FEAT-04': 'serves GetNamedPoses without declaring NAMED_POSES (advisory: noted, passes)',
     'FEAT-05': 'declares SIMULATION_RESET_TIME without SIMULATION_RESET',
     'RESULT-01': 'GetSimulationState leaves its Result at 0',
     'RESULT-02': 'GetEntities leaves its Result at 0',
@@ -99,7 +99,7 @@ DEFECTS: Dict[str, str] = {
     'ACTION-01': 'a goal succeeds with its Result at 0',
     'ACTION-02': 'feedback says every step remains',
     'ACTION-03': 'a goal while playing is rejected',
-    'ACTION-04': 'a cancel is refused',
+    'ACTION-04': 'a cancel is accepted, and the goal ends ABORTED',
     'ACTION-05': 'a goal resumes playing afterwards',
     'ACTION-06': 'a goal steps one step fewer than asked',
     'RESET-01': 'scope 0 is FEATURE_UNSUPPORTED (named scopes only)',
@@ -215,6 +215,7 @@ MORE_DEFECTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
 VARIANTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
     'BOX-AS-WRITTEN': ('a TYPE_BOX filter\'s points are read in Bounds.msg\'s order: the upper '
                        'corner, then the lower', ('FILTER-07',)),
+    'CANCEL-REFUSED': ('a cancel is rejected, as a ROS 2 action server may', ('ACTION-04',)),
 }
 # A hostile simulator: what the kit must bound (its time, what it prints).
 HOSTILE: Dict[str, str] = {
@@ -1062,7 +1063,7 @@ class ToySimulator:
         return GoalResponse.ACCEPT
 
     def _cancel(self, goal_handle):
-        return CancelResponse.REJECT if self.broken('ACTION-04') else CancelResponse.ACCEPT
+        return CancelResponse.REJECT if self.broken('CANCEL-REFUSED') else CancelResponse.ACCEPT
 
     def _simulate_steps(self, goal_handle):
         result = action.SimulateSteps.Result()
@@ -1084,6 +1085,11 @@ class ToySimulator:
                     result.result.error_message = 'reset while stepping'
                     return result
                 if goal_handle.is_cancel_requested:
+                    if self.broken('ACTION-04'):
+                        goal_handle.abort()
+                        result.result.result = R.RESULT_OPERATION_FAILED
+                        result.result.error_message = 'cancelled'
+                        return result
                     goal_handle.canceled()
                     result.result.result = R.RESULT_OK
                     return result

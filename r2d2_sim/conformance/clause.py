@@ -3,10 +3,12 @@ One clause of the standard: an id, a title, the features it needs, the sentence 
 
 No ROS here: the clause table is read by the docs and by ``--list`` without
 rclpy. A clause's check is a function of a
-:class:`~r2d2_sim.conformance.target.Target`; it returns for a pass, raises
-:class:`ClauseFailed` with a one-line reason for a failure and
-:class:`ClauseSkipped` when something it needs beyond its features is
-missing (no ``/clock``, nothing to spawn).
+:class:`~r2d2_sim.conformance.target.Target`; it returns for a pass (a str:
+a note that goes with the pass, such as a reading the standard allows that
+the clause could not check further), raises :class:`ClauseFailed` with a
+one-line reason for a failure and :class:`ClauseSkipped` when something it
+needs beyond its features is missing (no ``/clock``, nothing to spawn). An
+``advisory`` clause never fails: what it finds is a note under its pass.
 """
 
 from typing import Callable, List, NamedTuple, Sequence, Tuple
@@ -37,7 +39,9 @@ class Clause(NamedTuple):
     it calls that no feature stands for (GetEntities), skipped when not
     served; ``source`` and ``quote``: the definition file and the sentence
     of it the clause checks; ``start``: False for a clause that only asks
-    (FEAT, RESULT), which runs wherever the simulator is instead of from STOPPED.
+    (FEAT, RESULT), which runs wherever the simulator is instead of from STOPPED;
+    ``advisory``: True for a clause whose finding the standard does not make
+    a fault (it notes it, and passes).
     """
 
     id: str
@@ -49,6 +53,7 @@ class Clause(NamedTuple):
     unless: Tuple[str, ...] = ()
     services: Tuple[str, ...] = ()
     start: bool = True
+    advisory: bool = False
 
     @property
     def group(self) -> str:
@@ -84,10 +89,10 @@ def one_line(text: str, limit: int = LINE_LIMIT) -> str:
 
 def clause(registry: List[Clause], id: str, title: str, features: Sequence[str], source: str,
            quote: str, *, unless: Sequence[str] = (), services: Sequence[str] = (),
-           start: bool = True) -> Callable[[Callable], Callable]:
+           start: bool = True, advisory: bool = False) -> Callable[[Callable], Callable]:
     """Return a decorator that adds its function to ``registry`` as a clause."""
     def add(check: Callable) -> Callable:
         registry.append(Clause(id, title, tuple(features), source, quote, check,
-                               tuple(unless), tuple(services), start))
+                               tuple(unless), tuple(services), start, advisory))
         return check
     return add

@@ -28,7 +28,7 @@ ID_WIDTH = 14
 
 
 def matrix(outcomes: Sequence[Outcome]) -> str:
-    """Return a line per clause (id, PASS/FAIL/SKIP, title), a FAIL's or SKIP's reason below."""
+    """Return a line per clause (id, PASS/FAIL/SKIP, title), its reason (or note) below."""
     lines = []
     for outcome in outcomes:
         clause = outcome.clause
@@ -79,6 +79,8 @@ def write_junit(outcomes: Sequence[Outcome], path: str,
             failure.text = f'{clause.source}: {clause.quote}\n{outcome.reason}'
         elif outcome.status == SKIP:
             ElementTree.SubElement(case, 'skipped', {'message': outcome.reason})
+        elif outcome.reason:  # a pass with a note
+            ElementTree.SubElement(case, 'system-out').text = outcome.reason
     root = ElementTree.Element('testsuites')
     root.append(suite)
     tree = ElementTree.ElementTree(root)
@@ -112,6 +114,8 @@ def render_clause_reference(clauses: Sequence[Clause] = CLAUSES) -> str:
                   '|---|---|---|---|']
         for c in members:
             needs = [feature_text(c.features)] if c.features else []
+            if c.advisory:
+                needs.append('advisory: a note, never a failure')
             if c.unless:
                 needs.append(f'moot when {" and ".join(c.unless)} are declared')
             if c.services:

@@ -121,8 +121,8 @@ class Kit:
             late = f' ({limit})' if self.out_of_time() else ''
             return FAIL, f'could not reach the start state (STOPPED): {exc}{late}'
         try:
-            clause.check(t)
-            status, reason = PASS, ''
+            note = clause.check(t)
+            status, reason = PASS, note if isinstance(note, str) else ''
         except ClauseFailed as exc:
             status, reason = FAIL, str(exc)
         except ClauseSkipped as exc:

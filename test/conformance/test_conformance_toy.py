@@ -57,12 +57,34 @@ def test_filter_09_passes_where_box_bounds_are_not_declared():
     assert outcome.status == PASS, outcome
 
 
-@pytest.mark.parametrize('clause_id', [c.id for c in CLAUSES])
+@pytest.mark.parametrize('clause_id', [c.id for c in CLAUSES if not c.advisory])
 def test_each_clause_fails_on_its_defect(clause_id):
     """The toy wrong in the one way a clause checks: that clause FAILs, with a reason."""
     outcome = run([clause_id], defect=clause_id)[clause_id]
     assert outcome.status == FAIL, (DEFECTS[clause_id], outcome)
     assert outcome.reason and '\n' not in outcome.reason
+
+
+def test_feat_04_notes_an_undeclared_service_and_passes():
+    """
+    Serving GetNamedPoses without NAMED_POSES declared: a note under a pass, never a failure.
+
+    Result.msg says support "can sometimes be deduced" from a served
+    interface; nothing makes serving one without its feature a fault.
+    """
+    assert [c.id for c in CLAUSES if c.advisory] == ['FEAT-04']
+    clause_id = 'FEAT-04'
+    outcome = run([clause_id], defect=clause_id)[clause_id]
+    assert outcome.status == PASS and outcome.reason.startswith('note: '), outcome
+    assert 'GetNamedPoses (NAMED_POSES)' in outcome.reason and '\n' not in outcome.reason
+    right = run([clause_id])[clause_id]
+    assert right.status == PASS and not right.reason, right
+
+
+def test_reset_07_names_the_randomization_the_standard_allows():
+    """SCOPE_STATE may randomize where a simulator has that on: a failure of RESET-07 says so."""
+    outcome = run(['RESET-07'], defect='RESET-07')['RESET-07']
+    assert outcome.status == FAIL and 'randomizes the state' in outcome.reason, outcome
 
 
 @pytest.mark.parametrize('defect', sorted(MORE_DEFECTS))

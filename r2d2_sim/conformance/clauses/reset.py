@@ -118,13 +118,20 @@ def time_keeps_entities(t: Target) -> None:
 @clause(CLAUSES, 'RESET-07', 'SCOPE_STATE puts a moved entity back where it started',
         (STATE,) + MOVE, 'ResetSimulation.srv', STATE_QUOTE)
 def state_puts_back(t: Target) -> None:
-    """Move a spawned entity 1 m, reset STATE: it is at its spawn pose again."""
+    """
+    Move a spawned entity 1 m, reset STATE: it is at its spawn pose again.
+
+    ResetSimulation.srv lets SCOPE_STATE include "state randomization if
+    such feature is available and turned on": a simulator that randomizes
+    fails here while it is on, and the reason says so.
+    """
     name, start, _ = _moved(t)
     t.sim.reset(_scope(t, 'STATE'))
     position = t.entities.position(name)
     if not close(position, start):
         raise ClauseFailed(f'{name} is at {fmt(position)} after SCOPE_STATE, spawned at '
-                           f'{fmt(start)}')
+                           f'{fmt(start)} (where the simulator randomizes the state on a reset, '
+                           'as SCOPE_STATE allows, turn that off for this clause)')
 
 
 @clause(CLAUSES, 'RESET-08', 'SCOPE_STATE stops what moves', (STATE,) + MOVE,
