@@ -209,6 +209,8 @@ MORE_DEFECTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
                        ('FILTER-12',)),
     'WORLD-13-others': ('with no world, STOPPED and PAUSED answer OK (only PLAYING is refused)',
                         ('WORLD-13',)),
+    'ACTION-02-once': ('SimulateSteps gives one feedback a goal, at its end, not one a step',
+                       ('ACTION-02',)),
 }
 # Readings the standard allows that the toy takes on demand, each with the clauses that
 # must still pass: the kit may not hold a simulator to one way where the text allows more.
@@ -1097,7 +1099,8 @@ class ToySimulator:
             feedback = action.SimulateSteps.Feedback(
                 completed_steps=done, remaining_steps=steps if self.broken('ACTION-02')
                 else steps - done)
-            goal_handle.publish_feedback(feedback)
+            if not (self.broken('ACTION-02-once') and done < todo):
+                goal_handle.publish_feedback(feedback)
         goal_handle.succeed()
         if self.broken('ACTION-05'):
             self.state = S.STATE_PLAYING

@@ -114,15 +114,17 @@ def goal_succeeds(t: Target) -> None:
                            f'{t.describe(None, result)}')
 
 
-@clause(CLAUSES, 'ACTION-02', 'feedback counts completed and remaining steps',
+@clause(CLAUSES, 'ACTION-02', 'feedback comes after each step, counting up to (N, 0)',
         (ACTION, SET, PAUSE), 'SimulateSteps.action',
         'The action returns feedback after each complete step.')
 def feedback_counts(t: Target) -> None:
     """
-    Send a goal of 20: some feedback, completed rising from 1, completed + remaining = 20.
+    Send a goal of 20: several feedback messages, the last (20, 0), each adding up to 20.
 
-    Not every message is required: feedback is a topic whose history the
-    server keeps short.
+    After each complete step means one message a step: not every one need
+    arrive (feedback is a topic whose history the server keeps short), but
+    more than one must, completed_steps rising, completed + remaining = 20,
+    and the last one after the last step, (20, 0).
     """
     t.sim.pause()
     steps = 20
@@ -132,14 +134,18 @@ def feedback_counts(t: Target) -> None:
     t.sim.goal_result(handle)
     t.clock.settled()  # a round trip: feedback sent before the result has come
     seen = t.sim.feedback_of(handle)
-    if not seen:
-        raise ClauseFailed('a goal of 20 steps gave no feedback')
+    if len(seen) < 2:
+        raise ClauseFailed(f'a goal of 20 steps gave {len(seen)} feedback message(s) '
+                           f'{seen[:1]}: one after each complete step makes 20')
     done = [d for d, _ in seen]
     bad = [(d, r) for d, r in seen if d + r != steps or not 1 <= d <= steps]
     if bad:
         raise ClauseFailed(f'feedback (completed, remaining) {bad[:3]} for a goal of {steps}')
     if done != sorted(set(done)):
         raise ClauseFailed(f'completed_steps did not rise step by step: {done[:10]}')
+    if seen[-1] != (steps, 0):
+        raise ClauseFailed(f'the last feedback of a goal of {steps} was {seen[-1]}, not '
+                           f'({steps}, 0) after the last step')
 
 
 @clause(CLAUSES, 'ACTION-03', 'a goal while PLAYING ends with OPERATION_FAILED and a message',
