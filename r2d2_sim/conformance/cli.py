@@ -3,8 +3,9 @@
 
 Also ``python -m r2d2_sim.conformance``. Prints a matrix (each clause PASS,
 FAIL with a one-line reason, or SKIP with what it needs), a summary line,
-and optionally JUnit XML and a Markdown table. Exit status: 0 when no
-clause failed, 1 when one did, 2 for a usage error (one line on stderr), a
+and optionally JUnit XML and a Markdown table. Exit status: 0 when a clause
+ran and none failed, 1 when one failed or nothing was checked (no simulator's
+features read, every clause skipped), 2 for a usage error (one line on stderr), a
 kit that cannot start or cannot tell which simulator to check (none at the
 prefix but some elsewhere, or several there: it touches none), 130 after
 Ctrl-C. Every line it prints is short, whatever the simulator sends.
@@ -164,9 +165,9 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'{PROG}: error: cannot write {exc.filename}: {exc.strerror}', file=sys.stderr)
         return 2
     status = exit_status(outcomes)
-    if status == 0 and kit.target.features_error:
-        # FEAT-01 was not among the clauses run, so nothing said the simulator was not read.
-        print(f'{PROG}: error: nothing was checked: {kit.target.features_error}',
-              file=sys.stderr)
+    unchecked = kit.unchecked()
+    if status == 0 and unchecked:
+        # No simulator read, or every clause skipped: the run says nothing of the simulator.
+        print(f'{PROG}: error: {unchecked}', file=sys.stderr)
         return 1
     return status

@@ -9,7 +9,9 @@ Not loaded by default. Enable it with ``-p r2d2_sim.conformance.pytest_plugin``
 
 Each clause is a test named by its id (``test_simulation_standard[STATE-03]``,
 so ``-k "STATE or STEP"`` picks groups), skipped when its feature is not
-declared and failed with the clause's reason and the sentence it checks.
+declared and failed with the clause's reason and the sentence it checks;
+every one fails when no simulator's features could be read, and a session
+whose clause tests were all skipped fails too (one line says so).
 Where the simulator is comes from the options ``--conformance-prefix``,
 ``--conformance-domain``, ``--conformance-asset``, ``--conformance-world``,
 ``--conformance-timeout`` and ``--conformance-total-timeout``, or from your
@@ -22,6 +24,7 @@ from typing import Iterator, TYPE_CHECKING
 
 import pytest
 
+from r2d2_sim.apps.cli import positive_number
 from r2d2_sim.conformance.clause import Clause, FAIL, SKIP
 from r2d2_sim.conformance.clauses import CLAUSES
 
@@ -43,10 +46,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help='something SpawnEntity takes by uri')
     group.addoption('--conformance-world', default='', metavar='URI',
                     help='a world LoadWorld takes')
-    group.addoption('--conformance-timeout', type=float, default=10.0, metavar='S',
+    group.addoption('--conformance-timeout', type=positive_number, default=10.0, metavar='S',
                     help='longest wait for discovery or one reply (s)')
-    group.addoption('--conformance-total-timeout', type=float, default=None, metavar='S',
-                    help='longest the whole run may take (s; default: 30 timeouts)')
+    group.addoption('--conformance-total-timeout', type=positive_number, default=None,
+                    metavar='S', help='longest the whole run may take (s; default: 30 timeouts)')
 
 
 @pytest.fixture(scope='session')
@@ -61,8 +64,13 @@ def conformance_options(request: pytest.FixtureRequest) -> 'KitOptions':
                       total_timeout_s=option('--conformance-total-timeout'))
 
 
+# The session's Kit, once a clause test made it: what pytest_sessionfinish judges the run by.
+KIT = pytest.StashKey['Kit']()
+
+
 @pytest.fixture(scope='session')
-def conformance_kit(conformance_options: 'KitOptions') -> Iterator['Kit']:
+def conformance_kit(conformance_options: 'KitOptions',
+                    request: pytest.FixtureRequest) -> Iterator['Kit']:
     """Provide one connected Kit for the session; it leaves the simulator as found at the end."""
     from r2d2_sim.conformance.runner import Kit
     from r2d2_sim.conformance.target import KitError
@@ -70,6 +78,7 @@ def conformance_kit(conformance_options: 'KitOptions') -> Iterator['Kit']:
         kit = Kit(conformance_options)
     except KitError as exc:
         pytest.fail(str(exc), pytrace=False)
+    request.config.stash[KIT] = kit
     try:
         try:
             kit.connect()
@@ -94,8 +103,23 @@ def test_simulation_standard(conformance_kit: 'Kit', conformance_clause: Clause)
     except KitError as exc:  # another simulator came up at the prefix
         pytest.fail(str(exc), pytrace=False)
     clause = conformance_clause
+    if conformance_kit.target.features is None:  # no simulator read: a failure, never a skip
+        pytest.fail(f'{clause.id}: {conformance_kit.unchecked()}', pytrace=False)
     if outcome.status == SKIP:
         pytest.skip(f'{clause.id}: {outcome.reason}')
     if outcome.status == FAIL:
         pytest.fail(f'{clause.id} {clause.title}: {outcome.reason}\n'
                     f'  {clause.source}: "{clause.quote}"', pytrace=False)
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Fail a session whose clause tests checked nothing (every one skipped): one line says so."""
+    kit = session.config.stash.get(KIT, None)
+    problem = kit.unchecked() if kit is not None else ''
+    if not problem:
+        return
+    reporter = session.config.pluginmanager.get_plugin('terminalreporter')
+    if reporter is not None:
+        reporter.write_line(f'conformance: {problem}', red=True)
+    if session.exitstatus == pytest.ExitCode.OK:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

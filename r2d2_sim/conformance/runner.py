@@ -70,6 +70,7 @@ class Kit:
         self.connected = False
         self.closed = False
         self.restore_problems: List[str] = []
+        self.outcomes: List[Outcome] = []  # every clause run so far, in order
         self.total_s = self.options.total_timeout_s or TOTAL_TIMEOUTS * self.options.timeout_s
         self.deadline: Optional[float] = None  # time.monotonic() when the run's time is up
 
@@ -88,21 +89,43 @@ class Kit:
         return self.deadline is not None and time.monotonic() >= self.deadline
 
     def run_clause(self, clause: Clause) -> Outcome:
-        """Run one clause from the start state; return its Outcome."""
+        """Run one clause from the start state; return its Outcome (kept in ``outcomes``)."""
         self.connect()
         started = time.monotonic()
         status, reason = self._run(clause)
-        return Outcome(clause, status, one_line(reason), time.monotonic() - started)
+        outcome = Outcome(clause, status, one_line(reason), time.monotonic() - started)
+        self.outcomes.append(outcome)
+        return outcome
+
+    def unchecked(self) -> str:
+        """
+        Return why the run so far checked nothing, in one line ('' when a clause ran).
+
+        The simulator's features unknown (none found at the prefix), or every
+        clause skipped (none chosen, none whose features are declared, the
+        time limit): either way the run says nothing of the simulator, and
+        the front ends count it an error, never a pass.
+        """
+        t = self.target
+        if t.features_error:
+            return one_line(f'nothing was checked: {t.features_error}')
+        if any(o.status in (PASS, FAIL) for o in self.outcomes):
+            return ''
+        if not self.outcomes:
+            return 'nothing was checked: no clause was run'
+        late = any(o.reason.startswith('not run: ') for o in self.outcomes)
+        return (f'nothing was checked: all clauses skipped ({len(self.outcomes)} chosen'
+                + (f'; the run\'s time limit, {self.total_s:g} s, was reached)' if late else ')'))
 
     def _run(self, clause: Clause) -> Tuple[str, str]:
         t = self.target
         limit = f'the run\'s time limit ({self.total_s:g} s) was reached'
-        if self.out_of_time():
-            return SKIP, f'not run: {limit}'
-        if t.features is None:
+        if t.features is None:  # before the time limit: an absent simulator fails FEAT-01
             if clause.id == 'FEAT-01':
                 return FAIL, t.features_error
             return SKIP, 'the features are unknown (see FEAT-01)'
+        if self.out_of_time():
+            return SKIP, f'not run: {limit}'
         missing = [f for f in clause.features if not t.declared(f)]
         if missing:
             return SKIP, f'needs {feature_text(missing)} (not declared)'

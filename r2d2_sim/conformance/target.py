@@ -21,6 +21,7 @@ the start and put back (:mod:`~r2d2_sim.conformance.world_verbs`) and
 ``t.undo`` the undoing of a clause (:mod:`~r2d2_sim.conformance.undo`).
 """
 
+import math
 import os
 import time
 from typing import (
@@ -37,7 +38,7 @@ from r2d2_sim.conformance.undo import TargetUndo
 from r2d2_sim.conformance.world_verbs import TargetWorld
 from r2d2_sim.errors import SetupError
 
-__all__ = ['KitOptions', 'KitError', 'Target', 'BOX_SIZE_M', 'UNKNOWN_NAME']
+__all__ = ['KitOptions', 'KitError', 'Target', 'BOX_SIZE_M', 'UNKNOWN_NAME', 'options_problem']
 
 # A name no simulator has an entity (or named pose) of.
 UNKNOWN_NAME = 'conformance_no_such_entity'
@@ -51,6 +52,17 @@ SETTLE_S = 0.25
 
 class KitError(SetupError):
     """The kit cannot run at all (simulation_interfaces missing, a bad option): one line."""
+
+
+def options_problem(options: KitOptions) -> str:
+    """Return what is wrong with ``options``, in one line ('' when nothing is)."""
+    for name, value in (('timeout_s', options.timeout_s),
+                        ('total_timeout_s', options.total_timeout_s)):
+        if value is None and name == 'total_timeout_s':
+            continue
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            return f'{name} must be a finite number of seconds > 0, got {value!r}'
+    return ''
 
 
 def default_domain_id() -> int:
@@ -75,6 +87,9 @@ class Target:
     """
 
     def __init__(self, options: KitOptions) -> None:
+        problem = options_problem(options)
+        if problem:
+            raise KitError(problem)
         try:
             from simulation_interfaces import action, msg, srv
             msg.Result.__class__.__import_type_support__()
@@ -132,17 +147,19 @@ class Target:
         in one line and nothing is asked of any simulator but its features.
         """
         timeout = self.timeout_s
+        waited = self.client.wait_s(timeout)  # the run's time limit may cut it short
+        within = f'{waited:.3g} s' + (' (the run\'s time limit)' if waited < timeout else '')
         if not self.wait(lambda: 'GetSimulatorFeatures' in self.scan(), timeout):
             levels = self.simulator_levels()
             if levels:
                 self.refusal = one_line(
-                    f'no simulator at {self.prefix!r} (its own level) within {timeout:g} s, but '
+                    f'no simulator at {self.prefix!r} (its own level) within {within}, but '
                     f'{len(levels)} on ROS domain {self.domain_id} under {", ".join(levels)}: '
                     f'give --prefix {levels[0]} to check {"it" if len(levels) == 1 else "one"}')
                 return
             seen = ', '.join(sorted(self.interfaces)) or 'none of the standard\'s services'
             self.features_error = (f'no service of type GetSimulatorFeatures under '
-                                   f'{self.prefix!r} within {timeout:g} s (found: {seen})')
+                                   f'{self.prefix!r} within {within} (found: {seen})')
             return
         self.refusal = self.rivals()
         if self.refusal:

@@ -1,0 +1,100 @@
+"""
+The kit's front ends as a user meets them: a run that checked nothing, a bad option, Ctrl-C.
+
+The command line (``main``, in this process) and the pytest plugin (a pytest of its own, in a
+child process) against the toy simulator of ``test/toy_simulator.py`` or against nobody: a run
+that checked nothing is an error in both, never a pass; a bad option is one readable line.
+"""
+
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+from helpers import next_domain_id
+from r2d2_sim.client import ros_child_env
+from r2d2_sim.conformance import BY_ID, FAIL, Kit, KitError, KitOptions
+from r2d2_sim.conformance.cli import main
+from toy_simulator import ToySimulator
+
+PYTEST_S = 120
+TEST_FILE = 'from r2d2_sim.conformance.pytest_plugin import test_simulation_standard  # noqa\n'
+
+
+def plugin_run(tmp_path: Path, domain: int, *args: str) -> subprocess.CompletedProcess:
+    """Run pytest with the plugin on the ready-made test in a child process; return it."""
+    (tmp_path / 'test_standard.py').write_text(TEST_FILE)
+    return subprocess.run(
+        [sys.executable, '-m', 'pytest', '-p', 'r2d2_sim.conformance.pytest_plugin',
+         '-p', 'no:cacheprovider', '-p', 'no:xdist', '-q', '-rfEs', '--rootdir', str(tmp_path),
+         *args, str(tmp_path / 'test_standard.py')],
+        env=ros_child_env(domain), cwd=tmp_path, capture_output=True, text=True,
+        timeout=PYTEST_S)
+
+
+# -- a run that checked nothing -----------------------------------------------------------------
+
+def test_an_absent_simulator_fails_feat_01_even_past_the_time_limit():
+    """Nobody there, the run's time up during discovery: FEAT-01 fails, naming the real wait."""
+    domain = next_domain_id()
+    options = KitOptions(prefix='/nobody', domain_id=domain, timeout_s=2.0, total_timeout_s=0.5)
+    with Kit(options) as kit:
+        outcomes = kit.run([BY_ID['FEAT-01'], BY_ID['STATE-03']])
+    assert outcomes[0].status == FAIL, outcomes[0]
+    assert "within 0.5 s (the run's time limit)" in outcomes[0].reason, outcomes[0]
+    assert kit.unchecked().startswith('nothing was checked: no service of type')
+
+
+def test_a_command_line_run_whose_clauses_all_skip_exits_1(capsys):
+    """Only FILTER-09, moot on the toy: no clause ran, so exit 1 and one line, never a pass."""
+    domain = next_domain_id()
+    with ToySimulator(domain):
+        status = main(['--prefix', '/toy', '--domain', str(domain), '--asset', 'toy://box',
+                       '--only', 'FILTER-09', '--timeout', '3'])
+    err = capsys.readouterr().err
+    assert status == 1, err
+    assert err == ('sim_conformance: error: nothing was checked: all clauses skipped '
+                   '(1 chosen)\n'), err
+
+
+def test_the_plugin_fails_every_clause_when_no_simulator_is_there(tmp_path):
+    """-k picks some clauses, nobody answers: they fail (not skip), and pytest exits 1."""
+    result = plugin_run(tmp_path, next_domain_id(), '-k', 'STATE-01 or STATE-02',
+                        '--conformance-prefix', '/nobody', '--conformance-timeout', '1')
+    assert result.returncode == 1, result.stdout[-3000:] + result.stderr[-2000:]
+    assert '2 failed' in result.stdout and 'skipped' not in result.stdout, result.stdout[-3000:]
+    assert 'nothing was checked: no service of type GetSimulatorFeatures' in result.stdout
+
+
+def test_the_plugin_fails_a_session_whose_clauses_all_skip(tmp_path):
+    """Only FILTER-09, moot on the toy: one skipped test, and the session fails with a line."""
+    domain = next_domain_id()
+    with ToySimulator(domain):
+        result = plugin_run(tmp_path, domain, '-k', 'FILTER-09', '--conformance-prefix', '/toy',
+                            '--conformance-asset', 'toy://box', '--conformance-timeout', '3')
+    assert result.returncode == 1, result.stdout[-3000:] + result.stderr[-2000:]
+    assert '1 skipped' in result.stdout, result.stdout[-3000:]
+    assert 'conformance: nothing was checked: all clauses skipped (1 chosen)' in result.stdout
+
+
+# -- bad options --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('field, value', [('timeout_s', -1.0), ('timeout_s', float('nan')),
+                                          ('timeout_s', 0.0), ('total_timeout_s', 0.0),
+                                          ('total_timeout_s', float('inf'))])
+def test_a_timeout_must_be_positive_and_finite(field, value):
+    """The API refuses a timeout of 0, below it, NaN or infinity, in one line."""
+    with pytest.raises(KitError, match=f'{field} must be a finite number of seconds > 0'):
+        Kit(KitOptions(**{field: value}))
+
+
+@pytest.mark.parametrize('option, value', [('--conformance-timeout', '-1'),
+                                           ('--conformance-timeout', 'nan'),
+                                           ('--conformance-total-timeout', '0')])
+def test_the_plugin_takes_only_positive_timeouts(tmp_path, option, value):
+    """A timeout that is not a positive number is pytest's usage error, in a line naming it."""
+    result = plugin_run(tmp_path, next_domain_id(), option, value)
+    assert result.returncode == pytest.ExitCode.USAGE_ERROR, result.stdout + result.stderr
+    assert f'argument {option}: must be' in result.stderr, result.stderr
+    assert 'Traceback' not in result.stdout + result.stderr
