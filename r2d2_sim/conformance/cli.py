@@ -18,11 +18,12 @@ from typing import List, Optional, Tuple
 from r2d2_sim.apps.cli import domain_id_arg, EXIT_INTERRUPTED, finite_number, positive_number
 from r2d2_sim.conformance.clause import feature_text, one_line
 from r2d2_sim.conformance.clauses import CLAUSES
-from r2d2_sim.conformance.discovery import ACTION, normal_prefix
+from r2d2_sim.conformance.discovery import ACTION
 from r2d2_sim.conformance.report import (
     exit_status, markdown_matrix, matrix, summary, write_junit)
 from r2d2_sim.conformance.runner import Kit, select
-from r2d2_sim.conformance.target import KitError, KitOptions
+from r2d2_sim.conformance.target import (
+    KitError, KitOptions, namespace_problem, topic_problem)
 
 __all__ = ['main', 'build_parser']
 
@@ -119,14 +120,13 @@ def main(argv: Optional[List[str]] = None) -> int:
             for c in clauses:
                 print(f'{c.id:<14} {c.title}  [{feature_text(c.features) or "-"}]')
             return 0
-        from rclpy.validate_namespace import validate_namespace
-        validate_namespace(normal_prefix(args.prefix))
+        for flag, value, problem in (
+                ('--prefix', args.prefix, namespace_problem(args.prefix)),
+                ('--clock-topic', args.clock_topic, topic_problem(args.clock_topic))):
+            if problem:
+                raise KitError(one_line(f'{flag} {value!r}: {problem}'))
     except KitError as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
-        return 2
-    except Exception as exc:  # rclpy's InvalidNamespaceException
-        print(f'{PROG}: error: --prefix {args.prefix!r}: {str(exc).splitlines()[0]}',
-              file=sys.stderr)
         return 2
     options = KitOptions(prefix=args.prefix, domain_id=args.domain, asset=args.asset,
                          world=args.world, timeout_s=args.timeout, free_space=args.free_space,

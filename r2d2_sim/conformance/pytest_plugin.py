@@ -24,7 +24,7 @@ from typing import Iterator, TYPE_CHECKING
 
 import pytest
 
-from r2d2_sim.apps.cli import positive_number
+from r2d2_sim.apps.cli import domain_id_arg, positive_number
 from r2d2_sim.conformance.clause import Clause, FAIL, SKIP
 from r2d2_sim.conformance.clauses import CLAUSES
 
@@ -40,7 +40,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup('conformance', 'simulation_interfaces conformance kit')
     group.addoption('--conformance-prefix', default='/', metavar='NS',
                     help='namespace of the simulator\'s services (default /)')
-    group.addoption('--conformance-domain', type=int, default=None, metavar='ID',
+    group.addoption('--conformance-domain', type=domain_id_arg, default=None, metavar='ID',
                     help='ROS domain id (default: ROS_DOMAIN_ID, else 0)')
     group.addoption('--conformance-asset', default='', metavar='URI',
                     help='something SpawnEntity takes by uri')
@@ -86,7 +86,10 @@ def conformance_kit(conformance_options: 'KitOptions',
             pytest.fail(str(exc), pytrace=False)
         yield kit
     finally:
-        kit.close()
+        problems = kit.close()
+        if problems:  # an error at the last test's teardown: the run did not end clean
+            pytest.fail('could not leave the simulator as found: ' + '; '.join(problems),
+                        pytrace=False)
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:

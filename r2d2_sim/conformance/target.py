@@ -23,10 +23,12 @@ the start and put back (:mod:`~r2d2_sim.conformance.world_verbs`) and
 
 import math
 import os
+import re
 import time
 from typing import (
     Any, Callable, Dict, FrozenSet, List, Optional, Sequence)
 
+from r2d2_sim.apps.cli import domain_env_problem, MAX_DOMAIN_ID
 from r2d2_sim.conformance.clause import ClauseFailed, one_line
 from r2d2_sim.conformance.clock_verbs import TargetClock
 from r2d2_sim.conformance.discovery import (
@@ -38,8 +40,11 @@ from r2d2_sim.conformance.undo import TargetUndo
 from r2d2_sim.conformance.world_verbs import TargetWorld
 from r2d2_sim.errors import SetupError
 
-__all__ = ['KitOptions', 'KitError', 'Target', 'BOX_SIZE_M', 'UNKNOWN_NAME', 'options_problem']
+__all__ = ['KitOptions', 'KitError', 'Target', 'BOX_SIZE_M', 'UNKNOWN_NAME', 'options_problem',
+           'topic_problem', 'namespace_problem']
 
+# The kit's own node.
+NODE_NAME = '_sim_conformance'
 # A name no simulator has an entity (or named pose) of.
 UNKNOWN_NAME = 'conformance_no_such_entity'
 # An idempotent query is sent again after this long without a reply (s): a reply
@@ -54,6 +59,34 @@ class KitError(SetupError):
     """The kit cannot run at all (simulation_interfaces missing, a bad option): one line."""
 
 
+def _ros_text(exc: Exception) -> str:
+    """Return rclpy's reason for a bad name without its source location."""
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    text = text.split(', at /')[0].split(' is invalid: ')[-1]
+    return re.sub(r'^Invalid [a-z ]+: ', '', text).rstrip(':')
+
+
+def topic_problem(topic: str) -> str:
+    """Return why ``topic`` is no ROS topic name, in one line ('' when it is one)."""
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    try:
+        validate_full_topic_name(expand_topic_name(topic, NODE_NAME, '/'))
+    except Exception as exc:  # rclpy raises ValueError or its own exception types
+        return _ros_text(exc)
+    return ''
+
+
+def namespace_problem(prefix: str) -> str:
+    """Return why ``prefix`` is no ROS namespace, in one line ('' when it is one)."""
+    from rclpy.validate_namespace import validate_namespace
+    try:
+        validate_namespace(normal_prefix(prefix))
+    except Exception as exc:  # rclpy's InvalidNamespaceException
+        return _ros_text(exc)
+    return ''
+
+
 def options_problem(options: KitOptions) -> str:
     """Return what is wrong with ``options``, in one line ('' when nothing is)."""
     for name, value in (('timeout_s', options.timeout_s),
@@ -62,16 +95,25 @@ def options_problem(options: KitOptions) -> str:
             continue
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             return f'{name} must be a finite number of seconds > 0, got {value!r}'
+    domain = options.domain_id
+    if domain is not None and not (isinstance(domain, int) and 0 <= domain <= MAX_DOMAIN_ID):
+        return f'domain_id must be in 0..{MAX_DOMAIN_ID}, got {domain!r}'
+    problem = namespace_problem(options.prefix)
+    if problem:
+        return one_line(f'prefix {options.prefix!r}: {problem}')
+    problem = topic_problem(options.clock_topic)
+    if problem:
+        return one_line(f'clock_topic {options.clock_topic!r}: {problem}')
     return ''
 
 
 def default_domain_id() -> int:
-    """Return ``ROS_DOMAIN_ID`` as ROS reads it (0 when unset or empty)."""
+    """Return ``ROS_DOMAIN_ID`` as ROS reads it (0 when unset or empty); KitError if bad."""
+    problem = domain_env_problem()  # before ROS starts: Fast DDS would end the process itself
+    if problem is not None:
+        raise KitError(one_line(problem))
     text = os.environ.get('ROS_DOMAIN_ID', '').strip()
-    try:
-        return int(text) if text else 0
-    except ValueError:
-        raise KitError(f'ROS_DOMAIN_ID is not a number: {text[:20]!r}') from None
+    return int(text) if text else 0
 
 
 class Target:
@@ -105,7 +147,7 @@ class Target:
         self.domain_id = (options.domain_id if options.domain_id is not None
                           else default_domain_id())
         self.timeout_s = options.timeout_s
-        self.probe = RemoteProbe(self.domain_id, '_sim_conformance')
+        self.probe = RemoteProbe(self.domain_id, NODE_NAME)
         self.node = self.probe.node
         # The one client of the standard, on the names discovery finds (none yet).
         self.client = StandardClient(

@@ -80,21 +80,53 @@ def test_the_plugin_fails_a_session_whose_clauses_all_skip(tmp_path):
 
 # -- bad options --------------------------------------------------------------------------------
 
-@pytest.mark.parametrize('field, value', [('timeout_s', -1.0), ('timeout_s', float('nan')),
-                                          ('timeout_s', 0.0), ('total_timeout_s', 0.0),
-                                          ('total_timeout_s', float('inf'))])
-def test_a_timeout_must_be_positive_and_finite(field, value):
-    """The API refuses a timeout of 0, below it, NaN or infinity, in one line."""
-    with pytest.raises(KitError, match=f'{field} must be a finite number of seconds > 0'):
+@pytest.mark.parametrize('field, value, says', [
+    ('timeout_s', -1.0, 'timeout_s must be a finite number of seconds > 0'),
+    ('timeout_s', float('nan'), 'timeout_s must be a finite number of seconds > 0'),
+    ('timeout_s', 0.0, 'timeout_s must be a finite number of seconds > 0'),
+    ('total_timeout_s', 0.0, 'total_timeout_s must be a finite number of seconds > 0'),
+    ('total_timeout_s', float('inf'), 'total_timeout_s must be a finite number of seconds > 0'),
+    ('domain_id', 999, 'domain_id must be in 0..231, got 999'),
+    ('clock_topic', 'bad topic!', "clock_topic 'bad topic!': topic name must not contain"),
+    ('prefix', '/bad prefix!', "prefix '/bad prefix!': namespace must not contain"),
+])
+def test_the_api_refuses_a_bad_option_in_one_line(field, value, says):
+    """A timeout not above 0 or not finite, a domain id past 231, a bad name: one KitError line."""
+    with pytest.raises(KitError) as refused:
         Kit(KitOptions(**{field: value}))
+    assert says in str(refused.value) and '\n' not in str(refused.value), refused.value
+
+
+@pytest.mark.parametrize('value, says', [('-3', 'must be in 0..231, got -3'),
+                                         ('999', 'must be in 0..231, got 999'),
+                                         ('abc', "must be an integer, got 'abc'")])
+def test_a_bad_ros_domain_id_is_one_line_and_status_2(monkeypatch, capsys, value, says):
+    """ROS_DOMAIN_ID -3 or 999 (Fast DDS would end the process in lines of its own): one line."""
+    monkeypatch.setenv('ROS_DOMAIN_ID', value)
+    assert main(['--only', 'FEAT-01']) == 2
+    err = capsys.readouterr().err
+    assert err == f'sim_conformance: error: ROS_DOMAIN_ID {says}\n', err
 
 
 @pytest.mark.parametrize('option, value', [('--conformance-timeout', '-1'),
                                            ('--conformance-timeout', 'nan'),
-                                           ('--conformance-total-timeout', '0')])
-def test_the_plugin_takes_only_positive_timeouts(tmp_path, option, value):
-    """A timeout that is not a positive number is pytest's usage error, in a line naming it."""
+                                           ('--conformance-total-timeout', '0'),
+                                           ('--conformance-domain', '999')])
+def test_the_plugin_takes_only_good_numbers(tmp_path, option, value):
+    """A timeout not above 0, a domain id past 231: pytest's usage error, a line naming it."""
     result = plugin_run(tmp_path, next_domain_id(), option, value)
     assert result.returncode == pytest.ExitCode.USAGE_ERROR, result.stdout + result.stderr
     assert f'argument {option}: must be' in result.stderr, result.stderr
     assert 'Traceback' not in result.stdout + result.stderr
+
+
+def test_the_plugin_reports_what_it_could_not_put_back(tmp_path):
+    """A toy that cannot stop once playing: the kit cannot leave it as found, and says so."""
+    domain = next_domain_id()
+    with ToySimulator(domain, defect='STATE-05'):
+        result = plugin_run(tmp_path, domain, '-k', 'STATE-03', '--conformance-prefix', '/toy',
+                            '--conformance-asset', 'toy://box', '--conformance-timeout', '3')
+    assert result.returncode == 1, result.stdout[-3000:] + result.stderr[-2000:]
+    assert '1 passed' in result.stdout and '1 error' in result.stdout, result.stdout[-3000:]
+    assert 'could not leave the simulator as found: SetSimulationState' in result.stdout, (
+        result.stdout[-3000:])

@@ -164,9 +164,10 @@ def test_list_prints_the_clauses(capsys):
 @pytest.mark.parametrize('argv, says', [
     (['--only', 'NOPE'], "'NOPE' names no clause"),
     (['--prefix', '/bad prefix!'], "--prefix '/bad prefix!'"),
+    (['--clock-topic', 'bad topic!'], "--clock-topic 'bad topic!': topic name must not"),
 ])
 def test_usage_errors_are_one_line_and_status_2(argv, says, capsys):
-    """A bad clause name or prefix: one line on stderr, exit status 2, no traceback."""
+    """A bad clause name, prefix or clock topic: one line on stderr, status 2, no traceback."""
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and says in err and err.startswith('sim_conformance: error:')
