@@ -218,6 +218,9 @@ VARIANTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
     'BOX-AS-WRITTEN': ('a TYPE_BOX filter\'s points are read in Bounds.msg\'s order: the upper '
                        'corner, then the lower', ('FILTER-07',)),
     'CANCEL-REFUSED': ('a cancel is rejected, as a ROS 2 action server may', ('ACTION-04',)),
+    'WORLD-NO-URI': ('GetCurrentWorld names the world loaded without its uri or resource '
+                     'string (the kit cannot load it back, so it loads no other)',
+                     ('WORLD-03', 'WORLD-08')),
 }
 # A hostile simulator: what the kit must bound (its time, what it prints).
 HOSTILE: Dict[str, str] = {
@@ -301,11 +304,13 @@ class ToySimulator:
     ``defect``: a clause id of :data:`DEFECTS` (None: right everywhere).
     ``without``: features it leaves undeclared (``ENTITY_BOUNDS_BOX``) and
     services it does not serve (``GetEntities``, which no feature stands for).
+    ``world``: the world it starts with (None: none, the state NO_WORLD).
     Close it (or use it as a context manager).
     """
 
     def __init__(self, domain_id: int, defect: Optional[str] = None,
-                 without: Sequence[str] = (), prefix: str = PREFIX) -> None:
+                 without: Sequence[str] = (), prefix: str = PREFIX,
+                 world: Optional[str] = 'yard') -> None:
         if defect is not None and not (defect in DEFECTS or defect in MORE_DEFECTS
                                        or defect in HOSTILE or defect in VARIANTS):
             raise ValueError(f'no defect for {defect!r}')
@@ -314,7 +319,7 @@ class ToySimulator:
         # Features left undeclared, and refused as FEATURE_UNSUPPORTED where they are parts.
         self.without = set(without) | ({UNDECLARED[defect]} if defect in UNDECLARED else set())
         self.lock = threading.RLock()
-        self.state = S.STATE_STOPPED
+        self.state = S.STATE_STOPPED if world is not None else S.STATE_NO_WORLD
         self.step_count = 0
         self.time_offset_ns = 0  # what STEP-06's defect adds
         self.single_steps = 0
@@ -343,7 +348,7 @@ class ToySimulator:
             self.node, action.SimulateSteps, 'SimulateSteps', self._simulate_steps,
             goal_callback=self._goal, cancel_callback=self._cancel, callback_group=group)
         self.node.create_timer(DT_NS / 1e9, self._tick, callback_group=group)
-        self._load_world('yard')
+        self._load_world(world)
         self.executor = MultiThreadedExecutor(num_threads=4, context=self.context)
         self.executor.add_node(self.node)
         self._closing = threading.Event()
@@ -1017,6 +1022,8 @@ class ToySimulator:
         if key is None or self.broken('WORLD-03'):
             raise Refused(srv.GetCurrentWorld.Response.NO_WORLD_LOADED, 'no world')
         response.world = self._world_message(key)
+        if self.broken('WORLD-NO-URI'):
+            response.world.world_resource = msg.Resource()
 
     def _LoadWorld(self, request, response):
         codes = srv.LoadWorld.Response

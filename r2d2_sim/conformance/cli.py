@@ -5,13 +5,15 @@ Also ``python -m r2d2_sim.conformance``. Prints a matrix (each clause PASS,
 FAIL with a one-line reason, or SKIP with what it needs), a summary line,
 and optionally JUnit XML and a Markdown table. Exit status: 0 when a clause
 ran and none failed, 1 when one failed or nothing was checked (no simulator's
-features read, every clause skipped), 2 for a usage error (one line on stderr), a
+features read, every clause skipped), 2 for a usage error (one line on stderr:
+a bad option, or a world or asset given that the simulator refused), a
 kit that cannot start or cannot tell which simulator to check (none at the
 prefix but some elsewhere, or several there: it touches none), 130 after
 Ctrl-C. Every line it prints is short, whatever the simulator sends.
 """
 
 import argparse
+import os
 import sys
 from typing import List, Optional, Tuple
 
@@ -105,10 +107,27 @@ def _header(kit: Kit) -> str:
                             - set(t.features))
         if undeclared:
             lines.append(f'  not declared: {feature_text(undeclared)}')
+    world = t.world.described()
+    if world:
+        lines.append(f'  {world}')
     if t.others:
         lines.append(f'  note: not checked, other simulators on this domain: '
                      f'{", ".join(t.others)} (--prefix NS checks one)')
     return '\n'.join(one_line(line) for line in lines)
+
+
+def output_problem(flag: str, path: Optional[str]) -> str:
+    """Return why the kit could not write ``path`` (``--junit``), in one line; '' if it can."""
+    if not path:
+        return ''
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        return f'{flag} {path}: is a directory'
+    if not os.path.isdir(folder):
+        return f'{flag} {path}: no such directory {folder}'
+    if not os.access(path if os.path.exists(path) else folder, os.W_OK):
+        return f'{flag} {path}: not writable'
+    return ''
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -125,6 +144,10 @@ def main(argv: Optional[List[str]] = None) -> int:
                 ('--clock-topic', args.clock_topic, topic_problem(args.clock_topic))):
             if problem:
                 raise KitError(one_line(f'{flag} {value!r}: {problem}'))
+        for flag, path in (('--junit', args.junit), ('--markdown', args.markdown)):
+            problem = output_problem(flag, path)  # before the run, not after it
+            if problem:
+                raise KitError(one_line(problem))
     except KitError as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 2
@@ -165,9 +188,13 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'{PROG}: error: cannot write {exc.filename}: {exc.strerror}', file=sys.stderr)
         return 2
     status = exit_status(outcomes)
+    for problem in kit.setup_problems():  # the user's world or asset, refused: one line each
+        print(f'{PROG}: error: {problem}', file=sys.stderr)
     unchecked = kit.unchecked()
     if status == 0 and unchecked:
         # No simulator read, or every clause skipped: the run says nothing of the simulator.
         print(f'{PROG}: error: {unchecked}', file=sys.stderr)
         return 1
+    if status == 0 and kit.setup_problems():
+        return 2
     return status

@@ -14,7 +14,7 @@ import itertools
 from typing import Any, List, Optional, Sequence, Tuple
 
 from r2d2_sim.conformance.calls import TargetCalls
-from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped
+from r2d2_sim.conformance.clause import ClauseFailed, ClauseSkipped, one_line
 from r2d2_sim.conformance.values import vector, yaw_quaternion
 
 # The kit's own box: a cube this wide, 1 kg, from a resource string.
@@ -32,6 +32,8 @@ class TargetEntities:
         self.target = target
         self.spawned: List[str] = []  # names the kit spawned and has not deleted
         self._names = itertools.count(1)
+        self.problem = ''  # the asset given could not be spawned: the setup line
+        self._given_spawns = False  # the asset given was spawned once (it is not tried again)
 
     # -- asking and placing ------------------------------------------------------------
 
@@ -160,11 +162,29 @@ class TargetEntities:
 
     def spawn_call(self, request: Any, codes: Optional[Sequence[int]] = None,
                    doing: str = '') -> Any:
-        """Send a SpawnEntity request; keep the name if it spawned; return the reply."""
+        """
+        Send a SpawnEntity request; keep the name if it spawned; return the reply.
+
+        The asset the user gave (``--asset``) is tried once: the first spawn of
+        it alone refused is a setup problem (``problem``, one line), not the
+        simulator's failure, and every clause that needs it is skipped.
+        """
         t = self.target
-        codes = codes or (t.msg.Result.RESULT_OK,)
-        reply = t.expect('SpawnEntity', request, codes,
-                         doing or f'SpawnEntity of {request.name or "(no name)"}')
+        uri = t.options.asset
+        given = bool(uri) and request.uri == uri
+        if given and self.problem:
+            raise ClauseSkipped(self.problem)
+        doing = doing or f'SpawnEntity of {request.name or "(no name)"}'
+        if given and not codes and not request.resource_string and not self._given_spawns:
+            reply = t.call('SpawnEntity', request)
+            if reply.result.result != t.msg.Result.RESULT_OK:
+                self.problem = one_line(f'the asset given, {uri!r}, could not be spawned: '
+                                        f'SpawnEntity answered '
+                                        f'{t.describe("SpawnEntity", reply)}')
+                raise ClauseSkipped(self.problem)
+            self._given_spawns = True
+        else:
+            reply = t.expect('SpawnEntity', request, codes or (t.msg.Result.RESULT_OK,), doing)
         if reply.result.result == t.msg.Result.RESULT_OK and reply.entity_name:
             self.spawned.append(reply.entity_name)
         return reply

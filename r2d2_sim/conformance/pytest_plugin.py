@@ -116,13 +116,21 @@ def test_simulation_standard(conformance_kit: 'Kit', conformance_clause: Clause)
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
-    """Fail a session whose clause tests checked nothing (every one skipped): one line says so."""
+    """
+    Fail a session whose clause tests checked nothing, or that was given what was refused.
+
+    Every clause test skipped, or the world or asset given refused by the
+    simulator (the clauses that need it skipped): one line each says so.
+    """
     kit = session.config.stash.get(KIT, None)
-    problem = kit.unchecked() if kit is not None else ''
-    if not problem:
+    if kit is None:
+        return
+    problems = kit.setup_problems() + [p for p in [kit.unchecked()] if p]
+    if not problems:
         return
     reporter = session.config.pluginmanager.get_plugin('terminalreporter')
-    if reporter is not None:
-        reporter.write_line(f'conformance: {problem}', red=True)
+    for problem in problems:
+        if reporter is not None:
+            reporter.write_line(f'conformance: {problem}', red=True)
     if session.exitstatus == pytest.ExitCode.OK:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED

@@ -97,6 +97,11 @@ class Kit:
         self.outcomes.append(outcome)
         return outcome
 
+    def setup_problems(self) -> List[str]:
+        """Return what the user gave that the simulator refused (the world, the asset)."""
+        t = self.target
+        return [p for p in (t.world.problem, t.entities.problem) if p]
+
     def unchecked(self) -> str:
         """
         Return why the run so far checked nothing, in one line ('' when a clause ran).
@@ -134,6 +139,8 @@ class Kit:
         unserved = [s for s in clause.services if s not in t.interfaces]
         if unserved:
             return SKIP, f'{", ".join(unserved)} not served'
+        if clause.start and t.world.missing:  # no world: nothing starts from STOPPED
+            return SKIP, t.world.missing
         rival = t.rivals()  # another simulator came up where requests would reach it too
         if rival:
             t.refusal = rival

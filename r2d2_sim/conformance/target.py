@@ -183,7 +183,9 @@ class Target:
         Waits up to the timeout for GetSimulatorFeatures at the prefix, then
         (up to the timeout again) for every interface the features declare,
         so that a slow discovery is not taken for a missing service. Then
-        remembers the state and the world it found, to leave them so. When
+        remembers the state and the world it found, to leave them so, and
+        loads a world for the run where there is none (see
+        :meth:`~r2d2_sim.conformance.world_verbs.TargetWorld.load_for_run`). When
         it cannot tell which simulator the user meant (none at the prefix
         but some elsewhere, or several at the prefix), ``refusal`` says why
         in one line and nothing is asked of any simulator but its features.
@@ -226,7 +228,9 @@ class Target:
         self._make_clients()
         self.clock.listen()
         self.undo.remember()
-        self.world.remember()
+        self.world.remember(no_world=self.undo.initial_state == self.msg.SimulationState
+                            .STATE_NO_WORLD)
+        self.world.load_for_run()  # where there is none: no clause could start from STOPPED
 
     def _settle(self) -> None:
         """Watch the graph's nodes and services until they stand still for SETTLE_S."""

@@ -84,13 +84,16 @@ class TargetUndo:
         Leave the simulator as found: the world loaded again, the state it was in.
 
         Returns what could not be restored. The time, the entities and the
-        poses are those of a fresh start (the clauses reset them).
+        poses are those of a fresh start (the clauses reset them). A simulator
+        found with no world is left with none.
         """
         problems = self.cleanup()
         try:
-            self.world.put_back()
-            if self.initial_state is not None and self.target.declared('SIMULATION_STATE_SETTING'):
-                S = self.sim.S
+            self.world.restore()
+            S = self.sim.S
+            # NO_WORLD (the world loaded for the run now unloaded) is no state one can ask for.
+            if (self.initial_state not in (None, S.STATE_NO_WORLD)
+                    and self.target.declared('SIMULATION_STATE_SETTING')):
                 self.sim.stop()
                 if self.initial_state == S.STATE_PLAYING:
                     self.sim.play()

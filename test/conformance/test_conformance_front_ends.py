@@ -80,6 +80,31 @@ def test_the_plugin_fails_a_session_whose_clauses_all_skip(tmp_path):
 
 # -- bad options --------------------------------------------------------------------------------
 
+def test_an_output_the_kit_cannot_write_is_refused_before_it_connects(capsys, tmp_path):
+    """--junit in no directory, --markdown on a directory: one line, status 2, nothing run."""
+    for argv, says in ((['--junit', '/nonexistent/dir/out.xml'],
+                        '--junit /nonexistent/dir/out.xml: no such directory /nonexistent/dir'),
+                       (['--markdown', str(tmp_path)], f'--markdown {tmp_path}: is a directory')):
+        assert main(argv + ['--prefix', '/nobody', '--timeout', '5']) == 2
+        out, err = capsys.readouterr()
+        assert out == '' and err == f'sim_conformance: error: {says}\n', (out, err)
+
+
+def test_a_world_the_simulator_refuses_exits_2_with_one_setup_line(capsys):
+    """--world naming no world of the toy's: the user's mistake (status 2), not the toy's."""
+    domain = next_domain_id()
+    with ToySimulator(domain):
+        status = main(['--prefix', '/toy', '--domain', str(domain), '--asset', 'toy://box',
+                       '--world', 'toy://worlds/nowhere', '--only', 'STATE-03,WORLD-04',
+                       '--timeout', '3'])
+    out, err = capsys.readouterr()
+    assert status == 2, out + err
+    assert err == ("sim_conformance: error: the world given, 'toy://worlds/nowhere', could not "
+                   "be loaded: LoadWorld answered NO_RESOURCE (102): 'no world "
+                   "toy://worlds/nowhere'\n"), err
+    assert '2 clauses: 1 passed, 0 failed, 1 skipped' in out, out
+
+
 @pytest.mark.parametrize('field, value, says', [
     ('timeout_s', -1.0, 'timeout_s must be a finite number of seconds > 0'),
     ('timeout_s', float('nan'), 'timeout_s must be a finite number of seconds > 0'),

@@ -17,7 +17,7 @@ import pytest
 
 from helpers import next_domain_id
 from r2d2_sim.conformance import BY_ID, CLAUSES, FAIL, Kit, KitError, KitOptions, PASS, SKIP
-from toy_simulator import DEFECTS, MORE_DEFECTS, ToySimulator, VARIANTS
+from toy_simulator import DEFECTS, MORE_DEFECTS, S, ToySimulator, VARIANTS
 
 # Replies come in milliseconds; FEAT-01's defect makes the kit wait this long for nothing.
 TIMEOUT_S = 3.0
@@ -190,3 +190,87 @@ def test_a_service_not_served_skips_the_clauses_that_need_it(service):
            if o.status == FAIL or 'afterwards' in o.reason}
     assert not bad and not problems and not left, (bad, problems, left)
     assert any(o.status == SKIP and says in o.reason for o in outcomes)
+
+
+# -- the world the kit finds, and what the user gives it --------------------------------------
+
+def run_all(toy_options, kit_changes=None, clause_ids=None):
+    """
+    Run clauses (default: all) against a toy made with ``toy_options``; return the findings.
+
+    (outcomes by id, what close() could not put back, kit.setup_problems(), the toy's world,
+    state and entities after the kit).
+    """
+    domain = next_domain_id()
+    options = kit_options(domain)._replace(**(kit_changes or {}))
+    chosen = [BY_ID[i] for i in clause_ids] if clause_ids else CLAUSES
+    with ToySimulator(domain, **toy_options) as toy:
+        with Kit(options) as kit:
+            outcomes = {o.clause.id: o for o in kit.run(chosen)}
+            problems = kit.close()
+            setup = kit.setup_problems()
+        after = (toy.world, toy.state, sorted(toy.entities))
+    return outcomes, problems, setup, after
+
+
+def test_a_simulator_found_with_no_world_gets_one_for_the_run_and_none_after():
+    """
+    No world at the start: the kit loads one (an available one), runs every clause, unloads it.
+
+    A simulation with no world "cannot be started, stopped, or paused": without a world of its
+    own, no clause could start from STOPPED.
+    """
+    outcomes, problems, setup, after = run_all({'world': None})
+    failed = {i: o.reason for i, o in outcomes.items() if o.status != PASS and i != 'FILTER-09'}
+    assert not failed and not problems and not setup, (failed, problems, setup)
+    assert after == (None, S.STATE_NO_WORLD, []), after
+
+
+def test_a_simulator_with_no_world_and_none_to_load_skips_what_needs_one():
+    """No world and no world to load: the clauses that start from STOPPED skip, saying why."""
+    outcomes, problems, setup, after = run_all(
+        {'world': None, 'without': ('AVAILABLE_WORLDS', 'WORLD_TAGS')})
+    assert not [o for o in outcomes.values() if o.status == FAIL] and not problems
+    starting = [o for o in outcomes.values() if o.clause.start]
+    why = 'no world is loaded, and the kit has none to load: give it one (--world URI)'
+    assert all(o.status == SKIP and (o.reason == why or o.reason.startswith(('needs ', 'moot')))
+               for o in starting), [o for o in starting if o.reason != why]
+    assert all(o.status == PASS for o in outcomes.values() if o.clause.group == 'FEAT')
+    assert after == (None, S.STATE_NO_WORLD, []), after
+
+
+@pytest.mark.parametrize('world', ['yard', None])
+def test_a_world_the_simulator_refuses_is_one_setup_line_not_its_failure(world):
+    """--world naming no world of the toy's: tried once, one setup line, dependent clauses skip."""
+    outcomes, problems, setup, after = run_all(
+        {'world': world}, {'world': 'toy://worlds/nowhere'},
+        ['STATE-03', 'WORLD-04', 'WORLD-05', 'WORLD-10', 'NAMED-01'])
+    assert setup == ["the world given, 'toy://worlds/nowhere', could not be loaded: LoadWorld "
+                     "answered NO_RESOURCE (102): 'no world toy://worlds/nowhere'"], setup
+    assert not [o for o in outcomes.values() if o.status == FAIL], outcomes
+    for clause_id in ('WORLD-04', 'WORLD-05', 'WORLD-10'):
+        assert outcomes[clause_id].status == SKIP and 'could not be loaded' in (
+            outcomes[clause_id].reason), outcomes[clause_id]
+    assert (outcomes['STATE-03'].status == PASS) == (world is not None), outcomes['STATE-03']
+    assert not problems and after[0] == world, (problems, after)
+
+
+def test_an_asset_the_simulator_refuses_is_one_setup_line_not_its_failure():
+    """--asset naming nothing the toy has, no resource strings: one setup line, spawns skip."""
+    outcomes, problems, setup, after = run_all(
+        {'without': ('SPAWNING_RESOURCE_STRING',)}, {'asset': 'toy://nothing'},
+        ['STATE-13', 'SPAWN-01', 'SPAWN-04', 'ENTITY-05', 'DELETE-01'])
+    assert setup == ["the asset given, 'toy://nothing', could not be spawned: SpawnEntity "
+                     "answered NO_RESOURCE (104): 'no asset toy://nothing'"], setup
+    assert all(o.status == SKIP and o.reason == setup[0] for o in outcomes.values()), outcomes
+    assert not problems and not [n for n in after[2] if n.startswith('conformance_')]
+
+
+def test_a_world_the_kit_cannot_load_back_is_never_replaced():
+    """A world named without its uri: the clauses that load another skip, and it stays."""
+    loading = ['WORLD-04', 'WORLD-05', 'WORLD-06', 'WORLD-07', 'WORLD-09', 'WORLD-10',
+               'WORLD-11', 'WORLD-12', 'WORLD-13', 'WORLD-14']
+    outcomes, problems, setup, after = run_all({'defect': 'WORLD-NO-URI'}, None, loading)
+    assert all(o.status == SKIP and 'could not load it back' in o.reason
+               for o in outcomes.values()), {i: (o.status, o.reason) for i, o in outcomes.items()}
+    assert not problems and not setup and after[0] == 'yard', (problems, after)

@@ -40,6 +40,7 @@ def _shown_poses(t: Target) -> list:
     if not candidates:
         raise ClauseSkipped('GetNamedPoses lists no pose in the world loaded, and the kit has no '
                             'other world to load (give --world a world with named poses)')
+    t.world.need_put_back()
     t.undo.on_cleanup(t.world.put_back)
     tried = []
     for resource in candidates:
@@ -54,7 +55,7 @@ def _shown_poses(t: Target) -> list:
 
 def _other_worlds(t: Target) -> list:
     """Return up to MOST_WORLDS Resources to load: --world, then available ones not loaded now."""
-    now = _current(t).world if t.declared('WORLD_INFO_GETTING') else t.world.initial
+    now = _current(t).world if t.declared('WORLD_INFO_GETTING') else t.world.current
     loaded = _resource_of(now) if now is not None else None
     found = [t.msg.Resource(uri=t.options.world)] if t.options.world else []
     if t.declared('AVAILABLE_WORLDS'):
@@ -171,7 +172,7 @@ def _world_to_load(t: Target) -> Any:
     """Return a Resource to load: --world, else an available world other than the current."""
     if t.options.world:
         return t.msg.Resource(uri=t.options.world)
-    current = t.world.initial
+    current = t.world.current
     if t.declared('AVAILABLE_WORLDS'):
         worlds = [w for w in _available(t) if _resource_of(w)]
         others = [w for w in worlds if current is None or _resource_of(w) != _resource_of(current)]
@@ -184,6 +185,7 @@ def _world_to_load(t: Target) -> Any:
 
 def _load(t: Target, doing: str = 'LoadWorld') -> Tuple[Any, Any]:
     """Load a world (see _world_to_load), to be put back after the clause."""
+    t.world.need_put_back()
     resource = _world_to_load(t)
     t.undo.on_cleanup(t.world.put_back)
     reply = t.world.load(resource, f'{doing} of {resource.uri or "a resource string"}')
@@ -300,6 +302,7 @@ def load_nothing(t: Target) -> None:
         'RESOURCE_PARSE_ERROR = 103 # Resource file or string failed to parse.')
 def load_garbage(t: Target) -> None:
     """Load a cut-off XML world: 103 (or 101, no format), and GetCurrentWorld unchanged."""
+    t.world.need_put_back()  # should the simulator take it, the world must go back
     before = _current(t) if t.declared('WORLD_INFO_GETTING') else None
     response = t.srv.LoadWorld.Response
     t.expect('LoadWorld', t.srv.LoadWorld.Request(resource_string='<sdf version="1.6"><world'),
