@@ -130,6 +130,24 @@ def output_problem(flag: str, path: Optional[str]) -> str:
     return ''
 
 
+def _interrupted(kit: Kit) -> int:
+    """
+    After Ctrl-C: leave the simulator as found (within the restore's own deadline); return 130.
+
+    A second Ctrl-C skips that: the simulator is left as it is, and the line says so.
+    """
+    try:
+        print(f'{PROG}: interrupted: leaving the simulator as found (Ctrl-C again to leave it '
+              'as it is)', file=sys.stderr, flush=True)
+        problems = kit.close()
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted again: the simulator was left as it is', file=sys.stderr)
+        return EXIT_INTERRUPTED
+    for problem in problems:
+        print(f'{PROG}: could not leave the simulator as found: {problem}', file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the kit from the command line; return the exit status."""
     args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
@@ -169,10 +187,12 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        kit.target.close()
-        print(f'{PROG}: interrupted', file=sys.stderr)
+        return _interrupted(kit)
+    try:
+        problems = kit.close()
+    except KeyboardInterrupt:  # while it put the simulator back: that is skipped
+        print(f'{PROG}: interrupted: the simulator was left as it is', file=sys.stderr)
         return EXIT_INTERRUPTED
-    problems = kit.close()
     for problem in problems:
         print(f'{PROG}: could not leave the simulator as found: {problem}', file=sys.stderr)
     print(summary(outcomes, f'prefix {kit.target.prefix!r}'))

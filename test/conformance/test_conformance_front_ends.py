@@ -7,8 +7,11 @@ that checked nothing is an error in both, never a pass; a bad option is one read
 """
 
 from pathlib import Path
+import signal
 import subprocess
 import sys
+import threading
+import time
 
 import pytest
 
@@ -16,7 +19,7 @@ from helpers import next_domain_id
 from r2d2_sim.client import ros_child_env
 from r2d2_sim.conformance import BY_ID, FAIL, Kit, KitError, KitOptions
 from r2d2_sim.conformance.cli import main
-from toy_simulator import ToySimulator
+from toy_simulator import S, ToySimulator
 
 PYTEST_S = 120
 TEST_FILE = 'from r2d2_sim.conformance.pytest_plugin import test_simulation_standard  # noqa\n'
@@ -155,3 +158,77 @@ def test_the_plugin_reports_what_it_could_not_put_back(tmp_path):
     assert '1 passed' in result.stdout and '1 error' in result.stdout, result.stdout[-3000:]
     assert 'could not leave the simulator as found: SetSimulationState' in result.stdout, (
         result.stdout[-3000:])
+
+
+# -- Ctrl-C ------------------------------------------------------------------------------------
+
+class KitProcess:
+    """``python -m r2d2_sim.conformance`` in a child process, its lines read as they come."""
+
+    def __init__(self, domain: int, *args: str) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'r2d2_sim.conformance', '--prefix', '/toy', '--asset',
+             'toy://box', *args], env=ros_child_env(domain), stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True)
+        self.lines = {'out': [], 'err': []}
+        self.changed = threading.Condition()
+        self.readers = [threading.Thread(target=self._read, args=(stream, name), daemon=True)
+                        for stream, name in ((self.process.stdout, 'out'),
+                                             (self.process.stderr, 'err'))]
+        for reader in self.readers:
+            reader.start()
+
+    def _read(self, stream, name: str) -> None:
+        for line in stream:
+            with self.changed:
+                self.lines[name].append(line.rstrip('\n'))
+                self.changed.notify_all()
+
+    def wait_for(self, name: str, text: str, timeout_s: float = 60.0) -> None:
+        """Wait (by deadline) until a line of ``name`` ('out', 'err') holds ``text``."""
+        with self.changed:
+            seen = self.changed.wait_for(
+                lambda: any(text in line for line in self.lines[name]), timeout_s)
+        assert seen, (text, self.lines)
+
+    def end(self, timeout_s: float = 60.0) -> int:
+        """Wait for the process to end; return its exit status (its output all read)."""
+        status = self.process.wait(timeout=timeout_s)
+        for reader in self.readers:
+            reader.join(timeout=timeout_s)
+        return status
+
+
+def test_ctrl_c_leaves_the_simulator_as_found():
+    """Ctrl-C in the middle of the spawning clauses: the toy is PLAYING again, nothing left."""
+    domain = next_domain_id()
+    with ToySimulator(domain) as toy:
+        toy.state = S.STATE_PLAYING
+        kit = KitProcess(domain, '--only', 'SPAWN,ENTITY', '--timeout', '5')
+        kit.wait_for('out', 'SPAWN-03 ')
+        kit.process.send_signal(signal.SIGINT)
+        status = kit.end()
+        after = (toy.state, sorted(n for n in toy.entities if n.startswith('conformance_')))
+    assert status == 130, kit.lines
+    assert kit.lines['err'] == ['sim_conformance: interrupted: leaving the simulator as found '
+                                '(Ctrl-C again to leave it as it is)'], kit.lines['err']
+    assert after == (S.STATE_PLAYING, []), after
+
+
+def test_a_second_ctrl_c_skips_putting_the_simulator_back():
+    """Ctrl-C, then Ctrl-C again while a slow toy is being put back: the kit ends at once."""
+    domain = next_domain_id()
+    with ToySimulator(domain, defect='SLOW') as toy:
+        toy.state = S.STATE_PLAYING
+        kit = KitProcess(domain, '--only', 'STATE', '--timeout', '5')
+        kit.wait_for('out', 'STATE-01 ')
+        kit.process.send_signal(signal.SIGINT)
+        kit.wait_for('err', 'interrupted: leaving the simulator as found')
+        kit.process.send_signal(signal.SIGINT)
+        started = time.monotonic()
+        status = kit.end()
+        took = time.monotonic() - started
+    assert status == 130, kit.lines
+    assert kit.lines['err'][-1] == ('sim_conformance: interrupted again: the simulator was left '
+                                    'as it is'), kit.lines['err']
+    assert took < 5.0, took  # a restore would take its 0.5 s replies for up to 3 timeouts
