@@ -214,7 +214,6 @@ def main(argv: Optional[List[str]] = None) -> int:
     if status == 0 and unchecked:
         # No simulator read, or every clause skipped: the run says nothing of the simulator.
         print(f'{PROG}: error: {unchecked}', file=sys.stderr)
-        return 1
     if status == 0 and kit.setup_problems():
-        return 2
-    return status
+        return 2  # what the user gave was refused: theirs to fix first
+    return 1 if status == 0 and unchecked else status
