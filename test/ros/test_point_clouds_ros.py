@@ -40,16 +40,21 @@ def cloud_array(msg):
     return numpy.frombuffer(bytes(msg.data), dtype).reshape(msg.height, msg.width)
 
 
-def test_the_depth_cloud_is_the_depth_image_projected_with_its_camera_info(ros):
+def depth_outputs(ros, width, height):
+    """Return the depth camera's cloud, image and CameraInfo of the room after 24 steps."""
     sim = make_sim(ros, world=ROOM, camera_rate=10.0, camera_depth=True,
-                   camera_point_cloud=True, camera_width=64, camera_height=48)
+                   camera_point_cloud=True, camera_width=width, camera_height=height)
     seen = listen(ros, {'camera/depth/points': (PointCloud2, 10),
                         'camera/depth/image_raw': (Image, 10),
                         'camera/depth/camera_info': (CameraInfo, 10)})
     sim.advance(24)
     assert wait_for(lambda: all(seen.values()))
-    cloud, depth, info = (seen[t][-1] for t in ('camera/depth/points', 'camera/depth/image_raw',
-                                                'camera/depth/camera_info'))
+    return tuple(seen[t][-1] for t in ('camera/depth/points', 'camera/depth/image_raw',
+                                       'camera/depth/camera_info'))
+
+
+def test_the_depth_cloud_is_the_depth_image_projected_with_its_camera_info(ros):
+    cloud, depth, info = depth_outputs(ros, 64, 48)
     assert (cloud.height, cloud.width, cloud.point_step, cloud.row_step) == (48, 64, 12, 768)
     assert [(f.name, f.offset, f.datatype, f.count) for f in cloud.fields] == [
         ('x', 0, PointField.FLOAT32, 1), ('y', 4, PointField.FLOAT32, 1),
@@ -157,15 +162,7 @@ def test_a_byte_array_of_a_few_bytes_is_found_too(count):
 
 def test_a_one_pixel_camera_publishes_its_one_point(ros):
     """camera_width 1 x camera_height 1 with the cloud: one point, the depth pixel projected."""
-    sim = make_sim(ros, world=ROOM, camera_rate=10.0, camera_depth=True,
-                   camera_point_cloud=True, camera_width=1, camera_height=1)
-    seen = listen(ros, {'camera/depth/points': (PointCloud2, 10),
-                        'camera/depth/image_raw': (Image, 10),
-                        'camera/depth/camera_info': (CameraInfo, 10)})
-    sim.advance(24)
-    assert wait_for(lambda: all(seen.values()))
-    cloud, depth, info = (seen[t][-1] for t in ('camera/depth/points', 'camera/depth/image_raw',
-                                                'camera/depth/camera_info'))
+    cloud, depth, info = depth_outputs(ros, 1, 1)
     assert (cloud.height, cloud.width, cloud.row_step) == (1, 1, 12)
     assert cloud.header == depth.header
     point = cloud_array(cloud)[0, 0]
