@@ -1,5 +1,5 @@
 """
-How far a jointed body can reach from its base, and how far a point is from a box: pure math.
+How far a jointed body can reach from its base, in any joint state: pure math.
 
 A run's watch asks the physics about contacts and closest points only for
 bodies that can be near the robot (:class:`~r2d2_sim.sim.oracles.RunWatch`).
@@ -18,7 +18,7 @@ are nested from the tips to the base.
 import math
 from typing import List, NamedTuple, Optional, Sequence, Tuple
 
-__all__ = ['LinkReach', 'reach_radius', 'box_distance', 'TURNS', 'SLIDES', 'FIXED']
+__all__ = ['LinkReach', 'reach_radius', 'TURNS', 'SLIDES', 'FIXED', 'FREE']
 
 Vec3 = Tuple[float, float, float]
 
@@ -82,8 +82,3 @@ def reach_radius(base_point: Vec3, base_low: Optional[Vec3], base_high: Optional
         else:
             radii[link.parent] = max(radii[link.parent], within)
     return base_reach if math.isfinite(base_reach) else None
-
-
-def box_distance(point: Vec3, low: Vec3, high: Vec3) -> float:
-    """Return the distance from ``point`` to the box ``low``..``high`` (0 inside it)."""
-    return math.sqrt(sum(max(lo - p, 0.0, p - hi) ** 2 for p, lo, hi in zip(point, low, high)))

@@ -5,7 +5,7 @@ import random
 
 import pytest
 
-from r2d2_sim.model.reach import box_distance, FIXED, LinkReach, reach_radius, SLIDES, TURNS
+from r2d2_sim.model.reach import FIXED, LinkReach, reach_radius, SLIDES, TURNS
 
 ORIGIN = (0.0, 0.0, 0.0)
 
@@ -92,11 +92,3 @@ def test_no_configuration_of_a_random_chain_leaves_its_reach(seed):
         farthest = max(farthest, max(math.dist(ORIGIN, p) for link in moved for p in link))
     assert farthest <= radius + 1e-9
     assert radius < 10.0 * (sum(lengths) + 1.0)  # a bound, not infinity
-
-
-def test_the_distance_to_a_box():
-    """Inside is 0; beside a face, the gap; past a corner, the diagonal."""
-    low, high = (0.0, 0.0, 0.0), (1.0, 2.0, 3.0)
-    assert box_distance((0.5, 1.0, 1.0), low, high) == 0.0
-    assert box_distance((-2.0, 1.0, 1.0), low, high) == 2.0
-    assert box_distance((4.0, 6.0, 3.0), low, high) == 5.0
