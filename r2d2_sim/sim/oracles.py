@@ -30,7 +30,10 @@ put (static, no joints that move) is passed over while the robot's centre of
 mass is outside its bounding box grown on every side by the robot's reach (a
 radius that holds its links in any joint state, :meth:`Body.reach_m
 <r2d2_sim.physics.body.Body.reach_m>`), :data:`NEAR_MARGIN_M` and the distance
-that matters (0 for contacts, the clearance so far for closest points).
+that matters: for contacts, how far the centre of mass moved in the step
+(Bullet finds a step's contacts before it moves the bodies; every body is
+asked on a step after the robot was put somewhere), for closest points the
+clearance so far.
 No point PyBullet would have given can come from a body passed over, so the
 watch reads the same as one that asks about every body (``prune=False``, what
 the tests compare it with, bit for bit). A body is seen to move when it is
@@ -241,6 +244,9 @@ class RunWatch:
         self._reach = body.reach_m() if prune else None
         # A rigid body's zone (_zone) as last read, by name: (the body, its moves then, zone).
         self._zones: Dict[str, Tuple[Body, int, Zone]] = {}
+        # Where the centre of mass was after the last step, and the body's moves then: a
+        # step's contacts are found where it stood before the step (see observe).
+        self._last: Optional[Tuple[Tuple[float, ...], int]] = None
         if self._sample_every:
             base = self.body.world_state()
             self.trajectory.append(TrajectoryPoint(self.start_ns, base.position[0],
@@ -262,22 +268,32 @@ class RunWatch:
             if self._measure_clearance:
                 self._clearance(body, time_ns, others)
         else:
+            # Bullet finds a step's contacts where the bodies stood before it, and then
+            # moves them: the robot's centre of mass was at most this far from where it
+            # is now. Unknown (the first step watched, or the body put somewhere since
+            # the last): every body is asked about its contacts.
+            last, moves = self._last, body.moves
+            travel = (math.dist(com, last[0]) if last is not None and last[1] == moves
+                      else math.inf)
+            self._last = (tuple(com), moves)
             x, y, z = com
             near: List[Tuple[str, Body]] = []     # those that may touch the robot
             in_range: List[Tuple[str, Body]] = []  # those that may be nearer than the clearance
-            slack = max(self.clearance.distance_m, 0.0) if self._measure_clearance else 0.0
+            # Closest points are asked now, where the bodies stand: no travel.
+            slack = max(self.clearance.distance_m, 0.0) if self._measure_clearance else -1.0
             for pair in others:
                 name, other = pair
                 if other.rigid:
                     x0, y0, z0, x1, y1, z1 = self._zone(name, other, reach)
-                    if not (x0 - slack <= x <= x1 + slack and y0 - slack <= y <= y1 + slack
-                            and z0 - slack <= z <= z1 + slack):
-                        continue
-                    if x0 <= x <= x1 and y0 <= y <= y1 and z0 <= z <= z1:
+                    if (x0 - travel <= x <= x1 + travel and y0 - travel <= y <= y1 + travel
+                            and z0 - travel <= z <= z1 + travel):
                         near.append(pair)
+                    if (x0 - slack <= x <= x1 + slack and y0 - slack <= y <= y1 + slack
+                            and z0 - slack <= z <= z1 + slack):
+                        in_range.append(pair)
                 else:
                     near.append(pair)
-                in_range.append(pair)
+                    in_range.append(pair)
             self._contacts(body, time_ns, near)
             if self._measure_clearance:
                 self._clearance(body, time_ns, in_range)

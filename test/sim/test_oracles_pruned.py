@@ -134,3 +134,61 @@ def test_moving_a_fixed_box_is_seen_at_once(make):
         simulation.step()
     assert watch.touched() == ['far']
     assert watch.contacts[0].start_ns == simulation.time_ns
+
+
+@pytest.mark.parametrize('rate, speed', [(100.0, 40.0), (60.0, 25.0), (100.0, -40.0)])
+def test_a_robot_leaving_or_hitting_a_wall_fast_is_seen_touching_it(make, rate, speed):
+    """
+    Faster than the margin in one step (below the blow-up bound): the contact still counts.
+
+    Bullet finds a step's contacts before it moves the bodies, so the robot that leaves
+    the wall at 40 m/s touched it in the step that took it away (speed > 0); one that
+    flies at the wall from 0.5 m (speed < 0) touches it in a step it ends far from it.
+    """
+    def run(prune):
+        simulation = make(physics_rate=rate)
+        simulation.spawn(SpawnRequest('wall', resource_string=box_urdf(
+            (0.4, 2.0, 1.0), name='wall'), position=(0.75, 0.0, 0.5)))
+        watch = RunWatch(simulation, prune=prune, clearance=False)
+        for _ in range(5):
+            simulation.step()
+        position, orientation = simulation.robot.body.world_pose()
+        start = position[0] + (0.045 if speed > 0 else -0.5)
+        simulation.set_entity_state('r2d2', '', (start, position[1], position[2]), orientation,
+                                    (-speed, 0.0, 0.0), ZERO)
+        for _ in range(6):
+            simulation.step()
+        assert simulation.blow_ups == 0
+        return watch.contacts
+    pruned = run(True)
+    assert pruned and pruned[0].other == 'wall'
+    assert pruned == run(False)
+
+
+def test_contacts_count_where_the_robot_stood_before_the_step(make):
+    """
+    Contacts found before a step's motion count, however far the robot then went.
+
+    The step's motion is played by hand: the robot rests against the wall, the physics
+    steps (finding the contact), and the robot is then carried 1 m away behind the
+    watch's back (PyBullet's own call, as a fast step would) before the watch looks.
+    """
+    readings = []
+    for prune in (True, False):
+        simulation = make()
+        simulation.spawn(SpawnRequest('wall', resource_string=box_urdf(
+            (0.4, 2.0, 1.0), name='wall'), position=(0.75, 0.0, 0.5)))
+        body = simulation.robot.body
+        position, orientation = body.world_pose()
+        simulation.set_entity_state('r2d2', '', (position[0] + 0.045, position[1], position[2]),
+                                    orientation, ZERO, ZERO)
+        watch = RunWatch(simulation, prune=prune, clearance=False)
+        simulation.step()  # the watch knows where the robot stands
+        simulation.world.step(1)  # the contact found, then the robot carried away
+        com, com_orientation = body._client.getBasePositionAndOrientation(body.id)
+        body._client.resetBasePositionAndOrientation(body.id, (com[0] - 1.0, com[1], com[2]),
+                                                     com_orientation)
+        watch.observe(simulation.time_ns)
+        readings.append(watch.contacts)
+    assert readings[0] and readings[0][0].other == 'wall'
+    assert readings[0] == readings[1]
