@@ -19,6 +19,7 @@ import dataclasses
 import math
 from typing import List, NamedTuple, Optional, Sequence, Tuple
 
+from r2d2_sim.errors import WorldError
 from r2d2_sim.farm.scenario import Box, Pose, Scenario, ScenarioSpace
 from r2d2_sim.gym.task import Outcome, Reading
 from r2d2_sim.model.regions import circle_region, Region
@@ -153,7 +154,10 @@ class Arena:
         self._close_watches()
         if self.saved is None:
             raise ValueError('the arena is closed')
-        simulation.restore_state(self.saved)
+        try:
+            simulation.restore_state(self.saved)
+        except WorldError:
+            self._rebuild()
         simulation.restart_noise(episode.noise_seed, scan_noise_std=episode.scan_noise_std)
         for robot, start, rest in zip(robots, episode.starts, self._rest):
             yaw = start.yaw - robot.body.body_yaw_offset_rad  # of the URDF's base link
@@ -167,6 +171,25 @@ class Arena:
                                  tip_angle_rad=self.tip_angle_rad, clearance=False)
                         for robot, goal in zip(robots, episode.goals)]
         return self.observe()
+
+    def _rebuild(self) -> None:
+        """
+        Build the world again as at construction, save and restore it: the old state refused.
+
+        A blow-up loads the bodies it broke again (``SimWorld.put_back``),
+        and the state saved before then cannot come back. A state reset
+        loads every body again in its order, each robot at rest where it
+        started and each box parked where it was spawned: the world as
+        :meth:`__init__` saved it, and the episodes after it are those of
+        a new arena, bit for bit.
+        """
+        simulation = self.simulation
+        if self.saved is not None:
+            simulation.forget_state(self.saved)
+        self.saved = None
+        simulation.reset(state=True)
+        self.saved = simulation.save_state()
+        simulation.restore_state(self.saved)
 
     def observe(self) -> List[Reading]:
         """Return every robot's reading now: its laser cast at once, its true state."""

@@ -62,6 +62,7 @@ class SavedWorld(NamedTuple):
     state_id: int                          # PyBullet's, in this world's client
     bodies: Tuple[Tuple[str, int], ...]    # every body's name and id, in load order
     built: int                             # which build of the world (clear() makes another)
+    loads: int                             # bodies loaded into the world before it was saved
 
 
 def _found(path: str) -> str:
@@ -161,6 +162,9 @@ class SimWorld:
         self.bodies: Dict[str, Body] = {}
         self.removed_since_built = 0  # bodies removed since the world was last built
         self.builds = 0  # how often the physics world was built (each clear() builds it anew)
+        # Bodies loaded into the live world so far, loaded again too (put_back): a body
+        # loaded again keeps its id but is last in Bullet's order (restore_state).
+        self.loads = 0
         # Threads a large batch of rays is cast on (raycast.cast_rays): the same answers.
         self.ray_threads = 1
         self._free_ray_groups = list(RAY_GROUPS)
@@ -239,6 +243,8 @@ class SimWorld:
                                           baseOrientation=orientation, flags=flags)
         except client.error as exc:
             raise WorldError(f'PyBullet cannot load {made_from or path}: {exc}') from None
+        if into is None:
+            self.loads += 1
         if name is None:
             urdf_name = records.body_info(client, body_id).name
             name = _unique_name(bodies, urdf_name
@@ -392,6 +398,7 @@ class SimWorld:
             into.twins.append((body, body.loaded_into(into.client)))
         else:
             body.reload()
+            self.loads += 1
         bodies[body.name] = body
 
     def build(self, beside: bool = True, keep_ray_groups: Sequence[int] = ()) -> WorldBuild:
@@ -491,7 +498,7 @@ class SimWorld:
         if failed:
             raise WorldError('; '.join(failed))
 
-    def put_back(self, body: Body) -> None:
+    def put_back(self, body: Body) -> Optional[str]:
         """
         Put a body whose physics blew up back in its initial state: loaded again, in its place.
 
@@ -499,34 +506,41 @@ class SimWorld:
         Bullet keeps something inside the multibody that no reset reaches
         (its state reads finite and its contacts are found, yet they do not
         hold it: a robot sinks through the floor), and a NaN contact point
-        would stay in its pairs. So it is taken out and loaded again, with
-        its lasting changes (:meth:`Body.reload`), keeping its place in
-        :attr:`bodies` (and, PyBullet reusing the latest removed id, its
-        id). A body whose file is gone or changed (:meth:`Body.reloadable`)
-        is put back in place instead, its pairs dropped (:meth:`Body.reinsert`)
-        where its URDF allows. Its motors are those of a loaded body.
+        would stay in its pairs. So it is loaded again, with its lasting
+        changes (:meth:`Body.loaded_into`), and takes the old one's place
+        in :attr:`bodies` (the same object; a new id, last in Bullet's
+        order: a state saved before is refused by :meth:`restore_state`).
+        A body whose file is gone or changed (:meth:`Body.reloadable`), or
+        that fails to load (the old one is still there then), is put back
+        in place instead, its pairs dropped (:meth:`Body.reinsert`) where
+        its URDF allows. Returns None, or why it was put back in place only
+        (one line). Its motors are those of a loaded body.
         """
-        if not body.reloadable():
-            body.reset()
+        why: Optional[str] = None
+        if body.reloadable():
             try:
-                body.reinsert()
-            except WorldError:
-                pass  # it sets its own collision groups: its pairs stay
-            return
-        order = list(self.bodies)
-        body.remove()
-        self.removed_since_built += 1
+                twin = body.loaded_into(self._live_client)
+            except WorldError as exc:
+                why = str(exc)
+            else:
+                self.loads += 1
+                body.remove()
+                self.removed_since_built += 1
+                body.adopt(twin)
+                body.reset()  # exactly the state it started in, to the bit
+                return None
+        else:
+            why = f'{body.source} is gone or changed since {body.name} was loaded from it'
+        body.reset()
         try:
-            body.reload()
+            body.reinsert()
         except WorldError:
-            del self.bodies[body.name]  # as remove(): it is gone from the world
-            raise
-        body.reset()  # exactly the state it started in, to the bit
-        self.bodies = {name: self.bodies[name] for name in order}
+            pass  # it sets its own collision groups: its pairs stay
+        return why
 
-    def repair(self, leave: Collection[Body] = ()) -> List[Body]:
+    def repair(self, leave: Collection[Body] = ()) -> List[Tuple[Body, Optional[str]]]:
         """
-        After a blow-up (:attr:`blown_up`): put back what it broke; return the bodies put back.
+        After a blow-up (:attr:`blown_up`): put back what it broke; return what was put back.
 
         A NaN in one body's state spreads in that one step, through its
         contacts, to what it touches: the ground plane too, whose pose and
@@ -534,17 +548,18 @@ class SimWorld:
         any more, and a robot put back falls through the floor for ever,
         with every other body on it. Each body whose state is not finite,
         but those in ``leave`` (the driven robots, which put themselves
-        back, controller and all), is put back (:meth:`put_back`).
+        back, controller and all), is put back (:meth:`put_back`), each
+        whatever became of the others: returned with why it was only put
+        back in place (None: loaded again).
         """
         self.blown_up = False
         left = {id(body) for body in leave}
         broken = [body for body in self.bodies.values()
                   if id(body) not in left and not body.finite()]
-        for body in broken:
-            self.put_back(body)
+        put = [(body, self.put_back(body)) for body in broken]
         if self.removed_since_built >= COMPACT_AFTER_REMOVALS:
             self.compact()
-        return broken
+        return put
 
     def save_state(self) -> SavedWorld:
         """
@@ -560,7 +575,7 @@ class SimWorld:
         for body in self.bodies.values():
             body.collision_filters()
         client.setPhysicsEngineParameter(deterministicOverlappingPairs=1)
-        return SavedWorld(client.saveState(), self._body_ids(), self.builds)
+        return SavedWorld(client.saveState(), self._body_ids(), self.builds, self.loads)
 
     def restore_state(self, saved: SavedWorld) -> None:
         """

@@ -267,9 +267,13 @@ class Simulation:
 
     def _repair(self) -> None:
         """Put back what robots' blow-ups broke around them: the ground, what they touched."""
-        for body in self.world.repair([robot.body for robot in self.robots]):
-            self._error(f'physics blew up: {body.name} was broken with it and is put back '
-                        'where it started')
+        for body, why in self.world.repair([robot.body for robot in self.robots]):
+            if why is None:
+                self._error(f'physics blew up: {body.name} was broken with it and is put back '
+                            'where it started')
+            else:
+                self._error(f'physics blew up: {body.name} was broken with it and is reset in '
+                            f'place where it started, not loaded again ({why})')
 
     def reset(self, *, time: bool = False, state: bool = True, spawned: bool = False) -> None:
         """

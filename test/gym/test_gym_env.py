@@ -10,6 +10,7 @@ test/sim/test_saved_states.py). Bad input is one line.
 """
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -57,6 +58,24 @@ def test_a_reset_then_a_rollout_equals_a_fresh_environments_after_any_history(gy
     for seed in (3, 1, 2, 1, 3):
         assert rollout(env, seed, actions(seed)) == fresh[seed], seed
     assert len(set(fresh.values())) == 3
+
+
+def test_after_a_blow_up_the_next_episodes_equal_a_fresh_environments(gym_make):
+    """
+    The blow-up loads bodies again, and the saved state is refused: the arena builds it again.
+
+    Before, the next reset raised PyBullet's "Couldn't restore state".
+    """
+    fresh = gym_make(**gym_noisy())
+    first = [rollout(fresh, seed, actions(seed)) for seed in (2, 3)]
+    env = gym_make(**gym_noisy())
+    env.reset(seed=1)
+    simulation = env.unwrapped.nav.backend.simulation
+    env.step(actions(1)[0])
+    simulation.robot.body.set_base_state(linear_velocity=(math.nan, 0.0, 0.0))
+    env.step(actions(1)[1])
+    assert simulation.blow_ups == 1
+    assert [rollout(env, seed, actions(seed)) for seed in (2, 3)] == first
 
 
 def test_the_seed_draws_the_scenario_and_its_noise(gym_make):

@@ -163,6 +163,42 @@ def test_a_run_after_a_nan_blow_up_repeats_bit_for_bit(make):
     assert first[-1].position[2] == pytest.approx(0.47, abs=0.01)
 
 
+def test_a_body_that_cannot_be_loaded_again_is_reset_in_place_and_the_run_goes_on(
+        make, monkeypatch):
+    """
+    A reload that fails leaves the body in the world, reset in place; every other is put back.
+
+    Before, the robot's reload failing escaped the step with the body gone
+    from the world (the Robot still in it), the NaN ground never put back,
+    and every later step raised BodyRemoved.
+    """
+    from r2d2_sim.errors import WorldError
+    from r2d2_sim.physics.body import Body
+
+    def failing(body, client):
+        raise WorldError(f'PyBullet cannot load {body.source} again: (simulated)')
+    errors = []
+    simulation = make(errors, cmd_vel_timeout=0.0, **QUIET)
+    robot, plane = simulation.robot, simulation.world.bodies['ground_plane']
+    start = robot.body.world_state()
+    for _ in range(20):
+        simulation.step()
+    monkeypatch.setattr(Body, '_load_into', failing)
+    robot.body.set_base_state(linear_velocity=(math.nan, 0.0, 0.0))
+    simulation.step()
+    assert simulation.blow_ups == 1
+    assert list(simulation.world.bodies) == ['ground_plane', 'r2d2']
+    assert simulation.robots == [robot] and robot.body.alive
+    assert robot.body.world_state() == start and plane.finite()
+    assert len(errors) == 3 and all('\n' not in line for line in errors)
+    assert 'the robot r2d2 is reset in place, not loaded again' in errors[1]
+    assert errors[2].startswith('physics blew up: ground_plane was broken with it and is reset '
+                                'in place where it started, not loaded again (PyBullet cannot')
+    for _ in range(10):
+        simulation.step()
+    assert simulation.blow_ups == 1
+
+
 def test_a_blown_up_robot_is_reset_alone(make):
     """A cube the robot pushed keeps its place when the robot is put back."""
     simulation = make(extra_models=['cube_small.urdf 0.3 0 0.025'], **QUIET)

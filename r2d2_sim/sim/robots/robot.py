@@ -414,9 +414,12 @@ class Robot:
         # Loaded again, not reset in place: see SimWorld.put_back. What the blow-up broke
         # around it (the ground...) is put back after every robot's check of this step
         # (Simulation: SimWorld.repair).
-        self.world.put_back(self.body)
+        why = self.world.put_back(self.body)
         self.world.blown_up = True
         self.reloaded()
+        if why is not None:
+            self._error(f'the robot {self.name} is reset in place, not loaded again ({why}): '
+                        'it may not stand on the ground')
 
     def _set_wheels(self, velocities: Sequence[float]) -> None:
         # Stopped, the wheels are braked: a velocity motor at 0 let R2D2 roll away slowly.
