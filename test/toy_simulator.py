@@ -230,6 +230,7 @@ HOSTILE: Dict[str, str] = {
 }
 HUGE_TEXT = 2_000_000  # characters of each huge string
 SLOW_S = 0.5
+HOLD_S = 60.0  # longest a held request waits for its release
 # The requests that change a simulator.
 CHANGES = {'SetSimulationState', 'StepSimulation', 'ResetSimulation', 'SetEntityState',
            'SetEntityInfo', 'SpawnEntity', 'SpawnEntities', 'DeleteEntity', 'LoadWorld',
@@ -305,16 +306,23 @@ class ToySimulator:
     ``without``: features it leaves undeclared (``ENTITY_BOUNDS_BOX``) and
     services it does not serve (``GetEntities``, which no feature stands for).
     ``world``: the world it starts with (None: none, the state NO_WORLD).
+    ``hold``: an interface (``GetEntities``) whose requests wait for
+    :attr:`release` before they are answered (:attr:`held` counts them).
     Close it (or use it as a context manager).
     """
 
     def __init__(self, domain_id: int, defect: Optional[str] = None,
                  without: Sequence[str] = (), prefix: str = PREFIX,
-                 world: Optional[str] = 'yard') -> None:
+                 world: Optional[str] = 'yard', hold: Optional[str] = None) -> None:
         if defect is not None and not (defect in DEFECTS or defect in MORE_DEFECTS
                                        or defect in HOSTILE or defect in VARIANTS):
             raise ValueError(f'no defect for {defect!r}')
         self.changes = 0  # requests received that change the simulation
+        # Requests of interface ``hold`` are answered only once ``release`` is set: a test
+        # knows the kit waits for that reply (``held`` counts them) until it lets it go.
+        self.hold = hold
+        self.held = 0
+        self.release = threading.Event()
         self.defect = defect
         # Features left undeclared, and refused as FEATURE_UNSUPPORTED where they are parts.
         self.without = set(without) | ({UNDECLARED[defect]} if defect in UNDECLARED else set())
@@ -361,6 +369,7 @@ class ToySimulator:
 
     def close(self) -> None:
         """Stop spinning; destroy the node; shut the context down."""
+        self.release.set()  # a held request is answered, so that its thread ends
         self._closing.set()
         self.thread.join(timeout=5.0)
         # rclpy 7.1.6's Executor.shutdown does not wait for the callbacks under way
@@ -468,6 +477,10 @@ class ToySimulator:
             if self.broken('SLOW') or (self.broken('SLOW-PAUSE') and kind == 'SetSimulationState'
                                        and request.state.state == S.STATE_PAUSED):
                 time.sleep(SLOW_S)  # outside the lock: the other threads answer meanwhile
+            if kind == self.hold and not self.release.is_set():
+                with self.lock:
+                    self.held += 1
+                self.release.wait(HOLD_S)  # outside the lock, as SLOW's
             with self.lock:
                 if kind in CHANGES:
                     self.changes += 1

@@ -14,11 +14,14 @@ Ctrl-C. Every line it prints is short, whatever the simulator sends.
 
 import argparse
 import os
+import signal
 import sys
-from typing import List, Optional, Tuple
+import threading
+from types import FrameType
+from typing import Any, List, Optional, Tuple
 
 from r2d2_sim.apps.cli import domain_id_arg, EXIT_INTERRUPTED, finite_number, positive_number
-from r2d2_sim.conformance.clause import feature_text, one_line
+from r2d2_sim.conformance.clause import Clause, feature_text, one_line, Outcome
 from r2d2_sim.conformance.clauses import CLAUSES
 from r2d2_sim.conformance.discovery import ACTION
 from r2d2_sim.conformance.report import (
@@ -116,6 +119,10 @@ def _header(kit: Kit) -> str:
     return '\n'.join(one_line(line) for line in lines)
 
 
+INTERRUPTED = (f'{PROG}: interrupted: leaving the simulator as found (Ctrl-C again to leave it '
+               'as it is)')
+
+
 def output_problem(flag: str, path: Optional[str]) -> str:
     """Return why the kit could not write ``path`` (``--junit``), in one line; '' if it can."""
     if not path:
@@ -130,22 +137,53 @@ def output_problem(flag: str, path: Optional[str]) -> str:
     return ''
 
 
-def _interrupted(kit: Kit) -> int:
+class CtrlC:
     """
-    After Ctrl-C: leave the simulator as found (within the restore's own deadline); return 130.
+    Ctrl-C (SIGINT), taken where the kit checks for it, never where it lands.
 
-    A second Ctrl-C skips that: the simulator is left as it is, and the line says so.
+    Python's own handler raises KeyboardInterrupt in whatever the main
+    thread runs, rclpy's message handling included: measured, it landed in
+    a generated message's ``__init__`` called from rclpy's C code (a
+    traceback, exit status 1, the run going on) and in code that lost it
+    (the run going on, exit status 0). Here the handler only counts, and
+    :meth:`check` takes one Ctrl-C at a time: the kit calls it before each
+    clause and between the spins of every wait (at most 50 ms apart), the
+    command line between its steps. In ``mode`` ``'run'`` the first Ctrl-C
+    raises KeyboardInterrupt (the run ends, the simulator is put back); in
+    ``'restore'`` the first only says so, and a second raises (the restore
+    is skipped); in ``'done'`` (the simulator put back) none raises.
+    A context manager: installs its handler in the main thread, and puts
+    the one it found back.
     """
-    try:
-        print(f'{PROG}: interrupted: leaving the simulator as found (Ctrl-C again to leave it '
-              'as it is)', file=sys.stderr, flush=True)
-        problems = kit.close()
-    except KeyboardInterrupt:
-        print(f'{PROG}: interrupted again: the simulator was left as it is', file=sys.stderr)
-        return EXIT_INTERRUPTED
-    for problem in problems:
-        print(f'{PROG}: could not leave the simulator as found: {problem}', file=sys.stderr)
-    return EXIT_INTERRUPTED
+
+    def __init__(self) -> None:
+        self.received = 0  # SIGINTs counted by the handler
+        self.taken = 0  # of those, the ones a check took
+        self.mode = 'run'
+        self._previous: Any = None
+
+    def __enter__(self) -> 'CtrlC':
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._count)
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+    def _count(self, signum: int, frame: Optional[FrameType]) -> None:
+        self.received += 1
+
+    def check(self) -> None:
+        """Take the Ctrl-Cs not taken yet: say so at the first; raise as ``mode`` says."""
+        while self.taken < self.received:
+            self.taken += 1
+            if self.taken == 1:
+                print(INTERRUPTED, file=sys.stderr, flush=True)
+                if self.mode == 'run':
+                    raise KeyboardInterrupt
+            elif self.mode != 'done':
+                raise KeyboardInterrupt
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -169,32 +207,61 @@ def main(argv: Optional[List[str]] = None) -> int:
     except KitError as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 2
-    options = KitOptions(prefix=args.prefix, domain_id=args.domain, asset=args.asset,
-                         world=args.world, timeout_s=args.timeout, free_space=args.free_space,
-                         world_frame=args.world_frame, clock_topic=args.clock_topic,
-                         total_timeout_s=args.total_timeout)
+    with CtrlC() as ctrl_c:
+        status = _run(kit_options(args), clauses, args, ctrl_c)
+        ctrl_c.mode = 'done'
+        ctrl_c.check()  # a Ctrl-C at the very end: the simulator was put back
+        return EXIT_INTERRUPTED if ctrl_c.taken else status
+
+
+def kit_options(args: argparse.Namespace) -> KitOptions:
+    """Return the KitOptions of a parsed command line."""
+    return KitOptions(prefix=args.prefix, domain_id=args.domain, asset=args.asset,
+                      world=args.world, timeout_s=args.timeout, free_space=args.free_space,
+                      world_frame=args.world_frame, clock_topic=args.clock_topic,
+                      total_timeout_s=args.total_timeout)
+
+
+def _run(options: KitOptions, clauses: List[Clause], args: argparse.Namespace,
+         ctrl_c: CtrlC) -> int:
+    """Connect, run the clauses, put the simulator back, report; return the exit status."""
     try:
-        kit = Kit(options)
+        kit = Kit(options, check=ctrl_c.check)
     except KitError as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 2
+    outcomes: List[Outcome] = []
+
+    def each(outcome: Outcome) -> None:
+        print(matrix([outcome]), flush=True)
+        ctrl_c.check()
     try:
         kit.connect()
         print(_header(kit), flush=True)
-        outcomes = kit.run(clauses, each=lambda o: print(matrix([o]), flush=True))
+        outcomes = kit.run(clauses, each=each)
     except KitError as exc:  # which simulator to check is not clear: none is touched
         kit.close()
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        return _interrupted(kit)
+    except KeyboardInterrupt:  # the first Ctrl-C (CtrlC said so): put the simulator back
+        pass
+    ctrl_c.mode = 'restore'  # from here the first Ctrl-C only says so; a second skips it
     try:
         problems = kit.close()
-    except KeyboardInterrupt:  # while it put the simulator back: that is skipped
-        print(f'{PROG}: interrupted: the simulator was left as it is', file=sys.stderr)
+        ctrl_c.check()
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted again: the simulator was left as it is', file=sys.stderr)
         return EXIT_INTERRUPTED
+    ctrl_c.mode = 'done'
     for problem in problems:
         print(f'{PROG}: could not leave the simulator as found: {problem}', file=sys.stderr)
+    if ctrl_c.taken:
+        return EXIT_INTERRUPTED
+    return _report(kit, outcomes, args)
+
+
+def _report(kit: Kit, outcomes: List[Outcome], args: argparse.Namespace) -> int:
+    """Print the summary, write the outputs asked for; return the exit status."""
     print(summary(outcomes, f'prefix {kit.target.prefix!r}'))
     properties = {'prefix': kit.target.prefix, 'domain_id': str(kit.target.domain_id),
                   'features': ' '.join(sorted(kit.target.features or ()))}

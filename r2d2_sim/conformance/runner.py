@@ -62,11 +62,17 @@ class Kit:
     Raises KitError for the kit's own setup (simulation_interfaces missing)
     and when it cannot tell which simulator to check (none at the prefix but
     some elsewhere, or several there): then it touches none.
+    ``check``, called before each clause and between the spins of every
+    wait, may raise (the command line's Ctrl-C: KeyboardInterrupt) to stop
+    the kit there, where no rclpy code is under way.
     """
 
-    def __init__(self, options: Optional[KitOptions] = None) -> None:
+    def __init__(self, options: Optional[KitOptions] = None,
+                 check: Optional[Callable[[], None]] = None) -> None:
         self.options = options or KitOptions()
         self.target = Target(self.options)
+        if check is not None:
+            self.target.check = check
         self.connected = False
         self.closed = False
         self.restore_problems: List[str] = []
@@ -90,6 +96,7 @@ class Kit:
 
     def run_clause(self, clause: Clause) -> Outcome:
         """Run one clause from the start state; return its Outcome (kept in ``outcomes``)."""
+        self.target.check()
         self.connect()
         started = time.monotonic()
         status, reason = self._run(clause)
@@ -192,6 +199,8 @@ class Kit:
             if self.connected and t.features is not None and not t.refusal:
                 t.client.deadline = (time.monotonic()
                                      + RESTORE_TIMEOUTS * self.options.timeout_s)
+                # A request a Ctrl-C left under way is answered (or timed out) first.
+                t.wait(lambda: not t.calls_under_way())
                 self.restore_problems = [one_line(p) for p in t.undo.restore()]
         finally:
             self.target.close()

@@ -59,6 +59,10 @@ class KitError(SetupError):
     """The kit cannot run at all (simulation_interfaces missing, a bad option): one line."""
 
 
+def _nothing() -> None:
+    """Do nothing: a Target's ``check`` until its owner gives one."""
+
+
 def _ros_text(exc: Exception) -> str:
     """Return rclpy's reason for a bad name without its source location."""
     text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -150,8 +154,10 @@ class Target:
         self.probe = RemoteProbe(self.domain_id, NODE_NAME)
         self.node = self.probe.node
         # The one client of the standard, on the names discovery finds (none yet).
+        # Called between spins of every wait: may raise (KeyboardInterrupt) to end it there.
+        self.check: Callable[[], None] = _nothing
         self.client = StandardClient(
-            self.node, self.probe.spin_until, self.prefix, self.timeout_s, names={},
+            self.node, self._spin_until, self.prefix, self.timeout_s, names={},
             resend_s=RESEND_S)
         self.interfaces: Dict[str, str] = {}  # interface -> service (or action) name
         self.several: Dict[str, List[str]] = {}  # interface -> every name seen, when several
@@ -293,6 +299,15 @@ class Target:
         except ClauseFailed:
             pass
 
+    def calls_under_way(self) -> bool:
+        """
+        Return True while a request sent has neither a reply nor been given up.
+
+        A Ctrl-C leaves the one it waited for so: the simulator may still act
+        on it, after the kit put it back (one that answers out of order did).
+        """
+        return any(client._pending_requests for client in self.node.clients)
+
     def close(self) -> None:
         """Close the kit's node (the simulator is left as it is)."""
         self.probe.close()
@@ -303,6 +318,13 @@ class Target:
         """Return True when each feature given is declared; ``A|B`` means either of the two."""
         have = self.features or frozenset()
         return all(any(f in have for f in wanted.split('|')) for wanted in features)
+
+    def _spin_until(self, condition: Callable[[], bool], timeout_s: float) -> bool:
+        """Spin as ``probe.spin_until`` does, calling ``check()`` before each ``condition()``."""
+        def checked() -> bool:
+            self.check()
+            return condition()
+        return self.probe.spin_until(checked, timeout_s)
 
     def wait(self, condition: Callable[[], bool], timeout_s: Optional[float] = None) -> bool:
         """Spin the kit's node until ``condition()`` holds (True) or the timeout passes."""

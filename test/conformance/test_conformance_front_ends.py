@@ -16,7 +16,7 @@ import time
 import pytest
 
 from helpers import next_domain_id
-from r2d2_sim.client import ros_child_env
+from r2d2_sim.client import ros_child_env, wait_for
 from r2d2_sim.conformance import BY_ID, FAIL, Kit, KitError, KitOptions
 from r2d2_sim.conformance.cli import main
 from toy_simulator import S, ToySimulator
@@ -211,29 +211,52 @@ class KitProcess:
         return status
 
 
+INTERRUPTED = ('sim_conformance: interrupted: leaving the simulator as found (Ctrl-C again to '
+               'leave it as it is)')
+
+
+def spawned_by_the_kit(toy: ToySimulator):
+    """Return the names of the entities the kit spawned on the toy, sorted."""
+    with toy.lock:
+        return sorted(n for n in toy.entities if n.startswith('conformance_'))
+
+
 def test_ctrl_c_leaves_the_simulator_as_found():
-    """Ctrl-C in the middle of the spawning clauses: the toy is PLAYING again, nothing left."""
+    """
+    Ctrl-C while a spawning clause waits for a reply: the toy is PLAYING again, nothing left.
+
+    The toy holds GetEntities' replies (SPAWN-01 lists what it spawned) until the signal
+    is sent, so that the kit is surely in the middle of a clause, whatever the load.
+    """
     domain = next_domain_id()
-    with ToySimulator(domain) as toy:
+    with ToySimulator(domain, hold='GetEntities') as toy:
         toy.state = S.STATE_PLAYING
-        kit = KitProcess(domain, '--only', 'SPAWN,ENTITY', '--timeout', '5')
-        kit.wait_for('out', 'SPAWN-03 ')
+        kit = KitProcess(domain, '--only', 'SPAWN,ENTITY', '--timeout', '20')
+        assert wait_for(lambda: toy.held, 60.0), kit.lines
+        during = (toy.state, spawned_by_the_kit(toy))
         kit.process.send_signal(signal.SIGINT)
+        toy.release.set()
         status = kit.end()
-        after = (toy.state, sorted(n for n in toy.entities if n.startswith('conformance_')))
+        after = (toy.state, spawned_by_the_kit(toy))
+    assert during[0] == S.STATE_STOPPED and len(during[1]) == 1, during  # the run changed it
     assert status == 130, kit.lines
-    assert kit.lines['err'] == ['sim_conformance: interrupted: leaving the simulator as found '
-                                '(Ctrl-C again to leave it as it is)'], kit.lines['err']
+    assert kit.lines['err'] == [INTERRUPTED], kit.lines['err']
     assert after == (S.STATE_PLAYING, []), after
 
 
 def test_a_second_ctrl_c_skips_putting_the_simulator_back():
-    """Ctrl-C, then Ctrl-C again while a slow toy is being put back: the kit ends at once."""
+    """
+    Ctrl-C, then Ctrl-C again while the kit puts the toy back: the kit ends at once.
+
+    The toy holds every SetSimulationState (STATE-01's STOPPED) until the end: both
+    signals surely come while the kit waits for its reply, first to run STATE-01, then to
+    put the toy back (the restore begins with it).
+    """
     domain = next_domain_id()
-    with ToySimulator(domain, defect='SLOW') as toy:
+    with ToySimulator(domain, hold='SetSimulationState') as toy:
         toy.state = S.STATE_PLAYING
-        kit = KitProcess(domain, '--only', 'STATE', '--timeout', '5')
-        kit.wait_for('out', 'STATE-01 ')
+        kit = KitProcess(domain, '--only', 'STATE', '--timeout', '20')
+        assert wait_for(lambda: toy.held, 60.0), kit.lines
         kit.process.send_signal(signal.SIGINT)
         kit.wait_for('err', 'interrupted: leaving the simulator as found')
         kit.process.send_signal(signal.SIGINT)
@@ -241,6 +264,28 @@ def test_a_second_ctrl_c_skips_putting_the_simulator_back():
         status = kit.end()
         took = time.monotonic() - started
     assert status == 130, kit.lines
-    assert kit.lines['err'][-1] == ('sim_conformance: interrupted again: the simulator was left '
-                                    'as it is'), kit.lines['err']
-    assert took < 5.0, took  # a restore would take its 0.5 s replies for up to 3 timeouts
+    assert kit.lines['err'] == [INTERRUPTED, 'sim_conformance: interrupted again: the '
+                                'simulator was left as it is'], kit.lines['err']
+    assert took < 5.0, took  # the restore would wait for its reply for 20 s
+
+
+def test_ctrl_c_while_the_kit_puts_the_simulator_back_lets_it_finish():
+    """
+    One Ctrl-C during the clean-up after the last clause: the restore goes on, then 130.
+
+    FEAT-01 only asks; the first SetSimulationState is the restore's, held by the toy
+    until the signal is sent.
+    """
+    domain = next_domain_id()
+    with ToySimulator(domain, hold='SetSimulationState') as toy:
+        toy.state = S.STATE_PLAYING
+        kit = KitProcess(domain, '--only', 'FEAT-01', '--timeout', '20')
+        assert wait_for(lambda: toy.held, 60.0), kit.lines
+        kit.process.send_signal(signal.SIGINT)
+        kit.wait_for('err', 'interrupted: leaving the simulator as found')
+        toy.release.set()
+        status = kit.end()
+        after = toy.state
+    assert status == 130, kit.lines
+    assert kit.lines['err'] == [INTERRUPTED], kit.lines['err']
+    assert after == S.STATE_PLAYING, after
