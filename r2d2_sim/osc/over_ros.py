@@ -45,8 +45,22 @@ __all__ = ['StandardSimulation', 'DISCOVERY_TIMEOUT_S', 'CALL_TIMEOUT_S']
 
 # How long a simulator has to appear under the namespace (wall s): R2D2_OSC_DISCOVERY_S.
 DISCOVERY_TIMEOUT_S = 10.0
-# Each service call's deadline (wall s).
+# Each service call's deadline (wall s): R2D2_OSC_CALL_S.
 CALL_TIMEOUT_S = 30.0
+
+
+def _seconds(variable: str, default: float) -> float:
+    """Return the wall seconds an environment variable gives (ScenarioError unless > 0)."""
+    text = os.environ.get(variable)
+    if text is None:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        raise ScenarioError(f'{variable} must be a number of seconds > 0, got {text!r}')
+    return value
 # What the scenario needs of the standard.
 NEEDED = ('StepSimulation', 'ResetSimulation', 'SetSimulationState', 'GetSimulationState',
           'GetEntityState', 'GetEntities', 'GetEntityBounds', 'SpawnEntity')
@@ -103,6 +117,7 @@ class StandardSimulation(ScenarioSimulation):
         self.namespace = ''
         self.settings: Optional[RunSettings] = None
         self.error: Optional[str] = None
+        self._call_s = CALL_TIMEOUT_S  # R2D2_OSC_CALL_S, read when connecting
         self.playing = True
         self.logger: Any = None
         self._steps_per_period = 0
@@ -137,7 +152,8 @@ class StandardSimulation(ScenarioSimulation):
         self._disconnect()
         probe = self.probe = RemoteProbe(int(os.environ.get('ROS_DOMAIN_ID', '0')),
                                          '_r2d2_osc')
-        timeout_s = float(os.environ.get('R2D2_OSC_DISCOVERY_S', DISCOVERY_TIMEOUT_S))
+        timeout_s = _seconds('R2D2_OSC_DISCOVERY_S', DISCOVERY_TIMEOUT_S)
+        self._call_s = _seconds('R2D2_OSC_CALL_S', CALL_TIMEOUT_S)
         found: Dict[str, str] = {}
         levels: List[str] = []
 
@@ -154,7 +170,7 @@ class StandardSimulation(ScenarioSimulation):
                 f'no simulator answers under simulator_namespace {namespace!r} within '
                 f'{timeout_s:g} s (missing {missing}); simulators answer under: {elsewhere}')
         self.namespace = namespace
-        self.client = StandardClient(probe.node, probe.spin_until, timeout_s=CALL_TIMEOUT_S,
+        self.client = StandardClient(probe.node, probe.spin_until, timeout_s=self._call_s,
                                      names=found, resend_s=1.0)
         status = [name for name, types in probe.node.get_service_names_and_types()
                   if TRIGGER in types and name.endswith('/get_status')
@@ -353,7 +369,7 @@ class StandardSimulation(ScenarioSimulation):
         if publisher is None:
             publisher = self._publishers[topic] = probe.node.create_publisher(Twist, topic, 10)
             if not probe.spin_until(lambda: publisher.get_subscription_count() > 0,
-                                    CALL_TIMEOUT_S):
+                                    self._call_s):
                 raise RefusedError('NOT_FOUND', f'nothing takes commands on {topic}')
         twist = Twist()
         twist.linear.x, twist.angular.z = float(linear), float(angular)
@@ -363,7 +379,7 @@ class StandardSimulation(ScenarioSimulation):
             def taken() -> bool:
                 now = self._robots()
                 return now is not None and now[entity]['commands_received'] > before
-            if not probe.spin_until(taken, CALL_TIMEOUT_S):
+            if not probe.spin_until(taken, self._call_s):
                 raise RefusedError('OPERATION_FAILED', f'{topic}: the command was not taken')
 
     def _robots(self) -> Optional[Dict[str, Any]]:
@@ -371,7 +387,7 @@ class StandardSimulation(ScenarioSimulation):
         if self._status is None or self.probe is None:
             return None
         from std_srvs.srv import Trigger
-        response = self.probe.call_client(self._status, Trigger.Request(), CALL_TIMEOUT_S)
+        response = self.probe.call_client(self._status, Trigger.Request(), self._call_s)
         if response is None:
             raise RefusedError('OPERATION_FAILED', 'the simulator\'s get_status did not answer')
         return json.loads(response.message)['robots']

@@ -139,3 +139,17 @@ def test_at_a_rate_that_fits_the_simulated_time_is_the_scenarios(tmp_path, rate)
     assert verdict.passed, verdict.reason
     assert verdict.outcome['seconds'] == pytest.approx(4.1, abs=1e-6)
     assert verdict.outcome['steps'] == round(4.1 * rate)
+
+
+@pytest.mark.parametrize('variable', ['R2D2_OSC_DISCOVERY_S', 'R2D2_OSC_CALL_S'])
+def test_a_wait_that_is_no_number_of_seconds(tmp_path, variable):
+    """Over ROS, a wait given as 'soon' or -1: one line naming the variable, nothing run."""
+    from helpers import next_domain_id
+    path = write(tmp_path, "    do serial:\n        drive(linear: 0.2mps)\n")
+    for value in ('soon', '-1'):
+        env = osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=next_domain_id(), **{variable: value})
+        status, output, cases = scenario_execution(
+            ['--simulation', 'r2d2_sim.osc:StandardSimulation', path], env, tmp_path)
+        says = f"r2d2_sim: {variable} must be a number of seconds > 0, got '{value}'"
+        assert status == 1 and len(lines_with(output, says)) == 1, output[-3000:]
+        assert 'Traceback' not in output

@@ -160,7 +160,8 @@ def test_a_simulator_that_goes_away_mid_run_fails_the_scenario_in_one_line(tmp_p
             Clock, '/clock', lambda msg: seconds.append(msg.clock.sec), 10)
         run = subprocess.Popen(command, cwd=tmp_path, stdout=subprocess.PIPE,
                                stderr=subprocess.STDOUT, text=True,
-                               env=osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id))
+                               env=osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id,
+                                           R2D2_OSC_CALL_S='5'))
         try:
             assert sim.probe.spin_until(lambda: seconds[-1] >= 1, 60.0), \
                 'the scenario did not step the simulator'
