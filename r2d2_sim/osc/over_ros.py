@@ -61,6 +61,8 @@ def _seconds(variable: str, default: float) -> float:
     if not (math.isfinite(value) and value > 0.0):
         raise ScenarioError(f'{variable} must be a number of seconds > 0, got {text!r}')
     return value
+
+
 # What the scenario needs of the standard.
 NEEDED = ('StepSimulation', 'ResetSimulation', 'SetSimulationState', 'GetSimulationState',
           'GetEntityState', 'GetEntities', 'GetEntityBounds', 'SpawnEntity')
