@@ -104,23 +104,25 @@ class TrajectoryPoint(NamedTuple):
     yaw_rad: float
 
 
-def touching(world: SimWorld, body: Body, others: Optional[Sequence[Tuple[str, Body]]] = None,
-             alone: bool = False) -> List[Touch]:
+def touching(world: SimWorld, body: Body, others: Optional[Sequence[Tuple[str, Body]]] = None
+             ) -> List[Touch]:
     """
     Return what ``body`` touches after the last step of ``world`` (a SimWorld).
 
     One :class:`Touch` per other body, its own links and the ground plane
     aside: the contact point with the largest normal force. In the world's
     order of bodies, so that two runs list them alike. ``others`` (name,
-    body) narrows the bodies looked at (those that can be near); ``alone``
-    asks PyBullet about that one pair only (``others`` holds one body, not
-    the ground plane), which gives the same as asking for every point of
-    ``body`` and keeping that pair's, for less.
+    body) narrows the bodies looked at (those that can be near): none, no
+    question; one (not the ground plane), that pair's points alone, the same
+    as asking for every point of ``body`` (its wheels' on the ground too) and
+    keeping that pair's, for less.
     """
+    if others is not None and not others:
+        return []
     bodies = world.bodies
     ground = bodies.get(GROUND_PLANE_NAME)
     strongest: Dict[int, ContactPoint] = {}
-    if alone and others is not None and len(others) == 1:
+    if others is not None and len(others) == 1 and others[0][1] is not ground:
         points = body.contacts_with(others[0][1])
     else:
         points = body.contacts(ignoring=() if ground is None else (ground,))
@@ -324,14 +326,8 @@ class RunWatch:
         return known[2]
 
     def _contacts(self, body: Body, time_ns: int, others: List[Tuple[str, Body]]) -> None:
-        # One pair asked alone costs less than the robot's every point (its wheels' too).
-        if len(others) == 1:
-            found = touching(self._simulation.world, body, others, alone=True)
-        elif others:
-            found = touching(self._simulation.world, body, others)
-        else:
-            found = []
-        touches = {touch.other: touch for touch in found}
+        touches = {touch.other: touch
+                   for touch in touching(self._simulation.world, body, others)}
         if not touches and not self._open:
             return
         for name in [n for n in self._open if n not in touches]:
