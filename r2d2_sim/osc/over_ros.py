@@ -21,6 +21,7 @@ says which namespace each robot has and confirms each command arrived before
 the next step (its ``get_status``), so that runs repeat.
 """
 
+import argparse
 import json
 import math
 import os
@@ -28,6 +29,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import Twist
 
+from r2d2_sim.apps.cli import positive_number
 from r2d2_sim.conformance.discovery import find_interfaces, normal_prefix, simulator_levels
 from r2d2_sim.errors import RefusedError, ScenarioError
 from r2d2_sim.model.regions import circle_region, Region as GroundRegion
@@ -55,12 +57,9 @@ def _seconds(variable: str, default: float) -> float:
     if text is None:
         return default
     try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0.0):
-        raise ScenarioError(f'{variable} must be a number of seconds > 0, got {text!r}')
-    return value
+        return positive_number(text)
+    except argparse.ArgumentTypeError as exc:
+        raise ScenarioError(f'{variable} (seconds) {exc}') from None
 
 
 # What the scenario needs of the standard.

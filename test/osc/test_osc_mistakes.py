@@ -146,10 +146,10 @@ def test_a_wait_that_is_no_number_of_seconds(tmp_path, variable):
     """Over ROS, a wait given as 'soon' or -1: one line naming the variable, nothing run."""
     from helpers import next_domain_id
     path = write(tmp_path, "    do serial:\n        drive(linear: 0.2mps)\n")
-    for value in ('soon', '-1'):
+    for value, why in (('soon', 'must be a number'), ('-1', 'must be > 0')):
         env = osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=next_domain_id(), **{variable: value})
         status, output, cases = scenario_execution(
             ['--simulation', 'r2d2_sim.osc:StandardSimulation', path], env, tmp_path)
-        says = f"r2d2_sim: {variable} must be a number of seconds > 0, got '{value}'"
+        says = f"r2d2_sim: {variable} (seconds) {why}, got '{value}'"
         assert status == 1 and len(lines_with(output, says)) == 1, output[-3000:]
         assert 'Traceback' not in output
