@@ -31,7 +31,7 @@ import math
 import os
 import xml.etree.ElementTree as ElementTree
 from typing import (
-    Any, Callable, Dict, List, NamedTuple, NoReturn, Optional, Sequence, Set, Tuple)
+    Any, Callable, ClassVar, Dict, List, NamedTuple, NoReturn, Optional, Sequence, Set, Tuple)
 
 from r2d2_sim.errors import WorldError
 from r2d2_sim.model.health import base_problem, joint_problem, joints_finite, twist_problem
@@ -122,6 +122,10 @@ class Body:
     body cannot be reloaded.
     """
 
+    # How often any body of this process was put somewhere, loaded or removed: a watch
+    # that keeps the bodies around it (sim/oracles.py) makes its list again when it changed.
+    any_moves: ClassVar[int] = 0
+
     def __init__(self, client: BulletClient, body_id: int, name: str, source: str, *,
                  body_yaw_offset_rad: float = 0.0, spawned: bool = False,
                  loading: Optional[Loading] = None) -> None:
@@ -167,11 +171,16 @@ class Body:
         self._bind_hot_path()
         self._initial = self._read_state()
 
+    def _moved(self) -> None:
+        """Count a placement, load or removal: in :attr:`moves` and :attr:`any_moves`."""
+        self.moves += 1
+        Body.any_moves += 1
+
     def _bind_hot_path(self) -> None:
         # BulletClient.__getattr__ builds a new functools.partial (after an
         # inspect.isbuiltin check) on every call: ~1 us each, 11 calls per
         # published step. Bind the per-step queries once instead.
-        self.moves += 1  # a new id: loaded, reloaded or adopted
+        self._moved()  # a new id: loaded, reloaded or adopted
         cid = self._client._client
         body = self._id
         # Callables, not partials: once the body is removed they are _removed.
@@ -242,11 +251,18 @@ class Body:
         com_position, com_orientation = self._get_base_pose()
         return self._multiply_transforms(com_position, com_orientation, *self._com_to_body)
 
-    def world_pose_and_com(self) -> Tuple[Tuple[Vec3, Quat], Vec3]:
-        """Return :meth:`world_pose` and the base's centre of mass, from one query."""
-        com_position, com_orientation = self._get_base_pose()
-        return (self._multiply_transforms(com_position, com_orientation, *self._com_to_body),
-                com_position)
+    def com_pose(self) -> Tuple[Vec3, Quat]:
+        """Return the pose of the base's centre of mass (its inertial frame): one query."""
+        return self._get_base_pose()
+
+    def pose_of_com(self, com_position: Vec3, com_orientation: Quat) -> Tuple[Vec3, Quat]:
+        """Return the body frame's pose given :meth:`com_pose` (:meth:`world_pose`'s bits)."""
+        return self._multiply_transforms(com_position, com_orientation, *self._com_to_body)
+
+    @property
+    def com_to_body(self) -> Tuple[Vec3, Quat]:
+        """Return the body frame in the base's centre of mass frame: position, orientation."""
+        return self._com_to_body
 
     def world_state(self) -> BaseState:
         """Return the body frame's pose and its origin's twist, both in the world frame."""
@@ -414,7 +430,7 @@ class Body:
         self.save_initial_state()
 
     def _place(self, position: Vec3, orientation: Quat) -> None:
-        self.moves += 1
+        self._moved()
         self._client.resetBasePositionAndOrientation(self.id, position, orientation)
 
     def set_base_state(self, position: Optional[Vec3] = None,
@@ -427,7 +443,7 @@ class Body:
         Values left out keep their current ones. Nothing is validated, so tests
         can inject the absurd states that :meth:`state_problem` detects.
         """
-        self.moves += 1
+        self._moved()
         current_position, current_orientation = self._get_base_pose()
         current_linear, current_angular = self._get_base_velocity()
         self._client.resetBasePositionAndOrientation(
@@ -451,7 +467,7 @@ class Body:
                       com_position[2] - position[2])
         wx, wy, wz = angular_velocity
         vx, vy, vz = linear_velocity
-        self.moves += 1
+        self._moved()
         self._client.resetBasePositionAndOrientation(self.id, com_position, com_orientation)
         self._client.resetBaseVelocity(
             self.id, (vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx),
@@ -502,7 +518,7 @@ class Body:
     def _put(self, state: State) -> None:
         (position, orientation), (linear, angular), joints, multi_dof = state
         client, body = self._client, self.id
-        self.moves += 1
+        self._moved()
         client.resetBasePositionAndOrientation(body, position, orientation)
         client.resetBaseVelocity(body, linear, angular)
         for index, q, dq in zip(self.movable_indices, joints.positions, joints.velocities):
@@ -553,7 +569,7 @@ class Body:
         pairs (see :meth:`collision_filters` for what raises).
         """
         client, body = self._client, self.id
-        self.moves += 1  # after a restore (SimWorld.restore_state), its pose came back too
+        self._moved()  # after a restore (SimWorld.restore_state), its pose came back too
         for link, (group, mask) in self.collision_filters().items():
             client.setCollisionFilterGroupMask(body, link, group, mask)
 
@@ -569,6 +585,7 @@ class Body:
 
     def _forget_id(self) -> None:
         self._id = None
+        Body.any_moves += 1  # gone: a watch's list of the bodies around it is out of date
         # The bound queries hold the old id: from now on they raise instead.
         self._get_joint_states = self._get_base_pose = self._get_base_velocity = self._removed
         self._set_motors = self._removed
@@ -731,9 +748,11 @@ class Body:
         return records.contact_records(self._get_contact_points(),
                                        [body.id for body in ignoring if body.alive])
 
-    def contacts_with(self, other: 'Body') -> List[ContactPoint]:
-        """Return where this body touches ``other`` after the last step (one pair's points)."""
-        return records.contact_records(self._get_contact_points(other.id))
+    def contacts_with(self, *others: 'Body') -> List[ContactPoint]:
+        """Return where this body touches ``others`` after the last step (a query a pair)."""
+        get = self._get_contact_points
+        points = [point for other in others for point in get(other.id)]
+        return records.contact_records(points) if points else []
 
     def closest_points(self, other: 'Body', range_m: float) -> Optional[ClosestPoints]:
         """Return this body's nearest points to ``other`` within ``range_m`` (None: farther)."""

@@ -52,7 +52,7 @@ from r2d2_sim.model.convex import box_corners
 from r2d2_sim.model.regions import circle_region, polygon_region, Region
 from r2d2_sim.model.transforms import apply, Transform, yaw_of
 from r2d2_sim.physics.body import Body
-from r2d2_sim.physics.records import ContactPoint
+from r2d2_sim.physics.records import ContactPoint, Quat, Vec3
 from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld
 from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.worlds.files import WorldFiles
@@ -71,6 +71,16 @@ Zone = Tuple[float, float, float, float, float, float]
 # Slack on the bounds a watch passes bodies over by (m): their boxes and the reach hold
 # the shapes already; this covers rounding and PyBullet's margins.
 NEAR_MARGIN_M = 0.05
+# Slack on the body frame's offset from the centre of mass (m), for rounding: a region is
+# looked at closely when the centre of mass is within the offset and this of its box.
+FRAME_SLACK_M = 1e-6
+# Up to this many bodies, touching() asks PyBullet pair by pair (an empty pair is about 1
+# us); more, it asks for every contact point of the body at once (about 8 us for R2D2,
+# whose 16 wheel points on the ground come back too).
+PAIRS_ASKED_ALONE = 4
+# Slack on the leaning read from the centre of mass's orientation (a cosine), for rounding:
+# within it of the limit, the body frame's own orientation decides.
+TIP_SLACK = 1e-6
 
 
 class Contact(NamedTuple):
@@ -113,17 +123,19 @@ def touching(world: SimWorld, body: Body, others: Optional[Sequence[Tuple[str, B
     aside: the contact point with the largest normal force. In the world's
     order of bodies, so that two runs list them alike. ``others`` (name,
     body) narrows the bodies looked at (those that can be near): none, no
-    question; one (not the ground plane), that pair's points alone, the same
+    question; without the ground plane, each pair's points alone, the same
     as asking for every point of ``body`` (its wheels' on the ground too) and
-    keeping that pair's, for less.
+    keeping those pairs', for less while they are few.
     """
     if others is not None and not others:
         return []
     bodies = world.bodies
     ground = bodies.get(GROUND_PLANE_NAME)
     strongest: Dict[int, ContactPoint] = {}
-    if others is not None and len(others) == 1 and others[0][1] is not ground:
-        points = body.contacts_with(others[0][1])
+    points: Sequence[ContactPoint]
+    if others is not None and len(others) <= PAIRS_ASKED_ALONE and all(
+            other is not ground for _, other in others):
+        points = body.contacts_with(*(other for _, other in others))
     else:
         points = body.contacts(ignoring=() if ground is None else (ground,))
     for point in points:
@@ -246,9 +258,26 @@ class RunWatch:
         self._reach = body.reach_m() if prune else None
         # A rigid body's zone (_zone) as last read, by name: (the body, its moves then, zone).
         self._zones: Dict[str, Tuple[Body, int, Zone]] = {}
+        # The other bodies (the ground aside), each with its zone (None: not rigid), and the
+        # world's bodies and Body.any_moves they were listed at.
+        self._around: List[Tuple[str, Body, Optional[Zone]]] = []
+        self._around_key: Optional[Tuple[int, int, int]] = None
         # Where the centre of mass was after the last step, and the body's moves then: a
         # step's contacts are found where it stood before the step (see observe).
         self._last: Optional[Tuple[Tuple[float, ...], int]] = None
+        # How far outside every rigid body's zone the centre of mass was when they were last
+        # looked at one by one, less how far it has moved since (see _near).
+        self._free_m = -math.inf
+        # The body frame's origin is this far from the centre of mass (and rounding): the
+        # regions are looked at closely only when the centre of mass is this near.
+        com_to_body = body.com_to_body
+        self._frame_offset_m = math.hypot(*com_to_body[0]) + FRAME_SLACK_M
+        # The body frame's z axis in the centre of mass's frame: tipping from its pose.
+        self._up_in_com = _z_axis(com_to_body[1])
+        # Each region not reached yet, with its box on the ground grown by the offset.
+        grow = self._frame_offset_m
+        self._pending: List[Tuple[str, Region, Tuple[float, float, float, float]]] = [
+            (name, region, _grown_box(region, grow)) for name, region in self.regions.items()]
         if self._sample_every:
             base = self.body.world_state()
             self.trajectory.append(TrajectoryPoint(self.start_ns, base.position[0],
@@ -261,52 +290,99 @@ class RunWatch:
         if not body.alive:
             return  # it left the world: nothing more to see
         self.steps += 1
-        (position, orientation), com = body.world_pose_and_com()
-        others = [(name, other) for name, other in self._simulation.world.bodies.items()
-                  if other is not body and name != GROUND_PLANE_NAME]
-        reach = self._reach
-        if reach is None:
+        com, com_orientation = body.com_pose()
+        if self._reach is None:
+            others = [(name, other) for name, other, _ in self._others()]
             self._contacts(body, time_ns, others)
             if self._measure_clearance:
                 self._clearance(body, time_ns, others)
         else:
-            # Bullet finds a step's contacts where the bodies stood before it, and then
-            # moves them: the robot's centre of mass was at most this far from where it
-            # is now. Unknown (the first step watched, or the body put somewhere since
-            # the last): every body is asked about its contacts.
-            last, moves = self._last, body.moves
-            travel = (math.dist(com, last[0]) if last is not None and last[1] == moves
-                      else math.inf)
-            self._last = (tuple(com), moves)
-            x, y, z = com
-            near: List[Tuple[str, Body]] = []     # those that may touch the robot
-            in_range: List[Tuple[str, Body]] = []  # those that may be nearer than the clearance
-            # Closest points are asked now, where the bodies stand: no travel.
-            slack = max(self.clearance.distance_m, 0.0) if self._measure_clearance else -1.0
-            for pair in others:
-                name, other = pair
-                if other.rigid:
-                    x0, y0, z0, x1, y1, z1 = self._zone(name, other, reach)
-                    if (x0 - travel <= x <= x1 + travel and y0 - travel <= y <= y1 + travel
-                            and z0 - travel <= z <= z1 + travel):
-                        near.append(pair)
-                    if (x0 - slack <= x <= x1 + slack and y0 - slack <= y <= y1 + slack
-                            and z0 - slack <= z <= z1 + slack):
-                        in_range.append(pair)
-                else:
-                    near.append(pair)
-                    in_range.append(pair)
+            near, in_range = self._near(body, com)
             self._contacts(body, time_ns, near)
             if self._measure_clearance:
                 self._clearance(body, time_ns, in_range)
-        x, y = position[0], position[1]
-        for name, region in self.regions.items():
-            if name not in self.reached and region.contains(x, y):
-                self.reached[name] = time_ns
-        if self.tipped_ns is None and _up_cos(orientation) < self.tip_cos:
-            self.tipped_ns = time_ns
+        # The body frame's pose is worked out only when a reading needs it exactly: from
+        # the centre of mass, PyBullet's multiplyTransforms as world_pose does.
+        pose: Optional[Tuple[Vec3, Quat]] = None
+        if self._pending:
+            cx, cy = com[0], com[1]
+            for entry in self._pending:
+                name, region, (x0, y0, x1, y1) = entry
+                if x0 <= cx <= x1 and y0 <= cy <= y1:
+                    if pose is None:
+                        pose = body.pose_of_com(com, com_orientation)
+                    if region.contains(pose[0][0], pose[0][1]):
+                        self.reached[name] = time_ns
+                        self._pending = [p for p in self._pending if p is not entry]
+        if self.tipped_ns is None and (_up_cos_of(com_orientation, self._up_in_com)
+                                       < self.tip_cos + TIP_SLACK):
+            if pose is None:
+                pose = body.pose_of_com(com, com_orientation)
+            if _up_cos(pose[1]) < self.tip_cos:
+                self.tipped_ns = time_ns
         if self._sample_every and self.steps % self._sample_every == 0:
+            if pose is None:
+                pose = body.pose_of_com(com, com_orientation)
+            (x, y, _), orientation = pose
             self.trajectory.append(TrajectoryPoint(time_ns, x, y, yaw_of(orientation)))
+
+    def _others(self) -> List[Tuple[str, Body, Optional[Zone]]]:
+        """Return every other body but the ground, with its zone (None: it is not rigid)."""
+        bodies = self._simulation.world.bodies
+        key = (Body.any_moves, id(bodies), len(bodies))
+        if key != self._around_key:
+            body, reach = self.body, self._reach
+            self._around = [
+                (name, other, self._zone(name, other, reach)
+                 if other.rigid and reach is not None else None)
+                for name, other in bodies.items()
+                if other is not body and name != GROUND_PLANE_NAME]
+            self._around_key = key
+            self._free_m = -math.inf
+        return self._around
+
+    def _near(self, body: Body, com: Vec3) -> Tuple[List[Tuple[str, Body]],
+                                                    List[Tuple[str, Body]]]:
+        """
+        Return the bodies that may touch the robot, and those nearer than its clearance.
+
+        Bullet finds a step's contacts where the bodies stood before it, and
+        then moves them: the centre of mass was at most its travel in the step
+        from where it is now. Unknown (the first step watched, or the body put
+        somewhere since the last): every body is asked about. Closest points
+        are asked where the bodies stand: no travel, the clearance so far.
+        """
+        around = self._others()
+        last, moves = self._last, body.moves
+        travel = math.dist(com, last[0]) if last is not None and last[1] == moves else math.inf
+        self._last = (com, moves)
+        slack = max(self.clearance.distance_m, 0.0) if self._measure_clearance else -1.0
+        # The centre of mass was _free_m outside every zone (Chebyshev distance), and has
+        # moved at most travel since: if that is more than both distances, no rigid body
+        # is near, and there are no others.
+        free = self._free_m - travel
+        if free > travel and free > slack:
+            self._free_m = free
+            return [], []
+        x, y, z = com
+        near: List[Tuple[str, Body]] = []      # those that may touch the robot
+        in_range: List[Tuple[str, Body]] = []  # those that may be nearer than the clearance
+        free = math.inf
+        for name, other, zone in around:
+            if zone is None:
+                near.append((name, other))
+                in_range.append((name, other))
+                free = -math.inf
+                continue
+            x0, y0, z0, x1, y1, z1 = zone
+            outside = max(x0 - x, x - x1, y0 - y, y - y1, z0 - z, z - z1)
+            if outside <= travel:
+                near.append((name, other))
+            if outside <= slack:
+                in_range.append((name, other))
+            free = min(free, outside)
+        self._free_m = free
+        return near, in_range
 
     def _zone(self, name: str, other: Body, reach: float) -> Zone:
         """
@@ -377,6 +453,40 @@ def _up_cos(orientation: Sequence[float]) -> float:
     """Return the cosine of the angle between the body's z axis and the world's up."""
     x, y, _, _ = orientation
     return 1.0 - 2.0 * (x * x + y * y)
+
+
+def _z_axis(orientation: Sequence[float]) -> Tuple[float, float, float]:
+    """Return the z axis of a frame turned by ``orientation`` (x, y, z, w), in the outer frame."""
+    x, y, z, w = orientation
+    return (2.0 * (x * z + y * w), 2.0 * (y * z - x * w), 1.0 - 2.0 * (x * x + y * y))
+
+
+def _up_cos_of(orientation: Sequence[float], axis: Tuple[float, float, float]) -> float:
+    """
+    Return the world's up component of ``axis`` (given in a frame turned by ``orientation``).
+
+    With :func:`_z_axis` of the centre of mass -> body frame rotation, the
+    leaning of the body frame (:func:`_up_cos` of its orientation), but for
+    rounding.
+    """
+    x, y, z, w = orientation
+    ax, ay, az = axis
+    return (2.0 * (x * z - y * w) * ax + 2.0 * (y * z + x * w) * ay
+            + (1.0 - 2.0 * (x * x + y * y)) * az)
+
+
+def _grown_box(region: Region, grow_m: float) -> Tuple[float, float, float, float]:
+    """Return a box on the ground around ``region`` grown by ``grow_m``: x0, y0, x1, y1."""
+    values = region.values
+    if region.kind == 'box':
+        x0, y0, x1, y1 = values
+    elif region.kind == 'polygon':
+        xs, ys = values[0::2], values[1::2]
+        x0, y0, x1, y1 = min(xs), min(ys), max(xs), max(ys)
+    else:
+        cx, cy, radius = values[:3]
+        x0, y0, x1, y1 = cx - radius, cy - radius, cx + radius, cy + radius
+    return x0 - grow_m, y0 - grow_m, x1 + grow_m, y1 + grow_m
 
 
 def ground_region(pose: NamedPose) -> Region:

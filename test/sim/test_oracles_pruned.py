@@ -14,7 +14,7 @@ import random
 import pybullet
 import pytest
 
-from r2d2_sim.model.regions import circle_region
+from r2d2_sim.model.regions import box_region, circle_region, polygon_region
 from r2d2_sim.model.transforms import yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.sim.oracles import RunWatch
@@ -192,3 +192,104 @@ def test_contacts_count_where_the_robot_stood_before_the_step(make):
         readings.append(watch.contacts)
     assert readings[0] and readings[0][0].other == 'wall'
     assert readings[0] == readings[1]
+
+
+@pytest.mark.parametrize('clearance_range_m', [None, 0.4])
+def test_fixed_boxes_approached_from_afar_are_touched_together(make, clearance_range_m):
+    """
+    Every body fixed and far at first, then two touched at once: pruned, the same readings.
+
+    The watch stops looking at fixed bodies one by one while its centre of mass
+    is farther from all of them than it has moved since it last did; driving
+    straight at a pair of pillars, it must look again in time, and ask both.
+    """
+    def run(prune):
+        simulation = make()
+        place_box(simulation, 'left', 2.4, 0.24, size=0.3)
+        place_box(simulation, 'right', 2.4, -0.24, size=0.3)
+        place_box(simulation, 'aside', -3.0, 3.0)
+        watch = RunWatch(simulation, prune=prune, clearance=clearance_range_m is not None,
+                         clearance_range_m=clearance_range_m or 2.0)
+        simulation.robot.command(0.5, 0.0)
+        for _ in range(240 * 7):
+            simulation.step()
+        return watch.contacts, watch.clearance
+    contacts, clearance = run(True)
+    assert {contact.other for contact in contacts} == {'left', 'right'}
+    first, second = sorted(contacts, key=lambda contact: contact.start_ns)[:2]
+    assert first.end_ns is None or second.start_ns < first.end_ns  # touching both at once
+    assert (contacts, clearance) == run(False)
+
+
+# A body whose centre of mass is neither at nor turned like its link frame: the watch reads
+# regions and tipping at the body frame, which only a few of its steps work out exactly.
+OFFSET_BODY = (
+    '<robot name="skewed"><link name="skewed"><inertial>'
+    '<origin xyz="0.12 0.05 -0.03" rpy="0.4 0.2 0.9"/><mass value="1.0"/>'
+    '<inertia ixx="0.02" iyy="0.03" izz="0.04" ixy="0" ixz="0" iyz="0"/></inertial>'
+    '<collision><geometry><box size="0.6 0.4 0.12"/></geometry></collision></link></robot>')
+
+
+@pytest.mark.parametrize('spin', [(6.0, 0.0, 0.0), (0.0, -6.0, 0.0), (-4.0, -4.0, 0.0)])
+def test_regions_and_tipping_are_read_at_the_body_frame(make, spin):
+    """
+    A flung body skidding through small regions and tumbling: what reading its pose says.
+
+    The reference reads the body frame's pose (``world_pose``) after every step;
+    the watch reads the centre of mass's and works the frame out only near a
+    region or near the tipping angle: the same entry times and the same fall.
+    The regions lie along the path of a first run (the same physics again); the
+    fall goes three ways, for the body frame's up to lean first, or the inertial frame's.
+    """
+    def fling(simulation, steps=(60, 240, 240)):
+        body = simulation.world.bodies['skewed']
+        for _ in range(steps[0]):
+            yield
+        body.set_base_state(linear_velocity=(3.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 2.0))
+        for _ in range(steps[1]):
+            yield
+        body.set_base_state(linear_velocity=(0.0, 0.0, 2.0), angular_velocity=spin)
+        for _ in range(steps[2]):
+            yield
+
+    def spawned():
+        simulation = make()
+        simulation.spawn(SpawnRequest('skewed', resource_string=OFFSET_BODY,
+                                      position=(0.0, 3.0, 0.3)))
+        return simulation
+
+    simulation = spawned()
+    path = []
+    for _ in fling(simulation):
+        simulation.step()
+        path.append(simulation.world.bodies['skewed'].world_pose()[0])
+    rng = random.Random(3)
+    regions = {}
+    for index, (x, y, _) in enumerate(path[60::9]):
+        x, y = x + rng.uniform(-0.02, 0.02), y + rng.uniform(-0.02, 0.02)
+        regions[f'circle_{index}'] = circle_region(x, y, rng.uniform(0.005, 0.03))
+        regions[f'box_{index}'] = box_region(x - 0.01, y, x + 0.01, y + 0.02)
+        regions[f'polygon_{index}'] = polygon_region([(x, y), (x + 0.02, y), (x, y - 0.02)])
+
+    simulation = spawned()
+    body = simulation.world.bodies['skewed']
+    tip_angle_rad = math.radians(30.0)
+    watch = RunWatch(simulation, 'skewed', regions=regions, tip_angle_rad=tip_angle_rad,
+                     clearance=False)
+    reached, tipped = {}, []
+
+    def reference(time_ns):
+        (x, y, _), orientation = body.world_pose()
+        for name, region in regions.items():
+            if name not in reached and region.contains(x, y):
+                reached[name] = time_ns
+        if not tipped and 1.0 - 2.0 * (orientation[0] ** 2 + orientation[1] ** 2) < math.cos(
+                tip_angle_rad):
+            tipped.append(time_ns)
+    simulation.watch_steps(reference)
+    for _ in fling(simulation):
+        simulation.step()
+    # Most regions entered, some not, and a fall: the test shows what it compares.
+    assert len(regions) // 2 <= len(reached) < len(regions) and tipped
+    assert watch.reached == reached
+    assert watch.tipped_ns == tipped[0]
