@@ -112,7 +112,8 @@ def twist_to_wheel_velocities(geometry: DiffDriveGeometry, linear_x_m_s: float,
     scaled by the same factor, which preserves the curvature w / v (the robot
     follows the same path, only slower).  Non-finite inputs raise ValueError.
     """
-    _require_finite(linear_x_m_s=linear_x_m_s, angular_z_rad_s=angular_z_rad_s)
+    if not (math.isfinite(linear_x_m_s) and math.isfinite(angular_z_rad_s)):  # every step
+        _require_finite(linear_x_m_s=linear_x_m_s, angular_z_rad_s=angular_z_rad_s)
     half_track_m_s = angular_z_rad_s * geometry.wheel_separation_m / 2.0
     left_rad_s = (linear_x_m_s - half_track_m_s) / geometry.wheel_radius_m
     right_rad_s = (linear_x_m_s + half_track_m_s) / geometry.wheel_radius_m

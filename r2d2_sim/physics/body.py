@@ -141,6 +141,9 @@ class Body:
         # The motor last set on each joint, for a rebuild in place: (target velocity, force,
         # the angle it holds, or None for a velocity motor).
         self._motors: Dict[int, Motor] = {}
+        # The last velocity motors set, not yet in _motors (the drive sets the same wheels at
+        # most steps while it ramps): joints, velocities, forces. See _motor_table.
+        self._velocity_motors: Optional[Tuple[List[int], List[float], List[float]]] = None
         self._anchored: Set[int] = set()  # links whose contacts hold_joints anchored
         self._own_filters: Optional[bool] = None  # its URDF sets collision filters (once read)
         # How often the body was put somewhere, loaded or reloaded: a watch that keeps where
@@ -323,9 +326,22 @@ class Body:
         """Drive joints with velocity motors (target rad/s or m/s, force limit N or N m)."""
         if self._anchored:
             self._anchor(indices, False)
-        self._set_motors(list(indices), pybullet.VELOCITY_CONTROL,
-                         targetVelocities=list(velocities), forces=list(max_forces))
-        self._motors.update(zip(indices, map(Motor, velocities, max_forces)))
+        joints, targets, forces = list(indices), list(velocities), list(max_forces)
+        self._set_motors(joints, pybullet.VELOCITY_CONTROL, targetVelocities=targets,
+                         forces=forces)
+        pending = self._velocity_motors
+        if pending is not None and pending[0] != joints:
+            self._motor_table()  # other joints' motors: into the table first
+        self._velocity_motors = (joints, targets, forces)
+
+    def _motor_table(self) -> Dict[int, Motor]:
+        """Return the motor last set on each joint, the pending velocity motors put in."""
+        pending = self._velocity_motors
+        if pending is not None:
+            self._velocity_motors = None
+            joints, targets, forces = pending
+            self._motors.update(zip(joints, map(Motor, targets, forces)))
+        return self._motors
 
     def hold_joints(self, indices: Sequence[int], max_forces: Sequence[float],
                     positions: Optional[Sequence[float]] = None) -> None:
@@ -348,8 +364,9 @@ class Body:
             self.id, list(indices), pybullet.POSITION_CONTROL, targetPositions=list(positions),
             targetVelocities=[0.0] * len(indices), forces=list(max_forces))
         self._anchor(indices, True)
-        self._motors.update((index, Motor(0.0, force, position))
-                            for index, force, position in zip(indices, max_forces, positions))
+        self._motor_table().update(
+            (index, Motor(0.0, force, position))
+            for index, force, position in zip(indices, max_forces, positions))
 
     def _anchor(self, links: Sequence[int], anchored: bool) -> None:
         """Anchor the friction of the links' contacts (positional, as a brake's), or free it."""
@@ -494,7 +511,7 @@ class Body:
 
     def moment(self) -> Moment:
         """Return the body's state now and its joints' motors, for :meth:`resume`."""
-        return self._read_state(), dict(self._motors)
+        return self._read_state(), dict(self._motor_table())
 
     def resume(self, moment: Moment) -> None:
         """
@@ -606,6 +623,7 @@ class Body:
         self._id = self._load_into(self._client)
         self._bind_hot_path()
         self._motors = {}  # a fresh load has no motors but those its changes set again
+        self._velocity_motors = None
         self._anchored = set()
         for method, args, kwargs in self._changes:
             getattr(self, method)(*args, **kwargs)
@@ -637,7 +655,8 @@ class Body:
         for method, args, kwargs in self._changes[len(twin._changes):]:
             twin._change(method, *args, **kwargs)
         self._client, self._id = twin._client, twin._id
-        self._motors, self._anchored = twin._motors, twin._anchored
+        self._motors, self._anchored = twin._motor_table(), twin._anchored
+        self._velocity_motors = None
         self._bind_hot_path()
 
     def _load_into(self, client: BulletClient) -> int:
