@@ -10,6 +10,7 @@ motors) to the last bit, and the runs that follow repeat bit for bit.
 
 import pytest
 
+from r2d2_sim.physics.body import Motor
 from r2d2_sim.physics.description import default_urdf_path
 from r2d2_sim.physics.world import COMPACT_AFTER_REMOVALS, SimWorld
 
@@ -61,6 +62,8 @@ def test_compaction_puts_every_body_back_as_it_was_to_the_last_bit(world, monkey
     cube = world.load(CUBE, (3.0, 3.0, 0.5), name='last')
     world.step()
     before = robot.moment()
+    wheels = [j.index for j in robot.joints.values() if 'wheel' in j.name]
+    assert [before[1][i] for i in wheels] == [Motor(5.0, 100.0)] * len(wheels)
     world.remove(cube)  # the 64th: compacted
     assert world.removed_since_built == 0 and rebuilt == [1]
     assert set(world.bodies) == names_before
@@ -71,6 +74,22 @@ def test_compaction_puts_every_body_back_as_it_was_to_the_last_bit(world, monkey
     start = robot.world_state().position
     world.step(240)
     assert robot.world_state().position != start  # the motors drove on
+
+
+def test_a_moment_holds_the_motor_last_set_on_each_joint(world):
+    """Velocity motors, a brake and velocity motors again, on joints overlapping: the last."""
+    robot = world.load_robot(default_urdf_path(), (0.0, 0.0, 0.0))
+    wheels = [j.index for j in robot.joints.values() if 'wheel' in j.name]
+    head = robot.joint('head_swivel').index
+    robot.set_joint_velocities(wheels, [5.0] * len(wheels), [100.0] * len(wheels))
+    robot.set_joint_velocities(wheels, [3.0] * len(wheels), [90.0] * len(wheels))
+    robot.set_joint_velocities([head, wheels[0]], [1.0, 2.0], [10.0, 20.0])
+    robot.hold_joints(wheels[1:2], [50.0], [0.25])
+    robot.set_joint_velocities(wheels[2:3], [4.0], [40.0])
+    _, motors = robot.moment()
+    assert len(wheels) == 4 and motors == {
+        head: Motor(1.0, 10.0), wheels[0]: Motor(2.0, 20.0), wheels[1]: Motor(0.0, 50.0, 0.25),
+        wheels[2]: Motor(4.0, 40.0), wheels[3]: Motor(3.0, 90.0)}
 
 
 def test_runs_with_compaction_repeat_bit_for_bit():
