@@ -24,8 +24,10 @@ it, and a robot with ``publish_contacts`` measures its ``contacts`` topic
 with it.
 
 It costs nothing unless made (the simulation calls its watches after each
-step), and about 10 us per other body per step when made (closest points).
-Only bodies that can be near are asked about: a body that stays where it is
+step); made, one pose query a step (the base's centre of mass: the body
+frame is worked out only near a region, near the tipping angle, or for a
+trajectory sample), and the contacts and closest points of the bodies that
+can be near. Only those are asked about: a body that stays where it is
 put (static, no joints that move) is passed over while the robot's centre of
 mass is outside its bounding box grown on every side by the robot's reach (a
 radius that holds its links in any joint state, :meth:`Body.reach_m
