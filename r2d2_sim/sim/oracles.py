@@ -45,6 +45,7 @@ directly is not: watch such a world with ``prune=False``.
 """
 
 import math
+from types import MappingProxyType
 from typing import (
     Callable, Dict, List, Mapping, NamedTuple, Optional, Protocol, Sequence, Tuple,
     Union)
@@ -73,16 +74,20 @@ Zone = Tuple[float, float, float, float, float, float]
 # Slack on the bounds a watch passes bodies over by (m): their boxes and the reach hold
 # the shapes already; this covers rounding and PyBullet's margins.
 NEAR_MARGIN_M = 0.05
-# Slack on the body frame's offset from the centre of mass (m), for rounding: a region is
-# looked at closely when the centre of mass is within the offset and this of its box.
+# Slack on the body frame's offset from the centre of mass, for rounding: a region is
+# looked at closely when the centre of mass is within the offset, this (m) and the
+# relative slack times the size of the coordinates of the region's box. PyBullet's
+# multiplyTransforms rounds to float32 (2**-24 relative): 1.9e-6 m at x = 40 m.
 FRAME_SLACK_M = 1e-6
+FRAME_RELATIVE_SLACK = 2.0 ** -18
 # Up to this many bodies, touching() asks PyBullet pair by pair (an empty pair is about 1
 # us); more, it asks for every contact point of the body at once (about 8 us for R2D2,
 # whose 16 wheel points on the ground come back too).
 PAIRS_ASKED_ALONE = 4
-# Slack on the leaning read from the centre of mass's orientation (a cosine), for rounding:
-# within it of the limit, the body frame's own orientation decides.
-TIP_SLACK = 1e-6
+# Slack on the leaning read from the centre of mass's orientation (a cosine), for rounding
+# (the body frame's orientation comes from float32: up to 1.2e-6 apart, leaning 100-120
+# degrees): within it of the limit, the body frame's own orientation decides.
+TIP_SLACK = 1e-4
 
 
 class Contact(NamedTuple):
@@ -206,7 +211,8 @@ class RunWatch:
     watched: a robot (default: the first) or any other entity. ``regions``
     maps names to :class:`~r2d2_sim.model.regions.Region` s, or to the name
     of a named pose of the world (its bounds, :func:`ground_region`), whose
-    first entry time is kept in :attr:`reached`. ``trajectory_period_s`` (simulated
+    first entry time is kept in :attr:`reached`; they are fixed when the watch
+    is made (:attr:`regions` is read-only). ``trajectory_period_s`` (simulated
     seconds, rounded to whole steps; None: none kept) samples the base into
     :attr:`trajectory`: where it is now, then every period. ``clearance``
     False leaves the clearance out (it stays at the range): the closest
@@ -242,9 +248,9 @@ class RunWatch:
             raise ValueError(f'no entity named {entity!r}; the world has: {", ".join(bodies)}')
         self.body: Body = body
         self.name = body.name
-        self.regions: Dict[str, Region] = {
+        self.regions: Mapping[str, Region] = MappingProxyType({
             name: _named_region(simulation, region) if isinstance(region, str) else region
-            for name, region in (regions or {}).items()}
+            for name, region in (regions or {}).items()})
         self.clearance_range_m = clearance_range_m
         self.tip_cos = math.cos(tip_angle_rad)
         self.contacts: List[Contact] = []
@@ -273,13 +279,12 @@ class RunWatch:
         # The body frame's origin is this far from the centre of mass (and rounding): the
         # regions are looked at closely only when the centre of mass is this near.
         com_to_body = body.com_to_body
-        self._frame_offset_m = math.hypot(*com_to_body[0]) + FRAME_SLACK_M
+        offset_m = math.hypot(*com_to_body[0])
         # The body frame's z axis in the centre of mass's frame: tipping from its pose.
         self._up_in_com = _z_axis(com_to_body[1])
         # Each region not reached yet, with its box on the ground grown by the offset.
-        grow = self._frame_offset_m
         self._pending: List[Tuple[str, Region, Tuple[float, float, float, float]]] = [
-            (name, region, _grown_box(region, grow)) for name, region in self.regions.items()]
+            (name, region, _grown_box(region, offset_m)) for name, region in self.regions.items()]
         if self._sample_every:
             base = self.body.world_state()
             self.trajectory.append(TrajectoryPoint(self.start_ns, base.position[0],
@@ -477,8 +482,14 @@ def _up_cos_of(orientation: Sequence[float], axis: Tuple[float, float, float]) -
             + (1.0 - 2.0 * (x * x + y * y)) * az)
 
 
-def _grown_box(region: Region, grow_m: float) -> Tuple[float, float, float, float]:
-    """Return a box on the ground around ``region`` grown by ``grow_m``: x0, y0, x1, y1."""
+def _grown_box(region: Region, offset_m: float) -> Tuple[float, float, float, float]:
+    """
+    Return where a centre of mass ``offset_m`` from the body frame may see it in ``region``.
+
+    A box on the ground around it, x0, y0, x1, y1: grown by the offset and
+    the rounding of the body frame's pose (:data:`FRAME_SLACK_M`,
+    :data:`FRAME_RELATIVE_SLACK`).
+    """
     values = region.values
     if region.kind == 'box':
         x0, y0, x1, y1 = values
@@ -488,6 +499,8 @@ def _grown_box(region: Region, grow_m: float) -> Tuple[float, float, float, floa
     else:
         cx, cy, radius = values[:3]
         x0, y0, x1, y1 = cx - radius, cy - radius, cx + radius, cy + radius
+    grow_m = offset_m + FRAME_SLACK_M + FRAME_RELATIVE_SLACK * (
+        max(abs(x0), abs(y0), abs(x1), abs(y1)) + offset_m)
     return x0 - grow_m, y0 - grow_m, x1 + grow_m, y1 + grow_m
 
 

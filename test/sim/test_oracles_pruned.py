@@ -293,3 +293,74 @@ def test_regions_and_tipping_are_read_at_the_body_frame(make, spin):
     assert len(regions) // 2 <= len(reached) < len(regions) and tipped
     assert watch.reached == reached
     assert watch.tipped_ns == tipped[0]
+
+
+def test_a_region_far_from_the_origin_is_entered_with_the_body_frame(make):
+    """
+    At x = 40 m the body frame's x (float32 in PyBullet) is up to 2e-6 m from the centre of mass.
+
+    A box region whose edge lies exactly at the body frame's x after a step is
+    entered when reading the frame every step says.
+    """
+    start = 40.0 + 1.5e-6
+    simulation = make(initial_pose=[start, 0.0, 0.0])
+    body = simulation.robot.body
+    for _ in range(3):
+        simulation.step()
+    com_x, frame_x = body.com_pose()[0][0], body.world_pose()[0][0]
+    assert abs(frame_x - com_x) > 1e-6  # the rounding the test is about
+    region = (box_region(frame_x, -1.0, frame_x + 1.0, 1.0) if frame_x > com_x
+              else box_region(frame_x - 1.0, -1.0, frame_x, 1.0))
+    simulation = make(initial_pose=[start, 0.0, 0.0])
+    body, entered = simulation.robot.body, []
+
+    def reference(time_ns):
+        (x, y, _), _ = body.world_pose()
+        if not entered and region.contains(x, y):
+            entered.append(time_ns)
+    simulation.watch_steps(reference)
+    with RunWatch(simulation, regions={'edge': region}, clearance=False) as watch:
+        for _ in range(5):
+            simulation.step()
+    assert entered and watch.reached == {'edge': entered[0]}
+
+
+def test_leaning_within_float32_of_a_wide_tip_angle_is_read_at_the_body_frame(make):
+    """
+    Past 90 degrees the leaning read from the centre of mass's orientation is 1e-6 off.
+
+    A fixed box set at an orientation where the two readings differ most, the
+    tip angle between them: tipped at the first step, as the body frame says.
+    """
+    from r2d2_sim.sim.oracles import _up_cos, _up_cos_of, _z_axis
+    simulation = make()
+    place_box(simulation, 'leaner', 3.0, 3.0)
+    body = simulation.world.bodies['leaner']
+    axis, rng, widest = _z_axis(body.com_to_body[1]), random.Random(5), (0.0, None, 0.0)
+    for _ in range(20000):
+        q = [rng.gauss(0.0, 1.0) for _ in range(4)]
+        norm = math.sqrt(sum(v * v for v in q))
+        q = [v / norm for v in q]
+        simulation.set_entity_state('leaner', '', (3.0, 3.0, 1.0), q, ZERO, ZERO)
+        com, orientation = body.com_pose()
+        exact = _up_cos(body.pose_of_com(com, orientation)[1])
+        gap = _up_cos_of(orientation, axis) - exact
+        if gap > widest[0]:
+            widest = (gap, q, exact)
+    gap, q, exact = widest
+    assert gap > 1e-6  # wider than the slack this watch once had
+    simulation.set_entity_state('leaner', '', (3.0, 3.0, 1.0), q, ZERO, ZERO)
+    # The limit between the two, farther than 1e-6 from the centre of mass's reading.
+    with RunWatch(simulation, 'leaner', tip_angle_rad=math.acos(exact + (gap - 1e-6) / 2),
+                  clearance=False) as watch:
+        simulation.step()
+    assert watch.tipped_ns == simulation.time_ns
+
+
+def test_a_watchs_regions_are_read_only(make):
+    """Regions are fixed when the watch is made: adding one later is refused, not ignored."""
+    simulation = make()
+    with RunWatch(simulation, regions={'goal': circle_region(1.0, 0.0, 0.2)}) as watch:
+        with pytest.raises(TypeError):
+            watch.regions['late'] = circle_region(0.0, 0.0, 1.0)
+        assert list(watch.regions) == ['goal']
