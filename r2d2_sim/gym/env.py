@@ -221,9 +221,15 @@ class _Env(gymnasium.Env):
         self.render_view = render_view
         self.metadata = _metadata(self.settings.control_rate_hz)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=numpy.float32)
+        self._configure()
+        # Last: every check above raises before a simulator (a thread, a ROS domain) exists.
         self.nav = Navigation(self.settings, ros_nodes, topics)
         self.scenario: Optional[Scenario] = None
         self._terminated = False  # the episode ended: a step then is refused until a reset
+
+    def _configure(self) -> None:
+        """Set the observation space and check what the subclass needs, before any backend."""
+        raise NotImplementedError
 
     @property
     def backend(self) -> Backend:
@@ -325,8 +331,8 @@ class NavEnv(_Env):
     ``ros_nodes`` and ``topics``.
     """
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
+    def _configure(self) -> None:
+        """Set the observation space: the scan sectors, the goal, the speeds."""
         size = self.settings.shape.nav_size
         low = numpy.full(size, -1.0, dtype=numpy.float32)
         low[:self.settings.scan_beams] = 0.0
@@ -369,25 +375,25 @@ class NavGoalEnv(_Env):
     scenario that does not is refused.
     """
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        size = self.settings.shape.goal_observation_size
-        low = numpy.full(size, -1.0, dtype=numpy.float32)
-        low[:self.settings.scan_beams] = 0.0
-        extent = WORLD_EXTENT_M
-        self.observation_space = spaces.Dict({
-            'observation': spaces.Box(low, numpy.ones(size, dtype=numpy.float32),
-                                      dtype=numpy.float32),
-            'achieved_goal': spaces.Box(-extent, extent, shape=(2,), dtype=numpy.float32),
-            'desired_goal': spaces.Box(-extent, extent, shape=(2,), dtype=numpy.float32)})
+    def _configure(self) -> None:
+        """Check that the space's starts and goals lie in the observed square; the spaces."""
         space = self.settings.space
-        self.tolerance_m = space.goal_tolerance  # one for every goal, relabelled ones too
+        extent = WORLD_EXTENT_M
         limit = extent - GOAL_MARGIN_M
         if max(map(abs, space.start_area)) > limit \
                 or max(map(abs, space.goal_area)) + space.goal_tolerance > limit:
             raise GymError(f'space: R2D2NavGoal-v0\'s starts and goal circles must lie within '
                            f'{limit:g} m of the origin in x and y (start_area '
                            f'{space.start_area}, goal_area {space.goal_area})')
+        self.tolerance_m = space.goal_tolerance  # one for every goal, relabelled ones too
+        size = self.settings.shape.goal_observation_size
+        low = numpy.full(size, -1.0, dtype=numpy.float32)
+        low[:self.settings.scan_beams] = 0.0
+        self.observation_space = spaces.Dict({
+            'observation': spaces.Box(low, numpy.ones(size, dtype=numpy.float32),
+                                      dtype=numpy.float32),
+            'achieved_goal': spaces.Box(-extent, extent, shape=(2,), dtype=numpy.float32),
+            'desired_goal': spaces.Box(-extent, extent, shape=(2,), dtype=numpy.float32)})
 
     def _checked(self, episode: Episode) -> Episode:
         """Return ``episode``; GymError if its goal's tolerance or its ends do not fit."""

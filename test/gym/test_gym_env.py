@@ -20,7 +20,8 @@ from gymnasium.utils.env_checker import check_env
 import numpy
 import pytest
 
-from common import gym_actions as actions, gym_noisy, gym_rollout as rollout, REPO
+from common import (
+    connected_clients, gym_actions as actions, gym_noisy, gym_rollout as rollout, REPO)
 import r2d2_sim.gym  # noqa: F401 (registers the environments)
 from r2d2_sim.farm.scenario import Box, Pose, Scenario
 from r2d2_sim.gym import GymError
@@ -200,9 +201,28 @@ def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(gym_make):
 def test_settings_that_cannot_be_are_one_line_at_construction(kwargs, message):
     """Each: GymError naming the setting, no simulator left behind."""
     from r2d2_sim.gym.env import NavEnv  # imported here: alone, the test found no gym.env
+    before = connected_clients()
     with pytest.raises(GymError, match=message) as caught:
         NavEnv(**kwargs)
     assert '\n' not in str(caught.value)
+    assert connected_clients() == before  # (caught holds the failed constructor's frames)
+
+
+def test_a_space_the_goal_env_refuses_leaves_no_simulator_behind():
+    """
+    R2D2NavGoal-v0 checks its space before it builds its backend: no PyBullet client is left.
+
+    Before, the check ran after the backend was made, and nothing closed it (with
+    backend='ros': a harness thread and a leased ROS domain per refused make).
+    """
+    import dataclasses
+    from r2d2_sim.gym.env import NavGoalEnv
+    from r2d2_sim.gym.settings import DEFAULT_SPACE
+    before = connected_clients()
+    with pytest.raises(GymError, match="^space: R2D2NavGoal-v0's starts and goal circles") \
+            as caught:
+        NavGoalEnv(space=dataclasses.replace(DEFAULT_SPACE, goal_area=(24.0, -1.0, 25.0, 1.0)))
+    assert connected_clients() == before, caught.value  # the failed frames are still held
 
 
 def test_a_replayed_scenario_the_world_refuses_is_one_line_and_the_env_goes_on(gym_make):

@@ -10,7 +10,9 @@ lockstep (a filter that halves the command equals ``inproc`` driven by half
 the actions); the CDR readers read what rclpy would.
 """
 
+import dataclasses
 import math
+import threading
 import warnings
 
 from gymnasium.utils.env_checker import check_env
@@ -22,7 +24,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import LaserScan
 
 from common import (
-    gym_actions as actions, gym_noisy, gym_rollout as rollout, parallel_rollout)
+    connected_clients, gym_actions as actions, gym_noisy, gym_rollout as rollout,
+    parallel_rollout)
 import r2d2_sim.gym  # noqa: F401 (registers the environments)
 from r2d2_sim.gym import GymError
 from r2d2_sim.gym.multi import parallel_env
@@ -141,3 +144,24 @@ def test_the_cdr_readers_read_what_rclpy_deserializes(frame_id):
     assert values == (1.0, -2.0, 0.47, 0.0, 0.0, 0.6, 0.8, 0.3, 0.0, 0.0, 0.0, 0.0, -0.1)
     twist_message = deserialize_message(twist_bytes(0.2, -0.7), type(twist))
     assert (twist_message.linear.x, twist_message.angular.z) == (0.2, -0.7)
+
+
+def test_a_space_the_goal_env_refuses_leaves_no_harness_behind(gym_make):
+    """
+    R2D2NavGoal-v0 checks its space before it starts a simulator node: no thread, no client.
+
+    Before, each refused make left a SimHarness running: its thread, its PyBullet
+    client and its leased ROS domain (a sweep would use the domains up).
+    """
+    from r2d2_sim.gym.settings import DEFAULT_SPACE
+    before = (harness_threads(), connected_clients())
+    bad = dataclasses.replace(DEFAULT_SPACE, goal_area=(24.0, -1.0, 25.0, 1.0))
+    for _ in range(2):
+        with pytest.raises(GymError, match="^space: R2D2NavGoal-v0's starts") as caught:
+            gym_make('R2D2NavGoal-v0', space=bad, backend='ros')
+    assert (harness_threads(), connected_clients()) == before, caught.value
+
+
+def harness_threads():
+    """Return the names of the ROS harnesses' threads alive in this process."""
+    return sorted(t.name for t in threading.enumerate() if t.name.startswith('ros-harness-'))
