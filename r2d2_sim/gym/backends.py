@@ -13,6 +13,7 @@ come over the robot's topics.
 from contextlib import nullcontext
 from typing import Any, Callable, ContextManager, List, Optional, Protocol, Sequence
 
+from r2d2_sim.errors import SetupError, StartupError
 from r2d2_sim.gym.arena import Arena, Episode, reading_of
 from r2d2_sim.gym.settings import GymError, NavSettings
 from r2d2_sim.gym.task import Command, Outcome, Reading
@@ -96,10 +97,19 @@ class InprocBackend:
 
 def make_backend(settings: NavSettings, ros_nodes: Optional[Callable[[Any], Any]] = None,
                  topics: Optional[dict] = None) -> Backend:
-    """Return the backend ``settings.backend`` names (the ``ros`` one imports rclpy here)."""
-    if settings.backend == 'inproc':
-        if ros_nodes is not None or topics:
-            raise GymError('ros_nodes and topics are for backend=\'ros\'')
-        return InprocBackend(settings)
-    from r2d2_sim.gym.ros_backend import RosBackend
-    return RosBackend(settings, ros_nodes=ros_nodes, topics=topics)
+    """
+    Return the backend ``settings.backend`` names (the ``ros`` one imports rclpy here).
+
+    What the simulator refuses while it is built (a URDF it cannot load,
+    wheels the URDF lacks, a window without a display) is a GymError in
+    one line in both backends, the simulator's error its ``__cause__``.
+    """
+    try:
+        if settings.backend == 'inproc':
+            if ros_nodes is not None or topics:
+                raise GymError('ros_nodes and topics are for backend=\'ros\'')
+            return InprocBackend(settings)
+        from r2d2_sim.gym.ros_backend import RosBackend
+        return RosBackend(settings, ros_nodes=ros_nodes, topics=topics)
+    except (SetupError, StartupError) as exc:  # inproc: the core's; ros: the node's
+        raise GymError(f'sim_parameters: {" ".join(str(exc).split())}') from exc

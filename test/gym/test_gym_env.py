@@ -176,6 +176,15 @@ def test_an_unknown_reset_option_and_a_step_after_close_are_one_line(gym_make):
             call()
 
 
+# What only building the simulator finds out (test/gym_ros: the same over ROS).
+SIMULATOR_REFUSES = [
+    ({'urdf': '/nonexistent/robot.urdf'},
+     '^sim_parameters: URDF file not found: /nonexistent/robot.urdf'),
+    ({'left_wheel_names': ['nope']}, r'^sim_parameters: wheel joint\(s\) nope not in the URDF'),
+    ({'gui': True}, '^sim_parameters: gui needs a display, and DISPLAY is not set'),
+]
+
+
 @pytest.mark.parametrize('kwargs, message', [
     ({'control_rate_hz': 7.0}, 'control_rate_hz must divide the physics rate'),
     ({'scan_beams': 7}, r'scan_beams must divide scan_rays \(360\) into equal sectors, got 7'),
@@ -206,6 +215,25 @@ def test_settings_that_cannot_be_are_one_line_at_construction(kwargs, message):
         NavEnv(**kwargs)
     assert '\n' not in str(caught.value)
     assert connected_clients() == before  # (caught holds the failed constructor's frames)
+
+
+@pytest.mark.parametrize('parameters, message', SIMULATOR_REFUSES)
+def test_settings_the_simulator_refuses_are_one_line_too(monkeypatch, parameters, message):
+    """
+    A URDF it cannot load, wheels the URDF lacks, a window without a display: GymError.
+
+    The simulator's own error is its cause. Before, its traceback escaped (a
+    WorldError or ConfigError here, a StartupError over ROS), past code that
+    catches GymError.
+    """
+    from r2d2_sim.errors import SetupError
+    from r2d2_sim.gym.env import NavEnv
+    monkeypatch.delenv('DISPLAY', raising=False)
+    before = connected_clients()
+    with pytest.raises(GymError, match=message) as caught:
+        NavEnv(sim_parameters=parameters)
+    assert '\n' not in str(caught.value) and isinstance(caught.value.__cause__, SetupError)
+    assert connected_clients() == before
 
 
 def test_a_space_the_goal_env_refuses_leaves_no_simulator_behind():

@@ -165,3 +165,20 @@ def test_a_space_the_goal_env_refuses_leaves_no_harness_behind(gym_make):
 def harness_threads():
     """Return the names of the ROS harnesses' threads alive in this process."""
     return sorted(t.name for t in threading.enumerate() if t.name.startswith('ros-harness-'))
+
+
+@pytest.mark.parametrize('parameters, message', [
+    ({'urdf': '/nonexistent/robot.urdf'},
+     '^sim_parameters: URDF file not found: /nonexistent/robot.urdf'),
+    ({'gui': True}, '^sim_parameters: gui needs a display, and DISPLAY is not set'),
+])
+def test_settings_the_simulator_node_refuses_are_one_line(monkeypatch, gym_make, parameters,
+                                                          message):
+    """The node's StartupError becomes the inproc backend's GymError line, its cause kept."""
+    from r2d2_sim.errors import StartupError
+    monkeypatch.delenv('DISPLAY', raising=False)
+    before = (harness_threads(), connected_clients())
+    with pytest.raises(GymError, match=message) as caught:
+        gym_make(backend='ros', sim_parameters=parameters)
+    assert '\n' not in str(caught.value) and isinstance(caught.value.__cause__, StartupError)
+    assert (harness_threads(), connected_clients()) == before
