@@ -43,6 +43,9 @@ OWN_PARAMETERS = ('physics_rate', 'publish_rate', 'scan_rate', 'scan_samples', '
 SPACE_PARAMETERS = ('scan_noise_std',)
 # What the ros backend cannot run with: a TwistStamped cmd_vel, the outputs in a child.
 ROS_BACKEND_REFUSED = ('enable_stamped_cmd_vel', 'outputs_process')
+# What only the ros backend's simulator node does: record its outputs, serve the live view.
+# The inproc backend runs no node, so it would ignore them without a word.
+ROS_BACKEND_ONLY = ('record', 'foxglove_port', 'foxglove_host')
 # Robots of a several-robot world stand this far apart (m, along y) before each episode.
 LANE_SPACING_M = 3.0
 
@@ -164,6 +167,12 @@ class NavSettings:
                 raise GymError(f'sim_parameters: {", ".join(ros_refused)} cannot be used with '
                                "backend='ros' (it commands over Twist, in lockstep in this "
                                'process)')
+        else:
+            ros_only = _named(self.sim_parameters, ROS_BACKEND_ONLY)
+            if ros_only:
+                raise GymError(f'sim_parameters: {", ".join(ros_only)} work only with '
+                               "backend='ros' (the inproc backend runs no ROS node: nothing "
+                               'records its outputs or serves a live view)')
         try:  # read as the simulator will, so a bad name or value is this line, both backends
             parse_world(self.sim_parameters_for())
         except SetupError as exc:
