@@ -109,6 +109,9 @@ def make_backend(settings: NavSettings, ros_nodes: Optional[Callable[[Any], Any]
             if ros_nodes is not None or topics:
                 raise GymError('ros_nodes and topics are for backend=\'ros\'')
             return InprocBackend(settings)
+        if ros_nodes is not None and not callable(ros_nodes):  # called once the node runs
+            raise GymError(f'ros_nodes must be a function of the harness, ros_nodes(harness), '
+                           f'got {type(ros_nodes).__name__} {ros_nodes!r:.40}')
         from r2d2_sim.gym.ros_backend import RosBackend
         return RosBackend(settings, ros_nodes=ros_nodes, topics=topics)
     except (SetupError, StartupError) as exc:  # inproc: the core's; ros: the node's

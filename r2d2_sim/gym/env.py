@@ -29,7 +29,7 @@ from r2d2_sim.errors import RefusedError, SetupError
 from r2d2_sim.farm.scenario import Scenario, ScenarioError
 from r2d2_sim.gym.arena import Episode, episode_of
 from r2d2_sim.gym.backends import Backend, make_backend
-from r2d2_sim.gym.settings import GymError, NavSettings, reset_options
+from r2d2_sim.gym.settings import GymError, nav_settings, NavSettings, reset_options
 from r2d2_sim.gym.task import (
     Command, goal_distance, goal_observation, goal_reward, nav_observation, nav_reward, Outcome,
     Reading, GOAL_MARGIN_M, WORLD_EXTENT_M)
@@ -209,11 +209,7 @@ class _Env(gymnasium.Env):
         if render_view not in RENDER_VIEWS:
             raise GymError(f'render_view must be one of {", ".join(RENDER_VIEWS)}, got '
                            f'{render_view!r}')
-        try:
-            self.settings = NavSettings(**settings)
-        except TypeError as exc:
-            raise GymError(str(exc).replace('NavSettings.__init__()', type(self).__name__)) \
-                from None
+        self.settings = nav_settings(type(self).__name__, settings)
         if self.settings.robots != 1:
             raise GymError('a Gymnasium environment drives one robot: robots=1 (several: '
                            'r2d2_sim.gym.parallel_env)')

@@ -27,7 +27,7 @@ from pettingzoo import ParallelEnv
 from r2d2_sim.gym.arena import placed_scenarios
 from r2d2_sim.gym.backends import Backend
 from r2d2_sim.gym.env import check_action, Navigation
-from r2d2_sim.gym.settings import GymError, NavSettings, reset_options
+from r2d2_sim.gym.settings import GymError, nav_settings, reset_options
 from r2d2_sim.gym.task import Command, nav_observation, nav_reward
 
 __all__ = ['NavParallelEnv', 'parallel_env', 'MAX_CYCLES']
@@ -63,11 +63,7 @@ class NavParallelEnv(ParallelEnv):
             raise GymError(f'render_mode must be None or \'rgb_array\', got {render_mode!r}')
         if isinstance(max_cycles, bool) or not isinstance(max_cycles, int) or max_cycles < 1:
             raise GymError(f'max_cycles must be an integer >= 1, got {max_cycles!r}')
-        try:
-            self.settings = NavSettings(robots=robots, **settings)
-        except TypeError as exc:
-            raise GymError(str(exc).replace('NavSettings.__init__()', 'NavParallelEnv')) \
-                from None
+        self.settings = nav_settings('NavParallelEnv', settings, robots=robots)
         self.render_mode = render_mode
         self.max_cycles = max_cycles
         self.metadata = dict(self.metadata, render_fps=self.settings.control_rate_hz)

@@ -9,16 +9,19 @@ simulator parameters) and turns them into the simulator's parameters
 that cannot be is a :class:`GymError` in one line, at construction.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 import math
+import numbers
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple
+
+import numpy
 
 from r2d2_sim.errors import SetupError
 from r2d2_sim.farm.scenario import ScenarioSpace
 from r2d2_sim.gym.task import ObservationShape, Rewards
 from r2d2_sim.sim.settings.robots import parse_world
 
-__all__ = ['GymError', 'NavSettings', 'reset_options', 'DEFAULT_SPACE', 'BACKENDS',
+__all__ = ['GymError', 'NavSettings', 'nav_settings', 'reset_options', 'DEFAULT_SPACE', 'BACKENDS',
            'PHYSICS_RATE_HZ', 'robot_names']
 
 # The backends: the core in this process, or the simulator node in lockstep over ROS.
@@ -54,9 +57,41 @@ class GymError(ValueError):
     """An environment's setting or an input it cannot take: one line."""
 
 
+def _is_number(value: Any) -> bool:
+    """Return True for a real number (numpy's too), False for a bool (numpy's too)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, numpy.bool_))
+
+
+def _plain(value: Any) -> Any:
+    """Return a number as Python's int or float (the same value; either kept as it is)."""
+    return int(value) if isinstance(value, numbers.Integral) else float(value)
+
+
+def _plain_value(value: Any) -> Any:
+    """Return a parameter value with numpy's scalars and arrays as Python's, as ROS reads them."""
+    if isinstance(value, numpy.generic):
+        return value.item()
+    if isinstance(value, numpy.ndarray):
+        return value.tolist()
+    return value
+
+
 def _named(parameters: Mapping[str, Any], names: Sequence[str]) -> List[str]:
     """Return the parameters among ``names``, a robot's own (``r2d2_1.scan_rate``) too."""
     return sorted(name for name in parameters if str(name).rpartition('.')[2] in names)
+
+
+def nav_settings(owner: str, keywords: Mapping[str, Any], **fixed: Any) -> 'NavSettings':
+    """
+    Return the settings of an environment's keywords; GymError (one line) if it cannot be.
+
+    ``owner`` names the environment in the line for a keyword it does not take;
+    ``fixed`` are keywords the environment gives itself (``robots``).
+    """
+    unknown = sorted(set(keywords) - {f.name for f in fields(NavSettings)}, key=str)
+    if unknown:
+        raise GymError(f'{owner}: unexpected keyword argument {", ".join(map(repr, unknown))}')
+    return NavSettings(**keywords, **fixed)
 
 
 def reset_options(options: Any) -> Dict[str, Any]:
@@ -115,12 +150,14 @@ class NavSettings:
     def __post_init__(self) -> None:
         if self.backend not in BACKENDS:
             raise GymError(f'backend must be one of {", ".join(BACKENDS)}, got {self.backend!r}')
+        # Numbers of any kind (numpy's scalars too: sweep tools hand them out), kept as
+        # Python's own, so the settings read, print and compare as given.
         for name in ('control_rate_hz', 'scan_range_m', 'max_linear_m_s', 'max_angular_rad_s',
                      'goal_range_m', 'tip_angle_deg'):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value) or value <= 0.0:
+            if not _is_number(value) or not math.isfinite(value) or value <= 0.0:
                 raise GymError(f'{name} must be a number > 0, got {value!r}')
+            object.__setattr__(self, name, _plain(value))
         if self.tip_angle_deg >= 180.0:
             raise GymError(f'tip_angle_deg must be below 180, got {self.tip_angle_deg!r}')
         steps = PHYSICS_RATE_HZ / self.control_rate_hz
@@ -130,8 +167,9 @@ class NavSettings:
                            f'{self.control_rate_hz!r}')
         for name in ('scan_rays', 'scan_beams', 'robots'):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            if not _is_number(value) or not isinstance(value, numbers.Integral) or value < 1:
                 raise GymError(f'{name} must be an integer >= 1, got {value!r}')
+            object.__setattr__(self, name, int(value))
         if self.scan_rays % self.scan_beams:
             raise GymError(f'scan_beams must divide scan_rays ({self.scan_rays}) into equal '
                            f'sectors, got {self.scan_beams}')
@@ -146,11 +184,18 @@ class NavSettings:
         if not isinstance(self.rewards, Rewards):
             raise GymError(f'rewards must be a Rewards, got {type(self.rewards).__name__}')
         for name, value in zip(self.rewards._fields, self.rewards):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value):
+            if not _is_number(value) or not math.isfinite(value):
                 raise GymError(f'rewards.{name} must be a finite number, got {value!r}')
+        object.__setattr__(self, 'rewards', Rewards(*map(_plain, self.rewards)))
         if not isinstance(self.sim_parameters, Mapping):
-            raise GymError('sim_parameters must be a mapping of parameter names to values')
+            raise GymError(f'sim_parameters must be a dict of parameter names to values, got '
+                           f'{type(self.sim_parameters).__name__}')
+        for key in self.sim_parameters:
+            if not isinstance(key, str):
+                raise GymError(f'sim_parameters: parameter names are strings, got {key!r:.60} '
+                               f'({type(key).__name__})')
+        object.__setattr__(self, 'sim_parameters', {
+            key: _plain_value(value) for key, value in self.sim_parameters.items()})
         taken = _named(self.sim_parameters, OWN_PARAMETERS)
         if taken:
             raise GymError(f'sim_parameters: {", ".join(taken)} are set by the environment '

@@ -208,7 +208,12 @@ SIMULATOR_REFUSES = [
     ({'sim_parameters': {'scan_noise_std': 0.02}},
      r'sim_parameters: scan_noise_std is drawn for each episode from the space: give '
      r'space=dataclasses\.replace\(DEFAULT_SPACE, scan_noise_std=\(low, high\)\)'),
-    ({'color': 'blue'}, "unexpected keyword argument 'color'"),
+    ({'color': 'blue'}, "^NavEnv: unexpected keyword argument 'color'$"),
+    ({'sim_parameters': {1: 2}}, r'^sim_parameters: parameter names are strings, got 1 \(int\)$'),
+    ({'sim_parameters': ['gui']}, '^sim_parameters must be a dict of parameter names to values, '
+                                  'got list$'),
+    ({'scan_beams': numpy.float64(36.0)}, r'^scan_beams must be an integer >= 1, got '),
+    ({'control_rate_hz': numpy.bool_(True)}, '^control_rate_hz must be a number > 0, got '),
     ({'render_mode': 'human'}, "render_mode must be None or 'rgb_array', got 'human'"),
 ])
 def test_settings_that_cannot_be_are_one_line_at_construction(kwargs, message):
@@ -219,6 +224,23 @@ def test_settings_that_cannot_be_are_one_line_at_construction(kwargs, message):
         NavEnv(**kwargs)
     assert '\n' not in str(caught.value)
     assert connected_clients() == before  # (caught holds the failed constructor's frames)
+
+
+def test_numpys_scalars_are_numbers_and_run_as_pythons(gym_make):
+    """
+    Sweep tools hand out numpy scalars: taken where numbers are, the same run as Python's.
+
+    Before, control_rate_hz=numpy.float32(10) was "must be a number > 0", and
+    scan_beams=numpy.int64(36) "must be an integer".
+    """
+    env = gym_make(control_rate_hz=numpy.float32(10.0), scan_beams=numpy.int64(36),
+                   max_linear_m_s=numpy.float64(0.5), rewards=Rewards(goal=numpy.int32(10)),
+                   sim_parameters={'ray_threads': numpy.int64(1)})
+    settings = env.unwrapped.settings
+    assert type(settings.control_rate_hz) is float and type(settings.scan_beams) is int
+    assert type(settings.rewards.goal) is int
+    assert settings.sim_parameters == {'ray_threads': 1}
+    assert rollout(env, 3, actions(3)) == rollout(gym_make(), 3, actions(3))
 
 
 @pytest.mark.parametrize('parameters, message', SIMULATOR_REFUSES)

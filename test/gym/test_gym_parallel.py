@@ -93,6 +93,8 @@ def test_bad_input_is_one_line(make):
         env.step({'r2d2_0': numpy.zeros(2)})
     with pytest.raises(GymError, match=r'^the action of r2d2_1 must be within \[-1, 1\]'):
         env.step({'r2d2_0': numpy.zeros(2), 'r2d2_1': numpy.array([0.0, -3.0])})
+    with pytest.raises(GymError, match="^NavParallelEnv: unexpected keyword argument 'colour'$"):
+        make(colour='blue')
     with pytest.raises(GymError, match='^reset option scenario: several robots draw several'):
         env.reset(options={'scenario': {}})
     with pytest.warns(UserWarning, match="unknown reset option\\(s\\) 'x' ignored"):

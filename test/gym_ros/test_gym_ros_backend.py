@@ -120,6 +120,15 @@ def test_topics_that_cannot_be_are_one_line(gym_make, topics, says):
     assert '\n' not in str(refused.value)
 
 
+def test_ros_nodes_that_is_no_function_is_one_line_before_a_harness_starts(gym_make):
+    """ros_nodes=5: GymError, nothing left running (before: a TypeError traceback)."""
+    before = (harness_threads(), connected_clients())
+    with pytest.raises(GymError, match=r'^ros_nodes must be a function of the harness, '
+                                       r'ros_nodes\(harness\), got int 5$'):
+        gym_make(backend='ros', ros_nodes=5)
+    assert (harness_threads(), connected_clients()) == before
+
+
 @pytest.mark.parametrize('frame_id', ['', 'base_scan', 'a' * 13])
 def test_the_cdr_readers_read_what_rclpy_deserializes(frame_id):
     """A LaserScan's stamp and ranges, an Odometry's stamp, pose and twist: as rclpy reads them."""
