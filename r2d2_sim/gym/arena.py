@@ -40,14 +40,21 @@ ZERO = (0.0, 0.0, 0.0)
 
 
 class Episode(NamedTuple):
-    """One episode's world: where each robot starts and must go, and where the boxes stand."""
+    """
+    One episode's world: where each robot starts and must go, and where the boxes stand.
+
+    One noise for the whole world: every robot's streams start from
+    ``noise_seed`` (each its own stream, by its name) and every laser has
+    ``scan_noise_std``.
+    """
 
     scenarios: Tuple[Scenario, ...]     # each robot's draw (its seed, as the farm has it)
     starts: Tuple[Pose, ...]            # each robot's start, in its lane
     goals: Tuple[Region, ...]           # each robot's goal (a circle), in its lane
     obstacles: Tuple[Box, ...]          # the boxes placed, box_0, box_1...
     noise_seed: int                     # every noise stream of the episode starts from it
-    scan_noise_std: float               # the laser's range noise (m)
+    scan_noise_std: float               # every laser's range noise (m)
+    owners: Tuple[int, ...] = ()        # the robot whose draw placed each box (() not known)
 
     def goal_points(self) -> List[Tuple[float, float]]:
         """Return each robot's goal centre."""
@@ -65,32 +72,45 @@ def episode_of(space: ScenarioSpace, seeds: Sequence[int], lanes: Sequence[float
     Robot i starts and heads for its draw's start and goal shifted by
     ``lanes[i]`` along y, among its draw's boxes shifted with them; boxes
     that come within the space's ``keep_out`` of any robot's start or goal
-    are left out. The first draw's seed seeds the noise.
+    are left out. The first draw's seed and scan noise are the world's noise
+    (one world, one noise: :class:`Episode`).
     """
     scenarios = tuple(space.draw(int(seed)) for seed in seeds)
     starts = tuple(Pose(s.start.x, s.start.y + dy, s.start.yaw)
                    for s, dy in zip(scenarios, lanes))
     goals = tuple(circle_region(s.goal.values[0], s.goal.values[1] + dy, s.goal.values[2])
                   for s, dy in zip(scenarios, lanes))
-    boxes = [_shifted(box, dy) for s, dy in zip(scenarios, lanes) for box in s.obstacles]
+    boxes = [(index, _shifted(box, dy)) for index, (s, dy) in enumerate(zip(scenarios, lanes))
+             for box in s.obstacles]
     if len(scenarios) > 1:
-        boxes = [box for box in boxes
+        boxes = [(index, box) for index, box in boxes
                  if all(space.clear(box, start, (goal.values[0], goal.values[1]))
                         for start, goal in zip(starts, goals))]
     first = scenarios[0]
-    return Episode(scenarios, starts, goals, tuple(boxes), first.seed, first.scan_noise_std)
+    return Episode(scenarios, starts, goals, tuple(box for _, box in boxes), first.seed,
+                   first.scan_noise_std, tuple(index for index, _ in boxes))
 
 
 def placed_scenarios(episode: Episode) -> List[Scenario]:
     """
-    Return each robot's world as the episode placed it: its draw, in its lane, every box.
+    Return each robot's lane as the episode placed it: a scenario a one-robot env replays.
 
-    A draw's start and goal are shifted into the robot's lane and the boxes are
-    those placed for every robot (those too near a start or goal left out), so
-    the scenario replays this robot's world in a one-robot environment.
+    Its draw's start and goal shifted into the lane, the boxes its draw placed
+    there (those too near any robot's start or goal left out), and the
+    episode's noise: the seed and scan noise every laser ran with. At most the
+    space's boxes, so ``R2D2Nav-v0`` made with the same space replays it: this
+    robot's task without the other robots and their lanes' boxes. (An episode
+    without ``owners`` gives every robot every box.)
     """
-    return [dataclasses.replace(scenario, start=start, goal=goal, obstacles=episode.obstacles)
-            for scenario, start, goal in zip(episode.scenarios, episode.starts, episode.goals)]
+    placed = []
+    for index, (scenario, start, goal) in enumerate(zip(episode.scenarios, episode.starts,
+                                                        episode.goals)):
+        boxes = tuple(box for box, owner in zip(episode.obstacles, episode.owners)
+                      if owner == index) if episode.owners else episode.obstacles
+        placed.append(dataclasses.replace(scenario, start=start, goal=goal, obstacles=boxes,
+                                          seed=episode.noise_seed,
+                                          scan_noise_std=episode.scan_noise_std))
+    return placed
 
 
 def reading_of(measurement: Optional[Measurement]) -> Reading:

@@ -9,8 +9,10 @@ has a lane of its own (:meth:`NavSettings.lanes
 <r2d2_sim.gym.settings.NavSettings.lanes>`, 3 m apart), its start, goal and
 boxes drawn from the scenario space in it. An agent leaves when its episode
 ends (the goal, a contact, a fall, or ``max_cycles`` steps); its robot
-stays where it stopped, an obstacle for the others. Both backends, as the
-Gymnasium environments.
+stays where it stopped, an obstacle for the others. One world, one noise:
+every robot's sensors start from the episode's seed and every laser has
+its scan noise (the first lane's draw), as each agent's info says. Both
+backends, as the Gymnasium environments.
 
 Reset options: PettingZoo's own API test passes options of its own, so an
 option this environment does not know is a one-line warning here, not an
@@ -100,10 +102,11 @@ class NavParallelEnv(ParallelEnv):
         """
         Begin an episode drawn with ``seed`` (None: the generator's next draw).
 
-        Each agent's info: ``distance`` to its goal and ``scenario``, its world as
-        placed (its start and goal in its lane, every box of the episode), which a
-        one-robot environment replays as ``reset(options={'scenario': ...})``.
-        A reset its options refuse seeds nothing.
+        Each agent's info: ``distance`` to its goal and ``scenario``, its lane as
+        placed (its start, goal and boxes, the episode's noise seed and scan
+        noise), which ``R2D2Nav-v0`` made with the same space replays as
+        ``reset(options={'scenario': ...})``. A reset its options refuse seeds
+        nothing.
         """
         self.nav.check_open()
         unknown = sorted(reset_options(options))

@@ -13,7 +13,7 @@ import numpy
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 import pytest
 
-from common import parallel_rollout as rollout
+from common import gym_noisy, parallel_rollout as rollout
 from r2d2_sim.farm.scenario import Box, Pose, Scenario
 from r2d2_sim.gym import GymError
 from r2d2_sim.gym.arena import Episode
@@ -44,20 +44,48 @@ def test_pettingzoos_api_and_seed_tests_pass(make):
 
 
 def test_each_robot_is_an_agent_in_its_lane_and_the_run_repeats(make):
-    """Two agents, lanes 3 m apart, each info its world as placed; a seed repeats its run."""
+    """Two agents, lanes 3 m apart, each info its lane as placed; a seed repeats its run."""
     env = make()
     assert env.possible_agents == ['r2d2_0', 'r2d2_1']
     _, infos = env.reset(seed=3)
     episode = env.nav.episode
     drawn = [scenario.goal.values[1] for scenario in episode.scenarios]
     assert env.nav.goals[1][1] - env.nav.goals[0][1] == pytest.approx(3.0 + drawn[1] - drawn[0])
+    lanes = []
     for agent, start, goal in zip(env.possible_agents, episode.starts, env.nav.goals):
         placed = Scenario.from_dict(infos[agent]['scenario'])
         assert (placed.start, tuple(placed.goal.values[:2])) == (start, tuple(goal))
-        assert placed.obstacles == episode.obstacles
+        lanes.extend(placed.obstacles)
+    assert tuple(lanes) == episode.obstacles  # every box placed is in one lane's scenario
     first = rollout(env, 5)
     rollout(env, 6)
     assert rollout(env, 5) == first == rollout(make(), 5)
+
+
+def test_each_agents_scenario_replays_in_r2d2nav_with_the_noise_its_laser_had(make, gym_make):
+    """
+    Each agent's info['scenario'] replays in R2D2Nav-v0 of the same space, and states the noise.
+
+    Before, it held every box of the episode (38 % of two-robot episodes more than
+    R2D2Nav-v0's 4: "at most 4 boxes"), and each agent's own draw's noise, which
+    only r2d2_0's laser ran with.
+    """
+    space = gym_noisy()['space']
+    env, single = make(space=space), gym_make(space=space)
+    crowded = 0
+    for seed in range(8):
+        _, infos = env.reset(seed=seed)
+        crowded += len(env.nav.episode.obstacles) > space.obstacles[1]
+        for agent, robot in zip(env.possible_agents, env.backend.simulation.robots):
+            scenario = infos[agent]['scenario']
+            assert (scenario['seed'], scenario['scan_noise_std']) == \
+                (robot.config.noise_seed, robot.config.scan_noise_std_m), (seed, agent)
+            _, replayed = single.reset(options={'scenario': scenario})
+            assert replayed['scenario'] == scenario
+            laser = single.unwrapped.backend.simulation.robot.config
+            assert (laser.noise_seed, laser.scan_noise_std_m) == \
+                (scenario['seed'], scenario['scan_noise_std'])
+    assert crowded  # some episodes placed more boxes than one robot's space holds
 
 
 def test_an_agent_leaves_at_its_end_and_the_other_goes_on(make):
