@@ -45,8 +45,16 @@ RENDER_VIEWS = ('top', 'camera')
 RENDER_SIZE_PX = (320, 240)
 # The rate the head camera is made with for render() (it only renders when asked).
 RENDER_RATE_HZ = 10.0
-# The top view's camera: this high above the arena's middle, looking down.
+# The top view's camera: above the arena's middle, looking down, its field of view
+# (vertical) framing everything at this height above the ground (the robot's middle: its
+# head, nearer the camera, looks a little larger) with this margin around it, and at least
+# this much of the arena, up the image.
 TOP_VIEW_FOV_DEG = 60.0
+TOP_VIEW_PLANE_M = 0.5
+TOP_VIEW_MARGIN_M = 0.5
+TOP_VIEW_MIN_HEIGHT_M = 2.0
+# How far R2D2's body reaches from its centre, as the top view frames it (m).
+ROBOT_RADIUS_M = 0.35
 RESET_OPTIONS = ('scenario',)
 
 
@@ -162,25 +170,37 @@ class Navigation:
                 k = self._camera.intrinsics
                 return numpy.frombuffer(self._camera.render().rgb, dtype=numpy.uint8).reshape(
                     k.height_px, k.width_px, 3).copy()
-            eye, span = self._top_view()
-            projection = projection_matrix(width, height, TOP_VIEW_FOV_DEG, 0.1, 100.0)
-            rgb, _ = simulation.world.render(width, height,
-                                             view_matrix(eye, (0.0, 0.0, -1.0), (1.0, 0.0, 0.0)),
-                                             projection)
+            rgb, _ = simulation.world.render(width, height, *self.top_view())
         return numpy.frombuffer(rgb, dtype=numpy.uint8).reshape(height, width, 3).copy()
 
-    def _top_view(self) -> Tuple[Tuple[float, float, float], float]:
-        """Return where the top view's camera stands to see every start, goal and box."""
-        points = [(0.0, 0.0)]
+    def top_view(self) -> Tuple[List[float], List[float]]:
+        """
+        Return the top view's view and projection matrices: every start, goal and box in sight.
+
+        A map's axes, as RViz's top-down view and a plot: the world's x to the
+        right, its y up (REP-103, seen from above). The camera looks straight
+        down on the middle of the episode's starts, goals and boxes, from as
+        high as the wider of their two extents needs (the image is 4:3), with
+        ``TOP_VIEW_MARGIN_M`` around them.
+        """
+        width, height = RENDER_SIZE_PX
+        # (x, y, radius) of what must be seen: the robots, the goal circles, the boxes.
+        things = [(0.0, 0.0, ROBOT_RADIUS_M)]
         if self.episode is not None:
-            points = ([(s.x, s.y) for s in self.episode.starts] + self.goals
-                      + [(b.x, b.y) for b in self.episode.obstacles])
-        xs, ys = [p[0] for p in points], [p[1] for p in points]
-        span = max(max(xs) - min(xs), (max(ys) - min(ys)) * RENDER_SIZE_PX[0]
-                   / RENDER_SIZE_PX[1], 2.0) + 1.5
-        height = span / 2.0 / math.tan(math.radians(TOP_VIEW_FOV_DEG) / 2.0) \
-            * RENDER_SIZE_PX[1] / RENDER_SIZE_PX[0]
-        return ((min(xs) + max(xs)) / 2.0, (min(ys) + max(ys)) / 2.0, height + 0.5), span
+            things = ([(s.x, s.y, ROBOT_RADIUS_M) for s in self.episode.starts]
+                      + [(g.values[0], g.values[1], g.values[2]) for g in self.episode.goals]
+                      + [(b.x, b.y, math.hypot(b.size[0], b.size[1]) / 2.0)
+                         for b in self.episode.obstacles])
+        low_x, high_x = min(t[0] - t[2] for t in things), max(t[0] + t[2] for t in things)
+        low_y, high_y = min(t[1] - t[2] for t in things), max(t[1] + t[2] for t in things)
+        # Half the height seen at the framing plane: the y extent, or the x extent over 4:3.
+        half_height = max(high_y - low_y + 2.0 * TOP_VIEW_MARGIN_M,
+                          (high_x - low_x + 2.0 * TOP_VIEW_MARGIN_M) * height / width,
+                          TOP_VIEW_MIN_HEIGHT_M) / 2.0
+        distance = half_height / math.tan(math.radians(TOP_VIEW_FOV_DEG) / 2.0)
+        eye = ((low_x + high_x) / 2.0, (low_y + high_y) / 2.0, TOP_VIEW_PLANE_M + distance)
+        view = view_matrix(eye, (0.0, 0.0, -1.0), (0.0, 1.0, 0.0))  # y up, so x to the right
+        return view, projection_matrix(width, height, TOP_VIEW_FOV_DEG, 0.1, eye[2] + 10.0)
 
     def close(self) -> None:
         """Close the backend; safe to call twice."""

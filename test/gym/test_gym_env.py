@@ -139,6 +139,42 @@ def test_renders_the_arena_from_above_and_the_head_camera(gym_make):
     assert camera.render().shape == (240, 320, 3)
 
 
+@pytest.mark.parametrize('goal, aside', [((8.0, 0.0), (4.0, 1.5)),     # long in x
+                                          ((1.0, 6.0), (3.0, 3.0))])    # long in y
+def test_the_top_view_is_a_map_of_the_whole_arena(monkeypatch, gym_make, goal, aside):
+    """
+    x to the right, y up (as RViz's top-down view), the robot and the goal inside the image.
+
+    A box marks the goal and another stands aside; each body's pixels are where the
+    renderer's segmentation mask sees it, in the very image render() gives. Before,
+    x ran up the short side of the image: a goal 8 m ahead was cut off, and y ran left.
+    """
+    box = (0.4, 0.4, 0.5)
+    env = gym_make(render_mode='rgb_array')
+    env.reset(options={'scenario': Scenario(
+        obstacles=(Box(*goal, 0.0, box), Box(*aside, 0.0, box)), start=Pose(0.0, 0.0, 0.0),
+        goal=circle_region(*goal, 0.3))})
+    world = env.unwrapped.backend.simulation.world
+    taken = []  # the camera render() asks the world for
+    real = world.render
+    monkeypatch.setattr(world, 'render', lambda *camera: taken.append(camera) or real(*camera))
+    image = env.render()
+    (camera,) = taken
+    seen = {}
+    for name in ('r2d2', 'box_0', 'box_1'):
+        rgb, _, mask = world.render_seeing(world.bodies[name], *camera)
+        assert rgb == image.tobytes()
+        rows, columns = numpy.nonzero(mask)
+        assert rows.size, name
+        assert 0 < rows.min() and rows.max() < 239 and 0 < columns.min() and columns.max() < 319, \
+            name  # wholly inside, the border untouched
+        seen[name] = (columns.mean(), rows.mean())  # (right, down)
+    robot, goal_box, aside_box = seen['r2d2'], seen['box_0'], seen['box_1']
+    for (x, y), (right, down) in ((goal, goal_box), (aside, aside_box)):  # the robot at 0, 0
+        assert x < 0.5 or right > robot[0] + 20, (x, y)  # farther along x: to the right
+        assert y < 0.5 or down < robot[1] - 20, (x, y)  # farther along y: up
+
+
 @pytest.mark.parametrize('action, message', [
     (numpy.array([2.0, 0.0]), r'^the action must be within \[-1, 1\], got array\(\[2., 0.\]\)$'),
     (numpy.array([numpy.nan, 0.0]),
