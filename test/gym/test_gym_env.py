@@ -139,11 +139,13 @@ def test_renders_the_arena_from_above_and_the_head_camera(gym_make):
     assert camera.render().shape == (240, 320, 3)
 
 
-@pytest.mark.parametrize('goal, aside', [((8.0, 0.0), (4.0, 1.5)),     # long in x
-                                          ((1.0, 6.0), (3.0, 3.0))])    # long in y
+@pytest.mark.parametrize('goal, aside', [
+    ((8.0, 0.0), (4.0, 1.5)),   # long in x
+    ((1.0, 6.0), (3.0, 3.0)),   # long in y
+])
 def test_the_top_view_is_a_map_of_the_whole_arena(monkeypatch, gym_make, goal, aside):
     """
-    x to the right, y up (as RViz's top-down view), the robot and the goal inside the image.
+    The world's x to the right, y up (RViz's top-down view); robot and goal inside the image.
 
     A box marks the goal and another stands aside; each body's pixels are where the
     renderer's segmentation mask sees it, in the very image render() gives. Before,
