@@ -11,7 +11,9 @@ about 12 QoS event waitables each). And a wait itself is dear here: Fast DDS
 on our machines whatever the wait set holds.
 
 :class:`LockstepExecutor` polls in two ways, both keeping rclpy's order (per
-node: timers, subscriptions, guard conditions, clients, services):
+node: timers, subscriptions, guard conditions, clients, services), except
+that a node's ``/clock`` subscription comes before its other ones, so that a
+simulated-time node's clock has moved before its messages of that time arrive:
 
 - **A sweep**, when nodes have only timers, subscriptions with plain
   callbacks and QoS event handlers (the README's controller, the simulator,
@@ -157,6 +159,20 @@ class _NodeEntities(NamedTuple):
 KINDS = ('timer', 'subscription', 'guard_condition', 'client', 'service')
 
 
+def _clock_first(node: Node) -> List[Subscription]:
+    """
+    Return the node's subscriptions a poll looks at, its ``/clock`` one first.
+
+    rclpy's TimeSource subscribes to ``/clock`` when ``use_sim_time`` is set,
+    after the node's own subscriptions; in creation order a sweep would hand
+    the node a state message before the clock published ahead of it, and the
+    node's clock would lag its messages by a publication (docs/limits.md).
+    """
+    clock = getattr(getattr(node, '_time_source', None), '_clock_sub', None)
+    own = [s for s in node.subscriptions if not isinstance(s.callback_group, TakenOnDemand)]
+    return sorted(own, key=lambda subscription: subscription is not clock)  # stable
+
+
 class _Gathered:
     """The entities of a set of nodes, their handles, and one wait set sized for them."""
 
@@ -168,8 +184,7 @@ class _Gathered:
         # standard's 21 services would otherwise be most of each poll's wait.
         called = {c.handle.service_name for n in self.nodes for c in n.clients}
         self.by_node = [(n, _NodeEntities(
-            list(n.timers),
-            [s for s in n.subscriptions if not isinstance(s.callback_group, TakenOnDemand)],
+            list(n.timers), _clock_first(n),
             list(n.guards), list(n.clients),
             [s for s in n.services if s.handle.name in called]))
             for n in self.nodes]

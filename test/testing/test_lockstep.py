@@ -153,3 +153,31 @@ def test_timers_on_simulated_time_fire_in_the_sweep_at_their_period(r2d2_sim_fac
     assert sim.executor._gathered.sweepable
     assert len(ticks) == 10
     assert [b - a for a, b in zip(ticks, ticks[1:])] == pytest.approx([1e8] * 9, abs=5e6)
+
+
+@pytest.mark.parametrize('path', ['sweep', 'wait set'])
+@pytest.mark.parametrize('publish_rate', [0.0, 50.0])
+def test_a_simulated_time_nodes_clock_has_moved_before_its_messages_arrive(
+        r2d2_sim_factory, path, publish_rate):
+    """
+    Every odom reaches a node whose clock already shows its stamp (docs/limits.md).
+
+    The node subscribes before ``add_node`` switches it to simulated time (as
+    the README's controller does), so rclpy's ``/clock`` subscription is its last.
+    """
+    from nav_msgs.msg import Odometry
+    from rclpy.node import Node
+
+    from r2d2_sim.testing import stamp_ns
+    sim = r2d2_sim_factory(publish_rate=publish_rate)
+    node = Node('listener', context=sim.context)
+    ahead_ns = []
+    node.create_subscription(Odometry, 'odom', lambda odom: ahead_ns.append(
+        stamp_ns(odom.header.stamp) - node.get_clock().now().nanoseconds), 10)
+    if path == 'wait set':  # a client: the harness waits on a wait set instead of sweeping
+        node.create_client(Trigger, 'anything')
+    sim.add_node(node)
+    sim.advance(seconds=0.5)
+    assert sim.executor._gathered.sweepable == (path == 'sweep')
+    assert len(ahead_ns) == (120 if publish_rate == 0.0 else 25)
+    assert set(ahead_ns) == {0}
