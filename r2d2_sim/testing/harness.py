@@ -120,6 +120,10 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         self._latched_served: 'weakref.WeakSet[Subscription]' = weakref.WeakSet()
         self._subscriptions_seen: 'weakref.WeakSet[Subscription]' = weakref.WeakSet()
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
+        # advance(seconds=...) since time last went back: the seconds asked for in all, and
+        # the steps taken for them, so each call steps to the nearest step of the total.
+        self._seconds_asked = 0.0
+        self._steps_for_seconds = 0
         try:
             from r2d2_sim.ros.node import SimNode  # PyBullet: only when a simulator is wanted
             # Without parameter services, rosout, type descriptions or QoS
@@ -300,8 +304,12 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         """
         Step the physics ``steps`` times, or for ``seconds`` of simulated time; return the steps.
 
-        Seconds are rounded to whole physics steps. With neither, one control
-        period: up to and including the next state publication (as ``~/step``).
+        Seconds add up: each call steps to the nearest physics step of the
+        simulated time asked for by every ``seconds=`` call so far (since time
+        last went back), so 100 calls of 0.01 s step 1 s at any rate. A call
+        shorter than a step may step nothing (it returns 0); its time is carried
+        to the next call. With neither, one control period: up to and including
+        the next state publication (as ``~/step``).
         Pause does not apply here: the harness decides when time moves.
         ValueError (one line, nothing stepped) unless ``steps`` is a whole
         number >= 0 (numpy's too; not 2.0: time goes as ``seconds=``) and
@@ -309,14 +317,15 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         """
         if steps is not None and seconds is not None:
             raise ValueError('give steps or seconds, not both')
-        if seconds is not None:
-            steps = self._steps(seconds)
-        elif steps is None:
-            steps = self.sim.steps_to_next_publish()
-        else:
+        asked = None if seconds is None else sim_seconds(seconds)
+        if steps is not None:
             steps = step_count(steps)
         self._check_world()
         self.raise_callback_error()
+        if asked is not None:
+            steps = self._steps_to_total(asked)
+        elif steps is None:
+            steps = self.sim.steps_to_next_publish()
         if not self._lockstep:
             self.sim.advance(steps)
             return steps
@@ -329,12 +338,18 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         """
         Advance one control period at a time until ``predicate()`` is true.
 
-        ``timeout_s`` is simulated time. Returns True as soon as the predicate
-        holds (checked first before any step, then after each publication),
-        False when the time is up: write ``assert harness.advance_until(...)``,
-        or ``assert not ...`` for something that must not happen.
+        ``timeout_s`` is simulated time, rounded to the nearest physics step but
+        at least one step when it is > 0 (0: only look). Returns True as soon as
+        the predicate holds (checked first before any step, then after each
+        publication), False when the time is up: write
+        ``assert harness.advance_until(...)``, or ``assert not ...`` for
+        something that must not happen. ValueError (one line) unless
+        ``timeout_s`` is a finite number >= 0.
         """
-        limit = self._steps(timeout_s)
+        timeout = sim_seconds(timeout_s)
+        limit = round(timeout * self.physics_rate_hz)
+        if timeout > 0:
+            limit = max(limit, 1)
         self._check_world()
         # Driven from this thread: each period's messages are handled before
         # the predicate looks, with no hand-over to the executor thread.
@@ -367,8 +382,12 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                 return True
         return False
 
-    def _steps(self, seconds: float) -> int:
-        return round(sim_seconds(seconds) * self.physics_rate_hz)
+    def _steps_to_total(self, seconds: float) -> int:
+        """Return the steps that bring the time stepped nearest to all the seconds asked for."""
+        self._seconds_asked += seconds
+        steps = round(self._seconds_asked * self.physics_rate_hz) - self._steps_for_seconds
+        self._steps_for_seconds += steps
+        return steps
 
     def _tf_node(self) -> Node:
         self.check_open()
@@ -453,6 +472,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
 
     def _after_time_back(self) -> None:
         """Listen to TF afresh, the harness and every robot's handle: the old frames go."""
+        self._seconds_asked, self._steps_for_seconds = 0.0, 0  # counted from the new time
         self._restart_tf()
         for handle in self._robots.values():
             handle._restart_tf()

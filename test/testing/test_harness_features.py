@@ -326,3 +326,31 @@ def test_closing_while_a_callback_still_runs_is_one_line_and_destroys_nothing_un
     node.destroy_node()
     rclpy.try_shutdown(context=harness.context)
     harness.lease.release()
+
+
+@pytest.mark.parametrize('seconds, calls', [(0.01, 100), (0.02, 50), (0.001, 1000)])
+def test_repeated_advances_by_seconds_add_up_without_drift(r2d2_sim, seconds, calls):
+    """Each call steps to the nearest step of the total asked: 1 s in all, at 240 Hz."""
+    before = r2d2_sim.sim.step_count
+    stepped = sum(r2d2_sim.advance(seconds=seconds) for _ in range(calls))
+    assert stepped == r2d2_sim.sim.step_count - before == 240
+    assert r2d2_sim.advance(seconds=0.001) == 0  # shorter than half a step: carried on
+    assert r2d2_sim.advance(seconds=0.002) == 1  # 3 ms in all: the nearest step
+
+
+def test_advance_until_with_a_timeout_under_a_step_still_steps_once(r2d2_sim):
+    """timeout_s > 0 shorter than a step steps once; 0 only looks."""
+    before = r2d2_sim.sim.step_count
+    assert not r2d2_sim.advance_until(lambda: False, timeout_s=0.002)
+    assert r2d2_sim.sim.step_count == before + 1
+    assert not r2d2_sim.advance_until(lambda: False, timeout_s=0.0)
+    assert r2d2_sim.sim.step_count == before + 1
+
+
+def test_time_asked_for_is_counted_again_from_a_reset(r2d2_sim):
+    """A remainder carried before time went back to 0 is not stepped after it."""
+    r2d2_sim.advance(seconds=0.001)  # nothing stepped, 1 ms carried
+    r2d2_sim.reset_world()
+    before = r2d2_sim.sim.step_count
+    assert r2d2_sim.advance(seconds=0.001) == 0
+    assert r2d2_sim.sim.step_count == before
