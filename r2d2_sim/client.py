@@ -33,6 +33,7 @@ if TYPE_CHECKING:  # typing only
 __all__ = ['Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'step_count',
            'sim_seconds', 'ros_child_env',
            'numbers_alike', 'ros_arg', 'stamp_ns', 'twist_message', 'twist_stamped_message',
+           'command_twist',
            'UNKNOWN_NODE_NAME', 'PARENT_PID_ENV', 'end_with_parent']
 
 # What rmw reports as the node of an endpoint whose node it has not yet discovered.
@@ -67,6 +68,31 @@ def twist_message(linear: float = 0.0, angular: float = 0.0) -> Twist:
     """Return a Twist of ``linear`` m/s along x and ``angular`` rad/s about z."""
     twist = Twist()
     twist.linear.x, twist.angular.z = float(linear), float(angular)
+    return twist
+
+
+def command_twist(linear: Any = 0.0, angular: Any = 0.0,
+                  twist: Optional[Any] = None) -> Any:
+    """
+    Return the command to send: ``twist`` as given, or a Twist of ``linear`` and ``angular``.
+
+    ValueError (one line, naming the field) for a value that is not a finite
+    number: the simulator refuses NaN and inf and keeps the last command, so
+    a test sending one would go on with the robot driving as before.
+    """
+    if twist is None:
+        for name, value in (('linear', linear), ('angular', angular)):
+            number = float(value) if isinstance(value, numbers.Real) else math.nan
+            if isinstance(value, bool) or not math.isfinite(number):
+                raise ValueError(f'send_cmd_vel: {name} must be a finite number, got {value!r}')
+        return twist_message(linear, angular)
+    inner = getattr(twist, 'twist', twist)  # a TwistStamped's, or the Twist itself
+    for part in ('linear', 'angular'):
+        for axis in 'xyz':
+            value = getattr(getattr(inner, part, None), axis, None)
+            if not isinstance(value, float) or not math.isfinite(value):
+                raise ValueError(f'send_cmd_vel: twist.{part}.{axis} must be a finite number, '
+                                 f'got {value!r}')
     return twist
 
 

@@ -21,7 +21,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
-from r2d2_sim.client import stamp_ns, twist_message, twist_stamped_message
+from r2d2_sim.client import command_twist, stamp_ns, twist_message, twist_stamped_message
 from r2d2_sim.ros.parameters import unknown_parameters
 from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.sim.settings.table import ConfigError
@@ -338,14 +338,14 @@ class LocalRobot(_RobotHandle):
         ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
         ``twist``. A robot with ``enable_stamped_cmd_vel`` gets a
         TwistStamped stamped with the simulated time now. Raises HarnessError
-        if the command does not arrive in time, or the robot left the world.
+        if the command does not arrive in time, or the robot left the world, and
+        ValueError (one line, naming the field, nothing sent) for NaN or inf.
         """
         self._harness.check_open()
         publisher = self._cmd_vel
         if publisher is None:  # closed: the robot was deleted, or a reset left it out
             raise HarnessError(f'the robot {self.name} is not in the world any more')
-        if twist is None:
-            twist = twist_message(linear, angular)
+        twist = command_twist(linear, angular, twist)
         if self._stamped and not isinstance(twist, TwistStamped):
             twist = twist_stamped_message(twist=twist,
                                           stamp_ns=self._harness.sim.sim_time_ns)
@@ -531,12 +531,12 @@ class RemoteRobot(_RobotHandle):
         ``linear`` m/s along x and ``angular`` rad/s about z, or a whole
         ``twist``. A node with ``enable_stamped_cmd_vel`` gets a TwistStamped
         stamped 0 ("now"). Confirmed through the node's ``~/get_status``.
+        ValueError (one line, naming the field, nothing sent) for NaN or inf.
         """
         publisher = self._cmd_vel
         if publisher is None:  # closed: the robot left the world
             raise HarnessError(f'the robot {self.name} is not in the world any more')
-        if twist is None:
-            twist = twist_message(linear, angular)
+        twist = command_twist(linear, angular, twist)
         if self._stamped and not hasattr(twist, 'header'):
             twist = twist_stamped_message(twist=twist)
         before = self.commands_received()

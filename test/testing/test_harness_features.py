@@ -354,3 +354,28 @@ def test_time_asked_for_is_counted_again_from_a_reset(r2d2_sim):
     before = r2d2_sim.sim.step_count
     assert r2d2_sim.advance(seconds=0.001) == 0
     assert r2d2_sim.sim.step_count == before
+
+
+@pytest.mark.parametrize('keywords, field', [
+    ({'linear': math.nan}, 'linear'), ({'angular': -math.inf}, 'angular'),
+    ({'linear': '0.3'}, 'linear'), ({'twist_angular_x': math.inf}, r'twist\.angular\.x')])
+def test_a_command_that_is_not_finite_is_one_line_and_never_sent(r2d2_sim, keywords, field):
+    """
+    NaN, inf or text: ValueError naming the field, and nothing sent.
+
+    The simulator refuses such a command and keeps the last one: a test that
+    went on would see the robot drive as before.
+    """
+    from geometry_msgs.msg import Twist
+    r2d2_sim.send_cmd_vel(linear=0.3)
+    received = r2d2_sim.robot().commands_received
+    if 'twist_angular_x' in keywords:
+        twist = Twist()
+        twist.angular.x = keywords.pop('twist_angular_x')
+        keywords['twist'] = twist
+    with pytest.raises(ValueError, match=f'send_cmd_vel: {field} must be a finite number') \
+            as raised:
+        r2d2_sim.send_cmd_vel(**keywords)
+    assert '\n' not in str(raised.value)
+    r2d2_sim.settle()
+    assert r2d2_sim.robot().commands_received == received
