@@ -233,8 +233,8 @@ class StandardWorld:
         return self._client.entities()
 
     def reset(self, time: bool, state: bool, spawned: bool) -> None:
-        scope = (1 if time else 0) | (2 if state else 0) | (4 if spawned else 0)
-        self._client.reset(scope or 255)
+        # Never 0 (reset_world refuses no scope): 0 means a full reset to the standard.
+        self._client.reset((1 if time else 0) | (2 if state else 0) | (4 if spawned else 0))
 
 
 class WorldVerbs:
@@ -413,10 +413,16 @@ class WorldVerbs:
         """
         Reset with the standard's scopes (all by default: time back to 0, as at start-up).
 
+        ValueError (one line, nothing reset) with every scope False: the
+        standard's empty scope (SCOPE_DEFAULT) means a full reset, which the
+        defaults give, so both harnesses refuse a call that asks for none.
         With time back to 0, the transforms looked up before are forgotten,
         as tf2 clears its buffer when time jumps back (so do load_world and
         unload_world): a lookup answers with the new run's, never the old one's.
         """
+        if not (time or state or spawned):
+            raise ValueError('reset_world: time, state and spawned are all False, which '
+                             'resets nothing; call reset_world() for a full reset')
         self._before_reset()
         self._world_backend().reset(time, state, spawned)
         self._after_reset()

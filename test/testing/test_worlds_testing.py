@@ -13,6 +13,8 @@ import math
 import pytest
 from sensor_msgs.msg import LaserScan
 
+from common import BOX
+
 from r2d2_sim.testing import HarnessError, RefusedError
 
 ROOM = 'package://r2d2_sim/urdf/room.world.yaml'
@@ -109,3 +111,14 @@ def test_available_worlds_can_leave_out_a_directory_with_a_bad_world(r2d2_sim_fa
         ['empty', 'room', 'samurai']
     assert [w.name for w in sim.available_worlds(tags=['indoor'], continue_on_error=True)] == \
         ['room']
+
+
+def test_a_reset_with_no_scope_is_refused_in_one_line_and_resets_nothing(r2d2_sim):
+    """Every scope False: ValueError, as SimProcess says (the standard's empty scope is all)."""
+    box = r2d2_sim.spawn(BOX, position=(1.0, 0.0, 0.1))
+    r2d2_sim.advance(seconds=0.5)
+    before = r2d2_sim.sim.step_count
+    with pytest.raises(ValueError, match='all False, which resets nothing') as raised:
+        r2d2_sim.reset_world(time=False, state=False, spawned=False)
+    assert '\n' not in str(raised.value)
+    assert box in r2d2_sim.entities() and r2d2_sim.sim.step_count == before
