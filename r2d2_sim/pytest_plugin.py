@@ -54,13 +54,13 @@ def r2d2_sim(r2d2_sim_factory: Callable[..., 'SimHarness'],
     Provide a ready in-process simulator harness (``SimHarness``) on a domain of its own.
 
     Parameters it cannot start with (``r2d2_sim_parameters``: a missing world,
-    a bad value) are the test's own mistake: the error is the simulator's one
-    line, without the library's traceback.
+    a bad value, a namespace or domain id ROS refuses) are the test's own
+    mistake: the error is the harness's one line, without the library's traceback.
     """
     from r2d2_sim.errors import StartupError
     try:
         return r2d2_sim_factory(**r2d2_sim_parameters)
-    except StartupError as exc:
+    except (StartupError, ValueError) as exc:  # ValueError: the harness's own keywords
         problem = str(exc)
     # Failed outside the except block: inside, pytest printed the error three times
     # (the StartupError, then "the direct cause of", then "during handling of").

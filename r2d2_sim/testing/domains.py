@@ -32,6 +32,7 @@ left to the user's own ROS graph.
 import errno
 import fcntl
 import itertools
+import numbers
 import os
 from pathlib import Path
 import socket
@@ -252,8 +253,10 @@ def lease_domain(domain_id: Optional[int] = None, timeout_s: float = 60.0) -> Do
     Release the lease when done (or use it as a context manager); the
     harnesses do.
     """
-    if domain_id is not None and not 0 <= domain_id <= MAX_DOMAIN_ID:
-        raise ValueError(f'a ROS domain id is 0-{MAX_DOMAIN_ID}, got {domain_id}')
+    if domain_id is not None and (isinstance(domain_id, bool)
+                                  or not isinstance(domain_id, numbers.Integral)
+                                  or not 0 <= domain_id <= MAX_DOMAIN_ID):
+        raise ValueError(f'a ROS domain id is an integer 0-{MAX_DOMAIN_ID}, got {domain_id!r}')
     directory, dir_fd = _open_lock_dir()
     try:
         return _lease_in(directory, dir_fd, domain_id, timeout_s)

@@ -210,11 +210,13 @@ class RosHarness:
         Publications within one context are delivered synchronously, so after
         ``settle`` every node here has handled what was published before the
         call, and whatever it published in response. Raises HarnessError at the
-        deadline (callbacks that never stop making work).
+        deadline (callbacks that never stop making work), and ValueError (one
+        line) unless ``timeout_s`` is None (the harness's) or a finite number > 0.
         """
         self.check_open()
+        limit_s = self.timeout_s if timeout_s is None else check_timeout(timeout_s)
         with self._own_executor():
-            self._run_until_idle(self.timeout_s if timeout_s is None else timeout_s)
+            self._run_until_idle(limit_s)
         self.raise_callback_error()
 
     def _run_until_idle(self, timeout_s: float) -> None:

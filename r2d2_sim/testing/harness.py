@@ -11,9 +11,12 @@ import json
 from typing import Any, Callable, Dict, List, Optional, Set, Tuple, Type, TYPE_CHECKING
 import weakref
 
+from rclpy.exceptions import NameValidationException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
 from rclpy.subscription import Subscription
+from rclpy.validate_namespace import validate_namespace
+from rclpy.validate_node_name import validate_node_name
 from std_srvs.srv import Trigger
 
 from r2d2_sim.client import sim_seconds, step_count
@@ -36,6 +39,23 @@ __all__ = ['SimHarness', 'LINK_NODE_NAME']
 # Name of the node through which a harness talks to the simulator (the
 # leading underscore hides it from `ros2 node list`).
 LINK_NODE_NAME = '_r2d2_sim_harness'
+
+
+def _check_names(node_name: Any, namespace: Any) -> None:
+    """Raise StartupError (one line) unless rclpy takes ``node_name`` and ``namespace``."""
+    for what, value, validate in (('node_name', node_name, validate_node_name),
+                                  ('namespace', namespace, validate_namespace)):
+        if not isinstance(value, str):
+            raise StartupError(f'{what} must be a string, got {value!r}')
+        if what == 'namespace':
+            if not value:
+                continue  # the root namespace
+            value = value if value.startswith('/') else '/' + value  # as rclpy reads it
+        try:
+            validate(value)
+        except NameValidationException as exc:  # rclpy's message points at the character
+            reason = str(exc).splitlines()[0].rstrip(':')
+            raise StartupError(f'{what} {value!r}: {reason}') from None
 
 
 def _noting(subscription: Subscription, delivered: Set[int]) -> Callable[..., Any]:
@@ -78,7 +98,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
     the harness's own are the simulator's ROS parameters (``sim_node`` takes
     the same names). ``node_name`` and ``namespace`` place the simulator (its
     services are ``<namespace>/<node_name>/pause`` and so on). Raises
-    :class:`r2d2_sim.ros.node.StartupError` when the parameters are unusable
+    :class:`r2d2_sim.ros.node.StartupError` when they or the parameters are unusable
     (``outputs_process`` too: lockstep needs delivery within this process).
 
     Several robots: ``robots=['a', 'b']`` with ``**{'b.initial_pose': [...]}``,
@@ -104,6 +124,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
                  domain_id: Optional[int] = None, timeout_s: float = 10.0,
                  **parameters: Any) -> None:
         parameters = simulator_parameters(parameters, StartupError)  # before anything is built
+        _check_names(node_name, namespace)
         if parameters.get('outputs_process') is True:  # a wrong type: the node's own line
             raise StartupError(
                 'outputs_process: SimHarness delivers every message within this process, '

@@ -130,7 +130,7 @@ pytest_plugins = ['r2d2_sim.pytest_plugin']
 
 @pytest.fixture
 def r2d2_sim_parameters():
-    return {'world': '/no/such/arena.sdf'}
+    return PARAMETERS
 
 
 def test_never_runs(r2d2_sim):
@@ -138,23 +138,27 @@ def test_never_runs(r2d2_sim):
 """
 
 
-def test_parameters_the_simulator_refuses_are_one_line_in_pytest(tmp_path):
-    """A missing world in r2d2_sim_parameters: the simulator's line, not its traceback."""
-    (tmp_path / 'test_mistake.py').write_text(MISTAKEN_PARAMETERS)
+@pytest.mark.parametrize('parameters, says', [
+    ("{'world': '/no/such/arena.sdf'}", 'world /no/such/arena.sdf: no such world file'),
+    ("{'namespace': 'a b'}", "namespace '/a b': Invalid namespace: namespace must not"),
+    ("{'domain_id': 'x'}", "a ROS domain id is an integer 0-231, got 'x'")])
+def test_parameters_the_simulator_refuses_are_one_line_in_pytest(tmp_path, parameters, says):
+    """A missing world, a bad namespace or domain: the harness's line, not its traceback."""
+    (tmp_path / 'test_mistake.py').write_text(
+        MISTAKEN_PARAMETERS.replace('PARAMETERS', parameters))
     env = testing.ros_child_env()
     env['PYTHONPATH'] = REPO
     result = subprocess.run([sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
                              'test_mistake.py'], cwd=tmp_path, env=env,
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 1 and '1 error' in result.stdout, result.stdout[-800:]
-    assert ('r2d2_sim_parameters: world /no/such/arena.sdf: no such world file'
-            in result.stdout), result.stdout[-800:]
-    assert 'r2d2_sim/sim/' not in result.stdout  # no frame of the library shown
+    assert f'r2d2_sim_parameters: {says}' in result.stdout, result.stdout[-800:]
+    assert 'r2d2_sim/' not in result.stdout  # no frame of the library (or rclpy's) shown
     assert 'Traceback' not in result.stdout
     # Once in the error's report, not thrice; the short summary below it repeats the line
     # whole where pytest thinks it runs on CI ($CI set) and cut to the terminal elsewhere.
     report = result.stdout.split('short test summary info')[0]
-    assert report.count('no such world file') == 1, result.stdout[-800:]
+    assert report.count(says) == 1, result.stdout[-800:]
 
 
 # -- import costs -------------------------------------------------------------------

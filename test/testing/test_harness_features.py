@@ -379,3 +379,30 @@ def test_a_command_that_is_not_finite_is_one_line_and_never_sent(r2d2_sim, keywo
     assert '\n' not in str(raised.value)
     r2d2_sim.settle()
     assert r2d2_sim.robot().commands_received == received
+
+
+@pytest.mark.parametrize('keywords, says', [
+    ({'namespace': 'a b'}, "namespace '/a b': Invalid namespace: namespace must not contain"),
+    ({'node_name': 'bad name'}, "node_name 'bad name': Invalid node name: node name must not"),
+    ({'node_name': 3}, 'node_name must be a string, got 3')])
+def test_a_node_name_or_namespace_rclpy_refuses_is_one_line(keywords, says):
+    """StartupError in one line, with no rclpy exception chained, and nothing leased."""
+    with pytest.raises(StartupError) as refused:
+        SimHarness(**keywords)
+    assert str(refused.value).startswith(says) and '\n' not in str(refused.value)
+    assert refused.value.__cause__ is None and (
+        refused.value.__context__ is None or refused.value.__suppress_context__)
+
+
+@pytest.mark.parametrize('domain_id', ['x', 1.0, True])
+def test_a_domain_id_that_is_no_integer_is_one_line(domain_id):
+    """Not a TypeError from a comparison deep in the lease."""
+    with pytest.raises(ValueError, match=f'an integer 0-231, got {domain_id!r}'):
+        SimHarness(domain_id=domain_id)
+
+
+@pytest.mark.parametrize('timeout_s', [-1, 0, math.nan, '1'])
+def test_settle_refuses_a_timeout_that_is_no_time(r2d2_sim, timeout_s):
+    """settle(timeout_s=-1) was accepted silently (and gave callbacks no time at all)."""
+    with pytest.raises(ValueError, match='timeout_s must be a finite number of seconds > 0'):
+        r2d2_sim.settle(timeout_s=timeout_s)
