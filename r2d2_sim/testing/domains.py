@@ -39,13 +39,13 @@ import socket
 import stat
 import tempfile
 import time
-from typing import Any, Dict, Optional, Tuple
+from typing import Any, Dict, Optional, Set, Tuple
 
 from r2d2_sim.files import describe, open_private_directory, UnsafeFile
 
 __all__ = ['DOMAIN_LOCK_DIR_ENV', 'DOMAIN_IDS_ENV', 'COORDINATOR_PORT_BASE',
            'DomainUnavailable', 'DomainLease', 'domain_ids', 'domain_lock_dir',
-           'lease_domain', 'env_domain_id']
+           'lease_domain', 'env_domain_id', 'held_here']
 
 DOMAIN_IDS_ENV = 'R2D2_SIM_DOMAIN_IDS'
 # A directory for the per-domain lock files instead of the default below.
@@ -99,6 +99,8 @@ class DomainLease:
         self.domain_id = domain_id
         self._fd: Optional[int] = fd
         self._port = port
+        self._pid = os.getpid()
+        _held.add(self)
 
     @property
     def held(self) -> bool:
@@ -126,6 +128,7 @@ class DomainLease:
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
+        _held.discard(self)
 
     def __enter__(self) -> 'DomainLease':
         return self
@@ -135,6 +138,17 @@ class DomainLease:
 
     def __repr__(self) -> str:
         return f'DomainLease({self.domain_id}, held={self.held})'
+
+
+# The leases taken in this process and not released yet (a forked child's copy is not ours).
+_held: Set[DomainLease] = set()
+
+
+def held_here(domain_id: int) -> bool:
+    """Return True when a lease of this process (not released yet) holds ``domain_id``."""
+    pid = os.getpid()
+    return any(lease.domain_id == domain_id and lease._pid == pid and lease.held
+               for lease in list(_held))
 
 
 # Where the next free-domain search starts in this process: spread by process
@@ -292,6 +306,10 @@ def _lease_in(directory: Path, dir_fd: int, domain_id: Optional[int],
             if set(candidates) <= set(unusable):  # waiting changes nothing
                 raise DomainUnavailable(f'cannot lease {_wanted(domain_id)}{squatted}')
         if time.monotonic() > deadline:
+            if domain_id is not None and held_here(domain_id):
+                raise DomainUnavailable(
+                    f'could not lease domain {domain_id} within {timeout_s:g} s: this process '
+                    'holds it (another harness of its own, not closed yet)')
             raise DomainUnavailable(
                 f'could not lease {_wanted(domain_id)} within {timeout_s:g} s: other '
                 f'harnesses hold the locks in {directory} or domain_coordinator ports '

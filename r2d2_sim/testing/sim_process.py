@@ -13,7 +13,8 @@ from std_srvs.srv import SetBool, Trigger
 
 from r2d2_sim.client import ros_child_env, stamp_ns, step_count
 from r2d2_sim.errors import StartupError
-from r2d2_sim.testing.domains import DomainLease, env_domain_id, lease_domain
+from r2d2_sim.testing.domains import (
+    DomainLease, DomainUnavailable, env_domain_id, held_here, lease_domain)
 from r2d2_sim.testing.executor import check_timeout, HarnessError
 from r2d2_sim.testing.process import ChildProcess, parse_ros_args, ProcessResult, sim_node_command
 from r2d2_sim.testing.remote import ask_until, RemoteProbe
@@ -79,7 +80,9 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
     The domain: ``domain_id`` if given; else ``ROS_DOMAIN_ID`` if the
     environment sets it and ``use_env_domain`` is true (so your own ROS tools
     see the simulator), else a free one. Either way it is leased, so two
-    harnesses on this machine never share it: they take turns instead. The
+    harnesses on this machine never share it: they take turns instead (a
+    second one on ``ROS_DOMAIN_ID`` while this process holds it is refused at
+    once with DomainUnavailable: pass ``use_env_domain=False``). The
     simulator inherits the lease and ends with this process: should this
     process die without ``stop()`` (SIGKILL), the domain stays leased until
     the simulator has stopped too.
@@ -108,6 +111,12 @@ class SimProcess(FirstRobot, TransformLookup, WorldVerbs):
                  lease: bool = True, **parameters: Any) -> None:
         if domain_id is None and use_env_domain:
             domain_id = env_domain_id()
+            if domain_id is not None and lease and held_here(domain_id):
+                # Waiting could never end: the holder is this test's own harness.
+                raise DomainUnavailable(
+                    f'ROS_DOMAIN_ID {domain_id} is leased by another harness of this process '
+                    '(a SimProcess started before, not stopped): pass use_env_domain=False '
+                    'for a free domain, or stop the other first')
         self.timeout_s = check_timeout(timeout_s)
         self.result: Optional[ProcessResult] = None
         self.paused = False
