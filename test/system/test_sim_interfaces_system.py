@@ -187,7 +187,7 @@ def test_the_testing_api_changes_the_world_in_process_and_across(r2d2_sim, r2d2_
 
 
 def test_a_process_reset_with_no_scope_is_refused_as_in_process(r2d2_sim_process):
-    """SimProcess refuses every scope False as SimHarness does; it used to reset it all."""
+    """A SimProcess refuses every scope False as SimHarness does; it used to reset it all."""
     process = r2d2_sim_process(start_paused=True)
     box = process.spawn(BOX, position=(1.0, 0.0, 0.1))
     with pytest.raises(ValueError, match='all False, which resets nothing'):

@@ -419,7 +419,7 @@ def test_a_stopped_process_says_so_in_one_line(r2d2_sim_process):
 
 
 def test_a_process_command_that_is_not_finite_is_one_line_and_never_sent(r2d2_sim_process):
-    """SimProcess's send_cmd_vel refuses NaN as SimHarness's does, before publishing."""
+    """The send_cmd_vel of SimProcess refuses NaN as SimHarness's does, before publishing."""
     sim = r2d2_sim_process()
     robot = sim.robot()
     received = robot.commands_received()
