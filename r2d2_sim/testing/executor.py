@@ -93,10 +93,11 @@ class RosHarness:
         self._park_requests = 0
         self._parked = False
         self._owned = 0
-        # Every subscription a message was handled for, by either thread (weakly: a
-        # destroyed one's id may be another's later): SimHarness counts a latched
-        # message taken before it looked as served.
-        self._handled: 'weakref.WeakSet[Subscription]' = weakref.WeakSet()
+        # Every subscription a message was handled for, by either thread, with how many
+        # (weakly: a destroyed one's id may be another's later): SimHarness counts a
+        # latched message taken before it looked as served.
+        self._handled: 'weakref.WeakKeyDictionary[Subscription, int]' = \
+            weakref.WeakKeyDictionary()
         # Discovery must stay on this host (a default, set before rclpy.init).
         os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
         self.context = Context()
@@ -243,7 +244,7 @@ class RosHarness:
 
     def _run(self, handler: Handler, entity: Any) -> None:
         if isinstance(entity, Subscription):
-            self._handled.add(entity)
+            self._handled[entity] = self._handled.get(entity, 0) + 1
         handler()
         error = handler.exception()
         if error is not None:

@@ -13,6 +13,7 @@ import weakref
 
 from rclpy.exceptions import NameValidationException
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy
 from rclpy.subscription import Subscription
 from rclpy.validate_namespace import validate_namespace
@@ -60,7 +61,7 @@ def _check_names(node_name: Any, namespace: Any) -> None:
 
 def _noting(subscription: Subscription, delivered: Set[int]) -> Callable[..., Any]:
     """
-    Return the subscription's callback that first notes it in ``delivered``.
+    Return the subscription's callback that first notes its id in ``delivered``.
 
     Of the same kind: a coroutine stays one, and one that takes the message's
     info takes it too (rclpy tells them apart by the callback's signature).
@@ -140,6 +141,9 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         # subscription looked at: weakly, as a destroyed one's id may be another's later.
         self._latched_served: 'weakref.WeakSet[Subscription]' = weakref.WeakSet()
         self._subscriptions_seen: 'weakref.WeakSet[Subscription]' = weakref.WeakSet()
+        # Before a world change (spawn, reset, load) with nodes of the user's: the latched
+        # publishers there were, and how many messages each subscription had handled.
+        self._world_mark: Optional[Tuple[List[Publisher], Dict[Subscription, int]]] = None
         self._robots: Dict[str, LocalRobot] = {}  # by name, in the simulator's order
         # advance(seconds=...) since time last went back: the seconds asked for in all, and
         # the steps taken for them, so each call steps to the nearest step of the total.
@@ -225,6 +229,16 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
             if not handle.bound_to(live.get(name)):  # gone, or another robot of that name
                 self._robots.pop(name).close()
 
+    def _before_world_change(self) -> None:
+        """
+        Note the latched publishers and what each subscription handled (see _serve_new_latched).
+
+        The first change since the last advance counts: a second one before
+        the next advance adds publishers, not subscriptions that are served.
+        """
+        if self._lockstep and self._world_mark is None:
+            self._world_mark = (self._latched_publishers(), dict(self._handled))
+
     def _after_spawn(self, name: str, namespace: str) -> None:
         if namespace:
             self.robot(name)  # listening before its first publication
@@ -267,6 +281,13 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         # before anyone looked, or a settle() did) came before time moved: served.
         pending = [sub for node in nodes for sub in self._latched_subscriptions(node)
                    if sub not in self._latched_served and sub not in self._handled]
+        self._wait_latched(pending, 'the latched topics did not reach '
+                           f'{", ".join(sorted({n.get_name() for n in nodes}))}', spin)
+        self._latched_served.update(pending)
+
+    def _wait_latched(self, pending: List[Subscription], what: str,
+                      spin: Callable[[], Any] = lambda: None) -> None:
+        """Call ``spin``, then return once each of ``pending`` has had a message; else ``what``."""
         delivered: Set[int] = set()
         originals = [(sub, sub.callback) for sub in pending]
         # Noted before the node is spun: the spinning thread may take a latched
@@ -277,9 +298,7 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
             spin()
             if pending:
                 with self._own_executor():
-                    self._wait(lambda: len(delivered) == len(pending),
-                               'the latched topics did not reach '
-                               f'{", ".join(sorted({n.get_name() for n in nodes}))}')
+                    self._wait(lambda: len(delivered) == len(pending), what)
         except CallbackError:
             raise  # a callback of the user's raised: that error, its cause kept
         except HarnessError as exc:
@@ -290,7 +309,6 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         finally:
             for sub, callback in originals:
                 sub.callback = callback
-        self._latched_served.update(pending)
 
     def _serve_new_latched(self) -> None:
         """
@@ -301,17 +319,50 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         """
         seen = self._subscriptions_seen
         fresh = [node for node in self.nodes if any(sub not in seen for sub in node.subscriptions)]
+        old = set(seen)  # made before the last advance: a world change since is news to them
         if fresh:
             self._serve_latched(fresh)
             for node in fresh:
                 seen.update(node.subscriptions)
+        mark, self._world_mark = self._world_mark, None
+        if mark is not None:
+            self._serve_new_publishers(*mark, old)
+
+    def _serve_new_publishers(self, before: List[Publisher],
+                              handled_before: Dict[Subscription, int],
+                              old: Set[Subscription]) -> None:
+        """
+        Return once latched subscriptions had a message from publishers new since the mark.
+
+        A robot spawned with a namespace (or built again by a reset or
+        load_world) brings latched publishers (``<ns>/robot_description``...)
+        that subscriptions made before it match in wall time: without this,
+        their message arrived at a simulated time that depends on the machine's
+        load. One message since the mark serves a subscription (a depth-1
+        history may keep only the last of several new publishers' messages).
+        """
+        known = {id(publisher) for publisher in before}
+        topics = {publisher.topic_name for publisher in self._latched_publishers()
+                  if id(publisher) not in known}
+        if not topics:
+            return
+        handled = self._handled
+        pending = [sub for node in self.nodes for sub in self._latched_subscriptions(node)
+                   if sub.topic_name in topics and sub in old
+                   and handled.get(sub, 0) == handled_before.get(sub, 0)]
+        self._wait_latched(pending, 'the latched topics of the new robots did not reach '
+                           f'{", ".join(sorted({s.topic_name for s in pending}))}')
+
+    def _latched_publishers(self) -> List[Publisher]:
+        """Return the simulator's transient-local publishers, its robots' own nodes' too."""
+        publishers = self.sim.all_publishers() + [
+            p for robot in self.sim.robots if robot.own_node for p in robot.publishers]
+        return [publisher for publisher in publishers
+                if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL]
 
     def _latched_subscriptions(self, node: Node) -> List[Subscription]:
         """Return the node's transient-local subscriptions to the simulator's latched topics."""
-        publishers = self.sim.all_publishers() + [
-            p for robot in self.sim.robots if robot.own_node for p in robot.publishers]
-        latched = {publisher.topic_name for publisher in publishers
-                   if publisher.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL}
+        latched = {publisher.topic_name for publisher in self._latched_publishers()}
         return [sub for sub in node.subscriptions if sub.topic_name in latched
                 and sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
                 and not isinstance(sub.callback_group, TakenOnDemand)]
@@ -459,7 +510,8 @@ class SimHarness(RosHarness, FirstRobot, TransformLookup, WorldVerbs):
         return CoreWorld(self.sim)
 
     def _before_reset(self) -> None:
-        """Nothing to take first: delivery here is synchronous, forget() drains what came."""
+        """Note what is there (robots a full reset builds again publish latched topics anew)."""
+        self._before_world_change()
         self._drop_departed()
 
     def _after_reset(self) -> None:

@@ -249,6 +249,9 @@ class WorldVerbs:
     def _after_reset(self) -> None:
         """Resync the state readers after reset_world (a harness hook)."""
 
+    def _before_world_change(self) -> None:
+        """Note what is there before a spawn or load_world (a harness hook)."""
+
     def _after_spawn(self, name: str, namespace: str) -> None:
         """Listen to a robot spawned with a namespace (a harness hook)."""
 
@@ -290,6 +293,7 @@ class WorldVerbs:
         """
         uri, text = _resource(urdf)
         renaming = not name if allow_renaming is None else allow_renaming
+        self._before_world_change()
         spawned = self._world_backend().spawn(uri, text, name,
                                               _numbers(position, 3, 'position (x, y, z)'),
                                               _orientation(yaw, orientation), renaming,
@@ -354,6 +358,7 @@ class WorldVerbs:
         time goes back to 0; the harness then moves one control period on,
         to publish the new world (as ``reset_world``).
         """
+        self._before_world_change()
         entry = self._world_backend().load_world(*_world_resource(world))
         self._after_world(True)
         self._after_time_back()
