@@ -469,3 +469,43 @@ def test_an_outcome_that_cannot_be_written_is_one_line_and_leaves_nothing_runnin
     assert done.returncode == 2 and len(errors) == 1 and 'Traceback' not in done.stderr, \
         done.stderr
     assert errors[0].startswith('r2d2_sim.farm: error: cannot write the outcome of variation 0')
+
+
+@pytest.mark.parametrize('executor, scheme', [('dask', 'tcp://'), ('ray', '')])
+def test_an_address_where_something_else_answers_is_one_line_within_the_deadline(
+        tmp_path, executor, scheme):
+    """An HTTP server (a dashboard's port) on the address: one line and exit 2, not a hang."""
+    import socket
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        port = probe.getsockname()[1]
+    server = subprocess.Popen([sys.executable, '-m', 'http.server', str(port), '--bind',
+                               '127.0.0.1'], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + DEADLINE_S
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(('127.0.0.1', port), timeout=1).close()
+                break
+            except OSError:
+                time.sleep(0.05)
+        began = time.monotonic()
+        done = subprocess.run(
+            [sys.executable, '-m', 'r2d2_sim.farm', 'run', FARM, '--variations', '1',
+             '--executor', executor, '--address', f'{scheme}127.0.0.1:{port}', '--out',
+             str(tmp_path / 'report'), '--no-progress'],
+            cwd=tmp_path, env=farm_env(R2D2_FARM_CONNECT_TIMEOUT_S='3'), capture_output=True,
+            text=True, timeout=90)
+        took = time.monotonic() - began
+    finally:
+        server.kill()
+        server.wait()
+    errors = [line for line in done.stderr.splitlines() if line.startswith('r2d2_sim.farm')]
+    assert done.returncode == 2, done.stderr
+    assert errors == [line for line in errors if 'error:' in line] and len(errors) == 1, \
+        done.stderr
+    assert 'did not answer as one within 3 s' in errors[0], done.stderr
+    assert 'Traceback' not in done.stderr
+    assert took < 60, took
+    assert not (tmp_path / 'report' / 'farm.json').exists()

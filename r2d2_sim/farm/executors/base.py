@@ -7,17 +7,26 @@ See :mod:`r2d2_sim.farm.executors` for the executors themselves.
 import os
 import socket
 import sys
-from typing import Any, List, NamedTuple, Optional, Protocol, Sequence, Tuple, Union
+import threading
+from typing import (Any, Callable, Dict, List, NamedTuple, Optional, Protocol, Sequence, Tuple,
+                    TypeVar, Union)
 
 from r2d2_sim.farm.job import FarmJob, Item, TaskResult
 
 __all__ = ['Crash', 'Executor', 'ExecutorError', 'Finished', 'EXECUTORS', 'check_reachable',
-           'check_pickles', 'ship_by_value', 'default_workers']
+           'check_pickles', 'ship_by_value', 'default_workers', 'connect_within',
+           'handshake_timeout_s']
 
 EXECUTORS = ('local', 'ray', 'dask')
 # How long a cluster's address may take to accept a connection before it counts as
 # unreachable (s).
 CONNECT_TIMEOUT_S = 5.0
+# How long connecting to a cluster may take in all, handshake included (s): something else
+# answering on the port (a dashboard, another service) makes the clients wait for ever.
+HANDSHAKE_TIMEOUT_S = 30.0
+HANDSHAKE_TIMEOUT_ENV = 'R2D2_FARM_CONNECT_TIMEOUT_S'
+
+T = TypeVar('T')
 
 
 class ExecutorError(RuntimeError):
@@ -95,6 +104,48 @@ def check_reachable(address: str, what: str, default_port: int) -> None:
         reason = exc.strerror or type(exc).__name__
         raise ExecutorError(f'cannot reach the {what} at {address} ({host}:{port}: {reason}); '
                             f'is it running, and is the address right?') from None
+
+
+def handshake_timeout_s() -> float:
+    """Return how long a connect may take (``R2D2_FARM_CONNECT_TIMEOUT_S``, default 30 s)."""
+    text = os.environ.get(HANDSHAKE_TIMEOUT_ENV, '')
+    try:
+        value = float(text) if text else HANDSHAKE_TIMEOUT_S
+    except ValueError:
+        raise ExecutorError(f'{HANDSHAKE_TIMEOUT_ENV}={text!r}: a number of seconds') from None
+    if not value > 0:
+        raise ExecutorError(f'{HANDSHAKE_TIMEOUT_ENV}={text!r}: more than 0 s')
+    return value
+
+
+def connect_within(connect: Callable[[], T], what: str, address: str) -> T:
+    """
+    Return ``connect()``, run in a thread; ExecutorError (one line) if it takes too long.
+
+    A cluster client that reaches a port where something else answers (a
+    dashboard, an HTTP server, a load balancer) retries its handshake for
+    ever: the connect is given :func:`handshake_timeout_s`, then abandoned
+    (its daemon thread ends with the process). What ``connect`` raises is
+    raised here.
+    """
+    seconds = handshake_timeout_s()
+    box: Dict[str, Any] = {}
+
+    def attempt() -> None:
+        try:
+            box['value'] = connect()
+        except BaseException as exc:  # handed to the caller's thread
+            box['error'] = exc
+    thread = threading.Thread(target=attempt, name='r2d2_farm-connect', daemon=True)
+    thread.start()
+    thread.join(seconds)
+    if thread.is_alive():
+        raise ExecutorError(f'the {what} at {address} did not answer as one within {seconds:g} s '
+                            f'(something else listens there? is the port the {what}\'s?); '
+                            f'{HANDSHAKE_TIMEOUT_ENV} sets the wait')
+    if 'error' in box:
+        raise box['error']
+    return box['value']  # type: ignore[no-any-return]
 
 
 def ship_by_value(pickler: Any, payload: Any) -> None:

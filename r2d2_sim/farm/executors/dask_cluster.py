@@ -24,7 +24,8 @@ from typing import Any, Dict, List, Optional, Sequence
 import uuid
 
 from r2d2_sim.farm.executors.base import (
-    check_pickles, check_reachable, Crash, ExecutorError, Finished, ship_by_value)
+    check_pickles, check_reachable, connect_within, Crash, ExecutorError, Finished,
+    ship_by_value)
 from r2d2_sim.farm.job import Item, run_variation, TaskResult
 
 __all__ = ['DaskPool', 'run_once', 'take_finished']
@@ -127,7 +128,10 @@ class DaskPool:
         try:
             if self._address:
                 check_reachable(self._address, 'Dask scheduler', SCHEDULER_PORT)
-                self._client = Client(self._address, timeout=CONNECT_TIMEOUT)
+                address = self._address
+                self._client = connect_within(
+                    lambda: Client(address, timeout=CONNECT_TIMEOUT), 'Dask scheduler',
+                    address)
             else:
                 self._cluster = LocalCluster(n_workers=self._workers, threads_per_worker=1,
                                              processes=True, dashboard_address=None)

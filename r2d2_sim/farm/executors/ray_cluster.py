@@ -22,7 +22,8 @@ import threading
 from typing import Any, Dict, List, Optional, Sequence
 
 from r2d2_sim.farm.executors.base import (
-    check_pickles, check_reachable, Crash, ExecutorError, Finished, ship_by_value)
+    check_pickles, check_reachable, connect_within, Crash, ExecutorError, Finished,
+    ship_by_value)
 from r2d2_sim.farm.job import Item, run_variation
 
 __all__ = ['RayPool']
@@ -70,7 +71,11 @@ class RayPool:
             # which would end a farm run with no report and its tasks still queued.
             term = signal.getsignal(signal.SIGTERM)
             try:
-                ray.init(address=address, **options)
+                if address and address not in ('auto', 'local'):
+                    connect_within(lambda: ray.init(address=address, **options),
+                                   'Ray cluster', address)
+                else:
+                    ray.init(address=address, **options)
             except (ConnectionError, RuntimeError, ValueError) as exc:
                 text = str(exc).strip().splitlines()[0] if str(exc).strip() else repr(exc)
                 where = address or 'a new local instance'
