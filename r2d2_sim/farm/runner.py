@@ -283,11 +283,15 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
         todo = farm.items([k for k in keys if k not in earlier])
         if todo and started_s is None:
             started_s = start()
-        (directory / OUTCOMES).mkdir(exist_ok=True)
-        (directory / FARM_JSON).write_text(json.dumps(
-            {'farm': identity, 'source': None if source is None else str(source),
-             'shard': None if shard is None else str(shard)}, indent=1, sort_keys=True) + '\n',
-            encoding='utf-8')
+        try:
+            (directory / OUTCOMES).mkdir(exist_ok=True)
+            (directory / FARM_JSON).write_text(json.dumps(
+                {'farm': identity, 'source': None if source is None else str(source),
+                 'shard': None if shard is None else str(shard)}, indent=1,
+                sort_keys=True) + '\n', encoding='utf-8')
+        except OSError as exc:  # outcomes/ a file, farm.json a folder, a full disk...
+            raise FarmError(f'the report directory {directory} cannot hold a farm\'s report: '
+                            f'{exc.strerror or exc}: {exc.filename}') from None
     except BaseException:
         if started_s is not None:  # started: let its workers go
             pool.close()
@@ -389,7 +393,33 @@ def _drive(pool: Any, todo: List[Item], job: FarmJob, source: Optional[JobSource
     finally:
         run.run_s = time.perf_counter() - submitted
         run.ready_s = list(getattr(pool, 'ready_s', []))
-        try:
-            run.cleaned = pool.clean_hosts()
-        finally:
-            pool.close()
+        _let_go(pool, run)
+
+
+def _let_go(pool: Any, run: FarmRun) -> None:
+    """
+    Sweep the hosts and let go of the executor, whatever state its workers are in.
+
+    After Ctrl-C a terminal's SIGINT reaches a local cluster's workers too, and
+    the cluster's client then fails on a worker going away (Dask's
+    CommClosedError, a Ray node gone): the clean-up is best effort, said in a
+    warning, and never keeps the report of what finished from being written.
+    """
+    try:
+        run.cleaned = pool.clean_hosts()
+    except Exception as exc:
+        _warn(f'the Fast DDS files of crashed tasks were not swept on every host '
+              f'({_one_line(exc)})')
+    try:
+        pool.close()
+    except Exception as exc:
+        _warn(f'letting go of the {pool.name} executor failed ({_one_line(exc)})')
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return f'{type(exc).__name__}: {text.splitlines()[0]}' if text else type(exc).__name__
+
+
+def _warn(text: str) -> None:
+    print(f'r2d2_sim.farm: warning: {text}', file=sys.stderr)

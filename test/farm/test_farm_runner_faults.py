@@ -1,0 +1,123 @@
+"""
+The farm runner against executors that fail: a fake executor, no simulator runs.
+
+- the clean-up after Ctrl-C fails (a Dask worker going away: CommClosedError):
+  the report of what finished is still written, the run is interrupted;
+- the report directory cannot hold a report (``outcomes`` a file): one line.
+"""
+
+import json
+import socket
+
+import pytest
+
+from r2d2_sim.farm import runner
+from r2d2_sim.farm.job import FarmJob, Item, TaskResult
+from r2d2_sim.farm.runner import FarmError, run_farm
+from r2d2_sim.farm.scenario import Scenario, ScenarioSpace
+
+
+def drive(harness, scenario):
+    """Command nothing (these tests never run the controller)."""
+
+
+SPACE = ScenarioSpace(obstacles=(0, 2))
+JOB = FarmJob(SPACE, drive, seconds=1.0, name='idle')
+
+
+def outcome_of(seed: int, passed: bool = True) -> dict:
+    """Return an outcome's JSON for the report, as a run gives it."""
+    return {'scenario': Scenario(seed=seed).to_dict(), 'passed': passed,
+            'reason': '' if passed else 'touched box_0 at 1.000 s (base, 3 N)', 'seconds': 1.0,
+            'time_to_goal_s': 0.5 if passed else None, 'clearance_m': 0.2, 'closest': 'box_0',
+            'closest_s': 1.0, 'contacts': [], 'tipped_s': None,
+            'trajectory': [[0, 0.0, 0.0, 0.0], [10**8, 0.1, 0.0, 0.0]], 'steps': 240,
+            'wall_s': 0.1, 'recording': None}
+
+
+class FakePool:
+    """An executor that gives each item the result ``results`` says, then what it is told."""
+
+    name = 'fake'
+
+    def __init__(self, results=None, interrupt_after=None, clean_raises=None,
+                 close_raises=None):
+        self.results = results or {}
+        self.interrupt_after = interrupt_after
+        self.clean_raises = clean_raises
+        self.close_raises = close_raises
+        self.queue = []
+        self.given = 0
+        self.stopped = self.closed = False
+
+    def start(self):
+        """Start nothing."""
+
+    def submit(self, items):
+        """Queue the items."""
+        self.queue += list(items)
+
+    def pending(self):
+        """Return what is queued."""
+        return len(self.queue)
+
+    def wait(self, timeout_s):
+        """Give one item's result, or a Ctrl-C once ``interrupt_after`` were given."""
+        if self.interrupt_after is not None and self.given >= self.interrupt_after:
+            raise KeyboardInterrupt
+        item = self.queue.pop(0)
+        self.given += 1
+        made = self.results.get(item.key, True)
+        if isinstance(made, TaskResult):
+            return [(item, made)]
+        return [(item, TaskResult(item.key, item.seed, outcome_of(item.seed, made), None, None,
+                                  None, None, socket.gethostname(), 1, 0.1))]
+
+    def stop(self):
+        """Drop the queue."""
+        self.stopped = True
+        self.queue.clear()
+
+    def close(self):
+        """Let go, or fail to."""
+        self.closed = True
+        if self.close_raises is not None:
+            raise self.close_raises
+
+    def clean_hosts(self):
+        """Sweep, or fail to."""
+        if self.clean_raises is not None:
+            raise self.clean_raises
+        return []
+
+
+@pytest.fixture
+def fake(monkeypatch):
+    """Have the runner use the FakePool set in the returned list's first place."""
+    pools = []
+    monkeypatch.setattr(runner, 'choose', lambda *args, **kwargs: pools[0])
+    return pools
+
+
+def test_a_clean_up_that_fails_after_ctrl_c_still_writes_the_report(tmp_path, fake, capsys):
+    """Dask's client.run on a worker going away raises CommClosedError (an OSError)."""
+    fake.append(FakePool(interrupt_after=2, clean_raises=OSError('Stream is closed'),
+                         close_raises=RuntimeError('the cluster is gone')))
+    run = run_farm(JOB, variations=4, out=tmp_path, progress=False, picture=False)
+    assert run.interrupted and run.exit_status == 130
+    assert fake[0].stopped and fake[0].closed
+    report = json.loads((tmp_path / 'report.json').read_text())
+    assert report['summary']['runs'] == 2
+    err = capsys.readouterr().err
+    assert 'warning: the Fast DDS files of crashed tasks were not swept' in err
+    assert 'Stream is closed' in err and 'the cluster is gone' in err
+
+
+def test_outcomes_that_is_a_file_is_one_line(tmp_path, fake):
+    fake.append(FakePool())
+    (tmp_path / 'outcomes').write_text('not a folder')
+    with pytest.raises(FarmError) as raised:
+        run_farm(JOB, variations=1, out=tmp_path, progress=False)
+    assert 'cannot hold a farm\'s report' in str(raised.value)
+    assert 'outcomes' in str(raised.value) and '\n' not in str(raised.value)
+    assert fake[0].closed  # started, so let go
