@@ -25,12 +25,14 @@ needs neither); :func:`run_variation` does.
 """
 
 from dataclasses import dataclass, field
+import functools
 import hashlib
 import json
 import importlib
 import importlib.util
 import os
 from pathlib import Path
+import re
 import socket
 import sys
 import tempfile
@@ -135,8 +137,40 @@ def describe(job: FarmJob) -> Dict[str, Any]:
 
 
 def _qualified(function: Any) -> str:
-    module = getattr(function, '__module__', None) or '?'
-    return f'{module}:{getattr(function, "__qualname__", repr(function))}'
+    """
+    Return what names a controller or verdict the same way in every process.
+
+    A function, class or method: ``module:qualname``. A ``functools.partial``:
+    its function's name and its arguments' reprs. Another callable object: its
+    class's name and its repr (or, with the default repr, its attributes'
+    reprs). Memory addresses (``at 0x7f...``) are left out of every repr: they
+    differ in each process, and a resume compares this with the farm.json an
+    earlier process wrote.
+    """
+    if isinstance(function, functools.partial):
+        arguments = [_stable_repr(a) for a in function.args] + [
+            f'{k}={_stable_repr(v)}' for k, v in sorted(function.keywords.items())]
+        return f'{_qualified(function.func)}({", ".join(arguments)})'
+    if hasattr(function, '__qualname__'):
+        module = getattr(function, '__module__', None) or '?'
+        return f'{module}:{function.__qualname__}'
+    kind = type(function)
+    name = f'{kind.__module__}:{kind.__qualname__}'
+    if kind.__repr__ is not object.__repr__:
+        return f'{name} {_stable_repr(function)}'
+    state = getattr(function, '__dict__', {})
+    return name + '(' + ', '.join(f'{k}={_stable_repr(state[k])}' for k in sorted(state)) + ')'
+
+
+_ADDRESS = re.compile(r' at 0x[0-9a-fA-F]+')
+
+
+def _stable_repr(value: Any) -> str:
+    """Return ``repr(value)`` without memory addresses; a function by its qualified name."""
+    if callable(value) and (hasattr(value, '__qualname__')
+                            or isinstance(value, functools.partial)):
+        return _qualified(value)
+    return _ADDRESS.sub('', repr(value))
 
 
 @dataclass(frozen=True)

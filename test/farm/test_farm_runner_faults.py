@@ -3,16 +3,22 @@ The farm runner against executors that fail: a fake executor, no simulator runs.
 
 - the clean-up after Ctrl-C fails (a Dask worker going away: CommClosedError):
   the report of what finished is still written, the run is interrupted;
-- the report directory cannot hold a report (``outcomes`` a file): one line.
+- the report directory cannot hold a report (``outcomes`` a file): one line;
+- a controller or verdict that is a ``functools.partial`` or a callable object
+  is the same farm in another process (a resume is not refused).
 """
 
+import functools
 import json
+from pathlib import Path
 import socket
+import subprocess
+import sys
 
 import pytest
 
 from r2d2_sim.farm import runner
-from r2d2_sim.farm.job import FarmJob, Item, TaskResult
+from r2d2_sim.farm.job import describe, FarmJob, TaskResult
 from r2d2_sim.farm.runner import FarmError, run_farm
 from r2d2_sim.farm.scenario import Scenario, ScenarioSpace
 
@@ -121,3 +127,41 @@ def test_outcomes_that_is_a_file_is_one_line(tmp_path, fake):
     assert 'cannot hold a farm\'s report' in str(raised.value)
     assert 'outcomes' in str(raised.value) and '\n' not in str(raised.value)
     assert fake[0].closed  # started, so let go
+
+
+# -- what counts as the same farm ---------------------------------------------------
+
+def stopper(harness, scenario, stop_m=0.5):
+    """Command nothing, at a distance (a controller with a parameter)."""
+
+
+class Within:
+    """A verdict object with a parameter and the default repr (an address in it)."""
+
+    def __init__(self, metres):
+        self.metres = metres
+
+    def __call__(self, outcome):
+        """Pass every run."""
+        return ''
+
+
+PARTIAL = FarmJob(SPACE, functools.partial(stopper, stop_m=0.3), seconds=1.0,
+                  verdict=Within(0.2), name='partial')
+
+
+def test_a_partial_and_a_callable_object_are_the_same_farm_in_another_process(tmp_path):
+    here = describe(PARTIAL)
+    assert '0x' not in json.dumps(here)
+    assert here['controller'] == f'{__name__}:stopper(stop_m=0.3)'
+    assert here['verdict'] == f'{__name__}:Within(metres=0.2)'
+    other = FarmJob(SPACE, functools.partial(stopper, stop_m=0.4), seconds=1.0,
+                    verdict=Within(0.2), name='partial')
+    assert describe(other)['controller'] != here['controller']
+    there = subprocess.run(
+        [sys.executable, '-c', 'import json, sys; sys.path.insert(0, sys.argv[1]); '
+         f'import {__name__} as t; from r2d2_sim.farm.job import describe; '
+         'print(json.dumps(describe(t.PARTIAL)))', str(Path(__file__).parent)],
+        capture_output=True, text=True, timeout=60)
+    assert there.returncode == 0, there.stderr
+    assert json.loads(there.stdout) == here
