@@ -117,8 +117,10 @@ def run(args: argparse.Namespace) -> int:
     passed, failed, crashed = (done.count(v) for v in ('passed', 'failed', 'crashed'))
     total = len(done.records)
     state = 'interrupted: ' if done.interrupted else ''
+    others = f', {done.others} run before and not asked now' if done.others else ''
     print(f'{state}{total} variations reported ({done.ran} run now on {done.executor}, '
-          f'{done.resumed} resumed): {passed} passed, {failed} failed, {crashed} crashed')
+          f'{done.resumed} resumed{others}): {passed} passed, {failed} failed, '
+          f'{crashed} crashed')
     if done.cleaned:
         names = ' '.join(done.cleaned[:SHOWN_FILES]) + (
             ' ...' if len(done.cleaned) > SHOWN_FILES else '')

@@ -66,9 +66,14 @@ class FarmRun:
     """
     What a farm run did: the report's directory and records, and what it counted.
 
-    ``records`` are every variation's record in the directory (this run's and
-    the resumed ones'), by key; ``ran`` how many this run finished,
-    ``resumed`` how many were there already; ``interrupted`` whether Ctrl-C
+    ``records`` are every variation's record in the directory, by key: this
+    run's, the resumed ones' and those of this farm's variations that an
+    earlier run put there and this one was not asked for (``others`` of them:
+    a ``seeds`` or ``shard`` run into a fuller directory). The report is
+    written from exactly these, and :meth:`count` and :attr:`exit_status`
+    count them: the report, the counts and the exit status always agree.
+    ``ran`` is how many this run finished, ``resumed`` how many of those asked
+    were there already; ``interrupted`` whether Ctrl-C
     stopped it; ``cleaned`` the Fast DDS segments removed after crashes;
     ``written`` the report's files; ``shrunk`` the shrinking's result, if asked;
     ``start_s`` and ``run_s`` the wall time of starting the executor and of
@@ -79,6 +84,7 @@ class FarmRun:
     records: Dict[int, Dict[str, Any]] = field(default_factory=dict)
     ran: int = 0
     resumed: int = 0
+    others: int = 0
     interrupted: bool = False
     cleaned: List[str] = field(default_factory=list)
     written: Dict[str, Path] = field(default_factory=dict)
@@ -296,8 +302,9 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
         if started_s is not None:  # started: let its workers go
             pool.close()
         raise
-    run = FarmRun(directory, records={k: earlier[k] for k in keys if k in earlier},
-                  resumed=len([k for k in keys if k in earlier]), executor=pool.name)
+    asked = set(keys)
+    run = FarmRun(directory, records=dict(earlier), resumed=len(asked & set(earlier)),
+                  others=len(set(earlier) - asked), executor=pool.name)
     if started_s is not None:
         run.start_s = started_s
     shown = Progress(len(keys), run.resumed, stream=stream,
@@ -315,8 +322,7 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
         shown.finish()
     if run.records:
         from r2d2_sim.farm.report import write_report
-        from r2d2_sim.farm.rerun import read_records
-        run.written = write_report(read_records(directory), directory, picture=picture)
+        run.written = write_report(list(run.records.values()), directory, picture=picture)
     if shrink and not run.interrupted:
         failed = sorted(k for k, r in run.records.items() if _verdict(r) == 'failed')
         if failed:
@@ -375,12 +381,14 @@ def _drive(pool: Any, todo: List[Item], job: FarmJob, source: Optional[JobSource
                 finished: List[Finished] = pool.wait(POLL_S)
                 for item, result in finished:
                     try:
-                        entry = _record(job, source, directory, item, result, pool.name)
-                        lines.write(json.dumps(entry, sort_keys=True) + '\n')
+                        line = json.dumps(_record(job, source, directory, item, result,
+                                                  pool.name), sort_keys=True)
+                        lines.write(line + '\n')
                         lines.flush()
                     except OSError as exc:  # a full disk, recordings/ not a folder...
                         raise FarmError(f'cannot write the outcome of variation {item.key} '
                                         f'into {directory}: {exc.strerror or exc}') from None
+                    entry = json.loads(line)  # as a resume reads it back
                     run.records[item.key] = entry
                     run.ran += 1
                     shown.add(_verdict(entry))

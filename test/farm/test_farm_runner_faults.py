@@ -165,3 +165,27 @@ def test_a_partial_and_a_callable_object_are_the_same_farm_in_another_process(tm
         capture_output=True, text=True, timeout=60)
     assert there.returncode == 0, there.stderr
     assert json.loads(there.stdout) == here
+
+
+# -- a run of some seeds into a fuller directory -------------------------------------
+
+def test_a_run_of_some_seeds_counts_and_exits_as_its_report_says(tmp_path, fake, capsys):
+    """Seeds 0-3 ran before (1 and 3 failed); --seeds 0,2 reports, counts and exits on all 4."""
+    from r2d2_sim.farm.__main__ import main
+    fake.append(FakePool(results={1: False, 3: False}))
+    out = str(tmp_path / 'report')
+    assert main(['run', f'{__name__}:JOB', '--seeds', '0-3', '--out', out,
+                 '--no-progress']) == 1
+    fake[0] = FakePool()
+    capsys.readouterr()
+    assert main(['run', f'{__name__}:JOB', '--seeds', '0,2', '--out', out,
+                 '--no-progress']) == 1
+    said = capsys.readouterr().out
+    assert ('4 variations reported (0 run now on fake, 2 resumed, 2 run before and not asked '
+            'now): 2 passed, 2 failed, 0 crashed') in said, said
+    report = json.loads((tmp_path / 'report' / 'report.json').read_text())
+    assert report['summary']['runs'] == 4 and report['summary']['failed'] == 2
+    fake[0] = FakePool()
+    run = run_farm(JOB, seeds=[4], out=out, progress=False, picture=False)
+    assert (run.ran, run.resumed, run.others) == (1, 0, 4)
+    assert run.count('failed') == 2 and run.exit_status == 1 and len(run.records) == 5
