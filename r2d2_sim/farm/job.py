@@ -44,7 +44,7 @@ from typing import (Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Pr
 from r2d2_sim.farm.scenario import Scenario, ScenarioError, ScenarioSpace
 
 __all__ = ['FarmJob', 'JobSource', 'ItemJob', 'Item', 'TaskResult', 'run_variation',
-           'prepare', 'RECORD_MODES', 'describe']
+           'prepare', 'RECORD_MODES', 'describe', 'LOAD_FAILED', 'load_failure']
 
 # What is recorded: a failure's run (run again, recording, as the pytest farm does),
 # every run, or nothing.
@@ -291,6 +291,10 @@ class TaskResult(NamedTuple):
     ``recording`` the MCAP bytes kept (a failure's, or every run's with
     ``record='all'``) and ``recording_sha256`` their hash; ``host`` and
     ``pid`` where it ran; ``task_s`` its wall time inside the worker.
+    ``setup_error`` is set, in one line, when the worker could not load the
+    job (import the farm, or the simulator's packages) before the variation
+    began: that says nothing of the variation, and stops the run
+    (:data:`LOAD_FAILED` starts it).
     """
 
     key: int
@@ -303,6 +307,12 @@ class TaskResult(NamedTuple):
     host: str
     pid: int
     task_s: float
+    setup_error: Optional[str] = None
+
+
+# How a worker that could not load the job says so: the runner stops the run with it,
+# as the local pool does (a load failure is no variation's verdict).
+LOAD_FAILED = 'a worker could not load the farm'
 
 
 def run_variation(job: Union[FarmJob, JobSource, ItemJob], item: Item, record: str = 'failures'
@@ -323,6 +333,14 @@ def run_variation(job: Union[FarmJob, JobSource, ItemJob], item: Item, record: s
         if isinstance(job, JobSource):
             job = job.load()
         if isinstance(job, FarmJob):
+            import r2d2_sim.farm.run  # noqa: F401  (rclpy and PyBullet: a worker's set-up)
+    except Exception as exc:  # set-up, not the variation: the runner stops the run
+        host = socket.gethostname()
+        return TaskResult(item.key, item.seed, None, None, traceback.format_exc(), None, None,
+                          host, os.getpid(), time.perf_counter() - started,
+                          f'{LOAD_FAILED} on {host}: {_said(exc)}'.splitlines()[0])
+    try:
+        if isinstance(job, FarmJob):
             with shm.noting():  # the ports Fast DDS opens later, should this process be killed
                 outcome, recording = _run(job, item, record, shm)
         else:
@@ -336,6 +354,29 @@ def run_variation(job: Union[FarmJob, JobSource, ItemJob], item: Item, record: s
         shm.forget()
     return TaskResult(item.key, item.seed, outcome, error, trace, recording, digest,
                       socket.gethostname(), os.getpid(), time.perf_counter() - started)
+
+
+def _said(exc: BaseException) -> str:
+    """Return an exception in words: a ScenarioError's own, another's with its type."""
+    return str(exc) if isinstance(exc, ScenarioError) else f'{type(exc).__name__}: {exc}'
+
+
+def load_failure(record: Dict[str, Any]) -> bool:
+    """
+    Return True for a record of a variation that never began: its worker could not load the job.
+
+    Such records are no verdict (and the runner writes none); a runner before
+    0.2.0 wrote them as crashes that raised the load's ScenarioError
+    (``importing it raised``, ``cannot import``, ``no such file on``, ``not a
+    FarmJob``): a resume runs those variations again.
+    """
+    crashed = record.get('crashed') or {}
+    reason = str(crashed.get('reason', ''))
+    if crashed.get('setup') or LOAD_FAILED in reason:
+        return True
+    return reason.startswith('raised ScenarioError: ') and any(
+        marker in reason for marker in (': importing it raised ', ': cannot import ',
+                                        ': no such file on ', ', not a FarmJob ('))
 
 
 def _run(job: FarmJob, item: Item, record: str,

@@ -43,7 +43,8 @@ import time
 from typing import Any, Dict, List, Optional, Sequence, TextIO, Union
 
 from r2d2_sim.farm.executors import Crash, ExecutorError, Finished, choose
-from r2d2_sim.farm.job import describe, FarmJob, Item, JobSource, RECORD_MODES, TaskResult
+from r2d2_sim.farm.job import (describe, FarmJob, Item, JobSource, load_failure, RECORD_MODES,
+                               TaskResult)
 from r2d2_sim.farm.progress import Progress
 from r2d2_sim.farm.scenario import ScenarioError
 from r2d2_sim.farm.shards import parse_shard, Shard
@@ -176,7 +177,32 @@ def _earlier(directory: Path, identity: Dict[str, Any]) -> Dict[int, Dict[str, A
         raise FarmError(f'{directory} holds the report of another farm (its {differ} differs): '
                         'resume only the same farm there; choose another directory, or start '
                         'over in it (--fresh)')
-    return {int(r['farm']['key']): r for r in read_records(directory) if 'farm' in r}
+    records = [r for r in read_records(directory) if 'farm' in r]
+    unloaded = [r for r in records if load_failure(r)]
+    if unloaded:
+        _drop_load_failures(directory)
+        print(f'r2d2_sim.farm: {len(unloaded)} earlier outcome(s) in {directory} were a worker '
+              'that could not load the farm, not a verdict: they run again', file=sys.stderr)
+    return {int(r['farm']['key']): r for r in records if not load_failure(r)}
+
+
+def _drop_load_failures(directory: Path) -> None:
+    """Rewrite outcomes/ without the records of workers that could not load the farm."""
+    for path in sorted((directory / OUTCOMES).glob('*.jsonl')):
+        lines = path.read_text(encoding='utf-8').splitlines(keepends=True)
+        kept = []
+        for line in lines:
+            try:
+                record = json.loads(line)
+            except ValueError:  # a line cut short: read_records said so; kept as it is
+                kept.append(line)
+                continue
+            if not (isinstance(record, dict) and 'farm' in record and load_failure(record)):
+                kept.append(line)
+        if len(kept) != len(lines):
+            scratch = path.with_name(path.name + '.new')
+            scratch.write_text(''.join(kept), encoding='utf-8')
+            os.replace(scratch, path)
 
 
 def _command_line(source: Optional[JobSource], key: int, directory: Path) -> str:
@@ -380,6 +406,8 @@ def _drive(pool: Any, todo: List[Item], job: FarmJob, source: Optional[JobSource
             while pool.pending():
                 finished: List[Finished] = pool.wait(POLL_S)
                 for item, result in finished:
+                    if isinstance(result, TaskResult) and result.setup_error:
+                        raise ExecutorError(result.setup_error)  # as the local pool says it
                     try:
                         line = json.dumps(_record(job, source, directory, item, result,
                                                   pool.name), sort_keys=True)

@@ -5,7 +5,12 @@ The farm runner against executors that fail: a fake executor, no simulator runs.
   the report of what finished is still written, the run is interrupted;
 - the report directory cannot hold a report (``outcomes`` a file): one line;
 - a controller or verdict that is a ``functools.partial`` or a callable object
-  is the same farm in another process (a resume is not refused).
+  is the same farm in another process (a resume is not refused);
+- a worker that cannot load the farm stops the run in one line (no variation
+  reported crashed), and a resume runs again the variations an older runner
+  reported crashed for that reason;
+- a run of some seeds into a fuller directory counts and exits on what its
+  report holds.
 """
 
 import functools
@@ -18,7 +23,7 @@ import sys
 import pytest
 
 from r2d2_sim.farm import runner
-from r2d2_sim.farm.job import describe, FarmJob, TaskResult
+from r2d2_sim.farm.job import describe, FarmJob, JobSource, run_variation, TaskResult
 from r2d2_sim.farm.runner import FarmError, run_farm
 from r2d2_sim.farm.scenario import Scenario, ScenarioSpace
 
@@ -47,8 +52,9 @@ class FakePool:
     name = 'fake'
 
     def __init__(self, results=None, interrupt_after=None, clean_raises=None,
-                 close_raises=None):
+                 close_raises=None, payload=None):
         self.results = results or {}
+        self.payload = payload  # run for real (a job whose loading fails runs nothing)
         self.interrupt_after = interrupt_after
         self.clean_raises = clean_raises
         self.close_raises = close_raises
@@ -73,6 +79,8 @@ class FakePool:
             raise KeyboardInterrupt
         item = self.queue.pop(0)
         self.given += 1
+        if self.payload is not None:
+            return [(item, run_variation(self.payload, item, 'none'))]
         made = self.results.get(item.key, True)
         if isinstance(made, TaskResult):
             return [(item, made)]
@@ -189,3 +197,42 @@ def test_a_run_of_some_seeds_counts_and_exits_as_its_report_says(tmp_path, fake,
     run = run_farm(JOB, seeds=[4], out=out, progress=False, picture=False)
     assert (run.ran, run.resumed, run.others) == (1, 0, 4)
     assert run.count('failed') == 2 and run.exit_status == 1 and len(run.records) == 5
+
+
+# -- a farm the workers cannot load --------------------------------------------------
+
+def test_a_farm_the_workers_cannot_load_stops_the_run_in_one_line(tmp_path, fake):
+    """As the local pool says it: no variation is reported crashed for it."""
+    farm = tmp_path / 'farm.py'
+    farm.write_text('from r2d2_sim.farm import FarmJob, ScenarioSpace\n'
+                    'def drive(harness, scenario):\n    pass\n'
+                    'FARM = FarmJob(ScenarioSpace(), drive, seconds=1.0)\n')
+    source = JobSource.parse(f'{farm}:FARM')
+    broken = JobSource(str(tmp_path / 'missing_on_the_workers.py'), 'FARM')
+    fake.append(FakePool(payload=broken))
+    with pytest.raises(FarmError) as raised:
+        run_farm(source, variations=3, out=tmp_path / 'report', progress=False)
+    said = str(raised.value)
+    assert said.startswith('a worker could not load the farm on ') and '\n' not in said
+    assert 'missing_on_the_workers.py: no such file' in said
+    assert fake[0].stopped and fake[0].closed
+    lines = [p.read_text() for p in (tmp_path / 'report' / 'outcomes').glob('*.jsonl')]
+    assert ''.join(lines) == ''
+
+
+def test_a_resume_runs_again_what_an_older_runner_called_crashed_for_a_farm_not_loaded(
+        tmp_path, fake, capsys):
+    fake.append(FakePool())
+    run_farm(JOB, variations=3, out=tmp_path, progress=False, picture=False)
+    (path,) = (tmp_path / 'outcomes').glob('*.jsonl')
+    records = [json.loads(line) for line in path.read_text().splitlines()]
+    records[1].update(outcome=None, crashed={  # as a runner before 0.2.0 wrote it
+        'reason': 'raised ScenarioError: /farms/farm.py: importing it raised ImportError: '
+                  'no module named stopper', 'host': 'node2', 'pid': 7})
+    path.write_text(''.join(json.dumps(r) + '\n' for r in records))
+    fake[0] = FakePool()
+    run = run_farm(JOB, variations=3, out=tmp_path, progress=False, picture=False)
+    assert (run.ran, run.resumed) == (1, 2) and run.count('passed') == 3
+    assert 'were a worker that could not load the farm' in capsys.readouterr().err
+    report = json.loads((tmp_path / 'report.json').read_text())
+    assert report['summary']['runs'] == 3 and report['summary']['crashed'] == 0

@@ -177,3 +177,39 @@ def test_openscenario_documents_on_a_dask_cluster_give_the_local_verdicts(tmp_pa
     assert [(v.name, v.passed) for v in verdicts] == [('crossing-0', True),
                                                       ('crossing-1', False)]
     assert all(v.same_as(run_document(t)) for v, t in zip(verdicts, tasks))
+
+
+WORKER_FAILS = '''
+"""A farm that imports everywhere but in a Dask worker (a module not installed there)."""
+import multiprocessing
+from r2d2_sim.farm import FarmJob, ScenarioSpace, safe
+if 'Dask' in multiprocessing.current_process().name:
+    raise ImportError('only on the workers')
+
+
+def idle(harness, scenario):
+    """Add nothing."""
+
+
+FARM = FarmJob(ScenarioSpace(), idle, seconds=0.2, verdict=safe, name='idle')
+'''
+
+
+def test_a_farm_the_dask_workers_cannot_load_stops_in_one_line_as_locally(tmp_path):
+    """No variation is reported crashed for it: nothing ran, and nothing is resumed later."""
+    from test_farm_runner import farm_env
+    farm = tmp_path / 'worker_fails.py'
+    farm.write_text(WORKER_FAILS)
+    done = subprocess.run(
+        [sys.executable, '-m', 'r2d2_sim.farm', 'run', f'{farm}:FARM', '--variations', '3',
+         '--executor', 'dask', '--workers', '1', '--out', str(tmp_path / 'report'),
+         '--no-progress'], cwd=tmp_path, env=farm_env(), capture_output=True, text=True,
+        timeout=DEADLINE_S)
+    said = [line for line in done.stderr.splitlines() if line.startswith('r2d2_sim.farm')]
+    assert done.returncode == 2, done.stderr
+    assert len(said) == 1 and said[0].startswith(
+        'r2d2_sim.farm: error: a worker could not load the farm on '), done.stderr
+    assert 'importing it raised ImportError: only on the workers' in said[0]
+    assert 'crashed' not in done.stdout
+    outcomes = list((tmp_path / 'report' / 'outcomes').glob('*.jsonl'))
+    assert all(path.read_text() == '' for path in outcomes)

@@ -20,13 +20,14 @@ every worker) must be installed on every worker.
 """
 
 from concurrent.futures import CancelledError
+import pickle
 from typing import Any, Dict, List, Optional, Sequence
 import uuid
 
 from r2d2_sim.farm.executors.base import (
     check_pickles, check_reachable, connect_within, Crash, ExecutorError, Finished,
     ship_by_value)
-from r2d2_sim.farm.job import Item, run_variation, TaskResult
+from r2d2_sim.farm.job import Item, LOAD_FAILED, run_variation, TaskResult
 
 __all__ = ['DaskPool', 'run_once', 'take_finished']
 
@@ -66,6 +67,26 @@ def _why_lost(future: Any) -> str:
     return f'its Dask worker died ({type(error).__name__}: {text})'
 
 
+def _unloadable(future: Any) -> Optional[str]:
+    """
+    Return why a worker could not take the task's job in (unpickle it), or None.
+
+    run_once returns every error of the variation itself: a task that erred
+    with an import or unpickling error never began (a module of the farm not
+    installed on the worker).
+    """
+    if future.status != 'error':
+        return None
+    try:
+        error = future.exception()
+    except CancelledError:
+        return None
+    if not isinstance(error, (ImportError, pickle.UnpicklingError)):
+        return None
+    text = str(error).strip().splitlines()[0] if str(error).strip() else ''
+    return f'{type(error).__name__}: {text}'
+
+
 def take_finished(pending: Dict[Any, Item], timeout_s: float) -> List[Finished]:
     """
     Wait up to ``timeout_s`` for one of ``pending``'s futures; take out and return those done.
@@ -92,6 +113,9 @@ def take_finished(pending: Dict[Any, Item], timeout_s: float) -> List[Finished]:
             else:
                 finished.append((item, result))
         else:
+            error = _unloadable(future)
+            if error is not None:
+                raise ExecutorError(f'{LOAD_FAILED}: {error}')
             finished.append((item, Crash(item.key, item.seed, _why_lost(future), '?', None)))
     return finished
 

@@ -24,7 +24,7 @@ from typing import Any, Dict, List, Optional, Sequence
 from r2d2_sim.farm.executors.base import (
     check_pickles, check_reachable, connect_within, Crash, ExecutorError, Finished,
     ship_by_value)
-from r2d2_sim.farm.job import Item, run_variation
+from r2d2_sim.farm.job import Item, LOAD_FAILED, run_variation
 
 __all__ = ['RayPool']
 
@@ -111,6 +111,10 @@ class RayPool:
             item = self._pending.pop(ref)
             try:
                 finished.append((item, ray.get(ref)))
+            except ray.exceptions.RayTaskError as exc:
+                # run_variation returns every error of its own: what a task raises is its
+                # worker failing to take the job in (unpickling it: a module not installed).
+                raise ExecutorError(f'{LOAD_FAILED}: {_reason(exc)}') from None
             except ray.exceptions.RayError as exc:
                 finished.append((item, Crash(item.key, item.seed, _reason(exc), '?', None)))
         return finished
