@@ -112,6 +112,10 @@ def run(args: argparse.Namespace) -> int:
                         executor=args.executor, address=args.address, workers=args.workers,
                         out=args.out, shard=args.shard, record=args.record,
                         fresh=args.fresh, progress=args.progress, shrink=args.shrink)
+    except KeyboardInterrupt:  # outside the variations' run: starting a Ray, writing the report
+        print('r2d2_sim.farm: interrupted; run the same command again to resume',
+              file=sys.stderr)
+        return 128 + terminated[0] if terminated else EXIT_INTERRUPTED
     finally:
         signal.signal(signal.SIGTERM, previous)
     passed, failed, crashed = (done.count(v) for v in ('passed', 'failed', 'crashed'))

@@ -353,7 +353,10 @@ def run_farm(job: Union[FarmJob, JobSource, str], *, variations: Optional[int] =
         failed = sorted(k for k, r in run.records.items() if _verdict(r) == 'failed')
         if failed:
             from r2d2_sim.farm.shrink import shrink_failure
-            run.shrunk = shrink_failure(farm, farm.items([failed[0]])[0], directory)
+            try:
+                run.shrunk = shrink_failure(farm, farm.items([failed[0]])[0], directory)
+            except KeyboardInterrupt:  # the report is written: the run is what it was
+                run.interrupted = True
             if run.shrunk is not None and 'report.md' in run.written:
                 _add_shrunk(run.written['report.md'], run.shrunk)
     return run

@@ -236,3 +236,37 @@ def test_a_resume_runs_again_what_an_older_runner_called_crashed_for_a_farm_not_
     assert 'were a worker that could not load the farm' in capsys.readouterr().err
     report = json.loads((tmp_path / 'report.json').read_text())
     assert report['summary']['runs'] == 3 and report['summary']['crashed'] == 0
+
+
+# -- SIGTERM outside the variations' run ---------------------------------------------
+
+def terminate_me(*args, **kwargs):
+    """Send this process SIGTERM, as a cancelled CI job does, and wait for it to land."""
+    import os
+    import signal
+    import time
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(5)
+    raise AssertionError('SIGTERM never landed')
+
+
+def test_sigterm_while_shrinking_exits_143_with_the_counts(tmp_path, fake, monkeypatch, capsys):
+    from r2d2_sim.farm import shrink
+    from r2d2_sim.farm.__main__ import main
+    fake.append(FakePool(results={1: False}))
+    monkeypatch.setattr(shrink, 'shrink_failure', terminate_me)
+    status = main(['run', f'{__name__}:JOB', '--variations', '2', '--shrink', '--out',
+                   str(tmp_path), '--no-progress'])
+    said = capsys.readouterr()
+    assert status == 143, said.err
+    assert 'interrupted: 2 variations reported' in said.out and '1 failed' in said.out
+    assert (tmp_path / 'report.md').exists()
+
+
+def test_sigterm_before_the_variations_run_exits_143(tmp_path, monkeypatch, capsys):
+    """As while a Ray instance starts: run_farm gives no run back."""
+    from r2d2_sim.farm.__main__ import main
+    monkeypatch.setattr(runner, 'run_farm', terminate_me)
+    status = main(['run', f'{__name__}:JOB', '--variations', '2', '--out', str(tmp_path)])
+    assert status == 143
+    assert capsys.readouterr().err.startswith('r2d2_sim.farm: interrupted')
