@@ -26,6 +26,7 @@ import contextlib
 import os
 from pathlib import Path
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -61,7 +62,7 @@ def victim_env(tmp_path):
 
 
 def check_run(run, killer: Killer, tmp_path: Path, executor: str, workers: int = 2) -> None:
-    """Check the pinned five, the victim crashed with nothing left, everything written here."""
+    """Check the pinned five, the victim crashed where it ran, nothing left, all written here."""
     assert run.executor == executor and run.ran == len(REFERENCE_SEEDS) + 1
     check_against_fingerprints(run.records)
     for seed in REFERENCE_SEEDS:
@@ -73,6 +74,9 @@ def check_run(run, killer: Killer, tmp_path: Path, executor: str, workers: int =
     assert killer.pid is not None, 'the victim never said where it runs'
     crashed = run.records[VICTIM]['crashed']
     assert crashed['reason'].startswith('crashed: its ') and 'died' in crashed['reason']
+    # Where it died, as the report's "on:" line says it: the host and the killed process.
+    assert (crashed['host'], crashed['pid']) == (socket.gethostname(), killer.pid), crashed
+    assert run.records[VICTIM]['worker'] == f'{socket.gethostname()}:{killer.pid}'
     assert run.count('crashed') == 1
     assert f'seed {VICTIM}' in (tmp_path / 'report' / 'report.md').read_text()
     assert not alive(killer.pid)

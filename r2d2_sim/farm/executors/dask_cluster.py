@@ -21,7 +21,7 @@ every worker) must be installed on every worker.
 
 from concurrent.futures import CancelledError
 import pickle
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 import uuid
 
 from r2d2_sim.farm.executors.base import (
@@ -39,16 +39,46 @@ def run_once(payload: Any, item: Item, record: str, run: str) -> TaskResult:
     """Run the variation, unless an earlier start of it died (then report it crashed)."""
     import os
     import socket
-    from distributed import Event
+    from distributed import Event, Variable
     mark = Event(f'r2d2-farm-{run}-{item.key}')
-    if mark.is_set():
+    where = Variable(f'r2d2-farm-{run}-{item.key}{WHERE}')
+    if mark.is_set():  # the first start's host and process, which died: the crash's place
+        host, pid = _where(where)
         return TaskResult(item.key, item.seed, None, CRASHED_BEFORE, None, None, None,
-                          socket.gethostname(), os.getpid(), 0.0)
+                          host, pid or 0, 0.0)
+    where.set(f'{socket.gethostname()}:{os.getpid()}')
     mark.set()
     try:
         return run_variation(payload, item, record)
     finally:
         mark.clear()  # an event cleared is forgotten by the scheduler
+        where.delete()
+
+
+# The suffix of the Variable where a task notes its host and process before it runs.
+WHERE = '-where'
+WHERE_WAIT = 0.5  # how long a crash's place is looked for (s): a task noted it before it ran
+
+
+def _where(note: Any) -> Tuple[str, Optional[int]]:
+    """Return the host and process a task noted in ``note`` (a Variable); '?' if none."""
+    try:
+        host, _, pid = str(note.get(timeout=WHERE_WAIT)).rpartition(':')
+        return host or '?', int(pid)
+    except Exception:  # never noted (died before), the scheduler gone, no client here
+        return '?', None
+
+
+def _place(future: Any) -> Tuple[str, Optional[int]]:
+    """Return where the task of ``future`` ran when its worker died, as it noted it."""
+    key = getattr(future, 'key', None)
+    if not isinstance(key, str):
+        return '?', None
+    try:
+        from distributed import Variable
+        return _where(Variable(key + WHERE))
+    except Exception:
+        return '?', None
 
 
 # The error of a variation whose first start died: the runner reports it as a crash.
@@ -109,14 +139,15 @@ def take_finished(pending: Dict[Any, Item], timeout_s: float) -> List[Finished]:
             result = future.result()
             if result.error == CRASHED_BEFORE:
                 finished.append((item, Crash(item.key, item.seed, CRASHED_BEFORE,
-                                             result.host, None)))
+                                             result.host, result.pid or None)))
             else:
                 finished.append((item, result))
         else:
             error = _unloadable(future)
             if error is not None:
                 raise ExecutorError(f'{LOAD_FAILED}: {error}')
-            finished.append((item, Crash(item.key, item.seed, _why_lost(future), '?', None)))
+            finished.append((item, Crash(item.key, item.seed, _why_lost(future),
+                                         *_place(future))))
     return finished
 
 

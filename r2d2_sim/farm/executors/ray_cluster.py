@@ -18,15 +18,17 @@ file path that exists on every node) must be installed on every node.
 
 import os
 import signal
+import socket
 import threading
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+import uuid
 
 from r2d2_sim.farm.executors.base import (
     check_pickles, check_reachable, connect_within, Crash, ExecutorError, Finished,
     ship_by_value)
-from r2d2_sim.farm.job import Item, LOAD_FAILED, run_variation
+from r2d2_sim.farm.job import Item, LOAD_FAILED, run_variation, TaskResult
 
-__all__ = ['RayPool']
+__all__ = ['RayPool', 'run_noted']
 
 # Ray's ports when an address names none: GCS for HOST, the client server for ray://.
 GCS_PORT, CLIENT_PORT = 6379, 10001
@@ -53,6 +55,7 @@ class RayPool:
         self._address = address or os.environ.get('RAY_ADDRESS') or None
         self._workers = workers
         self._ours = False  # did we connect (and so disconnect)?
+        self._run = uuid.uuid4().hex[:12]
         self._pending: Dict[Any, Item] = {}
         self._task: Any = None
         self._job: Any = None
@@ -85,13 +88,13 @@ class RayPool:
                     signal.signal(signal.SIGTERM, term)
             self._ours = True
         self._task = ray.remote(max_retries=0, retry_exceptions=False, num_cpus=1)(
-            run_variation)
+            run_noted)
         self._job = ray.put(self._payload)
 
     def submit(self, items: Sequence[Item]) -> None:
         """Submit one task per variation."""
         for item in items:
-            self._pending[self._task.remote(self._job, item, self._record)] = item
+            self._pending[self._task.remote(self._job, item, self._record, self._run)] = item
 
     def pending(self) -> int:
         """Return the tasks not finished."""
@@ -116,7 +119,8 @@ class RayPool:
                 # worker failing to take the job in (unpickling it: a module not installed).
                 raise ExecutorError(f'{LOAD_FAILED}: {_reason(exc)}') from None
             except ray.exceptions.RayError as exc:
-                finished.append((item, Crash(item.key, item.seed, _reason(exc), '?', None)))
+                host, pid = _noted(_note_key(self._run, item))
+                finished.append((item, Crash(item.key, item.seed, _reason(exc), host, pid)))
         return finished
 
     def stop(self) -> None:
@@ -148,6 +152,45 @@ class RayPool:
         for names in ray.get(refs):
             removed += names
         return removed
+
+
+def _note_key(run: str, item: Item) -> bytes:
+    return f'r2d2-farm-{run}-{item.key}-where'.encode()
+
+
+def run_noted(payload: Any, item: Item, record: str, run: str) -> TaskResult:
+    """
+    Note this task's host and process in Ray's key-value store, then run the variation.
+
+    Should the worker die, the runner reads the note and names where it died
+    (Ray's WorkerCrashedError does not say); a task that finishes removes it.
+    """
+    from ray.experimental import internal_kv
+    key = _note_key(run, item)
+    try:
+        internal_kv._internal_kv_put(key, f'{socket.gethostname()}:{os.getpid()}'.encode())
+    except Exception:  # a note is a nicety: never a reason not to run
+        key = b''
+    try:
+        return run_variation(payload, item, record)
+    finally:
+        if key:
+            try:
+                internal_kv._internal_kv_del(key)
+            except Exception:
+                pass
+
+
+def _noted(key: bytes) -> Tuple[str, Optional[int]]:
+    """Return the host and process a task noted under ``key``; '?' and None if none."""
+    try:
+        from ray.experimental import internal_kv
+        text = internal_kv._internal_kv_get(key)
+        internal_kv._internal_kv_del(key)
+        host, _, pid = text.decode().rpartition(':')
+        return host or '?', int(pid)
+    except Exception:  # never noted (it died before), or the cluster is gone
+        return '?', None
 
 
 def _reason(exc: BaseException) -> str:
