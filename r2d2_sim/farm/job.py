@@ -92,7 +92,8 @@ class FarmJob:
                                 f'{type(self.controller).__name__}')
         if not (0.0 < float(self.seconds) < float('inf')):
             raise ScenarioError(f'seconds must be > 0 and finite, got {self.seconds}')
-        object.__setattr__(self, 'parameters', dict(self.parameters))
+        object.__setattr__(self, 'parameters', {
+            str(k): _parameter(k, v) for k, v in dict(self.parameters).items()})
 
     @property
     def listed(self) -> bool:
@@ -119,6 +120,30 @@ class FarmJob:
     def case_name(self, key: int) -> str:
         """Return the name of a variation in the report: ``name[key]``."""
         return f'{self.name}[{key}]'
+
+
+def _parameter(name: Any, value: Any) -> Any:
+    """
+    Return a simulator parameter's value as plain Python; ScenarioError (one line) if none.
+
+    numpy's numbers (``numpy.int64(3)``, ``numpy.float32``, ``numpy.bool_``)
+    become Python's int, float and bool: a farm's identity is JSON, and a ROS
+    parameter takes Python's. Lists and tuples are read item by item; anything
+    else (None, a dict, an object) is refused here, before anything runs.
+    """
+    if isinstance(value, (bool, int, float, str)) and type(value) in (bool, int, float, str):
+        return value
+    if isinstance(value, (list, tuple)):
+        return type(value)(_parameter(name, v) for v in value)
+    if type(value).__module__ == 'numpy' and hasattr(value, 'item'):  # a numpy scalar
+        plain = value.item()
+        if isinstance(plain, (bool, int, float)):
+            return plain
+    if isinstance(value, (bool, int, float, str)):  # a subclass (an IntEnum): its plain value
+        return (bool if isinstance(value, bool) else int if isinstance(value, int)
+                else float if isinstance(value, float) else str)(value)
+    raise ScenarioError(f'parameter {name}: a {type(value).__name__} is no ROS parameter value '
+                        '(bool, int, float, str or a list of them)')
 
 
 def describe(job: FarmJob) -> Dict[str, Any]:

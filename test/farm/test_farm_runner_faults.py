@@ -270,3 +270,20 @@ def test_sigterm_before_the_variations_run_exits_143(tmp_path, monkeypatch, caps
     status = main(['run', f'{__name__}:JOB', '--variations', '2', '--out', str(tmp_path)])
     assert status == 143
     assert capsys.readouterr().err.startswith('r2d2_sim.farm: interrupted')
+
+
+# -- parameters ----------------------------------------------------------------------
+
+def test_numpy_numbers_in_the_parameters_become_pythons_and_the_rest_is_one_line(tmp_path):
+    import numpy
+    from r2d2_sim.farm.scenario import ScenarioError
+    job = FarmJob(SPACE, drive, seconds=1.0, parameters={
+        'publish_rate': numpy.int64(50), 'physics_rate': numpy.float64(240.0),
+        'gui': numpy.bool_(False), 'limits': (numpy.int32(1), 2.5)})
+    assert job.parameters == {'publish_rate': 50, 'physics_rate': 240.0, 'gui': False,
+                              'limits': (1, 2.5)}
+    assert type(job.parameters['publish_rate']) is int
+    assert json.dumps(describe(job))
+    with pytest.raises(ScenarioError) as raised:
+        FarmJob(SPACE, drive, seconds=1.0, parameters={'odd': object()})
+    assert 'parameter odd: a object is no ROS parameter value' in str(raised.value)
