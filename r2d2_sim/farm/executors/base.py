@@ -145,7 +145,7 @@ def connect_within(connect: Callable[[], T], what: str, address: str) -> T:
                             f'{HANDSHAKE_TIMEOUT_ENV} sets the wait')
     if 'error' in box:
         raise box['error']
-    return box['value']  # type: ignore[no-any-return]
+    return box['value']
 
 
 def ship_by_value(pickler: Any, payload: Any) -> None:
