@@ -499,3 +499,18 @@ def test_a_task_notes_its_segments_with_their_lock_files_and_forgets_them(regist
         shm.forget()
         port.unlink()
     assert not shm._note_path(os.getpid()).exists()
+
+
+def test_a_dask_task_that_could_not_unpickle_its_job_stops_the_run(monkeypatch):
+    """run_once returns the variation's errors: an ImportError of the task is the set-up's."""
+    import distributed
+    from r2d2_sim.farm.executors.dask_cluster import take_finished
+
+    class Erred:
+        status = 'error'
+
+        def exception(self):
+            return ModuleNotFoundError("No module named 'farms'")
+    monkeypatch.setattr(distributed, 'wait', lambda futures, timeout, return_when: None)
+    with pytest.raises(ExecutorError, match="could not load the farm: ModuleNotFoundError"):
+        take_finished({Erred(): Item(3, 3)}, 0.1)
