@@ -4,6 +4,9 @@ Stepping sim_node across processes reproduces ros/test_control.py's in-process r
 The command schedule and its in-process run are in helpers.py.
 """
 
+import math
+
+from geometry_msgs.msg import Twist
 from helpers import _run_schedule_in_process, SCHEDULE, SCHEDULE_STEPS
 from nav_msgs.msg import Odometry
 import pytest
@@ -27,9 +30,19 @@ def test_cross_process_stepping_matches_in_process(ros, real_time_factor):
         assert sim.probe.spin_until(
             lambda: all(s.get_publisher_count() > 0 for s in subscriptions), 10.0)
         commands = {step: (v, w) for step, v, w in SCHEDULE}
+        # The schedule's NaN is for the node to refuse: send_cmd_vel refuses it first.
+        raw = node.create_publisher(Twist, 'cmd_vel', 10)
+        assert sim.probe.spin_until(lambda: raw.get_subscription_count() > 0, 10.0)
         for step in range(SCHEDULE_STEPS):
-            if step in commands:
+            if step in commands and all(map(math.isfinite, commands[step])):
                 sim.send_cmd_vel(*commands[step])  # returns once the node has counted it
+            elif step in commands:
+                before = sim.robot().commands_received()
+                message = Twist()
+                message.linear.x, message.angular.z = commands[step]
+                raw.publish(message)
+                assert sim.probe.spin_until(
+                    lambda: sim.robot().commands_received() > before, 10.0)
             assert sim.step()['steps'] == 1
             assert sim.probe.spin_until(
                 lambda: len(joints) >= step + 1 and len(truth) >= step + 1, 10.0)
