@@ -14,6 +14,7 @@ import signal
 import sys
 import threading
 import time
+import traceback
 from types import FrameType
 from typing import Callable, List, Optional, Sequence, TYPE_CHECKING
 
@@ -154,7 +155,7 @@ def main(args: Optional[Sequence[str]] = None, stop: Optional[threading.Event] =
         return status
     try:
         if not stop.is_set():  # stopped while PyBullet was still loading
-            _run_node(stop)
+            return _run_node(stop)
         return 0
     except StartupError as exc:
         print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
@@ -202,13 +203,20 @@ def _import_stopping_at_once() -> threading.Event:
     return stop
 
 
-def _run_node(stop: threading.Event) -> None:
-    """Build the node, serve it from threads and pace it here until ``stop`` is set."""
+def _run_node(stop: threading.Event) -> int:
+    """
+    Build the node, serve it from threads and pace it here until ``stop`` is set.
+
+    Return the exit status: 1 when a callback raised (the simulator stops: a
+    node whose services or subscriptions died would go on with a clock and
+    nothing else), else 0.
+    """
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
     from r2d2_sim.ros.node import SimNode
     node = None
     executors: List[Executor] = []
     spinners: List[threading.Thread] = []
+    failures: List[BaseException] = []
     try:
         node = SimNode(on_quit=stop.set)
         executors.append(SingleThreadedExecutor())
@@ -231,7 +239,8 @@ def _run_node(stop: threading.Event) -> None:
             f'simulating {what} at {node.config.physics_rate_hz:g} Hz, real time factor '
             f'{node.config.real_time_factor:g}' + (', paused' if node.paused else ''))
         for executor in executors:
-            spinners.append(threading.Thread(target=_spin, args=(executor, stop), daemon=True))
+            spinners.append(threading.Thread(target=_spin, args=(executor, stop, failures),
+                                             daemon=True))
             spinners[-1].start()
         run_paced(node, stop)
     finally:
@@ -249,6 +258,7 @@ def _run_node(stop: threading.Event) -> None:
             executor.shutdown(timeout_sec=1.0)
         if node is not None:
             node.destroy_node()
+    return 1 if failures else 0
 
 
 def _init_ros(argv: List[str]) -> Optional[int]:
@@ -278,14 +288,25 @@ def _init_ros(argv: List[str]) -> Optional[int]:
     return None
 
 
-def _spin(executor: 'Executor', stop: threading.Event) -> None:
-    """Serve callbacks until ``stop`` is set (checked at least every SPIN_POLL_S)."""
+def _spin(executor: 'Executor', stop: threading.Event, failures: List[BaseException]) -> None:
+    """
+    Serve callbacks until ``stop`` is set (checked at least every SPIN_POLL_S).
+
+    A callback that raises stops the simulator: its traceback (a fault of
+    the simulator's own) and one line saying so, the exception in ``failures``.
+    """
     from rclpy.executors import ExternalShutdownException
+    from r2d2_sim.ros.node import NODE_NAME
     try:
         while not stop.is_set():
             executor.spin_once(timeout_sec=SPIN_POLL_S)
     except ExternalShutdownException:
         pass
+    except Exception as exc:  # noqa: B902 (any fault of a callback ends the node, said once)
+        failures.append(exc)
+        traceback.print_exc()
+        print(f'{NODE_NAME}: error: a callback raised {type(exc).__name__}: {exc}; stopping',
+              file=sys.stderr)
     finally:
         stop.set()
 

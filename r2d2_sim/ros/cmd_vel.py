@@ -65,7 +65,9 @@ class CmdVelInput:
         """Take a stamped command unless its stamp is older than ``cmd_vel_timeout``."""
         stamped_ns = stamp_ns(msg.header.stamp)
         timeout_s = self._config.cmd_vel_timeout_s
-        timeout_ns = round(timeout_s * 1e9)
+        # A timeout beyond any run (1e308 s is accepted) is none, as the drive's own is
+        # (timeout_steps): rounding it to nanoseconds would overflow.
+        timeout_ns = round(timeout_s * 1e9) if timeout_s * 1e9 < 2.0 ** 62 else 0
         now_ns = self._now_ns()
         # A zero stamp means "now" (as Nav2's and teleop's unstamped senders fill it).
         age_ns = now_ns - stamped_ns

@@ -88,7 +88,7 @@ def _declare_typed(node: Node, spec: ParameterSpec, value: Any) -> None:
     # The raw value passed validation: only its Python type may differ.
     conversions: Dict[str, Callable[[Any], Any]] = {
         'double': float, 'integer': int,
-        'double_array': lambda v: [float(x) for x in v],
+        'double_array': lambda v: [float(x) for x in v or []],  # ROS gives [] as None
         'string_array': lambda v: list(v or [])}
     convert = conversions.get(spec.ros_type)
     if convert is not None:

@@ -62,3 +62,13 @@ def test_a_robot_away_from_its_dock_discharges(ros):
 def test_no_battery_topic_unless_asked(sim):
     topics = [name for name, _ in sim.get_topic_names_and_types()]
     assert '/battery_state' not in topics
+
+
+def test_an_empty_dock_pose_is_no_dock_as_ros_hands_it_over(ros):
+    """``battery_dock_pose:=[]`` (ROS gives an empty array as None): no dock, no traceback."""
+    sim = make_sim(ros, battery_rate=10.0, battery_dock_pose=None)
+    assert list(sim.get_parameter('battery_dock_pose').value or []) == []
+    reliable, _ = listen(ros)
+    sim.advance(48)
+    assert wait_for(lambda: len(reliable) >= 2)
+    assert reliable[-1].power_supply_status != BatteryState.POWER_SUPPLY_STATUS_CHARGING

@@ -356,6 +356,21 @@ def test_twist_stamped_drives_zero_stamp_is_now_and_stale_is_refused(ros, capfd)
     assert len(stale) == 1 and 'cmd_vel_timeout' in stale[0]
 
 
+def test_a_timeout_beyond_any_run_never_calls_a_stamped_command_stale(ros):
+    """cmd_vel_timeout 1e308 with stamped commands: an old stamp drives, nothing overflows."""
+    sim = make_sim(ros, enable_stamped_cmd_vel=True, cmd_vel_timeout=1.0e308)
+    node = ros.create_node('stamped_sender', use_sim_time=False)
+    pub = node.create_publisher(TwistStamped, 'cmd_vel', 10)
+    assert wait_for(lambda: pub.get_subscription_count() > 0)
+    sim.advance(480)  # t = 2 s
+    before = sim.commands_received
+    pub.publish(_stamped(sim, 0.3, sim.sim_time_ns - 10**9))
+    assert wait_for(lambda: sim.commands_received > before)
+    assert sim.commands_rejected == 0
+    sim.advance(240)
+    assert sim.simulation.robot.body.base_state().position[0] > 0.05
+
+
 def test_a_twist_publisher_is_named_when_stamped_commands_are_expected(ros, capfd):
     """The wrong-type warning works the other way round too (a Twist sender, another context)."""
     sim = make_sim(ros, {'graph_check_period_s': 0.05}, enable_stamped_cmd_vel=True)

@@ -736,3 +736,26 @@ def test_a_signal_inside_a_c_extensions_import_still_exits_0():
                             timeout=30)
     assert result.returncode == 0, result.stderr[-2000:]
     assert 'Traceback' not in result.stderr
+
+
+A_CALLBACK_FAULT = r'''
+import sys
+from r2d2_sim.ros import cmd_vel
+
+def fault(self):
+    raise RuntimeError('a callback fault')
+
+cmd_vel.CmdVelInput.check_publishers = fault  # a timer's callback, on the executor's thread
+from r2d2_sim.apps import sim_node
+sys.exit(sim_node.main(['sim_node']))
+'''
+
+
+def test_a_callback_that_raises_stops_the_simulator_with_status_1():
+    """A fault in a callback ended its executor's thread, and sim_node exited 0 (a success)."""
+    result = subprocess.run([sys.executable, '-c', A_CALLBACK_FAULT],
+                            env=ros_env(next_domain_id()), capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 1, result.stderr[-2000:]
+    assert ('r2d2_sim: error: a callback raised RuntimeError: a callback fault; stopping'
+            in result.stderr)
