@@ -85,6 +85,8 @@ class SimNode(MirroringNode):
         # nothing reads it before (the fleet's clock and the mirrored publishers
         # first run from watch_robots on), so it is never None.
         simulation: Optional[Simulation] = None
+        # The simulated time last logged at, and what time resets added before it.
+        self._sink_seen_ns = self._sink_offset_ns = 0
         try:
             config, specs = declare_parameters(self)
             self.config = with_ray_threads(config)
@@ -124,8 +126,20 @@ class SimNode(MirroringNode):
         self._publish(self.simulation.read_states())
 
     def sink_time_ns(self) -> int:
-        """Return the simulated time that mirrored messages are logged at."""
-        return self.simulation.time_ns
+        """
+        Return the time mirrored messages are logged at: simulated time, on across resets.
+
+        A time reset (``~/reset`` with time, the standard's ResetSimulation,
+        STOPPED) sets the simulated time back to 0 while the recording goes on:
+        its log times then count on from the last time logged before it, so
+        that readers ordering by log time (``ros2 bag play``, Foxglove) keep the
+        episodes apart. The messages' own stamps start from 0 again.
+        """
+        now = self.simulation.time_ns
+        if now < self._sink_seen_ns:
+            self._sink_offset_ns += self._sink_seen_ns
+        self._sink_seen_ns = now
+        return now + self._sink_offset_ns
 
     # -- robots and their interfaces ---------------------------------------------------
 
