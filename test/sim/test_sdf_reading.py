@@ -57,6 +57,23 @@ def test_includes_find_models_on_the_model_path_with_their_name_and_pose(tmp_pat
     assert world_position(a, a.links[0], (1.0, 0.0, 0.0)) == approx((1.0, 3.0, 0.0))
 
 
+@pytest.mark.parametrize('name, problem', [
+    ('x' * 256, 'a <include> needs a name of 1 to 255 characters'),
+    ('x' * 1100, 'a <include> needs a name of 1 to 255 characters'),  # PyBullet's SIGSEGV
+    ('a::b', "a model's name cannot hold ::"),
+])
+def test_an_include_name_gets_the_checks_of_a_model_name(tmp_path, name, problem):
+    """Refuse in one line what <model name> refuses: the name becomes a PyBullet body's."""
+    models = tmp_path / 'models'
+    model_dir(models, 'crate', box_model('crate', static=True))
+    with pytest.raises(RefusedError) as raised:
+        read(sdf(f'<world name="w"><include><uri>model://crate</uri><name>{name}</name>'
+                 '</include></world>'), tmp_path, [str(models)])
+    assert raised.value.code == 'RESOURCE_PARSE_ERROR'
+    assert problem in raised.value.message and '\n' not in raised.value.message
+    assert len(raised.value.message) < 300  # the name is not echoed whole
+
+
 def test_the_gazebo_variables_are_searched_after_model_paths(tmp_path):
     first, second = tmp_path / 'first', tmp_path / 'second'
     model_dir(first, 'thing', box_model('from_parameter', static=True))

@@ -97,6 +97,20 @@ class ModelReader(Protocol):
         """Count one model against the world's limit."""
 
 
+def model_name(place: Place, name: str, tag: str) -> str:
+    """
+    Return a model's name (from ``<model name>`` or ``<include><name>``) once checked.
+
+    It becomes a PyBullet body name: 1 to 255 characters and no ``::``, as an entity's
+    name; PyBullet's getBodyInfo overflows (SIGSEGV) on a name of about 1,024.
+    """
+    if not name or len(name) > 255:
+        raise place.fail(f'a <{tag}> needs a name of 1 to 255 characters')
+    if SCOPE_SEPARATOR in name:
+        raise place.fail(f'a model\'s name cannot hold {SCOPE_SEPARATOR}')
+    return name
+
+
 def read_model(element: ElementTree.Element, place: Place, origin: Origin, reader: ModelReader,
                depth: int, nesting: int = 0) -> ModelTree:
     """
@@ -109,9 +123,7 @@ def read_model(element: ElementTree.Element, place: Place, origin: Origin, reade
     at = place.child(element)
     if nesting > MAX_NESTING:
         raise at.fail(f'models nest deeper than {MAX_NESTING}')
-    name = place.name(element)
-    if SCOPE_SEPARATOR in name:
-        raise at.fail(f'a model\'s name cannot hold {SCOPE_SEPARATOR}')
+    name = model_name(place, element.get('name', ''), 'model')
     pose, relative_to = at.pose(element)
     graph = PoseGraph(MODEL_FRAME)
     tree = ModelTree(name, at.truth(element, 'static', False), pose, relative_to,

@@ -21,7 +21,7 @@ from r2d2_sim.model.transforms import Vector3
 from r2d2_sim.sim.sdf.description import NamedFrame, Scene
 from r2d2_sim.sim.sdf.elements import (
     Budget, local_tag, MAX_INCLUDE_DEPTH, parse_xml, PARSE, Place, read_limited)
-from r2d2_sim.sim.sdf.models import flatten, ModelTree, Origin, place_model, read_model
+from r2d2_sim.sim.sdf.models import flatten, model_name, ModelTree, Origin, place_model, read_model
 from r2d2_sim.sim.sdf.parts import QUIET
 from r2d2_sim.sim.sdf.resources import Resources
 
@@ -221,7 +221,9 @@ class Reader:
         tree = read_model(content[0], Place(source.shown), included, self, depth, nesting)
         if element.get('merge', 'false').strip().lower() in ('true', '1'):
             self.note('merged include (read as a nested model)')
-        tree.name = at.text(element, 'name') or tree.name
+        name = at.text(element, 'name')
+        if name:  # an empty <name/> keeps the model's own, as before
+            tree.name = model_name(at, name, 'include')
         if element.find('pose') is not None:
             tree.pose, tree.relative_to = at.pose(element)
         tree.static = at.truth(element, 'static', tree.static)
