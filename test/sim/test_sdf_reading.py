@@ -188,6 +188,31 @@ def test_a_joint_axis_is_in_the_frame_its_sdf_version_says(
     assert scene.models[0].joints[0].axis == approx(expected)
 
 
+@pytest.mark.parametrize('limit_xml, expected', [
+    ('<lower>-inf</lower><upper>inf</upper><effort>inf</effort><velocity>inf</velocity>',
+     (1.0, -1.0, 0.0, 0.0)),                         # SDF 1.10+'s defaults: no limit at all
+    ('<lower>-inf</lower><upper>0.5</upper>', (1.0, -1.0, 0.0, 0.0)),  # one side: none
+    ('<lower>-0.5</lower><upper>0.5</upper><effort>3</effort><velocity>inf</velocity>',
+     (-0.5, 0.5, 3.0, 0.0)),  # effort and velocity 0: none
+])
+def test_infinite_joint_limits_are_no_limit(tmp_path, limit_xml, expected):
+    """Read ±inf as sdformat does (joint_axis_infinite_limits.sdf): no limit, no refusal."""
+    scene = read(sdf(f'''<model name="m"><link name="a"/><link name="b"/>
+      <joint name="j" type="revolute"><parent>a</parent><child>b</child>
+      <axis><xyz>0 0 1</xyz><limit>{limit_xml}</limit></axis></joint></model>''', '1.11'),
+                 tmp_path)
+    limits = scene.models[0].joints[0].limits
+    assert (limits.lower, limits.upper, limits.effort, limits.velocity) == expected
+
+
+def test_a_nan_joint_limit_is_still_refused(tmp_path):
+    with pytest.raises(RefusedError, match='<upper> must be 1 finite number'):
+        read(sdf('''<model name="m"><link name="a"/><link name="b"/>
+          <joint name="j" type="revolute"><parent>a</parent><child>b</child>
+          <axis><limit><lower>0</lower><upper>nan</upper></limit></axis></joint></model>''',
+                 '1.11'), tmp_path)
+
+
 @pytest.mark.parametrize('version, attribute, expected', [
     ('1.5', 'frame="l1"', (5.0, 3.0, 0.0)),         # relative to l1, at (5, 0, 0)
     ('1.6', 'frame="l1"', (5.0, 3.0, 0.0)),

@@ -268,6 +268,14 @@ def read_link(element: ElementTree.Element, place: Place, notes: FileNotes) -> L
                     tuple(collisions), tuple(visuals))
 
 
+def _limit(at: Place, element: ElementTree.Element, tag: str, default: float) -> float:
+    """Return a <limit> value; ±inf (SDF 1.10+'s defaults, written out by Gazebo) is none."""
+    text = at.text(element, tag)
+    if text is not None and text.lstrip('+-').lower() in ('inf', 'infinity'):
+        return float(text)  # NaN stays refused by number()
+    return at.number(element, tag, default)
+
+
 def _axis(element: Optional[ElementTree.Element], place: Place, notes: Notes
           ) -> Tuple[AxisSpec, bool]:
     """Return an <axis> (or <axis2>) and its 1.5-1.6 use_parent_model_frame flag."""
@@ -283,10 +291,11 @@ def _axis(element: Optional[ElementTree.Element], place: Place, notes: Notes
     limit = element.find('limit')
     if limit is not None:
         within = at.child(limit)
-        lower = within.number(limit, 'lower', -1e16)
-        upper = within.number(limit, 'upper', 1e16)
-        effort = within.number(limit, 'effort', -1.0)
-        velocity = within.number(limit, 'velocity', -1.0)
+        lower = _limit(within, limit, 'lower', -1e16)
+        upper = _limit(within, limit, 'upper', 1e16)
+        effort = _limit(within, limit, 'effort', -1.0)
+        velocity = _limit(within, limit, 'velocity', -1.0)
+        effort, velocity = (-1.0 if v >= UNLIMITED else v for v in (effort, velocity))
         _others(limit, ('lower', 'upper', 'effort', 'velocity'), notes)
     if not (-UNLIMITED < lower <= upper < UNLIMITED):
         lower, upper = 1.0, -1.0  # none: Bullet adds a limit only for lower <= upper
