@@ -316,6 +316,33 @@ def test_links_no_joint_joins_are_bodies_of_their_own_and_cannot_be_one_spawn(ma
     assert 'make 2 bodies that no joint joins' in raised.value.message
 
 
+def tilted_box(name: str, inertia: str, static: bool = False) -> str:
+    return (f'<model name="{name}"><static>{str(static).lower()}</static>'
+            '<pose>0 3 0.5 0.3 0 0</pose><link name="l">'
+            f'<inertial><mass>1</mass><inertia>{inertia}</inertia></inertial>'
+            '<collision name="c"><geometry><box><size>0.2 0.2 0.2</size></box></geometry>'
+            '</collision></link></model>')
+
+
+@pytest.mark.parametrize('inertia', [
+    '<ixx>0</ixx><iyy>0</iyy><izz>0</izz>',
+    '<ixx>0.001</ixx><iyy>0.001</iyy><izz>1</izz>',                 # no triangle
+    '<ixx>0.01</ixx><ixy>0.02</ixy><iyy>0.01</iyy><izz>0.01</izz>',  # not positive definite
+])
+def test_a_moving_link_with_an_inertia_no_body_has_is_refused_in_one_line(make, inertia):
+    """Refuse what PyBullet zeroed silently, so the box never rotated (LINK_INERTIA_INVALID)."""
+    simulation = make(scan_rate=0.0)
+    with pytest.raises(RefusedError) as raised:
+        simulation.spawn(SpawnRequest(resource_string=sdf(tilted_box('box', inertia))))
+    assert raised.value.code == 'RESOURCE_PARSE_ERROR'
+    assert 'link l moves, so its inertia must be positive definite' in raised.value.message
+    assert '\n' not in raised.value.message
+    # A static model's links never move: its inertia is not used, nor checked.
+    simulation.spawn(SpawnRequest(resource_string=sdf(tilted_box('still', inertia, True))))
+    simulation.spawn(SpawnRequest(resource_string=sdf(
+        tilted_box('fine', '<ixx>0.01</ixx><iyy>0.01</iyy><izz>0.01</izz>'))))
+
+
 def test_the_camera_sees_the_colours_of_the_world(make, world_dir):
     """The post is red, the pillar yellow, the wall grey: render toward each from the middle."""
     from r2d2_sim.model.camera import projection_matrix, view_matrix

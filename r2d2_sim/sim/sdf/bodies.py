@@ -26,6 +26,8 @@ model's name; others add ``__<root link>`` (``__static`` for the static part).
 import re
 from typing import Dict, List, NamedTuple, Tuple
 
+import numpy
+
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.model.transforms import (
     compose, IDENTITY, inverse, rotate_inverse, Transform, Vector3)
@@ -77,6 +79,21 @@ class BodyPlan(NamedTuple):
     static: bool        # massless base and nothing moving: concave meshes allowed
     links: Tuple[BodyLink, ...]
     joints: Tuple[BodyJoint, ...]
+
+
+def valid_inertia(inertia: Tuple[float, float, float, float, float, float]) -> bool:
+    """
+    Tell whether an inertia (ixx, ixy, ixz, iyy, iyz, izz) is one a body can have.
+
+    As sdformat's LINK_INERTIA_INVALID (gz-math's MassMatrix3::IsValid): principal
+    moments above 0, each at most the sum of the other two (within 1e-6 of the largest).
+    PyBullet zeroes any other, and the link then never rotates, with no word.
+    """
+    ixx, ixy, ixz, iyy, iyz, izz = inertia
+    moments = sorted(float(m) for m in numpy.linalg.eigvalsh(
+        numpy.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])))
+    tolerance = 1e-6 * max(abs(m) for m in moments)
+    return moments[0] > 0.0 and moments[0] + moments[1] + tolerance >= moments[2]
 
 
 def _moved(link: Link, frame: Transform, static: bool) -> BodyLink:
@@ -181,6 +198,11 @@ class _Planner:
             if link.inertial.mass <= 0.0 and link.name != ANCHOR and not (
                     fixed_base and link.name == root):
                 raise self.fail(f'link {link.name[:100]} moves, so it needs a mass above 0')
+            if link.name != ANCHOR and not (fixed_base and link.name == root) and \
+                    not valid_inertia(link.inertial.inertia):
+                raise self.fail(f'link {link.name[:100]} moves, so its inertia must be '
+                                'positive definite with moments that keep the triangle '
+                                'inequality')
         return BodyPlan(name, links[0].frame, fixed_base and not urdf_joints, tuple(links),
                         tuple(urdf_joints))
 
@@ -227,7 +249,8 @@ def plan_bodies(model: Model, notes: Notes) -> List[BodyPlan]:
     Return the bodies of ``model``, the one holding its canonical link first.
 
     ``notes.note(what)`` hears of every joint left out. RESOURCE_PARSE_ERROR
-    for a moving link of mass 0 (Bullet would take it for a fixed one).
+    for a moving link of mass 0 (Bullet would take it for a fixed one) or with an
+    inertia no body has (:func:`valid_inertia`).
     """
     name = entity_name(model.name)
     static = [link for link in model.links if link.static]

@@ -238,7 +238,8 @@ def build_bodies(scene: Scene, cache: MeshCache, ignore_missing: bool = False,
     files (a manifest's model), else the scene's own: checked first from
     what the mesh files say they hold, then as each converts. RefusedError:
     UNSUPPORTED_ASSETS past MAX_WORLD_TRIANGLES, or for a mesh that is too
-    big or unreadable; RESOURCE_PARSE_ERROR for a moving link of mass 0.
+    big or unreadable; RESOURCE_PARSE_ERROR for a moving link of mass 0
+    or an invalid inertia.
     """
     budget = budget if budget is not None else TriangleBudget()
     files = GeneratedFiles()
