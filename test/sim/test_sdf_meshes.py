@@ -222,6 +222,25 @@ def test_a_mesh_is_converted_once_and_found_again_by_its_content(tmp_path, monke
         cache.convert(other, 'b.dae')  # other content: converted anew
 
 
+def test_an_objs_colours_come_from_its_mtl_whatever_the_cache_converted_before(tmp_path):
+    """Byte-identical OBJs with other .mtl files, and an edited .mtl, are converted anew."""
+    cache = MeshCache(str(tmp_path / 'cache'))
+
+    def colours(name, rgba, within=cache):
+        directory = tmp_path / name
+        directory.mkdir(exist_ok=True)
+        path = write_obj(directory / 'crate.obj', box((1.0, 1.0, 1.0)), rgba=rgba)
+        return [colour for _, colour in within.convert(path, name).parts]
+    assert colours('red', (1.0, 0.0, 0.0, 1.0)) == [(1.0, 0.0, 0.0, 1.0)]
+    assert colours('blue', (0.0, 0.0, 1.0, 1.0)) == [(0.0, 0.0, 1.0, 1.0)]  # was red
+    assert colours('red', (0.0, 1.0, 0.0, 1.0)) == [(0.0, 1.0, 0.0, 1.0)]   # edited .mtl
+    fresh = MeshCache(str(tmp_path / 'fresh'))
+    assert colours('blue', (0.0, 0.0, 1.0, 1.0), fresh) == [(0.0, 0.0, 1.0, 1.0)]  # as cold
+    (tmp_path / 'red' / 'crate.mtl').unlink()
+    converted = cache.convert(str(tmp_path / 'red' / 'crate.obj'), 'red')
+    assert [colour for _, colour in converted.parts] == [None]  # not the cached green
+
+
 def test_the_moving_collision_of_a_mesh_is_one_hull_per_piece(tmp_path):
     """Two cubes 1 m apart: two convex pieces (one hull would fill the gap between them)."""
     import trimesh

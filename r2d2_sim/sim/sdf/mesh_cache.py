@@ -37,7 +37,8 @@ import numpy
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import check_private, make_private_directories, read_regular, UnsafeFile
 from r2d2_sim.sim.sdf.components import lowest_labels
-from r2d2_sim.sim.sdf.meshes import check_triangles, read_mesh, read_mesh_bytes, Triangles
+from r2d2_sim.sim.sdf.meshes import (
+    check_triangles, obj_materials, read_mesh, read_mesh_bytes, Triangles)
 from r2d2_sim.sim.sdf.planes import merge_coplanar
 
 __all__ = ['MeshCache', 'Converted', 'cache_directory', 'CACHE_VARIABLE', 'CONVERTER_VERSION',
@@ -247,8 +248,13 @@ class MeshCache:
         big; OPERATION_FAILED when the cache is not a private directory.
         """
         data = read_mesh_bytes(path, shown)
-        key = hashlib.sha256(b'r2d2_sim mesh %d %s\0' % (
-            CONVERTER_VERSION, os.path.splitext(path)[1].lower().encode()) + data).hexdigest()
+        extension = os.path.splitext(path)[1].lower()
+        # An OBJ's colours come from its .mtl: its digest is in the key (a fixed 32
+        # bytes), so the colours never depend on what the cache converted before.
+        materials = hashlib.sha256(obj_materials(data, os.path.dirname(path))).digest() \
+            if extension == '.obj' else b''
+        key = hashlib.sha256(b'r2d2_sim mesh %d %s\0' % (CONVERTER_VERSION, extension.encode())
+                             + materials + data).hexdigest()
         directory = self._private(key[:2], key)
         cached = self._cached(directory)
         if cached is not None:

@@ -28,7 +28,7 @@ import numpy
 from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import read_regular, UnsafeFile
 
-__all__ = ['Triangles', 'read_mesh', 'read_mesh_bytes', 'check_triangles',
+__all__ = ['Triangles', 'read_mesh', 'read_mesh_bytes', 'obj_materials', 'check_triangles',
            'declared_triangles', 'lean_mesh_imports', 'MESH_FORMATS', 'MAX_MESH_BYTES',
            'MAX_MESH_TRIANGLES', 'TRIMESH_SPARED']
 
@@ -260,6 +260,27 @@ class _MaterialFiles:
         return read_regular(path, MAX_MTL_BYTES)  # OSError: no colour, as trimesh takes it
 
     __getitem__ = get
+
+
+def obj_materials(data: bytes, directory: str) -> bytes:
+    """
+    Return what an OBJ's colours come from besides its bytes: its .mtl file's name and bytes.
+
+    The .mtl trimesh reads (the rest of the line after the first ``mtllib``), as
+    :class:`_MaterialFiles` serves it (empty when it serves none), so a cache key
+    holding it changes whenever the colours could.
+    """
+    text = data.replace(b'\r\n', b'\n').replace(b'\\\n', b'')
+    at = text.find(b'mtllib')
+    if at < 0:
+        return b''
+    end = text.find(b'\n', at)
+    name = text[at + 6:end if end >= 0 else len(text)].strip()
+    try:
+        content = _MaterialFiles(directory).get(name.decode('utf-8', 'replace'))
+    except OSError:
+        content = b''
+    return b'%d:%s%d:%s' % (len(name), name, len(content), content)
 
 
 def _obj(data: bytes, shown: str, directory: str) -> Triangles:
