@@ -188,6 +188,24 @@ def test_a_joint_axis_is_in_the_frame_its_sdf_version_says(
     assert scene.models[0].joints[0].axis == approx(expected)
 
 
+@pytest.mark.parametrize('axis_flag, axis2_flag', [(False, True), (True, False), (True, True)])
+def test_axis_and_axis2_each_have_their_own_use_parent_model_frame_before_1_7(
+        tmp_path, axis_flag, axis2_flag):
+    """Read each flag for its own axis, as sdformat's 1.6 to 1.7 conversion does."""
+    def axis(tag, flag):
+        return (f'<{tag}><xyz>1 0 0</xyz><use_parent_model_frame>{str(flag).lower()}'
+                f'</use_parent_model_frame></{tag}>')
+    scene = read(sdf(f'''<model name="m"><link name="a"/>
+      <link name="b"><pose>0 0 1 0 0 1.5707963267948966</pose></link>
+      <joint name="j" type="universal"><parent>a</parent><child>b</child>
+      {axis('axis', axis_flag)}{axis('axis2', axis2_flag)}</joint></model>''', '1.6'), tmp_path)
+    joint = scene.models[0].joints[0]
+    # The child is turned 90 degrees about z: the joint's x is the model's y.
+    model_x, joint_x = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)
+    assert joint.axis == approx(model_x if axis_flag else joint_x)
+    assert joint.axis2 == approx(model_x if axis2_flag else joint_x)
+
+
 @pytest.mark.parametrize('limit_xml, expected', [
     ('<lower>-inf</lower><upper>inf</upper><effort>inf</effort><velocity>inf</velocity>',
      (1.0, -1.0, 0.0, 0.0)),                         # SDF 1.10+'s defaults: no limit at all

@@ -217,7 +217,7 @@ class _Flattening:
             if version >= (1, 7):
                 name = axis.expressed_in or spec.name
             elif version >= (1, 5):
-                name = MODEL_FRAME if spec.use_parent_model_frame else spec.name
+                name = MODEL_FRAME if axis.use_parent_model_frame else spec.name
             else:
                 name = MODEL_FRAME  # SDF 1.4: the axis is in the model's frame
             rotation = compose(frame, graph.pose(name)).rotation

@@ -64,11 +64,17 @@ class LinkSpec(NamedTuple):
 
 
 class AxisSpec(NamedTuple):
-    """A joint axis as written: direction, the frame it is in ('': the version's), limits."""
+    """
+    A joint axis as written: direction, the frame it is in ('': the version's), limits.
+
+    ``use_parent_model_frame``: SDF 1.5-1.6's flag of this axis (``<axis>`` and
+    ``<axis2>`` each have their own, as sdformat's 1.6 to 1.7 conversion reads them).
+    """
 
     xyz: Tuple[float, float, float]
     expressed_in: str
     limits: JointLimits
+    use_parent_model_frame: bool = False
 
 
 class JointSpec(NamedTuple):
@@ -82,7 +88,6 @@ class JointSpec(NamedTuple):
     relative_to: str
     axis: AxisSpec
     axis2: AxisSpec
-    use_parent_model_frame: bool
     where: str
 
 
@@ -276,11 +281,10 @@ def _limit(at: Place, element: ElementTree.Element, tag: str, default: float) ->
     return at.number(element, tag, default)
 
 
-def _axis(element: Optional[ElementTree.Element], place: Place, notes: Notes
-          ) -> Tuple[AxisSpec, bool]:
-    """Return an <axis> (or <axis2>) and its 1.5-1.6 use_parent_model_frame flag."""
+def _axis(element: Optional[ElementTree.Element], place: Place, notes: Notes) -> AxisSpec:
+    """Return an <axis> (or <axis2>), with its own 1.5-1.6 use_parent_model_frame flag."""
     if element is None:
-        return _NO_AXIS, False
+        return _NO_AXIS
     at = place.child(element)
     xyz = _vector3(at.numbers(element, 'xyz', 3, (0.0, 0.0, 1.0)))
     if not any(xyz):
@@ -310,8 +314,8 @@ def _axis(element: Optional[ElementTree.Element], place: Place, notes: Notes
     _others(element, ('xyz', 'limit', 'dynamics', 'use_parent_model_frame',
                       'initial_position'), notes)
     limits = JointLimits(lower, upper, max(effort, 0.0), max(velocity, 0.0), damping, friction)
-    return AxisSpec(xyz, expressed_in, limits), at.truth(element, 'use_parent_model_frame',
-                                                         False)
+    return AxisSpec(xyz, expressed_in, limits, at.truth(element, 'use_parent_model_frame',
+                                                        False))
 
 
 def read_joint(element: ElementTree.Element, place: Place, notes: Notes) -> JointSpec:
@@ -330,9 +334,8 @@ def read_joint(element: ElementTree.Element, place: Place, notes: Notes) -> Join
     if parent == child:
         raise at.fail('a joint\'s parent and child are the same link')
     pose, relative_to = at.pose(element)
-    axis, parent_frame = _axis(element.find('axis'), at, notes)
-    axis2, _ = _axis(element.find('axis2'), at, notes)
+    axis = _axis(element.find('axis'), at, notes)
+    axis2 = _axis(element.find('axis2'), at, notes)
     _others(element, ('parent', 'child', 'axis', 'axis2', 'thread_pitch', 'gearbox_ratio',
                       'gearbox_reference_body'), notes)
-    return JointSpec(name, kind, parent, child, pose, relative_to, axis, axis2, parent_frame,
-                     str(at))
+    return JointSpec(name, kind, parent, child, pose, relative_to, axis, axis2, str(at))
