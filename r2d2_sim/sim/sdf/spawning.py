@@ -23,7 +23,7 @@ from r2d2_sim.sim.sdf.loading import (
     build_bodies, GeneratedFiles, read_sdf, SdfSettings, summary_line)
 from r2d2_sim.sim.sdf.mesh_cache import MeshCache
 from r2d2_sim.sim.sdf.reader import MAX_SDF_BYTES
-from r2d2_sim.sim.sdf.resources import Resources
+from r2d2_sim.sim.sdf.resources import FILE_SCHEME, Resources
 
 __all__ = ['SdfSpawnable', 'is_sdf_spawn', 'read_sdf_spawnable']
 
@@ -40,10 +40,19 @@ class SdfSpawnable(NamedTuple):
 
 
 def is_sdf_spawn(uri: str, resource_string: str) -> bool:
-    """Return True when a spawn request names SDF: a .sdf file, model://, Fuel, or <sdf> text."""
+    """
+    Return True when a spawn request names SDF.
+
+    That is a .sdf file, a Gazebo model directory (one holding ``model.config``
+    or ``model.sdf``, as a path or ``file://``), model://, Fuel, or <sdf> text.
+    """
     if uri:
-        return uri.lower().endswith('.sdf') or uri.startswith('model://') or \
-            uri.startswith(('https://fuel.', 'http://fuel.'))
+        if uri.lower().endswith('.sdf') or uri.startswith('model://') or \
+                uri.startswith(('https://fuel.', 'http://fuel.')):
+            return True
+        directory = uri[len(FILE_SCHEME):] if uri.startswith(FILE_SCHEME) else uri
+        return any(os.path.isfile(os.path.join(directory, name))
+                   for name in ('model.config', 'model.sdf'))
     return root_tag(resource_string) == 'sdf'
 
 
