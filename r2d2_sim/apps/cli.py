@@ -141,13 +141,22 @@ def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
 
 
 def stop_on_signals(stop: Optional[threading.Event] = None) -> threading.Event:
-    """Return an event (``stop``, or a new one) that SIGINT and SIGTERM set from now on."""
+    """
+    Return an event (``stop``, or a new one) that SIGINT, SIGTERM and SIGHUP set from now on.
+
+    SIGHUP (the terminal closed, the SSH session dropped) killed the process
+    before it could finish its recording; it stops it as SIGTERM does, unless
+    the process was started ignoring it (``nohup``), which is kept.
+    """
     stop = threading.Event() if stop is None else stop
 
     def handler(signum: int, frame: Optional[FrameType]) -> None:
         stop.set()
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
+    hangup = getattr(signal, 'SIGHUP', None)  # not on Windows
+    if hangup is not None and signal.getsignal(hangup) is not signal.SIG_IGN:
+        signal.signal(hangup, handler)
     return stop
 
 

@@ -436,7 +436,9 @@ class FoxgloveSink:
 
 
 def _address(host: str, port: int) -> str:
-    """Return the WebSocket address viewers connect to."""
+    """Return the WebSocket address viewers connect to (an IPv6 host in brackets, RFC 3986)."""
+    if ':' in host and not host.startswith('['):
+        host = f'[{host}]'
     return f'ws://{host}:{port}'
 
 

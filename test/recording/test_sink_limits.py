@@ -224,3 +224,11 @@ def test_released_robots_leave_no_channels_behind_but_the_file_lists_them(tmp_pa
         summary = make_reader(stream).get_summary()
     # An MCAP file lists every channel it wrote a message on: those stay.
     assert len(summary.channels) == 1 + 50 * len(ROBOT_TOPICS)
+
+
+def test_a_live_view_on_an_ipv6_host_gives_an_address_a_client_takes():
+    """An IPv6 host: the address puts it in brackets (RFC 3986), and a viewer connects to it."""
+    with FoxgloveSink(port=0, host='::1') as sink:
+        assert sink.url == f'ws://[::1]:{sink.port}'
+        with connect(sink.url, subprotocols=[SUBPROTOCOL], open_timeout=10):
+            pass

@@ -47,6 +47,7 @@ import signal, sys, time
 mode, path, test_dir = sys.argv[1:4]
 if mode == 'handlers':
     from r2d2_sim.apps.cli import stop_on_signals
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)  # as a terminal's shell starts it (CI: nohup)
     stop = stop_on_signals()
 elif mode.endswith('keyboard_interrupt'):
     # Python's own Ctrl-C, as in a terminal. A CI job started in the background
@@ -86,12 +87,12 @@ finally:
 
 
 @pytest.mark.parametrize('mode, sig', [
-    ('handlers', signal.SIGINT), ('handlers', signal.SIGTERM),
+    ('handlers', signal.SIGINT), ('handlers', signal.SIGTERM), ('handlers', signal.SIGHUP),
     ('keyboard_interrupt', signal.SIGINT), ('forgotten', None),
     ('forgotten_keyboard_interrupt', signal.SIGINT)])
 def test_a_stopped_recorder_leaves_a_complete_file(tmp_path, mode, sig):
     """
-    A process that records until SIGINT/SIGTERM leaves a file with every message and a summary.
+    A process that records until a SIGINT, SIGTERM or SIGHUP leaves every message and a summary.
 
     ``handlers``: the owner turns both signals into an event (sim_node's
     way) and closes in ``finally``. ``keyboard_interrupt``: Python's own
