@@ -203,6 +203,11 @@ class KitProcess:
                 lambda: any(text in line for line in self.lines[name]), timeout_s)
         assert seen, (text, self.lines)
 
+    def interrupt(self) -> None:
+        """Send Ctrl-C (SIGINT); return once the kit says it puts the simulator back."""
+        self.process.send_signal(signal.SIGINT)
+        self.wait_for('err', 'interrupted: leaving the simulator as found')
+
     def end(self, timeout_s: float = 60.0) -> int:
         """Wait for the process to end; return its exit status (its output all read)."""
         status = self.process.wait(timeout=timeout_s)
@@ -213,6 +218,13 @@ class KitProcess:
 
 INTERRUPTED = ('sim_conformance: interrupted: leaving the simulator as found (Ctrl-C again to '
                'leave it as it is)')
+
+
+def kit_held_by(toy: ToySimulator, domain: int, only: str) -> KitProcess:
+    """Run the kit on ``only``'s clauses; return it once the toy holds a reply to it."""
+    kit = KitProcess(domain, '--only', only, '--timeout', '20')
+    assert wait_for(lambda: toy.held, 60.0), kit.lines
+    return kit
 
 
 def spawned_by_the_kit(toy: ToySimulator):
@@ -231,8 +243,7 @@ def test_ctrl_c_leaves_the_simulator_as_found():
     domain = next_domain_id()
     with ToySimulator(domain, hold='GetEntities') as toy:
         toy.state = S.STATE_PLAYING
-        kit = KitProcess(domain, '--only', 'SPAWN,ENTITY', '--timeout', '20')
-        assert wait_for(lambda: toy.held, 60.0), kit.lines
+        kit = kit_held_by(toy, domain, 'SPAWN,ENTITY')
         during = (toy.state, spawned_by_the_kit(toy))
         kit.process.send_signal(signal.SIGINT)
         toy.release.set()
@@ -255,10 +266,8 @@ def test_a_second_ctrl_c_skips_putting_the_simulator_back():
     domain = next_domain_id()
     with ToySimulator(domain, hold='SetSimulationState') as toy:
         toy.state = S.STATE_PLAYING
-        kit = KitProcess(domain, '--only', 'STATE', '--timeout', '20')
-        assert wait_for(lambda: toy.held, 60.0), kit.lines
-        kit.process.send_signal(signal.SIGINT)
-        kit.wait_for('err', 'interrupted: leaving the simulator as found')
+        kit = kit_held_by(toy, domain, 'STATE')
+        kit.interrupt()
         kit.process.send_signal(signal.SIGINT)
         started = time.monotonic()
         status = kit.end()
@@ -279,10 +288,8 @@ def test_ctrl_c_while_the_kit_puts_the_simulator_back_lets_it_finish():
     domain = next_domain_id()
     with ToySimulator(domain, hold='SetSimulationState') as toy:
         toy.state = S.STATE_PLAYING
-        kit = KitProcess(domain, '--only', 'FEAT-01', '--timeout', '20')
-        assert wait_for(lambda: toy.held, 60.0), kit.lines
-        kit.process.send_signal(signal.SIGINT)
-        kit.wait_for('err', 'interrupted: leaving the simulator as found')
+        kit = kit_held_by(toy, domain, 'FEAT-01')
+        kit.interrupt()
         toy.release.set()
         status = kit.end()
         after = toy.state
