@@ -38,7 +38,8 @@ from r2d2_sim.model.health import base_problem, joint_problem, joints_finite, tw
 from r2d2_sim.model.reach import FIXED, FREE, LinkReach, reach_radius, SLIDES, TURNS
 from r2d2_sim.model.transforms import BaseState, in_body_frame, rotate_inverse
 from r2d2_sim.physics import records
-from r2d2_sim.physics.raycast import exclude_from_rays, RAY_EXCLUDED_GROUP
+from r2d2_sim.physics.raycast import (
+    exclude_from_rays, HIDDEN_MASK, RAY_EXCLUDED_GROUP, SHOWN_MASK)
 from r2d2_sim.physics.records import (
     Aabb, ClosestPoints, CollisionShape, ContactPoint, Dynamics, JointRecord, JointStates,
     LinkState, Pose, Quat, Vec3)
@@ -546,12 +547,54 @@ class Body:
                 targetVelocities=[dq for _, dq in multi_dof])
 
     def exclude_from_rays(self, links: Optional[Sequence[int]] = None,
-                          group: int = RAY_EXCLUDED_GROUP) -> None:
-        """Make links of the body (default: all) invisible to rays of ``group`` (see raycast)."""
-        self._change('_exclude_from_rays', None if links is None else tuple(links), group)
+                          group: int = RAY_EXCLUDED_GROUP, hidden: bool = False) -> None:
+        """
+        Make links of the body (default: all) invisible to rays of ``group`` (see raycast).
 
-    def _exclude_from_rays(self, links: Optional[Sequence[int]], group: int) -> None:
-        exclude_from_rays(self._client, self.id, links, group)
+        ``hidden``: to every ray, untested (raycast's Hidden links), until
+        :meth:`show_to_rays`; the world decides when that is exact
+        (``SimWorld.exclude_from_rays``).
+        """
+        self._change('_exclude_from_rays', None if links is None else tuple(links), group,
+                     hidden)
+
+    def _exclude_from_rays(self, links: Optional[Sequence[int]], group: int,
+                           hidden: bool = False) -> None:
+        exclude_from_rays(self._client, self.id, links, group, hidden)
+
+    @property
+    def hidden_ray_groups(self) -> int:
+        """Return the ray groups (bits) of the links hidden from every ray; 0 when none."""
+        mask = 0
+        for method, args, _ in self._changes:
+            if method == '_exclude_from_rays' and args[2]:
+                mask |= args[1]
+        return mask
+
+    def show_to_rays(self) -> bool:
+        """
+        Let every ray test the links hidden from them again (their groups stay); False if none.
+
+        Bullet re-inserts them into its broadphase (contacts found later may
+        come in another order). A reload or a twin loads them shown, as if
+        never hidden.
+        """
+        shown = False
+        for i, (method, args, kwargs) in enumerate(self._changes):
+            if method == '_exclude_from_rays' and args[2]:
+                links, group, _ = args
+                self._changes[i] = (method, (links, group, False), kwargs)
+                if self._id is not None:
+                    exclude_from_rays(self._client, self._id, links, group)
+                shown = True
+        return shown
+
+    @property
+    def sets_own_collision_filters(self) -> bool:
+        """Return True when the URDF the body was loaded from sets collision groups or masks."""
+        if self._own_filters is None:
+            self._own_filters = _sets_collision_filters(self._loading)
+        return self._own_filters
 
     def collision_filters(self) -> Dict[int, Tuple[int, int]]:
         """
@@ -562,9 +605,7 @@ class Body:
         that sets its own (``<collision group=... mask=...>``): those are not
         followed here.
         """
-        if self._own_filters is None:
-            self._own_filters = _sets_collision_filters(self._loading)
-        if self._own_filters:
+        if self.sets_own_collision_filters:
             raise WorldError(f'{self.name} sets its own collision groups in its URDF, which '
                              'cannot be put back')
         filters = {link: DYNAMIC_FILTER for link in self.links()}
@@ -572,9 +613,9 @@ class Body:
             filters[-1] = STATIC_FILTER
         for method, args, _ in self._changes:
             if method == '_exclude_from_rays':
-                links, group = args
+                links, group, hidden = args
                 for link in self.links() if links is None else links:
-                    filters[link] = (group, -1)
+                    filters[link] = (group, HIDDEN_MASK if hidden else SHOWN_MASK)
         return filters
 
     def reinsert(self) -> None:
@@ -654,6 +695,8 @@ class Body:
         """
         for method, args, kwargs in self._changes[len(twin._changes):]:
             twin._change(method, *args, **kwargs)
+        if twin.hidden_ray_groups and not self.hidden_ray_groups:
+            twin.show_to_rays()  # shown here after the twin was loaded hidden
         self._client, self._id = twin._client, twin._id
         self._motors, self._anchored = twin._motor_table(), twin._anchored
         self._velocity_motors = None

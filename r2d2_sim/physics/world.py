@@ -168,6 +168,13 @@ class SimWorld:
         # Threads a large batch of rays is cast on (raycast.cast_rays): the same answers.
         self.ray_threads = 1
         self._free_ray_groups = list(RAY_GROUPS)
+        # The bodies a robot built now takes its ray group among (ray_groups_of): None for
+        # the live world's.
+        self._ray_bodies: Optional[Dict[str, Body]] = None
+        # The ray groups whose links no ray tests in the live world (exclude_from_rays).
+        self._hidden_ray_groups = 0
+        # How many robots with rays a start-up is about to build (expecting_ray_robots).
+        self._ray_robots_expected = 0
         # A body's physics blew up and it was put back (put_back): what the blow-up
         # broke around it is still to be put back (repair).
         self.blown_up = False
@@ -260,6 +267,10 @@ class SimWorld:
                     loading=Loading(path, (x, y, z), (qx, qy, qz, qw), flags,
                                     file_stamp(_found(path))))
         bodies[name] = body
+        hiding = (self._hidden_ray_groups if into is None
+                  else any(other.hidden_ray_groups for other in bodies.values()))
+        if hiding and body.sets_own_collision_filters:
+            self._show_hidden(bodies)  # a hidden link's contacts with it could differ
         return body
 
     def load_robot(self, path: str, pose: Tuple[float, float, float],
@@ -305,7 +316,64 @@ class SimWorld:
         if not self._free_ray_groups:
             raise WorldError(f'{len(RAY_GROUPS)} robots with a laser scanner are in the world '
                              'already, as many as Bullet\'s collision groups can tell apart')
+        if len(self._free_ray_groups) < len(RAY_GROUPS):
+            self._show_hidden()  # another robot's rays must see the one already here
         return self._free_ray_groups.pop(0)
+
+    def exclude_from_rays(self, body: Body, links: Sequence[int], group: int) -> None:
+        """
+        Make ``body``'s ``links`` invisible to rays of ``group`` (its robot's sensors').
+
+        Hidden from every ray (untested: a third of a scan's time, the same
+        ranges; see raycast's Hidden links) while the robot is the only one
+        with rays in its world: its ``group`` the only one taken, no other
+        robot with rays about to be built (:meth:`expecting_ray_robots`), and
+        no body whose URDF sets its own collision filters (whose contacts a
+        hidden mask could change). Else excluded as before, tested and
+        masked. What would make hiding inexact later (another robot taking a
+        ray group, a body setting its own filters loaded, rays cast that
+        should see the links) shows them again first (:meth:`_show_hidden`).
+        """
+        bodies = self._bodies_for_rays()
+        hidden = (self._ray_robots_expected <= 1
+                  and len(self._free_ray_groups) == len(RAY_GROUPS) - 1
+                  and group not in self._free_ray_groups
+                  and not any(other.sets_own_collision_filters
+                              for other in bodies.values() if other is not body))
+        body.exclude_from_rays(links, group, hidden=hidden)
+        if hidden and self._ray_bodies is None:
+            self._hidden_ray_groups |= group
+
+    @contextmanager
+    def expecting_ray_robots(self, count: int) -> Iterator[None]:
+        """Meanwhile ``count`` robots with rays are being built: none hides its links."""
+        before, self._ray_robots_expected = self._ray_robots_expected, count
+        try:
+            yield
+        finally:
+            self._ray_robots_expected = before
+
+    def _bodies_for_rays(self) -> Dict[str, Body]:
+        return self.bodies if self._ray_bodies is None else self._ray_bodies
+
+    def _show_hidden(self, bodies: Optional[Dict[str, Body]] = None) -> None:
+        """
+        Let every ray test the links hidden from them in ``bodies`` (default: ray_groups_of's).
+
+        In the live world, then build it again as it is (:meth:`compact`):
+        the links re-inserted into Bullet's broadphase now would be found in
+        another order than after a rebuild (a reset), which loads them shown
+        with their body; compacted, the run goes on as a rebuilt world's
+        would. Its contacts start afresh, as after any compaction.
+        """
+        if bodies is None:
+            bodies = self._bodies_for_rays()
+        shown = [body.show_to_rays() for body in bodies.values()]
+        if any(shown) and bodies is self.bodies:
+            self.compact()
+        self._hidden_ray_groups = 0
+        for body in self.bodies.values():
+            self._hidden_ray_groups |= body.hidden_ray_groups
 
     def release_ray_group(self, group: int) -> None:
         """Give a ray group back (its robot left the world)."""
@@ -431,11 +499,12 @@ class SimWorld:
         if build is None or not build.beside:
             yield
             return
-        live, self._free_ray_groups = self._free_ray_groups, build.free_ray_groups
+        live = self._free_ray_groups, self._ray_bodies
+        self._free_ray_groups, self._ray_bodies = build.free_ray_groups, build.bodies
         try:
             yield
         finally:
-            self._free_ray_groups = live
+            self._free_ray_groups, self._ray_bodies = live
 
     def take(self, build: WorldBuild) -> None:
         """
@@ -459,6 +528,9 @@ class SimWorld:
                                         physicsClientId=build.client._client)
         self.bodies = dict(build.bodies)
         self._free_ray_groups = build.free_ray_groups
+        self._hidden_ray_groups = 0
+        for body in self.bodies.values():
+            self._hidden_ray_groups |= body.hidden_ray_groups
         self.removed_since_built = 0
         self.builds += 1  # states saved before are gone with the old physics world
         build.twins.clear()
@@ -615,10 +687,15 @@ class SimWorld:
         ``mask``: the groups the rays can hit; ``ray_mask(group)`` passes
         through the links a robot put in its own ray group.
         """
+        if mask & self._hidden_ray_groups:
+            self._show_hidden(self.bodies)  # these rays see links hidden from rays
         return cast_rays(self._live_client, starts, ends, mask, threads=self.ray_threads)
 
     def cast_requests(self, requests: Sequence[RayRequest]) -> List[numpy.ndarray]:
         """Cast several sensors' rays in as few calls as their robots allow (see raycast)."""
+        hidden = self._hidden_ray_groups
+        if hidden and any(ray_mask(request.group) & hidden for request in requests):
+            self._show_hidden(self.bodies)  # these rays see links hidden from rays
         return cast_requests(self._live_client, requests, self.ray_threads)
 
     def render(self, width_px: int, height_px: int, view: Sequence[float],

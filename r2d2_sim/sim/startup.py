@@ -176,14 +176,15 @@ class Startup:
         robots: List[Robot] = []
         models: List[Body] = []
         try:
-            robots.append(self._start_robot(placed(starts[0], world_file)))
-            for description, position in config.extra_models:
-                models.append(self._load_extra(description, position))
-            for model in world_file.models:
-                self._entities.append(self._load_world_model(model))
-                models.append(self._entities[-1].body)
-            for start in starts[1:]:
-                robots.append(self._start_robot(placed(start, world_file)))
+            with self._world.expecting_ray_robots(_with_rays(starts)):
+                robots.append(self._start_robot(placed(starts[0], world_file)))
+                for description, position in config.extra_models:
+                    models.append(self._load_extra(description, position))
+                for model in world_file.models:
+                    self._entities.append(self._load_world_model(model))
+                    models.append(self._entities[-1].body)
+                for start in starts[1:]:
+                    robots.append(self._start_robot(placed(start, world_file)))
             _check_apart(robots)
         except Exception:
             for robot in robots:  # their ray groups and temporary description files
@@ -360,59 +361,61 @@ class Startup:
         replaced: List[Robot] = []  # the robots they replace
         dropped: List[str] = []
         changed = False
-        try:
-            for entity in kept[:at] + [None] + kept[at:]:
-                if entity is None:
-                    for model in world_file.models:
-                        entities.append(self._load_world_model(model, build))
+        # Built anew, a robot hides its own links from its rays only if it is alone (SimWorld).
+        with self._world.expecting_ray_robots(_with_rays(self._starts)):
+            try:
+                for entity in kept[:at] + [None] + kept[at:]:
+                    if entity is None:
+                        for model in world_file.models:
+                            entities.append(self._load_world_model(model, build))
+                            if build.beside:
+                                yield
+                        continue
+                    if entity.robot is None:
+                        if self._reload(entity.body, dropped, build):
+                            entities.append(entity)
                         if build.beside:
                             yield
-                    continue
-                if entity.robot is None:
-                    if self._reload(entity.body, dropped, build):
-                        entities.append(entity)
+                        continue
+                    start = robot_starts[id(entity)]
+                    entity = _Entity(entity.body, start, info=_robot_info(start))
+                    robot = robot_of.get(id(entity.body))
+                    if robot is not None and robot in staying:  # its start did not move
+                        if self._reload(entity.body, dropped, build):
+                            entities.append(entity)
+                            restarted.append(robot)
+                            after.append(robot)
+                            if not build.beside:  # as it was: started before the next load
+                                robot.reloaded()
+                                robot.restart_noise()
+                            else:
+                                yield
+                            continue
+                    if robot is not None:
+                        if build.beside:
+                            replaced.append(robot)  # it goes on in the old world until the swap
+                        else:
+                            robot.close()
+                    changed = True
+                    if entity.body.name not in dropped:
+                        entities.append(entity)  # a full reset tries again if it fails now
+                        robot = self._load_again(entity, build)  # at the new start, new interfaces
+                        if robot is not None:
+                            after.append(robot)
+                            built.append((robot, self._world.step_count))
                     if build.beside:
                         yield
-                    continue
-                start = robot_starts[id(entity)]
-                entity = _Entity(entity.body, start, info=_robot_info(start))
-                robot = robot_of.get(id(entity.body))
-                if robot is not None and robot in staying:  # its start did not move
-                    if self._reload(entity.body, dropped, build):
-                        entities.append(entity)
-                        restarted.append(robot)
-                        after.append(robot)
-                        if not build.beside:  # as it was: started before the next load
-                            robot.reloaded()
-                            robot.restart_noise()
-                        else:
-                            yield
-                        continue
-                if robot is not None:
-                    if build.beside:
-                        replaced.append(robot)  # it goes on in the old world until the swap
-                    else:
-                        robot.close()
-                changed = True
-                if entity.body.name not in dropped:
-                    entities.append(entity)  # a full reset tries again if it fails now
-                    robot = self._load_again(entity, build)  # at the new start, new interfaces
-                    if robot is not None:
-                        after.append(robot)
-                        built.append((robot, self._world.step_count))
                 if build.beside:
-                    yield
-            if build.beside:
-                leaving()
-                for robot in replaced:  # their ray groups back to the old world's list
-                    robot.close()
-            self._world.take(build)
-        except BaseException:
-            self._world.abandon(build)
-            with self._world.ray_groups_of(build):
-                for robot, _ in built:
-                    robot.close()
-            raise
+                    leaving()
+                    for robot in replaced:  # their ray groups back to the old world's list
+                        robot.close()
+                self._world.take(build)
+            except BaseException:
+                self._world.abandon(build)
+                with self._world.ray_groups_of(build):
+                    for robot, _ in built:
+                        robot.close()
+                raise
         if build.beside:
             for robot in restarted:
                 robot.reloaded()
@@ -460,6 +463,11 @@ def finished(steps: Generator[None, None, T]) -> T:
 
 def _named(warn: Callable[[str], None], name: str) -> Callable[[str], None]:
     return lambda text: warn(f'robot {name}: {text}')
+
+
+def _with_rays(starts: Sequence[RobotStart]) -> int:
+    """Return how many of the robots cast rays (a laser or a 3D lidar)."""
+    return sum(1 for start in starts if start.config.scan_rate_hz or start.config.lidar3d_rate_hz)
 
 
 def _check_apart(robots: Sequence[Robot]) -> None:

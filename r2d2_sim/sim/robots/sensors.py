@@ -218,7 +218,7 @@ class LaserScanner(_RaySensor):
         self._group = ray_group
         self._mask = ray_mask(ray_group)
         self.excluded_links = body.links_spanning_height(ground_z + LASER_HEIGHT_M)
-        body.exclude_from_rays(self.excluded_links, ray_group)
+        world.exclude_from_rays(body, self.excluded_links, ray_group)
 
     def scan(self) -> numpy.ndarray:
         """Cast the beams from where the laser is now; return REP-117 ranges (float32)."""
@@ -265,7 +265,7 @@ class Lidar3d(_RaySensor):
         self._group = ray_group
         self._mask = ray_mask(ray_group)
         self.excluded_links = self._own_links_in_view(body, base.position, ground_z)
-        body.exclude_from_rays(self.excluded_links, ray_group)
+        world.exclude_from_rays(body, self.excluded_links, ray_group)
         self._noise = self._new_noise()
 
     def _own_links_in_view(self, body: Body, axis: Sequence[float], ground_z: float
