@@ -42,6 +42,7 @@ from typing import (Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Pr
                     Tuple, Union)
 
 from r2d2_sim.farm.scenario import Scenario, ScenarioError, ScenarioSpace
+from r2d2_sim.sim.settings.given import is_ros_value, plain_value, unknown_parameters
 
 __all__ = ['FarmJob', 'JobSource', 'ItemJob', 'Item', 'TaskResult', 'run_variation',
            'prepare', 'RECORD_MODES', 'describe', 'LOAD_FAILED', 'load_failure']
@@ -92,8 +93,7 @@ class FarmJob:
                                 f'{type(self.controller).__name__}')
         if not (0.0 < float(self.seconds) < float('inf')):
             raise ScenarioError(f'seconds must be > 0 and finite, got {self.seconds}')
-        object.__setattr__(self, 'parameters', {
-            str(k): _parameter(k, v) for k, v in dict(self.parameters).items()})
+        object.__setattr__(self, 'parameters', _parameters(dict(self.parameters)))
 
     @property
     def listed(self) -> bool:
@@ -122,28 +122,28 @@ class FarmJob:
         return f'{self.name}[{key}]'
 
 
-def _parameter(name: Any, value: Any) -> Any:
+def _parameters(given: Mapping[Any, Any]) -> Dict[str, Any]:
     """
-    Return a simulator parameter's value as plain Python; ScenarioError (one line) if none.
+    Return the simulator's parameters as plain Python; ScenarioError (one line) if they cannot be.
 
     numpy's numbers (``numpy.int64(3)``, ``numpy.float32``, ``numpy.bool_``)
-    become Python's int, float and bool: a farm's identity is JSON, and a ROS
-    parameter takes Python's. Lists and tuples are read item by item; anything
-    else (None, a dict, an object) is refused here, before anything runs.
+    become Python's int, float and bool, tuples lists (:func:`plain_value`): a
+    farm's identity is JSON, and a ROS parameter takes Python's. A value no
+    ROS parameter holds (None, a dict, an object) and a name the simulator
+    does not read are refused here, before anything runs: inside each
+    variation they failed every one of them.
     """
-    if isinstance(value, (bool, int, float, str)) and type(value) in (bool, int, float, str):
-        return value
-    if isinstance(value, (list, tuple)):
-        return type(value)(_parameter(name, v) for v in value)
-    if type(value).__module__ == 'numpy' and hasattr(value, 'item'):  # a numpy scalar
-        plain = value.item()
-        if isinstance(plain, (bool, int, float)):
-            return plain
-    if isinstance(value, (bool, int, float, str)):  # a subclass (an IntEnum): its plain value
-        return (bool if isinstance(value, bool) else int if isinstance(value, int)
-                else float if isinstance(value, float) else str)(value)
-    raise ScenarioError(f'parameter {name}: a {type(value).__name__} is no ROS parameter value '
-                        '(bool, int, float, str or a list of them)')
+    parameters = {str(name): plain_value(value) for name, value in given.items()}
+    for name, value in parameters.items():
+        if not is_ros_value(value):
+            raise ScenarioError(f'parameter {name}: a {type(value).__name__} is no ROS parameter '
+                                'value (bool, int, float, str or a list of them)')
+    robots = parameters.get('robots', [])
+    unknown = unknown_parameters(parameters, [str(r) for r in robots]
+                                 if isinstance(robots, list) else [])
+    if unknown:
+        raise ScenarioError('; '.join(unknown))
+    return parameters
 
 
 def describe(job: FarmJob) -> Dict[str, Any]:

@@ -19,6 +19,7 @@ import numpy
 from r2d2_sim.errors import SetupError
 from r2d2_sim.farm.scenario import ScenarioSpace
 from r2d2_sim.gym.task import ObservationShape, Rewards
+from r2d2_sim.sim.settings.given import plain_value
 from r2d2_sim.sim.settings.robots import parse_world
 
 __all__ = ['GymError', 'NavSettings', 'nav_settings', 'reset_options', 'DEFAULT_SPACE', 'BACKENDS',
@@ -65,15 +66,6 @@ def _is_number(value: Any) -> bool:
 def _plain(value: Any) -> Any:
     """Return a number as Python's int or float (the same value; either kept as it is)."""
     return int(value) if isinstance(value, numbers.Integral) else float(value)
-
-
-def _plain_value(value: Any) -> Any:
-    """Return a parameter value with numpy's scalars and arrays as Python's, as ROS reads them."""
-    if isinstance(value, numpy.generic):
-        return value.item()
-    if isinstance(value, numpy.ndarray):
-        return value.tolist()
-    return value
 
 
 def _named(parameters: Mapping[str, Any], names: Sequence[str]) -> List[str]:
@@ -195,7 +187,7 @@ class NavSettings:
                 raise GymError(f'sim_parameters: parameter names are strings, got {key!r:.60} '
                                f'({type(key).__name__})')
         object.__setattr__(self, 'sim_parameters', {
-            key: _plain_value(value) for key, value in self.sim_parameters.items()})
+            key: plain_value(value) for key, value in self.sim_parameters.items()})
         taken = _named(self.sim_parameters, OWN_PARAMETERS)
         if taken:
             raise GymError(f'sim_parameters: {", ".join(taken)} are set by the environment '

@@ -9,7 +9,6 @@ Each robot listed in ``robots`` has the parameters it sets as
 """
 
 import dataclasses
-import difflib
 import os
 from typing import Any, Callable, Dict, Iterable, List, Sequence, Tuple
 
@@ -19,6 +18,7 @@ from rclpy.parameter import Parameter
 
 from r2d2_sim.sim.settings.table import Parameter as ParameterSpec, PARAMETERS, PARAMETERS_BY_NAME
 from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.settings.given import unknown_parameters
 from r2d2_sim.sim.settings.robots import parse_world, RobotSpec
 
 NAMESPACE_SPEC = ParameterSpec(
@@ -124,36 +124,3 @@ def unknown_overrides(node: Node, overrides: Iterable[str], robots: Sequence[str
     """Return :func:`unknown_parameters` of the overrides ``node`` declares no parameter for."""
     return unknown_parameters([name for name in overrides if not node.has_parameter(name)],
                               robots)
-
-
-# rclpy's own parameters, which every node declares.
-ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
-
-
-def unknown_parameters(names: Iterable[str], robots: Sequence[str]) -> List[str]:
-    """
-    Return 'unknown parameter NAME (did you mean ...?)' for each name the simulator reads not.
-
-    Ours, ``ROBOT.parameter`` of a robot ``robots`` lists, rclpy's own and its
-    ``qos_overrides.`` are read. ROS ignores overrides nobody declares, so a
-    typo would run on the default: the node warns of each; the harnesses
-    refuse them before anything starts.
-    """
-    known = [spec.name for spec in PARAMETERS]
-    problems = []
-    for name in sorted(names):
-        robot, dot, parameter = name.partition('.')
-        if (name in PARAMETERS_BY_NAME or name in ROS_OWN_PARAMETERS
-                or name.startswith('qos_overrides.')
-                or (dot and robot in robots
-                    and (parameter in PARAMETERS_BY_NAME or parameter == 'namespace'))):
-            continue
-        if dot and robot not in robots:  # NAME.parameter of a robot robots does not list
-            close = difflib.get_close_matches(robot, robots, n=1)
-            hint = (f' (did you mean {close[0]}.{parameter}?)' if close else
-                    f' (robots lists {", ".join(robots) or "none"})')
-        else:
-            close = difflib.get_close_matches(parameter if dot else name, known, n=1)
-            hint = f' (did you mean {robot + "." if dot else ""}{close[0]}?)' if close else ''
-        problems.append(f'unknown parameter {name}{hint}')
-    return problems

@@ -10,7 +10,6 @@ simulator in this process) and :class:`RemoteRobot` for
 of their first robot (the one robot, by default).
 """
 
-import os
 from typing import Any, Callable, Dict, List, Mapping, Optional, Protocol, Tuple, TYPE_CHECKING
 
 from geometry_msgs.msg import Twist, TwistStamped
@@ -22,7 +21,7 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
 from r2d2_sim.client import command_twist, stamp_ns, twist_message, twist_stamped_message
-from r2d2_sim.ros.parameters import unknown_parameters
+from r2d2_sim.sim.settings.given import is_ros_value, plain_value, unknown_parameters
 from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.sim.settings.table import ConfigError
 from r2d2_sim.testing.executor import HarnessError
@@ -116,9 +115,9 @@ def simulator_parameters(parameters: Mapping[str, Any],
             if own is not None and not isinstance(own, Mapping):
                 raise refused(f'robots: robot {name!r} takes a dict of its parameters '
                               f'(or None), got {type(own).__name__} {own!r:.40}')
-    flat = {k: _ros_value(v) for k, v in flatten_robots(parameters).items() if v is not None}
+    flat = {k: plain_value(v) for k, v in flatten_robots(parameters).items() if v is not None}
     for name, value in flat.items():
-        if not _is_ros_value(value):
+        if not is_ros_value(value):
             raise refused(f'parameter {name}: a {type(value).__name__} is no ROS parameter '
                           'value (a bool, number, string or list of one of those)')
     robots = flat.get('robots')
@@ -127,23 +126,6 @@ def simulator_parameters(parameters: Mapping[str, Any],
     if unknown:
         raise refused('; '.join(unknown))
     return flat
-
-
-def _ros_value(value: Any) -> Any:
-    """Return ``value`` with paths as strings (a file given as a ``pathlib.Path``)."""
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    if isinstance(value, (list, tuple)):
-        return [os.fspath(v) if isinstance(v, os.PathLike) else v for v in value]
-    return value
-
-
-def _is_ros_value(value: Any) -> bool:
-    """Return True for what a ROS parameter holds: a scalar, or a list of scalars."""
-    scalars = (bool, int, float, str)
-    if isinstance(value, scalars):
-        return True
-    return isinstance(value, (list, tuple)) and all(isinstance(v, scalars) for v in value)
 
 
 def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:

@@ -279,11 +279,22 @@ def test_numpy_numbers_in_the_parameters_become_pythons_and_the_rest_is_one_line
     from r2d2_sim.farm.scenario import ScenarioError
     job = FarmJob(SPACE, drive, seconds=1.0, parameters={
         'publish_rate': numpy.int64(50), 'physics_rate': numpy.float64(240.0),
-        'gui': numpy.bool_(False), 'limits': (numpy.int32(1), 2.5)})
+        'gui': numpy.bool_(False), 'battery_dock_pose': (numpy.int32(1), 2.5, 0.0)})
     assert job.parameters == {'publish_rate': 50, 'physics_rate': 240.0, 'gui': False,
-                              'limits': (1, 2.5)}
+                              'battery_dock_pose': [1, 2.5, 0.0]}
     assert type(job.parameters['publish_rate']) is int
     assert json.dumps(describe(job))
     with pytest.raises(ScenarioError) as raised:
         FarmJob(SPACE, drive, seconds=1.0, parameters={'odd': object()})
     assert 'parameter odd: a object is no ROS parameter value' in str(raised.value)
+
+
+def test_a_misspelled_simulator_parameter_is_one_line_before_anything_runs(tmp_path, capsys):
+    """Inside each variation it failed every one of them: now the job refuses it, once."""
+    from r2d2_sim.farm.scenario import ScenarioError
+    with pytest.raises(ScenarioError, match=r'^unknown parameter scan_rat \(did you mean '
+                                            r'scan_rate\?\)$'):
+        FarmJob(SPACE, drive, seconds=1.0, parameters={'scan_rat': 10.0})
+    with pytest.raises(ScenarioError, match=r'unknown parameter b\.scan_rate \(robots lists a\)'):
+        FarmJob(SPACE, drive, seconds=1.0, parameters={'robots': ['a'], 'b.scan_rate': 1.0})
+    FarmJob(SPACE, drive, seconds=1.0, parameters={'robots': ['a'], 'a.scan_rate': 1.0})
