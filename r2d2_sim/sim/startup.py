@@ -255,8 +255,15 @@ class Startup:
             if listed:
                 warn = _named(self._warn, body.name)
             with self._world.ray_groups_of(into):
-                return Robot(self._world, body, config, source, description.text, warn=warn,
-                             error=self._error, resources=[description], namespace=namespace)
+                try:
+                    return Robot(self._world, body, config, source, description.text,
+                                 warn=warn, error=self._error, resources=[description],
+                                 namespace=namespace)
+                except SetupError as exc:
+                    if not listed or str(exc).startswith(f'robot {body.name}'):
+                        raise
+                    # Which of the robots cannot be driven or sensed ("no link named head").
+                    raise type(exc)(f'robot {body.name}: {exc}') from exc
         except Exception:
             if body is not None:
                 if into is not None:
