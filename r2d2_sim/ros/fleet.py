@@ -102,7 +102,9 @@ class Fleet:
             if own and node is not None:
                 node.destroy_node()
             if isinstance(exc, ConfigError):
-                raise
+                if not own or str(exc).startswith(f'robot {robot.name}'):
+                    raise
+                raise ConfigError(f'robot {robot.name}: {exc}') from None  # which robot's
             reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise ConfigError(f'robot {robot.name} cannot have its interfaces in '
                               f'{robot.namespace}: {reason}') from None

@@ -162,6 +162,13 @@ def test_robot_parameters_are_declared_and_read_back(r2d2_sim_factory):
                  'b': {'initial_pose': [3.0, 0, 0], 'frame_prefix': 'x/'}}},
      "robots a and b both prefix their frames 'x/'"),
     ({'robots': {'a': {'namespace': '/' + 'n' * 151}}}, 'at most 150 characters'),
+    # Refused while robot b's interfaces are built: the line says which robot.
+    ({'robots': {'a': {}, 'b': {'initial_pose': [3.0, 0, 0], 'base_frame_id': 'head'}}},
+     "robot b: the URDF has links named like frames the node publishes itself"),
+    # Refused while robot b itself is built (its wheels).
+    ({'robots': {'a': {}, 'b': {'initial_pose': [3.0, 0, 0], 'left_wheel_names': ['nope_l'],
+                                'right_wheel_names': ['nope_r']}}},
+     'robot b: wheel joint(s) nope_l, nope_r not in the URDF'),
 ])
 def test_a_bad_fleet_is_one_line_at_start_up(r2d2_sim_factory, parameters, fragment):
     """Shared namespaces, overlap, shared frame prefixes, bad values: StartupError, one line."""
