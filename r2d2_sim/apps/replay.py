@@ -87,8 +87,9 @@ def qos_from_metadata(text: Optional[str]) -> 'QoSProfile':
     """
     Return the rclpy QoSProfile for a topic from its ``offered_qos_profiles`` YAML.
 
-    The first recorded profile is used. Unknown history or depth 0 (what
-    rosbag2 records from the graph) become keep-last 10, as in
+    The first recorded profile is used, its policies named (Jazzy's rosbag2,
+    ours) or numbered as rmw numbers them (rosbag2 of Humble and Iron). Unknown
+    history or depth 0 (what rosbag2 records from the graph) become keep-last 10, as in
     ``ros2 bag play``; infinite durations are left unspecified. No metadata:
     reliable, volatile, keep-last 10. Raises ValueError, saying why, for
     metadata that is not such a profile (a depth of 2**40, a duration past
@@ -114,10 +115,16 @@ def qos_from_metadata(text: Optional[str]) -> 'QoSProfile':
 
     def policy(policies: Type[enum.Enum], key: str) -> Optional[enum.Enum]:
         value = profile.get(key)
-        if isinstance(value, str) and value.upper() in policies.__members__ and \
-                value.upper() not in ('UNKNOWN', 'SYSTEM_DEFAULT'):
-            return policies[value.upper()]
-        return None
+        chosen = None
+        if isinstance(value, str) and value.upper() in policies.__members__:
+            chosen = policies[value.upper()]
+        elif isinstance(value, int) and not isinstance(value, bool):
+            # rosbag2 before Jazzy writes rmw's enum numbers (reliability: 1), which
+            # rclpy's policies share.
+            chosen = next((p for p in policies if p.value == value), None)
+        if chosen is None or chosen.name in ('UNKNOWN', 'SYSTEM_DEFAULT'):
+            return None
+        return chosen
 
     def integer(value: Any, key: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int):

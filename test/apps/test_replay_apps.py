@@ -38,3 +38,25 @@ def test_qos_as_rosbag2_records_it_from_the_graph():
     assert qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
     assert qos.deadline.nanoseconds == 0
     assert qos_from_metadata(None).durability == DurabilityPolicy.VOLATILE
+
+
+def test_qos_as_rosbag2_before_jazzy_numbers_it():
+    """Humble and Iron write rmw's enum numbers: /tf_static stays latched, a scan best effort."""
+    humble = '\n'.join([
+        '- history: 3', '  depth: 0', '  reliability: 1', '  durability: 1', '  deadline:',
+        '    sec: 9223372036', '    nsec: 854775807', '  lifespan:', '    sec: 9223372036',
+        '    nsec: 854775807', '  liveliness: 1', '  liveliness_lease_duration:',
+        '    sec: 9223372036', '    nsec: 854775807', '  avoid_ros_namespace_conventions: false'])
+    latched = qos_from_metadata(humble)
+    assert (latched.reliability, latched.durability) == (ReliabilityPolicy.RELIABLE,
+                                                         DurabilityPolicy.TRANSIENT_LOCAL)
+    assert latched.history == HistoryPolicy.KEEP_LAST and latched.depth == DEFAULT_DEPTH
+    scan = qos_from_metadata(humble.replace('reliability: 1', 'reliability: 2')
+                             .replace('durability: 1', 'durability: 2')
+                             .replace('history: 3', 'history: 2'))
+    assert (scan.reliability, scan.durability, scan.history) == (
+        ReliabilityPolicy.BEST_EFFORT, DurabilityPolicy.VOLATILE, HistoryPolicy.KEEP_ALL)
+    unknown = qos_from_metadata(humble.replace('reliability: 1', 'reliability: 0')
+                                .replace('durability: 1', 'durability: 99'))
+    assert (unknown.reliability, unknown.durability) == (ReliabilityPolicy.RELIABLE,
+                                                         DurabilityPolicy.VOLATILE)
