@@ -22,6 +22,7 @@ __all__ = [
     'BaseState',
     'in_body_frame',
     'quaternion_multiply',
+    'normalised',
     'quaternion_from_rpy',
     'quaternion_from_axis_angle',
     'unit_vector',
@@ -73,6 +74,15 @@ def quaternion_multiply(a: Quaternion, b: Quaternion) -> Quaternion:
             aw * by - ax * bz + ay * bw + az * bx,
             aw * bz + ax * by - ay * bx + az * bw,
             aw * bw - ax * bx - ay * by - az * bz)
+
+
+def normalised(q: Quaternion) -> Quaternion:
+    """Return ``q`` scaled to unit length (PyBullet's are off by up to ~1e-8); q if it has none."""
+    x, y, z, w = q
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not (norm > 0.0 and math.isfinite(norm)):
+        return q
+    return (x / norm, y / norm, z / norm, w / norm)
 
 
 def quaternion_from_rpy(roll_rad: float, pitch_rad: float, yaw_rad: float) -> Quaternion:

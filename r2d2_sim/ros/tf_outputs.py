@@ -30,7 +30,7 @@ from r2d2_sim.ros.serialization import MessageTemplate
 from r2d2_sim.model.timing import stamp_of
 from r2d2_sim.model.link_tree import LinkTransforms, parse_joints, root_link
 from r2d2_sim.model.transforms import (
-    compose, IDENTITY, inverse, split_yaw, Transform, yaw_to_quaternion)
+    compose, IDENTITY, inverse, normalised, Transform, yaw_to_quaternion)
 
 __all__ = ['TF_QOS', 'TF_STATIC_QOS', 'TfOutput', 'start_tf', 'link_transforms',
            'static_transforms', 'publish_static_transforms', 'tf_topics', 'UrdfTree',
@@ -50,7 +50,8 @@ class TfOutput:
     """
     ``/tf`` each state publication: odom -> base_footprint from wheel odometry.
 
-    Optionally world -> odom (so world -> base_footprint is the true pose) and
+    Optionally world -> odom, so that the chain world -> odom -> base_footprint
+    -> base_link is the body frame's true pose (height and tilt too), and
     the robot's moving joints (parent -> child link, as robot_state_publisher
     would publish them). All transforms carry the frame's stamp: the same as
     that step's odom message, so no sensor message is newer than its transform.
@@ -68,6 +69,9 @@ class TfOutput:
         self._truth = config.publish_ground_truth_tf and self._odometry
         if self._truth:
             pairs.append((config.world_frame_id, frame(config.odom_frame_id)))
+        # The static footprint -> base on /tf_static, undone to place the footprint.
+        self._base_to_footprint = inverse(
+            Transform((0.0, 0.0, robot.footprint_height_m), IDENTITY.rotation))
         self._links = links
         self._joint_slots = []
         if links is not None:
@@ -120,18 +124,23 @@ class TfOutput:
         for slot in self._stamps:
             slot.set(*stamp)
         slots = iter(self._transforms)
+        odom = None
         if self._odometry:
             odometry = frame.odometry
             assert odometry is not None, 'a robot with wheels measures odometry'
             odom = Transform((odometry.x_m, odometry.y_m, 0.0),
                              yaw_to_quaternion(odometry.yaw_rad))
             next(slots).set(odom.translation + odom.rotation)
-            if self._truth:
-                base = frame.base
-                yaw, _ = split_yaw(base.orientation)
-                truth = Transform((base.position[0], base.position[1], 0.0), yaw)
-                world_odom = compose(truth, inverse(odom))
-                next(slots).set(world_odom.translation + world_odom.rotation)
+        if self._truth:
+            # The whole true pose, height and tilt too: the chain down to the body frame
+            # (world -> odom -> footprint -> base) then ends where ground_truth says.
+            # PyBullet's quaternion is off unit by up to ~1e-8, enough to move the footprint's
+            # 0.47 m offset by 2e-8 m: tf2 normalises what it receives, so normalise first.
+            base = frame.base
+            footprint = compose(Transform(base.position, normalised(base.orientation)),
+                                self._base_to_footprint)
+            below = footprint if odom is None else compose(footprint, inverse(odom))
+            next(slots).set(below.translation + below.rotation)
         if self._links is not None:
             positions = frame.joints.positions
             for joint in self._links.moving([positions[i] for i in self._joint_slots]):

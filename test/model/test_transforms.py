@@ -13,7 +13,7 @@ import pytest
 
 from common import assert_same_transform, matrix_of
 from r2d2_sim.model.transforms import (
-    apply, compose, IDENTITY, inverse, quaternion_from_axis_angle, quaternion_from_rpy,
+    apply, compose, IDENTITY, inverse, normalised, quaternion_from_axis_angle, quaternion_from_rpy,
     quaternion_multiply, rotate, rotate_inverse, rotation_matrix, split_yaw, Transform, yaw_of,
 )
 
@@ -33,6 +33,11 @@ def test_quaternion_multiply_unit_axes():
     assert quaternion_multiply(i, j) == (0.0, 0.0, 1.0, 0.0)
     assert quaternion_multiply(j, i) == (0.0, 0.0, -1.0, 0.0)
     assert quaternion_multiply(i, i) == (0.0, 0.0, 0.0, -1.0)
+
+
+def test_normalised_scales_to_unit_length_and_leaves_a_zero_alone():
+    assert normalised((0.0, 0.0, 3.0, 4.0)) == (0.0, 0.0, 0.6, 0.8)
+    assert normalised((0.0, 0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0, 0.0)
 
 
 def test_quaternion_multiply_applies_right_factor_first():

@@ -173,7 +173,7 @@ def test_real_frames_round_trip(simulation):
 def test_tf_output_publishes_exactly_the_typed_transforms():
     """/tf with odometry, ground truth and the package R2D2's links: every transform, stamp."""
     from r2d2_sim.ros.tf_outputs import link_transforms, TfOutput
-    from r2d2_sim.model.transforms import compose, inverse, split_yaw, Transform
+    from r2d2_sim.model.transforms import compose, IDENTITY, inverse, normalised, Transform
     config = parse_config({'publish_ground_truth_tf': True, 'frame_prefix': 'abc/'})
     simulation = Simulation(config)
     links = link_transforms(config, simulation.robot)
@@ -188,8 +188,11 @@ def test_tf_output_publishes_exactly_the_typed_transforms():
     for frame, msg in zip(frames, published_tf):
         o, base = frame.odometry, frame.base
         odom = Transform((o.x_m, o.y_m, 0.0), yaw_to_quaternion(o.yaw_rad))
-        truth = Transform((base.position[0], base.position[1], 0.0),
-                          split_yaw(base.orientation)[0])
+        # The whole true pose, below it the static footprint -> base: the chain ends there.
+        footprint_base = Transform((0.0, 0.0, simulation.robot.footprint_height_m),
+                                   IDENTITY.rotation)
+        truth = compose(Transform(base.position, normalised(base.orientation)),
+                        inverse(footprint_base))
         expected = [('abc/odom', 'abc/base_footprint', odom),
                     ('world', 'abc/odom', compose(truth, inverse(odom)))]
         expected += [('abc/' + j.parent_link, 'abc/' + j.child_link, j.transform)

@@ -22,8 +22,8 @@ from tf2_msgs.msg import TFMessage
 
 from r2d2_sim.model.kinematics import quaternion_to_yaw
 from r2d2_sim.sim.robots.sensors import LASER_HEIGHT_M
-from r2d2_sim.testing import stamp_ns
-from r2d2_sim.model.transforms import apply, Transform
+from r2d2_sim.testing import box_urdf, stamp_ns
+from r2d2_sim.model.transforms import apply, normalised, quaternion_from_rpy, Transform
 
 ROOM = 'package://r2d2_sim/urdf/room.urdf'
 STATIC_QOS = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -147,14 +147,40 @@ def test_ground_truth_tf_places_odom_so_that_the_chain_is_the_true_pose(r2d2_sim
     truth = harness.ground_truth()
     chain = harness.lookup_transform('world', 'base_link')
     assert chain.stamp_ns == stamp_ns(truth.header.stamp)  # the latest, of that very step
-    p, q = truth.pose.pose.position, truth.pose.pose.orientation
-    # Planar: base_footprint -> base_link holds the body at its height at rest, upright.
-    assert chain.translation[:2] == pytest.approx((p.x, p.y), abs=1e-9)
-    assert chain.translation[2] == pytest.approx(p.z, abs=0.005)
-    assert math.remainder(quaternion_to_yaw(*chain.rotation) - quaternion_to_yaw(
-        q.x, q.y, q.z, q.w), 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+    assert_pose_is_truth(chain, truth)
     world_odom = harness.lookup_transform('world', 'odom')
     assert math.hypot(*world_odom.translation[:2]) > 0.001  # skid steering slips
+
+
+def test_ground_truth_tf_holds_the_true_height_and_tilt(r2d2_sim_factory):
+    """
+    On a tilted platform 0.3 m up, world -> base_link is ground_truth's pose, z and tilt too.
+
+    world -> odom once took the true x, y and yaw only: the chain put the body
+    at its height at rest (0.47 m), upright, whatever the robot stood on.
+    """
+    harness = r2d2_sim_factory(publish_ground_truth_tf=True, cmd_vel_timeout=0.0)
+    harness.listen_tf()
+    tilt = quaternion_from_rpy(0.0, 0.15, 0.0)
+    harness.spawn(box_urdf((2.0, 2.0, 0.3)), name='platform', position=(3.0, 0.0, 0.15),
+                  orientation=tilt)
+    harness.set_entity_state('r2d2', (3.0, 0.0, 0.3 + 0.5), orientation=tilt)
+    harness.advance(seconds=1.0)
+    truth = harness.ground_truth()
+    p, q = truth.pose.pose.position, truth.pose.pose.orientation
+    assert p.z > 0.7 and abs(2.0 * math.asin(q.y)) > 0.1  # up on the platform, pitched
+    chain = harness.lookup_transform('world', 'base_link', stamp_ns(truth.header.stamp))
+    assert_pose_is_truth(chain, truth)
+
+
+def assert_pose_is_truth(chain, truth):
+    """Assert a looked-up world -> base_link is ground_truth's pose (a rotation's sign aside)."""
+    p, q = truth.pose.pose.position, truth.pose.pose.orientation
+    assert chain.stamp_ns == stamp_ns(truth.header.stamp)
+    assert chain.translation == pytest.approx((p.x, p.y, p.z), abs=1e-9)
+    rotation = normalised((q.x, q.y, q.z, q.w))  # as tf2 takes it
+    sign = math.copysign(1.0, sum(a * b for a, b in zip(chain.rotation, rotation)))
+    assert tuple(sign * c for c in chain.rotation) == pytest.approx(rotation, abs=1e-9)
 
 
 def test_a_laser_point_lands_on_the_wall_in_odom(r2d2_sim_factory):

@@ -398,7 +398,8 @@ PARAMETERS: List[Parameter] = [
               'Also publish the robot\'s link transforms (what robot_state_publisher would).',
               'publish_link_tf', read.boolean, per_robot=True),
     Parameter('publish_ground_truth_tf', 'bool', False,
-              'Also publish world -> odom so that world -> base follows the true pose.',
+              'Also publish world -> odom so that world -> base is the true pose (height and '
+              'tilt too).',
               'publish_ground_truth_tf', read.boolean, per_robot=True),
     Parameter('publish_contacts', 'bool', False,
               'Publish what the robot touches (its own links and the ground aside) on contacts '
