@@ -51,7 +51,8 @@ class TfOutput:
     ``/tf`` each state publication: odom -> base_footprint from wheel odometry.
 
     Optionally world -> odom, so that the chain world -> odom -> base_footprint
-    -> base_link is the body frame's true pose (height and tilt too), and
+    -> base_link is the body frame's true pose (height and tilt too; world ->
+    base_footprint for a robot without wheels, which has no odom), and
     the robot's moving joints (parent -> child link, as robot_state_publisher
     would publish them). All transforms carry the frame's stamp: the same as
     that step's odom message, so no sensor message is newer than its transform.
@@ -66,9 +67,12 @@ class TfOutput:
         self._odometry = robot.controller is not None
         if self._odometry:
             pairs.append((frame(config.odom_frame_id), frame(config.footprint_frame_id)))
-        self._truth = config.publish_ground_truth_tf and self._odometry
+        # The truth goes in world -> odom; a robot without wheels has no odom (and once got
+        # no world at all, silently): its truth goes in world -> footprint.
+        self._truth = config.publish_ground_truth_tf
         if self._truth:
-            pairs.append((config.world_frame_id, frame(config.odom_frame_id)))
+            below_world = config.odom_frame_id if self._odometry else config.footprint_frame_id
+            pairs.append((config.world_frame_id, frame(below_world)))
         # The static footprint -> base on /tf_static, undone to place the footprint.
         self._base_to_footprint = inverse(
             Transform((0.0, 0.0, robot.footprint_height_m), IDENTITY.rotation))
@@ -236,7 +240,7 @@ def check_urdf_frames(config: SimConfig, robot: Robot, tree: UrdfTree) -> None:
     clashes = [f'{frame_id!r} ({what})' for frame_id, what in ours
                if frame_id in links and not (frame_id == root == base)]
     world = config.world_frame_id
-    if config.publish_ground_truth_tf and robot.controller is not None:
+    if config.publish_ground_truth_tf:
         clashes += [f'{link!r} (parameter world_frame_id, with frame_prefix)'
                     for link in sorted(links) if config.frame(link) == world]
     if clashes:

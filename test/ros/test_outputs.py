@@ -207,6 +207,33 @@ def test_tf_output_publishes_exactly_the_typed_transforms():
     simulation.close()
 
 
+def test_tf_output_of_a_robot_without_wheels_is_world_to_footprint_from_the_truth():
+    """With ground truth and no wheels (no odom): world -> footprint, the truth less its height."""
+    from r2d2_sim.ros.tf_outputs import TfOutput
+    from r2d2_sim.model.transforms import compose, IDENTITY, inverse, normalised, Transform
+    config = parse_config({**ROBOTS['robot without wheels'], 'publish_ground_truth_tf': True})
+    simulation = Simulation(config)
+    try:
+        node = RecordingNode()
+        output = TfOutput(node, config, simulation.robot, None)
+        rng = random.Random(12)
+        frames = [random_frame(rng, len(simulation.robot.movable), False) for _ in range(FRAMES)]
+        for frame in frames:
+            output.publish(frame)
+        height_m = simulation.robot.footprint_height_m
+    finally:
+        simulation.close()
+    assert not output.empty
+    for frame, msg in zip(frames, published(node.publishers['/tf']), strict=True):
+        base = frame.base
+        expected = compose(Transform(base.position, normalised(base.orientation)),
+                           inverse(Transform((0.0, 0.0, height_m), IDENTITY.rotation)))
+        (t,) = msg.transforms
+        assert (t.header.frame_id, t.child_frame_id) == ('world', 'base_footprint')
+        tr, r = t.transform.translation, t.transform.rotation
+        assert ((tr.x, tr.y, tr.z), (r.x, r.y, r.z, r.w)) == expected
+
+
 def test_a_robot_of_one_link_has_no_urdf_root_below_its_base():
     """
     With link transforms, a URDF without joints (one link, its name unread) adds no frame.

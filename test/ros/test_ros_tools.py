@@ -173,6 +173,27 @@ def test_ground_truth_tf_holds_the_true_height_and_tilt(r2d2_sim_factory):
     assert_pose_is_truth(chain, truth)
 
 
+def test_ground_truth_tf_places_a_robot_without_wheels(r2d2_sim_factory):
+    """
+    A robot without wheels has no odom: world -> base_footprint is its truth.
+
+    It published no world frame at all, and said nothing: its scan could not
+    be placed in the world.
+    """
+    harness = r2d2_sim_factory(urdf='cube.urdf', left_wheel_names=[], right_wheel_names=[],
+                               publish_ground_truth_tf=True)
+    harness.listen_tf()
+    harness.set_entity_state('cube', (1.0, -2.0, 1.5), orientation=quaternion_from_rpy(
+        0.2, -0.1, 0.7))
+    harness.advance(3)  # falling, turned
+    truth = harness.ground_truth()
+    chain = harness.lookup_transform('world', 'base_link', stamp_ns(truth.header.stamp))
+    assert_pose_is_truth(chain, truth)
+    with pytest.raises(Exception, match='odom'):
+        harness.lookup_transform('world', 'odom')
+    harness.lookup_transform('world', 'base_scan')  # the scan has a place in the world
+
+
 def assert_pose_is_truth(chain, truth):
     """Assert a looked-up world -> base_link is ground_truth's pose (a rotation's sign aside)."""
     p, q = truth.pose.pose.position, truth.pose.pose.orientation

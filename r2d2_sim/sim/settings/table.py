@@ -399,7 +399,7 @@ PARAMETERS: List[Parameter] = [
               'publish_link_tf', read.boolean, per_robot=True),
     Parameter('publish_ground_truth_tf', 'bool', False,
               'Also publish world -> odom so that world -> base is the true pose (height and '
-              'tilt too).',
+              'tilt too; world -> base_footprint for a robot without wheels).',
               'publish_ground_truth_tf', read.boolean, per_robot=True),
     Parameter('publish_contacts', 'bool', False,
               'Publish what the robot touches (its own links and the ground aside) on contacts '
