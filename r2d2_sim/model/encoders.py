@@ -100,10 +100,15 @@ class OdometryCovariance:
     counts are the accumulated angle rounded, so the roundings cancel along
     the way and a robot standing still keeps its covariance (summed as fresh
     noise every step, they grew without bound). The constant biases start with
-    variance bias_mean^2 + bias_stddev^2 + mean^2 (a white-noise mean is as
-    systematic as a bias), the dynamic ones at 0 and follow their
-    Gauss-Markov process; the pose starts known (0). The twist's covariance
-    is that of the last step's travel errors over its time.
+    their second moment: each side's own bias_mean^2 + bias_stddev^2 (drawn
+    per side, of random sign, so uncorrelated), plus mean^2 in every entry:
+    the white noise's mean is one scale error of both wheels alike (it
+    stretches the path, never curves it) and as systematic as a bias. The
+    dynamic biases start at 0 and follow their Gauss-Markov process; the pose
+    starts known (0). The twist's covariance is that of the last step's
+    travel errors over its time. All of it is the second moment of the error
+    about the true path, what a consumer of odometry needs (with a mean the
+    error has one, so its spread about its own mean would be smaller).
     """
 
     def __init__(self, noise: NoiseSpec, wheel_radius_m: float, wheel_separation_m: float
@@ -126,8 +131,11 @@ class OdometryCovariance:
         """Start again at a known pose: no pose error, the priors of biases and rounding."""
         spec = self.spec
         self.covariance = numpy.zeros((_STATE, _STATE))
-        constant = spec.bias_mean ** 2 + spec.bias_stddev ** 2 + spec.mean ** 2
-        self.covariance[_CONSTANT, _CONSTANT] = constant * numpy.eye(2)
+        # Per side, independent: the biases. Shared by both sides: the mean (a scale error;
+        # counted per side as independent, it curved the path and inflated the yaw's).
+        own = spec.bias_mean ** 2 + spec.bias_stddev ** 2
+        self.covariance[_CONSTANT, _CONSTANT] = (own * numpy.eye(2)
+                                                 + spec.mean ** 2 * numpy.ones((2, 2)))
         # The baseline reading was rounded too: it shows in the first step's travel.
         self.covariance[_ROUNDING, _ROUNDING] = self._reading_rounding_m2 * numpy.eye(2)
         self.twist = numpy.zeros((2, 2))
