@@ -188,8 +188,11 @@ class LaserScanner(_RaySensor):
     Rays start at the laser origin (REP-117 ranges are from there) and pass
     through the robot's own links that cross the scan plane (R2D2's body and
     legs), which go into a ray group of this robot's own; links below or
-    above it (wheels, head) keep their broadphase entries, so the physics is
-    the same with the scanner on or off. Every other robot's links stay
+    above it (wheels, head) keep their broadphase entries. Re-inserting the
+    crossing links reorders the contacts Bullet finds for them: the physics
+    is the same with the scanner on or off only while they touch nothing;
+    once the body touches a wall or a box, the two runs part (each still
+    repeats itself bit for bit). Every other robot's links stay
     visible. The group (``ray_group``, a bit of the world's) is the robot's:
     it gives it back when it leaves.
     """
