@@ -786,11 +786,6 @@ class Body:
         boxes = ((link, self.aabb(link)) for link in self.links())
         return [link for link, box in boxes if box.low[2] <= height_m <= box.high[2]]
 
-    def link_half_extent_m(self, link: int) -> float:
-        """Return half the largest horizontal size of a link's bounding box."""
-        low, high = self.aabb(link)
-        return max(high[0] - low[0], high[1] - low[1]) / 2.0
-
     def link_positions_in_base(self, links: Sequence[int]) -> List[Vec3]:
         """Return the link frames' origins expressed in the body frame."""
         base = self.world_state()

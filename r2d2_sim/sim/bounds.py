@@ -8,7 +8,8 @@ boxes, spheres, cylinders and capsules as they are, a mesh as the convex hull
 of its vertices, anything else (a plane, a height field) as its link's
 bounding box. :func:`body_meets` tells whether a body's shape overlaps a
 region (the bounds filter of GetEntities), :func:`body_box` gives the box
-around its shape in its base link's frame (GetEntityBounds).
+around its shape in its base link's frame (GetEntityBounds), :func:`link_box`
+the box around one link in its own frame (the head camera's mount).
 """
 
 import math
@@ -23,7 +24,7 @@ if TYPE_CHECKING:  # typing only
     from r2d2_sim.physics.body import Body
 
 __all__ = ['Region', 'EMPTY', 'REGION_KINDS', 'MAX_HULL_POINTS', 'check_region',
-           'region_shape', 'region_box', 'body_shapes', 'body_meets', 'body_box']
+           'region_shape', 'region_box', 'body_shapes', 'body_meets', 'body_box', 'link_box']
 
 Vec3 = Tuple[float, float, float]
 
@@ -143,6 +144,52 @@ def _shape(kind: str, dimensions: Sequence[float], pose: Transform,
     return None
 
 
+def _link_shapes(body: 'Body', link: int, inertial: Transform,
+                 to_frame: Transform) -> List[Convex]:
+    """
+    Return a link's collision shapes in a frame.
+
+    ``inertial`` is the link's inertial frame (where its shapes are given) in
+    that frame, ``to_frame`` the world in it (for a shape known only by its box).
+    """
+    shapes = []
+    for index, shape in enumerate(body.collision_shapes(link)):
+        vertices: Sequence[Vec3] = ()
+        if shape.kind == 'mesh':  # already in the inertial frame, local pose applied
+            vertices = [apply(inertial, v) for v in body.mesh_vertices(link, index)]
+        pose = compose(inertial, Transform(shape.local_position, shape.local_orientation))
+        convex = _shape(shape.kind, shape.dimensions, pose, vertices)
+        if convex is None:  # a plane, a height field: its link's box
+            low, high = body.aabb(link)
+            convex = Points([apply(to_frame, c) for c in box_corners(low, high)])
+        shapes.append(convex)
+    return shapes
+
+
+def _box_around(shapes: Sequence[Convex]) -> Tuple[Vec3, Vec3]:
+    """Return the box (low, high) around convex shapes, in their frame's axes."""
+    spans = []
+    for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
+        ends = [extent(convex, axis) for convex in shapes]
+        spans.append((min(e[0] for e in ends), max(e[1] for e in ends)))
+    return _vec3(s[0] for s in spans), _vec3(s[1] for s in spans)
+
+
+def link_box(body: 'Body', link: int) -> Tuple[Vec3, Vec3]:
+    """
+    Return the box (low, high) around a link's collision shapes, in the link's own frame.
+
+    The same however the body stands: PyBullet's ``getAABB`` is a box in the
+    world's axes, which grows as the link turns (a 0.4 x 0.2 m box seen at
+    45 degrees is 0.42 m square), so a mount sized by it moved with the
+    spawn yaw. A link without collision shapes is a point at its origin.
+    """
+    dynamics = body.dynamics(link)  # the inertial frame in the link's, where its shapes are
+    inertial = Transform(dynamics.inertial_position, dynamics.inertial_orientation)
+    shapes = _link_shapes(body, link, inertial, inverse(Transform(*body.link_pose(link))))
+    return _box_around(shapes or [Points([(0.0, 0.0, 0.0)])])
+
+
 def body_shapes(body: 'Body', frame: Optional[Transform] = None) -> List[Tuple[int, Convex]]:
     """
     Return the body's collision shapes as (link, convex shape), in the world or in ``frame``.
@@ -155,16 +202,7 @@ def body_shapes(body: 'Body', frame: Optional[Transform] = None) -> List[Tuple[i
     shapes: List[Tuple[int, Convex]] = []
     for link in body.links():
         inertial = compose(to_frame, Transform(*body.inertial_pose(link)))
-        for index, shape in enumerate(body.collision_shapes(link)):
-            vertices: Sequence[Vec3] = ()
-            if shape.kind == 'mesh':  # already in the inertial frame, local pose applied
-                vertices = [apply(inertial, v) for v in body.mesh_vertices(link, index)]
-            pose = compose(inertial, Transform(shape.local_position, shape.local_orientation))
-            convex = _shape(shape.kind, shape.dimensions, pose, vertices)
-            if convex is None:  # a plane, a height field: its link's box
-                low, high = body.aabb(link)
-                convex = Points([apply(to_frame, c) for c in box_corners(low, high)])
-            shapes.append((link, convex))
+        shapes += [(link, convex) for convex in _link_shapes(body, link, inertial, to_frame)]
     if not shapes:
         origin = apply(to_frame, body.link_pose(-1)[0])
         shapes.append((-1, Points([origin])))
@@ -200,9 +238,4 @@ def body_box(body: 'Body') -> Tuple[Vec3, Vec3]:
     (REP-103 axes); the box follows the joints as they are now.
     """
     frame = Transform(*body.link_pose(-1))
-    shapes = [convex for _, convex in body_shapes(body, frame)]
-    spans = []
-    for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
-        ends = [extent(convex, axis) for convex in shapes]
-        spans.append((min(e[0] for e in ends), max(e[1] for e in ends)))
-    return _vec3(s[0] for s in spans), _vec3(s[1] for s in spans)
+    return _box_around([convex for _, convex in body_shapes(body, frame)])

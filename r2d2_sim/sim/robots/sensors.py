@@ -24,6 +24,7 @@ from r2d2_sim.sim.settings.table import (
     ConfigError, HEAD_CAMERA_FRAME_ID, HEAD_CAMERA_LINK, IMU_FRAME_ID, LASER_FRAME_ID,
     LIDAR3D_FRAME_ID)
 from r2d2_sim.sim.settings.config import SimConfig
+from r2d2_sim.sim.bounds import link_box
 from r2d2_sim.physics.raycast import ray_mask, RayRequest
 from r2d2_sim.model.noise import noise_generator, NoiseModel
 from r2d2_sim.model.sensors import (
@@ -72,7 +73,10 @@ class HeadCamera:
         self._world = world
         self._body = body
         self.link_name = HEAD_CAMERA_LINK
-        self._lens_offset_m = body.link_half_extent_m(self._link) + HEAD_CAMERA_CLEARANCE_M
+        # Half the head's largest horizontal size, in its own frame (the same at any spawn yaw).
+        low, high = link_box(body, self._link)
+        self._lens_offset_m = (max(high[0] - low[0], high[1] - low[1]) / 2.0
+                               + HEAD_CAMERA_CLEARANCE_M)
         # The optical frame (z forward, x right, y down) on the head link: the
         # lens sits ahead of the head along the robot's forward axis.
         yaw = body.body_yaw_offset_rad
