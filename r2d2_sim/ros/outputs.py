@@ -275,7 +275,7 @@ class RobotOutputs:
                        if robot.camera is not None else None)
         self.scan = (ScanOutput(node, config, robot.laser.geometry)
                      if robot.laser is not None else None)
-        self.imu = ImuOutput(node, config, robot.imu.model) if robot.imu is not None else None
+        self.imu = ImuOutput(node, config, robot.imu) if robot.imu is not None else None
         self.lidar = (Lidar3dOutput(node, config, robot.lidar.geometry)
                       if robot.lidar is not None else None)
         self.battery = (BatteryOutput(node, config, robot.battery.spec.capacity_ah)

@@ -33,7 +33,8 @@ from r2d2_sim.ros.mirror import demand
 from r2d2_sim.ros.serialization import FieldSlot, MessageTemplate, StampSlot
 from r2d2_sim.sim.settings.config import SimConfig
 from r2d2_sim.sim.robots.sensors import (
-    CameraImage, HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, LASER_FRAME_ID, LIDAR3D_FRAME_ID)
+    CameraImage, HEAD_CAMERA_FRAME_ID, IMU_FRAME_ID, ImuSensor, LASER_FRAME_ID,
+    LIDAR3D_FRAME_ID)
 
 __all__ = ['CAMERA_QOS', 'SENSOR_QOS', 'HeadCameraOutput', 'ScanOutput', 'ImuOutput',
            'Lidar3dOutput', 'PointCloudTemplate', 'BatteryOutput']
@@ -153,26 +154,39 @@ class ScanOutput:
 
 
 class ImuOutput:
-    """``imu`` (sensor_msgs/Imu) at ``imu_rate``, in frame imu_link (REP-145)."""
+    """
+    ``imu`` (sensor_msgs/Imu) at ``imu_rate``, in frame imu_link (REP-145).
 
-    def __init__(self, node: Node, config: SimConfig, model: ImuModel) -> None:
+    The covariances are the sensor's noise model's: a new model (new noise,
+    ``Simulation.restart_noise``) brings its own into the next message.
+    """
+
+    def __init__(self, node: Node, config: SimConfig, sensor: ImuSensor) -> None:
         self._publisher = node.create_publisher(Imu, 'imu', SENSOR_QOS)
         self._demand = demand(self._publisher)
         msg = Imu()
         msg.header.frame_id = config.frame(IMU_FRAME_ID)
-        msg.orientation_covariance = model.orientation_covariance
-        msg.angular_velocity_covariance = model.angular_velocity_covariance
-        msg.linear_acceleration_covariance = model.linear_acceleration_covariance
         self._template = MessageTemplate(msg)
         self._stamp = self._template.stamp()
         self._orientation = self._template.field('orientation')
         self._angular = self._template.field('angular_velocity')
         self._linear = self._template.field('linear_acceleration')
+        self._covariances = [self._template.field(f'{quantity}_covariance') for quantity in
+                             ('orientation', 'angular_velocity', 'linear_acceleration')]
+        self._sensor = sensor
+        self._model: Optional[ImuModel] = None  # whose covariances the template holds
 
     def publish(self, time_ns: int, reading: ImuReading) -> None:
-        """Publish a reading taken at ``time_ns``."""
+        """Publish a reading taken at ``time_ns``, with the covariances of the noise now."""
         if not self._demand():
             return
+        model = self._sensor.model
+        if model is not self._model:  # start-up, or restarted noise: maybe another noise
+            for slot, covariance in zip(self._covariances, (
+                    model.orientation_covariance, model.angular_velocity_covariance,
+                    model.linear_acceleration_covariance)):
+                slot.set(covariance)
+            self._model = model
         self._stamp.set_nanoseconds(time_ns)
         self._orientation.set(reading.orientation_xyzw)
         self._angular.set(reading.angular_velocity_rad_s)

@@ -145,6 +145,44 @@ def test_imu_covariance_is_the_mean_square_error_of_the_noise(ros):
     assert math.isfinite(imu.angular_velocity.z)
 
 
+def test_imu_covariance_follows_the_noise_restarted_at_run_time(ros):
+    """
+    Simulation.restart_noise with new IMU noise: the next imu carries its covariance.
+
+    The message's covariances were copied from the noise model once, when the
+    node was built: after new noise, the readings scattered by 0.1 rad/s
+    while the message still said 0 (exact).
+    """
+    sim = make_sim(ros, imu_rate=RATE_HZ)
+    seen = subscribe(ros, Imu, 'imu')
+    sim.advance(RATE_HZ // 10)
+    assert wait_for(lambda: seen)
+    assert list(seen[-1].angular_velocity_covariance) == [0.0] * 9
+    with sim.lock:
+        sim.simulation.restart_noise(3, imu_angular_velocity_noise_std=0.1,
+                                     imu_orientation_noise_bias_mean=0.02)
+    count = len(seen)
+    sim.advance(RATE_HZ // 10)
+    assert wait_for(lambda: len(seen) >= count + RATE_HZ // 10)
+    imu = seen[-1]
+    assert list(imu.angular_velocity_covariance) == pytest.approx(diagonal_3(0.1 ** 2))
+    assert list(imu.orientation_covariance) == pytest.approx(diagonal_3(0.02 ** 2))
+    assert list(imu.linear_acceleration_covariance) == [0.0] * 9
+    with sim.lock:  # and back to exact
+        sim.simulation.restart_noise(3, imu_angular_velocity_noise_std=0.0,
+                                     imu_orientation_noise_bias_mean=0.0)
+    count = len(seen)
+    sim.advance(RATE_HZ // 10)
+    assert wait_for(lambda: len(seen) >= count + RATE_HZ // 10)
+    assert list(seen[-1].angular_velocity_covariance) == [0.0] * 9
+    assert list(seen[-1].orientation_covariance) == [0.0] * 9
+
+
+def diagonal_3(variance):
+    """Return the 3 x 3 matrix (row by row) with ``variance`` on its diagonal."""
+    return [variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0, 0.0, variance]
+
+
 def test_the_configured_diagonal_comes_back_when_the_encoders_stop_erring():
     # Encoder noise switched off at run time (restart_noise): the next odom carries the
     # configured covariance again, not the last one the encoders gave.

@@ -12,6 +12,7 @@ differ there; test_serialization.py checks the written bytes.)
 
 import math
 import random
+from types import SimpleNamespace
 
 from nav_msgs.msg import Odometry
 import pytest
@@ -268,9 +269,10 @@ def test_scan_and_imu_outputs_publish_exactly_the_readings_given():
     readings = [ImuReading(tuple(rng.uniform(-1, 1) for _ in range(4)),
                            tuple(rng.uniform(-5, 5) for _ in range(3)),
                            tuple(rng.uniform(-20, 20) for _ in range(3))) for _ in range(20)]
-    model = ImuModel(linear_acceleration_std_m_s2=0.1, rng=numpy.random.default_rng(0))
+    sensor = SimpleNamespace(model=ImuModel(linear_acceleration_std_m_s2=0.1,
+                                            rng=numpy.random.default_rng(0)))
     node = RecordingNode()
-    scan_output, imu_output = ScanOutput(node, config, geometry), ImuOutput(node, config, model)
+    scan_output, imu_output = ScanOutput(node, config, geometry), ImuOutput(node, config, sensor)
     times = [rng.randrange(10**15) for _ in range(20)]
     for time_ns, scan, reading in zip(times, scans, readings):
         scan_output.publish(time_ns, scan)
