@@ -1,10 +1,12 @@
 """Parameter validation without ROS: every bad value is one readable ConfigError."""
 
 import math
+import re
 
 import pytest
 
-from r2d2_sim.sim.settings.table import ConfigError, PARAMETERS
+from r2d2_sim.sim.settings.readers import bound_text
+from r2d2_sim.sim.settings.table import ConfigError, PARAMETERS, PARAMETERS_BY_NAME
 from r2d2_sim.sim.settings.config import parse_config
 
 
@@ -96,6 +98,57 @@ def test_every_bounded_default_is_inside_its_bounds():
             for value in spec.default if isinstance(spec.default, list) else [spec.default]:
                 assert value == 0.0 and spec.bounds.zero or \
                     spec.bounds.low <= value <= spec.bounds.high, spec.name
+
+
+def test_every_printed_bound_is_accepted():
+    """
+    A range printed (the docs, --help, an error) holds numbers its parameter accepts.
+
+    Bounds print with 6 digits: pi / 2 printed as 1.5708 named a range that
+    refused it ("must be in [-1.5708, 1.5708] rad, got -1.5708"). Each bound
+    is now rounded toward the inside.
+    """
+    from r2d2_sim.sim.settings.reference import render_parameter_reference
+    checked = 0
+    for spec in PARAMETERS:
+        if spec.bounds is None or spec.ros_type.startswith('integer'):
+            continue
+        low, high = (float(text) for text in spec.bounds.text()[1:-1].split(', '))
+        for value in (low, high):
+            assert spec.bounds.check(spec.name, value) == value, spec.name
+        assert spec.bounds.text() in render_parameter_reference([spec])
+        checked += 1
+    assert checked > 50
+    with pytest.raises(ConfigError, match=re.escape(
+            'parameter lidar3d_angle_min must be in [-1.57079, 1.57079] rad, got -1.5708')):
+        parse_config({'lidar3d_angle_min': -1.5708})
+    assert parse_config({'lidar3d_angle_min': -1.57079}).lidar3d_angle_min_rad == -1.57079
+
+
+@pytest.mark.parametrize('value, upward, text', [
+    (math.pi / 2, False, '1.57079'), (-math.pi / 2, True, '-1.57079'),
+    (2 * math.pi, False, '6.28318'), (math.pi, False, '3.14159'), (-math.pi, True, '-3.14159'),
+    (10000.0, False, '10000'), (0.001, True, '0.001'), (1e-6, True, '1e-06'),
+    (1.0e7 + 1.0, False, '1e+07'), (1.0e7 - 1.0, True, '1e+07'),
+])
+def test_a_bound_is_rounded_toward_the_inside_of_its_range(value, upward, text):
+    assert bound_text(value, upward) == text
+    assert (float(text) >= value) if upward else (float(text) <= value)
+
+
+def test_a_physics_rate_below_the_imu_rate_says_how_to_run():
+    """physics_rate 50 (documented range [10, 10000]) meets the IMU's default 100 Hz."""
+    with pytest.raises(ConfigError, match=re.escape(
+            'parameter imu_rate (100.0 Hz, its default) cannot exceed physics_rate (50.0 Hz): '
+            'set imu_rate to 50 Hz or less (0: off)')):
+        parse_config({'physics_rate': 50.0})
+    assert 'imu_rate' in PARAMETERS_BY_NAME['physics_rate'].description
+    for imu_rate in (50.0, 0.0):
+        assert parse_config({'physics_rate': 50.0, 'imu_rate': imu_rate}).physics_rate_hz == 50.0
+    with pytest.raises(ConfigError, match=re.escape(
+            'parameter publish_rate (100.0 Hz) cannot exceed physics_rate (50.0 Hz): set '
+            'publish_rate to 50 Hz or less (0: every step)')):
+        parse_config({'physics_rate': 50.0, 'imu_rate': 0.0, 'publish_rate': 100.0})
 
 
 def test_booleans_are_not_numbers():

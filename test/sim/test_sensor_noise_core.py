@@ -268,7 +268,7 @@ def test_a_state_reset_goes_on_with_the_streams(make):
     ({'encoder_noise_dynamic_bias_std': 0.1},
      'encoder_noise_dynamic_bias_std needs encoder_noise_dynamic_bias_correlation_time > 0'),
     ({'depth_noise_precision': 'fine'}, 'parameter depth_noise_precision must be a number'),
-    ({'encoder_noise_precision': 7.0}, r'must be in \[0, 6.28319\] rad'),
+    ({'encoder_noise_precision': 7.0}, r'must be in \[0, 6.28318\] rad'),
 ])
 def test_bad_noise_parameters_are_refused_in_one_line(parameters, message):
     with pytest.raises(ConfigError, match=message) as info:

@@ -62,6 +62,9 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
     (['-p', 'publish_rate:=-1.0'], 'publish_rate must be in [0.001, 10000] Hz (every step'),
     (['-p', 'publish_rate:=480.0'], 'cannot exceed physics_rate'),
     (['-p', 'camera_rate:=1000.0'], 'cannot exceed physics_rate'),
+    (['-p', 'physics_rate:=50.0'], 'imu_rate (100.0 Hz, its default) cannot exceed physics_rate '
+     '(50.0 Hz): set imu_rate to 50 Hz or less (0: off)'),
+    (['-p', 'lidar3d_angle_min:=-1.5708'], 'must be in [-1.57079, 1.57079] rad, got -1.5708'),
     (['-p', 'real_time_factor:=-1.0'], 'real_time_factor must be in [0, 1000], got -1'),
     (['-p', 'cmd_vel_timeout:=fast'], 'cmd_vel_timeout must be a number'),
     (['-p', 'max_linear_acceleration:=-1.0'],

@@ -43,7 +43,7 @@ def _from_urdf(name: str, value: float, bounds: Bounds) -> float:
         return bounds.check(name, value)
     except ConfigError:
         raise ConfigError(f'the URDF gives {name.replace("_", " ")} {value:g} {bounds.unit}, '
-                          f'outside [{bounds.low:g}, {bounds.high:g}]: set {name}') from None
+                          f'outside {bounds.text()}: set {name}') from None
 
 
 def find_drive_train(body: Body, config: SimConfig, source: str,

@@ -253,8 +253,13 @@ def check_fields(fields: Mapping[str, Any]) -> None:
                         ('scan_rate', 'scan_rate_hz'), ('imu_rate', 'imu_rate_hz'),
                         ('lidar3d_rate', 'lidar3d_rate_hz'), ('battery_rate', 'battery_rate_hz')):
         if fields[field] > physics_rate:
-            raise ConfigError(f'parameter {name} ({fields[field]} Hz) cannot exceed '
-                              f'physics_rate ({physics_rate} Hz)')
+            # imu_rate's default (100 Hz) is above physics_rate's lower bound: name the cure.
+            spec = PARAMETERS_BY_NAME[name]
+            default = ', its default' if fields[field] == spec.default else ''
+            zero = spec.bounds.zero if spec.bounds is not None else None
+            raise ConfigError(f'parameter {name} ({fields[field]} Hz{default}) cannot exceed '
+                              f'physics_rate ({physics_rate} Hz): set {name} to '
+                              f'{physics_rate:g} Hz or less' + (f' (0: {zero})' if zero else ''))
     left, right = fields['left_wheel_names'], fields['right_wheel_names']
     if bool(left) != bool(right):
         raise ConfigError('left_wheel_names and right_wheel_names must both list wheels '

@@ -8,6 +8,7 @@ a number to its plausible range. Frame ids are held to what tf2 and REP-105
 accept.
 """
 
+from decimal import Decimal, ROUND_CEILING, ROUND_FLOOR
 import math
 import re
 from typing import Any, Callable, NamedTuple, Optional, Sequence, Tuple
@@ -15,7 +16,7 @@ from typing import Any, Callable, NamedTuple, Optional, Sequence, Tuple
 from r2d2_sim.errors import RefusedError, SetupError
 from r2d2_sim.sim.tags import check_tags
 
-__all__ = ['ConfigError', 'Bounds', 'number', 'positive', 'non_negative', 'limit',
+__all__ = ['ConfigError', 'Bounds', 'bound_text', 'number', 'positive', 'non_negative', 'limit',
            'field_of_view', 'ratio', 'boolean', 'string', 'frame', 'frame_prefix', 'joint_names',
            'integer', 'choice', 'numbers', 'optional_numbers', 'variances', 'extra_models',
            'robot_names', 'namespace', 'tags', 'directories', 'ROBOT_NAME',
@@ -39,6 +40,10 @@ class Bounds(NamedTuple):
     unit: str = ''
     zero: Optional[str] = None
 
+    def text(self) -> str:
+        """Return the range as messages and the docs print it: ``[low, high]``, each accepted."""
+        return f'[{bound_text(self.low, upward=True)}, {bound_text(self.high, upward=False)}]'
+
     def check(self, name: str, value: float) -> float:
         """Return ``value`` if it is in range (or an allowed 0), else raise ConfigError."""
         if value == 0.0 and self.zero is not None:
@@ -46,9 +51,28 @@ class Bounds(NamedTuple):
         if not self.low <= value <= self.high:
             unit = f' {self.unit}' if self.unit else ''
             zero = f' ({self.zero} with 0)' if self.zero else ''
-            raise ConfigError(f'parameter {name} must be in [{self.low:g}, {self.high:g}]'
-                              f'{unit}{zero}, got {value:g}')
+            got = f'{value:g}'
+            if self.low <= float(got) <= self.high:  # 6 digits would round it into the range
+                got = repr(value)
+            raise ConfigError(f'parameter {name} must be in {self.text()}{unit}{zero}, got {got}')
         return value
+
+
+def bound_text(value: float, upward: bool) -> str:
+    """
+    Return a bound as ``%g`` writes it, rounded toward the inside of its range.
+
+    ``%g`` rounds to 6 digits, which can put a bound outside its own range
+    (pi / 2 printed as 1.5708 is refused by the range it names): a low bound
+    (``upward``) is rounded up, a high one down, so the number printed is accepted.
+    """
+    text = f'{value:g}'
+    if (float(text) >= value) if upward else (float(text) <= value):
+        return text
+    exact = Decimal(value)
+    sixth_digit = Decimal(1).scaleb(exact.adjusted() - 5)
+    inside = exact.quantize(sixth_digit, rounding=ROUND_CEILING if upward else ROUND_FLOOR)
+    return f'{float(inside):g}'
 
 
 def number(name: str, value: Any) -> float:

@@ -37,7 +37,9 @@ def _range(spec: Parameter) -> Optional[str]:
         return None
     unit = f' {bounds.unit}' if bounds.unit else ''
     zero = f' or 0 ({bounds.zero})' if bounds.zero else ''
-    return f'[{_number(spec, bounds.low)}, {_number(spec, bounds.high)}]{unit}{zero}'
+    if spec.ros_type.startswith('integer'):
+        return f'[{_number(spec, bounds.low)}, {_number(spec, bounds.high)}]{unit}{zero}'
+    return f'{bounds.text()}{unit}{zero}'
 
 
 def parameter_help(width: int = 79) -> str:

@@ -239,7 +239,10 @@ PARAMETERS: List[Parameter] = [
               'Open the PyBullet window (needs a display); same paced rate, the camera '
               'follows the robot.',
               'gui', read.boolean),
-    Parameter('physics_rate', 'double', 240.0, 'Physics steps per simulated second (Hz).',
+    Parameter('physics_rate', 'double', 240.0,
+              'Physics steps per simulated second (Hz). No sensor or publication runs faster '
+              'than the physics: below 100 Hz, also set imu_rate (100 Hz by default) to '
+              'physics_rate or less, or to 0 (IMU off).',
               'physics_rate_hz', read.positive, Bounds(10.0, 10000.0, 'Hz')),
     Parameter('real_time_factor', 'double', 1.0,
               'Simulated seconds per wall-clock second; 0 runs as fast as possible.',
