@@ -266,6 +266,10 @@ def _run(options: argparse.Namespace, stop: threading.Event) -> int:
                   'Foxglove)', flush=True)
         return 0
     except DemoError as exc:
+        if stop.is_set():
+            # Ctrl-C in a terminal reaches the whole process group: the simulator
+            # exits too, often while it starts, and that is the interruption.
+            raise KeyboardInterrupt from None
         _error(str(exc))
         return 1
     finally:

@@ -1,6 +1,5 @@
 """The ``demo`` and ``drive`` executables as real processes (their pure helpers: apps/)."""
 
-import itertools
 import math
 import os
 from pathlib import Path
@@ -11,24 +10,20 @@ import sys
 import time
 
 from helpers import (
-    RemoteProbe, ros_env, simulators_in_domain, start_sim_process, stop_process, wait_for)
+    next_domain_id, RemoteProbe, ros_env, simulators_in_domain, start_sim_process,
+    stop_process, wait_for)
 import pytest
 
 from common import PNG_SIGNATURE, PROGRESS, REPO
 from r2d2_sim.apps.demo import ANOTHER_SIMULATOR, manoeuvre_duration_s
 
 REPO_ROOT = Path(REPO)
-# Tests that start ROS processes take turns through this process's block of four
-# domain ids in 101..228, apart from conftest's 1..100 and below Fast DDS's limit, so
-# concurrent test runs and consecutive tests do not meet.
-_DOMAIN_BLOCK = 101 + (os.getpid() % 32) * 4
-_DOMAIN_TURNS = itertools.count()
 
 
 @pytest.fixture
 def domain_id():
-    """Return a ROS domain id that neither the previous tests nor other runs use."""
-    return _DOMAIN_BLOCK + next(_DOMAIN_TURNS) % 4
+    """Return a ROS domain id leased for this test (within R2D2_SIM_DOMAIN_IDS)."""
+    return next_domain_id()
 
 
 def demo_command(output_dir, domain_id, real_time_factor):
@@ -147,6 +142,31 @@ def test_demo_stops_itself_and_the_simulator_on_sigint(tmp_path, domain_id):
     assert demo.returncode == 130, stderr
     assert 'interrupted' in stderr
     assert 'Traceback' not in stderr, stderr
+    assert wait_for(lambda: simulators_in_domain(domain_id) == [], 5.0, interval_s=0.05)
+
+
+def test_demo_ctrl_c_from_a_terminal_while_its_simulator_starts_exits_130(tmp_path, domain_id):
+    """
+    Ctrl-C in a terminal signals the whole process group, the simulator too.
+
+    The simulator then exits 0 while the demo waits for it to start (3-5 s
+    here): that is the interruption, not "sim_node exited ... while starting".
+    """
+    demo = subprocess.Popen(demo_command(tmp_path, domain_id, 1), env=ros_env(domain_id),
+                            cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)  # a group of its own
+    try:
+        starting = wait_for(lambda: simulators_in_domain(domain_id), 30.0, interval_s=0.02)
+        os.killpg(demo.pid, signal.SIGINT)
+        stdout, stderr = demo.communicate(timeout=30.0)
+    finally:
+        if demo.poll() is None:
+            os.killpg(demo.pid, signal.SIGKILL)
+            demo.communicate()
+    assert starting, 'the demo started no simulator'
+    assert 't=  0.0 s' not in stdout, 'the signal came after the start: ' + stdout
+    assert demo.returncode == 130, stderr
+    assert stderr.splitlines() == ['demo: interrupted, stopping the simulator'], stderr
     assert wait_for(lambda: simulators_in_domain(domain_id) == [], 5.0, interval_s=0.05)
 
 
