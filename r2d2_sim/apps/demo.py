@@ -37,6 +37,7 @@ from r2d2_sim.apps.manoeuvre import (  # noqa: F401 (the model's names, importab
     phase_at)
 from r2d2_sim.apps.plots import write_camera_snapshot, write_trajectory_plot
 from r2d2_sim.client import spin_until, UNKNOWN_NODE_NAME
+from r2d2_sim.sim.settings.table import REAL_TIME_FACTOR
 
 if TYPE_CHECKING:  # the testing API is imported only when a simulator is started
     from r2d2_sim.testing import SimProcess
@@ -108,6 +109,16 @@ class OtherSimulatorGuard:
             raise DemoError(prefix + ANOTHER_SIMULATOR)
 
 
+def real_time_factor_arg(text: str) -> float:
+    """Parse --real-time-factor as the simulator's real_time_factor takes it (argparse type)."""
+    value = non_negative_number(text)
+    bounds = REAL_TIME_FACTOR
+    if value != 0.0 and not bounds.low <= value <= bounds.high:
+        raise argparse.ArgumentTypeError(
+            f'must be 0 ({bounds.zero}) or in [{bounds.low:g}, {bounds.high:g}], got {text!r}')
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the command-line parser (ROS arguments are removed before it runs)."""
     parser = argparse.ArgumentParser(
@@ -116,9 +127,9 @@ def build_parser() -> argparse.ArgumentParser:
                     'plot wheel odometry against ground truth.')
     parser.add_argument('--output-dir', default='demo_output', metavar='DIR',
                         help='where to write the trajectory plot (default ./demo_output)')
-    parser.add_argument('--real-time-factor', type=non_negative_number, default=1.0,
-                        metavar='X', help='simulated seconds per wall second; 0 runs as '
-                                          'fast as possible, in lockstep (default 1)')
+    parser.add_argument('--real-time-factor', type=real_time_factor_arg, default=1.0,
+                        metavar='X', help='simulated seconds per wall second, 1e-6 to 1000; '
+                                          '0 runs as fast as possible, in lockstep (default 1)')
     parser.add_argument('--domain-id', type=domain_id_arg, default=None, metavar='N',
                         help='ROS_DOMAIN_ID for the simulator and the driver '
                              '(default: the environment\'s)')

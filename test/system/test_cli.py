@@ -65,7 +65,8 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
     (['-p', 'physics_rate:=50.0'], 'imu_rate (100.0 Hz, its default) cannot exceed physics_rate '
      '(50.0 Hz): set imu_rate to 50 Hz or less (0: off)'),
     (['-p', 'lidar3d_angle_min:=-1.5708'], 'must be in [-1.57079, 1.57079] rad, got -1.5708'),
-    (['-p', 'real_time_factor:=-1.0'], 'real_time_factor must be in [0, 1000], got -1'),
+    (['-p', 'real_time_factor:=-1.0'], 'real_time_factor must be in [1e-06, 1000] (as fast'),
+    (['-p', 'real_time_factor:=1.0e-13'], 'real_time_factor must be in [1e-06, 1000]'),
     (['-p', 'cmd_vel_timeout:=fast'], 'cmd_vel_timeout must be a number'),
     (['-p', 'max_linear_acceleration:=-1.0'],
      'max_linear_acceleration must be in [0.001, 1000] m/s^2'),
@@ -83,7 +84,7 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
     (['-p', 'wheel_radius:=1.0e-9'], 'wheel_radius must be in [0.001, 10] m'),
     (['-p', 'max_wheel_force:=1.0e308'], 'max_wheel_force must be in'),
     (['-p', 'wheel_separation:=1.0e6'], 'wheel_separation must be in'),
-    (['-p', 'real_time_factor:=1.0e308'], 'real_time_factor must be in [0, 1000]'),
+    (['-p', 'real_time_factor:=1.0e308'], 'real_time_factor must be in [1e-06, 1000]'),
     (['-p', 'odom_frame_id:=base_link'],
      "parameters odom_frame_id and base_frame_id both name the frame 'base_link'"),
     (['-p', 'footprint_frame_id:=base_link'], 'footprint_frame_id and base_frame_id'),

@@ -225,6 +225,23 @@ def test_drive_rejects_bad_arguments_with_a_usage_error(args, complaint):
     assert lines[-1].startswith('drive: error: ' + complaint)
 
 
+@pytest.mark.parametrize('args, complaint', [
+    (['--real-time-factor', '5000'], 'argument --real-time-factor: must be 0 (as fast as '
+                                     'possible) or in [1e-06, 1000]'),
+    (['--real-time-factor', '1e-300'], 'argument --real-time-factor: must be 0'),
+    (['--real-time-factor', '-1'], 'argument --real-time-factor: must be >= 0'),
+])
+def test_demo_rejects_bad_arguments_before_anything_starts(tmp_path, domain_id, args, complaint):
+    """A value the simulator would refuse is a usage error: exit 2, no simulator started."""
+    result = subprocess.run(demo_command(tmp_path, domain_id, 1) + args, env=ros_env(domain_id),
+                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert lines[0].startswith('usage: demo') and len(lines) == 2, result.stderr
+    assert lines[-1].startswith('demo: error: ' + complaint), result.stderr
+    assert not (tmp_path / 'run.mcap').exists()
+
+
 @pytest.mark.parametrize('module', ['r2d2_sim.apps.drive', 'r2d2_sim.apps.demo'])
 def test_malformed_ros_args_are_a_one_line_error(module):
     result = subprocess.run([sys.executable, '-m', module, '--ros-args', '-p'],

@@ -47,6 +47,10 @@ HEAD_CAMERA_FRAME_ID = 'head_camera_optical'
 HEAD_CAMERA_LINK = 'head'
 
 
+# Below 1e-6 (a step every 70 min of wall time at 240 Hz) a step's wait passed what the
+# platform can sleep (1e-13: OverflowError): such a factor is no use, so it is refused.
+REAL_TIME_FACTOR = Bounds(1.0e-6, 1000.0, '', 'as fast as possible')
+
 # Physical quantities of a robot that drives on wheels; beyond these a value is
 # a typo (wheel_radius 1e308 once made odom report x = -5e284).
 WHEEL_RADIUS = Bounds(0.001, 10.0, 'm', 'derive it from the URDF')
@@ -246,7 +250,7 @@ PARAMETERS: List[Parameter] = [
               'physics_rate_hz', read.positive, Bounds(10.0, 10000.0, 'Hz')),
     Parameter('real_time_factor', 'double', 1.0,
               'Simulated seconds per wall-clock second; 0 runs as fast as possible.',
-              'real_time_factor', read.non_negative, Bounds(0.0, 1000.0)),
+              'real_time_factor', read.non_negative, REAL_TIME_FACTOR),
     Parameter('publish_rate', 'double', 0.0,
               'State publishing rate in simulated Hz; 0 publishes after every physics step. '
               'A rate that does not divide physics_rate (50 Hz at 240 Hz) publishes at the '
