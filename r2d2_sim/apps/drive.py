@@ -17,6 +17,7 @@ from typing import Callable, Optional, Sequence
 from geometry_msgs.msg import Twist
 import rclpy
 from rclpy.duration import Duration
+from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.time import Time
@@ -26,6 +27,7 @@ from r2d2_sim.apps.cli import (
     EXIT_INTERRUPTED, finite_number, init_ros, non_negative_number, non_ros_args,
     positive_number, raise_if_stopped, stop_on_signals)
 from r2d2_sim.client import spin_until
+from r2d2_sim.ros.parameters import rclpy_parameter_problem
 
 NODE_NAME = 'drive'
 # Wall-clock seconds to wait for the simulator's cmd_vel subscription (and, with
@@ -161,6 +163,9 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         if node is not None and not node.done and node.context.ok():
             node.stop()
         return EXIT_INTERRUPTED
+    except ParameterException as exc:  # rclpy's own, such as use_sim_time:=1, as it builds node
+        print(f'{NODE_NAME}: error: {rclpy_parameter_problem(exc)}', file=sys.stderr)
+        return 2
     finally:
         # Shut the executor down before the context: left to the garbage
         # collector at exit, its __del__ met a destroyed guard condition and

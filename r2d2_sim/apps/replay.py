@@ -289,7 +289,9 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         return EXIT_INTERRUPTED
     import rclpy
     from rclpy.duration import Duration
+    from rclpy.exceptions import ParameterException
     from r2d2_sim.apps.cli import init_ros
+    from r2d2_sim.ros.parameters import rclpy_parameter_problem
     if not init_ros(argv, NODE_NAME):
         return 2
     node = None
@@ -319,6 +321,9 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         return EXIT_INTERRUPTED
     except RecordingError as exc:
         print(f'{NODE_NAME}: error: {exc}', file=sys.stderr)
+        return 2
+    except ParameterException as exc:  # rclpy's own, such as use_sim_time:=1, as it builds node
+        print(f'{NODE_NAME}: error: {rclpy_parameter_problem(exc)}', file=sys.stderr)
         return 2
     finally:
         if node is not None:

@@ -12,6 +12,7 @@ import threading
 import time
 from typing import Any, Callable, Optional, Union
 
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 
 from r2d2_sim.errors import RefusedError, SetupError, StartupError
@@ -24,7 +25,8 @@ from r2d2_sim.ros.fleet import Fleet
 from r2d2_sim.ros.mirror import MirroringNode, say_sink, sink_spec, start_sink
 from r2d2_sim.ros.notices import warn_once
 from r2d2_sim.ros.outputs import ClockOutput
-from r2d2_sim.ros.parameters import declare_parameters, with_ray_threads
+from r2d2_sim.ros.parameters import (
+    declare_parameters, rclpy_parameter_problem, with_ray_threads)
 from r2d2_sim.ros.relay import OutputRelay, RelayError
 from r2d2_sim.ros.robot_interfaces import RobotInterfaces
 from r2d2_sim.ros.standard import server as standard
@@ -73,7 +75,10 @@ class SimNode(MirroringNode):
         self.sink: Optional[FoxgloveSink] = None  # before rclpy makes its own publishers
         self.relay: Optional[OutputRelay] = None
         self._in_loop = False  # advancing for the real-time loop: no wait for the relay
-        super().__init__(node_name, **node_kwargs)
+        try:
+            super().__init__(node_name, **node_kwargs)
+        except ParameterException as exc:  # rclpy's own, such as use_sim_time:=1
+            raise StartupError(rclpy_parameter_problem(exc)) from exc
         self.lock = threading.RLock()  # one thread in PyBullet at a time (public: the services')
         self._throttled = ThrottledLog(warning_period_s)
         self.standard: Optional[SimulationInterfaces] = None

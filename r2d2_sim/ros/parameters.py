@@ -10,6 +10,7 @@ Each robot listed in ``robots`` has the parameters it sets as
 
 import dataclasses
 import os
+import re
 from typing import Any, Callable, Dict, Iterable, List, Sequence, Tuple
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -124,3 +125,29 @@ def unknown_overrides(node: Node, overrides: Iterable[str], robots: Sequence[str
     """Return :func:`unknown_parameters` of the overrides ``node`` declares no parameter for."""
     return unknown_parameters([name for name in overrides if not node.has_parameter(name)],
                               robots)
+
+
+# How rclpy 7.1 words a parameter override of the wrong type (InvalidParameterTypeException).
+_RCLPY_WRONG_TYPE = re.compile(r"Trying to set parameter '(?P<name>[^']*)' to '(?P<value>.*)' "
+                               r"of type '(?P<got>\w+)', expecting type '(?P<want>\w+)'")
+
+
+def rclpy_parameter_problem(exc: Exception) -> str:
+    """
+    Return one line for rclpy's refusal of one of its own parameters (``use_sim_time:=1``).
+
+    rclpy checks the types of the parameters every node declares while the
+    node is built, before anything of ours could: its exception would be a
+    traceback. Any other text is returned on one line as it is.
+    """
+    text = ' '.join(str(exc).split())
+    found = _RCLPY_WRONG_TYPE.match(text)
+    if found is None:
+        return text
+
+    def kind(type_name: str) -> str:
+        words = type_name.lower().replace('_', ' ')
+        return ('an ' if words[0] in 'aeiou' else 'a ') + words
+    wanted = 'true or false' if found['want'] == 'BOOL' else kind(found['want'])
+    return (f"parameter {found['name']} must be {wanted}, got {found['value']} "
+            f"({kind(found['got'])})")

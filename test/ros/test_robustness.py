@@ -315,6 +315,18 @@ def test_an_unknown_parameter_is_named_with_a_suggestion(ros, capfd):
     assert len(warnings) == 1 and 'physic_rate (did you mean physics_rate?)' in warnings[0]
 
 
+@pytest.mark.parametrize('name, value, line', [
+    ('use_sim_time', 1, 'parameter use_sim_time must be true or false, got 1 (an integer)'),
+    ('start_type_description_service', 'no',
+     'parameter start_type_description_service must be true or false, got no (a string)'),
+])
+def test_rclpys_own_parameters_of_the_wrong_type_are_one_line(ros, name, value, line):
+    """Turn rclpy's refusal of its own parameters, made as it builds the node, into one line."""
+    with pytest.raises(StartupError) as raised:
+        make_sim(ros, **{name: value})
+    assert str(raised.value) == line
+
+
 def test_rclpys_own_parameters_are_not_called_unknown(ros, capfd):
     """use_sim_time belongs to every rclpy node: no warning, and it takes effect."""
     sim = make_sim(ros, use_sim_time=True)

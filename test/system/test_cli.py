@@ -92,6 +92,10 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
      'world_frame_id and odom_frame_id'),
     (['-p', 'frame_prefix:=/robot1/'], "frame_prefix must not start with '/'"),
     (['-p', 'base_frame_id:=base link'], 'base_frame_id must be a tf2 frame id'),
+    (['-p', 'use_sim_time:=1'],
+     'r2d2_sim: error: parameter use_sim_time must be true or false, got 1 (an integer)'),
+    (['-p', 'start_type_description_service:=3'],
+     'parameter start_type_description_service must be true or false, got 3 (an integer)'),
     (['--params-file', '/nonexistent/params.yaml'],
      '--params-file /nonexistent/params.yaml: no such file'),
 ])

@@ -251,6 +251,16 @@ def test_malformed_ros_args_are_a_one_line_error(module):
     assert len(lines) == 1 and 'error: bad ROS arguments' in lines[0], result.stderr
 
 
+def test_drive_with_rclpys_own_parameter_of_the_wrong_type_is_one_line(domain_id):
+    """use_sim_time:=1 (an integer, a common slip): one line and exit 2, not a traceback."""
+    result = subprocess.run([sys.executable, '-m', 'r2d2_sim.apps.drive', '--ros-args', '-p',
+                             'use_sim_time:=1'], env=ros_env(domain_id), cwd=REPO_ROOT,
+                            capture_output=True, text=True, timeout=30)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.strip().splitlines() == [
+        'drive: error: parameter use_sim_time must be true or false, got 1 (an integer)']
+
+
 def test_drive_without_a_subscriber_fails_with_one_line(domain_id):
     result = subprocess.run([sys.executable, '-m', 'r2d2_sim.apps.drive', '--linear', '0.3'],
                             env=ros_env(domain_id), cwd=REPO_ROOT, capture_output=True,
