@@ -315,6 +315,18 @@ def test_an_unknown_parameter_is_named_with_a_suggestion(ros, capfd):
     assert len(warnings) == 1 and 'physic_rate (did you mean physics_rate?)' in warnings[0]
 
 
+def test_qos_overrides_are_named_as_not_taken_typos_too(ros, capfd):
+    """ROS users expect qos_overrides.*: each one is named as ignored, not passed over."""
+    make_sim(ros, **{'qos_overrides./odom.publisher.reliability': 'best_effort',
+                     'qos_overrides./odmo.publisher.depth': 1})
+    warnings = log_lines(capfd, 'ignoring qos_overrides.')
+    assert len(warnings) == 2, warnings
+    assert warnings[0].endswith("ignoring qos_overrides./odmo.publisher.depth: r2d2_sim's "
+                                "publishers take no QoS overrides (docs/node.md gives each "
+                                "topic's QoS)")
+    assert 'qos_overrides./odom.publisher.reliability: ' in warnings[1]
+
+
 @pytest.mark.parametrize('name, value, line', [
     ('use_sim_time', 1, 'parameter use_sim_time must be true or false, got 1 (an integer)'),
     ('start_type_description_service', 'no',

@@ -29,8 +29,10 @@ def test_numpy_paths_and_enums_become_the_values_ros_holds():
 
 
 def test_unknown_names_get_the_nearest_known_one():
-    assert unknown_parameters(['scan_rate', 'use_sim_time', 'qos_overrides./odom.depth'],
-                              []) == []
+    assert unknown_parameters(['scan_rate', 'use_sim_time'], []) == []
+    assert unknown_parameters(['qos_overrides./odmo.publisher.depth'], []) == [
+        "qos_overrides./odmo.publisher.depth: r2d2_sim's publishers take no QoS overrides "
+        "(docs/node.md gives each topic's QoS)"]
     assert unknown_parameters(['scan_rat'], []) == [
         'unknown parameter scan_rat (did you mean scan_rate?)']
     assert unknown_parameters(['b.scan_rate', 'a.scan_rat', 'a.namespace'], ['a']) == [

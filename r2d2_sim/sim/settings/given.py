@@ -21,10 +21,20 @@ from typing import Any, Iterable, List, Sequence
 
 from r2d2_sim.sim.settings.table import PARAMETERS, PARAMETERS_BY_NAME
 
-__all__ = ['ROS_OWN_PARAMETERS', 'plain_value', 'is_ros_value', 'unknown_parameters']
+__all__ = ['ROS_OWN_PARAMETERS', 'NO_QOS_OVERRIDES', 'plain_value', 'is_ros_value', 'unknown_parameters']
 
 # rclpy's own parameters, which every node declares.
 ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+# rclpy declares qos_overrides.TOPIC.publisher.POLICY only for a publisher created with
+# QoSOverridingOptions, in Node.create_publisher. The node's publishers are not: with
+# outputs_process they live in another process, made through the relay, where rclpy would
+# never apply them; a robot's are made on its own node, some only when it is spawned, so a
+# typo in a topic could not be told at start-up from a topic still to come; and rclpy
+# changes the QoSProfile it is given in place (ours are shared constants). Their QoS is
+# fixed and documented instead (docs/node.md), and each override is named as not taken.
+QOS_OVERRIDES = 'qos_overrides.'
+NO_QOS_OVERRIDES = ("r2d2_sim's publishers take no QoS overrides (docs/node.md gives each "
+                    "topic's QoS)")
 SCALARS = (bool, int, float, str)
 
 
@@ -67,19 +77,22 @@ def unknown_parameters(names: Iterable[str], robots: Sequence[str]) -> List[str]
     """
     Return 'unknown parameter NAME (did you mean ...?)' for each name the simulator reads not.
 
-    Ours, ``ROBOT.parameter`` of a robot ``robots`` lists, rclpy's own and its
-    ``qos_overrides.`` are read. ROS ignores overrides nobody declares, so a
-    typo would run on the default: the node warns of each; the harnesses
-    and the farm refuse them before anything starts.
+    Ours, ``ROBOT.parameter`` of a robot ``robots`` lists and rclpy's own are
+    read. ROS ignores overrides nobody declares, so a typo would run on the
+    default: the node warns of each; the harnesses and the farm refuse them
+    before anything starts. rclpy's ``qos_overrides.`` are named too, as not
+    taken (see :data:`NO_QOS_OVERRIDES`).
     """
     known = [spec.name for spec in PARAMETERS]
     problems = []
     for name in sorted(names):
         robot, dot, parameter = name.partition('.')
         if (name in PARAMETERS_BY_NAME or name in ROS_OWN_PARAMETERS
-                or name.startswith('qos_overrides.')
                 or (dot and robot in robots
                     and (parameter in PARAMETERS_BY_NAME or parameter == 'namespace'))):
+            continue
+        if name.startswith(QOS_OVERRIDES):
+            problems.append(f'{name}: {NO_QOS_OVERRIDES}')
             continue
         if dot and robot not in robots:  # NAME.parameter of a robot robots does not list
             close = difflib.get_close_matches(robot, robots, n=1)
