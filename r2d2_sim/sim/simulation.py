@@ -39,6 +39,7 @@ do that slow part outside the simulator's lock. Every attribute is set in
 """
 
 import dataclasses
+import os
 from typing import Callable, Generator, List, NamedTuple, Optional, Sequence, Tuple, Union
 
 from r2d2_sim.errors import RefusedError, SetupError, WorldError
@@ -97,6 +98,25 @@ def _ignore(text: str) -> None:
     pass
 
 
+def _directories(name: str, sources: Sequence[str], places: Places,
+                 home: bool = False) -> Tuple[str, ...]:
+    """
+    Return the directories a ``*_paths`` parameter lists; ConfigError for one that is none.
+
+    Checked at start-up, as ``world`` is: a world path that named no
+    directory failed every GetAvailableWorlds later, and a model path was
+    never searched, with no word. ``home``: a leading ``~`` is the user's
+    home (as the model search has always taken it).
+    """
+    found = []
+    for source in sources:
+        try:
+            found.append(places.directory(os.path.expanduser(source) if home else source)[0])
+        except RefusedError as exc:
+            raise ConfigError(f'parameter {name}: {exc.message}') from None
+    return tuple(found)
+
+
 class Simulation:
     """
     The world, its robots and the step schedule.
@@ -132,7 +152,9 @@ class Simulation:
         self._step_watchers: List[Callable[[int], None]] = []
         # What SDF worlds and spawns are searched and compared with.
         places = Places(config.world_paths)
-        sdf = SdfSettings(tuple(config.model_paths), self.time_step_s, config.gravity_m_s2,
+        _directories('world_paths', config.world_paths, places)
+        model_paths = _directories('model_paths', config.model_paths, places, home=True)
+        sdf = SdfSettings(model_paths, self.time_step_s, config.gravity_m_s2,
                           config.ground_plane, config.strict_worlds, tuple(places.roots()))
         # The world file loaded (the empty world for world ''), the ones that can be.
         self.worlds = WorldFiles(places, sdf, self.time_step_s)

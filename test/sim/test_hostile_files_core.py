@@ -160,6 +160,9 @@ def test_an_sdf_model_spawns_only_from_where_load_world_may_read_it(make, tmp_pa
     beside = make(model_paths=[str(outside)])  # or among the model paths
     assert beside.spawn(SpawnRequest('crate', uri=str(outside / 'crate.sdf'),
                                      position=(1.0, 0.0, 0.5))) == 'crate'
+    as_uri = make(model_paths=[f'file://{outside}'])  # given as the URI its reader takes
+    assert as_uri.spawn(SpawnRequest('crate', uri=str(outside / 'crate.sdf'),
+                                     position=(1.0, 0.0, 0.5))) == 'crate'
 
 
 def meshes_of_every_format(directory, count):

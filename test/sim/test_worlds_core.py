@@ -16,6 +16,7 @@ import pytest
 
 from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.sim.entities import Category
+from r2d2_sim.sim.settings.table import ConfigError
 from r2d2_sim.sim.simulation import SpawnRequest
 from r2d2_sim.sim.tags import FILTER_MODE_ALL, TagsFilter
 from r2d2_sim.sim.worlds import EMPTY_WORLD_URI, LoadOptions
@@ -210,6 +211,21 @@ def test_worlds_are_listed_from_the_package_and_world_paths(make, tmp_path):
     assert simulation.entities.names() == ['ground_plane', 'r2d2', 'crate']
     simulation.load_world('lab.world.yaml')  # a name is looked for in world_paths too
     assert simulation.worlds.current.name == 'lab'
+
+
+@pytest.mark.parametrize('name, value, line', [
+    ('world_paths', ['/nonexistent/worlds'],
+     'parameter world_paths: /nonexistent/worlds is not a directory'),
+    ('world_paths', ['package://no_such_package/worlds'],
+     "parameter world_paths: package://no_such_package/worlds: no ROS package "
+     "'no_such_package'"),
+    ('model_paths', ['/etc/passwd'], 'parameter model_paths: /etc/passwd is not a directory'),
+])
+def test_paths_that_name_no_directory_stop_the_start(make, name, value, line):
+    """A world path that is none failed every GetAvailableWorlds later; now it is said first."""
+    with pytest.raises(ConfigError) as raised:
+        make(**{name: value})
+    assert str(raised.value) == line
 
 
 def test_available_worlds_sources_fail_as_the_standard_says(make, tmp_path):

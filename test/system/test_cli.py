@@ -96,6 +96,10 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
      'r2d2_sim: error: parameter use_sim_time must be true or false, got 1 (an integer)'),
     (['-p', 'start_type_description_service:=3'],
      'parameter start_type_description_service must be true or false, got 3 (an integer)'),
+    (['-p', 'world_paths:=[/nonexistent/worlds]'],
+     'parameter world_paths: /nonexistent/worlds is not a directory'),
+    (['-p', 'model_paths:=[/etc/passwd]'],
+     'parameter model_paths: /etc/passwd is not a directory'),
     (['--params-file', '/nonexistent/params.yaml'],
      '--params-file /nonexistent/params.yaml: no such file'),
 ])

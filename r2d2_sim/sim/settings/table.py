@@ -386,12 +386,13 @@ PARAMETERS: List[Parameter] = [
               'Directories of worlds (paths, file:// or package:// URIs): GetAvailableWorlds '
               'lists their *.world.yaml files and SDF worlds (*.sdf, *.world), and a LoadWorld '
               'request may load from them, as from the package\'s urdf/, pybullet_data and '
-              'ROS packages.',
+              'ROS packages. One that is no directory stops the start.',
               'world_paths', read.directories),
     Parameter('model_paths', 'string_array', [],
-              'Directories searched for the model:// URIs of SDF worlds and models, before '
-              'GZ_SIM_RESOURCE_PATH, IGN_GAZEBO_RESOURCE_PATH, GAZEBO_MODEL_PATH and SDF_PATH; '
-              'a LoadWorld or SpawnEntity request may use their files.',
+              'Directories (paths, file:// or package:// URIs) searched for the model:// URIs '
+              'of SDF worlds and models, before GZ_SIM_RESOURCE_PATH, IGN_GAZEBO_RESOURCE_PATH, '
+              'GAZEBO_MODEL_PATH and SDF_PATH; a LoadWorld or SpawnEntity request may use '
+              'their files. One that is no directory stops the start.',
               'model_paths', read.directories),
     Parameter('strict_worlds', 'bool', False,
               'Refuse a world (and an SDF spawn) with elements r2d2_sim does not simulate '
