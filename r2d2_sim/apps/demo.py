@@ -124,7 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='demo',
         description='Start the R2D2 simulator, turn ~90 degrees, drive forward, stop, and '
-                    'plot wheel odometry against ground truth.')
+                    'plot wheel odometry against ground truth.',
+        epilog='The demo takes no --ros-args: it sets its simulator\'s parameters itself. '
+               'For your own, run sim_node --ros-args -p NAME:=VALUE ... and send commands '
+               'with drive.')
     parser.add_argument('--output-dir', default='demo_output', metavar='DIR',
                         help='where to write the trajectory plot (default ./demo_output)')
     parser.add_argument('--real-time-factor', type=real_time_factor_arg, default=1.0,
@@ -295,7 +298,13 @@ def _run(options: argparse.Namespace, stop: threading.Event) -> int:
 def main(args: Optional[Sequence[str]] = None) -> int:
     """Run the demo; return 0 on success, 1 if the simulator fails, 130 on Ctrl-C."""
     argv = list(sys.argv if args is None else args)
-    options = build_parser().parse_args(non_ros_args(argv, 'demo'))
+    parser = build_parser()
+    own = non_ros_args(argv, 'demo')
+    if len(own) != len(argv) - 1:
+        # They would configure the driver node, not the simulator, in silence.
+        parser.error('the demo takes no ROS arguments (--ros-args ...): it sets its '
+                     'simulator\'s parameters itself; run sim_node --ros-args ... for yours')
+    options = parser.parse_args(own)
     options.output_dir = Path(options.output_dir)
     try:
         options.output_dir.mkdir(parents=True, exist_ok=True)

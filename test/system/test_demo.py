@@ -230,6 +230,8 @@ def test_drive_rejects_bad_arguments_with_a_usage_error(args, complaint):
                                      'possible) or in [1e-06, 1000]'),
     (['--real-time-factor', '1e-300'], 'argument --real-time-factor: must be 0'),
     (['--real-time-factor', '-1'], 'argument --real-time-factor: must be >= 0'),
+    # They configured the driver node, not the simulator, in silence.
+    (['--ros-args', '-p', 'real_time_factor:=0.0'], 'the demo takes no ROS arguments'),
 ])
 def test_demo_rejects_bad_arguments_before_anything_starts(tmp_path, domain_id, args, complaint):
     """A value the simulator would refuse is a usage error: exit 2, no simulator started."""
