@@ -129,7 +129,9 @@ def build_parser() -> argparse.ArgumentParser:
                'For your own, run sim_node --ros-args -p NAME:=VALUE ... and send commands '
                'with drive.')
     parser.add_argument('--output-dir', default='demo_output', metavar='DIR',
-                        help='where to write the trajectory plot (default ./demo_output)')
+                        help=f'where to write the plot {PLOT_NAME} and the camera snapshot '
+                             f'{SNAPSHOT_NAME} (both replaced) and the recording '
+                             f'{RECORDING_NAME} (refused if it exists) (default ./demo_output)')
     parser.add_argument('--real-time-factor', type=real_time_factor_arg, default=1.0,
                         metavar='X', help='simulated seconds per wall second, 1e-6 to 1000; '
                                           '0 runs as fast as possible, in lockstep (default 1)')
@@ -257,7 +259,6 @@ def _run(options: argparse.Namespace, stop: threading.Event) -> int:
         if found:
             raise DemoError(ANOTHER_SIMULATOR)
         recording = options.output_dir.absolute() / RECORDING_NAME
-        recording.unlink(missing_ok=True)  # like the plot, the last run's
         simulator = _start_simulator(options.real_time_factor, options.domain_id, recording)
         raise_if_stopped(stop)
         started_s = time.monotonic()
@@ -273,7 +274,10 @@ def _run(options: argparse.Namespace, stop: threading.Event) -> int:
         truth = driver.truth
         assert truth is not None  # done: the driver answered a state, the last one here
         print(f'final ground truth: x={truth.x_m!r} y={truth.y_m!r} yaw={truth.yaw_rad!r}')
-        _write_pictures(driver, options.output_dir)
+        try:
+            _write_pictures(driver, options.output_dir)
+        except OSError as exc:  # a directory in the way, a full disk
+            raise DemoError(f'cannot write the pictures: {exc}') from None
         # Finished only once the simulator closes it, after the manoeuvre.
         if simulator.stop(STOP_TIMEOUT_S).returncode == 0:
             print(f'recording: {recording} (replay it: replay {recording}; or open it in '
@@ -311,6 +315,11 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     except OSError as exc:
         _error(f'cannot create the output directory: {exc}')
         return 1
+    recording = options.output_dir / RECORDING_NAME
+    if os.path.lexists(recording):  # as sim_node's record refuses it: perhaps a user's own
+        _error(f'{recording} exists: the demo does not overwrite a recording; move it away or '
+               'give another --output-dir')
+        return 2
     # Discovery must stay on this host; set before rclpy.init and inherited by the child.
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     if options.domain_id is not None:

@@ -244,6 +244,27 @@ def test_demo_rejects_bad_arguments_before_anything_starts(tmp_path, domain_id, 
     assert not (tmp_path / 'run.mcap').exists()
 
 
+@pytest.mark.parametrize('kind', ['file', 'directory'])
+def test_demo_refuses_to_overwrite_a_recording(tmp_path, domain_id, kind):
+    """A run.mcap in the output directory (a user's own, perhaps) is kept: one line, exit 2."""
+    existing = tmp_path / 'run.mcap'
+    if kind == 'file':
+        existing.write_text('a recording of mine\n')
+    else:
+        existing.mkdir()
+    result = subprocess.run(demo_command(tmp_path, domain_id, 0), env=ros_env(domain_id),
+                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert result.stderr.splitlines() == [
+        f'demo: error: {existing} exists: the demo does not overwrite a recording; move it '
+        'away or give another --output-dir'], result.stderr
+    if kind == 'file':
+        assert existing.read_text() == 'a recording of mine\n'
+    else:
+        assert existing.is_dir()
+    assert simulators_in_domain(domain_id) == []
+
+
 @pytest.mark.parametrize('module', ['r2d2_sim.apps.drive', 'r2d2_sim.apps.demo'])
 def test_malformed_ros_args_are_a_one_line_error(module):
     result = subprocess.run([sys.executable, '-m', module, '--ros-args', '-p'],
