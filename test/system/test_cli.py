@@ -106,7 +106,11 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
 def test_bad_parameter_is_one_line_and_nonzero_exit(domain, args, fragment):
     """A wrong parameter stops start-up with one readable line and exit code 2."""
     process = start_sim_process(domain, *args)
-    out, err = process.communicate(timeout=30.0)
+    try:
+        out, err = process.communicate(timeout=30.0)
+    finally:
+        if process.poll() is None:  # it started instead: leave no simulator on the domain
+            stop_process(process)
     code = process.returncode
     assert code == 2
     assert 'Traceback' not in err
