@@ -1,7 +1,8 @@
 """
 Command-line pieces shared by the ``demo`` and ``drive`` executables and the benchmarks.
 
-argparse types that refuse NaN and infinity or an impossible domain id, the
+argparse types that refuse NaN and infinity, numbers out of range, names that are
+no ROS topic or an impossible domain id, the
 split between a program's own arguments and ROS's (``--ros-args ...``), and
 the exit status after Ctrl-C.
 """
@@ -13,7 +14,7 @@ import signal
 import sys
 import threading
 from types import FrameType
-from typing import List, Optional, Sequence
+from typing import Callable, List, Optional, Sequence
 
 # Exit status after Ctrl-C, as a shell reports a process ended by SIGINT.
 EXIT_INTERRUPTED = 130
@@ -47,6 +48,45 @@ def positive_number(text: str) -> float:
     if value <= 0.0:
         raise argparse.ArgumentTypeError(f'must be > 0, got {text!r}')
     return value
+
+
+def number_in(low: float, high: float, unit: str = '') -> Callable[[str], float]:
+    """
+    Return an argparse type for a finite number in [``low``, ``high``] (``unit`` for messages).
+
+    Bounds where a number passes as a float but not through what uses it:
+    a ``Duration`` of 1e10 s overflows rcl's nanoseconds, a wait of 1e12 s
+    the platform's sleep.
+    """
+    shown = f' {unit}' if unit else ''
+
+    def number(text: str) -> float:
+        value = finite_number(text)
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(
+                f'must be in [{low:g}, {high:g}]{shown}, got {text!r}')
+        return value
+    return number
+
+
+def topic_name_arg(text: str) -> str:
+    """Parse a topic name that rclpy takes for a publisher (an argparse type)."""
+    from rclpy.exceptions import InvalidTopicNameException
+    from rclpy.expand_topic_name import expand_topic_name
+    from rclpy.validate_full_topic_name import validate_full_topic_name
+    from rclpy.validate_topic_name import validate_topic_name
+    try:
+        validate_topic_name(text)
+        # Expanded, as a node would: '/a//b' and '~x' pass the check above only.
+        validate_full_topic_name(expand_topic_name(text, 'node', '/'))
+    except (InvalidTopicNameException, ValueError) as exc:
+        # rclpy's text: 'Invalid topic name: WHY:' and lines with a caret; rcl's ValueError
+        # "topic name 'X' is invalid: WHY, at FILE:LINE".
+        why = str(exc).splitlines()[0].rstrip(':')
+        why = why.split(' is invalid: ', 1)[-1].split(', at /', 1)[0]
+        why = why.removeprefix('Invalid topic name: ')
+        raise argparse.ArgumentTypeError(f'{text!r} is not a ROS topic name: {why}') from None
+    return text
 
 
 def domain_id_arg(text: str) -> int:

@@ -24,8 +24,8 @@ from rclpy.time import Time
 from rclpy.timer import Timer
 
 from r2d2_sim.apps.cli import (
-    EXIT_INTERRUPTED, finite_number, init_ros, non_negative_number, non_ros_args,
-    positive_number, raise_if_stopped, stop_on_signals)
+    EXIT_INTERRUPTED, finite_number, init_ros, non_ros_args, number_in, raise_if_stopped,
+    stop_on_signals, topic_name_arg)
 from r2d2_sim.client import spin_until
 from r2d2_sim.ros.parameters import rclpy_parameter_problem
 
@@ -35,6 +35,11 @@ NODE_NAME = 'drive'
 DISCOVERY_TIMEOUT_S = 5.0
 # Wall-clock seconds the final zero Twist gets to reach subscribers before exit.
 STOP_LINGER_S = 0.25
+# The longest --duration: 31 years, far within rcl's int64 nanoseconds (1e10 s overflowed).
+MAX_DURATION_S = 1.0e9
+# --rate: a timer period from 1000 s to 0.1 ms (1e-10 Hz overflowed rcl's timer period,
+# after the command had gone out, and no zero Twist followed), as the simulator's rates.
+RATE_RANGE_HZ = (0.001, 10000.0)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,12 +53,16 @@ def build_parser() -> argparse.ArgumentParser:
                         help='forward speed, linear.x in m/s (default 0)')
     parser.add_argument('--angular', type=finite_number, default=0.0, metavar='RAD_S',
                         help='counter-clockwise yaw rate, angular.z in rad/s (default 0)')
-    parser.add_argument('--duration', type=non_negative_number, default=1.0, metavar='S',
-                        help='how long to drive, in seconds of the node clock (default 1)')
-    parser.add_argument('--rate', type=positive_number, default=20.0, metavar='HZ',
-                        help='publishing rate; keep it >= 2 Hz, the simulator brakes after '
-                             '0.5 s without a command (default 20)')
-    parser.add_argument('--topic', default='cmd_vel', help='topic name (default cmd_vel)')
+    parser.add_argument('--duration', type=number_in(0.0, MAX_DURATION_S, 's'), default=1.0,
+                        metavar='S', help='how long to drive, in seconds of the node clock, '
+                                          f'0 to {MAX_DURATION_S:g} (default 1)')
+    parser.add_argument('--rate', type=number_in(*RATE_RANGE_HZ, 'Hz'), default=20.0,
+                        metavar='HZ',
+                        help=f'publishing rate, {RATE_RANGE_HZ[0]:g} to {RATE_RANGE_HZ[1]:g} Hz; '
+                             'keep it >= 2 Hz, the simulator brakes after 0.5 s without a '
+                             'command (default 20)')
+    parser.add_argument('--topic', type=topic_name_arg, default='cmd_vel',
+                        help='topic name (default cmd_vel)')
     return parser
 
 

@@ -27,7 +27,7 @@ import threading
 import time
 from typing import Any, Dict, NamedTuple, Optional, Sequence, Type, TYPE_CHECKING
 
-from r2d2_sim.apps.cli import non_ros_args, positive_number, raise_if_stopped, stop_on_signals
+from r2d2_sim.apps.cli import non_ros_args, number_in, raise_if_stopped, stop_on_signals
 from r2d2_sim.recording.message_definitions import UnknownMessageType
 from r2d2_sim.recording.reader import (
     message_class, RecordedChannel, RecordingError, RecordingFile)
@@ -55,6 +55,13 @@ _MAX_QOS_TEXT = 64 * 1024
 _GIB = 2**30
 # Topics a "nothing to replay" line names (a file may have thousands).
 MAX_REASONS = 3
+# --rate: 1e-12 made a wait between two messages longer than the platform can sleep.
+RATE_RANGE = (1.0e-6, 1.0e6)
+# --max-gib: 1e300 GiB is no number of bytes (int(inf)).
+MAX_GIB_RANGE = (0.001, 1.0e6)
+# The longest single wait for a message's time (wall s); threading's waits refuse more than
+# threading.TIMEOUT_MAX (292 years), which a file's log times (uint64 ns) may be apart.
+MAX_WAIT_S = 3600.0
 
 
 class Topic(NamedTuple):
@@ -73,13 +80,16 @@ def build_parser() -> argparse.ArgumentParser:
         description='Publish the messages of an MCAP recording (rosbag2 or r2d2_sim) again, '
                     'with their recorded QoS, paced by their log times.')
     parser.add_argument('file', help='the .mcap file')
-    parser.add_argument('--rate', type=positive_number, default=1.0, metavar='X',
-                        help='playback speed, a multiple of the recorded pace (default 1)')
+    parser.add_argument('--rate', type=number_in(*RATE_RANGE), default=1.0, metavar='X',
+                        help='playback speed, a multiple of the recorded pace, '
+                             f'{RATE_RANGE[0]:g} to {RATE_RANGE[1]:g} (default 1)')
     parser.add_argument('--loop', action='store_true',
                         help='start again at the end, until Ctrl-C')
-    parser.add_argument('--max-gib', type=positive_number, default=None, metavar='G',
-                        help='refuse a file that decompresses to more than G GiB in one pass '
-                             '(default: the larger of 1 GiB and 100 times its size)')
+    parser.add_argument('--max-gib', type=number_in(*MAX_GIB_RANGE, 'GiB'), default=None,
+                        metavar='G',
+                        help='refuse a file that decompresses to more than G GiB in one pass, '
+                             f'{MAX_GIB_RANGE[0]:g} to {MAX_GIB_RANGE[1]:g} (default: the '
+                             'larger of 1 GiB and 100 times its size)')
     return parser
 
 
@@ -230,8 +240,12 @@ def play(recording: Recording, publishers: Dict[int, 'Publisher'], rate: float,
     for channel_id, log_time, data in recording.file.messages(publishers):
         if start_wall is None:
             start_wall, start_log = time.monotonic(), log_time
-        wait_s = start_wall + (log_time - start_log) * 1e-9 / rate - time.monotonic()
-        if wait_s > 0.0:
+        due = start_wall + (log_time - start_log) * 1e-9 / rate
+        wait_s = due - time.monotonic()
+        while wait_s > MAX_WAIT_S and not stop.is_set():
+            stop.wait(MAX_WAIT_S)
+            wait_s = due - time.monotonic()
+        if wait_s > 0.0 and not stop.is_set():
             stop.wait(wait_s)
         raise_if_stopped(stop)
         publishers[channel_id].publish(data)

@@ -5,6 +5,7 @@ The wall clock of a test machine says little about pacing (a loaded machine
 delays what a listener hears); a clock the test moves says all of it.
 """
 
+import threading
 from types import SimpleNamespace
 
 import pytest
@@ -69,3 +70,34 @@ def test_a_message_logged_before_the_one_ahead_goes_at_once(monkeypatch):
     sent = []
     replay.play(recording, {1: Publisher(clock, sent)}, 1.0, Stop(clock))
     assert [when - 100.0 for when, _ in sent] == pytest.approx([0.0, 1.0, 1.0, 2.0], abs=1e-9)
+
+
+class SleepsAsThreading(Stop):
+    """A stop event that refuses waits as threading.Event does, and is set by the first one."""
+
+    def __init__(self, clock):
+        super().__init__(clock)
+        self.waits = []
+
+    def wait(self, seconds):
+        if seconds > threading.TIMEOUT_MAX:
+            raise OverflowError('timestamp out of range for platform time_t')
+        self.waits.append(seconds)
+        super().wait(seconds)
+
+    def is_set(self):
+        return bool(self.waits)
+
+
+def test_log_times_further_apart_than_the_platform_sleeps_are_waited_for_in_parts(monkeypatch):
+    """A file's log times may lie 2**64 ns apart: replay waits, in parts, instead of crashing."""
+    clock = Clock()
+    monkeypatch.setattr(replay, 'time', SimpleNamespace(monotonic=clock.monotonic))
+    messages = [(1, 0, b'first'), (1, 2**64 - 1, b'centuries later')]
+    recording = SimpleNamespace(file=SimpleNamespace(messages=lambda publishers: iter(messages)))
+    sent = []
+    stop = SleepsAsThreading(clock)
+    with pytest.raises(KeyboardInterrupt):  # stopped during the wait, as by Ctrl-C
+        replay.play(recording, {1: Publisher(clock, sent)}, 1.0, stop)
+    assert [data for _, data in sent] == [b'first']
+    assert stop.waits == [replay.MAX_WAIT_S]

@@ -212,17 +212,26 @@ def test_demo_stops_when_another_clock_publisher_appears_mid_run(tmp_path, domai
 
 
 @pytest.mark.parametrize('args, complaint', [
-    (['--duration', '-1'], 'argument --duration: must be >= 0'),
+    (['--duration', '-1'], "argument --duration: must be in [0, 1e+09] s, got '-1'"),
     (['--linear', 'nan'], 'argument --linear: must be a finite number'),
-    (['--rate', '0'], 'argument --rate: must be > 0'),
+    (['--rate', '0'], "argument --rate: must be in [0.001, 10000] Hz, got '0'"),
+    # Each of these passed, then crashed in rclpy with a traceback.
+    (['--duration', '1e10'], "argument --duration: must be in [0, 1e+09] s, got '1e10'"),
+    (['--rate', '1e-10'], "argument --rate: must be in [0.001, 10000] Hz, got '1e-10'"),
+    (['--topic', ''], "argument --topic: '' is not a ROS topic name: topic name must not be "
+                      "empty string"),
+    (['--topic', 'cmd vel'], "argument --topic: 'cmd vel' is not a ROS topic name: topic name "
+                             "must not contain characters other than alphanumerics"),
+    (['--topic', '/a//b'], "argument --topic: '/a//b' is not a ROS topic name: topic name must "
+                           "not contain repeated '/'"),
 ])
 def test_drive_rejects_bad_arguments_with_a_usage_error(args, complaint):
     result = subprocess.run([sys.executable, '-m', 'r2d2_sim.apps.drive'] + args,
                             cwd=REPO_ROOT, capture_output=True, text=True, timeout=30)
-    assert result.returncode == 2
+    assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
-    assert lines[0].startswith('usage: drive')
-    assert lines[-1].startswith('drive: error: ' + complaint)
+    assert lines[0].startswith('usage: drive') and 'Traceback' not in result.stderr
+    assert lines[-1].startswith('drive: error: ' + complaint), result.stderr
 
 
 @pytest.mark.parametrize('args, complaint', [
