@@ -225,9 +225,11 @@ def test_demo_stops_when_another_clock_publisher_appears_mid_run(tmp_path, domai
     (['--topic', '/a//b'], "argument --topic: '/a//b' is not a ROS topic name: topic name must "
                            "not contain repeated '/'"),
 ])
-def test_drive_rejects_bad_arguments_with_a_usage_error(args, complaint):
+def test_drive_rejects_bad_arguments_with_a_usage_error(domain_id, args, complaint):
+    """Refuse before ROS starts (on a leased domain all the same, should it start)."""
     result = subprocess.run([sys.executable, '-m', 'r2d2_sim.apps.drive'] + args,
-                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=30)
+                            env=ros_env(domain_id), cwd=REPO_ROOT, capture_output=True,
+                            text=True, timeout=30)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert lines[0].startswith('usage: drive') and 'Traceback' not in result.stderr
