@@ -179,6 +179,11 @@ class SimNode(MirroringNode):
         return self.simulation.step_count
 
     @property
+    def reset_count(self) -> int:
+        """Return how often the world was reset, restored, loaded or unloaded since start."""
+        return self.simulation.reset_count
+
+    @property
     def sim_time_ns(self) -> int:
         """Return simulated time in integer nanoseconds (exact, no drift)."""
         return self.simulation.time_ns

@@ -116,6 +116,10 @@ class SimulatorControl(Protocol):
         """Return the physics steps taken since start (or the last time reset)."""
 
     @property
+    def reset_count(self) -> int:
+        """Return how often the world was reset, restored, loaded or unloaded since start."""
+
+    @property
     def sim_time_ns(self) -> int:
         """Return the simulated time now (ns)."""
 

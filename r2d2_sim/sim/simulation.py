@@ -175,6 +175,10 @@ class Simulation:
         # The clock has not run since it last read 0 (start-up, a time reset, a world
         # loaded): no step, and the node not played. At time 0 and paused, 'stopped'.
         self.clock_unstarted = True
+        # How often the world was put back (any reset, a restored state, a world loaded or
+        # unloaded): a long step run in chunks sees one between its chunks by this, even
+        # where the step count stays (a STATE or SPAWNED reset).
+        self.reset_count = 0
 
     def _named_warn(self, name: str) -> Callable[[str], None]:
         return lambda text: self._warn(f'robot {name}: {text}')
@@ -311,6 +315,7 @@ class Simulation:
         launched again": start-up entities deleted since come back, under
         their names, in their places. No other scope brings them back.
         """
+        self.reset_count += 1
         changed = False
         if spawned:
             self._forget_robots([r for r in self.robots if r.body.spawned])
@@ -359,6 +364,7 @@ class Simulation:
             raise WorldError('the saved state is of other robots: robots were spawned, deleted '
                              'or loaded again since it was saved')
         self.world.restore_state(saved.world)
+        self.reset_count += 1
         step = self.world.step_count
         self.publish_schedule.restart(step)
         for robot in self.robots:
@@ -665,6 +671,7 @@ class Simulation:
                 robot.close()  # a second close of a robot the start-up closed does nothing
         self.robots = rebuilt.robots
         self.models = rebuilt.models if rebuilt.models is not None else self.models
+        self.reset_count += 1
         self._restart_time()
         self._robots_changed()
 

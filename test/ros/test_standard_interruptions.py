@@ -110,6 +110,36 @@ def test_a_stop_or_a_reset_during_a_step_ends_the_step(r2d2_sim, standard, ask, 
     assert reply.result.result == OK and r2d2_sim.sim.step_count == 24
 
 
+@pytest.mark.parametrize('reset', [
+    lambda server: server._reset(srv.ResetSimulation.Request(scope=2),
+                                 srv.ResetSimulation.Response()).result.result,
+    lambda server: server._reset(srv.ResetSimulation.Request(scope=4),
+                                 srv.ResetSimulation.Response()).result.result,
+    lambda server: server._reset(srv.ResetSimulation.Request(scope=6),
+                                 srv.ResetSimulation.Response()).result.result,
+    lambda server: server._simulator.reset_simulation(state=True) or OK,  # ~/reset
+], ids=['STATE', 'SPAWNED', 'STATE|SPAWNED', '~/reset'])
+def test_a_reset_that_keeps_the_time_ends_a_step_too(r2d2_sim, standard, reset):
+    """The step count stays, yet the world was put back: the step ends there, failed."""
+    server = r2d2_sim.sim.standard
+    assert set_state(standard, STATE.STATE_PAUSED) == OK
+    r2d2_sim.advance(steps=24)
+    goal = FakeGoal(100, call_after=10, call=lambda: reset(server))
+    result = server._simulate_steps(goal)
+    assert goal.replies == [OK]
+    assert (result.result.result, result.result.error_message) == (
+        msg.Result.RESULT_OPERATION_FAILED, 'the simulation was stopped or reset after 10 steps')
+    assert goal.ended == 'aborted' and r2d2_sim.sim.step_count == 34
+
+    def each(done):  # StepSimulation's path: chunks of 24 steps
+        if done == 48:
+            reset(server)
+        return True
+    error, done = server._run_steps(240, each, chunk=24)
+    assert (error, done) == ('the simulation was stopped or reset after 48 steps', 48)
+    assert r2d2_sim.sim.step_count == 34 + 48
+
+
 @pytest.mark.parametrize('change', ['reset time', 'reset state', 'reset spawned', 'spawn',
                                     'set entity state'])
 def test_stopped_stays_stopped_until_it_steps_or_plays(standard, change):

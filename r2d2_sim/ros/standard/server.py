@@ -250,8 +250,9 @@ class SimulationInterfaces(Replies):
 
         The node's lock is taken per ``chunk`` of steps; ``each(done)`` after
         each chunk returns False to stop early (a cancel). A node shutting
-        down stops it at the next chunk; so does a stop or a reset (the clock
-        moved between chunks), and playing: an error then, with the steps done.
+        down stops it at the next chunk; so does a stop or a reset of any scope
+        (the world was put back between chunks, or the clock moved), and
+        playing: an error then, with the steps done.
         """
         node = self._simulator
         if not self._stepping.acquire(blocking=False):
@@ -259,6 +260,7 @@ class SimulationInterfaces(Replies):
                     'another step request is running'), 0
         done = 0
         start: Optional[int] = None  # the step count it began at
+        resets = 0  # and the world's resets then
         try:
             while done < steps:
                 if self._closing.is_set():
@@ -270,8 +272,10 @@ class SimulationInterfaces(Replies):
                         return ('the simulation is playing: pause it first' if done == 0 else
                                 f'the simulation was played after {done} steps'), done
                     if start is None:
-                        start = node.step_count
-                    elif node.step_count != start + done:  # a stop or a reset between chunks
+                        start, resets = node.step_count, node.reset_count
+                    elif node.step_count != start + done or node.reset_count != resets:
+                        # A stop or a reset between chunks (STATE or SPAWNED alone leave
+                        # the step count as it was): never step on from a world put back.
                         return f'the simulation was stopped or reset after {done} steps', done
                     count = min(chunk, steps - done)
                     node.advance(count)
