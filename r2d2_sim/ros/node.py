@@ -118,7 +118,7 @@ class SimNode(MirroringNode):
             raise
         self._paused = self.config.start_paused
         # A node that starts playing has started its clock: paused at 0 later, it is PAUSED.
-        simulation.clock_unstarted = self._paused
+        simulation.unrun_since_launch = self._paused
         self.control = ControlServices(self, self, self.fleet)
         if standard.available():
             self.standard = SimulationInterfaces(self, simulation.entities, simulation,
@@ -200,9 +200,9 @@ class SimNode(MirroringNode):
         return self._paused
 
     @property
-    def clock_unstarted(self) -> bool:
-        """Return True while the clock has not run since it last read 0 (no step, not played)."""
-        return self.simulation.clock_unstarted
+    def unrun_since_launch(self) -> bool:
+        """Return True while nothing ran since start-up, a full reset or a world load."""
+        return self.simulation.unrun_since_launch
 
     @property
     def world_is_loaded(self) -> bool:
@@ -398,9 +398,9 @@ class SimNode(MirroringNode):
                 if self.step_count != self.simulation.last_frame_step:
                     self.advance_to_next_publish()
             if bool(paused) != self._paused:
-                # Played or paused, the clock is no longer 'stopped' at 0 (the standard's
-                # STOPPED is reached only by a stop, a time reset or a world loaded).
-                self.simulation.clock_unstarted = False
+                # Played or paused, it ran: no longer 'stopped' at 0 (the standard's
+                # STOPPED is reached only by a stop, a full reset or a world loaded).
+                self.simulation.unrun_since_launch = False
             self._paused = bool(paused)
 
     def reset_simulation(self, *, time: bool = False, state: bool = True,

@@ -104,8 +104,8 @@ class SimulatorControl(Protocol):
         """Return True while physics is stopped."""
 
     @property
-    def clock_unstarted(self) -> bool:
-        """Return True while the clock has not run since it last read 0 (no step, not played)."""
+    def unrun_since_launch(self) -> bool:
+        """Return True while nothing ran since start-up, a full reset or a world load."""
 
     @property
     def world_is_loaded(self) -> bool:

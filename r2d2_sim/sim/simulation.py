@@ -172,9 +172,11 @@ class Simulation:
         except Exception:
             self.close()
             raise
-        # The clock has not run since it last read 0 (start-up, a time reset, a world
-        # loaded): no step, and the node not played. At time 0 and paused, 'stopped'.
-        self.clock_unstarted = True
+        # Nothing ran since the world was as launched (start-up, a full reset, a world
+        # loaded): no step, and the node not played. At time 0 and paused: the standard's
+        # STOPPED ("pausing and resetting with ALL"). A time reset alone does not set it:
+        # the world it leaves is not the launched one.
+        self.unrun_since_launch = True
         # How often the world was put back (any reset, a restored state, a world loaded or
         # unloaded): a long step run in chunks sees one between its chunks by this, even
         # where the step count stays (a STATE or SPAWNED reset).
@@ -249,6 +251,7 @@ class Simulation:
         """
         world, robots = self.world, self.robots
         step = world.step_count
+        self.unrun_since_launch = False
         for robot in robots:
             robot.drive_wheels(step)
         world.step(1)
@@ -334,6 +337,7 @@ class Simulation:
             self._restart_time()
         if time and state and spawned:
             self.entities.restore_info(self._startup.infos())
+            self.unrun_since_launch = True  # as launched again: STOPPED once paused
         if changed:
             self._robots_changed()
 
@@ -370,7 +374,6 @@ class Simulation:
         for robot in self.robots:
             robot.restart_time(0)
             robot.reloaded()
-        self.clock_unstarted = True  # the clock put back, not run
 
     def forget_state(self, saved: SavedState) -> None:
         """Free what :meth:`save_state` kept (PyBullet holds it until then)."""
@@ -402,7 +405,6 @@ class Simulation:
         self.world.step_count = 0
         self.publish_schedule.restart(0)
         self.last_frame_step = 0
-        self.clock_unstarted = True
         for robot in self.robots:
             robot.restart_time(steps_back)
 
@@ -673,6 +675,7 @@ class Simulation:
         self.models = rebuilt.models if rebuilt.models is not None else self.models
         self.reset_count += 1
         self._restart_time()
+        self.unrun_since_launch = True  # a world loaded (or unloaded): as launched with it
         self._robots_changed()
 
     def close(self) -> None:

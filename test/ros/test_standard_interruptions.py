@@ -163,6 +163,25 @@ def test_stopped_stays_stopped_until_it_steps_or_plays(standard, change):
     assert state_of(standard) == STATE.STATE_PAUSED
 
 
+def test_a_time_reset_alone_while_paused_reads_paused_and_stopped_resets(r2d2_sim, standard):
+    """TIME keeps the world as it is, so not STOPPED ("resetting with ALL"); STOPPED then is."""
+    assert set_state(standard, STATE.STATE_PAUSED) == OK
+    assert standard('step_simulation', srv.StepSimulation, steps=100).result.result == OK
+    assert standard('spawn_entity', srv.SpawnEntity, name='crate', resource_string=BOX,
+                    initial_pose=box_pose()).result.result == OK
+    reply = standard('reset_simulation', srv.ResetSimulation, scope=1)
+    assert reply.result.result == OK and r2d2_sim.sim.step_count == 0
+    assert state_of(standard) == STATE.STATE_PAUSED
+    assert 'crate' in standard('get_entities', srv.GetEntities).entities
+    assert set_state(standard, STATE.STATE_STOPPED) == OK  # not ALREADY_IN_TARGET_STATE
+    assert state_of(standard) == STATE.STATE_STOPPED
+    assert 'crate' not in standard('get_entities', srv.GetEntities).entities
+    # A step, then a time reset: the same, whatever came before.
+    assert standard('step_simulation', srv.StepSimulation, steps=1).result.result == OK
+    assert standard('reset_simulation', srv.ResetSimulation, scope=1).result.result == OK
+    assert state_of(standard) == STATE.STATE_PAUSED
+
+
 def test_pausing_a_simulation_playing_at_time_zero_reads_paused(r2d2_sim, standard):
     """It played: PAUSED (not STOPPED), and a second PAUSED is already in the target state."""
     assert r2d2_sim.sim.step_count == 0 and state_of(standard) == STATE.STATE_PLAYING

@@ -52,7 +52,7 @@ def test_the_ground_a_model_and_the_robot_are_deleted_and_a_full_reset_brings_th
     assert simulation.entities.names() == start_up
     assert [robot.name for robot in simulation.robots] == ['r2d2'] and seen[-1] == ['r2d2']
     assert [model.name for model in simulation.models] == [box]
-    assert simulation.clock_unstarted and simulation.step_count == 0
+    assert simulation.unrun_since_launch and simulation.step_count == 0
     assert run(simulation) == fresh
 
 

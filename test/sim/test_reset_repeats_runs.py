@@ -86,7 +86,7 @@ def test_a_full_reset_repeats_the_run_and_equals_a_fresh_start(make):
     spawn_robot_c(simulation)
     run(simulation)
     simulation.reset(time=True, state=True, spawned=True)
-    assert simulation.step_count == 0 and simulation.clock_unstarted
+    assert simulation.step_count == 0 and simulation.unrun_since_launch
     assert run(simulation) == fresh
 
 

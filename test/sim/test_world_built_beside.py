@@ -63,7 +63,7 @@ def test_the_old_world_steps_between_the_bodies_and_the_new_one_is_a_launch(make
     assert len(connected_clients()) == len(clients)  # the old client went with the old world
     assert chunks >= 5  # the ground, two robots, three models: one body each
     assert len(set(poses)) == len(poses)  # the old robot drove on all along
-    assert loaded.step_count == 0 and loaded.clock_unstarted
+    assert loaded.step_count == 0 and loaded.unrun_since_launch
     assert loaded.entities.names() == started.entities.names() == [
         'ground_plane', 'a', 'shelf', 'crate', 'box', 'b']
     assert drive_and_read(loaded, 120) == drive_and_read(started, 120)  # bit for bit

@@ -113,7 +113,7 @@ def test_load_world_replaces_the_world_and_stops_at_time_zero(make):
     assert world.name == 'turned' and simulation.worlds.current is world
     assert simulation.entities.names() == ['ground_plane', 'r2d2', 'shelf']
     assert [pose.name for pose in simulation.worlds.named_poses()] == ['entry', 'far']
-    assert simulation.step_count == 0 and simulation.clock_unstarted
+    assert simulation.step_count == 0 and simulation.unrun_since_launch
     assert simulation.entities.info('shelf').tags == ('shelf', 'small')
     simulation.delete_entity('r2d2')
     simulation.load_world(ROOM)  # the room's start is the origin, as at start-up

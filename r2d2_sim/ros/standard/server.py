@@ -175,9 +175,11 @@ class SimulationInterfaces(Replies):
         """
         Return the standard's state: PLAYING, STOPPED or PAUSED.
 
-        STOPPED: paused at time 0 with the clock not run since it read 0 (a stop,
-        a time reset or a world loaded; entity changes keep it), as Gazebo's
-        "paused at iteration 0"; a step or a play leaves it.
+        STOPPED: paused at time 0 with nothing run since the world was as
+        launched (a stop, a full reset or a world loaded: "pausing and
+        resetting with ALL"; entity changes and later resets keep it), as
+        Gazebo's "paused at iteration 0"; a step or a play leaves it. A reset
+        of TIME alone from PAUSED reads PAUSED: the world is not the launched one.
 
         LOADING_WORLD while a world loads or unloads, NO_WORLD after UnloadWorld.
         """
@@ -189,7 +191,7 @@ class SimulationInterfaces(Replies):
             return state.STATE_NO_WORLD
         if not node.paused:
             return state.STATE_PLAYING
-        if node.step_count == 0 and node.clock_unstarted:
+        if node.step_count == 0 and node.unrun_since_launch:
             return state.STATE_STOPPED
         return state.STATE_PAUSED
 
