@@ -140,6 +140,29 @@ def test_a_reset_that_keeps_the_time_ends_a_step_too(r2d2_sim, standard, reset):
     assert r2d2_sim.sim.step_count == 34 + 48
 
 
+def test_zero_steps_fail_where_one_step_would(r2d2_sim, standard):
+    """Playing or with no world, zero steps are OPERATION_FAILED too; paused, OK with none."""
+    server = r2d2_sim.sim.standard
+
+    def zero_steps():
+        reply = standard('step_simulation', srv.StepSimulation, steps=0).result
+        goal = FakeGoal(0)
+        result = server._simulate_steps(goal).result
+        assert goal.feedback == []
+        return (reply.result, reply.error_message), (result.result, result.error_message,
+                                                     goal.ended)
+    failed = msg.Result.RESULT_OPERATION_FAILED
+    playing = 'the simulation is playing: pause it first'
+    assert state_of(standard) == STATE.STATE_PLAYING
+    assert zero_steps() == ((failed, playing), (failed, playing, 'aborted'))
+    assert set_state(standard, STATE.STATE_PAUSED) == OK
+    assert zero_steps() == ((OK, ''), (OK, '', 'succeeded'))
+    assert standard('unload_world', srv.UnloadWorld).result.result == OK
+    unloaded = 'no world is loaded (UnloadWorld): load one to step'
+    assert zero_steps() == ((failed, unloaded), (failed, unloaded, 'aborted'))
+    assert r2d2_sim.sim.step_count == 0
+
+
 @pytest.mark.parametrize('change', ['reset time', 'reset state', 'reset spawned', 'spawn',
                                     'set entity state'])
 def test_stopped_stays_stopped_until_it_steps_or_plays(standard, change):

@@ -254,7 +254,8 @@ class SimulationInterfaces(Replies):
         each chunk returns False to stop early (a cancel). A node shutting
         down stops it at the next chunk; so does a stop or a reset of any scope
         (the world was put back between chunks, or the clock moved), and
-        playing: an error then, with the steps done.
+        playing: an error then, with the steps done. Zero steps are checked as
+        one is: playing, or no world, fails.
         """
         node = self._simulator
         if not self._stepping.acquire(blocking=False):
@@ -264,7 +265,7 @@ class SimulationInterfaces(Replies):
         start: Optional[int] = None  # the step count it began at
         resets = 0  # and the world's resets then
         try:
-            while done < steps:
+            while done < steps or start is None:  # once at least: zero steps are checked
                 if self._closing.is_set():
                     return f'the simulator is shutting down (after {done} steps)', done
                 with node.lock:
@@ -279,6 +280,8 @@ class SimulationInterfaces(Replies):
                         # A stop or a reset between chunks (STATE or SPAWNED alone leave
                         # the step count as it was): never step on from a world put back.
                         return f'the simulation was stopped or reset after {done} steps', done
+                    if steps == 0:
+                        return None, 0
                     count = min(chunk, steps - done)
                     node.advance(count)
                 done += count
