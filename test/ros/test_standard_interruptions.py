@@ -11,6 +11,8 @@ during a step answered OK while the step went on stepping the reset world;
 a reset or a spawn made STOPPED read PAUSED; pausing at time 0 read STOPPED.
 """
 
+import threading
+
 from geometry_msgs.msg import PoseStamped
 import pytest
 from simulation_interfaces import msg, srv
@@ -161,6 +163,30 @@ def test_zero_steps_fail_where_one_step_would(r2d2_sim, standard):
     unloaded = 'no world is loaded (UnloadWorld): load one to step'
     assert zero_steps() == ((failed, unloaded), (failed, unloaded, 'aborted'))
     assert r2d2_sim.sim.step_count == 0
+
+
+def test_quitting_stops_the_simulation_first_and_reads_quitting_until_the_exit(r2d2_sim,
+                                                                               standard):
+    """Paused before the reply (no step after it), QUITTING read, steps refused, then exit."""
+    server, sim = r2d2_sim.sim.standard, r2d2_sim.sim
+    quit_called = threading.Event()
+    server._on_quit = quit_called.set  # what sim_node gives: its stop event's set
+    r2d2_sim.advance(steps=10)
+    assert state_of(standard) == STATE.STATE_PLAYING
+    assert set_state(standard, STATE.STATE_QUITTING) == OK
+    assert sim.paused and not sim.advance_if_running()  # the paced loop steps no more
+    stepped = sim.step_count
+    assert state_of(standard) == STATE.STATE_QUITTING
+    assert set_state(standard, STATE.STATE_QUITTING) == \
+        srv.SetSimulationState.Response.ALREADY_IN_TARGET_STATE
+    assert set_state(standard, STATE.STATE_PLAYING) == \
+        srv.SetSimulationState.Response.INCORRECT_TRANSITION
+    reply = standard('step_simulation', srv.StepSimulation, steps=1).result
+    assert (reply.result, reply.error_message) == (
+        msg.Result.RESULT_OPERATION_FAILED, 'the simulator is shutting down (after 0 steps)')
+    assert sim.paused and sim.step_count == stepped
+    assert quit_called.wait(5.0)  # after the reply, as SIGINT would
+    assert state_of(standard) == STATE.STATE_QUITTING
 
 
 @pytest.mark.parametrize('change', ['reset time', 'reset state', 'reset spawned', 'spawn',

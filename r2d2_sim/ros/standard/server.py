@@ -120,6 +120,7 @@ class SimulationInterfaces(Replies):
         self._msg = msg
         self._log = simulator_node.get_logger()
         self._on_quit = on_quit
+        self._quitting = False  # QUITTING was answered OK: paused, the exit on its way
         self.activity = Activity()  # one step request or world load at a time
         self._stepping = self.activity.stepping
         self._closing = threading.Event()
@@ -181,10 +182,13 @@ class SimulationInterfaces(Replies):
         Gazebo's "paused at iteration 0"; a step or a play leaves it. A reset
         of TIME alone from PAUSED reads PAUSED: the world is not the launched one.
 
-        LOADING_WORLD while a world loads or unloads, NO_WORLD after UnloadWorld.
+        LOADING_WORLD while a world loads or unloads, NO_WORLD after UnloadWorld,
+        QUITTING from an OK to it until the process ends.
         """
         state = self._msg.SimulationState
         node = self._simulator
+        if self._quitting:
+            return state.STATE_QUITTING
         if self.activity.loading.is_set():
             return state.STATE_LOADING_WORLD
         if not node.world_is_loaded:
@@ -196,6 +200,9 @@ class SimulationInterfaces(Replies):
         return state.STATE_PAUSED
 
     def _get_state(self, request: Any, response: Any) -> Any:
+        if self._quitting:
+            response.state.state = self._msg.SimulationState.STATE_QUITTING
+            return self._ok(response)
         if self.activity.loading.is_set():  # answered at once, not after the load
             response.state.state = self._msg.SimulationState.STATE_LOADING_WORLD
             return self._ok(response)
@@ -206,7 +213,11 @@ class SimulationInterfaces(Replies):
     def _set_state(self, request: Any, response: Any) -> Any:
         state, node = self._msg.SimulationState, self._simulator
         wanted = request.state.state
-        if self.activity.loading.is_set() and wanted != state.STATE_QUITTING:
+        if wanted == state.STATE_QUITTING:
+            return self._quit(response)
+        if self._quitting:
+            return self._fail(response, 'INCORRECT_TRANSITION', 'the simulator is quitting')
+        if self.activity.loading.is_set():
             return self._fail(response, 'INCORRECT_TRANSITION', 'a world is loading: the '
                               'simulation cannot be started, stopped or paused meanwhile')
         with node.lock:
@@ -231,14 +242,34 @@ class SimulationInterfaces(Replies):
             elif wanted == state.STATE_STOPPED:
                 node.set_paused(True)
                 node.reset_simulation(time=True, state=True, spawned=True)
-            elif wanted == state.STATE_QUITTING and self._on_quit is not None:
-                # After the reply has gone out: the process then stops as on SIGINT.
-                threading.Timer(0.2, self._on_quit).start()
-            elif wanted == state.STATE_QUITTING:
-                return self._fail(response, 'FEATURE_UNSUPPORTED', 'this simulator runs in '
-                                  'a process it does not own here: it cannot quit')
             else:
                 return self._fail(response, 'INCORRECT_TRANSITION', f'unknown state {wanted}')
+        return self._ok(response)
+
+    def _quit(self, response: Any) -> Any:
+        """
+        Stop the simulation, then exit (SimulationState.msg's QUITTING), after the reply.
+
+        Stopped here is paused under the lock: no step after the reply, a step
+        request under way ends at its next chunk, and the state reads
+        QUITTING until the process is gone. Not reset: a world built again
+        only to be closed would cost time and put ``/clock`` back to 0 for
+        whoever still listens.
+        """
+        if self._on_quit is None:
+            return self._fail(response, 'FEATURE_UNSUPPORTED', 'this simulator runs in '
+                              'a process it does not own here: it cannot quit')
+        if self._quitting:
+            return self._fail(response, 'ALREADY_IN_TARGET_STATE', 'the simulator is '
+                              'quitting already')
+        node = self._simulator
+        with node.lock:
+            if node.world_is_loaded and not node.paused:
+                node.set_paused(True)
+            self._quitting = True
+            self._closing.set()  # steps: refused from now, a running one ends
+        # After the reply has gone out: the process then stops as on SIGINT.
+        threading.Timer(0.2, self._on_quit).start()
         return self._ok(response)
 
     def _step(self, request: Any, response: Any) -> Any:
