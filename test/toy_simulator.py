@@ -211,6 +211,8 @@ MORE_DEFECTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
                         ('WORLD-13',)),
     'ACTION-02-once': ('SimulateSteps gives one feedback a goal, at its end, not one a step',
                        ('ACTION-02',)),
+    'ENTITY-12-acceleration': ('a static entity takes an acceleration (only a twist is checked)',
+                               ('ENTITY-12',)),
 }
 # Readings the standard allows that the toy takes on demand, each with the clauses that
 # must still pass: the kit may not hold a simulator to one way where the text allows more.
@@ -775,7 +777,12 @@ class ToySimulator:
         position, orientation = self._checked_pose(state.pose, 'ENTITY-10', 'ENTITY-11')
         linear = (state.twist.linear.x, state.twist.linear.y, state.twist.linear.z)
         angular = (state.twist.angular.x, state.twist.angular.y, state.twist.angular.z)
-        if entity.static and any(linear + angular) and not self.broken('ENTITY-12'):
+        acceleration = state.acceleration
+        accelerating = not self.broken('ENTITY-12-acceleration') and any(
+            (acceleration.linear.x, acceleration.linear.y, acceleration.linear.z,
+             acceleration.angular.x, acceleration.angular.y, acceleration.angular.z))
+        if entity.static and (any(linear + angular) or accelerating) and \
+                not self.broken('ENTITY-12'):
             raise Refused(R.RESULT_OPERATION_FAILED, f'{request.entity} is static')
         frame = self._frame(state.header.frame_id, 'ENTITY-07')
         pose = compose(frame, Transform(position, orientation))

@@ -83,8 +83,8 @@ class EntityChanges(Protocol):
 
     def set_entity_state(self, name: str, frame_id: str, position: Sequence[float],
                          orientation: Sequence[float], linear: Sequence[float],
-                         angular: Sequence[float]) -> None:
-        """Place an entity at a pose in ``frame_id`` with a world-frame twist."""
+                         angular: Sequence[float], acceleration: Sequence[float] = ()) -> None:
+        """Place an entity at a pose in ``frame_id`` with a twist; check an acceleration."""
 
     def spawn(self, request: 'SpawnRequest', spawnable: 'Optional[Spawnable]' = None) -> str:
         """Spawn an entity (a driven robot with a namespace), read beforehand; return its name."""

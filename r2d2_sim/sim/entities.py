@@ -219,7 +219,7 @@ class Entities:
 
     def set_state(self, name: str, frame_id: str, position: Sequence[float],
                   orientation: Sequence[float], linear: Sequence[float],
-                  angular: Sequence[float]) -> 'Body':
+                  angular: Sequence[float], acceleration: Sequence[float] = ()) -> 'Body':
         """
         Place the entity's base link at a pose and with a twist, both in ``frame_id``.
 
@@ -229,11 +229,17 @@ class Entities:
         header.frame_id"), turned into the world's here. The twist is always
         applied (the Jazzy request has no flags): a pose-only request stops
         the body. A static body may not move. Returns the body placed.
+        ``acceleration`` (linear then angular, empty for none) is checked, not
+        applied ("the acceleration field may be ignored by simulators"): the
+        physics gives a body its acceleration. Not finite is INVALID_POSE, as
+        a twist; not zero for a static body OPERATION_FAILED, as the standard asks.
         """
         body = self.body(name)
         placed = check_pose(position, orientation)
         if not _finite(linear, angular):
             raise RefusedError('INVALID_POSE', 'the twist has a value that is not finite')
+        if not _finite(acceleration):
+            raise RefusedError('INVALID_POSE', 'the acceleration has a value that is not finite')
         speed, spin = math.hypot(*linear), math.hypot(*angular)
         if speed >= MAX_LINEAR_SPEED_M_S or spin >= MAX_ANGULAR_SPEED_RAD_S:
             # What a robot's health check takes for a blow-up: any other body would step
@@ -244,6 +250,9 @@ class Entities:
         if body.static and any(v != 0.0 for v in (*linear, *angular)):
             raise RefusedError('OPERATION_FAILED', f'{name} is static: it takes a pose, '
                                                    'not a twist')
+        if body.static and any(v != 0.0 for v in acceleration):
+            raise RefusedError('OPERATION_FAILED', f'{name} is static: it takes a pose, '
+                                                   'not an acceleration')
         frame = self.frame_pose(frame_id)
         pose = compose(frame, placed)
         yaw = body.body_yaw_offset_rad

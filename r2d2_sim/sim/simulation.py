@@ -412,9 +412,10 @@ class Simulation:
 
     def set_entity_state(self, name: str, frame_id: str, position: Sequence[float],
                          orientation: Sequence[float], linear: Sequence[float],
-                         angular: Sequence[float]) -> None:
+                         angular: Sequence[float], acceleration: Sequence[float] = ()) -> None:
         """Place an entity (see :meth:`Entities.set_state <r2d2_sim.sim.entities.Entities>`)."""
-        body = self.entities.set_state(name, frame_id, position, orientation, linear, angular)
+        body = self.entities.set_state(name, frame_id, position, orientation, linear, angular,
+                                       acceleration)
         for robot in self.robots:
             if robot.body is body:
                 robot.teleported()  # its IMU must not take the jump for an acceleration

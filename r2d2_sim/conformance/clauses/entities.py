@@ -197,12 +197,12 @@ def nan_position(t: Target) -> None:
     _invalid_pose(t, (math.nan, y, z), (0.0, 0.0, 0.0, 1.0), 'a NaN position')
 
 
-@clause(CLAUSES, 'ENTITY-12', 'a twist for a static entity is OPERATION_FAILED',
-        (SETTING, GETTING, 'ENTITY_INFO_GETTING'), 'SetEntityState.srv',
+@clause(CLAUSES, 'ENTITY-12', 'a twist or an acceleration for a static entity is '
+        'OPERATION_FAILED', (SETTING, GETTING, 'ENTITY_INFO_GETTING'), 'SetEntityState.srv',
         'If non-zero twist or acceleration is requested for static object, the service call '
         'fails and RESULT_OPERATION_FAILED is returned.', services=LISTED)
 def static_twist(t: Target) -> None:
-    """Give the first STATIC_OBJECT its own pose and 1 m/s: refused."""
+    """Give the first STATIC_OBJECT its own pose and 1 m/s, then 1 m/s^2 alone: refused."""
     static = t.msg.EntityCategory.CATEGORY_STATIC_OBJECT
     name = next((n for n in t.entities.names()[:SAMPLE]
                  if t.entities.info(n).category.category == static), None)
@@ -214,6 +214,10 @@ def static_twist(t: Target) -> None:
                                      quaternion(pose.orientation), linear=(1.0, 0.0, 0.0))
     t.expect('SetEntityState', request, (t.msg.Result.RESULT_OPERATION_FAILED,),
              f'SetEntityState of the static {name} with a twist')
+    request = t.entities.set_request(name, vector(pose.position), quaternion(pose.orientation))
+    request.state.acceleration.linear.x = 1.0
+    t.expect('SetEntityState', request, (t.msg.Result.RESULT_OPERATION_FAILED,),
+             f'SetEntityState of the static {name} with an acceleration and no twist')
 
 
 @clause(CLAUSES, 'ENTITY-13', 'GetEntityInfo gives each entity a defined category',

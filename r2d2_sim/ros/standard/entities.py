@@ -195,6 +195,8 @@ class EntityServices(Replies):
         v, w = msg.twist.linear, msg.twist.angular
         v.x, v.y, v.z = state.linear_velocity
         w.x, w.y, w.z = state.angular_velocity
+        # The acceleration stays 0 (documented): PyBullet gives none, and a finite
+        # difference would read every body every step and be wrong across a teleport.
         return msg
 
     def _entity_state(self, request: Any, response: Any) -> Any:
@@ -209,11 +211,13 @@ class EntityServices(Replies):
         state = request.state
         p, q = state.pose.position, state.pose.orientation
         v, w = state.twist.linear, state.twist.angular
+        a, b = state.acceleration.linear, state.acceleration.angular
         try:
             with self._changing():
                 self._changes.set_entity_state(
                     request.entity, state.header.frame_id, (p.x, p.y, p.z),
-                    (q.x, q.y, q.z, q.w), (v.x, v.y, v.z), (w.x, w.y, w.z))
+                    (q.x, q.y, q.z, q.w), (v.x, v.y, v.z), (w.x, w.y, w.z),
+                    (a.x, a.y, a.z, b.x, b.y, b.z))
         except RefusedError as exc:
             return self._fail_entity(response, exc)
         return self._ok(response)
