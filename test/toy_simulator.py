@@ -223,6 +223,10 @@ VARIANTS: Dict[str, Tuple[str, Tuple[str, ...]]] = {
     'WORLD-NO-URI': ('GetCurrentWorld names the world loaded without its uri or resource '
                      'string (the kit cannot load it back, so it loads no other)',
                      ('WORLD-03', 'WORLD-08')),
+    'CLOCK-EVERY-5': ('/clock goes out at every fifth step only (and at a reset of the time), '
+                      'as r2d2_sim\'s with a publish_rate below its physics rate',
+                      ('STATE-14', 'STEP-06', 'STEP-07', 'ACTION-06', 'RESET-04', 'RESET-05',
+                       'RESET-10', 'RESET-13')),
 }
 # A hostile simulator: what the kit must bound (its time, what it prints).
 HOSTILE: Dict[str, str] = {
@@ -412,7 +416,9 @@ class ToySimulator:
             if publish:
                 self._publish_clock()
 
-    def _publish_clock(self) -> None:
+    def _publish_clock(self, always: bool = False) -> None:
+        if self.broken('CLOCK-EVERY-5') and self.step_count % 5 and not always:
+            return
         message = Clock()
         message.clock.sec, message.clock.nanosec = divmod(self.time_ns, 10**9)
         self.clock.publish(message)
@@ -460,7 +466,7 @@ class ToySimulator:
                                                             self.time_offset_ns // 2)
                 else:
                     self.step_count, self.time_offset_ns = 0, 0
-                self._publish_clock()
+                self._publish_clock(always=True)
 
     def _stop(self) -> None:
         with self.lock:

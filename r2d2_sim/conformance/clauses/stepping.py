@@ -82,7 +82,7 @@ def single_steps_on_clock(t: Target) -> None:
     if step_ns <= 0:
         raise ClauseFailed(f'one step moved the clock by {step_ns} ns')
     t.sim.step(1)
-    t.clock.expect(now + step_ns, 1, 'one more step')
+    t.clock.expect(now + step_ns, 1, 'one more step', step_ns)
 
 
 @clause(CLAUSES, 'STEP-07', 'N steps advance /clock by N steps', (MULTIPLE, SET, PAUSE),
@@ -93,7 +93,7 @@ def many_steps_on_clock(t: Target) -> None:
     t.sim.pause()
     now, step_ns = t.clock.step_ns()
     t.sim.step(10)
-    t.clock.expect(now + 10 * step_ns, 10, 'StepSimulation of 10')
+    t.clock.expect(now + 10 * step_ns, 10, 'StepSimulation of 10', step_ns)
 
 
 # -- ACTION -----------------------------------------------------------------------------
@@ -221,4 +221,4 @@ def goal_on_clock(t: Target) -> None:
     t.sim.pause()
     now, step_ns = t.clock.step_ns()
     t.sim.run_goal(10)
-    t.clock.expect(now + 10 * step_ns, 10, 'a SimulateSteps goal of 10')
+    t.clock.expect(now + 10 * step_ns, 10, 'a SimulateSteps goal of 10', step_ns)
