@@ -16,7 +16,8 @@ import errno
 import functools
 import math
 import os
-from typing import List, NamedTuple, Optional, Protocol, Sequence, Tuple
+from stat import S_ISREG
+from typing import FrozenSet, List, NamedTuple, Optional, Protocol, Sequence, Tuple
 import xml.etree.ElementTree as ElementTree
 from xml.sax.saxutils import quoteattr
 
@@ -30,7 +31,6 @@ from r2d2_sim.physics.description import (
     resolve_description_path)
 from r2d2_sim.sim.sdf.loading import SdfSettings, TriangleBudget
 from r2d2_sim.sim.sdf.mesh_cache import MeshCache
-from r2d2_sim.sim.sdf.resources import Resources
 from r2d2_sim.sim.sdf.spawning import is_sdf_spawn, read_sdf_spawnable
 
 __all__ = ['check_description', 'check_tree', 'read_description', 'convert_meshes', 'MeshUse',
@@ -243,12 +243,33 @@ def spawnable_uris() -> Tuple[str, ...]:
     return tuple(uri for uri in uris if _spawns(uri))
 
 
-def _spawns(uri: str) -> bool:
+def _spawns(uri: str, sdf: SdfSettings = SdfSettings()) -> bool:
+    """Return True when a spawn of ``uri`` would be taken: read and checked as one is."""
     try:
-        read_spawnable(uri, '')
+        spawnable = read_spawnable(uri, '', sdf)
     except RefusedError:
         return False
+    if spawnable.file is not None:
+        spawnable.file.close()
     return True
+
+
+@functools.lru_cache(maxsize=4096)
+def _file_spawns(path: str, size: int, mtime_ns: int, sdf: SdfSettings) -> bool:
+    """Return :func:`_spawns` of a file as it is now (its size and time): asked again, kept."""
+    return _spawns(path, sdf)
+
+
+@functools.lru_cache(maxsize=1)
+def _default_paths() -> FrozenSet[str]:
+    """Return the real paths of the files :func:`spawnable_uris` lists."""
+    paths = set()
+    for uri in spawnable_uris():
+        try:
+            paths.add(os.path.realpath(resolve_description_path(uri)))
+        except DescriptionError:  # gone since: nothing to leave out for it
+            pass
+    return frozenset(paths)
 
 
 def directory_spawnables(source: str, sdf: SdfSettings = SdfSettings()) -> Optional[List[str]]:
@@ -256,10 +277,13 @@ def directory_spawnables(source: str, sdf: SdfSettings = SdfSettings()) -> Optio
     Return the model files a spawn takes by path from a directory a GetSpawnables source names.
 
     ``source``: an absolute path, ``file://`` or ``package://`` (a package's
-    share directory). Its ``.urdf`` files, and its ``.sdf`` files when the
-    directory lies where ``sdf`` lets SDF models be read from (as a spawn
-    checks them); their paths, sorted, at most MAX_LISTED, their contents
-    not read (a spawn checks each). None when the source names no directory.
+    share directory). Its ``.urdf`` and ``.sdf`` files that a spawn takes,
+    each read and checked as a spawn reads it (a world SDF, a URDF with no
+    link are left out; an SDF model only where ``sdf`` lets SDF models be
+    read from), and not among :func:`spawnable_uris`' (listed already, under
+    their short names); their paths, sorted, at most MAX_LISTED. A file's
+    verdict is kept while its size and time stay. None when the source names
+    no directory.
     """
     path = source[len('file://'):] if source.startswith('file://') else source
     if path.startswith(PACKAGE_SCHEME):
@@ -274,19 +298,20 @@ def directory_spawnables(source: str, sdf: SdfSettings = SdfSettings()) -> Optio
         names = sorted(os.listdir(path))
     except OSError:
         return None
-    files = [os.path.join(path, name) for name in names
-             if name.lower().endswith(('.urdf', '.sdf'))]
-    return [file for file in files if os.path.isfile(file)
-            and (file.lower().endswith('.urdf') or _sdf_allowed(file, sdf))][:MAX_LISTED]
-
-
-def _sdf_allowed(path: str, sdf: SdfSettings) -> bool:
-    """Return True when an SDF spawn may read ``path`` (it lies in an allowed place)."""
-    try:
-        Resources(sdf.model_paths, roots=list(sdf.places)).model(path, os.getcwd(), None)
-    except RefusedError:
-        return False
-    return True
+    listed, defaults = [], _default_paths()
+    for name in names:
+        file = os.path.join(path, name)
+        if not name.lower().endswith(('.urdf', '.sdf')) or os.path.realpath(file) in defaults:
+            continue
+        try:
+            stat = os.stat(file)
+        except OSError:
+            continue
+        if S_ISREG(stat.st_mode) and _file_spawns(file, stat.st_size, stat.st_mtime_ns, sdf):
+            listed.append(file)
+            if len(listed) == MAX_LISTED:
+                break
+    return listed
 
 
 def box_urdf(size_m: Sequence[float] = (0.2, 0.2, 0.2), *, mass_kg: float = 0.0,

@@ -8,12 +8,15 @@ answered, are system/test_sim_interfaces_system.py's.
 """
 
 import math
+import os
 
 from geometry_msgs.msg import Accel, Point
+import pybullet_data
 import pytest
 from simulation_interfaces import msg, srv
 
 from common import BOX, FakeGoal
+from r2d2_sim.physics.description import resolve_description_path
 from r2d2_sim.sim.entities import MAX_SPAWNED
 from r2d2_sim.sim.spawnables import MAX_LINKS
 
@@ -215,10 +218,15 @@ def test_a_directory_source_adds_the_models_a_spawn_takes_from_it(r2d2_sim_facto
     A directory in GetSpawnables' sources adds its model files (they are additional).
 
     Its URDFs, which a spawn takes from anywhere; its SDF models only where SDF files
-    may be read from (``world_paths`` here). Each listed one spawns.
+    may be read from (``world_paths`` here). Each listed one spawns; what a spawn
+    refuses (a world, a URDF with no link) is not listed, nor a file twice.
     """
     (tmp_path / 'crate.urdf').write_text(BOX)
     (tmp_path / 'notes.txt').write_text('not a model')
+    (tmp_path / 'cloth.urdf').write_text('<robot name="cloth"/>')  # as torus_deform.urdf
+    (tmp_path / 'yard.sdf').write_text(
+        '<sdf version="1.9"><world name="yard"><model name="m"><static>true</static>'
+        '<link name="l"/></model></world></sdf>')
     (tmp_path / 'pillar.sdf').write_text(
         '<sdf version="1.9"><model name="pillar"><static>true</static><link name="l">'
         '<collision name="c"><geometry><box><size>0.2 0.2 1</size></box></geometry>'
@@ -230,7 +238,7 @@ def test_a_directory_source_adds_the_models_a_spawn_takes_from_it(r2d2_sim_facto
     every = [s.uri for s in call('get_spawnables', srv.GetSpawnables,
                                  srv.GetSpawnables.Request()).spawnables]
     reply = call('get_spawnables', srv.GetSpawnables,
-                 srv.GetSpawnables.Request(sources=[f'file://{tmp_path}/']))
+                 srv.GetSpawnables.Request(sources=[f'file://{tmp_path}/', str(tmp_path)]))
     added = [s.uri for s in reply.spawnables][len(every):]
     assert code(reply) == OK and reply.result.error_message == ''
     sdf = [str(tmp_path / 'pillar.sdf')] if allowed else []
@@ -239,6 +247,16 @@ def test_a_directory_source_adds_the_models_a_spawn_takes_from_it(r2d2_sim_facto
         request = spawn_request(name=f'listed_{index}', resource_string='', uri=uri)
         request.initial_pose.pose.position.y = 2.0 + index
         assert code(call('spawn_entity', srv.SpawnEntity, request)) == OK
+
+
+def test_a_directory_source_lists_nothing_listed_already(standard):
+    """pybullet_data's own directory: its URDFs are listed by their short names, not again."""
+    every = standard('get_spawnables', srv.GetSpawnables, srv.GetSpawnables.Request())
+    reply = standard('get_spawnables', srv.GetSpawnables,
+                     srv.GetSpawnables.Request(sources=[pybullet_data.getDataPath()]))
+    assert code(reply) == OK and reply.result.error_message == ''
+    paths = [os.path.realpath(resolve_description_path(s.uri)) for s in reply.spawnables]
+    assert len(paths) == len(set(paths)) and len(paths) >= len(every.spawnables) > 30
 
 
 def apart(number):

@@ -312,8 +312,8 @@ class EntityServices(Replies):
 
         Each source adds to those (the standard's "additional sources"): a
         directory (a path, ``file://``, ``package://``) its ``.urdf`` and ``.sdf``
-        files; one named above adds nothing; others are named in the reply's
-        error_message, which stays OK.
+        files a spawn takes, each once; one named above adds nothing; others
+        are named in the reply's error_message, which stays OK.
         """
         known = SPAWNABLE_DIRECTORIES + ('pybullet_data',)
         for uri in spawnable_uris():
@@ -321,6 +321,7 @@ class EntityServices(Replies):
             response.spawnables.append(self._msg.Spawnable(uri=uri,
                                                            description=f'URDF from {source}'))
         unknown = []
+        listed = {spawnable.uri for spawnable in response.spawnables}
         for source in (source.rstrip('/') for source in request.sources):
             if source in known:
                 continue
@@ -328,10 +329,12 @@ class EntityServices(Replies):
             if files is None:
                 unknown.append(source)
                 continue
-            response.spawnables.extend(
-                self._msg.Spawnable(uri=path, description=f'{path.rpartition(".")[2].upper()} '
-                                                          f'from {source[:200]}')
-                for path in files)
+            for path in files:
+                if path not in listed:  # a directory named twice (a path, then file://)
+                    listed.add(path)
+                    response.spawnables.append(self._msg.Spawnable(
+                        uri=path, description=f'{path.rpartition(".")[2].upper()} from '
+                                              f'{source[:200]}'))
         self._ok(response)
         if unknown:
             response.result.error_message = ('unknown sources left out (not a directory): '
