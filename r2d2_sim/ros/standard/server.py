@@ -22,7 +22,10 @@ while playing fails without a step; STOPPED is paused at time 0 in the initial
 world, and pausing from it is an incorrect transition; the reset scope is a
 bitfield; twists are in the world frame. After UnloadWorld the state is
 NO_WORLD ("inactive and cannot be started, stopped, or paused") until a
-LoadWorld, which leaves it STOPPED; while one runs, it is LOADING_WORLD.
+LoadWorld, which leaves it STOPPED; while one runs, it is LOADING_WORLD: the
+old world runs on until the swap (not "inactive"), but nothing can be started,
+stopped, paused, stepped or reset meanwhile, which PLAYING or PAUSED would
+promise (docs/changing-the-world.md).
 """
 
 import json
