@@ -265,15 +265,20 @@ def _report(kit: Kit, outcomes: List[Outcome], args: argparse.Namespace) -> int:
     print(summary(outcomes, f'prefix {kit.target.prefix!r}'))
     properties = {'prefix': kit.target.prefix, 'domain_id': str(kit.target.domain_id),
                   'features': ' '.join(sorted(kit.target.features or ()))}
-    try:
-        if args.junit:
-            write_junit(outcomes, args.junit, properties)
-        if args.markdown:
-            with open(args.markdown, 'w', encoding='utf-8') as handle:
-                handle.write(markdown_matrix(outcomes))
-    except OSError as exc:
-        print(f'{PROG}: error: cannot write {exc.filename}: {exc.strerror}', file=sys.stderr)
-        return 2
+
+    def write_markdown(path: str) -> None:
+        with open(path, 'w', encoding='utf-8') as handle:
+            handle.write(markdown_matrix(outcomes))
+    writes = ((args.junit, lambda path: write_junit(outcomes, path, properties)),
+              (args.markdown, write_markdown))
+    for path, write in writes:
+        if not path:
+            continue
+        try:
+            write(path)
+        except OSError as exc:  # named here: a failed write (a full disk) has no filename
+            print(f'{PROG}: error: cannot write {path}: {exc.strerror or exc}', file=sys.stderr)
+            return 2
     status = exit_status(outcomes)
     for problem in kit.setup_problems():  # the user's world or asset, refused: one line each
         print(f'{PROG}: error: {problem}', file=sys.stderr)

@@ -93,6 +93,17 @@ def test_an_output_the_kit_cannot_write_is_refused_before_it_connects(capsys, tm
         assert out == '' and err == f'sim_conformance: error: {says}\n', (out, err)
 
 
+@pytest.mark.parametrize('option', ['--junit', '--markdown'])
+def test_an_output_whose_write_fails_is_named_in_one_line(capsys, option):
+    """A full disk (/dev/full): the line names the file the user gave, status 2."""
+    status = main([option, '/dev/full', '--prefix', '/nobody', '--domain',
+                   str(next_domain_id()), '--only', 'FEAT-01', '--timeout', '1'])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert err.splitlines()[-1] == ('sim_conformance: error: cannot write /dev/full: No space '
+                                    'left on device'), err
+
+
 @pytest.mark.parametrize('world', ['yard', None])
 def test_a_world_the_simulator_refuses_exits_2_with_one_setup_line(capsys, world):
     """
