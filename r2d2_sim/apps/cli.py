@@ -187,17 +187,45 @@ def stop_on_signals(stop: Optional[threading.Event] = None) -> threading.Event:
     SIGHUP (the terminal closed, the SSH session dropped) killed the process
     before it could finish its recording; it stops it as SIGTERM does, unless
     the process was started ignoring it (``nohup``), which is kept.
+
+    The handler takes no lock: Python runs it in the main thread between two
+    bytecodes, which may be inside ``stop.wait()`` or ``stop.set()`` with the
+    event's lock held (``sim_node``'s loop waits on it hundreds of times a
+    second while paused); setting the event there waited for that lock
+    forever, and the process ignored SIGTERM and SIGINT (seen once). It
+    writes a byte down a pipe, and a thread of its own sets the event.
     """
     stop = threading.Event() if stop is None else stop
+    wake = _set_from_a_thread(stop)
 
     def handler(signum: int, frame: Optional[FrameType]) -> None:
-        stop.set()
+        wake()
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     hangup = getattr(signal, 'SIGHUP', None)  # not on Windows
     if hangup is not None and signal.getsignal(hangup) is not signal.SIG_IGN:
         signal.signal(hangup, handler)
     return stop
+
+
+def _set_from_a_thread(stop: threading.Event) -> Callable[[], None]:
+    """Return ``wake()``, which takes no lock, and a thread that sets ``stop`` at the first."""
+    read_end, write_end = os.pipe()  # neither inherited by a child
+    os.set_blocking(write_end, False)
+
+    def relay() -> None:
+        try:
+            os.read(read_end, 1)
+        finally:
+            stop.set()
+    threading.Thread(target=relay, name='stop_on_signals', daemon=True).start()
+
+    def wake() -> None:
+        try:
+            os.write(write_end, b'\0')
+        except OSError:  # the pipe is full: the thread has a byte to wake to already
+            pass
+    return wake
 
 
 def raise_if_stopped(stop: threading.Event) -> None:
