@@ -21,7 +21,8 @@ from typing import Any, Iterable, List, Sequence
 
 from r2d2_sim.sim.settings.table import PARAMETERS, PARAMETERS_BY_NAME
 
-__all__ = ['ROS_OWN_PARAMETERS', 'NO_QOS_OVERRIDES', 'plain_value', 'is_ros_value', 'unknown_parameters']
+__all__ = ['ROS_OWN_PARAMETERS', 'NO_QOS_OVERRIDES', 'plain_value', 'is_ros_value',
+           'unknown_parameters']
 
 # rclpy's own parameters, which every node declares.
 ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
