@@ -180,6 +180,24 @@ def non_ros_args(argv: Sequence[str], prog: str) -> List[str]:
         raise SystemExit(2)
 
 
+class SignalledEvent(threading.Event):
+    """
+    An event a signal handler sets without a lock: :meth:`is_set` is true from the signal on.
+
+    :func:`stop_on_signals` sets :attr:`signalled` (a plain attribute) in
+    the handler, and the event itself from a thread a moment later: a check
+    made right after the signal (the demo's, as it stops spinning) sees it.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.signalled = False
+
+    def is_set(self) -> bool:
+        """Return True once a signal came or the event was set."""
+        return self.signalled or super().is_set()
+
+
 def stop_on_signals(stop: Optional[threading.Event] = None) -> threading.Event:
     """
     Return an event (``stop``, or a new one) that SIGINT, SIGTERM and SIGHUP set from now on.
@@ -193,13 +211,16 @@ def stop_on_signals(stop: Optional[threading.Event] = None) -> threading.Event:
     event's lock held (``sim_node``'s loop waits on it hundreds of times a
     second while paused); setting the event there waited for that lock
     forever, and the process ignored SIGTERM and SIGINT (seen once). It
-    writes a byte down a pipe, and a thread of its own sets the event.
+    writes a byte down a pipe, and a thread of its own sets the event; a
+    :class:`SignalledEvent` (the default) reads as set at once.
     """
-    stop = threading.Event() if stop is None else stop
-    wake = _set_from_a_thread(stop)
+    stop = SignalledEvent() if stop is None else stop
 
     def handler(signum: int, frame: Optional[FrameType]) -> None:
+        if isinstance(stop, SignalledEvent):
+            stop.signalled = True
         wake()
+    wake = _set_from_a_thread(stop)
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     hangup = getattr(signal, 'SIGHUP', None)  # not on Windows

@@ -58,7 +58,7 @@ MAX_REASONS = 3
 # --rate: 1e-12 made a wait between two messages longer than the platform can sleep.
 RATE_RANGE = (1.0e-6, 1.0e6)
 # --max-gib: 1e300 GiB is no number of bytes (int(inf)).
-MAX_GIB_RANGE = (0.001, 1.0e6)
+MAX_GIB_RANGE = (1.0e-6, 1.0e6)  # from about a kilobyte
 # The longest single wait for a message's time (wall s); threading's waits refuse more than
 # threading.TIMEOUT_MAX (292 years), which a file's log times (uint64 ns) may be apart.
 MAX_WAIT_S = 3600.0

@@ -18,7 +18,7 @@ import traceback
 from types import FrameType
 from typing import Callable, List, Optional, Sequence, TYPE_CHECKING
 
-from r2d2_sim.apps.cli import ros_start_problem, stop_on_signals
+from r2d2_sim.apps.cli import ros_start_problem, SignalledEvent, stop_on_signals
 from r2d2_sim.memory import keep_large_blocks_mapped
 
 if TYPE_CHECKING:  # only the standard library is imported here (see the module)
@@ -180,7 +180,7 @@ def _import_stopping_at_once() -> threading.Event:
     The imports take 0.25 s, seconds on a loaded machine, and a stop request
     would otherwise wait for them. Returns the event the signals set from then on.
     """
-    stop = threading.Event()
+    stop = SignalledEvent()
 
     def exit_at_once(signum: int, frame: Optional[FrameType]) -> None:
         # Nothing is built yet: the process ends here. A SystemExit raised instead could

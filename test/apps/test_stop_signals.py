@@ -67,3 +67,19 @@ def test_a_signal_while_the_main_thread_holds_the_event_lock_stops_it():
     except subprocess.TimeoutExpired:
         pytest.fail('the signal handler waited for the lock its own thread held')
     assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_a_signal_reads_as_stopped_at_once(monkeypatch):
+    """The event is set from a thread; a check right after the signal must see it all the same."""
+    from r2d2_sim.apps import cli
+    monkeypatch.setattr(cli, '_set_from_a_thread', lambda stop: lambda: None)  # never set
+    saved = {number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGTERM,
+                                                             signal.SIGHUP)}
+    try:
+        stop = cli.stop_on_signals()
+        assert not stop.is_set()
+        signal.getsignal(signal.SIGTERM)(signal.SIGTERM, None)
+        assert stop.is_set()  # the demo's check as it stops spinning: exit 130, not 0
+    finally:
+        for number, handler in saved.items():
+            signal.signal(number, handler)

@@ -160,7 +160,7 @@ def test_a_bad_file_is_one_error_line_and_status_2(recording, tmp_path, content,
     (['--rate', '0'], ["replay: error: argument --rate: must be in [1e-06, 1e+06], got '0'"]),
     # These two passed, then crashed: a wait past what the platform sleeps, int(inf).
     (['--rate', '1e-12'], ["argument --rate: must be in [1e-06, 1e+06], got '1e-12'"]),
-    (['--max-gib', '1e300'], ["argument --max-gib: must be in [0.001, 1e+06] GiB, got '1e300'"]),
+    (['--max-gib', '1e300'], ["argument --max-gib: must be in [1e-06, 1e+06] GiB, got '1e300'"]),
     (['--ros-args', '-r'], ['replay: error: bad ROS arguments']),
     (['--ros-args', '-p', 'use_sim_time:=1'],
      ['replay: error: parameter use_sim_time must be true or false, got 1 (an integer)']),
