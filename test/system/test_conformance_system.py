@@ -81,9 +81,11 @@ def test_sim_node_passes_every_clause_it_declares(r2d2_sim_process, tmp_path):
     assert sim.standard.entities() == ['ground_plane', 'r2d2', 'room']
 
 
-# The clauses that time steps by /clock.
-CLOCK_CLAUSES = ('STATE-14', 'STEP-06', 'STEP-07', 'ACTION-06', 'RESET-04', 'RESET-05',
-                 'RESET-10', 'RESET-13')
+# Of the eight clauses that time steps by /clock (STATE-14, STEP-06, STEP-07, ACTION-06,
+# RESET-04, RESET-05, RESET-10, RESET-13), one of each verb: a step, the action, a reset.
+# All eight take 17 s here, each check of a quiet clock waiting 0.25 s; the toy simulator's
+# clock-every-fifth-step variant runs all eight (test_conformance_toy.py).
+CLOCK_CLAUSES = ('STEP-06', 'ACTION-06', 'RESET-04')
 
 
 def test_sim_node_publishing_the_clock_every_few_steps_passes_the_clock_clauses(
