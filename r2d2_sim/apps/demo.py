@@ -131,7 +131,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--output-dir', default='demo_output', metavar='DIR',
                         help=f'where to write the plot {PLOT_NAME} and the camera snapshot '
                              f'{SNAPSHOT_NAME} (both replaced) and the recording '
-                             f'{RECORDING_NAME} (refused if it exists) (default ./demo_output)')
+                             f'{RECORDING_NAME} (run-2.mcap, run-3.mcap... if it exists: none '
+                             'is overwritten) (default ./demo_output)')
     parser.add_argument('--real-time-factor', type=real_time_factor_arg, default=1.0,
                         metavar='X', help='simulated seconds per wall second, 1e-6 to 1000; '
                                           '0 runs as fast as possible, in lockstep (default 1)')
@@ -229,6 +230,22 @@ def _run_lockstep(driver: ManoeuvreDriver, executor: Executor, simulator: 'SimPr
             simulator.send_cmd_vel(twist=commands.pop(0))
 
 
+def free_recording(output_dir: Path) -> Path:
+    """
+    Return where this run records: ``run.mcap``, or the first of ``run-2.mcap``... not taken.
+
+    sim_node's ``record`` refuses a file that exists (it could be anyone's),
+    and the demo run twice into its default folder must work: each run keeps
+    its own recording, and none of them, or anything else there, is replaced.
+    """
+    stem, suffix = os.path.splitext(RECORDING_NAME)
+    path, number = output_dir / RECORDING_NAME, 1
+    while os.path.lexists(path):
+        number += 1
+        path = output_dir / f'{stem}-{number}{suffix}'
+    return path
+
+
 def _write_pictures(driver: ManoeuvreDriver, output_dir: Path) -> None:
     plot = write_trajectory_plot(output_dir.absolute() / PLOT_NAME, driver.odom_xy,
                                  driver.truth_xy, driver.scan_xy)
@@ -258,7 +275,7 @@ def _run(options: argparse.Namespace, stop: threading.Event) -> int:
         raise_if_stopped(stop)
         if found:
             raise DemoError(ANOTHER_SIMULATOR)
-        recording = options.output_dir.absolute() / RECORDING_NAME
+        recording = options.recording.absolute()
         simulator = _start_simulator(options.real_time_factor, options.domain_id, recording)
         raise_if_stopped(stop)
         started_s = time.monotonic()
@@ -315,11 +332,7 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     except OSError as exc:
         _error(f'cannot create the output directory: {exc}')
         return 1
-    recording = options.output_dir / RECORDING_NAME
-    if os.path.lexists(recording):  # as sim_node's record refuses it: perhaps a user's own
-        _error(f'{recording} exists: the demo does not overwrite a recording; move it away or '
-               'give another --output-dir')
-        return 2
+    options.recording = free_recording(options.output_dir)
     # Discovery must stay on this host; set before rclpy.init and inherited by the child.
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     if options.domain_id is not None:

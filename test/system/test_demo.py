@@ -61,6 +61,7 @@ def test_demo_refuses_a_domain_another_simulator_publishes_on(tmp_path, domain_i
 
 
 def test_demo_turns_then_drives_and_writes_a_plot(tmp_path, domain_id):
+    (tmp_path / 'run.mcap').write_text('a recording of mine\n')  # kept: this run's is run-2
     started = time.monotonic()
     result = subprocess.run(demo_command(tmp_path, domain_id, 0), env=ros_env(domain_id),
                             cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
@@ -82,7 +83,8 @@ def test_demo_turns_then_drives_and_writes_a_plot(tmp_path, domain_id):
     assert plot.read_bytes()[:8] == PNG_SIGNATURE
     snapshot = tmp_path / 'head_camera.png'
     assert f'head camera snapshot: {snapshot}' in result.stdout, report
-    recording = tmp_path / 'run.mcap'
+    assert (tmp_path / 'run.mcap').read_text() == 'a recording of mine\n'
+    recording = tmp_path / 'run-2.mcap'
     assert f'recording: {recording}' in result.stdout, report
     from mcap.reader import make_reader
     with open(recording, 'rb') as stream:  # closed, with its summary
@@ -255,25 +257,15 @@ def test_demo_rejects_bad_arguments_before_anything_starts(tmp_path, domain_id, 
     assert not (tmp_path / 'run.mcap').exists()
 
 
-@pytest.mark.parametrize('kind', ['file', 'directory'])
-def test_demo_refuses_to_overwrite_a_recording(tmp_path, domain_id, kind):
-    """A run.mcap in the output directory (a user's own, perhaps) is kept: one line, exit 2."""
-    existing = tmp_path / 'run.mcap'
-    if kind == 'file':
-        existing.write_text('a recording of mine\n')
-    else:
-        existing.mkdir()
-    result = subprocess.run(demo_command(tmp_path, domain_id, 0), env=ros_env(domain_id),
-                            cwd=REPO_ROOT, capture_output=True, text=True, timeout=60)
-    assert result.returncode == 2, result.stdout + result.stderr
-    assert result.stderr.splitlines() == [
-        f'demo: error: {existing} exists: the demo does not overwrite a recording; move it '
-        'away or give another --output-dir'], result.stderr
-    if kind == 'file':
-        assert existing.read_text() == 'a recording of mine\n'
-    else:
-        assert existing.is_dir()
-    assert simulators_in_domain(domain_id) == []
+def test_a_run_records_beside_what_is_there_and_replaces_none_of_it(tmp_path):
+    """run.mcap taken (a file, or a directory): run-2.mcap; then run-3.mcap. Nothing replaced."""
+    from r2d2_sim.apps.demo import free_recording
+    assert free_recording(tmp_path) == tmp_path / 'run.mcap'
+    (tmp_path / 'run.mcap').mkdir()
+    assert free_recording(tmp_path) == tmp_path / 'run-2.mcap'
+    (tmp_path / 'run-2.mcap').write_text('a recording of mine\n')
+    (tmp_path / 'run-3.mcap').symlink_to(tmp_path / 'nowhere')  # a dangling link is taken too
+    assert free_recording(tmp_path) == tmp_path / 'run-4.mcap'
 
 
 @pytest.mark.parametrize('module', ['r2d2_sim.apps.drive', 'r2d2_sim.apps.demo'])
