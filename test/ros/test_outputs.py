@@ -174,26 +174,16 @@ def test_real_frames_round_trip(simulation):
 def test_tf_output_publishes_exactly_the_typed_transforms():
     """/tf with odometry, ground truth and the package R2D2's links: every transform, stamp."""
     from r2d2_sim.ros.tf_outputs import link_transforms, TfOutput
-    from r2d2_sim.model.transforms import compose, IDENTITY, inverse, normalised, Transform
+    from r2d2_sim.model.transforms import compose, inverse, Transform
     config = parse_config({'publish_ground_truth_tf': True, 'frame_prefix': 'abc/'})
     simulation = Simulation(config)
     links = link_transforms(config, simulation.robot)
-    node = RecordingNode()
-    output = TfOutput(node, config, simulation.robot, links)
-    rng = random.Random(11)
-    frames = [random_frame(rng, len(simulation.robot.movable), True) for _ in range(FRAMES)]
-    for frame in frames:
-        output.publish(frame)
-    published_tf = published(node.publishers['/tf'])
+    frames, published_tf = tf_published(TfOutput, config, simulation, links, 11, True)
     assert len(published_tf) == FRAMES
     for frame, msg in zip(frames, published_tf):
-        o, base = frame.odometry, frame.base
+        o = frame.odometry
         odom = Transform((o.x_m, o.y_m, 0.0), yaw_to_quaternion(o.yaw_rad))
-        # The whole true pose, below it the static footprint -> base: the chain ends there.
-        footprint_base = Transform((0.0, 0.0, simulation.robot.footprint_height_m),
-                                   IDENTITY.rotation)
-        truth = compose(Transform(base.position, normalised(base.orientation)),
-                        inverse(footprint_base))
+        truth = true_footprint(frame, simulation.robot.footprint_height_m)
         expected = [('abc/odom', 'abc/base_footprint', odom),
                     ('world', 'abc/odom', compose(truth, inverse(odom)))]
         expected += [('abc/' + j.parent_link, 'abc/' + j.child_link, j.transform)
@@ -208,27 +198,39 @@ def test_tf_output_publishes_exactly_the_typed_transforms():
     simulation.close()
 
 
+def tf_published(tf_output, config, simulation, links, seed, odometry):
+    """Publish FRAMES random frames of ``simulation``'s robot; return them and the /tf sent."""
+    node = RecordingNode()
+    output = tf_output(node, config, simulation.robot, links)
+    rng = random.Random(seed)
+    frames = [random_frame(rng, len(simulation.robot.movable), odometry)
+              for _ in range(FRAMES)]
+    for frame in frames:
+        output.publish(frame)
+    return frames, published(node.publishers['/tf'])
+
+
+def true_footprint(frame, footprint_height_m):
+    """Return the footprint under the frame's true body pose (footprint -> base undone)."""
+    from r2d2_sim.model.transforms import compose, IDENTITY, inverse, normalised, Transform
+    base = frame.base
+    return compose(Transform(base.position, normalised(base.orientation)),
+                   inverse(Transform((0.0, 0.0, footprint_height_m), IDENTITY.rotation)))
+
+
 def test_tf_output_of_a_robot_without_wheels_is_world_to_footprint_from_the_truth():
     """With ground truth and no wheels (no odom): world -> footprint, the truth less its height."""
     from r2d2_sim.ros.tf_outputs import TfOutput
-    from r2d2_sim.model.transforms import compose, IDENTITY, inverse, normalised, Transform
     config = parse_config({**ROBOTS['robot without wheels'], 'publish_ground_truth_tf': True})
     simulation = Simulation(config)
     try:
-        node = RecordingNode()
-        output = TfOutput(node, config, simulation.robot, None)
-        rng = random.Random(12)
-        frames = [random_frame(rng, len(simulation.robot.movable), False) for _ in range(FRAMES)]
-        for frame in frames:
-            output.publish(frame)
+        frames, published_tf = tf_published(TfOutput, config, simulation, None, 12, False)
         height_m = simulation.robot.footprint_height_m
     finally:
         simulation.close()
-    assert not output.empty
-    for frame, msg in zip(frames, published(node.publishers['/tf']), strict=True):
-        base = frame.base
-        expected = compose(Transform(base.position, normalised(base.orientation)),
-                           inverse(Transform((0.0, 0.0, height_m), IDENTITY.rotation)))
+    assert published_tf
+    for frame, msg in zip(frames, published_tf, strict=True):
+        expected = true_footprint(frame, height_m)
         (t,) = msg.transforms
         assert (t.header.frame_id, t.child_frame_id) == ('world', 'base_footprint')
         tr, r = t.transform.translation, t.transform.rotation
