@@ -42,7 +42,7 @@ from typing import (Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Pr
                     Tuple, Union)
 
 from r2d2_sim.farm.scenario import Scenario, ScenarioError, ScenarioSpace
-from r2d2_sim.sim.settings.given import is_ros_value, plain_value, unknown_parameters
+from r2d2_sim.sim.settings.given import checked_parameters
 
 __all__ = ['FarmJob', 'JobSource', 'ItemJob', 'Item', 'TaskResult', 'run_variation',
            'prepare', 'RECORD_MODES', 'describe', 'LOAD_FAILED', 'load_failure']
@@ -93,7 +93,12 @@ class FarmJob:
                                 f'{type(self.controller).__name__}')
         if not (0.0 < float(self.seconds) < float('inf')):
             raise ScenarioError(f'seconds must be > 0 and finite, got {self.seconds}')
-        object.__setattr__(self, 'parameters', _parameters(dict(self.parameters)))
+        # numpy's numbers made Python's, tuples lists: a farm's identity is JSON, and ROS
+        # takes Python's values. A value no ROS parameter holds or a name the simulator
+        # does not read is refused here, before anything runs (inside each variation it
+        # failed every one of them).
+        object.__setattr__(self, 'parameters',
+                           checked_parameters(dict(self.parameters), ScenarioError))
 
     @property
     def listed(self) -> bool:
@@ -120,30 +125,6 @@ class FarmJob:
     def case_name(self, key: int) -> str:
         """Return the name of a variation in the report: ``name[key]``."""
         return f'{self.name}[{key}]'
-
-
-def _parameters(given: Mapping[Any, Any]) -> Dict[str, Any]:
-    """
-    Return the simulator's parameters as plain Python; ScenarioError (one line) if they cannot be.
-
-    numpy's numbers (``numpy.int64(3)``, ``numpy.float32``, ``numpy.bool_``)
-    become Python's int, float and bool, tuples lists (:func:`plain_value`): a
-    farm's identity is JSON, and a ROS parameter takes Python's. A value no
-    ROS parameter holds (None, a dict, an object) and a name the simulator
-    does not read are refused here, before anything runs: inside each
-    variation they failed every one of them.
-    """
-    parameters = {str(name): plain_value(value) for name, value in given.items()}
-    for name, value in parameters.items():
-        if not is_ros_value(value):
-            raise ScenarioError(f'parameter {name}: a {type(value).__name__} is no ROS parameter '
-                                'value (bool, int, float, str or a list of them)')
-    robots = parameters.get('robots', [])
-    unknown = unknown_parameters(parameters, [str(r) for r in robots]
-                                 if isinstance(robots, list) else [])
-    if unknown:
-        raise ScenarioError('; '.join(unknown))
-    return parameters
 
 
 def describe(job: FarmJob) -> Dict[str, Any]:

@@ -21,7 +21,7 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 
 from r2d2_sim.client import command_twist, stamp_ns, twist_message, twist_stamped_message
-from r2d2_sim.sim.settings.given import is_ros_value, plain_value, unknown_parameters
+from r2d2_sim.sim.settings.given import checked_parameters
 from r2d2_sim.sim.settings.robots import robot_namespaces
 from r2d2_sim.sim.settings.table import ConfigError
 from r2d2_sim.testing.executor import HarnessError
@@ -115,17 +115,8 @@ def simulator_parameters(parameters: Mapping[str, Any],
             if own is not None and not isinstance(own, Mapping):
                 raise refused(f'robots: robot {name!r} takes a dict of its parameters '
                               f'(or None), got {type(own).__name__} {own!r:.40}')
-    flat = {k: plain_value(v) for k, v in flatten_robots(parameters).items() if v is not None}
-    for name, value in flat.items():
-        if not is_ros_value(value):
-            raise refused(f'parameter {name}: a {type(value).__name__} is no ROS parameter '
-                          'value (a bool, number, string or list of one of those)')
-    robots = flat.get('robots')
-    unknown = unknown_parameters(flat, [str(r) for r in robots]
-                                 if isinstance(robots, (list, tuple)) else [])
-    if unknown:
-        raise refused('; '.join(unknown))
-    return flat
+    return checked_parameters(
+        {k: v for k, v in flatten_robots(parameters).items() if v is not None}, refused)
 
 
 def flatten_robots(parameters: Mapping[str, Any]) -> Dict[str, Any]:

@@ -12,17 +12,19 @@ numbers or paths, and checks it here before anything starts:
 - :func:`is_ros_value`: whether a value is one of those (a scalar, or a
   list of scalars);
 - :func:`unknown_parameters`: a line for each name the simulator does not
-  read, with the nearest it does.
+  read, with the nearest it does;
+- :func:`checked_parameters`: all three, as the harnesses and the farm's
+  jobs ask before anything starts.
 """
 
 import difflib
 import os
-from typing import Any, Iterable, List, Sequence
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Sequence
 
 from r2d2_sim.sim.settings.table import PARAMETERS, PARAMETERS_BY_NAME
 
 __all__ = ['ROS_OWN_PARAMETERS', 'NO_QOS_OVERRIDES', 'plain_value', 'is_ros_value',
-           'unknown_parameters']
+           'unknown_parameters', 'checked_parameters']
 
 # rclpy's own parameters, which every node declares.
 ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
@@ -104,3 +106,26 @@ def unknown_parameters(names: Iterable[str], robots: Sequence[str]) -> List[str]
             hint = f' (did you mean {robot + "." if dot else ""}{close[0]}?)' if close else ''
         problems.append(f'unknown parameter {name}{hint}')
     return problems
+
+
+def checked_parameters(given: Mapping[Any, Any],
+                       refused: Callable[[str], Exception]) -> Dict[str, Any]:
+    """
+    Return ``given`` as the simulator's parameters, plain (:func:`plain_value`).
+
+    Raises ``refused(line)`` for a value no ROS parameter holds (None, a
+    dict, an object) and for names the simulator does not read (the node's
+    own words, with its did-you-mean; ``ROBOT.parameter`` of a robot that
+    ``robots`` lists is read).
+    """
+    parameters = {str(name): plain_value(value) for name, value in given.items()}
+    for name, value in parameters.items():
+        if not is_ros_value(value):
+            raise refused(f'parameter {name}: a {type(value).__name__} is no ROS parameter '
+                          'value (a bool, number, string or list of one of those)')
+    robots = parameters.get('robots')
+    unknown = unknown_parameters(parameters, [str(r) for r in robots]
+                                 if isinstance(robots, list) else [])
+    if unknown:
+        raise refused('; '.join(unknown))
+    return parameters
