@@ -241,12 +241,8 @@ def play(recording: Recording, publishers: Dict[int, 'Publisher'], rate: float,
         if start_wall is None:
             start_wall, start_log = time.monotonic(), log_time
         due = start_wall + (log_time - start_log) * 1e-9 / rate
-        wait_s = due - time.monotonic()
-        while wait_s > MAX_WAIT_S and not stop.is_set():
-            stop.wait(MAX_WAIT_S)
-            wait_s = due - time.monotonic()
-        if wait_s > 0.0 and not stop.is_set():
-            stop.wait(wait_s)
+        while not stop.is_set() and (wait_s := due - time.monotonic()) > 0.0:
+            stop.wait(min(wait_s, MAX_WAIT_S))  # in parts: the platform's waits are bounded
         raise_if_stopped(stop)
         publishers[channel_id].publish(data)
         count += 1
