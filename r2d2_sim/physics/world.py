@@ -267,8 +267,7 @@ class SimWorld:
                     loading=Loading(path, (x, y, z), (qx, qy, qz, qw), flags,
                                     file_stamp(_found(path))))
         bodies[name] = body
-        hiding = (self._hidden_ray_groups if into is None
-                  else any(other.hidden_ray_groups for other in bodies.values()))
+        hiding = self._hidden_ray_groups if into is None else self._hidden_in(bodies)
         if hiding and body.sets_own_collision_filters:
             self._show_hidden(bodies)  # a hidden link's contacts with it could differ
         return body
@@ -371,9 +370,15 @@ class SimWorld:
         shown = [body.show_to_rays() for body in bodies.values()]
         if any(shown) and bodies is self.bodies:
             self.compact()
-        self._hidden_ray_groups = 0
-        for body in self.bodies.values():
-            self._hidden_ray_groups |= body.hidden_ray_groups
+        self._hidden_ray_groups = self._hidden_in(self.bodies)
+
+    @staticmethod
+    def _hidden_in(bodies: Dict[str, Body]) -> int:
+        """Return the ray groups hidden from every ray among ``bodies`` (bits; 0: none)."""
+        hidden = 0
+        for body in bodies.values():
+            hidden |= body.hidden_ray_groups
+        return hidden
 
     def release_ray_group(self, group: int) -> None:
         """Give a ray group back (its robot left the world)."""
@@ -528,9 +533,7 @@ class SimWorld:
                                         physicsClientId=build.client._client)
         self.bodies = dict(build.bodies)
         self._free_ray_groups = build.free_ray_groups
-        self._hidden_ray_groups = 0
-        for body in self.bodies.values():
-            self._hidden_ray_groups |= body.hidden_ray_groups
+        self._hidden_ray_groups = self._hidden_in(self.bodies)
         self.removed_since_built = 0
         self.builds += 1  # states saved before are gone with the old physics world
         build.twins.clear()
