@@ -7,11 +7,12 @@ subprocess that reports what it saw as one JSON line.
 
 import json
 import os
+import select
 import shutil
 import subprocess
 import sys
 
-from helpers import next_domain_id, ros_env, wait_for
+from helpers import next_domain_id, ros_env
 import pytest
 
 GUI_SCRIPT = r'''
@@ -72,19 +73,24 @@ def display():
     if binary is None:
         pytest.skip('Xvfb is not installed and cannot be installed here '
                     '(needs root and apt-get: Debian package xvfb)')
-    process = None
-    for number in range(100 + os.getpid() % 100, 300):
-        if os.path.exists(f'/tmp/.X{number}-lock'):
-            continue
-        process = subprocess.Popen(
-            [binary, f':{number}', '-screen', '0', '800x600x24', '-nolisten', 'tcp'],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        socket = f'/tmp/.X11-unix/X{number}'
-        wait_for(lambda: os.path.exists(socket) or process.poll() is not None, 10.0)
-        if process.poll() is None and os.path.exists(socket):
-            break
-        process = None  # lost a race for this number: try the next
-    assert process is not None, 'could not start Xvfb on any display'
+    # Xvfb picks a free display itself and writes its number down the pipe once it takes
+    # connections (-displayfd): a socket file seen on disk could be a stale one, and the
+    # display not ready ("cannot connect to X server", seen once in CI).
+    read_end, write_end = os.pipe()
+    process = subprocess.Popen(
+        [binary, '-displayfd', str(write_end), '-screen', '0', '800x600x24', '-nolisten', 'tcp'],
+        pass_fds=(write_end,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    os.close(write_end)
+    try:
+        ready, _, _ = select.select([read_end], [], [], 10.0)
+        reported = os.read(read_end, 16).strip() if ready else b''
+    finally:
+        os.close(read_end)
+    if not reported.isdigit():
+        process.kill()
+        process.wait()
+        raise AssertionError('Xvfb reported no display within 10 s')
+    number = int(reported)
     try:
         yield f':{number}'
     finally:
