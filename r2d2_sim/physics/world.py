@@ -18,6 +18,7 @@ from functools import partial
 import math
 import os
 import socket
+import sys
 from typing import (
     Collection, Dict, Iterator, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union)
 
@@ -95,23 +96,31 @@ def display_problem(environ: Mapping[str, str] = os.environ) -> Optional[str]:
                 'under Xvfb: xvfb-run -a sim_node --ros-args -p gui:=true)')
     host, _, number = display.rpartition(':')
     number = number.split('.')[0]
-    address: Union[str, Tuple[str, int]]  # AF_UNIX: a path; AF_INET: (host, port)
+    family = socket.AF_UNIX if host in ('', 'unix') else socket.AF_INET
+    addresses: Sequence[Union[str, Tuple[str, int]]]  # AF_UNIX: paths; AF_INET: (host, port)
     try:
-        if host in ('', 'unix'):
-            sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-            address = f'/tmp/.X11-unix/X{int(number)}'
+        if family == socket.AF_UNIX:
+            # libxcb tries Linux's abstract socket first, then the file: an X server
+            # that could not create /tmp/.X11-unix (a sandbox, another /tmp) answers
+            # on the abstract one only.
+            path = f'/tmp/.X11-unix/X{int(number)}'
+            addresses = (['\0' + path] if sys.platform.startswith('linux') else []) + [path]
         else:
-            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-            address = (host, 6000 + int(number))
+            addresses = [(host, 6000 + int(number))]
     except ValueError:
         return f'gui needs a display, and DISPLAY={display!r} is not one'
-    sock.settimeout(1.0)
-    try:
-        sock.connect(address)
-    except OSError as exc:
-        return f'gui needs a display, and none answers at DISPLAY={display} ({exc.strerror})'
-    finally:
-        sock.close()
+    reason = ''
+    for address in addresses:
+        sock = socket.socket(family, socket.SOCK_STREAM)
+        sock.settimeout(1.0)
+        try:
+            sock.connect(address)
+            return None
+        except OSError as exc:
+            reason = exc.strerror or str(exc)
+        finally:
+            sock.close()
+    return f'gui needs a display, and none answers at DISPLAY={display} ({reason})'
     return None
 
 

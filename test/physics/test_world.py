@@ -6,6 +6,9 @@ from it is checked in ros/test_world_ros.py.
 """
 
 import math
+import os
+import socket
+import sys
 
 import pybullet
 import pytest
@@ -197,6 +200,22 @@ def test_gui_without_a_display_is_one_line_not_the_end_of_the_process(monkeypatc
         SimWorld(gui=True)
     assert 'none answers' in display_problem({'DISPLAY': ':987'})
     assert 'is not one' in display_problem({'DISPLAY': 'nonsense'})
+
+
+@pytest.mark.skipif(not sys.platform.startswith('linux'), reason="Linux's abstract sockets")
+def test_a_display_on_the_abstract_socket_only_answers():
+    """An X server without /tmp/.X11-unix (CI's sandbox) listens on the abstract socket only."""
+    from r2d2_sim.physics.world import display_problem
+    number = 900 + os.getpid() % 90
+    server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        server.bind(f'\0/tmp/.X11-unix/X{number}')
+        server.listen(1)
+        assert not os.path.exists(f'/tmp/.X11-unix/X{number}')
+        assert display_problem({'DISPLAY': f':{number}'}) is None
+    finally:
+        server.close()
+    assert 'none answers' in display_problem({'DISPLAY': f':{number}'})
 
 
 def test_a_closed_world_refuses_use_in_one_line():
