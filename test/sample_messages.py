@@ -56,7 +56,7 @@ def stamp(time_ns: int) -> Time:
     return Time(sec=time_ns // 10**9, nanosec=time_ns % 10**9)
 
 
-def _transform(parent, child, time_ns, x=0.0, y=0.0, z=0.0, yaw=0.0) -> TransformStamped:
+def transform(parent, child, time_ns, x=0.0, y=0.0, z=0.0, yaw=0.0) -> TransformStamped:
     transform = TransformStamped()
     transform.header.stamp = stamp(time_ns)
     transform.header.frame_id = parent
@@ -157,7 +157,7 @@ def robot_description() -> bytes:
 
 def static_transforms() -> bytes:
     """Return ``/tf_static``: base_footprint -> base_link, the body's height."""
-    return tf_message_bytes([_transform('base_footprint', 'base_link', 0, z=BASE_HEIGHT_M)])
+    return tf_message_bytes([transform('base_footprint', 'base_link', 0, z=BASE_HEIGHT_M)])
 
 
 def drive(duration_s: Optional[float] = 1.0, clock_hz: int = 50, scan_hz: int = 10,
@@ -183,7 +183,7 @@ def drive(duration_s: Optional[float] = 1.0, clock_hz: int = 50, scan_hz: int = 
             return Sample(topic, TOPICS[topic][0], time_ns, data)
         yield sample('/clock', serialize_message(Clock(clock=stamp(time_ns))))
         yield sample('/tf', tf_message_bytes(
-            [_transform('odom', 'base_footprint', time_ns, odom_x, odom_y, yaw=yaw)]))
+            [transform('odom', 'base_footprint', time_ns, odom_x, odom_y, yaw=yaw)]))
         yield sample('/odom', serialize_message(
             _odometry(time_ns, 'odom', 'base_footprint', odom_x, odom_y, yaw)))
         yield sample('/ground_truth', serialize_message(

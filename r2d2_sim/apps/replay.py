@@ -44,6 +44,9 @@ EXIT_INTERRUPTED = 130
 ACK_WAIT_S = 1.0
 # rosbag2's publisher depth for a recording that gives none.
 DEFAULT_DEPTH = 10
+# The most messages a latched topic's replay keeps for late subscribers (a robot's
+# /tf_static each, in a fleet's recording).
+MAX_LATCHED_DEPTH = 1000
 # The largest depth rmw takes (a 32-bit int); 2**40 made rclpy raise a TypeError.
 MAX_DEPTH = 2**31 - 1
 # Durations that mean "infinite" in recordings: rmw's RMW_DURATION_INFINITE,
@@ -200,6 +203,7 @@ class Recording:
             raise RecordingError(nothing_playable(self))
 
     def _add(self, channel: RecordedChannel) -> None:
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy
         if channel.message_encoding != 'cdr':
             self.skipped[channel.topic] = \
                 f'encoding {channel.message_encoding[:40]!r}, not cdr'
@@ -217,6 +221,13 @@ class Recording:
         except ValueError as exc:
             self.skipped[channel.topic] = f'bad offered_qos_profiles: {exc}'
             return
+        if qos.durability == DurabilityPolicy.TRANSIENT_LOCAL \
+                and qos.history == HistoryPolicy.KEEP_LAST:
+            # Several publishers' latched messages on one topic (each robot's /tf_static,
+            # depth 1 each) are one channel here, and one publisher replays them: it keeps
+            # them all, so a late subscriber gets every robot's, as from the simulator.
+            count = self.file.message_counts.get(channel.id, 0)
+            qos.depth = max(qos.depth, min(count, MAX_LATCHED_DEPTH))
         self.topics[channel.id] = Topic(channel.topic, channel.type_name, cls, qos)
 
 

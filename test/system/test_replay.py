@@ -15,7 +15,7 @@ from rclpy.serialization import deserialize_message
 
 from r2d2_sim.recording.sink import FoxgloveSink
 from r2d2_sim.testing import lease_domain, ros_child_env, stop_process
-from sample_messages import message_class, samples, TOPICS
+from sample_messages import message_class, Sample, samples, tf_message_bytes, TOPICS, transform
 from topic_listener import read_listener, start_listener
 
 DURATION_S = 2.0
@@ -41,11 +41,19 @@ def recording(tmp_path_factory):
     """Record a 2 s drive with the sink; return (path, {topic: [bytes subscribers get]})."""
     path = tmp_path_factory.mktemp('replay') / 'run.mcap'
     recorded = {}
+    # A second robot's /tf_static: each robot's publisher latches its own (depth 1), and
+    # both are one channel in the file.
+    second = Sample('/tf_static', TOPICS['/tf_static'][0], 0, tf_message_bytes(
+        [transform('r1/base_footprint', 'r1/base_link', 0, z=0.5)])) \
+        if importable(TOPICS['/tf_static'][0]) else None
     with FoxgloveSink(record_path=path) as sink:
         channels = {t: sink.channel(t, *TOPICS[t]) for t in TOPICS}
-        for sample in samples(DURATION_S, clock_hz=CLOCK_HZ):
+        for index, sample in enumerate(samples(DURATION_S, clock_hz=CLOCK_HZ)):
             channels[sample.topic].log(sample.data, sample.time_ns)
             recorded.setdefault(sample.topic, []).append(on_the_wire(sample.data))
+            if index == 1 and second is not None:
+                channels[second.topic].log(second.data, second.time_ns)
+                recorded[second.topic].append(on_the_wire(second.data))
     return path, recorded
 
 
@@ -99,9 +107,10 @@ def test_replay_publishes_each_topic_with_its_bytes_at_the_recorded_pace(recordi
 
 
 def test_a_late_subscriber_gets_the_latched_topics(recording, tmp_path):
-    """/robot_description (and /tf_static) published at t=0 reach a subscriber that comes later."""
+    """/robot_description and both robots' /tf_static reach a subscriber that comes later."""
     path, recorded = recording
-    latched = {t: {'type': TOPICS[t][0], 'distinct': 1, 'durability': 'transient_local'}
+    latched = {t: {'type': TOPICS[t][0], 'distinct': len(set(recorded[t])),
+                   'durability': 'transient_local'}
                for t in ('/robot_description', '/tf_static') if importable(TOPICS[t][0])}
     out_path = tmp_path / 'late.json'
     with lease_domain() as lease:
