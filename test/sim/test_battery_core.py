@@ -112,3 +112,32 @@ def test_a_reset_fills_the_battery_again(make):
 
 def test_no_battery_unless_asked(make):
     assert make(battery_rate=0.0).robot.battery is None
+
+
+def test_a_reading_between_state_publications_is_of_its_own_step(make):
+    # battery_rate 20 Hz, publish_rate 5 Hz: three readings of four fall between two state
+    # publications. Each must integrate up to its own step with the wheels of that step.
+    simulation = make(publish_rate=5.0, battery_rate=20.0, battery_capacity=1.0,
+                      battery_initial_charge=0.8)
+    robot = simulation.robot
+    robot.command(0.5, 0.0)
+    readings = []  # (step, state published, reading, the wheels' joints after that step)
+    for _ in range(240):
+        result = simulation.step()
+        measurement = result.measurements[0] if result is not None else None
+        if measurement is not None and measurement.battery is not None:
+            joints = robot.body.joint_states(robot.movable_indices)
+            readings.append((result.step, result.state_due, measurement.battery, joints))
+    assert len(readings) == 20 and sum(1 for r in readings if not r[1]) == 15
+    config = robot.config
+    for _, _, reading, joints in readings:
+        draw = (config.battery_idle_current_a + config.battery_current_per_effort_a_n_m
+                * sum(abs(joints.efforts[s]) for s in robot._wheel_slots)
+                + config.battery_current_per_speed_a_rad_s
+                * sum(abs(joints.velocities[s]) for s in robot._wheel_slots))
+        assert reading.current_a == pytest.approx(-draw, rel=1e-12)
+    for (step0, _, before, _), (step1, _, after, _) in zip(readings, readings[1:]):
+        # Each reading's current held over the steps since the one before.
+        held = after.current_a * (step1 - step0) / 240.0 / 3600.0
+        assert after.charge_ah == pytest.approx(before.charge_ah + held, rel=1e-12)
+        assert after.charge_ah < before.charge_ah

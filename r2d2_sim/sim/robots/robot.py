@@ -255,6 +255,12 @@ class Robot:
             frame, world = self._read_frame(step, time_ns)
             if self.config.publish_contacts:
                 contacts = tuple(touching(self.world, self.body))
+        elif battery and self.battery is not None:
+            # The battery integrates over the steps since its last update, with the
+            # wheels as they are now: its reading, stamped now, is of now. The readout
+            # checks what the sensors' checks below would (and more).
+            _, joints, base = self._read_body(time_ns)
+            self._run_battery(self.battery, step, joints, base)
         else:
             body = self.body
             if sensing:
@@ -266,7 +272,7 @@ class Robot:
                 problem = body.twist_problem()
             if problem is not None:
                 self._recover(problem, time_ns)
-            if not (sensing or battery):
+            if not sensing:
                 return None
         self._pending = [(sensor, sensor.rays()) for sensor, due in (
             (self.laser, scan), (self.lidar, lidar)) if due and sensor is not None]
@@ -301,6 +307,18 @@ class Robot:
 
     def _read_frame(self, step: int, time_ns: int) -> Tuple[Frame, BaseState]:
         """:meth:`read_frame`, and the base's state with its twist in the world (the IMU's)."""
+        world, joints, base = self._read_body(time_ns)
+        odometry = None
+        if self.controller is not None:
+            positions = joints.positions
+            self.controller.update_odometry([positions[s] for s in self._wheel_slots], step)
+            odometry = self.controller.odometry_state()
+        if self.battery is not None:
+            self._run_battery(self.battery, step, joints, base)
+        return Frame(step, time_ns, joints, base, odometry), world
+
+    def _read_body(self, time_ns: int) -> Tuple[BaseState, JointStates, BaseState]:
+        """Read the base (in the world, its body frame) and joints; reset the robot if absurd."""
         body = self.body
         joints = body.joint_states(self.movable_indices)
         world = body.world_state()
@@ -311,14 +329,7 @@ class Robot:
             joints = body.joint_states(self.movable_indices)
             world = body.world_state()
             base = in_body_frame(world)
-        odometry = None
-        if self.controller is not None:
-            positions = joints.positions
-            self.controller.update_odometry([positions[s] for s in self._wheel_slots], step)
-            odometry = self.controller.odometry_state()
-        if self.battery is not None:
-            self._run_battery(self.battery, step, joints, base)
-        return Frame(step, time_ns, joints, base, odometry), world
+        return world, joints, base
 
     def _run_battery(self, battery: Battery, step: int, joints: JointStates,
                      base: BaseState) -> None:
