@@ -30,20 +30,23 @@ class Fleet:
     """
     The robots' interfaces on ``simulator`` (a SimNode), one per robot, in the core's order.
 
-    ``lock`` is the simulator's, ``now_ns`` gives the simulated time, and the
-    periods are how often a robot's warnings may repeat and its graph be
-    checked (see :class:`~r2d2_sim.ros.robot_interfaces.RobotInterfaces`).
+    ``lock`` is the simulator's, ``now_ns`` gives the simulated time,
+    ``published_ns`` the time of the latest state publication (a new robot's
+    ``/tf_static`` stamp: see :meth:`_add`), and the periods are how often a
+    robot's warnings may repeat and its graph be checked (see
+    :class:`~r2d2_sim.ros.robot_interfaces.RobotInterfaces`).
     Iterating gives the interfaces in order; :attr:`received` and
     :attr:`rejected` count ``cmd_vel`` messages of every robot, deleted ones
     included.
     """
 
     def __init__(self, simulator: MirroringNode, lock: threading.RLock, *,
-                 now_ns: Callable[[], int], warning_period_s: float,
-                 graph_check_period_s: float) -> None:
+                 now_ns: Callable[[], int], published_ns: Callable[[], int],
+                 warning_period_s: float, graph_check_period_s: float) -> None:
         self._simulator = simulator
         self._lock = lock
         self._now_ns = now_ns
+        self._published_ns = published_ns
         self._warning_period_s = warning_period_s
         self._graph_check_period_s = graph_check_period_s
         self._interfaces: List[RobotInterfaces] = []
@@ -88,14 +91,21 @@ class Fleet:
         self._interfaces = [by_robot[id(robot)] for robot in robots]
 
     def _add(self, robot: Robot) -> RobotInterfaces:
-        """Build ``robot``'s interfaces: on the simulator in its namespace, else its own node."""
+        """
+        Build ``robot``'s interfaces: on the simulator in its namespace, else its own node.
+
+        Its ``/tf_static`` is stamped with the latest state publication's time,
+        never later than the last ``/clock``: a robot spawned between two
+        publications (a StepSimulation that stopped mid-period) is not stamped
+        ahead of the clock, which moves on only at steps that publish.
+        """
         simulator = self._simulator
         own = robot.namespace != simulator.get_namespace()
         node: Optional[MirroringNode] = None
         try:
             node = RobotNode(simulator, robot.namespace) if own else simulator
             interfaces = RobotInterfaces(
-                node, robot, self._lock, now_ns=self._now_ns, time_ns=self._now_ns(),
+                node, robot, self._lock, now_ns=self._now_ns, time_ns=self._published_ns(),
                 warning_period_s=self._warning_period_s,
                 graph_check_period_s=self._graph_check_period_s, own_node=own)
         except Exception as exc:

@@ -84,6 +84,7 @@ class SimNode(MirroringNode):
         self.standard: Optional[SimulationInterfaces] = None
         # One per robot, in the order of simulation.robots (their measurements').
         self.fleet = Fleet(self, self.lock, now_ns=lambda: self.simulation.time_ns,
+                           published_ns=lambda: self.last_publication_ns,
                            warning_period_s=warning_period_s,
                            graph_check_period_s=graph_check_period_s)
         # Built in a local: self.simulation is set once the simulation exists, and

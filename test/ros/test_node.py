@@ -88,6 +88,39 @@ def test_clock_comes_at_every_stamp_when_a_sensor_outpaces_the_state(ros):
     assert clocks == published and len(probe.messages['clock']) == len(published)
 
 
+def test_a_robot_spawned_between_publications_is_not_stamped_ahead_of_the_clock(ros):
+    """
+    publish_rate 50 Hz, a spawn at step 7 (the last publication at step 5): its /tf_static.
+
+    The clock moves on only at steps that publish, so the new robot's static
+    transforms carry the last publication's time, not the step it came at.
+    """
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from rosgraph_msgs.msg import Clock
+    from tf2_msgs.msg import TFMessage
+    from r2d2_sim.sim.entities import SpawnRequest
+    sim = make_sim(ros, publish_rate=50.0, scan_rate=0.0, imu_rate=0.0)
+    node = ros.create_node('listener', use_sim_time=False)
+    clocks, statics = [], []
+    node.create_subscription(Clock, '/clock', clocks.append, 100)
+    node.create_subscription(TFMessage, '/tf_static', statics.append, QoSProfile(
+        depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    assert wait_for(lambda: sim._clock_output._publisher.get_subscription_count())
+    sim.advance(7)  # 50 Hz at 240 Hz: a publication every 4.8 steps, the last at step 5
+    assert sim.simulation.last_frame_step == 5 and sim.step_count == 7
+    with sim.lock:
+        sim.simulation.spawn(SpawnRequest(name='b', uri=sim.simulation.robot.source,
+                                          namespace='/b', position=(2.0, 0.0, 0.5)))
+
+    def spawned():
+        return [t.header.stamp for m in statics for t in m.transforms
+                if t.header.frame_id.startswith('b/')]
+    published = sim.last_publication_ns  # step 5's time, below the time now (step 7's)
+    assert published < sim.sim_time_ns
+    assert wait_for(lambda: spawned() and clocks and clocks[-1].clock.nanosec == published)
+    assert {s.sec * 10**9 + s.nanosec for s in spawned()} == {published}
+
+
 def test_robot_description_is_latched(sim, probe):
     """A late subscriber still receives the URDF text."""
     probe.wait_count('robot_description', 1)
