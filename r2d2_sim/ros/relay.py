@@ -21,8 +21,10 @@ The parts:
   :data:`CREATE`/:data:`DESTROY`, data length, data). A publisher's creation
   and destruction travel in the same stream as the messages, so the child
   always has the publisher a message names. The pipe holds 1 MiB where Linux
-  lets it: a child that falls behind by more makes the physics wait (it is
-  never dropped).
+  lets it: a child that falls behind by more makes the physics wait, as long
+  as it takes something within :data:`WAIT_S` (10 s) of each write that
+  found the pipe full. One that takes nothing for that long is given up on
+  (see the end).
 - acknowledgements on a second pipe, child to parent, only for frames that
   ask (:data:`ACK`): :meth:`OutputRelay.wait` sends an empty frame asking and
   waits for its number. :meth:`SimNode.advance <r2d2_sim.ros.node.SimNode.advance>`
@@ -47,13 +49,19 @@ The parts:
 
 The child ends when the pipe closes (the node is destroyed, or its process
 died); a child that died makes the next write fail, and the node logs one
-error and publishes nothing more rather than stopping its physics.
+error and publishes nothing more rather than stopping its physics. A child
+that is stuck (it took nothing for :data:`WAIT_S`, or did not answer a
+lockstep wait) is given up on the same way, and ended too, so that no
+publishers of it stay on the graph saying nothing: its pipe closed, SIGTERM
+(and SIGCONT, for a stopped one), SIGKILL if that does not end it (as
+:meth:`OutputRelay.close` does, on a thread of its own: the physics goes on).
 """
 
 import json
 import mmap
 import os
 import select
+import signal
 import struct
 import subprocess
 import sys
@@ -82,7 +90,7 @@ ACK = 1                          # flag: the child writes the frame's number bac
 MAX_PUBLISHERS = 4096            # the shared counts' slots (indices of destroyed ones are reused)
 PIPE_BYTES = 1 << 20             # Linux's default /proc/sys/fs/pipe-max-size
 F_SETPIPE_SZ = 1031
-WAIT_S = 10.0                    # the longest wait for the child's acknowledgement
+WAIT_S = 10.0                    # the longest wait for the child to take or answer anything
 START_S = 60.0                   # the longest wait for a child opening a sink to report
 CLOSE_S = 5.0                    # the longest wait for the child to end
 
@@ -255,6 +263,7 @@ class OutputRelay:
         self._free: List[int] = []
         self.broken = False
         self.frames_sent = 0
+        self._ending: Optional[threading.Thread] = None  # ends a child given up on (_broke)
         if sink is not None:
             try:
                 self._await_report()
@@ -377,6 +386,7 @@ class OutputRelay:
             while view:
                 try:
                     view = view[os.write(self._frames, view):]
+                    deadline = None  # it took some: a child behind, not a stuck one
                 except BlockingIOError:  # the pipe is full: the child is behind
                     now = time.monotonic()
                     deadline = deadline or now + WAIT_S
@@ -390,12 +400,13 @@ class OutputRelay:
         self.frames_sent += 1
         return self._sequence
 
-    def wait(self, timeout_s: float = WAIT_S) -> bool:
+    def wait(self, timeout_s: Optional[float] = None) -> bool:
         """
         Return once the child has published everything handed over so far (True).
 
         False when the child is gone or did not answer within ``timeout_s``
-        (said once in the node's log).
+        (default :data:`WAIT_S`; said once in the node's log, and the child
+        ended).
         """
         with self._lock:
             if self._batching:
@@ -403,6 +414,7 @@ class OutputRelay:
             target = self._send(ACK)
             if not target:
                 return False
+            timeout_s = WAIT_S if timeout_s is None else timeout_s
             deadline = time.monotonic() + timeout_s
             while self._acknowledged < target:
                 left = deadline - time.monotonic()
@@ -429,7 +441,28 @@ class OutputRelay:
         ended = '' if status is None else f' (it ended with status {status})'
         lost = ('nothing more is published or recorded' if self.sink_record_path is not None
                 else 'nothing more is published')
+        if process is not None and status is None:
+            lost = f'ending it (its publishers leave the graph): {lost}'
         self._log_error(f'the outputs process failed{ended}: {why}; {lost}')
+        if process is not None and status is None:
+            self._end(process)
+
+    def _end(self, process: subprocess.Popen) -> None:
+        """
+        End a child given up on but still there: no publishers of it stay on the graph.
+
+        Its pipes closed, SIGTERM now (SIGCONT: a stopped child takes it
+        too), then, on a thread of its own, what :meth:`close` does to a
+        child that does not end: the physics thread does not wait for it.
+        """
+        with self._lock:  # no write on the pipes while they close (a status request's thread)
+            self._pending = []
+            self._finalizer()
+        process.terminate()
+        process.send_signal(signal.SIGCONT)
+        self._ending = threading.Thread(target=self._finish, args=(process, CLOSE_S),
+                                        name='ending the outputs process', daemon=True)
+        self._ending.start()
 
     # -- the process --------------------------------------------------------------------
 
@@ -441,8 +474,9 @@ class OutputRelay:
         SIGKILL after as long again. A child that records waits as long as
         its file grows (a slow disk still taking the queue: the recording is
         what the user asked for); SIGTERM then drops what is left and still
-        finishes the file. The counts' map stays until the last publisher
-        asking it is gone.
+        finishes the file. A child given up on (see the module) is being
+        ended already: this waits for that. The counts' map stays until the
+        last publisher asking it is gone.
         """
         with self._lock:
             process, self.process = self.process, None
@@ -451,6 +485,13 @@ class OutputRelay:
             self._pending = []
             self.broken = True  # quietly: what is published after this goes nowhere
             self._finalizer()  # closes the pipes: the child publishes what it has, then ends
+        if self._ending is not None:  # given up on, and being ended already
+            self._ending.join()
+            return process.wait()
+        return self._finish(process, timeout_s)
+
+    def _finish(self, process: subprocess.Popen, timeout_s: float) -> int:
+        """Wait for ``process`` to end, its pipes closed; SIGTERM, then SIGKILL if stuck."""
         size = self._recorded_bytes()
         while True:
             try:

@@ -12,13 +12,16 @@ recording move to the child with the publishing: the same MCAP file, byte
 for byte, and a live view still builds only what a viewer takes. A child
 whose disk is slow is waited for while its file grows; told to stop, it
 drops what the disk has not taken and still finishes the file; a Ctrl-C
-while it opens its sink leaves no child behind.
+while it opens its sink leaves no child behind. A child behind but still
+taking from the pipe is waited for past the deadline; one that takes nothing
+until it passes is ended, and its publishers leave the graph.
 """
 
 import json
 import os
 import random
 import signal
+import time
 
 from nav_msgs.msg import Odometry
 import pytest
@@ -387,3 +390,79 @@ def test_a_ctrl_c_while_the_child_opens_its_sink_leaves_no_child(ros, monkeypatc
                     sink={'port': None, 'record_path': str(tmp_path / 'run.mcap')},
                     time_ns=lambda: 0)
     assert started[0].poll() is not None  # ended and reaped
+
+
+# The child's pipe made slow: it reads a frame's payload 64 KiB at a time, each after a pause.
+SLOW_PIPE = '''
+import os
+import time
+_read = os.read
+
+
+def read(fd, size):
+    if size > 4096:
+        time.sleep(float(os.environ['R2D2_SIM_TEST_SLOW_READ_S']))
+        size = min(size, 65536)
+    return _read(fd, size)
+
+
+os.read = read
+'''
+
+
+def test_a_child_behind_but_taking_is_waited_for_past_the_deadline(ros, monkeypatch, tmp_path):
+    """A frame of 3.5 pipes, taken 64 KiB every 50 ms: each write that moved on waits anew."""
+    from std_msgs.msg import UInt8MultiArray
+    from rclpy.qos import QoSProfile
+    from r2d2_sim.ros import relay as relay_module
+    (tmp_path / 'slow').mkdir()
+    (tmp_path / 'slow' / 'sitecustomize.py').write_text(SLOW_PIPE)
+    monkeypatch.setenv('PYTHONPATH', os.pathsep.join(
+        p for p in (str(tmp_path / 'slow'), os.environ.get('PYTHONPATH')) if p))
+    monkeypatch.setenv('R2D2_SIM_TEST_SLOW_READ_S', '0.05')
+    errors = []
+    relay = relay_module.OutputRelay(ros.domain_id, 'slow_pipe_outputs', '/', errors.append)
+    try:
+        publisher = relay.create_publisher(UInt8MultiArray, '/blob', QoSProfile(depth=1))
+        assert relay.wait(30.0)  # started: importing rclpy took the time it takes
+        monkeypatch.setattr(relay_module, 'WAIT_S', 1.0)  # the seam: 1 s, not 10
+        started = time.monotonic()
+        relay.begin()
+        for index in range(35):  # 3.5 MB in one frame; the pipe holds 1 MiB
+            publisher.publish(UInt8MultiArray(data=blob(index)))
+        relay.end()
+        # About 2.5 MB after the first pipeful at 1.3 MB/s: longer than the deadline.
+        assert time.monotonic() - started > 1.0
+        assert errors == [] and relay.wait(30.0)
+    finally:
+        relay.close()
+
+
+def test_a_stuck_child_is_ended_with_its_publishers(ros, monkeypatch):
+    """Stopped past the deadline: one error line says so, and the child ends, its topics too."""
+    from std_msgs.msg import UInt8MultiArray
+    from rclpy.qos import QoSProfile
+    from r2d2_sim.ros import relay as relay_module
+    errors = []
+    relay = relay_module.OutputRelay(ros.domain_id, 'stuck_outputs', '/', errors.append)
+    process = relay.process
+    try:
+        publisher = relay.create_publisher(UInt8MultiArray, '/blob', QoSProfile(depth=1))
+        node = ros.create_node('looker', use_sim_time=False)
+        assert wait_for(lambda: node.count_publishers('/blob') == 1)
+        monkeypatch.setattr(relay_module, 'WAIT_S', 0.5)  # the seam: 0.5 s, not 10
+        os.kill(process.pid, signal.SIGSTOP)  # a load, a debugger, swap...
+        for index in range(100):  # 10 MB at most: the pipe (1 MiB) is full long before
+            publisher.publish(UInt8MultiArray(data=blob(index)))
+            if relay.broken:
+                break
+        assert relay.broken
+        assert process.wait(30.0) == 128 + signal.SIGTERM  # stopped, it still took SIGTERM
+        assert errors == ['the outputs process failed: it took nothing for 0.5 s; ending it '
+                          '(its publishers leave the graph): nothing more is published']
+        assert wait_for(lambda: node.count_publishers('/blob') == 0)
+        assert not relay.running and relay.close() == 128 + signal.SIGTERM
+    finally:
+        if process.poll() is None:
+            os.kill(process.pid, signal.SIGCONT)
+        relay.close()
