@@ -847,7 +847,9 @@ class Body:
             ends: List[Vec3] = []
             if motion == SLIDES and joint.lower_limit <= joint.upper_limit:
                 position = client.getJointState(body, joint.index)[0]
-                axis = client.rotateVector(state[5], joint.axis)
+                # PyBullet gives the axis in the child link's inertial frame (URDF2Bullet
+                # turns it by the inertial origin), not in its URDF frame.
+                axis = client.rotateVector(state[1], joint.axis)
                 ends = [tuple(o + a * (limit - position) for o, a in zip(origin, axis))
                         for limit in (joint.lower_limit, joint.upper_limit)]
             box = records.aabb(client, body, joint.index)

@@ -122,6 +122,44 @@ def test_r2d2s_reach_holds_its_links_in_any_joint_state(make):
     assert near > 0  # inside the reach, the probe does meet the robot now and then
 
 
+# A slider whose arm's inertial frame is turned a quarter turn: PyBullet gives the joint's
+# axis in that frame ((0, -1, 0) here), which the reach must turn back to the world's x.
+TURNED_SLIDER = (
+    '<robot name="slider"><link name="base"><inertial><mass value="5"/>'
+    '<inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>'
+    '<collision><geometry><box size="0.3 0.3 0.1"/></geometry></collision></link>'
+    '<link name="arm"><inertial><origin rpy="0 0 1.5707963"/><mass value="0.1"/>'
+    '<inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/></inertial>'
+    '<collision><geometry><box size="0.05 0.05 0.05"/></geometry></collision></link>'
+    '<joint name="slide" type="prismatic"><parent link="base"/><child link="arm"/>'
+    '<origin xyz="1 0 0.2"/><axis xyz="1 0 0"/>'
+    '<limit lower="0" upper="2" effort="100" velocity="1"/></joint></robot>')
+
+
+def test_a_slider_with_a_turned_inertial_frame_is_seen_reaching_a_wall(make):
+    """
+    The arm slides 2 m out along the base's x into a wall: both watches see it touch.
+
+    Its reach holds the arm at its upper limit (x = 3.03 m), and the pruned watch
+    reads what the one asking every body reads.
+    """
+    simulation = make(robot_description=TURNED_SLIDER, left_wheel_names=[],
+                      right_wheel_names=[])
+    simulation.spawn(SpawnRequest('wall', resource_string=box_urdf(
+        (0.2, 1.0, 1.0), name='wall'), position=(2.6, 0.0, 0.5)))
+    body = simulation.robot.body
+    slide = body.joints['slide'].index
+    reach = body.reach_m()
+    pruned, every = RunWatch(simulation, clearance=False), RunWatch(
+        simulation, clearance=False, prune=False)
+    body.set_joint_velocities([slide], [1.0], [100.0])  # out at 1 m/s, into the wall
+    for _ in range(480):
+        simulation.step()
+    assert [contact.other for contact in every.contacts] == ['wall']
+    assert pruned.contacts == every.contacts
+    assert reach is not None and reach > 3.0  # the arm's far face at x 3.025 from x 0
+
+
 def test_moving_a_fixed_box_is_seen_at_once(make):
     """A fixed box 3 m away put against the robot's front between two steps: touching then."""
     simulation = make()
