@@ -120,7 +120,8 @@ class Body:
     body's REP-103 frame (x forward, y left): +pi/2 for a robot that drives
     along its base +y. Base states and poses are of that frame. ``loading``
     says how it was loaded (what :meth:`reload` does again); without it the
-    body cannot be reloaded.
+    body cannot be reloaded. ``own_filters``: what its file says of its own
+    collision filters, read already (a twin's); else its file is read now.
     """
 
     # How often any body of this process was put somewhere, loaded or removed: a watch
@@ -129,7 +130,8 @@ class Body:
 
     def __init__(self, client: BulletClient, body_id: int, name: str, source: str, *,
                  body_yaw_offset_rad: float = 0.0, spawned: bool = False,
-                 loading: Optional[Loading] = None) -> None:
+                 loading: Optional[Loading] = None,
+                 own_filters: Optional[Tuple[Optional[bool], str]] = None) -> None:
         self.name = name
         self.source = source
         self.spawned = spawned
@@ -146,7 +148,10 @@ class Body:
         # most steps while it ramps): joints, velocities, forces. See _motor_table.
         self._velocity_motors: Optional[Tuple[List[int], List[float], List[float]]] = None
         self._anchored: Set[int] = set()  # links whose contacts hold_joints anchored
-        self._own_filters: Optional[bool] = None  # its URDF sets collision filters (once read)
+        # Its URDF sets collision filters: read when it is loaded, while its file is there
+        # (None: the file could not be read then; why in _own_filters_unknown).
+        self._own_filters, self._own_filters_unknown = (
+            own_filters if own_filters is not None else _sets_collision_filters(loading))
         # How often the body was put somewhere, loaded or reloaded: a watch that keeps where
         # a body without joints stands (its bounds) looks again when this changed.
         self.moves = 0
@@ -591,10 +596,14 @@ class Body:
 
     @property
     def sets_own_collision_filters(self) -> bool:
-        """Return True when the URDF the body was loaded from sets collision groups or masks."""
-        if self._own_filters is None:
-            self._own_filters = _sets_collision_filters(self._loading)
-        return self._own_filters
+        """
+        Return True when the URDF the body was loaded from sets collision groups or masks.
+
+        Read from its file when the body was loaded; True too when that file
+        could not be read then (unknown: treated as set, so nothing is put
+        back wrongly).
+        """
+        return self._own_filters is not False
 
     def collision_filters(self) -> Dict[int, Tuple[int, int]]:
         """
@@ -605,7 +614,10 @@ class Body:
         that sets its own (``<collision group=... mask=...>``): those are not
         followed here.
         """
-        if self.sets_own_collision_filters:
+        if self._own_filters is None:
+            raise WorldError(f'{self.name}: {self._own_filters_unknown}, so whether its URDF '
+                             'sets its own collision groups (which cannot be put back) is unknown')
+        if self._own_filters:
             raise WorldError(f'{self.name} sets its own collision groups in its URDF, which '
                              'cannot be put back')
         filters = {link: DYNAMIC_FILTER for link in self.links()}
@@ -681,7 +693,8 @@ class Body:
         body_id = self._load_into(client)
         twin = Body(client, body_id, self.name, self.source,
                     body_yaw_offset_rad=self.body_yaw_offset_rad, spawned=self.spawned,
-                    loading=self._loading)
+                    loading=self._loading, own_filters=(self._own_filters,
+                                                        self._own_filters_unknown))
         for method, args, kwargs in self._changes:
             twin._change(method, *args, **kwargs)
         return twin
@@ -865,13 +878,22 @@ class Body:
         return f'Body({self.name!r}, id={self._id}, source={self.source!r})'
 
 
-def _sets_collision_filters(loading: Optional[Loading]) -> bool:
-    """Return True when the URDF a body was loaded from sets a collision group or mask."""
+def _sets_collision_filters(loading: Optional[Loading]) -> Tuple[Optional[bool], str]:
+    """
+    Return whether the URDF a body was loaded from sets a collision group or mask.
+
+    (True or False, ''), or (None, why not known) when its file cannot be read.
+    """
     if loading is None or loading.file is None:
-        return False
+        return False, ''
+    path = loading.file[0]
     try:
-        root = ElementTree.parse(loading.file[0]).getroot()
-    except (OSError, ElementTree.ParseError):
-        return True  # unknown: treated as set, so nothing is put back wrongly
-    return any(c.get('group') is not None or c.get('mask') is not None
-               for c in root.iter('collision'))
+        root = ElementTree.parse(path).getroot()
+    except FileNotFoundError:
+        return None, f'its file {path} is gone'
+    except OSError as exc:
+        return None, f'its file {path} cannot be read ({exc.strerror or exc})'
+    except ElementTree.ParseError as exc:
+        return None, f'its file {path} is not XML as Python reads it ({exc})'
+    return (any(c.get('group') is not None or c.get('mask') is not None
+                for c in root.iter('collision')), '')

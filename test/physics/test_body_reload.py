@@ -7,12 +7,14 @@ starting pose, damping, friction, ray groups) is set again, a teleport is not.
 """
 
 import math
+import re
 
 import pytest
 
-from r2d2_sim.physics.body import BodyRemoved, WorldError
+from r2d2_sim.physics.body import Body, BodyRemoved, file_stamp, Loading, WorldError
 from r2d2_sim.physics.description import default_urdf_path
 from r2d2_sim.physics.world import RAY_GROUPS, ray_mask, SimWorld
+from r2d2_sim.sim.spawnables import box_urdf
 
 
 @pytest.fixture
@@ -127,3 +129,22 @@ def test_a_swinging_ball_pendulum_swings_on_bit_for_bit_through_a_rebuilt_world(
             assert world.client.getJointStateMultiDof(pendulum.id, ball)[:2] == before
             swings.append(swing(world, pendulum, ball))
     assert swings[1] == swings[0]
+
+
+def test_a_body_whose_file_was_gone_at_load_says_so_when_its_filters_are_asked(world, tmp_path):
+    """Its collision filters unknown: WorldError naming the gone file, not its own groups."""
+    path = tmp_path / 'crate.urdf'
+    path.write_text(box_urdf((0.2, 0.2, 0.2), mass_kg=1.0, name='crate'))
+    loaded = world.load(str(path), (0.0, 0.0, 0.1))
+    assert not loaded.sets_own_collision_filters
+    loaded.collision_filters()  # read at load: the file may go now
+    stamp = file_stamp(str(path))
+    path.unlink()
+    body = Body(world.client, loaded.id, 'again', str(path),
+                loading=Loading(str(path), (0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 1.0), 0, stamp))
+    assert body.sets_own_collision_filters  # unknown: as if set
+    with pytest.raises(WorldError, match='^' + re.escape(
+            f'again: its file {path} is gone, so whether its URDF sets its own collision '
+            'groups (which cannot be put back) is unknown') + '$'):
+        body.collision_filters()
+    assert loaded.collision_filters() == {-1: (1, -1)}

@@ -127,6 +127,23 @@ def test_a_state_saved_before_a_blow_up_is_refused_in_one_line_and_the_world_sta
     assert run(simulation, again, RUN_A) == first_a
 
 
+def test_a_state_is_saved_when_a_model_s_file_is_gone_since_start_up(make, tmp_path):
+    """
+    The crate's URDF (no collision groups of its own) removed after start-up: saved and restored.
+
+    Whether a URDF sets its own groups is read when it is loaded; save_state said the
+    crate "sets its own collision groups", reading its file only then.
+    """
+    crate = tmp_path / 'crate.urdf'
+    crate.write_text(box_urdf((0.2, 0.2, 0.2), mass_kg=1.0, name='crate'))
+    simulation = make(scan_rate=0.0, extra_models=[f'{crate} 1.0 0.0 0.1'])
+    crate.unlink()
+    saved = simulation.save_state()
+    first = run(simulation, saved, {'boxes': [], 'commands': {0: (0.8, 0.0)}})
+    assert first[0][-1] != first[0][0]
+    assert run(simulation, saved, {'boxes': [], 'commands': {0: (0.8, 0.0)}}) == first
+
+
 def test_restart_noise_reseeds_every_stream_and_takes_new_noise_settings(make):
     """The same seed reads the same noisy scans after a restore; another seed others."""
     simulation, saved = build(make, scan_noise_std=0.01)
