@@ -164,6 +164,7 @@ class Placement(NamedTuple):
     orientation: Quat
     flags: int = 0
     made_from: Optional[str] = None   # as SimWorld.load takes it
+    given_as: Optional[str] = None    # as SimWorld.load takes it
 
 
 def check_placements(placements: Sequence[Placement], time_step_s: float, code: str,
@@ -182,7 +183,8 @@ def check_placements(placements: Sequence[Placement], time_step_s: float, code: 
         bodies, count = [], 0
         for placement in placements:
             body = scratch.load(placement.path, placement.position, placement.orientation,
-                                flags=placement.flags, made_from=placement.made_from)
+                                flags=placement.flags, made_from=placement.made_from,
+                                given_as=placement.given_as)
             bodies.append(body)
             count += len(moving_links(body))
             if count > MAX_MOVING_LINKS:

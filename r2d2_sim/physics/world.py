@@ -239,7 +239,7 @@ class SimWorld:
              orientation: Quat = IDENTITY_QUATERNION, *, name: Optional[str] = None,
              flags: int = 0, body_yaw_offset_rad: float = 0.0, spawned: bool = False,
              source: Optional[str] = None, into: Optional[WorldBuild] = None,
-             made_from: Optional[str] = None) -> Body:
+             made_from: Optional[str] = None, given_as: Optional[str] = None) -> Body:
         """
         Load a URDF file as a new body; return it.
 
@@ -249,7 +249,10 @@ class SimWorld:
         ``made_from``: what the user wrote, when ``path`` is a URDF made of it
         (``SDF model door of hinge.sdf``): an error names that, not a
         temporary file, and PyBullet's own messages about the made file
-        (names the user never wrote) stay off stdout.
+        (names the user never wrote) stay off stdout. ``given_as``: where
+        the text of ``path``, a temporary file, was given (``the
+        resource_string``): an error names that; PyBullet's messages (the
+        user's own names) still show.
         """
         client, bodies = ((into.client, into.bodies) if into is not None
                           else (self._live_client, self.bodies))
@@ -258,7 +261,8 @@ class SimWorld:
                 body_id = client.loadURDF(path, basePosition=position,
                                           baseOrientation=orientation, flags=flags)
         except client.error as exc:
-            raise WorldError(f'PyBullet cannot load {made_from or path}: {exc}') from None
+            raise WorldError(f'PyBullet cannot load {made_from or given_as or path}: '
+                             f'{exc}') from None
         if into is None:
             self.loads += 1
         if name is None:
@@ -284,20 +288,20 @@ class SimWorld:
     def load_robot(self, path: str, pose: Tuple[float, float, float],
                    body_yaw_offset_rad: float = 0.0, *, name: Optional[str] = None,
                    spawned: bool = False, source: Optional[str] = None,
-                   into: Optional[WorldBuild] = None) -> Body:
+                   into: Optional[WorldBuild] = None, given_as: Optional[str] = None) -> Body:
         """
         Load a driven robot at (x, y, yaw), its lowest point just above the ground.
 
         True cylinders (``URDF_USE_IMPLICIT_CYLINDER``) roll smoothly; the
         default faceted convex hulls make wheels bump along. Inertias come
-        from the file.
+        from the file. ``given_as`` as :meth:`load` takes it.
         """
         x, y, yaw = pose
         client = into.client if into is not None else self._live_client
         orientation = client.getQuaternionFromEuler((0.0, 0.0, yaw - body_yaw_offset_rad))
         body = self.load(path, (x, y, 0.0), orientation, name=name, spawned=spawned,
                          flags=self.robot_flags, body_yaw_offset_rad=body_yaw_offset_rad,
-                         source=source, into=into)
+                         source=source, into=into, given_as=given_as)
         position, _ = client.getBasePositionAndOrientation(body.id)
         body.set_initial_pose((position[0], position[1],
                                position[2] - body.bounding_box().low[2] + SPAWN_CLEARANCE_M),

@@ -323,7 +323,8 @@ class Entities:
                 flags=flags | (self._world.model_flags if spawnable.sdf else 0),
                 body_yaw_offset_rad=body_yaw_offset_rad,
                 made_from=f'SDF model {spawnable.name} of '
-                f'{request.uri[:200] or "the resource_string"}' if spawnable.sdf else None)
+                f'{request.uri[:200] or "the resource_string"}' if spawnable.sdf else None,
+                given_as=None if request.uri else 'the resource_string')
             if spawnable.sdf and not flags:
                 body.free_joints()  # a model's joints move as Gazebo's do; a robot drives its own
             from r2d2_sim.physics.crowding import check_crowding  # PyBullet, when used

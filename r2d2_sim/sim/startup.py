@@ -215,7 +215,7 @@ class Startup:
         body = self._world.load(model.path, model.position, model.orientation, name=model.name,
                                 source=model.source, into=into,
                                 flags=self._world.model_flags if model.sdf else 0,
-                                made_from=model.made_from)
+                                made_from=model.made_from, given_as=model.given_as)
         body.drop_damping()
         if model.sdf:
             body.free_joints()  # Gazebo's joints: held by their friction, not a motor
@@ -248,7 +248,8 @@ class Startup:
             body = self._world.load_robot(
                 description.path, config.initial_pose, config.body_yaw_offset_rad, name=name,
                 source=description.path if config.robot_description else config.urdf or None,
-                into=into)
+                into=into,
+                given_as='the robot_description parameter' if config.robot_description else None)
             source = ('the robot_description parameter' if config.robot_description
                       else description.path)
             warn = self._warn

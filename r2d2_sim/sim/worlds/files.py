@@ -96,17 +96,18 @@ class WorldFiles:
         from r2d2_sim.physics.world import SimWorld
         # Models made from SDF were written here from checked parts: not loaded twice
         # to be checked, only (when they move) to see how crowded they are.
-        paths = sorted({model.path for model in world.models if not model.sdf})
+        given_as = {model.path: model.given_as for model in world.models if not model.sdf}
+        paths = sorted(given_as)
         try:
             moving = set()
             with SimWorld(ground_plane=False, time_step_s=self.time_step_s) as scratch:
                 sdf_flags = scratch.model_flags
                 for path in paths:
-                    if moving_links(scratch.load(path)):
+                    if moving_links(scratch.load(path, given_as=given_as[path])):
                         moving.add(path)
             check_placements(
                 [Placement(model.path, model.position, model.orientation,
-                           sdf_flags if model.sdf else 0, model.made_from)
+                           sdf_flags if model.sdf else 0, model.made_from, model.given_as)
                  for model in world.models
                  if (model.sdf and not model.static) or model.path in moving],
                 self.time_step_s, 'RESOURCE_PARSE_ERROR', 'the world')

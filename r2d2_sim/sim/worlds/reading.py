@@ -248,12 +248,13 @@ def _read_urdf_world(text: str, path: Optional[str], uri: str, reading: _Reading
     shown = uri[:200] if uri else 'the resource_string'
     name, meshes = reading.urdf(text, os.path.dirname(path) if path else None, shown)
     reading.convert(meshes)
+    given_as = None
     if path is None:
         description = DescriptionFile(text)
         reading.resources.append(description)
-        path = description.path
+        path, given_as = description.path, 'the resource_string'
     model = WorldModel(None, path, uri or 'resource_string', (0.0, 0.0, 0.0),
-                       (0.0, 0.0, 0.0, 1.0), uri or 'resource_string', ())
+                       (0.0, 0.0, 0.0, 1.0), uri or 'resource_string', (), given_as=given_as)
     return World(name or (file_stem(path) if uri else 'world'), uri, '' if uri else text, '', (),
                  (model,), (), None)
 

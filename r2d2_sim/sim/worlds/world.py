@@ -56,6 +56,7 @@ class WorldModel(NamedTuple):
     tags: Tuple[str, ...]
     sdf: bool = False
     static: bool = False
+    given_as: Optional[str] = None  # a URDF given as text: where ('the resource_string')
 
     @property
     def made_from(self) -> Optional[str]:
