@@ -721,6 +721,12 @@ class Body:
         if loading is None:
             raise WorldError(f'body {self.name!r} was not loaded from a file: it cannot be '
                              'loaded again')
+        # Its own client hands back the copy it read first (measured: an edited file
+        # reloads as it was); another reads the file anew, and a changed file would
+        # no longer fit the body's joints, mass and centre of mass.
+        if client is not self._client and loading.file is not None and file_stamp(
+                loading.file[0]) not in (None, loading.file):
+            raise WorldError(f'{self.source} changed since {self.name} was loaded from it')
         try:
             # Cached graphics shapes: half the time of a load of R2D2 (8 -> 4 ms), and
             # the same physics and camera images as without (compared bit for bit).

@@ -146,3 +146,34 @@ def test_a_world_closed_during_the_build_is_not_brought_back(make, world_path):
             pass
     assert not loaded.world.connected
     assert len(connected_clients()) == len(clients) - 1  # its own client gone, the build's too
+
+
+def bin_with_its_centre_of_mass_at(x_m):
+    """Return BOX named bin, its inertial origin at ``x_m`` along x: its shape stays put."""
+    return BOX.replace('"crate"', '"bin"').replace('<inertial>',
+                                                   f'<inertial><origin xyz="{x_m:g} 0 0"/>')
+
+
+def test_an_extra_model_whose_file_changed_leaves_in_one_line_not_misplaced(
+        make, world_path, tmp_path):
+    """
+    Its inertial origin moved 0.3 m in its file while running: LoadWorld reads the file anew.
+
+    A reset loads the bin as it was (PyBullet's copy). The world built beside read
+    the new file into the old records: the bin said it stood at x 1.30, its box
+    where a launch with that file puts it (1.00).
+    """
+    model = tmp_path / 'bin.urdf'
+    model.write_text(bin_with_its_centre_of_mass_at(0.0))
+    errors = []
+    simulation = make(errors=errors, world_paths=[str(world_path.parent)],
+                      extra_models=[f'{model} 1.0 1.0 0.1'], gravity=[0.0, 0.0, 0.0])
+    extra = simulation.world.bodies['bin']
+    launched = (extra.world_pose(), extra.bounds())
+    model.write_text(bin_with_its_centre_of_mass_at(0.3))
+    simulation.reset(state=True)
+    assert (extra.world_pose(), extra.bounds()) == launched and errors == []
+    simulation.load_world(str(world_path))
+    assert errors == [f'bin left the world: {model} changed since bin was loaded from it']
+    assert 'bin' not in simulation.world.bodies and not extra.alive
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'shelf', 'crate', 'box']
