@@ -26,6 +26,7 @@ it touches or comes near after a step, which the sensors' mounts, the
 entities' bounds and a run's watch ask.
 """
 
+import ctypes
 from functools import partial
 import math
 import os
@@ -39,7 +40,7 @@ from r2d2_sim.model.reach import FIXED, FREE, LinkReach, reach_radius, SLIDES, T
 from r2d2_sim.model.transforms import BaseState, in_body_frame, rotate_inverse
 from r2d2_sim.physics import records
 from r2d2_sim.physics.raycast import (
-    exclude_from_rays, HIDDEN_MASK, RAY_EXCLUDED_GROUP, SHOWN_MASK)
+    BULLET_RAY_GROUP, exclude_from_rays, HIDDEN_MASK, RAY_EXCLUDED_GROUP, ray_mask, SHOWN_MASK)
 from r2d2_sim.physics.records import (
     Aabb, ClosestPoints, CollisionShape, ContactPoint, Dynamics, JointRecord, JointStates,
     LinkState, Pose, Quat, Vec3)
@@ -49,7 +50,7 @@ with silenced_output():  # PyBullet prints its build time on import
     import pybullet
 from pybullet_utils.bullet_client import BulletClient  # noqa: I100 (after the quiet import)
 
-__all__ = ['Body', 'BodyRemoved', 'Loading', 'Motor', 'WorldError', 'file_stamp']
+__all__ = ['Body', 'BodyRemoved', 'Loading', 'Motor', 'OwnFilters', 'WorldError', 'file_stamp']
 
 ZERO: Vec3 = (0.0, 0.0, 0.0)
 # Bullet's collision filters as PyBullet gives them at load (URDF2Bullet): the base link
@@ -102,6 +103,15 @@ class Loading(NamedTuple):
     file: Optional[Tuple[str, int, int]] = None  # the file read, its size and mtime_ns then
 
 
+class OwnFilters(NamedTuple):
+    """What a body's URDF says of its own collision filters, read when the body was loaded."""
+
+    sets: Optional[bool]    # a <collision> sets a group or mask (None: the file was unreadable)
+    unknown: str = ''       # why the file could not be read, when ``sets`` is None
+    # Each link that sets them: its name, group and mask as PyBullet reads them (None: unset).
+    links: Tuple[Tuple[str, Optional[int], Optional[int]], ...] = ()
+
+
 def file_stamp(path: str) -> Optional[Tuple[str, int, int]]:
     """Return (path, size, mtime_ns) of a file, None if it is not there."""
     try:
@@ -131,7 +141,7 @@ class Body:
     def __init__(self, client: BulletClient, body_id: int, name: str, source: str, *,
                  body_yaw_offset_rad: float = 0.0, spawned: bool = False,
                  loading: Optional[Loading] = None,
-                 own_filters: Optional[Tuple[Optional[bool], str]] = None) -> None:
+                 own_filters: Optional[OwnFilters] = None) -> None:
         self.name = name
         self.source = source
         self.spawned = spawned
@@ -148,10 +158,10 @@ class Body:
         # most steps while it ramps): joints, velocities, forces. See _motor_table.
         self._velocity_motors: Optional[Tuple[List[int], List[float], List[float]]] = None
         self._anchored: Set[int] = set()  # links whose contacts hold_joints anchored
-        # Its URDF sets collision filters: read when it is loaded, while its file is there
-        # (None: the file could not be read then; why in _own_filters_unknown).
-        self._own_filters, self._own_filters_unknown = (
-            own_filters if own_filters is not None else _sets_collision_filters(loading))
+        # What its URDF says of its collision filters: read when it is loaded, while its file
+        # is there.
+        self._own_filters = (own_filters if own_filters is not None
+                             else _read_own_filters(loading))
         # How often the body was put somewhere, loaded or reloaded: a watch that keeps where
         # a body without joints stands (its bounds) looks again when this changed.
         self.moves = 0
@@ -603,7 +613,29 @@ class Body:
         could not be read then (unknown: treated as set, so nothing is put
         back wrongly).
         """
-        return self._own_filters is not False
+        return self._own_filters.sets is not False
+
+    def rays_miss(self, group: int) -> List[str]:
+        """
+        Return how the URDF's own collision filters hide links from rays of ``group``.
+
+        A robot's rays (``ray_mask(group)``, cast in Bullet's group 1) pass through a
+        link whose group has no other bit than ``group``, and skip one whose mask
+        lacks group 1; what hides each such link, as a phrase (after "its URDF").
+        Empty: none.
+        """
+        missed = []
+        for link, own_group, own_mask in self._own_filters.links:
+            if own_group == 0:
+                missed.append(f'puts link {link} in collision group 0, which no ray sees')
+            elif own_group is not None and not own_group & ray_mask(group):
+                missed.append(f'puts link {link} in collision group {own_group}, the one '
+                              'those rays pass through (a group with another bit, such as 1, '
+                              'is seen)')
+            elif own_mask is not None and not own_mask & BULLET_RAY_GROUP:
+                missed.append(f'gives link {link} the collision mask {own_mask}, without group '
+                              f'{BULLET_RAY_GROUP}, which rays are cast in')
+        return missed
 
     def collision_filters(self) -> Dict[int, Tuple[int, int]]:
         """
@@ -614,10 +646,10 @@ class Body:
         that sets its own (``<collision group=... mask=...>``): those are not
         followed here.
         """
-        if self._own_filters is None:
-            raise WorldError(f'{self.name}: {self._own_filters_unknown}, so whether its URDF '
+        if self._own_filters.sets is None:
+            raise WorldError(f'{self.name}: {self._own_filters.unknown}, so whether its URDF '
                              'sets its own collision groups (which cannot be put back) is unknown')
-        if self._own_filters:
+        if self._own_filters.sets:
             raise WorldError(f'{self.name} sets its own collision groups in its URDF, which '
                              'cannot be put back')
         filters = {link: DYNAMIC_FILTER for link in self.links()}
@@ -693,8 +725,7 @@ class Body:
         body_id = self._load_into(client)
         twin = Body(client, body_id, self.name, self.source,
                     body_yaw_offset_rad=self.body_yaw_offset_rad, spawned=self.spawned,
-                    loading=self._loading, own_filters=(self._own_filters,
-                                                        self._own_filters_unknown))
+                    loading=self._loading, own_filters=self._own_filters)
         for method, args, kwargs in self._changes:
             twin._change(method, *args, **kwargs)
         return twin
@@ -884,22 +915,43 @@ class Body:
         return f'Body({self.name!r}, id={self._id}, source={self.source!r})'
 
 
-def _sets_collision_filters(loading: Optional[Loading]) -> Tuple[Optional[bool], str]:
-    """
-    Return whether the URDF a body was loaded from sets a collision group or mask.
-
-    (True or False, ''), or (None, why not known) when its file cannot be read.
-    """
+def _read_own_filters(loading: Optional[Loading]) -> OwnFilters:
+    """Read what the URDF a body was loaded from says of its own collision filters."""
     if loading is None or loading.file is None:
-        return False, ''
+        return OwnFilters(False)
     path = loading.file[0]
     try:
         root = ElementTree.parse(path).getroot()
     except FileNotFoundError:
-        return None, f'its file {path} is gone'
+        return OwnFilters(None, f'its file {path} is gone')
     except OSError as exc:
-        return None, f'its file {path} cannot be read ({exc.strerror or exc})'
+        return OwnFilters(None, f'its file {path} cannot be read ({exc.strerror or exc})')
     except ElementTree.ParseError as exc:
-        return None, f'its file {path} is not XML as Python reads it ({exc})'
-    return (any(c.get('group') is not None or c.get('mask') is not None
-                for c in root.iter('collision')), '')
+        return OwnFilters(None, f'its file {path} is not XML as Python reads it ({exc})')
+    sets = any(c.get('group') is not None or c.get('mask') is not None
+               for c in root.iter('collision'))
+    links = []
+    for link in root.findall('link') if sets else ():
+        # Per link, the last <collision> that sets one wins (URDF2Bullet).
+        group = mask = None
+        for collision in link.findall('collision'):
+            if (text := collision.get('group')) is not None:
+                group = _urdf_int(text)
+            if (text := collision.get('mask')) is not None:
+                mask = _urdf_int(text)
+        if group is not None or mask is not None:
+            links.append((link.get('name', ''), group, mask))
+    return OwnFilters(sets, '', tuple(links))
+
+
+_atof = ctypes.CDLL(None).atof
+_atof.restype, _atof.argtypes = ctypes.c_double, [ctypes.c_char_p]
+INT_MIN = -2 ** 31
+
+
+def _urdf_int(text: str) -> int:
+    """Return the int PyBullet reads ``text`` as: C's atof, turned to an int (x86's way)."""
+    value = _atof(text.encode('utf-8', 'replace'))
+    if not (math.isfinite(value) and INT_MIN <= value < -INT_MIN):
+        return INT_MIN  # what x86 gives for a double out of an int's range
+    return int(value)  # towards zero, as C does

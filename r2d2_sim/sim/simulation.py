@@ -40,7 +40,9 @@ do that slow part outside the simulator's lock. Every attribute is set in
 
 import dataclasses
 import os
-from typing import Callable, Generator, List, NamedTuple, Optional, Sequence, Tuple, Union
+import weakref
+from typing import (
+    Callable, Generator, List, NamedTuple, Optional, Sequence, Set, Tuple, Union)
 
 from r2d2_sim.errors import RefusedError, SetupError, WorldError
 from r2d2_sim.model.timing import StepClock, StepSchedule
@@ -148,6 +150,9 @@ class Simulation:
         self.models: List[Body] = []  # extra_models and the world model loaded at start-up
         self._warn, self._error = warn, error
         self._watchers: List[RobotsWatcher] = []
+        # The ray groups each body was said to be hidden from (_warn_of_unseen), once each.
+        self._unseen_told: 'weakref.WeakKeyDictionary[Body, Set[int]]' = (
+            weakref.WeakKeyDictionary())
         # Told the simulated time after each step (oracles.RunWatch): none by default.
         self._step_watchers: List[Callable[[int], None]] = []
         # What SDF worlds and spawns are searched and compared with.
@@ -172,6 +177,7 @@ class Simulation:
         except Exception:
             self.close()
             raise
+        self._warn_of_unseen()
         # Nothing ran since the world was as launched (start-up, a full reset, a world
         # loaded): no step, and the node not played. At time 0 and paused: the standard's
         # STOPPED ("pausing and resetting with ALL"). A time reset alone does not set it:
@@ -207,8 +213,35 @@ class Simulation:
         return unwatch
 
     def _robots_changed(self) -> None:
+        self._warn_of_unseen()
         for watcher in self._watchers:
             watcher(tuple(self.robots))
+
+    def _warn_of_unseen(self) -> None:
+        """
+        Say once, in one line, when a body's own collision filters hide it from a robot's rays.
+
+        A robot's laser and 3D lidar pass through its ray group (a bit of 4 ... 2^30):
+        a body whose URDF puts a link in that group alone (or leaves group 1, which
+        rays are cast in, out of its mask) is not seen by them, though the robot
+        collides with it. Checked whenever a body or a robot comes into the world.
+        """
+        for robot in self.robots:
+            group = robot.ray_group
+            if group is None:
+                continue
+            for body in self.world.bodies.values():
+                if body is robot.body or not body.sets_own_collision_filters:
+                    continue
+                told = self._unseen_told.setdefault(body, set())
+                if group in told:
+                    continue
+                told.add(group)
+                missed = body.rays_miss(group)
+                if missed:
+                    self._warn(f'{body.name} is invisible to robot {robot.name}\'s laser and 3D '
+                               'lidar, though the robot collides with it: its URDF '
+                               f'{"; ".join(missed)}')
 
     def _forget_robots(self, robots: Sequence[Robot]) -> None:
         for robot in robots:
@@ -445,6 +478,7 @@ class Simulation:
             if notes:
                 self._warn(f'{body.name}: {notes}')
             self._warn_of_overlaps(body)
+            self._warn_of_unseen()
             return body.name
         try:
             namespace = self._free_namespace(request.namespace)
