@@ -39,13 +39,17 @@ import pybullet_data  # noqa: I100 (imported after pybullet on purpose)
 from pybullet_utils.bullet_client import BulletClient
 
 __all__ = ['SimWorld', 'WorldBuild', 'SavedWorld', 'WorldError', 'display_problem',
-           'SPAWN_CLEARANCE_M', 'GROUND_PLANE_NAME', 'RAY_GROUPS', 'ray_mask', 'RayRequest',
-           'COMPACT_AFTER_REMOVALS']
+           'SPAWN_CLEARANCE_M', 'GROUND_PLANE_NAME', 'GROUND_HALF_WIDTH_M', 'RAY_GROUPS',
+           'ray_mask', 'RayRequest', 'COMPACT_AFTER_REMOVALS']
 
 # Gap left between the lowest point of the robot and the ground at spawn, so
 # that it starts just above the plane instead of interpenetrating it.
 SPAWN_CLEARANCE_M = 0.001
 GROUND_PLANE_NAME = 'ground_plane'
+# pybullet_data's plane.urdf collides as a box 200 x 200 x 10 m, its top face at z 0, about
+# the origin: past 100 m along x or y there is nothing to stand on. Kept as it is (every
+# contact and recording depends on it); poses off it are refused instead (off_ground).
+GROUND_HALF_WIDTH_M = 100.0
 IDENTITY_QUATERNION: Quat = (0.0, 0.0, 0.0, 1.0)
 # Each robot's laser passes through its own links, put in a collision group
 # of that robot's (one bit each), and sees every other robot. Bits 0 and 1
@@ -188,6 +192,7 @@ class SimWorld:
         # broke around it is still to be put back (repair).
         self.blown_up = False
         self._client: Optional[BulletClient] = None
+        self._ground: Optional[Body] = None  # the ground plane this world loaded (plane.urdf)
         problem = display_problem() if gui else None
         if problem is not None:
             raise WorldError(problem)
@@ -200,7 +205,7 @@ class SimWorld:
         try:
             self._setup(gravity_m_s2)
             if ground_plane:
-                self.load('plane.urdf', name=GROUND_PLANE_NAME)
+                self._ground = self.load('plane.urdf', name=GROUND_PLANE_NAME)
         except Exception:
             self.close()
             raise
@@ -230,6 +235,21 @@ class SimWorld:
         client.setPhysicsEngineParameter(enableConeFriction=0)
         if self.gui:
             client.configureDebugVisualizer(client.COV_ENABLE_GUI, 0)
+
+    def off_ground(self, x: float, y: float) -> Optional[str]:
+        """
+        Return why a body standing at (x, y) would fall for ever (a phrase), None if it would not.
+
+        Off the ground plane this world loaded (:data:`GROUND_HALF_WIDTH_M`), while
+        that plane is in the world. None without it: another ground (a world's
+        own floor) may be anywhere.
+        """
+        ground = self._ground
+        if (ground is None or self.bodies.get(GROUND_PLANE_NAME) is not ground
+                or max(abs(x), abs(y)) <= GROUND_HALF_WIDTH_M):
+            return None
+        edge = GROUND_HALF_WIDTH_M
+        return f'off the ground plane (x and y from {-edge:g} to {edge:g} m)'
 
     def unique_name(self, wanted: str) -> str:
         """Return ``wanted``, or with the first free ``_1``, ``_2``... suffix when taken."""

@@ -293,9 +293,11 @@ class Entities:
         Returns the body, its description's text and what an SDF model does
         not simulate (no ground clearance added). Named ``request.name``,
         or the URDF's robot name when empty; a taken or invalid name is
-        refused unless ``allow_renaming`` (then ``_1``, ``_2``...).
-        ``flags`` go to loadURDF (a driven robot's: true cylinders, inertias
-        from the file); ``body_yaw_offset_rad`` turns its body frame from the
+        refused unless ``allow_renaming`` (then ``_1``, ``_2``...). A body
+        that can fall, at a pose off the ground plane, is INVALID_POSE (it would
+        fall for ever: ``SimWorld.off_ground``). ``flags`` go to loadURDF (a
+        driven robot's: true cylinders, inertias from the file);
+        ``body_yaw_offset_rad`` turns its body frame from the
         URDF base (a robot that drives along its base y). ``spawnable`` is
         the request read beforehand (:meth:`read`), else it is read here; it
         is closed when the spawn is refused.
@@ -328,7 +330,12 @@ class Entities:
             if spawnable.sdf and not flags:
                 body.free_joints()  # a model's joints move as Gazebo's do; a robot drives its own
             from r2d2_sim.physics.crowding import check_crowding  # PyBullet, when used
+            x, y, _ = pose.translation
+            off = None if body.static else self._world.off_ground(x, y)
             try:  # too many moving links, or into a crowd of moving bodies: taken out again
+                if off is not None:  # it would fall for ever, unnoticed
+                    raise RefusedError('INVALID_POSE', f'{name} at x {x:g}, y {y:g} would be '
+                                                       f'{off} and fall for ever')
                 check_crowding(self._world.client, list(self._world.bodies.values()), [body],
                                'INVALID_POSE', f'{name} at that pose')
             except RefusedError:

@@ -145,6 +145,8 @@ class Simulation:
         self.clock = StepClock(rate)
         self.publish_schedule = StepSchedule(rate, config.publish_rate_hz)
         self.steps_per_gui_frame = max(1, round(rate / GUI_CAMERA_RATE_HZ))
+        # How often a robot that fell off the ground is looked for: once a simulated second.
+        self._fall_check_steps = max(1, round(rate))
         self.last_frame_step = 0
         self.robots: List[Robot] = []
         self.models: List[Body] = []  # extra_models and the world model loaded at start-up
@@ -296,6 +298,9 @@ class Simulation:
         measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
         if world.blown_up:  # robots were put back: now what their blow-up broke too
             self._repair()
+        if step % self._fall_check_steps == 0:
+            for robot in robots:
+                robot.check_fall(time_ns)
         measured = any(measurements)
         casting = [(i, measurement, robots[i].pending_rays())
                    for i, measurement in enumerate(measurements)
@@ -613,6 +618,9 @@ class Simulation:
             if isinstance(world, str) else world
         try:
             self._check_names(world_file)
+            off = self._startup.off_ground(world_file)
+            if off is not None:
+                raise RefusedError('OPERATION_FAILED', f'the world\'s start pose: {off}')
         except BaseException:
             world_file.close()
             raise

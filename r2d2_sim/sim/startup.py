@@ -237,6 +237,9 @@ class Startup:
         driven, naming the robot when it is a listed one; nothing of it stays.
         """
         name, config, namespace, listed = start
+        off = self._off_ground(start)
+        if off is not None:
+            raise WorldError(f'robot {name}: {off}' if listed else off)
         try:
             description = RobotDescription.load(config.urdf, config.robot_description)
         except DescriptionError as exc:
@@ -274,6 +277,25 @@ class Startup:
                     self._world.remove(body)
             description.close()
             raise
+
+    def _off_ground(self, start: RobotStart) -> Optional[str]:
+        """Return why ``start`` (placed) would have the robot fall for ever; None if not."""
+        x, y, _ = start.config.initial_pose
+        off = self._world.off_ground(x, y)
+        if off is None:
+            return None
+        return f'initial_pose puts the robot at x {x:g}, y {y:g}, {off}: it would fall for ever'
+
+    def off_ground(self, world_file: World) -> Optional[str]:
+        """Return why a start-up robot would fall for ever in ``world_file``; None if none."""
+        for start in self._starts:
+            try:
+                off = self._off_ground(placed(start, world_file))
+            except ConfigError:
+                continue  # its dock: said when the world is built
+            if off is not None:
+                return f'robot {start.name}: {off}' if start.name else off
+        return None
 
     def rebuild(self, robots: Sequence[Robot], as_launched: bool) -> Rebuilt:
         """

@@ -37,7 +37,11 @@ from r2d2_sim.model.sensors import ImuReading
 from r2d2_sim.model.timing import stamp_of, StepSchedule
 from r2d2_sim.physics.world import RayRequest, SimWorld, SPAWN_CLEARANCE_M
 
-__all__ = ['Frame', 'Measurement', 'Robot', 'DriveTrain']
+__all__ = ['Frame', 'Measurement', 'Robot', 'DriveTrain', 'FALLEN_DEPTH_M']
+
+# A base this far below z 0 has nothing under it: the ground plane is a box 10 m deep, and a
+# robot past its edge falls on for ever (damped: about 15 m/s, never a blow-up).
+FALLEN_DEPTH_M = 10.0
 
 
 class Frame(NamedTuple):
@@ -116,6 +120,7 @@ class Robot:
         self.description = description
         self.blow_ups = 0
         self._error = error
+        self._fall_told = False  # its fall was said (check_fall), since it was last put back
         self._resources = list(resources)
         self.laser: Optional[LaserScanner] = None
         self.lidar: Optional[Lidar3d] = None
@@ -384,8 +389,29 @@ class Robot:
 
     def teleported(self) -> None:
         """Forget the motion so far: the body was placed, and the IMU must not read the jump."""
+        self._fall_told = False
         if self.imu is not None:
             self.imu.reset()
+
+    def check_fall(self, time_ns: int) -> None:
+        """
+        Say once, in one error line, that the robot fell more than FALLEN_DEPTH_M below z 0.
+
+        Past the ground plane's edge it falls for ever, and every sensor goes on
+        measuring; the physics is left as it is. Said again once it was put
+        back (a reset, a teleport) and falls again. One query.
+        """
+        if self._fall_told or not self.body.com_pose()[0][2] < -FALLEN_DEPTH_M:
+            return
+        self._fall_told = True
+        (x, y, z), _ = self.body.world_pose()
+        off = self.world.off_ground(x, y)
+        x, y = round(x, 1) + 0.0, round(y, 1) + 0.0  # no -0.0
+        self._error(f'robot {self.name} is falling with nothing under it: at '
+                    f't={time_ns / 1e9:.3f} s its base is at z {z:.1f} m, more than '
+                    f'{FALLEN_DEPTH_M:g} m below z 0, at x {x:.1f}, y {y:.1f}'
+                    + (f', {off}' if off is not None else '')
+                    + '; it falls on until it is reset or moved')
 
     def reset(self) -> None:
         """Put the robot back at its initial pose at rest, dropping the command and odometry."""
@@ -399,6 +425,7 @@ class Robot:
         Drops the command and the IMU's last sample; odometry starts again
         at the initial pose and the wheel motors stop, as when it was built.
         """
+        self._fall_told = False
         if self.imu is not None:
             self.imu.reset()
         if self.battery is not None:
