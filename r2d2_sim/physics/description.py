@@ -8,6 +8,7 @@ failure is a :class:`DescriptionError` with a one-line message.
 import math
 import os
 from pathlib import Path
+import stat
 import sys
 import tempfile
 from typing import Callable, Dict, List, NamedTuple, Optional, Set
@@ -16,7 +17,7 @@ import xml.etree.ElementTree as ElementTree
 import pybullet_data
 
 from r2d2_sim.errors import SetupError
-from r2d2_sim.files import read_regular
+from r2d2_sim.files import describe, read_regular
 
 PACKAGE_SCHEME = 'package://'
 PACKAGE_NAME = 'r2d2_sim'
@@ -112,8 +113,12 @@ def read_description(path: str) -> str:
         raise DescriptionError(f'cannot read {path}: {reason}') from None
 
 
-def check_urdf_xml(text: str, source: str) -> None:
-    """Raise DescriptionError unless ``text`` is a URDF PyBullet can read (:func:`check_urdf`)."""
+def check_urdf_xml(text: str, source: str) -> ElementTree.Element:
+    """
+    Return the ``<robot>`` of ``text`` if it is a URDF PyBullet can read (:func:`check_urdf`).
+
+    DescriptionError otherwise, ``cannot load source: problem``.
+    """
     try:
         root = ElementTree.fromstring(text)
     except ElementTree.ParseError as exc:
@@ -122,6 +127,20 @@ def check_urdf_xml(text: str, source: str) -> None:
         raise DescriptionError(
             f'cannot load {source}: the root element is <{root.tag}>, not <robot>')
     check_urdf(root, f'cannot load {source}')
+    return root
+
+
+def read_urdf(path: str) -> str:
+    """
+    Return the text of the URDF file ``path``, checked as every URDF of the operator's is.
+
+    Its tree and numbers (:func:`check_urdf`) and the mesh files PyBullet
+    would open (:func:`check_mesh_files`); DescriptionError (one line,
+    ``cannot load path: problem``) otherwise.
+    """
+    text = read_description(path)
+    check_mesh_files(check_urdf_xml(text, path), path, f'cannot load {path}')
+    return text
 
 
 # The joint types PyBullet's URDF reader knows ('spherical' is its own).
@@ -328,6 +347,74 @@ def _check_unique(names: List[str], what: str,
         seen.add(name)
 
 
+# The mesh formats PyBullet's URDF reader opens; a file named otherwise it never opens.
+PYBULLET_MESH_SUFFIXES = ('.dae', '.stl', '.obj', '.cdf', '.vtk')
+# Where PyBullet looks for a mesh beyond the URDF's own directories: from the working
+# directory, and up to five levels above it.
+_UPWARDS = ('', '../', '../../', '../../../', '../../../../', '../../../../../')
+
+
+def pybullet_mesh_path(urdf_path: Optional[str], filename: str) -> Optional[str]:
+    """
+    Return the file PyBullet's loadURDF opens for a ``<mesh filename>``, or None if none.
+
+    As bullet3's UrdfFindMeshFile looks (PyBullet 3.2; its search path, where
+    ``loadURDF`` finds pybullet_data's URDFs, is not used for meshes): a
+    ``package://`` or ``model://`` in front dropped, the name tried after
+    the URDF's own path, after each of its directories from the nearest, then
+    from the working directory and up to five levels above it; the first
+    that exists and can be read (a directory or a FIFO too: ``fopen`` opens
+    both). None for a name it never opens (too short, another format) or
+    finds nowhere: PyBullet then refuses the URDF itself, in one line.
+    """
+    if len(filename) <= 4 or filename[-4:].lower() not in PYBULLET_MESH_SUFFIXES:
+        return None
+    for scheme in ('package://', 'model://'):
+        if filename.startswith(scheme):
+            filename = filename[len(scheme):]
+            break
+    prefixes: List[str] = []
+    if urdf_path:
+        prefixes.append(urdf_path)
+        prefixes += [urdf_path[:i] + '/' for i in range(len(urdf_path) - 1, -1, -1)
+                     if urdf_path[i] in '/\\']
+    for prefix in prefixes + list(_UPWARDS):
+        attempt = prefix + filename
+        if os.path.exists(attempt) and os.access(attempt, os.R_OK):
+            return attempt
+    return None
+
+
+def check_mesh_files(root: ElementTree.Element, urdf_path: Optional[str], source: str) -> None:
+    """
+    Raise DescriptionError for a mesh PyBullet would open that is not a regular file.
+
+    ``urdf_path`` is the file PyBullet loads the URDF from (its meshes are
+    found from there: :func:`pybullet_mesh_path`). PyBullet 3.2 ends the
+    process on a mesh that is a directory (``std::bad_alloc``, exit 134)
+    and waits for a writer for ever on a FIFO. For the operator's own URDFs
+    (the ``urdf``, ``robot_description``, ``extra_models`` and ``world``
+    parameters), whose meshes may lie anywhere; a spawn's or a request's
+    world's are held to more (:mod:`r2d2_sim.sim.spawnables`).
+    """
+    for link in root.findall('link'):
+        for part in ('visual', 'collision'):
+            for mesh in link.findall(f'{part}/geometry/mesh'):
+                filename = mesh.get('filename', '')
+                found = pybullet_mesh_path(urdf_path, filename)
+                if found is None:
+                    continue
+                try:
+                    facts = os.stat(found)
+                except OSError:
+                    continue  # gone since: PyBullet finds it nowhere and refuses it itself
+                if not stat.S_ISREG(facts.st_mode):
+                    where = os.path.abspath(found)[:300]
+                    raise DescriptionError(
+                        f'{source}: link {link.get("name", "")[:100]!r}: {part} mesh '
+                        f'{filename[:200]!r} ({where}) is {describe(facts)}, not a regular file')
+
+
 class DescriptionFile:
     """
     A URDF given as text, written to a temporary file PyBullet can load.
@@ -368,15 +455,21 @@ class RobotDescription(NamedTuple):
 
         XML ``text`` wins (written to a temporary file PyBullet can load); else
         ``urdf`` resolved as a path, URI or pybullet_data name, else the
-        package's own R2D2. DescriptionError (one line) when it cannot be had.
+        package's own R2D2. DescriptionError (one line) when it cannot be had
+        or PyBullet would crash on it (:func:`read_urdf`: its tree, numbers
+        and mesh files).
         """
         if text:
-            check_urdf_xml(text, 'robot_description')
+            root = check_urdf_xml(text, 'robot_description')
             temporary = DescriptionFile(text)
+            try:  # its meshes are found from where PyBullet reads it
+                check_mesh_files(root, temporary.path, 'cannot load robot_description')
+            except DescriptionError:
+                temporary.close()
+                raise
             return RobotDescription(temporary.path, text, temporary)
         path = resolve_description_path(urdf) if urdf else default_urdf_path()
-        text = read_description(path)
-        check_urdf_xml(text, path)
+        text = read_urdf(path)
         return RobotDescription(path, text, None)
 
     def close(self) -> None:

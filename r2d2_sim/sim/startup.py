@@ -28,7 +28,7 @@ from r2d2_sim.errors import SetupError, WorldError
 from r2d2_sim.model.transforms import yaw_of
 from r2d2_sim.physics.body import Body
 from r2d2_sim.physics.description import (
-    DescriptionError, resolve_description_path, RobotDescription)
+    DescriptionError, read_urdf, resolve_description_path, RobotDescription)
 from r2d2_sim.physics.world import GROUND_PLANE_NAME, SimWorld, WorldBuild
 from r2d2_sim.sim.entities import Category, EntityInfo
 from r2d2_sim.sim.settings.table import ConfigError
@@ -201,10 +201,11 @@ class Startup:
         return [entity.body.name for entity in self._entities if not entity.world_model]
 
     def _load_extra(self, description: str, position: Tuple[float, float, float]) -> Body:
-        try:
+        try:  # checked as the urdf parameter is: PyBullet crashed on what it refuses
             path = resolve_description_path(description)
+            read_urdf(path)
         except DescriptionError as exc:
-            raise WorldError(str(exc)) from None
+            raise WorldError(f'extra_models: {exc}') from None
         model = self._world.load(path, position, source=description)
         model.drop_damping()  # as a spawned entity: no damping Gazebo would not have
         self._entities.append(_Entity(model, model=True))

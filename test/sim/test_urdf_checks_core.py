@@ -267,3 +267,68 @@ def test_every_urdf_of_pybullet_data_and_r2d2_sim_that_pybullet_reads_passes():
     assert refused == [f"cannot load {os.path.join(data, 'husky', 'husky.urdf')}: joint "
                        "'imu_joint' origin xyz '$(optenv HUSKY_IMU_XYZ 0.19 0 0.149)' is not "
                        '3 finite numbers']
+
+
+# Run in a child process: every start-up parameter that names a URDF, for every URDF; one
+# JSON line of outcomes. Its working directory is where the URDF is: PyBullet looks for a
+# mesh from there too, which is how robot_description's text finds a relative one.
+TRY_EVERY_START_UP = '''
+import json, os, sys
+from r2d2_sim.errors import SetupError
+from r2d2_sim.sim.settings.robots import parse_world
+from r2d2_sim.sim.simulation import Simulation
+texts = json.loads(sys.argv[1])
+path = os.path.abspath('bad.urdf')
+defaults = {'scan_rate': 0.0, 'imu_rate': 0.0, 'cmd_vel_timeout': 0.0}
+outcomes = {}
+for what, text in texts.items():
+    with open(path, 'w') as handle:
+        handle.write(text)
+    got = []
+    for parameters in ({'urdf': path}, {'robot_description': text},
+                       {'extra_models': [path + ' 2 2 0.5']}, {'world': path}):
+        try:
+            Simulation(*parse_world({**defaults, **parameters})).close()
+            got.append('started')
+        except SetupError as exc:
+            got.append(str(exc))
+    outcomes[what] = got
+print('\\n' + json.dumps(outcomes))
+'''
+
+
+def test_start_up_urdfs_pybullet_crashes_or_hangs_on_are_refused_in_one_line(tmp_path):
+    """
+    The urdf, robot_description, extra_models and world parameters: each a one-line refusal.
+
+    PyBullet ended the whole process on an extra model of two joints of one
+    name (SIGSEGV) and on a mesh that is a directory (std::bad_alloc, exit
+    134), and waited for ever on a mesh that is a FIFO: a spawn's checks,
+    which refused all three, did not run on start-up URDFs.
+    """
+    import os
+    (tmp_path / 'hollow.obj').mkdir()
+    os.mkfifo(tmp_path / 'pipe.stl')
+    where = str(tmp_path)
+    cases = {
+        'two joints of one name': REFUSED['two joints of one name'],
+        'a mesh that is a directory': (
+            body('<mesh filename="hollow.obj"/>'),
+            f"link 'l': collision mesh 'hollow.obj' ({where}/hollow.obj) is a directory, not "
+            'a regular file'),
+        'a mesh that is a FIFO': (
+            body('<mesh filename="pipe.stl"/>'),
+            f"link 'l': collision mesh 'pipe.stl' ({where}/pipe.stl) is a special file (a FIFO, "
+            'socket or device), not a regular file'),
+    }
+    texts = {what: text for what, (text, _) in cases.items()}
+    result = subprocess.run([sys.executable, '-c', TRY_EVERY_START_UP, json.dumps(texts)],
+                            cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, (result.returncode, result.stderr[-2000:])
+    outcomes = json.loads(result.stdout.splitlines()[-1])
+    path = str(tmp_path / 'bad.urdf')
+    for what, (_, problem) in cases.items():
+        assert outcomes[what] == [f'cannot load {path}: {problem}',
+                                  f'cannot load robot_description: {problem}',
+                                  f'extra_models: cannot load {path}: {problem}',
+                                  f'world {path}: {path}: {problem}'], what

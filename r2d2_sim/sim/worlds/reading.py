@@ -25,7 +25,7 @@ from typing import Callable, Dict, List, NamedTuple, Optional, Sequence, Tuple, 
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.errors import RefusedError
-from r2d2_sim.physics.description import DescriptionFile
+from r2d2_sim.physics.description import check_mesh_files, DescriptionError, DescriptionFile
 from r2d2_sim.sim.sdf.elements import root_tag
 from r2d2_sim.sim.sdf.loading import scene_meshes, SdfSettings, TriangleBudget
 from r2d2_sim.sim.worlds.sdf_format import read_sdf_model, read_sdf_world, sdf_models
@@ -102,14 +102,17 @@ class _Reading:
             raise RefusedError('UNSUPPORTED_ELEMENTS', listed)
         self.notes.append(f'ignored: {listed}')
 
-    def urdf(self, text: str, base_dir: Optional[str], shown: str
+    def urdf(self, text: str, path: Optional[str], shown: str
              ) -> Tuple[str, List[MeshUse]]:
         """
         Check a URDF's text; return its robot name and its meshes, none converted yet.
 
-        The world's own codes on refusal; a trusted world's meshes are not
-        checked (PyBullet reads them as they are).
+        ``path``: its file (None for text). The world's own codes on refusal;
+        a trusted world's meshes may lie anywhere and are not converted
+        (PyBullet reads them as they are), but each must be a regular file
+        (PyBullet crashed on a directory, and waited for ever on a FIFO).
         """
+        base_dir = os.path.dirname(path) if path else None
         meshes: List[MeshUse] = []
         if self.trusted:
             if '<!DOCTYPE' in text or '<!ENTITY' in text:
@@ -124,6 +127,10 @@ class _Reading:
                 raise RefusedError('UNSUPPORTED_FORMAT', f'{shown}: the root element is '
                                                          f'<{root.tag[:40]}>, not <robot>')
             check_tree(root, shown)
+            try:
+                check_mesh_files(root, path, shown)
+            except DescriptionError as exc:
+                raise RefusedError('UNSUPPORTED_ASSETS', str(exc)) from None
         else:
             name, meshes = read_description(text, base_dir, shown)  # size, DOCTYPE, links, meshes
             root = ElementTree.fromstring(text)
@@ -169,8 +176,7 @@ class _Reading:
             raise RefusedError('UNSUPPORTED_ASSETS', f'model {shown}: only URDF and SDF '
                                                      'models are loaded')
         text = read_text(path, f'model {shown}', 'MISSING_ASSETS', MAX_DESCRIPTION_BYTES)
-        _, meshes = _as_asset(lambda: self.urdf(text, os.path.dirname(path), f'model {shown}'),
-                              shown)
+        _, meshes = _as_asset(lambda: self.urdf(text, path, f'model {shown}'), shown)
         model = WorldModel(entry.name, path, entry.uri, entry.position, entry.orientation,
                            entry.description or entry.uri, entry.tags)
 
@@ -246,7 +252,7 @@ def _xml_root(text: str) -> Optional[str]:
 def _read_urdf_world(text: str, path: Optional[str], uri: str, reading: _Reading,
                      anchor: Optional[str]) -> World:
     shown = uri[:200] if uri else 'the resource_string'
-    name, meshes = reading.urdf(text, os.path.dirname(path) if path else None, shown)
+    name, meshes = reading.urdf(text, path, shown)
     reading.convert(meshes)
     given_as = None
     if path is None:
