@@ -14,6 +14,7 @@ import tempfile
 from typing import Callable, Dict, List, NamedTuple, Optional, Set
 import xml.etree.ElementTree as ElementTree
 
+import numpy
 import pybullet_data
 
 from r2d2_sim.errors import SetupError
@@ -25,6 +26,13 @@ PACKAGE_NAME = 'r2d2_sim'
 MAX_READ_BYTES = 64 << 20
 # The checkout this module sits in (urdf/ and package.xml beside r2d2_sim/), if any.
 SOURCE_TREE = str(Path(__file__).resolve().parents[2])
+# The longest length a URDF may give (an origin's distance, a shape's size): the bound a
+# pose has (10 km; the ground plane is 200 m across, pybullet_data's largest is 100 m).
+# A joint origin of 1e300 m loaded, and the robot's state was NaN from its first step on.
+MAX_LENGTH_M = 10_000.0
+# The shortest joint axis: 1e-300 0 0 passed as "not all 0", and PyBullet's unit vector
+# of it was NaN from the first step on.
+MIN_AXIS_LENGTH = 1e-9
 
 
 class DescriptionError(SetupError, RuntimeError):
@@ -214,7 +222,11 @@ def _check_values(root: ElementTree.Element,
     (0, 0, 0), with a warning on stdout only: a box of size ``1 1`` or
     ``a b c`` became size 0, an origin of ``nan`` put NaN in the body's
     bounds, a mass of -5 made a floating static body, a joint axis of 0 0 0
-    (or none given) NaN positions. What its own data does and it reads right
+    (or none given) NaN positions. What it cannot simulate is refused too: a
+    joint axis shorter than MIN_AXIS_LENGTH (1e-300 0 0) and an origin or a
+    shape's size beyond MAX_LENGTH_M (1e300) gave NaN from the first step on,
+    so that a driven robot blew up and was put back on every step, for ever.
+    What its own data does and it reads right
     stays: an absent or blank origin (zeros), mass 0 (a static link), a
     vector of more than 3 numbers (the first 3), a number with a comma after
     it (``0.07, 0, -0.69``), a mesh scale of one number (uniform), a visual
@@ -244,6 +256,8 @@ def _check_values(root: ElementTree.Element,
             for axis in joint.findall('axis'):
                 _check(axis, 'xyz', f'{name}: axis', refuse, 3, _not_all_zero,
                        '3 finite numbers, not all 0', required=True)
+                _check(axis, 'xyz', f'{name}: axis', refuse, 3, _long_enough,
+                       f'a vector of length {MIN_AXIS_LENGTH:g} or more')
         for limit in joint.findall('limit'):
             for entry in ('lower', 'upper', 'effort', 'velocity'):
                 _check(limit, entry, f'{name}: limit', refuse, 1, None, 'a finite number')
@@ -260,23 +274,22 @@ def _check_origins(parent: ElementTree.Element, where: str,
         for entry in ('xyz', 'rpy'):
             _check(origin, entry, f'{where} origin', refuse, 3, None, '3 finite numbers',
                    blank=True)
+        _check(origin, 'xyz', f'{where} origin', refuse, 3, _near,
+               f'within {MAX_LENGTH_M:g} m of its frame', blank=True)
 
 
 def _check_shape(shape: ElementTree.Element, where: str, visual: bool,
                  refuse: Callable[[str], DescriptionError]) -> None:
-    """Check a geometry's sizes: above 0 (a visual's: 0 too); a mesh's scale non-zero."""
+    """Check a geometry: its sizes above 0 (a visual's: 0 too), MAX_LENGTH_M at most; a scale."""
     holds, above = (_at_least_zero, '>= 0') if visual else (_above_zero, 'above 0')
-    if shape.tag == 'box':
-        _check(shape, 'size', where, refuse, 3, holds, f'3 finite numbers {above}',
-               required=True)
-    elif shape.tag == 'sphere':
-        _check(shape, 'radius', where, refuse, 1, holds, f'a finite number {above}',
-               required=True)
-    elif shape.tag in ('cylinder', 'capsule'):
-        for entry in ('radius', 'length'):
-            _check(shape, entry, where, refuse, 1, holds, f'a finite number {above}',
-                   required=True)
-    elif shape.tag == 'mesh' and shape.get('scale') is not None:
+    sizes = {'box': ('size',), 'sphere': ('radius',), 'cylinder': ('radius', 'length'),
+             'capsule': ('radius', 'length')}.get(shape.tag, ())
+    for entry in sizes:
+        count, wanted = (3, '3 finite numbers') if entry == 'size' else (1, 'a finite number')
+        _check(shape, entry, where, refuse, count, holds, f'{wanted} {above}', required=True)
+        _check(shape, entry, where, refuse, count, _small,
+               f'{MAX_LENGTH_M:g} m or less' + (' each' if count == 3 else ''))
+    if shape.tag == 'mesh' and shape.get('scale') is not None:
         counts = 1 if len(shape.get('scale', '').split()) == 1 else 3
         _check(shape, 'scale', where, refuse, counts, _none_zero,
                '3 finite numbers (or 1), none 0')
@@ -296,6 +309,18 @@ def _none_zero(values: List[float]) -> bool:
 
 def _not_all_zero(values: List[float]) -> bool:
     return any(value != 0.0 for value in values)
+
+
+def _long_enough(values: List[float]) -> bool:
+    return math.hypot(*values) >= MIN_AXIS_LENGTH
+
+
+def _near(values: List[float]) -> bool:
+    return math.hypot(*values) <= MAX_LENGTH_M
+
+
+def _small(values: List[float]) -> bool:
+    return all(value <= MAX_LENGTH_M for value in values)
 
 
 def _check(element: ElementTree.Element, attribute: str, where: str,
@@ -318,6 +343,12 @@ def _check(element: ElementTree.Element, attribute: str, where: str,
     if values is None or len(values) != count or (holds is not None and not holds(values)):
         shown = 'none' if text is None else repr(text[:40])
         raise refuse(f'{where} {attribute} {shown} is not {wanted}')
+
+
+def _first(element: Optional[ElementTree.Element], attribute: str) -> float:
+    """Return the first number of an attribute checked already; 0 when absent."""
+    values = _floats('' if element is None else element.get(attribute, ''))
+    return values[0] if values else 0.0
 
 
 def _floats(text: str) -> Optional[List[float]]:
@@ -415,6 +446,44 @@ def check_mesh_files(root: ElementTree.Element, urdf_path: Optional[str], source
                         f'{filename[:200]!r} ({where}) is {describe(facts)}, not a regular file')
 
 
+def check_robot_inertias(root: ElementTree.Element, source: str) -> None:
+    """
+    Raise DescriptionError for a driven robot's inertia PyBullet reads as 0 (``source: problem``).
+
+    A driven robot is loaded with its inertias from the file
+    (``URDF_USE_INERTIA_FROM_FILE``); other bodies get theirs from their
+    shapes, whatever the file says. PyBullet reads an inertia whose
+    principal moments are not all >= 0 with none above the other two
+    together as 0, with a warning on stdout only; a robot of two such links,
+    or one such base on wheels, blew up on its first step, and again on
+    every step it was put back. So every link of mass above 0 needs
+    principal moments above 0, none above the other two together, as every
+    solid's are: one rule a user can follow, though a single such link
+    beside a real base (a sensor of 0.1 kg) happened to simulate. A link of
+    mass 0 (a static base, a frame) and one without ``<inertial>``
+    (PyBullet's 1 kg of inertia 1) are left as they are. The numbers are
+    checked ones (:func:`check_urdf`).
+    """
+    for link in root.findall('link'):
+        inertial = link.find('inertial')
+        if inertial is None:
+            continue
+        kg = _first(inertial.find('mass'), 'value')
+        if kg <= 0.0:
+            continue
+        inertia = inertial.find('inertia')
+        xx, xy, xz, yy, yz, zz = (_first(inertia, entry)
+                                  for entry in ('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'))
+        tensor = numpy.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        low, middle, high = (float(m) for m in numpy.linalg.eigvalsh(tensor))  # ascending
+        if low <= 0.0 or high > (low + middle) * (1.0 + 1e-9):
+            raise DescriptionError(
+                f'{source}: link {link.get("name", "")[:100]!r}: a driven robot\'s link of '
+                f'{kg:g} kg needs an inertia of principal moments above 0, none above the '
+                f'other two together, not ({low:.3g}, {middle:.3g}, {high:.3g}): PyBullet '
+                'reads it as 0')
+
+
 class DescriptionFile:
     """
     A URDF given as text, written to a temporary file PyBullet can load.
@@ -457,10 +526,11 @@ class RobotDescription(NamedTuple):
         ``urdf`` resolved as a path, URI or pybullet_data name, else the
         package's own R2D2. DescriptionError (one line) when it cannot be had
         or PyBullet would crash on it (:func:`read_urdf`: its tree, numbers
-        and mesh files).
+        and mesh files), or its inertias cannot drive (:func:`check_robot_inertias`).
         """
         if text:
             root = check_urdf_xml(text, 'robot_description')
+            check_robot_inertias(root, 'cannot load robot_description')
             temporary = DescriptionFile(text)
             try:  # its meshes are found from where PyBullet reads it
                 check_mesh_files(root, temporary.path, 'cannot load robot_description')
@@ -470,6 +540,7 @@ class RobotDescription(NamedTuple):
             return RobotDescription(temporary.path, text, temporary)
         path = resolve_description_path(urdf) if urdf else default_urdf_path()
         text = read_urdf(path)
+        check_robot_inertias(ElementTree.fromstring(text), f'cannot load {path}')
         return RobotDescription(path, text, None)
 
     def close(self) -> None:

@@ -56,7 +56,7 @@ from r2d2_sim.sim.settings.readers import namespace as read_namespace
 from r2d2_sim.sim.settings.robots import resolve_namespace, robot_config, RobotSpec
 from r2d2_sim.sim.settings.table import ConfigError, NOISE_FAMILIES, PARAMETERS_BY_NAME
 from r2d2_sim.sim.settings.config import read_value, SimConfig
-from r2d2_sim.sim.spawnables import Spawnable
+from r2d2_sim.sim.spawnables import check_driven, Spawnable
 from r2d2_sim.sim.startup import docked, finished, Rebuilt, robot_starts, Startup
 from r2d2_sim.sim.worlds import empty_world, LoadOptions, Places, World, WorldFiles
 
@@ -471,10 +471,11 @@ class Simulation:
         settings, its odometry starting at its pose: RefusedError
         NAMESPACE_INVALID for a malformed or taken namespace (or the
         simulator's own), NAME_NOT_UNIQUE when its frames would be another
-        robot's, OPERATION_FAILED when the world's settings cannot drive it or
-        a watcher refuses it. Without one, a plain entity, free of Bullet's
-        default damping as the start-up models are. Refusals leave the world
-        as it was. ``spawnable``: the request's files read beforehand
+        robot's, RESOURCE_PARSE_ERROR for inertias PyBullet reads as 0
+        (``check_driven``), OPERATION_FAILED when the world's settings cannot
+        drive it or a watcher refuses it. Without one, a plain entity, free of
+        Bullet's default damping as the start-up models are. Refusals leave
+        the world as it was. ``spawnable``: the request's files read beforehand
         (``simulation.entities.read(request)``, which needs no lock).
         """
         if not request.namespace:
@@ -497,7 +498,8 @@ class Simulation:
         if notes:
             self._warn(f'{body.name}: {notes}')
         base = body.world_state()
-        try:
+        try:  # loaded with its inertias from the file: they must drive it (not yet stepped)
+            check_driven(description, request.uri[:200] or 'the resource_string')
             config = docked(robot_config(self.config, body.name, {
                 'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]}),
                 self.worlds.current, self._named_warn(body.name))

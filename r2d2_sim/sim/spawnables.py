@@ -27,15 +27,16 @@ from r2d2_sim.errors import RefusedError
 from r2d2_sim.files import read_regular, UnsafeFile
 from r2d2_sim.model.transforms import IDENTITY, Transform
 from r2d2_sim.physics.description import (
-    check_urdf, DescriptionError, DescriptionFile, PACKAGE_SCHEME, package_share_directory,
-    resolve_description_path)
+    check_robot_inertias, check_urdf, DescriptionError, DescriptionFile, PACKAGE_SCHEME,
+    package_share_directory, resolve_description_path)
 from r2d2_sim.sim.sdf.loading import SdfSettings, TriangleBudget
 from r2d2_sim.sim.sdf.mesh_cache import MeshCache
 from r2d2_sim.sim.sdf.spawning import is_sdf_spawn, read_sdf_spawnable
 
-__all__ = ['check_description', 'check_tree', 'read_description', 'convert_meshes', 'MeshUse',
-           'read_spawnable', 'spawnable_uris', 'directory_spawnables', 'Spawnable', 'Closable',
-           'box_urdf', 'MAX_DESCRIPTION_BYTES', 'MAX_LINKS']
+__all__ = ['check_description', 'check_tree', 'check_driven', 'read_description',
+           'convert_meshes', 'MeshUse', 'read_spawnable', 'spawnable_uris',
+           'directory_spawnables', 'Spawnable', 'Closable', 'box_urdf', 'MAX_DESCRIPTION_BYTES',
+           'MAX_LINKS']
 
 
 class MeshUse(NamedTuple):
@@ -114,6 +115,19 @@ def check_tree(root: ElementTree.Element, shown: str) -> None:
     """Raise RefusedError RESOURCE_PARSE_ERROR for a URDF tree or number PyBullet misreads."""
     try:
         check_urdf(root, shown)
+    except DescriptionError as exc:
+        raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
+
+
+def check_driven(text: str, shown: str) -> None:
+    """
+    Refuse (RESOURCE_PARSE_ERROR) a spawned robot's URDF whose inertias PyBullet reads as 0.
+
+    ``text`` is a checked description (:func:`check_description`); a driven
+    robot loads its inertias from it (:func:`check_robot_inertias`).
+    """
+    try:
+        check_robot_inertias(ElementTree.fromstring(text), shown)
     except DescriptionError as exc:
         raise RefusedError('RESOURCE_PARSE_ERROR', str(exc)) from None
 

@@ -332,3 +332,113 @@ def test_start_up_urdfs_pybullet_crashes_or_hangs_on_are_refused_in_one_line(tmp
                                   f'cannot load robot_description: {problem}',
                                   f'extra_models: cannot load {path}: {problem}',
                                   f'world {path}: {path}: {problem}'], what
+
+
+def reaching(joint_origin='0 0.2 0', axis='1 0 0') -> str:
+    """Return a URDF of two boxes on one revolute joint ``j`` at ``joint_origin``."""
+    return robot('ab', f'<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+                       f'<origin xyz="{joint_origin}"/><axis xyz="{axis}"/>'
+                       '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>')
+
+
+# name -> (URDF, what the refusal says): what PyBullet loaded and could not simulate, its
+# state NaN from the first step on (a driven robot put back on every step, for ever).
+CANNOT_SIMULATE = {
+    'a joint axis of 1e-300 0 0': (
+        reaching(axis='1e-300 0 0'),
+        "joint 'j': axis xyz '1e-300 0 0' is not a vector of length 1e-09 or more"),
+    'a joint origin 1e300 m out': (
+        reaching(joint_origin='1e300 0 0'),
+        "joint 'j' origin xyz '1e300 0 0' is not within 10000 m of its frame"),
+    'a collision origin 20 km out': (
+        body(origin='<origin xyz="0 2e4 0"/>'),
+        "link 'l': collision origin xyz '0 2e4 0' is not within 10000 m of its frame"),
+    'an inertial origin 1e300 m out': (
+        body().replace('<inertial>', '<inertial><origin xyz="0 0 1e300"/>'),
+        "link 'l': inertial origin xyz '0 0 1e300' is not within 10000 m of its frame"),
+    'a box of 1e300 m': (
+        body('<box size="1e300 1 1"/>'),
+        "link 'l': collision box size '1e300 1 1' is not 10000 m or less each"),
+    'a cylinder 20 km long': (
+        body('<cylinder radius="0.1" length="2e4"/>'),
+        "link 'l': collision cylinder length '2e4' is not 10000 m or less"),
+}
+
+
+def test_urdfs_pybullet_cannot_simulate_are_refused_every_way_in(tmp_path):
+    assert_refused_every_way_in(tmp_path, CANNOT_SIMULATE)
+
+
+def test_what_the_bounds_leave_is_simulated(make):
+    """An axis of 1e-6 is a direction, and 10 km is still a length: both load and step."""
+    from r2d2_sim.sim.simulation import SpawnRequest
+    simulation = make()
+    for text in (reaching(axis='1e-6 0 0'), reaching(joint_origin='0 0 1e4'),
+                 body('<box size="1e4 0.1 0.1"/>', mass='0')):
+        name = simulation.spawn(SpawnRequest(resource_string=text, allow_renaming=True,
+                                             position=(3.0, 3.0, 2.0)))
+        for _ in range(24):
+            simulation.step()
+        assert simulation.world.bodies[name].finite(), text
+
+
+def two_boxes(inertia: str, mass='1', base_mass='1') -> str:
+    """Return a URDF of two boxes on a continuous joint, both of ``inertia`` (ixx iyy izz)."""
+    ixx, iyy, izz = inertia.split()
+
+    def link(name, kg):
+        return (f'<link name="{name}"><inertial><mass value="{kg}"/><inertia ixx="{ixx}" '
+                f'ixy="0" ixz="0" iyy="{iyy}" iyz="0" izz="{izz}"/></inertial><collision>'
+                '<geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>')
+    return (f'<robot name="t">{link("a", base_mass)}{link("b", mass)}<joint name="j" '
+            'type="continuous"><parent link="a"/><child link="b"/><origin xyz="0.2 0 0"/>'
+            '<axis xyz="0 0 1"/></joint></robot>')
+
+
+NO_WHEELS = {'left_wheel_names': [], 'right_wheel_names': [], 'scan_rate': 0.0}
+
+
+@pytest.mark.parametrize('inertia, moments', [
+    ('0 0 0', '(0, 0, 0)'),
+    ('-0.01 0.01 0.01', '(-0.01, 0.01, 0.01)'),
+    ('1 0.01 0.01', '(0.01, 0.01, 1)'),  # PyBullet reads one above the other two as 0 too
+])
+def test_a_driven_robot_needs_inertias_pybullet_does_not_read_as_0(make, inertia, moments):
+    """
+    At start-up and as a spawned robot: refused in one line; as a plain body, loaded.
+
+    A driven robot takes its inertias from the file: with these (PyBullet read
+    each as 0) it blew up on its first step, and on every step it was put
+    back, 240 error lines a second, for ever. A plain body takes them from
+    its shapes and simulates.
+    """
+    from r2d2_sim.errors import RefusedError, SetupError
+    from r2d2_sim.sim.simulation import SpawnRequest
+    text = two_boxes(inertia)
+    problem = (f"link 'a': a driven robot's link of 1 kg needs an inertia of principal moments "
+               f'above 0, none above the other two together, not {moments}: PyBullet reads it '
+               'as 0')
+    with pytest.raises(SetupError) as refused:
+        make(robot_description=text, **NO_WHEELS)
+    assert str(refused.value) == f'cannot load robot_description: {problem}'
+    simulation = make(scan_rate=0.0)
+    before = simulation.entities.names()
+    with pytest.raises(RefusedError) as spawned:
+        simulation.spawn(SpawnRequest('t', resource_string=text, namespace='t',
+                                      position=(2.0, 2.0, 0.1)))
+    assert str(spawned.value) == f'RESOURCE_PARSE_ERROR: the resource_string: {problem}'
+    assert simulation.entities.names() == before
+    name = simulation.spawn(SpawnRequest('t', resource_string=text, position=(2.0, 2.0, 0.1)))
+    for _ in range(240):
+        simulation.step()
+    assert simulation.world.bodies[name].finite()
+
+
+def test_a_driven_robot_of_mass_0_or_of_inertias_pybullet_reads_starts_and_stays(make):
+    """A base of mass 0 is static (inertia 0 unused); real inertias drive: no blow-up."""
+    for text in (two_boxes('0 0 0', mass='0', base_mass='0'), two_boxes('0.01 0.01 0.01'),
+                 two_boxes('0.02 0.01 0.01')):
+        simulation = make(robot_description=text, **NO_WHEELS)
+        for _ in range(240):
+            simulation.step()
+        assert simulation.blow_ups == 0 and simulation.robot.body.finite()
