@@ -296,7 +296,9 @@ class Simulation:
         state_due = self.publish_schedule.due(step)
         time_ns = self.clock.time_ns(step)
         measurements = [robot.measure(step, time_ns, state_due) for robot in robots]
-        if world.blown_up:  # robots were put back: now what their blow-up broke too
+        if world.blown_up:  # robots were put back (or given up): now what they broke too
+            measurements = self._take_out_given_up(measurements)
+            robots = self.robots
             self._repair()
         if step % self._fall_check_steps == 0:
             for robot in robots:
@@ -325,12 +327,32 @@ class Simulation:
         step = self.world.step_count
         time_ns = self.clock.time_ns(step)
         self.last_frame_step = step
-        result = StepResult(step, time_ns, True, tuple(
+        measurements: List[Optional[Measurement]] = [
             Measurement(time_ns, robot.read_frame(step, time_ns), None, None, None)
-            for robot in self.robots))
+            for robot in self.robots]
         if self.world.blown_up:
+            measurements = self._take_out_given_up(measurements)
             self._repair()
-        return result
+        return StepResult(step, time_ns, True, tuple(measurements))
+
+    def _take_out_given_up(self, measurements: List[Optional[Measurement]]
+                           ) -> List[Optional[Measurement]]:
+        """
+        Delete the robots that blew up too often in a row (Robot.given_up); return the others'.
+
+        A robot put back after every blow-up blew up again at once, for ever:
+        taken out of the world as DeleteEntity takes it (a full reset brings
+        a start-up robot back), the other robots run on. ``measurements``
+        are the robots', in order; what is returned is the kept robots'.
+        """
+        given_up = [robot for robot in self.robots if robot.given_up]
+        if not given_up:
+            return measurements
+        kept = [m for robot, m in zip(self.robots, measurements) if not robot.given_up]
+        for robot in given_up:
+            self._delete(robot.name)
+        self._robots_changed()
+        return kept
 
     def _repair(self) -> None:
         """Put back what robots' blow-ups broke around them: the ground, what they touched."""

@@ -11,6 +11,7 @@ from types import SimpleNamespace
 
 from helpers import latest_truth, make_sim, Probe, RATE_HZ, wait_for
 from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import Odometry
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -250,6 +251,35 @@ def test_repeated_blow_ups_log_one_error_per_period(sim, capfd):
         sim.advance(1)
     assert sim.blow_ups == 5
     assert len(log_lines(capfd, 'physics blew up')) == 1
+
+
+@pytest.mark.parametrize('outputs_process', [False, True])
+def test_a_robot_blown_up_again_and_again_leaves_with_its_topics(ros, capfd, outputs_process):
+    """
+    Robot a, blown up 10 times in a row, is taken out in one error line; b publishes on.
+
+    Put back after every blow-up, such a robot blew up again, for ever: 240 blow-ups a
+    second, a load each (the core's test_fleet_core.py counts them).
+    """
+    from r2d2_sim.sim.robots.robot import MAX_BLOW_UPS_IN_A_ROW
+    sim = make_sim(ros, outputs_process=outputs_process, robots=['a', 'b'], scan_rate=0.0,
+                   imu_rate=0.0, **{'b.initial_pose': [0.0, 3.0, 0.0]})
+    node = ros.create_node('looker', use_sim_time=False)
+    assert wait_for(lambda: node.count_publishers('/a/odom') == 1)
+    a = sim.simulation.robots[0]
+    for _ in range(MAX_BLOW_UPS_IN_A_ROW):
+        a.body.set_base_state(linear_velocity=(NAN, 0.0, 0.0))
+        sim.advance(1)
+    assert [robot.name for robot in sim.simulation.robots] == ['b']
+    heard = []
+    node.create_subscription(Odometry, '/b/odom', heard.append, 100)
+    assert wait_for(lambda: node.count_publishers('/a/odom') == 0)
+    assert wait_for(lambda: node.count_subscribers('/b/odom') >= 1)
+    sim.advance(RATE_HZ // 2)
+    assert wait_for(lambda: len(heard) > 0) and all_finite(heard)
+    lines = log_lines(capfd, 'physics blew up')
+    taken_out = [line for line in lines if 'the robot a is taken out of the world' in line]
+    assert len(taken_out) == 1 and sim.simulation.blow_ups == 0
 
 
 # -- a publisher of the wrong type on cmd_vel ---------------------------------

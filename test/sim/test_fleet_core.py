@@ -144,6 +144,51 @@ def test_a_nan_in_one_robot_leaves_the_other_standing(make):
     assert (a.blow_ups, b.blow_ups) == (1, 0)
 
 
+def test_a_robot_that_blows_up_again_and_again_is_taken_out_and_the_other_runs_on(make):
+    """
+    Robot a, blown up 10 times in a row, is deleted in one line; b drives on; a full reset.
+
+    A URDF that passes every check can still blow up soon after each
+    put-back (inertias of 1e-9 on a 1 kg box: every 0.7 s). It was put back
+    for ever, loaded again each time, an error line each. A NaN at every step
+    stands for it here; blow-ups 5 s apart are not in a row.
+    """
+    from r2d2_sim.sim.robots.robot import CALM_S, MAX_BLOW_UPS_IN_A_ROW
+    errors = []
+    simulation = make(errors, **FACING)
+    a, b = simulation.robots
+
+    def blow_up(times):
+        for _ in range(times):
+            a.body.set_base_state(linear_velocity=(math.nan, 0.0, 0.0))
+            simulation.step()
+    blow_up(MAX_BLOW_UPS_IN_A_ROW - 1)
+    for _ in range(round(CALM_S * 240)):  # a stands calmly: the next blow-up is a first
+        simulation.step()
+    blow_up(MAX_BLOW_UPS_IN_A_ROW - 1)
+    assert simulation.robots == [a, b] and a.blow_ups == 2 * MAX_BLOW_UPS_IN_A_ROW - 2
+    b.command(0.3, 0.0)
+    blow_up(1)
+    assert simulation.robots == [b] and simulation.entities.names() == ['ground_plane', 'b']
+    assert (a.blow_ups, b.blow_ups) == (2 * MAX_BLOW_UPS_IN_A_ROW - 1, 0)
+    taken_out = [line for line in errors if 'taken out' in line]
+    assert len(taken_out) == 1 and taken_out[0].startswith('physics blew up at t=')
+    assert taken_out[0].endswith(
+        f'), {MAX_BLOW_UPS_IN_A_ROW} times in a row within {CALM_S:g} s of being put back: '
+        'the robot a is taken out of the world (deleted; a full reset brings it back)')
+    assert len([line for line in errors if 'resetting the robot a' in line]) == \
+        2 * MAX_BLOW_UPS_IN_A_ROW - 2
+    b_x = x_of(b)
+    for _ in range(240):
+        result = simulation.step()
+    assert len(result.measurements) == 1 and result.measurements[0].frame is not None
+    assert x_of(b) < b_x - 0.2 and b.body.world_state().position[2] == pytest.approx(
+        0.47, abs=0.01)  # facing -x, it drove 0.3 m: standing, no more blow-ups
+    assert b.blow_ups == 0
+    simulation.reset(time=True, state=True, spawned=True)
+    assert [robot.name for robot in simulation.robots] == ['a', 'b']
+
+
 def test_a_robot_spawned_at_run_time_drives_and_leaves_nothing_behind(make):
     """Spawned: at its pose exactly, driven, falls to its feet; delete frees its ray group."""
     simulation = make(**FACING)

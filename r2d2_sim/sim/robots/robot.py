@@ -11,7 +11,8 @@ its own rate. The laser's and the 3D lidar's rays are left pending
 of a step together, then hands each robot its answers
 (:meth:`Robot.take_rays`). Measurements are plain data in a
 :class:`Measurement`; a robot whose physics blew up is put back where it
-started, alone.
+started, alone, unless it blew up MAX_BLOW_UPS_IN_A_ROW times in a row: then it
+is given up (:attr:`Robot.given_up`), and the simulation takes it out.
 """
 
 import math
@@ -91,6 +92,12 @@ def _battery(config: SimConfig) -> Battery:
 
 # A step count no run reaches: a robot without sensors is never due to measure one.
 NEVER = 1 << 62
+# A robot that blows up this many times in a row, each time within CALM_S of being put
+# back, is given up (Simulation takes it out of the world): one of inertias of 1e-9 on a
+# 1 kg box blew up every 0.7 s, and each put-back loads it again (and every 64th
+# builds the whole world again, for every other robot too), with an error line each.
+MAX_BLOW_UPS_IN_A_ROW = 10
+CALM_S = 5.0
 
 
 class Robot:
@@ -119,6 +126,10 @@ class Robot:
         self.source = source
         self.description = description
         self.blow_ups = 0
+        # Blown up MAX_BLOW_UPS_IN_A_ROW times in a row: not put back, to be taken out.
+        self.given_up = False
+        self._blow_ups_in_a_row = 0
+        self._put_back_at: Optional[int] = None  # the step of the last put-back
         self._error = error
         self._fall_told = False  # its fall was said (check_fall), since it was last put back
         self._resources = list(resources)
@@ -258,6 +269,8 @@ class Robot:
         frame = contacts = world = None
         if state_due:
             frame, world = self._read_frame(step, time_ns)
+            if self.given_up:
+                return None
             if self.config.publish_contacts:
                 contacts = tuple(touching(self.world, self.body))
         elif battery and self.battery is not None:
@@ -265,6 +278,8 @@ class Robot:
             # wheels as they are now: its reading, stamped now, is of now. The readout
             # checks what the sensors' checks below would (and more).
             _, joints, base = self._read_body(time_ns)
+            if self.given_up:
+                return None
             self._run_battery(self.battery, step, joints, base)
         else:
             body = self.body
@@ -277,7 +292,7 @@ class Robot:
                 problem = body.twist_problem()
             if problem is not None:
                 self._recover(problem, time_ns)
-            if not sensing:
+            if not sensing or self.given_up:
                 return None
         self._pending = [(sensor, sensor.rays()) for sensor, due in (
             (self.laser, scan), (self.lidar, lidar)) if due and sensor is not None]
@@ -314,6 +329,8 @@ class Robot:
         """:meth:`read_frame`, and the base's state with its twist in the world (the IMU's)."""
         world, joints, base = self._read_body(time_ns)
         odometry = None
+        if self.given_up:  # taken out of the world: no odometry or battery from absurd values
+            return Frame(step, time_ns, joints, base, odometry), world
         if self.controller is not None:
             positions = joints.positions
             self.controller.update_odometry([positions[s] for s in self._wheel_slots], step)
@@ -331,6 +348,8 @@ class Robot:
         problem = body.joint_problem(self.movable_indices, joints) or body.state_problem(base)
         if problem is not None:
             self._recover(problem, time_ns)
+            if self.given_up:  # what it reads is absurd: nothing more is made of it
+                return world, joints, base
             joints = body.joint_states(self.movable_indices)
             world = body.world_state()
             base = in_body_frame(world)
@@ -447,6 +466,20 @@ class Robot:
 
     def _recover(self, problem: str, time_ns: int) -> None:
         self.blow_ups += 1
+        step, last = self.world.step_count, self._put_back_at
+        in_a_row = last is not None and 0 <= step - last < CALM_S / self._time_step_s
+        self._blow_ups_in_a_row = self._blow_ups_in_a_row + 1 if in_a_row else 1
+        if self._blow_ups_in_a_row >= MAX_BLOW_UPS_IN_A_ROW:
+            # Put back, it would blow up again: the simulation takes it out of the world.
+            self.given_up = True
+            self.world.blown_up = True  # what it broke around it is put back all the same
+            back = '' if self.body.spawned else '; a full reset brings it back'
+            self._error(f'physics blew up at t={time_ns / 1e9:.6f} s ({problem}), '
+                        f'{self._blow_ups_in_a_row} times in a row within {CALM_S:g} s of '
+                        f'being put back: the robot {self.name} is taken out of the world '
+                        f'(deleted{back})')
+            return
+        self._put_back_at = step
         self._error(f'physics blew up at t={time_ns / 1e9:.6f} s ({problem}): '
                     f'resetting the robot {self.name} to its initial pose')
         # Loaded again, not reset in place: see SimWorld.put_back. What the blow-up broke
