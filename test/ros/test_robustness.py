@@ -318,7 +318,9 @@ def test_twist_stamped_on_cmd_vel_is_refused_by_ros_and_reported(ros, capfd):
 # -- parameters at the edge ---------------------------------------------------
 
 @pytest.mark.parametrize('params, fragment', [
-    ({'initial_pose': [1.0e5, 0.0, 0.0]}, 'cannot start there: base left the world'),
+    ({'initial_pose': [1.0e5, 0.0, 0.0]}, 'off the ground plane'),
+    ({'initial_pose': [1.0e5, 0.0, 0.0], 'ground_plane': False},
+     'cannot start there: base left the world'),
     ({'left_wheel_names': [], 'right_wheel_names': []}, 'list them as left and right wheels'),
     ({'gravity': [0.0, 0.0, -1.0e308]}, 'gravity'),
     ({'physics_rate': 1.0e308}, 'physics_rate'),
