@@ -12,6 +12,7 @@ erring as :mod:`r2d2_sim.model.encoders` says) and integrated into odometry,
 with its covariance when the encoders err.
 """
 
+from fractions import Fraction
 import math
 from typing import List, NamedTuple, Optional, Sequence, Tuple
 
@@ -19,6 +20,7 @@ from r2d2_sim.model.encoders import Encoders, OdometryCovariance
 from r2d2_sim.model.kinematics import (
     DiffDriveGeometry, DiffDriveOdometry, limit_twist, OdometryState, ramp_twist,
     twist_to_wheel_velocities, Twist2D, TwistLimits)
+from r2d2_sim.model.timing import exact_rate
 
 STOP = Twist2D(0.0, 0.0)
 
@@ -43,7 +45,11 @@ def timeout_steps(timeout_s: float, physics_rate_hz: float) -> int:
     """Return the whole physics steps of a command timeout; 0 (none) for 0 or beyond any run."""
     steps = timeout_s * physics_rate_hz
     # A timeout beyond any run (1e308 s) is as good as none, and would overflow ceil.
-    return math.ceil(steps) if steps < 2.0**62 else 0
+    if not steps < 2.0**62:
+        return 0
+    # Exactly, as the numbers were written: the floats' product of 0.07 s and 100 Hz is
+    # 7.000000000000001, which rounded up to 8 steps.
+    return math.ceil(Fraction(repr(timeout_s)) * exact_rate(physics_rate_hz))
 
 
 class DriveController:

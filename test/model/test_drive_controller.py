@@ -97,6 +97,15 @@ def test_the_timeout_brakes_after_whole_steps():
     assert c.update(3) == [0.0, 0.0] and c.target == STOP
 
 
+@pytest.mark.parametrize('timeout_s, rate_hz, steps', [
+    (0.07, 100.0, 7), (0.14, 50.0, 7), (0.55, 100.0, 55), (1.1, 50.0, 55), (0.5, 240.0, 120),
+    (1e-12, 240.0, 1)])
+def test_the_timeout_counts_the_steps_as_written_not_as_the_floats_multiply(
+        timeout_s, rate_hz, steps):
+    """0.07 s at 100 Hz is 7 steps: the floats' product, 7.000000000000001, rounded up to 8."""
+    assert timeout_steps(timeout_s, rate_hz) == steps
+
+
 def test_no_timeout_for_zero_or_beyond_any_run():
     """0 s disables the timeout; 1e308 s would overflow ceil and is as good as none."""
     assert timeout_steps(0.0, 240.0) == 0
