@@ -4,7 +4,8 @@ The drive controller: a body-twist command in, wheel joint velocity targets out,
 No ROS and no PyBullet: the same job as ros2_controllers' diff_drive_controller
 (``update_reference_from_subscribers`` and ``update_and_write_commands``) as a
 plain object, tested with hand-computable numbers. Per command: refuse
-non-finite values, scale to the speed limits keeping the curvature, then, per
+non-finite values, scale to the speed limits keeping the curvature (and refuse
+what would still turn a wheel faster than a float holds), then, per
 physics step, brake after the timeout, ramp within the acceleration limits and
 fan the left/right wheel speeds out to every wheel joint with the URDF's sign.
 Wheel encoder angles come back in, are counted by the encoders (exact, or
@@ -32,10 +33,14 @@ class CommandVerdict(NamedTuple):
     """What became of one command: the twist taken (None if refused) and why."""
 
     accepted: Optional[Twist2D]
-    problem: Optional[str] = None       # why it was refused: 'NaN' or 'infinite value'
+    problem: Optional[str] = None       # why it was refused: 'NaN', 'infinite value', OVERFLOW
     ignored_axes: Tuple[str, ...] = ()  # non-zero fields a differential drive ignores
     clamped: bool = False               # scaled down to the speed limits
 
+
+# Why a finite command is refused when, even within the limits, its wheel speeds are not:
+# without a wheel speed limit (DiffDriveGeometry's default) 1e308 m/s would be inf rad/s.
+OVERFLOW = 'wheel speeds too large for a float'
 
 # The verdict on any command for a robot that has no wheels to drive.
 NO_WHEELS = CommandVerdict(None, 'no wheels')
@@ -113,6 +118,8 @@ class DriveController:
         ignored = tuple(name for name, value in zip(
             IGNORED_AXES, (linear_y, linear_z, angular_x, angular_y)) if value != 0.0)
         limited = limit_twist(self.geometry, linear_x, angular_z, self.limits)
+        if not all(map(math.isfinite, twist_to_wheel_velocities(self.geometry, *limited))):
+            return CommandVerdict(None, OVERFLOW)
         clamped = (max(map(abs, limited))
                    < max(abs(linear_x), abs(angular_z)) * (1.0 - 1e-9))
         self._latest = limited  # one assignment, which update() reads once

@@ -10,7 +10,8 @@ import math
 
 import pytest
 
-from r2d2_sim.model.drive_controller import DriveController, STOP, timeout_steps, Twist2D
+from r2d2_sim.model.drive_controller import (
+    DriveController, OVERFLOW, STOP, timeout_steps, Twist2D)
 from r2d2_sim.model.kinematics import DiffDriveGeometry, TwistLimits
 
 GEOMETRY = DiffDriveGeometry(wheel_radius_m=0.5, wheel_separation_m=1.0,
@@ -55,6 +56,21 @@ def test_non_finite_commands_are_refused_and_the_last_one_kept(field, value, pro
     assert c.update(1) is None and c.target == Twist2D(0.5, 0.0)
     for args in ((value, 0.0), (0.0, value)):
         assert c.command(*args).problem == problem
+
+
+@pytest.mark.parametrize('command', [(1e308, 0.0), (0.0, 1e308), (-1e307, 1e307)])
+def test_without_a_wheel_limit_a_command_whose_wheel_speeds_overflow_is_refused(command):
+    """No wheel speed limit (the geometry's default): 1e308 m/s would be inf rad/s, refused."""
+    geometry = DiffDriveGeometry(wheel_radius_m=0.035, wheel_separation_m=0.484)
+    c = DriveController(geometry, TwistLimits(), DT_S, 0, 2, 2)
+    c.command(0.5, 0.0)
+    c.update(0)
+    verdict = c.command(*command)
+    assert verdict.accepted is None and verdict.problem == OVERFLOW
+    assert c.update(1) is None and c.target == Twist2D(0.5, 0.0)
+    assert all(map(math.isfinite, c.joint_targets()))
+    assert c.command(1e300, 0.0).accepted == Twist2D(1e300, 0.0)  # 2.9e301 rad/s: a number
+    assert all(map(math.isfinite, c.update(2)))
 
 
 def test_axes_a_differential_drive_cannot_follow_are_named():
