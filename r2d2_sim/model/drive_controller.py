@@ -118,7 +118,9 @@ class DriveController:
         ignored = tuple(name for name, value in zip(
             IGNORED_AXES, (linear_y, linear_z, angular_x, angular_y)) if value != 0.0)
         limited = limit_twist(self.geometry, linear_x, angular_z, self.limits)
-        if not all(map(math.isfinite, twist_to_wheel_velocities(self.geometry, *limited))):
+        try:
+            twist_to_wheel_velocities(self.geometry, *limited)
+        except ValueError:  # finite, so its wheel speeds overflow
             return CommandVerdict(None, OVERFLOW)
         clamped = (max(map(abs, limited))
                    < max(abs(linear_x), abs(angular_z)) * (1.0 - 1e-9))

@@ -110,7 +110,9 @@ def twist_to_wheel_velocities(geometry: DiffDriveGeometry, linear_x_m_s: float,
     left = (v - w * s / 2) / r and right = (v + w * s / 2) / r.  If either wheel
     would exceed ``geometry.max_wheel_velocity_rad_s`` in magnitude, both are
     scaled by the same factor, which preserves the curvature w / v (the robot
-    follows the same path, only slower).  Non-finite inputs raise ValueError.
+    follows the same path, only slower).  Non-finite inputs raise ValueError, as
+    does a twist whose wheel speeds overflow to infinity (:func:`limit_twist` first
+    keeps any finite twist within a finite limit).
     """
     if not (math.isfinite(linear_x_m_s) and math.isfinite(angular_z_rad_s)):  # every step
         _require_finite(linear_x_m_s=linear_x_m_s, angular_z_rad_s=angular_z_rad_s)
@@ -118,6 +120,9 @@ def twist_to_wheel_velocities(geometry: DiffDriveGeometry, linear_x_m_s: float,
     left_rad_s = (linear_x_m_s - half_track_m_s) / geometry.wheel_radius_m
     right_rad_s = (linear_x_m_s + half_track_m_s) / geometry.wheel_radius_m
     fastest_rad_s = max(abs(left_rad_s), abs(right_rad_s))
+    if fastest_rad_s == math.inf:  # scaled by limit / inf = 0 it would be NaN, unscaled inf
+        raise ValueError(f'the wheel speeds of ({linear_x_m_s!r} m/s, {angular_z_rad_s!r} '
+                         'rad/s) overflow')
     limit_rad_s = geometry.max_wheel_velocity_rad_s
     if fastest_rad_s > limit_rad_s:
         scale = limit_rad_s / fastest_rad_s

@@ -149,6 +149,15 @@ def test_twist_to_wheels_rejects_non_finite(linear, angular):
         twist_to_wheel_velocities(geometry, linear, angular)
 
 
+@pytest.mark.parametrize('limit_rad_s', [math.inf, 10.0])
+@pytest.mark.parametrize('linear, angular', [(1e308, 0.0), (0.0, -1e308), (1e307, 1e307)])
+def test_twist_to_wheels_refuses_wheel_speeds_that_overflow(limit_rad_s, linear, angular):
+    """1e308 m/s on a 0.035 m wheel is inf rad/s: unscaled inf, scaled by 10 / inf NaN."""
+    geometry = DiffDriveGeometry(0.035, 0.484, limit_rad_s)
+    with pytest.raises(ValueError, match='overflow'):
+        twist_to_wheel_velocities(geometry, linear, angular)
+
+
 # --------------------------------------------------------------------------- quaternions
 
 
