@@ -168,6 +168,7 @@ class DriveController:
                 sign * sum(wheel_positions_rad[n_left:]) / self.right_count)
 
     def take_encoders(self, encoders: Optional[Encoders],
+                      covariance: Optional[OdometryCovariance],
                       wheel_positions_rad: Sequence[float]) -> None:
         """
         Count with ``encoders`` from now on (their noise started again), from this baseline.
@@ -176,8 +177,13 @@ class DriveController:
         then errs over its whole interval, as the first after start-up does.
         Without that, fresh encoders took their baseline at the next step and
         counted that interval exact, every later draw one reading behind.
+        ``covariance`` follows them, keeping the pose's so far
+        (:meth:`OdometryCovariance.carry_on`: their biases are fresh draws).
         """
         self.encoders = encoders
+        if covariance is not None and self.covariance is not None:
+            covariance.carry_on(self.covariance)
+        self.covariance = covariance
         if encoders is not None and self.odometry.baseline is not None:
             encoders.read(*self._sides(wheel_positions_rad), 0.0)
 

@@ -110,14 +110,18 @@ def test_a_bias_curves_a_straight_drive_by_what_geometry_says():
                                                    rel=1e-9)
 
 
-def simulate(noise, left_m, right_m, runs, seed, radius_m, separation_m):
-    """Monte Carlo of the encoders' error model along a path; return final poses (runs x 3)."""
+def simulate(noise, left_m, right_m, runs, seed, radius_m, separation_m, dynamic=None):
+    """
+    Monte Carlo of the encoders' error model along a path; return final poses (runs x 3).
+
+    ``dynamic``: each run's drifting bias at the start (runs x 2; None: 0).
+    """
     generator = numpy.random.default_rng(seed)
     steps = len(left_m)
     constant = generator.normal(noise.bias_mean, noise.bias_stddev, (runs, 2))
     constant *= numpy.where(generator.uniform(size=(runs, 2)) < 0.5, -1.0, 1.0)
     constant += noise.mean
-    dynamic = numpy.zeros((runs, 2))
+    dynamic = numpy.zeros((runs, 2)) if dynamic is None else dynamic
     tau = noise.dynamic_bias_correlation_time_s
     decay = math.exp(-DT_S / tau) if tau else 1.0
     step_std = (math.sqrt(-noise.dynamic_bias_stddev ** 2 * tau / 2 * math.expm1(-2 * DT_S / tau))
@@ -259,3 +263,52 @@ def test_a_reset_forgets_the_pose_error_but_not_the_bias_prior():
     covariance.reset()
     assert not covariance.pose.any()
     assert covariance.covariance[3, 3] == pytest.approx(0.01)
+
+
+def test_a_reset_keeps_the_drifting_bias_the_encoders_keep():
+    """
+    Ten minutes of drift, a reset, a 2 s arc: its covariance within 10 % of 4,000 runs.
+
+    A state reset puts the robot back but the encoders keep their biases
+    (Encoders.restart): the drift so far goes on into the runs after it.
+    Set back to its prior (0), the drifting bias went missing from the
+    covariance: its yaw variance was 0.5 % of the runs'.
+    """
+    noise = NoiseSpec(dynamic_bias_stddev=0.001, dynamic_bias_correlation_time_s=300.0)
+    covariance = OdometryCovariance(noise, RADIUS_M, SEPARATION_M)
+    drift_s, runs = 600, 4000
+    for _ in range(drift_s):  # a reading a second, driving straight
+        covariance.update(0.0, 0.05, 0.05, 1.0)
+    covariance.reset()
+    assert not covariance.pose.any()
+    steps = 480
+    left_m, right_m = numpy.full(steps, 0.3 * DT_S), numpy.full(steps, 0.5 * DT_S)
+    yaw = 0.0
+    for left, right in zip(left_m, right_m):
+        covariance.update(yaw, left, right, DT_S)
+        yaw += (right - left) / SEPARATION_M
+    # The runs' drifting biases after the same ten minutes, in the same 1 s steps.
+    generator = numpy.random.default_rng(12)
+    tau = noise.dynamic_bias_correlation_time_s
+    step_std = math.sqrt(-noise.dynamic_bias_stddev ** 2 * tau / 2 * math.expm1(-2 / tau))
+    dynamic = numpy.zeros((runs, 2))
+    for _ in range(drift_s):
+        dynamic = math.exp(-1 / tau) * dynamic + generator.normal(0.0, step_std, (runs, 2))
+    exact = simulate(NoiseSpec(), left_m, right_m, 1, 13, RADIUS_M, SEPARATION_M)[0]
+    errors = simulate(noise, left_m, right_m, runs, 13, RADIUS_M, SEPARATION_M,
+                      dynamic=dynamic) - exact
+    empirical = errors.T @ errors / runs
+    for i in range(3):
+        assert covariance.pose[i, i] == pytest.approx(empirical[i, i], rel=0.1)
+
+
+def test_new_encoders_keep_the_pose_covariance_and_start_their_biases_afresh():
+    """carry_on: the pose's covariance and twist are the odometry's; the biases the new prior."""
+    old = OdometryCovariance(NoiseSpec(**FULL_NOISE), RADIUS_M, SEPARATION_M)
+    for _ in range(240):
+        old.update(0.0, 0.002, 0.003, DT_S)
+    new = OdometryCovariance(NoiseSpec(bias_mean=0.02), RADIUS_M, SEPARATION_M)
+    new.carry_on(old)
+    assert (new.pose == old.pose).all() and (new.twist == old.twist).all()
+    assert numpy.diag(new.covariance)[3:7] == pytest.approx([0.0004, 0.0004, 0.0, 0.0])
+    assert not new.covariance[0:3, 3:7].any() and not new.covariance[3:7, 0:3].any()

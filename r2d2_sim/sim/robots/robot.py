@@ -394,9 +394,10 @@ class Robot:
         if self.controller is not None:
             # Fresh encoders, their baseline the wheels as they stand (whether the robot
             # was put back before or after this): the next reading errs as at start-up.
-            self.controller.take_encoders(self._new_encoders(), self._wheel_positions())
-            if config is not None:
-                self.controller.covariance = self._odometry_covariance(self.drive)
+            # Its covariance keeps the pose's, the new biases at their priors.
+            self.controller.take_encoders(self._new_encoders(),
+                                          self._odometry_covariance(self.drive),
+                                          self._wheel_positions())
 
     def _odometry_covariance(self, drive: Optional[DriveTrain]) -> Optional[OdometryCovariance]:
         """Return the odometry's covariance the encoders' noise gives; None when they are exact."""
