@@ -21,7 +21,7 @@ that the published covariance grows as the drift can.
 """
 
 import math
-from typing import Optional, Tuple
+from typing import Optional, Sequence, Tuple
 
 import numpy
 
@@ -58,6 +58,25 @@ class Encoders:
     def restart(self) -> None:
         """Take the next reading as a new baseline (the robot was put back)."""
         self._true = self._counted = None
+
+    @property
+    def last_reading(self) -> Optional[Tuple[Tuple[float, float], Tuple[float, float]]]:
+        """Return the last reading's true (left, right) angles and count before rounding."""
+        if self._true is None or self._counted is None:
+            return None
+        (true_left, true_right), (left, right) = self._true.tolist(), self._counted.tolist()
+        return (true_left, true_right), (left, right)
+
+    def count_on(self, true_rad: Sequence[float], counted_rad: Sequence[float]) -> None:
+        """
+        Count on from another reading: its true angles and count (before rounding).
+
+        For encoders that replace others mid-run (their noise started again):
+        their first reading counts the rotation since that one, with their
+        own error over the whole interval, so odometry goes on without a jump.
+        """
+        self._true = numpy.array(true_rad, dtype=float)
+        self._counted = numpy.array(counted_rad, dtype=float)
 
     def read(self, left_rad: float, right_rad: float, dt_s: float) -> Tuple[float, float]:
         """

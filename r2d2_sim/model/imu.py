@@ -139,6 +139,11 @@ class ImuModel:
         self._previous_time_s = None
         self._previous_velocity_m_s = None
 
+    def carry_on(self, before: 'ImuModel') -> None:
+        """Take ``before``'s last sample: the motion goes on, only the noise is new."""
+        self._previous_time_s = before._previous_time_s
+        self._previous_velocity_m_s = before._previous_velocity_m_s
+
     def update(self, time_s: float, orientation_xyzw: Sequence[float],
                linear_velocity_m_s: Sequence[float],
                angular_velocity_rad_s: Sequence[float]) -> ImuReading:

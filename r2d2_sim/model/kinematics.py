@@ -347,6 +347,12 @@ class DiffDriveOdometry:
         self._distance_m += abs(linear_m)
         return linear_m, angular_rad
 
+    def move_baseline(self, left_rad: float, right_rad: float) -> None:
+        """Move the encoder baseline by these angles (the angles counted changed their origin)."""
+        if self._left_baseline_rad is not None and self._right_baseline_rad is not None:
+            self._left_baseline_rad += left_rad
+            self._right_baseline_rad += right_rad
+
     @property
     def baseline(self) -> Optional[Tuple[float, float]]:
         """Return the (left, right) encoder angles the next update measures from, if any."""

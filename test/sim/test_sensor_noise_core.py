@@ -347,3 +347,71 @@ def test_encoder_noise_after_load_world_repeats_a_launch():
         assert _odometry_run(loaded) == expected
     finally:
         loaded.close()
+
+
+def _frames(simulation, steps):
+    """Step ``steps`` times; return each step's odometry (a state is published every step)."""
+    return [simulation.step().measurements[0].frame.odometry for _ in range(steps)]
+
+
+BIASED = {'encoder_noise_bias_mean': 0.05}
+
+
+@pytest.mark.parametrize('before, restart', [
+    (BIASED, {}),                                       # the same noise, its streams again
+    (BIASED, {'encoder_noise_std': 0.01}),              # more noise
+    (BIASED, {'encoder_noise_bias_mean': 0.0}),         # exact from now on
+    ({}, BIASED),                                       # erring from now on
+], ids=['same', 'more', 'off', 'on'])
+def test_odometry_goes_on_without_a_jump_when_the_noise_restarts(make, before, restart):
+    """
+    4 s at 0.5 m/s, restart_noise: the next step moves odometry by one step's travel.
+
+    Fresh encoders counted from the true wheel angle while odometry's baseline
+    was the old encoders' count: odom x went back by their whole error so far
+    (1.97 -> 1.88 m in one step, -22 m/s).
+    """
+    simulation = make(cmd_vel_timeout=0.0, noise_seed=1, **before)
+    simulation.robot.command(0.5, 0.0)
+    last = _frames(simulation, 960)[-1]
+    assert last.linear_m_s == pytest.approx(0.5, rel=0.1)
+    simulation.restart_noise(1, **restart)
+    for odometry in _frames(simulation, 24):
+        assert odometry.linear_m_s == pytest.approx(0.5, rel=0.1)
+        assert math.hypot(odometry.x_m - last.x_m, odometry.y_m - last.y_m) < 0.5 / 240 * 1.1
+        if last.pose_covariance is not None and odometry.pose_covariance is not None:
+            # The pose's covariance so far stays (a new config built it again from 0).
+            assert odometry.pose_covariance[0] >= last.pose_covariance[0] > 0.0
+        last = odometry
+
+
+def test_restarting_the_same_noise_leaves_the_odometry_as_it_was(make):
+    """The same seed and noise draw the same bias: odometry as in a run never restarted."""
+    runs = [make(cmd_vel_timeout=0.0, noise_seed=1, **BIASED) for _ in range(2)]
+    for simulation in runs:
+        simulation.robot.command(0.5, 0.3)
+        _frames(simulation, 480)
+    runs[1].restart_noise(1)
+    kept, restarted = (_frames(simulation, 240) for simulation in runs)
+    for a, b in zip(kept, restarted):
+        assert b[:5] == pytest.approx(a[:5], abs=1e-12)
+
+
+def test_the_imu_reads_the_motion_on_across_a_noise_restart(make):
+    """
+    An exact IMU reads the same with or without restart_noise mid-ramp (bit for bit).
+
+    A fresh IMU model forgot its last sample: its next reading showed no
+    acceleration while the robot sped up.
+    """
+    runs = [make(cmd_vel_timeout=0.0, imu_rate=240.0) for _ in range(2)]
+    readings = []
+    for index, simulation in enumerate(runs):
+        simulation.robot.command(0.5, 0.0)  # 0.5 s of ramp at 1 m/s^2
+        for step in range(120):
+            if step == 60 and index == 1:
+                simulation.restart_noise(3, encoder_noise_std=0.01)
+            readings.append((index, step, simulation.step().measurements[0].imu))
+    kept, restarted = ([imu for i, _, imu in readings if i == index] for index in (0, 1))
+    assert kept[61].linear_acceleration_m_s2[0] > 0.5
+    assert restarted == kept

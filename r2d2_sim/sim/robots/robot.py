@@ -392,12 +392,11 @@ class Robot:
             if sensor is not None:
                 sensor.restart_noise(config)
         if self.controller is not None:
-            # Fresh encoders, their baseline the wheels as they stand (whether the robot
-            # was put back before or after this): the next reading errs as at start-up.
-            # Its covariance keeps the pose's, the new biases at their priors.
+            # Fresh encoders counting on where the old ones left off, and a covariance
+            # keeping the pose's: odometry goes on without a jump (put back by a reset
+            # before or after this, it starts again from the wheels as they stand).
             self.controller.take_encoders(self._new_encoders(),
-                                          self._odometry_covariance(self.drive),
-                                          self._wheel_positions())
+                                          self._odometry_covariance(self.drive))
 
     def _odometry_covariance(self, drive: Optional[DriveTrain]) -> Optional[OdometryCovariance]:
         """Return the odometry's covariance the encoders' noise gives; None when they are exact."""

@@ -324,10 +324,18 @@ class ImuSensor:
             period_s=1.0 / config.imu_rate_hz)
 
     def restart_noise(self, config: Optional[SimConfig] = None) -> None:
-        """Start afresh as at start-up: the noise stream from its seed (``config``'s, if given)."""
+        """
+        Start the noise afresh as at start-up: its stream from its seed (``config``'s, if given).
+
+        The motion goes on: the new model keeps the last sample, so the next
+        reading's acceleration is the velocity's change since it (a fresh
+        model read none, as if the robot had been put back).
+        """
         if config is not None:
             self._config = config
-        self.model = self._new_model()
+        model = self._new_model()
+        model.carry_on(self.model)
+        self.model = model
 
     def read(self, time_s: float, world: Optional[BaseState] = None) -> ImuReading:
         """
