@@ -78,7 +78,7 @@ def test_parameters_without_ros_args_are_refused_not_ignored(domain):
     (['-p', 'left_wheel_names:=[]', '-p', 'right_wheel_names:=[]'],
      'list them as left and right wheels'),
     (['-p', 'right_wheel_names:=[]'], 'both be empty'),
-    (['-p', 'initial_pose:=[1.0e5, 0.0, 0.0]'], 'base left the world'),
+    (['-p', 'initial_pose:=[1.0e5, 0.0, 0.0]'], 'off the ground plane'),
     (['-p', 'gravity:=[0.0]'], 'gravity must be a list of 3 numbers'),
     (['-p', 'wheel_radius:=1.0e308'], 'wheel_radius must be in [0.001, 10] m'),
     (['-p', 'wheel_radius:=1.0e-9'], 'wheel_radius must be in [0.001, 10] m'),
