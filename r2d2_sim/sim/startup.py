@@ -62,9 +62,11 @@ class _Entity:
     """One entity of the start-up world, in load order: its body, a robot's start, its info."""
 
     def __init__(self, body: Body, robot: Optional[RobotStart] = None, model: bool = False,
-                 world_model: bool = False, info: EntityInfo = EntityInfo()) -> None:
+                 world_model: bool = False, info: EntityInfo = EntityInfo(),
+                 start: Optional[RobotStart] = None) -> None:
         self.body = body    # the latest loaded for it (a robot loaded again has a new one)
         self.robot = robot  # placed in the world (its initial pose at the world's start)
+        self.start = start  # a robot's start as the parameters give it (placed in each world)
         self.model = model  # one of extra_models, or a model of the world
         self.world_model = world_model  # the world's, which another world replaces
         self.info = info    # what GetEntityInfo says of it at start-up
@@ -157,7 +159,6 @@ class Startup:
         self._world = world
         self._warn, self._error = warn, error
         self._entities: List[_Entity] = []
-        self._starts: List[RobotStart] = []  # as the parameters give them
         self.world_file: Optional[World] = None
 
     def load(self, config: SimConfig, starts: Sequence[RobotStart], world_file: World
@@ -168,7 +169,6 @@ class Startup:
         Raises a SetupError when a robot or a model cannot be loaded, or two
         robots start inside each other; the caller closes the world then.
         """
-        self._starts = list(starts)
         self.world_file = world_file
         plane = self._world.bodies.get(GROUND_PLANE_NAME)  # the world loaded it
         if plane is not None:
@@ -177,14 +177,14 @@ class Startup:
         models: List[Body] = []
         try:
             with self._world.expecting_ray_robots(_with_rays(starts)):
-                robots.append(self._start_robot(placed(starts[0], world_file)))
+                robots.append(self._start_robot(starts[0], world_file))
                 for description, position in config.extra_models:
                     models.append(self._load_extra(description, position))
                 for model in world_file.models:
                     self._entities.append(self._load_world_model(model))
                     models.append(self._entities[-1].body)
                 for start in starts[1:]:
-                    robots.append(self._start_robot(placed(start, world_file)))
+                    robots.append(self._start_robot(start, world_file))
             _check_apart(robots)
         except Exception:
             for robot in robots:  # their ray groups and temporary description files
@@ -223,10 +223,15 @@ class Startup:
         return _Entity(body, model=True, world_model=True, info=EntityInfo(
             description=model.description, tags=model.tags))
 
-    def _start_robot(self, start: RobotStart) -> Robot:
-        robot = self.load_robot(start)
-        self._entities.append(_Entity(robot.body, start, info=_robot_info(start)))
+    def _start_robot(self, start: RobotStart, world_file: World) -> Robot:
+        at = placed(start, world_file)
+        robot = self.load_robot(at)
+        self._entities.append(_Entity(robot.body, at, info=_robot_info(at), start=start))
         return robot
+
+    def _robot_starts(self) -> List[RobotStart]:
+        """Return the start of each start-up robot still in the launch, as its parameters say."""
+        return [entity.start for entity in self._entities if entity.start is not None]
 
     def load_robot(self, start: RobotStart, into: Optional[WorldBuild] = None) -> Robot:
         """
@@ -289,7 +294,7 @@ class Startup:
 
     def off_ground(self, world_file: World) -> Optional[str]:
         """Return why a start-up robot would fall for ever in ``world_file``; None if none."""
-        for start in self._starts:
+        for start in self._robot_starts():
             try:
                 off = self._off_ground(placed(start, world_file))
             except ConfigError:
@@ -374,9 +379,9 @@ class Startup:
         robot_places = [i for i, entity in enumerate(kept) if entity.robot is not None]
         # The world's models load after the first robot and extra_models, before the others.
         at = robot_places[1] if len(robot_places) > 1 else len(kept)
-        starts = iter(self._starts)
-        robot_starts = {id(entity): placed(next(starts), world_file, self._warn)
-                        for entity in kept if entity.robot is not None}  # in load order
+        # Each robot's own start: a robot that left the world took its start with it.
+        robot_starts = {id(entity): placed(entity.start, world_file, self._warn)
+                        for entity in kept if entity.start is not None}  # in load order
         # The robots whose start does not move: the same Robot, its ray group kept.
         staying = [robot_of[id(entity.body)] for entity in kept
                    if id(entity.body) in robot_of
@@ -393,7 +398,7 @@ class Startup:
         dropped: List[str] = []
         changed = False
         # Built anew, a robot hides its own links from its rays only if it is alone (SimWorld).
-        with self._world.expecting_ray_robots(_with_rays(self._starts)):
+        with self._world.expecting_ray_robots(_with_rays(self._robot_starts())):
             try:
                 for entity in kept[:at] + [None] + kept[at:]:
                     if entity is None:
@@ -409,7 +414,8 @@ class Startup:
                             yield
                         continue
                     start = robot_starts[id(entity)]
-                    entity = _Entity(entity.body, start, info=_robot_info(start))
+                    entity = _Entity(entity.body, start, info=_robot_info(start),
+                                     start=entity.start)
                     robot = robot_of.get(id(entity.body))
                     if robot is not None and robot in staying:  # its start did not move
                         if self._reload(entity.body, dropped, build):

@@ -9,11 +9,14 @@ if the old world changed under the build (a start-up robot deleted, a reset),
 the swap builds the world in place instead, the same way.
 """
 
-from common import connected_clients, drive_and_read
+import shutil
+
+from common import connected_clients, drive_and_read, PACKAGE_URDF
 import pytest
 
 from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.sim.simulation import SpawnRequest
+from r2d2_sim.sim.worlds import EMPTY_WORLD_URI
 
 SIMULATION_DEFAULTS = {'cmd_vel_timeout': 0.0, 'imu_rate': 0.0}
 ROBOTS = {'robots': ['a', 'b'], 'b.initial_pose': [1.0, 0.0, 0.0]}
@@ -177,3 +180,35 @@ def test_an_extra_model_whose_file_changed_leaves_in_one_line_not_misplaced(
     assert errors == [f'bin left the world: {model} changed since bin was loaded from it']
     assert 'bin' not in simulation.world.bodies and not extra.alive
     assert simulation.entities.names() == ['ground_plane', 'r2d2', 'shelf', 'crate', 'box']
+
+
+def test_a_robot_that_left_takes_its_start_with_it_and_the_others_keep_theirs(make, tmp_path):
+    """
+    Robot b's URDF was edited: b leaves at the first LoadWorld, and c stays c at every next one.
+
+    The empty world moves no start: each robot is loaded again from its file.
+    Each robot's start was paired with the robots left by position: once b left,
+    the second LoadWorld built b's start in c's place, and c was gone for good.
+    """
+    urdfs = {name: tmp_path / f'{name}.urdf' for name in 'abc'}
+    for path in urdfs.values():
+        shutil.copy(PACKAGE_URDF, path)
+    errors = []
+    simulation = make(errors=errors, robots=['a', 'b', 'c'],
+                      **{f'{name}.urdf': str(path) for name, path in urdfs.items()},
+                      **{'b.initial_pose': [1.0, 0.0, 0.0], 'c.initial_pose': [2.0, 0.0, 0.0]})
+    with open(urdfs['b'], 'a') as edited:
+        edited.write('<!-- edited -->\n')
+
+    def robots():
+        return [(robot.name, robot.namespace, robot.body.source, robot.config.initial_pose)
+                for robot in simulation.robots]
+    simulation.load_world(EMPTY_WORLD_URI)
+    assert errors == [f'b left the world: {urdfs["b"]} changed since b was loaded from it']
+    once = robots()
+    assert [name for name, *_ in once] == ['a', 'c']
+    assert once[1][1:3] == ('/c', str(urdfs['c']))
+    simulation.load_world(EMPTY_WORLD_URI)
+    assert robots() == once and len(errors) == 1
+    simulation.reset(time=True, state=True, spawned=True)  # as launched with the world
+    assert robots() == once and len(errors) == 1
