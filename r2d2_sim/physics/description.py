@@ -151,6 +151,16 @@ def read_urdf(path: str) -> str:
     return text
 
 
+def urdf_robot_name(path: str) -> str:
+    """Return the ``<robot name>`` of the URDF file ``path`` as PyBullet takes it ('' if none)."""
+    try:
+        for _, element in ElementTree.iterparse(path, events=('start',)):
+            return element.get('name', '')  # the root's: nothing more is read
+    except (ElementTree.ParseError, OSError):
+        pass  # PyBullet refuses it when it is loaded
+    return ''
+
+
 # The joint types PyBullet's URDF reader knows ('spherical' is its own).
 URDF_JOINT_TYPES = frozenset(
     ('revolute', 'continuous', 'prismatic', 'fixed', 'floating', 'planar', 'spherical'))

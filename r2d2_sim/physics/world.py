@@ -20,7 +20,8 @@ import os
 import socket
 import sys
 from typing import (
-    Collection, Dict, Iterator, List, Mapping, NamedTuple, Optional, Sequence, Tuple, Union)
+    Callable, Collection, Container, Dict, Iterator, List, Mapping, NamedTuple, Optional,
+    Sequence, Tuple, Union)
 
 import numpy
 
@@ -40,7 +41,7 @@ from pybullet_utils.bullet_client import BulletClient
 
 __all__ = ['SimWorld', 'WorldBuild', 'SavedWorld', 'WorldError', 'display_problem',
            'SPAWN_CLEARANCE_M', 'GROUND_PLANE_NAME', 'GROUND_HALF_WIDTH_M', 'RAY_GROUPS',
-           'ray_mask', 'RayRequest', 'COMPACT_AFTER_REMOVALS']
+           'ray_mask', 'RayRequest', 'COMPACT_AFTER_REMOVALS', 'unique_name']
 
 # Gap left between the lowest point of the robot and the ground at spawn, so
 # that it starts just above the plane instead of interpenetrating it.
@@ -77,11 +78,12 @@ def _found(path: str) -> str:
     return os.path.join(pybullet_data.getDataPath(), path)
 
 
-def _unique_name(bodies: Dict[str, Body], wanted: str) -> str:
-    if wanted not in bodies:
+def unique_name(taken: Container[str], wanted: str) -> str:
+    """Return ``wanted``, or with the first ``_1``, ``_2``... suffix not ``taken``."""
+    if wanted not in taken:
         return wanted
     suffix = 1
-    while f'{wanted}_{suffix}' in bodies:
+    while f'{wanted}_{suffix}' in taken:
         suffix += 1
     return f'{wanted}_{suffix}'
 
@@ -165,12 +167,15 @@ class SimWorld:
     """
 
     def __init__(self, *, gui: bool = False, time_step_s: float = 1.0 / 240.0,
-                 gravity_m_s2: Vec3 = (0.0, 0.0, -9.8), ground_plane: bool = True) -> None:
+                 gravity_m_s2: Vec3 = (0.0, 0.0, -9.8), ground_plane: bool = True,
+                 name_rule: Callable[[str], str] = str) -> None:
         if not (math.isfinite(time_step_s) and time_step_s > 0.0):
             raise WorldError(f'time step must be a positive number of seconds, got {time_step_s}')
         self.time_step_s = time_step_s
         self.gui = gui
         self.gravity_m_s2 = gravity_m_s2
+        # How a body loaded without a name is named after its URDF (default_name).
+        self.name_rule = name_rule
         self.step_count = 0
         self.bodies: Dict[str, Body] = {}
         self.removed_since_built = 0  # bodies removed since the world was last built
@@ -251,9 +256,18 @@ class SimWorld:
         edge = GROUND_HALF_WIDTH_M
         return f'off the ground plane (x and y from {-edge:g} to {edge:g} m)'
 
+    def default_name(self, urdf_name: str, path: str) -> str:
+        """
+        Return the name a body loaded from ``path`` with no name wants, before made unique.
+
+        Its URDF's ``<robot name>`` (``urdf_name``), else its file's name without
+        the suffix, as this world's ``name_rule`` makes it.
+        """
+        return self.name_rule(urdf_name or os.path.splitext(os.path.basename(path))[0])
+
     def unique_name(self, wanted: str) -> str:
         """Return ``wanted``, or with the first free ``_1``, ``_2``... suffix when taken."""
-        return _unique_name(self.bodies, wanted)
+        return unique_name(self.bodies, wanted)
 
     def load(self, path: str, position: Vec3 = (0.0, 0.0, 0.0),
              orientation: Quat = IDENTITY_QUATERNION, *, name: Optional[str] = None,
@@ -263,9 +277,10 @@ class SimWorld:
         """
         Load a URDF file as a new body; return it.
 
-        ``name`` (default: the URDF's ``<robot name>``, made unique) must not
-        be taken. ``orientation`` is that of the URDF base frame. ``into``:
-        a world being built (:meth:`build`) instead of the live one.
+        ``name`` (default: the URDF's ``<robot name>`` as :meth:`default_name`
+        gives it, made unique) must not be taken. ``orientation`` is that of
+        the URDF base frame. ``into``: a world being built (:meth:`build`)
+        instead of the live one.
         ``made_from``: what the user wrote, when ``path`` is a URDF made of it
         (``SDF model door of hinge.sdf``): an error names that, not a
         temporary file, and PyBullet's own messages about the made file
@@ -286,9 +301,8 @@ class SimWorld:
         if into is None:
             self.loads += 1
         if name is None:
-            urdf_name = records.body_info(client, body_id).name
-            name = _unique_name(bodies, urdf_name
-                                or os.path.splitext(os.path.basename(path))[0])
+            name = unique_name(bodies, self.default_name(
+                records.body_info(client, body_id).name, path))
         elif name in bodies:
             client.removeBody(body_id)
             raise WorldError(f'a body named {name!r} is already in the world')

@@ -13,14 +13,13 @@ that never quotes a file; what a spawn may load is checked in
 """
 
 import math
-import re
 from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple, \
     TYPE_CHECKING
 
 from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.model.health import MAX_ANGULAR_SPEED_RAD_S, MAX_DISTANCE_M, MAX_LINEAR_SPEED_M_S
 from r2d2_sim.model.transforms import BaseState, compose, quaternion_multiply, rotate, Transform
-from r2d2_sim.sim.names import MAX_NAME_LENGTH, NAME
+from r2d2_sim.sim.names import entity_name, MAX_NAME_LENGTH, NAME
 from r2d2_sim.sim.bounds import body_box, body_meets, check_region, Region
 from r2d2_sim.sim.sdf.loading import SdfSettings
 from r2d2_sim.sim.spawnables import Closable, directory_spawnables, read_spawnable, Spawnable
@@ -352,18 +351,13 @@ class Entities:
         return Spawned(body, spawnable.text, spawnable.notes)
 
     def _name(self, wanted: str, allow_renaming: bool) -> str:
-        if len(wanted) > MAX_NAME_LENGTH:
-            if not allow_renaming:
-                raise RefusedError('NAME_INVALID', f'an entity name is at most {MAX_NAME_LENGTH} '
-                                                   f'characters, not {len(wanted)}')
-            wanted = wanted[:MAX_NAME_LENGTH - 8]  # room for a _N suffix
-        if not NAME.match(wanted or ''):
-            if not allow_renaming:
-                raise RefusedError('NAME_INVALID', f'{wanted[:100]!r} is not a valid entity '
-                                   'name (letters, digits, _ and -)')
-            wanted = re.sub(r'[^A-Za-z0-9_\-]', '_', wanted or 'entity') or 'entity'
-            if not wanted[0].isalpha() and wanted[0] != '_':
-                wanted = 'entity_' + wanted
+        if not allow_renaming and len(wanted) > MAX_NAME_LENGTH:
+            raise RefusedError('NAME_INVALID', f'an entity name is at most {MAX_NAME_LENGTH} '
+                                               f'characters, not {len(wanted)}')
+        if not allow_renaming and not NAME.match(wanted):
+            raise RefusedError('NAME_INVALID', f'{wanted[:100]!r} is not a valid entity '
+                               'name (letters, digits, _ and -)')
+        wanted = entity_name(wanted)  # valid already, or renaming allowed
         if wanted in self._world.bodies and not allow_renaming:
             raise RefusedError('NAME_NOT_UNIQUE', f'an entity named {wanted!r} exists')
         return self._world.unique_name(wanted)

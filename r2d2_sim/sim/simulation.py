@@ -48,8 +48,10 @@ from r2d2_sim.errors import RefusedError, SetupError, WorldError
 from r2d2_sim.model.timing import StepClock, StepSchedule
 from r2d2_sim.model.transforms import Transform, yaw_of
 from r2d2_sim.physics.body import Body
-from r2d2_sim.physics.world import SavedWorld, SimWorld
+from r2d2_sim.physics.description import urdf_robot_name
+from r2d2_sim.physics.world import SavedWorld, SimWorld, unique_name
 from r2d2_sim.sim.entities import Category, Entities, EntityInfo, SpawnRequest
+from r2d2_sim.sim.names import entity_name
 from r2d2_sim.sim.robots.robot import Frame, Measurement, Robot
 from r2d2_sim.sim.sdf.loading import SdfSettings
 from r2d2_sim.sim.settings.readers import namespace as read_namespace
@@ -166,7 +168,8 @@ class Simulation:
         # The world file loaded (the empty world for world ''), the ones that can be.
         self.worlds = WorldFiles(places, sdf, self.time_step_s)
         self.world = SimWorld(gui=config.gui, time_step_s=self.time_step_s,
-                              gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane)
+                              gravity_m_s2=config.gravity_m_s2, ground_plane=config.ground_plane,
+                              name_rule=entity_name)  # a URDF's robot name: one rule for all
         self.world.ray_threads = config.ray_threads or 1  # auto: one per core here (see table)
         self.entities = Entities(self.world, config.world_frame_id, sdf)
         # What a full reset builds again: every start-up entity, in load order.
@@ -680,13 +683,31 @@ class Simulation:
         self.entities.restore_info(self._startup.infos())
 
     def _check_names(self, world_file: World) -> None:
-        """Refuse a world whose models would take a start-up entity's name."""
-        taken = set(self._startup.names())
+        """
+        Refuse a world whose models would take a start-up entity's name, or one another's.
+
+        A model with no name is named as the build will name it: after its
+        URDF's robot name, made unique among the bodies loaded before it (the
+        ground, the first robot, ``extra_models``, the world's models before
+        it). The robots after them must keep their names too.
+        """
+        before, after = self._startup.names_around_world()
+        taken, loaded = set(before + after), set(before)
         for model in world_file.models:
-            if model.name is not None and model.name in taken:
-                raise RefusedError('OPERATION_FAILED', f'the world\'s model {model.name!r} '
-                                   'would take the name of one of the simulator\'s own '
-                                   'entities (a robot, the ground plane, extra_models)')
+            name = model.name
+            if name is None:
+                name = unique_name(loaded, self.world.default_name(
+                    urdf_robot_name(model.path), model.path))
+            if name in taken:
+                named = (f'{model.name!r}' if model.name is not None else
+                         f'{model.source[:200]} (named {name!r} after its URDF\'s robot name)')
+                raise RefusedError('OPERATION_FAILED', f'the world\'s model {named} would take '
+                                   'the name of one of the simulator\'s own entities (a robot, '
+                                   'the ground plane, extra_models)')
+            if name in loaded:
+                raise RefusedError('OPERATION_FAILED', f'two of the world\'s models would be '
+                                   f'named {name!r}')
+            loaded.add(name)
 
     def _switching(self, world_file: World, beside: bool = True) -> Generator[None, None, None]:
         """Build the world as launched with ``world_file``: spawned ones gone, time at 0."""

@@ -200,6 +200,18 @@ class Startup:
         """Return the names of the start-up entities that stay when another world is loaded."""
         return [entity.body.name for entity in self._entities if not entity.world_model]
 
+    def names_around_world(self) -> Tuple[List[str], List[str]]:
+        """Return the names of :meth:`names` a world's models load after, and those before."""
+        kept, at = self._kept()
+        return [e.body.name for e in kept[:at]], [e.body.name for e in kept[at:]]
+
+    def _kept(self) -> Tuple[List['_Entity'], int]:
+        """Return the entities that stay when another world is loaded, and where its go."""
+        kept = [entity for entity in self._entities if not entity.world_model]
+        robot_places = [i for i, entity in enumerate(kept) if entity.robot is not None]
+        # The world's models load after the first robot and extra_models, before the others.
+        return kept, robot_places[1] if len(robot_places) > 1 else len(kept)
+
     def _load_extra(self, description: str, position: Tuple[float, float, float]) -> Body:
         try:  # checked as the urdf parameter is: PyBullet crashed on what it refuses
             path = resolve_description_path(description)
@@ -375,10 +387,7 @@ class Startup:
         cannot be loaded again leaves the world, with one error line.
         """
         robot_of = {id(robot.body): robot for robot in robots}
-        kept = [entity for entity in self._entities if not entity.world_model]
-        robot_places = [i for i, entity in enumerate(kept) if entity.robot is not None]
-        # The world's models load after the first robot and extra_models, before the others.
-        at = robot_places[1] if len(robot_places) > 1 else len(kept)
+        kept, at = self._kept()
         # Each robot's own start: a robot that left the world took its start with it.
         robot_starts = {id(entity): placed(entity.start, world_file, self._warn)
                         for entity in kept if entity.start is not None}  # in load order

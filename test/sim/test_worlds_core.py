@@ -17,7 +17,9 @@ import pytest
 from r2d2_sim.errors import RefusedError, WorldError
 from r2d2_sim.sim.entities import Category
 from r2d2_sim.sim.settings.table import ConfigError
+from r2d2_sim.sim.names import is_name
 from r2d2_sim.sim.simulation import SpawnRequest
+from r2d2_sim.sim.spawnables import box_urdf
 from r2d2_sim.sim.tags import FILTER_MODE_ALL, TagsFilter
 from r2d2_sim.sim.worlds import EMPTY_WORLD_URI, LoadOptions
 
@@ -273,6 +275,52 @@ def test_a_model_named_like_a_robot_is_refused_and_nothing_changes(make):
     with pytest.raises(RefusedError, match='^OPERATION_FAILED: .*r2d2'):
         simulation.load_world('', text)
     assert simulation.worlds.current.name == 'empty'
+
+
+def test_a_model_with_no_name_is_checked_under_the_name_the_build_gives_it(make, tmp_path):
+    """
+    A model without a name takes its URDF's robot name: one that is a later robot's is refused.
+
+    The world's models load before the second robot. A model whose URDF is
+    ``<robot name="b">`` took b's name, robot b could not be loaded again (one
+    error line), LoadWorld answered OK, and b was gone for good.
+    """
+    errors = []
+    simulation = make(errors=errors, world_paths=[str(tmp_path)], robots=['a', 'b'],
+                      **{'b.initial_pose': [2.0, 0.0, 0.0]})
+    (tmp_path / 'b_box.urdf').write_text(box_urdf(name='b'))
+    (tmp_path / 'shelf.world.yaml').write_text(
+        'r2d2_sim_world: 1\nname: shelf\nmodels:\n  - {uri: b_box.urdf, position: [5, 5, 0.1]}\n')
+    robots = simulation.robots
+    for world, text in (('shelf.world.yaml', ''), ('', box_urdf(name='b'))):
+        with pytest.raises(RefusedError, match="^OPERATION_FAILED: the world's model .*named 'b'"):
+            simulation.load_world(world, text)
+        assert simulation.entities.names() == ['ground_plane', 'a', 'b']
+        assert simulation.robots == robots and simulation.worlds.current.name == 'empty'
+    # Named after the ground plane or the first robot, loaded before it: made unique, as before.
+    (tmp_path / 'a_box.urdf').write_text(box_urdf(name='a'))
+    simulation.load_world('', 'r2d2_sim_world: 1\nname: two\nmodels:\n'
+                          f'  - {{uri: {tmp_path / "a_box.urdf"}, position: [5, 5, 0.1]}}\n'
+                          f'  - {{uri: {tmp_path / "a_box.urdf"}, position: [5, 6, 0.1]}}\n')
+    assert simulation.entities.names() == ['ground_plane', 'a', 'a_1', 'a_2', 'b']
+    simulation.reset(time=True, state=True, spawned=True)
+    assert [robot.name for robot in simulation.robots] == ['a', 'b'] and errors == []
+
+
+def test_start_up_and_world_entities_get_names_the_entity_rule_takes(make):
+    """
+    Named after a URDF's robot name that is no valid name, they take it made valid.
+
+    ``cube_small.urdf`` is ``<robot name="cube.urdf">``: listed as ``cube.urdf``,
+    deleted, it could not be spawned again under that name (NAME_INVALID).
+    """
+    simulation = make(extra_models=['cube_small.urdf 1 1 0.025'])
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'cube_urdf']
+    simulation.delete_entity('cube_urdf')
+    simulation.spawn(SpawnRequest('cube_urdf', uri='cube_small.urdf', position=(1.0, 1.0, 0.025)))
+    simulation.load_world('', box_urdf(name='my room/\u03b1'))
+    assert simulation.entities.names() == ['ground_plane', 'r2d2', 'cube_urdf', 'my_room__']
+    assert all(is_name(name) for name in simulation.entities.names())
 
 
 def test_a_link_out_of_the_allowed_places_is_refused(make, tmp_path):
