@@ -12,6 +12,7 @@ that never quotes a file; what a spawn may load is checked in
 :mod:`r2d2_sim.sim.spawnables`.
 """
 
+import itertools
 import math
 from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple, \
     TYPE_CHECKING
@@ -285,14 +286,16 @@ class Entities:
 
     def spawn(self, request: SpawnRequest, *, flags: int = 0,
               body_yaw_offset_rad: float = 0.0,
-              spawnable: Optional[Spawnable] = None) -> Spawned:
+              spawnable: Optional[Spawnable] = None,
+              usable: Callable[[str], bool] = lambda name: True) -> Spawned:
         """
         Load a URDF or an SDF model at a pose (of its base link, or SDF model frame, exactly).
 
         Returns the body, its description's text and what an SDF model does
         not simulate (no ground clearance added). Named ``request.name``,
         or the URDF's robot name when empty; a taken or invalid name is
-        refused unless ``allow_renaming`` (then ``_1``, ``_2``...). A body
+        refused unless ``allow_renaming`` (then ``_1``, ``_2``..., the first
+        free one that is also ``usable``: a robot's frames free). A body
         that can fall, at a pose off the ground plane, is INVALID_POSE (it would
         fall for ever: ``SimWorld.off_ground``). ``flags`` go to loadURDF (a
         driven robot's: true cylinders, inertias from the file);
@@ -317,7 +320,7 @@ class Entities:
         if spawnable.sdf:
             pose = compose(pose, spawnable.base)
         try:
-            name = self._name(request.name or spawnable.name, request.allow_renaming)
+            name = self._name(request.name or spawnable.name, request.allow_renaming, usable)
             body = self._world.load(
                 spawnable.path, pose.translation, pose.rotation, name=name, spawned=True,
                 source=request.uri or 'resource_string',
@@ -350,7 +353,7 @@ class Entities:
             self._files[name] = text_file
         return Spawned(body, spawnable.text, spawnable.notes)
 
-    def _name(self, wanted: str, allow_renaming: bool) -> str:
+    def _name(self, wanted: str, allow_renaming: bool, usable: Callable[[str], bool]) -> str:
         if not allow_renaming and len(wanted) > MAX_NAME_LENGTH:
             raise RefusedError('NAME_INVALID', f'an entity name is at most {MAX_NAME_LENGTH} '
                                                f'characters, not {len(wanted)}')
@@ -358,9 +361,12 @@ class Entities:
             raise RefusedError('NAME_INVALID', f'{wanted[:100]!r} is not a valid entity '
                                'name (letters, digits, _ and -)')
         wanted = entity_name(wanted)  # valid already, or renaming allowed
-        if wanted in self._world.bodies and not allow_renaming:
-            raise RefusedError('NAME_NOT_UNIQUE', f'an entity named {wanted!r} exists')
-        return self._world.unique_name(wanted)
+        if not allow_renaming:
+            if wanted in self._world.bodies:
+                raise RefusedError('NAME_NOT_UNIQUE', f'an entity named {wanted!r} exists')
+            return wanted
+        names = itertools.chain([wanted], (f'{wanted}_{n}' for n in itertools.count(1)))
+        return next(name for name in names if name not in self._world.bodies and usable(name))
 
     def delete(self, name: str) -> None:
         """Remove an entity, spawned or there at start-up (a full reset brings those back)."""

@@ -496,7 +496,8 @@ class Simulation:
         settings, its odometry starting at its pose: RefusedError
         NAMESPACE_INVALID for a malformed or taken namespace (or the
         simulator's own), NAME_NOT_UNIQUE when its frames would be another
-        robot's, RESOURCE_PARSE_ERROR for inertias PyBullet reads as 0
+        robot's (with ``allow_renaming``, the first ``_1``, ``_2``... name whose
+        frames are free), RESOURCE_PARSE_ERROR for inertias PyBullet reads as 0
         (``check_driven``), OPERATION_FAILED when the world's settings cannot
         drive it or a watcher refuses it. Without one, a plain entity, free of
         Bullet's default damping as the start-up models are. Refusals leave
@@ -519,7 +520,8 @@ class Simulation:
             raise
         body, description, notes = self.entities.spawn(
             request, flags=self.world.robot_flags,
-            body_yaw_offset_rad=self.config.body_yaw_offset_rad, spawnable=spawnable)
+            body_yaw_offset_rad=self.config.body_yaw_offset_rad, spawnable=spawnable,
+            usable=lambda name: self._frames_holder(name) is None)  # renamed till they are free
         if notes:
             self._warn(f'{body.name}: {notes}')
         base = body.world_state()
@@ -528,7 +530,7 @@ class Simulation:
             config = docked(robot_config(self.config, body.name, {
                 'initial_pose': [base.position[0], base.position[1], yaw_of(base.orientation)]}),
                 self.worlds.current, self._named_warn(body.name))
-            self._check_frames_free(body.name, config)
+            self._check_frames_free(config)
             robot = Robot(self.world, body, config, body.source, description,
                           warn=self._named_warn(body.name), error=self._error,
                           namespace=namespace)
@@ -580,15 +582,25 @@ class Simulation:
                                                         f'namespace {resolved} already')
         return resolved
 
-    def _check_frames_free(self, name: str, config: SimConfig) -> None:
+    def _check_frames_free(self, config: SimConfig) -> None:
         """Refuse a robot whose frames would be another's on the shared /tf."""
+        holder = self._frames_holder('', config)
+        if holder is not None:
+            raise RefusedError('NAME_NOT_UNIQUE', f'robot {holder.name} publishes its frames '
+                               f'with the prefix {config.frame_prefix!r} already: name the '
+                               'new robot otherwise')
+
+    def _frames_holder(self, name: str, config: Optional[SimConfig] = None) -> Optional[Robot]:
+        """Return the robot whose frames a spawned robot ``name`` would publish as its own."""
+        if config is None:
+            try:
+                config = robot_config(self.config, name)
+            except ConfigError:
+                return None  # refused when the robot is made
         if config.tf_layout != 'shared':
-            return
-        for robot in self.robots:
-            if robot.config.frame_prefix == config.frame_prefix:
-                raise RefusedError('NAME_NOT_UNIQUE', f'robot {robot.name} publishes its frames '
-                                   f'with the prefix {config.frame_prefix!r} already: name the '
-                                   'new robot otherwise')
+            return None
+        return next((robot for robot in self.robots
+                     if robot.config.frame_prefix == config.frame_prefix), None)
 
     def delete_entity(self, name: str) -> None:
         """

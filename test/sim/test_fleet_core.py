@@ -210,6 +210,25 @@ def test_a_robot_spawned_at_run_time_drives_and_leaves_nothing_behind(make):
     assert simulation.world.take_ray_group() == RAY_GROUPS[2]  # given back
 
 
+def test_allow_renaming_renames_a_robot_until_its_frames_are_free(make):
+    """
+    Robot a publishes its frames as c/...: a spawned robot c with allow_renaming is c_1.
+
+    No entity is named c, so the name was kept, and the frames' clash refused the
+    spawn (NAME_NOT_UNIQUE), although the standard's renaming lets it succeed.
+    """
+    from r2d2_sim.errors import RefusedError
+    simulation = make(**{**FACING, 'a.frame_prefix': 'c/'})
+    uri = 'package://r2d2_sim/urdf/r2d2.urdf'
+    with pytest.raises(RefusedError, match="^NAME_NOT_UNIQUE: robot a .* prefix 'c/'"):
+        simulation.spawn(SpawnRequest('c', uri=uri, namespace='c', position=(0.0, 2.0, 0.48)))
+    name = simulation.spawn(SpawnRequest('c', allow_renaming=True, uri=uri, namespace='c',
+                                         position=(0.0, 2.0, 0.48)))
+    robot = next(robot for robot in simulation.robots if robot.name == name)
+    assert name == 'c_1' and robot.config.frame_prefix == 'c_1/'
+    assert simulation.entities.names() == ['ground_plane', 'a', 'b', 'c_1']
+
+
 def test_a_state_reset_puts_every_robot_home_and_a_spawned_one_at_its_spawn_pose(make):
     """reset(state) keeps spawned robots; reset(spawned) deletes them, start-up ones stay."""
     simulation = make(**FACING)
