@@ -65,10 +65,11 @@ COMPACT_AFTER_REMOVALS = 64
 class SavedWorld(NamedTuple):
     """A state of a world kept by PyBullet (``saveState``), and the bodies it holds."""
 
-    state_id: int                          # PyBullet's, in this world's client
-    bodies: Tuple[Tuple[str, int], ...]    # every body's name and id, in load order
-    built: int                             # which build of the world (clear() makes another)
-    loads: int                             # bodies loaded into the world before it was saved
+    state_id: int                                # PyBullet's, in this world's client
+    # Every body's name, id and the Body itself, in load order: a body deleted and another
+    # spawned under its name takes its id too (PyBullet reuses ids), but is another Body.
+    bodies: Tuple[Tuple[str, int, Body], ...]
+    built: int                                   # which build of the world (clear() makes another)
 
 
 def _found(path: str) -> str:
@@ -180,9 +181,6 @@ class SimWorld:
         self.bodies: Dict[str, Body] = {}
         self.removed_since_built = 0  # bodies removed since the world was last built
         self.builds = 0  # how often the physics world was built (each clear() builds it anew)
-        # Bodies loaded into the live world so far, loaded again too (put_back): a body
-        # loaded again keeps its id but is last in Bullet's order (restore_state).
-        self.loads = 0
         # Threads a large batch of rays is cast on (raycast.cast_rays): the same answers.
         self.ray_threads = 1
         self._free_ray_groups = list(RAY_GROUPS)
@@ -298,8 +296,6 @@ class SimWorld:
         except client.error as exc:
             raise WorldError(f'PyBullet cannot load {made_from or given_as or path}: '
                              f'{exc}') from None
-        if into is None:
-            self.loads += 1
         if name is None:
             name = unique_name(bodies, self.default_name(
                 records.body_info(client, body_id).name, path))
@@ -518,7 +514,6 @@ class SimWorld:
             into.twins.append((body, body.loaded_into(into.client)))
         else:
             body.reload()
-            self.loads += 1
         bodies[body.name] = body
 
     def build(self, beside: bool = True, keep_ray_groups: Sequence[int] = ()) -> WorldBuild:
@@ -645,7 +640,6 @@ class SimWorld:
             except WorldError as exc:
                 why = str(exc)
             else:
-                self.loads += 1
                 body.remove()
                 self.removed_since_built += 1
                 body.adopt(twin)
@@ -697,7 +691,7 @@ class SimWorld:
         for body in self.bodies.values():
             body.collision_filters()
         client.setPhysicsEngineParameter(deterministicOverlappingPairs=1)
-        return SavedWorld(client.saveState(), self._body_ids(), self.builds, self.loads)
+        return SavedWorld(client.saveState(), self._body_ids(), self.builds)
 
     def restore_state(self, saved: SavedWorld) -> None:
         """
@@ -711,8 +705,10 @@ class SimWorld:
         else. So a run from the state repeats any other run from it, not the
         run that went on from the save. Motors and lasting changes of the
         bodies stay as they are. Only the same bodies can come back
-        (``restoreState`` matches them by id): WorldError (one line) once a
-        body was added, removed or loaded again since, or the world built again.
+        (``restoreState`` matches them by id, and a body spawned in a deleted
+        one's place takes its id and may take its name: the Body objects are
+        compared): WorldError (one line) once a body was added, removed or
+        loaded again since, or the world built again.
         """
         if saved.built != self.builds or saved.bodies != self._body_ids():
             raise WorldError('the saved state is of other bodies: bodies were added, removed '
@@ -726,8 +722,8 @@ class SimWorld:
         if saved.built == self.builds and self._client is not None:
             self._client.removeState(saved.state_id)
 
-    def _body_ids(self) -> Tuple[Tuple[str, int], ...]:
-        return tuple((name, body.id) for name, body in self.bodies.items())
+    def _body_ids(self) -> Tuple[Tuple[str, int, Body], ...]:
+        return tuple((name, body.id, body) for name, body in self.bodies.items())
 
     def cast_rays(self, starts: numpy.ndarray, ends: numpy.ndarray,
                   mask: int = RAY_MASK) -> numpy.ndarray:

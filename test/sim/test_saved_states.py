@@ -103,6 +103,25 @@ def test_a_state_of_other_bodies_is_refused_in_one_line_and_the_world_stays(make
     simulation.step()  # and the world runs on
 
 
+def test_a_state_of_a_deleted_body_is_refused_when_another_takes_its_name_and_id(make):
+    """
+    A body spawned in a deleted one's place takes its id (PyBullet reuses ids) and its name.
+
+    The restore was accepted and put the new body (a 1 m fixed wall) where the
+    saved cube stood, overlapping R2D2: the bodies themselves are compared now.
+    """
+    simulation, saved = build(make)
+    cube_id = simulation.world.bodies['cube'].id
+    simulation.delete_entity('cube')
+    simulation.spawn(SpawnRequest('cube', resource_string=box_urdf((1.0, 1.0, 1.0)),
+                                  position=(5.0, 5.0, 0.5)))
+    assert simulation.world.bodies['cube'].id == cube_id  # what made the old check pass
+    with pytest.raises(WorldError, match='^the saved state is of other bodies: bodies were added, '
+                                         'removed or loaded again since it was saved$'):
+        simulation.restore_state(saved)
+    assert simulation.entities.state('cube').position == pytest.approx((5.0, 5.0, 0.5))
+
+
 def test_a_state_saved_before_a_blow_up_is_refused_in_one_line_and_the_world_stays(make):
     """
     The blow-up loads the robot and the ground again: last in Bullet's order, whatever their ids.
