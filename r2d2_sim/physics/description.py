@@ -30,6 +30,12 @@ SOURCE_TREE = str(Path(__file__).resolve().parents[2])
 # pose has (10 km; the ground plane is 200 m across, pybullet_data's largest is 100 m).
 # A joint origin of 1e300 m loaded, and the robot's state was NaN from its first step on.
 MAX_LENGTH_M = 10_000.0
+# The heaviest link and the largest inertia entry (each, in absolute value) a URDF may give,
+# the bounds SDF models have too. A 1e300 kg link read NaN from the first step on, and from
+# 1e12 kg a box sank through the ground plane; 1e9 kg stood. pybullet_data's heaviest link
+# is 33 kg (husky), its largest inertia 100 kg m^2; a loaded mining truck is about 6e5 kg.
+MAX_MASS_KG = 1e9
+MAX_INERTIA_KG_M2 = 1e9
 # The shortest joint axis: 1e-300 0 0 passed as "not all 0", and PyBullet's unit vector
 # of it was NaN from the first step on.
 MIN_AXIS_LENGTH = 1e-9
@@ -233,9 +239,11 @@ def _check_values(root: ElementTree.Element,
     ``a b c`` became size 0, an origin of ``nan`` put NaN in the body's
     bounds, a mass of -5 made a floating static body, a joint axis of 0 0 0
     (or none given) NaN positions. What it cannot simulate is refused too: a
-    joint axis shorter than MIN_AXIS_LENGTH (1e-300 0 0) and an origin or a
-    shape's size beyond MAX_LENGTH_M (1e300) gave NaN from the first step on,
-    so that a driven robot blew up and was put back on every step, for ever.
+    joint axis shorter than MIN_AXIS_LENGTH (1e-300 0 0), an origin or a
+    shape's size beyond MAX_LENGTH_M (1e300) and a mass beyond MAX_MASS_KG
+    gave NaN from the first step on, so that a driven robot blew up and was
+    put back on every step, for ever (an inertia beyond MAX_INERTIA_KG_M2 on
+    a driven robot the same).
     What its own data does and it reads right
     stays: an absent or blank origin (zeros), mass 0 (a static link), a
     vector of more than 3 numbers (the first 3), a number with a comma after
@@ -249,10 +257,14 @@ def _check_values(root: ElementTree.Element,
             for mass in inertial.findall('mass'):
                 _check(mass, 'value', f'{name}: mass', refuse, 1, _at_least_zero,
                        'a finite number >= 0')
+                _check(mass, 'value', f'{name}: mass', refuse, 1, _light,
+                       f'{MAX_MASS_KG:.0e} kg or less'.replace('e+0', 'e'))
             for inertia in inertial.findall('inertia'):
                 for entry in ('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'):
                     _check(inertia, entry, f'{name}: inertia', refuse, 1, None,
                            'a finite number')
+                    _check(inertia, entry, f'{name}: inertia', refuse, 1, _moderate,
+                           f'within {MAX_INERTIA_KG_M2:.0e} kg m^2 of 0'.replace('e+0', 'e'))
         for part in ('visual', 'collision'):
             for element in link.findall(part):
                 _check_origins(element, f'{name}: {part}', refuse)
@@ -331,6 +343,14 @@ def _near(values: List[float]) -> bool:
 
 def _small(values: List[float]) -> bool:
     return all(value <= MAX_LENGTH_M for value in values)
+
+
+def _light(values: List[float]) -> bool:
+    return all(value <= MAX_MASS_KG for value in values)
+
+
+def _moderate(values: List[float]) -> bool:
+    return all(abs(value) <= MAX_INERTIA_KG_M2 for value in values)
 
 
 def _check(element: ElementTree.Element, attribute: str, where: str,

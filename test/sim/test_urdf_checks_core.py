@@ -382,6 +382,51 @@ def test_what_the_bounds_leave_is_simulated(make):
         assert simulation.world.bodies[name].finite(), text
 
 
+def heavy_child(kg: str) -> str:
+    """Return :func:`reaching`'s two boxes, the child ``b`` of ``kg``."""
+    return reaching().replace('<link name="b"><inertial><mass value="1"/>',
+                              f'<link name="b"><inertial><mass value="{kg}"/>')
+
+
+# name -> (URDF, what the refusal says): masses and inertias PyBullet loaded and could not
+# simulate (NaN from the first step on, or a box sinking through the ground plane).
+TOO_HEAVY = {
+    'a child link of 1e300 kg': (
+        heavy_child('1e300'),
+        "link 'b': mass value '1e300' is not 1e9 kg or less"),
+    'a box of 1e12 kg': (
+        body(mass='1e12'),
+        "link 'l': mass value '1e12' is not 1e9 kg or less"),
+    'an inertia of 1e300': (
+        body(ixx='1e300'),
+        "link 'l': inertia ixx '1e300' is not within 1e9 kg m^2 of 0"),
+    'a product of inertia of -1e10': (
+        body().replace('ixy="0"', 'ixy="-1e10"'),
+        "link 'l': inertia ixy '-1e10' is not within 1e9 kg m^2 of 0"),
+}
+
+
+def test_masses_and_inertias_pybullet_cannot_simulate_are_refused_every_way_in(tmp_path):
+    """A spawn answered OK read NaN for ever (1e300 kg) or fell through the floor (1e12 kg)."""
+    assert_refused_every_way_in(tmp_path, TOO_HEAVY)
+
+
+def test_the_heaviest_links_the_bounds_leave_stand_on_the_ground(make):
+    """A 1e9 kg box and a two-link body whose child is 1e9 kg stay on the ground, finite."""
+    from r2d2_sim.sim.simulation import SpawnRequest
+    simulation = make()
+    heavy = heavy_child('1e9')
+    names = [simulation.spawn(SpawnRequest(resource_string=text, allow_renaming=True,
+                                           position=position))
+             for text, position in ((body(mass='1e9', ixx='1e9'), (3.0, 3.0, 0.1)),
+                                    (heavy, (-3.0, 3.0, 0.1)))]
+    for _ in range(480):
+        simulation.step()
+    for name in names:
+        assert simulation.world.bodies[name].finite(), name
+        assert simulation.entities.state(name).position[2] > -0.05, name
+
+
 def two_boxes(inertia: str, mass='1', base_mass='1') -> str:
     """Return a URDF of two boxes on a continuous joint, both of ``inertia`` (ixx iyy izz)."""
     ixx, iyy, izz = inertia.split()

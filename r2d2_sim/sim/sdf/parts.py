@@ -14,6 +14,7 @@ from typing import Collection, List, NamedTuple, Optional, Tuple
 import xml.etree.ElementTree as ElementTree
 
 from r2d2_sim.model.transforms import Transform, Vector3
+from r2d2_sim.physics.description import MAX_INERTIA_KG_M2, MAX_MASS_KG
 from r2d2_sim.sim.sdf.description import (
     DEFAULT_INERTIAL, Geometry, Inertial, JOINT_TYPES, JointLimits, Shape)
 from r2d2_sim.sim.sdf.elements import FileNotes, local_tag, Notes, Place
@@ -233,15 +234,15 @@ def _inertial(element: Optional[ElementTree.Element], place: Place, notes: Notes
     at = place.child(element)
     if element.get('auto', 'false').strip().lower() in ('true', '1'):
         notes.note('automatic inertia (the file\'s mass and inertia, or 1 kg, are used)')
-    mass = at.number(element, 'mass', 1.0, 0.0, 1e9)
+    mass = at.number(element, 'mass', 1.0, 0.0, MAX_MASS_KG)
     pose, _ = at.pose(element)
     inertia = element.find('inertia')
     values = DEFAULT_INERTIAL.inertia
     if inertia is not None:
         within = at.child(inertia)
         ixx, ixy, ixz, iyy, iyz, izz = (
-            within.number(inertia, tag, default, -1e9, 1e9) for tag, default in
-            zip(('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'), values))
+            within.number(inertia, tag, default, -MAX_INERTIA_KG_M2, MAX_INERTIA_KG_M2)
+            for tag, default in zip(('ixx', 'ixy', 'ixz', 'iyy', 'iyz', 'izz'), values))
         values = (ixx, ixy, ixz, iyy, iyz, izz)
         if not all(values[i] >= 0.0 for i in (0, 3, 5)):
             raise within.fail('the moments ixx, iyy and izz cannot be negative')
