@@ -11,6 +11,7 @@ during a step answered OK while the step went on stepping the reset world;
 a reset or a spawn made STOPPED read PAUSED; pausing at time 0 read STOPPED.
 """
 
+import os
 import threading
 
 from geometry_msgs.msg import PoseStamped
@@ -75,6 +76,43 @@ def test_entity_changes_while_a_world_loads_are_refused(r2d2_sim, standard):
     finally:
         loading.clear()
     assert standard('delete_entity', srv.DeleteEntity, entity='crate').result.result == OK
+
+
+def test_spawns_refused_while_a_world_loads_leave_no_temporary_files(r2d2_sim, standard,
+                                                                     monkeypatch, tmp_path):
+    """
+    A resource_string (URDF or SDF) is written to a temporary directory before the lock.
+
+    Refused with INCORRECT_STATE, SpawnEntity and SpawnEntities left that
+    directory behind, one per request; once the load is done, a spawn keeps
+    its own (the temporary directory watched is the one these are written to).
+    """
+    import tempfile
+    made = tmp_path / 'tmp'
+    made.mkdir()
+    monkeypatch.setattr(tempfile, 'tempdir', str(made))
+    sdf_box = ('<sdf version="1.9"><model name="pillar"><link name="l"><collision name="c">'
+               '<geometry><box><size>0.2 0.2 0.2</size></box></geometry></collision></link>'
+               '</model></sdf>')
+    loading = r2d2_sim.sim.standard.activity.loading
+    loading.set()  # LoadWorld running in the other thread
+    try:
+        for index, text in enumerate((BOX, sdf_box)):
+            reply = standard('spawn_entity', srv.SpawnEntity, name=f'one_{index}',
+                             resource_string=text, initial_pose=box_pose(3.0 + index))
+            assert reply.result.result == msg.Result.RESULT_INCORRECT_STATE, reply
+        reply = standard('spawn_entities', srv.SpawnEntities, spawn_requests=[
+            msg.SpawnEntity(name=f'many_{index}', entity_resource=msg.Resource(
+                resource_string=text), initial_pose=box_pose(5.0 + index))
+            for index, text in enumerate((BOX, sdf_box))])
+        assert reply.result.result == msg.Result.RESULT_INCORRECT_STATE, reply
+        assert sorted(os.listdir(made)) == []
+    finally:
+        loading.clear()
+    reply = standard('spawn_entity', srv.SpawnEntity, name='kept', resource_string=BOX,
+                     initial_pose=box_pose(3.0))
+    assert reply.result.result == OK, reply
+    assert len(os.listdir(made)) == 1
 
 
 @pytest.mark.parametrize('ask, says', [

@@ -259,13 +259,21 @@ class EntityServices(Replies):
 
         The files are read first, outside the lock (the physics keeps its rate
         while an SDF model's meshes convert); the lock is held for the body.
+        A spawn refused (a world loading, too) deletes the temporary files
+        read for it (a resource_string's, an SDF model's converted URDF):
+        the core closes them only on refusals of its own.
         """
         p, q = pose.pose.position, pose.pose.orientation
         request = SpawnRequest(name, allow_renaming, uri, resource_string, namespace,
                                pose.header.frame_id, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
         spawnable = self._reads.read(request)
-        with self._changing():
-            return self._changes.spawn(request, spawnable)
+        try:
+            with self._changing():
+                return self._changes.spawn(request, spawnable)
+        except BaseException:
+            if spawnable.file is not None:
+                spawnable.file.close()  # closing twice does nothing
+            raise
 
     def _spawn(self, request: Any, response: Any) -> Any:
         try:
