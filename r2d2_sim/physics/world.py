@@ -26,7 +26,7 @@ from typing import (
 import numpy
 
 from r2d2_sim.memory import malloc_trim
-from r2d2_sim.model.transforms import yaw_of
+from r2d2_sim.model.transforms import rotate, rotate_inverse, yaw_of
 from r2d2_sim.physics.body import Body, file_stamp, Loading, WorldError
 from r2d2_sim.physics import records
 from r2d2_sim.physics.raycast import (
@@ -48,7 +48,7 @@ __all__ = ['SimWorld', 'WorldBuild', 'SavedWorld', 'WorldError', 'display_proble
 SPAWN_CLEARANCE_M = 0.001
 GROUND_PLANE_NAME = 'ground_plane'
 # pybullet_data's plane.urdf collides as a box 200 x 200 x 10 m, its top face at z 0, about
-# the origin: past 100 m along x or y there is nothing to stand on. Kept as it is (every
+# its origin: past 100 m along its x or y there is nothing to stand on. Kept as it is (every
 # contact and recording depends on it); poses off it are refused instead (off_ground).
 GROUND_HALF_WIDTH_M = 100.0
 IDENTITY_QUATERNION: Quat = (0.0, 0.0, 0.0, 1.0)
@@ -243,16 +243,30 @@ class SimWorld:
         """
         Return why a body standing at (x, y) would fall for ever (a phrase), None if it would not.
 
-        Off the ground plane this world loaded (:data:`GROUND_HALF_WIDTH_M`), while
-        that plane is in the world. None without it: another ground (a world's
-        own floor) may be anywhere.
+        Off the ground plane this world loaded (:data:`GROUND_HALF_WIDTH_M` to each
+        side of its centre, where it is now: SetEntityState moves it as any
+        static body), while that plane is in the world. None without it:
+        another ground (a world's own floor) may be anywhere. Turned or
+        tilted, the point of its top face above or below (x, y) is measured.
         """
         ground = self._ground
-        if (ground is None or self.bodies.get(GROUND_PLANE_NAME) is not ground
-                or max(abs(x), abs(y)) <= GROUND_HALF_WIDTH_M):
+        if ground is None or self.bodies.get(GROUND_PLANE_NAME) is not ground:
             return None
+        (px, py, _), rotation = ground.world_pose()
+        dx, dy = x - px, y - py
+        nx, ny, nz = rotate(rotation, (0.0, 0.0, 1.0))
+        dz = -(nx * dx + ny * dy) / nz if abs(nz) > 1e-9 else 0.0  # on the top face's plane
+        along, across, _ = rotate_inverse(rotation, (dx, dy, dz))
         edge = GROUND_HALF_WIDTH_M
-        return f'off the ground plane (x and y from {-edge:g} to {edge:g} m)'
+        if abs(nz) > 1e-9 and max(abs(along), abs(across)) <= edge:
+            return None
+        if tuple(rotation) == IDENTITY_QUATERNION:
+            if px == py:
+                return f'off the ground plane (x and y from {px - edge:g} to {px + edge:g} m)'
+            return (f'off the ground plane (x from {px - edge:g} to {px + edge:g} m, y from '
+                    f'{py - edge:g} to {py + edge:g} m)')
+        return (f'off the ground plane (turned, {edge:g} m to each side of its centre at '
+                f'x {px:g}, y {py:g})')
 
     def default_name(self, urdf_name: str, path: str) -> str:
         """

@@ -116,3 +116,33 @@ def test_a_robot_falling_off_the_edge_is_said_to_once_a_fall(make):
     simulation.set_entity_state('r2d2', '', (0.0, 0.0, 0.5), UPRIGHT, ZERO, ZERO)
     fall_for(3)
     assert len(errors) == 2 and math.isclose(body.world_pose()[0][0], 150.0, abs_tol=1e-3)
+
+
+def test_the_edge_moves_with_the_ground_plane(make):
+    """
+    Move the plane with SetEntityState, as any static body: the edge is measured from there.
+
+    Moved to x 300, a loose box spawned at (0, 2) was taken and fell for ever,
+    and one at (300, 0), on the plane, was refused as off it.
+    """
+    simulation = make()
+    simulation.set_entity_state('ground_plane', '', (300.0, 0.0, 0.0), UPRIGHT, ZERO, ZERO)
+    loose = box_urdf(mass_kg=1.0)
+    with pytest.raises(RefusedError) as refused:
+        simulation.spawn(SpawnRequest('off', resource_string=loose, position=(0.0, 2.0, 0.1)))
+    assert (refused.value.code, refused.value.message) == (
+        'INVALID_POSE', 'off at x 0, y 2 would be off the ground plane (x from 200 to 400 m, '
+                        'y from -100 to 100 m) and fall for ever')
+    simulation.spawn(SpawnRequest('on', resource_string=loose, position=(300.0, 0.0, 0.1)))
+    # Turned 45 degrees about its centre at the origin: its corners reach 141 m along x.
+    turned = (0.0, 0.0, math.sin(math.pi / 8), math.cos(math.pi / 8))
+    simulation.set_entity_state('ground_plane', '', ZERO, turned, ZERO, ZERO)
+    simulation.spawn(SpawnRequest('corner', resource_string=loose, position=(130.0, 0.0, 0.1)))
+    with pytest.raises(RefusedError) as refused:
+        simulation.spawn(SpawnRequest('side', resource_string=loose, position=(95.0, 95.0, 0.1)))
+    assert refused.value.message == ('side at x 95, y 95 would be off the ground plane (turned, '
+                                     '100 m to each side of its centre at x 0, y 0) and fall '
+                                     'for ever')
+    for _ in range(240):
+        simulation.step()
+    assert simulation.world.bodies['corner'].world_pose()[0][2] > 0.0  # it stands on it
