@@ -125,6 +125,29 @@ def test_outside_the_allowed_places_only_the_operator_may_load(make, tmp_path):
     assert make(world=str(tmp_path / 'mine.world.yaml')).worlds.current.name == 'mine'
 
 
+@pytest.mark.parametrize('uri', [ROOM + '\0', 'room\0.world.yaml', 'file:///tmp/\0.world.yaml'])
+def test_a_nul_byte_in_a_world_uri_is_refused_in_one_line(make, uri):
+    """Python's path functions raised ValueError 'embedded null byte' (the Python API only)."""
+    simulation = make()
+    with pytest.raises(RefusedError) as refused:
+        simulation.load_world(uri)
+    assert (refused.value.code, refused.value.message) == (
+        'NOT_FOUND', f'{uri!r}: no such file (a path cannot hold a NUL byte)')
+    assert simulation.worlds.current.name == 'room'
+
+
+def test_a_nul_byte_in_a_model_uri_is_a_missing_asset(make):
+    """A YAML escape puts one in a model's URI, over ROS too (LoadWorld's resource_string)."""
+    simulation = make()
+    world = ('r2d2_sim_world: 1\nname: n\nmodels:\n'
+             '  - {uri: "cube\\0.urdf", position: [5.0, 5.0, 0.1]}\n')
+    with pytest.raises(RefusedError) as refused:
+        simulation.load_world('', world)
+    assert (refused.value.code, refused.value.message) == (
+        'MISSING_ASSETS', "'cube\\x00.urdf': no such file (a path cannot hold a NUL byte)")
+    assert simulation.worlds.current.name == 'room'
+
+
 def test_an_unknown_named_pose_is_not_found(make):
     simulation = make()
     with pytest.raises(RefusedError, match=r"^NOT_FOUND: no named pose 'kitchen_door'"):

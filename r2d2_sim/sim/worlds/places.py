@@ -122,8 +122,12 @@ class Places:
         A ``package://`` URI may not leave its package; a relative path is
         looked for beside the world file (``base_dir``), then in the working
         directory (the operator's ``world`` only makes use of it), then in
-        :meth:`search`'s places. NOT_FOUND for a remote URI or a missing package.
+        :meth:`search`'s places. NOT_FOUND for a remote URI, a missing package, or
+        a NUL byte (no path holds one: Python's path functions raised ValueError).
         """
+        if '\0' in uri:
+            raise RefusedError('NOT_FOUND', f'{uri[:200]!r}: no such file (a path cannot hold '
+                                            'a NUL byte)')
         if uri.startswith(PACKAGE_SCHEME):
             package, _, relative = uri[len(PACKAGE_SCHEME):].partition('/')
             if not package or not relative:
