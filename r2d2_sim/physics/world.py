@@ -252,6 +252,7 @@ class SimWorld:
         ground = self._ground
         if ground is None or self.bodies.get(GROUND_PLANE_NAME) is not ground:
             return None
+        self._live_client  # WorldError once closed (a build the world's close ended)
         (px, py, _), rotation = ground.world_pose()
         dx, dy = x - px, y - py
         nx, ny, nz = rotate(rotation, (0.0, 0.0, 1.0))
