@@ -25,6 +25,7 @@ import argparse
 import json
 import math
 import os
+import struct
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 from geometry_msgs.msg import Twist
@@ -65,10 +66,22 @@ def _seconds(variable: str, default: float) -> float:
 # What the scenario needs of the standard.
 NEEDED = ('StepSimulation', 'ResetSimulation', 'SetSimulationState', 'GetSimulationState',
           'GetEntityState', 'GetEntities', 'GetEntityBounds', 'SpawnEntity')
-# An entity whose pose is within this of the start (m, rad) is not placed again: the same
-# bits as the reset left them, so a run repeats the in-process one.
+# A robot that stands at the start already is not placed again: the same bits as the reset
+# left them, so a run repeats the in-process one (a SetEntityState, even to the same pose,
+# changes the run). PyBullet keeps positions in float32 (0.3 reads back 0.30000001192...):
+# x and y are compared with the start rounded to float32, within SAME_POSE (m), which holds at
+# any distance from the origin (float32's step is 1e-6 m at 8 m, 8e-6 m at 100 m). The yaw is
+# compared within SAME_YAW (rad): it comes from a float32 quaternion (components <= 1, a step
+# of at most 6e-8), through the simulator's own Euler conversion and body offset, whose last
+# bits cannot be predicted here.
 SAME_POSE = 1e-9
+SAME_YAW = 1e-6
 TRIGGER = 'std_srvs/srv/Trigger'
+
+
+def _float32(value: float) -> float:
+    """Return ``value`` rounded to float32, as PyBullet keeps a position."""
+    return float(struct.unpack('f', struct.pack('f', value))[0])
 
 
 def _bounds_region(bounds: Any) -> Region:
@@ -233,12 +246,32 @@ class StandardSimulation(ScenarioSimulation):
         start, pose = settings.scenario.start, state.pose
         q = pose.orientation
         yaw = yaw_of((q.x, q.y, q.z, q.w))
-        if (abs(pose.position.x - start.x) <= SAME_POSE and abs(pose.position.y - start.y)
-                <= SAME_POSE and abs(math.remainder(yaw - start.yaw, 2 * math.pi)) <= SAME_POSE):
+        if (abs(pose.position.x - _float32(start.x)) <= SAME_POSE
+                and abs(pose.position.y - _float32(start.y)) <= SAME_POSE
+                and abs(math.remainder(yaw - start.yaw, 2 * math.pi)) <= SAME_YAW):
             return
         self._client().set_entity_state(settings.robot,
                                         (start.x, start.y, pose.position.z),
                                         yaw_to_quaternion(start.yaw))
+
+    def _back_to_start(self) -> None:
+        """
+        Put the robot back at the scenario's start after a reset or a world load.
+
+        The simulator resets it to its own initial pose, which is not the
+        scenario's start unless it was started with the scenario's parameters;
+        in process the robot goes back to the scenario's start. A world without
+        the robot leaves nothing to place.
+        """
+        if self.settings is None:
+            return
+        try:
+            state = self._client().entity_state(self.settings.robot)
+        except RefusedError as exc:
+            if exc.code == 'NOT_FOUND':
+                return
+            raise
+        self._place(self.settings, state)
 
     def _hold(self) -> None:
         """Pause the simulator unless it already holds (PAUSED, or STOPPED: paused at time 0)."""
@@ -320,11 +353,12 @@ class StandardSimulation(ScenarioSimulation):
         self._poses.pop(name, None)
 
     def load_world(self, uri: str) -> None:
-        """Load a world (LoadWorld): STOPPED after it."""
+        """Load a world (LoadWorld): STOPPED after it, the robot at the scenario's start."""
         self._client().load_world(uri=uri)
         self.playing = False
         self._poses, self._bounds = {}, {}
         self._steps = 0  # a world loads at time 0
+        self._back_to_start()
 
     def unload_world(self) -> None:
         """Unload the world (UnloadWorld)."""
@@ -334,11 +368,12 @@ class StandardSimulation(ScenarioSimulation):
         self._steps = 0
 
     def reset_simulation(self) -> None:
-        """Reset all (ResetSimulation ALL), kept paused."""
+        """Reset all (ResetSimulation ALL), kept paused, the robot at the scenario's start."""
         self._client().reset(0)
         self._hold()
         self._poses = {}
         self._steps = 0
+        self._back_to_start()
 
     def step_physics(self, steps: int) -> None:
         """Step a paused scenario (StepSimulation)."""

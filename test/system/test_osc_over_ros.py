@@ -45,6 +45,55 @@ def test_the_verdict_over_ros_is_the_in_process_one(tmp_path, example, document)
     assert 'Traceback' not in output
 
 
+def test_a_start_off_the_round_numbers_runs_over_ros_bit_for_bit_as_in_process(
+        tmp_path, monkeypatch):
+    """
+    Start at (0.3, -0.2), yaw 0.7: the robot's pose after every tick is the same bits.
+
+    sim_node, started at the scenario's start, reads it back in float32 (0.3 is
+    0.30000001192...): the robot is not placed again (a SetEntityState changed the run).
+    """
+    from recording_simulations import POSES
+    scenario = tmp_path / 'start.osc'
+    scenario.write_text(
+        'import osc.helpers\nimport osc.r2d2\n\nscenario start:\n    timeout(10s)\n'
+        '    start_x: float = 0.3\n    start_y: float = -0.2\n    start_yaw: float = 0.7\n'
+        '    do serial:\n        drive(linear: 0.4mps, angular: 0.3radps, duration: 1s)\n'
+        '        wait elapsed(0.5s)\n')
+    task = Task(str(scenario), 0, None)
+    local = run_document(task._replace(simulation='recording_simulations:RecordingInProcess'))
+    with SimProcess(**simulator_parameters(str(scenario))) as sim:
+        monkeypatch.setenv('ROS_DOMAIN_ID', str(sim.domain_id))
+        remote = run_document(task._replace(simulation='recording_simulations:RecordingOverRos'))
+    assert local.passed and remote.passed, (local.reason, remote.reason)
+    assert len(POSES['in_process']) > 20
+    assert POSES['over_ros'] == POSES['in_process']
+
+
+@pytest.mark.parametrize('back', [
+    '        reset_simulation()\n',
+    '        set_simulation_state(state: simulation_state!stopped)\n'
+    '        set_simulation_state(state: simulation_state!playing)\n',
+    "        load_world(uri: 'package://r2d2_sim/urdf/empty.world.yaml')\n"
+    '        set_simulation_state(state: simulation_state!playing)\n',
+], ids=['reset_simulation', 'stopped', 'load_world'])
+def test_a_reset_over_ros_puts_the_robot_at_the_scenarios_start(tmp_path, back):
+    """sim_node started at its own (0, 0): after a reset the robot is at the scenario's start."""
+    scenario = tmp_path / 'back.osc'
+    scenario.write_text(
+        'import osc.helpers\nimport osc.r2d2\n\nscenario back:\n    timeout(10s)\n'
+        '    start_x: float = 1.0\n    start_y: float = 0.5\n    start_yaw: float = 1.0\n'
+        '    do serial:\n        drive(linear: 0.4mps, duration: 1s)\n' + back
+        + '        wait elapsed(0.5s)\n'
+        '        wait_until_in_region(x: 1m, y: 0.5m, radius: 0.05m)\n')
+    assert run_document(Task(str(scenario), 0, None)).passed  # in process
+    with SimProcess(publish_rate=20.0, scan_rate=0.0, imu_rate=0.0) as sim:
+        status, output, cases = scenario_execution(
+            ['--simulation', OVER_ROS, scenario],
+            osc_env(tmp_path / 'shim', ROS_DOMAIN_ID=sim.domain_id), tmp_path)
+    assert cases == {'back': None} and status == 0, output[-3000:]
+
+
 def test_a_simulator_under_a_namespace_is_found_by_type(tmp_path):
     """sim_node under /sim: the scenario names that namespace, its services are found there."""
     scenario = tmp_path / 'spawn.osc'
