@@ -205,7 +205,8 @@ def run_document(task: Task) -> Verdict:
     The scenario file is parsed once per process. A document that does not
     fit the scenario (an unknown scenario or parameter) is a failed verdict
     with scenario_execution's one line; so is a task that names no scenario
-    of a file that has several.
+    of a file that has several, and a run whose simulation found a mistake
+    at reset (its ``error``), even when no action of ``osc.r2d2`` ran.
     """
     from r2d2_sim.osc.entry_points import ensure_registered
     ensure_registered()
@@ -241,6 +242,9 @@ def run_document(task: Task) -> Verdict:
     results = execution.results
     passed = bool(results) and all(r.result for r in results)
     reason = '' if passed else _reason(execution, results, logger)
+    error = getattr(simulation, 'error', None)
+    if error:  # a mistake found at reset fails the run, whether or not an action met it
+        passed, reason = False, _line(error)
     outcome = _outcome(simulation, passed, reason, time.perf_counter() - started)
     return Verdict(task.number, name, passed, reason, time.perf_counter() - started, outcome)
 

@@ -59,6 +59,16 @@ def test_a_world_or_named_pose_that_does_not_exist(tmp_path, parameters, says):
     assert '\n' not in verdict.reason
 
 
+def test_a_mistake_found_at_reset_fails_a_run_in_which_no_action_of_ours_runs(tmp_path):
+    """A world that does not exist, then only `wait elapsed`: failed with its one line."""
+    path = write(tmp_path, "    world: string = 'package://r2d2_sim/urdf/nothere.world.yaml'\n"
+                 '    do serial:\n        wait elapsed(0.2s)\n')
+    verdict = run_document(Task(str(path), 0, None))
+    assert not verdict.passed
+    assert verdict.reason == ('world package://r2d2_sim/urdf/nothere.world.yaml: '
+                              'no such world file'), verdict.reason
+
+
 def test_a_parameter_that_cannot_be_fails_its_document_alone(tmp_path):
     """A negative goal_tolerance in document 0: its one line, no traceback; 1 and 2 still run."""
     path = write(tmp_path, '    goal_tolerance: float = 0.2\n'
