@@ -50,9 +50,12 @@ def given(**values: Any) -> None:
             raise ValueError(f'argument {name!r} has no value: give it (it has no default)')
 
 
-def _pose(value: Dict[str, Any]) -> Tuple[Tuple[float, float, float],
-                                          Tuple[float, float, float, float]]:
+def _pose(value: Any, name: str = 'pose') -> Tuple[Tuple[float, float, float],
+                                                  Tuple[float, float, float, float]]:
     """Return (position, orientation x y z w) of an OSC pose_3d's resolved value."""
+    if not (isinstance(value, dict) and isinstance(value.get('position'), dict)
+            and isinstance(value.get('orientation'), dict)):
+        raise ValueError(f'{name} must be a pose_3d (position, orientation), got {value!r}')
     position, orientation = value['position'], value['orientation']
     return ((float(position['x']), float(position['y']), float(position['z'])),
             quaternion_from_rpy(float(orientation['roll']), float(orientation['pitch']),
@@ -153,7 +156,7 @@ class SpawnEntity(SimAction):
     def execute(self, entity_name: str, uri: str, initial_pose: Dict[str, Any],
                 allow_renaming: bool, entity_namespace: str) -> None:
         given(entity_name=entity_name, uri=uri, initial_pose=initial_pose)
-        self.args = (entity_name, uri, _pose(initial_pose), bool(allow_renaming),
+        self.args = (entity_name, uri, _pose(initial_pose, 'initial_pose'), bool(allow_renaming),
                      entity_namespace)
 
     def act(self, port: SimulatorPort) -> Status:
@@ -181,7 +184,7 @@ class SetEntityState(SimAction):
     def execute(self, entity: str, pose: Dict[str, Any], twist: Dict[str, Any],
                 acceleration: Dict[str, Any]) -> None:
         given(entity=entity)
-        self.entity, self.pose, self.twist = entity, _pose(pose), _twist(twist)
+        self.entity, self.pose, self.twist = entity, _pose(pose, 'pose'), _twist(twist)
 
     def act(self, port: SimulatorPort) -> Status:
         port.set_entity_state(self.entity, *self.pose, *self.twist)
@@ -270,6 +273,8 @@ class Drive(_Driving):
                 entity_namespace: str) -> None:
         self.entity, self.namespace = entity, entity_namespace
         self.linear, self.angular, self.duration = float(linear), float(angular), float(duration)
+        if not self.duration >= 0.0:
+            raise ValueError(f'duration must be >= 0, got {self.duration:g} s')
         self.started: Optional[float] = None
 
     def act(self, port: SimulatorPort) -> Status:
@@ -298,6 +303,11 @@ class DriveTo(_Driving):
         self.entity, self.pose_name, self.namespace = entity, pose, entity_namespace
         self.speed, self.stop_distance = float(speed), float(stop_distance)
         self.tolerance = float(tolerance)
+        if not (math.isfinite(self.speed) and self.speed > 0.0):
+            # 0 would stand for ever; a negative speed drives away from the pose.
+            raise ValueError(f'speed must be > 0, got {self.speed:g} m/s')
+        if not (math.isfinite(self.stop_distance) and self.stop_distance >= 0.0):
+            raise ValueError(f'stop_distance must be >= 0, got {self.stop_distance:g} m')
         self.region: Optional[GroundRegion] = None
 
     def act(self, port: SimulatorPort) -> Status:
@@ -412,7 +422,12 @@ class AssertNotTipped(_Check):
     """assert_not_tipped(entity, angle): fails when it leans further than the angle."""
 
     def execute(self, entity: str, angle: float) -> None:
-        self.entity, self.tip_rad = entity, float(angle)
+        given(angle=angle)
+        tip_rad = float(angle)
+        if not 0.0 < tip_rad < math.pi:
+            # Refused here in degrees, over ROS as in process (whose watch says radians).
+            raise ValueError(f'angle must be in (0, 180) deg, got {math.degrees(tip_rad):g} deg')
+        self.entity, self.tip_rad = entity, tip_rad
 
     def broken(self, seen: Watched) -> str:
         if seen.tipped_s is None:

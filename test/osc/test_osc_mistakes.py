@@ -59,6 +59,30 @@ def test_a_world_or_named_pose_that_does_not_exist(tmp_path, parameters, says):
     assert '\n' not in verdict.reason
 
 
+@pytest.mark.parametrize('action, says', [
+    ('drive(linear: 0.5mps, duration: -1s)', 'drive: duration must be >= 0, got -1 s'),
+    ('drive_to(speed: -1mps)', 'drive_to: speed must be > 0, got -1 m/s'),
+    ('drive_to(stop_distance: -1m)', 'drive_to: stop_distance must be >= 0, got -1 m'),
+    ("spawn_entity(entity_name: 'x', uri: 'cube.urdf', initial_pose: 5)",
+     'spawn_entity: initial_pose must be a pose_3d (position, orientation), got 5'),
+    ('assert_not_tipped(angle: 200deg)',
+     'assert_not_tipped: angle must be in (0, 180) deg, got 200 deg'),
+    ('assert_not_tipped(angle: 0deg)', 'assert_not_tipped: angle must be in (0, 180) deg, '
+                                       'got 0 deg'),
+])
+def test_an_argument_that_cannot_be_used_fails_its_action_in_one_line(tmp_path, action, says):
+    """
+    Refuse an argument the action cannot use in one line, when the action starts.
+
+    A negative duration, speed or stop distance, a pose that is no pose, a tip angle out
+    of (0, 180) deg: the same line in process and over ROS (the action says it).
+    """
+    path = write(tmp_path, '    timeout(5s)\n    do serial:\n        ' + action + '\n'
+                 '        wait elapsed(0.5s)\n')
+    verdict = run_document(Task(str(path), 0, None))
+    assert not verdict.passed and verdict.reason == says, verdict.reason
+
+
 def test_a_mistake_found_at_reset_fails_a_run_in_which_no_action_of_ours_runs(tmp_path):
     """A world that does not exist, then only `wait elapsed`: failed with its one line."""
     path = write(tmp_path, "    world: string = 'package://r2d2_sim/urdf/nothere.world.yaml'\n"
