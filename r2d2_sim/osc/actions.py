@@ -50,8 +50,10 @@ def given(**values: Any) -> None:
             raise ValueError(f'argument {name!r} has no value: give it (it has no default)')
 
 
-def _pose(value: Any, name: str = 'pose') -> Tuple[Tuple[float, float, float],
-                                                  Tuple[float, float, float, float]]:
+Pose = Tuple[Tuple[float, float, float], Tuple[float, float, float, float]]
+
+
+def _pose(value: Any, name: str = 'pose') -> Pose:
     """Return (position, orientation x y z w) of an OSC pose_3d's resolved value."""
     if not (isinstance(value, dict) and isinstance(value.get('position'), dict)
             and isinstance(value.get('orientation'), dict)):
