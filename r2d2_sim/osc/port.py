@@ -72,7 +72,12 @@ class SimulatorPort(Protocol):
         """Set 'stopped', 'playing' or 'paused' (SetSimulationState, in lockstep)."""
 
     def command(self, entity: str, namespace: str, linear: float, angular: float) -> None:
-        """Command a robot's velocity (m/s, rad/s) from now until the next command."""
+        """
+        Command a robot's velocity (m/s, rad/s) from now until the next command.
+
+        Or until the robot's ``cmd_vel_timeout`` (0.5 s of simulated time by
+        default) passes without one: then it brakes, as diff_drive_controller does.
+        """
 
     def pose(self, entity: str) -> Pose3:
         """Return an entity's base pose in the world."""
