@@ -89,7 +89,8 @@ def read_documents(path: str) -> List[Optional[Dict[str, Any]]]:
 
     ScenarioError (one line) for a file that cannot be read or a document
     that is not such a mapping. A file without a document is one run with
-    the scenario's defaults ([None]).
+    the scenario's defaults ([None]); a scenario whose value is empty
+    (``name:`` alone) keeps its defaults, as scenario_execution reads it.
     """
     try:
         with open(path, encoding='utf-8') as stream:
@@ -98,7 +99,7 @@ def read_documents(path: str) -> List[Optional[Dict[str, Any]]]:
         raise ScenarioError(f'parameter file {path}: {exc}'.replace('\n', ' ')) from None
     for index, document in enumerate(documents):
         if not (isinstance(document, dict)
-                and all(isinstance(v, dict) for v in document.values())):
+                and all(v is None or isinstance(v, dict) for v in document.values())):
             raise ScenarioError(f'parameter file {path}: document {index} is not '
                                 '{scenario name: {parameter: value}}')
     return list(documents) or [None]
@@ -386,7 +387,7 @@ def _seed_of(task: Task) -> int:
     document = task.document or {}
     for values in ([document[task.scenario]] if task.scenario in document
                    else document.values()):
-        seed = values.get('seed')
+        seed = (values or {}).get('seed')
         if isinstance(seed, int):
             return seed
     return 0

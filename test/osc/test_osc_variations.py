@@ -185,3 +185,19 @@ def test_each_scenario_is_a_case_named_as_scenario_execution_names_it(tmp_path, 
     assert [v.reason for v in verdicts if not v.passed] == ['timed out after 1 s'] * len(suffixes)
     cases = ElementTree.parse(tmp_path / 'ours' / 'test.xml').getroot().findall('testcase')
     assert [c.get('name') for c in cases] == [v.name for v in verdicts]
+
+
+def test_a_scenario_left_empty_in_a_document_keeps_its_defaults(tmp_path):
+    """`a:` with no value (None), as scenario_execution runs it: no overrides, not refused."""
+    from r2d2_sim.osc.variations import DocumentsJob
+    scenario = tmp_path / 'two.osc'
+    scenario.write_text(TWO_SCENARIOS)
+    parameters = tmp_path / 'documents.yaml'
+    parameters.write_text('a:\n---\na:\nb:\n  {}\n')
+    assert read_documents(str(parameters)) == [{'a': None}, {'a': None, 'b': {}}]
+    verdicts = run_variations(str(scenario), str(parameters), str(tmp_path / 'ours'), jobs=1,
+                              report=False)
+    assert [(v.name, v.passed) for v in verdicts] == [
+        ('a-0', True), ('b-0', False), ('a-1', True), ('b-1', False)]
+    tasks = tasks_of(str(scenario), str(parameters))
+    assert [item.seed for item in DocumentsJob(tuple(tasks)).items()] == [0, 0, 0, 0]
