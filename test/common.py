@@ -360,3 +360,20 @@ class FakeGoal:
 
     def abort(self):
         self.ended = 'aborted'
+
+
+# -- the interface build missing: testing/test_interfaces_missing.py, system/test_process_...
+
+def block_package(monkeypatch, package):
+    """Make every import of ``package`` and its modules fail, as if it were not installed."""
+    for name in [n for n in sys.modules if n == package or n.startswith(package + '.')]:
+        monkeypatch.delitem(sys.modules, name)
+    for name in (package, package + '.msg', package + '.srv', package + '.action'):
+        monkeypatch.setitem(sys.modules, name, None)  # import raises ImportError
+
+
+def assert_says_build(error, package):
+    """Assert a raised MissingInterfaceError is one line naming ``package`` and the build."""
+    text = str(error.value)
+    assert '\n' not in text and package in text and 'tools/build_interfaces.sh VENV' in text
+    assert type(error.value).__name__ == 'MissingInterfaceError'

@@ -20,7 +20,8 @@ Names you need (a guide with examples: ``docs/testing.md``; every name:
   robot of several.
 - Errors: :class:`RefusedError` (the simulator refused; ``code`` as the
   standard names it), :class:`StandardError` (a standard service's answer),
-  :class:`HarnessError` (the harness: a deadline, no world loaded),
+  :class:`HarnessError` (the harness: a deadline, no world loaded; its
+  :class:`MissingInterfaceError`: tf2_msgs or simulation_interfaces not built),
   :class:`StartupError` (parameters it cannot start with).
 - Your own processes: :func:`lease_domain` (a ROS domain no other test
   uses), :func:`ros_child_env` (their environment); :func:`wait_for`
@@ -67,7 +68,8 @@ from r2d2_sim.testing import domains
 from r2d2_sim.testing.domains import (
     DOMAIN_LOCK_DIR_ENV, DomainLease, domain_lock_dir, DomainUnavailable, lease_domain)
 from r2d2_sim.testing.executor import (
-    CallbackError, HarnessError, parameter_overrides, RosHarness, SPIN_POLL_S)
+    CallbackError, HarnessError, MissingInterfaceError, parameter_overrides, RosHarness,
+    SPIN_POLL_S)
 from r2d2_sim.testing.harness import LINK_NODE_NAME, SimHarness
 from r2d2_sim.testing.live_view import LiveMessage, LiveViewClient, LiveViewError
 from r2d2_sim.testing.process import (
@@ -82,7 +84,8 @@ from r2d2_sim.testing.world_verbs import EntityInfo, NamedPose, Region, WorldEnt
 
 __all__ = [
     'SimHarness', 'SimProcess', 'RosHarness', 'RemoteProbe', 'ChildProcess',
-    'HarnessError', 'CallbackError', 'StartupError', 'DomainUnavailable', 'DomainLease',
+    'HarnessError', 'CallbackError', 'MissingInterfaceError', 'StartupError',
+    'DomainUnavailable', 'DomainLease',
     'lease_domain', 'domain_lock_dir', 'DOMAIN_IDS', 'DOMAIN_LOCK_DIR_ENV',
     'ProcessResult', 'stop_process', 'sim_node_command', 'parameter_overrides',
     'Pose2D', 'pose_from_odometry', 'spin_until', 'wait_for', 'ros_child_env', 'stamp_ns',

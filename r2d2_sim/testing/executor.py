@@ -5,10 +5,12 @@ One rclpy context on a leased domain, with an executor the caller can take over.
 an rclpy context of its own on a ROS domain no other harness uses, and an
 executor that a thread spins until the caller's thread takes it over to run
 callbacks to idleness itself (lockstep). Errors raised in callbacks come back
-to the caller as :class:`CallbackError`.
+to the caller as :class:`CallbackError`. :func:`import_interface` imports the
+interface packages that are not on PyPI, or says in one line how to get them.
 """
 
 import atexit
+import importlib
 from contextlib import contextmanager
 import math
 import os
@@ -42,6 +44,28 @@ class HarnessError(RuntimeError):
 
 class CallbackError(HarnessError):
     """A callback in the harness's executor raised; the original exception is the cause."""
+
+
+class MissingInterfaceError(HarnessError):
+    """A verb needs an interface package (tf2_msgs, simulation_interfaces) that is not there."""
+
+
+def import_interface(module: str, needed_by: str) -> Any:
+    """
+    Import ``module`` of an interface package not on PyPI (``tf2_msgs.msg``...) and return it.
+
+    A pip-only venv has it only after ``tools/build_interfaces.sh VENV``:
+    without it, :class:`MissingInterfaceError` says so in one line naming
+    ``needed_by`` (the verb), not a traceback from deep in the harness.
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        package = module.split('.')[0]
+        raise MissingInterfaceError(
+            f'{package} is needed by {needed_by} and does not import here ({exc}): source a '
+            f'ROS 2 install that has it, or build it into a pip-only venv with '
+            f'tools/build_interfaces.sh VENV') from None
 
 
 def parameter_overrides(parameters: Mapping[str, Any]) -> List[Parameter]:

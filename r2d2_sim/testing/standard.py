@@ -31,6 +31,7 @@ from rclpy.qos import QoSProfile
 
 from r2d2_sim.client import step_count
 from r2d2_sim.errors import RefusedError
+from r2d2_sim.testing.executor import import_interface
 from r2d2_sim.testing.remote import send_request, Wait
 
 __all__ = ['StandardClient', 'StandardError', 'code_name', 'usual_name', 'interface_of',
@@ -112,13 +113,17 @@ class StandardClient:
     each wait; ``resend_s``: an idempotent query is sent again after this
     long without a reply (None: never); ``deadline`` (``time.monotonic()``
     time, None: none) bounds every wait of every call, whatever its timeout.
+    Without simulation_interfaces it raises
+    :class:`~r2d2_sim.testing.executor.MissingInterfaceError` (one line).
     """
 
     def __init__(self, node: Node, spin_until: Wait, prefix: str = '', timeout_s: float = 30.0,
                  *, names: Optional[Mapping[str, str]] = None,
                  resend_s: Optional[float] = None) -> None:
-        from simulation_interfaces import action, msg, srv
-        self.msg, self.srv, self.action = msg, srv, action
+        needed_by = 'StandardClient (SimProcess.standard, spawn, entities, step_physics...)'
+        self.msg, self.srv, self.action = (
+            import_interface(f'simulation_interfaces.{part}', needed_by)
+            for part in ('msg', 'srv', 'action'))
         self.node = node
         self.spin_until = spin_until
         self.prefix = prefix.rstrip('/')

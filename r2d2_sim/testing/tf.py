@@ -21,7 +21,7 @@ from rclpy.subscription import Subscription
 
 from r2d2_sim.model.tf_buffer import (
     from_tf_message, StampedTransform, TransformBuffer, TransformException)
-from r2d2_sim.testing.executor import HarnessError
+from r2d2_sim.testing.executor import HarnessError, import_interface, MissingInterfaceError
 from r2d2_sim.testing.lockstep import TakenOnDemand
 
 __all__ = ['TfListener', 'TransformLookup', 'TF_QOS', 'TF_STATIC_QOS']
@@ -49,14 +49,14 @@ class TfListener:
     the ``/tf_static`` publishers matched (each latches one message). A
     transform the buffer refuses (a loop, a frame its own parent, NaN) is
     left out and its reason kept in ``refused`` (the first few). Needs tf2_msgs
-    (ImportError without it: ``tools/build_tf2_msgs.sh`` builds it for a
-    pip-only venv).
+    (:class:`~r2d2_sim.testing.executor.MissingInterfaceError` without it:
+    ``tools/build_interfaces.sh VENV`` builds it for a pip-only venv).
     """
 
     def __init__(self, node: Node, buffer: Optional[TransformBuffer] = None,
                  topics: Tuple[str, str] = ('/tf', '/tf_static'), *,
                  on_demand: bool = False) -> None:
-        from tf2_msgs.msg import TFMessage
+        TFMessage = import_interface('tf2_msgs.msg', 'lookup_transform and listen_tf').TFMessage
         self._buffer = buffer if buffer is not None else TransformBuffer()
         self._received = [0, 0]  # dynamic, static
         self.refused: List[str] = []
@@ -194,7 +194,7 @@ class TransformLookup:
         """Listen from the harness's start when tf2_msgs is there (a first lookup then works)."""
         try:
             self.listen_tf()
-        except ImportError:
+        except MissingInterfaceError:
             pass  # no tf2_msgs: lookup_transform says so when it is used
 
     def lookup_transform(self, target_frame: str, source_frame: str,
