@@ -4,6 +4,11 @@
 For users without the ``ros2`` CLI (``ros2 topic pub``)::
 
     drive --linear 0.3 --angular 0.0 --duration 2.0 [--rate 20] [--topic cmd_vel]
+          [--stamped]
+
+``--stamped`` publishes a TwistStamped (stamped now, on the node's clock) for a
+simulator with ``enable_stamped_cmd_vel``; when only a subscriber of the other
+type is there, the error line says to add or drop it.
 
 The command is re-sent at ``--rate`` Hz because the simulator brakes the wheels
 after 0.5 s without one. The duration runs on the node's clock, so
@@ -12,9 +17,9 @@ after 0.5 s without one. The duration runs on the node's clock, so
 
 import argparse
 import sys
-from typing import Callable, Optional, Sequence
+from typing import Any, Callable, List, Optional, Sequence
 
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, TwistStamped
 import rclpy
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
@@ -26,7 +31,7 @@ from rclpy.timer import Timer
 from r2d2_sim.apps.cli import (
     EXIT_INTERRUPTED, finite_number, init_ros, non_ros_args, number_in, raise_if_stopped,
     stop_on_signals, topic_name_arg)
-from r2d2_sim.client import spin_until
+from r2d2_sim.client import spin_until, twist_stamped_message
 from r2d2_sim.ros.parameters import rclpy_parameter_problem
 
 NODE_NAME = 'drive'
@@ -40,15 +45,17 @@ MAX_DURATION_S = 1.0e9
 # --rate: a timer period from 1000 s to 0.1 ms (1e-10 Hz overflowed rcl's timer period,
 # after the command had gone out, and no zero Twist followed), as the simulator's rates.
 RATE_RANGE_HZ = (0.001, 10000.0)
+TWIST_TYPE = 'geometry_msgs/msg/Twist'
+TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the command-line parser (ROS arguments are removed before it runs)."""
     parser = argparse.ArgumentParser(
         prog=NODE_NAME,
-        description='Publish a Twist on cmd_vel at a fixed rate for a duration, then a zero '
-                    'Twist. Add --ros-args -p use_sim_time:=true to time it in simulated '
-                    'seconds.')
+        description='Publish a Twist (or TwistStamped) on cmd_vel at a fixed rate for a '
+                    'duration, then a zero one. Add --ros-args -p use_sim_time:=true to time '
+                    'it in simulated seconds.')
     parser.add_argument('--linear', type=finite_number, default=0.0, metavar='M_S',
                         help='forward speed, linear.x in m/s (default 0)')
     parser.add_argument('--angular', type=finite_number, default=0.0, metavar='RAD_S',
@@ -63,21 +70,29 @@ def build_parser() -> argparse.ArgumentParser:
                              'command (default 20)')
     parser.add_argument('--topic', type=topic_name_arg, default='cmd_vel',
                         help='topic name (default cmd_vel)')
+    parser.add_argument('--stamped', action='store_true',
+                        help='publish geometry_msgs/TwistStamped, stamped now, for a simulator '
+                             'with enable_stamped_cmd_vel (default: geometry_msgs/Twist)')
     return parser
 
 
 class DriveCommand(Node):
-    """Publishes one Twist at a fixed rate for a duration on its clock, then a zero Twist."""
+    """
+    Publishes one Twist at a fixed rate for a duration on its clock, then a zero Twist.
+
+    ``stamped``: a TwistStamped instead, each stamped when it is sent.
+    """
 
     def __init__(self, linear_m_s: float, angular_rad_s: float, duration_s: float,
-                 rate_hz: float, topic: str = 'cmd_vel') -> None:
+                 rate_hz: float, topic: str = 'cmd_vel', stamped: bool = False) -> None:
         super().__init__(NODE_NAME)
         self._twist = Twist()
         self._twist.linear.x = linear_m_s
         self._twist.angular.z = angular_rad_s
         self._duration = Duration(nanoseconds=round(duration_s * 1e9))
         self._period_s = 1.0 / rate_hz
-        self._publisher = self.create_publisher(Twist, topic, 10)
+        self.stamped = stamped
+        self._publisher = self.create_publisher(TwistStamped if stamped else Twist, topic, 10)
         self._start: Optional[Time] = None  # both from start() on
         self._timer: Optional[Timer] = None
         self.done = False
@@ -88,6 +103,20 @@ class DriveCommand(Node):
         return spin_until(executor, lambda: self._publisher.get_subscription_count() > 0,
                           timeout_s, abort)
 
+    def other_type_subscribers(self) -> List[str]:
+        """Return the nodes subscribing the topic as the other type (Twist or TwistStamped)."""
+        other = TWIST_TYPE if self.stamped else TWIST_STAMPED_TYPE
+        return sorted({f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+                       for info in self.get_subscriptions_info_by_topic(self.topic)
+                       if info.topic_type == other})
+
+    def _publish(self, twist: Twist) -> None:
+        message: Any = twist
+        if self.stamped:
+            message = twist_stamped_message(stamp_ns=self.get_clock().now().nanoseconds,
+                                            twist=twist)
+        self._publisher.publish(message)
+
     def wait_for_clock(self, executor: Executor, timeout_s: float,
                        abort: Optional[Callable[[], bool]] = None) -> bool:
         """Spin until the clock runs (with use_sim_time it reads 0 until /clock arrives)."""
@@ -97,7 +126,7 @@ class DriveCommand(Node):
     def start(self) -> None:
         """Publish the command now and from then on at the rate, on the node's clock."""
         self._start = self.get_clock().now()
-        self._publisher.publish(self._twist)
+        self._publish(self._twist)
         self._timer = self.create_timer(self._period_s, self._on_timer)
 
     def _on_timer(self) -> None:
@@ -107,7 +136,7 @@ class DriveCommand(Node):
         if self.get_clock().now() - self._start >= self._duration:
             self.stop()
         else:
-            self._publisher.publish(self._twist)
+            self._publish(self._twist)
 
     def stop(self) -> None:
         """
@@ -124,13 +153,26 @@ class DriveCommand(Node):
         self.done = True
         if self._timer is not None:
             self._timer.cancel()
-        self._publisher.publish(Twist())
+        self._publish(Twist())
         self._publisher.wait_for_all_acked(Duration(seconds=STOP_LINGER_S))
 
     @property
     def topic(self) -> str:
         """Return the fully resolved topic name."""
         return self._publisher.topic_name
+
+
+def no_subscriber_problem(node: DriveCommand) -> str:
+    """Say why nothing took the command: a subscriber of the other type, or none at all."""
+    others = node.other_type_subscribers()
+    if others:
+        mine, theirs = ((TWIST_STAMPED_TYPE, TWIST_TYPE) if node.stamped
+                        else (TWIST_TYPE, TWIST_STAMPED_TYPE))
+        return (f'nothing subscribed to {node.topic} as {mine} within '
+                f'{DISCOVERY_TIMEOUT_S:g} s, but {", ".join(others)} subscribes to it as '
+                f'{theirs}: {"drop --stamped" if node.stamped else "use --stamped"}')
+    return (f'nothing subscribed to {node.topic} within {DISCOVERY_TIMEOUT_S:g} s: is the '
+            'simulator running (same ROS_DOMAIN_ID)?')
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:
@@ -150,13 +192,11 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     executor = SingleThreadedExecutor()
     try:
         node = DriveCommand(options.linear, options.angular, options.duration,
-                            options.rate, options.topic)
+                            options.rate, options.topic, options.stamped)
         executor.add_node(node)
         if not node.wait_for_subscriber(executor, DISCOVERY_TIMEOUT_S, stop.is_set):
             raise_if_stopped(stop)
-            print(f'{NODE_NAME}: error: nothing subscribed to {node.topic} within '
-                  f'{DISCOVERY_TIMEOUT_S:g} s: is the simulator running (same '
-                  'ROS_DOMAIN_ID)?', file=sys.stderr)
+            print(f'{NODE_NAME}: error: {no_subscriber_problem(node)}', file=sys.stderr)
             return 1
         if not node.wait_for_clock(executor, DISCOVERY_TIMEOUT_S, stop.is_set):
             raise_if_stopped(stop)

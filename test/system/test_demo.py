@@ -391,3 +391,59 @@ def _assert_camera_picture(path):
     assert pixels.shape[:2] == (240, 320)
     top, bottom = pixels[:40].mean(axis=(0, 1)), pixels[-40:].mean(axis=(0, 1))
     assert abs(top - bottom).sum() > 0.05
+
+
+# --------------------------------------------------------------------------- drive --stamped
+
+def run_drive(domain_id, *args):
+    """Start ``drive`` with ``args`` in the test's domain; return its Popen."""
+    drive = subprocess.Popen([sys.executable, '-m', 'r2d2_sim.apps.drive', *args],
+                             env=ros_env(domain_id), cwd=REPO_ROOT, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    return drive
+
+
+@pytest.mark.parametrize('stamped', [False, True], ids=['Twist', '--stamped'])
+def test_drive_names_the_type_a_subscriber_of_the_other_type_wants(
+        ros_probe, domain_id, stamped):
+    """A simulator with enable_stamped_cmd_vel (or without): the line says what to change."""
+    from geometry_msgs.msg import Twist, TwistStamped
+
+    from r2d2_sim.client import spin_until
+
+    node, executor = ros_probe
+    node.create_subscription(Twist if stamped else TwistStamped, 'cmd_vel', lambda m: None, 10)
+    drive = run_drive(domain_id, '--linear', '0.3', *(['--stamped'] if stamped else []))
+    try:
+        spin_until(executor, lambda: drive.poll() is not None, 20.0)  # answer discovery
+    finally:
+        status, _, stderr = stop_process(drive)
+    mine, theirs = ('TwistStamped', 'Twist') if stamped else ('Twist', 'TwistStamped')
+    assert status == 1
+    assert stderr.strip().splitlines() == [
+        f'drive: error: nothing subscribed to /cmd_vel as geometry_msgs/msg/{mine} within 5 s, '
+        f'but /drive_test_probe subscribes to it as geometry_msgs/msg/{theirs}: '
+        + ('drop --stamped' if stamped else 'use --stamped')]
+
+
+def test_drive_stamped_publishes_twist_stamped_stamped_now(ros_probe, domain_id):
+    """--stamped: TwistStamped commands stamped on drive's clock, then a zero one."""
+    from geometry_msgs.msg import TwistStamped
+
+    from r2d2_sim.client import spin_until
+
+    node, executor = ros_probe
+    received = []
+    node.create_subscription(TwistStamped, 'cmd_vel', received.append, 10)
+    before_ns = time.time_ns()
+    drive = run_drive(domain_id, '--linear', '0.3', '--duration', '0.5', '--stamped')
+    try:
+        finished = spin_until(executor, lambda: drive.poll() is not None, 20.0)
+        spin_until(executor, lambda: received and received[-1].twist.linear.x == 0.0, 5.0)
+    finally:
+        status, _, stderr = stop_process(drive)
+    assert finished and status == 0, stderr
+    assert [m.twist.linear.x for m in received][:1] == [0.3]
+    assert received[-1].twist.linear.x == 0.0
+    stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in received]
+    assert before_ns <= stamps[0] <= stamps[-1] <= time.time_ns()
