@@ -16,6 +16,7 @@ after 0.5 s without one. The duration runs on the node's clock, so
 """
 
 import argparse
+import os
 import sys
 from typing import Any, Callable, List, Optional, Sequence
 
@@ -185,6 +186,9 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     """
     argv = list(sys.argv if args is None else args)
     options = build_parser().parse_args(non_ros_args(argv, NODE_NAME))
+    # Discovery stays on this host unless the user says otherwise, as the .venv/bin/drive
+    # wrapper and demo keep it (python -m has no wrapper); set before rclpy.init.
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     stop = stop_on_signals()
     if not init_ros(argv, NODE_NAME):
         return 2
