@@ -75,7 +75,11 @@ def display():
                     '(needs root and apt-get: Debian package xvfb)')
     # Xvfb picks a free display itself and writes its number down the pipe once it takes
     # connections (-displayfd): a socket file seen on disk could be a stale one, and the
-    # display not ready ("cannot connect to X server", seen once in CI).
+    # display not ready ("cannot connect to X server", seen once in CI). It writes the
+    # number again later (after its first client left, the node's check of the display:
+    # with -noreset too, measured): to a closed pipe that is a fatal error ("Cannot write
+    # display number to fd 4"), and the window then found no display, in about half the
+    # runs. So the pipe stays open as long as the server.
     read_end, write_end = os.pipe()
     process = subprocess.Popen(
         [binary, '-displayfd', str(write_end), '-screen', '0', '800x600x24', '-nolisten', 'tcp'],
@@ -84,15 +88,9 @@ def display():
     try:
         ready, _, _ = select.select([read_end], [], [], 10.0)
         reported = os.read(read_end, 16).strip() if ready else b''
-    finally:
-        os.close(read_end)
-    if not reported.isdigit():
-        process.kill()
-        process.wait()
-        raise AssertionError('Xvfb reported no display within 10 s')
-    number = int(reported)
-    try:
-        yield f':{number}'
+        if not reported.isdigit():
+            raise AssertionError('Xvfb reported no display within 10 s')
+        yield f':{int(reported)}'
     finally:
         process.terminate()
         try:
@@ -100,6 +98,7 @@ def display():
         except subprocess.TimeoutExpired:
             process.kill()
             process.wait()
+        os.close(read_end)
 
 
 def test_gui_runs_paced_with_the_camera_following(display):
