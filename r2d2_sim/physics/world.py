@@ -79,14 +79,14 @@ def _found(path: str) -> str:
     return os.path.join(pybullet_data.getDataPath(), path)
 
 
-def unique_name(taken: Container[str], wanted: str) -> str:
-    """Return ``wanted``, or with the first ``_1``, ``_2``... suffix not ``taken``."""
-    if wanted not in taken:
-        return wanted
-    suffix = 1
-    while f'{wanted}_{suffix}' in taken:
+def unique_name(taken: Container[str], wanted: str,
+                usable: Callable[[str], bool] = lambda name: True) -> str:
+    """Return ``wanted``, or with the first ``_1``, ``_2``... suffix not ``taken``, ``usable``."""
+    name, suffix = wanted, 0
+    while name in taken or not usable(name):
         suffix += 1
-    return f'{wanted}_{suffix}'
+        name = f'{wanted}_{suffix}'
+    return name
 
 
 def display_problem(environ: Mapping[str, str] = os.environ) -> Optional[str]:
@@ -128,7 +128,6 @@ def display_problem(environ: Mapping[str, str] = os.environ) -> Optional[str]:
         finally:
             sock.close()
     return f'gui needs a display, and none answers at DISPLAY={display} ({reason})'
-    return None
 
 
 class WorldBuild:
@@ -278,9 +277,9 @@ class SimWorld:
         """
         return self.name_rule(urdf_name or os.path.splitext(os.path.basename(path))[0])
 
-    def unique_name(self, wanted: str) -> str:
-        """Return ``wanted``, or with the first free ``_1``, ``_2``... suffix when taken."""
-        return unique_name(self.bodies, wanted)
+    def unique_name(self, wanted: str, usable: Callable[[str], bool] = lambda name: True) -> str:
+        """Return ``wanted``, or with the first free (and ``usable``) ``_1``, ``_2``... suffix."""
+        return unique_name(self.bodies, wanted, usable)
 
     def load(self, path: str, position: Vec3 = (0.0, 0.0, 0.0),
              orientation: Quat = IDENTITY_QUATERNION, *, name: Optional[str] = None,

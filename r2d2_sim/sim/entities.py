@@ -12,7 +12,6 @@ that never quotes a file; what a spawn may load is checked in
 :mod:`r2d2_sim.sim.spawnables`.
 """
 
-import itertools
 import math
 from typing import Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple, \
     TYPE_CHECKING
@@ -365,8 +364,7 @@ class Entities:
             if wanted in self._world.bodies:
                 raise RefusedError('NAME_NOT_UNIQUE', f'an entity named {wanted!r} exists')
             return wanted
-        names = itertools.chain([wanted], (f'{wanted}_{n}' for n in itertools.count(1)))
-        return next(name for name in names if name not in self._world.bodies and usable(name))
+        return self._world.unique_name(wanted, usable)
 
     def delete(self, name: str) -> None:
         """Remove an entity, spawned or there at start-up (a full reset brings those back)."""
