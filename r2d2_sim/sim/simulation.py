@@ -521,7 +521,7 @@ class Simulation:
         body, description, notes = self.entities.spawn(
             request, flags=self.world.robot_flags,
             body_yaw_offset_rad=self.config.body_yaw_offset_rad, spawnable=spawnable,
-            usable=lambda name: self._frames_holder(name) is None)  # renamed till they are free
+            usable=self._frames_free)  # renamed till its frames are free
         if notes:
             self._warn(f'{body.name}: {notes}')
         base = body.world_state()
@@ -584,19 +584,22 @@ class Simulation:
 
     def _check_frames_free(self, config: SimConfig) -> None:
         """Refuse a robot whose frames would be another's on the shared /tf."""
-        holder = self._frames_holder('', config)
+        holder = self._frames_holder(config)
         if holder is not None:
             raise RefusedError('NAME_NOT_UNIQUE', f'robot {holder.name} publishes its frames '
                                f'with the prefix {config.frame_prefix!r} already: name the '
                                'new robot otherwise')
 
-    def _frames_holder(self, name: str, config: Optional[SimConfig] = None) -> Optional[Robot]:
-        """Return the robot whose frames a spawned robot ``name`` would publish as its own."""
-        if config is None:
-            try:
-                config = robot_config(self.config, name)
-            except ConfigError:
-                return None  # refused when the robot is made
+    def _frames_free(self, name: str) -> bool:
+        """Return True unless a robot spawned as ``name`` would publish another's frames."""
+        try:
+            config = robot_config(self.config, name)
+        except ConfigError:
+            return True  # refused when the robot is made
+        return self._frames_holder(config) is None
+
+    def _frames_holder(self, config: SimConfig) -> Optional[Robot]:
+        """Return the robot whose frames a robot of ``config`` would publish as its own."""
         if config.tf_layout != 'shared':
             return None
         return next((robot for robot in self.robots
