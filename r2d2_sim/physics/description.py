@@ -11,7 +11,7 @@ from pathlib import Path
 import stat
 import sys
 import tempfile
-from typing import Callable, Dict, List, NamedTuple, Optional, Set
+from typing import Callable, Dict, List, NamedTuple, Optional, Set, Tuple
 import xml.etree.ElementTree as ElementTree
 
 import numpy
@@ -144,17 +144,18 @@ def check_urdf_xml(text: str, source: str) -> ElementTree.Element:
     return root
 
 
-def read_urdf(path: str) -> str:
+def read_urdf(path: str) -> Tuple[str, ElementTree.Element]:
     """
-    Return the text of the URDF file ``path``, checked as every URDF of the operator's is.
+    Return the URDF file ``path``'s text and ``<robot>``, checked as the operator's URDFs are.
 
     Its tree and numbers (:func:`check_urdf`) and the mesh files PyBullet
     would open (:func:`check_mesh_files`); DescriptionError (one line,
     ``cannot load path: problem``) otherwise.
     """
     text = read_description(path)
-    check_mesh_files(check_urdf_xml(text, path), path, f'cannot load {path}')
-    return text
+    root = check_urdf_xml(text, path)
+    check_mesh_files(root, path, f'cannot load {path}')
+    return text, root
 
 
 def urdf_robot_name(path: str) -> str:
@@ -569,8 +570,8 @@ class RobotDescription(NamedTuple):
                 raise
             return RobotDescription(temporary.path, text, temporary)
         path = resolve_description_path(urdf) if urdf else default_urdf_path()
-        text = read_urdf(path)
-        check_robot_inertias(ElementTree.fromstring(text), f'cannot load {path}')
+        text, root = read_urdf(path)
+        check_robot_inertias(root, f'cannot load {path}')
         return RobotDescription(path, text, None)
 
     def close(self) -> None:
